@@ -1,0 +1,1 @@
+"""Orchestration: procedure models, loading, planning, plugin registry, runner, recording."""

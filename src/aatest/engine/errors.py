@@ -1,0 +1,96 @@
+"""One exception tree for aatest.
+
+Every error a user can cause or a rig can raise derives from :class:`AatestError`, carries the
+process exit code the CLI must use, and also derives from the built-in it resembles so callers
+may catch either. Library and vendor errors are translated at the plugin boundary with
+``raise ... from exc``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+EXIT_OK = 0
+EXIT_FINDING = 1
+EXIT_BAD_INPUT = 2
+EXIT_RIG_FAULT = 3
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One located problem in an input file: ``FILE:LINE:COLUMN: field: message``."""
+
+    file: str
+    line: int
+    column: int
+    field: str
+    message: str
+
+    def __str__(self) -> str:
+        where = f"{self.file}:{self.line}:{self.column}"
+        return f"{where}: {self.field}: {self.message}" if self.field else f"{where}: {self.message}"
+
+
+class AatestError(Exception):
+    """Base of every aatest error; ``exit_code`` is what the CLI returns."""
+
+    exit_code: int = EXIT_BAD_INPUT
+
+
+class InputError(AatestError, ValueError):
+    """A user-supplied file or argument is wrong (exit 2)."""
+
+
+class ProblemsError(InputError):
+    """Several located problems in one input file, reported all at once."""
+
+    def __init__(self, problems: list[Problem]) -> None:
+        self.problems = list(problems)
+        super().__init__("\n".join(str(p) for p in self.problems))
+
+
+class ProcedureError(ProblemsError):
+    """The procedure YAML is malformed or does not match the schema."""
+
+
+class EnvelopeError(ProblemsError):
+    """A planned step leaves the rig or sensor envelope."""
+
+
+class ImportDataError(InputError):
+    """A measured-data import directory or one of its CSV files is malformed."""
+
+    def __init__(self, path: str | Path, message: str, line: int | None = None) -> None:
+        self.path = str(path)
+        self.line = line
+        where = f"{self.path}:{line}" if line is not None else self.path
+        super().__init__(f"{where}: {message}")
+
+
+class RecordingError(InputError):
+    """A recording is missing, truncated or not an aatest recording."""
+
+
+class PluginError(AatestError, LookupError):
+    """A plugin is missing, fails validation, or was given a bad configuration."""
+
+
+class AnalysisError(AatestError, ValueError):
+    """The data cannot support the requested analysis (e.g. no sync edges)."""
+
+
+class RigFault(AatestError, RuntimeError):
+    """The rig failed: connection lost, timeout, fault bit, bus-off (exit 3)."""
+
+    exit_code = EXIT_RIG_FAULT
+
+
+class EnvelopeRefused(RigFault):
+    """A controller refused a command outside its limits (a rig-side guard tripped)."""
+
+
+class VerificationFailed(AatestError):
+    """A signed bundle does not verify (exit 1)."""
+
+    exit_code = EXIT_FINDING

@@ -1,0 +1,210 @@
+"""The plugin interfaces, one ``Protocol`` per kind and one entry-point group per kind.
+
+Flow: the runner asks the *chamber* for a temperature, the *turntable* to move and record, the
+*daq* to record the sensors and emit the sync pulse/trigger; the recording is then read back
+by *analysis* plugins (``sync`` first) and their results rendered by a *report* plugin.
+
+Every plugin class has a nested pydantic ``Config`` (``extra="forbid"``) and is constructed as
+``PluginClass(config, context)``. Simulated plugins share the digital twin through
+``RigContext.shared``; real drivers ignore it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.logs import SampledLog
+from aatest.engine.steps import PlannedStep, SensorRef
+
+#: entry-point group per plugin kind
+GROUPS: dict[str, str] = {
+    "turntable": "aatest.turntables",
+    "daq": "aatest.daqs",
+    "chamber": "aatest.chambers",
+    "sensor": "aatest.sensors",
+    "analysis": "aatest.analyses",
+    "report": "aatest.reports",
+}
+
+
+class AxisLimits(BaseModel):
+    """Limits of one table axis; ``continuous`` axes have no position stops."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    rate_dps: float = Field(gt=0)
+    accel_dps2: float = Field(gt=0)
+    continuous: bool = True
+    min_deg: float = -180.0
+    max_deg: float = 180.0
+
+
+class TableEnvelope(BaseModel):
+    """What a turntable can do; the planner checks every step against it."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    inner: AxisLimits = AxisLimits(rate_dps=1200.0, accel_dps2=1000.0)
+    outer: AxisLimits = AxisLimits(rate_dps=500.0, accel_dps2=200.0)
+    max_log_rate_hz: float = 2000.0
+    log_capacity_samples: int = 230_000
+    #: usable terminal frequency with payload (method.md §1.2: 10 Hz, not 11.25 Hz)
+    max_frequency_hz: float = 10.0
+
+
+class SensorDatasheet(BaseModel):
+    """Datasheet of a sensor model: the envelope and the nominals analyses compare against."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    model: str
+    range_dps2: float = 572.958
+    nominal_bias_v: float = 2.5
+    bias_tolerance_v: float = 0.01
+    scale_v_per_dps2: float = 0.004014
+    scale_tolerance_pct: float = 1.0
+    noise_rms_v: float = 0.003
+    #: fraction of range a test may command (method.md §4.4: 80 %)
+    test_ceiling_fraction: float = 0.8
+    #: smallest useful peak acceleration (noise floor, method.md §4.4: 0.8 °/s²)
+    floor_dps2: float = 0.8
+    bias_temperature_limit_v_per_c: float = 0.0004
+    scale_temperature_limit_per_c: float = 0.0005
+    cross_axis_limit: float = 0.01
+    misalignment_limit_deg: float = 0.5
+    #: channel name → sensitive axis in the table frame (I, O, P)
+    channels: Mapping[str, str] = Field(default_factory=lambda: {"v_sz": "I"})
+
+    def sensor_infos(self, serial: str) -> tuple[SensorInfo, ...]:
+        return tuple(
+            SensorInfo(
+                channel=ch,
+                axis=ax,  # type: ignore[arg-type]
+                nominal_bias_v=self.nominal_bias_v,
+                nominal_scale_v_per_dps2=self.scale_v_per_dps2,
+                range_dps2=self.range_dps2,
+                model=self.model,
+                serial=serial,
+                noise_rms_v=self.noise_rms_v,
+                bias_tolerance_v=self.bias_tolerance_v,
+                scale_tolerance_pct=self.scale_tolerance_pct,
+                bias_temperature_limit_v_per_c=self.bias_temperature_limit_v_per_c,
+                scale_temperature_limit_per_c=self.scale_temperature_limit_per_c,
+            )
+            for ch, ax in self.channels.items()
+        )
+
+
+@dataclass
+class RigContext:
+    """What the engine hands every rig plugin at construction."""
+
+    sensor: SensorRef
+    datasheet: SensorDatasheet
+    seed: int = 0
+    #: objects shared between plugins of one rig (the simulated ones share the twin here)
+    shared: dict[str, Any] = field(default_factory=dict)
+
+
+@runtime_checkable
+class SensorPlugin(Protocol):
+    """A sensor model: its datasheet (and, for the twin, its default error model)."""
+
+    def datasheet(self) -> SensorDatasheet: ...
+
+
+@runtime_checkable
+class Turntable(Protocol):
+    """A motion simulator with its controller and its own logger (the table clock)."""
+
+    def envelope(self) -> TableEnvelope: ...
+
+    def start(self) -> None:
+        """Connect, clear faults, switch the motor on."""
+
+    def move_to(self, inner_deg: float, outer_deg: float) -> None:
+        """Position both axes and wait until they are in position."""
+
+    def begin_motion(self, step: PlannedStep) -> None:
+        """Start the step's motion profile and let it settle for ``step.settle_s``."""
+
+    def record(self, step: PlannedStep) -> SampledLog:
+        """Log ``step.samples`` samples, started by the DAQ trigger; return the table log."""
+
+    def end_motion(self) -> None:
+        """Bring the table to rest at the step's start position."""
+
+    def safe_stop(self) -> None:
+        """Stop motion and switch the motor off; must never raise and be idempotent."""
+
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class Daq(Protocol):
+    """The on-table sensor logger: its own clock, sensor channels, sync pulse and trigger."""
+
+    def channels(self) -> Sequence[str]: ...
+
+    def start(self) -> None: ...
+
+    def start_logging(self, step: PlannedStep) -> None:
+        """Start logging and the trigger (the table log starts on it)."""
+
+    def stop_logging(self) -> SampledLog:
+        """Stop logging (a little after the table log ends) and return the DAQ log."""
+
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class Chamber(Protocol):
+    """A temperature chamber (or none)."""
+
+    def set_temperature(self, setpoint_c: float) -> None: ...
+
+    def wait_stable(self, soak_s: float) -> float:
+        """Wait for stabilisation; return the sensor temperature reached (°C)."""
+
+    def off(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass
+class AnalysisOutput:
+    """What one analysis adds: JSON-able values under its key, and SVG figures for reports."""
+
+    values: Any
+    figures: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass
+class AnalysisContext:
+    """Shared state of one analysis pass (earlier results, cached synchronised steps)."""
+
+    results: dict[str, Any] = field(default_factory=dict)
+    cache: dict[str, Any] = field(default_factory=dict)
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+@runtime_checkable
+class Analysis(Protocol):
+    """Reads a :class:`Dataset` and returns the values stored under ``results.analysis[key]``."""
+
+    key: ClassVar[str]
+
+    def applies_to(self, data: Dataset) -> bool:
+        """False when the data has nothing for this analysis (the engine then skips it)."""
+
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput: ...
+
+
+@runtime_checkable
+class Reporter(Protocol):
+    """Renders results into a report file in ``run_dir`` and returns its path."""
+
+    def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path: ...

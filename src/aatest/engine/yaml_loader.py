@@ -1,0 +1,118 @@
+"""Safe YAML loading that remembers where every value came from.
+
+pydantic reports errors by path (``steps.3.sine.frequency_hz``); this module maps each path
+back to the line and column in the file, so every problem prints as
+``FILE:LINE:COLUMN: field: message`` and all problems are reported at once.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ValidationError
+from ruamel.yaml import YAML
+from ruamel.yaml.comments import CommentedMap, CommentedSeq
+from ruamel.yaml.error import MarkedYAMLError, YAMLError
+
+from aatest.engine.errors import Problem, ProcedureError
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def _plain(node: Any) -> Any:
+    """Round-trip nodes → plain dicts/lists/scalars (pydantic must not see ruamel types)."""
+    if isinstance(node, CommentedMap):
+        return {str(k) if not isinstance(k, (int, float, bool)) else k: _plain(v) for k, v in node.items()}
+    if isinstance(node, CommentedSeq):
+        return [_plain(v) for v in node]
+    if isinstance(node, str):
+        return str(node)
+    if isinstance(node, bool):
+        return bool(node)
+    if isinstance(node, int):
+        return int(node)
+    if isinstance(node, float):
+        return float(node)
+    return node
+
+
+def parse_yaml(text: str, filename: str) -> tuple[Any, Any]:
+    """Parse YAML safely; return (round-trip tree with positions, plain data).
+
+    The round-trip loader builds only plain mappings, sequences and scalars (no Python objects,
+    no tags executed), so this is as safe as ``yaml.safe_load``.
+    """
+    yaml = YAML(typ="rt")
+    yaml.allow_duplicate_keys = False
+    try:
+        tree = yaml.load(text)
+    except MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+        msg = " ".join(str(p) for p in (exc.context, exc.problem) if p) or "invalid YAML"
+        raise ProcedureError([Problem(filename, line, col, "", f"YAML syntax: {msg}")]) from exc
+    except (YAMLError, ValueError, TypeError) as exc:
+        raise ProcedureError([Problem(filename, 1, 1, "", f"YAML: {exc}")]) from exc
+    return tree, _plain(tree)
+
+
+def locate(tree: Any, path: tuple[Any, ...]) -> tuple[int, int]:
+    """Line and column (1-based) of the deepest node of ``path`` present in ``tree``."""
+    line, col = 1, 1
+    node = tree
+    for key in path:
+        if isinstance(node, CommentedMap) and key in node:
+            try:
+                line, col = node.lc.key(key)
+                line, col = line + 1, col + 1
+            except (KeyError, TypeError, AttributeError):
+                pass
+            node = node[key]
+        elif isinstance(node, CommentedSeq) and isinstance(key, int) and 0 <= key < len(node):
+            try:
+                line, col = node.lc.item(key)
+                line, col = line + 1, col + 1
+            except (KeyError, TypeError, AttributeError, IndexError):
+                pass
+            node = node[key]
+        else:
+            break
+    return line, col
+
+
+def problems_from_validation(exc: ValidationError, tree: Any, filename: str) -> list[Problem]:
+    """One located problem per pydantic error."""
+    problems = []
+    for err in exc.errors(include_url=False):
+        loc = tuple(err.get("loc", ()))
+        # pydantic inserts union-member tags (e.g. 'function-after[...]') into paths; skip them
+        path = tuple(p for p in loc if isinstance(p, int) or "[" not in str(p))
+        line, col = locate(tree, path)
+        field = ".".join(str(p) for p in path)
+        problems.append(Problem(filename, line, col, field, err.get("msg", "invalid")))
+    return problems
+
+
+def validate_tree(model: type[M], tree: Any, data: Any, filename: str) -> M:
+    """Validate plain ``data`` against ``model``; raise one error listing every problem."""
+    if not isinstance(data, dict):
+        raise ProcedureError([Problem(filename, 1, 1, "", "expected a mapping at the top level")])
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise ProcedureError(problems_from_validation(exc, tree, filename)) from exc
+
+
+def read_text(path: Path) -> str:
+    """Read a UTF-8 input file, translating OS errors into a located input error."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ProcedureError([Problem(str(path), 1, 1, "", f"cannot read file: {exc}")]) from exc
+
+
+def load_model_file(path: Path, model: type[M]) -> M:
+    """Load and validate one YAML file as ``model``."""
+    tree, data = parse_yaml(read_text(path), str(path))
+    return validate_tree(model, tree, data, str(path))
