@@ -1,0 +1,66 @@
+"""The run directory's small state file, so ``--resume`` knows what it is continuing.
+
+Recorded steps are known from the atomic per-step recording files; this file adds what the
+recording cannot show (the procedure hash the run belongs to, seed, finished chamber steps,
+wall time spent so far). It is replaced atomically on every change.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from aatest.engine.errors import InputError
+
+STATE_FILE = "run_state.json"
+
+
+@dataclass
+class RunState:
+    procedure: str
+    procedure_sha256: str
+    seed: int
+    chamber_steps_done: list[str] = field(default_factory=list)
+    wall_duration_s: float = 0.0
+    prompts_shown: list[str] = field(default_factory=list)
+    finished: bool = False
+
+    def save(self, run_dir: Path) -> None:
+        tmp = run_dir / (STATE_FILE + ".tmp")
+        with tmp.open("w", encoding="utf-8") as fh:
+            json.dump(asdict(self), fh, indent=2)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, run_dir / STATE_FILE)
+
+    @classmethod
+    def load(cls, run_dir: Path) -> RunState:
+        path = run_dir / STATE_FILE
+        try:
+            return cls(**json.loads(path.read_text(encoding="utf-8")))
+        except FileNotFoundError as exc:
+            raise InputError(f"{run_dir}: nothing to resume (no {STATE_FILE})") from exc
+        except (json.JSONDecodeError, TypeError) as exc:
+            raise InputError(f"{path}: unreadable run state: {exc}") from exc
+
+
+def open_state(run_dir: Path, procedure: str, sha256: str, seed: int, resume: bool) -> RunState:
+    """New state for a fresh run, or the saved one for ``--resume`` (same procedure only)."""
+    if not resume:
+        if (run_dir / STATE_FILE).exists():
+            raise InputError(
+                f"{run_dir} already holds a run; use --resume to continue it or choose another --out"
+            )
+        run_dir.mkdir(parents=True, exist_ok=True)
+        state = RunState(procedure, sha256, seed)
+        state.save(run_dir)
+        return state
+    state = RunState.load(run_dir)
+    if state.procedure_sha256 != sha256:
+        raise InputError(
+            f"{run_dir}: the procedure file changed since the run started "
+            f"(sha256 {state.procedure_sha256[:12]}… vs {sha256[:12]}…); resume refused"
+        )
+    return state

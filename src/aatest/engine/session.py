@@ -1,0 +1,173 @@
+"""What each CLI command does, end to end, without any CLI concerns.
+
+procedure → plan → envelope → rig → runner → recording → analyses → results → report → signature
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from aatest.engine import registry
+from aatest.engine.analyses import run_analyses
+from aatest.engine.errors import InputError
+from aatest.engine.results import build_results, read_results, write_results
+from aatest.engine.rig import build_rig, sensor_datasheet
+from aatest.engine.run_state import STATE_FILE, RunState, open_state
+from aatest.engine.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
+from aatest.engine.steps import Plan
+
+SIGNING_KEY_ENV = "AATEST_SIGNING_KEY"
+PASSPHRASE_ENV = "AATEST_SIGNING_PASSPHRASE"
+
+
+@dataclass
+class Prepared:
+    """A validated procedure ready to run: its text, plan and rig configuration."""
+
+    path: Path
+    text: str
+    plan: Plan
+    rig_config: Any
+
+
+def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
+    """Load, expand and envelope-check a procedure; nothing moves."""
+    from aatest.engine.envelope import check_envelope
+    from aatest.engine.loader import load_procedure, load_rig, rig_from_procedure
+    from aatest.engine.planner import expand
+
+    proc = load_procedure(procedure)
+    plan = expand(proc)
+    rig_config = load_rig(rig_file) if rig_file else rig_from_procedure(proc)
+    datasheet, _ = sensor_datasheet(plan.sensor)
+    envelope = _declared_envelope(rig_config, plan, datasheet)
+    check_envelope(plan, envelope, datasheet, procedure_file=str(procedure))
+    return Prepared(procedure, procedure.read_text(encoding="utf-8"), plan, rig_config)
+
+
+def _declared_envelope(rig_config: Any, plan: Plan, datasheet: Any) -> Any:
+    """The envelope the turntable plugin declares (constructing a plugin never moves it)."""
+    rig = build_rig(rig_config, plan.sensor, seed=0)
+    try:
+        return rig.turntable.envelope()
+    finally:
+        rig.turntable.close()
+        rig.daq.close()
+        rig.chamber.close()
+
+
+def signing_key(explicit: Path | None) -> Path | None:
+    if explicit is not None:
+        return explicit
+    env = os.environ.get(SIGNING_KEY_ENV)
+    return Path(env) if env else None
+
+
+def analyse_and_report(
+    data_path: Path,
+    out_dir: Path,
+    template: str | None = None,
+    template_dir: Path | None = None,
+    key_path: Path | None = None,
+    lab_duration_s: float | None = None,
+    wall_duration_s: float | None = None,
+) -> dict[str, Any]:
+    """Read a recording/import, run its analyses, write results.json and the signed report."""
+    from aatest.engine.recording import read_dataset
+
+    data = read_dataset(data_path)
+    requested = list(data.metadata.get("analysis", []))
+    analysis = run_analyses(data, requested)
+    lab = lab_duration_s if lab_duration_s is not None else sum(
+        s.step.lab_duration_s for s in data.steps
+    )
+    results = build_results(data, analysis, lab, wall_duration_s or 0.0)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    report_name = template or data.metadata.get("report_template") or "calibration-certificate"
+    render_and_sign(results, out_dir, report_name, template_dir, key_path)
+    return results
+
+
+def render_and_sign(
+    results: dict[str, Any],
+    run_dir: Path,
+    template: str,
+    template_dir: Path | None,
+    key_path: Path | None,
+) -> Path:
+    """Write results.json, render the report, and sign the bundle when a key is configured."""
+    from aatest.engine import signing
+
+    private = None
+    if key_path is not None:
+        private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
+        results["signature"] = {"fingerprint": signing.key_fingerprint(private.public_key())}
+    write_results(results, run_dir)
+    info = registry.load("report", template)
+    reporter = info.target(registry.configure(info, {}))
+    report = reporter.render(results, run_dir, template_dir)
+    if private is not None:
+        signing.sign_bundle(report, private)
+    return report
+
+
+def run(
+    procedure: Path,
+    rig_file: Path | None,
+    out_dir: Path | None,
+    resume: bool,
+    seed: int,
+    key_path: Path | None,
+    show_progress: bool = True,
+) -> tuple[Path, dict[str, Any]]:
+    """``aatest run``: execute (or resume) a procedure and produce its results and report."""
+    from aatest.engine.recording import RunRecorder
+
+    prepared = prepare(procedure, rig_file)
+    plan = prepared.plan
+    if out_dir is None:
+        if resume:
+            raise InputError("--resume needs --out RUN_DIR (the run to continue)")
+        out_dir = default_run_dir(plan.procedure)
+    sha = procedure_sha256(prepared.text)
+    if resume:
+        seed = RunState.load(out_dir).seed
+    state = open_state(out_dir, plan.procedure, sha, seed, resume)
+    rig = build_rig(prepared.rig_config, plan.sensor, seed)
+    recorder = RunRecorder(out_dir)
+    if not resume:
+        meta = run_metadata(plan, rig, prepared.text, seed)
+        meta["report_template"] = plan.report_template
+        recorder.write_run_metadata(meta)
+    run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress)
+    recorder.finalize()
+    state.finished = True
+    state.save(out_dir)
+    key = signing_key(key_path)
+    if plan.sign and key is None:
+        import logging
+
+        logging.getLogger("aatest").warning(
+            "procedure asks for a signed report but no key is configured "
+            f"(--sign-key or {SIGNING_KEY_ENV}); the report is unsigned"
+        )
+    results = analyse_and_report(
+        out_dir, out_dir, plan.report_template, None, key,
+        lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s,
+    )
+    return out_dir, results
+
+
+def report(run_dir: Path, template_dir: Path | None, key_path: Path | None) -> Path:
+    """``aatest report``: re-render (and re-sign) from an existing results.json."""
+    results = read_results(run_dir)
+    results.pop("signature", None)
+    template = str(results.get("metadata", {}).get("report_template") or "calibration-certificate")
+    return render_and_sign(results, run_dir, template, template_dir, signing_key(key_path))
+
+
+def run_wall_duration(run_dir: Path) -> float | None:
+    return RunState.load(run_dir).wall_duration_s if (run_dir / STATE_FILE).exists() else None
