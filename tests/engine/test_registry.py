@@ -1,0 +1,98 @@
+"""Plugins come only from entry points, are validated on load, and errors name the distribution."""
+
+from importlib import metadata
+from typing import Any
+
+import pytest
+from pydantic import BaseModel, ConfigDict
+
+from aatest.engine import registry
+from aatest.engine.errors import PluginError
+
+
+class _GoodSensor:
+    class Config(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        gain: float = 1.0
+
+    def __init__(self, config: Any, context: Any) -> None:
+        self.config = config
+
+    def datasheet(self) -> None:
+        return None
+
+
+class _NoConfigSensor:
+    def datasheet(self) -> None:
+        return None
+
+
+class _MissingMethodTable:
+    class Config(BaseModel):
+        pass
+
+    def envelope(self) -> None:
+        return None
+
+
+class _FakeDist:
+    def __init__(self, name: str) -> None:
+        self.metadata = {"Name": name}
+        self.version = "9.9"
+
+
+class _FakeEntryPoint:
+    def __init__(self, name: str, group: str, target: Any, dist: str) -> None:
+        self.name, self.group, self._target = name, group, target
+        self.dist = _FakeDist(dist)
+
+    def load(self) -> Any:
+        if isinstance(self._target, Exception):
+            raise self._target
+        return self._target
+
+
+@pytest.fixture
+def fake_plugins(monkeypatch: pytest.MonkeyPatch) -> None:
+    eps = [
+        _FakeEntryPoint("good", "aatest.sensors", _GoodSensor, "vendor-good"),
+        _FakeEntryPoint("noconfig", "aatest.sensors", _NoConfigSensor, "vendor-sloppy"),
+        _FakeEntryPoint("broken", "aatest.sensors", ImportError("no module x"), "vendor-broken"),
+        _FakeEntryPoint("half", "aatest.turntables", _MissingMethodTable, "vendor-half"),
+    ]
+
+    def fake_entry_points(group: str) -> list[_FakeEntryPoint]:
+        return [ep for ep in eps if ep.group == group]
+
+    monkeypatch.setattr(metadata, "entry_points", fake_entry_points)
+
+
+@pytest.mark.usefixtures("fake_plugins")
+def test_good_plugin_loads_with_its_distribution() -> None:
+    info = registry.load("sensor", "good")
+    assert (info.distribution, info.version) == ("vendor-good", "9.9")
+    config = registry.configure(info, {"gain": 2})
+    assert config is not None and config.gain == 2  # type: ignore[attr-defined]
+
+
+@pytest.mark.usefixtures("fake_plugins")
+@pytest.mark.parametrize(
+    ("kind", "name", "match"),
+    [
+        ("sensor", "noconfig", "vendor-sloppy.*'Config'"),
+        ("sensor", "broken", "vendor-broken.*failed to import"),
+        ("turntable", "half", "vendor-half.*lacks required method.*start"),
+        ("sensor", "absent", "no sensor plugin named 'absent'.*good"),
+    ],
+    ids=["no-config", "import-error", "missing-methods", "not-installed"],
+)
+def test_bad_plugins_are_refused_naming_the_distribution(kind: str, name: str, match: str) -> None:
+    with pytest.raises(PluginError, match=match):
+        registry.load(kind, name)
+
+
+@pytest.mark.usefixtures("fake_plugins")
+def test_unknown_options_are_refused() -> None:
+    info = registry.load("sensor", "good")
+    with pytest.raises(PluginError, match="bad options: colour"):
+        registry.configure(info, {"colour": "red"})
