@@ -1,1 +1,15 @@
-"""sync plugins."""
+"""Synchronisation of the table and sensor loggers (method.md §2).
+
+:func:`synced_steps` is what every analysis calls first: it synchronises each recorded step
+once per analysis pass and caches the result in the shared :class:`AnalysisContext`.
+"""
+
+from aatest.plugins.sync.freeze_pulse import (
+    ClockRelation,
+    SyncedStep,
+    fit_clock_relation,
+    synced_steps,
+    synchronise,
+)
+
+__all__ = ["ClockRelation", "SyncedStep", "fit_clock_relation", "synced_steps", "synchronise"]

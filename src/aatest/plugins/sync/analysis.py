@@ -1,0 +1,47 @@
+"""The ``sync`` analysis: the clock relation of every step, summarised for results.json."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from aatest.engine.dataset import Dataset
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+
+
+def summarise(steps: list[SyncedStep]) -> dict[str, object]:
+    """Overall contract keys over all steps plus a per-step list under ``steps``.
+
+    The overall drift is the edge-weighted mean of the per-step drifts (one crystal); the
+    residual is pooled over all edges; ``offset_s`` is that of the first step (each record
+    has its own start, so offsets are only meaningful per step).
+    """
+    rel = [s.relation for s in steps]
+    edges = np.array([r.edges_used for r in rel], dtype=float)
+    drift = np.array([r.drift_ppm for r in rel])
+    pooled_us = float(np.sqrt(np.sum(edges * np.array([r.residual_rms_us for r in rel]) ** 2)
+                              / edges.sum()))
+    u_drift = np.array([r.drift_u_ppm for r in rel])
+    return {
+        "drift_ppm": float(np.sum(edges * drift) / edges.sum()),
+        "offset_s": rel[0].offset_s,
+        "residual_rms_us": pooled_us,
+        "edges_used": int(edges.sum()),
+        "drift_u_ppm": float(np.sqrt(np.sum((edges * u_drift) ** 2)) / edges.sum()),
+        "drift_spread_ppm": float(np.std(drift, ddof=1)) if drift.size > 1 else 0.0,
+        "steps": [{"step": s.step.id, **s.relation.as_dict()} for s in steps],
+    }
+
+
+class SyncAnalysis:
+    """Freeze-pulse synchronisation; must run first, the other analyses reuse its cache."""
+
+    key: ClassVar[str] = "sync"
+
+    def applies_to(self, data: Dataset) -> bool:
+        return any(s.step.recorded for s in data.steps)
+
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
+        return AnalysisOutput(values=summarise(synced_steps(data, context)))

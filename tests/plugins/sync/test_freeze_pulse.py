@@ -1,0 +1,82 @@
+"""Freeze-pulse synchronisation against synthetic logs with a known clock relation."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from aatest.engine.dataset import StepData
+from aatest.engine.errors import AnalysisError
+from aatest.engine.interfaces import AnalysisContext
+from aatest.engine.logs import SampledLog
+from aatest.plugins.sync import synced_steps, synchronise
+from aatest.plugins.sync.analysis import SyncAnalysis
+from synthetic_rig import SynthRig, make_dataset, make_step, sine_step
+
+
+@pytest.mark.parametrize("drift_ppm", [-40.0, 0.0, 12.0, 250.0], ids=["neg", "zero", "pos", "big"])
+def test_drift_and_offset_recovered(drift_ppm: float) -> None:
+    rig = SynthRig(drift_ppm=drift_ppm)
+    synced = synchronise(make_step(sine_step("s", 8, 100.0), rig, seed=3))
+    rel = synced.relation
+    assert abs(rel.drift_ppm - drift_ppm) < 1.0
+    assert abs(rel.offset_s - (-rig.lead_s)) < 20e-6
+    assert rel.residual_rms_us < 10.0
+    assert rel.edges_used > 70
+
+
+def test_resampled_sensor_is_on_table_time() -> None:
+    """With no sensor dynamics, the synced sensor follows the table acceleration sample by sample."""
+    from synthetic_rig import SynthSensor
+
+    sensor = SynthSensor(natural_frequency_hz=1e6, delay_s=0.0, noise_v=0.0)
+    rig = SynthRig(sensors=(sensor,), position_noise_deg=0.0, drift_ppm=80.0)
+    synced = synchronise(make_step(sine_step("s", 16, 200.0), rig, seed=5))
+    volts = (synced.daq["v_sz"] - sensor.bias_v) / sensor.scale_v_per_dps2
+    accel = synced.table["inner_accel_dps2"]
+    assert_allclose(volts[5:-5], accel[5:-5], atol=0.05)
+
+
+def test_jitter_and_missing_latch_still_within_a_sample() -> None:
+    rig = SynthRig(jitter_s=6e-6, latch=False)
+    step = sine_step("s", 8, 100.0)
+    rel = synchronise(make_step(step, rig, seed=4)).relation
+    # without the latch time the table edges are quantised to one sample over the record
+    assert abs(rel.drift_ppm - rig.drift_ppm) < 1e6 / 2000 / step.duration_s
+    assert abs(rel.offset_s + rig.lead_s) < 0.5 / 2000
+
+
+def _without_table_edges(data: StepData) -> StepData:
+    ch = dict(data.table.channels)
+    ch["sync_pulse"] = np.zeros(len(data.table))
+    return replace(data, table=SampledLog("table", 2000.0, data.table.time_s, ch))
+
+
+def _with_scrambled_edges(data: StepData) -> StepData:
+    ch = dict(data.table.channels)
+    rng = np.random.default_rng(0)
+    ch["sync_pulse"] = (rng.random(len(data.table)) > 0.5).astype(float)
+    return replace(data, table=SampledLog("table", 2000.0, data.table.time_s, ch))
+
+
+@pytest.mark.parametrize("spoil, match", [(_without_table_edges, "missing"),
+                                          (_with_scrambled_edges, "inconsistent")],
+                         ids=["missing", "inconsistent"])
+def test_refuses_bad_edges(spoil, match: str) -> None:  # type: ignore[no-untyped-def]
+    data = spoil(make_step(sine_step("s", 8, 100.0), SynthRig(), seed=1))
+    with pytest.raises(AnalysisError, match=match):
+        synchronise(data)
+
+
+def test_analysis_summary_and_cache() -> None:
+    steps = [sine_step(f"s{i}", 8 + i, 100.0) for i in range(3)]
+    data = make_dataset(steps, SynthRig(drift_ppm=-7.5))
+    ctx = AnalysisContext()
+    out = SyncAnalysis().run(data, ctx)
+    v = out.values
+    assert set(v) >= {"drift_ppm", "offset_s", "residual_rms_us", "edges_used"}
+    assert abs(v["drift_ppm"] + 7.5) < 1.0 and len(v["steps"]) == 3
+    assert synced_steps(data, ctx) is synced_steps(data, ctx)
