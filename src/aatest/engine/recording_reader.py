@@ -1,0 +1,229 @@
+"""Read aatest recordings (and, through the importer, import directories) into a Dataset.
+
+:func:`read_dataset` accepts a run directory (its ``recording.mcap``; the completed step files
+of ``steps/`` when the run was interrupted or resumed after the last merge), a recording file,
+or a measured-data import directory (``dataset.yaml`` present, contracts.md §3). Anything that
+is not a complete aatest recording raises :class:`~aatest.engine.errors.RecordingError` naming
+the file and what is wrong. The layout is described in :mod:`aatest.engine.recording_format`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import struct
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zstandard
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+
+from aatest.engine import recording_format as fmt
+from aatest.engine.dataset import Dataset, SensorInfo, StepData
+from aatest.engine.errors import RecordingError
+from aatest.engine.recording_writer import (
+    RECORDING_NAME,
+    STEPS_DIR,
+    complete_step_files,
+    load_run_metadata,
+)
+from aatest.engine.steps import PlannedStep
+
+IMPORT_MANIFEST = "dataset.yaml"
+#: what a damaged or foreign file can make the mcap/zstd/json layers raise
+_DECODE_ERRORS = (
+    McapError,
+    struct.error,
+    zstandard.ZstdError,
+    ValueError,
+    KeyError,
+    TypeError,
+    IndexError,
+    EOFError,
+    OSError,
+    MemoryError,
+)
+_SENSOR_FIELDS = {f.name for f in dataclasses.fields(SensorInfo)}
+
+
+@dataclass
+class _FileContents:
+    """What one MCAP file holds: run metadata, step records and the decoded step data."""
+
+    run_meta: dict[str, Any] = field(default_factory=dict)
+    steps: list[tuple[int, StepData]] = field(default_factory=list)
+
+
+def read_dataset(path: str | Path) -> Dataset:
+    """Load a run directory, a recording file or an import directory as a :class:`Dataset`.
+
+    Parameters
+    ----------
+    path
+        Run directory, ``recording.mcap`` (or a single step file), or import directory.
+
+    Raises
+    ------
+    RecordingError
+        The recording is missing, truncated, corrupt or not an aatest recording.
+    ImportDataError
+        The import directory is malformed (see :mod:`aatest.engine.importer`).
+    """
+    path = Path(path)
+    if path.is_dir():
+        if (path / IMPORT_MANIFEST).exists():
+            from aatest.engine.importer import import_dataset
+
+            return import_dataset(path)
+        return _read_run_dir(path)
+    if path.is_file():
+        contents = _read_file(path)
+        return _build_dataset(contents.run_meta, contents.steps, path, complete=True)
+    raise RecordingError(f"{path}: no such file or directory")
+
+
+def _read_run_dir(run_dir: Path) -> Dataset:
+    recording = run_dir / RECORDING_NAME
+    steps_dir = run_dir / STEPS_DIR
+    files = complete_step_files(steps_dir) if steps_dir.is_dir() else {}
+    if recording.is_file() and not _is_stale(recording, [p for p, _ in files.values()]):
+        contents = _read_file(recording)
+        return _build_dataset(contents.run_meta, contents.steps, recording, complete=True)
+    if not files:
+        raise RecordingError(
+            f"{run_dir}: no {RECORDING_NAME}, no completed step in {STEPS_DIR}/ and no "
+            f"{IMPORT_MANIFEST}: not a run or import directory"
+        )
+    run_meta = load_run_metadata(steps_dir)
+    steps: list[tuple[int, StepData]] = []
+    for path, _ in files.values():
+        contents = _read_file(path)
+        run_meta = run_meta or contents.run_meta
+        steps.extend(contents.steps)
+    return _build_dataset(run_meta, steps, run_dir, complete=False)
+
+
+def _is_stale(recording: Path, step_files: list[Path]) -> bool:
+    """True when a step file was completed after the last merge (run resumed since)."""
+    merged_ns = recording.stat().st_mtime_ns
+    return any(p.stat().st_mtime_ns > merged_ns for p in step_files)
+
+
+def _read_file(path: Path) -> _FileContents:
+    """Decode one aatest MCAP file, translating every low-level failure to RecordingError."""
+    try:
+        with open(path, "rb") as stream:
+            return _decode(stream, path)
+    except RecordingError:
+        raise
+    except _DECODE_ERRORS as exc:
+        raise RecordingError(
+            f"{path}: corrupt or truncated recording ({type(exc).__name__}: {exc})"
+        ) from exc
+
+
+def _decode(stream: Any, path: Path) -> _FileContents:
+    reader = make_reader(stream)
+    header = reader.get_header()
+    if header.profile != fmt.PROFILE:
+        raise RecordingError(f"{path}: not an aatest recording (MCAP profile {header.profile!r})")
+    summary = reader.get_summary()
+    if summary is None:
+        raise RecordingError(f"{path}: recording has no summary section (unfinished write)")
+    contents = _FileContents()
+    step_records = []
+    for record in reader.iter_metadata():
+        if record.name == fmt.RUN_RECORD:
+            contents.run_meta = fmt.from_json_values(dict(record.metadata))
+        elif record.name == fmt.STEP_RECORD:
+            step_records.append(fmt.from_json_values(dict(record.metadata)))
+    _check_format(contents.run_meta, path)
+    blocks: dict[int, list[tuple[int, bytes]]] = defaultdict(list)
+    for _, channel, message in reader.iter_messages(log_time_order=False):
+        blocks[channel.id].append((message.sequence, message.data))
+    by_topic = {ch.topic: ch for ch in summary.channels.values()}
+    for record in step_records:
+        step = PlannedStep.model_validate(record["step"])
+        logs = [
+            _decode_log(by_topic, summary, blocks, record[key], path)
+            for key in ("table_topic", "daq_topic")
+        ]
+        contents.steps.append((int(record["index"]), StepData(step, logs[0], logs[1])))
+    return contents
+
+
+def _check_format(run_meta: dict[str, Any], path: Path) -> None:
+    if not run_meta:
+        raise RecordingError(f"{path}: not an aatest recording (no 'run' metadata record)")
+    version = run_meta.get("format", fmt.FORMAT)
+    if version != fmt.FORMAT:
+        raise RecordingError(f"{path}: unsupported recording format {version!r} (need {fmt.FORMAT})")
+
+
+def _decode_log(
+    by_topic: dict[str, Any],
+    summary: Any,
+    blocks: dict[int, list[tuple[int, bytes]]],
+    topic: str,
+    path: Path,
+) -> Any:
+    """Concatenate one channel's blocks in sequence order and rebuild the SampledLog."""
+    channel = by_topic.get(topic)
+    if channel is None:
+        raise RecordingError(f"{path}: step topic {topic!r} has no channel")
+    schema = summary.schemas.get(channel.schema_id)
+    if schema is None or schema.encoding != fmt.ENCODING:
+        raise RecordingError(f"{path}: topic {topic!r} does not use the {fmt.ENCODING} schema")
+    dtype, doc = fmt.parse_schema(schema.data)
+    parts = sorted(blocks.get(channel.id, []), key=lambda item: item[0])
+    payload = b"".join(data for _, data in parts)
+    if len(payload) % dtype.itemsize:
+        raise RecordingError(f"{path}: topic {topic!r} holds a partial sample block")
+    records = np.frombuffer(payload, dtype=dtype)
+    expected = int(channel.metadata.get("samples", len(records)))
+    if len(records) != expected:
+        raise RecordingError(
+            f"{path}: topic {topic!r} has {len(records)} samples, its channel says {expected}"
+        )
+    return fmt.records_to_log(records, doc)
+
+
+def _sensors(run_meta: dict[str, Any], steps: list[StepData]) -> tuple[SensorInfo, ...]:
+    """Sensors from the run metadata, else nominal defaults for every DAQ voltage channel."""
+    entries = run_meta.get("sensors")
+    if isinstance(entries, list) and entries:
+        return tuple(
+            SensorInfo(**{k: v for k, v in entry.items() if k in _SENSOR_FIELDS})
+            for entry in entries
+            if isinstance(entry, dict)
+        )
+    channels = steps[0].daq.sensor_channels() if steps else []
+    return tuple(SensorInfo(channel=ch) for ch in channels)
+
+
+def _build_dataset(
+    run_meta: dict[str, Any], indexed: list[tuple[int, StepData]], source: Path, complete: bool
+) -> Dataset:
+    ordered = [data for _, data in sorted(indexed, key=lambda item: item[0])]
+    rate = run_meta.get("sample_rate_hz") or (
+        ordered[0].step.sample_rate_hz if ordered else 2000.0
+    )
+    procedure = run_meta.get("procedure")
+    metadata = {
+        **run_meta,
+        "source_format": fmt.FORMAT,
+        "complete": complete,
+        "recording": str(source),
+    }
+    return Dataset(
+        procedure=procedure if isinstance(procedure, str) else "unknown",
+        sample_rate_hz=float(rate),
+        sensors=_sensors(run_meta, ordered),
+        steps=tuple(ordered),
+        source=source,
+        metadata=metadata,
+    )
+

@@ -1,0 +1,238 @@
+"""Recording: bit-exact round trips, crash safety (kill -9), and loud errors on bad files."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap.writer import Writer
+from recording_data import SENSOR, run_meta, sine_step, step_logs
+
+from aatest.engine.dataset import Dataset
+from aatest.engine.errors import RecordingError
+from aatest.engine.logs import SampledLog
+from aatest.engine.recording import BLOCK_SAMPLES, ENCODING, RunRecorder, read_dataset
+
+HERE = Path(__file__).parent
+
+
+def assert_logs_equal(expected: SampledLog, actual: SampledLog) -> None:
+    """Bit-exact equality of times and every channel, dtype included."""
+    assert actual.source == expected.source
+    assert actual.sample_rate_hz == expected.sample_rate_hz
+    np.testing.assert_array_equal(actual.time_s, expected.time_s)
+    assert set(actual.channels) == set(expected.channels)
+    for name, values in expected.channels.items():
+        assert actual[name].dtype == values.dtype, name
+        np.testing.assert_array_equal(actual[name], values, err_msg=name)
+    assert dict(actual.units) == {k: actual.units[k] for k in expected.channels}
+
+
+def record_run(run_dir: Path, n_steps: int = 3, samples: int = 8192) -> dict[str, tuple]:
+    steps = [sine_step(f"s{i:02d}", samples) for i in range(1, n_steps + 1)]
+    recorder = RunRecorder(run_dir)
+    recorder.write_run_metadata(run_meta(steps))
+    logs = {}
+    for seed, step in enumerate(steps):
+        logs[step.id] = (step, *step_logs(step, seed))
+        recorder.write_step(step, logs[step.id][1], logs[step.id][2])
+    return logs
+
+
+def assert_dataset_matches(dataset: Dataset, logs: dict[str, tuple]) -> None:
+    assert [s.step.id for s in dataset.steps] == list(logs)
+    for data in dataset.steps:
+        step, table, daq = logs[data.step.id]
+        assert data.step == step
+        assert_logs_equal(table, data.table)
+        assert_logs_equal(daq, data.daq)
+
+
+def test_finalized_recording_round_trips_bit_exact(tmp_path: Path) -> None:
+    logs = record_run(tmp_path)
+    path = RunRecorder(tmp_path).finalize()
+    for source in (tmp_path, path):
+        dataset = read_dataset(source)
+        assert dataset.procedure == "unit-test"
+        assert dataset.sensors == (SENSOR,)
+        assert dataset.sample_rate_hz == 2000.0
+        assert dataset.metadata["complete"] is True
+        assert dataset.metadata["seed"] == 7
+        assert_dataset_matches(dataset, logs)
+
+
+def test_interrupted_run_reads_from_step_files(tmp_path: Path) -> None:
+    logs = record_run(tmp_path)
+    (tmp_path / "steps" / ".004-s04.mcap.tmp-999").write_bytes(b"\x89MCAP0\r\n partial")
+    dataset = read_dataset(tmp_path)
+    assert dataset.metadata["complete"] is False
+    assert_dataset_matches(dataset, logs)
+
+
+def test_resumed_run_newer_than_merge_reads_step_files(tmp_path: Path) -> None:
+    logs = record_run(tmp_path, n_steps=2)
+    recorder = RunRecorder(tmp_path)
+    recorder.finalize()
+    time.sleep(0.01)
+    extra = sine_step("s09")
+    logs["s09"] = (extra, *step_logs(extra, 9))
+    recorder.write_step(extra, logs["s09"][1], logs["s09"][2])
+    assert_dataset_matches(read_dataset(tmp_path), logs)
+
+
+def test_rewriting_a_step_replaces_it(tmp_path: Path) -> None:
+    logs = record_run(tmp_path, n_steps=2)
+    recorder = RunRecorder(tmp_path)
+    step = logs["s02"][0]
+    table, daq = step_logs(step, seed=42)
+    recorder.write_step(step, table, daq)
+    assert recorder.completed_step_ids() == ["s01", "s02"]
+    assert len(list((tmp_path / "steps").glob("*.mcap"))) == 2
+    assert_logs_equal(daq, read_dataset(tmp_path).steps[1].daq)
+
+
+def test_plain_mcap_reader_decodes_blocks_as_documented(tmp_path: Path) -> None:
+    """A user with only ``mcap`` and NumPy can rebuild the DAQ log from the docstring recipe."""
+    logs = record_run(tmp_path, n_steps=1)
+    path = RunRecorder(tmp_path).finalize()
+    _, _, daq = logs["s01"]
+    with open(path, "rb") as stream:
+        reader = make_reader(stream)
+        assert reader.get_header().profile == "aatest"
+        names = [m.name for m in reader.iter_metadata()]
+        messages = list(reader.iter_messages(topics=["/s01/daq"]))
+    assert names == ["run", "step"]
+    blocks = []
+    offset_ns = int(messages[0][1].metadata["log_time_offset_ns"])
+    assert offset_ns == pytest.approx(-daq.time_s[0] * 1e9, abs=1)
+    for schema, channel, message in sorted(messages, key=lambda m: m[2].sequence):
+        assert schema.encoding == ENCODING and channel.message_encoding == ENCODING
+        doc = json.loads(schema.data)
+        dtype = np.dtype([(c["name"], c["dtype"]) for c in doc["columns"]])
+        block = np.frombuffer(message.data, dtype=dtype)
+        assert len(block) <= BLOCK_SAMPLES
+        assert message.log_time == round(block["time_s"][0] * 1e9) + offset_ns >= 0
+        assert message.publish_time == message.log_time
+        blocks.append(block)
+    records = np.concatenate(blocks)
+    np.testing.assert_array_equal(records["v_sz"], daq["v_sz"])
+    assert records.dtype["sync_pulse"] == np.uint8
+
+
+def test_finalize_keeps_plan_order_not_write_order(tmp_path: Path) -> None:
+    steps = [sine_step(f"s{i}") for i in (1, 2, 3)]
+    recorder = RunRecorder(tmp_path)
+    recorder.write_run_metadata(run_meta(steps))
+    for step in (steps[2], steps[0], steps[1]):
+        recorder.write_step(step, *step_logs(step, 0))
+    recorder.finalize()
+    assert [s.step.id for s in read_dataset(tmp_path).steps] == ["s1", "s2", "s3"]
+    assert sorted(p.name for p in (tmp_path / "steps").glob("*.mcap"))[0] == "001-s1.mcap"
+
+
+def test_sigkill_mid_step_keeps_completed_steps(tmp_path: Path) -> None:
+    """Kill the writer while a step's temporary file is being written; nothing is lost."""
+    script = f"""
+import sys
+sys.path.insert(0, {str(HERE)!r})
+from recording_data import run_meta, sine_step, step_logs
+from aatest.engine.recording import RunRecorder
+steps = [sine_step(f"s{{i:02d}}", 2**15) for i in range(1, 200)]
+rec = RunRecorder({str(tmp_path)!r})
+rec.write_run_metadata(run_meta(steps))
+for i, step in enumerate(steps):
+    rec.write_step(step, *step_logs(step, i))
+"""
+    proc = subprocess.Popen([sys.executable, "-c", script])
+    steps_dir = tmp_path / "steps"
+    deadline = time.monotonic() + 60
+    try:
+        while time.monotonic() < deadline:
+            done = list(steps_dir.glob("0*.mcap")) if steps_dir.exists() else []
+            temps = list(steps_dir.glob(".*.tmp-*")) if steps_dir.exists() else []
+            if len(done) >= 2 and temps and temps[0].stat().st_size > 0:
+                break
+            assert proc.poll() is None, "writer exited early"
+            time.sleep(0.002)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=30)
+    recorder = RunRecorder(tmp_path)
+    completed = recorder.completed_step_ids()
+    assert len(completed) >= 2
+    assert not list(steps_dir.glob(".*.tmp-*")), "partial files must be removed"
+    for i, step_id in enumerate(completed):
+        step = sine_step(step_id, 2**15)
+        table, daq = step_logs(step, i)
+        data = read_dataset(tmp_path).steps[i]
+        assert_logs_equal(table, data.table)
+        assert_logs_equal(daq, data.daq)
+    path = recorder.finalize()
+    with open(path, "rb") as stream:
+        reader = make_reader(stream)
+        n_messages = sum(1 for _ in reader.iter_messages())
+        assert reader.get_summary().statistics.message_count == n_messages > 0
+    assert len(read_dataset(path).steps) == len(completed)
+
+
+@pytest.mark.parametrize("cut", [0.3, 0.7, 0.99], ids=["early", "middle", "late"])
+def test_truncated_recording_is_a_recording_error(tmp_path: Path, cut: float) -> None:
+    record_run(tmp_path, n_steps=1)
+    path = RunRecorder(tmp_path).finalize()
+    data = path.read_bytes()
+    bad = tmp_path / "cut.mcap"
+    bad.write_bytes(data[: int(len(data) * cut)])
+    with pytest.raises(RecordingError, match="cut.mcap"):
+        read_dataset(bad)
+
+
+def test_flipped_bytes_inside_chunks_are_a_recording_error(tmp_path: Path) -> None:
+    record_run(tmp_path, n_steps=1)
+    path = RunRecorder(tmp_path).finalize()
+    data = bytearray(path.read_bytes())
+    rng = np.random.default_rng(3)
+    for pos in rng.integers(200, len(data) // 2, 64):
+        data[pos] ^= 0xFF
+    bad = tmp_path / "flipped.mcap"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(RecordingError, match="flipped.mcap"):
+        read_dataset(bad)
+
+
+def test_foreign_mcap_and_garbage_are_rejected(tmp_path: Path) -> None:
+    foreign = tmp_path / "foreign.mcap"
+    with open(foreign, "wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="ros2", library="test")
+        writer.finish()
+    with pytest.raises(RecordingError, match="not an aatest recording"):
+        read_dataset(foreign)
+    garbage = tmp_path / "garbage.mcap"
+    garbage.write_bytes(b"hello, not mcap" * 10)
+    with pytest.raises(RecordingError, match="garbage.mcap"):
+        read_dataset(garbage)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(RecordingError, match="not a run or import directory"):
+        read_dataset(empty)
+    with pytest.raises(RecordingError, match="no such file"):
+        read_dataset(tmp_path / "missing.mcap")
+
+
+def test_step_without_run_metadata_still_recorded(tmp_path: Path) -> None:
+    """A recorder used without write_run_metadata still produces readable, defaulted data."""
+    step = sine_step("only")
+    table, daq = step_logs(step, 1, latch=False)
+    RunRecorder(tmp_path).write_step(step, table, daq)
+    dataset = read_dataset(RunRecorder(tmp_path).finalize())
+    assert dataset.procedure == "unknown"
+    assert [s.channel for s in dataset.sensors] == ["v_sz"]
+    assert "fp_latch_s" not in dataset.steps[0].table.channels
