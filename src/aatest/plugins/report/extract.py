@@ -1,0 +1,114 @@
+"""Tolerant readers of ``results.json``: contract keys first, optional extras when present.
+
+The analysis plugins promise the keys of contracts.md §1 and may add more; every reader here
+returns ``None`` (or an empty container) when a value is absent, so report sections and
+uncertainty rows degrade gracefully instead of failing on a missing extra.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+#: two-sided 95 % quantile of the normal distribution (ci95 half-width → standard uncertainty)
+Z95 = 1.959963984540054
+
+
+def as_float(value: Any) -> float | None:
+    """A finite float, or None for missing/NaN/non-numeric values."""
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def analysis(results: Mapping[str, Any], key: str) -> Any:
+    """``results["analysis"][key]`` or None."""
+    block = results.get("analysis") or {}
+    return block.get(key) if isinstance(block, Mapping) else None
+
+
+def sensors(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """Sensor descriptions from the metadata, by channel name."""
+    listed = (results.get("metadata") or {}).get("sensors") or []
+    return {str(s["channel"]): dict(s) for s in listed if isinstance(s, Mapping) and "channel" in s}
+
+
+def steps_of_kind(results: Mapping[str, Any], kind: str) -> list[Mapping[str, Any]]:
+    """Step summaries of one kind (``static``, ``sine``, ``constant_rate``, ``chamber``)."""
+    return [s for s in results.get("steps") or [] if isinstance(s, Mapping) and s.get("kind") == kind]
+
+
+def step_values(steps: Sequence[Mapping[str, Any]], key: str) -> list[float]:
+    """The finite values of ``key`` over step summaries."""
+    values = (as_float(s.get(key)) for s in steps)
+    return [v for v in values if v is not None]
+
+
+def ci_std(ci: Any, index: int | str | None = None) -> float | None:
+    """Standard uncertainty from a 95 % interval: ``[lo, hi]``, a half-width, or a container.
+
+    ``ci`` may be the interval itself, a list indexed by coefficient order, or a mapping by
+    parameter name; the standard uncertainty is the half-width / 1.96 (large-sample fits).
+    """
+    if index is not None:
+        if isinstance(ci, Mapping):
+            ci = ci.get(index if isinstance(index, str) else str(index))
+        elif isinstance(ci, Sequence) and not isinstance(ci, str) and isinstance(index, int):
+            ci = ci[index] if 0 <= index < len(ci) else None
+        else:
+            return None
+    if isinstance(ci, Sequence) and not isinstance(ci, str) and len(ci) == 2:
+        lo, hi = as_float(ci[0]), as_float(ci[1])
+        return abs(hi - lo) / (2 * Z95) if lo is not None and hi is not None else None
+    half = as_float(ci)
+    return abs(half) / Z95 if half is not None else None
+
+
+def repetition_values(entry: Mapping[str, Any], key: str) -> list[float]:
+    """Per-repetition values of ``key`` when the analysis reports them (``repetitions``)."""
+    reps = entry.get("repetitions") if isinstance(entry, Mapping) else None
+    if not isinstance(reps, Sequence):
+        return []
+    values = (as_float(r.get(key)) if isinstance(r, Mapping) else as_float(r) for r in reps)
+    return [v for v in values if v is not None]
+
+
+def std_of_mean(values: Sequence[float]) -> float | None:
+    """Type A standard uncertainty of the mean, s/√n (None below two values)."""
+    if len(values) < 2:
+        return None
+    return float(np.std(values, ddof=1) / math.sqrt(len(values)))
+
+
+def noise_rms_v(results: Mapping[str, Any], channel: str) -> tuple[float, str]:
+    """Sensor output noise (V RMS) and where it came from: measured, metadata or datasheet."""
+    noise = analysis(results, "noise")
+    if isinstance(noise, Mapping) and isinstance(noise.get(channel), Mapping):
+        for key in ("rms_v", "noise_rms_v", "std_v"):
+            value = as_float(noise[channel].get(key))
+            if value is not None:
+                return value, "measured (noise analysis)"
+    bias = analysis(results, "bias")
+    if isinstance(bias, Mapping) and isinstance(bias.get(channel), Mapping):
+        for key in ("noise_rms_v", "std_v"):
+            value = as_float(bias[channel].get(key))
+            if value is not None:
+                return value, "measured (static records)"
+    value = as_float(sensors(results).get(channel, {}).get("noise_rms_v"))
+    if value is not None:
+        return value, "sensor datasheet"
+    return 0.003, "datasheet limit (method.md §1.3)"
+
+
+def temperature_points(entry: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    """Per-temperature points of a temperature analysis, when reported."""
+    for key in ("points", "steps", "per_step"):
+        points = entry.get(key) if isinstance(entry, Mapping) else None
+        if isinstance(points, Sequence):
+            return [p for p in points if isinstance(p, Mapping) and "temperature_c" in p]
+    return []

@@ -1,0 +1,172 @@
+"""GUM (JCGM 100) propagation of uncertainty for final quantities, with a Monte Carlo check.
+
+A :class:`Measurand` is a measurement model ``y = f(x_1, …, x_n)`` written once, against an
+:class:`Ops` namespace, so the *same* model is evaluated by the GUM law of propagation (with
+``uncertainties`` on the final quantities only — never on sample arrays) and by a JCGM 101
+Monte Carlo propagation (numpy, seeded) that tests use to validate the linearisation.
+
+Inputs are described by their distribution: ``normal`` (``spread`` = standard uncertainty),
+``rectangular`` (``spread`` = half-width ``a``, u = a/√3) and ``cosine_error`` — the factor
+cos ε − 1 of an axis tilt ε uniform in ±``spread`` rad, whose first-order sensitivity is zero;
+GUM then takes its exact mean and standard deviation as the input estimate (JCGM 100 §5.1.2).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from uncertainties import ufloat, umath
+
+Distribution = Literal["normal", "rectangular", "cosine_error"]
+#: coverage factor for ≈95 % coverage of a normal output (the brief asks k = 2)
+K_COVERAGE = 2.0
+
+
+@dataclass(frozen=True)
+class Ops:
+    """The functions a model may use, so one model runs on ufloats and on numpy arrays."""
+
+    sin: Callable[[Any], Any]
+    cos: Callable[[Any], Any]
+    asin: Callable[[Any], Any]
+    log10: Callable[[Any], Any]
+    sqrt: Callable[[Any], Any]
+
+
+UMATH_OPS = Ops(umath.sin, umath.cos, umath.asin, umath.log10, umath.sqrt)
+NUMPY_OPS = Ops(np.sin, np.cos, np.arcsin, np.log10, np.sqrt)
+
+Model = Callable[[Ops, Mapping[str, Any]], Any]
+
+
+@dataclass(frozen=True)
+class Input:
+    """One input quantity of a measurement model and the budget row it produces."""
+
+    name: str
+    label: str
+    value: float
+    spread: float
+    distribution: Distribution = "normal"
+    unit: str = ""
+    note: str = ""
+
+    def mean(self) -> float:
+        """Expectation of the input (for ``cosine_error``: E[cos ε] − 1 = sin a / a − 1)."""
+        if self.distribution == "cosine_error":
+            a = abs(self.spread)
+            return math.sin(a) / a - 1.0 if a > 0 else 0.0
+        return self.value
+
+    def standard_uncertainty(self) -> float:
+        """Standard deviation of the input's distribution, in the input's unit."""
+        a = abs(self.spread)
+        if self.distribution == "rectangular":
+            return a / math.sqrt(3.0)
+        if self.distribution == "cosine_error":
+            if a < 1e-2:  # series: the closed form below cancels catastrophically
+                return a**2 / math.sqrt(45.0)
+            second = 0.5 + math.sin(2 * a) / (4 * a)  # E[cos² ε]
+            first = math.sin(a) / a
+            return math.sqrt(max(second - first**2, 0.0))
+        return a
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``n`` draws from the input's distribution (for the Monte Carlo propagation)."""
+        a = abs(self.spread)
+        if self.distribution == "rectangular":
+            return self.value + rng.uniform(-a, a, n)
+        if self.distribution == "cosine_error":
+            return np.cos(rng.uniform(-a, a, n)) - 1.0
+        return self.value + a * rng.standard_normal(n)
+
+
+@dataclass(frozen=True)
+class Measurand:
+    """A named output quantity, its unit, its measurement model and its inputs."""
+
+    name: str
+    unit: str
+    model: Model
+    inputs: tuple[Input, ...]
+
+
+@dataclass(frozen=True)
+class BudgetRow:
+    """One line of an uncertainty budget (JCGM 100 §8): u(x_i), c_i and u_i(y) = |c_i|·u(x_i)."""
+
+    label: str
+    note: str
+    distribution: str
+    standard_uncertainty: float
+    unit: str
+    sensitivity: float
+    contribution: float
+    share_pct: float
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Result of a GUM evaluation: y, u_c(y), U = k·u_c(y) and the budget."""
+
+    name: str
+    unit: str
+    value: float
+    standard_uncertainty: float
+    expanded_uncertainty: float
+    k: float
+    rows: tuple[BudgetRow, ...]
+
+    @property
+    def relative_expanded(self) -> float | None:
+        """U / |y| (dimensionless), or None for a zero estimate."""
+        return self.expanded_uncertainty / abs(self.value) if self.value else None
+
+
+def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
+    """Propagate the inputs through the model by the GUM law (first order, independent inputs)."""
+    variables: dict[str, Any] = {
+        i.name: ufloat(i.mean(), i.standard_uncertainty(), tag=i.name)
+        if i.standard_uncertainty() > 0 else i.mean()
+        for i in measurand.inputs
+    }
+    y = measurand.model(UMATH_OPS, variables)
+    derivatives = {var.tag: d for var, d in getattr(y, "derivatives", {}).items()}
+    u_c = float(getattr(y, "std_dev", 0.0))
+    rows = []
+    for item in measurand.inputs:
+        c = float(derivatives.get(item.name, 0.0))
+        u_x = item.standard_uncertainty()
+        contribution = abs(c) * u_x
+        share = 100.0 * contribution**2 / u_c**2 if u_c > 0 else 0.0
+        rows.append(
+            BudgetRow(item.label, item.note, item.distribution, u_x, item.unit, c, contribution, share)
+        )
+    return Evaluation(
+        measurand.name, measurand.unit, float(getattr(y, "nominal_value", y)), u_c, k * u_c, k,
+        tuple(rows),
+    )
+
+
+@dataclass(frozen=True)
+class MonteCarloResult:
+    """Monte Carlo (JCGM 101) summary of the output distribution."""
+
+    mean: float
+    standard_uncertainty: float
+    interval95: tuple[float, float]
+    draws: int
+
+
+def monte_carlo(measurand: Measurand, draws: int = 200_000, seed: int = 0) -> MonteCarloResult:
+    """Propagate the input *distributions* through the same model with ``draws`` samples."""
+    rng = np.random.default_rng(seed)
+    samples = {i.name: i.sample(rng, draws) for i in measurand.inputs}
+    y = np.asarray(measurand.model(NUMPY_OPS, samples), dtype=float)
+    y = np.broadcast_to(y, (draws,))
+    lo, hi = np.quantile(y, [0.025, 0.975])
+    return MonteCarloResult(float(np.mean(y)), float(np.std(y, ddof=1)), (float(lo), float(hi)), draws)

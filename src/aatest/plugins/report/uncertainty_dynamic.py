@@ -1,0 +1,139 @@
+"""Uncertainty of the dynamic results: FRF gain/phase per point and pivoted misalignment angles.
+
+FRF (method.md §4.4): at the excitation bin of an N-sample coherent record, white output noise
+of power σ² adds a complex error whose radial and tangential parts both have relative standard
+deviation 1/√(N·SNR) (SNR = fundamental power over noise power); the reference amplitude
+A = α/(2πf)² is known to the table's position accuracy, which matters most at high f where A
+is small; the logger alignment (sync residual) shifts the phase by 360·f·δt degrees.
+
+Misalignment (method.md §4.5): δ = (δ_e − δ_ep)/2 with δ_e = arcsin(|ΔA|/|A_z|); the
+cross-response noise at the bin, σ_v·√(2/N), enters through the arcsine; wobble differs between
+mountings and does not cancel, orthogonality is common to both and cancels in the difference.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from aatest.plugins.report import extract as ex
+from aatest.plugins.report.gum import Input, Measurand, Ops
+from aatest.plugins.report.uncertainty import ARCSEC_RAD, RigConstants
+
+#: misalignment scenario → (original, pivoted) set labels (contracts.md §5)
+SCENARIO_SETS: dict[str, tuple[str, str]] = {"1": ("A", "B"), "2": ("C", "D"), "3": ("E", "F"),
+                                             "4": ("G", "H")}
+
+
+def _record_samples(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants) -> float:
+    samples = ex.as_float(point.get("samples"))
+    if samples:
+        return samples
+    sine = ex.step_values(ex.steps_of_kind(results, "sine"), "samples")
+    return float(max(sine)) if sine else float(c.record_samples)
+
+
+def _bin_noise_rel(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants) -> float:
+    """Relative (and, in rad, phase) standard uncertainty of the output fundamental."""
+    snr_db = ex.as_float(point.get("snr_db"))
+    if snr_db is None:
+        return 0.0
+    return 1.0 / math.sqrt(_record_samples(point, results, c) * 10.0 ** (snr_db / 10.0))
+
+
+def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
+                       c: RigConstants) -> Measurand | None:
+    """G = Ĝ + 20·log10((1 + e_out) / ((1 + e_pos)·(1 + e_tilt)))  [dB]."""
+    gain = ex.as_float(point.get("gain_db"))
+    f_hz = ex.as_float(point.get("frequency_hz"))
+    accel = ex.as_float(point.get("accel_dps2"))
+    if gain is None or not f_hz or not accel:
+        return None
+    amp_arcsec = abs(accel) / (2 * math.pi * f_hz) ** 2 * 3600.0
+    inputs = (
+        Input("noise", "sensor noise (at the bin)", 0.0, _bin_noise_rel(point, results, c),
+              "normal", "1", f"1/√(N·SNR), SNR {point.get('snr_db')} dB"),
+        Input("position", "table position accuracy", 0.0, c.position_accuracy_arcsec / amp_arcsec,
+              "rectangular", "1", f"{c.position_accuracy_arcsec:g}″ over A = {amp_arcsec:.1f}″"),
+        Input("tilt", "wobble / orthogonality (axis tilt)", 0.0,
+              math.hypot(c.wobble_arcsec, c.orthogonality_arcsec) * ARCSEC_RAD, "cosine_error",
+              "1", "cos ε − 1"),
+    )
+
+    def model(ops: Ops, x: Mapping[str, Any]) -> Any:
+        return gain + 20.0 * ops.log10((1.0 + x["noise"]) / ((1.0 + x["position"]) * (1.0 + x["tilt"])))
+
+    return Measurand(f"FRF gain at {f_hz:.4f} Hz", "dB", model, inputs)
+
+
+def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
+                        c: RigConstants) -> Measurand | None:
+    """φ = φ̂ + e_out·180/π − 360·f·δt  [deg]."""
+    phase = ex.as_float(point.get("phase_deg"))
+    f_hz = ex.as_float(point.get("frequency_hz"))
+    if phase is None or not f_hz:
+        return None
+    sync = ex.analysis(results, "sync") or {}
+    residual_us = ex.as_float(sync.get("residual_rms_us")) or 3.5
+    inputs = (
+        Input("noise", "sensor noise (at the bin)", 0.0, _bin_noise_rel(point, results, c),
+              "normal", "rad", "tangential part, 1/√(N·SNR)"),
+        Input("sync", "sync residual (logger alignment)", 0.0, residual_us * 1e-6, "normal", "s",
+              f"{residual_us:g} µs RMS clock-relation residual"),
+    )
+
+    def model(ops: Ops, x: Mapping[str, Any]) -> Any:
+        return phase + x["noise"] * (180.0 / math.pi) - 360.0 * f_hz * x["sync"]
+
+    return Measurand(f"FRF phase at {f_hz:.4f} Hz", "deg", model, inputs)
+
+
+def _channel_of(sensor: str, results: Mapping[str, Any]) -> str:
+    """Map a misalignment sensor label (SZ) to its channel (v_sz) when that channel exists."""
+    channel = f"v_{sensor.lower()}"
+    known = ex.sensors(results)
+    return channel if channel in known or not known else next(iter(known))
+
+
+def _misalignment_excitation_dps2(results: Mapping[str, Any]) -> float:
+    sine = [s for s in ex.steps_of_kind(results, "sine")
+            if isinstance(s.get("mounting"), Mapping) and s["mounting"].get("scenario")]
+    return max(ex.step_values(sine, "accel_dps2") or [100.0])
+
+
+def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: str,
+                           c: RigConstants) -> Measurand | None:
+    """δ = (arcsin(sin δ̂_e + n_o) − arcsin(sin δ̂_ep + n_p))·180/π/2 + (w_o − w_p)/2  [deg]."""
+    sets = (ex.analysis(results, "misalignment") or {}).get("sets") or {}
+    original, pivoted = SCENARIO_SETS.get(scenario, (None, None))
+    try:
+        de_o = float(sets[original][sensor]["delta_e_deg"])
+        de_p = float(sets[pivoted][sensor]["delta_e_deg"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    channel = _channel_of(sensor, results)
+    noise_v, source = ex.noise_rms_v(results, channel)
+    k_v = ex.as_float(ex.sensors(results).get(channel, {}).get("nominal_scale_v_per_dps2")) or 0.004014
+    main_v = k_v * _misalignment_excitation_dps2(results)
+    rel = noise_v * math.sqrt(2.0 / c.record_samples) / main_v
+    wobble_deg = c.wobble_arcsec / 3600.0
+    note = f"σ·√(2/N)/|A_z|, {noise_v * 1e3:.2f} mV ({source})"
+    inputs = (
+        Input("noise_o", "sensor noise, original mounting", 0.0, rel, "normal", "1", note),
+        Input("noise_p", "sensor noise, pivoted mounting", 0.0, rel, "normal", "1", note),
+        Input("wobble_o", "wobble, original mounting", 0.0, wobble_deg, "rectangular", "deg",
+              f"≤ {c.wobble_arcsec:g}″"),
+        Input("wobble_p", "wobble, pivoted mounting", 0.0, wobble_deg, "rectangular", "deg",
+              f"≤ {c.wobble_arcsec:g}″"),
+        Input("orthogonality", "table orthogonality", 0.0, c.orthogonality_arcsec / 3600.0,
+              "rectangular", "deg", "common to both mountings: cancels in the pivot difference"),
+    )
+    s_o, s_p = math.sin(math.radians(de_o)), math.sin(math.radians(de_p))
+
+    def model(ops: Ops, x: Mapping[str, Any]) -> Any:
+        d_o = ops.asin(s_o + x["noise_o"]) * (180.0 / math.pi) + x["wobble_o"]
+        d_p = ops.asin(s_p + x["noise_p"]) * (180.0 / math.pi) + x["wobble_p"]
+        return (d_o - d_p) / 2.0 + 0.0 * x["orthogonality"]
+
+    return Measurand(f"misalignment {sensor} scenario {scenario}", "deg", model, inputs)

@@ -1,0 +1,97 @@
+"""GUM budgets agree with a Monte Carlo propagation of the same models (within 10 %)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+from numpy.testing import assert_allclose
+
+from aatest.plugins.report.gum import Input, Measurand, evaluate, monte_carlo
+from aatest.plugins.report.uncertainty import (
+    RigConstants,
+    bias_measurand,
+    g_sensitivity_measurand,
+    scale_factor_measurand,
+    temperature_measurand,
+)
+from aatest.plugins.report.uncertainty_dynamic import (
+    frf_gain_measurand,
+    frf_phase_measurand,
+    misalignment_measurand,
+)
+
+C = RigConstants()
+
+
+def _measurands(results: dict[str, Any]) -> dict[str, Measurand | None]:
+    sf = scale_factor_measurand(results, "v_sz", C)
+    assert sf is not None
+    sf_eval = evaluate(sf)
+    points = results["analysis"]["frf"]["v_sz"]
+    return {
+        "scale": sf,
+        "bias": bias_measurand(results, "v_sz", C),
+        "g": g_sensitivity_measurand(results, "v_sz", C, sf_eval.standard_uncertainty / sf_eval.value),
+        "tc_bias": temperature_measurand(results, "v_sy", "bias_coefficient_v_per_c", C),
+        "tc_scale": temperature_measurand(results, "v_sx", "scale_coefficient_per_c", C),
+        "gain_low": frf_gain_measurand(points[0], results, C),
+        "gain_high": frf_gain_measurand(points[-1], results, C),
+        "phase_high": frf_phase_measurand(points[-1], results, C),
+        "misalignment": misalignment_measurand(results, "3", "SX", C),
+    }
+
+
+NAMES = ["scale", "bias", "g", "tc_bias", "tc_scale", "gain_low", "gain_high", "phase_high",
+         "misalignment"]
+
+
+@pytest.mark.parametrize("name", NAMES, ids=NAMES)
+def test_gum_matches_monte_carlo_within_10pct(results: dict[str, Any], name: str) -> None:
+    measurand = _measurands(results)[name]
+    assert measurand is not None
+    gum = evaluate(measurand)
+    mc = monte_carlo(measurand, draws=100_000, seed=11)
+    assert gum.standard_uncertainty > 0
+    assert_allclose(mc.standard_uncertainty, gum.standard_uncertainty, rtol=0.10)
+    assert_allclose(mc.mean, gum.value, atol=3 * gum.standard_uncertainty)
+    assert gum.expanded_uncertainty == pytest.approx(2 * gum.standard_uncertainty)
+    shares = sum(r.share_pct for r in gum.rows)
+    assert shares == pytest.approx(100.0, rel=1e-6)
+
+
+def test_scale_factor_budget_is_physical(results: dict[str, Any]) -> None:
+    """The fit (±0.069 on 249 (°/s²)/V, ci95) dominates; position 1″ on 10° is ~1.6e-5."""
+    gum = evaluate(_measurands(results)["scale"])
+    rows = {r.label: r for r in gum.rows}
+    fit_rel = math.hypot(rows["reference acceleration (fit residual)"].standard_uncertainty,
+                         rows["sensor noise (fit residual)"].standard_uncertainty)
+    assert_allclose(fit_rel, 0.069 / 1.96 / 249.13, rtol=1e-3)
+    pos = rows["table position accuracy"].standard_uncertainty
+    assert_allclose(pos, (1 / 3600) / 9.99 / math.sqrt(3), rtol=0.01)
+    assert 1e-4 < gum.relative_expanded < 1e-3
+
+
+def test_high_frequency_gain_is_limited_by_reference_amplitude(results: dict[str, Any]) -> None:
+    """At 10 Hz, 100 °/s², A = 91″: 1″ rectangular → u ≈ 0.055 dB, dominating the budget."""
+    gum = evaluate(_measurands(results)["gain_high"])
+    assert_allclose(gum.standard_uncertainty, 20 / math.log(10) / 91.3 / math.sqrt(3), rtol=0.02)
+    assert max(gum.rows, key=lambda r: r.share_pct).label == "table position accuracy"
+
+
+def test_cosine_error_input_moments() -> None:
+    """E[cos ε − 1] = sin a/a − 1 and its spread, checked against sampling."""
+    a = 0.05
+    item = Input("tilt", "tilt", 0.0, a, "cosine_error")
+    assert_allclose(item.mean(), -a**2 / 6, rtol=1e-3)
+    mc = monte_carlo(Measurand("t", "1", lambda ops, x: x["tilt"], (item,)), 200_000, 5)
+    assert_allclose(mc.standard_uncertainty, item.standard_uncertainty(), rtol=0.02)
+    assert_allclose(item.standard_uncertainty(), a**2 / math.sqrt(45), rtol=1e-3)
+
+
+def test_missing_analysis_gives_no_measurand(results: dict[str, Any]) -> None:
+    del results["analysis"]["scale_factor"]
+    del results["analysis"]["misalignment"]
+    assert scale_factor_measurand(results, "v_sz", C) is None
+    assert misalignment_measurand(results, "1", "SZ", C) is None
