@@ -1,0 +1,162 @@
+"""Lazy synthesis of one recorded step: table log, DAQ log and the truth behind both.
+
+Everything is computed on whole arrays from the World's record of the step: the real motion of
+each axis (analytic in lab time), the DAQ clock and the sensor temperature. The table log is
+sampled on the table clock from the trigger on; the DAQ log on its own crystal clock from
+``start_lead_s`` before the trigger to ``stop_lag_s`` after the table log ends.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, TABLE, TABLE_CHANNELS, SampledLog
+from aatest.engine.steps import PlannedStep
+from aatest.plugins.sim import kinematics as kin
+from aatest.plugins.sim.chamber import ThermalState
+from aatest.plugins.sim.clocks import DaqClock, table_sync
+from aatest.plugins.sim.daq import record_channel
+from aatest.plugins.sim.model import RigModel
+from aatest.plugins.sim.sensor import SensorInputs, output_volts
+from aatest.plugins.sim.table import STENCIL_PAD, AxisTruth, estimates
+
+
+@dataclass(frozen=True)
+class StepSetup:
+    """Everything the World knows about one recorded step when the DAQ starts."""
+
+    model: RigModel
+    step: PlannedStep
+    inner: AxisTruth
+    outer: AxisTruth
+    clock: DaqClock
+    thermal: ThermalState
+    #: channel → sensor axes (columns x, y, z) in table-top coordinates
+    axes: dict[str, np.ndarray]
+    stop_lag_s: float
+
+    @property
+    def gimbal(self) -> kin.GimbalErrors:
+        return kin.GimbalErrors(self.model.table.orthogonality_arcsec,
+                                self.model.table.wobble_arcsec)
+
+    @property
+    def trigger_index(self) -> int:
+        return int(round(self.model.daq.start_lead_s * self.clock.sample_rate_hz))
+
+    @property
+    def trigger_time_s(self) -> float:
+        """Lab time of the trigger = first table log sample."""
+        return float(self.clock.lab_time(self.trigger_index / self.clock.sample_rate_hz))
+
+
+@dataclass(frozen=True)
+class SimulatedStep:
+    """Both logs of one step and the truth behind them (see :func:`synthesise`)."""
+
+    table: SampledLog
+    daq: SampledLog
+    truth: dict[str, Any]
+
+
+def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, dict[str, Any]]:
+    step, tm = setup.step, setup.model.table
+    dt = 1.0 / step.sample_rate_hz
+    k = np.arange(-STENCIL_PAD, step.samples + STENCIL_PAD)
+    lab_t = setup.trigger_time_s + k * dt
+    channels: dict[str, np.ndarray] = {}
+    truth: dict[str, Any] = {}
+    for name, axis, axis_model in (("inner", setup.inner, tm.inner), ("outer", setup.outer, tm.outer)):
+        angle, rate, accel = axis.evaluate(lab_t)
+        est = estimates(angle, axis_model, dt, tm.estimator, rng)
+        channels[f"{name}_position_deg"] = est["position_deg"]
+        channels[f"{name}_rate_dps"] = est["rate_dps"]
+        channels[f"{name}_accel_dps2"] = est["accel_dps2"]
+        channels[f"{name}_feedback_deg"] = est["feedback_deg"]
+        inner_slice = slice(STENCIL_PAD, STENCIL_PAD + step.samples)
+        truth[f"{name}_angle_deg"] = angle[inner_slice]
+        truth[f"{name}_rate_dps"] = rate[inner_slice]
+        truth[f"{name}_accel_dps2"] = accel[inner_slice]
+    time_s = k[STENCIL_PAD: STENCIL_PAD + step.samples] * dt
+    channels["sync_pulse"], channels["fp_latch_s"] = _table_pulse(setup, time_s)
+    moving = "outer" if step.axis == "outer" else "inner"
+    truth.update(time_s=time_s, angle_deg=truth[f"{moving}_angle_deg"],
+                 rate_dps=truth[f"{moving}_rate_dps"], accel_dps2=truth[f"{moving}_accel_dps2"])
+    log = SampledLog(TABLE, step.sample_rate_hz, time_s,
+                     {c: channels[c] for c in TABLE_CHANNELS}, dict(TABLE_CHANNELS))
+    return log, truth
+
+
+def _table_pulse(setup: StepSetup, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sync pulse as registered by the table, with the latch times (table clock)."""
+    clock, trig = setup.clock, setup.trigger_time_s
+    daq_span = (np.array([time_s[0] - 0.05, time_s[-1] + 0.05]) + trig - clock.t0_s) / clock.scale
+    edge_daq, rising = clock.edges(float(daq_span[0]), float(daq_span[1]))
+    edge_table = clock.lab_time(edge_daq) - trig
+    level_before = 0.0 if rising[0] else 1.0
+    return table_sync(edge_table, rising, level_before, time_s)
+
+
+def _daq_samples(setup: StepSetup) -> int:
+    """Number of DAQ samples: lead + the table record's span on the DAQ clock + stop lag."""
+    step, clock = setup.step, setup.clock
+    table_span_daq_s = step.samples / step.sample_rate_hz / clock.scale
+    lag = setup.stop_lag_s
+    return setup.trigger_index + int(np.ceil((table_span_daq_s + lag) * clock.sample_rate_hz))
+
+
+def _top_motion(setup: StepSetup, lab_t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(α_top (3, n) °/s², up (3, n) g) of the table top at lab times, incl. parasitics."""
+    th_i, w_i, a_i = setup.inner.evaluate(lab_t)
+    th_o, w_o, a_o = setup.outer.evaluate(lab_t)
+    alpha = kin.angular_acceleration_top(th_i, w_i, a_i, w_o, a_o, setup.gimbal)
+    k_unb = setup.model.table.unbalance_parasitic_dps2_per_dps2
+    if k_unb and setup.outer.profile.moving:
+        # unbalanced payload: outer excitation leaks into motion about the inner-base P axis
+        psi = np.radians(th_i)
+        alpha[0] += k_unb * a_o * np.cos(psi)
+        alpha[1] -= k_unb * a_o * np.sin(psi)
+    return alpha, kin.gravity_top(th_i, th_o, setup.gimbal)
+
+
+def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, dict[str, Any]]:
+    model, clock = setup.model, setup.clock
+    n = _daq_samples(setup)
+    daq_t = clock.daq_times(n)
+    lab_t = clock.lab_time(daq_t)
+    temperature = setup.thermal.temperature_at(lab_t)
+    channels: dict[str, np.ndarray] = {}
+    truth: dict[str, Any] = {"daq_time_s": lab_t - setup.trigger_time_s}
+    motion_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    for sensor in model.sensors:
+        delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
+        if delay not in motion_cache:
+            motion_cache[delay] = _top_motion(setup, lab_t - delay)
+        alpha, up = motion_cache[delay]
+        inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s)
+        clean = output_volts(sensor, inp, model.t_ref_c)
+        channels[sensor.channel], truth[f"volts_{sensor.channel}"] = record_channel(
+            clean, sensor, model.daq, clock.lab_dt_s, rng)
+        truth[f"alpha_{sensor.channel}"] = setup.axes[sensor.channel][:, 2] @ alpha
+    channels["sync_pulse"] = clock.sync_level(daq_t)
+    channels["trigger"] = (np.arange(n) >= setup.trigger_index).astype(np.float64)
+    channels["temperature_c"] = np.round(temperature, 2)
+    units = {c: "V" for c in channels if c.startswith("v_")} | dict(DAQ_AUX_CHANNELS)
+    log = SampledLog(DAQ, clock.sample_rate_hz, clock.stamped(n, rng), channels, units)
+    return log, truth
+
+
+def synthesise(setup: StepSetup, rng: np.random.Generator) -> SimulatedStep:
+    """Table log, DAQ log and truth of one step (all vectorised)."""
+    table, truth = _table_log(setup, rng)
+    daq, daq_truth = _daq_log(setup, rng)
+    truth.update(daq_truth)
+    truth["drift_ppm"] = setup.clock.drift_ppm
+    # t_table_log = offset + t_daq·(1 + drift): the DAQ's sample 0 precedes the trigger
+    truth["offset_s"] = setup.clock.t0_s - setup.trigger_time_s
+    truth["sensor_accel_dps2"] = {s.channel: truth[f"alpha_{s.channel}"] for s in setup.model.sensors}
+    truth["temperature_c"] = float(setup.thermal.temperature_at(setup.trigger_time_s))
+    return SimulatedStep(table=table, daq=daq, truth=truth)

@@ -1,0 +1,143 @@
+"""Servo tracking, table-side disturbances and the controller's state estimator.
+
+Real motion of one axis = commanded profile through an equivalent closed-loop tracking model
++ position-periodic encoder ripple (1 and 2 cycles/°) + narrow-band motor vibration (motor on)
+or slow drift (motor off). Everything is an analytic function of time, so the table log and the
+sensor sample the same physical truth on their own clocks (method.md §1.2, contracts.md §4
+"Table effects").
+
+The logged estimates are what the controller computes: the position estimate (true angle +
+estimator noise, quantised to the position resolution) and rate/acceleration as central or
+five-point differences of that estimate — which is why the acceleration estimate is noisy
+(≈ √6·σ/h²) while the rate estimate is clean (≈ σ/(√2·h)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from aatest.plugins.sim.model import AxisModel, MotorVibration
+from aatest.plugins.sim.profiles import AxisProfile
+
+#: number of tones that synthesise a narrow vibration band (bandwidth_hz > 0)
+BAND_TONES = 4
+
+
+@dataclass(frozen=True)
+class Tones:
+    """Sum of sinusoids in acceleration: Σ A_k·sin(2π f_k t + φ_k), °/s² (peak per tone)."""
+
+    frequency_hz: np.ndarray
+    amplitude_dps2: np.ndarray
+    phase_rad: np.ndarray
+
+    def evaluate(self, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(angle_deg, rate_dps, accel_dps2) of the vibration, zero-mean in all three."""
+        angle = np.zeros_like(time_s)
+        rate = np.zeros_like(time_s)
+        accel = np.zeros_like(time_s)
+        for f, a, p in zip(self.frequency_hz, self.amplitude_dps2, self.phase_rad, strict=True):
+            w = 2 * np.pi * f
+            arg = w * time_s + p
+            s, c = np.sin(arg), np.cos(arg)
+            accel += a * s
+            rate -= (a / w) * c
+            angle -= (a / (w * w)) * s
+        return angle, rate, accel
+
+
+def make_vibration(model: MotorVibration | None, rng: np.random.Generator) -> Tones | None:
+    """A rig's motor vibration: a pure tone, or ``BAND_TONES`` tones spread over the band.
+
+    Tone amplitudes are A/√K so the band carries the power of one tone of peak A.
+    """
+    if model is None or model.amplitude_dps2 == 0.0:
+        return None
+    if model.bandwidth_hz == 0.0:
+        return Tones(np.array([model.frequency_hz]), np.array([model.amplitude_dps2]),
+                     np.array([model.phase_rad]))
+    freqs = model.frequency_hz + model.bandwidth_hz * (rng.random(BAND_TONES) - 0.5)
+    amps = np.full(BAND_TONES, model.amplitude_dps2 / np.sqrt(BAND_TONES))
+    return Tones(freqs, amps, rng.uniform(0, 2 * np.pi, BAND_TONES))
+
+
+def tracked(profile: AxisProfile, servo_bandwidth_hz: float) -> AxisProfile:
+    """Steady-state response of a type-3 tracking loop to the commanded profile.
+
+    H(s) = 1 − (s/ω_b)³/(1 + s/ω_b)³: zero error at constant position and rate, a small
+    amplitude/phase error on sines that grows as (f/f_b)³ (≈ 1.5 % at 10 Hz for 40 Hz).
+    """
+    if profile.amplitude_deg == 0.0 or servo_bandwidth_hz <= 0.0:
+        return profile
+    x = 1j * profile.frequency_hz / servo_bandwidth_hz
+    h = 1.0 - x**3 / (1.0 + x) ** 3
+    return replace(profile, amplitude_deg=profile.amplitude_deg * abs(h),
+                   phase_rad=profile.phase_rad + float(np.angle(h)))
+
+
+@dataclass(frozen=True)
+class AxisTruth:
+    """The real motion of one axis during a step, evaluable at any lab time."""
+
+    profile: AxisProfile
+    model: AxisModel
+    vibration: Tones | None
+    motor_on: bool
+    drift_dps: float = 0.0
+
+    def evaluate(self, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Real (angle_deg, rate_dps, accel_dps2) of the axis at lab times ``time_s``."""
+        angle, rate, accel = self.profile.evaluate(time_s)
+        for ripple in self.model.rate_ripple if self.profile.moving else ():
+            k = 2 * np.pi * ripple.cycles_per_deg  # rad per degree
+            arg = k * angle + ripple.phase_rad
+            s, c = np.sin(arg), np.cos(arg)
+            a = ripple.amplitude_deg
+            accel = accel + a * (k * accel * c - (k * rate) ** 2 * s)
+            rate = rate + a * k * rate * c
+            angle = angle + a * s
+        if self.motor_on and self.vibration is not None:
+            va, vr, vac = self.vibration.evaluate(time_s)
+            angle, rate, accel = angle + va, rate + vr, accel + vac
+        elif not self.motor_on and self.drift_dps:
+            angle = angle + self.drift_dps * (np.asarray(time_s) - self.profile.t0_s)
+            rate = rate + self.drift_dps
+        return angle, rate, accel
+
+
+def quantise(values: np.ndarray, step: float) -> np.ndarray:
+    """Round to a multiple of ``step`` (no-op when step is 0)."""
+    return values if step <= 0.0 else np.round(values / step) * step
+
+
+#: stencil half-width needed on each side of the record
+STENCIL_PAD = 2
+
+
+def estimates(
+    true_angle_deg: np.ndarray, model: AxisModel, dt_s: float, method: str,
+    rng: np.random.Generator,
+) -> dict[str, np.ndarray]:
+    """Controller log of one axis from the true angle on ``N + 2·STENCIL_PAD`` log samples.
+
+    Returns position estimate, rate and acceleration estimates (differences of the position
+    estimate, as the controller computes them) and the raw feedback, each of length N.
+    """
+    noise = rng.standard_normal((2, true_angle_deg.size))
+    est = quantise(true_angle_deg + model.estimate_noise_deg * noise[0],
+                   model.encoder_resolution_deg)
+    raw = quantise(true_angle_deg + model.encoder_noise_deg * noise[1],
+                   model.encoder_resolution_deg)
+    p = STENCIL_PAD
+    n = true_angle_deg.size - 2 * p
+    f = [est[p + k: p + k + n] for k in (-2, -1, 0, 1, 2)]
+    if method == "five_point":
+        rate = (-f[4] + 8 * f[3] - 8 * f[1] + f[0]) / (12 * dt_s)
+        accel = (-f[4] + 16 * f[3] - 30 * f[2] + 16 * f[1] - f[0]) / (12 * dt_s**2)
+    else:
+        rate = (f[3] - f[1]) / (2 * dt_s)
+        accel = (f[3] - 2 * f[2] + f[1]) / dt_s**2
+    return {"position_deg": f[2], "rate_dps": rate, "accel_dps2": accel,
+            "feedback_deg": raw[p: p + n]}
