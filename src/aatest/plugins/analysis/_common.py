@@ -1,0 +1,121 @@
+"""Helpers every analysis shares: which acceleration a sensor sees, DFT bins, figures.
+
+Frames (contracts.md §4): the sensors ride on the inner axis. A sensor on I sees inner-axis
+motion; outer-axis motion at inner angle ψ lies along O·cos ψ + P·sin ψ of the table top, so a
+sensor on O sees ``cos ψ`` and one on P ``sin ψ`` of the outer acceleration.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Iterable
+
+import numpy as np
+from scipy import stats
+
+from aatest.engine.dataset import SensorInfo
+from aatest.engine.steps import PlannedStep
+from aatest.plugins.sync.freeze_pulse import SyncedStep
+
+#: a sensor counts as excited by a step when its projection of the motion exceeds this
+_EXCITED_WEIGHT = 0.5
+
+
+def axis_weights(sensor_axis: str, inner_deg: float | np.ndarray) -> dict[str, float | np.ndarray]:
+    """Share of inner- and outer-axis acceleration along a sensor axis (I, O or P)."""
+    psi = np.deg2rad(inner_deg)
+    if sensor_axis == "I":
+        return {"inner": 1.0, "outer": 0.0}
+    if sensor_axis == "O":
+        return {"inner": 0.0, "outer": np.cos(psi)}
+    return {"inner": 0.0, "outer": np.sin(psi)}
+
+
+def nominal_weight(step: PlannedStep, sensor_axis: str) -> float:
+    """Projection of the step's moving axis onto the sensor axis at the commanded angles."""
+    if step.axis not in ("inner", "outer"):
+        return 0.0
+    return float(axis_weights(sensor_axis, step.inner_deg)[step.axis])
+
+
+def is_excited(step: PlannedStep, sensor: SensorInfo) -> bool:
+    """True when the step's motion lies (mostly) along the sensor's sensitive axis."""
+    return abs(nominal_weight(step, sensor.axis)) >= _EXCITED_WEIGHT
+
+
+def input_accel_dps2(synced: SyncedStep, sensor_axis: str,
+                     accel: np.ndarray | None = None) -> np.ndarray:
+    """Table-estimated acceleration along a sensor axis, °/s², on the synced time grid.
+
+    ``accel`` replaces the moving axis' logged estimate (e.g. a smoothed reference).
+    """
+    step = synced.step
+    moving = step.axis if step.axis in ("inner", "outer") else "inner"
+    base = synced.table[f"{moving}_accel_dps2"] if accel is None else accel
+    psi = synced.table.get("inner_position_deg", np.full(len(synced), step.inner_deg))
+    weight = axis_weights(sensor_axis, np.mean(psi) if moving == "outer" else 0.0)[moving]
+    return np.asarray(base, dtype=np.float64) * weight
+
+
+def whole_cycles(n_samples: int, frequency_hz: float, fs_hz: float) -> tuple[int, int]:
+    """Longest sample count holding (to half a sample) an integer number of cycles, and it.
+
+    For a coherent record (method.md §4.4) this is the whole record.
+    """
+    per_cycle = fs_hz / frequency_hz
+    cycles = int(np.floor(n_samples / per_cycle + 1e-6))
+    if cycles < 1:
+        raise ValueError(f"record of {n_samples} samples holds no full cycle at {frequency_hz} Hz")
+    return min(int(round(cycles * per_cycle)), n_samples), cycles
+
+
+def fundamental(x: np.ndarray, frequency_hz: float, fs_hz: float) -> complex:
+    """One-sided complex amplitude of ``x`` at ``frequency_hz`` (mean removed).
+
+    Projection onto ``exp(−j2πft)`` over the whole-cycle part of the record: for a coherent
+    record this is exactly ``2·X[c]/N`` at the excitation DFT bin (method.md §4.4).
+    """
+    n, _ = whole_cycles(x.size, frequency_hz, fs_hz)
+    seg = np.asarray(x[:n], dtype=np.float64)
+    phasor = np.exp(-2j * np.pi * frequency_hz * np.arange(n) / fs_hz)
+    return complex(2.0 * np.dot(seg - seg.mean(), phasor) / n)
+
+
+def t95(dof: int) -> float:
+    """Two-sided 95 % Student-t coverage factor for ``dof`` degrees of freedom."""
+    return float(stats.t.ppf(0.975, max(dof, 1)))
+
+
+def to_svg(fig: object) -> str:
+    """Render a matplotlib figure to a compact SVG string and close it."""
+    import matplotlib.pyplot as plt
+
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg")  # type: ignore[attr-defined]
+    plt.close(fig)  # type: ignore[arg-type]
+    return buf.getvalue()
+
+
+def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0):  # type: ignore[no-untyped-def]
+    """A small Agg figure (reports embed many of them)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.rcParams["svg.fonttype"] = "none"
+    return plt.subplots(rows, 1, figsize=(width_in, height_in * rows), squeeze=False)
+
+
+def group_of(step: PlannedStep) -> str:
+    """The test-group label of a step (``accel-100`` style if the plan gave none)."""
+    if step.group:
+        return step.group
+    if step.accel_dps2 is not None:
+        return f"accel-{step.accel_dps2:g}"
+    return "default"
+
+
+def json_floats(values: Iterable[float]) -> list[float]:
+    """Plain Python floats for results.json."""
+    return [float(v) for v in values]

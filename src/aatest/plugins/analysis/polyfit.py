@@ -1,0 +1,162 @@
+"""Polynomial calibration models by QR least squares, with the statistics a lab signs.
+
+Model (method.md §4.3): y = Σ a_i·u^i, i = 0..p, u the sensor output (V, bias removed), y the
+reference acceleration (°/s²). The design is built on u/u_max (so order 15 stays well
+conditioned) and the coefficients are mapped back to physical units exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from aatest.plugins.analysis._common import t95
+
+
+@dataclass(frozen=True)
+class PolyFit:
+    """A fitted polynomial in physical units (ascending powers) with its statistics."""
+
+    order: int
+    coefficients: np.ndarray
+    covariance: np.ndarray
+    sse: float
+    n: int
+    sst: float
+
+    @property
+    def dof(self) -> int:
+        return max(self.n - self.order - 1, 1)
+
+    @property
+    def rmse(self) -> float:
+        """Root mean square residual with the degrees-of-freedom correction (fit units)."""
+        return float(np.sqrt(self.sse / self.dof))
+
+    @property
+    def r2(self) -> float:
+        return float(1.0 - self.sse / self.sst) if self.sst > 0 else 0.0
+
+    @property
+    def std_errors(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance))
+
+    @property
+    def ci95(self) -> np.ndarray:
+        """95 % bounds (Student t) per coefficient, shape (p+1, 2)."""
+        half = t95(self.dof) * self.std_errors
+        return np.column_stack([self.coefficients - half, self.coefficients + half])
+
+    @property
+    def correlation(self) -> np.ndarray:
+        s = self.std_errors
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.nan_to_num(self.covariance / np.outer(s, s))
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        return np.polynomial.polynomial.polyval(u, self.coefficients)
+
+    def summary(self) -> dict[str, object]:
+        """JSON-able statistics of the fit."""
+        return {
+            "order": self.order,
+            "coefficients": self.coefficients.tolist(),
+            "std_uncertainty": self.std_errors.tolist(),
+            "ci95": self.ci95.tolist(),
+            "covariance": self.covariance.tolist(),
+            "correlation": self.correlation.tolist(),
+            "sse": self.sse,
+            "rmse": self.rmse,
+            "r2": self.r2,
+            "n": self.n,
+        }
+
+
+def fit_polynomial(u: np.ndarray, y: np.ndarray, order: int, variance_inflation: float = 1.0
+                   ) -> PolyFit:
+    """Least-squares polynomial of ``order`` through (u, y) by a QR factorisation.
+
+    Parameters
+    ----------
+    u, y
+        Input and output samples (any units; coefficients come back in y/u^i).
+    order
+        Polynomial order p ≥ 0.
+    variance_inflation
+        Factor on the coefficient covariance for serially correlated residuals (e.g. the
+        ratio of sample rate to twice the filter bandwidth after low-pass filtering).
+    """
+    u = np.asarray(u, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    scale = float(np.max(np.abs(u))) or 1.0
+    design = np.vander(u / scale, order + 1, increasing=True)
+    q, r = scipy.linalg.qr(design, mode="economic")
+    c_scaled = scipy.linalg.solve_triangular(r, q.T @ y)
+    residual = y - design @ c_scaled
+    sse = float(residual @ residual)
+    dof = max(u.size - order - 1, 1)
+    r_inv = scipy.linalg.solve_triangular(r, np.eye(order + 1))
+    cov_scaled = (r_inv @ r_inv.T) * sse / dof * variance_inflation
+    to_phys = scale ** -np.arange(order + 1, dtype=np.float64)
+    return PolyFit(order=order, coefficients=c_scaled * to_phys,
+                   covariance=cov_scaled * np.outer(to_phys, to_phys), sse=sse, n=int(u.size),
+                   sst=float(np.sum((y - y.mean()) ** 2)))
+
+
+def naic(v: float, n_params: int, n: int) -> float:
+    """Normalised Akaike criterion, MATLAB's definition: log V + 2·n_p/N."""
+    return float(np.log(v) + 2.0 * n_params / n)
+
+
+def fpe(v: float, n_params: int, n: int) -> float:
+    """Akaike's final prediction error, MATLAB's definition: V·(1 + n_p/N)/(1 − n_p/N)."""
+    return float(v * (1.0 + n_params / n) / (1.0 - n_params / n))
+
+
+def fit_percent(y: np.ndarray, y_hat: np.ndarray) -> float:
+    """Normalised-RMSE fit, MATLAB's definition: 100·(1 − ‖y − ŷ‖/‖y − ȳ‖) (complex allowed)."""
+    y = np.asarray(y)
+    return float(100.0 * (1.0 - np.linalg.norm(y - y_hat) / np.linalg.norm(y - y.mean())))
+
+
+def cross_validate(u: np.ndarray, y: np.ndarray, max_order: int = 15, random_splits: int = 3,
+                   seed: int = 0, id_fraction: float = 0.25) -> dict[str, np.ndarray]:
+    """Orders 0..max_order on a fixed first-25 % split and ``random_splits`` random ones.
+
+    Returns per order (rows) and split (columns): validation RMSE and identification nAIC.
+    """
+    n = u.size
+    n_id = int(id_fraction * n)
+    rng = np.random.default_rng(seed)
+    splits = [np.arange(n)] + [rng.permutation(n) for _ in range(random_splits)]
+    rmse_val = np.zeros((max_order + 1, len(splits)))
+    aic = np.zeros_like(rmse_val)
+    for j, perm in enumerate(splits):
+        ident, valid = perm[:n_id], perm[n_id:]
+        for p in range(max_order + 1):
+            fit = fit_polynomial(u[ident], y[ident], p)
+            rmse_val[p, j] = np.sqrt(np.mean((y[valid] - fit(u[valid])) ** 2))
+            aic[p, j] = naic(fit.sse / n_id, p + 1, n_id)
+    return {"rmse_validation": rmse_val, "naic": aic}
+
+
+def choose_order(table: dict[str, np.ndarray], rel_tol: float = 0.01, min_order: int = 1
+                 ) -> int:
+    """Lowest order whose mean validation RMSE is within ``rel_tol`` of the best and whose
+    mean nAIC is within ``2·rel_tol`` of the best ("not meaningfully worse")."""
+    rmse = table["rmse_validation"].mean(axis=1)
+    aic = table["naic"].mean(axis=1)
+    ok = (rmse <= rmse.min() * (1 + rel_tol)) & (aic <= aic.min() + 2 * rel_tol)
+    ok[:min_order] = False
+    return int(np.flatnonzero(ok)[0]) if ok.any() else int(np.argmin(rmse))
+
+
+def nonlinearity(fit: PolyFit, u_min: float, u_max: float, points: int = 512) -> float:
+    """L = sqrt(mean((f − g)²)) of the fitted curve f against its best straight line g over
+    the input range (output units)."""
+    grid = np.linspace(u_min, u_max, points)
+    f = fit(grid)
+    g = np.polynomial.polynomial.polyval(grid, np.polynomial.polynomial.polyfit(grid, f, 1))
+    return float(np.sqrt(np.mean((f - g) ** 2)))

@@ -1,0 +1,163 @@
+"""Scale-factor calibration from a single-frequency sine (method.md §4.3).
+
+Per sensor: the sine steps along its axis at ≤ 2 Hz with the largest acceleration (the 1 Hz,
+70 %-of-range test) are synchronised, the reference (default: zero-phase low-pass of the table
+estimate) and the sensor volts pass the *same* zero-phase filter, the reference is delayed by
+the sensor's phase delay at the fundamental (so the fit sees no phase loop), and polynomials of
+order 0–15 are cross-validated. The chosen forward model (°/s² from volts) is reported with its
+statistics; the contract's ``scale_v_per_dps2``/``offset_v`` come from its linear term (the
+small-signal sensitivity), and an inverse form (volts from °/s²) is given too.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.errors import AnalysisError
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.plugins.analysis import polyfit
+from aatest.plugins.analysis._common import (
+    fundamental,
+    input_accel_dps2,
+    is_excited,
+    new_figure,
+    to_svg,
+)
+from aatest.plugins.analysis.reference import default_cutoff_hz, reference_accel, zero_phase_lowpass
+from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+
+_MAX_CAL_FREQUENCY_HZ = 2.0
+
+
+def calibration_steps(steps: list[SyncedStep], sensor: SensorInfo) -> list[SyncedStep]:
+    """The scale-factor steps of a sensor: sine, along its axis, ≤ 2 Hz, largest acceleration,
+    frequency closest to 1 Hz (all repetitions of that point)."""
+    cands = [s for s in steps if s.step.kind == "sine" and is_excited(s.step, sensor)
+             and (s.step.frequency_hz or 0.0) <= _MAX_CAL_FREQUENCY_HZ]
+    if not cands:
+        return []
+    top = max(s.step.accel_dps2 or 0.0 for s in cands)
+    cands = [s for s in cands if (s.step.accel_dps2 or 0.0) >= 0.999 * top]
+    best_f = min({float(s.step.frequency_hz or 0.0) for s in cands}, key=lambda f: abs(f - 1.0))
+    return [s for s in cands if abs(float(s.step.frequency_hz or 0.0) - best_f) < 1e-9]
+
+
+def _fractional_delay(x: np.ndarray, delay_s: float, fs_hz: float) -> np.ndarray:
+    """x(t − delay) by an FFT phase ramp (exact for the periodic part of a coherent record)."""
+    freqs = np.fft.rfftfreq(x.size, 1.0 / fs_hz)
+    return np.fft.irfft(np.fft.rfft(x) * np.exp(-2j * np.pi * freqs * delay_s), n=x.size)
+
+
+def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: str = "smooth"
+                 ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(volts, reference °/s², delay s, filter corner Hz) of one step, time-aligned.
+
+    Both signals pass the same zero-phase low-pass; the reference is delayed by the phase
+    delay of the sensor at the excitation frequency; filter and shift edges are trimmed.
+    """
+    fs, f0 = synced.sample_rate_hz, float(synced.step.frequency_hz or 1.0)
+    cutoff = default_cutoff_hz(synced)
+    ref = input_accel_dps2(synced, sensor.axis, reference_accel(synced, reference))
+    if reference != "smooth":
+        ref = zero_phase_lowpass(ref, fs, cutoff)
+    volts = zero_phase_lowpass(synced.daq[sensor.channel], fs, cutoff)
+    ratio = fundamental(volts, f0, fs) / fundamental(ref, f0, fs)
+    delay_s = float(-np.angle(ratio * np.sign(ratio.real or 1.0)) / (2 * np.pi * f0))
+    ref = _fractional_delay(ref, delay_s, fs)
+    trim = int(3.0 * fs / cutoff) + int(abs(delay_s) * fs) + 8
+    return volts[trim:-trim], ref[trim:-trim], delay_s, cutoff
+
+
+def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0, seed: int = 0,
+              max_order: int = 15) -> dict[str, Any]:
+    """Cross-validated polynomial calibration of volts against a reference acceleration."""
+    if np.std(ref_dps2) <= 0 or np.std(volts) <= 0:
+        raise AnalysisError("scale factor: the reference or the sensor output is constant")
+    v_mean = float(np.mean(volts))
+    u = volts - v_mean
+    table = polyfit.cross_validate(u, ref_dps2, max_order=max_order, seed=seed)
+    order = polyfit.choose_order(table)
+    fit = polyfit.fit_polynomial(u, ref_dps2, order, inflation)
+    a0, a1 = fit.coefficients[0], fit.coefficients[1]
+    cov = fit.covariance
+    scale = 1.0 / a1
+    u_scale = float(np.sqrt(cov[1, 1])) / a1**2
+    offset_v = v_mean - a0 / a1
+    grad = np.array([-1.0 / a1, a0 / a1**2])  # ∂offset/∂(a0, a1)
+    u_offset = float(np.sqrt(grad @ cov[:2, :2] @ grad))
+    inverse = polyfit.fit_polynomial(ref_dps2, volts, order, inflation)
+    lin = float(polyfit.nonlinearity(fit, float(u.min()), float(u.max())))
+    return {
+        "scale_v_per_dps2": scale, "scale_u_v_per_dps2": u_scale,
+        "scale_ci95": [scale - 1.96 * u_scale, scale + 1.96 * u_scale],
+        "offset_v": offset_v, "offset_u_v": u_offset,
+        "order": order, "rmse_dps2": fit.rmse, "coefficients": fit.coefficients.tolist(),
+        "ci95": fit.ci95.tolist(), "fit": fit.summary(), "volts_mean_v": v_mean,
+        "validation": {"rmse_dps2": table["rmse_validation"].mean(axis=1).tolist(),
+                       "naic": table["naic"].mean(axis=1).tolist()},
+        "nonlinearity_dps2": lin,
+        "inverse": {"order": order, "coefficients_v": inverse.coefficients.tolist(),
+                    "ci95": inverse.ci95.tolist(), "rmse_v": inverse.rmse,
+                    "note": "volts = Σ c_i·α^i, α in °/s²"},
+    }
+
+
+def _figure(volts: np.ndarray, ref: np.ndarray, result: dict[str, Any]) -> str:
+    fig, ax = new_figure(2)
+    step = max(volts.size // 4000, 1)
+    fit = np.polynomial.polynomial.polyval(volts - result["volts_mean_v"],
+                                           result["coefficients"])
+    ax[0, 0].plot(volts[::step], ref[::step], ",", label="data")
+    ax[0, 0].plot(volts[::step], fit[::step], "-", lw=0.8, label=f"order {result['order']}")
+    ax[0, 0].set(xlabel="sensor output / V", ylabel="reference / (°/s²)")
+    ax[0, 0].legend(fontsize=7)
+    ax[1, 0].plot(ref[::step], (ref - fit)[::step], ",")
+    ax[1, 0].set(xlabel="reference / (°/s²)", ylabel="residual / (°/s²)")
+    fig.tight_layout()
+    return to_svg(fig)
+
+
+def sensor_scale_factor(steps: list[SyncedStep], sensor: SensorInfo, options: dict[str, Any]
+                        ) -> tuple[dict[str, Any], str] | None:
+    """Calibration values and figure of one sensor, or None without suitable steps."""
+    chosen = calibration_steps(steps, sensor)
+    if not chosen:
+        return None
+    reference = str(options.get("reference", "smooth"))
+    parts = [aligned_pair(s, sensor, reference) for s in chosen]
+    volts = np.concatenate([p[0] for p in parts])
+    ref = np.concatenate([p[1] for p in parts])
+    inflation = chosen[0].sample_rate_hz / (2.0 * parts[0][3])
+    result = calibrate(volts, ref, inflation, int(options.get("seed", 0)),
+                       int(options.get("max_order", 15)))
+    dev_pct = 100.0 * (result["scale_v_per_dps2"] / sensor.nominal_scale_v_per_dps2 - 1.0)
+    result |= {
+        "reference": reference, "alignment_delay_s": float(np.mean([p[2] for p in parts])),
+        "steps": [s.step.id for s in chosen], "scale_deviation_pct": dev_pct,
+        "scale_within_datasheet": bool(abs(dev_pct) <= sensor.scale_tolerance_pct),
+        "nonlinearity_pct_fr": 100.0 * result["nonlinearity_dps2"] / (2 * sensor.range_dps2),
+    }
+    return result, _figure(volts, ref, result)
+
+
+class ScaleFactorAnalysis:
+    """Polynomial scale-factor calibration of every sensor with a suitable sine step."""
+
+    key: ClassVar[str] = "scale_factor"
+
+    def applies_to(self, data: Dataset) -> bool:
+        return any(s.step.kind == "sine" for s in data.steps)
+
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
+        steps = synced_steps(data, context)
+        values: dict[str, Any] = {}
+        figures: dict[str, str] = {}
+        for sensor in data.sensors:
+            out = sensor_scale_factor(steps, sensor, context.options)
+            if out is not None:
+                values[sensor.channel], figures[f"scale_factor_{sensor.channel}"] = out
+        context.cache["scale_factor"] = values
+        return AnalysisOutput(values=values, figures=figures)
