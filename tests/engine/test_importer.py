@@ -1,0 +1,238 @@
+"""Measured-data import (contracts.md §3): tolerant of layout, strict about content."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from aatest.engine.errors import ImportDataError, ProblemsError
+from aatest.engine.importer import DatasetFileError, import_dataset
+from aatest.engine.recording import read_dataset
+
+RATE_HZ = 2000.0
+N = 400
+FREQ_HZ = 5.0
+ACCEL_DPS2 = 400.0
+
+MANIFEST = """\
+sensors:                      # one entry per sensor channel in the DAQ files
+  - {channel: v_sz, axis: I, nominal_bias_v: 2.5, nominal_scale_v_per_dps2: 0.004014, range_dps2: 572.958}
+sample_rate_hz: 2000
+steps:
+  - id: s01
+    kind: sine
+    axis: inner
+    frequency_hz: 5.0
+    accel_dps2: 400
+    inner_deg: 0
+    outer_deg: 0
+    table: s01_table.csv
+    daq: s01_daq.csv
+"""
+
+
+def contract_columns(rng: np.random.Generator) -> tuple[dict, dict]:
+    """Contract-only table and DAQ columns: 5 Hz, 400 °/s² sine; DAQ 0.1 s earlier, 20 ppm."""
+    t = np.arange(N) / RATE_HZ
+    w = 2 * math.pi * FREQ_HZ
+    amp_deg = ACCEL_DPS2 / w**2
+    table = {"time_s": t + 12.5, "position_deg": amp_deg * np.sin(w * t),
+             "rate_dps": amp_deg * w * np.cos(w * t), "accel_dps2": -ACCEL_DPS2 * np.sin(w * t),
+             "sync_pulse": ((np.arange(N) // 10) % 2 == 0).astype(int)}
+    n_daq = N + 200
+    t_daq = np.arange(n_daq) / (RATE_HZ * (1 + 20e-6))
+    daq = {"time_s": t_daq, "sync_pulse": ((np.arange(n_daq) // 10) % 2 == 0).astype(int),
+           "trigger": (np.arange(n_daq) >= 200).astype(int),
+           "v_sz": 2.5 + rng.normal(0, 3e-3, n_daq)}
+    return table, daq
+
+
+def csv_text(columns: dict, newline: str = "\n") -> str:
+    names = list(columns)
+    rows = zip(*(np.asarray(columns[k]).astype(str) for k in names))
+    return newline.join([",".join(names), *(",".join(r) for r in rows)]) + newline
+
+
+def make_import_dir(root: Path, table: dict, daq: dict, manifest: str = MANIFEST,
+                    newline: str = "\n") -> Path:
+    root.mkdir(parents=True, exist_ok=True)
+    (root / "dataset.yaml").write_text(manifest)
+    (root / "s01_table.csv").write_text(csv_text(table, newline), newline="")
+    (root / "s01_daq.csv").write_text(csv_text(daq, newline), newline="")
+    return root
+
+
+@pytest.fixture
+def columns() -> tuple[dict, dict]:
+    return contract_columns(np.random.default_rng(11))
+
+
+def test_contract_example_imports_as_a_dataset(tmp_path: Path, columns: tuple) -> None:
+    table_cols, daq_cols = columns
+    dataset = read_dataset(make_import_dir(tmp_path, table_cols, daq_cols))
+    step = dataset.steps[0].step
+    assert (step.kind, step.axis, step.samples, step.sample_rate_hz) == ("sine", "inner", N, 2000)
+    assert step.duration_s == pytest.approx(N / RATE_HZ, rel=1e-12)
+    assert step.amplitude_deg == pytest.approx(ACCEL_DPS2 / (2 * math.pi * FREQ_HZ) ** 2, rel=1e-12)
+    table, daq = dataset.steps[0].table, dataset.steps[0].daq
+    np.testing.assert_array_equal(table["inner_accel_dps2"], table_cols["accel_dps2"])
+    np.testing.assert_array_equal(table.time_s, table_cols["time_s"])
+    np.testing.assert_array_equal(daq["v_sz"], daq_cols["v_sz"])
+    assert table["sync_pulse"].dtype == np.uint8 and daq["trigger"].dtype == np.uint8
+    # the resting outer axis is filled from the step, NaN-free; no invented latch times
+    np.testing.assert_array_equal(table["outer_position_deg"], np.zeros(N))
+    assert np.all(np.isfinite(table["outer_accel_dps2"]))
+    assert "fp_latch_s" not in table.channels
+    np.testing.assert_array_equal(daq["temperature_c"], np.full(N + 200, 25.0))
+    assert dataset.sensors[0].nominal_scale_v_per_dps2 == 0.004014
+    meta = dataset.metadata
+    assert meta["fp_latch_s_present"] is False and meta["temperature_present"] is False
+    assert meta["columns_present"]["s01"]["table"][:3] == [
+        "inner_position_deg", "inner_rate_dps", "inner_accel_dps2"]
+    assert meta["t_ref_c"] == 25.0
+
+
+def test_layout_tolerance(tmp_path: Path, columns: tuple) -> None:
+    """CRLF, reordered and extra (text) columns, whitespace and a BOM give the same data."""
+    table_cols, daq_cols = columns
+    reference = import_dataset(make_import_dir(tmp_path / "a", table_cols, daq_cols))
+    shuffled = {k: table_cols[k] for k in reversed(list(table_cols))}
+    shuffled["operator_note"] = np.array(["ok"] * N)
+    directory = make_import_dir(tmp_path / "b", shuffled, daq_cols, newline="\r\n")
+    text = (directory / "s01_daq.csv").read_text()
+    spaced = "\ufeff" + text.replace(",", " , ").replace("\n", "  \n", 1) + "\n\n"
+    (directory / "s01_daq.csv").write_text(spaced, encoding="utf-8")
+    dataset = import_dataset(directory)
+    for mine, ref in zip(dataset.steps, reference.steps):
+        for log, ref_log in ((mine.table, ref.table), (mine.daq, ref.daq)):
+            np.testing.assert_array_equal(log.time_s, ref_log.time_s)
+            for name in ref_log.channels:
+                np.testing.assert_array_equal(log[name], ref_log[name], err_msg=name)
+
+
+def test_outer_axis_and_optional_columns(tmp_path: Path, columns: tuple) -> None:
+    table_cols, daq_cols = columns
+    table_cols = {**table_cols, "fp_latch_s": np.full(N, 1e-4), "inner_position_deg": np.full(N, 90.0)}
+    daq_cols = {**daq_cols, "temperature_c": np.full(N + 200, 40.0)}
+    manifest = MANIFEST.replace("axis: inner", "axis: outer").replace("inner_deg: 0", "inner_deg: 90")
+    dataset = import_dataset(make_import_dir(tmp_path, table_cols, daq_cols, manifest))
+    table = dataset.steps[0].table
+    np.testing.assert_array_equal(table["outer_accel_dps2"], table_cols["accel_dps2"])
+    np.testing.assert_array_equal(table["inner_position_deg"], np.full(N, 90.0))
+    np.testing.assert_array_equal(table["inner_accel_dps2"], np.zeros(N))
+    np.testing.assert_array_equal(table["fp_latch_s"], table_cols["fp_latch_s"])
+    assert dataset.metadata["fp_latch_s_present"] and dataset.metadata["temperature_present"]
+
+
+def test_t_ref_from_model_file(tmp_path: Path, columns: tuple) -> None:
+    directory = make_import_dir(tmp_path, *columns, MANIFEST + "model: model.yaml\n")
+    (directory / "model.yaml").write_text("t_ref_c: 20.0\nsensors: []\n")
+    dataset = import_dataset(directory)
+    assert dataset.metadata["t_ref_c"] == 20.0
+    np.testing.assert_array_equal(dataset.steps[0].daq["temperature_c"], 20.0)
+
+
+def _damage(text: str, how: str) -> tuple[str, int]:
+    """Return damaged CSV text and the 1-based line the error must name."""
+    lines = text.split("\n")
+    if how == "truncated_last_row":
+        lines[-2] = lines[-2][: lines[-2].index(",") + 1].rstrip(",")
+        return "\n".join(lines), len(lines) - 1
+    if how == "non_numeric":
+        cells = lines[7].split(",")
+        cells[2] = "12.3abc"
+        lines[7] = ",".join(cells)
+        return "\n".join(lines), 8
+    if how == "non_monotonic":
+        lines[5], lines[6] = lines[6], lines[5]
+        return "\n".join(lines), 7
+    if how == "nan":
+        cells = lines[3].split(",")
+        cells[1] = "nan"
+        lines[3] = ",".join(cells)
+        return "\n".join(lines), 4
+    if how == "missing_column":
+        lines = [",".join(line.split(",")[:-1]) for line in lines]
+        return "\n".join(lines), 1
+    if how == "bad_sync":
+        cells = lines[9].split(",")
+        cells[4] = "0.5"
+        lines[9] = ",".join(cells)
+        return "\n".join(lines), 10
+    return "", 1  # empty
+
+
+@pytest.mark.parametrize(
+    "how, message",
+    [("truncated_last_row", "truncated"), ("non_numeric", "'12.3abc' is not a number"),
+     ("non_monotonic", "does not increase"), ("nan", "not a finite number"),
+     ("missing_column", "missing required column"), ("bad_sync", "must be 0 or 1"),
+     ("empty", "empty file")],
+    ids=lambda v: v if isinstance(v, str) and " " not in v else "",
+)
+def test_malformed_table_csv_names_file_and_line(
+    tmp_path: Path, columns: tuple, how: str, message: str
+) -> None:
+    directory = make_import_dir(tmp_path, *columns)
+    path = directory / "s01_table.csv"
+    text, line = _damage(path.read_text(), how)
+    path.write_text(text)
+    with pytest.raises(ImportDataError, match=message) as info:
+        import_dataset(directory)
+    assert info.value.path == str(path)
+    assert info.value.line == line
+    assert str(info.value).startswith(f"{path}:{line}: ")
+
+
+def test_manifest_errors_are_located(tmp_path: Path, columns: tuple) -> None:
+    broken = MANIFEST.replace("frequency_hz: 5.0", "frequency_hz: fast").replace(
+        "outer_deg: 0", "outer_deg: 0\n    colour: red")
+    directory = make_import_dir(tmp_path, *columns, broken)
+    with pytest.raises(DatasetFileError) as info:
+        import_dataset(directory)
+    assert isinstance(info.value, ProblemsError) and isinstance(info.value, ImportDataError)
+    text = str(info.value)
+    assert f"{directory / 'dataset.yaml'}:8:5: steps.0.frequency_hz:" in text
+    assert f"{directory / 'dataset.yaml'}:12:5: steps.0.colour: Extra inputs" in text
+
+
+def test_missing_csv_file_is_located_in_manifest(tmp_path: Path, columns: tuple) -> None:
+    directory = make_import_dir(tmp_path, *columns)
+    (directory / "s01_daq.csv").unlink()
+    with pytest.raises(ImportDataError, match=r"dataset.yaml:13:5: steps.0.daq: file not found"):
+        import_dataset(directory)
+
+
+def test_sine_step_without_frequency_is_rejected(tmp_path: Path, columns: tuple) -> None:
+    directory = make_import_dir(tmp_path, *columns, MANIFEST.replace("    frequency_hz: 5.0\n", ""))
+    with pytest.raises(DatasetFileError, match="needs frequency_hz and accel_dps2"):
+        import_dataset(directory)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    cut=st.integers(min_value=0, max_value=10_000),
+    garbage=st.binary(max_size=40),
+    which=st.sampled_from(["s01_table.csv", "s01_daq.csv", "dataset.yaml"]),
+)
+def test_random_truncation_and_garbage_only_raise_import_errors(
+    tmp_path_factory: pytest.TempPathFactory, columns: tuple, cut: int, garbage: bytes, which: str
+) -> None:
+    directory = make_import_dir(tmp_path_factory.mktemp("fuzz"), *columns)
+    path = directory / which
+    data = path.read_bytes()
+    cut = cut % (len(data) + 1)
+    path.write_bytes(data[:cut] + garbage)
+    try:
+        dataset = import_dataset(directory)
+    except ImportDataError:
+        return
+    # a survivable damage must still give consistent, finite logs
+    for log in (dataset.steps[0].table, dataset.steps[0].daq):
+        assert np.all(np.diff(log.time_s) > 0)
+        assert all(np.all(np.isfinite(v)) for v in log.channels.values())
