@@ -1,0 +1,121 @@
+"""Envelope check: each violated limit is reported with the step, the limit and the value."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from aatest.engine.envelope import check_envelope, step_violations
+from aatest.engine.errors import EXIT_BAD_INPUT, EnvelopeError
+from aatest.engine.interfaces import AxisLimits, SensorDatasheet, TableEnvelope
+from aatest.engine.loader import load_procedure, parse_procedure
+from aatest.engine.planner import expand
+from aatest.engine.steps import PlannedStep
+
+DATA = Path(__file__).parents[1] / "data" / "procedures"
+SHEET = SensorDatasheet(model="sr207")
+ENV = TableEnvelope()
+
+
+def _sine(freq_hz: float, amp_deg: float, axis: str = "inner", **kw: object) -> PlannedStep:
+    accel = amp_deg * (2 * 3.141592653589793 * freq_hz) ** 2
+    return PlannedStep(id="s001-x", kind="sine", axis=axis, frequency_hz=freq_hz,
+                       amplitude_deg=amp_deg, accel_dps2=accel, samples=8192, **kw)
+
+
+def _limits(step: PlannedStep, env: TableEnvelope = ENV) -> set[str]:
+    return {v.limit for v in step_violations(step, env, SHEET)}
+
+
+def test_2000dps2_on_the_inner_axis_is_rejected_with_its_position() -> None:
+    path = DATA / "broken-inner-2000dps2.yaml"
+    plan = expand(load_procedure(path))
+    with pytest.raises(EnvelopeError) as info:
+        check_envelope(plan, ENV, SHEET, str(path))
+    assert info.value.exit_code == EXIT_BAD_INPUT
+    messages = [str(p) for p in info.value.problems]
+    table = next(m for m in messages if "[inner.accel_dps2]" in m)
+    assert table.startswith(f"{path}:7:5: s002-sine-inner-1.9531Hz-2000dps2: peak table "
+                            "acceleration 2000 °/s² exceeds inner.accel_dps2 1000 °/s²")
+    assert "terminal frequency" in table
+    assert any("[sensor.test_ceiling_dps2]" in m for m in messages)
+
+
+def test_outer_axis_has_its_own_lower_limits() -> None:
+    step = _sine(1.0, 250 / (2 * 3.141592653589793) ** 2, axis="outer")  # 250 °/s² on outer
+    assert _limits(step) == {"outer.accel_dps2"}
+    assert _limits(_sine(1.0, 2.5, axis="outer")) == set()  # 98.7 °/s² fits
+
+
+@pytest.mark.parametrize(("step", "limit"), [
+    (_sine(0.25, 900.0), "inner.rate_dps"),         # A·ω = 1414 °/s > 1200 °/s
+    (_sine(10.5, 0.1), "max_frequency_hz"),
+    (_sine(1.0, 0.015), "sensor.floor_dps2"),       # 0.59 °/s² below the 0.8 °/s² floor
+    (_sine(1.0, 12.0), "sensor.test_ceiling_dps2"),  # 474 °/s² above 458.4 °/s²
+    (_sine(1.0, 5.0, sample_rate_hz=5000.0), "max_log_rate_hz"),
+], ids=["rate", "terminal", "floor", "ceiling", "log-rate"])
+def test_each_limit_is_named(step: PlannedStep, limit: str) -> None:
+    assert limit in _limits(step)
+
+
+def test_peak_rate_is_amplitude_times_omega() -> None:
+    # 0.1 Hz, 900°: rate 565.5 °/s would fit the inner 1200 °/s but not the outer 500 °/s
+    step = _sine(0.1, 900.0, axis="outer")
+    (rate,) = [v for v in step_violations(step, ENV, SHEET) if v.limit == "outer.rate_dps"]
+    assert rate.value == pytest.approx(900 * 2 * 3.141592653589793 * 0.1, rel=1e-12)
+    assert "outer.rate_dps" not in _limits(_sine(0.1, 700.0, axis="outer"))  # 439.8 °/s
+
+
+def test_record_longer_than_the_log_capacity() -> None:
+    step = PlannedStep(id="s1", kind="static", samples=230_001)
+    assert _limits(step) == {"log_capacity_samples"}
+    assert _limits(PlannedStep(id="s1", kind="static", samples=230_000)) == set()
+
+
+def test_value_exactly_at_the_limit_passes() -> None:
+    amp = 1000 / (2 * 3.141592653589793 * 2.0) ** 2
+    assert "inner.accel_dps2" not in _limits(_sine(2.0, amp))
+
+
+def test_constant_and_coordinated_rates_against_rate_limits() -> None:
+    fast = PlannedStep(id="s1", kind="constant_rate", axis="inner", rate_dps=-1300.0, samples=10)
+    assert _limits(fast) == {"inner.rate_dps"}
+    coord = PlannedStep(id="s1", kind="constant_rate", axis="both", rate_dps=1080.0,
+                        outer_rate_dps=600.0, accel_dps2=11309.7, samples=10)
+    assert _limits(coord) == {"outer.rate_dps", "sensor.test_ceiling_dps2"}
+
+
+def test_travel_limits_of_an_axis_with_stops() -> None:
+    env = TableEnvelope(outer=AxisLimits(rate_dps=500, accel_dps2=200, continuous=False,
+                                         min_deg=-90, max_deg=90))
+    assert _limits(PlannedStep(id="s", kind="static", outer_deg=180.0, samples=1), env) == {
+        "outer.max_deg"}
+    assert _limits(_sine(1.0, 2.0, axis="outer", outer_deg=-89.0), env) == {"outer.min_deg"}
+
+
+def test_sweep_without_skip_rejects_every_point_beyond_the_ceiling() -> None:
+    proc = parse_procedure(
+        "procedure: s\nsensor: {model: sr207}\nsteps:\n  - sine_sweep:\n"
+        "      frequencies: {include: [1, 8, 9]}\n      amplitudes_deg: [0.2]\n")
+    with pytest.raises(EnvelopeError) as info:
+        check_envelope(expand(proc), ENV, SHEET, None)
+    assert len(info.value.problems) == 2
+    assert all("sensor.test_ceiling_dps2" in str(p) for p in info.value.problems)
+
+
+def test_skip_is_decided_against_the_given_envelope() -> None:
+    text = ("procedure: s\nsensor: {model: sr207}\nsteps:\n  - sine_sweep:\n"
+            "      frequencies: {include: [1, 2]}\n      accelerations_dps2: [300]\n"
+            "      skip_outside_envelope: true\n")
+    small = SensorDatasheet(model="small", range_dps2=100.0)
+    plan = expand(parse_procedure(text), datasheet=small)
+    assert plan.steps == ()
+    assert len(expand(parse_procedure(text)).steps) == 2
+
+
+def test_every_shipped_procedure_fits_the_default_envelope() -> None:
+    import aatest
+
+    for path in sorted((Path(aatest.__file__).parent / "procedures").glob("*.yaml")):
+        check_envelope(expand(load_procedure(path)), ENV, SHEET, str(path))
