@@ -13,12 +13,13 @@ import hashlib
 
 import numpy as np
 
-from aatest.engine.errors import EnvelopeRefused
+from aatest.engine.errors import EnvelopeRefused, PluginError
+from aatest.engine.interfaces import RigContext
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.sim import kinematics as kin
 from aatest.plugins.sim.chamber import ThermalState
 from aatest.plugins.sim.clocks import DaqClock
-from aatest.plugins.sim.model import RigModel
+from aatest.plugins.sim.model import RigModel, load_rig_model
 from aatest.plugins.sim.profiles import AxisProfile, step_profiles
 from aatest.plugins.sim.synthesis import SimulatedStep, StepSetup, synthesise
 from aatest.plugins.sim.table import AxisTruth, Tones, make_vibration, tracked
@@ -169,3 +170,42 @@ class World:
 
     def sensor_temperature_c(self) -> float:
         return float(self.thermal.temperature_at(self.lab_time_s))
+
+
+def default_rig_model(context: RigContext) -> RigModel:
+    """The realistic rig for the context's sensor: SR207 models, else one per datasheet channel."""
+    from aatest.plugins.sensors.sr207 import default_models_for, sensor_model
+    from aatest.plugins.sim.api import realistic_rig_model
+
+    try:
+        sensors = default_models_for(context.sensor.model)
+    except KeyError:
+        sheet = context.datasheet
+        sensors = [sensor_model(ch, ax).model_copy(update={
+            "bias_v": sheet.nominal_bias_v, "scale_v_per_dps2": sheet.scale_v_per_dps2,
+            "range_dps2": sheet.range_dps2}) for ch, ax in sheet.channels.items()]
+    return realistic_rig_model(sensors)
+
+
+def shared_world(context: RigContext | None, model_path: str | None = None) -> World:
+    """The World of this rig: created by the first sim plugin, then shared via the context.
+
+    Plugins look the World up on every call (it may be rebuilt when a later plugin names the
+    model file); two plugins naming different model files is a configuration error.
+    """
+    if context is None:
+        from aatest.engine.interfaces import SensorDatasheet
+        from aatest.engine.steps import SensorRef
+
+        context = RigContext(sensor=SensorRef(model="sr207"), datasheet=SensorDatasheet(model="sr207"))
+    world = context.shared.get(SHARED_KEY)
+    known = context.shared.get(SHARED_KEY + ".model_path")
+    if world is not None and model_path and known not in (None, model_path):
+        raise PluginError(f"sim plugins disagree about the rig model: {model_path!r} vs {known!r}")
+    if world is None or (model_path and known is None):
+        # built before any plugin named a model file: nothing has run yet, so rebuild it
+        model = load_rig_model(model_path) if model_path else default_rig_model(context)
+        world = World(model, context.seed)
+        context.shared[SHARED_KEY] = world
+        context.shared[SHARED_KEY + ".model_path"] = model_path
+    return world

@@ -1,0 +1,41 @@
+"""No chamber: the sensor sits at lab ambient. Asking for another temperature is an error."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from aatest.engine.errors import PluginError
+from aatest.engine.interfaces import RigContext
+
+
+class NoChamber:
+    """The ambient "chamber" of a rig without one."""
+
+    class Config(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        ambient_c: float = 22.0
+        tolerance_c: float = Field(1.0, gt=0, description="set-points within this of ambient pass")
+
+    def __init__(self, config: Config | None = None, context: RigContext | None = None) -> None:
+        self.config = config if config is not None else self.Config()
+        self.context = context
+
+    def _ambient_c(self) -> float:
+        world = self.context.shared.get("sim.world") if self.context is not None else None
+        return world.sensor_temperature_c() if world is not None else self.config.ambient_c
+
+    def set_temperature(self, setpoint_c: float) -> None:
+        """Accept only the ambient set-point (the planner should never ask for another)."""
+        ambient = self._ambient_c()
+        if abs(setpoint_c - ambient) > self.config.tolerance_c:
+            raise PluginError(f"chamber 'none': cannot reach {setpoint_c:g} °C, the rig has no "
+                              f"chamber (ambient {ambient:g} °C); configure a chamber plugin")
+
+    def wait_stable(self, soak_s: float) -> float:
+        return self._ambient_c()
+
+    def off(self) -> None:
+        """Nothing to switch off."""
+
+    def close(self) -> None:
+        """Nothing to release."""

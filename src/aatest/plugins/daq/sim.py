@@ -1,0 +1,61 @@
+"""The simulated on-table sensor logger: its own crystal clock, sensors, sync pulse, trigger."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from pydantic import BaseModel, ConfigDict
+
+from aatest.engine.interfaces import RigContext
+from aatest.engine.logs import DAQ_AUX_CHANNELS, SampledLog
+from aatest.engine.steps import PlannedStep
+from aatest.plugins.sim.model import ExcessNoise
+from aatest.plugins.sim.world import World, shared_world
+
+#: measured noise the slip ring adds (method.md §1.3: ≥ 11 mV RMS)
+SLIP_RING_RMS_V = 0.011
+
+
+class SimDaq:
+    """DAQ plugin backed by the shared World."""
+
+    class Config(BaseModel):
+        """``slip_ring``: route the sensors through the slip ring instead of the on-table logger."""
+
+        model_config = ConfigDict(extra="forbid")
+        model: str | None = None
+        slip_ring: bool = False
+
+    def __init__(self, config: Config, context: RigContext) -> None:
+        self.config = config
+        self.context = context
+        self._route_signals()
+
+    def _route_signals(self) -> None:
+        """Put the slip ring in the sensor path when configured (idempotent)."""
+        world = self.world
+        if self.config.slip_ring and world.model.daq.slip_ring is None:
+            daq = world.model.daq.model_copy(update={"slip_ring": ExcessNoise(rms_v=SLIP_RING_RMS_V)})
+            world.model = world.model.model_copy(update={"daq": daq})
+
+    @property
+    def world(self) -> World:
+        return shared_world(self.context, self.config.model)
+
+    def channels(self) -> Sequence[str]:
+        return [s.channel for s in self.world.model.sensors] + list(DAQ_AUX_CHANNELS)
+
+    def start(self) -> None:
+        """Nothing to connect: the simulated logger is always ready."""
+
+    def start_logging(self, step: PlannedStep) -> None:
+        """Start logging now; the trigger follows ``start_lead_s`` later."""
+        self._route_signals()
+        self.world.start_daq()
+
+    def stop_logging(self) -> SampledLog:
+        """Stop (``stop_lag_s`` after the table log) and return the DAQ log."""
+        return self.world.result().daq
+
+    def close(self) -> None:
+        """Nothing to release."""

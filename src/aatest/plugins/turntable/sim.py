@@ -1,0 +1,87 @@
+"""The simulated two-axis turntable: the twin's controller, driven in virtual lab time.
+
+Construction moves nothing; ``start`` powers the motor on. Every motion command is checked
+against the axis limits *in the controller* (independent of the planner) and refused with
+:class:`~aatest.engine.errors.EnvelopeRefused` when it exceeds them, as the real controller does.
+"""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+
+from aatest.engine.errors import EnvelopeRefused, RigFault
+from aatest.engine.interfaces import AxisLimits, RigContext, TableEnvelope
+from aatest.engine.logs import SampledLog
+from aatest.engine.steps import PlannedStep
+from aatest.plugins.sim.world import World, shared_world
+
+
+class SimTurntable:
+    """Turntable plugin backed by the shared :class:`~aatest.plugins.sim.world.World`."""
+
+    class Config(BaseModel):
+        """Options: ``model`` = path of a rig-model YAML (default: the realistic SR207 rig)."""
+
+        model_config = ConfigDict(extra="forbid")
+        model: str | None = None
+
+    def __init__(self, config: Config, context: RigContext) -> None:
+        self.config = config
+        self.context = context
+        shared_world(context, config.model)
+
+    @property
+    def world(self) -> World:
+        return shared_world(self.context, self.config.model)
+
+    def envelope(self) -> TableEnvelope:
+        """The limits the controller enforces (from the rig model)."""
+        table = self.world.model.table
+        return TableEnvelope(
+            inner=AxisLimits(rate_dps=table.inner.rate_limit_dps,
+                             accel_dps2=table.inner.accel_limit_dps2),
+            outer=AxisLimits(rate_dps=table.outer.rate_limit_dps,
+                             accel_dps2=table.outer.accel_limit_dps2),
+            max_log_rate_hz=table.log_rate_hz, log_capacity_samples=table.log_capacity_samples)
+
+    def start(self) -> None:
+        """Clear faults and switch the motor on."""
+        self.world.motor_on = True
+
+    def move_to(self, inner_deg: float, outer_deg: float) -> None:
+        if not self.world.motor_on:
+            raise RigFault("simulated turntable: move_to with the motor off (call start first)")
+        self.world.move_to(inner_deg, outer_deg)
+
+    def begin_motion(self, step: PlannedStep) -> None:
+        """Start the step's profile (refused beyond limits) and settle."""
+        table = self.world.model.table
+        if step.sample_rate_hz > table.log_rate_hz * (1 + 1e-12):
+            raise EnvelopeRefused(f"step {step.id}: log rate {step.sample_rate_hz:g} Hz exceeds "
+                                  f"the controller's {table.log_rate_hz:g} Hz")
+        if step.samples > table.log_capacity_samples:
+            raise EnvelopeRefused(f"step {step.id}: {step.samples} samples exceed the log "
+                                  f"capacity of {table.log_capacity_samples}")
+        if not self.world.motor_on:
+            raise RigFault("simulated turntable: begin_motion with the motor off")
+        self.world.begin_motion(step)
+
+    def record(self, step: PlannedStep) -> SampledLog:
+        """The table log of ``step``, started by the DAQ trigger."""
+        return self.world.result().table
+
+    def end_motion(self) -> None:
+        self.world.end_motion()
+
+    def safe_stop(self) -> None:
+        """Stop motion and switch the motor off; never raises."""
+        try:
+            world = self.context.shared.get("sim.world")
+            if world is not None:
+                world.end_motion()
+                world.motor_on = False
+        except Exception:  # noqa: BLE001 - a safe stop must never raise
+            pass
+
+    def close(self) -> None:
+        self.safe_stop()
