@@ -10,7 +10,7 @@ from aatest.engine.envelope import check_envelope, step_violations
 from aatest.engine.errors import EXIT_BAD_INPUT, EnvelopeError
 from aatest.engine.interfaces import AxisLimits, SensorDatasheet, TableEnvelope
 from aatest.engine.loader import load_procedure, parse_procedure
-from aatest.engine.planner import expand
+from aatest.engine.planner import default_datasheet, expand
 from aatest.engine.steps import PlannedStep
 
 DATA = Path(__file__).parents[1] / "data" / "procedures"
@@ -114,8 +114,15 @@ def test_skip_is_decided_against_the_given_envelope() -> None:
     assert len(expand(parse_procedure(text)).steps) == 2
 
 
-def test_every_shipped_procedure_fits_the_default_envelope() -> None:
+def test_every_shipped_procedure_fits_with_the_plugin_datasheets() -> None:
     import aatest
 
     for path in sorted((Path(aatest.__file__).parent / "procedures").glob("*.yaml")):
-        check_envelope(expand(load_procedure(path)), ENV, SHEET, str(path))
+        proc = load_procedure(path)
+        sheet = default_datasheet(proc.sensor.model)
+        assert sheet.model == proc.sensor.model
+        check_envelope(expand(proc, envelope=ENV, datasheet=sheet), ENV, sheet, str(path))
+
+
+def test_unknown_sensor_model_falls_back_to_generic_values() -> None:
+    assert default_datasheet("no-such-sensor") == SensorDatasheet(model="no-such-sensor")

@@ -70,11 +70,24 @@ def test_recursive_alias_is_a_problem_not_a_crash() -> None:
         parse_procedure("procedure: x\nsensor: &a {model: *a}\nsteps: &s [*s]\n")
 
 
+@pytest.mark.parametrize("sine", ["{frequency_hz: 1.0e300, accel_dps2: 1}",
+                                  "{cycles: 100000000000000000000000000000, amplitude_deg: 1.0e300}",
+                                  "{frequency_hz: 1.0e-300, accel_dps2: 1.0e300, snap: none}"],
+                         ids=["huge-f", "huge-cycles", "tiny-f"])
+def test_absurd_numbers_never_crash_the_planner(sine: str) -> None:
+    text = f"procedure: x\nsensor: {{model: m}}\nsteps:\n  - sine: {sine}\n"
+    try:
+        expand(parse_procedure(text, "p.yaml"))
+    except ProcedureError as exc:
+        assert str(exc).startswith("p.yaml:4:5: steps.0.sine: cannot expand")
+
+
 def test_planning_problems_are_located_too() -> None:
     text = ("procedure: x\nsensor: {model: m}\nsteps:\n  - static: {}\n  - sine_sweep:\n"
             "      frequencies: {start_hz: 0.001, ratio: 1.0001, stop_hz: 10}\n"
             "      accelerations_dps2: [1]\n")
-    with pytest.raises(ProcedureError, match=r"^p.yaml:5:5: steps.1.sine_sweep: the geometric grid"):
+    expected = r"^p.yaml:5:5: steps.1.sine_sweep: the geometric grid"
+    with pytest.raises(ProcedureError, match=expected):
         expand(parse_procedure(text, "p.yaml"))
 
 

@@ -71,7 +71,8 @@ def _exceeds(limit: str, limit_value: float, value: float, what: str, unit: str,
     return [Violation(limit, limit_value, value, msg, skippable)]
 
 
-def _travel(axis: str, limits: AxisLimits, centre_deg: float, half_span_deg: float) -> list[Violation]:
+def _travel(axis: str, limits: AxisLimits, centre_deg: float,
+            half_span_deg: float) -> list[Violation]:
     """Position stops of a non-continuous axis."""
     if limits.continuous:
         return []
@@ -111,7 +112,8 @@ def _sine(step: PlannedStep, env: TableEnvelope, sheet: SensorDatasheet) -> list
     return out + _travel(axis, limits, centre, amp_deg) + _sensor(amp_deg * omega**2, sheet)
 
 
-def _constant_rate(step: PlannedStep, env: TableEnvelope, sheet: SensorDatasheet) -> list[Violation]:
+def _constant_rate(step: PlannedStep, env: TableEnvelope,
+                   sheet: SensorDatasheet) -> list[Violation]:
     rates = {"inner": step.rate_dps} if step.axis != "outer" else {"outer": step.rate_dps}
     if step.axis == "both":
         rates["outer"] = step.outer_rate_dps

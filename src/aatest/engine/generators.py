@@ -93,7 +93,8 @@ def _sine_label(axis: str, motion: dict[str, Any], by_amplitude: bool) -> str:
 
 
 def static(w: Walker, body: StaticStep, path: YamlPath) -> None:
-    label = f"static-{body.label}" if body.label else f"static-i{num(body.inner_deg)}-o{num(body.outer_deg)}"
+    label = f"static-i{num(body.inner_deg)}-o{num(body.outer_deg)}"
+    label = f"static-{body.label}" if body.label else label
     w.emit(label, path, kind="static", inner_deg=body.inner_deg, outer_deg=body.outer_deg,
            motor_on=body.motor_on, group="static", **w.record(body))
 

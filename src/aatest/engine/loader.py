@@ -68,8 +68,8 @@ def _guarded(filename: str, text: str, model: type[Any]) -> tuple[Any, Any]:
     except (RecursionError, ValueError, TypeError, AttributeError, KeyError, IndexError,
             OverflowError) as exc:
         # e.g. a self-referencing alias (&a [*a]) or a construct ruamel cannot represent
-        raise ProcedureError([Problem(filename, 1, 1, "", f"cannot load YAML: {type(exc).__name__}: "
-                                                          f"{exc}"[:300])]) from exc
+        message = f"cannot load YAML: {type(exc).__name__}: {exc}"[:300]
+        raise ProcedureError([Problem(filename, 1, 1, "", message)]) from exc
 
 
 def parse_procedure(text: str, filename: str = "<procedure>") -> Procedure:

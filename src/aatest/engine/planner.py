@@ -31,7 +31,7 @@ from typing import Any
 
 from aatest.engine import generators
 from aatest.engine.envelope import YamlPath, step_violations
-from aatest.engine.errors import Problem, ProcedureError
+from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.interfaces import SensorDatasheet, TableEnvelope
 from aatest.engine.generators import snap_frequency, sweep_points
 from aatest.engine.procedure import Overrides, Procedure, StepEntry
@@ -41,8 +41,8 @@ from aatest.engine.yaml_loader import locate
 #: upper bound on the steps one procedure may expand to
 MAX_STEPS = 20_000
 
-__all__ = ["Expansion", "SkippedPoint", "expand", "expand_traced", "snap_frequency",
-           "sweep_points", "trace_of"]
+__all__ = ["Expansion", "SkippedPoint", "default_datasheet", "expand", "expand_traced",
+           "snap_frequency", "sweep_points", "trace_of"]
 
 
 @dataclass(frozen=True)
@@ -115,7 +115,7 @@ class _Walker:
     def record(self, ov: Overrides, settle_s: float | None = None) -> dict[str, Any]:
         """Sampling fields of a record, with the entry's overrides applied."""
         sampling = self.proc.sampling
-        samples = ov.samples or (round(ov.duration_s * sampling.rate_hz) if ov.duration_s
+        samples = ov.samples or (max(1, round(ov.duration_s * sampling.rate_hz)) if ov.duration_s
                                  else sampling.samples)
         settle = settle_s if settle_s is not None else ov.settle_s
         return {"samples": samples, "sample_rate_hz": sampling.rate_hz,
@@ -157,10 +157,22 @@ class _Walker:
             path = (*base, index, entry.kind)
             try:
                 getattr(generators, entry.kind)(self, entry.body, path)
+            except ProcedureError:
+                raise
             except ValueError as exc:
-                if isinstance(exc, ProcedureError):
-                    raise
                 raise self.fail(path, str(exc)) from exc
+            except ArithmeticError as exc:  # e.g. a frequency so high that ω² overflows
+                raise self.fail(path, f"cannot expand: {exc}") from exc
+
+
+def default_datasheet(model: str) -> SensorDatasheet:
+    """The datasheet of the installed sensor plugin ``model``, else generic SR207-like values."""
+    from aatest.engine import registry  # only needed when the caller gave no datasheet
+
+    try:
+        return registry.load("sensor", model).target().datasheet()  # type: ignore[no-any-return]
+    except (PluginError, TypeError):
+        return SensorDatasheet(model=model)
 
 
 def _plan(proc: Procedure, drafts: list[_Draft]) -> tuple[Plan, dict[str, YamlPath]]:
@@ -181,8 +193,9 @@ def expand_traced(procedure: Procedure, *, envelope: TableEnvelope | None = None
     """Expand ``procedure`` and return the plan with its step sources and skipped points.
 
     ``envelope``/``datasheet`` decide which points a ``skip_outside_envelope`` sweep drops;
-    they default to :class:`TableEnvelope` defaults and a generic datasheet of the procedure's
-    sensor model. Pass the rig's and the sensor plugin's for exact results.
+    they default to :class:`TableEnvelope` defaults and :func:`default_datasheet` of the
+    procedure's sensor model. Pass the rig's envelope and the sensor plugin's datasheet — the
+    ones given to :func:`~aatest.engine.envelope.check_envelope` — for consistent results.
 
     Raises
     ------
@@ -190,8 +203,10 @@ def expand_traced(procedure: Procedure, *, envelope: TableEnvelope | None = None
         A generator cannot be expanded (e.g. too many points), located in the source file.
     """
     walker = _Walker(procedure, envelope or TableEnvelope(),
-                     datasheet or SensorDatasheet(model=procedure.sensor.model))
+                     datasheet or default_datasheet(procedure.sensor.model))
     walker.walk(procedure.steps, ("steps",))
+    if not walker.drafts:
+        raise walker.fail(("steps",), "the procedure plans no steps (every point was skipped)")
     plan, sources = _plan(procedure, walker.drafts)
     expansion = Expansion(plan, sources, tuple(walker.skipped))
     _TRACES[plan] = expansion
