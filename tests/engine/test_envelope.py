@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from aatest.engine.envelope import check_envelope, step_violations
-from aatest.engine.errors import EXIT_BAD_INPUT, EnvelopeError
+from aatest.engine.errors import EXIT_BAD_INPUT, EnvelopeError, ProcedureError
 from aatest.engine.interfaces import AxisLimits, SensorDatasheet, TableEnvelope
 from aatest.engine.loader import load_procedure, parse_procedure
 from aatest.engine.planner import default_datasheet, expand
@@ -105,13 +105,21 @@ def test_sweep_without_skip_rejects_every_point_beyond_the_ceiling() -> None:
 
 
 def test_skip_is_decided_against_the_given_envelope() -> None:
-    text = ("procedure: s\nsensor: {model: sr207}\nsteps:\n  - sine_sweep:\n"
+    text = ("procedure: s\nsensor: {model: sr207}\nsteps:\n  - static: {}\n  - sine_sweep:\n"
             "      frequencies: {include: [1, 2]}\n      accelerations_dps2: [300]\n"
             "      skip_outside_envelope: true\n")
     small = SensorDatasheet(model="small", range_dps2=100.0)
     plan = expand(parse_procedure(text), datasheet=small)
-    assert plan.steps == ()
-    assert len(expand(parse_procedure(text)).steps) == 2
+    assert [s.kind for s in plan.steps] == ["static"]
+    assert len(expand(parse_procedure(text)).steps) == 3
+
+
+def test_a_plan_with_every_point_skipped_is_an_error() -> None:
+    text = ("procedure: s\nsensor: {model: sr207}\nsteps:\n  - sine_sweep:\n"
+            "      frequencies: {include: [9]}\n      amplitudes_deg: [1]\n"
+            "      skip_outside_envelope: true\n")
+    with pytest.raises(ProcedureError, match="plans no steps"):
+        expand(parse_procedure(text))
 
 
 def test_every_shipped_procedure_fits_with_the_plugin_datasheets() -> None:
