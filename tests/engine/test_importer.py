@@ -214,6 +214,12 @@ def test_sine_step_without_frequency_is_rejected(tmp_path: Path, columns: tuple)
         import_dataset(directory)
 
 
+def test_sensor_named_like_a_daq_column_is_rejected(tmp_path: Path, columns: tuple) -> None:
+    directory = make_import_dir(tmp_path, *columns, MANIFEST.replace("channel: v_sz", "channel: trigger"))
+    with pytest.raises(DatasetFileError, match=r"dataset.yaml:2:6: sensors.0.channel: .*own"):
+        import_dataset(directory)
+
+
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     cut=st.integers(min_value=0, max_value=10_000),

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from aatest.engine.csv_table import CsvColumns, read_csv
 from aatest.engine.dataset import Dataset, SensorInfo, StepData
@@ -77,6 +77,13 @@ class SensorEntry(_Strict):
     scale_tolerance_pct: float = Field(1.0, ge=0)
     bias_temperature_limit_v_per_c: float = Field(0.0004, ge=0)
     scale_temperature_limit_per_c: float = Field(0.0005, ge=0)
+
+    @field_validator("channel")
+    @classmethod
+    def _not_reserved(cls, channel: str) -> str:
+        if channel in (*DAQ_REQUIRED, "temperature_c"):
+            raise ValueError(f"{channel!r} is a DAQ column of its own, not a sensor channel")
+        return channel
 
 
 class StepEntry(_Strict):

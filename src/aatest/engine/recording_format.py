@@ -150,10 +150,17 @@ def parse_schema(data: bytes) -> tuple[np.dtype, dict[str, Any]]:
     return np.dtype(fields), doc
 
 
+def _frozen_column(records: np.ndarray, name: str) -> np.ndarray:
+    """A contiguous read-only copy of one column (SampledLog then keeps it without copying)."""
+    column = np.array(records[name], copy=True)
+    column.flags.writeable = False
+    return column
+
+
 def records_to_log(records: np.ndarray, doc: dict[str, Any]) -> SampledLog:
     """Rebuild a :class:`SampledLog` from the concatenated records of one step's log."""
     units = {str(c["name"]): str(c.get("unit", "")) for c in doc["columns"][1:]}
-    channels = {name: np.ascontiguousarray(records[name]) for name in units}
+    channels = {name: _frozen_column(records, name) for name in units}
     return SampledLog(
         source=str(doc.get("source", "")),
         sample_rate_hz=float(doc["sample_rate_hz"]),

@@ -10,6 +10,7 @@ the file and what is wrong. The layout is described in :mod:`aatest.engine.recor
 from __future__ import annotations
 
 import dataclasses
+import json
 import struct
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -89,7 +90,7 @@ def _read_run_dir(run_dir: Path) -> Dataset:
     recording = run_dir / RECORDING_NAME
     steps_dir = run_dir / STEPS_DIR
     files = complete_step_files(steps_dir) if steps_dir.is_dir() else {}
-    if recording.is_file() and not _is_stale(recording, [p for p, _ in files.values()]):
+    if recording.is_file() and not _is_stale(recording, set(files)):
         contents = _read_file(recording)
         return _build_dataset(contents.run_meta, contents.steps, recording, complete=True)
     if not files:
@@ -106,10 +107,23 @@ def _read_run_dir(run_dir: Path) -> Dataset:
     return _build_dataset(run_meta, steps, run_dir, complete=False)
 
 
-def _is_stale(recording: Path, step_files: list[Path]) -> bool:
-    """True when a step file was completed after the last merge (run resumed since)."""
-    merged_ns = recording.stat().st_mtime_ns
-    return any(p.stat().st_mtime_ns > merged_ns for p in step_files)
+def _is_stale(recording: Path, step_ids: set[str]) -> bool:
+    """True when a step was completed after the last merge (the run was resumed since).
+
+    Compares step ids, not modification times, so copying a run directory cannot fool it.
+    """
+    try:
+        with open(recording, "rb") as stream:
+            merged = {
+                json.loads(record.metadata["step"])["id"]
+                for record in make_reader(stream).iter_metadata()
+                if record.name == fmt.STEP_RECORD
+            }
+    except RecordingError:
+        raise
+    except _DECODE_ERRORS as exc:
+        raise RecordingError(f"{recording}: corrupt or truncated recording ({exc})") from exc
+    return not step_ids <= merged
 
 
 def _read_file(path: Path) -> _FileContents:
