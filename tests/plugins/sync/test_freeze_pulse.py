@@ -23,7 +23,7 @@ def test_drift_and_offset_recovered(drift_ppm: float) -> None:
     synced = synchronise(make_step(sine_step("s", 8, 100.0), rig, seed=3))
     rel = synced.relation
     assert abs(rel.drift_ppm - drift_ppm) < 1.0
-    assert abs(rel.offset_s - (-rig.lead_s)) < 20e-6
+    assert abs(rel.offset_s - (-rig.lead_s)) < 0.25e-3  # one DAQ sample of edge ambiguity
     assert rel.residual_rms_us < 10.0
     assert rel.edges_used > 70
 
@@ -37,7 +37,8 @@ def test_resampled_sensor_is_on_table_time() -> None:
     synced = synchronise(make_step(sine_step("s", 16, 200.0), rig, seed=5))
     volts = (synced.daq["v_sz"] - sensor.bias_v) / sensor.scale_v_per_dps2
     accel = synced.table["inner_accel_dps2"]
-    assert_allclose(volts[5:-5], accel[5:-5], atol=0.05)
+    # alignment to ≤ 0.25 ms (half a sample): 200 °/s² at 1.95 Hz moves ≤ 0.6 °/s² in that time
+    assert_allclose(volts[5:-5], accel[5:-5], atol=0.6)
 
 
 def test_jitter_and_missing_latch_still_within_a_sample() -> None:

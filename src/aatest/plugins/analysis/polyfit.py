@@ -142,10 +142,15 @@ def cross_validate(u: np.ndarray, y: np.ndarray, max_order: int = 15, random_spl
     return {"rmse_validation": rmse_val, "naic": aic}
 
 
-def choose_order(table: dict[str, np.ndarray], rel_tol: float = 0.01, min_order: int = 1
+def choose_order(table: dict[str, np.ndarray], rel_tol: float = 0.05, min_order: int = 1
                  ) -> int:
     """Lowest order whose mean validation RMSE is within ``rel_tol`` of the best and whose
-    mean nAIC is within ``2·rel_tol`` of the best ("not meaningfully worse")."""
+    mean nAIC is within ``2·rel_tol`` of the best ("not meaningfully worse").
+
+    Residuals of filtered records are serially correlated and the sensor's dynamics leave
+    small systematic residuals, so every added term "helps" a little; 5 % in RMSE (0.1 in
+    nAIC) is the engineering threshold that keeps real curvature (a cubic) and drops the rest.
+    """
     rmse = table["rmse_validation"].mean(axis=1)
     aic = table["naic"].mean(axis=1)
     ok = (rmse <= rmse.min() * (1 + rel_tol)) & (aic <= aic.min() + 2 * rel_tol)

@@ -5,8 +5,10 @@ Per sensor: the sine steps along its axis at ≤ 2 Hz with the largest accelerat
 estimate) and the sensor volts pass the *same* zero-phase filter, the reference is delayed by
 the sensor's phase delay at the fundamental (so the fit sees no phase loop), and polynomials of
 order 0–15 are cross-validated. The chosen forward model (°/s² from volts) is reported with its
-statistics; the contract's ``scale_v_per_dps2``/``offset_v`` come from its linear term (the
-small-signal sensitivity), and an inverse form (volts from °/s²) is given too.
+statistics; the contract's ``scale_v_per_dps2``/``offset_v`` come from the best straight line
+(the lab's scale factor; the curvature is reported as the non-linearity L), and an inverse form
+(volts from °/s²) is given too. Noise in the reference does not bias the forward fit (it is the
+dependent variable), which is why the scale factor is 1/slope of that fit.
 """
 
 from __future__ import annotations
@@ -81,8 +83,9 @@ def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0, s
     table = polyfit.cross_validate(u, ref_dps2, max_order=max_order, seed=seed)
     order = polyfit.choose_order(table)
     fit = polyfit.fit_polynomial(u, ref_dps2, order, inflation)
-    a0, a1 = fit.coefficients[0], fit.coefficients[1]
-    cov = fit.covariance
+    line = polyfit.fit_polynomial(u, ref_dps2, 1, inflation)
+    a0, a1 = line.coefficients
+    cov = line.covariance
     scale = 1.0 / a1
     u_scale = float(np.sqrt(cov[1, 1])) / a1**2
     offset_v = v_mean - a0 / a1

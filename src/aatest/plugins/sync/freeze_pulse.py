@@ -15,7 +15,7 @@ before the registering sample (the unbiased guess; resolution is then one sample
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -43,6 +43,7 @@ class ClockRelation:
     residual_rms_us: float
     edges_used: int
     drift_u_ppm: float = 0.0
+    offset_u_s: float = 0.0
 
     def to_table_s(self, t_daq_s: np.ndarray) -> np.ndarray:
         """Map DAQ-clock times (s) to table-clock times (s)."""
@@ -60,6 +61,7 @@ class ClockRelation:
             "residual_rms_us": self.residual_rms_us,
             "edges_used": self.edges_used,
             "drift_u_ppm": self.drift_u_ppm,
+            "offset_u_s": self.offset_u_s,
         }
 
 
@@ -206,6 +208,27 @@ def _resample(daq_time_s: np.ndarray, channels: Mapping[str, np.ndarray],
     return out
 
 
+def refine_offset(relation: ClockRelation, table_t0_s: float, trigger_daq_s: float | None,
+                  daq_dt_s: float) -> ClockRelation:
+    """Narrow the offset with the trigger when the DAQ's pulse edges fall between its samples.
+
+    A DAQ edge is logged on the first high sample, so the true edge lies up to one sample
+    earlier: the edge-based offset is a lower bound of an interval one DAQ sample wide. The
+    trigger marks the table's first sample on the DAQ clock the same way (up to one sample
+    late), giving a second interval; the offset is the midpoint of their intersection. When
+    they do not intersect (a trigger wired differently), the edge-based offset stands.
+    """
+    if trigger_daq_s is None:
+        return relation
+    k = 1.0 + relation.drift_ppm * 1e-6
+    lo_edge = relation.offset_s
+    lo_trig = table_t0_s - trigger_daq_s * k
+    lo, hi = max(lo_edge, lo_trig), min(lo_edge, lo_trig) + daq_dt_s * k
+    if hi <= lo:
+        return relation
+    return replace(relation, offset_s=0.5 * (lo + hi), offset_u_s=(hi - lo) / np.sqrt(12.0))
+
+
 def synchronise(data: StepData) -> SyncedStep:
     """Synchronise one step: clock relation from all edges, trim, resample onto the table grid.
 
@@ -223,6 +246,10 @@ def synchronise(data: StepData) -> SyncedStep:
     daq_time_s = _regular_time(np.asarray(data.daq.time_s, dtype=np.float64))
     t_daq, offset0 = _daq_edges(data, daq_time_s)
     relation = fit_clock_relation(data.step.id, _table_edge_times(data), t_daq, offset0)
+    table_t0 = float(data.table.time_s[0])
+    trigger_daq_s = None if offset0 is None else table_t0 - offset0
+    relation = refine_offset(relation, table_t0, trigger_daq_s,
+                             1.0 / float(data.daq.sample_rate_hz))
     table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
     at_daq_s = relation.to_daq_s(table_time_s)
     keep = (at_daq_s >= daq_time_s[0]) & (at_daq_s <= daq_time_s[-1])

@@ -1,0 +1,155 @@
+"""Stepped-sine frequency response at the excitation DFT bin (method.md §4.4).
+
+Every sine step along a sensor's axis gives one FRF point: the complex fundamentals of the
+table's acceleration estimate (input, °/s²) and of the sensor output (V) on the synchronised
+grid, their ratio (gain dB re 1 V/(°/s²), phase, phase delay), and for both signals the THD
+(harmonics 2–6 over the fundamental) and SNR (fundamental, or the first six harmonics, over the
+power in every other non-DC bin). Records are coherent (an integer number of cycles), so no
+window is needed; a non-coherent record is cut to whole cycles and flagged. ``thd``/``snr``
+listed in a procedure are aliases of this analysis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.plugins.analysis._common import (
+    group_of,
+    input_accel_dps2,
+    is_excited,
+    new_figure,
+    to_svg,
+    whole_cycles,
+)
+from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+
+HARMONICS = 6
+_COHERENCE_TOL_CYCLES = 1e-3
+
+
+@dataclass(frozen=True)
+class Tone:
+    """Spectral summary of one sinusoidal record at its excitation frequency."""
+
+    fundamental: complex
+    amplitudes: np.ndarray  # one-sided peak amplitudes of harmonics 1..6
+    noise_power: float  # mean-square of the non-harmonic, non-DC content
+    noise_bin_power: float  # mean one-sided |X|² per noise bin (peak-amplitude² units)
+    coherent: bool
+
+    @property
+    def thd(self) -> float:
+        return float(np.sqrt(np.sum(self.amplitudes[1:] ** 2)) / self.amplitudes[0])
+
+    def snr_db(self, harmonics: int = 1) -> float:
+        signal_power = float(np.sum(self.amplitudes[:harmonics] ** 2)) / 2.0
+        return float(10.0 * np.log10(signal_power / max(self.noise_power, 1e-300)))
+
+    @property
+    def u_relative(self) -> float:
+        """Standard uncertainty of the fundamental's amplitude, relative (also phase, rad)."""
+        return float(np.sqrt(self.noise_bin_power / 2.0) / self.amplitudes[0])
+
+
+def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float) -> Tone:
+    """Fundamental, harmonics 1–6 and noise of a record at a known excitation frequency."""
+    n, cycles = whole_cycles(x.size, frequency_hz, fs_hz)
+    seg = np.asarray(x[:n], dtype=np.float64)
+    spec = np.fft.rfft(seg - seg.mean()) * 2.0 / n
+    coherent = abs(frequency_hz * n / fs_hz - round(frequency_hz * n / fs_hz)) < \
+        _COHERENCE_TOL_CYCLES
+    bins = cycles * np.arange(1, HARMONICS + 1)
+    bins = bins[bins < spec.size]
+    mask = np.ones(spec.size, dtype=bool)
+    mask[0] = False
+    guard = 0 if coherent else 2  # leakage of a cut record stays within ±2 bins
+    for b in bins:
+        mask[max(b - guard, 1):b + guard + 1] = False
+    amps = np.zeros(HARMONICS)
+    amps[:bins.size] = np.abs(spec[bins])
+    noise = np.abs(spec[mask]) ** 2
+    return Tone(fundamental=complex(spec[cycles]), amplitudes=amps,
+                noise_power=float(np.sum(noise)) / 2.0,
+                noise_bin_power=float(np.mean(noise)) if noise.size else 0.0, coherent=coherent)
+
+
+def frf_point(synced: SyncedStep, sensor: SensorInfo) -> dict[str, Any]:
+    """One FRF point of a sensor from one sine step (contract keys and more)."""
+    step, fs = synced.step, synced.sample_rate_hz
+    f0 = float(step.frequency_hz or 0.0)
+    table = analyse_tone(input_accel_dps2(synced, sensor.axis), f0, fs)
+    sensor_tone = analyse_tone(synced.daq[sensor.channel], f0, fs)
+    ratio = sensor_tone.fundamental / table.fundamental
+    phase_rad = float(np.angle(ratio))
+    u_rel = float(np.hypot(table.u_relative, sensor_tone.u_relative))
+    delay_s = -phase_rad / (2 * np.pi * f0)
+    return {
+        "frequency_hz": f0, "accel_dps2": float(step.accel_dps2 or abs(table.fundamental)),
+        "gain_db": float(20 * np.log10(abs(ratio))), "phase_deg": float(np.degrees(phase_rad)),
+        "delay_s": delay_s, "delay_samples": delay_s * fs,
+        "thd": sensor_tone.thd, "snr_db": sensor_tone.snr_db(1),
+        "snr6_db": sensor_tone.snr_db(HARMONICS),
+        "table_thd": table.thd, "table_snr_db": table.snr_db(1),
+        "table_snr6_db": table.snr_db(HARMONICS),
+        "measured_accel_dps2": abs(table.fundamental),
+        "gain_v_per_dps2": abs(ratio), "re": ratio.real, "im": ratio.imag,
+        "u_gain_db": 20 / np.log(10) * u_rel, "u_phase_deg": float(np.degrees(u_rel)),
+        "u_delay_s": u_rel / (2 * np.pi * f0),
+        "coherent": table.coherent, "group": group_of(step), "step": step.id,
+        "sample_rate_hz": fs,
+    }
+
+
+def unwrap_phases(points: list[dict[str, Any]]) -> None:
+    """Unwrap ``phase_deg`` along frequency within each group (delays follow)."""
+    for group in {p["group"] for p in points}:
+        rows = sorted((p for p in points if p["group"] == group), key=lambda p: p["frequency_hz"])
+        phases = np.degrees(np.unwrap(np.radians([p["phase_deg"] for p in rows])))
+        for p, ph in zip(rows, phases):
+            p["phase_deg"] = float(ph)
+            p["delay_s"] = float(-np.radians(ph) / (2 * np.pi * p["frequency_hz"]))
+            p["delay_samples"] = p["delay_s"] * p["sample_rate_hz"]
+
+
+def bode_figure(points: list[dict[str, Any]], title: str) -> str:
+    """Gain and phase against frequency, one line per test group."""
+    fig, ax = new_figure(2, height_in=2.4)
+    for group in sorted({p["group"] for p in points}):
+        rows = sorted((p for p in points if p["group"] == group), key=lambda p: p["frequency_hz"])
+        f = [p["frequency_hz"] for p in rows]
+        ax[0, 0].semilogx(f, [p["gain_db"] for p in rows], "o-", ms=3, label=group)
+        ax[1, 0].semilogx(f, [p["phase_deg"] for p in rows], "o-", ms=3)
+    ax[0, 0].set(ylabel="gain / dB re V/(°/s²)", title=title)
+    ax[1, 0].set(xlabel="frequency / Hz", ylabel="phase / °")
+    ax[0, 0].legend(fontsize=6)
+    fig.tight_layout()
+    return to_svg(fig)
+
+
+class FrfAnalysis:
+    """Stepped-sine FRF, THD and SNR of every sensor and of the table (per group)."""
+
+    key: ClassVar[str] = "frf"
+
+    def applies_to(self, data: Dataset) -> bool:
+        return any(s.step.kind == "sine" for s in data.steps)
+
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
+        steps = [s for s in synced_steps(data, context) if s.step.kind == "sine"]
+        values: dict[str, list[dict[str, Any]]] = {}
+        figures: dict[str, str] = {}
+        for sensor in data.sensors:
+            points = [frf_point(s, sensor) for s in steps if is_excited(s.step, sensor)]
+            if not points:
+                continue
+            points.sort(key=lambda p: (p["group"], p["frequency_hz"]))
+            unwrap_phases(points)
+            values[sensor.channel] = points
+            figures[f"bode_{sensor.channel}"] = bode_figure(points, f"FRF {sensor.channel}")
+        context.cache["frf"] = values
+        return AnalysisOutput(values=values, figures=figures)
