@@ -39,8 +39,10 @@ def test_unknown_keys_are_named() -> None:
     path = DATA / "broken-unknown-key.yaml"
     problems = _problems(path)
     assert problems == [
-        f"{path}:8:7: steps.0.sine.amplitde_deg: Extra inputs are not permitted",
-        f"{path}:9:5: steps.1.spin: Extra inputs are not permitted",
+        f"{path}:8:7: steps.0.sine.amplitde_deg: unknown key; did you mean 'amplitude_deg'?",
+        f"{path}:9:5: steps.1.spin: unknown key; did you mean 'sine'? A step is one of: static, sine, sine_sweep, "
+        "constant_rate, coordinated_rates, multi_position, temperature_steps, repeat, "
+        "misalignment, operator",
     ]
 
 
@@ -116,7 +118,7 @@ def test_rig_file_errors_are_located(tmp_path: Path) -> None:
     with pytest.raises(ProcedureError) as info:
         load_rig(rig_file)
     messages = sorted(str(p) for p in info.value.problems)
-    assert any(m.startswith(f"{rig_file}:2:1: laser: Extra inputs") for m in messages)
+    assert any(m.startswith(f"{rig_file}:2:1: laser: unknown key") for m in messages)
     assert any(m.startswith(f"{rig_file}:3:1: daq.") for m in messages)
 
 

@@ -18,13 +18,16 @@ Example
 
 from __future__ import annotations
 
+import difflib
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, StrictStr, model_validator
 
 from aatest.engine.errors import Problem, ProcedureError
-from aatest.engine.procedure import Procedure
+from aatest.engine import procedure as _procedure_models
+from aatest.engine.procedure import STEP_KINDS, Procedure
 from aatest.engine.yaml_loader import parse_yaml, read_text, validate_tree
 
 
@@ -58,13 +61,38 @@ class RigConfig(BaseModel):
     chamber: PluginSpec = PluginSpec(plugin="none")
 
 
+def _vocabulary() -> frozenset[str]:
+    """Every key the procedure and rig files know (for "did you mean" hints)."""
+    models = [m for m in vars(_procedure_models).values()
+              if isinstance(m, type) and issubclass(m, BaseModel)] + [RigConfig]
+    return frozenset(name for m in models for name in m.model_fields)
+
+
+_UNKNOWN_KEY = "Extra inputs are not permitted"
+
+
+def _with_hint(problem: Problem, vocabulary: frozenset[str]) -> Problem:
+    """Add a hint to an unknown-key problem: the closest known key, or the step kinds."""
+    if problem.message != _UNKNOWN_KEY or not problem.field:
+        return problem
+    parts = problem.field.split(".")
+    is_step_kind = len(parts) >= 3 and parts[-3] == "steps" and parts[-2].isdigit()
+    choices = STEP_KINDS if is_step_kind else sorted(vocabulary)
+    close = difflib.get_close_matches(parts[-1], choices, n=1, cutoff=0.75)
+    message = f"unknown key; did you mean {close[0]!r}?" if close else "unknown key"
+    if is_step_kind:
+        message += f"{' A' if close else '; a'} step is one of: {', '.join(STEP_KINDS)}"
+    return replace(problem, message=message)
+
+
 def _guarded(filename: str, text: str, model: type[Any]) -> tuple[Any, Any]:
     """Parse and validate, translating anything unexpected into a located problem."""
     try:
         tree, data = parse_yaml(text, filename)
         return validate_tree(model, tree, data, filename), tree
-    except ProcedureError:
-        raise
+    except ProcedureError as exc:
+        vocabulary = _vocabulary()
+        raise ProcedureError([_with_hint(p, vocabulary) for p in exc.problems]) from exc
     except (RecursionError, ValueError, TypeError, AttributeError, KeyError, IndexError,
             OverflowError) as exc:
         # e.g. a self-referencing alias (&a [*a]) or a construct ruamel cannot represent
