@@ -1,0 +1,226 @@
+"""CAN framing of the on-table sensor logger: sample frames, commands, status, loss detection.
+
+Identifiers (11-bit, ``n`` = logger node id 1..15):
+
+* ``0x100 + n`` COMMAND to the logger, classic 8 bytes: ``u8 opcode`` (1 PING, 2 START,
+  3 STOP), 7 bytes zero.
+* ``0x180 + n`` SAMPLE, CAN FD, one frame per sample, little-endian (Intel) layout
+  :data:`SAMPLE_HEADER` followed by ``n_channels`` float32 volts, padded to a valid FD length:
+  ``u16 seq`` (sample counter, wraps at 65536), ``u8 flags`` (bit 0 sync pulse, bit 1
+  trigger), ``u8 n_channels``, ``i64 time_ns`` (logger clock, ns), ``i16 temperature``
+  (0.01 °C), ``u16`` reserved.
+* ``0x700 + n`` STATUS from the logger, classic 8 bytes: ``u8 state`` (0 idle, 1 logging,
+  2 end of record), ``u8`` error flags, ``u16`` reserved, ``u32`` sample frames sent in the
+  record (so a lost tail is detected too).
+
+Decoding is vectorised: payloads are joined and read as one numpy structured array. A gap in
+``seq`` (or fewer frames than the logger says it sent) is never silent: :func:`find_gaps`
+reports it and the DAQ plugin raises or records it explicitly.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+COMMAND_BASE = 0x100
+SAMPLE_BASE = 0x180
+STATUS_BASE = 0x700
+SEQ_MODULO = 1 << 16
+FD_LENGTHS = (8, 12, 16, 20, 24, 32, 48, 64)
+FLAG_SYNC, FLAG_TRIGGER = 0x01, 0x02
+#: SocketCAN error-frame class bit for bus-off (linux/can/error.h CAN_ERR_BUSOFF)
+CAN_ERR_BUSOFF = 0x040
+
+SAMPLE_HEADER = np.dtype([("seq", "<u2"), ("flags", "u1"), ("n_channels", "u1"),
+                          ("time_ns", "<i8"), ("temperature_cc", "<i2"), ("reserved", "<u2")])
+STATUS_FORMAT = np.dtype([("state", "u1"), ("errors", "u1"), ("reserved", "<u2"),
+                          ("frames_sent", "<u4")])
+
+
+class Opcode(enum.IntEnum):
+    PING = 1
+    START = 2
+    STOP = 3
+
+
+class LoggerState(enum.IntEnum):
+    IDLE = 0
+    LOGGING = 1
+    END_OF_RECORD = 2
+
+
+def sample_dtype(n_channels: int) -> np.dtype:
+    """Structured dtype of one sample frame with ``n_channels`` voltages, FD-padded."""
+    fields = list(SAMPLE_HEADER.descr) + [("volts", "<f4", (n_channels,))]
+    size = SAMPLE_HEADER.itemsize + 4 * n_channels
+    length = next((n for n in FD_LENGTHS if n >= size), None)
+    if length is None:
+        raise ValueError(f"{n_channels} channels do not fit one CAN FD frame (max 12)")
+    if length > size:
+        fields.append(("pad", "u1", (length - size,)))
+    return np.dtype(fields)
+
+
+def encode_samples(time_s: np.ndarray, volts: np.ndarray, sync: np.ndarray, trigger: np.ndarray,
+                   temperature_c: np.ndarray, first_seq: int = 0) -> list[bytes]:
+    """Sample-frame payloads for a record (vectorised build, one ``bytes`` per frame).
+
+    Parameters
+    ----------
+    time_s
+        Logger-clock time stamps (s), shape (n,).
+    volts
+        Sensor voltages (V), shape (n, channels).
+    sync, trigger
+        0/1 levels, shape (n,).
+    temperature_c
+        Sensor temperature (°C), shape (n,).
+    first_seq
+        Sequence number of the first frame.
+    """
+    volts = np.atleast_2d(np.asarray(volts, dtype=np.float64).T).T
+    n, channels = volts.shape
+    frames = np.zeros(n, dtype=sample_dtype(channels))
+    frames["seq"] = (first_seq + np.arange(n)) % SEQ_MODULO
+    frames["flags"] = ((np.asarray(sync) > 0.5) * FLAG_SYNC) | ((np.asarray(trigger) > 0.5)
+                                                                 * FLAG_TRIGGER)
+    frames["n_channels"] = channels
+    frames["time_ns"] = np.round(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64)
+    frames["temperature_cc"] = np.round(np.asarray(temperature_c) * 100.0).astype(np.int16)
+    frames["volts"] = volts
+    raw = frames.tobytes()
+    size = frames.dtype.itemsize
+    return [raw[i: i + size] for i in range(0, len(raw), size)]
+
+
+@dataclass(frozen=True)
+class DecodedSamples:
+    """Sample frames decoded into arrays (logger clock, volts, 0/1 levels, °C)."""
+
+    seq: np.ndarray
+    time_s: np.ndarray
+    volts: np.ndarray  # (n, channels)
+    sync_pulse: np.ndarray
+    trigger: np.ndarray
+    temperature_c: np.ndarray
+
+
+def decode_samples(payloads: Sequence[bytes], n_channels: int) -> DecodedSamples:
+    """Inverse of :func:`encode_samples` for a list of received payloads."""
+    dtype = sample_dtype(n_channels)
+    frames = np.frombuffer(b"".join(payloads), dtype=dtype) if payloads else np.zeros(0, dtype)
+    if frames.size and np.any(frames["n_channels"] != n_channels):
+        raise ValueError(f"sample frames carry {int(frames['n_channels'][0])} channels, "
+                         f"expected {n_channels}")
+    return DecodedSamples(
+        seq=frames["seq"].astype(np.int64),
+        time_s=frames["time_ns"].astype(np.float64) * 1e-9,
+        volts=frames["volts"].astype(np.float64).reshape(frames.size, n_channels),
+        sync_pulse=((frames["flags"] & FLAG_SYNC) > 0).astype(np.float64),
+        trigger=((frames["flags"] & FLAG_TRIGGER) > 0).astype(np.float64),
+        temperature_c=frames["temperature_cc"].astype(np.float64) / 100.0,
+    )
+
+
+@dataclass(frozen=True)
+class Gap:
+    """``lost`` frames missing after received frame index ``after`` (sequence ``seq_after``)."""
+
+    after: int
+    seq_after: int
+    lost: int
+
+
+def find_gaps(seq: np.ndarray) -> list[Gap]:
+    """Gaps in a wrapping 16-bit sequence (vectorised); empty when every frame arrived."""
+    if seq.size < 2:
+        return []
+    step = np.diff(seq.astype(np.int64)) % SEQ_MODULO
+    where = np.flatnonzero(step != 1)
+    return [Gap(int(i), int(seq[i]), int((step[i] - 1) % SEQ_MODULO)) for i in where]
+
+
+def fill_gaps(decoded: DecodedSamples, gaps: Sequence[Gap], sample_rate_hz: float) -> DecodedSamples:
+    """Insert NaN samples for lost frames so the gap stays visible in the record.
+
+    Time stamps of the missing samples are interpolated at the nominal sample period.
+    """
+    if not gaps:
+        return decoded
+    insert_at = np.repeat([g.after + 1 for g in gaps], [g.lost for g in gaps])
+    offsets = np.concatenate([np.arange(1, g.lost + 1) for g in gaps])
+    base_t = decoded.time_s[insert_at - 1] + offsets / sample_rate_hz
+    seq = (decoded.seq[insert_at - 1] + offsets) % SEQ_MODULO
+
+    def _ins(values: np.ndarray, fill: np.ndarray | float) -> np.ndarray:
+        return np.insert(values, insert_at, fill, axis=0)
+
+    return DecodedSamples(seq=_ins(decoded.seq, seq), time_s=_ins(decoded.time_s, base_t),
+                          volts=_ins(decoded.volts, np.nan), sync_pulse=_ins(decoded.sync_pulse, np.nan),
+                          trigger=_ins(decoded.trigger, np.nan),
+                          temperature_c=_ins(decoded.temperature_c, np.nan))
+
+
+def command_payload(opcode: Opcode) -> bytes:
+    return bytes([int(opcode)]) + bytes(7)
+
+
+def status_payload(state: LoggerState, frames_sent: int, errors: int = 0) -> bytes:
+    record = np.zeros(1, dtype=STATUS_FORMAT)
+    record["state"], record["errors"], record["frames_sent"] = int(state), errors, frames_sent
+    return record.tobytes()
+
+
+def parse_status(payload: bytes) -> tuple[LoggerState, int, int]:
+    """(state, error flags, frames sent) of a STATUS frame."""
+    record = np.frombuffer(bytes(payload[:8]), dtype=STATUS_FORMAT)[0]
+    return LoggerState(int(record["state"])), int(record["errors"]), int(record["frames_sent"])
+
+
+def dbc_text(channels: Sequence[str], node_id: int = 1) -> str:
+    """A DBC description of the sample frame (for cantools and vendor tools)."""
+    frame_id = SAMPLE_BASE + node_id
+    length = sample_dtype(len(channels)).itemsize
+    signals = [
+        ' SG_ seq : 0|16@1+ (1,0) [0|65535] "" Vector__XXX',
+        ' SG_ sync_pulse : 16|1@1+ (1,0) [0|1] "" Vector__XXX',
+        ' SG_ trigger : 17|1@1+ (1,0) [0|1] "" Vector__XXX',
+        ' SG_ n_channels : 24|8@1+ (1,0) [0|12] "" Vector__XXX',
+        ' SG_ time_ns : 32|64@1- (1,0) [0|0] "ns" Vector__XXX',
+        ' SG_ temperature_c : 96|16@1- (0.01,0) [-327.68|327.67] "degC" Vector__XXX',
+    ]
+    signals += [f' SG_ {ch} : {128 + 32 * i}|32@1- (1,0) [0|5] "V" Vector__XXX'
+                for i, ch in enumerate(channels)]
+    valtypes = [f"SIG_VALTYPE_ {frame_id} {ch} : 1;" for ch in channels]
+    return "\n".join([
+        'VERSION ""', "", "NS_ :", "", "BS_:", "", "BU_: LOGGER", "",
+        f"BO_ {frame_id} SAMPLE: {length} LOGGER", *signals, "",
+        f'BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","reserved",'
+        f'"reserved","reserved","reserved","reserved","reserved","reserved","reserved",'
+        f'"reserved","reserved","reserved","StandardCAN_FD","ExtendedCAN_FD";',
+        'BA_DEF_DEF_ "VFrameFormat" "StandardCAN";',
+        f'BA_ "VFrameFormat" BO_ {frame_id} 14;', "", *valtypes, "",
+    ])
+
+
+def decode_with_dbc(dbc_file: str | Path, payloads: Sequence[bytes], channels: Sequence[str],
+                    frame_id: int) -> DecodedSamples:
+    """Decode sample frames with cantools from a DBC file (one Python call per frame: slower
+    than :func:`decode_samples`, for loggers whose layout is only known as a DBC)."""
+    import cantools
+
+    message = cantools.database.load_file(str(dbc_file)).get_message_by_frame_id(frame_id)
+    rows = [message.decode(p, decode_choices=False, scaling=True) for p in payloads]
+
+    def col(name: str) -> np.ndarray:
+        return np.array([float(r[name]) for r in rows], dtype=np.float64)
+
+    volts = np.column_stack([col(c) for c in channels]) if rows else np.zeros((0, len(channels)))
+    return DecodedSamples(seq=col("seq").astype(np.int64), time_s=col("time_ns") * 1e-9,
+                          volts=volts, sync_pulse=col("sync_pulse"), trigger=col("trigger"),
+                          temperature_c=col("temperature_c"))

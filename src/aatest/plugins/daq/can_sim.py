@@ -1,0 +1,152 @@
+"""The simulated CAN sensor logger, fed by the twin inside the simulated Modbus controller.
+
+It listens for PING/START/STOP on the bus like the real logger, tells the controller that
+the DAQ (and so the trigger line) started, and streams the twin's DAQ log of the record as
+sample frames (:mod:`aatest.plugins.daq.can_frames`), then an end-of-record STATUS with the
+number of frames sent. The table log and this stream come from the same World synthesis, so
+the real drivers see one consistent rig. On a lossy transport (``udp_multicast``) the stream
+is paced to ``frame_rate_hz`` as a real bus' bit rate would. :class:`CanFaultInjection` drops
+frames or raises bus-off on purpose for the fault tests.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+
+from aatest.engine.logs import SampledLog
+from aatest.plugins.daq import can_frames as cf
+from aatest.plugins.daq.can import open_bus, send
+
+log = logging.getLogger("aatest.sim.can")
+_PACE_BATCH = 64
+
+
+@dataclass
+class CanFaultInjection:
+    """Faults the simulated logger produces on purpose (tests only)."""
+
+    #: sample indices (within a record) that are never sent
+    drop_frames: frozenset[int] = field(default_factory=frozenset)
+    #: after this many sample frames: a bus-off error frame, then silence
+    bus_off_after_frames: int | None = None
+
+
+class SimCanLogger:
+    """A CAN logger node backed by a :class:`SimController`'s twin.
+
+    Parameters
+    ----------
+    controller
+        The simulated controller whose World produces the DAQ logs (``daq_start`` and
+        ``on_daq_log`` hooks).
+    interface, channel
+        python-can bus (``virtual`` in one process, ``udp_multicast`` across processes).
+    node_id
+        Logger node id (1..15).
+    frame_rate_hz
+        Pace of the sample stream; ``None`` sends as fast as the bus takes frames.
+    faults
+        Optional fault injection.
+    """
+
+    def __init__(self, controller: Any, interface: str = "virtual", channel: str = "aatest",
+                 node_id: int = 1, frame_rate_hz: float | None = None,
+                 faults: CanFaultInjection | None = None) -> None:
+        self.controller = controller
+        self.interface, self.channel, self.node_id = interface, channel, node_id
+        if frame_rate_hz is None and interface == "udp_multicast":
+            frame_rate_hz = 10_000.0
+        self.frame_rate_hz = frame_rate_hz
+        self.faults = faults or CanFaultInjection()
+        self._bus: can.BusABC | None = None
+        self._jobs: queue.Queue[tuple[str, SampledLog | None]] = queue.Queue()
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._sent = 0
+        self._dead = False
+        self._where = f"simulated CAN logger node {node_id}"
+
+    def start(self) -> SimCanLogger:
+        self._bus = open_bus(self.interface, self.channel, fd=True)
+        self.controller.on_daq_log = lambda daq: self._jobs.put(("log", daq))
+        for target in (self._listen, self._work):
+            thread = threading.Thread(target=target, daemon=True, name=f"sim-can-{target.__name__}")
+            thread.start()
+            self._threads.append(thread)
+        return self
+
+    def stop(self) -> None:
+        """Stop both threads and release the bus; idempotent."""
+        self._stop.set()
+        self._jobs.put(("quit", None))
+        for thread in self._threads:
+            thread.join(5.0)
+        self._threads = []
+        if self._bus is not None:
+            self._bus.shutdown()
+            self._bus = None
+
+    def _status(self, state: cf.LoggerState, frames: int = 0) -> None:
+        if self._bus is not None and not self._dead:
+            send(self._bus, cf.STATUS_BASE + self.node_id, cf.status_payload(state, frames),
+                 True, self._where)
+
+    def _listen(self) -> None:
+        command_id = cf.COMMAND_BASE + self.node_id
+        while not self._stop.is_set() and self._bus is not None:
+            msg = self._bus.recv(0.05)
+            if msg is None or msg.is_error_frame or msg.arbitration_id != command_id:
+                continue
+            opcode = msg.data[0]
+            if opcode == cf.Opcode.PING:
+                self._status(cf.LoggerState.IDLE)
+            elif opcode == cf.Opcode.START:
+                self._sent, self._dead = 0, False
+                self._status(cf.LoggerState.LOGGING)
+                self.controller.daq_start()
+            elif opcode == cf.Opcode.STOP:
+                self._jobs.put(("stop", None))
+
+    def _work(self) -> None:
+        while not self._stop.is_set():
+            kind, daq = self._jobs.get()
+            if kind == "log" and daq is not None:
+                self._stream(daq)
+            elif kind == "stop":
+                self._status(cf.LoggerState.END_OF_RECORD, self._sent)
+
+    def _stream(self, daq: SampledLog) -> None:
+        """Send one record's sample frames (paced), honouring injected faults."""
+        from aatest.plugins.daq.can import volts_matrix
+
+        payloads = cf.encode_samples(daq.time_s, volts_matrix(daq), daq["sync_pulse"],
+                                     daq["trigger"], daq["temperature_c"])
+        sample_id, started = cf.SAMPLE_BASE + self.node_id, time.monotonic()
+        for index, payload in enumerate(payloads):
+            if self._stop.is_set() or self._bus is None:
+                return
+            if index == self.faults.bus_off_after_frames:
+                self._bus_off()
+                return
+            self._sent += 1
+            if index not in self.faults.drop_frames:
+                send(self._bus, sample_id, payload, True, self._where)
+            if self.frame_rate_hz and index % _PACE_BATCH == 0:
+                ahead = started + index / self.frame_rate_hz - time.monotonic()
+                if ahead > 0:
+                    time.sleep(ahead)
+
+    def _bus_off(self) -> None:
+        assert self._bus is not None
+        error = can.Message(arbitration_id=cf.CAN_ERR_BUSOFF, is_error_frame=True, dlc=8,
+                            data=bytes(8))
+        self._bus.send(error)
+        self._dead = True
+        log.warning("%s: injected bus-off after %d frames", self._where, self._sent)
