@@ -31,8 +31,10 @@ __all__ = ["SimulatedStep", "World", "nominal_rig_model", "realistic_rig_model",
 
 #: table-side defaults that reproduce method.md §1.2 (motor line, ripple, estimate noise)
 REALISTIC_VIBRATION = MotorVibration(frequency_hz=35.0, amplitude_dps2=6.0, bandwidth_hz=6.0)
-REALISTIC_RIPPLE = (RateRipple(cycles_per_deg=1.0, amplitude_deg=0.5 / 3600),
-                    RateRipple(cycles_per_deg=2.0, amplitude_deg=0.3 / 3600, phase_rad=1.0))
+REALISTIC_RIPPLE = (
+    RateRipple(cycles_per_deg=1.0, amplitude_deg=1.0 / 3600, rejection_bandwidth_hz=40.0),
+    RateRipple(cycles_per_deg=2.0, amplitude_deg=1.0 / 3600, phase_rad=1.0,
+               rejection_bandwidth_hz=40.0))
 
 
 def run_step(world: World, step: PlannedStep) -> SimulatedStep:

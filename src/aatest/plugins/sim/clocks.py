@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aatest.plugins.sim.fastmath import standard_normal
+
 
 @dataclass(frozen=True)
 class DaqClock:
@@ -63,11 +65,12 @@ class DaqClock:
     def stamped(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """Logged time stamps: nominal DAQ times plus white jitter."""
         t = self.daq_times(n)
-        return t + self.jitter_s * rng.standard_normal(n) if self.jitter_s else t
+        return t + self.jitter_s * standard_normal(rng, n) if self.jitter_s else t
 
     def sync_level(self, daq_time_s: np.ndarray) -> np.ndarray:
         """Sync pulse level (0/1) at DAQ clock times: high for the first half period."""
-        frac = np.mod(daq_time_s * self.sync_hz - self.sync_phase, 1.0)
+        cycles = daq_time_s * self.sync_hz - self.sync_phase
+        frac = cycles - np.floor(cycles)
         return (frac < 0.5).astype(np.float64)
 
     def edges(self, daq_start_s: float, daq_stop_s: float) -> tuple[np.ndarray, np.ndarray]:

@@ -13,6 +13,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
+from aatest.plugins.sim.fastmath import standard_normal
 from aatest.plugins.sim.model import DaqModel, SensorModel
 from aatest.plugins.sim.sensor import lowpass
 
@@ -40,17 +41,24 @@ def quantise_adc(volts: np.ndarray, daq: DaqModel) -> np.ndarray:
 
 
 def record_channel(clean_v: np.ndarray, sensor: SensorModel, daq: DaqModel, dt_s: float,
-                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """(logged volts, noiseless filtered volts) of one sensor channel."""
-    noise = sensor.noise_rms_v * rng.standard_normal(clean_v.size) if sensor.noise_rms_v else 0.0
-    if daq.antialias_hz is not None:
-        b, a, gain = antialias_filter(float(daq.antialias_hz), round(dt_s, 15))
-        clean = lowpass(clean_v, b, a)
-        noisy = clean + (signal.lfilter(b, a, noise) / gain if sensor.noise_rms_v else 0.0)
-    else:
-        clean = clean_v
-        noisy = clean_v + noise
+                   rng: np.random.Generator) -> np.ndarray:
+    """Logged volts of one channel: (clean + noise) through the pre-sample filter, extra
+    white noise (slip ring, ``excess_noise``), then the ADC."""
+    signal_v = clean_v
+    if sensor.noise_rms_v:
+        gain = antialias_filter(float(daq.antialias_hz), round(dt_s, 15))[2] \
+            if daq.antialias_hz is not None else 1.0
+        signal_v = clean_v + (sensor.noise_rms_v / gain) * standard_normal(rng, clean_v.size)
+    filtered = noiseless(signal_v, daq, dt_s)
     extra = [n.rms_v for n in (sensor.excess_noise, daq.slip_ring) if n is not None and n.rms_v]
     if extra:
-        noisy = noisy + float(np.hypot.reduce(extra)) * rng.standard_normal(clean_v.size)
-    return quantise_adc(noisy, daq), clean
+        filtered = filtered + float(np.hypot.reduce(extra)) * standard_normal(rng, clean_v.size)
+    return quantise_adc(filtered, daq)
+
+
+def noiseless(clean_v: np.ndarray, daq: DaqModel, dt_s: float) -> np.ndarray:
+    """The clean sensor output after the pre-sample filter (no noise, no ADC)."""
+    if daq.antialias_hz is None:
+        return clean_v
+    b, a, _ = antialias_filter(float(daq.antialias_hz), round(dt_s, 15))
+    return lowpass(clean_v, b, a)

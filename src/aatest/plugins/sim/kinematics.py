@@ -69,7 +69,7 @@ class GimbalErrors:
 
 
 def angular_acceleration_top(
-    inner_deg: np.ndarray,
+    inner_sincos: tuple[np.ndarray, np.ndarray],
     inner_rate_dps: np.ndarray,
     inner_accel_dps2: np.ndarray,
     outer_rate_dps: np.ndarray,
@@ -80,37 +80,38 @@ def angular_acceleration_top(
 
     d/dt of the body-frame angular velocity; includes the Coriolis-like cross term
     ω_o·ω_i (in rad/s units, converted back to °/s²) that makes coordinated motion work.
+    ``inner_sincos`` = (sin ψ, cos ψ) of the inner angle (see :func:`sincos_deg`).
     """
-    psi = np.radians(inner_deg)
-    s, c = np.sin(psi), np.cos(psi)
+    s, c = inner_sincos
     eps = gimbal.orthogonality_arcsec * ARCSEC_RAD
     # outer axis in the inner-base frame: R_x(ε)ᵀ·e_O = (0, cos ε, −sin ε)
     v_o, v_i = np.cos(eps), -np.sin(eps)
     cross = np.radians(inner_rate_dps) * outer_rate_dps  # (rad/s)·(°/s) = °/s²
-    alpha = np.empty((3,) + np.shape(psi))
+    alpha = np.empty((3,) + np.shape(s))
     alpha[0] = v_o * (outer_accel_dps2 * s + cross * c)
     alpha[1] = v_o * (outer_accel_dps2 * c - cross * s)
     alpha[2] = inner_accel_dps2 + v_i * outer_accel_dps2
     return _apply_wobble(alpha, s, c, gimbal.wobble_arcsec)
 
 
-def gravity_top(inner_deg: np.ndarray, outer_deg: np.ndarray,
+def gravity_top(inner_sincos: tuple[np.ndarray, np.ndarray],
+                outer_sincos: tuple[np.ndarray, np.ndarray],
                 gimbal: GimbalErrors = GimbalErrors()) -> np.ndarray:
     """Specific force of a body at rest (the 'up' unit vector, in g) in the top frame, (3, n).
 
     +1 g along I at outer 0°, −1 g at outer 180° (contracts.md §4 "Gravity").
     """
-    psi, phi = np.radians(inner_deg), np.radians(outer_deg)
-    s, c = np.sin(psi), np.cos(psi)
+    s, c = inner_sincos
+    sin_phi, cos_phi = outer_sincos
     eps = gimbal.orthogonality_arcsec * ARCSEC_RAD
     # up in the outer frame is (−sin φ, 0, cos φ); then R_x(ε)ᵀ, then R_z(ψ)ᵀ
-    u0 = -np.sin(phi)
-    u1 = np.sin(eps) * np.cos(phi)
-    u2 = np.cos(eps) * np.cos(phi)
-    up = np.empty((3,) + np.shape(psi))
+    u0 = -sin_phi
+    u1 = np.sin(eps) * cos_phi
+    u2 = np.cos(eps) * cos_phi
+    up = np.empty((3,) + np.shape(s))
     up[0] = c * u0 + s * u1
     up[1] = -s * u0 + c * u1
-    up[2] = u2 * np.ones_like(psi)
+    up[2] = u2
     return _apply_wobble(up, s, c, gimbal.wobble_arcsec)
 
 

@@ -102,6 +102,11 @@ class RateRipple(_Model):
     cycles_per_deg: float = Field(gt=0)
     amplitude_deg: float
     phase_rad: float = 0.0
+    rejection_bandwidth_hz: float | None = Field(
+        None, gt=0, description="None: the contract formula exactly. Else the ripple is a "
+        "position-periodic disturbance the servo rejects: the real amplitude at ripple "
+        "frequency f = n·|rate| is a·|S(f)|, S = x³/(1+x)³, x = jf/f_b (why 10 °/s shows "
+        "mainly the 2 cycles/° line, method.md §1.2)")
 
 
 class MotorVibration(_Model):

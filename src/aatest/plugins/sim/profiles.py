@@ -14,6 +14,7 @@ import numpy as np
 
 from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.steps import PlannedStep
+from aatest.plugins.sim.grid import Grid
 
 
 @dataclass(frozen=True)
@@ -40,16 +41,16 @@ class AxisProfile:
     def moving(self) -> bool:
         return self.rate_dps != 0.0 or (self.amplitude_deg != 0.0 and self.frequency_hz > 0.0)
 
-    def evaluate(self, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Commanded (angle_deg, rate_dps, accel_dps2) at lab times ``time_s``."""
-        tau = np.asarray(time_s, dtype=float) - self.t0_s
+    def evaluate(self, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Commanded (angle_deg, rate_dps, accel_dps2) on a uniform lab-time grid."""
+        tau = grid.times - self.t0_s
         angle = self.start_deg + self.rate_dps * tau
-        rate = np.full_like(tau, self.rate_dps)
-        accel = np.zeros_like(tau)
+        rate = np.full(grid.n, float(self.rate_dps))
+        accel = np.zeros(grid.n)
         if self.amplitude_deg != 0.0 and self.frequency_hz > 0.0:
             w = 2 * np.pi * self.frequency_hz
-            phase = w * tau + self.phase_rad
-            sin, cos = np.sin(phase), np.cos(phase)
+            z = grid.phasor(w, self.phase_rad - w * self.t0_s)
+            sin, cos = z.imag, z.real
             angle += self.amplitude_deg * sin
             rate += self.amplitude_deg * w * cos
             accel -= self.amplitude_deg * w * w * sin

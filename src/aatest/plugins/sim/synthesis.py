@@ -8,7 +8,9 @@ sampled on the table clock from the trigger on; the DAQ log on its own crystal c
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -18,7 +20,8 @@ from aatest.engine.steps import PlannedStep
 from aatest.plugins.sim import kinematics as kin
 from aatest.plugins.sim.chamber import ThermalState
 from aatest.plugins.sim.clocks import DaqClock, table_sync
-from aatest.plugins.sim.daq import record_channel
+from aatest.plugins.sim.daq import noiseless, record_channel
+from aatest.plugins.sim.grid import Grid, sincos_deg
 from aatest.plugins.sim.model import RigModel
 from aatest.plugins.sim.sensor import SensorInputs, output_volts
 from aatest.plugins.sim.table import STENCIL_PAD, AxisTruth, estimates
@@ -53,24 +56,52 @@ class StepSetup:
         return float(self.clock.lab_time(self.trigger_index / self.clock.sample_rate_hz))
 
 
+class LazyTruth(Mapping[str, Any]):
+    """The truth of a step; expensive entries (noise-free volts, undelayed sensor-axis
+    acceleration) are computed on first access, so plugins that never look pay nothing."""
+
+    def __init__(self, **values: Any) -> None:
+        self._values: dict[str, Any] = dict(values)
+        self._deferred: dict[str, Callable[[], Any]] = {}
+
+    def defer(self, key: str, compute: Callable[[], Any]) -> None:
+        self._deferred[key] = compute
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        self._values[key] = value
+
+    def update(self, other: Mapping[str, Any]) -> None:
+        self._values.update(other)
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in self._values and key in self._deferred:
+            self._values[key] = self._deferred.pop(key)()
+        return self._values[key]
+
+    def __iter__(self) -> Iterator[str]:
+        yield from list(self._values) + [k for k in self._deferred if k not in self._values]
+
+    def __len__(self) -> int:
+        return len(set(self._values) | set(self._deferred))
+
+
 @dataclass(frozen=True)
 class SimulatedStep:
     """Both logs of one step and the truth behind them (see :func:`synthesise`)."""
 
     table: SampledLog
     daq: SampledLog
-    truth: dict[str, Any]
+    truth: LazyTruth
 
 
 def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, dict[str, Any]]:
     step, tm = setup.step, setup.model.table
     dt = 1.0 / step.sample_rate_hz
-    k = np.arange(-STENCIL_PAD, step.samples + STENCIL_PAD)
-    lab_t = setup.trigger_time_s + k * dt
+    grid = Grid(setup.trigger_time_s - STENCIL_PAD * dt, dt, step.samples + 2 * STENCIL_PAD)
     channels: dict[str, np.ndarray] = {}
     truth: dict[str, Any] = {}
     for name, axis, axis_model in (("inner", setup.inner, tm.inner), ("outer", setup.outer, tm.outer)):
-        angle, rate, accel = axis.evaluate(lab_t)
+        angle, rate, accel = axis.evaluate(grid)
         est = estimates(angle, axis_model, dt, tm.estimator, rng)
         channels[f"{name}_position_deg"] = est["position_deg"]
         channels[f"{name}_rate_dps"] = est["rate_dps"]
@@ -80,7 +111,7 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
         truth[f"{name}_angle_deg"] = angle[inner_slice]
         truth[f"{name}_rate_dps"] = rate[inner_slice]
         truth[f"{name}_accel_dps2"] = accel[inner_slice]
-    time_s = k[STENCIL_PAD: STENCIL_PAD + step.samples] * dt
+    time_s = np.arange(step.samples) * dt
     channels["sync_pulse"], channels["fp_latch_s"] = _table_pulse(setup, time_s)
     moving = "outer" if step.axis == "outer" else "inner"
     truth.update(time_s=time_s, angle_deg=truth[f"{moving}_angle_deg"],
@@ -108,40 +139,44 @@ def _daq_samples(setup: StepSetup) -> int:
     return setup.trigger_index + int(np.ceil((table_span_daq_s + lag) * clock.sample_rate_hz))
 
 
-def _top_motion(setup: StepSetup, lab_t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(α_top (3, n) °/s², up (3, n) g) of the table top at lab times, incl. parasitics."""
-    th_i, w_i, a_i = setup.inner.evaluate(lab_t)
-    th_o, w_o, a_o = setup.outer.evaluate(lab_t)
-    alpha = kin.angular_acceleration_top(th_i, w_i, a_i, w_o, a_o, setup.gimbal)
+def _top_motion(setup: StepSetup, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
+    """(α_top (3, n) °/s², up (3, n) g) of the table top on a lab-time grid, incl. parasitics."""
+    th_i, w_i, a_i = setup.inner.evaluate(grid)
+    th_o, w_o, a_o = setup.outer.evaluate(grid)
+    sc_i = sincos_deg(th_i, setup.inner.profile.moving, setup.inner.profile.start_deg)
+    sc_o = sincos_deg(th_o, setup.outer.profile.moving, setup.outer.profile.start_deg)
+    alpha = kin.angular_acceleration_top(sc_i, w_i, a_i, w_o, a_o, setup.gimbal)
     k_unb = setup.model.table.unbalance_parasitic_dps2_per_dps2
     if k_unb and setup.outer.profile.moving:
         # unbalanced payload: outer excitation leaks into motion about the inner-base P axis
-        psi = np.radians(th_i)
-        alpha[0] += k_unb * a_o * np.cos(psi)
-        alpha[1] -= k_unb * a_o * np.sin(psi)
-    return alpha, kin.gravity_top(th_i, th_o, setup.gimbal)
+        alpha[0] += k_unb * a_o * sc_i[1]
+        alpha[1] -= k_unb * a_o * sc_i[0]
+    return alpha, kin.gravity_top(sc_i, sc_o, setup.gimbal)
 
 
-def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, dict[str, Any]]:
+def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, LazyTruth]:
     model, clock = setup.model, setup.clock
     n = _daq_samples(setup)
-    daq_t = clock.daq_times(n)
-    lab_t = clock.lab_time(daq_t)
-    temperature = setup.thermal.temperature_at(lab_t)
+    grid = Grid(clock.t0_s, clock.lab_dt_s, n)
+    temperature = setup.thermal.temperature_at(grid.times)
     channels: dict[str, np.ndarray] = {}
-    truth: dict[str, Any] = {"daq_time_s": lab_t - setup.trigger_time_s}
-    motion_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    truth = LazyTruth(daq_time_s=grid.times - setup.trigger_time_s)
+    motion: dict[float, tuple[np.ndarray, np.ndarray]] = {}
     for sensor in model.sensors:
         delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
-        if delay not in motion_cache:
-            motion_cache[delay] = _top_motion(setup, lab_t - delay)
-        alpha, up = motion_cache[delay]
+        if delay not in motion:
+            motion[delay] = _top_motion(setup, grid.shifted(-delay))
+        alpha, up = motion[delay]
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s)
         clean = output_volts(sensor, inp, model.t_ref_c)
-        channels[sensor.channel], truth[f"volts_{sensor.channel}"] = record_channel(
-            clean, sensor, model.daq, clock.lab_dt_s, rng)
-        truth[f"alpha_{sensor.channel}"] = setup.axes[sensor.channel][:, 2] @ alpha
-    channels["sync_pulse"] = clock.sync_level(daq_t)
+        channels[sensor.channel] = record_channel(clean, sensor, model.daq, clock.lab_dt_s, rng)
+        truth.defer(f"volts_{sensor.channel}", partial(noiseless, clean, model.daq, clock.lab_dt_s))
+    for sensor in model.sensors:  # true acceleration along each sensitive axis, undelayed
+        axis_z = setup.axes[sensor.channel][:, 2]
+        truth.defer(f"alpha_{sensor.channel}", lambda z=axis_z: z @ _undelayed(setup, grid, motion))
+    truth.defer("sensor_accel_dps2", lambda: {s.channel: truth[f"alpha_{s.channel}"]
+                                              for s in model.sensors})
+    channels["sync_pulse"] = clock.sync_level(clock.daq_times(n))
     channels["trigger"] = (np.arange(n) >= setup.trigger_index).astype(np.float64)
     channels["temperature_c"] = np.round(temperature, 2)
     units = {c: "V" for c in channels if c.startswith("v_")} | dict(DAQ_AUX_CHANNELS)
@@ -149,14 +184,20 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, di
     return log, truth
 
 
+def _undelayed(setup: StepSetup, grid: Grid,
+               motion: dict[float, tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    if 0.0 not in motion:
+        motion[0.0] = _top_motion(setup, grid)
+    return motion[0.0][0]
+
+
 def synthesise(setup: StepSetup, rng: np.random.Generator) -> SimulatedStep:
     """Table log, DAQ log and truth of one step (all vectorised)."""
-    table, truth = _table_log(setup, rng)
-    daq, daq_truth = _daq_log(setup, rng)
-    truth.update(daq_truth)
+    table, table_truth = _table_log(setup, rng)
+    daq, truth = _daq_log(setup, rng)
+    truth.update(table_truth)
     truth["drift_ppm"] = setup.clock.drift_ppm
     # t_table_log = offset + t_daq·(1 + drift): the DAQ's sample 0 precedes the trigger
     truth["offset_s"] = setup.clock.t0_s - setup.trigger_time_s
-    truth["sensor_accel_dps2"] = {s.channel: truth[f"alpha_{s.channel}"] for s in setup.model.sensors}
     truth["temperature_c"] = float(setup.thermal.temperature_at(setup.trigger_time_s))
     return SimulatedStep(table=table, daq=daq, truth=truth)

@@ -18,7 +18,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from aatest.plugins.sim.model import AxisModel, MotorVibration
+from aatest.plugins.sim.fastmath import sincos32, standard_normal
+from aatest.plugins.sim.grid import Grid
+from aatest.plugins.sim.model import AxisModel, MotorVibration, RateRipple
 from aatest.plugins.sim.profiles import AxisProfile
 
 #: number of tones that synthesise a narrow vibration band (bandwidth_hz > 0)
@@ -33,18 +35,15 @@ class Tones:
     amplitude_dps2: np.ndarray
     phase_rad: np.ndarray
 
-    def evaluate(self, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(self, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(angle_deg, rate_dps, accel_dps2) of the vibration, zero-mean in all three."""
-        angle = np.zeros_like(time_s)
-        rate = np.zeros_like(time_s)
-        accel = np.zeros_like(time_s)
+        angle, rate, accel = np.zeros(grid.n), np.zeros(grid.n), np.zeros(grid.n)
         for f, a, p in zip(self.frequency_hz, self.amplitude_dps2, self.phase_rad, strict=True):
             w = 2 * np.pi * f
-            arg = w * time_s + p
-            s, c = np.sin(arg), np.cos(arg)
-            accel += a * s
-            rate -= (a / w) * c
-            angle -= (a / (w * w)) * s
+            z = grid.phasor(w, p)
+            accel += a * z.imag
+            rate -= (a / w) * z.real
+            angle -= (a / (w * w)) * z.imag
         return angle, rate, accel
 
 
@@ -87,24 +86,45 @@ class AxisTruth:
     motor_on: bool
     drift_dps: float = 0.0
 
-    def evaluate(self, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Real (angle_deg, rate_dps, accel_dps2) of the axis at lab times ``time_s``."""
-        angle, rate, accel = self.profile.evaluate(time_s)
+    def evaluate(self, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Real (angle_deg, rate_dps, accel_dps2) of the axis on a uniform lab-time grid."""
+        angle, rate, accel = self.profile.evaluate(grid)
         for ripple in self.model.rate_ripple if self.profile.moving else ():
-            k = 2 * np.pi * ripple.cycles_per_deg  # rad per degree
-            arg = k * angle + ripple.phase_rad
-            s, c = np.sin(arg), np.cos(arg)
-            a = ripple.amplitude_deg
-            accel = accel + a * (k * accel * c - (k * rate) ** 2 * s)
-            rate = rate + a * k * rate * c
-            angle = angle + a * s
+            angle, rate, accel = _add_ripple(ripple, angle, rate, accel)
         if self.motor_on and self.vibration is not None:
-            va, vr, vac = self.vibration.evaluate(time_s)
+            va, vr, vac = self.vibration.evaluate(grid)
             angle, rate, accel = angle + va, rate + vr, accel + vac
         elif not self.motor_on and self.drift_dps:
-            angle = angle + self.drift_dps * (np.asarray(time_s) - self.profile.t0_s)
+            angle = angle + self.drift_dps * (grid.times - self.profile.t0_s)
             rate = rate + self.drift_dps
         return angle, rate, accel
+
+
+def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """θ += a·sin(2π n θ + φ) with exact chain-rule rate/acceleration (contracts.md §4).
+
+    With ``rejection_bandwidth_hz`` the amplitude and phase follow the servo's disturbance
+    sensitivity at the instantaneous ripple frequency (quasi-static: exact at constant rate).
+    """
+    k = 2 * np.pi * ripple.cycles_per_deg  # rad per degree
+    sin, cos = sincos32(k * angle + ripple.phase_rad)  # ripple ≈ 1″: 3e-7 relative is plenty
+    a = ripple.amplitude_deg
+    if ripple.rejection_bandwidth_hz is None:
+        s, c = a * sin, a * cos
+    else:
+        # S(jr) = (jr)³/(1 + jr)³ = −j·r³ / (d_re + j·d_im), in real arithmetic for speed
+        r = (ripple.cycles_per_deg / ripple.rejection_bandwidth_hz) * np.abs(rate)
+        r3 = r * r * r
+        d_re, d_im = 1.0 - 3.0 * r * r, 3.0 * r - r3
+        scale = (-a) * r3 / (d_re * d_re + d_im * d_im)
+        s_re, s_im = scale * d_im, scale * d_re
+        s, c = sin * s_re + cos * s_im, cos * s_re - sin * s_im
+    return angle + s, rate + k * rate * c, accel + k * accel * c - (k * rate) ** 2 * s
+
+
+def _noisy(values: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    return values + sigma * standard_normal(rng, values.size) if sigma > 0.0 else values
 
 
 def quantise(values: np.ndarray, step: float) -> np.ndarray:
@@ -125,10 +145,9 @@ def estimates(
     Returns position estimate, rate and acceleration estimates (differences of the position
     estimate, as the controller computes them) and the raw feedback, each of length N.
     """
-    noise = rng.standard_normal((2, true_angle_deg.size))
-    est = quantise(true_angle_deg + model.estimate_noise_deg * noise[0],
+    est = quantise(_noisy(true_angle_deg, model.estimate_noise_deg, rng),
                    model.encoder_resolution_deg)
-    raw = quantise(true_angle_deg + model.encoder_noise_deg * noise[1],
+    raw = quantise(_noisy(true_angle_deg, model.encoder_noise_deg, rng),
                    model.encoder_resolution_deg)
     p = STENCIL_PAD
     n = true_angle_deg.size - 2 * p
