@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scipy import signal
 
 K_V_PER_DPS2 = 0.004014
 CHANNELS = {"v_sz": ("I", "SZ", "A1234-Z"), "v_sy": ("O", "SY", "A1234-Y"),
@@ -33,6 +34,17 @@ def _frf_points(delay_s: float = 0.0135) -> list[dict[str, Any]]:
             "thd": 0.002 + 0.0004 * f, "snr_db": 49.0 - 0.1 * f,
         })
     return points
+
+
+def _transfer_function(delay_s: float = 0.0135, dt: float = 0.0005) -> dict[str, Any]:
+    """The FRF's sensor model, discretised (ZOH) at 2 kHz, with a separate delay term."""
+    wn = 2 * math.pi * 60.0
+    num, den, _ = signal.cont2discrete(([K_V_PER_DPS2 * wn**2], [1, 2 * 0.7 * wn, wn**2]), dt)
+    num, den = np.ravel(num), np.ravel(den)
+    return {"poles": [[p.real, p.imag] for p in np.roots(den)],
+            "zeros": [[z.real, z.imag] for z in np.roots(np.trim_zeros(num, "f"))],
+            "delay_s": delay_s, "fit_pct": 98.4, "nAIC": -14.2, "FPE": 6.1e-7,
+            "num": num.tolist(), "den": den.tolist(), "dt": dt}
 
 
 def _steps() -> list[dict[str, Any]]:
@@ -57,12 +69,14 @@ def _misalignment() -> dict[str, Any]:
         pivoted = i % 2 == 1
         sets[label] = {}
         for sensor, true_deg in (("SZ", 0.21), ("SY", -0.12), ("SX", 0.34)):
-            mount = 0.05 + 0.02 * rng.standard_normal()
+            mount = 0.45 + 0.05 * rng.standard_normal()  # mounting error > |δ|
             de = abs(mount + (-true_deg if pivoted else true_deg))
+            phase = 0.15 * rng.standard_normal()  # cross response nearly in phase
             sets[label][sensor] = {
                 "cross_ratio_x": abs(math.sin(math.radians(de))) * 0.8,
                 "cross_ratio_y": abs(math.sin(math.radians(de))) * 0.6,
-                "delta_A": [0.4 * math.sin(math.radians(de)), 1e-5], "delta_e_deg": de,
+                "delta_A": [0.4 * math.sin(math.radians(de)) * math.cos(phase),
+                            0.4 * math.sin(math.radians(de)) * math.sin(phase)], "delta_e_deg": de,
             }
     scenarios = {
         str(n): {s: {"delta_deg": (sets[o][s]["delta_e_deg"] - sets[p][s]["delta_e_deg"]) / 2}
@@ -101,10 +115,7 @@ def _analysis() -> dict[str, Any]:
                            "hysteresis_v": 0.0002, "points": _temperature_points()}
         noise[ch] = {"rms_v": 0.00101}
         frf[ch] = _frf_points()
-        tf[ch] = {"poles": [[0.62, 0.21], [0.62, -0.21], [0.91, 0.0], [0.35, 0.4], [0.35, -0.4]],
-                  "zeros": [[-0.8, 0.0]], "delay_s": 0.0, "fit_pct": 98.4, "nAIC": -14.2,
-                  "FPE": 6.1e-7, "num": [0.0, 0.00012, 0.0001], "den": [1.0, -2.85, 3.3, -1.9, 0.5, -0.05],
-                  "dt": 0.0005}
+        tf[ch] = _transfer_function()
     return {"sync": {"drift_ppm": 12.3, "offset_s": 0.3521, "residual_rms_us": 2.9,
                      "edges_used": 6553},
             "bias": bias, "scale_factor": scale, "frf": frf, "transfer_function": tf,

@@ -1,0 +1,155 @@
+"""The view model a template renders: plain mappings, dataclasses and vetted SVG only.
+
+Templates hold no logic (style.md): everything they show — sections that exist, values with
+expanded uncertainties, verdicts, figures — is prepared here from ``results.json``, and a
+section is present only when its analysis key is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Collection, Mapping
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from aatest.plugins.report import extract as ex
+from aatest.plugins.report import figures as fig
+from aatest.plugins.report.budgets import Budgets, channels, evaluate_all
+from aatest.plugins.report.sandbox import vet_svg
+from aatest.plugins.report.traceability import traceability
+from aatest.plugins.report.uncertainty import RigConstants
+from aatest.plugins.report.verdicts import verdicts
+
+#: every section a report may show
+ALL_SECTIONS = frozenset({"sync", "scale_factor", "bias", "temperature", "noise", "frf",
+                          "transfer_function", "misalignment"})
+
+
+def _coefficient_rows(entry: Mapping[str, Any]) -> list[dict[str, Any]]:
+    rows = []
+    ci95 = entry.get("ci95")
+    for i, value in enumerate(entry.get("coefficients") or []):
+        u = ex.ci_std(ci95, i)
+        half = None if u is None else u * ex.Z95
+        rows.append({"power": i, "value": value, "half_width": half})
+    return rows
+
+
+def _channel_view(results: Mapping[str, Any], ch: str, budgets: Budgets) -> dict[str, Any]:
+    def block(key: str) -> Any:
+        value = (ex.analysis(results, key) or {})
+        return value.get(ch) if isinstance(value, Mapping) else None
+
+    scale = block("scale_factor")
+    return {
+        "name": ch,
+        "sensor": ex.sensors(results).get(ch, {}),
+        "scale": scale,
+        "coefficients": _coefficient_rows(scale) if isinstance(scale, Mapping) else [],
+        "bias": block("bias"),
+        "temperature": block("temperature"),
+        "noise": block("noise"),
+        "transfer_function": block("transfer_function"),
+        "frf": budgets.frf.get(ch, []),
+        "u": {key.split("/")[0]: ev for key, ev in budgets.by_key.items()
+              if key.count("/") == 1 and key.endswith("/" + ch)},
+    }
+
+
+def _analysis_figures(results: Mapping[str, Any], keys: Collection[str]) -> list[dict[str, Any]]:
+    figures = results.get("figures") or {}
+    out = []
+    for key in sorted(figures):
+        if key in keys and isinstance(figures[key], Mapping):
+            out += [{"section": key, "title": f"{key}: {name}", "svg": vet_svg(svg)}
+                    for name, svg in sorted(figures[key].items())]
+    return out
+
+
+def _own_figures(results: Mapping[str, Any], sections: Collection[str],
+                 views: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Plots made here from the contract keys (one per channel and section)."""
+    makers: list[tuple[str, str, Callable[[], str | None]]] = []
+    for v in views:
+        if "scale_factor" in sections and isinstance(v["scale"], Mapping):
+            makers.append(("scale_factor", f"calibration curve {v['name']}",
+                           lambda v=v: fig.calibration_curve(v["scale"], v["sensor"])))
+        if "frf" in sections and v["frf"]:
+            makers.append(("frf", f"Bode {v['name']}", lambda v=v: fig.bode(
+                [r.point for r in v["frf"]], v["transfer_function"],
+                [r.gain.expanded_uncertainty if r.gain else 0.0 for r in v["frf"]])))
+        if "temperature" in sections and isinstance(v["temperature"], Mapping):
+            makers.append(("temperature", f"bias vs temperature {v['name']}",
+                           lambda v=v: fig.bias_vs_temperature(v["temperature"])))
+    sets = (ex.analysis(results, "misalignment") or {}).get("sets")
+    if "misalignment" in sections and isinstance(sets, Mapping):
+        makers.append(("misalignment", "cross responses in the complex plane",
+                       lambda: fig.misalignment_plane(sets)))
+    out = []
+    for section, title, make in makers:
+        svg = make()
+        if svg is not None:
+            out.append({"section": section, "title": title, "svg": vet_svg(svg)})
+    return out
+
+
+def _misalignment_rows(results: Mapping[str, Any], budgets: Budgets) -> list[dict[str, Any]]:
+    scenarios = (ex.analysis(results, "misalignment") or {}).get("scenarios") or {}
+    return [{"scenario": s, "sensor": sensor, "delta_deg": (entry or {}).get("delta_deg"),
+             "u": budgets.by_key.get(f"misalignment/{s}/{sensor}")}
+            for s, sensors in sorted(scenarios.items()) for sensor, entry in sorted((sensors or {}).items())]
+
+
+def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: str,
+                  sections: Collection[str], constants: RigConstants) -> dict[str, Any]:
+    """Everything a measurement report template needs."""
+    budgets = evaluate_all(results, constants)
+    views = [_channel_view(results, ch, budgets) for ch in channels(results)]
+    present = {s for s in sections if ex.analysis(results, s) is not None}
+    signature = results.get("signature") or {}
+    return {
+        "report": {"kind": kind, "title": title,
+                   "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")},
+        "procedure": results.get("procedure"),
+        "sections": sorted(present),
+        "channels": views,
+        "sync": ex.analysis(results, "sync") if "sync" in present else None,
+        "misalignment": _misalignment_rows(results, budgets) if "misalignment" in present else [],
+        "misalignment_sets": (ex.analysis(results, "misalignment") or {}).get("sets") or {},
+        "verdicts": verdicts(results, budgets.expanded()),
+        "budgets": budgets.shown(),
+        "figures": _analysis_figures(results, present) + _own_figures(results, present, views),
+        "trace": traceability(results, run_dir),
+        "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
+        "steps": results.get("steps") or [],
+        "analysis_errors": results.get("analysis_errors") or {},
+        "analysis_skipped": results.get("analysis_skipped") or [],
+    }
+
+
+def _diagnosis_block(results: Mapping[str, Any]) -> Mapping[str, Any]:
+    block = results.get("diagnosis")
+    return block if isinstance(block, Mapping) else results
+
+
+def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
+    """View model of the ``aatest diagnose`` report (contracts.md §4)."""
+    diag = _diagnosis_block(results)
+    candidates = sorted((c for c in diag.get("candidates") or [] if isinstance(c, Mapping)),
+                        key=lambda c: ex.as_float(c.get("delta_bic")) or 0.0)
+    figures = _analysis_figures(results, {"diagnose"})
+    bars = fig.diagnosis_bars(diag)
+    if bars is not None:
+        figures.append({"section": "diagnose", "title": "candidates and gain", "svg": vet_svg(bars)})
+    signature = results.get("signature") or {}
+    return {
+        "report": {"kind": "diagnosis", "title": "Diagnosis: what the simulation gets wrong",
+                   "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")},
+        "baseline": diag.get("baseline") or {},
+        "findings": [f for f in diag.get("findings") or [] if isinstance(f, Mapping)],
+        "candidates": candidates,
+        "gain": diag.get("gain") or {},
+        "figures": figures,
+        "trace": traceability(results, run_dir),
+        "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
+    }

@@ -1,0 +1,175 @@
+"""Report plots made from ``results.json`` with matplotlib (Agg/SVG, no pyplot state).
+
+Used where the analysis plugins gave no figure of their own: the calibration curve with its
+95 % band and residual view, the Bode plot of the FRF points with the fitted transfer
+function (extrapolated), bias against temperature per branch, and the misalignment cross
+responses in the complex plane. Every function returns an SVG string or None when the results
+lack the data; units follow the contract keys (V, °/s², dB, deg, °C).
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+from scipy import signal
+
+from aatest.plugins.report import extract as ex
+
+matplotlib.rcParams.update({"svg.hashsalt": "aatest", "svg.fonttype": "none", "font.size": 9})
+
+
+def _svg(fig: Figure) -> str:
+    buffer = io.StringIO()
+    fig.savefig(buffer, format="svg", metadata={"Date": None})
+    return buffer.getvalue()
+
+
+def _poly_band(coefficients: Sequence[float], ci95: Any, u_v: np.ndarray) -> np.ndarray | None:
+    """Standard deviation of y(u) = Σ a_i u^i from independent coefficient ci95 (°/s²)."""
+    stds = [ex.ci_std(ci95, i) for i in range(len(coefficients))]
+    if any(s is None for s in stds):
+        return None
+    powers = np.vander(u_v, len(coefficients), increasing=True)
+    return np.sqrt((powers**2) @ np.square(np.asarray(stds, dtype=float)))
+
+
+def calibration_curve(entry: Mapping[str, Any], sensor: Mapping[str, Any]) -> str | None:
+    """Fitted y(u) over the sensor range with its 95 % band, and the residual view below.
+
+    Without per-sample residuals in the results, the lower panel shows what the polynomial
+    adds to its best straight line (the non-linearity) against the ±RMSE band.
+    """
+    coefficients = [float(c) for c in entry.get("coefficients") or []]
+    if len(coefficients) < 2:
+        return None
+    k_v = ex.as_float(entry.get("scale_v_per_dps2")) or 1.0 / coefficients[1]
+    range_dps2 = ex.as_float(sensor.get("range_dps2")) or 572.958
+    u_v = np.linspace(-range_dps2 * k_v, range_dps2 * k_v, 201)
+    y = np.polynomial.polynomial.polyval(u_v, coefficients)
+    band = _poly_band(coefficients, entry.get("ci95"), u_v)
+    fig = Figure(figsize=(6.4, 4.6), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[2, 1])
+    top.plot(u_v, y, color="C0", label=f"order {len(coefficients) - 1} fit")
+    if band is not None:
+        top.fill_between(u_v, y - ex.Z95 * band, y + ex.Z95 * band, color="C0", alpha=0.25,
+                         label="95 % band (coefficients)")
+    top.set_ylabel("reference α (°/s²)")
+    top.legend(loc="upper left")
+    line = np.polyfit(u_v, y, 1)
+    bottom.plot(u_v, y - np.polyval(line, u_v), color="C1", label="fit − best line")
+    rmse = ex.as_float(entry.get("rmse_dps2"))
+    if rmse:
+        bottom.axhspan(-rmse, rmse, color="C2", alpha=0.15, label=f"±RMSE {rmse:.3g} °/s²")
+    bottom.set_xlabel("sensor output − bias (V)")
+    bottom.set_ylabel("residual (°/s²)")
+    bottom.legend(loc="upper left", fontsize=7)
+    return _svg(fig)
+
+
+def _model_response(tf: Mapping[str, Any], f_hz: np.ndarray) -> np.ndarray | None:
+    num, den, dt = tf.get("num"), tf.get("den"), ex.as_float(tf.get("dt"))
+    if not num or not den or not dt:
+        return None
+    _, h = signal.freqz(np.asarray(num, float), np.asarray(den, float), worN=f_hz, fs=1.0 / dt)
+    delay = ex.as_float(tf.get("delay_s")) or 0.0
+    return h * np.exp(-2j * np.pi * f_hz * delay)
+
+
+def bode(points: Sequence[Mapping[str, Any]], tf: Mapping[str, Any] | None,
+         gain_u_db: Sequence[float] | None = None) -> str | None:
+    """FRF points (with ±U gain bars) and the fitted model, extrapolated to 5× the last point."""
+    rows = [p for p in points if ex.as_float(p.get("gain_db")) is not None]
+    if not rows:
+        return None
+    f = np.array([float(p["frequency_hz"]) for p in rows])
+    gain = np.array([float(p["gain_db"]) for p in rows])
+    phase = np.array([ex.as_float(p.get("phase_deg")) or np.nan for p in rows])
+    fig = Figure(figsize=(6.4, 4.8), layout="constrained")
+    ax_g, ax_p = fig.subplots(2, 1, sharex=True)
+    ax_g.errorbar(f, gain, yerr=None if gain_u_db is None else np.asarray(gain_u_db), fmt="o",
+                  ms=3, capsize=2, label="FRF points (±U)")
+    ax_p.plot(f, phase, "o", ms=3)
+    model = _model_response(tf or {}, np.geomspace(f.min() / 2, f.max() * 5, 300))
+    if model is not None:
+        fm = np.geomspace(f.min() / 2, f.max() * 5, 300)
+        ax_g.plot(fm, 20 * np.log10(np.abs(model)), "C1", label="fitted model")
+        ax_p.plot(fm, np.degrees(np.unwrap(np.angle(model))), "C1")
+    ax_g.set_xscale("log")
+    ax_g.set_ylabel("gain (dB V per °/s²)")
+    ax_g.legend(loc="lower left", fontsize=7)
+    ax_p.set_ylabel("phase (deg)")
+    ax_p.set_xlabel("frequency (Hz)")
+    return _svg(fig)
+
+
+def bias_vs_temperature(entry: Mapping[str, Any]) -> str | None:
+    """Bias per temperature point, by branch, with the fitted slope (mV/°C)."""
+    points = [p for p in ex.temperature_points(entry) if ex.as_float(p.get("bias_v")) is not None]
+    if len(points) < 2:
+        return None
+    fig = Figure(figsize=(6.4, 3.4), layout="constrained")
+    ax = fig.subplots()
+    branches = sorted({str(p.get("branch", "all")) for p in points})
+    for i, branch in enumerate(branches):
+        sel = [p for p in points if str(p.get("branch", "all")) == branch]
+        ax.plot([p["temperature_c"] for p in sel], [1e3 * p["bias_v"] for p in sel], "o-",
+                color=f"C{i}", ms=4, label=branch)
+    t = np.array([float(p["temperature_c"]) for p in points])
+    slope, intercept = np.polyfit(t, [float(p["bias_v"]) for p in points], 1)
+    tt = np.linspace(t.min(), t.max(), 2)
+    ax.plot(tt, 1e3 * (slope * tt + intercept), "k--", lw=1, label=f"{slope * 1e3:.3f} mV/°C")
+    ax.set_xlabel("temperature (°C)")
+    ax.set_ylabel("bias (mV)")
+    ax.legend(fontsize=7)
+    return _svg(fig)
+
+
+def misalignment_plane(sets: Mapping[str, Any]) -> str | None:
+    """Non-sensitive resultants ΔA of every set and sensor in the complex plane (mV)."""
+    fig = Figure(figsize=(5.0, 4.2), layout="constrained")
+    ax = fig.subplots()
+    drawn = False
+    for i, sensor in enumerate(("SZ", "SY", "SX")):
+        for label, block in sorted(sets.items()):
+            value = (block or {}).get(sensor, {}).get("delta_A")
+            if not isinstance(value, Sequence) or len(value) != 2:
+                continue
+            pivoted = "ABCDEFGH".find(label) % 2 == 1
+            ax.plot(1e3 * value[0], 1e3 * value[1], "s" if pivoted else "o", color=f"C{i}",
+                    mfc="none" if pivoted else f"C{i}", label=sensor if label == "A" else None)
+            ax.annotate(label, (1e3 * value[0], 1e3 * value[1]), fontsize=6)
+            drawn = True
+    if not drawn:
+        return None
+    ax.axhline(0, color="0.7", lw=0.5)
+    ax.axvline(0, color="0.7", lw=0.5)
+    ax.set_xlabel("Re ΔA (mV)")
+    ax.set_ylabel("Im ΔA (mV)")
+    ax.set_title("filled: original, open: pivoted", fontsize=8)
+    ax.legend(fontsize=7)
+    return _svg(fig)
+
+
+def diagnosis_bars(diagnosis: Mapping[str, Any]) -> str | None:
+    """Candidates' ΔBIC (accepted highlighted) and the RMSE before/after the findings."""
+    candidates = [c for c in diagnosis.get("candidates") or [] if ex.as_float(c.get("delta_bic")) is not None]
+    gain = diagnosis.get("gain") or {}
+    if not candidates and not gain:
+        return None
+    fig = Figure(figsize=(6.4, 3.2), layout="constrained")
+    ax_c, ax_g = fig.subplots(1, 2, width_ratios=[3, 1])
+    names = [str(c["effect"]) for c in candidates]
+    values = [float(c["delta_bic"]) for c in candidates]
+    colors = ["C2" if c.get("accepted") else "0.6" for c in candidates]
+    ax_c.barh(names, values, color=colors)
+    ax_c.set_xlabel("ΔBIC (negative = supported)")
+    before, after = ex.as_float(gain.get("rmse_v_before")), ex.as_float(gain.get("rmse_v_after"))
+    if before is not None and after is not None:
+        ax_g.bar(["before", "after"], [1e3 * before, 1e3 * after], color=["0.6", "C2"])
+        ax_g.set_ylabel("RMSE (mV)")
+    return _svg(fig) if (names or before is not None) else None

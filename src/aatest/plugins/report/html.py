@@ -1,0 +1,104 @@
+"""The report plugins (entry points in ``aatest.reports``): self-contained HTML files.
+
+Each reporter builds a view model from ``results.json`` (:mod:`.context`), renders its Jinja2
+template in the sandbox (:mod:`.sandbox`) — the shipped one from ``aatest/reports`` or a lab's
+own from ``template_dir`` — and writes the file atomically into the run directory. The signing
+key's fingerprint, when the runner put it in ``results["signature"]``, is printed on the page
+and stated in a ``<meta name="aatest-key-fingerprint">`` tag that ``aatest verify`` checks.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar
+
+from pydantic import BaseModel, ConfigDict
+
+from aatest.plugins.report.context import ALL_SECTIONS, build_context, build_diagnosis_context
+from aatest.plugins.report.sandbox import render_template
+from aatest.plugins.report.uncertainty import RigConstants
+
+
+class ReportConfig(BaseModel):
+    """Options of every HTML report: the rig accuracies used in the uncertainty budgets."""
+
+    model_config = ConfigDict(extra="forbid")
+    rig: RigConstants = RigConstants()
+
+
+def _write(path: Path, html: str) -> Path:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(html, encoding="utf-8")
+    os.replace(tmp, path)
+    return path
+
+
+class _HtmlReport:
+    """Shared render path; subclasses name their template, title and sections."""
+
+    Config: ClassVar[type[ReportConfig]] = ReportConfig
+    template: ClassVar[str]
+    title: ClassVar[str]
+    sections: ClassVar[frozenset[str]] = ALL_SECTIONS
+    output_name: ClassVar[str] = "report.html"
+
+    def __init__(self, config: ReportConfig | None = None) -> None:
+        self.config = config if config is not None else self.Config()
+
+    def context(self, results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
+        return build_context(results, run_dir, self.template, self.title, self.sections,
+                             self.config.rig)
+
+    def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path:
+        """Render ``results`` into ``run_dir/<output_name>`` and return that path."""
+        run_dir = Path(run_dir)
+        html = render_template(f"{self.template}.html.j2", self.context(results, run_dir), template_dir)
+        return _write(run_dir / self.output_name, html)
+
+
+class CalibrationCertificate(_HtmlReport):
+    """Calibration certificate: every calibrated parameter with U (k = 2) and its verdict."""
+
+    class Config(ReportConfig):
+        """Options of the calibration certificate."""
+
+    template = "calibration-certificate"
+    title = "Calibration certificate"
+
+
+class FrequencyResponseReport(_HtmlReport):
+    """Stepped-sine frequency response: FRF points with U, fitted transfer functions, Bode."""
+
+    class Config(ReportConfig):
+        """Options of the frequency-response report."""
+
+    template = "frequency-response"
+    title = "Frequency-response report"
+    sections = frozenset({"sync", "frf", "transfer_function"})
+
+
+class MisalignmentReport(_HtmlReport):
+    """Pivoted misalignment test: angles with U, cross-axis ratios, complex-plane view."""
+
+    class Config(ReportConfig):
+        """Options of the misalignment report."""
+
+    template = "misalignment"
+    title = "Misalignment report"
+    sections = frozenset({"sync", "misalignment"})
+
+
+class DiagnosisReport(_HtmlReport):
+    """``aatest diagnose``: residual views, ranked candidates, findings, before/after."""
+
+    class Config(ReportConfig):
+        """Options of the diagnosis report."""
+
+    template = "diagnosis"
+    title = "Diagnosis"
+    output_name = "diagnosis.html"
+
+    def context(self, results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
+        return build_diagnosis_context(results, run_dir)

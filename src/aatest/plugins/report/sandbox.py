@@ -1,0 +1,183 @@
+"""The sandboxed Jinja2 environment every report template — ours or a lab's — renders in.
+
+A lab may ship its own templates (``aatest report --template DIR``); they are untrusted code.
+They run in an :class:`~jinja2.sandbox.ImmutableSandboxedEnvironment` with autoescape, so they
+cannot reach Python internals (``__class__``, ``__globals__``…), mutate the results, or call
+anything but the filters below; the loader only serves regular files inside the template
+directory (no absolute paths, no ``..``, no symlinks leading out), and arithmetic that would
+build huge strings or numbers is refused. The only way HTML enters unescaped is
+:func:`vet_svg`, for SVG figures, which are parsed and checked element by element.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from jinja2 import ChoiceLoader, FileSystemLoader, TemplateNotFound, TemplateSyntaxError, UndefinedError
+from jinja2.exceptions import SecurityError, TemplateError as JinjaTemplateError
+from jinja2.sandbox import ImmutableSandboxedEnvironment
+from markupsafe import Markup
+
+from aatest.engine.errors import InputError
+
+#: the shipped templates and static assets (no logic lives there)
+BUILTIN_TEMPLATES = Path(__file__).resolve().parents[2] / "reports"
+_MAX_REPEAT = 100_000
+_MAX_EXPONENT = 1_000
+
+
+class TemplateError(InputError):
+    """A report template is missing or broken (the message names the file and line)."""
+
+
+class TemplateSecurityError(TemplateError):
+    """A report template tried to leave the sandbox and was refused."""
+
+
+class _ConfinedLoader(FileSystemLoader):
+    """A :class:`FileSystemLoader` that only serves regular files inside its root."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = Path(root).resolve()
+        super().__init__(str(self.root), followlinks=False)
+
+    def get_source(self, environment: Any, template: str) -> Any:
+        source, filename, uptodate = super().get_source(environment, template)
+        resolved = Path(filename).resolve()
+        if not resolved.is_relative_to(self.root) or not resolved.is_file():
+            raise SecurityError(f"template {template!r} resolves outside {self.root}")
+        return source, filename, uptodate
+
+
+class _ReportEnvironment(ImmutableSandboxedEnvironment):
+    """Immutable sandbox that also refuses string repetition and powers that exhaust memory."""
+
+    intercepted_binops = frozenset({"*", "**"})
+
+    def call_binop(self, context: Any, operator: str, left: Any, right: Any) -> Any:
+        if operator == "**" and isinstance(right, (int, float)) and abs(right) > _MAX_EXPONENT:
+            raise SecurityError(f"exponent {right} exceeds {_MAX_EXPONENT}")
+        if operator == "*":
+            for seq, count in ((left, right), (right, left)):
+                if isinstance(seq, (str, list, tuple)) and isinstance(count, int) \
+                        and len(seq) * count > _MAX_REPEAT:
+                    raise SecurityError(f"repetition to {len(seq) * count} items refused")
+        return super().call_binop(context, operator, left, right)
+
+
+def _num(value: Any, digits: int = 4) -> str:
+    """``digits`` significant figures; '—' for missing values."""
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return "—"
+    if not math.isfinite(f):
+        return "—"
+    if f != 0 and (abs(f) >= 1e6 or abs(f) < 1e-3):
+        return f"{f:.{max(digits - 1, 0)}e}"
+    return f"{f:.{digits}g}" if abs(f) >= 10 ** digits else f"{f:#.{digits}g}".rstrip(".")
+
+
+def _fixed(value: Any, decimals: int = 3) -> str:
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return "—"
+    return f"{f:.{decimals}f}" if math.isfinite(f) else "—"
+
+
+def make_environment(template_dir: Path | None = None) -> ImmutableSandboxedEnvironment:
+    """The sandbox: a lab's ``template_dir`` first (may override), the shipped templates after."""
+    loaders = [_ConfinedLoader(BUILTIN_TEMPLATES)]
+    if template_dir is not None:
+        template_dir = Path(template_dir)
+        if not template_dir.is_dir():
+            raise TemplateError(f"{template_dir}: template directory does not exist")
+        loaders.insert(0, _ConfinedLoader(template_dir))
+    env = _ReportEnvironment(
+        loader=ChoiceLoader(loaders), autoescape=True, trim_blocks=True, lstrip_blocks=True,
+    )
+    env.filters.update(num=_num, fixed=_fixed)
+    for name in ("lipsum", "joiner"):  # nothing a report needs
+        env.globals.pop(name, None)
+    return env
+
+
+def render_template(name: str, context: Mapping[str, Any], template_dir: Path | None = None) -> str:
+    """Render template ``name`` in the sandbox; translate every Jinja failure to an aatest error."""
+    env = make_environment(template_dir)
+    if template_dir is not None and not (Path(template_dir) / name).is_file():
+        raise TemplateError(f"{template_dir}: no {name} in the lab template directory")
+    where = f"{template_dir or BUILTIN_TEMPLATES}/{name}"
+    try:
+        return env.get_template(name).render(dict(context))
+    except SecurityError as exc:
+        raise TemplateSecurityError(f"{where}: template refused by the sandbox: {exc}") from exc
+    except TemplateNotFound as exc:
+        raise TemplateError(f"{where}: template not found: {exc.name}") from exc
+    except TemplateSyntaxError as exc:
+        raise TemplateError(f"{exc.filename or where}:{exc.lineno}: {exc.message}") from exc
+    except UndefinedError as exc:
+        raise TemplateError(f"{where}: {exc.message}") from exc
+    except JinjaTemplateError as exc:
+        raise TemplateError(f"{where}: {exc}") from exc
+
+
+_SVG_NS = "{http://www.w3.org/2000/svg}"
+_ALLOWED_TAGS = frozenset({
+    "svg", "g", "defs", "clipPath", "use", "path", "rect", "circle", "ellipse", "line", "polyline",
+    "polygon", "text", "tspan", "title", "desc", "style", "metadata", "image", "linearGradient",
+    "radialGradient", "stop", "pattern", "mask", "symbol", "marker",
+    # matplotlib's RDF metadata block
+    "RDF", "Work", "type", "date", "format", "creator", "Agent", "title",
+})
+_BAD_CSS = re.compile(r"@import|expression\s*\(|url\(\s*['\"]?(?!#)", re.IGNORECASE)
+_PROLOG = re.compile(r"^\s*(<\?xml[^>]*\?>\s*)?(<!DOCTYPE[^>]*>\s*)?", re.IGNORECASE)
+
+
+def _local(tag: str) -> str:
+    return tag.rsplit("}", 1)[-1]
+
+
+def _svg_problem(root: ET.Element) -> str | None:
+    if _local(root.tag) != "svg":
+        return f"root element is <{_local(root.tag)}>, not <svg>"
+    for element in root.iter():
+        tag = _local(element.tag)
+        if tag not in _ALLOWED_TAGS:
+            return f"element <{tag}> is not allowed"
+        for attr, value in element.attrib.items():
+            name = _local(attr).lower()
+            if name.startswith("on"):
+                return f"event attribute {name} is not allowed"
+            if name == "href" and not (value.startswith("#") or value.startswith("data:image/png")):
+                return f"external reference {value[:40]!r} is not allowed"
+            if name == "style" and _BAD_CSS.search(value):
+                return "external CSS in a style attribute"
+        if tag == "style" and _BAD_CSS.search(element.text or ""):
+            return "external CSS in a <style> element"
+    return None
+
+
+def vet_svg(svg: str) -> Markup:
+    """Return an SVG figure as :class:`Markup` if it is plain drawing, else a visible notice.
+
+    Figures come from our matplotlib code or from ``results.json`` (which a user can edit),
+    so they are parsed and checked: only drawing elements, no scripts, event handlers,
+    ``foreignObject``, entity declarations or external references.
+    """
+    body = _PROLOG.sub("", str(svg), count=1)
+    problem = "entity declarations are not allowed" if "<!ENTITY" in body.upper() else None
+    if problem is None:
+        try:
+            problem = _svg_problem(ET.fromstring(body))
+        except ET.ParseError as exc:
+            problem = f"not well-formed SVG ({exc})"
+    if problem is not None:
+        return Markup('<p class="withheld">figure withheld: {}</p>').format(problem)
+    return Markup(body)  # noqa: S704 - vetted above, element by element

@@ -1,0 +1,125 @@
+"""The four report plugins render self-contained, escaped, gracefully degrading HTML."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from aatest.engine import registry
+from aatest.engine.signing import generate_keypair, key_fingerprint, load_private_key, sign_bundle, verify_bundle
+from aatest.plugins.report.html import (
+    CalibrationCertificate,
+    DiagnosisReport,
+    FrequencyResponseReport,
+    MisalignmentReport,
+)
+
+REPORTS = ["calibration-certificate", "frequency-response", "misalignment", "diagnosis"]
+DIAGNOSIS = {
+    "baseline": {"rmse_v": 0.0123},
+    "findings": [{"effect": "bias_temperature", "parameters": {"coefficient_v_per_c": 0.00041},
+                  "ci95": {"coefficient_v_per_c": [0.00038, 0.00044]},
+                  "evidence": {"delta_bic": -4521.0, "rmse_v_before": 0.0123, "rmse_v_after": 0.00102}}],
+    "gain": {"rmse_v_before": 0.0123, "rmse_v_after": 0.00102, "reduction_pct": 91.7},
+    "candidates": [{"effect": "time_delay", "delta_bic": 3.1, "accepted": False},
+                   {"effect": "bias_temperature", "delta_bic": -4521.0, "accepted": True}],
+}
+
+
+def _visible_text(html: str) -> str:
+    html = re.sub(r"<(svg|style).*?</\1>", " ", html, flags=re.S)
+    return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
+
+
+@pytest.mark.parametrize("name", REPORTS, ids=REPORTS)
+def test_entry_points_load_and_validate(name: str) -> None:
+    info = registry.load("report", name)
+    config = registry.configure(info, {})
+    assert info.target(config) is not None
+    with pytest.raises(Exception, match="bad options"):
+        registry.configure(info, {"colour": "red"})
+
+
+def test_certificate_has_every_section_and_plot(results: dict[str, Any], run_dir: Path) -> None:
+    results["signature"] = {"fingerprint": "ab" * 32}
+    path = CalibrationCertificate(CalibrationCertificate.Config()).render(results, run_dir, None)
+    assert path == run_dir / "report.html"
+    html = path.read_text()
+    text = _visible_text(html)
+    for heading in ("Scale factor", "Bias and g-sensitivity", "Temperature coefficients",
+                    "Misalignment (pivoted method)", "Frequency response", "Transfer function",
+                    "Uncertainty budgets", "Traceability", "Result against the datasheet"):
+        assert heading in text, heading
+    # own plots (3 curves, 3 Bode, 3 bias-vs-T, 1 complex plane) + the analysis' PSD figure
+    assert html.count("<svg") == 11
+    assert 'content="' + "ab" * 32 in html and "ab" * 32 in text
+    assert "http://" not in re.sub(r'xmlns(:\w+)?="[^"]+"|<svg.*?</svg>', "", html, flags=re.S)
+    recording = hashlib.sha256((run_dir / "recording.mcap").read_bytes()).hexdigest()
+    assert recording in text and "3f" * 32 in text
+    assert "A. Tester &lt;script&gt;x&lt;/script&gt;" in html and "<script>" not in html
+    assert "0.00401400 ± 1.1e-06" in text  # K with U (k = 2)
+
+
+def test_sections_degrade_when_keys_are_absent(results: dict[str, Any], run_dir: Path) -> None:
+    for key in ("frf", "transfer_function", "misalignment", "temperature", "noise", "sync"):
+        del results["analysis"][key]
+    del results["figures"]
+    text = _visible_text(CalibrationCertificate().render(results, run_dir, None).read_text())
+    assert "Scale factor" in text and "Frequency response" not in text
+    assert "Misalignment (pivoted method)" not in text and "Unsigned report." in text
+    bare = {"procedure": "empty", "steps": [], "analysis": {}}
+    for cls in (CalibrationCertificate, FrequencyResponseReport, MisalignmentReport):
+        assert "Traceability" in _visible_text(cls().render(bare, run_dir, None).read_text())
+
+
+def test_verdict_fails_outside_datasheet(results: dict[str, Any], run_dir: Path) -> None:
+    results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.5123  # 12.3 mV off, limit ±10 mV
+    html = CalibrationCertificate().render(results, run_dir, None).read_text()
+    row = re.search(r"<tr><td class=\"t\">bias</td><td class=\"t\">v_sz</td>.*?</tr>", html, re.S)
+    assert row and 'class="fail"' in row.group(0) and "-0.00230" in row.group(0)
+
+
+def test_tampered_figure_is_withheld(results: dict[str, Any], run_dir: Path) -> None:
+    results["figures"]["noise"]["psd"] = '<svg xmlns="http://www.w3.org/2000/svg" onload="alert(1)"/>'
+    html = CalibrationCertificate().render(results, run_dir, None).read_text()
+    assert "alert(1)" not in html and "figure withheld: event attribute onload" in html
+
+
+@pytest.mark.parametrize("cls", [FrequencyResponseReport, MisalignmentReport],
+                         ids=["frequency-response", "misalignment"])
+def test_focused_reports(cls: type, results: dict[str, Any], run_dir: Path) -> None:
+    text = _visible_text(cls().render(results, run_dir, None).read_text())
+    assert ("Frequency response" in text) == (cls is FrequencyResponseReport)
+    assert ("Misalignment (pivoted method)" in text) == (cls is MisalignmentReport)
+    assert "Traceability" in text
+
+
+def test_diagnosis_report(run_dir: Path) -> None:
+    results = {**DIAGNOSIS, "figures": {"diagnose": {"residual_vs_temperature":
+               '<svg xmlns="http://www.w3.org/2000/svg"><path d="M0 0L5 5"/></svg>'}}}
+    path = DiagnosisReport().render(results, run_dir, None)
+    assert path == run_dir / "diagnosis.html"
+    text = _visible_text(path.read_text())
+    assert "bias_temperature coefficient_v_per_c 4.100e-04 [3.800e-04, 4.400e-04]" in text
+    assert text.index("bias_temperature -4521.0") < text.index("time_delay 3.100")  # ranked
+    assert "91.7" in text and path.read_text().count("<svg") == 2
+
+
+def test_signed_certificate_round_trip(results: dict[str, Any], run_dir: Path, tmp_path: Path) -> None:
+    """Runner flow: fingerprint into results, render, write results, sign; then tamper."""
+    key = tmp_path / "lab.key"
+    generate_keypair(key)
+    private = load_private_key(key)
+    results["signature"] = {"fingerprint": key_fingerprint(private)}
+    (run_dir / "results.json").write_text(json.dumps(results))
+    report = CalibrationCertificate().render(results, run_dir, None)
+    sign_bundle(report, private)
+    assert verify_bundle(report).ok
+    results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.4
+    CalibrationCertificate().render(results, run_dir, None)
+    assert verify_bundle(report).reasons == ["report.html: modified (sha256 differs from the signed value)"]
