@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -165,6 +166,19 @@ def test_arbitrary_text_only_raises_procedure_error(text: str) -> None:
 @given(st.integers(0, len(_VALID) - 1), st.integers(0, 40), st.text(max_size=6))
 def test_mutated_procedure_only_raises_procedure_error(at: int, cut: int, insert: str) -> None:
     _loads_or_procedure_error(_VALID[:at] + insert + _VALID[at + cut:])
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, len(_VALID) - 1), st.binary(max_size=8))
+def test_corrupted_files_only_raise_procedure_error(at: int, junk: bytes) -> None:
+    raw = _VALID.encode()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fuzz.yaml"
+        path.write_bytes(raw[:at] + junk + raw[at:])
+        try:
+            expand(load_procedure(path))
+        except ProcedureError as exc:
+            assert all(p.file == str(path) for p in exc.problems)
 
 
 @settings(max_examples=150, deadline=None)

@@ -181,3 +181,29 @@ def test_quick_variants_plan_small() -> None:
     for path in sorted(DATA.glob("quick-*.yaml")):
         plan = expand(load_procedure(path))
         assert 0 < len(plan.steps) <= 12 and all(s.samples <= 8192 for s in plan.steps), path
+
+
+def test_overrides_and_explicit_cycles() -> None:
+    proc = parse_procedure(
+        "procedure: o\nsensor: {model: sr207}\nsampling: {samples: 8192, settle_s: 2}\nsteps:\n"
+        "  - sine: {cycles: 10, amplitude_deg: 1.5, duration_s: 2.048, settle_s: 0}\n"
+        "  - sine: {frequency_hz: 1.3, accel_dps2: 50, snap: none}\n")
+    first, second = expand(proc).steps
+    assert (first.samples, first.settle_s, first.cycles) == (4096, 0.0, 10)
+    assert first.frequency_hz == pytest.approx(10 * 2000 / 4096, rel=1e-15)
+    assert first.accel_dps2 == pytest.approx(1.5 * (2 * math.pi * first.frequency_hz) ** 2)
+    assert first.group == "position-1.5deg" and first.id.endswith("-1.5deg")
+    assert (second.frequency_hz, second.cycles, second.settle_s) == (1.3, None, 2.0)
+
+
+def test_plan_json_has_the_contract_keys_and_is_stable() -> None:
+    path = DATA / "quick-sine-3-steps.yaml"
+    doc = expand(load_procedure(path)).to_contract_json()
+    assert set(doc) == {"procedure", "steps", "lab_duration_s"}
+    for step in doc["steps"]:
+        assert {"id", "kind", "axis", "duration_s", "frequency_hz", "amplitude_deg",
+                "accel_dps2"} <= set(step)
+    assert doc == expand(load_procedure(path)).to_contract_json()
+    assert [s["id"] for s in doc["steps"]] == [
+        "s001-sine-inner-0.9766Hz-100dps2", "s002-sine-inner-1.9531Hz-100dps2",
+        "s003-sine-inner-3.9062Hz-100dps2"]
