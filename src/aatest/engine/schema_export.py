@@ -37,7 +37,7 @@ def procedure_json_schema() -> dict[str, Any]:
 
 def render() -> str:
     """The schema as the exact text committed (2-space indent, trailing newline)."""
-    return json.dumps(procedure_json_schema(), indent=2, ensure_ascii=False) + "\n"
+    return json.dumps(procedure_json_schema(), indent=2) + "\n"  # as `aatest schema` prints it
 
 
 def main(argv: list[str] | None = None) -> int:
