@@ -2,6 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import numpy as np
+from ruamel.yaml import YAML
+
+from aatest.plugins.sim.model import RigModel, load_rig_model
+from aatest.plugins.sim.synthesis import SimulatedStep
 from aatest.engine.steps import PlannedStep
 
 FS_HZ = 2000.0
@@ -26,3 +33,32 @@ def rate_step(rate_dps: float, samples: int = 16384, **extra: object) -> Planned
     return PlannedStep(id=str(extra.pop("id", "rate")), kind="constant_rate", axis="inner",
                        duration_s=samples / FS_HZ, settle_s=1.0, samples=samples,
                        rate_dps=rate_dps, **extra)  # type: ignore[arg-type]
+
+
+def fundamental(x: np.ndarray, cycles: int) -> complex:
+    """One-sided complex amplitude of the DFT bin ``cycles`` (mean removed)."""
+    spectrum = np.fft.rfft(np.asarray(x) - np.mean(x))
+    return complex(2.0 * spectrum[cycles] / len(x))
+
+
+def aligned_daq(sim: SimulatedStep, channel: str) -> np.ndarray:
+    """DAQ samples from the trigger on, as many as the table log (exact when drift is 0)."""
+    start = int(np.argmax(np.asarray(sim.daq["trigger"]) > 0.5))
+    return np.asarray(sim.daq[channel][start: start + len(sim.table)])
+
+
+def model_from_yaml(tmp_path: Path, base: RigModel, *, sensor: dict | None = None,
+                    table_axis: dict | None = None, table: dict | None = None,
+                    daq: dict | None = None) -> RigModel:
+    """Switch effects on *in a model YAML file* and load it back through load_rig_model."""
+    doc = base.model_dump(mode="json", exclude_none=True)
+    doc["sensors"][0].update(sensor or {})
+    for axis in ("inner", "outer"):
+        doc["table"][axis].update(table_axis or {})
+    doc["table"].update(table or {})
+    doc["daq"].update(daq or {})
+    path = tmp_path / "model.yaml"
+    yaml = YAML(typ="safe", pure=True)
+    with path.open("w", encoding="utf-8") as fh:
+        yaml.dump(doc, fh)
+    return load_rig_model(path)
