@@ -114,9 +114,10 @@ def _sine(step: PlannedStep, env: TableEnvelope, sheet: SensorDatasheet) -> list
 
 def _constant_rate(step: PlannedStep, env: TableEnvelope,
                    sheet: SensorDatasheet) -> list[Violation]:
-    rates = {"inner": step.rate_dps} if step.axis != "outer" else {"outer": step.rate_dps}
-    if step.axis == "both":
-        rates["outer"] = step.outer_rate_dps
+    if step.axis == "both":  # coordinated: rate_dps is the inner, outer_rate_dps the outer rate
+        rates = {"inner": step.rate_dps, "outer": step.outer_rate_dps}
+    else:
+        rates = {"outer" if step.axis == "outer" else "inner": step.rate_dps}
     out: list[Violation] = []
     for axis, rate in rates.items():
         limits: AxisLimits = getattr(env, axis)
