@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 from ruamel.yaml import YAML
 
-from aatest.plugins.sim.model import RigModel, load_rig_model
+from aatest.plugins.sim.model import RigModel, load_rig_model, model_document
 from aatest.plugins.sim.synthesis import SimulatedStep
 from aatest.engine.steps import PlannedStep
 
@@ -51,7 +51,7 @@ def model_from_yaml(tmp_path: Path, base: RigModel, *, sensor: dict | None = Non
                     table_axis: dict | None = None, table: dict | None = None,
                     daq: dict | None = None) -> RigModel:
     """Switch effects on *in a model YAML file* and load it back through load_rig_model."""
-    doc = base.model_dump(mode="json", exclude_none=True)
+    doc = model_document(base)
     doc["sensors"][0].update(sensor or {})
     for axis in ("inner", "outer"):
         doc["table"][axis].update(table_axis or {})

@@ -263,4 +263,23 @@ def dump_rig_model(model: RigModel, path: str | Path) -> None:
     yaml = YAML(typ="safe", pure=True)
     yaml.default_flow_style = False
     with Path(path).open("w", encoding="utf-8") as fh:
-        yaml.dump(model.model_dump(mode="json", exclude_none=True), fh)
+        yaml.dump(model_document(model), fh)
+
+
+def model_document(model: BaseModel) -> dict:
+    """JSON-able dict of a model that omits switched-off effects (None where the default is
+    None) but keeps an explicit ``null`` where None overrides a non-None default (e.g.
+    ``antialias_hz: null``), so the YAML round trip is exact."""
+    doc: dict = {}
+    for name, field in type(model).model_fields.items():
+        value = getattr(model, name)
+        if value is None:
+            if field.default is not None:
+                doc[name] = None
+        elif isinstance(value, BaseModel):
+            doc[name] = model_document(value)
+        elif isinstance(value, list):
+            doc[name] = [model_document(v) if isinstance(v, BaseModel) else v for v in value]
+        else:
+            doc[name] = model.model_dump(mode="json", include={name})[name]
+    return doc

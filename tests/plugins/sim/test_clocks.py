@@ -1,0 +1,75 @@
+"""Logger clocks and the freeze-pulse method (method.md §2, contracts.md §4 "Clocks")."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.testing import assert_allclose
+
+from aatest.plugins.sim.api import realistic_rig_model, simulate_step
+from aatest.plugins.sim.synthesis import SimulatedStep
+from twin_steps import static_step
+
+
+def rising_rows(pulse: np.ndarray) -> np.ndarray:
+    """Indices where a 0/1 pulse goes 0 → 1."""
+    p = np.asarray(pulse)
+    return np.flatnonzero((p[1:] > 0.5) & (p[:-1] < 0.5)) + 1
+
+
+def daq_and_table_edges(sim: SimulatedStep) -> tuple[np.ndarray, np.ndarray]:
+    """Matched rising edges: DAQ time stamps and latch-corrected table times."""
+    d_rows = rising_rows(sim.daq["sync_pulse"])
+    t_rows = rising_rows(sim.table["sync_pulse"])
+    t_table = sim.table.time_s[t_rows] - np.asarray(sim.table["fp_latch_s"])[t_rows]
+    t_daq_all = np.asarray(sim.daq.time_s)[d_rows]
+    # pair each table edge with the DAQ edge at the same lab time (within half a period)
+    lab_of_daq = np.asarray(sim.truth["daq_time_s"])[d_rows]
+    idx = np.searchsorted(lab_of_daq, t_table - 0.005)
+    return t_daq_all[idx], t_table
+
+
+def test_freeze_pulse_registered_one_cycle_late_with_latch_time() -> None:
+    model = realistic_rig_model(drift_ppm=0.0)
+    sim = simulate_step(model, static_step(samples=8192), seed=21)
+    dt = 1 / 2000
+    rows = rising_rows(sim.table["sync_pulse"])
+    latch = np.asarray(sim.table["fp_latch_s"])[rows]
+    true_edge = sim.table.time_s[rows] - latch
+    # the true edges are the DAQ's: 100 Hz on the DAQ clock (drift 0 here)
+    assert_allclose(np.diff(true_edge), 0.01, atol=1e-9)
+    # registered one logging cycle late: between 1 and 2 sample periods after the true edge
+    assert np.all(latch >= dt - 1e-12) and np.all(latch < 2 * dt)
+    # the DAQ sees the same edge on its first sample at or after it (no cycle of delay)
+    d_rows = rising_rows(sim.daq["sync_pulse"])
+    daq_edge_table_time = np.asarray(sim.truth["daq_time_s"])[d_rows]
+    lag = sim.table.time_s[rows][:, None] - daq_edge_table_time[None, :]
+    nearest = lag[np.arange(len(rows)), np.argmin(np.abs(lag), axis=1)]
+    assert_allclose(nearest, dt, atol=1e-9)  # exactly one sample later than the DAQ
+
+
+def test_100_ppm_clock_error_is_a_linear_drift_of_sync_edges() -> None:
+    model = realistic_rig_model(drift_ppm=100.0)
+    sim = simulate_step(model, static_step(samples=60000), seed=22)
+    t_daq, t_table = daq_and_table_edges(sim)
+    gap = t_table - t_daq
+    fit = np.polyfit(t_daq, gap, 1)
+    assert_allclose(fit[0] * 1e6, 100.0, atol=1.0)  # 100 µs per second
+    residual = gap - np.polyval(fit, t_daq)
+    assert np.std(residual) < 2e-4  # sample quantisation (≤ 0.5 ms) + 6 µs jitter
+    assert sim.truth["drift_ppm"] == 100.0
+
+
+def test_daq_starts_earlier_stops_later_and_triggers_the_table() -> None:
+    model = realistic_rig_model()
+    sim = simulate_step(model, static_step(samples=4096), seed=23)
+    daq_lab = np.asarray(sim.truth["daq_time_s"])
+    assert daq_lab[0] < -0.3 and daq_lab[-1] > sim.table.time_s[-1] + 0.3
+    first = int(np.argmax(np.asarray(sim.daq["trigger"]) > 0.5))
+    assert_allclose(daq_lab[first], 0.0, atol=1e-9)  # trigger = first table sample
+    assert np.all(np.asarray(sim.daq["trigger"])[:first] == 0.0)
+    # the contract's clock relation holds: t_table = offset + t_daq·(1 + drift·1e-6)
+    predicted = sim.truth["offset_s"] + np.asarray(sim.daq.time_s) * (1 + sim.truth["drift_ppm"] * 1e-6)
+    assert np.std(predicted - daq_lab) < 10e-6  # only the 6 µs time-stamp jitter remains
+    pulse = np.asarray(sim.daq["sync_pulse"])
+    assert set(np.unique(pulse)) == {0.0, 1.0}
+    assert_allclose(np.mean(pulse), 0.5, atol=0.01)  # 10 samples high, 10 low
