@@ -98,9 +98,10 @@ def plan(
     from aatest.engine.progress import describe
     from aatest.engine.session import prepare
 
-    expanded = prepare(procedure, rig).plan
+    prepared = prepare(procedure, rig)
+    expanded = prepared.plan
     if as_json:
-        _print_json(expanded.to_contract_json())
+        _print_json(prepared.plan_json())
         return
     for step in expanded.steps:
         typer.echo(f"{step.id:40s} {step.lab_duration_s:9.1f} s  {describe(step)}")

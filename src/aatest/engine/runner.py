@@ -60,6 +60,9 @@ class _ChamberTracker:
             return
         rig.chamber.set_temperature(target)
         rig.chamber.wait_stable(self.soak_s)
+        # method.md §4.2: switch the chamber off before recording (its fans and compressor
+        # vibrate the table); the sensor then drifts slowly with its own thermal lag
+        rig.chamber.off()
         self.setpoint_c = target
 
 

@@ -17,7 +17,7 @@ from aatest.engine.results import build_results, read_results, write_results
 from aatest.engine.rig import build_rig, sensor_datasheet
 from aatest.engine.run_state import STATE_FILE, RunState, open_state
 from aatest.engine.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
-from aatest.engine.steps import Plan
+from aatest.engine.steps import Plan, SensorRef
 
 SIGNING_KEY_ENV = "AATEST_SIGNING_KEY"
 PASSPHRASE_ENV = "AATEST_SIGNING_PASSPHRASE"
@@ -31,26 +31,35 @@ class Prepared:
     text: str
     plan: Plan
     rig_config: Any
+    expansion: Any
+
+    def plan_json(self) -> dict[str, Any]:
+        """``aatest plan --json``: the steps, lab duration and the points skipped as out of envelope."""
+        return dict(self.expansion.to_contract_json())
 
 
 def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
     """Load, expand and envelope-check a procedure; nothing moves."""
     from aatest.engine.envelope import check_envelope
     from aatest.engine.loader import load_procedure, load_rig, rig_from_procedure
-    from aatest.engine.planner import expand
+    from aatest.engine.planner import expand_traced
 
     proc = load_procedure(procedure)
-    plan = expand(proc)
     rig_config = load_rig(rig_file) if rig_file else rig_from_procedure(proc)
-    datasheet, _ = sensor_datasheet(plan.sensor)
-    envelope = _declared_envelope(rig_config, plan, datasheet)
-    check_envelope(plan, envelope, datasheet, procedure_file=str(procedure))
-    return Prepared(procedure, procedure.read_text(encoding="utf-8"), plan, rig_config)
+    sensor = SensorRef(model=proc.sensor.model, serial=proc.sensor.serial)
+    datasheet, _ = sensor_datasheet(sensor)
+    envelope = _declared_envelope(rig_config, sensor)
+    expansion = expand_traced(proc, envelope=envelope, datasheet=datasheet)
+    check_envelope(
+        expansion.plan, envelope, datasheet, procedure_file=str(procedure), sources=expansion.sources
+    )
+    text = procedure.read_text(encoding="utf-8")
+    return Prepared(procedure, text, expansion.plan, rig_config, expansion)
 
 
-def _declared_envelope(rig_config: Any, plan: Plan, datasheet: Any) -> Any:
+def _declared_envelope(rig_config: Any, sensor: SensorRef) -> Any:
     """The envelope the turntable plugin declares (constructing a plugin never moves it)."""
-    rig = build_rig(rig_config, plan.sensor, seed=0)
+    rig = build_rig(rig_config, sensor, seed=0)
     try:
         return rig.turntable.envelope()
     finally:
