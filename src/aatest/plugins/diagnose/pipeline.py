@@ -1,0 +1,191 @@
+"""The diagnose pipeline on a Dataset: replay, residuals, candidates, selection, gain.
+
+Returns the contract document (contracts.md §4) plus extra keys: per-channel calibration,
+residual views, the logger chain assumed, and the not-testable reasons.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from aatest.engine.dataset import Dataset
+from aatest.plugins.diagnose.design import ChannelInfo, predict
+from aatest.plugins.diagnose.effects.base import Context, replace_spec
+from aatest.plugins.diagnose.effects.logger import (
+    DEFAULT_CLOCK_TOLERANCE_PPM,
+    clock_drift,
+    excess_noise,
+    one_clock_fit,
+)
+from aatest.plugins.diagnose.replay import Replay, replay_dataset
+from aatest.plugins.diagnose.residuals import residual_views
+from aatest.plugins.diagnose.selection import (
+    ChannelResult,
+    Finding,
+    correlation_factor,
+    delta_bic,
+    forward_select,
+    nominal_fit,
+    rmse,
+)
+
+#: the logger pre-sample filter of the documented rig (method.md §1.3), tried when unstated
+DEFAULT_ANTIALIAS_HZ = 100.0
+
+
+def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
+    """(stated?, corner Hz) of the logger's pre-sample filter from the data's model, if any."""
+    model = dataset.metadata.get("model")
+    if isinstance(model, dict) and isinstance(model.get("daq"), dict):
+        daq = model["daq"]
+        if "antialias_hz" in daq:
+            return True, daq["antialias_hz"]
+        return True, DEFAULT_ANTIALIAS_HZ
+    path = dataset.metadata.get("model_file")
+    if isinstance(path, str):
+        try:
+            from aatest.plugins.sim.model import load_rig_model
+
+            rig = load_rig_model(dataset.source / path)
+            return True, rig.daq.antialias_hz
+        except Exception:  # noqa: BLE001 - a sensor-only model file states no logger
+            return False, None
+    return False, None
+
+
+def _info(dataset: Dataset, channel: str, corner: float | None, t_ref_c: float) -> ChannelInfo:
+    s = dataset.sensor(channel)
+    return ChannelInfo(channel, s.axis, s.range_dps2, corner, t_ref_c)
+
+
+def _targets(replay: Replay, channel: str) -> dict[int, np.ndarray]:
+    return {s.index: s.volts[channel] for s in replay.steps}
+
+
+def choose_logger(dataset: Dataset, replay: Replay) -> tuple[float | None, str]:
+    """The logger filter of the nominal chain: stated by the data, else the better replay."""
+    stated, corner = stated_antialias(dataset)
+    if stated:
+        return corner, "stated by the data's model"
+    channel = replay.channels[0]
+    best: tuple[float, float | None] | None = None
+    for option in (DEFAULT_ANTIALIAS_HZ, None):
+        ctx = Context(replay, _info(dataset, channel, option, replay.t_ref_c),
+                      _targets(replay, channel), None)  # type: ignore[arg-type]
+        sse = nominal_fit(ctx).sse_in
+        if best is None or sse < best[0]:
+            best = (sse, option)
+    assert best is not None
+    return best[1], "chosen by the replay (not stated by the data)"
+
+
+def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,
+                     corner: float | None) -> tuple[ChannelResult, Context]:
+    """Nominal fit, noise correlation and forward selection for one channel."""
+    ctx = Context(replay, _info(dataset, channel, corner, replay.t_ref_c),
+                  _targets(replay, channel), None)  # type: ignore[arg-type]
+    nominal = nominal_fit(ctx)
+    ctx.current = nominal
+    ctx.correlation = correlation_factor(ctx, nominal)
+    findings, rows = forward_select(ctx)
+    return ChannelResult(channel, nominal, ctx.current, findings, rows, ctx.correlation), ctx
+
+
+def _drift_finding(ctx: Context, tolerance_ppm: float) -> tuple[Finding | None, dict[str, Any]]:
+    est = clock_drift(ctx)
+    if est is None:
+        return None, {"effect": "clock_drift", "delta_bic": None, "accepted": False,
+                      "testable": False, "reason": "no sync edges"}
+    one = one_clock_fit(ctx, est.drift_ppm)
+    dbic = -delta_bic(ctx, one, ctx.current, "clock_drift") - np.log(one.n / ctx.correlation)
+    row = {"effect": "clock_drift", "delta_bic": float(dbic), "accepted": False, "testable": True,
+           "parameters": {"drift_ppm": est.drift_ppm}, "attributed_to": "logger",
+           "tolerance_ppm": tolerance_ppm}
+    significant = abs(est.drift_ppm) > 3.0 * est.u_ppm
+    if abs(est.drift_ppm) <= tolerance_ppm or not significant:
+        row["reason"] = f"|drift| within the rig's clock tolerance ({tolerance_ppm:g} ppm)"
+        return None, row
+    row["accepted"] = True
+    ci = [est.drift_ppm - 1.96 * est.u_ppm, est.drift_ppm + 1.96 * est.u_ppm]
+    return Finding("clock_drift", "all", {"drift_ppm": est.drift_ppm}, {"drift_ppm": ci},
+                   float(dbic), rmse(one), rmse(ctx.current), "logger",
+                   {"source": "sync edges", "steps": est.steps}), row
+
+
+def _noise_finding(ctx: Context, stated_noise_v: float) -> tuple[Finding | None, dict[str, Any]]:
+    pred = predict(ctx.replay, ctx.info, ctx.current)
+    residuals = {i: ctx.targets[i] - pred[i] for i in pred}
+    value, ci, veto = excess_noise(ctx, residuals, stated_noise_v)
+    total = rmse(ctx.current)
+    share = min(value**2 / total**2, 1.0) if total > 0 else 0.0
+    n_eff = ctx.current.n
+    dbic = float(-0.5 * n_eff * np.log1p(value**2 / max(total**2 - value**2, 1e-12))
+                 + np.log(n_eff)) if value > 0 else 0.0
+    row = {"effect": "excess_noise", "delta_bic": dbic, "accepted": veto is None, "testable": True,
+           "parameters": {"rms_v": value}, "channel": ctx.info.channel, "attributed_to": "logger"}
+    if veto is not None:
+        row["reason"] = veto
+        return None, row
+    return Finding("excess_noise", ctx.info.channel, {"rms_v": value}, {"rms_v": ci}, dbic,
+                   total, total, "logger",
+                   {"explained_variance_pct": 100.0 * share}), row
+
+
+def _calibration(result: ChannelResult, ctx: Context) -> dict[str, Any]:
+    fit = result.final
+    return {"channel": result.channel, "axis": ctx.info.axis, "bias_v": fit.value("bias"),
+            "scale_v_per_dps2": fit.scale, "range_dps2": ctx.info.range_dps2,
+            "noise_rms_v": rmse(fit), "noise_correlation": result.correlation,
+            "alignment_offset_s": result.nominal.spec.delay_s}
+
+
+def diagnose_dataset(dataset: Dataset, clock_tolerance_ppm: float | None = None) -> dict[str, Any]:
+    """Run the whole pipeline; return the diagnosis document (contract keys plus extras)."""
+    replay = replay_dataset(dataset)
+    corner, corner_source = choose_logger(dataset, replay)
+    tol = clock_tolerance_ppm or float(dataset.metadata.get("clock_tolerance_ppm")
+                                       or DEFAULT_CLOCK_TOLERANCE_PPM)
+    findings: list[Finding] = []
+    candidates: list[dict[str, Any]] = []
+    channels, views = [], {}
+    sse_before = sse_after = 0.0
+    n_total = 0
+    drift_ppm: float | None = None
+    for i, channel in enumerate(replay.channels):
+        result, ctx = diagnose_channel(dataset, replay, channel, corner)
+        findings += result.findings
+        candidates += list(result.candidates.values())
+        noise_f, noise_row = _noise_finding(ctx, dataset.sensor(channel).noise_rms_v)
+        candidates.append(noise_row)
+        findings += [noise_f] if noise_f else []
+        if i == 0:
+            drift_f, drift_row = _drift_finding(ctx, tol)
+            candidates.append(drift_row)
+            findings += [drift_f] if drift_f else []
+            drift_ppm = drift_f.parameters["drift_ppm"] if drift_f else None
+        baseline = result.nominal
+        if drift_ppm is not None:  # nominal = one clock (contracts.md §4 step 1)
+            baseline = ctx.fit(replace_spec(result.nominal.spec, warp_ppm=drift_ppm))
+        sse_before += baseline.sse_held_out
+        sse_after += result.final.sse_held_out
+        n_total += result.final.n
+        channels.append(_calibration(result, ctx))
+        views[channel] = residual_views(ctx, result.nominal, result.final)
+    findings.sort(key=lambda f: f.delta_bic)
+    before, after = np.sqrt(sse_before / n_total), np.sqrt(sse_after / n_total)
+    return {
+        "baseline": {"rmse_v": float(before)},
+        "findings": [f.as_dict() for f in findings],
+        "gain": {"rmse_v_before": float(before), "rmse_v_after": float(after),
+                 "reduction_pct": float(100.0 * (1.0 - after / before)) if before > 0 else 0.0,
+                 "variance_explained_pct": float(100.0 * (1.0 - (after / before) ** 2))
+                 if before > 0 else 0.0},
+        "candidates": candidates,
+        "channels": channels,
+        "logger": {"antialias_hz": corner, "source": corner_source, "t_ref_c": replay.t_ref_c,
+                   "fp_latch_s": replay.fp_latch, "clock_tolerance_ppm": tol},
+        "residuals": views,
+        "steps_skipped": list(replay.skipped),
+    }
