@@ -1,0 +1,122 @@
+"""Static multi-position test: bias and g-sensitivity (method.md §4.1).
+
+Each static step gives the mean output of every sensor and the specific force of gravity along
+its axis (from the commanded table orientation; contracts.md §4 "Gravity"). Per sensor and
+mounting (original / pivoted) and repetition, the up (A+) and down (A−) means give
+K0 = (A+ + A−)/2 and the g-sensitivity (A+ − A−)/2 divided by the scale factor. A straight-line
+fit V = b + k·g over *all* positions (horizontal ones too) is reported alongside, with its
+residual as a check of the positions. Datasheet flags: bias band and the linear-acceleration
+limit (0.1 % FR/g or 0.01 rad/s²/g, whichever is greater).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from typing import Any, ClassVar
+
+import numpy as np
+
+from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.plugins.analysis._common import t95
+from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+
+_UP_G = 0.9  # |g component| above which a position counts as "axis up/down"
+_RAD_DPS2 = float(np.degrees(1.0))
+
+
+def gravity_along_g(sensor_axis: str, inner_deg: float, outer_deg: float) -> float:
+    """Specific force of gravity along a sensor axis (g) for a table at rest.
+
+    Table-top frame (P, O, I): up = (−sin φ·cos ψ, sin φ·sin ψ, cos φ) for outer φ, inner ψ.
+    """
+    psi, phi = np.radians(inner_deg), np.radians(outer_deg)
+    up = {"P": -np.sin(phi) * np.cos(psi), "O": np.sin(phi) * np.sin(psi), "I": np.cos(phi)}
+    return float(up[sensor_axis])
+
+
+def g_sensitivity_limit(sensor: SensorInfo) -> float:
+    """Datasheet linear-acceleration limit, °/s² per g."""
+    return max(0.001 * 2 * sensor.range_dps2, 0.01 * _RAD_DPS2)
+
+
+def _pair_stats(means: dict[int, dict[str, list[float]]], scale: float) -> dict[str, Any]:
+    """K0 and g-sensitivity per repetition from the up/down means, and their spread."""
+    k0, gs = [], []
+    for rep in sorted(means):
+        up, down = means[rep]["up"], means[rep]["down"]
+        if up and down:
+            a_p, a_m = float(np.mean(up)), float(np.mean(down))
+            k0.append(0.5 * (a_p + a_m))
+            gs.append(0.5 * (a_p - a_m) / scale)
+    if not k0:
+        return {}
+    n = len(k0)
+    spread = float(np.std(k0, ddof=1)) if n > 1 else 0.0
+    g_spread = float(np.std(gs, ddof=1)) if n > 1 else 0.0
+    return {
+        "bias_v": float(np.mean(k0)), "bias_u_v": spread / np.sqrt(n),
+        "bias_spread_v": spread, "bias_ci95_halfwidth_v": t95(n - 1) * spread / np.sqrt(n),
+        "g_sensitivity_dps2_per_g": float(np.mean(gs)), "g_sensitivity_u_dps2_per_g":
+        g_spread / np.sqrt(n), "repetitions": n, "per_repetition_bias_v": k0,
+    }
+
+
+def _line_fit(g: list[float], v: list[float]) -> dict[str, float]:
+    """V = b + k·g over every position, with the residual RMS (V)."""
+    design = np.column_stack([np.ones(len(g)), g])
+    coef, *_ = np.linalg.lstsq(design, np.asarray(v), rcond=None)
+    resid = np.asarray(v) - design @ coef
+    return {"bias_v": float(coef[0]), "g_slope_v_per_g": float(coef[1]),
+            "residual_rms_v": float(np.sqrt(np.mean(resid**2)))}
+
+
+def sensor_bias(steps: list[SyncedStep], sensor: SensorInfo, scale: float) -> dict[str, Any]:
+    """Bias results of one sensor, overall and per mounting."""
+    by_mount: dict[str, dict[int, dict[str, list[float]]]] = defaultdict(
+        lambda: defaultdict(lambda: {"up": [], "down": []}))
+    lines: dict[str, tuple[list[float], list[float]]] = defaultdict(lambda: ([], []))
+    for s in steps:
+        g = gravity_along_g(sensor.axis, s.step.inner_deg, s.step.outer_deg)
+        mean_v = float(np.mean(s.daq[sensor.channel]))
+        mount = "pivoted" if s.step.mounting.pivoted else "original"
+        lines[mount][0].append(g)
+        lines[mount][1].append(mean_v)
+        if abs(g) >= _UP_G:
+            by_mount[mount][s.step.repetition]["up" if g > 0 else "down"].append(mean_v)
+    mountings = {m: _pair_stats(by_mount[m], scale) | {"line": _line_fit(*lines[m])}
+                 for m in lines if len(lines[m][0]) >= 2}
+    paired = [r for r in mountings.values() if "bias_v" in r]
+    if not paired:
+        return {"mountings": mountings}
+    bias = float(np.mean([r["bias_v"] for r in paired]))
+    g_sens = float(np.mean([r["g_sensitivity_dps2_per_g"] for r in paired]))
+    return {
+        "bias_v": bias, "g_sensitivity_dps2_per_g": g_sens,
+        "bias_u_v": float(np.sqrt(np.mean([r["bias_u_v"] ** 2 for r in paired]))),
+        "scale_v_per_dps2_used": scale,
+        "bias_within_datasheet": bool(abs(bias - sensor.nominal_bias_v) <= sensor.bias_tolerance_v),
+        "g_sensitivity_limit_dps2_per_g": g_sensitivity_limit(sensor),
+        "g_sensitivity_within_datasheet": bool(abs(g_sens) <= g_sensitivity_limit(sensor)),
+        "mountings": mountings,
+    }
+
+
+class BiasAnalysis:
+    """Bias K0 and g-sensitivity of every sensor from the static positions."""
+
+    key: ClassVar[str] = "bias"
+
+    def applies_to(self, data: Dataset) -> bool:
+        return any(s.step.kind == "static" for s in data.steps)
+
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
+        static = [s for s in synced_steps(data, context) if s.step.kind == "static"]
+        calibrated = context.cache.get("scale_factor", {})
+        values: dict[str, Any] = {}
+        for sensor in data.sensors:
+            scale = calibrated.get(sensor.channel, {}).get(
+                "scale_v_per_dps2", sensor.nominal_scale_v_per_dps2)
+            values[sensor.channel] = sensor_bias(static, sensor, float(scale))
+        context.cache["bias"] = values
+        return AnalysisOutput(values=values)

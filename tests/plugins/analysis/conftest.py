@@ -1,0 +1,15 @@
+"""Fixtures of the analysis tests (the twin rig models)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+
+@pytest.fixture(scope="session")
+def realistic_unit() -> Any:
+    """The measured-behaviour rig (method.md §1.2–1.3) with the three-sensor unit."""
+    from aatest.plugins.sim.api import realistic_rig_model
+
+    return realistic_rig_model("sr207-aamu")

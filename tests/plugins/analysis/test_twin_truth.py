@@ -1,0 +1,85 @@
+"""Analyses against the digital twin with known truth (issue 4 "Done when" tolerances)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from aatest.engine.interfaces import AnalysisContext
+from aatest.plugins.analysis.bias import BiasAnalysis
+from aatest.plugins.analysis.frf import FrfAnalysis
+from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
+from aatest.plugins.sync.analysis import SyncAnalysis
+from twin_helpers import twin_dataset
+from synthetic_rig import sine_step, static_step
+
+FS = 2000.0
+
+
+@pytest.fixture(scope="module")
+def cal_run(realistic_unit):  # type: ignore[no-untyped-def]
+    steps = [sine_step("cal", 16, 400.0, samples=32768, settle_s=2.0),
+             sine_step("f5", 41, 100.0, samples=16384, settle_s=2.0),
+             sine_step("f10", 82, 100.0, samples=16384, settle_s=2.0)]
+    data, truths = twin_dataset(realistic_unit, steps)
+    ctx = AnalysisContext()
+    results = {a.key: a.run(data, ctx).values for a in (SyncAnalysis(), ScaleFactorAnalysis(),
+                                                        FrfAnalysis())}
+    return realistic_unit, data, truths, results
+
+
+def test_sync_against_twin_clock(cal_run) -> None:  # type: ignore[no-untyped-def]
+    _, _, truths, results = cal_run
+    for step, truth in zip(results["sync"]["steps"], truths):
+        assert abs(step["drift_ppm"] - truth["drift_ppm"]) < 1.0
+        assert step["residual_rms_us"] < 10.0
+        assert abs(step["offset_s"] - truth["offset_s"]) < 0.25e-3
+
+
+def test_scale_factor_against_twin(cal_run) -> None:  # type: ignore[no-untyped-def]
+    model, _, truths, results = cal_run
+    s = model.sensor("v_sz")
+    temp = truths[0]["temperature_c"]
+    truth = s.scale_v_per_dps2 * (1 + s.scale_temperature.coefficient_per_c * (temp - 25.0))
+    v = results["scale_factor"]["v_sz"]
+    assert v["scale_v_per_dps2"] == pytest.approx(truth, rel=1e-3)
+    assert set(results["scale_factor"]) == {"v_sz"}  # only the I sensor is excited
+
+
+def _truth_response(model: Any, f_hz: float) -> complex:
+    """K·H_sensor·H_antialias·e^{−jωτ} of the twin's v_sz chain."""
+    from aatest.plugins.sim.daq import antialias_filter
+    from aatest.plugins.sim.sensor import dynamics_filter
+
+    s = model.sensor("v_sz")
+    b, a = dynamics_filter(s.sensor_dynamics.natural_frequency_hz, s.sensor_dynamics.damping,
+                           1 / FS)
+    b2, a2, _ = antialias_filter(float(model.daq.antialias_hz), 1 / FS)
+    h = signal.freqz(b, a, worN=[f_hz], fs=FS)[1][0] * signal.freqz(b2, a2, worN=[f_hz], fs=FS)[1][0]
+    return complex(s.scale_v_per_dps2 * h * np.exp(-2j * np.pi * f_hz * s.time_delay.delay_s))
+
+
+def test_frf_delay_against_twin(cal_run) -> None:  # type: ignore[no-untyped-def]
+    model, _, _, results = cal_run
+    for p in results["frf"]["v_sz"]:
+        h = _truth_response(model, p["frequency_hz"])
+        truth_delay = -np.angle(h) / (2 * np.pi * p["frequency_hz"])
+        assert p["delay_s"] == pytest.approx(truth_delay, abs=0.25e-3)
+        assert p["gain_db"] == pytest.approx(20 * np.log10(abs(h)), abs=0.05)
+
+
+def test_bias_against_twin(realistic_unit) -> None:  # type: ignore[no-untyped-def]
+    positions = [(0, 0), (0, 180), (0, 90), (90, 90), (180, 90), (270, 90)]
+    steps = [static_step(f"r{r}-{i}-{o}", i, o, samples=4096, repetition=r, settle_s=1.0)
+             for r in (1, 2) for i, o in positions]
+    data, truths = twin_dataset(realistic_unit, steps)
+    values = BiasAnalysis().run(data, AnalysisContext()).values
+    temp = float(np.mean([t["temperature_c"] for t in truths]))
+    for s in realistic_unit.sensors:
+        truth_bias = s.bias_v + s.bias_temperature.coefficient_v_per_c * (temp - 25.0)
+        assert values[s.channel]["bias_v"] == pytest.approx(truth_bias, abs=1e-4)
+        g_truth = s.g_sensitivity.coefficient_dps2_per_g
+        assert values[s.channel]["g_sensitivity_dps2_per_g"] == pytest.approx(g_truth, rel=0.1)
