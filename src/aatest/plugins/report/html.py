@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict
 
 from aatest.plugins.report.context import ALL_SECTIONS, build_context, build_diagnosis_context
-from aatest.plugins.report.sandbox import render_template
+from aatest.plugins.report.sandbox import load_template, render_loaded
 from aatest.plugins.report.uncertainty import RigConstants
 
 
@@ -54,7 +54,8 @@ class _HtmlReport:
     def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path:
         """Render ``results`` into ``run_dir/<output_name>`` and return that path."""
         run_dir = Path(run_dir)
-        html = render_template(f"{self.template}.html.j2", self.context(results, run_dir), template_dir)
+        template = load_template(f"{self.template}.html.j2", template_dir)  # fail before work
+        html = render_loaded(template, self.context(results, run_dir))
         return _write(run_dir / self.output_name, html)
 
 

@@ -18,7 +18,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from jinja2 import ChoiceLoader, FileSystemLoader, TemplateNotFound, TemplateSyntaxError, UndefinedError
+from jinja2 import (
+    ChoiceLoader,
+    FileSystemLoader,
+    Template,
+    TemplateNotFound,
+    TemplateSyntaxError,
+    UndefinedError,
+)
 from jinja2.exceptions import SecurityError, TemplateError as JinjaTemplateError
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 from markupsafe import Markup
@@ -58,6 +65,10 @@ class _ReportEnvironment(ImmutableSandboxedEnvironment):
     """Immutable sandbox that also refuses string repetition and powers that exhaust memory."""
 
     intercepted_binops = frozenset({"*", "**"})
+
+    def unsafe_undefined(self, obj: Any, attribute: str) -> Any:
+        """Refuse at once (Jinja's default renders an empty string until the value is used)."""
+        raise SecurityError(f"access to attribute {attribute!r} of a {type(obj).__name__} is unsafe")
 
     def call_binop(self, context: Any, operator: str, left: Any, right: Any) -> Any:
         if operator == "**" and isinstance(right, (int, float)) and abs(right) > _MAX_EXPONENT:
@@ -108,24 +119,40 @@ def make_environment(template_dir: Path | None = None) -> ImmutableSandboxedEnvi
     return env
 
 
-def render_template(name: str, context: Mapping[str, Any], template_dir: Path | None = None) -> str:
-    """Render template ``name`` in the sandbox; translate every Jinja failure to an aatest error."""
+def _translated(where: str, exc: Exception) -> TemplateError:
+    if isinstance(exc, SecurityError):
+        return TemplateSecurityError(f"{where}: template refused by the sandbox: {exc}")
+    if isinstance(exc, TemplateNotFound):
+        return TemplateError(f"{where}: template not found: {exc.name}")
+    if isinstance(exc, TemplateSyntaxError):
+        return TemplateError(f"{exc.filename or where}:{exc.lineno}: {exc.message}")
+    if isinstance(exc, UndefinedError):
+        return TemplateError(f"{where}: {exc.message}")
+    return TemplateError(f"{where}: {exc}")
+
+
+def load_template(name: str, template_dir: Path | None = None) -> Template:
+    """Find and compile ``name`` (a lab's ``template_dir`` must contain it) before any work."""
     env = make_environment(template_dir)
     if template_dir is not None and not (Path(template_dir) / name).is_file():
         raise TemplateError(f"{template_dir}: no {name} in the lab template directory")
-    where = f"{template_dir or BUILTIN_TEMPLATES}/{name}"
     try:
-        return env.get_template(name).render(dict(context))
-    except SecurityError as exc:
-        raise TemplateSecurityError(f"{where}: template refused by the sandbox: {exc}") from exc
-    except TemplateNotFound as exc:
-        raise TemplateError(f"{where}: template not found: {exc.name}") from exc
-    except TemplateSyntaxError as exc:
-        raise TemplateError(f"{exc.filename or where}:{exc.lineno}: {exc.message}") from exc
-    except UndefinedError as exc:
-        raise TemplateError(f"{where}: {exc.message}") from exc
-    except JinjaTemplateError as exc:
-        raise TemplateError(f"{where}: {exc}") from exc
+        return env.get_template(name)
+    except (SecurityError, JinjaTemplateError) as exc:
+        raise _translated(f"{template_dir or BUILTIN_TEMPLATES}/{name}", exc) from exc
+
+
+def render_loaded(template: Template, context: Mapping[str, Any]) -> str:
+    """Render a template from :func:`load_template`; sandbox refusals become aatest errors."""
+    try:
+        return template.render(dict(context))
+    except (SecurityError, JinjaTemplateError) as exc:
+        raise _translated(str(template.filename or template.name), exc) from exc
+
+
+def render_template(name: str, context: Mapping[str, Any], template_dir: Path | None = None) -> str:
+    """Load and render template ``name`` in the sandbox."""
+    return render_loaded(load_template(name, template_dir), context)
 
 
 _SVG_NS = "{http://www.w3.org/2000/svg}"
@@ -156,7 +183,7 @@ def _svg_problem(root: ET.Element) -> str | None:
             if name.startswith("on"):
                 return f"event attribute {name} is not allowed"
             if name == "href" and not (value.startswith("#") or value.startswith("data:image/png")):
-                return f"external reference {value[:40]!r} is not allowed"
+                return "external references are not allowed"
             if name == "style" and _BAD_CSS.search(value):
                 return "external CSS in a style attribute"
         if tag == "style" and _BAD_CSS.search(element.text or ""):

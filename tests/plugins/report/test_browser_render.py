@@ -1,0 +1,51 @@
+"""Headless Chromium screenshot: the certificate renders as a page with its plots.
+
+Uses Debian's ``/usr/bin/chromium`` when installed; skipped with a clear message otherwise.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from aatest.plugins.report.html import CalibrationCertificate
+
+CHROMIUM = Path("/usr/bin/chromium")
+
+pytestmark = pytest.mark.browser
+
+
+def _chromium() -> str:
+    found = str(CHROMIUM) if CHROMIUM.exists() else shutil.which("chromium")
+    if not found:
+        pytest.skip("headless browser test skipped: Debian chromium is not installed at "
+                    "/usr/bin/chromium (apt-get install chromium to run it)")
+    return found
+
+
+def test_certificate_screenshot_shows_plots(results: dict[str, Any], run_dir: Path,
+                                             tmp_path: Path) -> None:
+    browser = _chromium()
+    report = CalibrationCertificate().render(results, run_dir, None)
+    shot = tmp_path / "certificate.png"
+    command = [
+        browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run",
+        f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
+        "--window-size=1200,3000", report.resolve().as_uri(),
+    ]
+    subprocess.run(command, check=True, capture_output=True, timeout=120)
+    image = imread(shot)[..., :3]
+    assert image.shape[0] >= 2900 and image.shape[1] >= 1100
+    ink = np.mean(image, axis=2) < 0.9  # anything not (nearly) white
+    assert ink.mean() > 0.02, "page looks blank"
+    # plots are coloured (matplotlib C0 blue, C1 orange); text and tables are grey/black
+    rgb = image.reshape(-1, 3)
+    coloured = (rgb.max(axis=1) - rgb.min(axis=1)) > 0.3
+    assert coloured.sum() > 2000, "no coloured plot pixels in the screenshot"
