@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.reader import make_reader
+from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import Writer
 from recording_data import SENSOR, run_meta, sine_step, step_logs
 
@@ -127,6 +127,32 @@ def test_plain_mcap_reader_decodes_blocks_as_documented(tmp_path: Path) -> None:
     records = np.concatenate(blocks)
     np.testing.assert_array_equal(records["v_sz"], daq["v_sz"])
     assert records.dtype["sync_pulse"] == np.uint8
+
+
+@pytest.mark.parametrize("kind", ["step", "merged"])
+def test_files_are_valid_mcap_for_seeking_and_streaming_readers(tmp_path: Path, kind: str) -> None:
+    """CRCs, indexes and statistics agree whichever way a standard reader walks the file."""
+    record_run(tmp_path, n_steps=3, samples=3 * BLOCK_SAMPLES + 17)
+    recorder = RunRecorder(tmp_path)
+    path = recorder.finalize() if kind == "merged" else recorder.step_files()[1]
+    with open(path, "rb") as stream:
+        seeking = make_reader(stream, validate_crcs=True)
+        summary = seeking.get_summary()
+        indexed = list(seeking.iter_messages())  # log-time order through the chunk indexes
+    with open(path, "rb") as stream:
+        streamed = list(NonSeekingReader(stream, validate_crcs=True).iter_messages())
+    stats = summary.statistics
+    assert stats.message_count == len(indexed) == len(streamed) > 0
+    assert stats.channel_count == len(summary.channels)
+    assert stats.chunk_count == len(summary.chunk_indexes)
+    assert stats.metadata_count == len(summary.metadata_indexes)
+    for channel_id, count in stats.channel_message_counts.items():
+        assert count == sum(1 for _, ch, _ in streamed if ch.id == channel_id)
+    times = [m.log_time for _, _, m in indexed]
+    assert times == sorted(times)
+    assert (stats.message_start_time, stats.message_end_time) == (times[0], times[-1])
+    if kind == "merged":
+        assert len(summary.schemas) == 2  # identical block schemas are stored once
 
 
 def test_finalize_keeps_plan_order_not_write_order(tmp_path: Path) -> None:

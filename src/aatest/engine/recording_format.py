@@ -19,7 +19,9 @@ to decode it is in the file itself:
 
 **Channels.** Per step two topics, ``/<step_id>/table`` and ``/<step_id>/daq``; channel
 metadata ``step_id``, ``source`` (``table``/``daq``), ``samples`` (total samples of the log) and
-``log_time_offset_ns`` (see below).
+``log_time_offset_ns`` (see below). Channel ids are ``2·index − 1`` (table) and ``2·index``
+(DAQ), ``index`` being the step's 1-based plan position, so they are unique in a run and the
+per-step files merge without re-encoding. Each chunk holds messages of one channel only.
 
 **Schemas.** name ``aatest.table_block`` / ``aatest.daq_block``, encoding ``aatest.block/v1``.
 The schema data is UTF-8 JSON::

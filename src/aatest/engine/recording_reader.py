@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import struct
-from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +23,7 @@ from mcap.reader import make_reader
 
 from aatest.engine import recording_format as fmt
 from aatest.engine.dataset import Dataset, SensorInfo, StepData
+from aatest.engine.logs import SampledLog
 from aatest.engine.errors import RecordingError
 from aatest.engine.recording_writer import (
     RECORDING_NAME,
@@ -155,14 +155,11 @@ def _decode(stream: Any, path: Path) -> _FileContents:
         elif record.name == fmt.STEP_RECORD:
             step_records.append(fmt.from_json_values(dict(record.metadata)))
     _check_format(contents.run_meta, path)
-    blocks: dict[int, list[tuple[int, bytes]]] = defaultdict(list)
-    for _, channel, message in reader.iter_messages(log_time_order=False):
-        blocks[channel.id].append((message.sequence, message.data))
     by_topic = {ch.topic: ch for ch in summary.channels.values()}
-    for record in step_records:
+    for record in step_records:  # one step at a time: peak memory is one step's bytes
         step = PlannedStep.model_validate(record["step"])
         logs = [
-            _decode_log(by_topic, summary, blocks, record[key], path)
+            _decode_log(reader, by_topic, summary, record[key], path)
             for key in ("table_topic", "daq_topic")
         ]
         contents.steps.append((int(record["index"]), StepData(step, logs[0], logs[1])))
@@ -178,12 +175,8 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
 
 
 def _decode_log(
-    by_topic: dict[str, Any],
-    summary: Any,
-    blocks: dict[int, list[tuple[int, bytes]]],
-    topic: str,
-    path: Path,
-) -> Any:
+    reader: Any, by_topic: dict[str, Any], summary: Any, topic: str, path: Path
+) -> SampledLog:
     """Concatenate one channel's blocks in sequence order and rebuild the SampledLog."""
     channel = by_topic.get(topic)
     if channel is None:
@@ -192,8 +185,12 @@ def _decode_log(
     if schema is None or schema.encoding != fmt.ENCODING:
         raise RecordingError(f"{path}: topic {topic!r} does not use the {fmt.ENCODING} schema")
     dtype, doc = fmt.parse_schema(schema.data)
-    parts = sorted(blocks.get(channel.id, []), key=lambda item: item[0])
+    parts = sorted(
+        (message.sequence, message.data)
+        for _, _, message in reader.iter_messages(topics=[topic], log_time_order=False)
+    )
     payload = b"".join(data for _, data in parts)
+    del parts
     if len(payload) % dtype.itemsize:
         raise RecordingError(f"{path}: topic {topic!r} holds a partial sample block")
     records = np.frombuffer(payload, dtype=dtype)

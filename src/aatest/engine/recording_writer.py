@@ -11,6 +11,7 @@ metadata and every step file, in plan order and in one streaming pass, into ``re
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import re
@@ -19,12 +20,13 @@ from pathlib import Path
 from typing import IO, Any
 
 from mcap.reader import make_reader
-from mcap.writer import CompressionType, Writer
+from mcap.records import Channel, Message, Schema
 
 import aatest
 from aatest.engine import recording_format as fmt
 from aatest.engine.errors import RecordingError
-from aatest.engine.logs import SampledLog
+from aatest.engine.logs import TABLE, SampledLog
+from aatest.engine.mcap_io import ChunkedWriter
 from aatest.engine.steps import PlannedStep
 
 RECORDING_NAME = "recording.mcap"
@@ -32,6 +34,8 @@ STEPS_DIR = "steps"
 RUN_META_NAME = "run.json"
 #: chunk size before compression; 4 MiB keeps zstd efficient and memory bounded
 CHUNK_BYTES = 4 * 1024 * 1024
+#: channel ids are uint16 in MCAP and two per step
+MAX_STEP_INDEX = 32767
 _STEP_FILE = re.compile(r"^(\d{3,})-(.+)\.mcap$")
 _TEMP_MARK = ".tmp-"
 
@@ -67,36 +71,39 @@ def atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
     return path
 
 
-def new_writer(stream: IO[bytes]) -> Writer:
-    """An MCAP writer with the aatest header, zstd chunks and full summary/indexes."""
-    writer = Writer(stream, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
-    writer.start(profile=fmt.PROFILE, library=f"aatest {aatest.__version__}")
-    return writer
+def new_writer(stream: IO[bytes]) -> ChunkedWriter:
+    """An MCAP writer with the aatest header profile."""
+    return ChunkedWriter(stream, profile=fmt.PROFILE, library=f"aatest {aatest.__version__}")
 
 
-def _write_log(writer: Writer, step_id: str, log: SampledLog) -> None:
+def channel_id(index: int, source: str) -> int:
+    """Run-unique MCAP channel id of a step's log: 2·index − 1 (table), 2·index (DAQ)."""
+    if not 1 <= index <= MAX_STEP_INDEX:
+        raise ValueError(f"step index {index} outside 1..{MAX_STEP_INDEX}")
+    return 2 * index - (1 if source == TABLE else 0)
+
+
+def _write_log(writer: ChunkedWriter, step_id: str, index: int, log: SampledLog) -> None:
     """Register one logger's schema and channel for a step and add its sample blocks."""
     records, columns = fmt.log_records(log)
-    schema_id = writer.register_schema(
-        fmt.schema_name(log.source), fmt.ENCODING, fmt.schema_data(log, columns)
-    )
+    cid = channel_id(index, log.source)
+    writer.add_schema(Schema(id=cid, name=fmt.schema_name(log.source), encoding=fmt.ENCODING,
+                             data=fmt.schema_data(log, columns)))
     offset_ns = fmt.log_time_offset_ns(log.time_s)
-    channel_id = writer.register_channel(
-        fmt.topic(step_id, log.source),
-        fmt.ENCODING,
-        schema_id,
-        {
-            "step_id": step_id,
-            "source": log.source,
-            "samples": str(len(log)),
-            "log_time_offset_ns": str(offset_ns),
-        },
-    )
+    writer.add_channel(Channel(
+        id=cid, topic=fmt.topic(step_id, log.source), message_encoding=fmt.ENCODING,
+        schema_id=cid, metadata={"step_id": step_id, "source": log.source,
+                                 "samples": str(len(log)), "log_time_offset_ns": str(offset_ns)},
+    ))
     times_ns = fmt.block_log_times_ns(log.time_s, offset_ns)
-    for seq, log_time_ns in enumerate(times_ns):
-        start = seq * fmt.BLOCK_SAMPLES
-        block = records[start : start + fmt.BLOCK_SAMPLES].tobytes()
-        writer.add_message(channel_id, log_time_ns, block, log_time_ns, sequence=seq)
+    messages = [
+        Message(channel_id=cid, log_time=t_ns, publish_time=t_ns, sequence=seq,
+                data=records[seq * fmt.BLOCK_SAMPLES:(seq + 1) * fmt.BLOCK_SAMPLES].tobytes())
+        for seq, t_ns in enumerate(times_ns)
+    ]
+    per_chunk = max(1, CHUNK_BYTES // max(1, records.dtype.itemsize * fmt.BLOCK_SAMPLES))
+    for first in range(0, len(messages), per_chunk):
+        writer.add_chunk(messages[first:first + per_chunk])
 
 
 def step_record(
@@ -127,8 +134,8 @@ def write_step_file(
     writer = new_writer(stream)
     writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
     writer.add_metadata(fmt.STEP_RECORD, fmt.json_values(step_record(step, index, table, daq, extra)))
-    _write_log(writer, step.id, table)
-    _write_log(writer, step.id, daq)
+    _write_log(writer, step.id, index, table)
+    _write_log(writer, step.id, index, daq)
     writer.finish()
 
 
@@ -269,40 +276,34 @@ def load_run_metadata(steps_dir: Path) -> dict[str, Any]:
 
 
 class _Merger:
-    """Copies step files into one MCAP writer, de-duplicating identical schemas."""
+    """Copies step files into one writer: chunks verbatim, identical schemas stored once."""
 
-    def __init__(self, writer: Writer) -> None:
+    def __init__(self, writer: ChunkedWriter) -> None:
         self.writer = writer
-        self.schemas: dict[tuple[str, str, bytes], int] = {}
+        self.schema_ids: dict[tuple[str, str, bytes], int] = {}
 
     def copy(self, path: Path) -> None:
         with open(path, "rb") as stream:
             reader = make_reader(stream)
             summary = reader.get_summary()
-            if summary is None:
+            if summary is None or summary.statistics is None:
                 raise RecordingError(f"{path}: step file has no summary (incomplete)")
             for record in reader.iter_metadata():
                 if record.name == fmt.STEP_RECORD:
                     self.writer.add_metadata(record.name, dict(record.metadata))
-            channels = {cid: self._channel(summary, cid) for cid in summary.channels}
-            for _, channel, message in reader.iter_messages(log_time_order=False):
-                self.writer.add_message(
-                    channels[channel.id],
-                    message.log_time,
-                    message.data,
-                    message.publish_time,
-                    sequence=message.sequence,
-                )
+            for channel in summary.channels.values():
+                self._add_channel(channel, summary.schemas[channel.schema_id], path)
+            self.writer.copy_chunks(stream, summary)
 
-    def _channel(self, summary: Any, channel_id: int) -> int:
-        channel = summary.channels[channel_id]
-        schema = summary.schemas[channel.schema_id]
+    def _add_channel(self, channel: Channel, schema: Schema, path: Path) -> None:
         key = (schema.name, schema.encoding, bytes(schema.data))
-        if key not in self.schemas:
-            self.schemas[key] = self.writer.register_schema(*key)
-        return self.writer.register_channel(
-            channel.topic, channel.message_encoding, self.schemas[key], dict(channel.metadata)
-        )
+        if key not in self.schema_ids:
+            self.schema_ids[key] = len(self.schema_ids) + 1
+            self.writer.add_schema(dataclasses.replace(schema, id=self.schema_ids[key]))
+        try:
+            self.writer.add_channel(dataclasses.replace(channel, schema_id=self.schema_ids[key]))
+        except ValueError as exc:
+            raise RecordingError(f"{path}: channel {channel.topic!r} clashes: {exc}") from exc
 
 
 def merge_step_files(stream: IO[bytes], run_meta: dict[str, Any], paths: Iterable[Path]) -> None:
