@@ -53,3 +53,19 @@ def make_rig() -> Iterator[Callable[..., SimRig]]:
     yield factory
     for rig in rigs:
         rig.close()
+
+
+@pytest.fixture
+def rig_entry_points(tmp_path_factory: pytest.TempPathFactory,
+                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """Install the modbus/can entry points as a distribution on sys.path (until the project's
+    own metadata declares them), so the registry discovers them the ordinary way."""
+    site = tmp_path_factory.mktemp("site")
+    info = site / "aatest_rig_plugins-0.1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: aatest-rig-plugins\n"
+                                   "Version: 0.1.0\n")
+    (info / "entry_points.txt").write_text(
+        "[aatest.turntables]\nmodbus = aatest.plugins.turntable.modbus:ModbusTurntable\n\n"
+        "[aatest.daqs]\ncan = aatest.plugins.daq.can:CanDaq\n")
+    monkeypatch.syspath_prepend(str(site))

@@ -40,8 +40,10 @@ DaqLogSink = Callable[[SampledLog], None]
 class FaultInjection:
     """Faults the simulated controller produces on purpose (tests only; all bounded)."""
 
-    #: fault bits set the moment a record starts (motion stops, motor off)
+    #: fault bits set the moment a record starts (motion stops, motor off) ...
     fault_on_record: Fault = Fault(0)
+    #: ... on every record, or only on this one (1 = the first record served)
+    fault_on_record_number: int | None = None
     #: every answer is delayed this long (wall seconds)
     response_delay_s: float = 0.0
     #: from this command on the controller stops answering (for ``hang_s`` wall seconds)
@@ -92,6 +94,7 @@ class SimController:
         self._armed = False
         self._record: _Record | None = None
         self._log_count = 0
+        self._records_started = 0
         self._init_registers(model)
 
     # --- registers -------------------------------------------------------------------------
@@ -291,7 +294,9 @@ class SimController:
     def _maybe_record(self) -> None:
         if not (self._armed and self._daq_started) or self._record is not None:
             return
-        if self.faults.fault_on_record:
+        self._records_started += 1
+        number = self.faults.fault_on_record_number
+        if self.faults.fault_on_record and number in (None, self._records_started):
             self._trip(self.faults.fault_on_record)
             return
         self._armed = False
