@@ -19,6 +19,7 @@ from aatest.plugins.report.html import (
     MisalignmentReport,
 )
 
+FAST = CalibrationCertificate(CalibrationCertificate.Config(plots=False))
 REPORTS = ["calibration-certificate", "frequency-response", "misalignment", "diagnosis"]
 DIAGNOSIS = {
     "baseline": {"rmse_v": 0.0123},
@@ -69,31 +70,32 @@ def test_sections_degrade_when_keys_are_absent(results: dict[str, Any], run_dir:
     for key in ("frf", "transfer_function", "misalignment", "temperature", "noise", "sync"):
         del results["analysis"][key]
     del results["figures"]
-    text = _visible_text(CalibrationCertificate().render(results, run_dir, None).read_text())
+    text = _visible_text(FAST.render(results, run_dir, None).read_text())
     assert "Scale factor" in text and "Frequency response" not in text
     assert "Misalignment (pivoted method)" not in text and "Unsigned report." in text
     bare = {"procedure": "empty", "steps": [], "analysis": {}}
     for cls in (CalibrationCertificate, FrequencyResponseReport, MisalignmentReport):
-        assert "Traceability" in _visible_text(cls().render(bare, run_dir, None).read_text())
+        html = cls(cls.Config(plots=False)).render(bare, run_dir, None).read_text()
+        assert "Traceability" in _visible_text(html)
 
 
 def test_verdict_fails_outside_datasheet(results: dict[str, Any], run_dir: Path) -> None:
     results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.5123  # 12.3 mV off, limit ±10 mV
-    html = CalibrationCertificate().render(results, run_dir, None).read_text()
+    html = FAST.render(results, run_dir, None).read_text()
     row = re.search(r"<tr><td class=\"t\">bias</td><td class=\"t\">v_sz</td>.*?</tr>", html, re.S)
     assert row and 'class="fail"' in row.group(0) and "-0.00230" in row.group(0)
 
 
 def test_tampered_figure_is_withheld(results: dict[str, Any], run_dir: Path) -> None:
     results["figures"]["noise"]["psd"] = '<svg xmlns="http://www.w3.org/2000/svg" onload="alert(1)"/>'
-    html = CalibrationCertificate().render(results, run_dir, None).read_text()
+    html = FAST.render(results, run_dir, None).read_text()
     assert "alert(1)" not in html and "figure withheld: event attribute onload" in html
 
 
 @pytest.mark.parametrize("cls", [FrequencyResponseReport, MisalignmentReport],
                          ids=["frequency-response", "misalignment"])
 def test_focused_reports(cls: type, results: dict[str, Any], run_dir: Path) -> None:
-    text = _visible_text(cls().render(results, run_dir, None).read_text())
+    text = _visible_text(cls(cls.Config(plots=False)).render(results, run_dir, None).read_text())
     assert ("Frequency response" in text) == (cls is FrequencyResponseReport)
     assert ("Misalignment (pivoted method)" in text) == (cls is MisalignmentReport)
     assert "Traceability" in text
@@ -117,9 +119,9 @@ def test_signed_certificate_round_trip(results: dict[str, Any], run_dir: Path, t
     private = load_private_key(key)
     results["signature"] = {"fingerprint": key_fingerprint(private)}
     (run_dir / "results.json").write_text(json.dumps(results))
-    report = CalibrationCertificate().render(results, run_dir, None)
+    report = FAST.render(results, run_dir, None)
     sign_bundle(report, private)
     assert verify_bundle(report).ok
     results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.4
-    CalibrationCertificate().render(results, run_dir, None)
+    FAST.render(results, run_dir, None)
     assert verify_bundle(report).reasons == ["report.html: modified (sha256 differs from the signed value)"]

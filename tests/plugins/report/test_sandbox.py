@@ -18,6 +18,7 @@ from aatest.plugins.report.sandbox import (
     vet_svg,
 )
 
+FAST = CalibrationCertificate(CalibrationCertificate.Config(plots=False))
 SECRET = "TOP-SECRET-7f3a"
 
 MALICIOUS = {
@@ -60,7 +61,7 @@ def test_refused_lab_certificate_writes_no_report(name: str, lab_dir: Path,
                                                   results: dict[str, Any], run_dir: Path) -> None:
     (lab_dir / "calibration-certificate.html.j2").write_text(MALICIOUS[name][0])
     with pytest.raises(TemplateError, match="calibration-certificate.html.j2"):
-        CalibrationCertificate().render(results, run_dir, lab_dir)
+        FAST.render(results, run_dir, lab_dir)
     assert not (run_dir / "report.html").exists()
 
 
@@ -71,7 +72,7 @@ def test_lab_template_can_extend_the_shipped_base(lab_dir: Path, results: dict[s
         "{% for c in channels %}{{ c.name }}={{ c.u.scale_factor.value|num(5) }};{% endfor %}"
         "{{ trace.operator }}</p>{% endblock %}"
     )
-    html = CalibrationCertificate().render(results, run_dir, lab_dir).read_text()
+    html = FAST.render(results, run_dir, lab_dir).read_text()
     assert "Lab layout: v_sz=0.0040140;v_sy=0.0040104;v_sx=0.0040068;" in html
     assert "A. Tester &lt;script&gt;" in html  # autoescape applies to lab templates too
 
@@ -79,9 +80,9 @@ def test_lab_template_can_extend_the_shipped_base(lab_dir: Path, results: dict[s
 def test_missing_lab_template_names_the_file(lab_dir: Path, results: dict[str, Any],
                                              run_dir: Path) -> None:
     with pytest.raises(TemplateError, match="no calibration-certificate.html.j2"):
-        CalibrationCertificate().render(results, run_dir, lab_dir)
+        FAST.render(results, run_dir, lab_dir)
     with pytest.raises(TemplateError, match="does not exist"):
-        CalibrationCertificate().render(results, run_dir, lab_dir / "nope")
+        FAST.render(results, run_dir, lab_dir / "nope")
 
 
 def test_syntax_error_has_file_and_line(lab_dir: Path) -> None:

@@ -101,7 +101,8 @@ def _misalignment_rows(results: Mapping[str, Any], budgets: Budgets) -> list[dic
 
 
 def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: str,
-                  sections: Collection[str], constants: RigConstants) -> dict[str, Any]:
+                  sections: Collection[str], constants: RigConstants,
+                  plots: bool = True) -> dict[str, Any]:
     """Everything a measurement report template needs."""
     budgets = evaluate_all(results, constants)
     views = [_channel_view(results, ch, budgets) for ch in channels(results)]
@@ -118,7 +119,8 @@ def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: s
         "misalignment_sets": (ex.analysis(results, "misalignment") or {}).get("sets") or {},
         "verdicts": verdicts(results, budgets.expanded()),
         "budgets": budgets.shown(),
-        "figures": _analysis_figures(results, present) + _own_figures(results, present, views),
+        "figures": _analysis_figures(results, present)
+        + (_own_figures(results, present, views) if plots else []),
         "trace": traceability(results, run_dir),
         "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
         "steps": results.get("steps") or [],

@@ -26,6 +26,8 @@ class ReportConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     rig: RigConstants = RigConstants()
+    #: draw our own matplotlib plots (analysis figures are always included)
+    plots: bool = True
 
 
 def _write(path: Path, html: str) -> Path:
@@ -49,7 +51,7 @@ class _HtmlReport:
 
     def context(self, results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
         return build_context(results, run_dir, self.template, self.title, self.sections,
-                             self.config.rig)
+                             self.config.rig, self.config.plots)
 
     def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path:
         """Render ``results`` into ``run_dir/<output_name>`` and return that path."""
