@@ -91,3 +91,15 @@ def test_safe_stop_switches_motor_off_and_is_idempotent(make_rig: Callable) -> N
     rig.turntable.safe_stop()
     status = Status(rig.server.controller.read(1, 1)[0])
     assert Status.MOTOR_ON not in status and Status.MOVING not in status
+
+
+def test_controller_enforces_the_declared_envelope(make_rig: Callable) -> None:
+    rig = make_rig()
+    narrow = TableEnvelope(inner=AxisLimits(rate_dps=1200.0, accel_dps2=80.0))
+    table = ModbusTurntable(ModbusTurntable.Config(port=rig.server.port, envelope=narrow), None)
+    table.start()
+    table.move_to(0.0, 0.0)
+    with pytest.raises(RigFault, match="START_MOTION refused: ACCEL_LIMIT"):
+        table.begin_motion(SINE)  # 100 °/s² > the declared 80 °/s²: the controller refuses
+    table.safe_stop()
+    table.close()

@@ -144,7 +144,9 @@ class ModbusTurntable:
         return self.config.envelope
 
     def start(self) -> None:
-        """Connect, check the map version and limits, configure FP/trigger, motor on."""
+        """Connect, check the map version and limits, set the declared envelope as the
+        controller's user limits (it then refuses anything beyond it too), configure the
+        freeze-pulse and trigger inputs, clear faults, motor on."""
         cfg = self.config
         self._client = ModbusTcpClient(cfg.host, port=cfg.port, timeout=cfg.timeout_s,
                                        retries=cfg.retries, reconnect_delay=0)
@@ -161,6 +163,11 @@ class ModbusTurntable:
             raise RigFault(f"{self._where}: register map version {version}, driver speaks "
                            f"{mm.MAP_VERSION}")
         self._check_limits()
+        env = cfg.envelope
+        self._write({Reg.INNER_RATE_USER_LIMIT_DPS: env.inner.rate_dps,
+                     Reg.INNER_ACCEL_USER_LIMIT_DPS2: env.inner.accel_dps2,
+                     Reg.OUTER_RATE_USER_LIMIT_DPS: env.outer.rate_dps,
+                     Reg.OUTER_ACCEL_USER_LIMIT_DPS2: env.outer.accel_dps2})
         self._command(Command.CLEAR_FAULTS)
         start = mm.LogStart.TRIGGER if cfg.log_start == "trigger" else mm.LogStart.IMMEDIATE
         self._write({Reg.FP_INPUT: cfg.fp_input, Reg.FP_EDGE: mm.Edge.BOTH,

@@ -243,6 +243,9 @@ class SimController:
             return Refusal.UNKNOWN_COMMAND
         if not self.world.motor_on:
             return Refusal.MOTOR_OFF
+        refusal = self._check_user_limits(mode)
+        if refusal:
+            return refusal
         self._sync_world()
         if self._moving:
             self.world.end_motion()
@@ -261,6 +264,22 @@ class SimController:
         self._daq_started = self._armed = False
         self._status &= ~(Status.LOG_ARMED | Status.LOG_RECORDING | Status.LOG_DONE
                           | Status.TRIGGER_SEEN)
+        return Refusal.ACCEPTED
+
+    def _check_user_limits(self, mode: Mode) -> Refusal:
+        """Refuse demands beyond the user limits (0 = factory limit only; the World checks
+        the factory limits itself)."""
+        for axis in ("INNER", "OUTER"):
+            amp = self._get(Reg[f"{axis}_SINE_AMPLITUDE_DEG"]) if mode == Mode.SINE else 0.0
+            omega = 2 * np.pi * self._get(Reg[f"{axis}_SINE_FREQUENCY_HZ"])
+            rate = abs(self._get(Reg[f"{axis}_RATE_DEMAND_DPS"])) if mode == Mode.RATE else 0.0
+            peak_rate, peak_accel = rate + abs(amp) * omega, abs(amp) * omega ** 2
+            rate_limit = self._get(Reg[f"{axis}_RATE_USER_LIMIT_DPS"])
+            accel_limit = self._get(Reg[f"{axis}_ACCEL_USER_LIMIT_DPS2"])
+            if rate_limit and peak_rate > rate_limit * (1 + 1e-6):
+                return Refusal.RATE_LIMIT
+            if accel_limit and peak_accel > accel_limit * (1 + 1e-6):
+                return Refusal.ACCEL_LIMIT
         return Refusal.ACCEPTED
 
     def _arm_log(self) -> Refusal:
