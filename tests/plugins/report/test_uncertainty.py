@@ -95,3 +95,12 @@ def test_missing_analysis_gives_no_measurand(results: dict[str, Any]) -> None:
     del results["analysis"]["misalignment"]
     assert scale_factor_measurand(results, "v_sz", C) is None
     assert misalignment_measurand(results, "1", "SZ", C) is None
+
+
+def test_scale_factor_prefers_the_analysis_u_of_k(results: dict[str, Any]) -> None:
+    """When the analysis states u(K) directly (best-line fit), the fit row uses it."""
+    entry = results["analysis"]["scale_factor"]["v_sz"]
+    entry.update(order=12, scale_u_v_per_dps2=4.25e-8)
+    gum = evaluate(scale_factor_measurand(results, "v_sz", C))
+    fit = [r for r in gum.rows if "fit residual" in r.label]
+    assert_allclose(math.hypot(*(r.contribution for r in fit)), 4.25e-8, rtol=1e-6)

@@ -41,7 +41,10 @@ def _channel_view(results: Mapping[str, Any], ch: str, budgets: Budgets) -> dict
         return value.get(ch) if isinstance(value, Mapping) else None
 
     scale = block("scale_factor")
+    fit = scale.get("fit") if isinstance(scale, Mapping) else None
+    r2 = (scale or {}).get("r2", (fit or {}).get("r2") if isinstance(fit, Mapping) else None)
     return {
+        "r2": r2,
         "name": ch,
         "sensor": ex.sensors(results).get(ch, {}),
         "scale": scale,
@@ -70,10 +73,11 @@ def _own_figures(results: Mapping[str, Any], sections: Collection[str],
                  views: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Plots made here from the contract keys (one per channel and section)."""
     makers: list[tuple[str, str, Callable[[], str | None]]] = []
+    peak = max(ex.step_values(ex.steps_of_kind(results, "sine"), "accel_dps2") or [0.0]) or None
     for v in views:
         if "scale_factor" in sections and isinstance(v["scale"], Mapping):
             makers.append(("scale_factor", f"calibration curve {v['name']}",
-                           lambda v=v: fig.calibration_curve(v["scale"], v["sensor"])))
+                           lambda v=v: fig.calibration_curve(v["scale"], v["sensor"], peak)))
         if "frf" in sections and v["frf"]:
             makers.append(("frf", f"Bode {v['name']}", lambda v=v: fig.bode(
                 [r.point for r in v["frf"]], v["transfer_function"],

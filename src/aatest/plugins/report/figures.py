@@ -29,17 +29,24 @@ def _svg(fig: Figure) -> str:
     return buffer.getvalue()
 
 
-def _poly_band(coefficients: Sequence[float], ci95: Any, u_v: np.ndarray) -> np.ndarray | None:
-    """Standard deviation of y(u) = Σ a_i u^i from independent coefficient ci95 (°/s²)."""
-    stds = [ex.ci_std(ci95, i) for i in range(len(coefficients))]
+def _poly_band(entry: Mapping[str, Any], n_coef: int, u_v: np.ndarray) -> np.ndarray | None:
+    """Standard deviation of y(u) = Σ a_i u^i (°/s²): φᵀΣφ with the fit's covariance when
+    reported, else from the coefficients' ci95 taken as independent."""
+    powers = np.vander(u_v, n_coef, increasing=True)
+    fit = entry.get("fit") if isinstance(entry.get("fit"), Mapping) else {}
+    cov = np.asarray(fit.get("covariance") or [], dtype=float)
+    if cov.shape == (n_coef, n_coef):
+        return np.sqrt(np.clip(np.einsum("ij,jk,ik->i", powers, cov, powers), 0.0, None))
+    stds = [ex.ci_std(entry.get("ci95"), i) for i in range(n_coef)]
     if any(s is None for s in stds):
         return None
-    powers = np.vander(u_v, len(coefficients), increasing=True)
     return np.sqrt((powers**2) @ np.square(np.asarray(stds, dtype=float)))
 
 
-def calibration_curve(entry: Mapping[str, Any], sensor: Mapping[str, Any]) -> str | None:
-    """Fitted y(u) over the sensor range with its 95 % band, and the residual view below.
+def calibration_curve(entry: Mapping[str, Any], sensor: Mapping[str, Any],
+                      peak_dps2: float | None = None) -> str | None:
+    """Fitted y(u) over the calibrated span (±``peak_dps2``) with its 95 % band, and the
+    residual view below.
 
     Without per-sample residuals in the results, the lower panel shows what the polynomial
     adds to its best straight line (the non-linearity) against the ±RMSE band.
@@ -48,10 +55,11 @@ def calibration_curve(entry: Mapping[str, Any], sensor: Mapping[str, Any]) -> st
     if len(coefficients) < 2:
         return None
     k_v = ex.as_float(entry.get("scale_v_per_dps2")) or 1.0 / coefficients[1]
-    range_dps2 = ex.as_float(sensor.get("range_dps2")) or 572.958
-    u_v = np.linspace(-range_dps2 * k_v, range_dps2 * k_v, 201)
+    # stay inside the calibrated span: a high-order polynomial is not an extrapolator
+    peak = peak_dps2 or 0.7 * (ex.as_float(sensor.get("range_dps2")) or 572.958)
+    u_v = np.linspace(-peak * k_v, peak * k_v, 201)
     y = np.polynomial.polynomial.polyval(u_v, coefficients)
-    band = _poly_band(coefficients, entry.get("ci95"), u_v)
+    band = _poly_band(entry, len(coefficients), u_v)
     fig = Figure(figsize=(6.4, 4.6), layout="constrained")
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[2, 1])
     top.plot(u_v, y, color="C0", label=f"order {len(coefficients) - 1} fit")
@@ -60,8 +68,11 @@ def calibration_curve(entry: Mapping[str, Any], sensor: Mapping[str, Any]) -> st
                          label="95 % band (coefficients)")
     top.set_ylabel("reference α (°/s²)")
     top.legend(loc="upper left")
-    line = np.polyfit(u_v, y, 1)
-    bottom.plot(u_v, y - np.polyval(line, u_v), color="C1", label="fit − best line")
+    deviation = y - np.polyval(np.polyfit(u_v, y, 1), u_v)
+    bottom.plot(u_v, deviation, color="C1", label="fit − best line")
+    if band is not None:
+        bottom.fill_between(u_v, deviation - ex.Z95 * band, deviation + ex.Z95 * band,
+                            color="C1", alpha=0.25)
     rmse = ex.as_float(entry.get("rmse_dps2"))
     if rmse:
         bottom.axhspan(-rmse, rmse, color="C2", alpha=0.15, label=f"±RMSE {rmse:.3g} °/s²")

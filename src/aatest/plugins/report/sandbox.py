@@ -24,6 +24,7 @@ from jinja2 import (
     Template,
     TemplateNotFound,
     TemplateSyntaxError,
+    Undefined,
     UndefinedError,
 )
 from jinja2.exceptions import SecurityError, TemplateError as JinjaTemplateError
@@ -81,13 +82,21 @@ class _ReportEnvironment(ImmutableSandboxedEnvironment):
         return super().call_binop(context, operator, left, right)
 
 
-def _num(value: Any, digits: int = 4) -> str:
-    """``digits`` significant figures; '—' for missing values."""
+def _as_float(value: Any) -> float | None:
+    """A finite float, or None for missing keys (Undefined), None, NaN and non-numbers."""
+    if isinstance(value, Undefined) or isinstance(value, bool):
+        return None
     try:
         f = float(value)
     except (TypeError, ValueError):
-        return "—"
-    if not math.isfinite(f):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def _num(value: Any, digits: int = 4) -> str:
+    """``digits`` significant figures; '—' for missing values."""
+    f = _as_float(value)
+    if f is None:
         return "—"
     if f != 0 and (abs(f) >= 1e6 or abs(f) < 1e-3):
         return f"{f:.{max(digits - 1, 0)}e}"
@@ -95,11 +104,9 @@ def _num(value: Any, digits: int = 4) -> str:
 
 
 def _fixed(value: Any, decimals: int = 3) -> str:
-    try:
-        f = float(value)
-    except (TypeError, ValueError):
-        return "—"
-    return f"{f:.{decimals}f}" if math.isfinite(f) else "—"
+    """Fixed-point with ``decimals`` places; '—' for missing values."""
+    f = _as_float(value)
+    return "—" if f is None else f"{f:.{decimals}f}"
 
 
 def make_environment(template_dir: Path | None = None) -> ImmutableSandboxedEnvironment:

@@ -55,10 +55,13 @@ def _scale_fit_inputs(entry: Mapping[str, Any], noise_v: float, results: Mapping
     coeffs = entry.get("coefficients") or []
     a1 = ex.as_float(coeffs[1]) if len(coeffs) > 1 else None
     u_a1 = ex.ci_std(entry.get("ci95"), 1) if a1 else None
+    u_k = ex.as_float(entry.get("scale_u_v_per_dps2")) or ex.ci_std(entry.get("scale_ci95"))
     rmse = ex.as_float(entry.get("rmse_dps2"))
     sine = ex.steps_of_kind(results, "sine")
-    if u_a1 is not None and a1:
-        rel_fit, source = u_a1 / abs(a1), "from the fit's ci95"
+    if u_k is not None:
+        rel_fit, source = u_k / k_v, "from the analysis' u(K)"
+    elif u_a1 is not None and a1:
+        rel_fit, source = u_a1 / abs(a1), "from the fit's ci95 of a1"
     elif rmse is not None:
         peak = max(ex.step_values(sine, "accel_dps2") or [400.0])
         n = sum(ex.step_values(sine, "samples")) or c.record_samples
