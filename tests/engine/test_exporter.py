@@ -19,7 +19,8 @@ from aatest.engine.steps import PlannedStep
 
 def recorded_dataset(run_dir: Path, steps: list[PlannedStep], latch: bool = True) -> Dataset:
     recorder = RunRecorder(run_dir)
-    recorder.write_run_metadata(run_meta(steps))
+    recorder.write_run_metadata(
+        run_meta(steps) | {"analysis": ["sync", "frf"], "report_template": "frequency-response"})
     for seed, step in enumerate(steps):
         recorder.write_step(step, *step_logs(step, seed, latch))
     recorder.finalize()
@@ -67,6 +68,8 @@ def test_import_of_export_is_bit_exact_for_float64(tmp_path: Path) -> None:
         assert_same_channels(mine.table, theirs.table)
         assert_same_channels(mine.daq, theirs.daq)
     assert again.metadata["fp_latch_s_present"] is True
+    assert again.metadata["analysis"] == ["sync", "frf"]
+    assert again.metadata["report_template"] == "frequency-response"
 
 
 def test_float32_daq_volts_round_trip_to_their_precision(tmp_path: Path) -> None:
@@ -132,3 +135,17 @@ def test_twin_dataset_survives_record_export_import(tmp_path: Path) -> None:
         for log in ("table", "daq"):
             assert_same_channels(getattr(original, log), getattr(rec, log))
             assert_same_channels(getattr(original, log), getattr(imp, log))
+    analyses = pytest.importorskip("aatest.engine.analyses")
+    on_recording = analyses.run_analyses(recorded, ["sync"]).values
+    on_export = analyses.run_analyses(imported, ["sync"]).values
+    assert "sync" in on_recording
+    assert _without_timings(on_export) == _without_timings(on_recording)
+
+
+def _without_timings(values: object) -> object:
+    """Analysis results minus wall-clock timings (the only thing allowed to differ)."""
+    if isinstance(values, dict):
+        return {k: _without_timings(v) for k, v in values.items() if k != "runtime_s"}
+    if isinstance(values, (list, tuple)):
+        return [_without_timings(v) for v in values]
+    return values

@@ -9,7 +9,9 @@ Columns. Table CSV: the contract's ``time_s, position_deg, rate_dps, accel_dps2,
 table channel under its canonical name (``outer_position_deg`` — a contract column —,
 ``outer_rate_dps``, feedback channels, ``fp_latch_s`` when recorded, ...). DAQ CSV:
 ``time_s, sync_pulse, trigger``, the sensor voltages, ``temperature_c``, then any other channel.
-The importer reads the canonical extra columns back, so nothing an analysis uses is lost.
+The importer reads the canonical extra columns back, so nothing an analysis uses is lost; the
+recording's analysis list and report template go to dataset.yaml, so ``aatest analyze`` runs
+the same analyses on the export.
 
 Precision. Every number is written as the shortest decimal that parses back to the same
 binary value (NumPy's round-trip repr: 17 significant digits at most for float64, 9 for
@@ -136,6 +138,12 @@ def manifest(dataset: Dataset, entries: list[dict[str, Any]]) -> dict[str, Any]:
     t_ref_c = dataset.metadata.get("t_ref_c")
     if isinstance(t_ref_c, (int, float)):
         doc["t_ref_c"] = float(t_ref_c)
+    analysis = dataset.metadata.get("analysis")
+    if isinstance(analysis, (list, tuple)) and all(isinstance(a, str) for a in analysis):
+        doc["analysis"] = list(analysis)
+    template = dataset.metadata.get("report_template")
+    if isinstance(template, str):
+        doc["report_template"] = template
     doc["sensors"] = [dataclasses.asdict(s) for s in dataset.sensors]
     doc["steps"] = entries
     return doc

@@ -8,7 +8,8 @@ CSV files are tolerant (extra columns, any order, whitespace, CRLF) but malforme
 :class:`~aatest.engine.errors.ImportDataError` with file and line (see
 :mod:`aatest.engine.csv_table`). Besides the contract keys, the manifest accepts a few
 *extensions*: top-level ``procedure`` (name), ``t_ref_c`` and ``model`` (a sensor-model YAML
-whose ``t_ref_c`` sets the temperature reference, default 25 °C); per step ``amplitude_deg``,
+whose ``t_ref_c`` sets the temperature reference, default 25 °C), ``analysis`` (the analyses
+``aatest analyze`` runs, as in a procedure) and ``report_template``; per step ``amplitude_deg``,
 ``cycles``, ``rate_dps``, ``outer_rate_dps``, ``temperature_c``, ``group``, ``repetition``,
 ``motor_on``, ``settle_s``, ``mounting``; per sensor every
 :class:`~aatest.engine.dataset.SensorInfo` field.
@@ -127,6 +128,8 @@ class DatasetManifest(_Strict):
     procedure: str = "imported"
     t_ref_c: float | None = None
     model: str | None = None
+    analysis: list[str] | None = None
+    report_template: str | None = None
 
     @model_validator(mode="after")
     def _unique(self) -> DatasetManifest:
@@ -253,7 +256,9 @@ def import_dataset(directory: str | Path) -> Dataset:
     sensors = tuple(SensorInfo(**s.model_dump()) for s in manifest.sensors)
     return Dataset(
         procedure=manifest.procedure, sample_rate_hz=rate_hz, sensors=sensors,
-        steps=tuple(steps), source=directory, metadata=_metadata(present, t_ref_c, model_file),
+        steps=tuple(steps), source=directory,
+        metadata=_metadata(present, t_ref_c, model_file) | manifest.model_dump(
+            include={"analysis", "report_template"}, exclude_none=True),
     )
 
 
