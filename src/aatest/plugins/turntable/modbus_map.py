@@ -40,7 +40,7 @@ class Reg(enum.IntEnum):
     STATUS = 1  # u16, Status bits
     FAULT = 2  # u16, Fault bits (latched until CLEAR_FAULTS)
     MODE_ACTIVE = 3  # u16, Mode in force
-    HEARTBEAT = 4  # u16, increments every controller cycle batch (wraps)
+    HEARTBEAT = 4  # u16, increments on every read (wraps): the controller is alive
     CONTROLLER_TIME_S = 6  # f64, controller clock since power-on
     INNER_POSITION_DEG = 10  # f64, position estimate
     INNER_RATE_DPS = 14  # f32
