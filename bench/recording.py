@@ -79,7 +79,8 @@ def main() -> None:
     merged = recorder.finalize()
     finalize_s = time.perf_counter() - started
     print(f"finalize: {finalize_s:.2f} s, {raw_total / MB / finalize_s:.0f} MB/s raw, "
-          f"recording.mcap {merged.stat().st_size / MB:.1f} MB, lab/wall = {lab_s / finalize_s:.0f}x")
+          f"recording.mcap {merged.stat().st_size / MB:.1f} MB, "
+          f"lab/wall = {lab_s / finalize_s:.0f}x")
     started = time.perf_counter()
     dataset = read_dataset(base / "run")
     read_s = time.perf_counter() - started

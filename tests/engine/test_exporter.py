@@ -45,14 +45,16 @@ def test_export_writes_the_contract_layout(tmp_path: Path) -> None:
     table = header(out / "s01_table.csv")
     assert table[:5] == ["time_s", "position_deg", "rate_dps", "accel_dps2", "sync_pulse"]
     assert {"outer_position_deg", "fp_latch_s"} <= set(table)
-    assert header(out / "s01_daq.csv") == ["time_s", "sync_pulse", "trigger", "v_sz", "temperature_c"]
+    assert header(out / "s01_daq.csv") == [
+        "time_s", "sync_pulse", "trigger", "v_sz", "temperature_c"]
     assert "inner_position_deg" in header(out / "s02_table.csv")
     doc = YAML(typ="safe").load((out / "dataset.yaml").read_text())
     assert doc["sample_rate_hz"] == 2000.0
     assert doc["sensors"][0]["channel"] == "v_sz"
     step = doc["steps"][0]
     assert {k: step[k] for k in ("id", "kind", "axis", "table", "daq")} == {
-        "id": "s01", "kind": "sine", "axis": "inner", "table": "s01_table.csv", "daq": "s01_daq.csv"}
+        "id": "s01", "kind": "sine", "axis": "inner",
+        "table": "s01_table.csv", "daq": "s01_daq.csv"}
     assert step["frequency_hz"] == dataset.steps[0].step.frequency_hz
     assert step["accel_dps2"] == 100.0
 
@@ -75,7 +77,8 @@ def test_import_of_export_is_bit_exact_for_float64(tmp_path: Path) -> None:
 def test_float32_daq_volts_round_trip_to_their_precision(tmp_path: Path) -> None:
     step = sine_step("s01")
     table, daq = step_logs(step, 5)
-    volts32 = {k: (v.astype(np.float32) if k.startswith("v_") else v) for k, v in daq.channels.items()}
+    volts32 = {k: (v.astype(np.float32) if k.startswith("v_") else v)
+               for k, v in daq.channels.items()}
     daq32 = SampledLog(daq.source, daq.sample_rate_hz, daq.time_s, volts32, daq.units)
     dataset = Dataset("f32", 2000.0, recorded_dataset(tmp_path / "r", [step]).sensors,
                       (StepData(step, table, daq32),), tmp_path)

@@ -117,9 +117,11 @@ def test_layout_tolerance(tmp_path: Path, columns: tuple) -> None:
 
 def test_outer_axis_and_optional_columns(tmp_path: Path, columns: tuple) -> None:
     table_cols, daq_cols = columns
-    table_cols = {**table_cols, "fp_latch_s": np.full(N, 1e-4), "inner_position_deg": np.full(N, 90.0)}
+    table_cols = {**table_cols, "fp_latch_s": np.full(N, 1e-4),
+                  "inner_position_deg": np.full(N, 90.0)}
     daq_cols = {**daq_cols, "temperature_c": np.full(N + 200, 40.0)}
-    manifest = MANIFEST.replace("axis: inner", "axis: outer").replace("inner_deg: 0", "inner_deg: 90")
+    manifest = MANIFEST.replace("axis: inner", "axis: outer")
+    manifest = manifest.replace("inner_deg: 0", "inner_deg: 90")
     dataset = import_dataset(make_import_dir(tmp_path, table_cols, daq_cols, manifest))
     table = dataset.steps[0].table
     np.testing.assert_array_equal(table["outer_accel_dps2"], table_cols["accel_dps2"])
@@ -215,12 +217,14 @@ def test_sine_step_without_frequency_is_rejected(tmp_path: Path, columns: tuple)
 
 
 def test_sensor_named_like_a_daq_column_is_rejected(tmp_path: Path, columns: tuple) -> None:
-    directory = make_import_dir(tmp_path, *columns, MANIFEST.replace("channel: v_sz", "channel: trigger"))
+    manifest = MANIFEST.replace("channel: v_sz", "channel: trigger")
+    directory = make_import_dir(tmp_path, *columns, manifest)
     with pytest.raises(DatasetFileError, match=r"dataset.yaml:2:6: sensors.0.channel: .*own"):
         import_dataset(directory)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     cut=st.integers(min_value=0, max_value=10_000),
     garbage=st.binary(max_size=40),

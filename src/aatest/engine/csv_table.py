@@ -151,28 +151,35 @@ def read_csv(path: Path, required: Sequence[str], optional: Sequence[str] = ()) 
             f"header has {', '.join(header)}", line=header_index + 1,
         )
     wanted = list(required) + [n for n in optional if n in header and n not in required]
-    usecols = [header.index(name) for name in wanted]
     rows = np.array(
         [i for i in range(header_index + 1, len(lines)) if _is_content(lines[i])], dtype=np.int64
     )
     if rows.size == 0:
         raise ImportDataError(path, "no data rows after the header", line=header_index + 1)
     _check_field_counts(path, lines, rows, len(header))
-    kept = [lines[i] for i in rows.tolist()]
+    values = _parse_numbers(path, lines, rows, header, wanted)
+    columns = {name: np.ascontiguousarray(values[:, k]) for k, name in enumerate(wanted)}
+    result = CsvColumns(path, columns, header, rows + 1)
+    if TIME_COLUMN in columns:
+        _check_increasing(result)
+    return result
+
+
+def _parse_numbers(
+    path: Path, lines: list[str], rows: np.ndarray, header: tuple[str, ...], wanted: list[str]
+) -> np.ndarray:
+    """One vectorised parse of the wanted columns; (rows, columns) finite float64 values."""
+    usecols = [header.index(name) for name in wanted]
     try:
-        values = np.loadtxt(kept, delimiter=",", usecols=usecols, ndmin=2, comments=None,
-                            dtype=np.float64)
+        values = np.loadtxt([lines[i] for i in rows.tolist()], delimiter=",", usecols=usecols,
+                            ndmin=2, comments=None, dtype=np.float64)
     except ValueError as exc:
         raise _locate_bad_cell(path, lines, rows, usecols, header, exc) from exc
     bad_row, bad_col = np.nonzero(~np.isfinite(values))
     if bad_row.size:
         raise ImportDataError(path, f"column {wanted[bad_col[0]]!r} is not a finite number",
                               line=int(rows[bad_row[0]]) + 1)
-    columns = {name: np.ascontiguousarray(values[:, k]) for k, name in enumerate(wanted)}
-    result = CsvColumns(path, columns, header, rows + 1)
-    if TIME_COLUMN in columns:
-        _check_increasing(result)
-    return result
+    return values
 
 
 def _check_field_counts(path: Path, lines: list[str], rows: np.ndarray, n_fields: int) -> None:

@@ -110,7 +110,8 @@ def log_records(log: SampledLog) -> tuple[np.ndarray, list[dict[str, str]]]:
     for name, arr in arrays.items():
         records[name] = arr
     columns = [
-        {"name": name, "dtype": arr.dtype.str, "unit": "s" if name == TIME_COLUMN else _unit(log, name)}
+        {"name": name, "dtype": arr.dtype.str,
+         "unit": "s" if name == TIME_COLUMN else _unit(log, name)}
         for name, arr in arrays.items()
     ]
     return records, columns

@@ -171,7 +171,9 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
         raise RecordingError(f"{path}: not an aatest recording (no 'run' metadata record)")
     version = run_meta.get("format", fmt.FORMAT)
     if version != fmt.FORMAT:
-        raise RecordingError(f"{path}: unsupported recording format {version!r} (need {fmt.FORMAT})")
+        raise RecordingError(
+            f"{path}: unsupported recording format {version!r} (need {fmt.FORMAT})"
+        )
 
 
 def _decode_log(

@@ -133,7 +133,8 @@ def write_step_file(
     table, daq = logs
     writer = new_writer(stream)
     writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
-    writer.add_metadata(fmt.STEP_RECORD, fmt.json_values(step_record(step, index, table, daq, extra)))
+    record = step_record(step, index, table, daq, extra)
+    writer.add_metadata(fmt.STEP_RECORD, fmt.json_values(record))
     _write_log(writer, step.id, index, table)
     _write_log(writer, step.id, index, daq)
     writer.finish()
