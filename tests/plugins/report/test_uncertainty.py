@@ -34,6 +34,7 @@ def _measurands(results: dict[str, Any]) -> dict[str, Measurand | None]:
         "scale": sf,
         "bias": bias_measurand(results, "v_sz", C),
         "g": g_sensitivity_measurand(results, "v_sz", C, sf_eval.standard_uncertainty / sf_eval.value),
+        "g_nominal_k": g_sensitivity_measurand(results, "v_sy", C, None),
         "tc_bias": temperature_measurand(results, "v_sy", "bias_coefficient_v_per_c", C),
         "tc_scale": temperature_measurand(results, "v_sx", "scale_coefficient_per_c", C),
         "gain_low": frf_gain_measurand(points[0], results, C),
@@ -43,7 +44,7 @@ def _measurands(results: dict[str, Any]) -> dict[str, Measurand | None]:
     }
 
 
-NAMES = ["scale", "bias", "g", "tc_bias", "tc_scale", "gain_low", "gain_high", "phase_high",
+NAMES = ["scale", "bias", "g", "g_nominal_k", "tc_bias", "tc_scale", "gain_low", "gain_high", "phase_high",
          "misalignment"]
 
 
@@ -104,3 +105,18 @@ def test_scale_factor_prefers_the_analysis_u_of_k(results: dict[str, Any]) -> No
     gum = evaluate(scale_factor_measurand(results, "v_sz", C))
     fit = [r for r in gum.rows if "fit residual" in r.label]
     assert_allclose(math.hypot(*(r.contribution for r in fit)), 4.25e-8, rtol=1e-6)
+
+
+def test_static_statistics_from_the_analysis(results: dict[str, Any]) -> None:
+    """bias_u_v / per-mounting g u from the bias analysis replace the noise estimate, and an
+    uncalibrated K contributes its ±1 % datasheet tolerance (rectangular) to g."""
+    entry = results["analysis"]["bias"]["v_sz"]
+    entry["bias_u_v"] = 3.2e-6
+    entry["mountings"] = {"original": {"g_sensitivity_u_dps2_per_g": 0.0016},
+                          "pivoted": {"g_sensitivity_u_dps2_per_g": 0.0004}}
+    bias = {r.label: r for r in evaluate(bias_measurand(results, "v_sz", C)).rows}
+    assert bias["static means (noise, repeatability)"].standard_uncertainty == 3.2e-6
+    g = {r.label: r for r in evaluate(g_sensitivity_measurand(results, "v_sz", C, None)).rows}
+    assert_allclose(g["static means (noise, repeatability)"].standard_uncertainty,
+                    math.hypot(0.0016, 0.0004) / 2, rtol=1e-9)
+    assert_allclose(g["scale factor"].contribution, 0.21 * 0.01 / math.sqrt(3), rtol=1e-3)

@@ -66,10 +66,10 @@ def channels(results: Mapping[str, Any]) -> list[str]:
 
 def _static(results: Mapping[str, Any], ch: str, c: RigConstants, out: Budgets) -> None:
     scale = scale_factor_measurand(results, ch, c)
-    scale_rel = 0.0
+    scale_rel: float | None = None
     if scale is not None:
         out.by_key[f"scale_factor/{ch}"] = ev = evaluate(scale)
-        scale_rel = ev.standard_uncertainty / abs(ev.value) if ev.value else 0.0
+        scale_rel = ev.standard_uncertainty / abs(ev.value) if ev.value else None
     measurands = [("bias", bias_measurand(results, ch, c)),
                   ("g_sensitivity", g_sensitivity_measurand(results, ch, c, scale_rel))]
     measurands += [(key, temperature_measurand(results, ch, key, c)) for key in TEMPERATURE_COEFFICIENTS]

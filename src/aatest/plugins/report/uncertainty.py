@@ -152,6 +152,32 @@ def _static_mean_std_v(results: Mapping[str, Any], channel: str, c: RigConstants
     return noise_v / math.sqrt(independent), note
 
 
+def _mounting_u(entry: Mapping[str, Any], u_key: str) -> float | None:
+    """u of the mean over mountings (original/pivoted) when only those are reported."""
+    mountings = entry.get("mountings")
+    if not isinstance(mountings, Mapping):
+        return None
+    us = [ex.as_float(m.get(u_key)) for m in mountings.values() if isinstance(m, Mapping)]
+    if not us or any(u is None for u in us):
+        return None
+    return math.sqrt(sum(u * u for u in us if u is not None)) / len(us)
+
+
+def _static_statistics(results: Mapping[str, Any], entry: Mapping[str, Any], channel: str,
+                       c: RigConstants, key: str, u_key: str, volts_per_unit: float,
+                       unit: str) -> list[Input]:
+    """Type A inputs of a static quantity: the analysis' own u when stated (it already holds
+    noise and repeatability), else sensor noise over the records plus repeatability."""
+    u = ex.as_float(entry.get(u_key)) or _mounting_u(entry, u_key)
+    if u is not None:
+        return [Input("noise", "static means (noise, repeatability)", 0.0, u, "normal", unit,
+                      "type A, from the analysis")]
+    reps = max(len(ex.repetition_values(entry, key)), 1)
+    u_mean, note = _static_mean_std_v(results, channel, c, 2 * reps)
+    return [Input("noise", "sensor noise", 0.0, u_mean / volts_per_unit, "normal", unit, note),
+            *_repeat_input(entry, key, 1.0, unit)]
+
+
 def _bias_tc_v_per_c(results: Mapping[str, Any], channel: str) -> float:
     temp = (ex.analysis(results, "temperature") or {}).get(channel) or {}
     measured = ex.as_float(temp.get("bias_coefficient_v_per_c"))
@@ -167,14 +193,11 @@ def bias_measurand(results: Mapping[str, Any], channel: str, c: RigConstants) ->
     b_hat = ex.as_float(entry.get("bias_v")) if isinstance(entry, Mapping) else None
     if b_hat is None:
         return None
-    reps = max(len(ex.repetition_values(entry, "bias_v")), 1)
-    u_mean, note = _static_mean_std_v(results, channel, c, 2 * reps)
     tc = _bias_tc_v_per_c(results, channel)
     inputs = [
-        Input("noise", "sensor noise", 0.0, u_mean, "normal", "V", note),
+        *_static_statistics(results, entry, channel, c, "bias_v", "bias_u_v", 1.0, "V"),
         Input("temperature", "environment temperature", 0.0, tc * c.temperature_stability_c,
               "rectangular", "V", f"±{c.temperature_stability_c:g} °C × {tc * 1e3:.2f} mV/°C"),
-        *_repeat_input(entry, "bias_v", 1.0, "V"),
     ]
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
@@ -183,32 +206,41 @@ def bias_measurand(results: Mapping[str, Any], channel: str, c: RigConstants) ->
     return Measurand(f"bias {channel}", "V", model, _inputs(inputs))
 
 
+def _scale_input(results: Mapping[str, Any], channel: str, scale_rel_u: float | None) -> Input:
+    """K's relative uncertainty: calibrated in this run, else its datasheet tolerance."""
+    if scale_rel_u is not None:
+        return _rel("scale", "scale factor", scale_rel_u, "relative u_c(K)/K of this calibration")
+    tol_pct = ex.as_float(ex.sensors(results).get(channel, {}).get("scale_tolerance_pct")) or 1.0
+    return _rel("scale", "scale factor", tol_pct / 100.0,
+                f"nominal K, datasheet ±{tol_pct:g} % (not calibrated in this run)", "rectangular")
+
+
 def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigConstants,
-                            scale_rel_u: float) -> Measurand | None:
+                            scale_rel_u: float | None) -> Measurand | None:
     """G = (Ĝ + e_noise + e_temp + e_rep) / ((1 + e_K)·(1 + e_tilt))  [(°/s²)/g].
 
     Ĝ = (A+ − A−)/(2K): the half-difference carries the noise of both means and any bias
-    drift between them; dividing by K carries the scale factor's relative uncertainty; a
+    drift between them; dividing by K carries the scale factor's relative uncertainty (its
+    datasheet tolerance when the run did not calibrate K, ``scale_rel_u=None``); a
     tilt ε of the table reduces the ±1 g projection by cos ε.
     """
     entry = (ex.analysis(results, "bias") or {}).get(channel)
     g_hat = ex.as_float(entry.get("g_sensitivity_dps2_per_g")) if isinstance(entry, Mapping) else None
     if g_hat is None:
         return None
-    k_v = ex.as_float(ex.sensors(results).get(channel, {}).get("nominal_scale_v_per_dps2")) or 0.004014
-    reps = max(len(ex.repetition_values(entry, "g_sensitivity_dps2_per_g")), 1)
-    u_mean, note = _static_mean_std_v(results, channel, c, 2 * reps)
+    k_v = ex.as_float(entry.get("scale_v_per_dps2_used")) or ex.as_float(
+        ex.sensors(results).get(channel, {}).get("nominal_scale_v_per_dps2")) or 0.004014
     tc = _bias_tc_v_per_c(results, channel)
     tilt = math.hypot(c.position_accuracy_arcsec, c.wobble_arcsec) * ARCSEC_RAD
     inputs = [
-        Input("noise", "sensor noise", 0.0, u_mean / k_v, "normal", "(°/s²)/g", note),
+        *_static_statistics(results, entry, channel, c, "g_sensitivity_dps2_per_g",
+                            "g_sensitivity_u_dps2_per_g", k_v, "(°/s²)/g"),
         Input("temperature", "environment temperature", 0.0,
               tc * c.temperature_stability_c / (2 * k_v), "rectangular", "(°/s²)/g",
               "bias drift between the +1 g and −1 g records"),
-        _rel("scale", "scale factor", scale_rel_u, "relative u_c(K)/K"),
+        _scale_input(results, channel, scale_rel_u),
         Input("tilt", "table position / wobble (tilt)", 0.0, tilt, "cosine_error", "1",
               "cos ε − 1 of the gravity projection"),
-        *_repeat_input(entry, "g_sensitivity_dps2_per_g", 1.0, "(°/s²)/g"),
     ]
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:

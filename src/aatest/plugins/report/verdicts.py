@@ -67,7 +67,10 @@ def _static_verdicts(results: Mapping[str, Any], ch: str, sensor: Mapping[str, A
         rows.append(_verdict("bias", ch, b, _limit(sensor, "nominal_bias_v", 2.5), "V",
                              _limit(sensor, "bias_tolerance_v", 0.01), u.get(f"bias/{ch}")))
     if (g := ex.as_float(bias.get("g_sensitivity_dps2_per_g"))) is not None:
-        g_limit = max(0.001 * range_dps2, 0.01 * DPS2_PER_RAD_S2)  # 0.1 % FR/g or 0.01 rad/s²/g
+        # the analysis' own limit when stated, so report and results agree; else 0.1 % FR/g
+        # or 0.01 rad/s²/g, whichever is greater (method.md §1.3)
+        g_limit = ex.as_float(bias.get("g_sensitivity_limit_dps2_per_g")) or max(
+            0.001 * range_dps2, 0.01 * DPS2_PER_RAD_S2)
         rows.append(_verdict("g-sensitivity", ch, g, 0.0, "(°/s²)/g", g_limit,
                              u.get(f"g_sensitivity/{ch}")))
     scale = (ex.analysis(results, "scale_factor") or {}).get(ch) or {}
@@ -77,8 +80,11 @@ def _static_verdicts(results: Mapping[str, Any], ch: str, sensor: Mapping[str, A
         u_k = u.get(f"scale_factor/{ch}")
         rows.append(_verdict("scale factor deviation", ch, 100.0 * (k / nominal - 1.0), 0.0, "%",
                              limit_pct, None if u_k is None else 100.0 * u_k / nominal))
-    if (nl := ex.as_float(scale.get("nonlinearity_dps2"))) is not None:
-        rows.append(_verdict("non-linearity", ch, 100.0 * nl / range_dps2, 0.0, "% FR", 0.05))
+    nl_pct = ex.as_float(scale.get("nonlinearity_pct_fr"))
+    if nl_pct is None and (nl := ex.as_float(scale.get("nonlinearity_dps2"))) is not None:
+        nl_pct = 100.0 * nl / range_dps2
+    if nl_pct is not None:
+        rows.append(_verdict("non-linearity", ch, nl_pct, 0.0, "% FR", 0.05))
     return rows
 
 
