@@ -83,3 +83,34 @@ def test_bias_against_twin(realistic_unit) -> None:  # type: ignore[no-untyped-d
         assert values[s.channel]["bias_v"] == pytest.approx(truth_bias, abs=1e-4)
         g_truth = s.g_sensitivity.coefficient_dps2_per_g
         assert values[s.channel]["g_sensitivity_dps2_per_g"] == pytest.approx(g_truth, rel=0.1)
+
+
+@pytest.fixture(scope="module")
+def tf_run():  # type: ignore[no-untyped-def]
+    from aatest.plugins.sim.api import realistic_rig_model
+    from aatest.plugins.sim.model import SensorDynamics, SensorModel, TimeDelay
+    from test_tfest import F28
+
+    sensor = SensorModel(sensor_dynamics=SensorDynamics(natural_frequency_hz=30.0, damping=0.9),
+                         time_delay=TimeDelay(delay_s=0.0015))
+    model = realistic_rig_model([sensor])
+    n = 16384
+    steps = [sine_step(f"c{c}", c, 100.0, samples=n, settle_s=1.0)
+             for c in sorted({int(round(f * n / FS)) for f in F28})]
+    data, _ = twin_dataset(model, steps)
+    ctx = AnalysisContext(options={"antialias_hz": model.daq.antialias_hz})
+    from aatest.plugins.analysis.transfer_function import TransferFunctionAnalysis
+
+    return model, TransferFunctionAnalysis().run(data, ctx)
+
+
+def test_transfer_function_against_twin(tf_run) -> None:  # type: ignore[no-untyped-def]
+    model, out = tf_run
+    v = out.values["v_sz"]
+    assert {"poles", "zeros", "delay_s", "fit_pct", "nAIC", "FPE", "num", "den", "dt"} <= set(v)
+    assert v["fit_pct"] > 95.0 and v["zeros_outside_unit_circle"] == 0
+    phys = v["second_order_delay"]
+    assert phys["natural_frequency_hz"] == pytest.approx(30.0, rel=0.05)
+    assert phys["damping"] == pytest.approx(0.9, rel=0.05)
+    assert phys["delay_s"] == pytest.approx(0.0015, abs=0.25e-3)
+    assert any(k.startswith("tf_v_sz") for k in out.figures)

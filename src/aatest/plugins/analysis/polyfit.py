@@ -125,6 +125,8 @@ def cross_validate(u: np.ndarray, y: np.ndarray, max_order: int = 15, random_spl
                    seed: int = 0, id_fraction: float = 0.25) -> dict[str, np.ndarray]:
     """Orders 0..max_order on a fixed first-25 % split and ``random_splits`` random ones.
 
+    One QR per split serves every order: the leading k columns of Q and R of the increasing
+    Vandermonde matrix are the QR factors of the order-(k−1) design.
     Returns per order (rows) and split (columns): validation RMSE and identification nAIC.
     """
     n = u.size
@@ -133,12 +135,18 @@ def cross_validate(u: np.ndarray, y: np.ndarray, max_order: int = 15, random_spl
     splits = [np.arange(n)] + [rng.permutation(n) for _ in range(random_splits)]
     rmse_val = np.zeros((max_order + 1, len(splits)))
     aic = np.zeros_like(rmse_val)
+    scale = float(np.max(np.abs(u))) or 1.0
     for j, perm in enumerate(splits):
         ident, valid = perm[:n_id], perm[n_id:]
+        q, r = scipy.linalg.qr(np.vander(u[ident] / scale, max_order + 1, increasing=True),
+                               mode="economic")
+        qty = q.T @ y[ident]
+        design_val = np.vander(u[valid] / scale, max_order + 1, increasing=True)
         for p in range(max_order + 1):
-            fit = fit_polynomial(u[ident], y[ident], p)
-            rmse_val[p, j] = np.sqrt(np.mean((y[valid] - fit(u[valid])) ** 2))
-            aic[p, j] = naic(fit.sse / n_id, p + 1, n_id)
+            coef = scipy.linalg.solve_triangular(r[:p + 1, :p + 1], qty[:p + 1])
+            rmse_val[p, j] = np.sqrt(np.mean((y[valid] - design_val[:, :p + 1] @ coef) ** 2))
+            sse = max(float(y[ident] @ y[ident] - qty[:p + 1] @ qty[:p + 1]), 1e-300)
+            aic[p, j] = naic(sse / n_id, p + 1, n_id)
     return {"rmse_validation": rmse_val, "naic": aic}
 
 
