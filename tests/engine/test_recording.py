@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import Writer
 from recording_data import SENSOR, run_meta, sine_step, step_logs
@@ -264,3 +266,35 @@ def test_step_without_run_metadata_still_recorded(tmp_path: Path) -> None:
     assert dataset.procedure == "unknown"
     assert [s.channel for s in dataset.sensors] == ["v_sz"]
     assert "fp_latch_s" not in dataset.steps[0].table.channels
+
+
+@pytest.fixture(scope="module")
+def small_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[bytes, Dataset]:
+    run_dir = tmp_path_factory.mktemp("small")
+    record_run(run_dir, n_steps=2, samples=5000)
+    path = RunRecorder(run_dir).finalize()
+    return path.read_bytes(), read_dataset(path)
+
+
+@settings(max_examples=80, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cut=st.integers(min_value=0), flips=st.lists(
+    st.tuples(st.integers(min_value=0), st.integers(min_value=1, max_value=255)), max_size=4))
+def test_damaged_recording_is_an_error_or_unchanged(
+    tmp_path_factory: pytest.TempPathFactory, small_recording: tuple[bytes, Dataset],
+    cut: int, flips: list[tuple[int, int]],
+) -> None:
+    """Never another exception, and never silently different samples (chunk CRCs)."""
+    data, reference = small_recording
+    damaged = bytearray(data[: len(data) - cut % 64 if cut % 3 == 0 else len(data)])
+    for position, mask in flips:
+        damaged[position % len(damaged)] ^= mask
+    path = tmp_path_factory.mktemp("damaged") / "recording.mcap"
+    path.write_bytes(bytes(damaged))
+    try:
+        dataset = read_dataset(path)
+    except RecordingError:
+        return
+    for mine, ref in zip(dataset.steps, reference.steps, strict=True):
+        assert_logs_equal(ref.table, mine.table)
+        assert_logs_equal(ref.daq, mine.daq)

@@ -140,7 +140,7 @@ def _read_file(path: Path) -> _FileContents:
 
 
 def _decode(stream: Any, path: Path) -> _FileContents:
-    reader = make_reader(stream)
+    reader = make_reader(stream, validate_crcs=True)  # flipped bits must not pass
     header = reader.get_header()
     if header.profile != fmt.PROFILE:
         raise RecordingError(f"{path}: not an aatest recording (MCAP profile {header.profile!r})")
