@@ -105,8 +105,10 @@ def table_sync(edge_times_s: np.ndarray, rising: np.ndarray, level_before: float
     dt = table_time_s[1] - table_time_s[0]
     first_row = np.ceil((edge_times_s - table_time_s[0]) / dt - 1e-9).astype(np.int64)
     reg_row = np.maximum(first_row, 0) + 1
-    rows = np.arange(table_time_s.size)
-    idx = np.searchsorted(reg_row, rows, side="right") - 1  # last registered edge per row
+    # index of the last edge registered at or before each row (O(n) with a running count)
+    inside = reg_row < table_time_s.size
+    counts = np.bincount(reg_row[inside], minlength=table_time_s.size)
+    idx = np.cumsum(counts) - 1
     after = np.where(rising, 1.0, 0.0)
     level = np.where(idx >= 0, after[np.maximum(idx, 0)], level_before)
     reg_time = table_time_s[0] + reg_row * dt

@@ -16,11 +16,11 @@ import numpy as np
 _TWO_PI = 2.0 * np.pi
 
 
-def sincos32(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(sin x, cos x) as float64 arrays, absolute error < 3e-7 (radians in)."""
+def sincos32(x: np.ndarray, dtype: type = np.float64) -> tuple[np.ndarray, np.ndarray]:
+    """(sin x, cos x), absolute error < 3e-7 (radians in); ``dtype`` of the result."""
     x = np.asarray(x, dtype=np.float64)
     r = (x - _TWO_PI * np.rint(x * (1.0 / _TWO_PI))).astype(np.float32)
-    return np.sin(r).astype(np.float64), np.cos(r).astype(np.float64)
+    return np.sin(r).astype(dtype, copy=False), np.cos(r).astype(dtype, copy=False)
 
 
 def standard_normal(rng: np.random.Generator, n: int) -> np.ndarray:

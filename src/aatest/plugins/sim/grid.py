@@ -35,6 +35,22 @@ class Grid:
         """The same grid ``by_s`` seconds later."""
         return Grid(self.start_s + by_s, self.dt_s, self.n)
 
+    def tone_sum(self, omega_rad_s: np.ndarray, phase_rad: np.ndarray,
+                 weights: np.ndarray) -> np.ndarray:
+        """Σ_k w_ok·exp(i(ω_k t + φ_k)) for several weight rows o at once: complex (o, n).
+
+        The block split makes the sum over K tones one small complex matrix product
+        ((o·rows × K) @ (K × B)) instead of K full-length passes per output.
+        """
+        omega = np.asarray(omega_rad_s, dtype=float)
+        weights = np.atleast_2d(weights)
+        rows = -(-self.n // _BLOCK)
+        coarse = np.exp(1j * (np.outer(np.arange(rows) * (_BLOCK * self.dt_s), omega)
+                              + omega * self.start_s + phase_rad))          # (rows, K)
+        fine = np.exp(1j * np.outer(omega * self.dt_s, np.arange(_BLOCK)))  # (K, B)
+        stacked = (coarse[None, :, :] * weights[:, None, :]).reshape(-1, omega.size)
+        return (stacked @ fine).reshape(weights.shape[0], -1)[:, : self.n]
+
     def phasor(self, omega_rad_s: float, phase_rad: float = 0.0) -> np.ndarray:
         """exp(i·(ω·t + φ)) at the grid times, complex (n,)."""
         a = omega_rad_s * self.start_s + phase_rad

@@ -120,13 +120,14 @@ def _apply_wobble(vec: np.ndarray, s: np.ndarray, c: np.ndarray, wobble_arcsec: 
 
     The bearing tilt is fixed relative to the outer gimbal, so the top sees it turn once per
     inner revolution: v' = v + w·(a × v) with a = R_z(ψ)ᵀ·e_P = (cos ψ, −sin ψ, 0).
+    Updates ``vec`` in place (callers pass freshly built arrays) and returns it.
     """
     w = wobble_arcsec * ARCSEC_RAD
     if w == 0.0:
         return vec
     a0, a1 = c, -s
-    out = vec.copy()
-    out[0] += w * (a1 * vec[2])
-    out[1] += w * (-a0 * vec[2])
-    out[2] += w * (a0 * vec[1] - a1 * vec[0])
-    return out
+    z = vec[2].copy()
+    vec[2] += w * (a0 * vec[1] - a1 * vec[0])
+    vec[0] += w * (a1 * z)
+    vec[1] -= w * (a0 * z)
+    return vec

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from functools import partial
 from typing import Any
 
 import numpy as np
@@ -58,13 +57,17 @@ class StepSetup:
 
 class LazyTruth(Mapping[str, Any]):
     """The truth of a step; expensive entries (noise-free volts, undelayed sensor-axis
-    acceleration) are computed on first access, so plugins that never look pay nothing."""
+    acceleration) are computed on first access, so plugins that never look pay nothing.
+
+    Deferred computations receive the mapping as their argument instead of closing over it:
+    a closure cycle would keep whole records alive until a full garbage collection.
+    """
 
     def __init__(self, **values: Any) -> None:
         self._values: dict[str, Any] = dict(values)
-        self._deferred: dict[str, Callable[[], Any]] = {}
+        self._deferred: dict[str, Callable[[LazyTruth], Any]] = {}
 
-    def defer(self, key: str, compute: Callable[[], Any]) -> None:
+    def defer(self, key: str, compute: Callable[[LazyTruth], Any]) -> None:
         self._deferred[key] = compute
 
     def __setitem__(self, key: str, value: Any) -> None:
@@ -75,7 +78,7 @@ class LazyTruth(Mapping[str, Any]):
 
     def __getitem__(self, key: str) -> Any:
         if key not in self._values and key in self._deferred:
-            self._values[key] = self._deferred.pop(key)()
+            self._values[key] = self._deferred.pop(key)(self)
         return self._values[key]
 
     def __iter__(self) -> Iterator[str]:
@@ -117,8 +120,16 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
     truth.update(time_s=time_s, angle_deg=truth[f"{moving}_angle_deg"],
                  rate_dps=truth[f"{moving}_rate_dps"], accel_dps2=truth[f"{moving}_accel_dps2"])
     log = SampledLog(TABLE, step.sample_rate_hz, time_s,
-                     {c: channels[c] for c in TABLE_CHANNELS}, dict(TABLE_CHANNELS))
+                     _read_only({c: channels[c] for c in TABLE_CHANNELS}), dict(TABLE_CHANNELS))
     return log, truth
+
+
+def _read_only(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Hand fresh arrays to the (immutable) log without the defensive copy it makes of
+    writeable ones; nothing else holds them for writing."""
+    for values in channels.values():
+        values.flags.writeable = False
+    return channels
 
 
 def _table_pulse(setup: StepSetup, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -170,17 +181,19 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s)
         clean = output_volts(sensor, inp, model.t_ref_c)
         channels[sensor.channel] = record_channel(clean, sensor, model.daq, clock.lab_dt_s, rng)
-        truth.defer(f"volts_{sensor.channel}", partial(noiseless, clean, model.daq, clock.lab_dt_s))
+        truth.defer(f"volts_{sensor.channel}",
+                    lambda _, c=clean: noiseless(c, model.daq, clock.lab_dt_s))
     for sensor in model.sensors:  # true acceleration along each sensitive axis, undelayed
         axis_z = setup.axes[sensor.channel][:, 2]
-        truth.defer(f"alpha_{sensor.channel}", lambda z=axis_z: z @ _undelayed(setup, grid, motion))
-    truth.defer("sensor_accel_dps2", lambda: {s.channel: truth[f"alpha_{s.channel}"]
-                                              for s in model.sensors})
+        truth.defer(f"alpha_{sensor.channel}",
+                    lambda _, z=axis_z: z @ _undelayed(setup, grid, motion))
+    channels_of = [s.channel for s in model.sensors]
+    truth.defer("sensor_accel_dps2", lambda t: {ch: t[f"alpha_{ch}"] for ch in channels_of})
     channels["sync_pulse"] = clock.sync_level(clock.daq_times(n))
     channels["trigger"] = (np.arange(n) >= setup.trigger_index).astype(np.float64)
     channels["temperature_c"] = np.round(temperature, 2)
     units = {c: "V" for c in channels if c.startswith("v_")} | dict(DAQ_AUX_CHANNELS)
-    log = SampledLog(DAQ, clock.sample_rate_hz, clock.stamped(n, rng), channels, units)
+    log = SampledLog(DAQ, clock.sample_rate_hz, clock.stamped(n, rng), _read_only(channels), units)
     return log, truth
 
 

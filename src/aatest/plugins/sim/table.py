@@ -37,14 +37,10 @@ class Tones:
 
     def evaluate(self, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(angle_deg, rate_dps, accel_dps2) of the vibration, zero-mean in all three."""
-        angle, rate, accel = np.zeros(grid.n), np.zeros(grid.n), np.zeros(grid.n)
-        for f, a, p in zip(self.frequency_hz, self.amplitude_dps2, self.phase_rad, strict=True):
-            w = 2 * np.pi * f
-            z = grid.phasor(w, p)
-            accel += a * z.imag
-            rate -= (a / w) * z.real
-            angle -= (a / (w * w)) * z.imag
-        return angle, rate, accel
+        w = 2 * np.pi * self.frequency_hz
+        a = self.amplitude_dps2
+        sums = grid.tone_sum(w, self.phase_rad, np.stack([a, a / w, a / (w * w)]))
+        return -sums[2].imag, -sums[1].real, sums[0].imag
 
 
 def make_vibration(model: MotorVibration | None, rng: np.random.Generator) -> Tones | None:
@@ -108,19 +104,23 @@ def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: 
     sensitivity at the instantaneous ripple frequency (quasi-static: exact at constant rate).
     """
     k = 2 * np.pi * ripple.cycles_per_deg  # rad per degree
-    sin, cos = sincos32(k * angle + ripple.phase_rad)  # ripple ≈ 1″: 3e-7 relative is plenty
-    a = ripple.amplitude_deg
+    # the ripple is ≈1″: its terms are computed in single precision (relative 3e-7 is plenty)
+    sin, cos = sincos32(k * angle + ripple.phase_rad, np.float32)
+    a = np.float32(ripple.amplitude_deg)
     if ripple.rejection_bandwidth_hz is None:
         s, c = a * sin, a * cos
     else:
         # S(jr) = (jr)³/(1 + jr)³ = −j·r³ / (d_re + j·d_im), in real arithmetic for speed
-        r = (ripple.cycles_per_deg / ripple.rejection_bandwidth_hz) * np.abs(rate)
-        r3 = r * r * r
-        d_re, d_im = 1.0 - 3.0 * r * r, 3.0 * r - r3
+        r = np.abs(rate).astype(np.float32) * np.float32(
+            ripple.cycles_per_deg / ripple.rejection_bandwidth_hz)
+        r2 = r * r
+        r3 = r2 * r
+        d_re, d_im = 1.0 - 3.0 * r2, 3.0 * r - r3
         scale = (-a) * r3 / (d_re * d_re + d_im * d_im)
         s_re, s_im = scale * d_im, scale * d_re
         s, c = sin * s_re + cos * s_im, cos * s_re - sin * s_im
-    return angle + s, rate + k * rate * c, accel + k * accel * c - (k * rate) ** 2 * s
+    krate = k * rate
+    return angle + s, rate + krate * c, accel + k * accel * c - krate * krate * s
 
 
 def _noisy(values: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
