@@ -334,6 +334,7 @@ class SimController:
         try:
             result = self.world.result()
         except Exception as exc:  # noqa: BLE001 - reported through the fault word
+            log.error("twin synthesis failed: %s: %s", type(exc).__name__, exc)
             with self._lock:
                 record.error = str(exc)
                 self._trip(Fault.SERVO_ERROR)
