@@ -93,7 +93,8 @@ def main() -> None:
     print(f"steps: {len(steps)}  samples/step: {steps[0].samples}  channels: {len(model.sensors)}")
     print(f"simulated lab time: {lab_s:.1f} s  wall time: {wall_s:.2f} s  CPU time: {cpu_s:.2f} s "
           f"({1e3 * wall_s / len(steps):.1f} ms/step wall, {1e3 * cpu_s / len(steps):.1f} ms CPU)")
-    print(f"lab time / wall time: {lab_s / wall_s:.0f}x   lab time / CPU time: {lab_s / cpu_s:.0f}x")
+    print(f"lab time / wall time: {lab_s / wall_s:.0f}x   "
+          f"lab time / CPU time: {lab_s / cpu_s:.0f}x")
     print(f"peak memory: {rss_peak_mib:.0f} MiB RSS (process), "
           f"{traced_peak / 2**20:.0f} MiB traced in one step's synthesis")
 

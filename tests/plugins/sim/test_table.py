@@ -113,8 +113,6 @@ def test_controller_refuses_beyond_limits() -> None:
 
 
 def test_outer_unbalance_leaks_into_the_perpendicular_axis() -> None:
-    from aatest.plugins.sim.api import sensor_infos  # noqa: F401 - API smoke
-
     base = realistic_rig_model("sr207-aamu")
     model = base.model_copy(update={"table": base.table.model_copy(
         update={"unbalance_parasitic_dps2_per_dps2": 0.02})})

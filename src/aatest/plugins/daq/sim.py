@@ -35,7 +35,8 @@ class SimDaq:
         """Put the slip ring in the sensor path when configured (idempotent)."""
         world = self.world
         if self.config.slip_ring and world.model.daq.slip_ring is None:
-            daq = world.model.daq.model_copy(update={"slip_ring": ExcessNoise(rms_v=SLIP_RING_RMS_V)})
+            ring = ExcessNoise(rms_v=SLIP_RING_RMS_V)
+            daq = world.model.daq.model_copy(update={"slip_ring": ring})
             world.model = world.model.model_copy(update={"daq": daq})
 
     @property

@@ -33,7 +33,8 @@ RANGE_DPS2 = 572.958
 SCALE_V_PER_DPS2 = 0.004014
 
 #: per-channel individual terms of the simulated units: (axis, bias_v, misalignment azimuth °)
-_UNIT_CHANNELS = {"v_sz": ("I", 2.499, 30.0), "v_sy": ("O", 2.495, 150.0), "v_sx": ("P", 2.502, 260.0)}
+_UNIT_CHANNELS = {"v_sz": ("I", 2.499, 30.0), "v_sy": ("O", 2.495, 150.0),
+                  "v_sx": ("P", 2.502, 260.0)}
 
 
 def sensor_model(channel: str = "v_sz", axis: str = "I", bias_v: float = 2.499,

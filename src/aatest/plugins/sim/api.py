@@ -17,6 +17,7 @@ from aatest.engine.steps import PlannedStep
 from aatest.plugins.sim.model import (
     ClockDrift,
     DaqModel,
+    ExcessNoise,
     MotorVibration,
     RateRipple,
     RigModel,
@@ -110,7 +111,8 @@ def simulate_dataset(model: RigModel, steps: Sequence[PlannedStep], seed: int, *
     return Dataset(procedure=procedure, sample_rate_hz=first,
                    sensors=sensors if sensors is not None else sensor_infos(model),
                    steps=tuple(data), source=Path(f"<sim seed={seed}>"),
-                   metadata={"simulated": True, "seed": seed, "model": model.model_dump(mode="json")})
+                   metadata={"simulated": True, "seed": seed,
+                             "model": model.model_dump(mode="json")})
 
 
 def realistic_rig_model(sensors: str | Sequence[SensorModel] = "sr207",
@@ -138,8 +140,6 @@ def realistic_rig_model(sensors: str | Sequence[SensorModel] = "sr207",
         "outer": base.outer.model_copy(update=axis),
         "unbalance_parasitic_dps2_per_dps2": 0.01,
     })
-    from aatest.plugins.sim.model import ExcessNoise
-
     daq = DaqModel(clock_drift=ClockDrift(drift_ppm=drift_ppm),
                    slip_ring=ExcessNoise(rms_v=0.011) if slip_ring else None)
     return RigModel(sensors=list(sensors), table=table, daq=daq)

@@ -61,7 +61,8 @@ class Grid:
         return np.multiply.outer(coarse, fine).ravel()[: self.n]
 
 
-def sincos_deg(angle_deg: np.ndarray, moving: bool, ref_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def sincos_deg(angle_deg: np.ndarray, moving: bool,
+               ref_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """(sin, cos) of an angle; for an axis held at ``ref_deg`` (tiny vibration/drift only) a
     first-order expansion is exact to ~1e-11 and avoids two transcendental passes."""
     if moving:  # single precision suffices: these only rotate small outer-axis/gravity terms

@@ -115,7 +115,8 @@ def gravity_top(inner_sincos: tuple[np.ndarray, np.ndarray],
     return _apply_wobble(up, s, c, gimbal.wobble_arcsec)
 
 
-def _apply_wobble(vec: np.ndarray, s: np.ndarray, c: np.ndarray, wobble_arcsec: float) -> np.ndarray:
+def _apply_wobble(vec: np.ndarray, s: np.ndarray, c: np.ndarray,
+                  wobble_arcsec: float) -> np.ndarray:
     """Tilt by the wobble angle about a direction fixed in the inner-base frame (small angle).
 
     The bearing tilt is fixed relative to the outer gimbal, so the top sees it turn once per

@@ -88,7 +88,8 @@ def step_profiles(step: PlannedStep, t0_s: float) -> tuple[AxisProfile, AxisProf
     inner = AxisProfile(start_deg=step.inner_deg, t0_s=t0_s)
     outer = AxisProfile(start_deg=step.outer_deg, t0_s=t0_s)
     if step.kind == "sine":
-        sine = {"amplitude_deg": sine_amplitude_deg(step), "frequency_hz": float(step.frequency_hz or 0)}
+        sine = {"amplitude_deg": sine_amplitude_deg(step),
+                "frequency_hz": float(step.frequency_hz or 0)}
         if step.axis == "outer":
             outer = AxisProfile(start_deg=step.outer_deg, t0_s=t0_s, **sine)
         else:

@@ -130,5 +130,6 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
     if model.bias_temperature is not None:
         volts = volts + model.bias_temperature.coefficient_v_per_c * d_temp
     if model.jerk_sensitivity is not None:
-        volts = volts + model.jerk_sensitivity.coefficient_v_per_dps3 * np.gradient(sensed, inp.dt_s)
+        jerk = np.gradient(sensed, inp.dt_s)
+        volts = volts + model.jerk_sensitivity.coefficient_v_per_dps3 * jerk
     return volts

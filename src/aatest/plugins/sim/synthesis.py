@@ -103,7 +103,8 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
     grid = Grid(setup.trigger_time_s - STENCIL_PAD * dt, dt, step.samples + 2 * STENCIL_PAD)
     channels: dict[str, np.ndarray] = {}
     truth: dict[str, Any] = {}
-    for name, axis, axis_model in (("inner", setup.inner, tm.inner), ("outer", setup.outer, tm.outer)):
+    axes = (("inner", setup.inner, tm.inner), ("outer", setup.outer, tm.outer))
+    for name, axis, axis_model in axes:
         angle, rate, accel = axis.evaluate(grid)
         est = estimates(angle, axis_model, dt, tm.estimator, rng)
         channels[f"{name}_position_deg"] = est["position_deg"]

@@ -13,7 +13,7 @@ import hashlib
 
 import numpy as np
 
-from aatest.engine.errors import EnvelopeRefused, PluginError
+from aatest.engine.errors import EnvelopeRefused, PluginError, RigFault
 from aatest.engine.interfaces import RigContext
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.sim import kinematics as kin
@@ -109,7 +109,8 @@ class World:
     def move_to(self, inner_deg: float, outer_deg: float) -> None:
         """Position both axes; advances lab time by a limit-rate move (trapezoidal estimate)."""
         t = 0.0
-        for name, delta in (("inner", inner_deg - self.inner_deg), ("outer", outer_deg - self.outer_deg)):
+        deltas = (("inner", inner_deg - self.inner_deg), ("outer", outer_deg - self.outer_deg))
+        for name, delta in deltas:
             ax = getattr(self.model.table, name)
             t = max(t, abs(delta) / ax.rate_limit_dps + ax.rate_limit_dps / ax.accel_limit_dps2
                     if delta else 0.0)
@@ -123,7 +124,8 @@ class World:
         motor = step.motor_on and self.motor_on
         if not motor and (inner_p.moving or outer_p.moving):
             raise EnvelopeRefused(f"step {step.id}: motion commanded with the motor off")
-        truths = (self._axis_truth("inner", inner_p, motor), self._axis_truth("outer", outer_p, motor))
+        truths = (self._axis_truth("inner", inner_p, motor),
+                  self._axis_truth("outer", outer_p, motor))
         self.apply_mounting(step)
         self._motion = (step, *truths)
         self._result = None
@@ -150,7 +152,8 @@ class World:
         if self._result is not None:
             return self._result
         if self._motion is None or self._daq_start_s is None:
-            raise EnvelopeRefused("record requested without begin_motion and start_logging")
+            raise RigFault("simulated rig: record requested without begin_motion and "
+                           "start_logging")
         step, inner, outer = self._motion
         self._counter += 1
         setup = StepSetup(self.model, step, inner, outer, self.daq_clock(self._daq_start_s),
@@ -197,7 +200,8 @@ def shared_world(context: RigContext | None, model_path: str | None = None) -> W
         from aatest.engine.interfaces import SensorDatasheet
         from aatest.engine.steps import SensorRef
 
-        context = RigContext(sensor=SensorRef(model="sr207"), datasheet=SensorDatasheet(model="sr207"))
+        context = RigContext(sensor=SensorRef(model="sr207"),
+                             datasheet=SensorDatasheet(model="sr207"))
     world = context.shared.get(SHARED_KEY)
     known = context.shared.get(SHARED_KEY + ".model_path")
     if world is not None and model_path and known not in (None, model_path):
