@@ -11,7 +11,13 @@ from typing import Any
 import pytest
 
 from aatest.engine import registry
-from aatest.engine.signing import generate_keypair, key_fingerprint, load_private_key, sign_bundle, verify_bundle
+from aatest.engine.signing import (
+    generate_keypair,
+    key_fingerprint,
+    load_private_key,
+    sign_bundle,
+    verify_bundle,
+)
 from aatest.plugins.report.html import (
     CalibrationCertificate,
     DiagnosisReport,
@@ -25,7 +31,8 @@ DIAGNOSIS = {
     "baseline": {"rmse_v": 0.0123},
     "findings": [{"effect": "bias_temperature", "parameters": {"coefficient_v_per_c": 0.00041},
                   "ci95": {"coefficient_v_per_c": [0.00038, 0.00044]},
-                  "evidence": {"delta_bic": -4521.0, "rmse_v_before": 0.0123, "rmse_v_after": 0.00102}}],
+                  "evidence": {"delta_bic": -4521.0, "rmse_v_before": 0.0123,
+                               "rmse_v_after": 0.00102}}],
     "gain": {"rmse_v_before": 0.0123, "rmse_v_after": 0.00102, "reduction_pct": 91.7},
     "candidates": [{"effect": "time_delay", "delta_bic": 3.1, "accepted": False},
                    {"effect": "bias_temperature", "delta_bic": -4521.0, "accepted": True}],
@@ -89,7 +96,8 @@ def test_verdict_fails_outside_datasheet(results: dict[str, Any], run_dir: Path)
 
 
 def test_tampered_figure_is_withheld(results: dict[str, Any], run_dir: Path) -> None:
-    results["figures"]["noise"]["psd"] = '<svg xmlns="http://www.w3.org/2000/svg" onload="alert(1)"/>'
+    results["figures"]["noise"]["psd"] = (
+        '<svg xmlns="http://www.w3.org/2000/svg" onload="alert(1)"/>')
     html = FAST.render(results, run_dir, None).read_text()
     assert "alert(1)" not in html and "figure withheld: event attribute onload" in html
 
@@ -114,7 +122,8 @@ def test_diagnosis_report(run_dir: Path) -> None:
     assert "91.7" in text and path.read_text().count("<svg") == 2
 
 
-def test_signed_certificate_round_trip(results: dict[str, Any], run_dir: Path, tmp_path: Path) -> None:
+def test_signed_certificate_round_trip(results: dict[str, Any], run_dir: Path,
+                                       tmp_path: Path) -> None:
     """Runner flow: fingerprint into results, render, write results, sign; then tamper."""
     key = tmp_path / "lab.key"
     generate_keypair(key)
@@ -126,4 +135,5 @@ def test_signed_certificate_round_trip(results: dict[str, Any], run_dir: Path, t
     assert verify_bundle(report).ok
     results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.4
     FAST.render(results, run_dir, None)
-    assert verify_bundle(report).reasons == ["report.html: modified (sha256 differs from the signed value)"]
+    assert verify_bundle(report).reasons == [
+        "report.html: modified (sha256 differs from the signed value)"]

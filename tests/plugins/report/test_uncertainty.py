@@ -33,7 +33,8 @@ def _measurands(results: dict[str, Any]) -> dict[str, Measurand | None]:
     return {
         "scale": sf,
         "bias": bias_measurand(results, "v_sz", C),
-        "g": g_sensitivity_measurand(results, "v_sz", C, sf_eval.standard_uncertainty / sf_eval.value),
+        "g": g_sensitivity_measurand(results, "v_sz", C,
+                                     sf_eval.standard_uncertainty / sf_eval.value),
         "g_nominal_k": g_sensitivity_measurand(results, "v_sy", C, None),
         "tc_bias": temperature_measurand(results, "v_sy", "bias_coefficient_v_per_c", C),
         "tc_scale": temperature_measurand(results, "v_sx", "scale_coefficient_per_c", C),
@@ -44,7 +45,8 @@ def _measurands(results: dict[str, Any]) -> dict[str, Measurand | None]:
     }
 
 
-NAMES = ["scale", "bias", "g", "g_nominal_k", "tc_bias", "tc_scale", "gain_low", "gain_high", "phase_high",
+NAMES = ["scale", "bias", "g", "g_nominal_k", "tc_bias", "tc_scale", "gain_low", "gain_high",
+         "phase_high",
          "misalignment"]
 
 

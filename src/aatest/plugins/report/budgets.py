@@ -72,7 +72,8 @@ def _static(results: Mapping[str, Any], ch: str, c: RigConstants, out: Budgets) 
         scale_rel = ev.standard_uncertainty / abs(ev.value) if ev.value else None
     measurands = [("bias", bias_measurand(results, ch, c)),
                   ("g_sensitivity", g_sensitivity_measurand(results, ch, c, scale_rel))]
-    measurands += [(key, temperature_measurand(results, ch, key, c)) for key in TEMPERATURE_COEFFICIENTS]
+    measurands += [(key, temperature_measurand(results, ch, key, c))
+                   for key in TEMPERATURE_COEFFICIENTS]
     for key, measurand in measurands:
         if measurand is not None:
             out.by_key[f"{key}/{ch}"] = evaluate(measurand)

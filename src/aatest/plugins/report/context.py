@@ -101,7 +101,8 @@ def _misalignment_rows(results: Mapping[str, Any], budgets: Budgets) -> list[dic
     scenarios = (ex.analysis(results, "misalignment") or {}).get("scenarios") or {}
     return [{"scenario": s, "sensor": sensor, "delta_deg": (entry or {}).get("delta_deg"),
              "u": budgets.by_key.get(f"misalignment/{s}/{sensor}")}
-            for s, sensors in sorted(scenarios.items()) for sensor, entry in sorted((sensors or {}).items())]
+            for s, sensors in sorted(scenarios.items())
+            for sensor, entry in sorted((sensors or {}).items())]
 
 
 def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: str,
@@ -146,7 +147,8 @@ def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[s
     figures = _analysis_figures(results, {"diagnose"})
     bars = fig.diagnosis_bars(diag)
     if bars is not None:
-        figures.append({"section": "diagnose", "title": "candidates and gain", "svg": vet_svg(bars)})
+        figures.append({"section": "diagnose", "title": "candidates and gain",
+                        "svg": vet_svg(bars)})
     signature = results.get("signature") or {}
     return {
         "report": {"kind": "diagnosis", "title": "Diagnosis: what the simulation gets wrong",

@@ -40,7 +40,8 @@ def sensors(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
 
 def steps_of_kind(results: Mapping[str, Any], kind: str) -> list[Mapping[str, Any]]:
     """Step summaries of one kind (``static``, ``sine``, ``constant_rate``, ``chamber``)."""
-    return [s for s in results.get("steps") or [] if isinstance(s, Mapping) and s.get("kind") == kind]
+    steps = results.get("steps") or []
+    return [s for s in steps if isinstance(s, Mapping) and s.get("kind") == kind]
 
 
 def step_values(steps: Sequence[Mapping[str, Any]], key: str) -> list[float]:

@@ -168,7 +168,8 @@ def misalignment_plane(sets: Mapping[str, Any]) -> str | None:
 
 def diagnosis_bars(diagnosis: Mapping[str, Any]) -> str | None:
     """Candidates' ΔBIC (accepted highlighted) and the RMSE before/after the findings."""
-    candidates = [c for c in diagnosis.get("candidates") or [] if ex.as_float(c.get("delta_bic")) is not None]
+    candidates = [c for c in diagnosis.get("candidates") or []
+                  if isinstance(c, Mapping) and ex.as_float(c.get("delta_bic")) is not None]
     gain = diagnosis.get("gain") or {}
     if not candidates and not gain:
         return None

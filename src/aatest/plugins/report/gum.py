@@ -144,7 +144,8 @@ def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
         contribution = abs(c) * u_x
         share = 100.0 * contribution**2 / u_c**2 if u_c > 0 else 0.0
         rows.append(
-            BudgetRow(item.label, item.note, item.distribution, u_x, item.unit, c, contribution, share)
+            BudgetRow(item.label, item.note, item.distribution, u_x, item.unit, c, contribution,
+                      share)
         )
     return Evaluation(
         measurand.name, measurand.unit, float(getattr(y, "nominal_value", y)), u_c, k * u_c, k,
@@ -169,4 +170,5 @@ def monte_carlo(measurand: Measurand, draws: int = 200_000, seed: int = 0) -> Mo
     y = np.asarray(measurand.model(NUMPY_OPS, samples), dtype=float)
     y = np.broadcast_to(y, (draws,))
     lo, hi = np.quantile(y, [0.025, 0.975])
-    return MonteCarloResult(float(np.mean(y)), float(np.std(y, ddof=1)), (float(lo), float(hi)), draws)
+    return MonteCarloResult(float(np.mean(y)), float(np.std(y, ddof=1)), (float(lo), float(hi)),
+                            draws)

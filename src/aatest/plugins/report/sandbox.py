@@ -69,7 +69,8 @@ class _ReportEnvironment(ImmutableSandboxedEnvironment):
 
     def unsafe_undefined(self, obj: Any, attribute: str) -> Any:
         """Refuse at once (Jinja's default renders an empty string until the value is used)."""
-        raise SecurityError(f"access to attribute {attribute!r} of a {type(obj).__name__} is unsafe")
+        kind = type(obj).__name__
+        raise SecurityError(f"access to attribute {attribute!r} of a {kind} is unsafe")
 
     def call_binop(self, context: Any, operator: str, left: Any, right: Any) -> Any:
         if operator == "**" and isinstance(right, (int, float)) and abs(right) > _MAX_EXPONENT:

@@ -47,7 +47,8 @@ def _plugins(meta: Mapping[str, Any]) -> list[tuple[str, str]]:
     if isinstance(listed, Mapping):
         for role, info in sorted(listed.items()):
             if isinstance(info, Mapping):
-                text = " ".join(str(info[k]) for k in ("name", "distribution", "version") if k in info)
+                keys = ("name", "distribution", "version")
+                text = " ".join(str(info[k]) for k in keys if k in info)
             else:
                 text = str(info)
             rows.append((str(role), text))
@@ -87,7 +88,8 @@ def traceability(results: Mapping[str, Any], run_dir: Path) -> Traceability:
     """Collect the traceability block of a report."""
     meta = results.get("metadata") or {}
     text = str(meta.get("procedure_text") or "")
-    sha = str(meta.get("procedure_sha256") or (hashlib.sha256(text.encode()).hexdigest() if text else "—"))
+    computed = hashlib.sha256(text.encode()).hexdigest() if text else "—"
+    sha = str(meta.get("procedure_sha256") or computed)
     return Traceability(
         procedure=str(results.get("procedure") or meta.get("procedure") or "—"),
         procedure_sha256=sha,

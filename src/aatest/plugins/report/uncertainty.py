@@ -134,7 +134,7 @@ def scale_factor_measurand(results: Mapping[str, Any], channel: str,
     ]
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
-        fit = 1.0 + x.get("fit_reference", 0.0) + x.get("fit_noise", 0.0) + x.get("repeatability", 0.0)
+        fit = 1.0 + sum(x.get(k, 0.0) for k in ("fit_reference", "fit_noise", "repeatability"))
         return k_hat * fit / ((1.0 + x["position"]) * (1.0 + x["clock"]) ** 2 * (1.0 + x["wobble"]))
 
     return Measurand(f"scale factor {channel}", "V/(°/s²)", model, _inputs(inputs))
@@ -225,7 +225,8 @@ def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigCons
     tilt ε of the table reduces the ±1 g projection by cos ε.
     """
     entry = (ex.analysis(results, "bias") or {}).get(channel)
-    g_hat = ex.as_float(entry.get("g_sensitivity_dps2_per_g")) if isinstance(entry, Mapping) else None
+    g_hat = (ex.as_float(entry.get("g_sensitivity_dps2_per_g"))
+             if isinstance(entry, Mapping) else None)
     if g_hat is None:
         return None
     k_v = ex.as_float(entry.get("scale_v_per_dps2_used")) or ex.as_float(

@@ -55,14 +55,16 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
         Input("noise", "sensor noise (at the bin)", 0.0, _bin_noise_rel(point, results, c),
               "normal", "1", f"1/√(N·SNR), SNR {point.get('snr_db')} dB"),
         Input("position", "table position accuracy", 0.0, c.position_accuracy_arcsec / amp_arcsec,
-              "rectangular", "1", f"{c.position_accuracy_arcsec:g}″ over A = {amp_arcsec:.1f}″"),
+              "rectangular", "1",
+              f"{c.position_accuracy_arcsec:g}″ over A = {amp_arcsec:.1f}″"),
         Input("tilt", "wobble / orthogonality (axis tilt)", 0.0,
               math.hypot(c.wobble_arcsec, c.orthogonality_arcsec) * ARCSEC_RAD, "cosine_error",
               "1", "cos ε − 1"),
     )
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
-        return gain + 20.0 * ops.log10((1.0 + x["noise"]) / ((1.0 + x["position"]) * (1.0 + x["tilt"])))
+        reference = (1.0 + x["position"]) * (1.0 + x["tilt"])
+        return gain + 20.0 * ops.log10((1.0 + x["noise"]) / reference)
 
     return Measurand(f"FRF gain at {f_hz:.4f} Hz", "dB", model, inputs)
 
@@ -104,7 +106,7 @@ def _misalignment_excitation_dps2(results: Mapping[str, Any]) -> float:
 
 def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: str,
                            c: RigConstants) -> Measurand | None:
-    """δ = (arcsin(sin δ̂_e + n_o) − arcsin(sin δ̂_ep + n_p))·180/π/2 + (w_o − w_p)/2  [deg]."""
+    """δ = (arcsin(sin δ̂_e + n_o) − arcsin(sin δ̂_ep + n_p))·90/π + (w_o − w_p)/2  [deg]."""
     sets = (ex.analysis(results, "misalignment") or {}).get("sets") or {}
     original, pivoted = SCENARIO_SETS.get(scenario, (None, None))
     try:
@@ -114,7 +116,8 @@ def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: st
         return None
     channel = _channel_of(sensor, results)
     noise_v, source = ex.noise_rms_v(results, channel)
-    k_v = ex.as_float(ex.sensors(results).get(channel, {}).get("nominal_scale_v_per_dps2")) or 0.004014
+    sensor = ex.sensors(results).get(channel, {})
+    k_v = ex.as_float(sensor.get("nominal_scale_v_per_dps2")) or 0.004014
     main_v = k_v * _misalignment_excitation_dps2(results)
     rel = noise_v * math.sqrt(2.0 / c.record_samples) / main_v
     wobble_deg = c.wobble_arcsec / 3600.0

@@ -40,7 +40,8 @@ class Verdict:
     @property
     def within_uncertainty(self) -> bool:
         """True when U is larger than the margin: the decision is not clear-cut."""
-        return self.expanded_uncertainty is not None and self.expanded_uncertainty > abs(self.margin)
+        u = self.expanded_uncertainty
+        return u is not None and u > abs(self.margin)
 
     @property
     def verdict(self) -> str:
@@ -51,7 +52,8 @@ def _verdict(parameter: str, channel: str, value: float, nominal: float, unit: s
              limit: float, u: float | None = None) -> Verdict:
     deviation = value - nominal
     margin = limit - abs(deviation)
-    return Verdict(parameter, channel, value, nominal, unit, limit, deviation, margin, u, margin >= 0)
+    return Verdict(parameter, channel, value, nominal, unit, limit, deviation, margin, u,
+                   margin >= 0)
 
 
 def _limit(sensor: Mapping[str, Any], key: str, default: float) -> float:
@@ -102,7 +104,8 @@ def _thermal_verdicts(results: Mapping[str, Any], ch: str, sensor: Mapping[str, 
                              u.get(f"scale_coefficient_per_c/{ch}")))
     noise = (ex.analysis(results, "noise") or {}).get(ch) or {}
     if (n := ex.as_float(noise.get("rms_v"))) is not None:
-        rows.append(_verdict("output noise (RMS)", ch, n, 0.0, "V", _limit(sensor, "noise_rms_v", 0.003)))
+        limit = _limit(sensor, "noise_rms_v", 0.003)
+        rows.append(_verdict("output noise (RMS)", ch, n, 0.0, "V", limit))
     return rows
 
 
@@ -122,7 +125,8 @@ def _misalignment_verdicts(results: Mapping[str, Any], u: Mapping[str, float]) -
                 if ratio is not None and ratio >= worst.get(sensor, (-1.0, ""))[0]:
                     worst[sensor] = (ratio, f"set {label}, {key[-1]}")
     for sensor, (ratio, where) in sorted(worst.items()):  # the worst set decides
-        rows.append(_verdict(f"cross-axis ratio (worst: {where})", sensor, 100 * ratio, 0.0, "%", 1.0))
+        rows.append(_verdict(f"cross-axis ratio (worst: {where})", sensor, 100 * ratio, 0.0,
+                             "%", 1.0))
     return rows
 
 
