@@ -28,8 +28,13 @@ def daq_and_table_edges(sim: SimulatedStep) -> tuple[np.ndarray, np.ndarray]:
     return t_daq_all[idx], t_table
 
 
+def _without_edge_jitter(drift_ppm: float):
+    model = realistic_rig_model(drift_ppm=drift_ppm)
+    return model.model_copy(update={"daq": model.daq.model_copy(update={"sync_edge_jitter_s": 0.0})})
+
+
 def test_freeze_pulse_registered_one_cycle_late_with_latch_time() -> None:
-    model = realistic_rig_model(drift_ppm=0.0)
+    model = _without_edge_jitter(0.0)
     sim = simulate_step(model, static_step(samples=8192), seed=21)
     dt = 1 / 2000
     rows = rising_rows(sim.table["sync_pulse"])
@@ -73,3 +78,17 @@ def test_daq_starts_earlier_stops_later_and_triggers_the_table() -> None:
     pulse = np.asarray(sim.daq["sync_pulse"])
     assert set(np.unique(pulse)) == {0.0, 1.0}
     assert_allclose(np.mean(pulse), 0.5, atol=0.01)  # 10 samples high, 10 low
+
+
+def test_clock_relation_residual_is_a_few_microseconds() -> None:
+    """Latch-corrected table edges vs the DAQ clock: residual σ ≈ 2.4–3.5 µs (method.md §2)."""
+    sim = simulate_step(realistic_rig_model(), static_step(samples=20000), seed=24)
+    d_rows = rising_rows(sim.daq["sync_pulse"])
+    t_rows = rising_rows(sim.table["sync_pulse"])
+    t_table = sim.table.time_s[t_rows] - np.asarray(sim.table["fp_latch_s"])[t_rows]
+    # DAQ edge times from its sample clock (index / rate): the jittered stamps are not needed
+    t_daq = d_rows / sim.daq.sample_rate_hz
+    lab_of_daq = np.asarray(sim.truth["daq_time_s"])[d_rows]
+    t_daq = t_daq[np.searchsorted(lab_of_daq, t_table - 0.005)]
+    residual = t_table - np.polyval(np.polyfit(t_daq, t_table, 1), t_daq)
+    assert 2.4e-6 <= np.std(residual) <= 3.5e-6

@@ -140,7 +140,7 @@ def realistic_rig_model(sensors: str | Sequence[SensorModel] = "sr207",
         "outer": base.outer.model_copy(update=axis),
         "unbalance_parasitic_dps2_per_dps2": 0.01,
     })
-    daq = DaqModel(clock_drift=ClockDrift(drift_ppm=drift_ppm),
+    daq = DaqModel(clock_drift=ClockDrift(drift_ppm=drift_ppm), sync_edge_jitter_s=3e-6,
                    slip_ring=ExcessNoise(rms_v=0.011) if slip_ring else None)
     return RigModel(sensors=list(sensors), table=table, daq=daq)
 

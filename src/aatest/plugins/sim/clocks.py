@@ -35,6 +35,8 @@ class DaqClock:
         Sync pulse frequency on the DAQ clock.
     sync_phase
         Rising edges at DAQ times (m + sync_phase)/sync_hz, 0 < sync_phase < 1.
+    edge_jitter_s
+        RMS jitter of the physical pulse edges (DAQ seconds) around their nominal times.
     """
 
     t0_s: float
@@ -43,6 +45,7 @@ class DaqClock:
     jitter_s: float = 0.0
     sync_hz: float = 100.0
     sync_phase: float = 0.25
+    edge_jitter_s: float = 0.0
 
     @property
     def scale(self) -> float:
@@ -73,14 +76,22 @@ class DaqClock:
         frac = cycles - np.floor(cycles)
         return (frac < 0.5).astype(np.float64)
 
-    def edges(self, daq_start_s: float, daq_stop_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """(DAQ times, rising flags) of all pulse edges in [start, stop)."""
+    def edges(self, daq_start_s: float, daq_stop_s: float,
+              rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(DAQ times, rising flags) of the physical pulse edges in [start, stop).
+
+        With ``rng`` each edge carries the generator's timing jitter; the DAQ's own samples
+        of the pulse (:meth:`sync_level`) are taken on its clock and do not see it.
+        """
         m0 = int(np.floor(daq_start_s * self.sync_hz * 2)) - 2
         m1 = int(np.ceil(daq_stop_s * self.sync_hz * 2)) + 2
         half = np.arange(m0, m1)
         times = (half / 2.0 + self.sync_phase) / self.sync_hz
         keep = (times >= daq_start_s) & (times < daq_stop_s)
-        return times[keep], (half[keep] % 2 == 0)
+        times, rising = times[keep], (half[keep] % 2 == 0)
+        if rng is not None and self.edge_jitter_s > 0.0:
+            times = times + self.edge_jitter_s * rng.standard_normal(times.size)
+        return times, rising
 
 
 def table_sync(edge_times_s: np.ndarray, rising: np.ndarray, level_before: float,

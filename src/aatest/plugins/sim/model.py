@@ -214,6 +214,10 @@ class DaqModel(_Model):
     adc_bits: int = Field(16, ge=8, le=32)
     adc_range_v: tuple[float, float] = (0.0, 5.0)
     sync_pulse_hz: float = 100.0
+    sync_edge_jitter_s: float = Field(
+        0.0, ge=0, description="RMS timing jitter of the generated pulse edges (what the "
+        "table latches) against the DAQ's sample clock; ≈3 µs reproduces the measured "
+        "2.4–3.5 µs clock-relation residual (method.md §2)")
     slip_ring: ExcessNoise | None = None
 
 

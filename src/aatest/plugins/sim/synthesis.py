@@ -116,7 +116,7 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
         truth[f"{name}_rate_dps"] = rate[inner_slice]
         truth[f"{name}_accel_dps2"] = accel[inner_slice]
     time_s = np.arange(step.samples) * dt
-    channels["sync_pulse"], channels["fp_latch_s"] = _table_pulse(setup, time_s)
+    channels["sync_pulse"], channels["fp_latch_s"] = _table_pulse(setup, time_s, rng)
     moving = "outer" if step.axis == "outer" else "inner"
     truth.update(time_s=time_s, angle_deg=truth[f"{moving}_angle_deg"],
                  rate_dps=truth[f"{moving}_rate_dps"], accel_dps2=truth[f"{moving}_accel_dps2"])
@@ -133,11 +133,12 @@ def _read_only(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return channels
 
 
-def _table_pulse(setup: StepSetup, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _table_pulse(setup: StepSetup, time_s: np.ndarray,
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Sync pulse as registered by the table, with the latch times (table clock)."""
     clock, trig = setup.clock, setup.trigger_time_s
     daq_span = (np.array([time_s[0] - 0.05, time_s[-1] + 0.05]) + trig - clock.t0_s) / clock.scale
-    edge_daq, rising = clock.edges(float(daq_span[0]), float(daq_span[1]))
+    edge_daq, rising = clock.edges(float(daq_span[0]), float(daq_span[1]), rng)
     edge_table = clock.lab_time(edge_daq) - trig
     level_before = 0.0 if rising[0] else 1.0
     return table_sync(edge_table, rising, level_before, time_s)

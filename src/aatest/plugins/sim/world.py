@@ -141,7 +141,7 @@ class World:
         daq = self.model.daq
         drift = daq.clock_drift.drift_ppm if daq.clock_drift is not None else 0.0
         return DaqClock(t0_s, daq.sample_rate_hz, drift, daq.timestamp_jitter_s,
-                        daq.sync_pulse_hz, self.sync_phase)
+                        daq.sync_pulse_hz, self.sync_phase, daq.sync_edge_jitter_s)
 
     def start_daq(self) -> None:
         self._daq_start_s = self.lab_time_s
