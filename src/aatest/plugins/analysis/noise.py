@@ -1,0 +1,98 @@
+"""Output noise of the sensors at rest: PSD, band RMS and Allan deviation (method.md §1.3).
+
+From the static steps: Welch PSD of the output (V²/Hz), RMS in the datasheet band DC–400 Hz
+(mean removed) against the datasheet limit, and the overlapping Allan deviation of the output
+expressed in °/s² (allantools, frequency data) on the longest record, with the usual noise
+terms read off the log-log curve: white noise N (slope −½, σ·√τ), bias instability B
+(flat minimum / 0.664) and random walk K (slope +½, σ/√(τ/3)).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from scipy import signal
+
+from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.plugins.analysis._common import new_figure, to_svg
+from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+
+BAND_HZ = 400.0
+_SLOPE_TOL = 0.15
+
+
+def band_rms(volts: np.ndarray, fs_hz: float, band_hz: float = BAND_HZ
+             ) -> tuple[float, np.ndarray, np.ndarray]:
+    """RMS (V) of the mean-removed output between DC and ``band_hz``, with the Welch PSD."""
+    nperseg = int(min(volts.size, 2**13))
+    f, psd = signal.welch(np.asarray(volts, dtype=float) - np.mean(volts), fs=fs_hz,
+                          nperseg=nperseg, detrend="constant")
+    inband = f <= band_hz
+    return float(np.sqrt(np.trapezoid(psd[inband], f[inband]))), f, psd
+
+
+def allan_terms(rate: np.ndarray, fs_hz: float) -> dict[str, Any]:
+    """Overlapping Allan deviation of a rate-like signal and its noise terms."""
+    import allantools
+
+    taus, adev, _, _ = allantools.oadev(np.asarray(rate, dtype=float), rate=fs_hz,
+                                        data_type="freq", taus="octave")[:4]
+    taus, adev = np.asarray(taus), np.asarray(adev)
+    slope = np.gradient(np.log(adev), np.log(taus)) if taus.size > 2 else np.zeros_like(taus)
+    white = np.abs(slope + 0.5) < _SLOPE_TOL
+    walk = np.abs(slope - 0.5) < _SLOPE_TOL
+    return {
+        "tau_s": taus.tolist(), "adev": adev.tolist(),
+        "white_noise_per_sqrt_hz": float(np.median(adev[white] * np.sqrt(taus[white])))
+        if white.any() else None,
+        "bias_instability": float(adev.min() / 0.664) if adev.size else None,
+        "random_walk": float(np.median(adev[walk] / np.sqrt(taus[walk] / 3.0)))
+        if walk.any() else None,
+    }
+
+
+def sensor_noise(steps: list[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: float
+                 ) -> tuple[dict[str, Any], str]:
+    """Noise figures of one sensor over its static steps, and the PSD/Allan figure."""
+    fs = steps[0].sample_rate_hz
+    rms = [band_rms(s.daq[sensor.channel], fs)[0] for s in steps]
+    longest = max(steps, key=len)
+    volts = np.asarray(longest.daq[sensor.channel], dtype=float)
+    _, f, psd = band_rms(volts, fs)
+    allan = allan_terms((volts - volts.mean()) / scale_v_per_dps2, fs)
+    worst = float(max(rms))
+    values = {"rms_v": float(np.mean(rms)), "rms_max_v": worst, "rms_per_step_v": rms,
+              "rms_dps2": float(np.mean(rms)) / scale_v_per_dps2, "band_hz": BAND_HZ,
+              "within_datasheet": bool(worst <= sensor.noise_rms_v),
+              "psd_floor_v_per_sqrt_hz": float(np.sqrt(np.median(psd[(f > 1) & (f < BAND_HZ)]))),
+              "allan_dps2": allan, "record_step": longest.step.id}
+    fig, ax = new_figure(2, height_in=2.4)
+    ax[0, 0].loglog(f[1:], np.sqrt(psd[1:]))
+    ax[0, 0].set(xlabel="frequency / Hz", ylabel="V/√Hz", title=f"noise {sensor.channel}")
+    ax[1, 0].loglog(allan["tau_s"], allan["adev"], "o-", ms=3)
+    ax[1, 0].set(xlabel="τ / s", ylabel="Allan dev. / (°/s²)")
+    fig.tight_layout()
+    return values, to_svg(fig)
+
+
+class NoiseAnalysis:
+    """PSD, DC–400 Hz RMS and Allan deviation of every sensor from the static records."""
+
+    key: ClassVar[str] = "noise"
+
+    def applies_to(self, data: Dataset) -> bool:
+        return any(s.step.kind == "static" for s in data.steps)
+
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
+        static = [s for s in synced_steps(data, context) if s.step.kind == "static"]
+        calibrated = context.cache.get("scale_factor", {})
+        values: dict[str, Any] = {}
+        figures: dict[str, str] = {}
+        for sensor in data.sensors:
+            scale = float(calibrated.get(sensor.channel, {}).get(
+                "scale_v_per_dps2", sensor.nominal_scale_v_per_dps2))
+            values[sensor.channel], figures[f"noise_{sensor.channel}"] = sensor_noise(
+                static, sensor, scale)
+        return AnalysisOutput(values=values, figures=figures)

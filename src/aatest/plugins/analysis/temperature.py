@@ -1,0 +1,155 @@
+"""Temperature test: bias and scale factor against sensor temperature (method.md §4.2).
+
+The sensor temperature of a step is the mean of the DAQ's ``temperature_c`` channel (else the
+chamber set-point). Static steps give the bias line V = b0 + c·(T − 25 °C) (+ a gravity term
+when orientations differ), its slope with 95 % bounds against the ±0.4 mV/°C datasheet limit,
+the hysteresis between the cooling and the heating branch (largest difference of the two
+branches interpolated on their common temperatures) and the noise at every step. Sine steps
+(the dynamic variant) give the FRF gain per temperature and so the scale-factor coefficient
+K(T) = K₀(1 + c·(T − 25 °C)) against 0.05 %/°C.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.plugins.analysis._common import fundamental, input_accel_dps2, is_excited, t95
+from aatest.plugins.analysis.bias import gravity_along_g
+from aatest.plugins.analysis.polyfit import fit_polynomial
+from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+
+T_REF_C = 25.0
+_MIN_SPAN_C = 5.0
+
+
+def step_temperature_c(step: SyncedStep) -> float | None:
+    """Mean sensor temperature of a step, °C (None when neither log nor plan has one)."""
+    temp = step.daq.get("temperature_c")
+    if temp is not None and np.all(np.isfinite(temp)):
+        return float(np.mean(temp))
+    return step.step.temperature_c
+
+
+def _slope(x: np.ndarray, y: np.ndarray, extra: np.ndarray | None = None
+           ) -> tuple[float, float, float, float]:
+    """Intercept, slope, slope std uncertainty and 95 % half-width of y = a + b·x (+ c·extra)."""
+    cols = [np.ones_like(x), x] + ([extra] if extra is not None and np.ptp(extra) > 0.5 else [])
+    design = np.column_stack(cols)
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    resid = y - design @ coef
+    dof = max(y.size - design.shape[1], 1)
+    cov = np.linalg.pinv(design.T @ design) * float(resid @ resid) / dof
+    u = float(np.sqrt(cov[1, 1]))
+    return float(coef[0]), float(coef[1]), u, t95(dof) * u
+
+
+def branches(temps: np.ndarray) -> np.ndarray:
+    """+1 for steps on a heating branch, −1 on a cooling branch (by the step sequence)."""
+    diff = np.diff(temps, prepend=temps[0])
+    sign = np.sign(diff)
+    for i in range(sign.size):  # a step that does not move keeps its predecessor's branch
+        if sign[i] == 0:
+            sign[i] = sign[i - 1] if i else -1
+    return sign
+
+
+def hysteresis_v(temps: np.ndarray, values: np.ndarray) -> float | None:
+    """Largest |heating − cooling| difference on the branches' common temperature range."""
+    side = branches(temps)
+    cool, heat = side < 0, side > 0
+    if cool.sum() < 2 or heat.sum() < 2:
+        return None
+    lo = max(temps[cool].min(), temps[heat].min())
+    hi = min(temps[cool].max(), temps[heat].max())
+    if hi <= lo:
+        return None
+    grid = np.linspace(lo, hi, 50)
+    oc, oh = np.argsort(temps[cool]), np.argsort(temps[heat])
+    v_cool = np.interp(grid, temps[cool][oc], values[cool][oc])
+    v_heat = np.interp(grid, temps[heat][oh], values[heat][oh])
+    return float(np.max(np.abs(v_heat - v_cool)))
+
+
+def bias_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, Any]:
+    """Bias slope, hysteresis and noise of one sensor over the static steps."""
+    temps = np.array([step_temperature_c(s) for s in steps], dtype=float)
+    volts = np.array([float(np.mean(s.daq[sensor.channel])) for s in steps])
+    noise = np.array([float(np.std(s.daq[sensor.channel])) for s in steps])
+    g = np.array([gravity_along_g(sensor.axis, s.step.inner_deg, s.step.outer_deg) for s in steps])
+    b0, c, u, half = _slope(temps - T_REF_C, volts, g)
+    limit = sensor.bias_temperature_limit_v_per_c
+    return {
+        "bias_coefficient_v_per_c": c, "bias_coefficient_u_v_per_c": u,
+        "bias_coefficient_ci95_v_per_c": [c - half, c + half], "bias_at_25c_v": b0,
+        "bias_coefficient_within_datasheet": bool(abs(c) <= limit),
+        "hysteresis_v": hysteresis_v(temps, volts - c * (temps - T_REF_C)),
+        "temperatures_c": temps.tolist(), "bias_v": volts.tolist(), "noise_rms_v": noise.tolist(),
+        "branch": ["heating" if b > 0 else "cooling" for b in branches(temps)],
+    }
+
+
+def scale_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, Any]:
+    """Scale-factor temperature coefficient from the sine steps' fundamental gains."""
+    temps = np.array([step_temperature_c(s) for s in steps], dtype=float)
+    gains = np.array([abs(fundamental(s.daq[sensor.channel], float(s.step.frequency_hz), s.sample_rate_hz)
+                          / fundamental(input_accel_dps2(s, sensor.axis),
+                                        float(s.step.frequency_hz), s.sample_rate_hz))
+                      for s in steps])
+    fit = fit_polynomial(temps - T_REF_C, gains, 1)
+    (k0, b), cov = fit.coefficients, fit.covariance
+    c = b / k0
+    grad = np.array([-b / k0**2, 1.0 / k0])
+    u = float(np.sqrt(grad @ cov @ grad))
+    half = t95(fit.dof) * u
+    return {
+        "scale_coefficient_per_c": float(c), "scale_coefficient_u_per_c": u,
+        "scale_coefficient_ci95_per_c": [float(c - half), float(c + half)],
+        "scale_at_25c_v_per_dps2": float(k0),
+        "scale_coefficient_within_datasheet": bool(abs(c) <= sensor.scale_temperature_limit_per_c),
+        "scale_temperatures_c": temps.tolist(), "scale_v_per_dps2": gains.tolist(),
+        "scale_hysteresis_per_c_ref": hysteresis_v(temps, gains / k0 - c * (temps - T_REF_C)),
+    }
+
+
+def _same_point(steps: list[SyncedStep]) -> list[SyncedStep]:
+    """The sine steps of the (frequency, acceleration) point seen at the most temperatures."""
+    if not steps:
+        return []
+    keys = [(round(float(s.step.frequency_hz or 0), 6), s.step.accel_dps2) for s in steps]
+    best = max(set(keys), key=keys.count)
+    return [s for s, k in zip(steps, keys) if k == best]
+
+
+def _spans(steps: list[SyncedStep]) -> bool:
+    temps = [t for s in steps if (t := step_temperature_c(s)) is not None]
+    return len(temps) >= 3 and (max(temps) - min(temps)) >= _MIN_SPAN_C
+
+
+class TemperatureAnalysis:
+    """Bias, scale factor and noise of every sensor against its temperature."""
+
+    key: ClassVar[str] = "temperature"
+
+    def applies_to(self, data: Dataset) -> bool:
+        temps = {s.step.temperature_c for s in data.steps if s.step.temperature_c is not None}
+        return len(temps) >= 3
+
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
+        steps = synced_steps(data, context)
+        values: dict[str, Any] = {}
+        for sensor in data.sensors:
+            static = [s for s in steps if s.step.kind == "static"]
+            sine = _same_point([s for s in steps
+                                if s.step.kind == "sine" and is_excited(s.step, sensor)])
+            row: dict[str, Any] = {"bias_coefficient_v_per_c": None,
+                                   "scale_coefficient_per_c": None, "hysteresis_v": None}
+            if _spans(static):
+                row |= bias_vs_temperature(static, sensor)
+            if _spans(sine):
+                row |= scale_vs_temperature(sine, sensor)
+            values[sensor.channel] = row
+        return AnalysisOutput(values=values)
