@@ -4,8 +4,11 @@ Why per-step files: a run lasts hours and may be killed (``kill -9``, power loss
 Each step is written to a temporary file, flushed, ``fsync``-ed and atomically renamed to
 ``steps/<NNN>-<step_id>.mcap``, so a step file either exists complete or not at all; completed
 steps can never be corrupted by a later crash. :meth:`RunRecorder.finalize` then merges the run
-metadata and every step file, in plan order and in one streaming pass, into ``recording.mcap``
-(again via a temporary file and an atomic rename). The file layout is described in
+metadata and every step file, in plan order and in one streaming pass that copies the
+compressed chunks verbatim (:mod:`aatest.engine.mcap_io`), into ``recording.mcap`` (again via a
+temporary file and an atomic rename). The step files are kept: they are what ``--resume``
+counts as done, and what :func:`~aatest.engine.recording.read_dataset` reads if steps were
+completed after the last merge. The file layout is described in
 :mod:`aatest.engine.recording_format`.
 """
 
