@@ -200,6 +200,10 @@ class TableModel(_Model):
     orthogonality_arcsec: float = 3.0
     #: payload imbalance: outer-axis excitation leaks into parasitic motion up to ≈35 Hz
     unbalance_parasitic_dps2_per_dps2: float = 0.0
+    unbalance_resonance_hz: float = Field(
+        35.0, gt=0, description="the controller's correction of the unbalance torque rings at "
+        "this frequency: the leak is k·α_o through a 2nd-order resonance")
+    unbalance_damping: float = Field(0.1, gt=0)
 
 
 class DaqModel(_Model):
