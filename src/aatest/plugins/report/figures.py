@@ -94,22 +94,27 @@ def _model_response(tf: Mapping[str, Any], f_hz: np.ndarray) -> np.ndarray | Non
 def bode(points: Sequence[Mapping[str, Any]], tf: Mapping[str, Any] | None,
          gain_u_db: Sequence[float] | None = None) -> str | None:
     """FRF points (with ±U gain bars) and the fitted model, extrapolated to 5× the last point."""
-    rows = [p for p in points if ex.as_float(p.get("gain_db")) is not None]
-    if not rows:
+    keep = [i for i, p in enumerate(points) if ex.as_float(p.get("gain_db")) is not None]
+    if not keep:
         return None
+    rows = [points[i] for i in keep]
+    u_db = np.asarray(gain_u_db, dtype=float)[keep] if gain_u_db is not None else None
     f = np.array([float(p["frequency_hz"]) for p in rows])
     gain = np.array([float(p["gain_db"]) for p in rows])
     phase = np.array([ex.as_float(p.get("phase_deg")) or np.nan for p in rows])
+    groups = np.array([str(p.get("group", "FRF points")) for p in rows])
     fig = Figure(figsize=(6.4, 4.8), layout="constrained")
     ax_g, ax_p = fig.subplots(2, 1, sharex=True)
-    ax_g.errorbar(f, gain, yerr=None if gain_u_db is None else np.asarray(gain_u_db), fmt="o",
-                  ms=3, capsize=2, label="FRF points (±U)")
-    ax_p.plot(f, phase, "o", ms=3)
-    model = _model_response(tf or {}, np.geomspace(f.min() / 2, f.max() * 5, 300))
+    for i, group in enumerate(dict.fromkeys(groups)):  # one colour per test group
+        sel = groups == group
+        ax_g.errorbar(f[sel], gain[sel], yerr=None if u_db is None else u_db[sel], fmt="o",
+                      ms=3, capsize=2, color=f"C{i + 1}", label=f"{group} (±U)")
+        ax_p.plot(f[sel], phase[sel], "o", ms=3, color=f"C{i + 1}")
+    fm = np.geomspace(f.min() / 2, f.max() * 5, 300)
+    model = _model_response(tf or {}, fm)
     if model is not None:
-        fm = np.geomspace(f.min() / 2, f.max() * 5, 300)
-        ax_g.plot(fm, 20 * np.log10(np.abs(model)), "C1", label="fitted model")
-        ax_p.plot(fm, np.degrees(np.unwrap(np.angle(model))), "C1")
+        ax_g.plot(fm, 20 * np.log10(np.abs(model)), "C0", label="fitted model")
+        ax_p.plot(fm, np.degrees(np.unwrap(np.angle(model))), "C0")
     ax_g.set_xscale("log")
     ax_g.set_ylabel("gain (dB V per °/s²)")
     ax_g.legend(loc="lower left", fontsize=7)

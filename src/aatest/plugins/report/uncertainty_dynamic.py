@@ -34,12 +34,22 @@ def _record_samples(point: Mapping[str, Any], results: Mapping[str, Any], c: Rig
     return float(max(sine)) if sine else float(c.record_samples)
 
 
-def _bin_noise_rel(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants) -> float:
-    """Relative (and, in rad, phase) standard uncertainty of the output fundamental."""
-    snr_db = ex.as_float(point.get("snr_db"))
-    if snr_db is None:
-        return 0.0
-    return 1.0 / math.sqrt(_record_samples(point, results, c) * 10.0 ** (snr_db / 10.0))
+def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
+               u_key: str, to_relative: float) -> tuple[float, str]:
+    """Relative (gain) or radian (phase) standard uncertainty of the bin ratio Y/X, and its basis.
+
+    The FRF analysis' own ``u_gain_db``/``u_phase_deg`` are used when stated; otherwise white
+    noise at the bin of both the sensor output (``snr_db``) and the table reference
+    (``table_snr_db``), each 1/√(N·SNR).
+    """
+    stated = ex.as_float(point.get(u_key))
+    if stated is not None:
+        return stated * to_relative, f"u from the FRF analysis ({u_key})"
+    n = _record_samples(point, results, c)
+    parts = {k: ex.as_float(point.get(k)) for k in ("snr_db", "table_snr_db")}
+    rel2 = sum(1.0 / (n * 10.0 ** (db / 10.0)) for db in parts.values() if db is not None)
+    shown = ", ".join(f"{k} {v:.1f}" for k, v in parts.items() if v is not None) or "no SNR"
+    return math.sqrt(rel2), f"1/√(N·SNR) of output and reference ({shown})"
 
 
 def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
@@ -51,9 +61,10 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
     if gain is None or not f_hz or not accel:
         return None
     amp_arcsec = abs(accel) / (2 * math.pi * f_hz) ** 2 * 3600.0
+    noise, basis = _bin_noise(point, results, c, "u_gain_db", math.log(10.0) / 20.0)
     inputs = (
-        Input("noise", "sensor noise (at the bin)", 0.0, _bin_noise_rel(point, results, c),
-              "normal", "1", f"1/√(N·SNR), SNR {point.get('snr_db')} dB"),
+        Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal", "1",
+              basis),
         Input("position", "table position accuracy", 0.0, c.position_accuracy_arcsec / amp_arcsec,
               "rectangular", "1",
               f"{c.position_accuracy_arcsec:g}″ over A = {amp_arcsec:.1f}″"),
@@ -78,9 +89,10 @@ def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
         return None
     sync = ex.analysis(results, "sync") or {}
     residual_us = ex.as_float(sync.get("residual_rms_us")) or 3.5
+    noise, basis = _bin_noise(point, results, c, "u_phase_deg", math.pi / 180.0)
     inputs = (
-        Input("noise", "sensor noise (at the bin)", 0.0, _bin_noise_rel(point, results, c),
-              "normal", "rad", "tangential part, 1/√(N·SNR)"),
+        Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal", "rad",
+              basis),
         Input("sync", "sync residual (logger alignment)", 0.0, residual_us * 1e-6, "normal", "s",
               f"{residual_us:g} µs RMS clock-relation residual"),
     )
