@@ -92,3 +92,13 @@ def test_clock_relation_residual_is_a_few_microseconds() -> None:
     t_daq = t_daq[np.searchsorted(lab_of_daq, t_table - 0.005)]
     residual = t_table - np.polyval(np.polyfit(t_daq, t_table, 1), t_daq)
     assert 2.4e-6 <= np.std(residual) <= 3.5e-6
+
+
+def test_both_loggers_follow_the_step_rate() -> None:
+    step = static_step(samples=2048).model_copy(update={"sample_rate_hz": 1000.0})
+    sim = simulate_step(realistic_rig_model(), step, seed=25)
+    assert sim.table.sample_rate_hz == sim.daq.sample_rate_hz == 1000.0
+    assert_allclose(np.diff(sim.table.time_s), 1e-3)
+    rows = rising_rows(sim.table["sync_pulse"])
+    assert_allclose(np.diff(sim.table.time_s[rows] - np.asarray(sim.table["fp_latch_s"])[rows]),
+                    0.01, atol=2e-5)  # 100 Hz edges, ±3 µs jitter

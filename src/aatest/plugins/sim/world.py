@@ -137,10 +137,16 @@ class World:
         self.lab_time_s += 1.0
 
     # --- DAQ and synthesis -----------------------------------------------------------------
-    def daq_clock(self, t0_s: float) -> DaqClock:
+    def daq_clock(self, t0_s: float, sample_rate_hz: float | None = None) -> DaqClock:
+        """The DAQ clock of a logging run started at lab time ``t0_s``.
+
+        The logger is set to the step's rate (both loggers share the procedure's sampling,
+        contracts.md §3); ``DaqModel.sample_rate_hz`` is the rate when none is given.
+        """
         daq = self.model.daq
         drift = daq.clock_drift.drift_ppm if daq.clock_drift is not None else 0.0
-        return DaqClock(t0_s, daq.sample_rate_hz, drift, daq.timestamp_jitter_s,
+        rate = daq.sample_rate_hz if sample_rate_hz is None else sample_rate_hz
+        return DaqClock(t0_s, rate, drift, daq.timestamp_jitter_s,
                         daq.sync_pulse_hz, self.sync_phase, daq.sync_edge_jitter_s)
 
     def start_daq(self) -> None:
@@ -156,8 +162,9 @@ class World:
                            "start_logging")
         step, inner, outer = self._motion
         self._counter += 1
-        setup = StepSetup(self.model, step, inner, outer, self.daq_clock(self._daq_start_s),
-                          self.thermal, self.sensor_axes(), self.model.daq.stop_lag_s)
+        clock = self.daq_clock(self._daq_start_s, step.sample_rate_hz)
+        setup = StepSetup(self.model, step, inner, outer, clock, self.thermal,
+                          self.sensor_axes(), self.model.daq.stop_lag_s)
         self._result = synthesise(setup, self._rng(f"step:{step.id}"))
         self.lab_time_s = float(self._daq_start_s + self._result.daq.time_s.size
                                 * setup.clock.lab_dt_s)
