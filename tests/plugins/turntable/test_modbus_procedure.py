@@ -4,7 +4,9 @@ on loopback, against the in-process simulated rig; rig faults end with exit 3 an
 from __future__ import annotations
 
 import json
+import socket
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -12,7 +14,7 @@ from typer.testing import CliRunner
 
 from aatest.engine.cli import app
 from aatest.engine.errors import EXIT_RIG_FAULT
-from aatest.plugins.daq.can_sim import SimCanLogger
+from aatest.plugins.daq.can_sim import CanFaultInjection, SimCanLogger
 from aatest.plugins.turntable.modbus_controller import FaultInjection
 from aatest.plugins.turntable.modbus_map import Fault
 from aatest.plugins.turntable.modbus_server import SimModbusServer
@@ -36,17 +38,25 @@ SWEEP = ("  - sine_sweep: {axis: inner, frequencies: {start_hz: 1, ratio: 3, sto
          "snap: coherent}, accelerations_dps2: [100]}")
 
 
+@dataclass
+class Served:
+    server: SimModbusServer
+    logger: SimCanLogger
+    rig: Path
+
+
 @pytest.fixture
-def served(rig_entry_points: None, tmp_path: Path) -> Iterator[tuple[SimModbusServer, Path]]:
+def served(rig_entry_points: None, tmp_path: Path) -> Iterator[Served]:
     """The twin behind Modbus (port chosen by the OS) and CAN, and a rig file pointing at it."""
     server = SimModbusServer(seed=SEED, lifetime_s=120.0)
-    server.attach(SimCanLogger(server.controller, "virtual", f"e2e-{tmp_path.name}").start())
+    logger = SimCanLogger(server.controller, "virtual", f"e2e-{tmp_path.name}").start()
+    server.attach(logger)
     server.start()
     rig = tmp_path / "rig.yaml"
     rig.write_text(f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {server.port}, "
-                   f"timeout_s: 2.0}}\ndaq: {{plugin: can, interface: virtual, "
+                   f"timeout_s: 2.0, retries: 0}}\ndaq: {{plugin: can, interface: virtual, "
                    f"channel: e2e-{tmp_path.name}}}\nchamber: {{plugin: none}}\n")
-    yield server, rig
+    yield Served(server, logger, rig)
     server.stop()
 
 
@@ -65,8 +75,8 @@ def _analysis(run_dir: Path) -> dict:
     return json.loads((run_dir / "results.json").read_text())["analysis"]
 
 
-def test_scale_factor_matches_the_in_process_rig(served: tuple, tmp_path: Path) -> None:
-    _server, rig = served
+def test_scale_factor_matches_the_in_process_rig(served: Served, tmp_path: Path) -> None:
+    rig = served.rig
     proc = _procedure(tmp_path, 40000, SINE)
     code, out = _run(str(proc), "--rig", str(rig), "--out", str(tmp_path / "modbus"))
     assert code == 0, out
@@ -85,21 +95,38 @@ def test_scale_factor_matches_the_in_process_rig(served: tuple, tmp_path: Path) 
     assert wire["sync"]["drift_ppm"] == pytest.approx(local["sync"]["drift_ppm"], abs=0.05)
 
 
-def test_fault_mid_run_exits_3_keeps_data_and_resumes(served: tuple, tmp_path: Path) -> None:
-    server, rig = served
-    server.controller.faults = FaultInjection(fault_on_record=Fault.INTERLOCK_OPEN,
-                                              fault_on_record_number=2)
+FAULTS = {
+    "fault-bit": (FaultInjection(fault_on_record=Fault.INTERLOCK_OPEN, record_number=2), None,
+                  "controller fault (fault bits INTERLOCK_OPEN"),
+    "stops-answering": (FaultInjection(hang_on_record=True, record_number=2, hang_s=3.0), None,
+                        "no answer to command ARM_LOG within 2 s"),
+    "can-bus-off": (None, CanFaultInjection(bus_off_after_frames=300, record_number=2),
+                    "bus-off; logging stopped"),
+    "can-frame-loss": (None, CanFaultInjection(drop_frames=frozenset({1000}), record_number=2),
+                       "lost 1 of"),
+}
+
+
+@pytest.mark.parametrize("fault", list(FAULTS), ids=list(FAULTS))
+def test_fault_mid_run_exits_3_keeps_data_and_resumes(served: Served, tmp_path: Path,
+                                                      fault: str) -> None:
+    server, rig = served.server, served.rig
+    table_fault, can_fault, reason = FAULTS[fault]
+    server.controller.faults = table_fault or FaultInjection()
+    served.logger.faults = can_fault or CanFaultInjection()
     proc = _procedure(tmp_path, 4000, STATIC, SINE)
     out_dir = tmp_path / "run"
     code, out = _run(str(proc), "--rig", str(rig), "--out", str(out_dir))
     assert code == EXIT_RIG_FAULT, out
+    errors = [line for line in out.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and reason in errors[0], out
     kept = {p.name: p.read_bytes() for p in (out_dir / "steps").iterdir()}
     assert [n for n in kept if n.endswith(".mcap")] == [
         "001-s001-static-i0-o180-original-r1.mcap"]  # the static step finished before the fault
-    reason = [line for line in out.splitlines() if line.startswith("error:")]
-    assert len(reason) == 1 and "INTERLOCK_OPEN" in reason[0], out
-    assert not server.controller.world.motor_on  # safe state: motor off
-    server.controller.faults = FaultInjection()  # the operator closed the interlock
+    if not server.controller.hanging:
+        assert not server.controller.world.motor_on  # safe state reached: motor off
+    server.controller.recover()  # the operator fixed the rig
+    served.logger.faults = CanFaultInjection()
     code, out = _run(str(proc), "--rig", str(rig), "--out", str(out_dir), "--resume")
     assert code == 0, out
     steps = json.loads((out_dir / "results.json").read_text())["steps"]
@@ -108,8 +135,23 @@ def test_fault_mid_run_exits_3_keeps_data_and_resumes(served: tuple, tmp_path: P
         assert (out_dir / "steps" / name).read_bytes() == data, name
 
 
-def test_stepped_sine_frf_matches_the_in_process_rig(served: tuple, tmp_path: Path) -> None:
-    _server, rig = served
+def test_connection_refused_exits_3_then_resumes(served: Served, tmp_path: Path) -> None:
+    server, rig = served.server, served.rig
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        closed_port = sock.getsockname()[1]
+    dead = tmp_path / "dead-rig.yaml"
+    dead.write_text(rig.read_text().replace(f"port: {server.port}", f"port: {closed_port}"))
+    proc = _procedure(tmp_path, 4000, SINE)
+    out_dir = tmp_path / "run"
+    code, out = _run(str(proc), "--rig", str(dead), "--out", str(out_dir))
+    assert code == EXIT_RIG_FAULT and "cannot connect" in out, out
+    code, out = _run(str(proc), "--rig", str(rig), "--out", str(out_dir), "--resume")
+    assert code == 0, out
+
+
+def test_stepped_sine_frf_matches_the_in_process_rig(served: Served, tmp_path: Path) -> None:
+    rig = served.rig
     proc = _procedure(tmp_path, 8192, SWEEP, kind=FRF)
     for name, extra in (("modbus", ["--rig", str(rig)]), ("inproc", [])):
         code, out = _run(str(proc), *extra, "--out", str(tmp_path / name))

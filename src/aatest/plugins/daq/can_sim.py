@@ -36,6 +36,8 @@ class CanFaultInjection:
     drop_frames: frozenset[int] = field(default_factory=frozenset)
     #: after this many sample frames: a bus-off error frame, then silence
     bus_off_after_frames: int | None = None
+    #: the faults above hit every record, or only this one (1 = the first after START)
+    record_number: int | None = None
 
 
 class SimCanLogger:
@@ -70,6 +72,7 @@ class SimCanLogger:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._sent = 0
+        self._records = 0
         self._dead = False
         self._where = f"simulated CAN logger node {node_id}"
 
@@ -105,10 +108,12 @@ class SimCanLogger:
             if msg is None or msg.is_error_frame or msg.arbitration_id != command_id:
                 continue
             opcode = msg.data[0]
-            if opcode == cf.Opcode.PING:
+            if opcode == cf.Opcode.PING:  # the host re-initialised the bus: bus-off recovery
+                self._dead = False
                 self._status(cf.LoggerState.IDLE)
             elif opcode == cf.Opcode.START:
                 self._sent, self._dead = 0, False
+                self._records += 1
                 self._status(cf.LoggerState.LOGGING)
                 self.controller.daq_start()
             elif opcode == cf.Opcode.STOP:
@@ -129,14 +134,17 @@ class SimCanLogger:
         payloads = cf.encode_samples(daq.time_s, volts_matrix(daq), daq["sync_pulse"],
                                      daq["trigger"], daq["temperature_c"])
         sample_id, started = cf.SAMPLE_BASE + self.node_id, time.monotonic()
+        faulty = self.faults.record_number in (None, self._records)
+        bus_off_at = self.faults.bus_off_after_frames if faulty else None
+        drop = self.faults.drop_frames if faulty else frozenset()
         for index, payload in enumerate(payloads):
             if self._stop.is_set() or self._bus is None:
                 return
-            if index == self.faults.bus_off_after_frames:
+            if index == bus_off_at:
                 self._bus_off()
                 return
             self._sent += 1
-            if index not in self.faults.drop_frames:
+            if index not in drop:
                 send(self._bus, sample_id, payload, True, self._where)
             if self.frame_rate_hz and index % _PACE_BATCH == 0:
                 ahead = started + index / self.frame_rate_hz - time.monotonic()

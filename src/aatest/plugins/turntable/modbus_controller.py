@@ -9,8 +9,9 @@ pass per wall second and the World's own time jumps (a move, a record) advance i
 starts the DAQ through :meth:`SimController.daq_start` and receives the DAQ log of every
 record through ``on_daq_log``: table log and sensor log come from one twin.
 
-Fault injection (:class:`FaultInjection`) lets tests make the controller set a fault bit when a
-record starts, answer slowly, or stop answering from a given command on.
+Fault injection (:class:`FaultInjection`) lets tests make the controller set a fault bit or stop
+answering when a record starts, answer slowly, or stop answering from a given command on;
+:meth:`SimController.recover` brings it back (the operator fixed the rig).
 """
 
 from __future__ import annotations
@@ -40,10 +41,12 @@ DaqLogSink = Callable[[SampledLog], None]
 class FaultInjection:
     """Faults the simulated controller produces on purpose (tests only; all bounded)."""
 
-    #: fault bits set the moment a record starts (motion stops, motor off) ...
+    #: fault bits set the moment a record starts (motion stops, motor off)
     fault_on_record: Fault = Fault(0)
-    #: ... on every record, or only on this one (1 = the first record served)
-    fault_on_record_number: int | None = None
+    #: stop answering the moment a record starts (a controller dying mid-step)
+    hang_on_record: bool = False
+    #: the record-triggered faults above hit every record, or only this one (1 = first)
+    record_number: int | None = None
     #: every answer is delayed this long (wall seconds)
     response_delay_s: float = 0.0
     #: from this command on the controller stops answering (for ``hang_s`` wall seconds)
@@ -96,6 +99,12 @@ class SimController:
         self._log_count = 0
         self._records_started = 0
         self._init_registers(model)
+
+    def recover(self) -> None:
+        """Remove injected faults and answer again (latched fault bits stay until cleared)."""
+        with self._lock:
+            self.faults = FaultInjection()
+            self.hanging = False
 
     # --- registers -------------------------------------------------------------------------
     def _put(self, reg: Reg, value: float) -> None:
@@ -314,10 +323,11 @@ class SimController:
         if not (self._armed and self._daq_started) or self._record is not None:
             return
         self._records_started += 1
-        number = self.faults.fault_on_record_number
-        if self.faults.fault_on_record and number in (None, self._records_started):
-            self._trip(self.faults.fault_on_record)
-            return
+        if self.faults.record_number in (None, self._records_started):
+            self.hanging = self.hanging or self.faults.hang_on_record
+            if self.faults.fault_on_record:
+                self._trip(self.faults.fault_on_record)
+                return
         self._armed = False
         self._record = _Record(self._log_count + 1)
         self._status = (self._status | Status.LOG_RECORDING) & ~Status.LOG_ARMED
