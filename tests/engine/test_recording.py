@@ -276,7 +276,7 @@ def small_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[bytes, Da
     return path.read_bytes(), read_dataset(path)
 
 
-@settings(max_examples=80, deadline=None,
+@settings(max_examples=150, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(cut=st.integers(min_value=0), flips=st.lists(
     st.tuples(st.integers(min_value=0), st.integers(min_value=1, max_value=255)), max_size=4))
@@ -296,5 +296,6 @@ def test_damaged_recording_is_an_error_or_unchanged(
     except RecordingError:
         return
     for mine, ref in zip(dataset.steps, reference.steps, strict=True):
+        assert mine.step == ref.step
         assert_logs_equal(ref.table, mine.table)
         assert_logs_equal(ref.daq, mine.daq)

@@ -19,7 +19,10 @@ to decode it is in the file itself:
 
 **Channels.** Per step two topics, ``/<step_id>/table`` and ``/<step_id>/daq``; channel
 metadata ``step_id``, ``source`` (``table``/``daq``), ``samples`` (total samples of the log) and
-``log_time_offset_ns`` (see below). Channel ids are ``2·index − 1`` (table) and ``2·index``
+``log_time_offset_ns`` (see below) and ``step_record_sha256``, the SHA-256 of the step's
+``step`` metadata record (its values as a JSON object with sorted keys and no spaces) — MCAP
+protects chunks with CRCs but not metadata, so a reader can tell a damaged step record from a
+good one; likewise ``schema_sha256`` of the channel's schema data. Channel ids are ``2·index − 1`` (table) and ``2·index``
 (DAQ), ``index`` being the step's 1-based plan position, so they are unique in a run and the
 per-step files merge without re-encoding. Each chunk holds messages of one channel only.
 
@@ -51,6 +54,7 @@ every log time non-negative. The exact times are always the ``time_s`` column.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from typing import Any
@@ -176,6 +180,12 @@ def records_to_log(records: np.ndarray, doc: dict[str, Any]) -> SampledLog:
 def json_values(meta: dict[str, Any]) -> dict[str, str]:
     """MCAP metadata values are strings: store every value as JSON text."""
     return {str(k): json.dumps(v, sort_keys=True, default=_json_default) for k, v in meta.items()}
+
+
+def record_digest(values: dict[str, str]) -> str:
+    """SHA-256 of a metadata record's string values: MCAP metadata has no CRC of its own."""
+    canonical = json.dumps(values, sort_keys=True, separators=(",", ":")).encode("utf-8")
+    return hashlib.sha256(canonical).hexdigest()
 
 
 def from_json_values(data: dict[str, str]) -> dict[str, Any]:

@@ -10,6 +10,7 @@ the file and what is wrong. The layout is described in :mod:`aatest.engine.recor
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import struct
 from dataclasses import dataclass, field
@@ -153,15 +154,16 @@ def _decode(stream: Any, path: Path) -> _FileContents:
         if record.name == fmt.RUN_RECORD:
             contents.run_meta = fmt.from_json_values(dict(record.metadata))
         elif record.name == fmt.STEP_RECORD:
-            step_records.append(fmt.from_json_values(dict(record.metadata)))
+            step_records.append(dict(record.metadata))
     _check_format(contents.run_meta, path)
     by_topic = {ch.topic: ch for ch in summary.channels.values()}
-    for record in step_records:  # one step at a time: peak memory is one step's bytes
+    for values in step_records:  # one step at a time: peak memory is one step's bytes
+        record = fmt.from_json_values(values)
         step = PlannedStep.model_validate(record["step"])
-        logs = [
-            _decode_log(reader, by_topic, summary, record[key], path)
-            for key in ("table_topic", "daq_topic")
-        ]
+        logs = []
+        for key in ("table_topic", "daq_topic"):
+            channel = _step_channel(by_topic, record[key], step.id, values, path)
+            logs.append(_decode_log(reader, channel, summary, path))
         contents.steps.append((int(record["index"]), StepData(step, logs[0], logs[1])))
     return contents
 
@@ -176,16 +178,32 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
         )
 
 
-def _decode_log(
-    reader: Any, by_topic: dict[str, Any], summary: Any, topic: str, path: Path
-) -> SampledLog:
-    """Concatenate one channel's blocks in sequence order and rebuild the SampledLog."""
+def _step_channel(
+    by_topic: dict[str, Any], topic: str, step_id: str, values: dict[str, str], path: Path
+) -> Any:
+    """The channel a step record names, after checking both still agree (no CRC on metadata)."""
     channel = by_topic.get(topic)
     if channel is None:
         raise RecordingError(f"{path}: step topic {topic!r} has no channel")
+    meta = channel.metadata
+    expected = meta.get("step_record_sha256")
+    if meta.get("step_id") != step_id or (expected and expected != fmt.record_digest(values)):
+        raise RecordingError(
+            f"{path}: step record of {step_id!r} does not match channel {topic!r} "
+            "(corrupt metadata)"
+        )
+    return channel
+
+
+def _decode_log(reader: Any, channel: Any, summary: Any, path: Path) -> SampledLog:
+    """Concatenate one channel's blocks in sequence order and rebuild the SampledLog."""
+    topic = channel.topic
     schema = summary.schemas.get(channel.schema_id)
     if schema is None or schema.encoding != fmt.ENCODING:
         raise RecordingError(f"{path}: topic {topic!r} does not use the {fmt.ENCODING} schema")
+    expected = channel.metadata.get("schema_sha256")
+    if expected and expected != hashlib.sha256(schema.data).hexdigest():
+        raise RecordingError(f"{path}: schema of topic {topic!r} is corrupt (checksum mismatch)")
     dtype, doc = fmt.parse_schema(schema.data)
     parts = sorted(
         (message.sequence, message.data)

@@ -15,6 +15,7 @@ completed after the last merge. The file layout is described in
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 import re
@@ -86,17 +87,22 @@ def channel_id(index: int, source: str) -> int:
     return 2 * index - (1 if source == TABLE else 0)
 
 
-def _write_log(writer: ChunkedWriter, step_id: str, index: int, log: SampledLog) -> None:
+def _write_log(
+    writer: ChunkedWriter, step_id: str, index: int, log: SampledLog, digest: str
+) -> None:
     """Register one logger's schema and channel for a step and add its sample blocks."""
     records, columns = fmt.log_records(log)
     cid = channel_id(index, log.source)
+    schema = fmt.schema_data(log, columns)
     writer.add_schema(Schema(id=cid, name=fmt.schema_name(log.source), encoding=fmt.ENCODING,
-                             data=fmt.schema_data(log, columns)))
+                             data=schema))
     offset_ns = fmt.log_time_offset_ns(log.time_s)
     writer.add_channel(Channel(
         id=cid, topic=fmt.topic(step_id, log.source), message_encoding=fmt.ENCODING,
         schema_id=cid, metadata={"step_id": step_id, "source": log.source,
-                                 "samples": str(len(log)), "log_time_offset_ns": str(offset_ns)},
+                                 "samples": str(len(log)), "log_time_offset_ns": str(offset_ns),
+                                 "step_record_sha256": digest,
+                                 "schema_sha256": hashlib.sha256(schema).hexdigest()},
     ))
     times_ns = fmt.block_log_times_ns(log.time_s, offset_ns)
     messages = [
@@ -136,10 +142,11 @@ def write_step_file(
     table, daq = logs
     writer = new_writer(stream)
     writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
-    record = step_record(step, index, table, daq, extra)
-    writer.add_metadata(fmt.STEP_RECORD, fmt.json_values(record))
-    _write_log(writer, step.id, index, table)
-    _write_log(writer, step.id, index, daq)
+    record = fmt.json_values(step_record(step, index, table, daq, extra))
+    writer.add_metadata(fmt.STEP_RECORD, record)
+    digest = fmt.record_digest(record)
+    _write_log(writer, step.id, index, table, digest)
+    _write_log(writer, step.id, index, daq, digest)
     writer.finish()
 
 
