@@ -34,7 +34,13 @@ DIAGNOSIS = {
                   "evidence": {"delta_bic": -4521.0, "rmse_v_before": 0.0123,
                                "rmse_v_after": 0.00102}}],
     "gain": {"rmse_v_before": 0.0123, "rmse_v_after": 0.00102, "reduction_pct": 91.7},
-    "candidates": [{"effect": "time_delay", "delta_bic": 3.1, "accepted": False},
+    "residuals": {"v_sz": {"per_step": [{"step": "s001", "kind": "sine", "rms_v_nominal": 0.077,
+                                         "rms_v_extended": 0.0157}],
+                           "spectrum_lines": [{"step": "s001", "frequency_hz": 33.16,
+                                               "amplitude_v": 0.0057, "class": "unrelated"}]}},
+    "candidates": [{"effect": "g_sensitivity", "delta_bic": None, "accepted": False,
+                    "testable": False, "reason": "gravity spans 0.00 g"},
+                   {"effect": "time_delay", "delta_bic": 3.1, "accepted": False},
                    {"effect": "bias_temperature", "delta_bic": -4521.0, "accepted": True}],
 }
 
@@ -119,7 +125,9 @@ def test_diagnosis_report(run_dir: Path) -> None:
     text = _visible_text(path.read_text())
     assert "bias_temperature coefficient_v_per_c 4.100e-04 [3.800e-04, 4.400e-04]" in text
     assert text.index("bias_temperature -4521.0") < text.index("time_delay 3.100")  # ranked
-    assert "91.7" in text and path.read_text().count("<svg") == 2
+    assert "3 g_sensitivity — no not testable: gravity spans 0.00 g" in text  # last
+    assert "s001 sine 0.0770 0.0157" in text and "33.16 0.00570 unrelated" in text
+    assert "91.7" in text and path.read_text().count("<svg") == 3
 
 
 def test_signed_certificate_round_trip(results: dict[str, Any], run_dir: Path,

@@ -139,16 +139,28 @@ def _diagnosis_block(results: Mapping[str, Any]) -> Mapping[str, Any]:
     return block if isinstance(block, Mapping) else results
 
 
+def _strongest_lines(lines: list[Any], count: int = 12) -> list[Mapping[str, Any]]:
+    """The residual's strongest spectral lines, largest amplitude first."""
+    rows = [x for x in lines if isinstance(x, Mapping)]
+    return sorted(rows, key=lambda x: -(ex.as_float(x.get("amplitude_v")) or 0.0))[:count]
+
+
 def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
     """View model of the ``aatest diagnose`` report (contracts.md §4)."""
     diag = _diagnosis_block(results)
+    def rank(c: Mapping[str, Any]) -> tuple[bool, float]:
+        bic = ex.as_float(c.get("delta_bic"))
+        return bic is None, bic if bic is not None else 0.0  # untestable ones last
+
     candidates = sorted((c for c in diag.get("candidates") or [] if isinstance(c, Mapping)),
-                        key=lambda c: ex.as_float(c.get("delta_bic")) or 0.0)
+                        key=rank)
     figures = _analysis_figures(results, {"diagnose"})
-    bars = fig.diagnosis_bars(diag)
-    if bars is not None:
-        figures.append({"section": "diagnose", "title": "candidates and gain",
-                        "svg": vet_svg(bars)})
+    residuals = diag.get("residuals") if isinstance(diag.get("residuals"), Mapping) else {}
+    own = [("candidates and gain", fig.diagnosis_bars(diag))]
+    own += [(f"residual RMS per step {ch}", fig.residual_steps(view))
+            for ch, view in sorted(residuals.items()) if isinstance(view, Mapping)]
+    figures += [{"section": "diagnose", "title": title, "svg": vet_svg(svg)}
+                for title, svg in own if svg is not None]
     signature = results.get("signature") or {}
     return {
         "report": {"kind": "diagnosis", "title": "Diagnosis: what the simulation gets wrong",
@@ -157,6 +169,9 @@ def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[s
         "findings": [f for f in diag.get("findings") or [] if isinstance(f, Mapping)],
         "candidates": candidates,
         "gain": diag.get("gain") or {},
+        "residuals": {ch: {"per_step": list(v.get("per_step") or []),
+                           "lines": _strongest_lines(v.get("spectrum_lines") or [])}
+                      for ch, v in sorted(residuals.items()) if isinstance(v, Mapping)},
         "figures": figures,
         "trace": traceability(results, run_dir),
         "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,

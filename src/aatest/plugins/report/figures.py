@@ -190,3 +190,24 @@ def diagnosis_bars(diagnosis: Mapping[str, Any]) -> str | None:
         ax_g.bar(["before", "after"], [1e3 * before, 1e3 * after], color=["0.6", "C2"])
         ax_g.set_ylabel("RMSE (mV)")
     return _svg(fig) if (names or before is not None) else None
+
+
+def residual_steps(view: Mapping[str, Any], max_steps: int = 40) -> str | None:
+    """RMS of measured − simulated per step, nominal vs extended model (mV)."""
+    rows = [r for r in view.get("per_step") or [] if isinstance(r, Mapping)
+            and ex.as_float(r.get("rms_v_nominal")) is not None][:max_steps]
+    if not rows:
+        return None
+    names = [str(r.get("step", i)) for i, r in enumerate(rows)]
+    before = np.array([1e3 * float(r["rms_v_nominal"]) for r in rows])
+    after = np.array([1e3 * (ex.as_float(r.get("rms_v_extended")) or np.nan) for r in rows])
+    fig = Figure(figsize=(6.4, 1.2 + 0.22 * len(rows)), layout="constrained")
+    ax = fig.subplots()
+    y = np.arange(len(rows))
+    ax.barh(y - 0.2, before, height=0.4, color="0.6", label="nominal simulation")
+    ax.barh(y + 0.2, after, height=0.4, color="C2", label="extended model")
+    ax.set_yticks(y, names, fontsize=6)
+    ax.invert_yaxis()
+    ax.set_xlabel("residual RMS (mV)")
+    ax.legend(fontsize=7)
+    return _svg(fig)
