@@ -44,13 +44,14 @@ class Budgets:
         return {k: e.expanded_uncertainty for k, e in self.by_key.items()}
 
     def shown(self) -> list[Evaluation]:
-        """The budgets printed in full: every static quantity and one FRF point per channel
-        (the highest frequency, where the reference amplitude is smallest)."""
+        """The budgets printed in full: every static quantity and, per channel, the FRF point
+        with the largest gain uncertainty (the worst case of the table)."""
         rows = list(self.by_key.values())
         for channel_rows in self.frf.values():
-            last = [r for r in channel_rows if r.gain is not None]
-            if last:
-                rows += [e for e in (last[-1].gain, last[-1].phase) if e is not None]
+            rated = [r for r in channel_rows if r.gain is not None]
+            if rated:
+                worst = max(rated, key=lambda r: r.gain.expanded_uncertainty if r.gain else 0.0)
+                rows += [e for e in (worst.gain, worst.phase) if e is not None]
         return rows
 
 
