@@ -45,7 +45,8 @@ def input_direction(step: SyncedStep) -> np.ndarray:
     """Unit acceleration direction of the step in table-top (P, O, I) coordinates."""
     if step.step.axis == "inner":
         return np.array([0.0, 0.0, 1.0])
-    psi = np.radians(float(np.mean(step.table["inner_position_deg"])))
+    logged = step.table.get("inner_position_deg")
+    psi = np.radians(float(np.mean(logged)) if logged is not None else step.step.inner_deg)
     return np.array([np.sin(psi), np.cos(psi), 0.0])
 
 

@@ -4,7 +4,7 @@ Per sensor and test group: discrete models with n = 0..5 poles and m ≤ n zeros
 separate delay and with the delay found by input–output cross-correlation (accepted only when
 the normalised correlation peak is strong), identified on two thirds of the FRF points and
 validated on the rest (every third point, so both sets span the band). Our own addition: the
-structures with n ≤ 3 are also tried with a scanned integer delay (MATLAB's ``delayest`` idea),
+structures with n ≤ 2 are also tried with a scanned integer delay (MATLAB's ``delayest`` idea),
 and a physical model K·ωn²/(s² + 2ζωn·s + ωn²)·e^{−sτ} (the twin's and diagnose's vocabulary)
 is fitted with a fractional delay.
 The chosen model is the best validation fit among stable, minimum-phase models (within 0.5 %
@@ -36,7 +36,7 @@ MIN_POINTS = 6
 XCORR_MIN_STRENGTH = 0.9
 _MAX_LAG_S = 0.05
 _FIT_TIE_PCT = 0.5
-_SCAN_MAX_POLES = 3
+_SCAN_MAX_POLES = 2
 
 
 def xcorr_delay(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
