@@ -140,9 +140,13 @@ def test_pivot_flips_cross_axis_response() -> None:
     axes_o = w.sensor_axes()["v_sz"].copy()
     _record(table, daq, piv)
     axes_p = w.sensor_axes()["v_sz"]
-    # x and y turn over; the sensitive axis' lean (internal misalignment) flips with them
-    assert_allclose(axes_p[:2, :], -axes_o[:2, :], atol=1e-12)
-    assert_allclose(axes_p[2, 2], axes_o[2, 2], atol=1e-12)
+    # in the seat's frame (block and seat errors undone) the sensor turns 180° about z:
+    # x and y turn over, and the sensitive axis' lean (internal misalignment) flips with them
+    from aatest.plugins.sim.kinematics import SEAT_FRAMES
+
+    seat = w.block_error @ SEAT_FRAMES["I"] @ w.seat_error["v_sz"]
+    assert_allclose(seat.T @ axes_p, np.diag([-1.0, -1.0, 1.0]) @ (seat.T @ axes_o), atol=1e-12)
+    assert abs((seat.T @ axes_o)[0, 2]) > 1e-3  # the internal misalignment is there to flip
 
 
 def test_sensor_plugins() -> None:

@@ -116,12 +116,15 @@ def test_pivot_flips_the_equivalent_misalignment() -> None:
     # noise (≈1.4e-4 of 100 °/s² per bin after the 100 Hz filter), hysteresis, the resolution
     # threshold and leakage of the incoherent 35 Hz motor band make a 0.03 °/s² cross response
     # irregular at the 1e-4 level (as measured at very low acceleration): switch them off to
-    # check the geometry exactly
+    # check the geometry exactly; a perfect mounting isolates the sensor's own terms
     quiet_sensor = {"hysteresis": None, "resolution_dps2": 0.0, "noise_rms_v": 0.0}
     sensors = [s.model_copy(update=quiet_sensor) for s in real.sensors]
     quiet = {ax: getattr(real.table, ax).model_copy(update={"motor_vibration": None})
              for ax in ("inner", "outer")}
-    model = real.model_copy(update={"sensors": sensors, "table": real.table.model_copy(update=quiet)})
+    perfect_mount = real.unit.model_copy(update={"sensor_remount_sigma_deg": 0.0,
+                                                 "block_remount_sigma_deg": 0.0})
+    model = real.model_copy(update={"sensors": sensors, "unit": perfect_mount,
+                                    "table": real.table.model_copy(update=quiet)})
     world = World(model, seed=49)
     base = sine_step(1.0, 100.0, samples=8192, axis="outer")
     resp = []
@@ -160,3 +163,12 @@ def test_full_length_step_on_three_channels() -> None:
     step = sine_step(1.0, 400.0, samples=2**17)
     sim = simulate_step(realistic_rig_model("sr207-aamu"), step, 51)
     assert len(sim.table) == 2**17 and sim.daq.sensor_channels() == ["v_sz", "v_sy", "v_sx"]
+
+
+def test_first_mounting_is_a_draw_and_the_nominal_mounting_is_perfect() -> None:
+    from aatest.plugins.sim.api import nominal_rig_model
+
+    real = World(realistic_rig_model("sr207-aamu"), seed=52)
+    tilt_deg = np.degrees(np.arccos(real.block_error[2, 2]))
+    assert 0.0 < tilt_deg < 5 * real.model.unit.block_remount_sigma_deg
+    assert_allclose(World(nominal_rig_model(), seed=52).block_error, np.eye(3))

@@ -114,6 +114,9 @@ def test_controller_refuses_beyond_limits() -> None:
 
 def test_outer_unbalance_leaks_into_the_perpendicular_axis() -> None:
     base = realistic_rig_model("sr207-aamu")
+    perfect_mount = base.unit.model_copy(update={"sensor_remount_sigma_deg": 0.0,
+                                                 "block_remount_sigma_deg": 0.0})
+    base = base.model_copy(update={"unit": perfect_mount})
     model = base.model_copy(update={"table": base.table.model_copy(
         update={"unbalance_parasitic_dps2_per_dps2": 0.02})})
     step = sine_step(1.0, 100.0, axis="outer")

@@ -23,6 +23,7 @@ from aatest.plugins.sim.model import (
     RigModel,
     SensorModel,
     TableModel,
+    UnitModel,
 )
 from aatest.plugins.sim.synthesis import SimulatedStep
 from aatest.plugins.sim.world import World
@@ -149,8 +150,8 @@ def nominal_rig_model(sensors: Sequence[SensorModel] | None = None) -> RigModel:
     """One clock, ideal dynamics, no error terms: the replay model of ``diagnose``.
 
     Sensors keep only bias, scale factor, range and axis (noise 0); the table has no ripple,
-    vibration, drift or estimator noise; the DAQ has no drift, jitter, filter or lead/lag
-    beyond one sample of lead.
+    vibration, drift or estimator noise; the DAQ has no drift, jitter or pre-sample filter and
+    a 32-bit ADC; the unit is mounted perfectly (no mounting or re-mount errors).
     """
     keep = ("channel", "axis", "bias_v", "scale_v_per_dps2", "range_dps2")
     plain = [SensorModel(**{k: getattr(s, k) for k in keep}, noise_rms_v=0.0)
@@ -162,4 +163,5 @@ def nominal_rig_model(sensors: Sequence[SensorModel] | None = None) -> RigModel:
         "inner": base.inner.model_copy(update=axis), "outer": base.outer.model_copy(update=axis),
         "wobble_arcsec": 0.0, "orthogonality_arcsec": 0.0})
     daq = DaqModel(timestamp_jitter_s=0.0, antialias_hz=None, adc_bits=32)
-    return RigModel(sensors=plain, table=table, daq=daq)
+    unit = UnitModel(sensor_remount_sigma_deg=0.0, block_remount_sigma_deg=0.0)
+    return RigModel(sensors=plain, table=table, daq=daq, unit=unit)

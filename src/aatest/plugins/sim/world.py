@@ -57,8 +57,13 @@ class World:
         self.drift_sign = {"inner": rng.choice([-1.0, 1.0]), "outer": rng.choice([-1.0, 1.0])}
         self.sync_phase = float(rng.uniform(0.05, 0.95))
         self.pivoted = False
-        self.block_error = np.eye(3)
-        self.seat_error = {s.channel: np.eye(3) for s in model.sensors}
+        # the first mounting is one draw of the same spreads as every re-mount: a real block
+        # sits a little off on the table and each sensor a little off in its seat, which is
+        # what makes (δ_e − δ_ep)/2 of the pivoted test differ from zero (method.md §4.5)
+        mount = self._rng("mount")
+        self.block_error = kin.random_small_rotation(mount, model.unit.block_remount_sigma_deg)
+        self.seat_error = {s.channel: kin.random_small_rotation(
+            mount, model.unit.sensor_remount_sigma_deg) for s in model.sensors}
         self._motion: tuple[PlannedStep, AxisTruth, AxisTruth] | None = None
         self._daq_start_s: float | None = None
         self._result: SimulatedStep | None = None
