@@ -254,9 +254,10 @@ def synchronise(data: StepData) -> SyncedStep:
                              1.0 / float(data.daq.sample_rate_hz))
     table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
     at_daq_s = relation.to_daq_s(table_time_s)
-    keep = (at_daq_s >= daq_time_s[0]) & (at_daq_s <= daq_time_s[-1])
-    if keep.sum() < 0.5 * keep.size:
+    inside = np.flatnonzero((at_daq_s >= daq_time_s[0]) & (at_daq_s <= daq_time_s[-1]))
+    if inside.size < 0.5 * table_time_s.size:
         raise AnalysisError(f"step {data.step.id}: the DAQ record covers < 50 % of the table log")
+    keep = slice(int(inside[0]), int(inside[-1]) + 1)  # contiguous: views, no copies
     table = {name: np.asarray(v)[keep] for name, v in data.table.channels.items()}
     daq = _resample(daq_time_s, data.daq.channels, at_daq_s[keep])
     return SyncedStep(

@@ -1,0 +1,40 @@
+"""Analyses on an exported-then-imported directory give the numbers of the recording."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from aatest.engine.interfaces import AnalysisContext
+from aatest.plugins.analysis.frf import FrfAnalysis
+from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
+from aatest.plugins.sync.analysis import SyncAnalysis
+from synthetic_rig import sine_step
+from twin_helpers import twin_dataset
+
+
+def _analyse(data):  # type: ignore[no-untyped-def]
+    ctx = AnalysisContext()
+    return {a.key: a.run(data, ctx).values for a in (SyncAnalysis(), ScaleFactorAnalysis(),
+                                                     FrfAnalysis())}
+
+
+def test_same_numbers_after_csv_roundtrip(realistic_unit, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    from aatest.engine.exporter import export_csv
+    from aatest.engine.importer import import_dataset
+
+    model = realistic_unit.model_copy(update={"sensors": realistic_unit.sensors[:1]})
+    steps = [sine_step("cal", 8, 400.0, samples=8192, settle_s=1.0),
+             sine_step("f5", 41, 100.0, samples=8192, settle_s=1.0)]
+    data, _ = twin_dataset(model, steps)
+    export_csv(data, tmp_path / "export")
+    imported = import_dataset(tmp_path / "export")
+    a, b = _analyse(data), _analyse(imported)
+    assert b["sync"]["drift_ppm"] == pytest.approx(a["sync"]["drift_ppm"], abs=1e-6)
+    assert b["sync"]["offset_s"] == pytest.approx(a["sync"]["offset_s"], abs=1e-9)
+    assert b["scale_factor"]["v_sz"]["scale_v_per_dps2"] == pytest.approx(
+        a["scale_factor"]["v_sz"]["scale_v_per_dps2"], rel=1e-9)
+    for pa, pb in zip(a["frf"]["v_sz"], b["frf"]["v_sz"]):
+        assert pb["gain_db"] == pytest.approx(pa["gain_db"], abs=1e-9)
+        assert pb["phase_deg"] == pytest.approx(pa["phase_deg"], abs=1e-7)
