@@ -167,8 +167,10 @@ def test_full_length_step_on_three_channels() -> None:
 
 def test_first_mounting_is_a_draw_and_the_nominal_mounting_is_perfect() -> None:
     from aatest.plugins.sim.api import nominal_rig_model
+    from aatest.plugins.sim.model import RigModel
 
     real = World(realistic_rig_model("sr207-aamu"), seed=52)
     tilt_deg = np.degrees(np.arccos(real.block_error[2, 2]))
     assert 0.0 < tilt_deg < 5 * real.model.unit.block_remount_sigma_deg
     assert_allclose(World(nominal_rig_model(), seed=52).block_error, np.eye(3))
+    assert_allclose(World(RigModel(), seed=52).block_error, np.eye(3))  # minimal default

@@ -143,7 +143,8 @@ def realistic_rig_model(sensors: str | Sequence[SensorModel] = "sr207",
     })
     daq = DaqModel(clock_drift=ClockDrift(drift_ppm=drift_ppm), sync_edge_jitter_s=3e-6,
                    slip_ring=ExcessNoise(rms_v=0.011) if slip_ring else None)
-    return RigModel(sensors=list(sensors), table=table, daq=daq)
+    return RigModel(sensors=list(sensors), table=table, daq=daq,
+                    unit=UnitModel(initial_mount_errors=True))
 
 
 def nominal_rig_model(sensors: Sequence[SensorModel] | None = None) -> RigModel:

@@ -238,6 +238,9 @@ class UnitModel(_Model):
 
     sensor_remount_sigma_deg: float = 0.05
     block_remount_sigma_deg: float = 0.15
+    initial_mount_errors: bool = Field(
+        False, description="draw the first mounting from the same spreads (realistic rig); "
+        "False: the unit starts perfectly mounted and only re-mounts perturb it")
 
 
 class RigModel(_Model):

@@ -57,13 +57,15 @@ class World:
         self.drift_sign = {"inner": rng.choice([-1.0, 1.0]), "outer": rng.choice([-1.0, 1.0])}
         self.sync_phase = float(rng.uniform(0.05, 0.95))
         self.pivoted = False
-        # the first mounting is one draw of the same spreads as every re-mount: a real block
+        # with initial_mount_errors the first mounting is one draw of the re-mount spreads: a block
         # sits a little off on the table and each sensor a little off in its seat, which is
         # what makes (δ_e − δ_ep)/2 of the pivoted test differ from zero (method.md §4.5)
-        mount = self._rng("mount")
-        self.block_error = kin.random_small_rotation(mount, model.unit.block_remount_sigma_deg)
+        mount, unit = self._rng("mount"), model.unit
+        drawn = unit.initial_mount_errors
+        self.block_error = kin.random_small_rotation(
+            mount, unit.block_remount_sigma_deg if drawn else 0.0)
         self.seat_error = {s.channel: kin.random_small_rotation(
-            mount, model.unit.sensor_remount_sigma_deg) for s in model.sensors}
+            mount, unit.sensor_remount_sigma_deg if drawn else 0.0) for s in model.sensors}
         self._motion: tuple[PlannedStep, AxisTruth, AxisTruth] | None = None
         self._daq_start_s: float | None = None
         self._result: SimulatedStep | None = None
