@@ -69,7 +69,7 @@ def sensor_noise(steps: list[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: 
               "psd_floor_v_per_sqrt_hz": float(np.sqrt(np.median(psd[(f > 1) & (f < BAND_HZ)]))),
               "allan_dps2": allan, "record_step": longest.step.id}
     fig, ax = new_figure(2, height_in=2.4)
-    ax[0, 0].loglog(f[1:], np.sqrt(psd[1:]))
+    ax[0, 0].loglog(f[1:], np.sqrt(psd[1:]), lw=0.6, rasterized=True)
     ax[0, 0].set(xlabel="frequency / Hz", ylabel="V/√Hz", title=f"noise {sensor.channel}")
     ax[1, 0].loglog(allan["tau_s"], allan["adev"], "o-", ms=3)
     ax[1, 0].set(xlabel="τ / s", ylabel="Allan dev. / (°/s²)")

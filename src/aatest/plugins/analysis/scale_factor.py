@@ -110,14 +110,14 @@ def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0, s
 
 def _figure(volts: np.ndarray, ref: np.ndarray, result: dict[str, Any]) -> str:
     fig, ax = new_figure(2)
-    step = max(volts.size // 4000, 1)
+    step = max(volts.size // 800, 1)  # ~800 points keep the SVG small
     fit = np.polynomial.polynomial.polyval(volts - result["volts_mean_v"],
                                            result["coefficients"])
-    ax[0, 0].plot(volts[::step], ref[::step], ",", label="data")
+    ax[0, 0].plot(volts[::step], ref[::step], ".", ms=1, label="data", rasterized=True)
     ax[0, 0].plot(volts[::step], fit[::step], "-", lw=0.8, label=f"order {result['order']}")
     ax[0, 0].set(xlabel="sensor output / V", ylabel="reference / (°/s²)")
     ax[0, 0].legend(fontsize=7)
-    ax[1, 0].plot(ref[::step], (ref - fit)[::step], ",")
+    ax[1, 0].plot(ref[::step], (ref - fit)[::step], ".", ms=1, rasterized=True)
     ax[1, 0].set(xlabel="reference / (°/s²)", ylabel="residual / (°/s²)")
     fig.tight_layout()
     return to_svg(fig)
