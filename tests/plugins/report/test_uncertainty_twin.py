@@ -1,0 +1,35 @@
+"""Slow: the scale-factor uncertainty against repeated calibrations on the digital twin.
+
+Eight seeds of the shipped scale-factor procedure give eight independent estimates of K; their
+spread must be covered by the budget's combined standard uncertainty (8 samples estimate a
+standard deviation only to about ±25 %, hence the wide acceptance band).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aatest.engine.session import run
+from aatest.plugins.report.gum import evaluate
+from aatest.plugins.report.uncertainty import RigConstants, scale_factor_measurand
+
+PROCEDURE = Path(__file__).resolve().parents[3] / "src/aatest/procedures/scale-factor.yaml"
+
+
+@pytest.mark.slow
+def test_twin_spread_of_k_is_covered_by_u_c(tmp_path: Path) -> None:
+    estimates, u_c = [], []
+    for seed in range(1, 9):
+        _, results = run(PROCEDURE, None, tmp_path / f"s{seed}", False, seed, None,
+                         show_progress=False)
+        measurand = scale_factor_measurand(results, "v_sz", RigConstants())
+        assert measurand is not None
+        gum = evaluate(measurand)
+        estimates.append(gum.value)
+        u_c.append(gum.standard_uncertainty)
+    spread = float(np.std(estimates, ddof=1))
+    ratio = spread / float(np.mean(u_c))
+    assert 0.4 < ratio < 1.5, f"twin spread {spread:.3g} vs u_c {np.mean(u_c):.3g}"
