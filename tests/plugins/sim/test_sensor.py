@@ -134,11 +134,12 @@ def test_pivot_flips_the_equivalent_misalignment() -> None:
         resp.append(fundamental(aligned_daq(sim, "v_sz"), step.cycles)
                     / fundamental(sim.truth["outer_accel_dps2"], step.cycles) / K)
     # S_Z's own y lies along O: internal misalignment (0.2° towards azimuth 30°) plus the
-    # cross-axis ratio_y (−0.002), plus the unbalance leak (1 % about P) seen through the x
+    # cross-axis ratio_y (−0.002), plus the unbalance leak (k about P) seen through the x
     # terms (misalignment + ratio_x 0.003); all turn over with the sensor, so the sum flips
     tilt = np.sin(np.radians(0.2))
     expected = (tilt * np.sin(np.radians(30.0)) - 0.002
-                + 0.01 * (tilt * np.cos(np.radians(30.0)) + 0.003))
+                + model.table.unbalance_parasitic_dps2_per_dps2
+                * (tilt * np.cos(np.radians(30.0)) + 0.003))
     assert_allclose([resp[0].real, resp[1].real], [expected, -expected], atol=2e-5)
 
 
