@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import socket
 import threading
 import time
 from collections.abc import Sequence
@@ -32,6 +33,8 @@ from aatest.engine.steps import PlannedStep
 from aatest.plugins.daq import can_frames as cf
 
 log = logging.getLogger("aatest.daq.can")
+#: socket receive buffer asked for on udp_multicast buses (the kernel caps it at rmem_max)
+UDP_RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
 
 
 def open_bus(interface: str, channel: str, fd: bool = True, bitrate: int | None = None) -> can.BusABC:
@@ -40,9 +43,27 @@ def open_bus(interface: str, channel: str, fd: bool = True, bitrate: int | None 
     if bitrate is not None and interface not in ("virtual", "udp_multicast", "socketcan"):
         kwargs["bitrate"] = bitrate
     try:
-        return can.Bus(**kwargs)
+        bus = can.Bus(**kwargs)
     except (can.CanError, OSError, ImportError, ValueError) as exc:
         raise RigFault(f"CAN {interface} {channel}: cannot open the bus ({exc})") from exc
+    if interface == "udp_multicast":
+        _enlarge_receive_buffer(bus)
+    return bus
+
+
+def _enlarge_receive_buffer(bus: can.BusABC, size_bytes: int = UDP_RECEIVE_BUFFER_BYTES) -> None:
+    """Give a udp_multicast bus a deep socket buffer (best effort, python-can internals).
+
+    A UDP "bus" drops datagrams when the receiving thread is descheduled; the kernel buffer
+    (capped by net.core.rmem_max) rides out such stalls. Loss is still detected, never silent.
+    """
+    sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
+    if sock is None:
+        return
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size_bytes)
+    except OSError as exc:
+        log.debug("cannot enlarge the udp_multicast receive buffer: %s", exc)
 
 
 def send(bus: can.BusABC, arbitration_id: int, payload: bytes, fd: bool, where: str) -> None:

@@ -174,6 +174,11 @@ class SimModbusServer:
                 log.debug("server shutdown: %s", exc)
         self._thread.join(timeout_s)
 
+    @property
+    def running(self) -> bool:
+        """True while the server thread serves (it ends on :meth:`stop` or after lifetime_s)."""
+        return self._thread.is_alive()
+
     def __enter__(self) -> SimModbusServer:
         return self.start()
 
@@ -200,7 +205,7 @@ def serve_forever(host: str, port: int, seed: int, *, can_interface: str | None 
     print(f"aatest simulated controller: Modbus TCP {server.host}:{server.port}, "
           f"CAN {interface} {channel if interface != 'none' else ''} (Ctrl-C stops)", flush=True)
     try:
-        while server._thread.is_alive():
+        while server.running:
             time.sleep(0.5)
     except KeyboardInterrupt:
         pass
