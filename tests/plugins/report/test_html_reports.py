@@ -77,6 +77,7 @@ def test_certificate_has_every_section_and_plot(results: dict[str, Any], run_dir
     assert recording in text and "3f" * 32 in text
     assert "A. Tester &lt;script&gt;x&lt;/script&gt;" in html and "<script>" not in html
     assert "0.00401400 ± 1.1e-06" in text  # K with U (k = 2)
+    assert "22.4 °C; chamber set-points 22.0, -21.0, 48.0 °C" in text
 
 
 def test_sections_degrade_when_keys_are_absent(results: dict[str, Any], run_dir: Path) -> None:

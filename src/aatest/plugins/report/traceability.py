@@ -38,6 +38,8 @@ class Traceability:
     recording_sha256: str
     seed: Any
     extra: Mapping[str, Any] = field(default_factory=dict)
+    #: chamber set-points the run stepped through (°C), empty without a chamber
+    chamber_setpoints_c: list[float] = field(default_factory=list)
 
 
 def _plugins(meta: Mapping[str, Any]) -> list[tuple[str, str]]:
@@ -101,6 +103,7 @@ def traceability(results: Mapping[str, Any], run_dir: Path) -> Traceability:
         operator=str(meta.get("operator") or "—"),
         started_utc=str(meta.get("started_utc") or "—"),
         environment_c=_environment_c(results, meta),
+        chamber_setpoints_c=ex.step_values(ex.steps_of_kind(results, "chamber"), "temperature_c"),
         software_version=str(meta.get("aatest_version") or aatest.__version__),
         recording_sha256=recording_hash(run_dir),
         seed=meta.get("seed", "—"),
