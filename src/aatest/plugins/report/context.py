@@ -105,6 +105,17 @@ def _misalignment_rows(results: Mapping[str, Any], budgets: Budgets) -> list[dic
             for sensor, entry in sorted((sensors or {}).items())]
 
 
+def _header(results: Mapping[str, Any], run_dir: Path, kind: str, title: str) -> dict[str, Any]:
+    """What every report shows at the top and bottom: title, signing key, traceability."""
+    signature = results.get("signature")
+    return {
+        "report": {"kind": kind, "title": title,
+                   "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")},
+        "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
+        "trace": traceability(results, run_dir),
+    }
+
+
 def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: str,
                   sections: Collection[str], constants: RigConstants,
                   plots: bool = True) -> dict[str, Any]:
@@ -112,10 +123,8 @@ def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: s
     budgets = evaluate_all(results, constants)
     views = [_channel_view(results, ch, budgets) for ch in channels(results)]
     present = {s for s in sections if ex.analysis(results, s) is not None}
-    signature = results.get("signature") or {}
     return {
-        "report": {"kind": kind, "title": title,
-                   "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")},
+        **_header(results, run_dir, kind, title),
         "procedure": results.get("procedure"),
         "sections": sorted(present),
         "channels": views,
@@ -126,8 +135,6 @@ def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: s
         "budgets": budgets.shown(),
         "figures": _analysis_figures(results, present)
         + (_own_figures(results, present, views) if plots else []),
-        "trace": traceability(results, run_dir),
-        "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
         "steps": results.get("steps") or [],
         "analysis_errors": results.get("analysis_errors") or {},
         "analysis_skipped": results.get("analysis_skipped") or [],
@@ -161,10 +168,8 @@ def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[s
             for ch, view in sorted(residuals.items()) if isinstance(view, Mapping)]
     figures += [{"section": "diagnose", "title": title, "svg": vet_svg(svg)}
                 for title, svg in own if svg is not None]
-    signature = results.get("signature") or {}
     return {
-        "report": {"kind": "diagnosis", "title": "Diagnosis: what the simulation gets wrong",
-                   "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")},
+        **_header(results, run_dir, "diagnosis", "Diagnosis: what the simulation gets wrong"),
         "baseline": diag.get("baseline") or {},
         "findings": [f for f in diag.get("findings") or [] if isinstance(f, Mapping)],
         "candidates": candidates,
@@ -173,6 +178,4 @@ def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[s
                            "lines": _strongest_lines(v.get("spectrum_lines") or [])}
                       for ch, v in sorted(residuals.items()) if isinstance(v, Mapping)},
         "figures": figures,
-        "trace": traceability(results, run_dir),
-        "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
     }
