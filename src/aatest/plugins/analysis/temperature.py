@@ -135,8 +135,13 @@ class TemperatureAnalysis:
     key: ClassVar[str] = "temperature"
 
     def applies_to(self, data: Dataset) -> bool:
+        """At least three set-points, or logged sensor temperatures spanning ≥ 5 °C."""
         temps = {s.step.temperature_c for s in data.steps if s.step.temperature_c is not None}
-        return len(temps) >= 3
+        if len(temps) >= 3:
+            return True
+        logged = [float(np.mean(s.daq["temperature_c"])) for s in data.steps
+                  if s.step.recorded and "temperature_c" in s.daq.channels]
+        return len(logged) >= 3 and max(logged) - min(logged) >= _MIN_SPAN_C
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
         steps = synced_steps(data, context)

@@ -271,10 +271,16 @@ def synchronise(data: StepData) -> SyncedStep:
 
 
 def synced_steps(data: Dataset, context: Any) -> list[SyncedStep]:
-    """All recorded steps synchronised, computed once per analysis pass (``context.cache``)."""
+    """All recorded steps synchronised, computed once per analysis pass (``context.cache``).
+
+    Raises
+    ------
+    AnalysisError
+        Naming the first step whose sync edges are missing or inconsistent.
+    """
     cache: dict[str, Any] = context.cache
-    key = (CACHE_KEY, id(data))
-    if key not in cache:
-        cache[key] = [synchronise(s) for s in data.steps if s.step.recorded]
-    result: list[SyncedStep] = cache[key]
+    cached = cache.get(CACHE_KEY)
+    if cached is None or cached[0] is not data:
+        cache[CACHE_KEY] = (data, [synchronise(s) for s in data.steps if s.step.recorded])
+    result: list[SyncedStep] = cache[CACHE_KEY][1]
     return result
