@@ -146,3 +146,15 @@ def test_signed_certificate_round_trip(results: dict[str, Any], run_dir: Path,
     FAST.render(results, run_dir, None)
     assert verify_bundle(report).reasons == [
         "report.html: modified (sha256 differs from the signed value)"]
+
+
+def test_own_plot_only_where_the_analysis_gave_none(results: dict[str, Any], run_dir: Path) -> None:
+    for key in ("scale_factor", "bias", "temperature", "misalignment", "noise"):
+        results["analysis"].pop(key)
+    results["analysis"]["frf"] = {"v_sz": results["analysis"]["frf"]["v_sz"]}
+    results["figures"] = {"frf": {"bode_v_sz": '<svg xmlns="http://www.w3.org/2000/svg"/>'}}
+    html = FrequencyResponseReport().render(results, run_dir, None).read_text()
+    assert "frf: bode_v_sz" in html and "Bode v_sz" not in html
+    del results["figures"]
+    html = FrequencyResponseReport().render(results, run_dir, None).read_text()
+    assert "Bode v_sz" in html

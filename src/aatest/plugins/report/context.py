@@ -71,22 +71,29 @@ def _analysis_figures(results: Mapping[str, Any], keys: Collection[str]) -> list
 
 def _own_figures(results: Mapping[str, Any], sections: Collection[str],
                  views: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Plots made here from the contract keys (one per channel and section)."""
+    """Plots made here from the contract keys, for each section and channel the analysis
+    plugins gave no figure of their own (a figure name containing the channel counts)."""
+    given = results.get("figures") if isinstance(results.get("figures"), Mapping) else {}
+
+    def wanted(section: str, channel: str = "") -> bool:
+        names = given.get(section) if isinstance(given.get(section), Mapping) else {}
+        return section in sections and not any(channel in str(name) for name in names)
+
     makers: list[tuple[str, str, Callable[[], str | None]]] = []
     peak = max(ex.step_values(ex.steps_of_kind(results, "sine"), "accel_dps2") or [0.0]) or None
     for v in views:
-        if "scale_factor" in sections and isinstance(v["scale"], Mapping):
+        if wanted("scale_factor", v["name"]) and isinstance(v["scale"], Mapping):
             makers.append(("scale_factor", f"calibration curve {v['name']}",
                            lambda v=v: fig.calibration_curve(v["scale"], v["sensor"], peak)))
-        if "frf" in sections and v["frf"]:
+        if wanted("frf", v["name"]) and v["frf"]:
             makers.append(("frf", f"Bode {v['name']}", lambda v=v: fig.bode(
                 [r.point for r in v["frf"]], v["transfer_function"],
                 [r.gain.expanded_uncertainty if r.gain else 0.0 for r in v["frf"]])))
-        if "temperature" in sections and isinstance(v["temperature"], Mapping):
+        if wanted("temperature", v["name"]) and isinstance(v["temperature"], Mapping):
             makers.append(("temperature", f"bias vs temperature {v['name']}",
                            lambda v=v: fig.bias_vs_temperature(v["temperature"])))
     sets = (ex.analysis(results, "misalignment") or {}).get("sets")
-    if "misalignment" in sections and isinstance(sets, Mapping):
+    if wanted("misalignment") and isinstance(sets, Mapping):
         makers.append(("misalignment", "cross responses in the complex plane",
                        lambda: fig.misalignment_plane(sets)))
     out = []
