@@ -14,7 +14,7 @@ and scoring on the other (held-out SSE) costs a small linear solve, not a pass o
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -25,6 +25,7 @@ from aatest.plugins.diagnose.replay import (
     Replay,
     StepReplay,
     gravity_along,
+    ripple_regressors,
     sensor_acceleration,
     sensor_axes,
 )
@@ -103,15 +104,12 @@ def _dynamics(x: np.ndarray, spec: Spec, dt_s: float) -> np.ndarray:
 
 
 def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float) -> tuple[np.ndarray, np.ndarray]:
-    """Inner-axis acceleration of a unit position ripple sin/cos(2π·n·θ): d²/dt² by chain rule."""
-    angle, rate, accel = sr.inner.evaluate(t_eval)
+    """Inner-axis acceleration of a unit position ripple sin/cos(2π·n·θ) (°/s² per °)."""
     if not sr.inner.moving:
         zero = np.zeros_like(t_eval)
         return zero, zero
-    k = 2 * np.pi * n_cpd
-    s, c = np.sin(k * angle), np.cos(k * angle)
-    ku, ku2 = k * accel, (k * rate) ** 2
-    return c * ku - s * ku2, -s * ku - c * ku2
+    _, _, acc_s, acc_c = ripple_regressors(sr, t_eval, n_cpd)
+    return acc_s, acc_c
 
 
 def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]) -> np.ndarray:
@@ -120,7 +118,7 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
     t_mid = 0.5 * sr.time_s[-1]
     t_eval = tp - spec.delay_s - spec.warp_ppm * 1e-6 * (tp - t_mid)
     cut = slice(PAD_SAMPLES, PAD_SAMPLES + sr.n)
-    alpha3 = sensor_acceleration(sr, info.axis, t_eval)
+    alpha3 = sensor_acceleration(sr, info.axis, t_eval, (spec.delay_s, spec.warp_ppm))
     sensed = alpha3[2]
     if spec.hysteresis_dps2 > 0.0 and sr.dynamic:
         sensed = play_operator(sensed, spec.hysteresis_dps2)
@@ -176,7 +174,6 @@ class Gram:
     xty: np.ndarray  # (2, p)
     yty: np.ndarray  # (2,)
     count: np.ndarray  # (2,)
-    per_step: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -188,22 +185,62 @@ def fold_of(n: int) -> np.ndarray:
     return (np.arange(n) * BLOCKS_PER_STEP // max(n, 1)) % 2
 
 
-def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray]) -> Gram:
-    """Per-fold Gram matrices of ``spec`` over all steps, against ``targets[step]`` (volts)."""
+def _step_key(spec: Spec, sr: StepReplay) -> Spec:
+    """The part of ``spec`` a step's columns depend on (a still step ignores the shape)."""
+    if sr.dynamic:
+        return spec
+    key = replace(spec, hysteresis_dps2=0.0, saturation_dps2=None)
+    if not spec.ripple_cpd and spec.vibration_hz is None:
+        key = replace(key, delay_s=0.0, dynamics=None, warp_ppm=0.0)
+    return key
+
+
+def _step_gram(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
+               y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One step's per-fold XᵀX, Xᵀy, yᵀy and counts (only its non-zero columns multiplied)."""
+    x = step_columns(sr, info, spec, names)
+    p = len(names)
+    used = np.flatnonzero(np.any(x != 0.0, axis=0))
+    xu = np.ascontiguousarray(x[:, used])
+    xtx, xty, yty, cnt = np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2)
+    edges = _block_edges(sr.n)
+    for b in range(BLOCKS_PER_STEP):
+        blk = slice(edges[b], edges[b + 1])
+        xb, yb = xu[blk], y[blk]
+        f = b % 2
+        xtx[f][np.ix_(used, used)] += xb.T @ xb
+        xty[f][used] += xb.T @ yb
+        yty[f] += yb @ yb
+        cnt[f] += yb.size
+    return xtx, xty, yty, cnt
+
+
+def _block_edges(n: int) -> np.ndarray:
+    """Start indices of the contiguous time blocks of an n-sample record (and n)."""
+    return np.searchsorted(np.arange(n) * BLOCKS_PER_STEP // max(n, 1), np.arange(BLOCKS_PER_STEP + 1))
+
+
+def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
+         cache: dict | None = None) -> Gram:
+    """Per-fold Gram matrices of ``spec`` over all steps, against ``targets[step]`` (volts).
+
+    ``cache`` keeps each step's contribution under the part of the spec it depends on, so a
+    search over a shape parameter recomputes only the steps that parameter can change.
+    """
     names = column_names(spec, replay)
     p = len(names)
     g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
     for sr in replay.steps:
-        x = step_columns(sr, info, spec, names)
-        y = targets[sr.index]
-        fold = fold_of(sr.n)
-        for f in (0, 1):
-            m = fold == f
-            xf, yf = x[m], y[m]
-            g.xtx[f] += xf.T @ xf
-            g.xty[f] += xf.T @ yf
-            g.yty[f] += yf @ yf
-            g.count[f] += m.sum()
+        key = (sr.index, _step_key(spec, sr))
+        part = cache.get(key) if cache is not None else None
+        if part is None:
+            part = _step_gram(sr, info, spec, names, targets[sr.index])
+            if cache is not None:
+                cache[key] = part
+        g.xtx += part[0]
+        g.xty += part[1]
+        g.yty += part[2]
+        g.count += part[3]
     return g
 
 
@@ -256,9 +293,10 @@ def fit_gram(g: Gram, spec: Spec) -> Fit:
     return Fit(spec, g.names, coef, max(sse(xtx, xty, yty, coef), 0.0), max(held, 0.0), g.n, xtx)
 
 
-def fit_spec(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray]) -> Fit:
-    """Fit ``spec`` to ``targets`` (volts per step)."""
-    return fit_gram(gram(replay, info, spec, targets), spec)
+def fit_spec(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
+             cache: dict | None = None) -> Fit:
+    """Fit ``spec`` to ``targets`` (volts per step); ``cache`` as in :func:`gram`."""
+    return fit_gram(gram(replay, info, spec, targets, cache), spec)
 
 
 def predict(replay: Replay, info: ChannelInfo, fit: Fit) -> dict[int, np.ndarray]:

@@ -25,7 +25,6 @@ from aatest.plugins.diagnose.selection import (
     ChannelResult,
     Finding,
     correlation_factor,
-    delta_bic,
     forward_select,
     nominal_fit,
     rmse,
@@ -33,6 +32,8 @@ from aatest.plugins.diagnose.selection import (
 
 #: the logger pre-sample filter of the documented rig (method.md §1.3), tried when unstated
 DEFAULT_ANTIALIAS_HZ = 100.0
+#: residual noise PSD ratio (high band / low band) below which the noise is filtered
+ROLLOFF_RATIO = 0.5
 
 
 def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
@@ -64,21 +65,46 @@ def _targets(replay: Replay, channel: str) -> dict[int, np.ndarray]:
     return {s.index: s.volts[channel] for s in replay.steps}
 
 
+def noise_rolloff(ctx: Context) -> float:
+    """Residual PSD far above the filter corner over the PSD below it (1 = white noise).
+
+    A logger's pre-sample filter shapes the sensor noise it records; the ratio says whether the
+    data carry that shape, whatever the signal errors at the (≤ 10 Hz) excitation.
+    """
+    from aatest.plugins.diagnose.effects.logger import residual_psd
+
+    fit = nominal_fit(ctx)
+    pred = predict(ctx.replay, ctx.info, fit)
+    freq, psd = residual_psd(ctx, {i: ctx.targets[i] - pred[i] for i in pred})
+    fs = 1.0 / ctx.replay.dt_s
+    low = (freq >= 0.01 * fs) & (freq <= 0.03 * fs)
+    high = (freq >= 0.2 * fs) & (freq <= 0.45 * fs)
+    if not low.any() or not high.any():
+        return 1.0
+    return float(np.median(psd[high]) / max(np.median(psd[low]), 1e-300))
+
+
 def choose_logger(dataset: Dataset, replay: Replay) -> tuple[float | None, str]:
-    """The logger filter of the nominal chain: stated by the data, else the better replay."""
+    """The logger filter of the nominal chain: stated by the data, else read from the data.
+
+    The noise spectrum decides first (a roll-off means a pre-sample filter); when the noise is
+    white — no filter, or a filter drowned by excess white noise — the replay that fits the
+    signal better decides.
+    """
     stated, corner = stated_antialias(dataset)
     if stated:
         return corner, "stated by the data's model"
     channel = replay.channels[0]
-    best: tuple[float, float | None] | None = None
-    for option in (DEFAULT_ANTIALIAS_HZ, None):
-        ctx = Context(replay, _info(dataset, channel, option, replay.t_ref_c),
-                      _targets(replay, channel), None)  # type: ignore[arg-type]
-        sse = nominal_fit(ctx).sse_in
-        if best is None or sse < best[0]:
-            best = (sse, option)
-    assert best is not None
-    return best[1], "chosen by the replay (not stated by the data)"
+    targets = _targets(replay, channel)
+    contexts = {opt: Context(replay, _info(dataset, channel, opt, replay.t_ref_c), targets,
+                             None)  # type: ignore[arg-type]
+                for opt in (DEFAULT_ANTIALIAS_HZ, None)}
+    ratio = noise_rolloff(contexts[DEFAULT_ANTIALIAS_HZ])
+    if ratio < ROLLOFF_RATIO:
+        return DEFAULT_ANTIALIAS_HZ, f"noise rolls off above {DEFAULT_ANTIALIAS_HZ:g} Hz (ratio {ratio:.3f})"
+    sse = {opt: nominal_fit(ctx).sse_in for opt, ctx in contexts.items()}
+    best = min(sse, key=lambda opt: sse[opt])
+    return best, f"white noise (ratio {ratio:.2f}); chosen by the better replay"
 
 
 def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,
@@ -99,7 +125,9 @@ def _drift_finding(ctx: Context, tolerance_ppm: float) -> tuple[Finding | None, 
         return None, {"effect": "clock_drift", "delta_bic": None, "accepted": False,
                       "testable": False, "reason": "no sync edges"}
     one = one_clock_fit(ctx, est.drift_ppm)
-    dbic = -delta_bic(ctx, one, ctx.current, "clock_drift") - np.log(one.n / ctx.correlation)
+    n_eff = one.n / ctx.correlation
+    dbic = n_eff * np.log(max(ctx.current.sse_held_out, 1e-300) / max(one.sse_held_out, 1e-300)) \
+        + np.log(n_eff)
     row = {"effect": "clock_drift", "delta_bic": float(dbic), "accepted": False, "testable": True,
            "parameters": {"drift_ppm": est.drift_ppm}, "attributed_to": "logger",
            "tolerance_ppm": tolerance_ppm}
@@ -117,12 +145,9 @@ def _drift_finding(ctx: Context, tolerance_ppm: float) -> tuple[Finding | None, 
 def _noise_finding(ctx: Context, stated_noise_v: float) -> tuple[Finding | None, dict[str, Any]]:
     pred = predict(ctx.replay, ctx.info, ctx.current)
     residuals = {i: ctx.targets[i] - pred[i] for i in pred}
-    value, ci, veto = excess_noise(ctx, residuals, stated_noise_v)
+    value, ci, veto, dbic = excess_noise(ctx, residuals, stated_noise_v)
     total = rmse(ctx.current)
     share = min(value**2 / total**2, 1.0) if total > 0 else 0.0
-    n_eff = ctx.current.n
-    dbic = float(-0.5 * n_eff * np.log1p(value**2 / max(total**2 - value**2, 1e-12))
-                 + np.log(n_eff)) if value > 0 else 0.0
     row = {"effect": "excess_noise", "delta_bic": dbic, "accepted": veto is None, "testable": True,
            "parameters": {"rms_v": value}, "channel": ctx.info.channel, "attributed_to": "logger"}
     if veto is not None:

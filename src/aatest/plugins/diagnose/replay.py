@@ -39,6 +39,19 @@ class AxisMotion:
     sin_deg: float = 0.0
     cos_deg: float = 0.0
     frequency_hz: float = 0.0
+    #: whether the rate was a fitted term (a ramp) rather than fixed at zero
+    fitted_rate: bool = False
+
+    def basis(self, time_s: np.ndarray) -> np.ndarray:
+        """The columns this form was fitted with, at ``time_s``: 1, [t], [sin ωt, cos ωt]."""
+        t = np.asarray(time_s, dtype=float)
+        cols = [np.ones_like(t)]
+        if self.fitted_rate:
+            cols.append(t)
+        if self.frequency_hz > 0.0:
+            w = 2 * np.pi * self.frequency_hz
+            cols += [np.sin(w * t), np.cos(w * t)]
+        return np.column_stack(cols)
 
     @property
     def moving(self) -> bool:
@@ -83,9 +96,10 @@ def fit_axis_motion(time_s: np.ndarray, position_deg: np.ndarray, moving: bool,
     coef = list(coef)
     offset = coef.pop(0)
     rate = coef.pop(0) if moving and constant_rate else 0.0
+    ramp = moving and constant_rate
     if use_sine:
-        return AxisMotion(offset, rate, coef[0], coef[1], float(frequency_hz))
-    return AxisMotion(offset, rate)
+        return AxisMotion(offset, rate, coef[0], coef[1], float(frequency_hz), ramp)
+    return AxisMotion(offset, rate, fitted_rate=ramp)
 
 
 @dataclass(frozen=True)
@@ -105,6 +119,8 @@ class StepReplay:
     relation: ClockRelation | None
     pivoted: bool = False
     motor_on: bool = True
+    #: memo of motion evaluations (delay/warp searches re-use them), not part of the value
+    memo: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def n(self) -> int:
@@ -136,13 +152,57 @@ def sensor_axes(axis: str, pivoted: bool) -> np.ndarray:
     return frame @ np.diag([-1.0, -1.0, 1.0]) if pivoted else frame
 
 
+def ripple_regressors(replay: StepReplay, time_s: np.ndarray, n_cpd: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Unit inner-axis ripple sin/cos(2π·n·θ) as (position s, c, acceleration s, c) at ``time_s``.
+
+    The part of the ripple the commanded form can absorb (its projection on the form's
+    columns over the record) is removed, because the replay's reference was fitted on a
+    table log that contains the ripple: what remains is what the reference cannot explain.
+    """
+    axis = replay.inner
+    k = 2 * np.pi * n_cpd
+    angle, rate, accel = axis.evaluate(time_s)
+    s, c = np.sin(k * angle), np.cos(k * angle)
+    acc_s, acc_c = c * k * accel - s * (k * rate) ** 2, -s * k * accel - c * (k * rate) ** 2
+    rec_angle = axis.evaluate(replay.time_s)[0]
+    basis = axis.basis(replay.time_s)
+    coef, *_ = np.linalg.lstsq(basis, np.column_stack([np.sin(k * rec_angle), np.cos(k * rec_angle)]),
+                               rcond=None)
+    full = axis.basis(time_s)
+    pos_s, pos_c = s - full @ coef[:, 0], c - full @ coef[:, 1]
+    if axis.frequency_hz > 0.0:
+        w2 = (2 * np.pi * axis.frequency_hz) ** 2
+        sin_cos = full[:, -2:]
+        acc_s = acc_s + w2 * (sin_cos @ coef[-2:, 0])
+        acc_c = acc_c + w2 * (sin_cos @ coef[-2:, 1])
+    return pos_s, pos_c, acc_s, acc_c
+
+
 def _sincos(angle_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    rad = np.radians(angle_deg)
+    """(sin, cos) of an angle array; a constant angle is evaluated once."""
+    a = np.asarray(angle_deg, dtype=float)
+    if a.size and a[0] == a[-1] and np.all(a == a[0]):
+        rad = np.radians(a[0])
+        return np.full_like(a, np.sin(rad)), np.full_like(a, np.cos(rad))
+    rad = np.radians(a)
     return np.sin(rad), np.cos(rad)
 
 
-def sensor_acceleration(replay: StepReplay, axis: str, time_s: np.ndarray) -> np.ndarray:
-    """Commanded angular acceleration in the sensor frame, (3, n) rows x, y, z (°/s²)."""
+def sensor_acceleration(replay: StepReplay, axis: str, time_s: np.ndarray,
+                        memo_key: tuple | None = None) -> np.ndarray:
+    """Commanded angular acceleration in the sensor frame, (3, n) rows x, y, z (°/s²).
+
+    With ``memo_key`` the result is kept on the step (small LRU), for repeated evaluations on
+    the same time grid during a parameter search.
+    """
+    if memo_key is not None:
+        key = ("alpha", axis, memo_key)
+        if key not in replay.memo:
+            if len(replay.memo) > 24:
+                replay.memo.pop(next(iter(replay.memo)))
+            replay.memo[key] = sensor_acceleration(replay, axis, time_s)
+        return replay.memo[key]
     m = replay.motion(time_s)
     top = kin.angular_acceleration_top(_sincos(m["inner_angle"]), m["inner_rate"],
                                        m["inner_accel"], m["outer_rate"], m["outer_accel"])

@@ -32,11 +32,13 @@ class Context:
     #: n / n_eff: how many samples one independent noise sample spans (filtered noise)
     correlation: float = 1.0
     cache: dict[Any, Fit] = field(default_factory=dict)
+    step_cache: dict[Any, Any] = field(default_factory=dict)
 
     def fit(self, spec: Spec) -> Fit:
         """Fit (memoised) a spec on this channel."""
         if spec not in self.cache:
-            self.cache[spec] = fit_spec(self.replay, self.info, spec, self.targets)
+            self.cache[spec] = fit_spec(self.replay, self.info, spec, self.targets,
+                                       self.step_cache)
         return self.cache[spec]
 
     @property

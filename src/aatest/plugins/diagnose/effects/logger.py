@@ -86,20 +86,30 @@ def white_floor_rms_v(ctx: Context, residuals: dict[int, np.ndarray]) -> tuple[f
     return float(np.sqrt(floor * fs / 2.0)), float(np.sqrt(total * fs / 2.0))
 
 
-def excess_noise(ctx: Context, residuals: dict[int, np.ndarray],
-                 stated_noise_v: float) -> tuple[float, list[float], str | None]:
-    """(excess RMS V, 95 % interval, veto reason or None)."""
-    floor, total = white_floor_rms_v(ctx, residuals)
-    if ctx.info.antialias_hz is None:
-        excess2 = floor**2 - stated_noise_v**2
-        if floor < NOISE_MARGIN * stated_noise_v:
-            return max(excess2, 0.0) ** 0.5, [0.0, 0.0], (
-                f"white noise {floor * 1e3:.2f} mV is within the stated sensor noise")
-        value = float(np.sqrt(excess2))
-    else:
-        value = floor
-        if value < MIN_EXCESS_RMS_V:
-            return value, [0.0, 0.0], "no white floor above the pre-sample filter band"
+def excess_noise(ctx: Context, residuals: dict[int, np.ndarray], stated_noise_v: float
+                 ) -> tuple[float, list[float], str | None, float]:
+    """(excess RMS V, 95 % interval, veto reason or None, ΔBIC).
+
+    ΔBIC compares a white floor of fitted variance with the expected floor σ0 (quantisation
+    level behind a pre-sample filter, else the stated sensor noise) on the samples of the
+    band used: −N·(r − 1 − ln r) + ln N with r = σ̂²/σ0² (a one-parameter variance test).
+    """
+    floor, _ = white_floor_rms_v(ctx, residuals)
     n = sum(r.size for r in residuals.values())
-    rel = Z95 * np.sqrt(2.0 / max(n / 1024, 1.0)) / 2
-    return value, [value * (1 - rel), value * (1 + rel)], None
+    filtered = ctx.info.antialias_hz is not None
+    sigma0 = 0.5 * MIN_EXCESS_RMS_V if filtered else max(stated_noise_v, 1e-9)
+    n_band = n * (0.45 - 4.0 * ctx.info.antialias_hz * ctx.replay.dt_s if filtered else 0.2) * 2
+    ratio = max(floor**2 / sigma0**2, 1e-12)
+    dbic = float(-max(n_band, 1.0) * (ratio - 1.0 - np.log(ratio)) * (1 if ratio > 1 else -1)
+                 + np.log(max(n_band, 2.0)))
+    if filtered:
+        value = floor
+        veto = None if value >= MIN_EXCESS_RMS_V else "no white floor above the pre-sample filter band"
+    else:
+        value = float(np.sqrt(max(floor**2 - stated_noise_v**2, 0.0)))
+        veto = None if floor >= NOISE_MARGIN * stated_noise_v else (
+            f"white noise {floor * 1e3:.2f} mV is within the stated sensor noise")
+    if veto is not None:
+        return value, [0.0, 0.0], veto, abs(dbic) if ratio <= 1 else dbic
+    rel = Z95 * np.sqrt(2.0 / max(n_band / 10.0, 1.0))
+    return value, [value * (1 - rel), value * (1 + rel)], None, dbic

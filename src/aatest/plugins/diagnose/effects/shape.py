@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import optimize
 
+from aatest.plugins.diagnose.design import Spec, step_columns
 from aatest.plugins.diagnose.effects.base import (
     CandidateFit,
     Context,
@@ -74,24 +75,74 @@ def fit_jerk(ctx: Context) -> CandidateFit:
     return out
 
 
-def fit_dynamics(ctx: Context, delay_hint_s: float = 0.0) -> CandidateFit:
-    """Second-order low-pass, seeded from the fitted lag τ ≈ 2ζ/ωn."""
+def measured_frf(ctx: Context, base: Spec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(f Hz, H, weight) of every sine step: measured response over the replayed input.
+
+    H is the complex ratio of the output's fundamental to K times the nominal chain's
+    fundamental, so it holds only what the nominal model lacks (the sensor's own dynamics).
+    """
+    fit = ctx.fit(base)
+    freqs, ratios, weights = [], [], []
+    for sr in ctx.replay.steps:
+        f0 = sr.inner.frequency_hz or sr.outer.frequency_hz
+        if f0 <= 0.0:
+            continue
+        cols = step_columns(sr, ctx.info, base, fit.names)
+        drive = cols[:, 1]
+        others = cols @ fit.coef - fit.coef[1] * drive
+        e = np.exp(-2j * np.pi * f0 * sr.time_s)
+        a = np.mean((drive - drive.mean()) * e)
+        if abs(a) < 1.0:  # under 1 °/s² along the sensitive axis: no dynamic information
+            continue
+        y = ctx.targets[sr.index] - others
+        freqs.append(f0)
+        ratios.append(np.mean((y - y.mean()) * e) / (fit.scale * a))
+        weights.append(abs(a))
+    return np.asarray(freqs), np.asarray(ratios), np.asarray(weights)
+
+
+def _second_order(f_hz: np.ndarray, fn: float, zeta: float) -> np.ndarray:
+    r = f_hz / fn
+    return 1.0 / (1.0 - r * r + 2j * zeta * r)
+
+
+def _frf_seed(ctx: Context, base: Spec) -> np.ndarray:
+    """(log fn, ζ) fitted to the measured FRF (fast: no time-domain replay)."""
+    f, h, w = measured_frf(ctx, base)
+    if f.size < 2:
+        return np.array([np.log(100.0), 0.7])
+
+    def resid(p: np.ndarray) -> np.ndarray:
+        d = w * (_second_order(f, float(np.exp(p[0])), float(p[1])) - h)
+        return np.concatenate([d.real, d.imag])
+
+    best = None
+    for fn0 in (5.0, 20.0, 80.0, 300.0):
+        for z0 in (0.3, 0.7, 1.2):
+            res = optimize.least_squares(resid, [np.log(fn0), z0],
+                                         bounds=([0.0, 0.05], [np.log(1000.0), 3.0]))
+            if best is None or res.cost < best.cost:
+                best = res
+    return best.x
+
+
+def fit_dynamics(ctx: Context) -> CandidateFit:
+    """Second-order low-pass, seeded from the measured FRF, polished on the full replay."""
     base = _synced(ctx)
 
     def make(p: np.ndarray):
-        return replace_spec(base, dynamics=(float(np.exp(p[0])), float(p[1])))
+        return replace_spec(base, dynamics=(round(float(np.exp(p[0])), 9), round(float(p[1]), 9)))
 
     def cost(p: np.ndarray) -> float:
-        if not (0.05 <= p[1] <= 3.0 and np.log(1.0) <= p[0] <= np.log(1000.0)):
+        if not (0.05 <= p[1] <= 3.0 and 0.0 <= p[0] <= np.log(1000.0)):
             return np.inf
         return ctx.fit(make(p)).sse_in
 
-    lag = max(delay_hint_s, 2 * ctx.replay.dt_s)
-    seeds = [np.array([np.log(min(2 * z / (2 * np.pi * lag), 900.0)), z])
-             for z in (0.3, 0.5, 0.7, 1.0, 1.5)]
-    start = min(seeds, key=cost)
+    start = _frf_seed(ctx, base)
     res = optimize.minimize(cost, start, method="Nelder-Mead",
-                            options={"xatol": 1e-4, "fatol": 1e-9 * cost(start), "maxiter": 120})
+                            options={"xatol": 1e-4, "fatol": 1e-10 * cost(start), "maxiter": 40,
+                                     "initial_simplex": [start, start + [0.02, 0.0],
+                                                         start + [0.0, 0.02]]})
     fn, zeta = float(np.exp(res.x[0])), float(res.x[1])
     fit = ctx.fit(make(res.x))
     ci_fn = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(v, zeta)), fn, 0.01 * fn, lo=0.5)
@@ -114,16 +165,38 @@ def _droops(fn: float, zeta: float, ctx: Context) -> bool:
 
 
 def fit_hysteresis(ctx: Context) -> CandidateFit:
+    """Play operator half width, fitted jointly with the ±1-sample alignment nuisance.
+
+    Hysteresis lags a sine by ≈ r/A rad, comparable to the sync's sub-sample offset at large
+    amplitude; the two separate because only hysteresis grows as the amplitude falls.
+    """
     base = ctx.current.spec
-    peak = dynamic_peak_dps2(ctx)
+    peak, dt = dynamic_peak_dps2(ctx), ctx.replay.dt_s
+    hi = 0.1 * peak
 
     def make(r: float):
         return replace_spec(base, hysteresis_dps2=r)
 
-    hi = 0.1 * peak
     seeds = [0.0] + list(hi * np.geomspace(1e-3, 1.0, 10))
-    r, fit = scalar_search(ctx, make, 0.0, hi, seeds)
-    ci = curvature_ci(ctx, make, r, max(0.01 * r, 1e-4), lo=0.0)
+    r0, _ = scalar_search(ctx, make, 0.0, hi, seeds)
+
+    def make2(p: np.ndarray):
+        return replace_spec(base, hysteresis_dps2=round(float(p[0]), 9),
+                            delay_s=round(float(p[1]), 12))
+
+    def cost(p: np.ndarray) -> float:
+        if not (0.0 <= p[0] <= hi and -dt <= p[1] <= dt):
+            return np.inf
+        return ctx.fit(make2(p)).sse_in
+
+    start = np.array([r0, base.delay_s])
+    res = optimize.minimize(cost, start, method="Nelder-Mead", options={
+        "maxiter": 60, "xatol": 1e-6, "fatol": 1e-10 * cost(start),
+        "initial_simplex": [start, start + [0.2 * r0 + 0.05, 0.0], start + [0.0, 0.2 * dt]]})
+    r, delay = float(res.x[0]), float(res.x[1])
+    fit = ctx.fit(make2(res.x))
+    ci = curvature_ci(ctx, lambda v: replace_spec(base, hysteresis_dps2=v, delay_s=delay), r,
+                      max(0.01 * r, 1e-4), lo=0.0)
     return CandidateFit("hysteresis", fit, {"half_width_dps2": r}, {"half_width_dps2": ci})
 
 

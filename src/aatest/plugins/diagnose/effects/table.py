@@ -13,7 +13,7 @@ import numpy as np
 from scipy import optimize, signal
 
 from aatest.plugins.diagnose.effects.base import Z95, CandidateFit, Context, replace_spec
-from aatest.plugins.diagnose.replay import StepReplay
+from aatest.plugins.diagnose.replay import StepReplay, ripple_regressors
 
 #: ripple search range, cycles per degree
 RIPPLE_CPD = (0.2, 6.0)
@@ -38,10 +38,13 @@ def testable_vibration(ctx: Context) -> str | None:
 
 
 def _ripple_design(steps: list[StepReplay], n_cpd: float) -> tuple[np.ndarray, np.ndarray]:
-    theta = np.concatenate([s.inner.evaluate(s.time_s[::_DECIMATE])[0] for s in steps])
-    dev = np.concatenate([s.table_deviation_deg["inner"][::_DECIMATE] for s in steps])
-    k = 2 * np.pi * n_cpd
-    return np.column_stack([np.sin(k * theta), np.cos(k * theta)]), dev
+    """Ripple position regressors (form-projected) and the table deviation, decimated."""
+    cols, devs = [], []
+    for s in steps:
+        ps, pc, _, _ = ripple_regressors(s, s.time_s, n_cpd)
+        cols.append(np.column_stack([ps, pc])[::_DECIMATE])
+        devs.append(s.table_deviation_deg["inner"][::_DECIMATE])
+    return np.concatenate(cols), np.concatenate(devs)
 
 
 def _ripple_sse(steps: list[StepReplay], n_cpd: float) -> float:
@@ -51,14 +54,39 @@ def _ripple_sse(steps: list[StepReplay], n_cpd: float) -> float:
     return float(r @ r)
 
 
+def _ripple_seed(steps: list[StepReplay]) -> tuple[float, float]:
+    """(cycles/°, search half width) of the strongest position-periodic line in the table log.
+
+    Constant-rate steps sample the angle uniformly, so an FFT of their deviation gives the
+    line at f = n·rate directly; sine steps need a Lomb–Scargle periodogram over the angle.
+    """
+    ramps = [s for s in steps if s.inner.rate_dps and not s.inner.frequency_hz]
+    if ramps:
+        best = (0.0, RIPPLE_CPD[0], 0.01)
+        for s in ramps:
+            dev = s.table_deviation_deg["inner"] - s.table_deviation_deg["inner"].mean()
+            spec = np.abs(np.fft.rfft(dev * np.hanning(dev.size))) ** 2
+            freq = np.fft.rfftfreq(dev.size, s.dt_s)
+            rate = abs(s.inner.rate_dps)
+            ok = (freq >= RIPPLE_CPD[0] * rate) & (freq <= RIPPLE_CPD[1] * rate)
+            if ok.any():
+                i = int(np.flatnonzero(ok)[np.argmax(spec[ok])])
+                if spec[i] > best[0]:
+                    best = (float(spec[i]), float(freq[i] / rate), 2.0 / (dev.size * s.dt_s * rate))
+        return best[1], best[2]
+    theta = np.concatenate([s.inner.evaluate(s.time_s[::_DECIMATE])[0] for s in steps])
+    dev = np.concatenate([s.table_deviation_deg["inner"][::_DECIMATE] for s in steps])
+    grid = np.arange(RIPPLE_CPD[0], RIPPLE_CPD[1], 0.01)
+    power = signal.lombscargle(theta, dev - dev.mean(), 2 * np.pi * grid, precenter=True)
+    return float(grid[int(np.argmax(power))]), 0.01
+
+
 def ripple_from_table(steps: list[StepReplay]) -> tuple[float, float, float, float] | None:
     """(cycles/°, amplitude °, amplitude u °, share of deviation variance) from the table log."""
-    grid = np.arange(RIPPLE_CPD[0], RIPPLE_CPD[1], 0.02)
-    costs = [_ripple_sse(steps, n) for n in grid]
-    i = int(np.argmin(costs))
+    n0, width = _ripple_seed(steps)
     res = optimize.minimize_scalar(lambda n: _ripple_sse(steps, n),
-                                   bounds=(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]),
-                                   method="bounded", options={"xatol": 1e-6})
+                                   bounds=(max(n0 - width, RIPPLE_CPD[0]), n0 + width),
+                                   method="bounded", options={"xatol": 1e-7})
     n = float(res.x)
     x, dev = _ripple_design(steps, n)
     dev = dev - dev.mean()
