@@ -110,10 +110,12 @@ def _channel_of(sensor: str, results: Mapping[str, Any]) -> str:
     return channel if channel in known or not known else next(iter(known))
 
 
-def _misalignment_excitation_dps2(results: Mapping[str, Any]) -> float:
+def _misalignment_steps(results: Mapping[str, Any], c: RigConstants) -> tuple[float, float]:
+    """Peak excitation (°/s², method.md §4.5: 100) and record length of the scenario steps."""
     sine = [s for s in ex.steps_of_kind(results, "sine")
             if isinstance(s.get("mounting"), Mapping) and s["mounting"].get("scenario")]
-    return max(ex.step_values(sine, "accel_dps2") or [100.0])
+    accel = max(ex.step_values(sine, "accel_dps2") or [100.0])
+    return accel, min(ex.step_values(sine, "samples") or [float(c.record_samples)])
 
 
 def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: str,
@@ -130,8 +132,8 @@ def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: st
     noise_v, source = ex.noise_rms_v(results, channel)
     sensor = ex.sensors(results).get(channel, {})
     k_v = ex.as_float(sensor.get("nominal_scale_v_per_dps2")) or 0.004014
-    main_v = k_v * _misalignment_excitation_dps2(results)
-    rel = noise_v * math.sqrt(2.0 / c.record_samples) / main_v
+    accel_dps2, samples = _misalignment_steps(results, c)
+    rel = noise_v * math.sqrt(2.0 / samples) / (k_v * accel_dps2)
     wobble_deg = c.wobble_arcsec / 3600.0
     note = f"σ·√(2/N)/|A_z|, {noise_v * 1e3:.2f} mV ({source})"
     inputs = (

@@ -103,7 +103,8 @@ def _thermal_verdicts(results: Mapping[str, Any], ch: str, sensor: Mapping[str, 
                              _limit(sensor, "scale_temperature_limit_per_c", 0.0005),
                              u.get(f"scale_coefficient_per_c/{ch}")))
     noise = (ex.analysis(results, "noise") or {}).get(ch) or {}
-    if (n := ex.as_float(noise.get("rms_v"))) is not None:
+    # the worst step decides, as in the noise analysis' own flag
+    if (n := ex.as_float(noise.get("rms_max_v", noise.get("rms_v")))) is not None:
         limit = _limit(sensor, "noise_rms_v", 0.003)
         rows.append(_verdict("output noise (RMS)", ch, n, 0.0, "V", limit))
     return rows
