@@ -47,6 +47,9 @@ def test_scale_factor_against_twin(cal_run) -> None:  # type: ignore[no-untyped-
     v = results["scale_factor"]["v_sz"]
     assert v["scale_v_per_dps2"] == pytest.approx(truth, rel=1e-3)
     assert set(results["scale_factor"]) == {"v_sz"}  # only the I sensor is excited
+    # the twin's cubic (c3 = 0.002, ≈0.005 % FR) sits at the resolution threshold of the order
+    # choice: on this short record order 1 or 3 are both "not meaningfully worse"
+    assert v["order"] in (1, 3)
 
 
 def _truth_response(model: Any, f_hz: float) -> complex:

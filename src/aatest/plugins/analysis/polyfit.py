@@ -150,18 +150,21 @@ def cross_validate(u: np.ndarray, y: np.ndarray, max_order: int = 15, random_spl
     return {"rmse_validation": rmse_val, "naic": aic}
 
 
-def choose_order(table: dict[str, np.ndarray], rel_tol: float = 0.05, min_order: int = 1
-                 ) -> int:
-    """Lowest order whose mean validation RMSE is within ``rel_tol`` of the best and whose
-    mean nAIC is within ``2·rel_tol`` of the best ("not meaningfully worse").
+def choose_order(table: dict[str, np.ndarray], rel_tol: float = 0.05, min_order: int = 1,
+                 abs_tol: float = 0.0) -> int:
+    """Lowest order whose criteria are not meaningfully worse than the best (method.md §4.3).
 
-    Residuals of filtered records are serially correlated and the sensor's dynamics leave
-    small systematic residuals, so every added term "helps" a little; 5 % in RMSE (0.1 in
-    nAIC) is the engineering threshold that keeps real curvature (a cubic) and drops the rest.
+    "Meaningfully" = mean validation RMSE above the best by more than ``rel_tol`` (5 %) *and*
+    by more than ``abs_tol`` (the sensor's resolution: no one can use a smaller gain), with
+    the equivalent allowance on nAIC (2·log of the RMSE ratio). Residuals of filtered records
+    are serially correlated and the sensor's dynamics and hysteresis leave small systematic
+    residuals, so every added term "helps" a little; this keeps real curvature (a cubic) and
+    drops the rest.
     """
     rmse = table["rmse_validation"].mean(axis=1)
     aic = table["naic"].mean(axis=1)
-    ok = (rmse <= rmse.min() * (1 + rel_tol)) & (aic <= aic.min() + 2 * rel_tol)
+    ratio = max(1.0 + rel_tol, 1.0 + abs_tol / max(float(rmse.min()), 1e-300))
+    ok = (rmse <= rmse.min() * ratio) & (aic <= aic.min() + 2.0 * np.log(ratio) + 1e-9)
     ok[:min_order] = False
     return int(np.flatnonzero(ok)[0]) if ok.any() else int(np.argmin(rmse))
 

@@ -32,6 +32,8 @@ from aatest.plugins.analysis.reference import default_cutoff_hz, reference_accel
 from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
 
 _MAX_CAL_FREQUENCY_HZ = 2.0
+#: datasheet threshold/resolution, fraction of the range (0.005 % FR)
+RESOLUTION_FR = 0.00005
 
 
 def calibration_steps(steps: list[SyncedStep], sensor: SensorInfo) -> list[SyncedStep]:
@@ -74,14 +76,17 @@ def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: str = "smoot
 
 
 def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0, seed: int = 0,
-              max_order: int = 15) -> dict[str, Any]:
-    """Cross-validated polynomial calibration of volts against a reference acceleration."""
+              max_order: int = 15, resolution_dps2: float = 0.0) -> dict[str, Any]:
+    """Cross-validated polynomial calibration of volts against a reference acceleration.
+
+    ``resolution_dps2`` is the smallest RMSE gain that counts when choosing the order.
+    """
     if np.std(ref_dps2) <= 0 or np.std(volts) <= 0:
         raise AnalysisError("scale factor: the reference or the sensor output is constant")
     v_mean = float(np.mean(volts))
     u = volts - v_mean
     table = polyfit.cross_validate(u, ref_dps2, max_order=max_order, seed=seed)
-    order = polyfit.choose_order(table)
+    order = polyfit.choose_order(table, abs_tol=resolution_dps2)
     fit = polyfit.fit_polynomial(u, ref_dps2, order, inflation)
     line = polyfit.fit_polynomial(u, ref_dps2, 1, inflation)
     a0, a1 = line.coefficients
@@ -135,7 +140,8 @@ def sensor_scale_factor(steps: list[SyncedStep], sensor: SensorInfo, options: di
     ref = np.concatenate([p[1] for p in parts])
     inflation = chosen[0].sample_rate_hz / (2.0 * parts[0][3])
     result = calibrate(volts, ref, inflation, int(options.get("seed", 0)),
-                       int(options.get("max_order", 15)))
+                       int(options.get("max_order", 15)),
+                       RESOLUTION_FR * sensor.range_dps2)
     dev_pct = 100.0 * (result["scale_v_per_dps2"] / sensor.nominal_scale_v_per_dps2 - 1.0)
     result |= {
         "reference": reference, "alignment_delay_s": float(np.mean([p[2] for p in parts])),
