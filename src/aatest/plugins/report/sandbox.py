@@ -127,8 +127,13 @@ def make_environment(template_dir: Path | None = None) -> ImmutableSandboxedEnvi
     return env
 
 
-def _translated(where: str, exc: Exception) -> TemplateError:
-    if isinstance(exc, SecurityError):
+#: failures a template's own expressions can cause (1/0, bad types, deep recursion)
+_TEMPLATE_RUNTIME_ERRORS = (ArithmeticError, TypeError, ValueError, LookupError, AttributeError,
+                            RecursionError)
+
+
+def _translated(where: str, exc: BaseException) -> TemplateError:
+    if isinstance(exc, (SecurityError, OverflowError)):  # sandbox limits, range() bombs
         return TemplateSecurityError(f"{where}: template refused by the sandbox: {exc}")
     if isinstance(exc, TemplateNotFound):
         return TemplateError(f"{where}: template not found: {exc.name}")
@@ -136,7 +141,9 @@ def _translated(where: str, exc: Exception) -> TemplateError:
         return TemplateError(f"{exc.filename or where}:{exc.lineno}: {exc.message}")
     if isinstance(exc, UndefinedError):
         return TemplateError(f"{where}: {exc.message}")
-    return TemplateError(f"{where}: {exc}")
+    if isinstance(exc, JinjaTemplateError):
+        return TemplateError(f"{where}: {exc}")
+    return TemplateError(f"{where}: template failed: {type(exc).__name__}: {exc}")
 
 
 def load_template(name: str, template_dir: Path | None = None) -> Template:
@@ -154,7 +161,7 @@ def render_loaded(template: Template, context: Mapping[str, Any]) -> str:
     """Render a template from :func:`load_template`; sandbox refusals become aatest errors."""
     try:
         return template.render(dict(context))
-    except (SecurityError, JinjaTemplateError) as exc:
+    except (SecurityError, JinjaTemplateError, *_TEMPLATE_RUNTIME_ERRORS) as exc:
         raise _translated(str(template.filename or template.name), exc) from exc
 
 
