@@ -6,13 +6,15 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from aatest.engine.dataset import StepData
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.logs import SampledLog
-from aatest.plugins.sync import synced_steps, synchronise
+from aatest.plugins.sync import fit_clock_relation, synced_steps, synchronise
 from aatest.plugins.sync.analysis import SyncAnalysis
 from synthetic_rig import SynthRig, make_dataset, make_step, sine_step
 
@@ -81,3 +83,19 @@ def test_analysis_summary_and_cache() -> None:
     assert set(v) >= {"drift_ppm", "offset_s", "residual_rms_us", "edges_used"}
     assert abs(v["drift_ppm"] + 7.5) < 1.0 and len(v["steps"]) == 3
     assert synced_steps(data, ctx) is synced_steps(data, ctx)
+
+
+
+@settings(max_examples=40, deadline=None)
+@given(drift=st.floats(-500, 500), offset=st.floats(-2.0, 2.0), jitter_us=st.floats(0, 5),
+       seed=st.integers(0, 2**31))
+def test_clock_relation_property(drift: float, offset: float, jitter_us: float, seed: int) -> None:
+    """Any drift within ±500 ppm and offset are recovered from latch-exact edges."""
+    rng = np.random.default_rng(seed)
+    t_daq = 0.0025 + np.arange(3000) * 0.01
+    t_table = offset + t_daq * (1 + drift * 1e-6) + rng.normal(0, jitter_us * 1e-6, t_daq.size)
+    keep = (t_table > t_table[0] + 0.3) & (t_table < t_table[-1] - 0.4)  # DAQ runs longer
+    rel = fit_clock_relation("p", t_table[keep], t_daq, offset0=offset + 0.0003)
+    assert abs(rel.drift_ppm - drift) < 0.05 + 3 * rel.drift_u_ppm
+    assert abs(rel.offset_s - offset) < 5e-6 + 5 * jitter_us * 1e-6
+    assert rel.residual_rms_us < 2 * jitter_us + 0.1
