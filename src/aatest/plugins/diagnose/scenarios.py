@@ -138,3 +138,67 @@ def scenario_dataset(hidden: list[Hidden], seed: int, samples: int = 2**14) -> A
 
     rig = with_effects(clean_rig(seed), hidden)
     return simulate_dataset(rig, diagnostic_plan(samples), seed, procedure="diagnose-scenario")
+
+
+#: hidden effect → finding names that count as naming it (one-mounting look-alikes)
+ACCEPTED_NAMES = {"misalignment": ("misalignment", "cross_axis"),
+                  "cross_axis": ("cross_axis", "misalignment")}
+TOLERANCE = 0.25
+#: smallest held-out RMS reduction that counts as a real gain (%)
+MIN_GAIN_PCT = 5.0
+
+
+def _finding_value(finding: dict[str, Any], hidden: Hidden, key: str) -> float | None:
+    if finding["effect"] == hidden.effect:
+        return finding["parameters"].get(key)
+    if hidden.effect == "misalignment" and finding["effect"] == "cross_axis":
+        return finding.get("look_alike", {}).get("parameters", {}).get(key)
+    if hidden.effect == "cross_axis" and finding["effect"] == "misalignment":
+        return None
+    return None
+
+
+def judge(doc: dict[str, Any], hidden: list[Hidden]) -> list[str]:
+    """Problems with a diagnosis of data with ``hidden`` effects (empty list = correct).
+
+    Correct means: every hidden effect named (look-alikes per :data:`ACCEPTED_NAMES`), its
+    checked parameters within 25 %, a real gain, and nothing else found.
+    """
+    problems: list[str] = []
+    findings = doc["findings"]
+    if not hidden:
+        return [f"false positive: {f['effect']}" for f in findings]
+    named = set()
+    for h in hidden:
+        match = [f for f in findings if f["effect"] in ACCEPTED_NAMES.get(h.effect, (h.effect,))]
+        if not match:
+            problems.append(f"{h.effect} not found")
+            continue
+        named.add(match[0]["effect"])
+        for key in h.check:
+            est, true = _finding_value(match[0], h, key), h.parameters[key]
+            if est is None or abs(est - true) > TOLERANCE * abs(true):
+                problems.append(f"{h.effect}.{key} = {est!r}, truth {true:.6g}")
+    extra = [f["effect"] for f in findings if f["effect"] not in named]
+    problems += [f"extra finding: {e}" for e in extra]
+    gain = doc["gain"]["reduction_pct"]
+    noise_only = all(h.effect == "excess_noise" for h in hidden)
+    if not noise_only and gain < MIN_GAIN_PCT:
+        problems.append(f"gain only {gain:.1f} %")
+    return problems
+
+
+#: pairs of hidden effects for the suite (each pair must be found together)
+PAIRS: tuple[tuple[str, str], ...] = (
+    ("bias_temperature", "time_delay"), ("cross_axis", "saturation"),
+    ("rate_ripple", "scale_temperature"), ("motor_vibration", "g_sensitivity"),
+    ("sensor_dynamics", "bias_temperature"), ("hysteresis", "clock_drift"),
+)
+
+
+def suite_cases(seeds: tuple[int, ...] = (1, 2), clean: int = 5) -> list[tuple[str, list[Hidden], int]]:
+    """The full hidden-effect suite: every effect per seed, clean rigs, and the pairs."""
+    cases = [(f"{e}-s{s}", [draw_hidden(e, s)], s) for s in seeds for e in DRAWS]
+    cases += [(f"clean-s{s}", [], 100 + s) for s in range(clean)]
+    cases += [(f"{a}+{b}", [draw_hidden(a, 7), draw_hidden(b, 8)], 7) for a, b in PAIRS]
+    return cases

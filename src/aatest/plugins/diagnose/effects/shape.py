@@ -25,6 +25,8 @@ from aatest.plugins.diagnose.effects.base import (
 )
 
 MAX_DELAY_S = 0.08
+#: cost of a parameter outside its bounds (finite, so simplex arithmetic stays defined)
+_OUTSIDE = 1e200
 #: delay seeds: geometric, so that 0.5 ms and 50 ms are both bracketed
 _DELAY_SEEDS = [0.0, 2.5e-4, 5e-4, 1e-3, 2e-3, 4e-3, 8e-3, 1.6e-2, 3.2e-2, 6.4e-2, MAX_DELAY_S]
 
@@ -135,7 +137,7 @@ def fit_dynamics(ctx: Context) -> CandidateFit:
 
     def cost(p: np.ndarray) -> float:
         if not (0.05 <= p[1] <= 3.0 and 0.0 <= p[0] <= np.log(1000.0)):
-            return np.inf
+            return _OUTSIDE
         return ctx.fit(make(p)).sse_in
 
     start = _frf_seed(ctx, base)
@@ -186,7 +188,7 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
 
     def cost(p: np.ndarray) -> float:
         if not (0.0 <= p[0] <= hi and -dt <= p[1] <= dt):
-            return np.inf
+            return _OUTSIDE
         return ctx.fit(make2(p)).sse_in
 
     start = np.array([r0, base.delay_s])
