@@ -140,6 +140,7 @@ def realistic_rig_model(sensors: str | Sequence[SensorModel] = "sr207",
         "inner": base.inner.model_copy(update=axis),
         "outer": base.outer.model_copy(update=axis),
         "unbalance_parasitic_dps2_per_dps2": 0.004,  # cross ratios 0.03–1.1 % (§4.5)
+        "floor_vibration_rms_dps2": 0.3,  # horizontal sensors noisier than the vertical one
     })
     daq = DaqModel(clock_drift=ClockDrift(drift_ppm=drift_ppm), sync_edge_jitter_s=3e-6,
                    slip_ring=ExcessNoise(rms_v=0.011) if slip_ring else None)

@@ -132,3 +132,21 @@ def _apply_wobble(vec: np.ndarray, s: np.ndarray, c: np.ndarray,
     vec[0] += w * (a1 * z)
     vec[1] -= w * (a0 * z)
     return vec
+
+
+def lab_horizontal_top(inner_sincos: tuple[np.ndarray, np.ndarray],
+                       outer_sincos: tuple[np.ndarray, np.ndarray],
+                       about_lab: np.ndarray) -> np.ndarray:
+    """Angular acceleration about the two horizontal lab axes, expressed in the top frame.
+
+    ``about_lab`` (2, n): about the lab axis along P at outer 0° and about O (°/s²).
+    R_y(φ)ᵀ·e_P = (cos φ, 0, sin φ) and e_O stay horizontal; R_z(ψ)ᵀ brings both to the top.
+    """
+    s, c = inner_sincos
+    sin_phi, cos_phi = outer_sincos
+    h1, h2 = about_lab
+    out = np.empty((3,) + np.shape(h1))
+    out[0] = h1 * (c * cos_phi) + h2 * s
+    out[1] = h2 * c - h1 * (s * cos_phi)
+    out[2] = h1 * sin_phi
+    return out

@@ -204,6 +204,11 @@ class TableModel(_Model):
         35.0, gt=0, description="the controller's correction of the unbalance torque rings at "
         "this frequency: the leak is k·α_o through a 2nd-order resonance")
     unbalance_damping: float = Field(0.1, gt=0)
+    floor_vibration_rms_dps2: float = Field(
+        0.0, ge=0, description="building vibration: band-limited rocking of the whole table "
+        "about the two horizontal lab axes (RMS per axis); sensors with a horizontal input "
+        "axis pick it up, a vertical one does not (method.md §1.3)")
+    floor_vibration_band_hz: tuple[float, float] = (5.0, 30.0)
 
 
 class DaqModel(_Model):

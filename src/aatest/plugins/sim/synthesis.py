@@ -23,7 +23,7 @@ from aatest.plugins.sim.daq import noiseless, record_channel
 from aatest.plugins.sim.grid import Grid, sincos_deg
 from aatest.plugins.sim.model import RigModel
 from aatest.plugins.sim.sensor import SensorInputs, dynamics_filter, lowpass, output_volts
-from aatest.plugins.sim.table import STENCIL_PAD, AxisTruth, estimates
+from aatest.plugins.sim.table import STENCIL_PAD, AxisTruth, estimates, floor_rocking
 
 
 @dataclass(frozen=True)
@@ -152,8 +152,10 @@ def _daq_samples(setup: StepSetup) -> int:
     return setup.trigger_index + int(np.ceil((table_span_daq_s + lag) * clock.sample_rate_hz))
 
 
-def _top_motion(setup: StepSetup, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
-    """(α_top (3, n) °/s², up (3, n) g) of the table top on a lab-time grid, incl. parasitics."""
+def _top_motion(setup: StepSetup, grid: Grid,
+                floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(α_top (3, n) °/s², up (3, n) g) of the table top on a lab-time grid, incl. parasitics
+    and the floor's rocking ``floor`` (2, n) about the lab's horizontal axes."""
     th_i, w_i, a_i = setup.inner.evaluate(grid)
     th_o, w_o, a_o = setup.outer.evaluate(grid)
     sc_i = sincos_deg(th_i, setup.inner.profile.moving, setup.inner.profile.start_deg)
@@ -169,6 +171,8 @@ def _top_motion(setup: StepSetup, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
         leak = table.unbalance_parasitic_dps2_per_dps2 * lowpass(a_o, b, a)
         alpha[0] += leak * sc_i[1]
         alpha[1] -= leak * sc_i[0]
+    if floor is not None:
+        alpha += kin.lab_horizontal_top(sc_i, sc_o, floor)
     return alpha, kin.gravity_top(sc_i, sc_o, setup.gimbal)
 
 
@@ -180,10 +184,11 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
     channels: dict[str, np.ndarray] = {}
     truth = LazyTruth(daq_time_s=grid.times - setup.trigger_time_s)
     motion: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    floor = floor_rocking(model.table, n, clock.lab_dt_s, rng)
     for sensor in model.sensors:
         delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
-        if delay not in motion:
-            motion[delay] = _top_motion(setup, grid.shifted(-delay))
+        if delay not in motion:  # (the floor noise is not re-timed by the tiny delays)
+            motion[delay] = _top_motion(setup, grid.shifted(-delay), floor)
         alpha, up = motion[delay]
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s)
         clean = output_volts(sensor, inp, model.t_ref_c)
@@ -193,7 +198,7 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
     for sensor in model.sensors:  # true acceleration along each sensitive axis, undelayed
         axis_z = setup.axes[sensor.channel][:, 2]
         truth.defer(f"alpha_{sensor.channel}",
-                    lambda _, z=axis_z: z @ _undelayed(setup, grid, motion))
+                    lambda _, z=axis_z: z @ _undelayed(setup, grid, motion, floor))
     channels_of = [s.channel for s in model.sensors]
     truth.defer("sensor_accel_dps2", lambda t: {ch: t[f"alpha_{ch}"] for ch in channels_of})
     channels["sync_pulse"] = clock.sync_level(clock.daq_times(n))
@@ -204,10 +209,10 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
     return log, truth
 
 
-def _undelayed(setup: StepSetup, grid: Grid,
-               motion: dict[float, tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+def _undelayed(setup: StepSetup, grid: Grid, motion: dict[float, tuple[np.ndarray, np.ndarray]],
+               floor: np.ndarray | None) -> np.ndarray:
     if 0.0 not in motion:
-        motion[0.0] = _top_motion(setup, grid)
+        motion[0.0] = _top_motion(setup, grid, floor)
     return motion[0.0][0]
 
 

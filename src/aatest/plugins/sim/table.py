@@ -15,12 +15,14 @@ five-point differences of that estimate — which is why the acceleration estima
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
+from scipy import signal
 
 from aatest.plugins.sim.fastmath import sincos32, standard_normal
 from aatest.plugins.sim.grid import Grid
-from aatest.plugins.sim.model import AxisModel, MotorVibration, RateRipple
+from aatest.plugins.sim.model import AxisModel, MotorVibration, RateRipple, TableModel
 from aatest.plugins.sim.profiles import AxisProfile
 
 #: number of tones that synthesise a narrow vibration band (bandwidth_hz > 0)
@@ -160,3 +162,24 @@ def estimates(
         accel = (f[3] - 2 * f[2] + f[1]) / dt_s**2
     return {"position_deg": f[2], "rate_dps": rate, "accel_dps2": accel,
             "feedback_deg": raw[p: p + n]}
+
+
+def floor_rocking(table: TableModel, n: int, dt_s: float,
+                  rng: np.random.Generator) -> np.ndarray | None:
+    """Building vibration: (2, n) band-limited Gaussian rocking about the horizontal lab axes.
+
+    White noise through a Butterworth band-pass, scaled by the filter's noise gain so each
+    axis has ``floor_vibration_rms_dps2`` RMS. None when switched off.
+    """
+    if table.floor_vibration_rms_dps2 <= 0.0:
+        return None
+    b, a, gain = _band_filter(*table.floor_vibration_band_hz, round(dt_s, 15))
+    white = standard_normal(rng, 2 * n).reshape(2, n)
+    return signal.lfilter(b, a, white, axis=1) * (table.floor_vibration_rms_dps2 / gain)
+
+
+@lru_cache(maxsize=8)
+def _band_filter(lo_hz: float, hi_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarray, float]:
+    b, a = signal.butter(2, [lo_hz, hi_hz], btype="bandpass", fs=1.0 / dt_s)
+    impulse = signal.lfilter(b, a, np.r_[1.0, np.zeros(8191)])
+    return b, a, float(np.sqrt(np.sum(impulse**2)))
