@@ -85,14 +85,13 @@ def test_scale_factor_matches_the_in_process_rig(served: Served, tmp_path: Path)
     wire, local = _analysis(tmp_path / "modbus"), _analysis(tmp_path / "inproc")
     k_wire = wire["scale_factor"]["v_sz"]["scale_v_per_dps2"]
     k_local = local["scale_factor"]["v_sz"]["scale_v_per_dps2"]
-    # same twin, same seed, same step ids: the noise draws are the same and only lab-time
-    # phases differ (motor vibration, f32 rates on the wire). Measured: 6e-7 relative on the
-    # scale factor, 1.2 µV on the offset, 4e-7 ppm on the drift; the datasheet tolerance of
-    # the scale factor is 1 % and its fit's 95 % interval ≈ 1e-4 relative.
-    assert k_wire == pytest.approx(k_local, rel=2e-5)
+    # same twin, seed, step ids and call sequence: the only differences are the map's f32
+    # channels (table rate/acceleration, CAN volts). Measured: 2e-9 relative on the scale
+    # factor (its 95 % interval is ±4e-5), 1.5e-10 V on the offset, 3e-7 ppm on the drift.
+    assert k_wire == pytest.approx(k_local, rel=1e-6)
     assert wire["scale_factor"]["v_sz"]["offset_v"] == pytest.approx(
-        local["scale_factor"]["v_sz"]["offset_v"], abs=2e-5)
-    assert wire["sync"]["drift_ppm"] == pytest.approx(local["sync"]["drift_ppm"], abs=0.05)
+        local["scale_factor"]["v_sz"]["offset_v"], abs=1e-6)
+    assert wire["sync"]["drift_ppm"] == pytest.approx(local["sync"]["drift_ppm"], abs=1e-3)
 
 
 FAULTS = {
@@ -161,7 +160,7 @@ def test_stepped_sine_frf_matches_the_in_process_rig(served: Served, tmp_path: P
     assert [p["frequency_hz"] for p in wire] == [p["frequency_hz"] for p in local]
     assert len(wire) == 3
     for got, ref in zip(wire, local):
-        # same noise draws; lab-time phases differ (motor vibration, pulse). Measured at 1, 3,
-        # 9 Hz: |Δgain| ≤ 0.008 dB, |Δphase| ≤ 0.02° on a −48 dB, 0–−15° response
-        assert got["gain_db"] == pytest.approx(ref["gain_db"], abs=0.03)
-        assert got["phase_deg"] == pytest.approx(ref["phase_deg"], abs=0.1)
+        # only the f32 channels differ. Measured at 1, 3, 9 Hz: |Δgain| ≤ 7e-8 dB and
+        # |Δphase| ≤ 5e-9 ° on a −48 dB response
+        assert got["gain_db"] == pytest.approx(ref["gain_db"], abs=1e-4)
+        assert got["phase_deg"] == pytest.approx(ref["phase_deg"], abs=1e-4)

@@ -60,7 +60,6 @@ class ModbusTurntable:
         self.context = context
         self._client: ModbusTcpClient | None = None
         self._seq = 0
-        self._start_deg = (0.0, 0.0)
         self._where = f"Modbus controller {self.config.host}:{self.config.port}"
 
     # --- protocol plumbing -----------------------------------------------------------------
@@ -128,16 +127,6 @@ class ModbusTurntable:
                 raise RigFault(f"{self._where}: {what} not reached within {timeout_s:g} s")
             time.sleep(self.config.poll_interval_s)
 
-    def _wait_controller_time(self, duration_s: float) -> None:
-        """Let ``duration_s`` pass on the controller's clock (faults still raise)."""
-        end = self._value(Reg.CONTROLLER_TIME_S) + duration_s
-        deadline = time.monotonic() + duration_s + self.config.log_margin_s
-        while self._value(Reg.CONTROLLER_TIME_S) < end:
-            self._status()
-            if time.monotonic() > deadline:
-                raise RigFault(f"{self._where}: controller clock stalled while settling")
-            time.sleep(self.config.poll_interval_s)
-
     # --- Turntable protocol ----------------------------------------------------------------
     def envelope(self) -> TableEnvelope:
         """The declared envelope (checked against the controller's limits in :meth:`start`)."""
@@ -193,7 +182,6 @@ class ModbusTurntable:
                                f"{declared:g} exceeds the controller's {actual:g}; fix the rig file")
 
     def move_to(self, inner_deg: float, outer_deg: float) -> None:
-        self._start_deg = (float(inner_deg), float(outer_deg))
         self._write({Reg.MODE: Mode.POSITION, Reg.INNER_POSITION_DEMAND_DEG: inner_deg,
                      Reg.OUTER_POSITION_DEMAND_DEG: outer_deg})
         self._command(Command.START_MOTION)
@@ -201,17 +189,18 @@ class ModbusTurntable:
                    self.config.move_timeout_s)
 
     def begin_motion(self, step: PlannedStep) -> None:
-        """Write the log configuration and the step's demands, start, settle on the
-        controller clock for ``step.settle_s``."""
+        """Write the log configuration, the settling time and the step's demands, start,
+        and wait until the controller reports the profile settled."""
         writes: dict[Reg, float] = {Reg.LOG_SAMPLES: step.samples,
-                                    Reg.LOG_RATE_HZ: step.sample_rate_hz}
+                                    Reg.LOG_RATE_HZ: step.sample_rate_hz,
+                                    Reg.SETTLE_S: step.settle_s}
         writes.update(_demands(step))
         self._write(writes)
         self._call("write LOG_LABEL", lambda c: c.write_registers(
             int(Reg.LOG_LABEL), mm.encode_label(step.id), device_id=self.config.unit_id))
         self._command(Command.START_MOTION)
-        if step.settle_s > 0:
-            self._wait_controller_time(step.settle_s)
+        self._wait("settled", lambda s: Status.SETTLED in s,
+                   step.settle_s + self.config.move_timeout_s)
 
     def record(self, step: PlannedStep) -> SampledLog:
         """Arm the log (started by the DAQ trigger), wait for it, download it."""
@@ -249,9 +238,11 @@ class ModbusTurntable:
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def end_motion(self) -> None:
-        """Stop the profile and return to the step's start position."""
+        """Stop the profile; the controller returns to its start position."""
         self._command(Command.STOP)
-        self.move_to(*self._start_deg)
+        self._wait("back at the start position",
+                   lambda s: Status.IN_POSITION in s and Status.MOVING not in s,
+                   self.config.move_timeout_s)
 
     def safe_stop(self) -> None:
         """Emergency stop (motion stopped, motor off); never raises, idempotent."""

@@ -3,9 +3,10 @@
 :class:`SimController` owns one digital twin (:class:`aatest.plugins.sim.world.World`) and
 turns register writes into the same World calls the in-process simulated plugins make
 (move, begin motion, start DAQ, synthesise, end motion), so a driver talking Modbus to it is
-exercised against the same physics. Its clock is virtual: ``time_scale`` controller seconds
-pass per wall second and the World's own time jumps (a move, a record) advance it too, so a
-70 s record does not take 70 s. The simulated CAN logger (:mod:`aatest.plugins.daq.can_sim`)
+exercised against the same physics. Its clock is the World's virtual lab time, advanced only
+by events (a move, the settling time, a record, the return), never by the wall clock: a 70 s
+record does not take 70 s, and the same seed and commands give the same logs, bit for bit
+the ones the in-process simulated rig records. The simulated CAN logger (:mod:`aatest.plugins.daq.can_sim`)
 starts the DAQ through :meth:`SimController.daq_start` and receives the DAQ log of every
 record through ``on_daq_log``: table log and sensor log come from one twin.
 
@@ -18,7 +19,6 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -72,13 +72,11 @@ class SimController:
         Twin model (see :func:`aatest.plugins.sim.api.realistic_rig_model`).
     seed
         Seed of the World; the same seed and call sequence give the same logs.
-    time_scale
-        Controller seconds per wall second between World events (≥ 1).
     faults
         Optional fault injection.
     """
 
-    def __init__(self, model: RigModel, seed: int = 0, time_scale: float = 1000.0,
+    def __init__(self, model: RigModel, seed: int = 0,
                  faults: FaultInjection | None = None) -> None:
         self.world = World(model, seed)
         self.faults = faults or FaultInjection()
@@ -86,9 +84,6 @@ class SimController:
         self.on_daq_log: DaqLogSink | None = None
         self._lock = threading.RLock()
         self._regs = np.zeros(mm.REGISTER_COUNT, dtype=np.int64)
-        self._time_scale = float(time_scale)
-        self._wall0 = time.monotonic()
-        self._t0_s = 0.0
         self._status = Status.READY | Status.INTERLOCK_CLOSED | Status.IN_POSITION
         self._fault = Fault(0)
         self._mode = Mode.HOLD
@@ -153,15 +148,8 @@ class SimController:
 
     # --- clock and live status -------------------------------------------------------------
     def now_s(self) -> float:
-        return self._t0_s + (time.monotonic() - self._wall0) * self._time_scale
-
-    def _sync_world(self) -> None:
-        """Bring the World's lab clock to the controller clock before a World call."""
-        self.world.lab_time_s = max(self.world.lab_time_s, self.now_s())
-
-    def _rebase(self) -> None:
-        """After a World call that advanced lab time, continue the controller clock from it."""
-        self._t0_s, self._wall0 = max(self.now_s(), self.world.lab_time_s), time.monotonic()
+        """Controller clock (s): the World's lab time."""
+        return float(self.world.lab_time_s)
 
     def _refresh(self) -> None:
         status = self._status & ~(Status.MOTOR_ON | Status.MOVING | Status.FAULT)
@@ -215,19 +203,19 @@ class SimController:
         return Refusal.UNKNOWN_COMMAND
 
     def _stop(self, motor_off: bool) -> None:
-        if self._moving:
-            self.world.end_motion()
+        """End the profile and return to its start position (hold there); motor off if asked."""
+        self.world.end_motion()
         self._moving, self._mode = False, Mode.HOLD
         self._armed = False
         if motor_off:
             self.world.motor_on = False
-        self._status |= Status.IN_POSITION
+        self._status = (self._status | Status.IN_POSITION) & ~Status.SETTLED
 
     def _planned_step(self, mode: Mode) -> PlannedStep:
         """The step the registers describe, for the World (log config taken as in force)."""
         label = self._label()
         common = {"id": label, "samples": int(self._get(Reg.LOG_SAMPLES)),
-                  "sample_rate_hz": self._get(Reg.LOG_RATE_HZ),
+                  "sample_rate_hz": self._get(Reg.LOG_RATE_HZ), "settle_s": self._get(Reg.SETTLE_S),
                   "inner_deg": self.world.inner_deg, "outer_deg": self.world.outer_deg}
         if mode == Mode.SINE:
             axis = "outer" if self._get(Reg.OUTER_SINE_AMPLITUDE_DEG) else "inner"
@@ -255,24 +243,21 @@ class SimController:
         refusal = self._check_user_limits(mode)
         if refusal:
             return refusal
-        self._sync_world()
-        if self._moving:
-            self.world.end_motion()
-        if mode in (Mode.POSITION, Mode.HOLD):
+        self._status &= ~(Status.SETTLED | Status.LOG_ARMED | Status.LOG_RECORDING
+                          | Status.LOG_DONE | Status.TRIGGER_SEEN)
+        self._daq_started = self._armed = False
+        if mode == Mode.POSITION:
             self.world.move_to(self._get(Reg.INNER_POSITION_DEMAND_DEG),
                                self._get(Reg.OUTER_POSITION_DEMAND_DEG))
-        try:
+            self._mode, self._moving = mode, False
+            self._status |= Status.IN_POSITION
+            return Refusal.ACCEPTED
+        try:  # the World runs the profile from its start position and settles SETTLE_S
             self.world.begin_motion(self._planned_step(mode))
         except EnvelopeRefused as exc:
-            self._rebase()
             return Refusal.ACCEL_LIMIT if "acceleration" in str(exc) else Refusal.RATE_LIMIT
-        self._rebase()
         self._mode, self._moving = mode, mode in (Mode.RATE, Mode.SINE)
-        self._status = (self._status & ~Status.IN_POSITION) if self._moving else (
-            self._status | Status.IN_POSITION)
-        self._daq_started = self._armed = False
-        self._status &= ~(Status.LOG_ARMED | Status.LOG_RECORDING | Status.LOG_DONE
-                          | Status.TRIGGER_SEEN)
+        self._status = (self._status & ~Status.IN_POSITION) | Status.SETTLED
         return Refusal.ACCEPTED
 
     def _check_user_limits(self, mode: Mode) -> Refusal:
@@ -313,7 +298,6 @@ class SimController:
         with self._lock:
             if self._fault or self._daq_started:
                 return
-            self._sync_world()
             self.world.start_daq()
             self._daq_started = True
             self._status |= Status.TRIGGER_SEEN
@@ -352,7 +336,6 @@ class SimController:
         with self._lock:
             if self._record is not record:
                 return
-            self._rebase()
             if self.on_daq_log is not None:  # queued before LOG_DONE: the stream precedes STOP
                 self.on_daq_log(result.daq)
             record.table = result.table

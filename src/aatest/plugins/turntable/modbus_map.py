@@ -70,6 +70,7 @@ class Reg(enum.IntEnum):
     INNER_ACCEL_USER_LIMIT_DPS2 = 98  # f32
     OUTER_RATE_USER_LIMIT_DPS = 100  # f32
     OUTER_ACCEL_USER_LIMIT_DPS2 = 102  # f32
+    SETTLE_S = 104  # f64, time a profile runs after START_MOTION before Status.SETTLED
     # --- freeze pulse, trigger and log configuration (read/write) ---
     FP_INPUT = 128  # u16, digital input wired to the DAQ sync pulse (1..8)
     FP_EDGE = 129  # u16, Edge that latches the freeze pulse
@@ -113,6 +114,7 @@ class Status(enum.IntFlag):
     FAULT = 1 << 7
     INTERLOCK_CLOSED = 1 << 8
     TRIGGER_SEEN = 1 << 9
+    SETTLED = 1 << 10
 
 
 class Fault(enum.IntFlag):
@@ -146,7 +148,7 @@ class Command(enum.IntEnum):
     MOTOR_ON = 2
     MOTOR_OFF = 3
     START_MOTION = 4  # apply MODE and the demands
-    STOP = 5  # decelerate and hold where the axes are
+    STOP = 5  # end the profile, return to its start position and hold there
     ARM_LOG = 6  # log LOG_SAMPLES at LOG_RATE_HZ, started per LOG_START
     ABORT_LOG = 7
     EMERGENCY_STOP = 8  # stop at the limits and switch the motor off
@@ -214,7 +216,7 @@ WIDE: dict[Reg, str] = {
     **{r: "f64" for r in (Reg.CONTROLLER_TIME_S, Reg.INNER_POSITION_DEG, Reg.OUTER_POSITION_DEG,
                           Reg.INNER_POSITION_DEMAND_DEG, Reg.OUTER_POSITION_DEMAND_DEG,
                           Reg.INNER_SINE_AMPLITUDE_DEG, Reg.INNER_SINE_FREQUENCY_HZ,
-                          Reg.OUTER_SINE_AMPLITUDE_DEG, Reg.OUTER_SINE_FREQUENCY_HZ,
+                          Reg.OUTER_SINE_AMPLITUDE_DEG, Reg.OUTER_SINE_FREQUENCY_HZ, Reg.SETTLE_S,
                           Reg.LOG_T0_S)},
     **{r: "f32" for r in (Reg.INNER_RATE_DPS, Reg.OUTER_RATE_DPS, Reg.LOG_RATE_MAX_HZ,
                           Reg.INNER_RATE_LIMIT_DPS, Reg.INNER_ACCEL_LIMIT_DPS2,

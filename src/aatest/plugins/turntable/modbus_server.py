@@ -97,20 +97,18 @@ class SimModbusServer:
         Twin model; default the realistic sr207 rig.
     faults
         Fault injection for tests.
-    time_scale
-        Controller seconds per wall second (the twin does not make you wait lab time).
     lifetime_s
         Stop by itself after this many wall seconds (``None``: run until :meth:`stop`).
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 0, seed: int = 0,
                  model: RigModel | None = None, faults: FaultInjection | None = None,
-                 time_scale: float = 1000.0, lifetime_s: float | None = None) -> None:
+                 lifetime_s: float | None = None) -> None:
         if model is None:
             from aatest.plugins.sim.api import realistic_rig_model
 
             model = realistic_rig_model("sr207")
-        self.controller = SimController(model, seed, time_scale, faults)
+        self.controller = SimController(model, seed, faults)
         self.host, self.port = host, int(port)
         self.lifetime_s = lifetime_s
         self._loop: asyncio.AbstractEventLoop | None = None
