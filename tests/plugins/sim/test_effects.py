@@ -167,3 +167,10 @@ def test_excess_noise(tmp_path: Path) -> None:
     model = model_from_yaml(tmp_path, _base(), sensor={"excess_noise": {"rms_v": 0.011}})
     v = np.asarray(simulate_step(model, static_step(samples=16384), 15).daq["v_sz"])
     assert_allclose(np.sqrt(np.var(v) - 0.001**2), 0.011, rtol=0.02)
+
+
+def test_every_vocabulary_effect_has_a_measure_back_test() -> None:
+    from aatest.plugins.sim.model import EFFECTS
+
+    tests = {name for name in globals() if name.startswith("test_")}
+    assert {f"test_{effect}" for effect in EFFECTS} <= tests
