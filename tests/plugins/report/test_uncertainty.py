@@ -122,3 +122,24 @@ def test_static_statistics_from_the_analysis(results: dict[str, Any]) -> None:
     assert_allclose(g["static means (noise, repeatability)"].standard_uncertainty,
                     math.hypot(0.0016, 0.0004) / 2, rtol=1e-9)
     assert_allclose(g["scale factor"].contribution, 0.21 * 0.01 / math.sqrt(3), rtol=1e-3)
+
+
+def test_columnar_temperature_results(results: dict[str, Any]) -> None:
+    """Columns (temperatures_c, bias_v, branch) are read like points; a stated u wins."""
+    from aatest.plugins.report import figures
+    from aatest.plugins.report.extract import temperature_points
+
+    entry = results["analysis"]["temperature"]["v_sz"]
+    points = entry.pop("points")
+    entry.update(temperatures_c=[p["temperature_c"] for p in points],
+                 bias_v=[p["bias_v"] for p in points], branch=[p["branch"] for p in points],
+                 scale_temperatures_c=[p["temperature_c"] for p in points],
+                 scale_v_per_dps2=[p["scale_v_per_dps2"] for p in points])
+    assert len(temperature_points(entry, "bias_v")) == 15
+    assert len(temperature_points(entry, "scale_v_per_dps2")) == 15
+    regression = evaluate(temperature_measurand(results, "v_sz", "scale_coefficient_per_c", C))
+    assert regression.rows[0].note.startswith("regression over 15")
+    entry["bias_coefficient_u_v_per_c"] = 9.3e-8
+    stated = evaluate(temperature_measurand(results, "v_sz", "bias_coefficient_v_per_c", C))
+    assert stated.rows[0].standard_uncertainty == 9.3e-8
+    assert figures.bias_vs_temperature(entry) is not None

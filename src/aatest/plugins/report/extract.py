@@ -106,10 +106,31 @@ def noise_rms_v(results: Mapping[str, Any], channel: str) -> tuple[float, str]:
     return 0.003, "datasheet limit (method.md §1.3)"
 
 
-def temperature_points(entry: Mapping[str, Any]) -> list[Mapping[str, Any]]:
-    """Per-temperature points of a temperature analysis, when reported."""
-    for key in ("points", "steps", "per_step"):
-        points = entry.get(key) if isinstance(entry, Mapping) else None
-        if isinstance(points, Sequence):
-            return [p for p in points if isinstance(p, Mapping) and "temperature_c" in p]
-    return []
+#: per-temperature value key → the key of its own temperature list in columnar results
+_COLUMN_TEMPERATURES = {"bias_v": ("temperatures_c",),
+                        "scale_v_per_dps2": ("scale_temperatures_c", "temperatures_c")}
+
+
+def temperature_points(entry: Mapping[str, Any], value_key: str = "bias_v"
+                       ) -> list[Mapping[str, Any]]:
+    """Per-temperature points ``{temperature_c, <value_key>, branch}`` of a temperature result.
+
+    Accepts a list of point mappings (``points``) or columns (``temperatures_c`` with
+    ``bias_v``; ``scale_temperatures_c`` with ``scale_v_per_dps2``; optional ``branch``).
+    """
+    if not isinstance(entry, Mapping):
+        return []
+    listed = entry.get("points")
+    if isinstance(listed, Sequence):
+        return [p for p in listed if isinstance(p, Mapping) and "temperature_c" in p
+                and as_float(p.get(value_key)) is not None]
+    values = entry.get(value_key)
+    temps = next((entry[k] for k in _COLUMN_TEMPERATURES.get(value_key, ()) if
+                  isinstance(entry.get(k), Sequence) and len(entry[k]) == len(values or [])), None)
+    if not isinstance(values, Sequence) or temps is None:
+        return []
+    branches = entry.get("branch") if isinstance(entry.get("branch"), Sequence) else []
+    branches = list(branches) if len(branches) == len(values) else ["all"] * len(values)
+    return [{"temperature_c": t, value_key: v, "branch": b}
+            for t, v, b in zip(temps, values, branches)
+            if as_float(t) is not None and as_float(v) is not None]

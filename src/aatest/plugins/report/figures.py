@@ -125,7 +125,7 @@ def bode(points: Sequence[Mapping[str, Any]], tf: Mapping[str, Any] | None,
 
 def bias_vs_temperature(entry: Mapping[str, Any]) -> str | None:
     """Bias per temperature point, by branch, with the fitted slope (mV/°C)."""
-    points = [p for p in ex.temperature_points(entry) if ex.as_float(p.get("bias_v")) is not None]
+    points = ex.temperature_points(entry, "bias_v")
     if len(points) < 2:
         return None
     fig = Figure(figsize=(6.4, 3.4), layout="constrained")

@@ -262,10 +262,15 @@ def _slope_std(entry: Mapping[str, Any], key: str, point_key: str) -> tuple[floa
     """Standard uncertainty of a temperature slope: ci95, else a regression over the points."""
     from scipy.stats import linregress
 
-    u = ex.ci_std(entry.get("ci95"), key) if isinstance(entry.get("ci95"), Mapping) else None
+    stated = ex.as_float(entry.get(key.replace("_coefficient_", "_coefficient_u_")))
+    if stated is not None:
+        return stated, "from the analysis' u"
+    u = ex.ci_std(entry.get(key.replace("_coefficient_", "_coefficient_ci95_")))
+    if u is None and isinstance(entry.get("ci95"), Mapping):
+        u = ex.ci_std(entry["ci95"], key)
     if u is not None:
         return u, "from the analysis' ci95"
-    points = [p for p in ex.temperature_points(entry) if ex.as_float(p.get(point_key)) is not None]
+    points = ex.temperature_points(entry, point_key)
     if len(points) >= 3:
         t = [float(p["temperature_c"]) for p in points]
         y = [float(p[point_key]) for p in points]
@@ -278,7 +283,8 @@ def _slope_std(entry: Mapping[str, Any], key: str, point_key: str) -> tuple[floa
 
 def _temperature_span_c(entry: Mapping[str, Any], results: Mapping[str, Any],
                         c: RigConstants) -> float:
-    temps = [float(p["temperature_c"]) for p in ex.temperature_points(entry)]
+    temps = [float(p["temperature_c"]) for key in ("bias_v", "scale_v_per_dps2")
+             for p in ex.temperature_points(entry, key)]
     temps = temps or ex.step_values(results.get("steps") or [], "temperature_c")
     return (max(temps) - min(temps)) if len(temps) >= 2 else c.temperature_span_c
 
