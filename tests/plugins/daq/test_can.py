@@ -19,7 +19,8 @@ STEP = PlannedStep(id="s", kind="static", samples=1000)
 _names = itertools.count()
 
 
-def daq_log(n: int = 1500, channels: tuple[str, ...] = ("v_sz", "v_sy"), seed: int = 0) -> SampledLog:
+def daq_log(n: int = 1500, channels: tuple[str, ...] = ("v_sz", "v_sy"),
+            seed: int = 0) -> SampledLog:
     """A DAQ record as a logger produces it: jittered clock, 100 Hz pulse, trigger step."""
     rng = np.random.default_rng(seed)
     time_s = np.arange(n) / 2000.0 - 0.35 + rng.normal(0, 6e-6, n)
@@ -46,7 +47,8 @@ class Feeder:
 def can_pair() -> Iterator[Callable[..., tuple[CanDaq, SampledLog]]]:
     parts: list[object] = []
 
-    def make(faults: CanFaultInjection | None = None, **config: object) -> tuple[CanDaq, SampledLog]:
+    def make(faults: CanFaultInjection | None = None,
+             **config: object) -> tuple[CanDaq, SampledLog]:
         channel = f"can-test-{next(_names)}"
         record = daq_log()
         logger = SimCanLogger(Feeder(record), "virtual", channel, faults=faults).start()

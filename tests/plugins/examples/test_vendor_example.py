@@ -67,7 +67,8 @@ def test_bad_options_name_the_distribution() -> None:
 
 def test_broken_vendor_plugins_are_named(install: Callable[..., None]) -> None:
     install("acme-broken", "2.0", {
-        "aatest.turntables": {"no-methods": "aatest_vendor_example.sensor:MemsAngularAccelerometer"},
+        "aatest.turntables": {
+            "no-methods": "aatest_vendor_example.sensor:MemsAngularAccelerometer"},
         "aatest.sensors": {"no-module": "acme_missing.sensor:Nothing"}})
     with pytest.raises(PluginError, match="turntable plugin 'no-methods' from distribution "
                                           "'acme-broken' lacks required method"):

@@ -51,7 +51,8 @@ def test_run_against_a_separate_sim_server(tmp_path: Path) -> None:
     pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")
     port = _free_port()
     group = f"239.74.163.{np.random.default_rng(port).integers(10, 250)}"
-    env = {**os.environ, "AATEST_SIM_CAN_CHANNEL": group, "AATEST_SIM_CAN_INTERFACE": "udp_multicast"}
+    env = {**os.environ, "AATEST_SIM_CAN_CHANNEL": group,
+           "AATEST_SIM_CAN_INTERFACE": "udp_multicast"}
     server = subprocess.Popen(
         [sys.executable, "-m", "aatest.engine.cli", "sim-server", "modbus", "--host", "127.0.0.1",
          "--port", str(port), "--seed", "5"], stdout=subprocess.PIPE, text=True, env=env)

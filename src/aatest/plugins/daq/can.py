@@ -37,7 +37,8 @@ log = logging.getLogger("aatest.daq.can")
 UDP_RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
 
 
-def open_bus(interface: str, channel: str, fd: bool = True, bitrate: int | None = None) -> can.BusABC:
+def open_bus(interface: str, channel: str, fd: bool = True,
+             bitrate: int | None = None) -> can.BusABC:
     """A python-can bus; errors become RigFault naming the interface and channel."""
     kwargs: dict[str, Any] = {"interface": interface, "channel": channel, "fd": fd}
     if bitrate is not None and interface not in ("virtual", "udp_multicast", "socketcan"):

@@ -145,7 +145,8 @@ def find_gaps(seq: np.ndarray) -> list[Gap]:
     return [Gap(int(i), int(seq[i]), int((step[i] - 1) % SEQ_MODULO)) for i in where]
 
 
-def fill_gaps(decoded: DecodedSamples, gaps: Sequence[Gap], sample_rate_hz: float) -> DecodedSamples:
+def fill_gaps(decoded: DecodedSamples, gaps: Sequence[Gap],
+              sample_rate_hz: float) -> DecodedSamples:
     """Insert NaN samples for lost frames so the gap stays visible in the record.
 
     Time stamps of the missing samples are interpolated at the nominal sample period.
@@ -161,7 +162,8 @@ def fill_gaps(decoded: DecodedSamples, gaps: Sequence[Gap], sample_rate_hz: floa
         return np.insert(values, insert_at, fill, axis=0)
 
     return DecodedSamples(seq=_ins(decoded.seq, seq), time_s=_ins(decoded.time_s, base_t),
-                          volts=_ins(decoded.volts, np.nan), sync_pulse=_ins(decoded.sync_pulse, np.nan),
+                          volts=_ins(decoded.volts, np.nan),
+                          sync_pulse=_ins(decoded.sync_pulse, np.nan),
                           trigger=_ins(decoded.trigger, np.nan),
                           temperature_c=_ins(decoded.temperature_c, np.nan))
 

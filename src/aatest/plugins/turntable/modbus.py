@@ -179,7 +179,8 @@ class ModbusTurntable:
             actual = self._value(reg)
             if declared > actual * (1 + 1e-6):
                 raise RigFault(f"{self._where}: declared envelope {reg.name.lower()} "
-                               f"{declared:g} exceeds the controller's {actual:g}; fix the rig file")
+                               f"{declared:g} exceeds the controller's {actual:g}; "
+                               "fix the rig file")
 
     def move_to(self, inner_deg: float, outer_deg: float) -> None:
         self._write({Reg.MODE: Mode.POSITION, Reg.INNER_POSITION_DEMAND_DEG: inner_deg,

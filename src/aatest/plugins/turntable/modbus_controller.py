@@ -5,10 +5,11 @@ turns register writes into the same World calls the in-process simulated plugins
 (move, begin motion, start DAQ, synthesise, end motion), so a driver talking Modbus to it is
 exercised against the same physics. Its clock is the World's virtual lab time, advanced only
 by events (a move, the settling time, a record, the return), never by the wall clock: a 70 s
-record does not take 70 s, and the same seed and commands give the same logs, bit for bit
-the ones the in-process simulated rig records. The simulated CAN logger (:mod:`aatest.plugins.daq.can_sim`)
-starts the DAQ through :meth:`SimController.daq_start` and receives the DAQ log of every
-record through ``on_daq_log``: table log and sensor log come from one twin.
+record does not take 70 s, and the same seed and commands give the logs the in-process
+simulated rig records (up to the map's f32 channels). The simulated CAN logger
+(:mod:`aatest.plugins.daq.can_sim`) starts the DAQ through :meth:`SimController.daq_start`
+and receives the DAQ log of every record through ``on_daq_log``: table log and sensor log
+come from one twin.
 
 Fault injection (:class:`FaultInjection`) lets tests make the controller set a fault bit or stop
 answering when a record starts, answer slowly, or stop answering from a given command on;
@@ -119,7 +120,8 @@ class SimController:
                            (Reg.OUTER_RATE_LIMIT_DPS, table.outer.rate_limit_dps),
                            (Reg.OUTER_ACCEL_LIMIT_DPS2, table.outer.accel_limit_dps2),
                            (Reg.MAX_FREQUENCY_HZ, 10.0), (Reg.FP_INPUT, 1), (Reg.TRIGGER_INPUT, 2),
-                           (Reg.LOG_START, mm.LogStart.TRIGGER), (Reg.LOG_RATE_HZ, table.log_rate_hz)):
+                           (Reg.LOG_START, mm.LogStart.TRIGGER),
+                           (Reg.LOG_RATE_HZ, table.log_rate_hz)):
             self._put(reg, value)
 
     def read(self, address: int, count: int) -> list[int] | None:
@@ -220,8 +222,8 @@ class SimController:
         if mode == Mode.SINE:
             axis = "outer" if self._get(Reg.OUTER_SINE_AMPLITUDE_DEG) else "inner"
             return PlannedStep(kind="sine", axis=axis, **common,
-                               amplitude_deg=self._get(getattr(Reg, f"{axis.upper()}_SINE_AMPLITUDE_DEG")),
-                               frequency_hz=self._get(getattr(Reg, f"{axis.upper()}_SINE_FREQUENCY_HZ")))
+                               amplitude_deg=self._get(Reg[f"{axis.upper()}_SINE_AMPLITUDE_DEG"]),
+                               frequency_hz=self._get(Reg[f"{axis.upper()}_SINE_FREQUENCY_HZ"]))
         if mode == Mode.RATE:
             return PlannedStep(kind="constant_rate", axis="inner", **common,
                                rate_dps=self._get(Reg.INNER_RATE_DEMAND_DPS),
@@ -234,10 +236,10 @@ class SimController:
         return mm.decode_label(words) or f"log{self._log_count + 1:05d}"
 
     def _start_motion(self) -> Refusal:
-        mode = Mode(int(self._get(Reg.MODE))) if int(self._get(Reg.MODE)) in Mode._value2member_map_ \
-            else None
-        if mode is None:
+        code = int(self._get(Reg.MODE))
+        if code not in Mode._value2member_map_:
             return Refusal.UNKNOWN_COMMAND
+        mode = Mode(code)
         if not self.world.motor_on:
             return Refusal.MOTOR_OFF
         refusal = self._check_user_limits(mode)
