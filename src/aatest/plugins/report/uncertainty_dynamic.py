@@ -130,8 +130,8 @@ def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: st
         return None
     channel = _channel_of(sensor, results)
     noise_v, source = ex.noise_rms_v(results, channel)
-    sensor = ex.sensors(results).get(channel, {})
-    k_v = ex.as_float(sensor.get("nominal_scale_v_per_dps2")) or 0.004014
+    info = ex.sensors(results).get(channel, {})
+    k_v = ex.as_float(info.get("nominal_scale_v_per_dps2")) or 0.004014
     accel_dps2, samples = _misalignment_steps(results, c)
     rel = noise_v * math.sqrt(2.0 / samples) / (k_v * accel_dps2)
     wobble_deg = c.wobble_arcsec / 3600.0
