@@ -145,27 +145,42 @@ def bias_vs_temperature(entry: Mapping[str, Any]) -> str | None:
     return _svg(fig)
 
 
+def _relative_cross(entry: Mapping[str, Any]) -> complex | None:
+    """ΔA relative to the sensitive response's magnitude |A_z| (≈ sin δ_e), or raw ΔA."""
+    value, main = entry.get("delta_A"), entry.get("A_z")
+    if not isinstance(value, Sequence) or len(value) != 2:
+        return None
+    cross = complex(float(value[0]), float(value[1]))
+    if isinstance(main, Sequence) and len(main) == 2 and abs(complex(*map(float, main))) > 0:
+        return cross / abs(complex(*map(float, main)))
+    return cross
+
+
 def misalignment_plane(sets: Mapping[str, Any]) -> str | None:
-    """Non-sensitive resultants ΔA of every set and sensor in the complex plane (mV)."""
+    """Non-sensitive resultants ΔA of every set and sensor in the complex plane, in % of the
+    sensitive response |A_z| when the analysis reports it (else as reported)."""
+    points = [(i, sensor, label, _relative_cross((block or {}).get(sensor) or {}),
+               bool(((block or {}).get(sensor) or {}).get("A_z")))
+              for i, sensor in enumerate(("SZ", "SY", "SX"))
+              for label, block in sorted(sets.items())]
+    points = [p for p in points if p[3] is not None]
+    if not points:
+        return None
+    relative = all(p[4] for p in points)
+    scale = 100.0 if relative else 1.0
     fig = Figure(figsize=(5.0, 4.2), layout="constrained")
     ax = fig.subplots()
-    drawn = False
-    for i, sensor in enumerate(("SZ", "SY", "SX")):
-        for label, block in sorted(sets.items()):
-            value = (block or {}).get(sensor, {}).get("delta_A")
-            if not isinstance(value, Sequence) or len(value) != 2:
-                continue
-            pivoted = "ABCDEFGH".find(label) % 2 == 1
-            ax.plot(1e3 * value[0], 1e3 * value[1], "s" if pivoted else "o", color=f"C{i}",
-                    mfc="none" if pivoted else f"C{i}", label=sensor if label == "A" else None)
-            ax.annotate(label, (1e3 * value[0], 1e3 * value[1]), fontsize=6)
-            drawn = True
-    if not drawn:
-        return None
+    for i, sensor, label, z, _ in points:
+        pivoted = "ABCDEFGH".find(label) % 2 == 1
+        xy = (scale * z.real, scale * z.imag)
+        ax.plot(*xy, "s" if pivoted else "o", color=f"C{i}", mfc="none" if pivoted else f"C{i}",
+                label=sensor if label == "A" else None)
+        ax.annotate(label, xy, fontsize=6)
     ax.axhline(0, color="0.7", lw=0.5)
     ax.axvline(0, color="0.7", lw=0.5)
-    ax.set_xlabel("Re ΔA (mV)")
-    ax.set_ylabel("Im ΔA (mV)")
+    unit = "% of |A_z|" if relative else "as reported"
+    ax.set_xlabel(f"Re ΔA ({unit})")
+    ax.set_ylabel(f"Im ΔA ({unit})")
     ax.set_title("filled: original, open: pivoted", fontsize=8)
     ax.legend(fontsize=7)
     return _svg(fig)
