@@ -9,9 +9,10 @@ lack the data; units follow the contract keys (V, °/s², dB, deg, °C).
 
 from __future__ import annotations
 
+import functools
 import io
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, TypeVar
 
 import matplotlib
 import numpy as np
@@ -20,7 +21,22 @@ from scipy import signal
 
 from aatest.plugins.report import extract as ex
 
-matplotlib.rcParams.update({"svg.hashsalt": "aatest", "svg.fonttype": "none", "font.size": 9})
+#: applied per plot (never globally, other plugins draw with matplotlib too): stable SVG ids,
+#: text kept as text (smaller, searchable), a compact font
+_STYLE = {"svg.hashsalt": "aatest", "svg.fonttype": "none", "font.size": 9}
+
+_Plot = TypeVar("_Plot", bound=Callable[..., "str | None"])
+
+
+def _styled(plot: _Plot) -> _Plot:
+    """Run a plot function inside the report style."""
+
+    @functools.wraps(plot)
+    def wrapper(*args: Any, **kwargs: Any) -> str | None:
+        with matplotlib.rc_context(_STYLE):
+            return plot(*args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]
 
 
 def _svg(fig: Figure) -> str:
@@ -43,6 +59,7 @@ def _poly_band(entry: Mapping[str, Any], n_coef: int, u_v: np.ndarray) -> np.nda
     return np.sqrt((powers**2) @ np.square(np.asarray(stds, dtype=float)))
 
 
+@_styled
 def calibration_curve(entry: Mapping[str, Any], sensor: Mapping[str, Any],
                       peak_dps2: float | None = None) -> str | None:
     """Fitted y(u) over the calibrated span (±``peak_dps2``) with its 95 % band, and the
@@ -91,6 +108,7 @@ def _model_response(tf: Mapping[str, Any], f_hz: np.ndarray) -> np.ndarray | Non
     return h * np.exp(-2j * np.pi * f_hz * delay)
 
 
+@_styled
 def bode(points: Sequence[Mapping[str, Any]], tf: Mapping[str, Any] | None,
          gain_u_db: Sequence[float] | None = None) -> str | None:
     """FRF points (with ±U gain bars) and the fitted model, extrapolated to 5× the last point."""
@@ -123,6 +141,7 @@ def bode(points: Sequence[Mapping[str, Any]], tf: Mapping[str, Any] | None,
     return _svg(fig)
 
 
+@_styled
 def bias_vs_temperature(entry: Mapping[str, Any]) -> str | None:
     """Bias per temperature point, by branch, with the fitted slope (mV/°C)."""
     points = ex.temperature_points(entry, "bias_v")
@@ -156,6 +175,7 @@ def _relative_cross(entry: Mapping[str, Any]) -> complex | None:
     return cross
 
 
+@_styled
 def misalignment_plane(sets: Mapping[str, Any]) -> str | None:
     """Non-sensitive resultants ΔA of every set and sensor in the complex plane, in % of the
     sensitive response |A_z| when the analysis reports it (else as reported)."""
@@ -186,6 +206,7 @@ def misalignment_plane(sets: Mapping[str, Any]) -> str | None:
     return _svg(fig)
 
 
+@_styled
 def diagnosis_bars(diagnosis: Mapping[str, Any]) -> str | None:
     """Candidates' ΔBIC (accepted highlighted) and the RMSE before/after the findings."""
     candidates = [c for c in diagnosis.get("candidates") or []
@@ -207,6 +228,7 @@ def diagnosis_bars(diagnosis: Mapping[str, Any]) -> str | None:
     return _svg(fig) if (names or before is not None) else None
 
 
+@_styled
 def residual_steps(view: Mapping[str, Any], max_steps: int = 40) -> str | None:
     """RMS of measured − simulated per step, nominal vs extended model (mV)."""
     rows = [r for r in view.get("per_step") or [] if isinstance(r, Mapping)
