@@ -36,6 +36,8 @@ from aatest.plugins.turntable.modbus_map import Command, Fault, Mode, Refusal, R
 log = logging.getLogger("aatest.sim.modbus")
 
 DaqLogSink = Callable[[SampledLog], None]
+#: registers past this address hold no live status
+_LIVE_END = int(Reg.MODE)
 
 
 @dataclass
@@ -129,14 +131,15 @@ class SimController:
         if address < 0 or address + count > mm.REGISTER_COUNT:
             return None
         with self._lock:
-            self._refresh()
+            if address < _LIVE_END:  # live status is computed on demand, not per window read
+                self._refresh()
             return self._regs[address: address + count].tolist()
 
     def write(self, address: int, values: list[int]) -> bool:
         """Store values and act on commands; ``False`` for read-only or unknown addresses."""
         span = range(address, address + len(values))
-        if span.stop > mm.REGISTER_COUNT or any(
-                set(span) & set(ro) for ro in mm.READ_ONLY):
+        if address < 0 or span.stop > mm.REGISTER_COUNT or any(
+                span.start < ro.stop and ro.start < span.stop for ro in mm.READ_ONLY):
             return False
         with self._lock:
             self._regs[address: span.stop] = values
