@@ -180,6 +180,7 @@ def make_dataset(steps: list[PlannedStep], rig: SynthRig, seed: int = 1,
                  temperatures_c: list[float] | None = None) -> Dataset:
     temps = temperatures_c or [25.0] * len(steps)
     data = tuple(make_step(s, rig, seed + i, t) for i, (s, t) in enumerate(zip(steps, temps)))
-    infos = tuple(SensorInfo(channel=s.channel, axis=s.axis) for s in rig.sensors)  # type: ignore[arg-type]
+    infos = tuple(SensorInfo(channel=s.channel, axis=s.axis)  # type: ignore[arg-type]
+                  for s in rig.sensors)
     return Dataset(procedure="synthetic", sample_rate_hz=FS_HZ, sensors=infos, steps=data,
                    source=Path("synthetic"))

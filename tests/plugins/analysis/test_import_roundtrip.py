@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -20,7 +21,7 @@ def _analyse(data):  # type: ignore[no-untyped-def]
                                                      FrfAnalysis())}
 
 
-def test_same_numbers_after_csv_roundtrip(realistic_unit, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_same_numbers_after_csv_roundtrip(realistic_unit: Any, tmp_path: Path) -> None:
     from aatest.engine.exporter import export_csv
     from aatest.engine.importer import import_dataset
 

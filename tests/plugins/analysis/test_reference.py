@@ -9,7 +9,7 @@ import pytest
 
 from aatest.plugins.analysis._common import fundamental
 from aatest.plugins.analysis.reference import METHODS, levant_differentiator, reference_accel
-from aatest.plugins.sync import synchronise
+from aatest.plugins.sync import SyncedStep, synchronise
 from synthetic_rig import SynthRig, make_step, sine_step
 
 
@@ -19,7 +19,7 @@ def synced():  # type: ignore[no-untyped-def]
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_reference_fundamental_and_noise(synced, method: str) -> None:  # type: ignore[no-untyped-def]
+def test_reference_fundamental_and_noise(synced: SyncedStep, method: str) -> None:
     fs, f0 = synced.sample_rate_hz, synced.step.frequency_hz
     ref = reference_accel(synced, method)
     amp = abs(fundamental(ref, f0, fs))

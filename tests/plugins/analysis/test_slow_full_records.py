@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -25,7 +27,7 @@ def test_scale_factor_full_record(realistic_unit) -> None:  # type: ignore[no-un
     assert v["scale_v_per_dps2"] == pytest.approx(truth, rel=1e-3)
 
 
-def test_transfer_function_full_campaign_group(realistic_unit) -> None:  # type: ignore[no-untyped-def]
+def test_transfer_function_full_campaign_group(realistic_unit: Any) -> None:
     from test_tfest import F28
 
     model = realistic_unit.model_copy(update={"sensors": realistic_unit.sensors[:1]})

@@ -61,7 +61,8 @@ def _truth_response(model: Any, f_hz: float) -> complex:
     b, a = dynamics_filter(s.sensor_dynamics.natural_frequency_hz, s.sensor_dynamics.damping,
                            1 / FS)
     b2, a2, _ = antialias_filter(float(model.daq.antialias_hz), 1 / FS)
-    h = signal.freqz(b, a, worN=[f_hz], fs=FS)[1][0] * signal.freqz(b2, a2, worN=[f_hz], fs=FS)[1][0]
+    h = (signal.freqz(b, a, worN=[f_hz], fs=FS)[1][0]
+         * signal.freqz(b2, a2, worN=[f_hz], fs=FS)[1][0])
     return complex(s.scale_v_per_dps2 * h * np.exp(-2j * np.pi * f_hz * s.time_delay.delay_s))
 
 

@@ -31,7 +31,7 @@ def test_drift_and_offset_recovered(drift_ppm: float) -> None:
 
 
 def test_resampled_sensor_is_on_table_time() -> None:
-    """With no sensor dynamics, the synced sensor follows the table acceleration sample by sample."""
+    """Without sensor dynamics the synced sensor follows the table acceleration sample by sample."""
     from synthetic_rig import SynthSensor
 
     sensor = SynthSensor(natural_frequency_hz=1e6, delay_s=0.0, noise_v=0.0)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -86,25 +87,22 @@ def t95(dof: int) -> float:
     return float(stats.t.ppf(0.975, max(dof, 1)))
 
 
-def to_svg(fig: object) -> str:
-    """Render a matplotlib figure to a compact SVG string and close it."""
-    import matplotlib.pyplot as plt
+def to_svg(fig: Any) -> str:
+    """Render a figure to a compact SVG string (text kept as text, not paths)."""
+    import matplotlib
 
     buf = io.StringIO()
-    fig.savefig(buf, format="svg")  # type: ignore[attr-defined]
-    plt.close(fig)  # type: ignore[arg-type]
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        fig.savefig(buf, format="svg")
     return buf.getvalue()
 
 
-def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0):  # type: ignore[no-untyped-def]
-    """A small Agg figure (reports embed many of them)."""
-    import matplotlib
+def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0) -> tuple[Any, Any]:
+    """A small figure with ``rows`` stacked axes, without pyplot's global state (Agg-safe)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams["svg.fonttype"] = "none"
-    return plt.subplots(rows, 1, figsize=(width_in, height_in * rows), squeeze=False)
+    fig = Figure(figsize=(width_in, height_in * rows))
+    return fig, fig.subplots(rows, 1, squeeze=False)
 
 
 def group_of(step: PlannedStep) -> str:

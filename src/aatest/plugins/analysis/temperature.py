@@ -92,13 +92,17 @@ def bias_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str
     }
 
 
+def _gain(step: SyncedStep, sensor: SensorInfo) -> complex:
+    """Sensor output over table input at the excitation bin, V/(°/s²)."""
+    f0, fs = float(step.step.frequency_hz or 1.0), step.sample_rate_hz
+    return fundamental(step.daq[sensor.channel], f0, fs) / fundamental(
+        input_accel_dps2(step, sensor.axis), f0, fs)
+
+
 def scale_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, Any]:
     """Scale-factor temperature coefficient from the sine steps' fundamental gains."""
     temps = np.array([step_temperature_c(s) for s in steps], dtype=float)
-    gains = np.array([abs(fundamental(s.daq[sensor.channel], float(s.step.frequency_hz), s.sample_rate_hz)
-                          / fundamental(input_accel_dps2(s, sensor.axis),
-                                        float(s.step.frequency_hz), s.sample_rate_hz))
-                      for s in steps])
+    gains = np.array([abs(_gain(s, sensor)) for s in steps])
     fit = fit_polynomial(temps - T_REF_C, gains, 1)
     (k0, b), cov = fit.coefficients, fit.covariance
     c = b / k0

@@ -21,7 +21,13 @@ from scipy import signal
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis._common import group_of, input_accel_dps2, is_excited, new_figure, to_svg
+from aatest.plugins.analysis._common import (
+    group_of,
+    input_accel_dps2,
+    is_excited,
+    new_figure,
+    to_svg,
+)
 from aatest.plugins.analysis.frf import FrfAnalysis
 from aatest.plugins.analysis.tfest import (
     DiscreteTf,
