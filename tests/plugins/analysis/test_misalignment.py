@@ -58,7 +58,7 @@ def test_anti_phase_cross_responses_use_the_complex_root(tmp_path: Path) -> None
 
 
 @pytest.mark.parametrize("row, match", [
-    ("A,4,SZ,1,0", "does not belong"), ("Q,1,SZ,1,0", "not one of A..H"),
+    ("A,4,SZ,1,0", "does not belong to the original"), ("Q,1,SZ,1,0", "not one of A..H"),
     ("A,1,SQ,1,0", "SZ, SY, SX"), ("A,1,SZ,abc,0", "not numeric")],
     ids=["exp-set", "set", "sensor", "number"])
 def test_csv_errors_name_file_and_line(tmp_path: Path, row: str, match: str) -> None:

@@ -84,10 +84,9 @@ def _parse_row(path: Path, line: int, row: dict[str, str]) -> tuple[tuple[str, s
         raise ImportDataError(path, f"experiment/re/im not numeric ({exc})", line) from exc
     if experiment not in EXPERIMENT_AXIS:
         raise ImportDataError(path, f"experiment {experiment} is not 1..6", line)
-    pivoted_exp, pivoted_set = experiment >= 4, set_name not in ORIGINAL_SETS
-    if pivoted_exp != pivoted_set:
-        raise ImportDataError(path, f"experiment {experiment} does not belong to set "
-                              f"{set_name} (1–3 original A/C/E/G, 4–6 pivoted B/D/F/H)", line)
+    if experiment >= 4 and set_name in ORIGINAL_SETS:  # 1–3 in a pivoted set: same axes
+        raise ImportDataError(path, f"experiment {experiment} (pivoted) does not belong to the "
+                              f"original-mounting set {set_name} (A/C/E/G take 1–3)", line)
     return (set_name, EXPERIMENT_AXIS[experiment], sensor), value
 
 
