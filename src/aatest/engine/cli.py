@@ -118,11 +118,14 @@ def run(
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated rig"),
     sign_key: Optional[Path] = typer.Option(None, "--sign-key", help="Ed25519 private key"),
     no_progress: bool = typer.Option(False, "--no-progress"),
+    operator: Optional[str] = typer.Option(None, "--operator", help="Name on the certificate"),
 ) -> None:
     """Run a procedure: record both loggers, analyse, report (and sign)."""
     from aatest.engine import session
 
-    run_dir, results = session.run(procedure, rig, out, resume, seed, sign_key, not no_progress)
+    run_dir, results = session.run(
+        procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator
+    )
     typer.echo(
         f"run complete: {run_dir} — {len(results['steps'])} steps, lab {results['lab_duration_s']:.1f} s, "
         f"wall {results['wall_duration_s']:.1f} s"

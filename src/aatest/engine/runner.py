@@ -66,9 +66,13 @@ class _ChamberTracker:
         self.setpoint_c = target
 
 
-def run_metadata(plan: Plan, rig: Rig, procedure_text: str, seed: int) -> dict[str, Any]:
+def run_metadata(
+    plan: Plan, rig: Rig, procedure_text: str, seed: int, operator: str
+) -> dict[str, Any]:
     """Everything that makes a recording traceable, stored in the recording itself."""
     return {
+        "operator": operator,
+        "table_serial": str(getattr(rig.turntable, "serial", None) or "not reported by the plugin"),
         "procedure": plan.procedure,
         "standard": plan.standard,
         "procedure_text": procedure_text,

@@ -21,6 +21,7 @@ from aatest.engine.steps import Plan, SensorRef
 
 SIGNING_KEY_ENV = "AATEST_SIGNING_KEY"
 PASSPHRASE_ENV = "AATEST_SIGNING_PASSPHRASE"
+OPERATOR_ENV = "AATEST_OPERATOR"
 
 
 @dataclass
@@ -66,6 +67,16 @@ def _declared_envelope(rig_config: Any, sensor: SensorRef) -> Any:
         rig.turntable.close()
         rig.daq.close()
         rig.chamber.close()
+
+
+def default_operator() -> str:
+    """Who ran it: ``AATEST_OPERATOR``, else the login name."""
+    import getpass
+
+    try:
+        return os.environ.get(OPERATOR_ENV) or getpass.getuser()
+    except (KeyError, OSError):
+        return "unknown"
 
 
 def signing_key(explicit: Path | None) -> Path | None:
@@ -131,6 +142,7 @@ def run(
     seed: int,
     key_path: Path | None,
     show_progress: bool = True,
+    operator: str | None = None,
 ) -> tuple[Path, dict[str, Any]]:
     """``aatest run``: execute (or resume) a procedure and produce its results and report."""
     from aatest.engine.recording import RunRecorder
@@ -148,7 +160,7 @@ def run(
     rig = build_rig(prepared.rig_config, plan.sensor, seed)
     recorder = RunRecorder(out_dir)
     if not resume:
-        meta = run_metadata(plan, rig, prepared.text, seed)
+        meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
         meta["report_template"] = plan.report_template
         recorder.write_run_metadata(meta)
     run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress)

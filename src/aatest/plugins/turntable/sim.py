@@ -24,11 +24,17 @@ class SimTurntable:
 
         model_config = ConfigDict(extra="forbid")
         model: str | None = None
+        serial: str = "digital-twin"
 
     def __init__(self, config: Config, context: RigContext) -> None:
         self.config = config
         self.context = context
         shared_world(context, config.model)
+
+    @property
+    def serial(self) -> str:
+        """Identifies the table on certificates (traceability)."""
+        return self.config.serial
 
     @property
     def world(self) -> World:
