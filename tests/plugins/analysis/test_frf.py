@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from aatest.engine.interfaces import AnalysisContext
 from aatest.plugins.analysis.frf import FrfAnalysis, analyse_tone
@@ -48,3 +50,19 @@ def test_gain_phase_delay_match_truth(frf_values) -> None:  # type: ignore[no-un
         assert -30 < p["table_snr_db"] < 0
         assert p["coherent"]
     assert "bode_v_sz" in out.figures
+
+
+@settings(max_examples=30, deadline=None)
+@given(amp=st.floats(0.01, 100), phase=st.floats(-np.pi, np.pi), cycles=st.integers(1, 200),
+       h3=st.floats(0, 0.1))
+def test_tone_fundamental_property(amp: float, phase: float, cycles: int, h3: float) -> None:
+    """Any coherent tone: amplitude, phase and THD exact at the bin."""
+    fs, n = 2000.0, 4096
+    f = cycles * fs / n
+    t = np.arange(n) / fs
+    x = amp * np.cos(2 * np.pi * f * t + phase) + h3 * amp * np.cos(6 * np.pi * f * t)
+    tone = analyse_tone(x, f, fs)
+    assert abs(tone.fundamental) == pytest.approx(amp, rel=1e-9)
+    assert np.angle(tone.fundamental * np.exp(-1j * phase)) == pytest.approx(0.0, abs=1e-9)
+    if 3 * cycles < n // 2:
+        assert tone.thd == pytest.approx(h3, abs=1e-9)

@@ -17,7 +17,14 @@ import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis._common import fundamental, input_accel_dps2, is_excited, t95
+from aatest.plugins.analysis._common import (
+    fundamental,
+    input_accel_dps2,
+    is_excited,
+    new_figure,
+    t95,
+    to_svg,
+)
 from aatest.plugins.analysis.bias import gravity_along_g
 from aatest.plugins.analysis.polyfit import fit_polynomial
 from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
@@ -119,6 +126,24 @@ def scale_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[st
     }
 
 
+def _figure(row: dict[str, Any], channel: str) -> str:
+    """Bias (and scale factor) against temperature, cooling and heating branches marked."""
+    rows = 2 if "scale_temperatures_c" in row else 1
+    fig, ax = new_figure(rows, height_in=2.4)
+    temps, bias = np.array(row["temperatures_c"]), np.array(row["bias_v"])
+    for name, marker in (("cooling", "v"), ("heating", "^")):
+        sel = np.array(row["branch"]) == name
+        ax[0, 0].plot(temps[sel], bias[sel] * 1e3, marker, ms=4, label=name)
+    ax[0, 0].set(xlabel="sensor temperature / °C", ylabel="bias / mV", title=f"{channel}")
+    ax[0, 0].legend(fontsize=6)
+    if rows == 2:
+        ax[1, 0].plot(row["scale_temperatures_c"], np.array(row["scale_v_per_dps2"]) * 1e3, "o",
+                      ms=4)
+        ax[1, 0].set(xlabel="sensor temperature / °C", ylabel="scale / (mV/(°/s²))")
+    fig.tight_layout()
+    return to_svg(fig)
+
+
 def _same_point(steps: list[SyncedStep]) -> list[SyncedStep]:
     """The sine steps of the (frequency, acceleration) point seen at the most temperatures."""
     if not steps:
@@ -150,6 +175,7 @@ class TemperatureAnalysis:
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
         steps = synced_steps(data, context)
         values: dict[str, Any] = {}
+        figures: dict[str, str] = {}
         for sensor in data.sensors:
             static = [s for s in steps if s.step.kind == "static"]
             sine = _same_point([s for s in steps
@@ -161,4 +187,6 @@ class TemperatureAnalysis:
             if _spans(sine):
                 row |= scale_vs_temperature(sine, sensor)
             values[sensor.channel] = row
-        return AnalysisOutput(values=values)
+            if "temperatures_c" in row:
+                figures[f"temperature_{sensor.channel}"] = _figure(row, sensor.channel)
+        return AnalysisOutput(values=values, figures=figures)
