@@ -7,6 +7,8 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from aatest.engine.errors import RigFault
 from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
@@ -77,11 +79,18 @@ def test_frames_round_trip_exactly_enough() -> None:
     np.testing.assert_allclose(back.temperature_c, record["temperature_c"], atol=1e-9)
 
 
-def test_gaps_are_found_across_the_wrap() -> None:
-    seq = (np.arange(65530, 65546) % 65536)
-    assert cf.find_gaps(seq) == []
-    holed = np.delete(seq, [3, 4, 10])
-    assert cf.find_gaps(holed) == [cf.Gap(2, 65532, 2), cf.Gap(7, 3, 1)]
+@given(st.integers(1, 70_000), st.sets(st.integers(0, 69_999), max_size=40))
+@settings(max_examples=40, deadline=None)
+def test_gaps_are_exactly_the_lost_frames(sent: int, lost: set[int]) -> None:
+    """Any loss pattern, at the start, middle or end, across the 16-bit wrap, is found."""
+    lost = {i for i in lost if i < sent}
+    kept = np.setdiff1d(np.arange(sent), sorted(lost))
+    if kept.size == 0:
+        return
+    index = cf.frame_index(kept % cf.SEQ_MODULO)
+    np.testing.assert_array_equal(index, kept)
+    gaps = cf.find_gaps(index, sent)
+    assert {g.first + k for g in gaps for k in range(g.lost)} == lost
 
 
 def test_record_round_trip_over_the_virtual_bus(can_pair: Callable) -> None:
@@ -97,14 +106,14 @@ def test_record_round_trip_over_the_virtual_bus(can_pair: Callable) -> None:
 def test_lost_frames_raise_by_default(can_pair: Callable) -> None:
     daq, _ = can_pair(CanFaultInjection(drop_frames=frozenset({100, 101})))
     daq.start_logging(STEP)
-    with pytest.raises(RigFault, match=r"lost 2 of 1500 sample frames \(2 after seq 99\)"):
+    with pytest.raises(RigFault, match=r"lost 2 of 1500 sample frames \(2 from frame 100\)"):
         daq.stop_logging()
 
 
 def test_lost_tail_is_detected_from_the_end_of_record_count(can_pair: Callable) -> None:
     daq, _ = can_pair(CanFaultInjection(drop_frames=frozenset({1499})))
     daq.start_logging(STEP)
-    with pytest.raises(RigFault, match=r"lost 1 of 1500 sample frames \(at the end\)"):
+    with pytest.raises(RigFault, match=r"lost 1 of 1500 sample frames \(1 from frame 1499\)"):
         daq.stop_logging()
 
 
@@ -115,9 +124,21 @@ def test_lost_frames_recorded_as_explicit_nan_gap(can_pair: Callable) -> None:
     got = daq.stop_logging()
     assert len(got) == len(record)
     assert np.isnan(got["v_sz"][500:503]).all() and not np.isnan(got["v_sz"][:500]).any()
-    np.testing.assert_allclose(got.time_s[500:503], record.time_s[499] + np.arange(1, 4) / 2000,
+    # lost time stamps are interpolated between the received neighbours
+    expected = np.interp([500, 501, 502], [499, 503], record.time_s[[499, 503]])
+    np.testing.assert_allclose(got.time_s[500:503], expected, atol=1e-9)
+    assert daq.gaps == [cf.Gap(500, 3)]
+
+
+def test_lost_head_is_detected_and_recorded(can_pair: Callable) -> None:
+    daq, record = can_pair(CanFaultInjection(drop_frames=frozenset({0, 1})),
+                           on_frame_loss="record")
+    daq.start_logging(STEP)
+    got = daq.stop_logging()
+    assert daq.gaps == [cf.Gap(0, 2)] and len(got) == len(record)
+    assert np.isnan(got["v_sz"][:2]).all()
+    np.testing.assert_allclose(got.time_s[:2], record.time_s[2] - np.array([2, 1]) / 2000,
                                atol=1e-9)
-    assert daq.gaps == [cf.Gap(499, 499, 3)]
 
 
 def test_bus_off_is_a_rig_fault(can_pair: Callable) -> None:

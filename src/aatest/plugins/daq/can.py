@@ -192,17 +192,17 @@ class CanDaq:
         self._rx.active = False
         payloads = self._rx.samples
         decoded = self._decode(payloads)
-        self.gaps = cf.find_gaps(decoded.seq)
-        tail = sent - (len(payloads) + sum(g.lost for g in self.gaps))
-        lost = sum(g.lost for g in self.gaps) + max(tail, 0)
+        index = cf.frame_index(decoded.seq)
+        self.gaps = cf.find_gaps(index, sent)
+        lost = sum(g.lost for g in self.gaps)
         if lost:
-            where = ", ".join(f"{g.lost} after seq {g.seq_after}" for g in self.gaps[:3])
-            message = (f"{self._where}: lost {lost} of {sent} sample frames "
-                       f"({where or 'at the end'})")
-            if self.config.on_frame_loss == "fault":
+            where = ", ".join(f"{g.lost} from frame {g.first}" for g in self.gaps[:3])
+            message = f"{self._where}: lost {lost} of {sent} sample frames ({where})"
+            if self.config.on_frame_loss == "fault" or not payloads:
                 raise RigFault(message)
             log.warning("%s; gaps kept as NaN samples", message)
-            decoded = cf.fill_gaps(decoded, self.gaps, self.config.sample_rate_hz)
+            decoded = cf.fill_gaps(decoded, index, len(payloads) + lost,
+                                   self.config.sample_rate_hz)
         return self._to_log(decoded)
 
     def _decode(self, payloads: list[bytes]) -> cf.DecodedSamples:

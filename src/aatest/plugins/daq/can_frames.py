@@ -15,7 +15,8 @@ Identifiers (11-bit, ``n`` = logger node id 1..15):
 
 Decoding is vectorised: payloads are joined and read as one numpy structured array. A gap in
 ``seq`` (or fewer frames than the logger says it sent) is never silent: :func:`find_gaps`
-reports it and the DAQ plugin raises or records it explicitly.
+reports it (at the start, in the middle or at the end of a record) and the DAQ plugin raises
+or records it explicitly.
 """
 
 from __future__ import annotations
@@ -129,43 +130,53 @@ def decode_samples(payloads: Sequence[bytes], n_channels: int) -> DecodedSamples
 
 @dataclass(frozen=True)
 class Gap:
-    """``lost`` frames missing after received frame index ``after`` (sequence ``seq_after``)."""
+    """``lost`` consecutive sample frames missing from record frame index ``first`` on."""
 
-    after: int
-    seq_after: int
+    first: int
     lost: int
 
 
-def find_gaps(seq: np.ndarray) -> list[Gap]:
-    """Gaps in a wrapping 16-bit sequence (vectorised); empty when every frame arrived."""
-    if seq.size < 2:
-        return []
-    step = np.diff(seq.astype(np.int64)) % SEQ_MODULO
-    where = np.flatnonzero(step != 1)
-    return [Gap(int(i), int(seq[i]), int((step[i] - 1) % SEQ_MODULO)) for i in where]
+def frame_index(seq: np.ndarray) -> np.ndarray:
+    """Record frame index of every received frame, unwrapping the 16-bit counter.
 
-
-def fill_gaps(decoded: DecodedSamples, gaps: Sequence[Gap],
-              sample_rate_hz: float) -> DecodedSamples:
-    """Insert NaN samples for lost frames so the gap stays visible in the record.
-
-    Time stamps of the missing samples are interpolated at the nominal sample period.
+    A record starts at ``seq`` 0, so the first received frame's index is its ``seq`` (a loss at
+    the start shows); later indices add the forward steps modulo 65 536 (vectorised).
     """
-    if not gaps:
-        return decoded
-    insert_at = np.repeat([g.after + 1 for g in gaps], [g.lost for g in gaps])
-    offsets = np.concatenate([np.arange(1, g.lost + 1) for g in gaps])
-    base_t = decoded.time_s[insert_at - 1] + offsets / sample_rate_hz
-    seq = (decoded.seq[insert_at - 1] + offsets) % SEQ_MODULO
+    if seq.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    steps = np.diff(seq.astype(np.int64)) % SEQ_MODULO
+    return np.concatenate([[int(seq[0])], int(seq[0]) + np.cumsum(steps)])
 
-    def _ins(values: np.ndarray, fill: np.ndarray | float) -> np.ndarray:
-        return np.insert(values, insert_at, fill, axis=0)
 
-    return DecodedSamples(seq=_ins(decoded.seq, seq), time_s=_ins(decoded.time_s, base_t),
-                          volts=_ins(decoded.volts, np.nan),
-                          sync_pulse=_ins(decoded.sync_pulse, np.nan),
-                          trigger=_ins(decoded.trigger, np.nan),
-                          temperature_c=_ins(decoded.temperature_c, np.nan))
+def find_gaps(index: np.ndarray, sent: int) -> list[Gap]:
+    """Runs of frames missing among the ``sent`` the logger reports (start, middle, end)."""
+    total = max(sent, int(index[-1]) + 1 if index.size else 0)
+    edges = np.concatenate([[-1], index, [total]])
+    runs = np.flatnonzero(np.diff(edges) > 1)
+    return [Gap(int(edges[i] + 1), int(edges[i + 1] - edges[i] - 1)) for i in runs]
+
+
+def fill_gaps(decoded: DecodedSamples, index: np.ndarray, total: int,
+              sample_rate_hz: float) -> DecodedSamples:
+    """The record on its full frame grid, NaN where frames were lost, so gaps stay visible.
+
+    Time stamps of lost samples are interpolated between received ones (extrapolated at the
+    nominal sample period before the first and after the last).
+    """
+    grid = np.arange(total)
+    time_s = np.interp(grid, index, decoded.time_s)
+    time_s[grid < index[0]] = decoded.time_s[0] - (index[0] - grid[grid < index[0]]) / sample_rate_hz
+    after = grid > index[-1]
+    time_s[after] = decoded.time_s[-1] + (grid[after] - index[-1]) / sample_rate_hz
+
+    def _spread(values: np.ndarray) -> np.ndarray:
+        out = np.full((total,) + values.shape[1:], np.nan)
+        out[index] = values
+        return out
+
+    return DecodedSamples(seq=grid % SEQ_MODULO, time_s=time_s, volts=_spread(decoded.volts),
+                          sync_pulse=_spread(decoded.sync_pulse), trigger=_spread(decoded.trigger),
+                          temperature_c=_spread(decoded.temperature_c))
 
 
 def command_payload(opcode: Opcode) -> bytes:
