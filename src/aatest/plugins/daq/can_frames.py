@@ -165,8 +165,8 @@ def fill_gaps(decoded: DecodedSamples, index: np.ndarray, total: int,
     """
     grid = np.arange(total)
     time_s = np.interp(grid, index, decoded.time_s)
-    time_s[grid < index[0]] = decoded.time_s[0] - (index[0] - grid[grid < index[0]]) / sample_rate_hz
-    after = grid > index[-1]
+    before, after = grid < index[0], grid > index[-1]
+    time_s[before] = decoded.time_s[0] + (grid[before] - index[0]) / sample_rate_hz
     time_s[after] = decoded.time_s[-1] + (grid[after] - index[-1]) / sample_rate_hz
 
     def _spread(values: np.ndarray) -> np.ndarray:
