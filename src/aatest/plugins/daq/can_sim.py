@@ -22,7 +22,7 @@ import can
 
 from aatest.engine.logs import SampledLog
 from aatest.plugins.daq import can_frames as cf
-from aatest.plugins.daq.can import open_bus, send
+from aatest.plugins.daq.can import open_bus, send, volts_matrix
 
 log = logging.getLogger("aatest.sim.can")
 _PACE_BATCH = 64
@@ -129,8 +129,6 @@ class SimCanLogger:
 
     def _stream(self, daq: SampledLog) -> None:
         """Send one record's sample frames (paced), honouring injected faults."""
-        from aatest.plugins.daq.can import volts_matrix
-
         payloads = cf.encode_samples(daq.time_s, volts_matrix(daq), daq["sync_pulse"],
                                      daq["trigger"], daq["temperature_c"])
         sample_id, started = cf.SAMPLE_BASE + self.node_id, time.monotonic()
