@@ -281,11 +281,14 @@ def sim_server_modbus(
     host: str = typer.Option("127.0.0.1", "--host"),
     port: int = typer.Option(5020, "--port"),
     seed: int = typer.Option(0, "--seed"),
+    can_interface: Optional[str] = typer.Option(None, "--can-interface", help="python-can interface of the simulated CAN logger"),
+    can_channel: Optional[str] = typer.Option(None, "--can-channel"),
 ) -> None:
-    """Serve the simulated turntable over Modbus TCP."""
+    """Serve the simulated turntable over Modbus TCP (and its sensor logger on CAN)."""
     from aatest.plugins.turntable.modbus_server import serve_forever
 
-    serve_forever(host, port, seed)
+    can_options = {k: v for k, v in (("can_interface", can_interface), ("can_channel", can_channel)) if v}
+    serve_forever(host, port, seed, **can_options)
 
 
 def main() -> None:
