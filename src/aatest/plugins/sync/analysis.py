@@ -35,6 +35,20 @@ def summarise(steps: list[SyncedStep]) -> dict[str, object]:
     }
 
 
+def sync_figure(steps: list[SyncedStep]) -> str:
+    """Drift and clock-relation residual of every step (one crystal: a flat drift line)."""
+    from aatest.plugins.analysis._common import new_figure, to_svg
+
+    fig, ax = new_figure(2, height_in=2.0)
+    idx = np.arange(len(steps))
+    ax[0, 0].plot(idx, [s.relation.drift_ppm for s in steps], "o", ms=3)
+    ax[0, 0].set(ylabel="drift / ppm", title="logger synchronisation")
+    ax[1, 0].plot(idx, [s.relation.residual_rms_us for s in steps], "o", ms=3)
+    ax[1, 0].set(xlabel="step", ylabel="residual RMS / µs")
+    fig.tight_layout()
+    return to_svg(fig)
+
+
 class SyncAnalysis:
     """Freeze-pulse synchronisation; must run first, the other analyses reuse its cache."""
 
@@ -44,4 +58,5 @@ class SyncAnalysis:
         return any(s.step.recorded for s in data.steps)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        return AnalysisOutput(values=summarise(synced_steps(data, context)))
+        steps = synced_steps(data, context)
+        return AnalysisOutput(values=summarise(steps), figures={"sync": sync_figure(steps)})
