@@ -51,3 +51,20 @@ def test_model_selection_on_noisy_points() -> None:
     assert phys["natural_frequency_hz"] == pytest.approx(30.0, rel=0.05)
     # the bilinear map keeps the analogue phase (only warps frequency): delay = 3 samples
     assert phys["delay_s"] == pytest.approx(3 / FS, abs=0.25e-3)
+
+
+def test_antialias_corner_sources() -> None:
+    from pathlib import Path
+
+    from aatest.engine.dataset import Dataset
+    from aatest.engine.interfaces import AnalysisContext
+    from aatest.plugins.analysis.transfer_function import logger_antialias_hz
+
+    def ds(meta: dict) -> Dataset:  # type: ignore[type-arg]
+        return Dataset("p", FS, (), (), Path("x"), meta)
+
+    assert logger_antialias_hz(ds({}), AnalysisContext(options={"antialias_hz": 80})) == 80.0
+    assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "can", "antialias_hz": 50}}}),
+                               AnalysisContext()) == 50.0
+    assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "sim"}}}), AnalysisContext()) == 100.0
+    assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "can"}}}), AnalysisContext()) is None

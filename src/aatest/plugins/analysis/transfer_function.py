@@ -158,14 +158,25 @@ def antialias_response(f_hz: np.ndarray, corner_hz: float | None, order: int = 2
 
 
 def logger_antialias_hz(data: Dataset, context: AnalysisContext) -> float | None:
-    """The DAQ pre-sample filter corner to de-embed: option ``antialias_hz``, else the rig
-    model stored with a simulated recording, else none."""
+    """The DAQ pre-sample filter corner to de-embed, from (in order) the option
+    ``antialias_hz``, the rig model stored with a simulated dataset, the DAQ options in the run
+    metadata, the simulated DAQ's default; otherwise none (nothing is de-embedded)."""
     if "antialias_hz" in context.options:
         value = context.options["antialias_hz"]
         return float(value) if value else None
     model = data.metadata.get("model")
-    corner = model.get("daq", {}).get("antialias_hz") if isinstance(model, dict) else None
-    return float(corner) if corner else None
+    if isinstance(model, dict) and model.get("daq", {}).get("antialias_hz"):
+        return float(model["daq"]["antialias_hz"])
+    rig = data.metadata.get("rig")
+    daq = rig.get("daq", {}) if isinstance(rig, dict) else {}
+    if isinstance(daq, dict) and daq.get("antialias_hz"):
+        return float(daq["antialias_hz"])
+    if isinstance(daq, dict) and daq.get("plugin") == "sim":
+        from aatest.plugins.sim.model import DaqModel
+
+        corner = DaqModel().antialias_hz
+        return float(corner) if corner else None
+    return None
 
 
 def group_model(points: list[dict[str, Any]], steps: list[SyncedStep], sensor: SensorInfo,
