@@ -10,22 +10,13 @@ import pytest
 from aatest.engine.errors import RigFault
 from aatest.engine.interfaces import AxisLimits, TableEnvelope
 from aatest.engine.logs import TABLE_CHANNELS
+from aatest.engine.runner import execute_step as run_step
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.turntable.modbus import ModbusTurntable
 from aatest.plugins.turntable.modbus_map import Status
 
 SINE = PlannedStep(id="s01-sine", kind="sine", axis="inner", frequency_hz=2.0, accel_dps2=100.0,
                    samples=4096, settle_s=2.0)
-
-
-def run_step(rig, step: PlannedStep):  # noqa: ANN001, ANN201 - the runner's sequence
-    rig.turntable.move_to(step.inner_deg, step.outer_deg)
-    rig.turntable.begin_motion(step)
-    rig.daq.start_logging(step)
-    table = rig.turntable.record(step)
-    daq = rig.daq.stop_logging()
-    rig.turntable.end_motion()
-    return table, daq
 
 
 def test_construction_does_not_connect() -> None:

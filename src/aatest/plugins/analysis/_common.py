@@ -14,9 +14,10 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from aatest.engine.dataset import SensorInfo
+from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.sync.freeze_pulse import SyncedStep
+from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
 
 #: a sensor counts as excited by a step when its projection of the motion exceeds this
 _EXCITED_WEIGHT = 0.5
@@ -117,3 +118,14 @@ def group_of(step: PlannedStep) -> str:
 def json_floats(values: Iterable[float]) -> list[float]:
     """Plain Python floats for results.json."""
     return [float(v) for v in values]
+
+
+def static_records(data: Dataset, context: AnalysisContext) -> list[SyncedStep]:
+    """The synchronised static steps (bias, g-sensitivity and noise are read from these)."""
+    return [s for s in synced_steps(data, context) if s.step.kind == "static"]
+
+
+def scale_in_use(context: AnalysisContext, sensor: SensorInfo) -> float:
+    """V per °/s²: calibrated earlier in this analysis pass if it was, else the datasheet's."""
+    calibrated = context.cache.get("scale_factor", {}).get(sensor.channel, {})
+    return float(calibrated.get("scale_v_per_dps2", sensor.nominal_scale_v_per_dps2))

@@ -18,8 +18,8 @@ import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis._common import t95
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.plugins.analysis._common import scale_in_use, static_records, t95
+from aatest.plugins.sync.freeze_pulse import SyncedStep
 
 _UP_G = 0.9  # |g component| above which a position counts as "axis up/down"
 _RAD_DPS2 = float(np.degrees(1.0))
@@ -111,12 +111,9 @@ class BiasAnalysis:
         return any(s.step.kind == "static" for s in data.steps)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        static = [s for s in synced_steps(data, context) if s.step.kind == "static"]
-        calibrated = context.cache.get("scale_factor", {})
+        static = static_records(data, context)
         values: dict[str, Any] = {}
         for sensor in data.sensors:
-            scale = calibrated.get(sensor.channel, {}).get(
-                "scale_v_per_dps2", sensor.nominal_scale_v_per_dps2)
-            values[sensor.channel] = sensor_bias(static, sensor, float(scale))
+            values[sensor.channel] = sensor_bias(static, sensor, scale_in_use(context, sensor))
         context.cache["bias"] = values
         return AnalysisOutput(values=values)

@@ -16,8 +16,8 @@ from scipy import signal
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis._common import new_figure, to_svg
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.plugins.analysis._common import new_figure, scale_in_use, static_records, to_svg
+from aatest.plugins.sync.freeze_pulse import SyncedStep
 
 BAND_HZ = 400.0
 _SLOPE_TOL = 0.15
@@ -86,13 +86,10 @@ class NoiseAnalysis:
         return any(s.step.kind == "static" for s in data.steps)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        static = [s for s in synced_steps(data, context) if s.step.kind == "static"]
-        calibrated = context.cache.get("scale_factor", {})
+        static = static_records(data, context)
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
         for sensor in data.sensors:
-            scale = float(calibrated.get(sensor.channel, {}).get(
-                "scale_v_per_dps2", sensor.nominal_scale_v_per_dps2))
             values[sensor.channel], figures[f"noise_{sensor.channel}"] = sensor_noise(
-                static, sensor, scale)
+                static, sensor, scale_in_use(context, sensor))
         return AnalysisOutput(values=values, figures=figures)
