@@ -119,12 +119,13 @@ def run(
     sign_key: Optional[Path] = typer.Option(None, "--sign-key", help="Ed25519 private key"),
     no_progress: bool = typer.Option(False, "--no-progress"),
     operator: Optional[str] = typer.Option(None, "--operator", help="Name on the certificate"),
+    pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
 ) -> None:
     """Run a procedure: record both loggers, analyse, report (and sign)."""
     from aatest.engine import session
 
     run_dir, results = session.run(
-        procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator
+        procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator, pdf=pdf
     )
     typer.echo(
         f"run complete: {run_dir} — {len(results['steps'])} steps, lab {results['lab_duration_s']:.1f} s, "
@@ -209,11 +210,12 @@ def report(
     run_dir: Path = typer.Argument(..., help="Run directory with results.json"),
     template: Optional[Path] = typer.Option(None, "--template", help="A lab's own template directory"),
     sign_key: Optional[Path] = typer.Option(None, "--sign-key"),
+    pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
 ) -> None:
     """Re-render (and sign) the report of a run."""
     from aatest.engine import session
 
-    typer.echo(f"report: {session.report(run_dir, template, sign_key)}")
+    typer.echo(f"report: {session.report(run_dir, template, sign_key, pdf)}")
 
 
 @app.command()

@@ -94,6 +94,7 @@ def analyse_and_report(
     key_path: Path | None = None,
     lab_duration_s: float | None = None,
     wall_duration_s: float | None = None,
+    pdf: bool = False,
 ) -> dict[str, Any]:
     """Read a recording/import, run its analyses, write results.json and the signed report."""
     from aatest.engine.recording import read_dataset
@@ -107,7 +108,7 @@ def analyse_and_report(
     results = build_results(data, analysis, lab, wall_duration_s or 0.0)
     out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
-    render_and_sign(results, out_dir, report_name, template_dir, key_path)
+    render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
     return results
 
 
@@ -117,8 +118,9 @@ def render_and_sign(
     template: str,
     template_dir: Path | None,
     key_path: Path | None,
+    pdf: bool = False,
 ) -> Path:
-    """Write results.json, render the report, and sign the bundle when a key is configured."""
+    """Write results.json, render the report (and its PDF), sign the bundle when a key is set."""
     from aatest.engine import signing
 
     private = None
@@ -129,6 +131,10 @@ def render_and_sign(
     info = registry.load("report", template)
     reporter = info.target(registry.configure(info, {}))
     report = reporter.render(results, run_dir, template_dir)
+    if pdf:
+        from aatest.plugins.report.pdf import render_pdf
+
+        render_pdf(report)
     if private is not None:
         signing.sign_bundle(report, private)
     return report
@@ -143,6 +149,7 @@ def run(
     key_path: Path | None,
     show_progress: bool = True,
     operator: str | None = None,
+    pdf: bool = False,
 ) -> tuple[Path, dict[str, Any]]:
     """``aatest run``: execute (or resume) a procedure and produce its results and report."""
     from aatest.engine.recording import RunRecorder
@@ -177,17 +184,22 @@ def run(
         )
     results = analyse_and_report(
         out_dir, out_dir, plan.report_template, None, key,
-        lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s,
+        lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s, pdf=pdf,
     )
     return out_dir, results
 
 
-def report(run_dir: Path, template_dir: Path | None, key_path: Path | None) -> Path:
+def report(
+    run_dir: Path, template_dir: Path | None, key_path: Path | None, pdf: bool = False
+) -> Path:
     """``aatest report``: re-render (and re-sign) from an existing results.json."""
     results = read_results(run_dir)
     results.pop("signature", None)
     template = str(results.get("metadata", {}).get("report_template") or "calibration-certificate")
-    return render_and_sign(results, run_dir, template, template_dir, signing_key(key_path))
+    stale_pdf = run_dir / "report.pdf"
+    if not pdf and stale_pdf.exists():
+        stale_pdf.unlink()  # it shows the old report; a new signature must not cover it
+    return render_and_sign(results, run_dir, template, template_dir, signing_key(key_path), pdf)
 
 
 def run_wall_duration(run_dir: Path) -> float | None:

@@ -31,7 +31,7 @@ from aatest.engine.errors import InputError
 SIGNATURE_FORMAT = "aatest-signature/1"
 ALGORITHM = "Ed25519"
 #: the files next to the report that the signature covers (besides the report itself)
-BUNDLE_FILES: tuple[str, ...] = ("results.json", "recording.mcap")
+BUNDLE_FILES: tuple[str, ...] = ("results.json", "recording.mcap", "report.pdf")
 _CHUNK_BYTES = 1 << 20
 #: how a report states the fingerprint of the key that signs it (see the report templates)
 FINGERPRINT_META = re.compile(rb'<meta name="aatest-key-fingerprint" content="([0-9a-f]{64})"')
