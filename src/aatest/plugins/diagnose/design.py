@@ -112,8 +112,13 @@ def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float) -> tuple[n
     return acc_s, acc_c
 
 
-def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]) -> np.ndarray:
-    """Design columns of one step on its record grid, shape (n, len(names))."""
+def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
+                 used_out: list[int] | None = None) -> np.ndarray:
+    """Design columns of one step on its record grid, shape (n, len(names)).
+
+    ``used_out``, when given, receives the indices of the columns this step can make
+    non-zero (the others are zero by construction, e.g. another step's vibration terms).
+    """
     tp = sr.padded_time_s
     t_mid = 0.5 * sr.time_s[-1]
     t_eval = tp - spec.delay_s - spec.warp_ppm * 1e-6 * (tp - t_mid)
@@ -147,14 +152,20 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
         cols[f"vib{sr.index}_s"] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
         cols[f"vib{sr.index}_c"] = _dynamics(z_inner * np.cos(w * t_eval), spec, sr.dt_s)
     out = np.zeros((sr.n, len(names)))
+    used = [0]
     for j, name in enumerate(names):
         if name in cols:
             out[:, j] = _logger(cols[name], info, sr.dt_s)[cut]
+            used.append(j)
     out[:, 0] = 1.0
     if "bias_temperature" in names:
-        out[:, names.index("bias_temperature")] = temp[cut]
+        used.append(names.index("bias_temperature"))
+        out[:, used[-1]] = temp[cut]
     if "g_sensitivity" in names:
-        out[:, names.index("g_sensitivity")] = gravity_along(sr, info.axis)
+        used.append(names.index("g_sensitivity"))
+        out[:, used[-1]] = gravity_along(sr, info.axis)
+    if used_out is not None:
+        used_out.extend(sorted(used))
     return out
 
 
@@ -198,9 +209,10 @@ def _step_key(spec: Spec, sr: StepReplay) -> Spec:
 def _step_gram(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
                y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One step's per-fold XᵀX, Xᵀy, yᵀy and counts (only its non-zero columns multiplied)."""
-    x = step_columns(sr, info, spec, names)
+    used_list: list[int] = []
+    x = step_columns(sr, info, spec, names, used_list)
     p = len(names)
-    used = np.flatnonzero(np.any(x != 0.0, axis=0))
+    used = np.asarray(used_list, dtype=int)
     xu = np.ascontiguousarray(x[:, used])
     xtx, xty, yty, cnt = np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2)
     edges = _block_edges(sr.n)

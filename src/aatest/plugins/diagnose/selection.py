@@ -27,6 +27,7 @@ from aatest.plugins.diagnose.effects.base import CandidateFit, Context, scalar_s
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.003
 MAX_FINDINGS_PER_CHANNEL = 4
+HOPELESS_BIC = 5.0
 #: nonlinear parameters each effect adds on top of its design columns
 SHAPE_PARAMS = {"time_delay": 1, "sensor_dynamics": 2, "hysteresis": 1, "saturation": 1,
                 "rate_ripple": 1, "motor_vibration": 1}
@@ -122,6 +123,11 @@ def _row(cf: CandidateFit, dbic: float, ctx: Context) -> dict[str, Any]:
     return row
 
 
+def _hopeless(row: dict[str, Any]) -> bool:
+    """No evidence at all (ΔBIC > +5): re-fitting on top of another effect will not change it."""
+    return row["delta_bic"] is not None and row["delta_bic"] > HOPELESS_BIC
+
+
 def _passes(cf: CandidateFit, dbic: float, ctx: Context) -> bool:
     before, after = rmse(ctx.current), rmse(cf.fit)
     return (cf.veto is None and dbic < -BIC_THRESHOLD
@@ -146,7 +152,8 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] = CANDIDATES
             dbic = delta_bic(ctx, cf.fit, ctx.current, cand.effect)
             rows[cand.effect] = _row(cf, dbic, ctx)
             scored.append((dbic, cand, cf))
-        remaining = [c for c in remaining if rows[c.effect]["testable"]]
+        remaining = [c for c in remaining if rows[c.effect]["testable"]
+                     and not _hopeless(rows[c.effect])]
         passing = [item for item in scored if _passes(item[2], item[0], ctx)]
         if not passing:
             break
@@ -182,7 +189,7 @@ def _mirror_misalignment(ctx: Context, rows: dict[str, dict[str, Any]],
     rows["misalignment"] = {**cross, "effect": "misalignment", "accepted": False,
                             "reason": ("same signature as cross_axis in one mounting; the cross "
                                        "response is reported as cross_axis with its equivalent "
-                                       "tilt (rule: diagnose/README)")}
+                                       "tilt (rule: aatest.plugins.diagnose docstring)")}
     for f in findings:
         if f.effect == "cross_axis":
             tilt = f.extra.get("equivalent_misalignment", {})

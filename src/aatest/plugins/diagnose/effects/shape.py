@@ -25,6 +25,8 @@ from aatest.plugins.diagnose.effects.base import (
 )
 
 MAX_DELAY_S = 0.08
+#: a coarse fit must lower the residual by this share before an expensive refinement
+REFINE_GAIN = 1e-3
 #: cost of a parameter outside its bounds (finite, so simplex arithmetic stays defined)
 _OUTSIDE = 1e200
 #: delay seeds: geometric, so that 0.5 ms and 50 ms are both bracketed
@@ -180,7 +182,11 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
         return replace_spec(base, hysteresis_dps2=r)
 
     seeds = [0.0] + list(hi * np.geomspace(1e-3, 1.0, 10))
-    r0, _ = scalar_search(ctx, make, 0.0, hi, seeds)
+    r0, coarse = scalar_search(ctx, make, 0.0, hi, seeds)
+    if coarse.sse_in > (1.0 - REFINE_GAIN) * ctx.current.sse_in:
+        # no trace of a play operator: the joint refinement cannot change the verdict
+        ci = curvature_ci(ctx, make, r0, max(0.01 * r0, 1e-4), lo=0.0)
+        return CandidateFit("hysteresis", coarse, {"half_width_dps2": r0}, {"half_width_dps2": ci})
 
     def make2(p: np.ndarray):
         return replace_spec(base, hysteresis_dps2=round(float(p[0]), 9),
@@ -209,7 +215,7 @@ def fit_saturation(ctx: Context) -> CandidateFit:
     def make(lim: float):
         return replace_spec(base, saturation_dps2=lim)
 
-    seeds = list(peak * np.linspace(0.3, 1.0, 15))
+    seeds = list(peak * np.linspace(0.3, 1.0, 8))
     lim, fit = scalar_search(ctx, make, 0.3 * peak, peak, seeds)
     ci = curvature_ci(ctx, make, lim, 0.002 * lim, hi=peak)
     out = CandidateFit("saturation", fit, {"limit_dps2": lim}, {"limit_dps2": ci})

@@ -84,6 +84,11 @@ def _ripple_seed(steps: list[StepReplay]) -> tuple[float, float]:
 def ripple_from_table(steps: list[StepReplay]) -> tuple[float, float, float, float] | None:
     """(cycles/°, amplitude °, amplitude u °, share of deviation variance) from the table log."""
     n0, width = _ripple_seed(steps)
+    x, dev = _ripple_design(steps, n0)
+    dev = dev - dev.mean()
+    total = float(dev @ dev)
+    if total <= 0.0 or _ripple_sse(steps, n0) > (1.0 - 0.5 * RIPPLE_MIN_SHARE) * total:
+        return n0, 0.0, 0.0, 0.0  # no position-periodic line to refine
     res = optimize.minimize_scalar(lambda n: _ripple_sse(steps, n),
                                    bounds=(max(n0 - width, RIPPLE_CPD[0]), n0 + width),
                                    method="bounded", options={"xatol": 1e-7})
@@ -103,6 +108,11 @@ def ripple_from_table(steps: list[StepReplay]) -> tuple[float, float, float, flo
 def fit_ripple(ctx: Context) -> CandidateFit:
     steps = _moving(ctx)
     n, amp, u, share = ripple_from_table(steps)
+    if share < RIPPLE_MIN_SHARE:
+        out = CandidateFit("rate_ripple", ctx.current, {"cycles_per_deg": n, "amplitude_deg": amp},
+                           {}, attributed_to="table")
+        out.veto = "the table log shows no position-periodic error"
+        return out
     n_round = round(n, 4)
     fit = ctx.fit(replace_spec(ctx.current.spec, ripple_cpd=ctx.current.spec.ripple_cpd + (n_round,)))
     params = {"cycles_per_deg": n_round, "amplitude_deg": amp}
