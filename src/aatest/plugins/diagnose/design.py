@@ -49,6 +49,13 @@ class Spec:
     ripple_cpd: tuple[float, ...] = ()
     vibration_hz: float | None = None
     warp_ppm: float = 0.0
+    #: per-step alignment offsets (s) on top of ``delay_s``, indexed by step (empty = none):
+    #: the sync pulse aligns each step's loggers to about one sample only
+    step_shift_s: tuple[float, ...] = ()
+
+    def shift_of(self, index: int) -> float:
+        """Total time shift of the prediction for step ``index`` (s)."""
+        return self.delay_s + (self.step_shift_s[index] if self.step_shift_s else 0.0)
 
     def with_linear(self, *names: str) -> Spec:
         return replace(self, linear=self.linear | frozenset(names))
@@ -121,9 +128,10 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
     """
     tp = sr.padded_time_s
     t_mid = 0.5 * sr.time_s[-1]
-    t_eval = tp - spec.delay_s - spec.warp_ppm * 1e-6 * (tp - t_mid)
+    shift = spec.shift_of(sr.index)
+    t_eval = tp - shift - spec.warp_ppm * 1e-6 * (tp - t_mid)
     cut = slice(PAD_SAMPLES, PAD_SAMPLES + sr.n)
-    alpha3 = sensor_acceleration(sr, info.axis, t_eval, (spec.delay_s, spec.warp_ppm))
+    alpha3 = sensor_acceleration(sr, info.axis, t_eval, (shift, spec.warp_ppm))
     sensed = alpha3[2]
     if spec.hysteresis_dps2 > 0.0 and sr.dynamic:
         sensed = play_operator(sensed, spec.hysteresis_dps2)
@@ -198,6 +206,7 @@ def fold_of(n: int) -> np.ndarray:
 
 def _step_key(spec: Spec, sr: StepReplay) -> Spec:
     """The part of ``spec`` a step's columns depend on (a still step ignores the shape)."""
+    spec = replace(spec, delay_s=spec.shift_of(sr.index), step_shift_s=())
     if sr.dynamic:
         return spec
     key = replace(spec, hysteresis_dps2=0.0, saturation_dps2=None)

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from aatest.engine.dataset import Dataset
-from aatest.plugins.diagnose.design import ChannelInfo, predict
+from aatest.plugins.diagnose.design import predict
 from aatest.plugins.diagnose.effects.base import Context, replace_spec
 from aatest.plugins.diagnose.effects.logger import (
     DEFAULT_CLOCK_TOLERANCE_PPM,
@@ -19,6 +19,7 @@ from aatest.plugins.diagnose.effects.logger import (
     excess_noise,
     one_clock_fit,
 )
+from aatest.plugins.diagnose.logger_chain import channel_info, logger_options, targets_of
 from aatest.plugins.diagnose.replay import Replay, replay_dataset
 from aatest.plugins.diagnose.residuals import residual_views
 from aatest.plugins.diagnose.selection import (
@@ -30,88 +31,13 @@ from aatest.plugins.diagnose.selection import (
     rmse,
 )
 
-#: the logger pre-sample filter of the documented rig (method.md §1.3), tried when unstated
-DEFAULT_ANTIALIAS_HZ = 100.0
-#: residual noise PSD ratio (high band / low band) below which the noise is filtered
-ROLLOFF_RATIO = 0.5
-
-
-def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
-    """(stated?, corner Hz) of the logger's pre-sample filter from the data's model, if any."""
-    model = dataset.metadata.get("model")
-    if isinstance(model, dict) and isinstance(model.get("daq"), dict):
-        daq = model["daq"]
-        if "antialias_hz" in daq:
-            return True, daq["antialias_hz"]
-        return True, DEFAULT_ANTIALIAS_HZ
-    path = dataset.metadata.get("model_file")
-    if isinstance(path, str):
-        try:
-            from aatest.plugins.sim.model import load_rig_model
-
-            rig = load_rig_model(dataset.source / path)
-            return True, rig.daq.antialias_hz
-        except Exception:  # noqa: BLE001 - a sensor-only model file states no logger
-            return False, None
-    return False, None
-
-
-def _info(dataset: Dataset, channel: str, corner: float | None, t_ref_c: float) -> ChannelInfo:
-    s = dataset.sensor(channel)
-    return ChannelInfo(channel, s.axis, s.range_dps2, corner, t_ref_c)
-
-
-def _targets(replay: Replay, channel: str) -> dict[int, np.ndarray]:
-    return {s.index: s.volts[channel] for s in replay.steps}
-
-
-def noise_rolloff(ctx: Context) -> float:
-    """Residual PSD far above the filter corner over the PSD below it (1 = white noise).
-
-    A logger's pre-sample filter shapes the sensor noise it records; the ratio says whether the
-    data carry that shape, whatever the signal errors at the (≤ 10 Hz) excitation.
-    """
-    from aatest.plugins.diagnose.effects.logger import residual_psd
-
-    fit = nominal_fit(ctx)
-    pred = predict(ctx.replay, ctx.info, fit)
-    freq, psd = residual_psd(ctx, {i: ctx.targets[i] - pred[i] for i in pred})
-    fs = 1.0 / ctx.replay.dt_s
-    low = (freq >= 0.01 * fs) & (freq <= 0.03 * fs)
-    high = (freq >= 0.2 * fs) & (freq <= 0.45 * fs)
-    if not low.any() or not high.any():
-        return 1.0
-    return float(np.median(psd[high]) / max(np.median(psd[low]), 1e-300))
-
-
-def choose_logger(dataset: Dataset, replay: Replay) -> tuple[float | None, str]:
-    """The logger filter of the nominal chain: stated by the data, else read from the data.
-
-    The noise spectrum decides first (a roll-off means a pre-sample filter); when the noise is
-    white — no filter, or a filter drowned by excess white noise — the replay that fits the
-    signal better decides.
-    """
-    stated, corner = stated_antialias(dataset)
-    if stated:
-        return corner, "stated by the data's model"
-    channel = replay.channels[0]
-    targets = _targets(replay, channel)
-    contexts = {opt: Context(replay, _info(dataset, channel, opt, replay.t_ref_c), targets,
-                             None)  # type: ignore[arg-type]
-                for opt in (DEFAULT_ANTIALIAS_HZ, None)}
-    ratio = noise_rolloff(contexts[DEFAULT_ANTIALIAS_HZ])
-    if ratio < ROLLOFF_RATIO:
-        return DEFAULT_ANTIALIAS_HZ, f"noise rolls off above {DEFAULT_ANTIALIAS_HZ:g} Hz (ratio {ratio:.3f})"
-    sse = {opt: nominal_fit(ctx).sse_in for opt, ctx in contexts.items()}
-    best = min(sse, key=lambda opt: sse[opt])
-    return best, f"white noise (ratio {ratio:.2f}); chosen by the better replay"
 
 
 def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,
                      corner: float | None) -> tuple[ChannelResult, Context]:
     """Nominal fit, noise correlation and forward selection for one channel."""
-    ctx = Context(replay, _info(dataset, channel, corner, replay.t_ref_c),
-                  _targets(replay, channel), None)  # type: ignore[arg-type]
+    ctx = Context(replay, channel_info(dataset, channel, corner, replay.t_ref_c),
+                  targets_of(replay, channel), None)  # type: ignore[arg-type]
     nominal = nominal_fit(ctx)
     ctx.current = nominal
     ctx.correlation = correlation_factor(ctx, nominal)
@@ -163,15 +89,23 @@ def _calibration(result: ChannelResult, ctx: Context) -> dict[str, Any]:
     return {"channel": result.channel, "axis": ctx.info.axis, "bias_v": fit.value("bias"),
             "scale_v_per_dps2": fit.scale, "range_dps2": ctx.info.range_dps2,
             "noise_rms_v": rmse(fit), "noise_correlation": result.correlation,
-            "alignment_offset_s": result.nominal.spec.delay_s}
+            "alignment_offsets_s": [result.nominal.spec.shift_of(s.index)
+                                    for s in ctx.replay.steps]}
 
 
 def diagnose_dataset(dataset: Dataset, clock_tolerance_ppm: float | None = None) -> dict[str, Any]:
     """Run the whole pipeline; return the diagnosis document (contract keys plus extras)."""
     replay = replay_dataset(dataset)
-    corner, corner_source = choose_logger(dataset, replay)
     tol = clock_tolerance_ppm or float(dataset.metadata.get("clock_tolerance_ppm")
                                        or DEFAULT_CLOCK_TOLERANCE_PPM)
+    docs = [_diagnose_with(dataset, replay, corner, reason, tol)
+            for corner, reason in logger_options(dataset, replay)]
+    return min(docs, key=lambda d: (len(d["findings"]), d["gain"]["rmse_v_after"]))
+
+
+def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, source: str,
+                   tol: float) -> dict[str, Any]:
+    """The diagnosis document for one assumed logger chain."""
     findings: list[Finding] = []
     candidates: list[dict[str, Any]] = []
     channels, views = [], {}
@@ -198,6 +132,7 @@ def diagnose_dataset(dataset: Dataset, clock_tolerance_ppm: float | None = None)
         n_total += result.final.n
         channels.append(_calibration(result, ctx))
         views[channel] = residual_views(ctx, result.nominal, result.final)
+    findings = _dedupe_table_effects(findings)
     findings.sort(key=lambda f: f.delta_bic)
     before, after = np.sqrt(sse_before / n_total), np.sqrt(sse_after / n_total)
     return {
@@ -209,8 +144,20 @@ def diagnose_dataset(dataset: Dataset, clock_tolerance_ppm: float | None = None)
                  if before > 0 else 0.0},
         "candidates": candidates,
         "channels": channels,
-        "logger": {"antialias_hz": corner, "source": corner_source, "t_ref_c": replay.t_ref_c,
+        "logger": {"antialias_hz": corner, "source": source, "t_ref_c": replay.t_ref_c,
                    "fp_latch_s": replay.fp_latch, "clock_tolerance_ppm": tol},
         "residuals": views,
         "steps_skipped": list(replay.skipped),
     }
+
+
+def _dedupe_table_effects(findings: list[Finding]) -> list[Finding]:
+    """A table effect is one physical cause: keep its strongest sighting over the channels."""
+    best: dict[str, Finding] = {}
+    out = []
+    for f in findings:
+        if f.attributed_to != "table":
+            out.append(f)
+        elif f.effect not in best or f.delta_bic < best[f.effect].delta_bic:
+            best[f.effect] = f
+    return out + list(best.values())

@@ -20,9 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from aatest.plugins.diagnose.design import Fit, Spec, predict
+from aatest.plugins.diagnose.alignment import nominal_fit
+from aatest.plugins.diagnose.design import Fit, predict
 from aatest.plugins.diagnose.effects import CANDIDATES, Candidate
-from aatest.plugins.diagnose.effects.base import CandidateFit, Context, scalar_search
+from aatest.plugins.diagnose.effects.base import CandidateFit, Context
 
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.003
@@ -69,16 +70,6 @@ class ChannelResult:
 def rmse(fit: Fit) -> float:
     """Held-out RMS residual (V)."""
     return float(np.sqrt(fit.sse_held_out / max(fit.n, 1)))
-
-
-def nominal_fit(ctx: Context) -> Fit:
-    """Bias and scale calibrated on the data, logger alignment free within ±1 sample."""
-    dt = ctx.replay.dt_s
-    if not ctx.dynamic_steps:
-        return ctx.fit(Spec())
-    _, fit = scalar_search(ctx, lambda d: Spec(delay_s=d), -dt, dt,
-                           list(np.linspace(-dt, dt, 9)), xtol=1e-7)
-    return fit
 
 
 def correlation_factor(ctx: Context, fit: Fit) -> float:

@@ -47,7 +47,7 @@ def testable_dynamics(ctx: Context) -> str | None:
 
 def _synced(ctx: Context):
     """The current spec with the alignment nuisance removed (trust the sync as recorded)."""
-    return replace_spec(ctx.current.spec, delay_s=0.0)
+    return replace_spec(ctx.current.spec, delay_s=0.0, step_shift_s=())
 
 
 def fit_delay(ctx: Context) -> CandidateFit:
@@ -178,9 +178,10 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
     peak, dt = dynamic_peak_dps2(ctx), ctx.replay.dt_s
     hi = 0.1 * peak
 
-    def make(r: float):
-        return replace_spec(base, hysteresis_dps2=r)
+    def make_on(spec: Spec):
+        return lambda r: replace_spec(spec, hysteresis_dps2=r)
 
+    make = make_on(base)
     seeds = [0.0] + list(hi * np.geomspace(1e-3, 1.0, 10))
     r0, coarse = scalar_search(ctx, make, 0.0, hi, seeds)
     if coarse.sse_in > (1.0 - REFINE_GAIN) * ctx.current.sse_in:
@@ -188,22 +189,16 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
         ci = curvature_ci(ctx, make, r0, max(0.01 * r0, 1e-4), lo=0.0)
         return CandidateFit("hysteresis", coarse, {"half_width_dps2": r0}, {"half_width_dps2": ci})
 
-    def make2(p: np.ndarray):
-        return replace_spec(base, hysteresis_dps2=round(float(p[0]), 9),
-                            delay_s=round(float(p[1]), 12))
+    from aatest.plugins.diagnose.alignment import refine_step_shifts
 
-    def cost(p: np.ndarray) -> float:
-        if not (0.0 <= p[0] <= hi and -dt <= p[1] <= dt):
-            return _OUTSIDE
-        return ctx.fit(make2(p)).sse_in
+    def profiled(r: float):
+        """The fit at half width r with every step's alignment re-optimised for it."""
+        return ctx.fit(refine_step_shifts(ctx, ctx.fit(make(r))))
 
-    start = np.array([r0, base.delay_s])
-    res = optimize.minimize(cost, start, method="Nelder-Mead", options={
-        "maxiter": 60, "xatol": 1e-6, "fatol": 1e-10 * cost(start),
-        "initial_simplex": [start, start + [0.2 * r0 + 0.05, 0.0], start + [0.0, 0.2 * dt]]})
-    r, delay = float(res.x[0]), float(res.x[1])
-    fit = ctx.fit(make2(res.x))
-    ci = curvature_ci(ctx, lambda v: replace_spec(base, hysteresis_dps2=v, delay_s=delay), r,
+    res = optimize.minimize_scalar(lambda r: profiled(r).sse_in, bounds=(0.5 * r0, min(3 * r0, hi)),
+                                   method="bounded", options={"xatol": 0.005 * r0})
+    r, fit = float(res.x), profiled(float(res.x))
+    ci = curvature_ci(ctx, lambda v: replace_spec(fit.spec, hysteresis_dps2=v), r,
                       max(0.01 * r, 1e-4), lo=0.0)
     return CandidateFit("hysteresis", fit, {"half_width_dps2": r}, {"half_width_dps2": ci})
 

@@ -77,7 +77,7 @@ def _ripple_seed(steps: list[StepReplay]) -> tuple[float, float]:
     theta = np.concatenate([s.inner.evaluate(s.time_s[::_DECIMATE])[0] for s in steps])
     dev = np.concatenate([s.table_deviation_deg["inner"][::_DECIMATE] for s in steps])
     grid = np.arange(RIPPLE_CPD[0], RIPPLE_CPD[1], 0.01)
-    power = signal.lombscargle(theta, dev - dev.mean(), 2 * np.pi * grid, precenter=True)
+    power = signal.lombscargle(theta, dev - dev.mean(), 2 * np.pi * grid)
     return float(grid[int(np.argmax(power))]), 0.01
 
 
