@@ -48,14 +48,15 @@ def summary(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _render_report(doc: dict[str, Any], out_dir: Path) -> Path | None:
+def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Path) -> Path | None:
     """Render the diagnosis report when the plugin exists; never fail diagnose over it."""
     try:
         from aatest.engine import registry
 
         info = registry.load("report", "diagnosis")
         cls = info.target
-        return cls(cls.Config()).render({"diagnosis": doc, **doc}, out_dir, None)
+        results = {"diagnosis": doc, **doc, "figures": {"diagnose": figures}}
+        return cls(cls.Config()).render(results, out_dir, None)
     except Exception:  # noqa: BLE001 - the report is a by-product of diagnose
         return None
 
@@ -65,7 +66,8 @@ def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) 
     from aatest.engine.recording import read_dataset
 
     dataset = read_dataset(Path(data))
-    doc = _clean(diagnose_dataset(dataset))
+    figures: dict[str, str] = {}
+    doc = _clean(diagnose_dataset(dataset, figures=figures))
     print(summary(doc))
     if json_out is not None:
         Path(json_out).write_text(json.dumps(doc, indent=1), encoding="utf-8")
@@ -75,5 +77,5 @@ def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) 
         write_model(Path(model_out), model)
     out_dir = Path(json_out).parent if json_out is not None else Path(data)
     if out_dir.is_dir():
-        _render_report(doc, out_dir)
+        _render_report(doc, figures, out_dir)
     return list(doc["findings"])

@@ -19,6 +19,7 @@ from aatest.plugins.diagnose.effects.logger import (
     excess_noise,
     one_clock_fit,
 )
+from aatest.plugins.diagnose.figures import residual_figures
 from aatest.plugins.diagnose.logger_chain import channel_info, logger_options, targets_of
 from aatest.plugins.diagnose.replay import Replay, replay_dataset
 from aatest.plugins.diagnose.residuals import residual_views
@@ -93,19 +94,30 @@ def _calibration(result: ChannelResult, ctx: Context) -> dict[str, Any]:
                                     for s in ctx.replay.steps]}
 
 
-def diagnose_dataset(dataset: Dataset, clock_tolerance_ppm: float | None = None) -> dict[str, Any]:
-    """Run the whole pipeline; return the diagnosis document (contract keys plus extras)."""
+def diagnose_dataset(dataset: Dataset, clock_tolerance_ppm: float | None = None,
+                     figures: dict[str, str] | None = None) -> dict[str, Any]:
+    """Run the whole pipeline; return the diagnosis document (contract keys plus extras).
+
+    ``figures``, when given, receives the residual-view SVGs of the report (title → SVG).
+    """
     replay = replay_dataset(dataset)
     tol = clock_tolerance_ppm or float(dataset.metadata.get("clock_tolerance_ppm")
                                        or DEFAULT_CLOCK_TOLERANCE_PPM)
-    docs = [_diagnose_with(dataset, replay, corner, reason, tol)
-            for corner, reason in logger_options(dataset, replay)]
-    return min(docs, key=lambda d: (len(d["findings"]), d["gain"]["rmse_v_after"]))
+    options = logger_options(dataset, replay)
+    if len(options) > 1:  # ambiguous logger chain: the one needing fewer effects wins
+        docs = [_diagnose_with(dataset, replay, corner, reason, tol) for corner, reason in options]
+        best = min(range(len(docs)), key=lambda i: (len(docs[i]["findings"]),
+                                                    docs[i]["gain"]["rmse_v_after"]))
+        if figures is None:
+            return docs[best]
+        options = [options[best]]
+    corner, reason = options[0]
+    return _diagnose_with(dataset, replay, corner, reason, tol, figures)
 
 
 def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, source: str,
-                   tol: float) -> dict[str, Any]:
-    """The diagnosis document for one assumed logger chain."""
+                   tol: float, figures: dict[str, str] | None = None) -> dict[str, Any]:
+    """The diagnosis document for one assumed logger chain (``figures`` filled when given)."""
     findings: list[Finding] = []
     candidates: list[dict[str, Any]] = []
     channels, views = [], {}
@@ -132,6 +144,8 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
         n_total += result.final.n
         channels.append(_calibration(result, ctx))
         views[channel] = residual_views(ctx, result.nominal, result.final)
+        if figures is not None:
+            figures.update(residual_figures(ctx, result.nominal, result.final, views[channel]))
     findings = _dedupe_table_effects(findings)
     findings.sort(key=lambda f: f.delta_bic)
     before, after = np.sqrt(sse_before / n_total), np.sqrt(sse_after / n_total)
