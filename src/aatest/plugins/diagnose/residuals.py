@@ -19,6 +19,8 @@ from aatest.plugins.diagnose.effects.base import Context
 from aatest.plugins.diagnose.replay import StepReplay, sensor_acceleration
 
 _BINS = 6
+#: higher multiples of a slow excitation are not called its harmonics
+_MAX_HARMONIC = 10
 _LINES = 5
 #: a spectral line stands this far above the median level of its step's residual spectrum
 _LINE_SNR = 20.0
@@ -28,7 +30,7 @@ def _classify(f_hz: float, sr: StepReplay) -> str:
     f0 = sr.inner.frequency_hz or sr.outer.frequency_hz
     if f0 > 0:
         k = f_hz / f0
-        if round(k) >= 1 and abs(k - round(k)) < 0.02:
+        if 1 <= round(k) <= _MAX_HARMONIC and abs(k - round(k)) < 0.02:
             return f"harmonic {round(k)} of {f0:.3f} Hz"
     rate = abs(sr.inner.rate_dps) or abs(sr.outer.rate_dps)
     if rate > 0:

@@ -27,7 +27,7 @@ from aatest.plugins.diagnose.effects.base import CandidateFit, Context
 
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.003
-MAX_FINDINGS_PER_CHANNEL = 4
+MAX_FINDINGS_PER_CHANNEL = 6
 HOPELESS_BIC = 5.0
 #: nonlinear parameters each effect adds on top of its design columns
 SHAPE_PARAMS = {"time_delay": 1, "sensor_dynamics": 2, "hysteresis": 1, "saturation": 1,
@@ -130,6 +130,7 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] = CANDIDATES
     """Accept effects one by one while the best remaining one passes the stopping rule."""
     rows: dict[str, dict[str, Any]] = {}
     findings: list[Finding] = []
+    accepted: dict[str, int] = {}
     remaining = list(candidates)
     while remaining and len(findings) < MAX_FINDINGS_PER_CHANNEL:
         scored = []
@@ -150,9 +151,11 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] = CANDIDATES
             break
         dbic, cand, cf = min(passing, key=lambda item: item[0])
         findings.append(_finding(ctx, cf, dbic))
-        rows[cand.effect]["accepted"] = True
+        accepted[cand.effect] = accepted.get(cand.effect, 0) + 1
+        rows[f"{cand.effect}#{accepted[cand.effect]}"] = {**rows.pop(cand.effect), "accepted": True}
         ctx.current = _adopt(ctx, cand, cf)
-        remaining = [c for c in remaining if c.effect != cand.effect]
+        remaining = [c for c in remaining
+                     if c.effect != cand.effect or accepted[c.effect] < c.repeatable]
     _mirror_misalignment(ctx, rows, findings)
     return findings, rows
 
@@ -171,7 +174,7 @@ def _finding(ctx: Context, cf: CandidateFit, dbic: float) -> Finding:
 def _mirror_misalignment(ctx: Context, rows: dict[str, dict[str, Any]],
                          findings: list[Finding]) -> None:
     """Misalignment and cross-axis share one signature in one mounting; see the module rule."""
-    cross = rows.get("cross_axis")
+    cross = rows.get("cross_axis") or rows.get("cross_axis#1")
     if cross is None or not cross.get("testable"):
         rows["misalignment"] = {"effect": "misalignment", "delta_bic": None, "accepted": False,
                                 "testable": False, "channel": ctx.info.channel,

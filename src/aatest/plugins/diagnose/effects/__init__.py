@@ -25,6 +25,8 @@ class Candidate:
     attributed_to: str = "sensor"
     #: effects that change the timing of the output (fitted without the alignment nuisance)
     time_family: bool = False
+    #: how many times the effect may be accepted (several ripple lines, e.g. 1 and 2 cycles/°)
+    repeatable: int = 1
 
 
 def _lin(name: str) -> Callable[[Context], CandidateFit]:
@@ -42,7 +44,8 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate("jerk_sensitivity", shape.testable_dynamic, shape.fit_jerk, time_family=True),
     Candidate("g_sensitivity", linear.testable_gravity, _lin("g_sensitivity")),
     Candidate("cross_axis", linear.testable_cross, linear.fit_cross),
-    Candidate("rate_ripple", table.testable_ripple, table.fit_ripple, attributed_to="table"),
+    Candidate("rate_ripple", table.testable_ripple, table.fit_ripple, attributed_to="table",
+              repeatable=3),
     Candidate("motor_vibration", table.testable_vibration, table.fit_vibration,
               attributed_to="table"),
 )
