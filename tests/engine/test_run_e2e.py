@@ -1,5 +1,6 @@
 """A whole run through the CLI, a SIGKILL in the middle of it, and ``--resume``."""
 
+import hashlib
 import json
 import os
 import signal
@@ -51,6 +52,17 @@ def test_quick_run_produces_recording_results_and_report(tmp_path: Path) -> None
     assert gains[0] == pytest.approx(-47.9, abs=0.3)
     assert (run_dir / "report.html").stat().st_size > 1000
     assert len(_recorded_step_ids(run_dir / "recording.mcap")) == 3
+    assert _steps_on_disk(run_dir) == [], "per-step copies are pruned once merged"
+
+
+def test_resuming_a_finished_run_only_analyses_again(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    assert aatest("run", str(QUICK), "--out", str(run_dir), "--no-progress").returncode == 0
+    before = hashlib.sha256((run_dir / "recording.mcap").read_bytes()).hexdigest()
+    again = aatest("run", str(QUICK), "--out", str(run_dir), "--resume", "--no-progress")
+    assert again.returncode == 0, again.stderr
+    assert hashlib.sha256((run_dir / "recording.mcap").read_bytes()).hexdigest() == before
+    assert len(json.loads((run_dir / "results.json").read_text())["steps"]) == 3
 
 
 def test_sigkill_mid_step_then_resume_records_every_step_once(tmp_path: Path) -> None:
@@ -75,6 +87,7 @@ def test_sigkill_mid_step_then_resume_records_every_step_once(tmp_path: Path) ->
     results = json.loads((run_dir / "results.json").read_text())
     assert [s["id"] for s in results["steps"]] == ids
     assert len(results["analysis"]["frf"]["v_sz"]) == 8
+    assert _steps_on_disk(run_dir) == []
 
 
 def test_resume_refuses_a_changed_procedure(tmp_path: Path) -> None:

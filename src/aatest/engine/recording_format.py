@@ -57,9 +57,12 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import struct
 from typing import Any
 
 import numpy as np
+import zstandard
+from mcap.exceptions import McapError
 
 from aatest.engine.logs import DAQ_AUX_CHANNELS, TABLE_CHANNELS, SampledLog
 
@@ -73,6 +76,21 @@ TIME_COLUMN = "time_s"
 #: channels stored as 0/1 bytes when their values allow it
 _BINARY_CHANNELS = ("sync_pulse", "trigger")
 _ALLOWED_KINDS = "fiub"
+
+
+#: what a damaged or foreign file can make the mcap/zstd/json layers raise
+DECODE_ERRORS: tuple[type[BaseException], ...] = (
+    McapError,
+    struct.error,
+    zstandard.ZstdError,
+    ValueError,
+    KeyError,
+    TypeError,
+    IndexError,
+    EOFError,
+    OSError,
+    MemoryError,
+)
 
 
 def schema_name(source: str) -> str:

@@ -12,14 +12,11 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import zstandard
-from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 from aatest.engine import recording_format as fmt
@@ -31,23 +28,12 @@ from aatest.engine.recording_writer import (
     STEPS_DIR,
     complete_step_files,
     load_run_metadata,
+    merged_step_ids,
 )
 from aatest.engine.steps import PlannedStep
 
 IMPORT_MANIFEST = "dataset.yaml"
-#: what a damaged or foreign file can make the mcap/zstd/json layers raise
-_DECODE_ERRORS = (
-    McapError,
-    struct.error,
-    zstandard.ZstdError,
-    ValueError,
-    KeyError,
-    TypeError,
-    IndexError,
-    EOFError,
-    OSError,
-    MemoryError,
-)
+_DECODE_ERRORS = fmt.DECODE_ERRORS
 _SENSOR_FIELDS = {f.name for f in dataclasses.fields(SensorInfo)}
 
 
@@ -113,18 +99,7 @@ def _is_stale(recording: Path, step_ids: set[str]) -> bool:
 
     Compares step ids, not modification times, so copying a run directory cannot fool it.
     """
-    try:
-        with open(recording, "rb") as stream:
-            merged = {
-                json.loads(record.metadata["step"])["id"]
-                for record in make_reader(stream).iter_metadata()
-                if record.name == fmt.STEP_RECORD
-            }
-    except RecordingError:
-        raise
-    except _DECODE_ERRORS as exc:
-        raise RecordingError(f"{recording}: corrupt or truncated recording ({exc})") from exc
-    return not step_ids <= merged
+    return not step_ids <= merged_step_ids(recording)
 
 
 def _read_file(path: Path) -> _FileContents:

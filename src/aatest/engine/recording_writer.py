@@ -233,6 +233,21 @@ class RunRecorder:
         paths = self.step_files()
         return atomic_write(target, lambda stream: merge_step_files(stream, self._run_meta, paths))
 
+    def prune_step_files(self) -> int:
+        """Delete the step files already inside ``recording.mcap``; return how many went.
+
+        Only ids read back from the merged recording are deleted, so a failed or partial merge
+        never costs a step. The run metadata file stays (it names the run for ``--resume``).
+        """
+        merged = merged_step_ids(self.run_dir / RECORDING_NAME)
+        pruned = 0
+        for step_id, (path, _) in self._step_files().items():
+            if step_id in merged:
+                path.unlink(missing_ok=True)
+                pruned += 1
+        self._files = None
+        return pruned
+
     def _plan_index(self, step_id: str) -> int | None:
         plan = self._run_meta.get("plan")
         if isinstance(plan, list):
@@ -245,6 +260,23 @@ class RunRecorder:
         """Scan the step directory once (cleaning leftovers); later writes update the cache."""
         self._files = complete_step_files(self.steps_dir, clean=True)
         return dict(self._files)
+
+
+def merged_step_ids(recording: Path) -> set[str]:
+    """Ids of the steps a merged recording holds (read from its step records)."""
+    try:
+        with open(recording, "rb") as stream:
+            return {
+                json.loads(record.metadata["step"])["id"]
+                for record in make_reader(stream).iter_metadata()
+                if record.name == fmt.STEP_RECORD
+            }
+    except FileNotFoundError:
+        return set()
+    except RecordingError:
+        raise
+    except fmt.DECODE_ERRORS as exc:
+        raise RecordingError(f"{recording}: corrupt or truncated recording ({exc})") from exc
 
 
 def complete_step_files(steps_dir: Path, clean: bool = False) -> dict[str, tuple[Path, int]]:

@@ -164,16 +164,19 @@ def run(
     if resume:
         seed = RunState.load(out_dir).seed
     state = open_state(out_dir, plan.procedure, sha, seed, resume)
-    rig = build_rig(prepared.rig_config, plan.sensor, seed)
     recorder = RunRecorder(out_dir)
-    if not resume:
-        meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
-        meta["report_template"] = plan.report_template
-        recorder.write_run_metadata(meta)
-    run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress)
-    recorder.finalize()
-    state.finished = True
-    state.save(out_dir)
+    if not state.finished:  # a finished run that is "resumed" is only analysed again
+        rig = build_rig(prepared.rig_config, plan.sensor, seed)
+        if not resume:
+            meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
+            meta["report_template"] = plan.report_template
+            recorder.write_run_metadata(meta)
+        run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress)
+        recorder.finalize()
+        state.finished = True
+        state.save(out_dir)
+    # only now, with every step inside recording.mcap, the per-step copies can go
+    recorder.prune_step_files()
     key = signing_key(key_path)
     if plan.sign and key is None:
         import logging
