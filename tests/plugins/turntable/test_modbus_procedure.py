@@ -9,11 +9,13 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from aatest.engine.cli import app
 from aatest.engine.errors import EXIT_RIG_FAULT
+from aatest.engine.recording import read_dataset
 from aatest.plugins.daq.can_sim import CanFaultInjection, SimCanLogger
 from aatest.plugins.turntable.modbus_controller import FaultInjection
 from aatest.plugins.turntable.modbus_map import Fault
@@ -119,9 +121,9 @@ def test_fault_mid_run_exits_3_keeps_data_and_resumes(served: Served, tmp_path: 
     assert code == EXIT_RIG_FAULT, out
     errors = [line for line in out.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and reason in errors[0], out
-    kept = {p.name: p.read_bytes() for p in (out_dir / "steps").iterdir()}
-    assert [n for n in kept if n.endswith(".mcap")] == [
-        "001-s001-static-i0-o180-original-r1.mcap"]  # the static step finished before the fault
+    kept = [p.name for p in (out_dir / "steps").iterdir() if p.name.endswith(".mcap")]
+    assert kept == ["001-s001-static-i0-o180-original-r1.mcap"]  # finished before the fault
+    before = read_dataset(out_dir).steps
     if not server.controller.hanging:
         assert not server.controller.world.motor_on  # safe state reached: motor off
     server.controller.recover()  # the operator fixed the rig
@@ -130,8 +132,12 @@ def test_fault_mid_run_exits_3_keeps_data_and_resumes(served: Served, tmp_path: 
     assert code == 0, out
     steps = json.loads((out_dir / "results.json").read_text())["steps"]
     assert [s["kind"] for s in steps] == ["static", "sine"]
-    for name, data in kept.items():  # what was recorded before the fault is untouched
-        assert (out_dir / "steps" / name).read_bytes() == data, name
+    after = read_dataset(out_dir).steps  # now from the merged recording.mcap
+    for old, new in zip(before, after):  # what was recorded before the fault is untouched
+        assert old.step == new.step
+        for log_before, log_after in ((old.table, new.table), (old.daq, new.daq)):
+            for name, values in log_before.channels.items():
+                np.testing.assert_array_equal(log_after[name], values, err_msg=name)
 
 
 def test_connection_refused_exits_3_then_resumes(served: Served, tmp_path: Path) -> None:
