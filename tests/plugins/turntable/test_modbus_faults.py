@@ -49,14 +49,19 @@ def test_timeout_on_slow_controller(make_rig: Callable) -> None:
     assert time.monotonic() - started < 5.0
 
 
-def test_controller_stops_answering_mid_step(make_rig: Callable) -> None:
-    rig = make_rig(faults=FaultInjection(hang_on_command=Command.ARM_LOG, hang_s=3.0),
-                   timeout_s=0.3)
+def _arm_for_record(rig) -> None:  # noqa: ANN001 - the test rig of conftest
+    """Everything the runner does before ``record``: start, move, begin motion, start DAQ."""
     rig.daq.start()
     rig.turntable.start()
     rig.turntable.move_to(0.0, 0.0)
     rig.turntable.begin_motion(STEP)
     rig.daq.start_logging(STEP)
+
+
+def test_controller_stops_answering_mid_step(make_rig: Callable) -> None:
+    rig = make_rig(faults=FaultInjection(hang_on_command=Command.ARM_LOG, hang_s=3.0),
+                   timeout_s=0.3)
+    _arm_for_record(rig)
     with pytest.raises(RigFault) as exc:
         rig.turntable.record(STEP)
     assert "no answer to command ARM_LOG" in _one_line(exc)
@@ -68,11 +73,7 @@ def test_controller_stops_answering_mid_step(make_rig: Callable) -> None:
 
 def test_fault_bit_during_record_stops_the_table(make_rig: Callable) -> None:
     rig = make_rig(faults=FaultInjection(fault_on_record=Fault.INTERLOCK_OPEN))
-    rig.daq.start()
-    rig.turntable.start()
-    rig.turntable.move_to(0.0, 0.0)
-    rig.turntable.begin_motion(STEP)
-    rig.daq.start_logging(STEP)
+    _arm_for_record(rig)
     with pytest.raises(RigFault) as exc:
         rig.turntable.record(STEP)
     assert "controller fault (fault bits INTERLOCK_OPEN, word 0x0002)" in _one_line(exc)
@@ -84,11 +85,7 @@ def test_fault_bit_during_record_stops_the_table(make_rig: Callable) -> None:
 
 def test_fault_is_cleared_by_a_fresh_start(make_rig: Callable) -> None:
     rig = make_rig(faults=FaultInjection(fault_on_record=Fault.SERVO_ERROR))
-    rig.daq.start()
-    rig.turntable.start()
-    rig.turntable.move_to(0.0, 0.0)
-    rig.turntable.begin_motion(STEP)
-    rig.daq.start_logging(STEP)
+    _arm_for_record(rig)
     with pytest.raises(RigFault):
         rig.turntable.record(STEP)
     rig.turntable.safe_stop()
