@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy import optimize
 
 from aatest.plugins.diagnose.design import Fit, Spec, step_columns
 from aatest.plugins.diagnose.effects.base import Context, scalar_search
@@ -32,6 +31,19 @@ def nominal_fit(ctx: Context, base: Spec | None = None) -> Fit:
     return ctx.fit(refine_step_shifts(ctx, fit))
 
 
+def _parabola_min(grid: np.ndarray, costs: np.ndarray) -> float:
+    """Minimum of the parabola through the best grid point and its neighbours (within bounds).
+
+    The residual is quadratic in a sub-sample shift, so three points locate its minimum.
+    """
+    i = int(np.clip(np.argmin(costs), 1, grid.size - 2))
+    x, y = grid[i - 1: i + 2], costs[i - 1: i + 2]
+    a, b, _ = np.polyfit(x, y, 2)
+    if a <= 0:
+        return float(grid[int(np.argmin(costs))])
+    return float(np.clip(-b / (2 * a), grid[0], grid[-1]))
+
+
 def refine_step_shifts(ctx: Context, fit: Fit) -> Spec:
     """Per-step offsets (total shift within ±1 sample) that minimise each step's residual."""
     dt = ctx.replay.dt_s
@@ -47,9 +59,7 @@ def refine_step_shifts(ctx: Context, fit: Fit) -> Spec:
             r = ctx.targets[sr.index] - step_columns(sr, ctx.info, trial, fit.names) @ fit.coef
             return float(r @ r)
 
-        grid = np.linspace(-dt, dt, 9)
-        best = int(np.argmin([cost(g) for g in grid]))
-        lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
-        shifts[sr.index] = float(optimize.minimize_scalar(
-            cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7}).x)
+        grid = np.linspace(-dt, dt, 5)
+        costs = np.array([cost(g) for g in grid])
+        shifts[sr.index] = _parabola_min(grid, costs)
     return replace(spec, delay_s=0.0, step_shift_s=tuple(round(v, 10) for v in shifts))

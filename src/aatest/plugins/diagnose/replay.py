@@ -165,10 +165,13 @@ def ripple_regressors(replay: StepReplay, time_s: np.ndarray, n_cpd: float
     angle, rate, accel = axis.evaluate(time_s)
     s, c = np.sin(k * angle), np.cos(k * angle)
     acc_s, acc_c = c * k * accel - s * (k * rate) ** 2, -s * k * accel - c * (k * rate) ** 2
-    rec_angle = axis.evaluate(replay.time_s)[0]
-    basis = axis.basis(replay.time_s)
-    coef, *_ = np.linalg.lstsq(basis, np.column_stack([np.sin(k * rec_angle), np.cos(k * rec_angle)]),
-                               rcond=None)
+    key = ("ripple_projection", n_cpd)
+    if key not in replay.memo:
+        rec_angle = axis.evaluate(replay.time_s)[0]
+        replay.memo[key] = np.linalg.lstsq(
+            axis.basis(replay.time_s),
+            np.column_stack([np.sin(k * rec_angle), np.cos(k * rec_angle)]), rcond=None)[0]
+    coef = replay.memo[key]
     full = axis.basis(time_s)
     pos_s, pos_c = s - full @ coef[:, 0], c - full @ coef[:, 1]
     if axis.frequency_hz > 0.0:

@@ -196,7 +196,7 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
         return ctx.fit(refine_step_shifts(ctx, ctx.fit(make(r))))
 
     res = optimize.minimize_scalar(lambda r: profiled(r).sse_in, bounds=(0.5 * r0, min(3 * r0, hi)),
-                                   method="bounded", options={"xatol": 0.005 * r0})
+                                   method="bounded", options={"xatol": 0.005 * r0, "maxiter": 12})
     r, fit = float(res.x), profiled(float(res.x))
     ci = curvature_ci(ctx, lambda v: replace_spec(fit.spec, hysteresis_dps2=v), r,
                       max(0.01 * r, 1e-4), lo=0.0)
