@@ -74,3 +74,32 @@ def test_json_shape_matches_the_contract() -> None:
     assert set(f["evidence"]) == {"delta_bic", "rmse_v_before", "rmse_v_after"}
     assert set(f["parameters"]) == set(f["ci95"]) == {"coefficient_dps2_per_g"}
     assert f["parameters"]["coefficient_dps2_per_g"] == pytest.approx(1.5, rel=0.1)
+
+
+def _without_table_pulse(directory) -> None:
+    """Another tool without the freeze-pulse wiring: the table's sync column stays 0."""
+    for path in directory.glob("*_table.csv"):
+        lines = path.read_text().splitlines()
+        col = lines[0].split(",").index("sync_pulse")
+        rows = [",".join("0" if k == col else v for k, v in enumerate(line.split(",")))
+                for line in lines[1:]]
+        path.write_text("\n".join([lines[0], *rows]) + "\n")
+
+
+@pytest.mark.parametrize("drift_ppm", [0.0, 120.0])
+def test_without_sync_edges_drift_comes_from_the_phase_trend(tmp_path, drift_ppm: float) -> None:
+    from aatest.engine.exporter import export_csv
+    from aatest.engine.recording import read_dataset
+
+    hidden = [Hidden("clock_drift", {"drift_ppm": drift_ppm}, ())] if drift_ppm else []
+    export_csv(scenario_dataset(hidden, 37, SAMPLES), tmp_path)
+    _without_table_pulse(tmp_path)
+    doc = diagnose_dataset(read_dataset(tmp_path))
+    assert doc["steps_skipped"] == []
+    if not drift_ppm:
+        assert _effects(doc) == []
+        return
+    assert _effects(doc) == ["clock_drift"]
+    finding = doc["findings"][0]
+    assert finding["source"].startswith("phase trend")
+    assert finding["parameters"]["drift_ppm"] == pytest.approx(drift_ppm, rel=0.05)

@@ -49,6 +49,8 @@ class Spec:
     ripple_cpd: tuple[float, ...] = ()
     vibration_hz: float | None = None
     warp_ppm: float = 0.0
+    #: warp about the record start (trigger-aligned loggers) instead of its middle (edge fit)
+    warp_from_start: bool = False
     #: per-step alignment offsets (s) on top of ``delay_s``, indexed by step (empty = none):
     #: the sync pulse aligns each step's loggers to about one sample only
     step_shift_s: tuple[float, ...] = ()
@@ -129,9 +131,10 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
     tp = sr.padded_time_s
     t_mid = 0.5 * sr.time_s[-1]
     shift = spec.shift_of(sr.index)
-    t_eval = tp - shift - spec.warp_ppm * 1e-6 * (tp - t_mid)
+    t_ref = 0.0 if spec.warp_from_start else t_mid
+    t_eval = tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref)
     cut = slice(PAD_SAMPLES, PAD_SAMPLES + sr.n)
-    alpha3 = sensor_acceleration(sr, info.axis, t_eval, (shift, spec.warp_ppm))
+    alpha3 = sensor_acceleration(sr, info.axis, t_eval, (shift, spec.warp_ppm, t_ref))
     sensed = alpha3[2]
     if spec.hysteresis_dps2 > 0.0 and sr.dynamic:
         sensed = play_operator(sensed, spec.hysteresis_dps2)

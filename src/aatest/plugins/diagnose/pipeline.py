@@ -11,19 +11,21 @@ from typing import Any
 import numpy as np
 
 from aatest.engine.dataset import Dataset
-from aatest.plugins.diagnose.design import predict
+from aatest.plugins.diagnose.design import Fit, predict
 from aatest.plugins.diagnose.effects.base import Context, replace_spec
 from aatest.plugins.diagnose.effects.logger import (
     DEFAULT_CLOCK_TOLERANCE_PPM,
     clock_drift,
     excess_noise,
     one_clock_fit,
+    phase_trend_drift,
 )
 from aatest.plugins.diagnose.figures import residual_figures
 from aatest.plugins.diagnose.logger_chain import channel_info, logger_options, targets_of
 from aatest.plugins.diagnose.replay import Replay, replay_dataset
 from aatest.plugins.diagnose.residuals import residual_views
 from aatest.plugins.diagnose.selection import (
+    BIC_THRESHOLD,
     ChannelResult,
     Finding,
     correlation_factor,
@@ -47,26 +49,48 @@ def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,
 
 
 def _drift_finding(ctx: Context, tolerance_ppm: float) -> tuple[Finding | None, dict[str, Any]]:
+    """Clock drift from the sync edges (or the phase trend without them), beyond tolerance."""
+    row: dict[str, Any] = {"effect": "clock_drift", "accepted": False, "testable": True,
+                           "attributed_to": "logger", "tolerance_ppm": tolerance_ppm}
     est = clock_drift(ctx)
-    if est is None:
-        return None, {"effect": "clock_drift", "delta_bic": None, "accepted": False,
-                      "testable": False, "reason": "no sync edges"}
-    one = one_clock_fit(ctx, est.drift_ppm)
-    n_eff = one.n / ctx.correlation
-    dbic = n_eff * np.log(max(ctx.current.sse_held_out, 1e-300) / max(one.sse_held_out, 1e-300)) \
-        + np.log(n_eff)
-    row = {"effect": "clock_drift", "delta_bic": float(dbic), "accepted": False, "testable": True,
-           "parameters": {"drift_ppm": est.drift_ppm}, "attributed_to": "logger",
-           "tolerance_ppm": tolerance_ppm}
-    significant = abs(est.drift_ppm) > 3.0 * est.u_ppm
-    if abs(est.drift_ppm) <= tolerance_ppm or not significant:
+    if est is not None:
+        drift, u, source = est.drift_ppm, est.u_ppm, "sync edges"
+        ci = [drift - 1.96 * u, drift + 1.96 * u]
+        before, after = one_clock_fit(ctx, drift), ctx.current
+    else:
+        trend = phase_trend_drift(ctx)
+        if trend is None:
+            return None, {**row, "delta_bic": None, "testable": False,
+                          "reason": "no sync edges and no sine step to show a phase trend"}
+        drift, ci, after = trend
+        before, source = ctx.current, "phase trend (no sync edges)"
+    n_eff = before.n / ctx.correlation
+    dbic = float(n_eff * np.log(max(after.sse_held_out, 1e-300) / max(before.sse_held_out, 1e-300))
+                 + np.log(n_eff))
+    row |= {"delta_bic": dbic, "parameters": {"drift_ppm": drift}, "source": source}
+    significant = ci[0] > 0 or ci[1] < 0
+    if abs(drift) <= tolerance_ppm or not significant or dbic > -BIC_THRESHOLD and source != "sync edges":
         row["reason"] = f"|drift| within the rig's clock tolerance ({tolerance_ppm:g} ppm)"
         return None, row
     row["accepted"] = True
-    ci = [est.drift_ppm - 1.96 * est.u_ppm, est.drift_ppm + 1.96 * est.u_ppm]
-    return Finding("clock_drift", "all", {"drift_ppm": est.drift_ppm}, {"drift_ppm": ci},
-                   float(dbic), rmse(one), rmse(ctx.current), "logger",
-                   {"source": "sync edges", "steps": est.steps}), row
+    return Finding("clock_drift", "all", {"drift_ppm": drift}, {"drift_ppm": ci}, dbic,
+                   rmse(before), rmse(after), "logger", {"source": source}), row
+
+
+def _with_drift(ctx: Context, result: ChannelResult, drift: Finding | None) -> tuple[Fit, Fit]:
+    """(baseline, final) fits with the clock drift taken into account.
+
+    Nominal means one clock (contracts.md §4 step 1): with edges the data were drift-corrected
+    by the sync, so the one-clock baseline is the nominal replay warped by the drift; from the
+    phase trend the data are on one clock, so the extended model carries the warp.
+    """
+    if drift is None:
+        return result.nominal, result.final
+    ppm = drift.parameters["drift_ppm"]
+    if drift.extra.get("source") == "sync edges":
+        return ctx.fit(replace_spec(result.nominal.spec, warp_ppm=ppm)), result.final
+    return result.nominal, ctx.fit(replace_spec(result.final.spec, warp_ppm=-ppm, delay_s=0.0,
+                                                step_shift_s=(), warp_from_start=True))
 
 
 def _noise_finding(ctx: Context, stated_noise_v: float) -> tuple[Finding | None, dict[str, Any]]:
@@ -123,7 +147,7 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
     channels, views = [], {}
     sse_before = sse_after = 0.0
     n_total = 0
-    drift_ppm: float | None = None
+    drift_f: Finding | None = None
     for i, channel in enumerate(replay.channels):
         result, ctx = diagnose_channel(dataset, replay, channel, corner)
         findings += result.findings
@@ -135,12 +159,10 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
             drift_f, drift_row = _drift_finding(ctx, tol)
             candidates.append(drift_row)
             findings += [drift_f] if drift_f else []
-            drift_ppm = drift_f.parameters["drift_ppm"] if drift_f else None
-        baseline = result.nominal
-        if drift_ppm is not None:  # nominal = one clock (contracts.md §4 step 1)
-            baseline = ctx.fit(replace_spec(result.nominal.spec, warp_ppm=drift_ppm))
+        baseline, final = _with_drift(ctx, result, drift_f)
+        result.final = final
         sse_before += baseline.sse_held_out
-        sse_after += result.final.sse_held_out
+        sse_after += final.sse_held_out
         n_total += result.final.n
         channels.append(_calibration(result, ctx))
         views[channel] = residual_views(ctx, result.nominal, result.final)

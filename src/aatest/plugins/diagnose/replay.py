@@ -246,7 +246,8 @@ def replay_step(index: int, synced: SyncedStep, channels: list[str]) -> StepRepl
         volts={ch: np.asarray(synced.daq[ch], dtype=float) for ch in channels},
         temperature_c=None if temp is None else np.asarray(temp, dtype=float),
         inner=axes["inner"], outer=axes["outer"], table_deviation_deg=deviation,
-        relation=synced.relation, pivoted=step.mounting.pivoted, motor_on=step.motor_on,
+        relation=synced.relation if synced.relation.edges_used > 0 else None,
+        pivoted=step.mounting.pivoted, motor_on=step.motor_on,
     )
 
 
@@ -309,7 +310,10 @@ def replay_dataset(dataset: Dataset) -> Replay:
 
 
 def _synchronised(data: StepData) -> SyncedStep | None:
+    """Freeze-pulse sync, else trigger alignment (one clock; drift then from the phase trend)."""
     try:
         return synchronise(data)
     except AnalysisError:
-        return None
+        from aatest.plugins.diagnose.trigger_sync import trigger_aligned
+
+        return trigger_aligned(data)

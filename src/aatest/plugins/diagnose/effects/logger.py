@@ -14,6 +14,7 @@ compared with the sensor's stated noise.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import signal
@@ -21,6 +22,8 @@ from scipy import signal
 from aatest.plugins.diagnose.effects.base import Z95, Context, replace_spec
 
 DEFAULT_CLOCK_TOLERANCE_PPM = 20.0
+#: search range of a drift fitted from the phase trend (ppm)
+MAX_DRIFT_PPM = 2000.0
 #: a white floor below this is ADC quantisation and numerical noise, not an effect (V)
 MIN_EXCESS_RMS_V = 2e-4
 #: without a pre-sample filter, noise must exceed the stated sensor noise by this factor
@@ -45,6 +48,30 @@ def clock_drift(ctx: Context) -> DriftEstimate | None:
     mean = float(np.sum(w * d) / np.sum(w))
     spread = float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else 0.0
     return DriftEstimate(mean, max(float(np.sqrt(1.0 / np.sum(w))), spread), d.size)
+
+
+def phase_trend_drift(ctx: Context) -> tuple[float, list[float], Any] | None:
+    """DAQ drift (ppm), its 95 % interval and the fit, from the phase trend of the sines.
+
+    Without sync edges the loggers are aligned at the trigger on one clock, so a rate error
+    makes the sensor's phase slide linearly through each record; the replay warped about the
+    record start by −drift explains it.
+    """
+    from aatest.plugins.diagnose.effects.base import curvature_ci, scalar_search
+
+    if not ctx.dynamic_steps:
+        return None
+
+    # the trigger aligns each record at its start; per-step offsets would fight the trend
+    base = replace_spec(ctx.current.spec, delay_s=0.0, step_shift_s=(), warp_from_start=True)
+
+    def make(w: float):
+        return replace_spec(base, warp_ppm=w)
+
+    w, fit = scalar_search(ctx, make, -MAX_DRIFT_PPM, MAX_DRIFT_PPM,
+                           list(np.linspace(-MAX_DRIFT_PPM, MAX_DRIFT_PPM, 21)), xtol=0.01)
+    ci = curvature_ci(ctx, make, w, 1.0)
+    return -w, [-ci[1], -ci[0]], fit
 
 
 def one_clock_fit(ctx: Context, drift_ppm: float):
