@@ -40,6 +40,8 @@ def summary(doc: dict[str, Any]) -> str:
         params = ", ".join(f"{k}={v:.4g}" for k, v in f["parameters"].items())
         lines.append(f"finding {f['effect']} ({f.get('attributed_to', 'sensor')}, "
                      f"{f.get('channel', '')}): {params}; ΔBIC {f['evidence']['delta_bic']:.1f}")
+    if doc.get("steps_skipped"):
+        lines.append("steps left out (no sync edges, no trigger): " + ", ".join(doc["steps_skipped"]))
     untestable = [c["effect"] for c in doc["candidates"] if c.get("testable") is False]
     if untestable:
         lines.append("not testable with these data: " + ", ".join(sorted(set(untestable))))

@@ -72,6 +72,8 @@ class ChannelInfo:
     range_dps2: float
     antialias_hz: float | None
     t_ref_c: float
+    #: datasheet scale factor, used when the data cannot calibrate K (no motion along z)
+    nominal_scale_v_per_dps2: float = 0.004014
 
 
 def column_names(spec: Spec, replay: Replay) -> list[str]:

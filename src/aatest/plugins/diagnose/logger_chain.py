@@ -24,7 +24,7 @@ ROLLOFF_RATIO = 0.5
 def channel_info(dataset: Dataset, channel: str, corner: float | None, t_ref_c: float) -> ChannelInfo:
     """Design inputs of one channel (axis, range, logger filter, T_ref)."""
     s = dataset.sensor(channel)
-    return ChannelInfo(channel, s.axis, s.range_dps2, corner, t_ref_c)
+    return ChannelInfo(channel, s.axis, s.range_dps2, corner, t_ref_c, s.nominal_scale_v_per_dps2)
 
 
 def targets_of(replay: Replay, channel: str) -> dict[int, np.ndarray]:

@@ -112,7 +112,7 @@ def _noise_finding(ctx: Context, stated_noise_v: float) -> tuple[Finding | None,
 def _calibration(result: ChannelResult, ctx: Context) -> dict[str, Any]:
     fit = result.final
     return {"channel": result.channel, "axis": ctx.info.axis, "bias_v": fit.value("bias"),
-            "scale_v_per_dps2": fit.scale, "range_dps2": ctx.info.range_dps2,
+            "scale_v_per_dps2": ctx.scale_of(fit), "range_dps2": ctx.info.range_dps2,
             "noise_rms_v": rmse(fit), "noise_correlation": result.correlation,
             "alignment_offsets_s": [result.nominal.spec.shift_of(s.index)
                                     for s in ctx.replay.steps]}

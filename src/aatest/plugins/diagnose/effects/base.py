@@ -41,6 +41,11 @@ class Context:
                                        self.step_cache)
         return self.cache[spec]
 
+    def scale_of(self, fit: Fit) -> float:
+        """K of a fit (V per °/s²); the datasheet value when the data cannot calibrate it."""
+        nominal = self.info.nominal_scale_v_per_dps2
+        return fit.scale if abs(fit.scale) > 1e-3 * abs(nominal) else nominal
+
     @property
     def sigma2(self) -> float:
         """Residual variance of the current model (V²)."""
@@ -72,7 +77,7 @@ def linear_ci(ctx: Context, fit: Fit, name: str, divide_by_scale: bool = True) -
     cov = np.linalg.pinv(fit.xtx) * sigma2
     value, u = float(fit.coef[j]), float(np.sqrt(max(cov[j, j], 0.0)))
     if divide_by_scale:
-        k = fit.scale
+        k = ctx.scale_of(fit)
         value, u = value / k, u / abs(k)
     return value, [value - Z95 * u, value + Z95 * u]
 

@@ -68,7 +68,7 @@ def fit_delay(ctx: Context) -> CandidateFit:
 def fit_jerk(ctx: Context) -> CandidateFit:
     fit = ctx.fit(_synced(ctx).with_linear("jerk_sensitivity"))
     c, ci = linear_ci(ctx, fit, "jerk_sensitivity", divide_by_scale=False)
-    lead_s = c / fit.scale
+    lead_s = c / ctx.scale_of(fit)
     out = CandidateFit("jerk_sensitivity", fit, {"coefficient_v_per_dps3": c},
                        {"coefficient_v_per_dps3": ci}, extra={"equivalent_lead_s": lead_s})
     if lead_s <= 0:
@@ -100,7 +100,7 @@ def measured_frf(ctx: Context, base: Spec) -> tuple[np.ndarray, np.ndarray, np.n
             continue
         y = ctx.targets[sr.index] - others
         freqs.append(f0)
-        ratios.append(np.mean((y - y.mean()) * e) / (fit.scale * a))
+        ratios.append(np.mean((y - y.mean()) * e) / (ctx.scale_of(fit) * a))
         weights.append(abs(a))
     return np.asarray(freqs), np.asarray(ratios), np.asarray(weights)
 

@@ -141,7 +141,7 @@ def fit_ripple(ctx: Context) -> CandidateFit:
     params = {"cycles_per_deg": n_round, "amplitude_deg": amp}
     ci = {"cycles_per_deg": [n_round, n_round], "amplitude_deg": [amp - Z95 * u, amp + Z95 * u]}
     sensor_amp = float(np.hypot(fit.value(f"ripple{n_round:g}_s"), fit.value(f"ripple{n_round:g}_c"))
-                       / fit.scale)
+                       / ctx.scale_of(fit))
     return CandidateFit("rate_ripple", fit, params, ci, attributed_to="table",
                         extra={"phase_rad": phase, "amplitude_deg_seen_by_sensor": sensor_amp,
                                "table_log_share": share})
