@@ -47,7 +47,7 @@ class Spec:
     hysteresis_dps2: float = 0.0
     saturation_dps2: float | None = None
     ripple_cpd: tuple[float, ...] = ()
-    vibration_hz: float | None = None
+    vibration_hz: tuple[float, ...] = ()
     warp_ppm: float = 0.0
     #: warp about the record start (trigger-aligned loggers) instead of its middle (edge fit)
     warp_from_start: bool = False
@@ -87,9 +87,9 @@ def column_names(spec: Spec, replay: Replay) -> list[str]:
         names += ["cross_x", "cross_y"]
     for n in spec.ripple_cpd:
         names += [f"ripple{n:g}_s", f"ripple{n:g}_c"]
-    if spec.vibration_hz is not None:
-        for s in replay.steps:
-            names += [f"vib{s.index}_s", f"vib{s.index}_c"]
+    for s in replay.steps:
+        for j in range(len(spec.vibration_hz)):
+            names += [f"vib{s.index}_{j}_s", f"vib{s.index}_{j}_c"]
     return names
 
 
@@ -160,10 +160,10 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
         rs, rc = _ripple_columns(sr, t_eval, n)
         cols[f"ripple{n:g}_s"] = _dynamics(z_inner * rs, spec, sr.dt_s)
         cols[f"ripple{n:g}_c"] = _dynamics(z_inner * rc, spec, sr.dt_s)
-    if spec.vibration_hz is not None and sr.motor_on:
-        w = 2 * np.pi * spec.vibration_hz
-        cols[f"vib{sr.index}_s"] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
-        cols[f"vib{sr.index}_c"] = _dynamics(z_inner * np.cos(w * t_eval), spec, sr.dt_s)
+    for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
+        w = 2 * np.pi * f_hz
+        cols[f"vib{sr.index}_{j}_s"] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
+        cols[f"vib{sr.index}_{j}_c"] = _dynamics(z_inner * np.cos(w * t_eval), spec, sr.dt_s)
     out = np.zeros((sr.n, len(names)))
     used = [0]
     for j, name in enumerate(names):
@@ -215,7 +215,7 @@ def _step_key(spec: Spec, sr: StepReplay) -> Spec:
     if sr.dynamic:
         return spec
     key = replace(spec, hysteresis_dps2=0.0, saturation_dps2=None)
-    if not spec.ripple_cpd and spec.vibration_hz is None:
+    if not spec.ripple_cpd and not spec.vibration_hz:
         key = replace(key, delay_s=0.0, dynamics=None, warp_ppm=0.0)
     return key
 

@@ -62,7 +62,9 @@ def _table_effect(table: m.TableModel, name: str, params: dict[str, float],
         ripple = m.RateRipple(**params, phase_rad=float(finding.get("phase_rad", 0.0)))
         axis = axis.model_copy(update={"rate_ripple": [*axis.rate_ripple, ripple]})
     else:
-        axis = axis.model_copy(update={"motor_vibration": m.MotorVibration(**params)})
+        band = float(finding.get("bandwidth_hz", 0.0))
+        axis = axis.model_copy(update={"motor_vibration": m.MotorVibration(**params,
+                                                                           bandwidth_hz=band)})
     return table.model_copy(update={"inner": axis})
 
 

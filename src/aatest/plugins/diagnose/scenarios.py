@@ -103,7 +103,7 @@ DRAWS: dict[str, Callable[[np.random.Generator], Hidden]] = {
     "cross_axis": lambda r: Hidden("cross_axis", {"ratio_x": _signed(r, 0.004, 0.015), "ratio_y": _signed(r, 0.004, 0.015)}, ("ratio_x", "ratio_y")),
     "misalignment": lambda r: Hidden("misalignment", {"angle_deg": _u(r, 0.3, 1.0)}, ("angle_deg",), {"azimuth_deg": _u(r, 0.0, 360.0)}),
     "rate_ripple": lambda r: Hidden("rate_ripple", {"cycles_per_deg": float(r.choice([1.0, 2.0])), "amplitude_deg": _u(r, 0.5, 2.0) / 3600}, ("cycles_per_deg", "amplitude_deg")),
-    "motor_vibration": lambda r: Hidden("motor_vibration", {"frequency_hz": _u(r, 25.0, 45.0), "amplitude_dps2": _u(r, 2.0, 8.0)}, ("frequency_hz", "amplitude_dps2")),
+    "motor_vibration": lambda r: Hidden("motor_vibration", {"frequency_hz": _u(r, 25.0, 45.0), "amplitude_dps2": _u(r, 2.0, 8.0)}, ("frequency_hz", "amplitude_dps2"), {"bandwidth_hz": float(r.choice([0.0, _u(r, 2.0, 6.0)]))}),
     "excess_noise": lambda r: Hidden("excess_noise", {"rms_v": _u(r, 0.002, 0.012)}, ("rms_v",)),
 }
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from aatest.plugins.diagnose.effects import linear, shape, table
+from aatest.plugins.diagnose.effects import linear, shape, table, vibration
 from aatest.plugins.diagnose.effects.base import CandidateFit, Context
 
 
@@ -46,7 +46,7 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate("cross_axis", linear.testable_cross, linear.fit_cross),
     Candidate("rate_ripple", table.testable_ripple, table.fit_ripple, attributed_to="table",
               repeatable=3),
-    Candidate("motor_vibration", table.testable_vibration, table.fit_vibration,
+    Candidate("motor_vibration", vibration.testable_vibration, vibration.fit_vibration,
               attributed_to="table"),
 )
 

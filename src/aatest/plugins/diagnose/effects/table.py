@@ -1,4 +1,4 @@
-"""Table effects: position-periodic rate ripple and narrow-band motor vibration.
+"""Table effect: position-periodic rate ripple (motor vibration: :mod:`.vibration`).
 
 Both are real motion, so the table's own position log departs from the command exactly as the
 sensor does (contracts.md §4 "Table effects"). Their parameters are read from the table log
@@ -30,11 +30,6 @@ def _moving(ctx: Context) -> list[StepReplay]:
 
 def testable_ripple(ctx: Context) -> str | None:
     return None if _moving(ctx) else "the inner axis never moves (constant-rate steps needed)"
-
-
-def testable_vibration(ctx: Context) -> str | None:
-    on = [s for s in ctx.replay.steps if s.motor_on]
-    return None if on else "the motor is never on"
 
 
 def _columns(s: StepReplay, ns: tuple[float, ...], step: int = 1) -> np.ndarray:
@@ -145,71 +140,3 @@ def fit_ripple(ctx: Context) -> CandidateFit:
     return CandidateFit("rate_ripple", fit, params, ci, attributed_to="table",
                         extra={"phase_rad": phase, "amplitude_deg_seen_by_sensor": sensor_amp,
                                "table_log_share": share})
-
-
-def _line(ctx: Context) -> tuple[float, float] | None:
-    """Frequency (Hz) and SNR of the strongest narrow line in the table position deviation."""
-    steps = [s for s in ctx.replay.steps if s.motor_on]
-    still = [s for s in steps if not s.inner.moving and not s.outer.moving] or steps
-    fs = 1.0 / ctx.replay.dt_s
-    total = None
-    for s in still:
-        f, p = signal.welch(s.table_deviation_deg["inner"], fs=fs, nperseg=min(4096, s.n),
-                            detrend="linear")
-        total = p if total is None else total + p
-    band = (f > 5.0) & (f < 0.4 * fs)
-    if total is None or not band.any():
-        return None
-    i = int(np.flatnonzero(band)[np.argmax(total[band])])
-    floor = float(np.median(total[band]))
-    if total[i] <= 0.0:
-        return None
-    snr = float(total[i] / floor) if floor > 0 else float("inf")
-    return float(f[i]), snr
-
-
-def _vibration_sse(steps: list[StepReplay], f_hz: float) -> float:
-    out = 0.0
-    for s in steps:
-        t, dev = s.time_s, s.table_deviation_deg["inner"]
-        w = 2 * np.pi * f_hz
-        x = np.column_stack([np.ones_like(t), t, np.sin(w * t), np.cos(w * t)])
-        coef, *_ = np.linalg.lstsq(x, dev, rcond=None)
-        r = dev - x @ coef
-        out += float(r @ r)
-    return out
-
-
-def vibration_from_table(steps: list[StepReplay], f0: float, df: float) -> tuple[float, float, float]:
-    """(frequency Hz, peak acceleration °/s², its standard uncertainty) from the table log."""
-    res = optimize.minimize_scalar(lambda f: _vibration_sse(steps, f), bounds=(f0 - df, f0 + df),
-                                   method="bounded", options={"xatol": 1e-5})
-    f = float(res.x)
-    w = 2 * np.pi * f
-    amps = []
-    for s in steps:
-        t, dev = s.time_s, s.table_deviation_deg["inner"]
-        x = np.column_stack([np.ones_like(t), t, np.sin(w * t), np.cos(w * t)])
-        coef, *_ = np.linalg.lstsq(x, dev, rcond=None)
-        amps.append(float(np.hypot(coef[2], coef[3])) * w * w)
-    a = np.asarray(amps)
-    u = float(a.std(ddof=1) / np.sqrt(a.size)) if a.size > 1 else 0.05 * float(a.mean())
-    return f, float(a.mean()), u
-
-
-def fit_vibration(ctx: Context) -> CandidateFit:
-    line = _line(ctx)
-    if line is None or line[1] < LINE_SNR:
-        out = CandidateFit("motor_vibration", ctx.current, {"frequency_hz": 0.0, "amplitude_dps2": 0.0},
-                           {}, attributed_to="table")
-        out.veto = "the table log shows no narrow-band line"
-        return out
-    steps = [s for s in ctx.replay.steps if s.motor_on and not s.inner.moving
-             and not s.outer.moving] or [s for s in ctx.replay.steps if s.motor_on]
-    fs = 1.0 / ctx.replay.dt_s
-    f, amp, u = vibration_from_table(steps, line[0], fs / 4096)
-    fit = ctx.fit(replace_spec(ctx.current.spec, vibration_hz=round(f, 5)))
-    return CandidateFit("motor_vibration", fit, {"frequency_hz": f, "amplitude_dps2": amp},
-                        {"frequency_hz": [f - 1e-3, f + 1e-3],
-                         "amplitude_dps2": [amp - Z95 * u, amp + Z95 * u]},
-                        attributed_to="table", extra={"line_snr": line[1]})
