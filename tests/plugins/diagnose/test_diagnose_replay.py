@@ -8,7 +8,7 @@ from aatest.plugins.diagnose.design import ChannelInfo
 from aatest.plugins.diagnose.effects.base import Context
 from aatest.plugins.diagnose.replay import fit_axis_motion, replay_dataset
 from aatest.plugins.diagnose.scenarios import scenario_dataset
-from aatest.plugins.diagnose.selection import nominal_fit
+from aatest.plugins.diagnose.alignment import nominal_fit
 
 
 def test_fit_axis_motion_recovers_sine_and_ramp() -> None:

@@ -123,27 +123,24 @@ def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float) -> tuple[n
     return acc_s, acc_c
 
 
-def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
-                 used_out: list[int] | None = None) -> np.ndarray:
-    """Design columns of one step on its record grid, shape (n, len(names)).
-
-    ``used_out``, when given, receives the indices of the columns this step can make
-    non-zero (the others are zero by construction, e.g. another step's vibration terms).
-    """
+def _eval_times(sr: StepReplay, spec: Spec) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """Times (padded grid) at which the motion is evaluated, and their memo key."""
     tp = sr.padded_time_s
-    t_mid = 0.5 * sr.time_s[-1]
     shift = spec.shift_of(sr.index)
-    t_ref = 0.0 if spec.warp_from_start else t_mid
-    t_eval = tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref)
-    cut = slice(PAD_SAMPLES, PAD_SAMPLES + sr.n)
-    alpha3 = sensor_acceleration(sr, info.axis, t_eval, (shift, spec.warp_ppm, t_ref))
+    t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    return tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref), (shift, spec.warp_ppm, t_ref)
+
+
+def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
+                    key: tuple, temp: np.ndarray) -> dict[str, np.ndarray]:
+    """The sensor chain: α → hysteresis → dynamics → saturation, and the terms built on it."""
+    alpha3 = sensor_acceleration(sr, info.axis, t_eval, key)
     sensed = alpha3[2]
     if spec.hysteresis_dps2 > 0.0 and sr.dynamic:
         sensed = play_operator(sensed, spec.hysteresis_dps2)
     shaped = _dynamics(sensed, spec, sr.dt_s)
     if spec.saturation_dps2 is not None:
         shaped = np.clip(shaped, -spec.saturation_dps2, spec.saturation_dps2)
-    temp = _temperature(sr, info, tp.size)
     cols: dict[str, np.ndarray] = {"scale": shaped}
     lin = spec.linear
     if "scale_temperature" in lin:
@@ -155,7 +152,14 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
     if "cross_axis" in lin:
         cols["cross_x"] = _dynamics(alpha3[0], spec, sr.dt_s)
         cols["cross_y"] = _dynamics(alpha3[1], spec, sr.dt_s)
+    return cols
+
+
+def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
+                   t_eval: np.ndarray) -> dict[str, np.ndarray]:
+    """Inner-axis ripple and vibration as seen along the sensor axis, through its dynamics."""
     z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
+    cols: dict[str, np.ndarray] = {}
     for n in spec.ripple_cpd:
         rs, rc = _ripple_columns(sr, t_eval, n)
         cols[f"ripple{n:g}_s"] = _dynamics(z_inner * rs, spec, sr.dt_s)
@@ -164,19 +168,34 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
         w = 2 * np.pi * f_hz
         cols[f"vib{sr.index}_{j}_s"] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
         cols[f"vib{sr.index}_{j}_c"] = _dynamics(z_inner * np.cos(w * t_eval), spec, sr.dt_s)
+    return cols
+
+
+def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
+                 used_out: list[int] | None = None) -> np.ndarray:
+    """Design columns of one step on its record grid, shape (n, len(names)).
+
+    Dynamic columns pass through the logger filter; ``used_out``, when given, receives the
+    indices of the columns this step can make non-zero (others, e.g. another step's
+    vibration terms, are zero by construction).
+    """
+    t_eval, key = _eval_times(sr, spec)
+    temp = _temperature(sr, info, t_eval.size)
+    cols = _sensor_columns(sr, info, spec, t_eval, key, temp) | _table_columns(sr, info, spec, t_eval)
+    cut = slice(PAD_SAMPLES, PAD_SAMPLES + sr.n)
     out = np.zeros((sr.n, len(names)))
+    out[:, 0] = 1.0
     used = [0]
     for j, name in enumerate(names):
         if name in cols:
             out[:, j] = _logger(cols[name], info, sr.dt_s)[cut]
             used.append(j)
-    out[:, 0] = 1.0
-    if "bias_temperature" in names:
-        used.append(names.index("bias_temperature"))
-        out[:, used[-1]] = temp[cut]
-    if "g_sensitivity" in names:
-        used.append(names.index("g_sensitivity"))
-        out[:, used[-1]] = gravity_along(sr, info.axis)
+    static = {"bias_temperature": lambda: temp[cut],
+              "g_sensitivity": lambda: gravity_along(sr, info.axis)}
+    for name, column in static.items():
+        if name in names:
+            used.append(names.index(name))
+            out[:, used[-1]] = column()
     if used_out is not None:
         used_out.extend(sorted(used))
     return out

@@ -13,7 +13,7 @@ from aatest.engine.dataset import Dataset
 from aatest.plugins.diagnose.design import ChannelInfo, predict
 from aatest.plugins.diagnose.effects.base import Context
 from aatest.plugins.diagnose.replay import Replay
-from aatest.plugins.diagnose.selection import nominal_fit
+from aatest.plugins.diagnose.alignment import nominal_fit
 
 #: the logger pre-sample filter of the documented rig (method.md §1.3), tried when unstated
 DEFAULT_ANTIALIAS_HZ = 100.0

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from aatest.engine.dataset import Dataset
+from aatest.plugins.diagnose.alignment import nominal_fit
 from aatest.plugins.diagnose.design import Fit, predict
 from aatest.plugins.diagnose.effects.base import Context, replace_spec
 from aatest.plugins.diagnose.effects.logger import (
@@ -30,7 +31,6 @@ from aatest.plugins.diagnose.selection import (
     Finding,
     correlation_factor,
     forward_select,
-    nominal_fit,
     rmse,
 )
 
@@ -159,25 +159,20 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
             drift_f, drift_row = _drift_finding(ctx, tol)
             candidates.append(drift_row)
             findings += [drift_f] if drift_f else []
-        baseline, final = _with_drift(ctx, result, drift_f)
-        result.final = final
+        baseline, result.final = _with_drift(ctx, result, drift_f)
         sse_before += baseline.sse_held_out
-        sse_after += final.sse_held_out
+        sse_after += result.final.sse_held_out
         n_total += result.final.n
         channels.append(_calibration(result, ctx))
         views[channel] = residual_views(ctx, result.nominal, result.final)
         if figures is not None:
             figures.update(residual_figures(ctx, result.nominal, result.final, views[channel]))
-    findings = _dedupe_table_effects(findings)
-    findings.sort(key=lambda f: f.delta_bic)
+    findings = sorted(_dedupe_table_effects(findings), key=lambda f: f.delta_bic)
     before, after = np.sqrt(sse_before / n_total), np.sqrt(sse_after / n_total)
     return {
         "baseline": {"rmse_v": float(before)},
         "findings": [f.as_dict() for f in findings],
-        "gain": {"rmse_v_before": float(before), "rmse_v_after": float(after),
-                 "reduction_pct": float(100.0 * (1.0 - after / before)) if before > 0 else 0.0,
-                 "variance_explained_pct": float(100.0 * (1.0 - (after / before) ** 2))
-                 if before > 0 else 0.0},
+        "gain": _gain(before, after),
         "candidates": candidates,
         "channels": channels,
         "logger": {"antialias_hz": corner, "source": source, "t_ref_c": replay.t_ref_c,
@@ -185,6 +180,14 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
         "residuals": views,
         "steps_skipped": list(replay.skipped),
     }
+
+
+def _gain(before: float, after: float) -> dict[str, float]:
+    """Held-out RMS before/after, its reduction and the share of variance explained (%)."""
+    ratio = after / before if before > 0 else 1.0
+    return {"rmse_v_before": float(before), "rmse_v_after": float(after),
+            "reduction_pct": float(100.0 * (1.0 - ratio)),
+            "variance_explained_pct": float(100.0 * (1.0 - ratio**2))}
 
 
 def _dedupe_table_effects(findings: list[Finding]) -> list[Finding]:

@@ -20,7 +20,6 @@ from typing import Any
 
 import numpy as np
 
-from aatest.plugins.diagnose.alignment import nominal_fit
 from aatest.plugins.diagnose.design import Fit, predict
 from aatest.plugins.diagnose.effects import CANDIDATES, Candidate
 from aatest.plugins.diagnose.effects.base import CandidateFit, Context
