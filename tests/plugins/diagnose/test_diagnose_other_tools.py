@@ -83,7 +83,7 @@ def _diagnose(root: Path) -> tuple[int, dict]:
     return res.exit_code, json.loads(out.read_text())
 
 
-@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("seed", [1])
 def test_clean_foreign_data_give_no_finding(tmp_path: Path, seed: int) -> None:
     code, doc = _diagnose(write_other_tool_dir(tmp_path / "imp", seed))
     assert doc["findings"] == [], doc["findings"]

@@ -8,11 +8,13 @@ the residual noise does, because the filter shapes the sensor noise it records.
 from __future__ import annotations
 
 import numpy as np
+from scipy import signal
 
 from aatest.engine.dataset import Dataset
 from aatest.plugins.diagnose.design import ChannelInfo, predict
 from aatest.plugins.diagnose.effects.base import Context
 from aatest.plugins.diagnose.replay import Replay
+from aatest.plugins.sim.daq import antialias_filter
 from aatest.plugins.diagnose.alignment import nominal_fit
 
 #: the logger pre-sample filter of the documented rig (method.md §1.3), tried when unstated
@@ -52,23 +54,54 @@ def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
     return False, None
 
 
-def noise_rolloff(ctx: Context) -> float:
-    """Residual PSD far above the filter corner over the PSD below it (1 = white noise).
-
-    A logger's pre-sample filter shapes the sensor noise it records; the ratio says whether the
-    data carry that shape, whatever the signal errors at the (≤ 10 Hz) excitation.
-    """
+def residual_noise_psd(ctx: Context) -> tuple[np.ndarray, np.ndarray]:
+    """(f Hz, PSD V²/Hz) of the nominal replay's residual, averaged over steps."""
     from aatest.plugins.diagnose.effects.logger import residual_psd
 
     fit = nominal_fit(ctx)
     pred = predict(ctx.replay, ctx.info, fit)
-    freq, psd = residual_psd(ctx, {i: ctx.targets[i] - pred[i] for i in pred})
-    fs = 1.0 / ctx.replay.dt_s
+    return residual_psd(ctx, {i: ctx.targets[i] - pred[i] for i in pred})
+
+
+def noise_rolloff(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:
+    """Residual PSD far above a filter corner over the PSD below it (1 = white noise).
+
+    A logger's pre-sample filter shapes the sensor noise it records; the ratio says whether the
+    data carry that shape, whatever the signal errors at the (≤ 10 Hz) excitation.
+    """
     low = (freq >= 0.01 * fs) & (freq <= 0.03 * fs)
     high = (freq >= 0.2 * fs) & (freq <= 0.45 * fs)
     if not low.any() or not high.any():
         return 1.0
     return float(np.median(psd[high]) / max(np.median(psd[low]), 1e-300))
+
+
+def estimate_corner_hz(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:
+    """Corner of a 2nd-order Butterworth pre-sample filter from the shape of the noise PSD.
+
+    PSD(f) ≈ s²·|H(f; fc)|² + e² (filtered sensor noise plus white excess), H the bilinear
+    discretisation the chain uses (its zero at Nyquist matters up there); for each fc on a
+    log grid s² and e² follow by non-negative least squares in the log-weighted sense; the fc
+    with the smallest log-spectral misfit wins.
+    """
+    from scipy.optimize import nnls
+
+    band = (freq >= 0.005 * fs) & (freq <= 0.45 * fs) & (psd > 0)
+    f, p = freq[band], psd[band]
+    best = (np.inf, DEFAULT_ANTIALIAS_HZ)
+    for fc in np.geomspace(0.01 * fs, 0.4 * fs, 121):
+        b, a, gain = antialias_filter(float(fc), round(1.0 / fs, 15))
+        h2 = np.abs(signal.freqz(b, a, worN=f, fs=fs)[1]) ** 2
+        coef, _ = nnls(np.column_stack([h2, np.ones_like(f)]) / p[:, None], np.ones_like(f))
+        model = coef[0] * h2 + coef[1]
+        if model.min() <= 0:
+            continue
+        misfit = float(np.median(np.abs(np.log(p / model))))
+        if misfit < best[0]:
+            best = (misfit, float(fc))
+    fc = best[1]
+    # within the grid's resolution of the documented rig's filter: take the documented value
+    return DEFAULT_ANTIALIAS_HZ if abs(np.log(fc / DEFAULT_ANTIALIAS_HZ)) < 0.05 else round(fc, 1)
 
 
 def logger_options(dataset: Dataset, replay: Replay) -> list[tuple[float | None, str]]:
@@ -87,10 +120,13 @@ def logger_options(dataset: Dataset, replay: Replay) -> list[tuple[float | None,
     contexts = {opt: Context(replay, channel_info(dataset, channel, opt, replay.t_ref_c), targets,
                              None)  # type: ignore[arg-type]
                 for opt in (DEFAULT_ANTIALIAS_HZ, None)}
-    ratio = noise_rolloff(contexts[DEFAULT_ANTIALIAS_HZ])
+    freq, psd = residual_noise_psd(contexts[DEFAULT_ANTIALIAS_HZ])
+    fs = 1.0 / replay.dt_s
+    ratio = noise_rolloff(freq, psd, fs)
     if ratio < ROLLOFF_RATIO:
-        return [(DEFAULT_ANTIALIAS_HZ,
-                 f"noise rolls off above {DEFAULT_ANTIALIAS_HZ:g} Hz (ratio {ratio:.3f})")]
+        corner = estimate_corner_hz(freq, psd, fs)
+        return [(corner, f"the residual noise rolls off like a 2nd-order filter at {corner:g} Hz "
+                         f"(high/low band ratio {ratio:.3f})")]
     reason = (f"white residual noise (ratio {ratio:.2f}): no filter, or one drowned by excess "
               "noise; the simpler diagnosis decides")
     return [(None, reason), (DEFAULT_ANTIALIAS_HZ, reason)]

@@ -6,6 +6,7 @@ residual views, the logger chain assumed, and the not-testable reasons.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -48,49 +49,93 @@ def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,
     return ChannelResult(channel, nominal, ctx.current, findings, rows, ctx.correlation), ctx
 
 
+@dataclass(frozen=True)
+class _Drift:
+    """A drift estimate, where it came from, and how the replay must be warped for it."""
+
+    drift_ppm: float
+    ci: list[float]
+    source: str
+    before: Fit
+    after: Fit
+    baseline_warp_ppm: float | None = None
+    final_warp: tuple[float, bool] | None = None
+
+
+def _edge_resolution_ppm(ctx: Context) -> float:
+    """Drift the edges cannot see without latch times: one sample over the longest record."""
+    longest = max(s.time_s[-1] for s in ctx.replay.steps)
+    return ctx.replay.dt_s / max(longest, 1e-9) * 1e6
+
+
+def _estimate_drift(ctx: Context) -> _Drift | None:
+    """Edges when present (refined by the phase trend when they resolve one sample only),
+    else the phase trend alone."""
+    est = clock_drift(ctx)
+    if est is None:
+        trend = phase_trend_drift(ctx, from_start=True)
+        if trend is None:
+            return None
+        d, ci, fit = trend
+        return _Drift(d, ci, "phase trend (no sync edges)", ctx.current, fit, None, (-d, True))
+    d, u = est.drift_ppm, est.u_ppm
+    edges = _Drift(d, [d - 1.96 * u, d + 1.96 * u], "sync edges", one_clock_fit(ctx, d),
+                   ctx.current, d, None)
+    if ctx.replay.fp_latch:
+        return edges
+    res = _edge_resolution_ppm(ctx)
+    trend = phase_trend_drift(ctx, from_start=False, limit_ppm=3.0 * res)
+    if trend is None or (trend[1][1] - trend[1][0]) / 2 > res:
+        return edges
+    extra, ci, fit = trend
+    return _Drift(d + extra, [d + ci[0], d + ci[1]], "sync edges (one-sample resolution) + phase trend",
+                  one_clock_fit(ctx, d), fit, d, (-extra, False))
+
+
 def _drift_finding(ctx: Context, tolerance_ppm: float) -> tuple[Finding | None, dict[str, Any]]:
-    """Clock drift from the sync edges (or the phase trend without them), beyond tolerance."""
+    """Clock drift from the sync edges and/or the phase trend, a finding beyond tolerance."""
     row: dict[str, Any] = {"effect": "clock_drift", "accepted": False, "testable": True,
                            "attributed_to": "logger", "tolerance_ppm": tolerance_ppm}
-    est = clock_drift(ctx)
-    if est is not None:
-        drift, u, source = est.drift_ppm, est.u_ppm, "sync edges"
-        ci = [drift - 1.96 * u, drift + 1.96 * u]
-        before, after = one_clock_fit(ctx, drift), ctx.current
-    else:
-        trend = phase_trend_drift(ctx)
-        if trend is None:
-            return None, {**row, "delta_bic": None, "testable": False,
-                          "reason": "no sync edges and no sine step to show a phase trend"}
-        drift, ci, after = trend
-        before, source = ctx.current, "phase trend (no sync edges)"
-    n_eff = before.n / ctx.correlation
-    dbic = float(n_eff * np.log(max(after.sse_held_out, 1e-300) / max(before.sse_held_out, 1e-300))
-                 + np.log(n_eff))
-    row |= {"delta_bic": dbic, "parameters": {"drift_ppm": drift}, "source": source}
-    significant = ci[0] > 0 or ci[1] < 0
-    if abs(drift) <= tolerance_ppm or not significant or dbic > -BIC_THRESHOLD and source != "sync edges":
+    est = _estimate_drift(ctx)
+    if est is None:
+        return None, {**row, "delta_bic": None, "testable": False,
+                      "reason": "no sync edges and no sine step to show a phase trend"}
+    n_eff = est.before.n / ctx.correlation
+    dbic = float(n_eff * np.log(max(est.after.sse_held_out, 1e-300)
+                                / max(est.before.sse_held_out, 1e-300)) + np.log(n_eff))
+    row |= {"delta_bic": dbic, "parameters": {"drift_ppm": est.drift_ppm}, "source": est.source}
+    significant = est.ci[0] > 0 or est.ci[1] < 0
+    measured_by_edges = est.source == "sync edges"
+    if abs(est.drift_ppm) <= tolerance_ppm or not significant or (
+            dbic > -BIC_THRESHOLD and not measured_by_edges):
         row["reason"] = f"|drift| within the rig's clock tolerance ({tolerance_ppm:g} ppm)"
         return None, row
     row["accepted"] = True
-    return Finding("clock_drift", "all", {"drift_ppm": drift}, {"drift_ppm": ci}, dbic,
-                   rmse(before), rmse(after), "logger", {"source": source}), row
+    return Finding("clock_drift", "all", {"drift_ppm": est.drift_ppm}, {"drift_ppm": est.ci},
+                   dbic, rmse(est.before), rmse(est.after), "logger", {"source": est.source},
+                   est.baseline_warp_ppm, est.final_warp), row
 
 
 def _with_drift(ctx: Context, result: ChannelResult, drift: Finding | None) -> tuple[Fit, Fit]:
     """(baseline, final) fits with the clock drift taken into account.
 
-    Nominal means one clock (contracts.md §4 step 1): with edges the data were drift-corrected
-    by the sync, so the one-clock baseline is the nominal replay warped by the drift; from the
-    phase trend the data are on one clock, so the extended model carries the warp.
+    Nominal means one clock (contracts.md §4 step 1): data the edges drift-corrected get a
+    one-clock baseline warped by that correction; drift seen in the phase trend is carried by
+    the extended model's warp.
     """
     if drift is None:
         return result.nominal, result.final
-    ppm = drift.parameters["drift_ppm"]
-    if drift.extra.get("source") == "sync edges":
-        return ctx.fit(replace_spec(result.nominal.spec, warp_ppm=ppm)), result.final
-    return result.nominal, ctx.fit(replace_spec(result.final.spec, warp_ppm=-ppm, delay_s=0.0,
-                                                step_shift_s=(), warp_from_start=True))
+    baseline_warp, final_warp = drift.baseline_warp_ppm, drift.final_warp
+    baseline, final = result.nominal, result.final
+    if baseline_warp is not None:
+        baseline = ctx.fit(replace_spec(result.nominal.spec, warp_ppm=baseline_warp))
+    if final_warp is not None:
+        w, from_start = final_warp
+        spec = replace_spec(result.final.spec, warp_ppm=w, warp_from_start=from_start)
+        if from_start:
+            spec = replace_spec(spec, delay_s=0.0, step_shift_s=())
+        final = ctx.fit(spec)
+    return baseline, final
 
 
 def _noise_finding(ctx: Context, stated_noise_v: float) -> tuple[Finding | None, dict[str, Any]]:

@@ -46,6 +46,10 @@ class Finding:
     rmse_v_after: float
     attributed_to: str = "sensor"
     extra: dict[str, Any] = field(default_factory=dict)
+    #: clock findings only: how the one-clock baseline / the extended replay are warped
+    #: (ppm; final: (ppm, about the record start)); internal, not part of the JSON
+    baseline_warp_ppm: float | None = field(default=None, repr=False)
+    final_warp: tuple[float, bool] | None = field(default=None, repr=False)
 
     def as_dict(self) -> dict[str, Any]:
         return {"effect": self.effect, "parameters": self.parameters, "ci95": self.ci95,

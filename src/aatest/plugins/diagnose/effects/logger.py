@@ -50,27 +50,29 @@ def clock_drift(ctx: Context) -> DriftEstimate | None:
     return DriftEstimate(mean, max(float(np.sqrt(1.0 / np.sum(w))), spread), d.size)
 
 
-def phase_trend_drift(ctx: Context) -> tuple[float, list[float], Any] | None:
-    """DAQ drift (ppm), its 95 % interval and the fit, from the phase trend of the sines.
+def phase_trend_drift(ctx: Context, from_start: bool = True, limit_ppm: float = 2000.0
+                      ) -> tuple[float, list[float], Any] | None:
+    """DAQ drift (ppm) beyond the data's alignment, its 95 % interval and the fit.
 
-    Without sync edges the loggers are aligned at the trigger on one clock, so a rate error
-    makes the sensor's phase slide linearly through each record; the replay warped about the
-    record start by −drift explains it.
+    A clock-rate error makes the sensor's phase slide linearly through each record; the
+    replay warped by −drift explains it. ``from_start``: the loggers are aligned at the
+    trigger only (no edges), so the warp pivots on the record start and per-step offsets are
+    dropped; otherwise the warp pivots on the record middle, on top of the edge alignment.
     """
     from aatest.plugins.diagnose.effects.base import curvature_ci, scalar_search
 
     if not ctx.dynamic_steps:
         return None
-
-    # the trigger aligns each record at its start; per-step offsets would fight the trend
-    base = replace_spec(ctx.current.spec, delay_s=0.0, step_shift_s=(), warp_from_start=True)
+    base = ctx.current.spec
+    if from_start:
+        base = replace_spec(base, delay_s=0.0, step_shift_s=(), warp_from_start=True)
 
     def make(w: float):
         return replace_spec(base, warp_ppm=w)
 
-    w, fit = scalar_search(ctx, make, -MAX_DRIFT_PPM, MAX_DRIFT_PPM,
-                           list(np.linspace(-MAX_DRIFT_PPM, MAX_DRIFT_PPM, 21)), xtol=0.01)
-    ci = curvature_ci(ctx, make, w, 1.0)
+    w, fit = scalar_search(ctx, make, -limit_ppm, limit_ppm,
+                           list(np.linspace(-limit_ppm, limit_ppm, 21)), xtol=0.01)
+    ci = curvature_ci(ctx, make, w, max(0.01 * limit_ppm, 0.1))
     return -w, [-ci[1], -ci[0]], fit
 
 
