@@ -173,15 +173,17 @@ def diagnose_dataset(dataset: Dataset, clock_tolerance_ppm: float | None = None,
     tol = clock_tolerance_ppm or float(dataset.metadata.get("clock_tolerance_ppm")
                                        or DEFAULT_CLOCK_TOLERANCE_PPM)
     options = logger_options(dataset, replay)
-    if len(options) > 1:  # ambiguous logger chain: the one needing fewer effects wins
-        docs = [_diagnose_with(dataset, replay, corner, reason, tol) for corner, reason in options]
-        best = min(range(len(docs)), key=lambda i: (len(docs[i]["findings"]),
-                                                    docs[i]["gain"]["rmse_v_after"]))
-        if figures is None:
-            return docs[best]
-        options = [options[best]]
-    corner, reason = options[0]
-    return _diagnose_with(dataset, replay, corner, reason, tol, figures)
+    docs: list[tuple[dict[str, Any], dict[str, str]]] = []
+    for corner, reason in options:  # ambiguous chain: the one needing fewer effects wins
+        figs: dict[str, str] = {}
+        docs.append((_diagnose_with(dataset, replay, corner, reason, tol,
+                                    figs if figures is not None else None), figs))
+        if not docs[-1][0]["findings"]:
+            break  # nothing to explain: no other chain can be simpler
+    doc, figs = min(docs, key=lambda d: (len(d[0]["findings"]), d[0]["gain"]["rmse_v_after"]))
+    if figures is not None:
+        figures.update(figs)
+    return doc
 
 
 def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, source: str,
