@@ -13,7 +13,7 @@ from typing import Any
 
 from aatest.engine import registry
 from aatest.engine.dataset import Dataset
-from aatest.engine.errors import AnalysisError, PluginError
+from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext
 
 log = logging.getLogger("aatest.analysis")
@@ -73,8 +73,6 @@ def run_analyses(data: Dataset, requested: list[str] | tuple[str, ...]) -> Analy
             out.errors[name] = str(exc)
             log.error("analysis %r: %s", name, exc)
             continue
-        except PluginError:
-            raise
         out.values[key] = result.values
         if result.figures:
             out.figures[key] = dict(result.figures)

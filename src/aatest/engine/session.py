@@ -5,6 +5,7 @@ procedure → plan → envelope → rig → runner → recording → analyses �
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,10 +15,12 @@ from aatest.engine import registry
 from aatest.engine.analyses import run_analyses
 from aatest.engine.errors import InputError
 from aatest.engine.results import build_results, read_results, write_results
-from aatest.engine.rig import build_rig, sensor_datasheet
+from aatest.engine.rig import build_rig
 from aatest.engine.run_state import STATE_FILE, RunState, open_state
 from aatest.engine.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
 from aatest.engine.steps import Plan, SensorRef
+
+log = logging.getLogger("aatest")
 
 SIGNING_KEY_ENV = "AATEST_SIGNING_KEY"
 PASSPHRASE_ENV = "AATEST_SIGNING_PASSPHRASE"
@@ -42,27 +45,27 @@ class Prepared:
 def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
     """Load, expand and envelope-check a procedure; nothing moves."""
     from aatest.engine.envelope import check_envelope
-    from aatest.engine.loader import load_procedure, load_rig, rig_from_procedure
+    from aatest.engine.loader import load_rig, parse_procedure, rig_from_procedure
     from aatest.engine.planner import expand_traced
+    from aatest.engine.yaml_loader import read_text
 
-    proc = load_procedure(procedure)
+    text = read_text(procedure)  # read once: the hash recorded is of exactly what was planned
+    proc = parse_procedure(text, str(procedure))
     rig_config = load_rig(rig_file) if rig_file else rig_from_procedure(proc)
     sensor = SensorRef(model=proc.sensor.model, serial=proc.sensor.serial)
-    datasheet, _ = sensor_datasheet(sensor)
-    envelope = _declared_envelope(rig_config, sensor)
+    envelope, datasheet = _declared_limits(rig_config, sensor)
     expansion = expand_traced(proc, envelope=envelope, datasheet=datasheet)
     check_envelope(
         expansion.plan, envelope, datasheet, procedure_file=str(procedure), sources=expansion.sources
     )
-    text = procedure.read_text(encoding="utf-8")
     return Prepared(procedure, text, expansion.plan, rig_config, expansion)
 
 
-def _declared_envelope(rig_config: Any, sensor: SensorRef) -> Any:
-    """The envelope the turntable plugin declares (constructing a plugin never moves it)."""
+def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any]:
+    """The turntable plugin's envelope and the sensor's datasheet (constructing moves nothing)."""
     rig = build_rig(rig_config, sensor, seed=0)
     try:
-        return rig.turntable.envelope()
+        return rig.turntable.envelope(), rig.datasheet
     finally:
         rig.turntable.close()
         rig.daq.close()
@@ -179,9 +182,7 @@ def run(
     recorder.prune_step_files()
     key = signing_key(key_path)
     if plan.sign and key is None:
-        import logging
-
-        logging.getLogger("aatest").warning(
+        log.warning(
             "procedure asks for a signed report but no key is configured "
             f"(--sign-key or {SIGNING_KEY_ENV}); the report is unsigned"
         )
