@@ -1,4 +1,4 @@
-"""Benchmark: analyse the full stepped-sine campaign (method.md §4.4) and print samples/s.
+"""Benchmark: analyse the full stepped-sine campaign (docs/method.md §4.4) and print samples/s.
 
 The campaign is the published 28-point frequency grid in the constant-amplitude (0.2°) and
 constant-acceleration (1, 10, 100, 400 °/s²) groups, inside the sensor/table envelope, each
@@ -20,11 +20,11 @@ from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.frf import FrfAnalysis
 from aatest.plugins.analysis.transfer_function import TransferFunctionAnalysis
-from aatest.plugins.sim.api import realistic_rig_model, simulate_dataset
-from aatest.plugins.sync.analysis import SyncAnalysis
+from aatest.twin.api import realistic_rig_model, simulate_dataset
+from aatest.plugins.analysis.sync import SyncAnalysis
 
 FS_HZ = 2000.0
-#: published cycle counts in a 2^17-sample record (method.md §4.4: 28 points)
+#: published cycle counts in a 2^17-sample record (docs/method.md §4.4: 28 points)
 CYCLES_2_17 = (26, 31, 38, 45, 54, 65, 66, 78, 94, 112, 131, 135, 163, 195, 197, 234, 262, 280,
                328, 337, 393, 404, 459, 485, 524, 582, 590, 655)
 CEILING_DPS2, FLOOR_DPS2, TABLE_ACCEL_DPS2, TABLE_RATE_DPS = 450.0, 0.8, 1000.0, 1200.0

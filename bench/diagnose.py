@@ -20,9 +20,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from aatest.engine.exporter import export_csv
-from aatest.plugins.diagnose.command import diagnose_command
-from aatest.plugins.diagnose.scenarios import (
+from aatest.engine.data.exporter import export_csv
+from aatest.diagnose.command import diagnose_command
+from aatest.diagnose.scenarios import (
     clean_rig,
     diagnostic_plan,
     draw_hidden,
@@ -31,7 +31,7 @@ from aatest.plugins.diagnose.scenarios import (
     suite_cases,
     with_effects,
 )
-from aatest.plugins.sim.api import simulate_dataset
+from aatest.twin.api import simulate_dataset
 
 #: the two steps of the 12-step diagnostic plan left out to make the 10-step bench dataset
 _LEFT_OUT = ("f1-a400", "rate50")
@@ -56,7 +56,7 @@ def bench_once(samples: int, effect: str | None, seed: int) -> tuple[float, list
 def run_suite(samples: int) -> None:
     """Score the hidden-effect suite (in-process pipeline on exported/imported data)."""
     from aatest.engine.recording import read_dataset
-    from aatest.plugins.diagnose.pipeline import diagnose_dataset
+    from aatest.diagnose.pipeline import diagnose_dataset
 
     cases, bad = suite_cases(), 0
     for name, hidden, seed in cases:

@@ -23,7 +23,7 @@ from aatest.engine.dataset import StepData
 from aatest.engine.logs import SampledLog
 from aatest.engine.recording import RunRecorder, read_dataset
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.sim.api import realistic_rig_model, simulate_dataset
+from aatest.twin.api import realistic_rig_model, simulate_dataset
 
 MB = 1e6
 

@@ -28,12 +28,12 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from aatest.engine.steps import PlannedStep  # noqa: E402
-from aatest.plugins.sim.api import World, realistic_rig_model, run_step  # noqa: E402
-from aatest.plugins.sim.model import RigModel  # noqa: E402
+from aatest.twin.api import World, realistic_rig_model, run_step  # noqa: E402
+from aatest.twin.model import RigModel  # noqa: E402
 
 FS_HZ = 2000.0
 SAMPLES = 2**17
-#: cycle counts of the 28 published points (method.md §4.4), f = c·Fs/N
+#: cycle counts of the 28 published points (docs/method.md §4.4), f = c·Fs/N
 CYCLES = (26, 31, 38, 45, 54, 65, 66, 78, 94, 112, 131, 135, 163, 195, 197, 234, 262, 280, 328,
           337, 393, 404, 459, 485, 524, 582, 590, 655)
 GROUPS = (("position-0.2", None), ("accel-1", 1.0), ("accel-10", 10.0), ("accel-100", 100.0),
@@ -57,8 +57,8 @@ def _own_steps(settle_s: float = 5.0) -> list[PlannedStep]:
 def _shipped_steps() -> list[PlannedStep] | None:
     """The shipped procedure's plan, when the planner and procedure are importable."""
     try:
-        from aatest.engine.loader import load_procedure
-        from aatest.engine.planner import expand
+        from aatest.engine.procedure.loader import load_procedure
+        from aatest.engine.procedure.planner import expand
 
         import aatest
 

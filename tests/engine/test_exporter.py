@@ -11,7 +11,7 @@ from recording_data import run_meta, sine_step, step_logs
 from ruamel.yaml import YAML
 
 from aatest.engine.dataset import Dataset, StepData
-from aatest.engine.exporter import export_csv
+from aatest.engine.data.exporter import export_csv
 from aatest.engine.logs import SampledLog
 from aatest.engine.recording import RunRecorder, read_dataset
 from aatest.engine.steps import PlannedStep
@@ -116,7 +116,7 @@ def test_amplitude_only_sine_gets_its_peak_acceleration(tmp_path: Path) -> None:
 
 def test_twin_dataset_survives_record_export_import(tmp_path: Path) -> None:
     """Data from the digital twin: recording bit-exact, CSV export bit-exact on float64."""
-    api = pytest.importorskip("aatest.plugins.sim.api")
+    api = pytest.importorskip("aatest.twin.api")
     steps = [
         PlannedStep(id="sine", kind="sine", axis="inner", samples=8192, sample_rate_hz=2000.0,
                     duration_s=4.096, frequency_hz=2.0, cycles=8, accel_dps2=400.0,
@@ -138,7 +138,7 @@ def test_twin_dataset_survives_record_export_import(tmp_path: Path) -> None:
         for log in ("table", "daq"):
             assert_same_channels(getattr(original, log), getattr(rec, log))
             assert_same_channels(getattr(original, log), getattr(imp, log))
-    analyses = pytest.importorskip("aatest.engine.analyses")
+    analyses = pytest.importorskip("aatest.engine.analysis.passes")
     on_recording = analyses.run_analyses(recorded, ["sync"]).values
     on_export = analyses.run_analyses(imported, ["sync"]).values
     assert "sync" in on_recording

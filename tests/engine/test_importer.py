@@ -1,4 +1,4 @@
-"""Measured-data import (contracts.md §3): tolerant of layout, strict about content."""
+"""Measured-data import (docs/interfaces.md §3): tolerant of layout, strict about content."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from aatest.engine.errors import ImportDataError, ProblemsError
-from aatest.engine.importer import DatasetFileError, import_dataset
+from aatest.engine.data.importer import DatasetFileError, import_dataset
 from aatest.engine.recording import read_dataset
 
 RATE_HZ = 2000.0

@@ -12,9 +12,9 @@ from ruamel.yaml import YAML
 
 import aatest
 from aatest.engine.errors import EXIT_BAD_INPUT, ProcedureError
-from aatest.engine.loader import (PluginSpec, load_procedure, load_rig, parse_procedure,
+from aatest.engine.procedure.loader import (PluginSpec, load_procedure, load_rig, parse_procedure,
                                   rig_from_procedure)
-from aatest.engine.planner import expand
+from aatest.engine.procedure.planner import expand
 
 SHIPPED = Path(aatest.__file__).parent / "procedures"
 DATA = Path(__file__).parents[1] / "data" / "procedures"

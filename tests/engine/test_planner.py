@@ -10,14 +10,14 @@ import pytest
 from numpy.testing import assert_allclose
 
 import aatest
-from aatest.engine.loader import load_procedure, parse_procedure
-from aatest.engine.planner import expand, expand_traced, snap_frequency, sweep_points, trace_of
-from aatest.engine.procedure import SweepFrequencies
+from aatest.engine.procedure.loader import load_procedure, parse_procedure
+from aatest.engine.procedure.planner import expand, expand_traced, snap_frequency, sweep_points, trace_of
+from aatest.engine.procedure.models import SweepFrequencies
 
 SHIPPED = Path(aatest.__file__).parent / "procedures"
 DATA = Path(__file__).parents[1] / "data" / "procedures"
 
-#: method.md §4.4, the published 28-point matrix (Hz)
+#: docs/method.md §4.4, the published 28-point matrix (Hz)
 PUBLISHED_HZ = np.array([
     0.396728516, 0.473022461, 0.579833984, 0.686645508, 0.823974609, 0.991821289, 1.007080078,
     1.190185547, 1.434326172, 1.708984375, 1.998901367, 2.059936523, 2.487182617, 2.975463867,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from pydantic import ValidationError
 
-from aatest.engine.procedure import Procedure, SineStep, SweepFrequencies
+from aatest.engine.procedure.models import Procedure, SineStep, SweepFrequencies
 
 BASE = {"procedure": "p", "sensor": {"model": "sr207"}}
 

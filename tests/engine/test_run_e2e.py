@@ -19,7 +19,7 @@ SWEEP = HERE / "data" / "resume-sweep.yaml"
 
 
 def aatest(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    cmd = [sys.executable, "-m", "aatest.engine.cli", *args]
+    cmd = [sys.executable, "-m", "aatest.cli", *args]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
 
 
@@ -47,7 +47,7 @@ def test_quick_run_produces_recording_results_and_report(tmp_path: Path) -> None
     results = json.loads((run_dir / "results.json").read_text())
     assert set(results) >= {"procedure", "rig", "steps", "analysis", "lab_duration_s", "wall_duration_s"}
     assert len(results["steps"]) == 3 and results["analysis_errors"] == {}
-    # the twin's sensor: ≈ −48 dB (°/s² → V) at low frequency, as measured (method.md §1.3)
+    # the twin's sensor: ≈ −48 dB (°/s² → V) at low frequency, as measured (docs/method.md §1.3)
     gains = [p["gain_db"] for p in results["analysis"]["frf"]["v_sz"]]
     assert gains[0] == pytest.approx(-47.9, abs=0.3)
     assert (run_dir / "report.html").stat().st_size > 1000
@@ -67,7 +67,7 @@ def test_resuming_a_finished_run_only_analyses_again(tmp_path: Path) -> None:
 
 def test_sigkill_mid_step_then_resume_records_every_step_once(tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
-    cmd = [sys.executable, "-m", "aatest.engine.cli", "run", str(SWEEP), "--out", str(run_dir),
+    cmd = [sys.executable, "-m", "aatest.cli", "run", str(SWEEP), "--out", str(run_dir),
            "--no-progress", "--seed", "5"]
     proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)

@@ -9,9 +9,9 @@ import pytest
 from aatest.engine.errors import RigFault
 from aatest.engine.interfaces import RigContext, SensorDatasheet
 from aatest.engine.logs import SampledLog
-from aatest.engine.rig import Rig
-from aatest.engine.run_state import open_state
-from aatest.engine.runner import run_plan
+from aatest.engine.run.rig import Rig
+from aatest.engine.run.run_state import open_state
+from aatest.engine.run.runner import run_plan
 from aatest.engine.steps import Plan, PlannedStep, SensorRef
 
 

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import json
 
-from aatest.engine.schema_export import SCHEMA_PATH, procedure_json_schema, render
+from aatest.engine.procedure.schema_export import SCHEMA_PATH, procedure_json_schema, render
 
 
 def test_committed_schema_is_fresh() -> None:
     committed = SCHEMA_PATH.read_text(encoding="utf-8")
     assert committed == render(), (
         "src/aatest/schemas/procedure.schema.json is stale: run "
-        "`python -m aatest.engine.schema_export` and commit the result")
+        "`python -m aatest.engine.procedure.schema_export` and commit the result")
 
 
 def test_schema_describes_the_contract_shape() -> None:

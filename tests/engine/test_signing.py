@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from aatest.engine.errors import InputError
-from aatest.engine.signing import (
+from aatest.engine.run.signing import (
     file_sha256,
     generate_keypair,
     key_fingerprint,

@@ -17,11 +17,11 @@ from aatest.plugins.chamber.none import NoChamber
 from aatest.plugins.chamber.sim import SimChamber
 from aatest.plugins.daq.sim import SimDaq
 from aatest.plugins.sensors.sr207 import SR207, SR207Unit
-from aatest.plugins.sim.api import nominal_rig_model
-from aatest.plugins.sim.model import dump_rig_model
+from aatest.twin.api import nominal_rig_model
+from aatest.twin.model import dump_rig_model
 from aatest.plugins.turntable.sim import SimTurntable
 
-sys.path.insert(0, str(Path(__file__).parent / "sim"))
+sys.path.insert(0, str(Path(__file__).parents[1] / "twin"))
 from twin_steps import sine_step, static_step  # noqa: E402
 
 
@@ -142,7 +142,7 @@ def test_pivot_flips_cross_axis_response() -> None:
     axes_p = w.sensor_axes()["v_sz"]
     # in the seat's frame (block and seat errors undone) the sensor turns 180° about z:
     # x and y turn over, and the sensitive axis' lean (internal misalignment) flips with them
-    from aatest.plugins.sim.kinematics import SEAT_FRAMES
+    from aatest.twin.kinematics import SEAT_FRAMES
 
     seat = w.block_error @ SEAT_FRAMES["I"] @ w.seat_error["v_sz"]
     assert_allclose(seat.T @ axes_p, np.diag([-1.0, -1.0, 1.0]) @ (seat.T @ axes_o), atol=1e-12)

@@ -1,1 +1,18 @@
-"""Orchestration: procedure models, loading, planning, plugin registry, runner, recording."""
+"""The engine: from a procedure file to a recorded, analysed run.
+
+Package map (data flows top to bottom):
+
+- ``errors``       the one exception tree (``AatestError``) and the CLI exit codes
+- ``steps``, ``logs``, ``dataset``  the shared records: planned steps, raw logs, analysis input
+- ``interfaces``   one ``Protocol`` per plugin kind, the sensor datasheet, the table envelope
+- ``registry``     installed plugins by entry-point group, validated when loaded
+- ``procedure/``   procedure YAML → pydantic models (with FILE:LINE:COLUMN errors) → plan →
+                   envelope check; the JSON Schema export
+- ``run/``         rig life cycle (safe stop on any fault), step loop with resume, run state,
+                   signatures, and ``session`` (what each command does end to end)
+- ``recording/``   MCAP recording: per-step crash-safe files, the merged recording, reading back
+- ``data/``        measured-data import and CSV export (the import format)
+- ``analysis/``    the analysis pass over a dataset and ``results.json``
+
+The engine never imports a plugin module: plugins are found through entry points only.
+"""

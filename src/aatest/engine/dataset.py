@@ -1,7 +1,7 @@
 """The one input every analysis reads: steps with their two raw logs and the sensors' nominals.
 
 A :class:`Dataset` is built either from an aatest recording (``recording.mcap``) or from a
-measured-data import directory (contracts.md §3), so analyses and ``diagnose`` never care
+measured-data import directory (docs/interfaces.md §3), so analyses and ``diagnose`` never care
 where the data came from and can always be re-run offline.
 """
 

@@ -52,7 +52,7 @@ class TableEnvelope(BaseModel):
     outer: AxisLimits = AxisLimits(rate_dps=500.0, accel_dps2=200.0)
     max_log_rate_hz: float = 2000.0
     log_capacity_samples: int = 230_000
-    #: usable terminal frequency with payload (method.md §1.2: 10 Hz, not 11.25 Hz)
+    #: usable terminal frequency with payload (docs/method.md §1.2: 10 Hz, not 11.25 Hz)
     max_frequency_hz: float = 10.0
 
 
@@ -67,14 +67,18 @@ class SensorDatasheet(BaseModel):
     scale_v_per_dps2: float = 0.004014
     scale_tolerance_pct: float = 1.0
     noise_rms_v: float = 0.003
-    #: fraction of range a test may command (method.md §4.4: 80 %)
+    #: fraction of range a test may command (docs/method.md §4.4: 80 %)
     test_ceiling_fraction: float = 0.8
-    #: smallest useful peak acceleration (noise floor, method.md §4.4: 0.8 °/s²)
+    #: smallest useful peak acceleration (noise floor, docs/method.md §4.4: 0.8 °/s²)
     floor_dps2: float = 0.8
     bias_temperature_limit_v_per_c: float = 0.0004
     scale_temperature_limit_per_c: float = 0.0005
     cross_axis_limit: float = 0.01
     misalignment_limit_deg: float = 0.5
+    #: None: 0.1 % FR/g or 0.01 rad/s²/g, whichever is greater (docs/method.md §1.3)
+    g_sensitivity_limit_dps2_per_g: float | None = None
+    #: non-linearity limit, % of full range (docs/method.md §1.3: ±0.05 % FR)
+    nonlinearity_limit_pct_fr: float = 0.05
     #: channel name → sensitive axis in the table frame (I, O, P)
     channels: Mapping[str, str] = Field(default_factory=lambda: {"v_sz": "I"})
 

@@ -89,7 +89,7 @@ class Plan(_Frozen):
         return float(sum(s.lab_duration_s for s in self.steps))
 
     def to_contract_json(self) -> dict[str, object]:
-        """The ``aatest plan --json`` document (contracts.md §1)."""
+        """The ``aatest plan --json`` document (docs/interfaces.md §1)."""
         return {
             "procedure": self.procedure,
             "steps": [s.model_dump(mode="json") for s in self.steps],

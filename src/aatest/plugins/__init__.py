@@ -1,2 +1,3 @@
-"""Plugins: rig drivers (turntable, daq, chamber, sensors), the digital twin they share (sim),
-synchronisation, analyses and reports. Each kind has its own sub-package."""
+"""Plugins, one sub-package per entry-point kind: ``turntable``, ``daq``, ``chamber``,
+``sensors``, ``analysis`` and ``report``. The engine finds them through entry points only;
+vendors add their own the same way (see ``docs/vendor-plugins.md``)."""

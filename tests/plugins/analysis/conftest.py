@@ -9,7 +9,7 @@ import pytest
 
 @pytest.fixture(scope="session")
 def realistic_unit() -> Any:
-    """The measured-behaviour rig (method.md §1.2–1.3) with the three-sensor unit."""
-    from aatest.plugins.sim.api import realistic_rig_model
+    """The measured-behaviour rig (docs/method.md §1.2–1.3) with the three-sensor unit."""
+    from aatest.twin.api import realistic_rig_model
 
     return realistic_rig_model("sr207-aamu")

@@ -46,7 +46,7 @@ def test_gain_phase_delay_match_truth(frf_values) -> None:  # type: ignore[no-un
         truth_delay = -np.angle(h) / (2 * np.pi * p["frequency_hz"])
         assert p["delay_s"] == pytest.approx(truth_delay, abs=0.25e-3)
         assert p["snr_db"] > 40 and p["thd"] < 0.01
-        # the table estimate is noise-dominated broadband (method.md §1.2), yet exact at the bin
+        # the table estimate is noise-dominated broadband (docs/method.md §1.2), yet exact at the bin
         assert -30 < p["table_snr_db"] < 0
         assert p["coherent"]
     assert "bode_v_sz" in out.figures

@@ -10,7 +10,7 @@ import pytest
 from aatest.engine.interfaces import AnalysisContext
 from aatest.plugins.analysis.frf import FrfAnalysis
 from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
-from aatest.plugins.sync.analysis import SyncAnalysis
+from aatest.plugins.analysis.sync import SyncAnalysis
 from synthetic_rig import sine_step
 from twin_helpers import twin_dataset
 
@@ -22,8 +22,8 @@ def _analyse(data):  # type: ignore[no-untyped-def]
 
 
 def test_same_numbers_after_csv_roundtrip(realistic_unit: Any, tmp_path: Path) -> None:
-    from aatest.engine.exporter import export_csv
-    from aatest.engine.importer import import_dataset
+    from aatest.engine.data.exporter import export_csv
+    from aatest.engine.data.importer import import_dataset
 
     model = realistic_unit.model_copy(update={"sensors": realistic_unit.sensors[:1]})
     steps = [sine_step("cal", 8, 400.0, samples=8192, settle_s=1.0),

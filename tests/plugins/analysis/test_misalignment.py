@@ -12,7 +12,7 @@ from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import Mounting
 from aatest.plugins.analysis.misalignment import MisalignmentAnalysis, misalignment_from_spectra
 from synthetic_rig import sine_step
-from aatest.plugins.sim.api import simulate_dataset
+from aatest.twin.api import simulate_dataset
 
 
 def _write(tmp_path: Path, rows: list[str]) -> Path:

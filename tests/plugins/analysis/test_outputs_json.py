@@ -13,7 +13,7 @@ from aatest.plugins.analysis.reference import ReferenceAnalysis
 from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
 from aatest.plugins.analysis.temperature import TemperatureAnalysis
 from aatest.plugins.analysis.transfer_function import TransferFunctionAnalysis
-from aatest.plugins.sync.analysis import SyncAnalysis
+from aatest.plugins.analysis.sync import SyncAnalysis
 from synthetic_rig import SynthRig, make_dataset, sine_step, static_step
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from aatest.plugins.analysis._common import fundamental
 from aatest.plugins.analysis.reference import METHODS, levant_differentiator, reference_accel
-from aatest.plugins.sync import SyncedStep, synchronise
+from aatest.sync import SyncedStep, synchronise
 from synthetic_rig import SynthRig, make_step, sine_step
 
 

@@ -10,7 +10,7 @@ from aatest.plugins.analysis.tfest import fit_discrete_tf, model_metrics, second
 from aatest.plugins.analysis.transfer_function import continuous_equivalent, estimate
 
 FS = 2000.0
-#: the 28 published stepped-sine points (method.md §4.4)
+#: the 28 published stepped-sine points (docs/method.md §4.4)
 F28 = np.array([0.396728516, 0.473022461, 0.579833984, 0.686645508, 0.823974609, 0.991821289,
                 1.007080078, 1.190185547, 1.434326172, 1.708984375, 1.998901367, 2.059936523,
                 2.487182617, 2.975463867, 3.005981445, 3.570556641, 3.997802734, 4.272460938,

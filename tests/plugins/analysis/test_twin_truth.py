@@ -12,7 +12,7 @@ from aatest.engine.interfaces import AnalysisContext
 from aatest.plugins.analysis.bias import BiasAnalysis
 from aatest.plugins.analysis.frf import FrfAnalysis
 from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
-from aatest.plugins.sync.analysis import SyncAnalysis
+from aatest.plugins.analysis.sync import SyncAnalysis
 from twin_helpers import twin_dataset
 from synthetic_rig import sine_step, static_step
 
@@ -54,8 +54,8 @@ def test_scale_factor_against_twin(cal_run) -> None:  # type: ignore[no-untyped-
 
 def _truth_response(model: Any, f_hz: float) -> complex:
     """K·H_sensor·H_antialias·e^{−jωτ} of the twin's v_sz chain."""
-    from aatest.plugins.sim.daq import antialias_filter
-    from aatest.plugins.sim.sensor import dynamics_filter
+    from aatest.twin.daq import antialias_filter
+    from aatest.twin.sensor import dynamics_filter
 
     s = model.sensor("v_sz")
     b, a = dynamics_filter(s.sensor_dynamics.natural_frequency_hz, s.sensor_dynamics.damping,
@@ -91,8 +91,8 @@ def test_bias_against_twin(realistic_unit) -> None:  # type: ignore[no-untyped-d
 
 @pytest.fixture(scope="module")
 def tf_run():  # type: ignore[no-untyped-def]
-    from aatest.plugins.sim.api import realistic_rig_model
-    from aatest.plugins.sim.model import SensorDynamics, SensorModel, TimeDelay
+    from aatest.twin.api import realistic_rig_model
+    from aatest.twin.model import SensorDynamics, SensorModel, TimeDelay
     from test_tfest import F28
 
     sensor = SensorModel(sensor_dynamics=SensorDynamics(natural_frequency_hz=30.0, damping=0.9),
@@ -125,7 +125,7 @@ def test_references_against_twin_truth(cal_run) -> None:  # type: ignore[no-unty
     the calibration uses (the true motion also carries ≈125 Hz servo vibration that no
     smoothing reference keeps, and the sensor barely sees)."""
     from aatest.plugins.analysis.reference import METHODS, reference_accel, zero_phase_lowpass
-    from aatest.plugins.sync import synced_steps
+    from aatest.sync import synced_steps
 
     _, data, truths, _ = cal_run
     synced = synced_steps(data, AnalysisContext())[0]

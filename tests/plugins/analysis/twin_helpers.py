@@ -14,7 +14,7 @@ def twin_dataset(model: Any, steps: Sequence[PlannedStep], seed: int = 11,
                  temperatures_c: Sequence[float | None] | None = None
                  ) -> tuple[Dataset, list[dict[str, Any]]]:
     """Simulate each step on the twin; return the Dataset and each step's truth dict."""
-    from aatest.plugins.sim.api import sensor_infos, simulate_step
+    from aatest.twin.api import sensor_infos, simulate_step
 
     temps = list(temperatures_c) if temperatures_c is not None else [None] * len(steps)
     data, truths = [], []

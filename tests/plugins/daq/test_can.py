@@ -15,7 +15,7 @@ from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.daq import can_frames as cf
 from aatest.plugins.daq.can import CanDaq
-from aatest.plugins.daq.can_sim import CanFaultInjection, SimCanLogger
+from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 
 STEP = PlannedStep(id="s", kind="static", samples=1000)
 _names = itertools.count()

@@ -1,4 +1,4 @@
-"""A hand-made, contract-shaped ``results.json`` with realistic numbers (method.md §1.3, §4).
+"""A hand-made, contract-shaped ``results.json`` with realistic numbers (docs/method.md §1.3, §4).
 
 Three-sensor unit (v_sz on I, v_sy on O, v_sx on P); FRF points follow a 60 Hz, ζ = 0.7
 second-order sensor with a 13.5 ms transport delay at −47.9 dB (K = 4.014 mV/(°/s²)).

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from aatest.engine import registry
-from aatest.engine.signing import (
+from aatest.engine.run.signing import (
     generate_keypair,
     key_fingerprint,
     load_private_key,

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from aatest.engine import session, signing
+from aatest.engine.run import session, signing
 from aatest.plugins.report.pdf import find_browser
 
 QUICK = Path(__file__).parents[2] / "data" / "procedures" / "quick-sine-3-steps.yaml"

@@ -8,8 +8,8 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
-from aatest.engine.cli import app
-from aatest.engine.session import render_and_sign
+from aatest.cli import app
+from aatest.engine.run.session import render_and_sign
 
 RUNNER = CliRunner()
 

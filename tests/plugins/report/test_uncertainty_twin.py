@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aatest.engine.session import run
+from aatest.engine.run.session import run
 from aatest.plugins.report.gum import evaluate
 from aatest.plugins.report.uncertainty import RigConstants, scale_factor_measurand
 

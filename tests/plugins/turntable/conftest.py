@@ -9,11 +9,11 @@ from collections.abc import Callable, Iterator
 import pytest
 
 from aatest.plugins.daq.can import CanDaq
-from aatest.plugins.daq.can_sim import CanFaultInjection, SimCanLogger
-from aatest.plugins.sim.model import RigModel
+from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
+from aatest.twin.model import RigModel
 from aatest.plugins.turntable.modbus import ModbusTurntable
-from aatest.plugins.turntable.modbus_controller import FaultInjection
-from aatest.plugins.turntable.modbus_server import SimModbusServer
+from aatest.twin.servers.modbus_controller import FaultInjection
+from aatest.twin.servers.modbus_server import SimModbusServer
 
 _channels = itertools.count()
 

@@ -10,7 +10,7 @@ import pytest
 from aatest.engine.errors import RigFault
 from aatest.engine.interfaces import AxisLimits, TableEnvelope
 from aatest.engine.logs import TABLE_CHANNELS
-from aatest.engine.runner import execute_step as run_step
+from aatest.engine.run.runner import execute_step as run_step
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.turntable.modbus import ModbusTurntable
 from aatest.plugins.turntable.modbus_map import Status

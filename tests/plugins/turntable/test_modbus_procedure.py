@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from aatest.engine.cli import app
+from aatest.cli import app
 from aatest.engine.errors import EXIT_RIG_FAULT
 from aatest.engine.recording import read_dataset
-from aatest.plugins.daq.can_sim import CanFaultInjection, SimCanLogger
-from aatest.plugins.turntable.modbus_controller import FaultInjection
+from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
+from aatest.twin.servers.modbus_controller import FaultInjection
 from aatest.plugins.turntable.modbus_map import Fault
-from aatest.plugins.turntable.modbus_server import SimModbusServer
+from aatest.twin.servers.modbus_server import SimModbusServer
 
 SEED = 5
 PROCEDURE = """\

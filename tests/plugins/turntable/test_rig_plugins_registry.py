@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.engine import registry
-from aatest.engine.cli import app
+from aatest.cli import app
 from aatest.engine.errors import PluginError
 
 PROCEDURE = """\

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from aatest.engine.cli import app
+from aatest.cli import app
 
 pytestmark = pytest.mark.slow
 PROCEDURE = """\
@@ -54,7 +54,7 @@ def test_run_against_a_separate_sim_server(tmp_path: Path) -> None:
     env = {**os.environ, "AATEST_SIM_CAN_CHANNEL": group,
            "AATEST_SIM_CAN_INTERFACE": "udp_multicast"}
     server = subprocess.Popen(
-        [sys.executable, "-m", "aatest.engine.cli", "sim-server", "modbus", "--host", "127.0.0.1",
+        [sys.executable, "-m", "aatest.cli", "sim-server", "modbus", "--host", "127.0.0.1",
          "--port", str(port), "--seed", "5"], stdout=subprocess.PIPE, text=True, env=env)
     try:
         banner = _wait_for_banner(server, 30.0)

@@ -1,6 +1,6 @@
 """Helpers every analysis shares: which acceleration a sensor sees, DFT bins, figures.
 
-Frames (contracts.md §4): the sensors ride on the inner axis. A sensor on I sees inner-axis
+Frames (docs/interfaces.md §4): the sensors ride on the inner axis. A sensor on I sees inner-axis
 motion; outer-axis motion at inner angle ψ lies along O·cos ψ + P·sin ψ of the table top, so a
 sensor on O sees ``cos ψ`` and one on P ``sin ψ`` of the outer acceleration.
 """
@@ -17,7 +17,7 @@ from scipy import stats
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.sync.freeze_pulse import SyncedStep, synced_steps
 
 #: a sensor counts as excited by a step when its projection of the motion exceeds this
 _EXCITED_WEIGHT = 0.5
@@ -62,7 +62,7 @@ def input_accel_dps2(synced: SyncedStep, sensor_axis: str,
 def whole_cycles(n_samples: int, frequency_hz: float, fs_hz: float) -> tuple[int, int]:
     """Longest sample count holding (to half a sample) an integer number of cycles, and it.
 
-    For a coherent record (method.md §4.4) this is the whole record.
+    For a coherent record (docs/method.md §4.4) this is the whole record.
     """
     per_cycle = fs_hz / frequency_hz
     cycles = int(np.floor(n_samples / per_cycle + 1e-6))
@@ -75,7 +75,7 @@ def fundamental(x: np.ndarray, frequency_hz: float, fs_hz: float) -> complex:
     """One-sided complex amplitude of ``x`` at ``frequency_hz`` (mean removed).
 
     Projection onto ``exp(−j2πft)`` over the whole-cycle part of the record: for a coherent
-    record this is exactly ``2·X[c]/N`` at the excitation DFT bin (method.md §4.4).
+    record this is exactly ``2·X[c]/N`` at the excitation DFT bin (docs/method.md §4.4).
     """
     n, _ = whole_cycles(x.size, frequency_hz, fs_hz)
     seg = np.asarray(x[:n], dtype=np.float64)

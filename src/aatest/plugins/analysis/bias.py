@@ -1,7 +1,7 @@
-"""Static multi-position test: bias and g-sensitivity (method.md §4.1).
+"""Static multi-position test: bias and g-sensitivity (docs/method.md §4.1).
 
 Each static step gives the mean output of every sensor and the specific force of gravity along
-its axis (from the commanded table orientation; contracts.md §4 "Gravity"). Per sensor and
+its axis (from the commanded table orientation; docs/interfaces.md §4 "Gravity"). Per sensor and
 mounting (original / pivoted) and repetition, the up (A+) and down (A−) means give
 K0 = (A+ + A−)/2 and the g-sensitivity (A+ − A−)/2 divided by the scale factor. A straight-line
 fit V = b + k·g over *all* positions (horizontal ones too) is reported alongside, with its
@@ -19,7 +19,7 @@ import numpy as np
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.plugins.analysis._common import scale_in_use, static_records, t95
-from aatest.plugins.sync.freeze_pulse import SyncedStep
+from aatest.sync.freeze_pulse import SyncedStep
 
 _UP_G = 0.9  # |g component| above which a position counts as "axis up/down"
 _RAD_DPS2 = float(np.degrees(1.0))

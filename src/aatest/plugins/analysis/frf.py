@@ -1,4 +1,4 @@
-"""Stepped-sine frequency response at the excitation DFT bin (method.md §4.4).
+"""Stepped-sine frequency response at the excitation DFT bin (docs/method.md §4.4).
 
 Every sine step along a sensor's axis gives one FRF point: the complex fundamentals of the
 table's acceleration estimate (input, °/s²) and of the sensor output (V) on the synchronised
@@ -26,7 +26,7 @@ from aatest.plugins.analysis._common import (
     to_svg,
     whole_cycles,
 )
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.sync.freeze_pulse import SyncedStep, synced_steps
 
 HARMONICS = 6
 _COHERENCE_TOL_CYCLES = 1e-3

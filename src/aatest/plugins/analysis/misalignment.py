@@ -1,4 +1,4 @@
-"""Misalignment of a three-sensor unit from the pivoted test (method.md §4.5).
+"""Misalignment of a three-sensor unit from the pivoted test (docs/method.md §4.5).
 
 Two estimators on the same recordings:
 
@@ -32,7 +32,7 @@ from aatest.plugins.analysis.misalignment_method import (
     evaluate,
     misalignment_from_spectra,
 )
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.sync.freeze_pulse import SyncedStep, synced_steps
 
 __all__ = ["MisalignmentAnalysis", "misalignment_from_spectra"]
 

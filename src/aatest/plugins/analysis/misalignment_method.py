@@ -1,8 +1,8 @@
-"""The published pivoted-misalignment evaluation (method.md §4.5, contracts.md §5).
+"""The published pivoted-misalignment evaluation (docs/method.md §4.5, docs/interfaces.md §5).
 
 Input: complex fundamentals per set (A..H), experiment (1..6) and sensor (SZ on I, SY on O,
 SX on P). Experiments 1/4 excite I, 2/5 excite O, 3/6 excite P (inner at 90°, outer excited).
-Each sensor's own x/y axes follow the seat frames of the unit (contracts.md §4): S_Z x = P,
+Each sensor's own x/y axes follow the seat frames of the unit (docs/interfaces.md §4): S_Z x = P,
 y = O; S_Y x = I, y = P; S_X x = O, y = I. Per sensor: cross ratios R = |A_x|/|A_z|, |A_y|/|A_z|,
 the non-sensitive resultant ΔA = √(A_x² + A_y²) on the complex values (principal root),
 δ_e = arcsin(|ΔA|/|A_z|); per scenario δ = (δ_e(original) − δ_e(pivoted))/2 and the corrected

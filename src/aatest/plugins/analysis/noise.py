@@ -1,4 +1,4 @@
-"""Output noise of the sensors at rest: PSD, band RMS and Allan deviation (method.md §1.3).
+"""Output noise of the sensors at rest: PSD, band RMS and Allan deviation (docs/method.md §1.3).
 
 From the static steps: Welch PSD of the output (V²/Hz), RMS in the datasheet band DC–400 Hz
 (mean removed) against the datasheet limit, and the overlapping Allan deviation of the output
@@ -17,7 +17,7 @@ from scipy import signal
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.plugins.analysis._common import new_figure, scale_in_use, static_records, to_svg
-from aatest.plugins.sync.freeze_pulse import SyncedStep
+from aatest.sync.freeze_pulse import SyncedStep
 
 BAND_HZ = 400.0
 _SLOPE_TOL = 0.15

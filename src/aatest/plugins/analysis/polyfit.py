@@ -1,6 +1,6 @@
 """Polynomial calibration models by QR least squares, with the statistics a lab signs.
 
-Model (method.md §4.3): y = Σ a_i·u^i, i = 0..p, u the sensor output (V, bias removed), y the
+Model (docs/method.md §4.3): y = Σ a_i·u^i, i = 0..p, u the sensor output (V, bias removed), y the
 reference acceleration (°/s²). The design is built on u/u_max (so order 15 stays well
 conditioned) and the coefficients are mapped back to physical units exactly.
 """
@@ -152,7 +152,7 @@ def cross_validate(u: np.ndarray, y: np.ndarray, max_order: int = 15, random_spl
 
 def choose_order(table: dict[str, np.ndarray], rel_tol: float = 0.05, min_order: int = 1,
                  abs_tol: float = 0.0) -> int:
-    """Lowest order whose criteria are not meaningfully worse than the best (method.md §4.3).
+    """Lowest order whose criteria are not meaningfully worse than the best (docs/method.md §4.3).
 
     "Meaningfully" = mean validation RMSE above the best by more than ``rel_tol`` (5 %) *and*
     by more than ``abs_tol`` (the sensor's resolution: no one can use a smaller gain), with

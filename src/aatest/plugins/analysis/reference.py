@@ -1,4 +1,4 @@
-"""Angular-acceleration references built from the table's logs (method.md §1.2, §4.3).
+"""Angular-acceleration references built from the table's logs (docs/method.md §1.2, §4.3).
 
 A position table measures position and rate superbly but acceleration badly: its own estimate
 is a double difference of the position estimate, dominated by high-frequency noise. The
@@ -31,7 +31,7 @@ from scipy import signal
 from aatest.engine.dataset import Dataset
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.plugins.analysis._common import fundamental
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.sync.freeze_pulse import SyncedStep, synced_steps
 
 METHODS = ("table", "central_position", "five_point_position", "central_rate",
            "five_point_rate", "savgol", "smooth", "levant")
@@ -89,7 +89,7 @@ def zero_phase_lowpass(x: np.ndarray, fs_hz: float, cutoff_hz: float, order: int
 
 def levant_differentiator(rate_dps: np.ndarray, fs_hz: float, lipschitz_dps3: float
                           ) -> np.ndarray:
-    """Levant's first-order sliding-mode differentiator of a rate, °/s² (method.md §4.3).
+    """Levant's first-order sliding-mode differentiator of a rate, °/s² (docs/method.md §4.3).
 
     y′ = α, α = v − λ·|y − ω|^½·sign(y − ω), v′ = −β·sign(y − ω), with β = 2C and
     λ = √(4C(β + C)/(β − C)) = √(12·C), C the Lipschitz bound of dα/dt (jerk, °/s³).

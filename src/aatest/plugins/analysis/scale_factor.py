@@ -1,4 +1,4 @@
-"""Scale-factor calibration from a single-frequency sine (method.md §4.3).
+"""Scale-factor calibration from a single-frequency sine (docs/method.md §4.3).
 
 Per sensor: the sine steps along its axis at ≤ 2 Hz with the largest acceleration (the 1 Hz,
 70 %-of-range test) are synchronised, the reference (default: zero-phase low-pass of the table
@@ -29,7 +29,7 @@ from aatest.plugins.analysis._common import (
     to_svg,
 )
 from aatest.plugins.analysis.reference import default_cutoff_hz, reference_accel, zero_phase_lowpass
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.sync.freeze_pulse import SyncedStep, synced_steps
 
 _MAX_CAL_FREQUENCY_HZ = 2.0
 #: datasheet threshold/resolution, fraction of the range (0.005 % FR)

@@ -1,4 +1,4 @@
-"""Temperature test: bias and scale factor against sensor temperature (method.md §4.2).
+"""Temperature test: bias and scale factor against sensor temperature (docs/method.md §4.2).
 
 The sensor temperature of a step is the mean of the DAQ's ``temperature_c`` channel (else the
 chamber set-point). Static steps give the bias line V = b0 + c·(T − 25 °C) (+ a gravity term
@@ -27,7 +27,7 @@ from aatest.plugins.analysis._common import (
 )
 from aatest.plugins.analysis.bias import gravity_along_g
 from aatest.plugins.analysis.polyfit import fit_polynomial
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.sync.freeze_pulse import SyncedStep, synced_steps
 
 T_REF_C = 25.0
 _MIN_SPAN_C = 5.0

@@ -1,4 +1,4 @@
-"""Transfer-function models of the sensor from the stepped-sine FRF (method.md §4.4).
+"""Transfer-function models of the sensor from the stepped-sine FRF (docs/method.md §4.4).
 
 Per sensor and test group: discrete models with n = 0..5 poles and m ≤ n zeros, without a
 separate delay and with the delay found by input–output cross-correlation (accepted only when
@@ -35,7 +35,7 @@ from aatest.plugins.analysis.tfest import (
     model_metrics,
     second_order_delay_fit,
 )
-from aatest.plugins.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.sync.freeze_pulse import SyncedStep, synced_steps
 
 MAX_POLES = 5
 MIN_POINTS = 6
@@ -172,7 +172,7 @@ def logger_antialias_hz(data: Dataset, context: AnalysisContext) -> float | None
     if isinstance(daq, dict) and daq.get("antialias_hz"):
         return float(daq["antialias_hz"])
     if isinstance(daq, dict) and daq.get("plugin") == "sim":
-        from aatest.plugins.sim.model import DaqModel
+        from aatest.twin.model import DaqModel
 
         corner = DaqModel().antialias_hz
         return float(corner) if corner else None

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict
 
 from aatest.engine.interfaces import RigContext
-from aatest.plugins.sim.world import World, shared_world
+from aatest.twin.world import World, shared_world
 
 
 class SimChamber:

@@ -9,10 +9,10 @@ from pydantic import BaseModel, ConfigDict
 from aatest.engine.interfaces import RigContext
 from aatest.engine.logs import DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.sim.model import ExcessNoise
-from aatest.plugins.sim.world import World, shared_world
+from aatest.twin.model import ExcessNoise
+from aatest.twin.world import World, shared_world
 
-#: measured noise the slip ring adds (method.md §1.3: ≥ 11 mV RMS)
+#: measured noise the slip ring adds (docs/method.md §1.3: ≥ 11 mV RMS)
 SLIP_RING_RMS_V = 0.011
 
 

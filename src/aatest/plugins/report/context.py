@@ -1,6 +1,6 @@
 """The view model a template renders: plain mappings, dataclasses and vetted SVG only.
 
-Templates hold no logic (style.md): everything they show — sections that exist, values with
+Templates hold no logic (docs/style.md): everything they show — sections that exist, values with
 expanded uncertainties, verdicts, figures — is prepared here from ``results.json``, and a
 section is present only when its analysis key is.
 """
@@ -160,7 +160,7 @@ def _strongest_lines(lines: list[Any], count: int = 12) -> list[Mapping[str, Any
 
 
 def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
-    """View model of the ``aatest diagnose`` report (contracts.md §4)."""
+    """View model of the ``aatest diagnose`` report (docs/interfaces.md §4)."""
     diag = _diagnosis_block(results)
     def rank(c: Mapping[str, Any]) -> tuple[bool, float]:
         bic = ex.as_float(c.get("delta_bic"))

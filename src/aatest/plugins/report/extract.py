@@ -1,6 +1,6 @@
 """Tolerant readers of ``results.json``: contract keys first, optional extras when present.
 
-The analysis plugins promise the keys of contracts.md §1 and may add more; every reader here
+The analysis plugins promise the keys of docs/interfaces.md §1 and may add more; every reader here
 returns ``None`` (or an empty container) when a value is absent, so report sections and
 uncertainty rows degrade gracefully instead of failing on a missing extra.
 """
@@ -103,7 +103,7 @@ def noise_rms_v(results: Mapping[str, Any], channel: str) -> tuple[float, str]:
     value = as_float(sensors(results).get(channel, {}).get("noise_rms_v"))
     if value is not None:
         return value, "sensor datasheet"
-    return 0.003, "datasheet limit (method.md §1.3)"
+    return 0.003, "datasheet limit (docs/method.md §1.3)"
 
 
 #: per-temperature value key → the key of its own temperature list in columnar results

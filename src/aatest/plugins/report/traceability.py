@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import aatest
-from aatest.engine.signing import file_sha256
+from aatest.engine.run.signing import file_sha256
 from aatest.plugins.report import extract as ex
 
 RECORDING_FILE = "recording.mcap"

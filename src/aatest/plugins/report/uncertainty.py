@@ -5,7 +5,7 @@ Each ``*_measurand`` function turns an analysis result plus rig constants into a
 budget row (fit/reference noise, sensor noise, table position accuracy, wobble/orthogonality,
 sync residual, environment temperature, repeatability over repetitions). Statistical inputs
 come from the analysis (ci95, per-repetition values, measured noise); the rest are the rig's
-stated accuracies (:class:`RigConstants`, method.md §1.2). Quantities are propagated with
+stated accuracies (:class:`RigConstants`, docs/method.md §1.2). Quantities are propagated with
 ``uncertainties`` (first order) and checked against Monte Carlo in the tests.
 """
 
@@ -24,7 +24,7 @@ ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 
 
 class RigConstants(BaseModel):
-    """Stated accuracies of the rig that enter every budget (method.md §1.2, §2)."""
+    """Stated accuracies of the rig that enter every budget (docs/method.md §1.2, §2)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
     position_accuracy_arcsec: float = Field(1.0, ge=0, description="table positioning, 1″ RSS")

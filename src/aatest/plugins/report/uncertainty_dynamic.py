@@ -1,12 +1,12 @@
 """Uncertainty of the dynamic results: FRF gain/phase per point and pivoted misalignment angles.
 
-FRF (method.md §4.4): at the excitation bin of an N-sample coherent record, white output noise
+FRF (docs/method.md §4.4): at the excitation bin of an N-sample coherent record, white output noise
 of power σ² adds a complex error whose radial and tangential parts both have relative standard
 deviation 1/√(N·SNR) (SNR = fundamental power over noise power); the reference amplitude
 A = α/(2πf)² is known to the table's position accuracy, which matters most at high f where A
 is small; the logger alignment (sync residual) shifts the phase by 360·f·δt degrees.
 
-Misalignment (method.md §4.5): δ = (δ_e − δ_ep)/2 with δ_e = arcsin(|ΔA|/|A_z|); the
+Misalignment (docs/method.md §4.5): δ = (δ_e − δ_ep)/2 with δ_e = arcsin(|ΔA|/|A_z|); the
 cross-response noise at the bin, σ_v·√(2/N), enters through the arcsine; wobble differs between
 mountings and does not cancel, orthogonality is common to both and cancels in the difference.
 """
@@ -21,7 +21,7 @@ from aatest.plugins.report import extract as ex
 from aatest.plugins.report.gum import Input, Measurand, Ops
 from aatest.plugins.report.uncertainty import ARCSEC_RAD, RigConstants
 
-#: misalignment scenario → (original, pivoted) set labels (contracts.md §5)
+#: misalignment scenario → (original, pivoted) set labels (docs/interfaces.md §5)
 SCENARIO_SETS: dict[str, tuple[str, str]] = {"1": ("A", "B"), "2": ("C", "D"), "3": ("E", "F"),
                                              "4": ("G", "H")}
 
@@ -111,7 +111,7 @@ def _channel_of(sensor: str, results: Mapping[str, Any]) -> str:
 
 
 def _misalignment_steps(results: Mapping[str, Any], c: RigConstants) -> tuple[float, float]:
-    """Peak excitation (°/s², method.md §4.5: 100) and record length of the scenario steps."""
+    """Peak excitation (°/s², docs/method.md §4.5: 100) and record length of the scenario steps."""
     sine = [s for s in ex.steps_of_kind(results, "sine")
             if isinstance(s.get("mounting"), Mapping) and s["mounting"].get("scenario")]
     accel = max(ex.step_values(sine, "accel_dps2") or [100.0])

@@ -1,4 +1,4 @@
-"""Pass/fail of every calibrated parameter against the datasheet (method.md §1.3).
+"""Pass/fail of every calibrated parameter against the datasheet (docs/method.md §1.3).
 
 Decision rule: simple acceptance (ILAC-G8 "shared risk") — a value passes when its deviation
 is within the limit; the margin (limit − |deviation|, in the parameter's unit and in % of the
@@ -70,7 +70,7 @@ def _static_verdicts(results: Mapping[str, Any], ch: str, sensor: Mapping[str, A
                              _limit(sensor, "bias_tolerance_v", 0.01), u.get(f"bias/{ch}")))
     if (g := ex.as_float(bias.get("g_sensitivity_dps2_per_g"))) is not None:
         # the analysis' own limit when stated, so report and results agree; else 0.1 % FR/g
-        # or 0.01 rad/s²/g, whichever is greater (method.md §1.3)
+        # or 0.01 rad/s²/g, whichever is greater (docs/method.md §1.3)
         g_limit = ex.as_float(bias.get("g_sensitivity_limit_dps2_per_g")) or max(
             0.001 * range_dps2, 0.01 * DPS2_PER_RAD_S2)
         rows.append(_verdict("g-sensitivity", ch, g, 0.0, "(°/s²)/g", g_limit,

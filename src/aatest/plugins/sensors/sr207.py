@@ -1,7 +1,7 @@
-"""SR207-class servo force-balance fluid-rotor angular accelerometer (method.md §1.3).
+"""SR207-class servo force-balance fluid-rotor angular accelerometer (docs/method.md §1.3).
 
 ``SR207`` is one sensor (channel ``v_sz`` on the inner axis); ``SR207Unit`` the three-sensor
-measurement unit (AAMU) with S_Z on I, S_Y on O and S_X on P (method.md §4.5).
+measurement unit (AAMU) with S_Z on I, S_Y on O and S_X on P (docs/method.md §4.5).
 ``default_model()`` gives the twin's realistic sensor terms, chosen so that the simulated
 stepped-sine FRF matches the measured one: flat to ≈4 Hz, ≈0.6 dB down at 10 Hz, phase delay
 ≈13 ms (sensor ωn 30 Hz, ζ 0.9 → 9.5 ms; 100 Hz pre-sample filter 2.3 ms; 1.5 ms transport).
@@ -14,7 +14,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict
 
 from aatest.engine.interfaces import SensorDatasheet
-from aatest.plugins.sim.model import (
+from aatest.twin.model import (
     BiasTemperature,
     CrossAxis,
     GSensitivity,
@@ -81,7 +81,7 @@ class _Sensor:
         self.context = context
 
     def datasheet(self) -> SensorDatasheet:
-        """Datasheet values of method.md §1.3."""
+        """Datasheet values of docs/method.md §1.3."""
         return SensorDatasheet(
             model=self.plugin_name, range_dps2=RANGE_DPS2, nominal_bias_v=2.5,
             bias_tolerance_v=0.01, scale_v_per_dps2=SCALE_V_PER_DPS2, scale_tolerance_pct=1.0,

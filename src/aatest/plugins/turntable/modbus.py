@@ -261,7 +261,7 @@ class ModbusTurntable:
 
 
 def _demands(step: PlannedStep) -> dict[Reg, float]:
-    """Mode and demand registers for a step (sine amplitude A = α/(2πf)², method.md §3)."""
+    """Mode and demand registers for a step (sine amplitude A = α/(2πf)², docs/method.md §3)."""
     zero: dict[Reg, float] = {Reg.INNER_RATE_DEMAND_DPS: 0.0, Reg.OUTER_RATE_DEMAND_DPS: 0.0,
                               Reg.INNER_SINE_AMPLITUDE_DEG: 0.0, Reg.INNER_SINE_FREQUENCY_HZ: 0.0,
                               Reg.OUTER_SINE_AMPLITUDE_DEG: 0.0, Reg.OUTER_SINE_FREQUENCY_HZ: 0.0}

@@ -2,7 +2,7 @@
 
 One module is the single source of truth for both peers: the driver
 (:mod:`aatest.plugins.turntable.modbus`) and the simulated controller
-(:mod:`aatest.plugins.turntable.modbus_controller`) import the same addresses, bit
+(:mod:`aatest.twin.servers.modbus_controller`) import the same addresses, bit
 assignments and codecs, and ``docs/modbus-register-map.md`` documents them for a vendor.
 
 Conventions (explicit, because Modbus leaves them open):
@@ -132,7 +132,7 @@ class Fault(enum.IntFlag):
 
 
 class Mode(enum.IntEnum):
-    """Motion modes (method.md §1.2, §3)."""
+    """Motion modes (docs/method.md §1.2, §3)."""
 
     HOLD = 0
     POSITION = 1

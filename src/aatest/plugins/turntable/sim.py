@@ -13,11 +13,11 @@ from aatest.engine.errors import EnvelopeRefused, RigFault
 from aatest.engine.interfaces import AxisLimits, RigContext, TableEnvelope
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.sim.world import World, shared_world
+from aatest.twin.world import World, shared_world
 
 
 class SimTurntable:
-    """Turntable plugin backed by the shared :class:`~aatest.plugins.sim.world.World`."""
+    """Turntable plugin backed by the shared :class:`~aatest.twin.world.World`."""
 
     class Config(BaseModel):
         """Options: ``model`` = path of a rig-model YAML (default: the realistic SR207 rig)."""

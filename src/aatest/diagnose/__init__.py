@@ -1,0 +1,33 @@
+"""``aatest diagnose``: what the simulation gets wrong, why, a better model, and the gain.
+
+Flow (docs/interfaces.md §4, issue 5)::
+
+    read_dataset ─ replay (sync, commanded motion aligned on the table log)
+      ─ nominal fit (bias, K, logger filter, ±1-sample alignment) ─ residual views
+      ─ candidates (effects/: linear by least squares, shape by bounded optimisation)
+      ─ forward selection (held-out ΔBIC, materiality, physics vetoes) ─ findings
+      ─ model_out (extended RigModel YAML) ─ JSON + report
+
+Rules a user should know, because the data alone cannot decide them:
+
+* **Nominal chain.** One clock, ideal sensor, bias and scale factor calibrated on the data,
+  white noise — plus the logger's pre-sample filter when the data's model states one, or when
+  the residual noise visibly rolls off like the rig's documented 100 Hz filter (docs/method.md
+  §1.3); with white noise the replay that fits the signal better decides.
+* **Alignment.** The sync pulse aligns the loggers to about one sample: the nominal model may
+  shift the sensor by up to ±1 sample, and a delay, lead (jerk term) or dynamics whose lag is
+  within one sample is never evidence by itself (docs/interfaces.md §4).
+* **Look-alikes.** Time-family effects (delay, jerk, dynamics) compete on held-out score; a
+  jerk term that lags is refused (that is a delay), dynamics must show droop/peaking or
+  frequency-dependent lag beyond a delay. Table effects are attributed to the table only when
+  the table's own position log shows them.
+* **Cross-axis vs misalignment.** In one mounting a tilt of the input axis by δ towards
+  azimuth a and cross-axis ratios (rx, ry) = (tan δ·cos a, tan δ·sin a) give identical data
+  (the cos δ change of the main response is absorbed by the calibrated scale factor), and the
+  twin turns both with a 180° pivot. Diagnose therefore reports the measured quantity,
+  ``cross_axis`` (ratio_x, ratio_y), and gives the equivalent ``misalignment`` angle and
+  azimuth in the finding's ``look_alike`` key; the ``misalignment`` candidate row carries the
+  same evidence with the reason.
+* **Clock drift** comes from the sync edges and is a finding only beyond the rig's clock
+  tolerance (``clock_tolerance_ppm`` in the data's metadata, default 20 ppm).
+"""

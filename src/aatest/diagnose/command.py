@@ -1,0 +1,83 @@
+"""``aatest diagnose DATA [--json FILE] [--model-out FILE]`` (docs/interfaces.md §4).
+
+Reads a run directory, a recording or an import directory, runs the diagnose pipeline, prints
+a short summary, writes the JSON and the extended model, and renders the diagnosis report
+through the ``diagnosis`` report plugin when it is installed (its absence never breaks
+diagnose). Returns the findings; the CLI exits 1 when there are any, 0 otherwise.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from aatest.diagnose.model_out import extended_model, write_model
+from aatest.diagnose.pipeline import diagnose_dataset
+
+
+def _clean(value: Any) -> Any:
+    """JSON-safe copy: NaN/inf become null, numpy scalars plain numbers."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def summary(doc: dict[str, Any]) -> str:
+    """A few lines a person reads first."""
+    gain = doc["gain"]
+    lines = [f"baseline residual {1e3 * doc['baseline']['rmse_v']:.3f} mV RMS (held-out)"]
+    if not doc["findings"]:
+        lines.append("no effect supported by the evidence: the nominal model explains the data")
+    for f in doc["findings"]:
+        params = ", ".join(f"{k}={v:.4g}" for k, v in f["parameters"].items())
+        lines.append(f"finding {f['effect']} ({f.get('attributed_to', 'sensor')}, "
+                     f"{f.get('channel', '')}): {params}; ΔBIC {f['evidence']['delta_bic']:.1f}")
+    if doc.get("steps_skipped"):
+        lines.append("steps left out (no sync edges, no trigger): " + ", ".join(doc["steps_skipped"]))
+    untestable = [c["effect"] for c in doc["candidates"] if c.get("testable") is False]
+    if untestable:
+        lines.append("not testable with these data: " + ", ".join(sorted(set(untestable))))
+    lines.append(f"gain: {1e3 * gain['rmse_v_before']:.3f} → {1e3 * gain['rmse_v_after']:.3f} mV "
+                 f"({gain['reduction_pct']:.1f} % lower)")
+    return "\n".join(lines)
+
+
+def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Path) -> Path | None:
+    """Render the diagnosis report when the plugin exists; never fail diagnose over it."""
+    try:
+        from aatest.engine import registry
+
+        info = registry.load("report", "diagnosis")
+        cls = info.target
+        results = {"diagnosis": doc, **doc, "figures": {"diagnose": figures}}
+        return cls(cls.Config()).render(results, out_dir, None)
+    except Exception:  # noqa: BLE001 - the report is a by-product of diagnose
+        return None
+
+
+def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) -> list[dict]:
+    """Diagnose ``data``; write JSON / model / report; return the findings (contract dicts)."""
+    from aatest.engine.recording import read_dataset
+
+    dataset = read_dataset(Path(data))
+    figures: dict[str, str] = {}
+    doc = _clean(diagnose_dataset(dataset, figures=figures))
+    print(summary(doc))
+    if json_out is not None:
+        Path(json_out).write_text(json.dumps(doc, indent=1), encoding="utf-8")
+    if model_out is not None:
+        model = extended_model(doc["channels"], doc["findings"], doc["logger"]["antialias_hz"],
+                               doc["logger"]["t_ref_c"])
+        write_model(Path(model_out), model)
+    out_dir = Path(json_out).parent if json_out is not None else Path(data)
+    if out_dir.is_dir():
+        _render_report(doc, figures, out_dir)
+    return list(doc["findings"])

@@ -1,0 +1,350 @@
+"""The extended sensor model as a design matrix: shape parameters plus linear terms.
+
+A model *spec* names the effects switched on. Nonlinear ("shape") parameters — delay,
+dynamics, hysteresis, saturation, clock warp, ripple and vibration frequencies — transform
+the commanded motion; everything else enters linearly, as one or two columns scaled by the
+sensor's scale factor K, so for fixed shape parameters the whole model is one least-squares
+problem. The order of the signal path is the twin's (``aatest.twin.sensor``):
+
+    α(t − delay) → hysteresis → dynamics → saturation → cubic → K(T) → + b(T) + jerk → logger filter
+
+Per step and per fold only the Gram matrix XᵀX, Xᵀy and yᵀy are kept, so fitting on one fold
+and scoring on the other (held-out SSE) costs a small linear solve, not a pass over the data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import lru_cache
+
+import numpy as np
+from scipy import signal
+
+from aatest.diagnose.replay import (
+    PAD_SAMPLES,
+    Replay,
+    StepReplay,
+    gravity_along,
+    ripple_regressors,
+    sensor_acceleration,
+    sensor_axes,
+)
+from aatest.twin.kinematics import E_I
+from aatest.twin.daq import antialias_filter
+from aatest.twin.sensor import dynamics_filter, lowpass, play_operator
+
+#: contiguous time blocks per step; even blocks form fold A, odd blocks fold B
+BLOCKS_PER_STEP = 8
+
+
+@dataclass(frozen=True)
+class Spec:
+    """Which effects a model has, with the current values of its shape parameters."""
+
+    linear: frozenset[str] = frozenset()
+    delay_s: float = 0.0
+    dynamics: tuple[float, float] | None = None
+    hysteresis_dps2: float = 0.0
+    saturation_dps2: float | None = None
+    ripple_cpd: tuple[float, ...] = ()
+    vibration_hz: tuple[float, ...] = ()
+    warp_ppm: float = 0.0
+    #: warp about the record start (trigger-aligned loggers) instead of its middle (edge fit)
+    warp_from_start: bool = False
+    #: per-step alignment offsets (s) on top of ``delay_s``, indexed by step (empty = none):
+    #: the sync pulse aligns each step's loggers to about one sample only
+    step_shift_s: tuple[float, ...] = ()
+
+    def shift_of(self, index: int) -> float:
+        """Total time shift of the prediction for step ``index`` (s)."""
+        return self.delay_s + (self.step_shift_s[index] if self.step_shift_s else 0.0)
+
+    def with_linear(self, *names: str) -> Spec:
+        return replace(self, linear=self.linear | frozenset(names))
+
+
+@dataclass(frozen=True)
+class ChannelInfo:
+    """What the design needs about one sensor channel."""
+
+    channel: str
+    axis: str
+    range_dps2: float
+    antialias_hz: float | None
+    t_ref_c: float
+    #: datasheet scale factor, used when the data cannot calibrate K (no motion along z)
+    nominal_scale_v_per_dps2: float = 0.004014
+
+
+def column_names(spec: Spec, replay: Replay) -> list[str]:
+    """Names of the design columns of ``spec`` (bias and scale always first)."""
+    names = ["bias", "scale"]
+    for name in ("bias_temperature", "scale_temperature", "nonlinearity_cubic",
+                 "jerk_sensitivity", "g_sensitivity"):
+        if name in spec.linear:
+            names.append(name)
+    if "cross_axis" in spec.linear:
+        names += ["cross_x", "cross_y"]
+    for n in spec.ripple_cpd:
+        names += [f"ripple{n:g}_s", f"ripple{n:g}_c"]
+    for s in replay.steps:
+        for j in range(len(spec.vibration_hz)):
+            names += [f"vib{s.index}_{j}_s", f"vib{s.index}_{j}_c"]
+    return names
+
+
+@lru_cache(maxsize=8)
+def _aa(corner_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    b, a, _ = antialias_filter(corner_hz, dt_s)
+    return b, a
+
+
+def _logger(x: np.ndarray, info: ChannelInfo, dt_s: float) -> np.ndarray:
+    """The logger's pre-sample filter (part of the nominal chain when the rig has one)."""
+    if info.antialias_hz is None:
+        return x
+    b, a = _aa(float(info.antialias_hz), round(dt_s, 15))
+    return lowpass(x, b, a)
+
+
+def _dynamics(x: np.ndarray, spec: Spec, dt_s: float) -> np.ndarray:
+    if spec.dynamics is None:
+        return x
+    b, a = dynamics_filter(float(spec.dynamics[0]), float(spec.dynamics[1]), round(dt_s, 15))
+    return lowpass(x, b, a)
+
+
+def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float) -> tuple[np.ndarray, np.ndarray]:
+    """Inner-axis acceleration of a unit position ripple sin/cos(2π·n·θ) (°/s² per °)."""
+    if not sr.inner.moving:
+        zero = np.zeros_like(t_eval)
+        return zero, zero
+    _, _, acc_s, acc_c = ripple_regressors(sr, t_eval, n_cpd)
+    return acc_s, acc_c
+
+
+def _eval_times(sr: StepReplay, spec: Spec) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """Times (padded grid) at which the motion is evaluated, and their memo key."""
+    tp = sr.padded_time_s
+    shift = spec.shift_of(sr.index)
+    t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    return tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref), (shift, spec.warp_ppm, t_ref)
+
+
+def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
+                    key: tuple, temp: np.ndarray) -> dict[str, np.ndarray]:
+    """The sensor chain: α → hysteresis → dynamics → saturation, and the terms built on it."""
+    alpha3 = sensor_acceleration(sr, info.axis, t_eval, key)
+    sensed = alpha3[2]
+    if spec.hysteresis_dps2 > 0.0 and sr.dynamic:
+        sensed = play_operator(sensed, spec.hysteresis_dps2)
+    shaped = _dynamics(sensed, spec, sr.dt_s)
+    if spec.saturation_dps2 is not None:
+        shaped = np.clip(shaped, -spec.saturation_dps2, spec.saturation_dps2)
+    cols: dict[str, np.ndarray] = {"scale": shaped}
+    lin = spec.linear
+    if "scale_temperature" in lin:
+        cols["scale_temperature"] = shaped * temp
+    if "nonlinearity_cubic" in lin:
+        cols["nonlinearity_cubic"] = shaped**3 / info.range_dps2**2
+    if "jerk_sensitivity" in lin:
+        cols["jerk_sensitivity"] = np.gradient(sensed, sr.dt_s)
+    if "cross_axis" in lin:
+        cols["cross_x"] = _dynamics(alpha3[0], spec, sr.dt_s)
+        cols["cross_y"] = _dynamics(alpha3[1], spec, sr.dt_s)
+    return cols
+
+
+def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
+                   t_eval: np.ndarray) -> dict[str, np.ndarray]:
+    """Inner-axis ripple and vibration as seen along the sensor axis, through its dynamics."""
+    z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
+    cols: dict[str, np.ndarray] = {}
+    for n in spec.ripple_cpd:
+        rs, rc = _ripple_columns(sr, t_eval, n)
+        cols[f"ripple{n:g}_s"] = _dynamics(z_inner * rs, spec, sr.dt_s)
+        cols[f"ripple{n:g}_c"] = _dynamics(z_inner * rc, spec, sr.dt_s)
+    for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
+        w = 2 * np.pi * f_hz
+        cols[f"vib{sr.index}_{j}_s"] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
+        cols[f"vib{sr.index}_{j}_c"] = _dynamics(z_inner * np.cos(w * t_eval), spec, sr.dt_s)
+    return cols
+
+
+def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
+                 used_out: list[int] | None = None) -> np.ndarray:
+    """Design columns of one step on its record grid, shape (n, len(names)).
+
+    Dynamic columns pass through the logger filter; ``used_out``, when given, receives the
+    indices of the columns this step can make non-zero (others, e.g. another step's
+    vibration terms, are zero by construction).
+    """
+    t_eval, key = _eval_times(sr, spec)
+    temp = _temperature(sr, info, t_eval.size)
+    cols = _sensor_columns(sr, info, spec, t_eval, key, temp) | _table_columns(sr, info, spec, t_eval)
+    cut = slice(PAD_SAMPLES, PAD_SAMPLES + sr.n)
+    out = np.zeros((sr.n, len(names)))
+    out[:, 0] = 1.0
+    used = [0]
+    for j, name in enumerate(names):
+        if name in cols:
+            out[:, j] = _logger(cols[name], info, sr.dt_s)[cut]
+            used.append(j)
+    static = {"bias_temperature": lambda: temp[cut],
+              "g_sensitivity": lambda: gravity_along(sr, info.axis)}
+    for name, column in static.items():
+        if name in names:
+            used.append(names.index(name))
+            out[:, used[-1]] = column()
+    if used_out is not None:
+        used_out.extend(sorted(used))
+    return out
+
+
+def _temperature(sr: StepReplay, info: ChannelInfo, padded: int) -> np.ndarray:
+    """T − T_ref on the padded grid (edge values held), °C."""
+    if sr.temperature_c is None:
+        return np.zeros(padded)
+    return np.pad(sr.temperature_c - info.t_ref_c, PAD_SAMPLES, mode="edge")
+
+
+@dataclass
+class Gram:
+    """Sufficient statistics of a linear least-squares problem on two folds."""
+
+    names: list[str]
+    xtx: np.ndarray  # (2, p, p)
+    xty: np.ndarray  # (2, p)
+    yty: np.ndarray  # (2,)
+    count: np.ndarray  # (2,)
+
+    @property
+    def n(self) -> int:
+        return int(self.count.sum())
+
+
+def fold_of(n: int) -> np.ndarray:
+    """Fold (0 or 1) of each sample of an n-sample record: alternating contiguous blocks."""
+    return (np.arange(n) * BLOCKS_PER_STEP // max(n, 1)) % 2
+
+
+def _step_key(spec: Spec, sr: StepReplay) -> Spec:
+    """The part of ``spec`` a step's columns depend on (a still step ignores the shape)."""
+    spec = replace(spec, delay_s=spec.shift_of(sr.index), step_shift_s=())
+    if sr.dynamic:
+        return spec
+    key = replace(spec, hysteresis_dps2=0.0, saturation_dps2=None)
+    if not spec.ripple_cpd and not spec.vibration_hz:
+        key = replace(key, delay_s=0.0, dynamics=None, warp_ppm=0.0)
+    return key
+
+
+def _step_gram(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
+               y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One step's per-fold XᵀX, Xᵀy, yᵀy and counts (only its non-zero columns multiplied)."""
+    used_list: list[int] = []
+    x = step_columns(sr, info, spec, names, used_list)
+    p = len(names)
+    used = np.asarray(used_list, dtype=int)
+    xu = np.ascontiguousarray(x[:, used])
+    xtx, xty, yty, cnt = np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2)
+    edges = _block_edges(sr.n)
+    for b in range(BLOCKS_PER_STEP):
+        blk = slice(edges[b], edges[b + 1])
+        xb, yb = xu[blk], y[blk]
+        f = b % 2
+        xtx[f][np.ix_(used, used)] += xb.T @ xb
+        xty[f][used] += xb.T @ yb
+        yty[f] += yb @ yb
+        cnt[f] += yb.size
+    return xtx, xty, yty, cnt
+
+
+def _block_edges(n: int) -> np.ndarray:
+    """Start indices of the contiguous time blocks of an n-sample record (and n)."""
+    return np.searchsorted(np.arange(n) * BLOCKS_PER_STEP // max(n, 1), np.arange(BLOCKS_PER_STEP + 1))
+
+
+def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
+         cache: dict | None = None) -> Gram:
+    """Per-fold Gram matrices of ``spec`` over all steps, against ``targets[step]`` (volts).
+
+    ``cache`` keeps each step's contribution under the part of the spec it depends on, so a
+    search over a shape parameter recomputes only the steps that parameter can change.
+    """
+    names = column_names(spec, replay)
+    p = len(names)
+    g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
+    for sr in replay.steps:
+        key = (sr.index, _step_key(spec, sr))
+        part = cache.get(key) if cache is not None else None
+        if part is None:
+            part = _step_gram(sr, info, spec, names, targets[sr.index])
+            if cache is not None:
+                cache[key] = part
+        g.xtx += part[0]
+        g.xty += part[1]
+        g.yty += part[2]
+        g.count += part[3]
+    return g
+
+
+def solve(xtx: np.ndarray, xty: np.ndarray) -> np.ndarray:
+    """Least-squares coefficients from a Gram matrix, with column equilibration."""
+    d = np.sqrt(np.clip(np.diag(xtx), 1e-300, None))
+    a = xtx / np.outer(d, d)
+    coef, *_ = np.linalg.lstsq(a, xty / d, rcond=1e-10)
+    return coef / d
+
+
+def sse(xtx: np.ndarray, xty: np.ndarray, yty: float, coef: np.ndarray) -> float:
+    """Residual sum of squares of ``coef`` on the data summarised by a Gram matrix."""
+    return float(yty - 2.0 * coef @ xty + coef @ xtx @ coef)
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted spec: coefficients on all data, in-sample and held-out SSE."""
+
+    spec: Spec
+    names: list[str]
+    coef: np.ndarray
+    sse_in: float
+    sse_held_out: float
+    n: int
+    xtx: np.ndarray
+
+    def value(self, name: str) -> float:
+        return float(self.coef[self.names.index(name)]) if name in self.names else 0.0
+
+    @property
+    def scale(self) -> float:
+        return self.value("scale")
+
+    @property
+    def k(self) -> int:
+        return len(self.names)
+
+
+def fit_gram(g: Gram, spec: Spec) -> Fit:
+    """Coefficients on both folds, plus the two-fold cross-validated (held-out) SSE."""
+    xtx, xty, yty = g.xtx.sum(0), g.xty.sum(0), float(g.yty.sum())
+    coef = solve(xtx, xty)
+    held = 0.0
+    for f in (0, 1):
+        c = solve(g.xtx[f], g.xty[f])
+        o = 1 - f
+        held += sse(g.xtx[o], g.xty[o], float(g.yty[o]), c)
+    return Fit(spec, g.names, coef, max(sse(xtx, xty, yty, coef), 0.0), max(held, 0.0), g.n, xtx)
+
+
+def fit_spec(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
+             cache: dict | None = None) -> Fit:
+    """Fit ``spec`` to ``targets`` (volts per step); ``cache`` as in :func:`gram`."""
+    return fit_gram(gram(replay, info, spec, targets, cache), spec)
+
+
+def predict(replay: Replay, info: ChannelInfo, fit: Fit) -> dict[int, np.ndarray]:
+    """Model output (volts) per step for a fitted spec."""
+    return {sr.index: step_columns(sr, info, fit.spec, fit.names) @ fit.coef
+            for sr in replay.steps}

@@ -1,0 +1,102 @@
+"""Residual views as SVG figures for the diagnosis report (not written to the JSON).
+
+Four pictures per channel: residual RMS per step before/after the extended model; residual
+RMS against |acceleration|, |rate|, |jerk|, temperature and time in the record; the residual
+spectrum's strongest lines by class; and the worst step's residual trace before and after.
+Matplotlib's object API only (no pyplot state), so rendering is safe in any process.
+"""
+
+from __future__ import annotations
+
+import io
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from aatest.diagnose.design import Fit, predict
+from aatest.diagnose.effects.base import Context
+
+
+def _svg(fig: Figure) -> str:
+    buffer = io.StringIO()
+    fig.savefig(buffer, format="svg", metadata={"Date": None})
+    return buffer.getvalue()
+
+
+def per_step_bars(views: dict[str, Any], channel: str) -> str:
+    rows = views["per_step"]
+    fig = Figure(figsize=(6.4, 2.8), layout="constrained")
+    ax = fig.subplots()
+    x = np.arange(len(rows))
+    ax.bar(x - 0.2, [1e3 * r["rms_v_nominal"] for r in rows], 0.4, color="0.6", label="nominal")
+    ax.bar(x + 0.2, [1e3 * r["rms_v_extended"] for r in rows], 0.4, color="C2", label="extended")
+    ax.set_xticks(x, [r["step"] for r in rows], rotation=60, fontsize=7)
+    ax.set_ylabel("residual RMS (mV)")
+    ax.set_yscale("log")
+    ax.set_title(f"{channel}: residual per step", fontsize=9)
+    ax.legend(fontsize=7)
+    return _svg(fig)
+
+
+def against_panels(views: dict[str, Any], channel: str) -> str:
+    against = views["against"]
+    fig = Figure(figsize=(7.2, 2.6), layout="constrained")
+    axes = fig.subplots(1, len(against), sharey=True)
+    for ax, (name, bins) in zip(np.atleast_1d(axes), against.items(), strict=False):
+        mids = [0.5 * (b["from"] + b["to"]) for b in bins]
+        ax.plot(mids, [1e3 * b["rms_v"] for b in bins], "o-", color="C0")
+        ax.set_xlabel(name, fontsize=7)
+        ax.tick_params(labelsize=6)
+    np.atleast_1d(axes)[0].set_ylabel("nominal residual RMS (mV)", fontsize=7)
+    fig.suptitle(f"{channel}: where the nominal replay is wrong", fontsize=9)
+    return _svg(fig)
+
+
+def spectrum_lines(views: dict[str, Any], channel: str) -> str | None:
+    lines = views["spectrum_lines"]
+    if not lines:
+        return None
+    fig = Figure(figsize=(6.4, 2.6), layout="constrained")
+    ax = fig.subplots()
+    classes = sorted({ln["class"].split(":")[0].split(" of")[0] for ln in lines})
+    for i, cls in enumerate(classes):
+        sel = [ln for ln in lines if ln["class"].startswith(cls)]
+        ax.stem([ln["frequency_hz"] for ln in sel], [1e3 * ln["amplitude_v"] for ln in sel],
+                linefmt=f"C{i}-", markerfmt=f"C{i}o", basefmt=" ", label=cls)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("line amplitude (mV)")
+    ax.set_title(f"{channel}: residual spectrum lines", fontsize=9)
+    ax.legend(fontsize=7)
+    return _svg(fig)
+
+
+def before_after_trace(ctx: Context, nominal: Fit, final: Fit) -> str:
+    """Residual of the step that improved most, nominal vs extended (first second shown)."""
+    p0, p1 = predict(ctx.replay, ctx.info, nominal), predict(ctx.replay, ctx.info, final)
+    gains = {i: np.std(ctx.targets[i] - p0[i]) - np.std(ctx.targets[i] - p1[i]) for i in p0}
+    k = max(gains, key=lambda i: gains[i])
+    sr = ctx.replay.steps[k]
+    n = min(sr.n, int(round(1.0 / sr.dt_s)))
+    t = sr.time_s[:n]
+    fig = Figure(figsize=(6.4, 2.6), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(t, 1e3 * (ctx.targets[k] - p0[k])[:n], color="0.6", lw=0.6, label="nominal")
+    ax.plot(t, 1e3 * (ctx.targets[k] - p1[k])[:n], color="C2", lw=0.6, label="extended")
+    ax.set_xlabel("time in record (s)")
+    ax.set_ylabel("residual (mV)")
+    ax.set_title(f"{ctx.info.channel}, step {sr.step.id}: before / after", fontsize=9)
+    ax.legend(fontsize=7)
+    return _svg(fig)
+
+
+def residual_figures(ctx: Context, nominal: Fit, final: Fit, views: dict[str, Any]) -> dict[str, str]:
+    """All figures of one channel, keyed by title."""
+    ch = ctx.info.channel
+    out = {f"{ch} residual per step": per_step_bars(views, ch),
+           f"{ch} residual against motion": against_panels(views, ch),
+           f"{ch} before and after": before_after_trace(ctx, nominal, final)}
+    lines = spectrum_lines(views, ch)
+    if lines is not None:
+        out[f"{ch} residual spectrum"] = lines
+    return out

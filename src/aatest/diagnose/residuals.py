@@ -1,0 +1,118 @@
+"""Where the nominal replay is wrong: residual views a person can read (numbers for the JSON).
+
+Residual = measured − simulated, for the nominal model and for the extended one:
+RMS per step; the residual spectrum's strongest lines, each classified as a harmonic of the
+step's excitation, rate-scaled (a fixed number of cycles per degree of table angle) or
+unrelated; and residual RMS binned against |acceleration|, |rate|, |jerk|, temperature, time
+within the record, table orientation and moving axis.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy import signal
+
+from aatest.diagnose.design import Fit, predict
+from aatest.diagnose.effects.base import Context
+from aatest.diagnose.replay import StepReplay, sensor_acceleration
+
+_BINS = 6
+#: higher multiples of a slow excitation are not called its harmonics
+_MAX_HARMONIC = 10
+_LINES = 5
+#: a spectral line stands this far above the median level of its step's residual spectrum
+_LINE_SNR = 20.0
+
+
+def _classify(f_hz: float, sr: StepReplay) -> str:
+    f0 = sr.inner.frequency_hz or sr.outer.frequency_hz
+    if f0 > 0:
+        k = f_hz / f0
+        if 1 <= round(k) <= _MAX_HARMONIC and abs(k - round(k)) < 0.02:
+            return f"harmonic {round(k)} of {f0:.3f} Hz"
+    rate = abs(sr.inner.rate_dps) or abs(sr.outer.rate_dps)
+    if rate > 0:
+        return f"rate-scaled: {f_hz / rate:.3f} cycles/deg at {rate:g} °/s"
+    return "unrelated to the excitation"
+
+
+def spectrum_lines(ctx: Context, residuals: dict[int, np.ndarray]) -> list[dict[str, Any]]:
+    """Strongest narrow lines of the residual spectrum per step, classified."""
+    fs = 1.0 / ctx.replay.dt_s
+    lines = []
+    for sr in ctx.replay.steps:
+        r = residuals[sr.index]
+        f, p = signal.periodogram(r, fs=fs, detrend="linear", window="hann")
+        floor = float(np.median(p[1:])) or 1e-30
+        idx, _ = signal.find_peaks(p, height=_LINE_SNR * floor, distance=8)
+        for i in idx[np.argsort(p[idx])[::-1][:_LINES]]:
+            amp = float(np.sqrt(2.0 * p[i] * fs / r.size * 1.5))
+            lines.append({"step": sr.step.id, "frequency_hz": float(f[i]),
+                          "amplitude_v": amp, "snr": float(p[i] / floor),
+                          "class": _classify(float(f[i]), sr)})
+    lines.sort(key=lambda d: -d["amplitude_v"])
+    return lines[:20]
+
+
+def _binned(x: np.ndarray, r: np.ndarray) -> list[dict[str, float]]:
+    """Residual RMS in quantile bins of ``x``."""
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, _BINS + 1)))
+    if edges.size < 2:
+        return [{"from": float(edges[0]), "to": float(edges[0]), "rms_v": float(np.sqrt(np.mean(r * r)))}]
+    which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
+    out = []
+    for b in range(edges.size - 1):
+        m = which == b
+        if m.any():
+            out.append({"from": float(edges[b]), "to": float(edges[b + 1]),
+                        "rms_v": float(np.sqrt(np.mean(r[m] ** 2)))})
+    return out
+
+
+def _against(ctx: Context, residuals: dict[int, np.ndarray]) -> dict[str, Any]:
+    cols: dict[str, list[np.ndarray]] = {k: [] for k in ("accel", "rate", "jerk", "temp", "time")}
+    res = []
+    for sr in ctx.replay.steps:
+        step = slice(None, None, 8)
+        t = sr.time_s[step]
+        a = sensor_acceleration(sr, ctx.info.axis, t)[2]
+        m = sr.motion(t)
+        cols["accel"].append(np.abs(a))
+        cols["rate"].append(np.abs(m["inner_rate"]) + np.abs(m["outer_rate"]))
+        cols["jerk"].append(np.abs(np.gradient(a, sr.dt_s * 8)))
+        temp = sr.temperature_c[step] if sr.temperature_c is not None else np.zeros_like(t)
+        cols["temp"].append(temp)
+        cols["time"].append(t / max(sr.time_s[-1], 1e-9))
+        res.append(residuals[sr.index][step])
+    r = np.concatenate(res)
+    names = {"accel": "abs_accel_dps2", "rate": "abs_rate_dps", "jerk": "abs_jerk_dps3",
+             "temp": "temperature_c", "time": "time_fraction_of_record"}
+    return {names[k]: _binned(np.concatenate(v), r) for k, v in cols.items()}
+
+
+def _by_group(ctx: Context, residuals: dict[int, np.ndarray], key) -> dict[str, float]:
+    acc: dict[str, list[np.ndarray]] = {}
+    for sr in ctx.replay.steps:
+        acc.setdefault(key(sr), []).append(residuals[sr.index])
+    return {k: float(np.sqrt(np.mean(np.concatenate(v) ** 2))) for k, v in acc.items()}
+
+
+def residual_views(ctx: Context, nominal: Fit, final: Fit) -> dict[str, Any]:
+    """All residual views of one channel, before (nominal) and after (extended model)."""
+    pred0 = predict(ctx.replay, ctx.info, nominal)
+    pred1 = predict(ctx.replay, ctx.info, final)
+    r0 = {i: ctx.targets[i] - pred0[i] for i in pred0}
+    r1 = {i: ctx.targets[i] - pred1[i] for i in pred1}
+    return {
+        "per_step": [{"step": sr.step.id, "kind": sr.step.kind,
+                      "rms_v_nominal": float(np.sqrt(np.mean(r0[sr.index] ** 2))),
+                      "rms_v_extended": float(np.sqrt(np.mean(r1[sr.index] ** 2)))}
+                     for sr in ctx.replay.steps],
+        "spectrum_lines": spectrum_lines(ctx, r0),
+        "against": _against(ctx, r0),
+        "by_orientation": _by_group(ctx, r0, lambda s: f"outer {s.outer.offset_deg:.0f}°, "
+                                                        f"inner {s.inner.offset_deg:.0f}°"),
+        "by_axis": _by_group(ctx, r0, lambda s: s.step.axis),
+    }

@@ -1,0 +1,206 @@
+"""Strict, vectorised reading of the numeric CSV files of an import directory (docs/interfaces.md §3).
+
+What is tolerated: a UTF-8 byte-order mark, CRLF or CR line ends, blank lines, ``#`` comment
+lines, whitespace around cells and names, quoted header names, any column order and extra
+columns (which are never parsed, so they may hold text). What is rejected, always as
+:class:`~aatest.engine.errors.ImportDataError` with the file and line: an empty file or one
+without data rows, a missing or duplicated column, a row with a different number of fields
+than the header (a truncated last row), a cell that is not a finite number, and a time column
+that is not strictly increasing.
+
+Parsing is one ``np.loadtxt`` call over the kept lines; only when it fails does a per-row
+scan (Python, error path only) find the first offending line to report.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from aatest.engine.errors import ImportDataError
+
+TIME_COLUMN = "time_s"
+
+
+@dataclass(frozen=True)
+class CsvColumns:
+    """The parsed numeric columns of one CSV file.
+
+    Attributes
+    ----------
+    path
+        The file, for messages.
+    columns
+        Column name → float64 values (only the requested columns that were present).
+    header
+        Every column name of the header row, in file order.
+    row_lines
+        1-based file line of every data row (to locate later problems).
+    """
+
+    path: Path
+    columns: dict[str, np.ndarray]
+    header: tuple[str, ...]
+    row_lines: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.row_lines.shape[0])
+
+    def binary(self, name: str) -> np.ndarray:
+        """A 0/1 column (sync pulse, trigger) as uint8; any other value is an error."""
+        values = self.columns[name]
+        bad = np.flatnonzero((values != 0) & (values != 1))
+        if bad.size:
+            raise ImportDataError(
+                self.path, f"column {name!r} must be 0 or 1, found {values[bad[0]]!r}",
+                line=int(self.row_lines[bad[0]]),
+            )
+        return values.astype(np.uint8)
+
+
+def _split_lines(path: Path) -> list[str]:
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ImportDataError(path, f"cannot read file: {exc.strerror or exc}") from exc
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise ImportDataError(path, "not UTF-8 text", line=line) from exc
+    if "\x00" in text:
+        raise ImportDataError(path, "binary data (NUL byte) in a CSV file",
+                              line=text[: text.index("\x00")].count("\n") + 1)
+    return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
+def _is_content(line: str) -> bool:
+    stripped = line.strip()
+    return bool(stripped) and not stripped.startswith("#")
+
+
+def _header(path: Path, lines: list[str]) -> tuple[int, tuple[str, ...]]:
+    """Index of the header line and its column names."""
+    for i, line in enumerate(lines):
+        if _is_content(line):
+            names = tuple(name.strip().strip('"').strip() for name in line.split(","))
+            seen = set()
+            for name in names:
+                if not name or name in seen:
+                    what = "an empty column name" if not name else f"duplicate column {name!r}"
+                    raise ImportDataError(path, f"header has {what}", line=i + 1)
+                seen.add(name)
+            return i, names
+    raise ImportDataError(path, "empty file (no header row)", line=1)
+
+
+def _locate_bad_cell(
+    path: Path,
+    lines: list[str],
+    rows: np.ndarray,
+    usecols: list[int],
+    header: tuple[str, ...],
+    exc: ValueError,
+) -> ImportDataError:
+    """Error path only: the first row whose cell float() refuses, else numpy's row number."""
+    for row in rows.tolist():
+        cells = lines[row].split(",")
+        for col in usecols:
+            try:
+                float(cells[col])
+            except (ValueError, IndexError):
+                cell = cells[col].strip() if col < len(cells) else ""
+                return ImportDataError(
+                    path, f"column {header[col]!r}: {cell!r} is not a number", line=row + 1
+                )
+    found = re.search(r"at row (\d+)", str(exc))
+    if found and int(found.group(1)) < rows.size:
+        return ImportDataError(path, f"unparseable number ({exc})",
+                               line=int(rows[int(found.group(1))]) + 1)
+    return ImportDataError(path, f"unparseable numeric data ({exc})")
+
+
+def read_csv(path: Path, required: Sequence[str], optional: Sequence[str] = ()) -> CsvColumns:
+    """Read the ``required`` and present ``optional`` numeric columns of a CSV file.
+
+    Parameters
+    ----------
+    path
+        The CSV file (header row, then one row per sample).
+    required
+        Columns that must be present; ``time_s`` must be one of them and strictly increase.
+    optional
+        Columns read when present.
+
+    Raises
+    ------
+    ImportDataError
+        The file is malformed; the message names the file, the line and the problem.
+    """
+    path = Path(path)
+    lines = _split_lines(path)
+    header_index, header = _header(path, lines)
+    missing = [name for name in required if name not in header]
+    if missing:
+        raise ImportDataError(
+            path, f"missing required column(s) {', '.join(map(repr, missing))}; "
+            f"header has {', '.join(header)}", line=header_index + 1,
+        )
+    wanted = list(required) + [n for n in optional if n in header and n not in required]
+    rows = np.array(
+        [i for i in range(header_index + 1, len(lines)) if _is_content(lines[i])], dtype=np.int64
+    )
+    if rows.size == 0:
+        raise ImportDataError(path, "no data rows after the header", line=header_index + 1)
+    _check_field_counts(path, lines, rows, len(header))
+    values = _parse_numbers(path, lines, rows, header, wanted)
+    columns = {name: np.ascontiguousarray(values[:, k]) for k, name in enumerate(wanted)}
+    result = CsvColumns(path, columns, header, rows + 1)
+    if TIME_COLUMN in columns:
+        _check_increasing(result)
+    return result
+
+
+def _parse_numbers(
+    path: Path, lines: list[str], rows: np.ndarray, header: tuple[str, ...], wanted: list[str]
+) -> np.ndarray:
+    """One vectorised parse of the wanted columns; (rows, columns) finite float64 values."""
+    usecols = [header.index(name) for name in wanted]
+    try:
+        values = np.loadtxt([lines[i] for i in rows.tolist()], delimiter=",", usecols=usecols,
+                            ndmin=2, comments=None, dtype=np.float64)
+    except ValueError as exc:
+        raise _locate_bad_cell(path, lines, rows, usecols, header, exc) from exc
+    bad_row, bad_col = np.nonzero(~np.isfinite(values))
+    if bad_row.size:
+        raise ImportDataError(path, f"column {wanted[bad_col[0]]!r} is not a finite number",
+                              line=int(rows[bad_row[0]]) + 1)
+    return values
+
+
+def _check_field_counts(path: Path, lines: list[str], rows: np.ndarray, n_fields: int) -> None:
+    counts = np.fromiter((lines[i].count(",") + 1 for i in rows.tolist()), np.int64, rows.size)
+    bad = np.flatnonzero(counts != n_fields)
+    if bad.size:
+        first = int(bad[0])
+        hint = " (truncated row?)" if counts[first] < n_fields else ""
+        raise ImportDataError(
+            path, f"row has {counts[first]} fields, the header has {n_fields}{hint}",
+            line=int(rows[first]) + 1,
+        )
+
+
+def _check_increasing(table: CsvColumns) -> None:
+    steps = np.diff(table.columns[TIME_COLUMN])
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise ImportDataError(
+            table.path, f"{TIME_COLUMN} does not increase "
+            f"({table.columns[TIME_COLUMN][k]!r} after {table.columns[TIME_COLUMN][k - 1]!r})",
+            line=int(table.row_lines[k]),
+        )

@@ -1,0 +1,277 @@
+"""Measured-data import (docs/interfaces.md §3): a directory with ``dataset.yaml`` and CSV pairs.
+
+Data recorded by other systems becomes the same :class:`~aatest.engine.dataset.Dataset` an
+aatest recording gives, so every analysis and ``diagnose`` runs on it unchanged.
+
+``dataset.yaml`` is strict (unknown keys are errors, reported as ``FILE:LINE:COLUMN``); the
+CSV files are tolerant (extra columns, any order, whitespace, CRLF) but malformed content is an
+:class:`~aatest.engine.errors.ImportDataError` with file and line (see
+:mod:`aatest.engine.data.csv_table`). Besides the contract keys, the manifest accepts a few
+*extensions*: top-level ``procedure`` (name), ``t_ref_c`` and ``model`` (a sensor-model YAML
+whose ``t_ref_c`` sets the temperature reference, default 25 °C), ``analysis`` (the analyses
+``aatest analyze`` runs, as in a procedure) and ``report_template``; per step ``amplitude_deg``,
+``cycles``, ``rate_dps``, ``outer_rate_dps``, ``temperature_c``, ``group``, ``repetition``,
+``motor_on``, ``settle_s``, ``mounting``; per sensor every
+:class:`~aatest.engine.dataset.SensorInfo` field.
+
+Channel mapping. The table CSV's ``position_deg, rate_dps, accel_dps2`` are the moving axis
+(``outer_*`` for ``axis: outer``, else ``inner_*``). Any column named like a canonical table
+channel (``outer_position_deg``, ``inner_rate_dps``, ``outer_feedback_deg``, ...) is taken
+as that channel. Channels the file lacks are filled with what the step states: the resting
+axis at its ``inner_deg``/``outer_deg`` with zero rate and acceleration, feedback equal to the
+position estimate. ``fp_latch_s`` exists only when the file has it (without it the sync pulse
+aligns the loggers to one sample only). A DAQ file without ``temperature_c`` gets the step's
+``temperature_c`` or ``t_ref_c``. ``Dataset.metadata["columns_present"]`` lists, per step, the
+channels that really came from the files.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from aatest.engine.data.csv_table import CsvColumns, read_csv
+from aatest.engine.dataset import Dataset, SensorInfo, StepData
+from aatest.engine.errors import ImportDataError, Problem, ProblemsError
+from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
+from aatest.engine.steps import Mounting, PlannedStep
+from aatest.engine.procedure.yaml_loader import locate, parse_yaml, read_text, validate_tree
+
+MANIFEST = "dataset.yaml"
+IMPORT_FORMAT = "aatest.import/v1"
+DEFAULT_T_REF_C = 25.0
+TABLE_REQUIRED = ("time_s", "position_deg", "rate_dps", "accel_dps2", "sync_pulse")
+DAQ_REQUIRED = ("time_s", "sync_pulse", "trigger")
+_MOTION = ("position_deg", "rate_dps", "accel_dps2")
+
+
+class DatasetFileError(ImportDataError, ProblemsError):
+    """``dataset.yaml`` is malformed; every problem is located as FILE:LINE:COLUMN."""
+
+    def __init__(self, problems: list[Problem]) -> None:
+        self.problems = list(problems)
+        self.path = problems[0].file
+        self.line = problems[0].line
+        Exception.__init__(self, "\n".join(str(p) for p in self.problems))
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SensorEntry(_Strict):
+    """One sensor channel of the DAQ files (nominal, datasheet values)."""
+
+    channel: str = Field(min_length=1)
+    axis: Literal["I", "O", "P"] = "I"
+    nominal_bias_v: float = 2.5
+    nominal_scale_v_per_dps2: float = Field(0.004014, gt=0)
+    range_dps2: float = Field(572.958, gt=0)
+    model: str = "unknown"
+    serial: str = "unknown"
+    noise_rms_v: float = Field(0.003, ge=0)
+    bias_tolerance_v: float = Field(0.01, ge=0)
+    scale_tolerance_pct: float = Field(1.0, ge=0)
+    bias_temperature_limit_v_per_c: float = Field(0.0004, ge=0)
+    scale_temperature_limit_per_c: float = Field(0.0005, ge=0)
+
+    @field_validator("channel")
+    @classmethod
+    def _not_reserved(cls, channel: str) -> str:
+        if channel in (*DAQ_REQUIRED, "temperature_c"):
+            raise ValueError(f"{channel!r} is a DAQ column of its own, not a sensor channel")
+        return channel
+
+
+class StepEntry(_Strict):
+    """One step: what was commanded, and its two CSV files."""
+
+    id: str = Field(min_length=1)
+    kind: Literal["static", "sine", "constant_rate"]
+    axis: Literal["inner", "outer", "both", "none"] = "inner"
+    frequency_hz: float | None = Field(None, gt=0)
+    accel_dps2: float | None = None
+    rate_dps: float | None = None
+    inner_deg: float = 0.0
+    outer_deg: float = 0.0
+    table: str = Field(min_length=1)
+    daq: str = Field(min_length=1)
+    amplitude_deg: float | None = None
+    cycles: int | None = Field(None, ge=1)
+    outer_rate_dps: float | None = None
+    temperature_c: float | None = None
+    group: str | None = None
+    repetition: int = Field(1, ge=1)
+    motor_on: bool = True
+    settle_s: float = Field(0.0, ge=0)
+    mounting: Mounting = Mounting()
+
+    @model_validator(mode="after")
+    def _commanded(self) -> StepEntry:
+        if self.kind == "sine" and (self.frequency_hz is None or self.accel_dps2 is None):
+            raise ValueError("a sine step needs frequency_hz and accel_dps2")
+        if self.kind == "constant_rate" and self.rate_dps is None:
+            raise ValueError("a constant_rate step needs rate_dps")
+        return self
+
+
+class DatasetManifest(_Strict):
+    """The ``dataset.yaml`` of an import directory."""
+
+    sensors: list[SensorEntry] = Field(min_length=1)
+    sample_rate_hz: float = Field(gt=0)
+    steps: list[StepEntry] = Field(min_length=1)
+    procedure: str = "imported"
+    t_ref_c: float | None = None
+    model: str | None = None
+    analysis: list[str] | None = None
+    report_template: str | None = None
+
+    @model_validator(mode="after")
+    def _unique(self) -> DatasetManifest:
+        for what, names in (("step id", [s.id for s in self.steps]),
+                            ("sensor channel", [s.channel for s in self.sensors])):
+            dupes = sorted({n for n in names if names.count(n) > 1})
+            if dupes:
+                raise ValueError(f"duplicate {what}(s): {', '.join(dupes)}")
+        return self
+
+
+def load_manifest(path: Path) -> tuple[DatasetManifest, Any]:
+    """Parse and validate ``dataset.yaml``; return the model and the positioned YAML tree."""
+    try:
+        tree, data = parse_yaml(read_text(path), str(path))
+        return validate_tree(DatasetManifest, tree, data, str(path)), tree
+    except ProblemsError as exc:
+        raise DatasetFileError(exc.problems) from exc
+
+
+def _file_of(directory: Path, manifest_path: Path, tree: Any, index: int, key: str,
+             name: str) -> Path:
+    path = directory / name
+    if not path.is_file():
+        line, column = locate(tree, ("steps", index, key))
+        raise DatasetFileError([Problem(str(manifest_path), line, column, f"steps.{index}.{key}",
+                                        f"file not found: {path}")])
+    return path
+
+
+def _table_log(entry: StepEntry, csv: CsvColumns, rate_hz: float) -> tuple[SampledLog, list[str]]:
+    """Canonical table log of one step, and the channels the file really had."""
+    n = len(csv)
+    me, other = ("outer", "inner") if entry.axis == "outer" else ("inner", "outer")
+    rest_deg = entry.inner_deg if other == "inner" else entry.outer_deg
+    channels: dict[str, np.ndarray] = {f"{me}_{k}": csv.columns[k] for k in _MOTION}
+    present = list(channels)
+    for name in TABLE_CHANNELS:
+        if name in csv.columns and name not in channels and name != "sync_pulse":
+            channels[name] = csv.columns[name]
+            present.append(name)
+    channels.setdefault(f"{other}_position_deg", np.full(n, rest_deg))
+    channels.setdefault(f"{other}_rate_dps", np.zeros(n))
+    channels.setdefault(f"{other}_accel_dps2", np.zeros(n))
+    for axis in ("inner", "outer"):
+        channels.setdefault(f"{axis}_feedback_deg", channels[f"{axis}_position_deg"])
+    channels["sync_pulse"] = csv.binary("sync_pulse")
+    present.append("sync_pulse")
+    ordered = {k: channels[k] for k in TABLE_CHANNELS if k in channels}
+    units = {k: TABLE_CHANNELS[k] for k in ordered}
+    return SampledLog(TABLE, rate_hz, csv.columns["time_s"], ordered, units), present
+
+
+def _daq_log(entry: StepEntry, csv: CsvColumns, rate_hz: float, sensors: list[str],
+             t_ref_c: float) -> tuple[SampledLog, list[str]]:
+    channels: dict[str, np.ndarray] = {
+        "sync_pulse": csv.binary("sync_pulse"),
+        "trigger": csv.binary("trigger"),
+    }
+    channels.update({ch: csv.columns[ch] for ch in sensors})
+    present = list(channels)
+    if "temperature_c" in csv.columns:
+        channels["temperature_c"] = csv.columns["temperature_c"]
+        present.append("temperature_c")
+    else:
+        fill = entry.temperature_c if entry.temperature_c is not None else t_ref_c
+        channels["temperature_c"] = np.full(len(csv), fill)
+    units = {ch: "V" for ch in sensors} | {"sync_pulse": "1", "trigger": "1",
+                                            "temperature_c": "degC"}
+    return SampledLog(DAQ, rate_hz, csv.columns["time_s"], channels, units), present
+
+
+def _planned(entry: StepEntry, samples: int, rate_hz: float) -> PlannedStep:
+    """The commanded step as a PlannedStep (sine amplitude A = α/(2πf)² when not given)."""
+    amplitude = entry.amplitude_deg
+    if entry.kind == "sine" and amplitude is None:
+        assert entry.accel_dps2 is not None and entry.frequency_hz is not None  # validated
+        amplitude = entry.accel_dps2 / (2 * math.pi * entry.frequency_hz) ** 2
+    fields = entry.model_dump(exclude={"table", "daq", "amplitude_deg"})
+    return PlannedStep(**fields, amplitude_deg=amplitude, samples=samples,
+                       sample_rate_hz=rate_hz, duration_s=samples / rate_hz)
+
+
+def _t_ref_c(manifest: DatasetManifest, directory: Path) -> tuple[float, str | None]:
+    """T_ref: the manifest's ``t_ref_c``, else the model file's, else 25 °C."""
+    if manifest.t_ref_c is not None:
+        return manifest.t_ref_c, manifest.model
+    if manifest.model is None:
+        return DEFAULT_T_REF_C, None
+    model_path = directory / manifest.model
+    try:
+        _, data = parse_yaml(read_text(model_path), str(model_path))
+    except ProblemsError as exc:
+        raise DatasetFileError(exc.problems) from exc
+    value = data.get("t_ref_c", DEFAULT_T_REF_C) if isinstance(data, dict) else DEFAULT_T_REF_C
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        raise ImportDataError(model_path, f"t_ref_c must be a number, got {value!r}")
+    return float(value), str(model_path)
+
+
+def import_dataset(directory: str | Path) -> Dataset:
+    """Read an import directory (docs/interfaces.md §3) into a :class:`Dataset`.
+
+    Raises
+    ------
+    ImportDataError
+        ``dataset.yaml`` or a CSV file is missing or malformed (file, line and what is wrong).
+    """
+    directory = Path(directory)
+    manifest_path = directory / MANIFEST
+    manifest, tree = load_manifest(manifest_path)
+    t_ref_c, model_file = _t_ref_c(manifest, directory)
+    rate_hz = manifest.sample_rate_hz
+    sensor_channels = [s.channel for s in manifest.sensors]
+    steps, present = [], {}
+    for i, entry in enumerate(manifest.steps):
+        table_csv = read_csv(_file_of(directory, manifest_path, tree, i, "table", entry.table),
+                             TABLE_REQUIRED, list(TABLE_CHANNELS))
+        daq_csv = read_csv(_file_of(directory, manifest_path, tree, i, "daq", entry.daq),
+                           DAQ_REQUIRED + tuple(sensor_channels), ["temperature_c"])
+        table, table_present = _table_log(entry, table_csv, rate_hz)
+        daq, daq_present = _daq_log(entry, daq_csv, rate_hz, sensor_channels, t_ref_c)
+        steps.append(StepData(_planned(entry, len(table), rate_hz), table, daq))
+        present[entry.id] = {"table": table_present, "daq": daq_present}
+    sensors = tuple(SensorInfo(**s.model_dump()) for s in manifest.sensors)
+    return Dataset(
+        procedure=manifest.procedure, sample_rate_hz=rate_hz, sensors=sensors,
+        steps=tuple(steps), source=directory,
+        metadata=_metadata(present, t_ref_c, model_file) | manifest.model_dump(
+            include={"analysis", "report_template"}, exclude_none=True),
+    )
+
+
+def _metadata(present: dict[str, dict[str, list[str]]], t_ref_c: float,
+              model_file: str | None) -> dict[str, Any]:
+    return {
+        "source_format": IMPORT_FORMAT,
+        "complete": True,
+        "t_ref_c": t_ref_c,
+        "model_file": model_file,
+        "columns_present": present,
+        "fp_latch_s_present": all("fp_latch_s" in p["table"] for p in present.values()),
+        "temperature_present": all("temperature_c" in p["daq"] for p in present.values()),
+    }
+

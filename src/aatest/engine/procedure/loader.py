@@ -1,0 +1,134 @@
+"""Load procedure and rig YAML files into validated models, with located errors.
+
+Every problem is reported as ``FILE:LINE:COLUMN: field: message``, all at once, through one
+:class:`~aatest.engine.errors.ProcedureError` (exit code 2). Whatever the bytes in the file,
+nothing else escapes: YAML oddities (recursive aliases, odd tags, huge nesting) become a
+located problem too.
+
+Example
+-------
+>>> from pathlib import Path
+>>> from aatest.engine.procedure.loader import load_procedure, load_rig, rig_from_procedure
+>>> import aatest
+>>> shipped = Path(aatest.__file__).parent / "procedures" / "scale-factor.yaml"
+>>> proc = load_procedure(shipped)
+>>> rig_from_procedure(proc).turntable.plugin
+'sim'
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, StrictStr, model_validator
+
+from aatest.engine.errors import Problem, ProcedureError
+from aatest.engine.procedure import models as _procedure_models
+from aatest.engine.procedure.models import STEP_KINDS, Procedure
+from aatest.engine.procedure.yaml_loader import parse_yaml, read_text, validate_tree
+
+
+class PluginSpec(BaseModel):
+    """One rig plugin: its entry-point name and that plugin's own options (validated later by
+    the plugin's ``Config`` model)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    plugin: StrictStr = Field(min_length=1)
+    options: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flat_options(cls, data: Any) -> Any:
+        """``{plugin: modbus, host: h}`` → ``{plugin: modbus, options: {host: h}}``;
+        a bare string names a plugin without options."""
+        if isinstance(data, str):
+            return {"plugin": data}
+        if isinstance(data, dict) and "plugin" in data and "options" not in data:
+            options = {k: v for k, v in data.items() if k != "plugin"}
+            return {"plugin": data["plugin"], "options": options}
+        return data
+
+
+class RigConfig(BaseModel):
+    """The rig: one plugin per kind (docs/interfaces.md §2, ``--rig RIG.yaml``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    turntable: PluginSpec = PluginSpec(plugin="sim")
+    daq: PluginSpec = PluginSpec(plugin="sim")
+    chamber: PluginSpec = PluginSpec(plugin="none")
+
+
+def _vocabulary() -> frozenset[str]:
+    """Every key the procedure and rig files know (for "did you mean" hints)."""
+    models = [m for m in vars(_procedure_models).values()
+              if isinstance(m, type) and issubclass(m, BaseModel)] + [RigConfig]
+    return frozenset(name for m in models for name in m.model_fields)
+
+
+_UNKNOWN_KEY = "Extra inputs are not permitted"
+
+
+def _with_hint(problem: Problem, vocabulary: frozenset[str]) -> Problem:
+    """Add a hint to an unknown-key problem: the closest known key, or the step kinds."""
+    if problem.message != _UNKNOWN_KEY or not problem.field:
+        return problem
+    parts = problem.field.split(".")
+    is_step_kind = len(parts) >= 3 and parts[-3] == "steps" and parts[-2].isdigit()
+    choices = STEP_KINDS if is_step_kind else sorted(vocabulary)
+    close = difflib.get_close_matches(parts[-1], choices, n=1, cutoff=0.75)
+    message = f"unknown key; did you mean {close[0]!r}?" if close else "unknown key"
+    if is_step_kind:
+        message += f"{' A' if close else '; a'} step is one of: {', '.join(STEP_KINDS)}"
+    return replace(problem, message=message)
+
+
+def _guarded(filename: str, text: str, model: type[Any]) -> tuple[Any, Any]:
+    """Parse and validate, translating anything unexpected into a located problem."""
+    try:
+        tree, data = parse_yaml(text, filename)
+        return validate_tree(model, tree, data, filename), tree
+    except ProcedureError as exc:
+        vocabulary = _vocabulary()
+        raise ProcedureError([_with_hint(p, vocabulary) for p in exc.problems]) from exc
+    except (RecursionError, ValueError, TypeError, AttributeError, KeyError, IndexError,
+            OverflowError) as exc:
+        # e.g. a self-referencing alias (&a [*a]) or a construct ruamel cannot represent
+        message = f"cannot load YAML: {type(exc).__name__}: {exc}"[:300]
+        raise ProcedureError([Problem(filename, 1, 1, "", message)]) from exc
+
+
+def parse_procedure(text: str, filename: str = "<procedure>") -> Procedure:
+    """Validate procedure YAML given as text (``filename`` labels the problems)."""
+    proc, tree = _guarded(filename, text, Procedure)
+    return proc.with_source(filename, tree)  # type: ignore[no-any-return]
+
+
+def load_procedure(path: str | Path) -> Procedure:
+    """Read and validate a procedure file.
+
+    Raises
+    ------
+    ProcedureError
+        Every problem, each as ``FILE:LINE:COLUMN: field: message``.
+    """
+    return parse_procedure(read_text(Path(path)), str(path))
+
+
+def load_rig(path: str | Path) -> RigConfig:
+    """Read a rig file: ``turntable``/``daq``/``chamber``, each ``{plugin: NAME, **options}``.
+
+    Kinds left out keep the simulated defaults (sim, sim, none). Options are not checked here;
+    the registry validates them against the plugin's own ``Config`` model.
+    """
+    rig, _tree = _guarded(str(path), read_text(Path(path)), RigConfig)
+    return rig  # type: ignore[no-any-return]
+
+
+def rig_from_procedure(proc: Procedure) -> RigConfig:
+    """The rig named in the procedure's ``rig`` block (plugins without options)."""
+    return RigConfig(turntable=PluginSpec(plugin=proc.rig.turntable),
+                     daq=PluginSpec(plugin=proc.rig.daq),
+                     chamber=PluginSpec(plugin=proc.rig.chamber))

@@ -1,0 +1,235 @@
+"""Read aatest recordings (and, through the importer, import directories) into a Dataset.
+
+:func:`read_dataset` accepts a run directory (its ``recording.mcap``; the completed step files
+of ``steps/`` when the run was interrupted or resumed after the last merge), a recording file,
+or a measured-data import directory (``dataset.yaml`` present, docs/interfaces.md §3). Anything that
+is not a complete aatest recording raises :class:`~aatest.engine.errors.RecordingError` naming
+the file and what is wrong. The layout is described in :mod:`aatest.engine.recording.format`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mcap.reader import make_reader
+
+from aatest.engine.recording import format as fmt
+from aatest.engine.dataset import Dataset, SensorInfo, StepData
+from aatest.engine.logs import SampledLog
+from aatest.engine.errors import RecordingError
+from aatest.engine.recording.writer import (
+    RECORDING_NAME,
+    STEPS_DIR,
+    complete_step_files,
+    load_run_metadata,
+    merged_step_ids,
+)
+from aatest.engine.steps import PlannedStep
+
+IMPORT_MANIFEST = "dataset.yaml"
+_DECODE_ERRORS = fmt.DECODE_ERRORS
+_SENSOR_FIELDS = {f.name for f in dataclasses.fields(SensorInfo)}
+
+
+@dataclass
+class _FileContents:
+    """What one MCAP file holds: run metadata, step records and the decoded step data."""
+
+    run_meta: dict[str, Any] = field(default_factory=dict)
+    steps: list[tuple[int, StepData]] = field(default_factory=list)
+
+
+def read_dataset(path: str | Path) -> Dataset:
+    """Load a run directory, a recording file or an import directory as a :class:`Dataset`.
+
+    Parameters
+    ----------
+    path
+        Run directory, ``recording.mcap`` (or a single step file), or import directory.
+
+    Raises
+    ------
+    RecordingError
+        The recording is missing, truncated, corrupt or not an aatest recording.
+    ImportDataError
+        The import directory is malformed (see :mod:`aatest.engine.data.importer`).
+    """
+    path = Path(path)
+    if path.is_dir():
+        if (path / IMPORT_MANIFEST).exists():
+            from aatest.engine.data.importer import import_dataset
+
+            return import_dataset(path)
+        return _read_run_dir(path)
+    if path.is_file():
+        contents = _read_file(path)
+        return _build_dataset(contents.run_meta, contents.steps, path, complete=True)
+    raise RecordingError(f"{path}: no such file or directory")
+
+
+def _read_run_dir(run_dir: Path) -> Dataset:
+    recording = run_dir / RECORDING_NAME
+    steps_dir = run_dir / STEPS_DIR
+    files = complete_step_files(steps_dir) if steps_dir.is_dir() else {}
+    if recording.is_file() and not _is_stale(recording, set(files)):
+        contents = _read_file(recording)
+        return _build_dataset(contents.run_meta, contents.steps, recording, complete=True)
+    if not files:
+        raise RecordingError(
+            f"{run_dir}: no {RECORDING_NAME}, no completed step in {STEPS_DIR}/ and no "
+            f"{IMPORT_MANIFEST}: not a run or import directory"
+        )
+    run_meta = load_run_metadata(steps_dir)
+    steps: list[tuple[int, StepData]] = []
+    for path, _ in files.values():
+        contents = _read_file(path)
+        run_meta = run_meta or contents.run_meta
+        steps.extend(contents.steps)
+    return _build_dataset(run_meta, steps, run_dir, complete=False)
+
+
+def _is_stale(recording: Path, step_ids: set[str]) -> bool:
+    """True when a step was completed after the last merge (the run was resumed since).
+
+    Compares step ids, not modification times, so copying a run directory cannot fool it.
+    """
+    return not step_ids <= merged_step_ids(recording)
+
+
+def _read_file(path: Path) -> _FileContents:
+    """Decode one aatest MCAP file, translating every low-level failure to RecordingError."""
+    try:
+        with open(path, "rb") as stream:
+            return _decode(stream, path)
+    except RecordingError:
+        raise
+    except _DECODE_ERRORS as exc:
+        raise RecordingError(
+            f"{path}: corrupt or truncated recording ({type(exc).__name__}: {exc})"
+        ) from exc
+
+
+def _decode(stream: Any, path: Path) -> _FileContents:
+    reader = make_reader(stream, validate_crcs=True)  # flipped bits must not pass
+    header = reader.get_header()
+    if header.profile != fmt.PROFILE:
+        raise RecordingError(f"{path}: not an aatest recording (MCAP profile {header.profile!r})")
+    summary = reader.get_summary()
+    if summary is None:
+        raise RecordingError(f"{path}: recording has no summary section (unfinished write)")
+    contents = _FileContents()
+    step_records = []
+    for record in reader.iter_metadata():
+        if record.name == fmt.RUN_RECORD:
+            contents.run_meta = fmt.from_json_values(dict(record.metadata))
+        elif record.name == fmt.STEP_RECORD:
+            step_records.append(dict(record.metadata))
+    _check_format(contents.run_meta, path)
+    by_topic = {ch.topic: ch for ch in summary.channels.values()}
+    for values in step_records:  # one step at a time: peak memory is one step's bytes
+        record = fmt.from_json_values(values)
+        step = PlannedStep.model_validate(record["step"])
+        logs = []
+        for key in ("table_topic", "daq_topic"):
+            channel = _step_channel(by_topic, record[key], step.id, values, path)
+            logs.append(_decode_log(reader, channel, summary, path))
+        contents.steps.append((int(record["index"]), StepData(step, logs[0], logs[1])))
+    return contents
+
+
+def _check_format(run_meta: dict[str, Any], path: Path) -> None:
+    if not run_meta:
+        raise RecordingError(f"{path}: not an aatest recording (no 'run' metadata record)")
+    version = run_meta.get("format", fmt.FORMAT)
+    if version != fmt.FORMAT:
+        raise RecordingError(
+            f"{path}: unsupported recording format {version!r} (need {fmt.FORMAT})"
+        )
+
+
+def _step_channel(
+    by_topic: dict[str, Any], topic: str, step_id: str, values: dict[str, str], path: Path
+) -> Any:
+    """The channel a step record names, after checking both still agree (no CRC on metadata)."""
+    channel = by_topic.get(topic)
+    if channel is None:
+        raise RecordingError(f"{path}: step topic {topic!r} has no channel")
+    meta = channel.metadata
+    expected = meta.get("step_record_sha256")
+    if meta.get("step_id") != step_id or (expected and expected != fmt.record_digest(values)):
+        raise RecordingError(
+            f"{path}: step record of {step_id!r} does not match channel {topic!r} "
+            "(corrupt metadata)"
+        )
+    return channel
+
+
+def _decode_log(reader: Any, channel: Any, summary: Any, path: Path) -> SampledLog:
+    """Concatenate one channel's blocks in sequence order and rebuild the SampledLog."""
+    topic = channel.topic
+    schema = summary.schemas.get(channel.schema_id)
+    if schema is None or schema.encoding != fmt.ENCODING:
+        raise RecordingError(f"{path}: topic {topic!r} does not use the {fmt.ENCODING} schema")
+    expected = channel.metadata.get("schema_sha256")
+    if expected and expected != hashlib.sha256(schema.data).hexdigest():
+        raise RecordingError(f"{path}: schema of topic {topic!r} is corrupt (checksum mismatch)")
+    dtype, doc = fmt.parse_schema(schema.data)
+    parts = sorted(
+        (message.sequence, message.data)
+        for _, _, message in reader.iter_messages(topics=[topic], log_time_order=False)
+    )
+    payload = b"".join(data for _, data in parts)
+    del parts
+    if len(payload) % dtype.itemsize:
+        raise RecordingError(f"{path}: topic {topic!r} holds a partial sample block")
+    records = np.frombuffer(payload, dtype=dtype)
+    expected = int(channel.metadata.get("samples", len(records)))
+    if len(records) != expected:
+        raise RecordingError(
+            f"{path}: topic {topic!r} has {len(records)} samples, its channel says {expected}"
+        )
+    return fmt.records_to_log(records, doc)
+
+
+def _sensors(run_meta: dict[str, Any], steps: list[StepData]) -> tuple[SensorInfo, ...]:
+    """Sensors from the run metadata, else nominal defaults for every DAQ voltage channel."""
+    entries = run_meta.get("sensors")
+    if isinstance(entries, list) and entries:
+        return tuple(
+            SensorInfo(**{k: v for k, v in entry.items() if k in _SENSOR_FIELDS})
+            for entry in entries
+            if isinstance(entry, dict)
+        )
+    channels = steps[0].daq.sensor_channels() if steps else []
+    return tuple(SensorInfo(channel=ch) for ch in channels)
+
+
+def _build_dataset(
+    run_meta: dict[str, Any], indexed: list[tuple[int, StepData]], source: Path, complete: bool
+) -> Dataset:
+    ordered = [data for _, data in sorted(indexed, key=lambda item: item[0])]
+    rate = run_meta.get("sample_rate_hz") or (
+        ordered[0].step.sample_rate_hz if ordered else 2000.0
+    )
+    procedure = run_meta.get("procedure")
+    metadata = {
+        **run_meta,
+        "source_format": fmt.FORMAT,
+        "complete": complete,
+        "recording": str(source),
+    }
+    return Dataset(
+        procedure=procedure if isinstance(procedure, str) else "unknown",
+        sample_rate_hz=float(rate),
+        sensors=_sensors(run_meta, ordered),
+        steps=tuple(ordered),
+        source=source,
+        metadata=metadata,
+    )
+

@@ -1,0 +1,370 @@
+"""Crash-safe recording of a run: one atomic MCAP file per step, merged at the end.
+
+Why per-step files: a run lasts hours and may be killed (``kill -9``, power loss) at any moment.
+Each step is written to a temporary file, flushed, ``fsync``-ed and atomically renamed to
+``steps/<NNN>-<step_id>.mcap``, so a step file either exists complete or not at all; completed
+steps can never be corrupted by a later crash. :meth:`RunRecorder.finalize` then merges the run
+metadata and every step file, in plan order and in one streaming pass that copies the
+compressed chunks verbatim (:mod:`aatest.engine.recording.mcap_io`), into ``recording.mcap`` (again via a
+temporary file and an atomic rename). The step files are kept: they are what ``--resume``
+counts as done, and what :func:`~aatest.engine.recording.read_dataset` reads if steps were
+completed after the last merge. The file layout is described in
+:mod:`aatest.engine.recording.format`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import re
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import IO, Any
+
+from mcap.reader import make_reader
+from mcap.records import Channel, Message, Schema
+
+import aatest
+from aatest.engine.recording import format as fmt
+from aatest.engine.errors import RecordingError
+from aatest.engine.logs import TABLE, SampledLog
+from aatest.engine.recording.mcap_io import ChunkedWriter
+from aatest.engine.steps import PlannedStep
+
+RECORDING_NAME = "recording.mcap"
+STEPS_DIR = "steps"
+RUN_META_NAME = "run.json"
+#: chunk size before compression; 4 MiB keeps zstd efficient and memory bounded
+CHUNK_BYTES = 4 * 1024 * 1024
+#: channel ids are uint16 in MCAP and two per step
+MAX_STEP_INDEX = 32767
+_STEP_FILE = re.compile(r"^(\d{3,})-(.+)\.mcap$")
+_TEMP_MARK = ".tmp-"
+
+
+def _safe_name(step_id: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", step_id) or "step"
+
+
+def _fsync_dir(path: Path) -> None:
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:  # directories cannot be opened on some platforms; rename is still atomic
+        return
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
+    """Write ``path`` through a temporary sibling, fsync it, then rename it into place."""
+    tmp = path.with_name(f".{path.name}{_TEMP_MARK}{os.getpid()}")
+    try:
+        with open(tmp, "wb") as stream:
+            write(stream)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _fsync_dir(path.parent)
+    return path
+
+
+def new_writer(stream: IO[bytes]) -> ChunkedWriter:
+    """An MCAP writer with the aatest header profile."""
+    return ChunkedWriter(stream, profile=fmt.PROFILE, library=f"aatest {aatest.__version__}")
+
+
+def channel_id(index: int, source: str) -> int:
+    """Run-unique MCAP channel id of a step's log: 2·index − 1 (table), 2·index (DAQ)."""
+    if not 1 <= index <= MAX_STEP_INDEX:
+        raise ValueError(f"step index {index} outside 1..{MAX_STEP_INDEX}")
+    return 2 * index - (1 if source == TABLE else 0)
+
+
+def _write_log(
+    writer: ChunkedWriter, step_id: str, index: int, log: SampledLog, digest: str
+) -> None:
+    """Register one logger's schema and channel for a step and add its sample blocks."""
+    records, columns = fmt.log_records(log)
+    cid = channel_id(index, log.source)
+    schema = fmt.schema_data(log, columns)
+    writer.add_schema(Schema(id=cid, name=fmt.schema_name(log.source), encoding=fmt.ENCODING,
+                             data=schema))
+    offset_ns = fmt.log_time_offset_ns(log.time_s)
+    writer.add_channel(Channel(
+        id=cid, topic=fmt.topic(step_id, log.source), message_encoding=fmt.ENCODING,
+        schema_id=cid, metadata={"step_id": step_id, "source": log.source,
+                                 "samples": str(len(log)), "log_time_offset_ns": str(offset_ns),
+                                 "step_record_sha256": digest,
+                                 "schema_sha256": hashlib.sha256(schema).hexdigest()},
+    ))
+    times_ns = fmt.block_log_times_ns(log.time_s, offset_ns)
+    messages = [
+        Message(channel_id=cid, log_time=t_ns, publish_time=t_ns, sequence=seq,
+                data=records[seq * fmt.BLOCK_SAMPLES:(seq + 1) * fmt.BLOCK_SAMPLES].tobytes())
+        for seq, t_ns in enumerate(times_ns)
+    ]
+    per_chunk = max(1, CHUNK_BYTES // max(1, records.dtype.itemsize * fmt.BLOCK_SAMPLES))
+    for first in range(0, len(messages), per_chunk):
+        writer.add_chunk(messages[first:first + per_chunk])
+
+
+def step_record(
+    step: PlannedStep, index: int, table: SampledLog, daq: SampledLog, extra: dict[str, Any] | None
+) -> dict[str, Any]:
+    """The ``step`` metadata record of one step (before JSON encoding of its values)."""
+    return {
+        "step": step.model_dump(mode="json"),
+        "index": index,
+        "table_topic": fmt.topic(step.id, table.source),
+        "daq_topic": fmt.topic(step.id, daq.source),
+        "table_sample_rate_hz": float(table.sample_rate_hz),
+        "daq_sample_rate_hz": float(daq.sample_rate_hz),
+        "extra": extra or {},
+    }
+
+
+def write_step_file(
+    stream: IO[bytes],
+    run_meta: dict[str, Any],
+    step: PlannedStep,
+    index: int,
+    logs: tuple[SampledLog, SampledLog],
+    extra: dict[str, Any] | None = None,
+) -> None:
+    """Write one self-contained step recording (run metadata, step metadata, both logs)."""
+    table, daq = logs
+    writer = new_writer(stream)
+    writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
+    record = fmt.json_values(step_record(step, index, table, daq, extra))
+    writer.add_metadata(fmt.STEP_RECORD, record)
+    digest = fmt.record_digest(record)
+    _write_log(writer, step.id, index, table, digest)
+    _write_log(writer, step.id, index, daq, digest)
+    writer.finish()
+
+
+def scan_step_file(path: Path) -> tuple[str, int] | None:
+    """(step id, plan index) of a complete step file, or None if it is not a valid one."""
+    try:
+        with open(path, "rb") as stream:
+            reader = make_reader(stream)
+            if reader.get_summary() is None:
+                return None
+            for record in reader.iter_metadata():
+                if record.name == fmt.STEP_RECORD:
+                    return str(json.loads(record.metadata["step"])["id"]), int(
+                        json.loads(record.metadata["index"])
+                    )
+    except Exception:  # noqa: BLE001 - any failure to parse means "not a complete step file"
+        return None
+    return None
+
+
+class RunRecorder:
+    """Records a run into ``run_dir``: atomic per-step files, then one merged recording.
+
+    Parameters
+    ----------
+    run_dir
+        The run directory; step files go to ``run_dir/steps``. An existing directory is
+        continued (``--resume``): its run metadata and completed steps are kept.
+    """
+
+    def __init__(self, run_dir: str | Path) -> None:
+        self.run_dir = Path(run_dir)
+        self.steps_dir = self.run_dir / STEPS_DIR
+        self.steps_dir.mkdir(parents=True, exist_ok=True)
+        self._run_meta: dict[str, Any] = load_run_metadata(self.steps_dir)
+        self._files: dict[str, tuple[Path, int]] | None = None
+
+    def write_run_metadata(self, meta: dict[str, Any]) -> None:
+        """Store the run's metadata (procedure, rig, versions, seed, sensors, plan ...)."""
+        record = {**meta, "format": fmt.FORMAT}
+        record.setdefault("aatest_version", aatest.__version__)
+        text = json.dumps(record, sort_keys=True, default=fmt._json_default).encode("utf-8")
+        atomic_write(self.steps_dir / RUN_META_NAME, lambda stream: stream.write(text))
+        self._run_meta = json.loads(text)
+
+    def write_step(
+        self,
+        step: PlannedStep,
+        table: SampledLog,
+        daq: SampledLog,
+        extra: dict[str, Any] | None = None,
+        index: int | None = None,
+    ) -> Path:
+        """Write one completed step atomically; return its file.
+
+        ``index`` (1-based plan position) defaults to the step's position in the run
+        metadata's ``plan``, else to the next free number. Re-writing a step replaces it.
+        """
+        existing = self._files if self._files is not None else self._step_files()
+        index = index or self._plan_index(step.id) or existing.get(step.id, (None, 0))[1] or (
+            max((i for _, i in existing.values()), default=0) + 1
+        )
+        path = self.steps_dir / f"{index:03d}-{_safe_name(step.id)}.mcap"
+        meta = self._run_meta or {"format": fmt.FORMAT, "aatest_version": aatest.__version__}
+        atomic_write(path, lambda s: write_step_file(s, meta, step, index, (table, daq), extra))
+        old = existing.pop(step.id, None)
+        if old is not None and old[0] != path:
+            old[0].unlink(missing_ok=True)
+        existing[step.id] = (path, index)
+        self._files = dict(sorted(existing.items(), key=lambda item: (item[1][1], item[1][0].name)))
+        return path
+
+    def completed_step_ids(self) -> list[str]:
+        """Ids of completed steps in plan order; leftovers of interrupted writes are removed."""
+        return list(self._step_files())
+
+    def step_files(self) -> list[Path]:
+        """Complete step files in plan order."""
+        return [path for path, _ in self._step_files().values()]
+
+    def finalize(self) -> Path:
+        """Merge run metadata and all step files, in plan order, into ``recording.mcap``."""
+        target = self.run_dir / RECORDING_NAME
+        paths = self.step_files()
+        return atomic_write(target, lambda stream: merge_step_files(stream, self._run_meta, paths))
+
+    def prune_step_files(self) -> int:
+        """Delete the step files already inside ``recording.mcap``; return how many went.
+
+        Only ids read back from the merged recording are deleted, so a failed or partial merge
+        never costs a step. The run metadata file stays (it names the run for ``--resume``).
+        """
+        merged = merged_step_ids(self.run_dir / RECORDING_NAME)
+        pruned = 0
+        for step_id, (path, _) in self._step_files().items():
+            if step_id in merged:
+                path.unlink(missing_ok=True)
+                pruned += 1
+        self._files = None
+        return pruned
+
+    def _plan_index(self, step_id: str) -> int | None:
+        plan = self._run_meta.get("plan")
+        if isinstance(plan, list):
+            for i, entry in enumerate(plan, start=1):
+                if isinstance(entry, dict) and entry.get("id") == step_id:
+                    return i
+        return None
+
+    def _step_files(self) -> dict[str, tuple[Path, int]]:
+        """Scan the step directory once (cleaning leftovers); later writes update the cache."""
+        self._files = complete_step_files(self.steps_dir, clean=True)
+        return dict(self._files)
+
+
+def merged_step_ids(recording: Path) -> set[str]:
+    """Ids of the steps a merged recording holds (read from its step records)."""
+    try:
+        with open(recording, "rb") as stream:
+            return {
+                json.loads(record.metadata["step"])["id"]
+                for record in make_reader(stream).iter_metadata()
+                if record.name == fmt.STEP_RECORD
+            }
+    except FileNotFoundError:
+        return set()
+    except RecordingError:
+        raise
+    except fmt.DECODE_ERRORS as exc:
+        raise RecordingError(f"{recording}: corrupt or truncated recording ({exc})") from exc
+
+
+def complete_step_files(steps_dir: Path, clean: bool = False) -> dict[str, tuple[Path, int]]:
+    """Step id → (file, plan index) of every complete step file, sorted by plan index.
+
+    With ``clean``, temporary files of interrupted writes are deleted and invalid step files
+    are renamed ``*.corrupt`` so they are never read again.
+    """
+    found: dict[str, tuple[Path, int]] = {}
+    for path in sorted(steps_dir.glob("*.mcap*")):
+        if _TEMP_MARK in path.name:
+            if clean:
+                path.unlink(missing_ok=True)
+            continue
+        if not _STEP_FILE.match(path.name):
+            continue
+        scanned = scan_step_file(path)
+        if scanned is None:
+            if clean:
+                path.replace(path.with_name(path.name + ".corrupt"))
+            continue
+        step_id, index = scanned
+        if step_id not in found or found[step_id][1] < index:
+            found[step_id] = (path, index)
+    return dict(sorted(found.items(), key=lambda item: (item[1][1], item[1][0].name)))
+
+
+def load_run_metadata(steps_dir: Path) -> dict[str, Any]:
+    """The run metadata stored by :meth:`RunRecorder.write_run_metadata` ({} if none)."""
+    path = steps_dir / RUN_META_NAME
+    if not path.exists():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise RecordingError(f"{path}: unreadable run metadata: {exc}") from exc
+    if not isinstance(data, dict):
+        raise RecordingError(f"{path}: run metadata is not a JSON object")
+    return data
+
+
+class _Merger:
+    """Copies step files into one writer: chunks verbatim, identical schemas stored once."""
+
+    def __init__(self, writer: ChunkedWriter) -> None:
+        self.writer = writer
+        self.schema_ids: dict[tuple[str, str, bytes], int] = {}
+
+    def copy(self, path: Path) -> None:
+        with open(path, "rb") as stream:
+            reader = make_reader(stream)
+            summary = reader.get_summary()
+            if summary is None or summary.statistics is None:
+                raise RecordingError(f"{path}: step file has no summary (incomplete)")
+            for record in reader.iter_metadata():
+                if record.name == fmt.STEP_RECORD:
+                    self.writer.add_metadata(record.name, dict(record.metadata))
+            for channel in summary.channels.values():
+                self._add_channel(channel, summary.schemas[channel.schema_id], path)
+            self.writer.copy_chunks(stream, summary)
+
+    def _add_channel(self, channel: Channel, schema: Schema, path: Path) -> None:
+        key = (schema.name, schema.encoding, bytes(schema.data))
+        if key not in self.schema_ids:
+            self.schema_ids[key] = len(self.schema_ids) + 1
+            self.writer.add_schema(dataclasses.replace(schema, id=self.schema_ids[key]))
+        try:
+            self.writer.add_channel(dataclasses.replace(channel, schema_id=self.schema_ids[key]))
+        except ValueError as exc:
+            raise RecordingError(f"{path}: channel {channel.topic!r} clashes: {exc}") from exc
+
+
+def merge_step_files(stream: IO[bytes], run_meta: dict[str, Any], paths: Iterable[Path]) -> None:
+    """One pass: run metadata, then each step's metadata and messages, into ``stream``."""
+    paths = list(paths)
+    if not run_meta and paths:
+        run_meta = _embedded_run_meta(paths[0])
+    writer = new_writer(stream)
+    writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta or {"format": fmt.FORMAT}))
+    merger = _Merger(writer)
+    for path in paths:
+        merger.copy(path)
+    writer.finish()
+
+
+def _embedded_run_meta(path: Path) -> dict[str, Any]:
+    with open(path, "rb") as stream:
+        for record in make_reader(stream).iter_metadata():
+            if record.name == fmt.RUN_RECORD:
+                return fmt.from_json_values(dict(record.metadata))
+    return {}

@@ -1,0 +1,9 @@
+"""Running a plan on a rig.
+
+- ``rig``        builds the rig's plugins; safe stop (table stopped, motor off) on any fault
+- ``runner``     the step loop: record, persist, resume without repeating a step
+- ``run_state``  ``run_state.json``: which steps are done, which prompts were shown
+- ``progress``   the operator's terminal progress line
+- ``signing``    Ed25519 keys and detached signatures of the report bundle
+- ``session``    what each CLI command does, end to end, without CLI concerns
+"""

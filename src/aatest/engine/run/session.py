@@ -1,0 +1,210 @@
+"""What each CLI command does, end to end, without any CLI concerns.
+
+procedure → plan → envelope → rig → runner → recording → analyses → results → report → signature
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from aatest.engine import registry
+from aatest.engine.analysis.passes import run_analyses
+from aatest.engine.errors import InputError
+from aatest.engine.analysis.results import build_results, read_results, write_results
+from aatest.engine.run.rig import build_rig
+from aatest.engine.run.run_state import STATE_FILE, RunState, open_state
+from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
+from aatest.engine.steps import Plan, SensorRef
+
+log = logging.getLogger("aatest")
+
+SIGNING_KEY_ENV = "AATEST_SIGNING_KEY"
+PASSPHRASE_ENV = "AATEST_SIGNING_PASSPHRASE"
+OPERATOR_ENV = "AATEST_OPERATOR"
+
+
+@dataclass
+class Prepared:
+    """A validated procedure ready to run: its text, plan and rig configuration."""
+
+    path: Path
+    text: str
+    plan: Plan
+    rig_config: Any
+    expansion: Any
+
+    def plan_json(self) -> dict[str, Any]:
+        """``aatest plan --json``: the steps, lab duration and the points skipped as out of envelope."""
+        return dict(self.expansion.to_contract_json())
+
+
+def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
+    """Load, expand and envelope-check a procedure; nothing moves."""
+    from aatest.engine.procedure.envelope import check_envelope
+    from aatest.engine.procedure.loader import load_rig, parse_procedure, rig_from_procedure
+    from aatest.engine.procedure.planner import expand_traced
+    from aatest.engine.procedure.yaml_loader import read_text
+
+    text = read_text(procedure)  # read once: the hash recorded is of exactly what was planned
+    proc = parse_procedure(text, str(procedure))
+    rig_config = load_rig(rig_file) if rig_file else rig_from_procedure(proc)
+    sensor = SensorRef(model=proc.sensor.model, serial=proc.sensor.serial)
+    envelope, datasheet = _declared_limits(rig_config, sensor)
+    expansion = expand_traced(proc, envelope=envelope, datasheet=datasheet)
+    check_envelope(
+        expansion.plan, envelope, datasheet, procedure_file=str(procedure), sources=expansion.sources
+    )
+    return Prepared(procedure, text, expansion.plan, rig_config, expansion)
+
+
+def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any]:
+    """The turntable plugin's envelope and the sensor's datasheet (constructing moves nothing)."""
+    rig = build_rig(rig_config, sensor, seed=0)
+    try:
+        return rig.turntable.envelope(), rig.datasheet
+    finally:
+        rig.turntable.close()
+        rig.daq.close()
+        rig.chamber.close()
+
+
+def default_operator() -> str:
+    """Who ran it: ``AATEST_OPERATOR``, else the login name."""
+    import getpass
+
+    try:
+        return os.environ.get(OPERATOR_ENV) or getpass.getuser()
+    except (KeyError, OSError):
+        return "unknown"
+
+
+def signing_key(explicit: Path | None) -> Path | None:
+    if explicit is not None:
+        return explicit
+    env = os.environ.get(SIGNING_KEY_ENV)
+    return Path(env) if env else None
+
+
+def analyse_and_report(
+    data_path: Path,
+    out_dir: Path,
+    template: str | None = None,
+    template_dir: Path | None = None,
+    key_path: Path | None = None,
+    lab_duration_s: float | None = None,
+    wall_duration_s: float | None = None,
+    pdf: bool = False,
+) -> dict[str, Any]:
+    """Read a recording/import, run its analyses, write results.json and the signed report."""
+    from aatest.engine.recording import read_dataset
+
+    data = read_dataset(data_path)
+    requested = list(data.metadata.get("analysis", []))
+    analysis = run_analyses(data, requested)
+    lab = lab_duration_s if lab_duration_s is not None else sum(
+        s.step.lab_duration_s for s in data.steps
+    )
+    results = build_results(data, analysis, lab, wall_duration_s or 0.0)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    report_name = template or data.metadata.get("report_template") or "calibration-certificate"
+    render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
+    return results
+
+
+def render_and_sign(
+    results: dict[str, Any],
+    run_dir: Path,
+    template: str,
+    template_dir: Path | None,
+    key_path: Path | None,
+    pdf: bool = False,
+) -> Path:
+    """Write results.json, render the report (and its PDF), sign the bundle when a key is set."""
+    from aatest.engine.run import signing
+
+    private = None
+    if key_path is not None:
+        private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
+        results["signature"] = {"fingerprint": signing.key_fingerprint(private.public_key())}
+    write_results(results, run_dir)
+    info = registry.load("report", template)
+    reporter = info.target(registry.configure(info, {}))
+    report = reporter.render(results, run_dir, template_dir)
+    if pdf:
+        from aatest.plugins.report.pdf import render_pdf
+
+        render_pdf(report)
+    if private is not None:
+        signing.sign_bundle(report, private)
+    return report
+
+
+def run(
+    procedure: Path,
+    rig_file: Path | None,
+    out_dir: Path | None,
+    resume: bool,
+    seed: int,
+    key_path: Path | None,
+    show_progress: bool = True,
+    operator: str | None = None,
+    pdf: bool = False,
+) -> tuple[Path, dict[str, Any]]:
+    """``aatest run``: execute (or resume) a procedure and produce its results and report."""
+    from aatest.engine.recording import RunRecorder
+
+    prepared = prepare(procedure, rig_file)
+    plan = prepared.plan
+    if out_dir is None:
+        if resume:
+            raise InputError("--resume needs --out RUN_DIR (the run to continue)")
+        out_dir = default_run_dir(plan.procedure)
+    sha = procedure_sha256(prepared.text)
+    if resume:
+        seed = RunState.load(out_dir).seed
+    state = open_state(out_dir, plan.procedure, sha, seed, resume)
+    recorder = RunRecorder(out_dir)
+    if not state.finished:  # a finished run that is "resumed" is only analysed again
+        rig = build_rig(prepared.rig_config, plan.sensor, seed)
+        if not resume:
+            meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
+            meta["report_template"] = plan.report_template
+            recorder.write_run_metadata(meta)
+        run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress)
+        recorder.finalize()
+        state.finished = True
+        state.save(out_dir)
+    # only now, with every step inside recording.mcap, the per-step copies can go
+    recorder.prune_step_files()
+    key = signing_key(key_path)
+    if plan.sign and key is None:
+        log.warning(
+            "procedure asks for a signed report but no key is configured "
+            f"(--sign-key or {SIGNING_KEY_ENV}); the report is unsigned"
+        )
+    results = analyse_and_report(
+        out_dir, out_dir, plan.report_template, None, key,
+        lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s, pdf=pdf,
+    )
+    return out_dir, results
+
+
+def report(
+    run_dir: Path, template_dir: Path | None, key_path: Path | None, pdf: bool = False
+) -> Path:
+    """``aatest report``: re-render (and re-sign) from an existing results.json."""
+    results = read_results(run_dir)
+    results.pop("signature", None)
+    template = str(results.get("metadata", {}).get("report_template") or "calibration-certificate")
+    stale_pdf = run_dir / "report.pdf"
+    if not pdf and stale_pdf.exists():
+        stale_pdf.unlink()  # it shows the old report; a new signature must not cover it
+    return render_and_sign(results, run_dir, template, template_dir, signing_key(key_path), pdf)
+
+
+def run_wall_duration(run_dir: Path) -> float | None:
+    return RunState.load(run_dir).wall_duration_s if (run_dir / STATE_FILE).exists() else None

@@ -1,0 +1,69 @@
+"""The pieces every result model shares: strictness, uncertainty statements and verdicts.
+
+Field names are the keys of ``results.json`` (docs/interfaces.md §1) and are part of the public
+interface: add fields, never rename them. Units are in the names (``_v``, ``_dps2``, ``_deg``).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+#: ILAC-G8 decision rules: plain comparison, guard band = U, or shared risk (U reported only)
+DecisionRule = Literal["simple", "guarded", "shared-risk"]
+#: one verdict; the ``conditional-*`` forms mean the value lies within U of its limit
+VerdictValue = Literal["pass", "fail", "conditional-pass", "conditional-fail"]
+#: the overall verdict of a run: ``none`` when nothing was judged
+Overall = Literal["pass", "fail", "conditional-pass", "conditional-fail", "none"]
+
+
+class ResultModel(BaseModel):
+    """Base of every result model: unknown keys are errors, so a misspelt key cannot hide."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+class BudgetRow(ResultModel):
+    """One row of a GUM uncertainty budget (JCGM 100), in the final quantity's unit.
+
+    ``basis`` says where the number comes from (measured from the data, the rig's stated
+    accuracy, a datasheet, or "not evaluated"), which an assessor needs for every row.
+    """
+
+    name: str = Field(description="machine name of the input quantity")
+    label: str = Field(description="what the input is, for the certificate")
+    value: float = Field(description="estimate of the input, in its own unit")
+    standard_uncertainty: float = Field(ge=0, description="u(x_i), in the input's unit")
+    unit: str = Field("", description="unit of the input")
+    distribution: str = Field("normal", description="normal | rectangular | cosine_error")
+    sensitivity: float | None = Field(None, description="c_i = ∂y/∂x_i")
+    contribution: float = Field(ge=0, description="|c_i|·u(x_i), in the quantity's unit")
+    basis: str = Field("", description="where the number comes from")
+
+
+class Certified(ResultModel):
+    """Fields of a certified result: its expanded uncertainty and the budget behind it.
+
+    Filled by the uncertainty stage after the analyses (``None``/empty until then, and for
+    results the lab does not certify).
+    """
+
+    expanded_uncertainty: float | None = Field(
+        None, ge=0, description="U in the value's unit, U = k·u_c")
+    coverage_factor: float | None = Field(None, gt=0, description="k")
+    coverage_probability: float | None = Field(None, gt=0, lt=1, description="e.g. 0.95")
+    budget: list[BudgetRow] = Field(default_factory=list, description="GUM budget rows")
+
+
+class Verdict(ResultModel):
+    """One judged quantity (docs/interfaces.md §1 ``verdicts``), decided by the engine only."""
+
+    quantity: str = Field(description="e.g. scale_factor_deviation_pct, bias_deviation_v")
+    channel: str = Field(description="sensor channel (or sensor name for misalignment)")
+    value: float = Field(description="the judged value, in the limit's unit")
+    limit: float = Field(ge=0, description="acceptance limit on |value|")
+    expanded_uncertainty: float | None = Field(None, ge=0, description="U of value, same unit")
+    rule: DecisionRule
+    verdict: VerdictValue
+    unit: str = Field("", description="unit of value, limit and U")

@@ -1,0 +1,286 @@
+"""Freeze-pulse synchronisation of the table log and the sensor (DAQ) log (docs/method.md §2).
+
+The DAQ generates a 100 Hz sync pulse that the table registers as its freeze pulse one
+controller cycle late, logging the latch time ``fp_latch_s``. The true edge time on the table
+clock is ``time_s − fp_latch_s`` on the 0→1 row; on the DAQ clock it is the sample where the
+DAQ's own pulse goes 0→1. All paired edges give the linear clock relation (docs/interfaces.md §4)
+
+    t_table = offset_s + t_daq · (1 + drift_ppm · 1e-6),
+
+and the DAQ channels are resampled onto the table's uniform time vector, so every analysis
+reads both loggers on one time base. Without ``fp_latch_s`` the edge is assumed half a sample
+before the registering sample (the unbiased guess; resolution is then one sample).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from aatest.engine.dataset import Dataset, StepData
+from aatest.engine.errors import AnalysisError
+from aatest.engine.steps import PlannedStep
+
+CACHE_KEY = "sync.synced_steps"
+#: a paired edge further than this fraction of the pulse period from the fit is inconsistent
+_PAIR_TOLERANCE_PERIODS = 0.25
+#: at least this share of the DAQ edges inside the table record must find a table edge
+_MIN_PAIRED_FRACTION = 0.9
+_MIN_EDGES = 3
+_DIGITAL = ("sync_pulse", "trigger")
+
+
+@dataclass(frozen=True)
+class ClockRelation:
+    """``t_table = offset_s + t_daq·(1 + drift_ppm·1e-6)`` and how well the edges agree."""
+
+    offset_s: float
+    drift_ppm: float
+    residual_rms_us: float
+    edges_used: int
+    drift_u_ppm: float = 0.0
+    offset_u_s: float = 0.0
+
+    def to_table_s(self, t_daq_s: np.ndarray) -> np.ndarray:
+        """Map DAQ-clock times (s) to table-clock times (s)."""
+        return self.offset_s + np.asarray(t_daq_s) * (1.0 + self.drift_ppm * 1e-6)
+
+    def to_daq_s(self, t_table_s: np.ndarray) -> np.ndarray:
+        """Map table-clock times (s) to DAQ-clock times (s)."""
+        return (np.asarray(t_table_s) - self.offset_s) / (1.0 + self.drift_ppm * 1e-6)
+
+    def as_dict(self) -> dict[str, float | int]:
+        """The contract ``sync`` keys plus the drift's standard uncertainty."""
+        return {
+            "drift_ppm": self.drift_ppm,
+            "offset_s": self.offset_s,
+            "residual_rms_us": self.residual_rms_us,
+            "edges_used": self.edges_used,
+            "drift_u_ppm": self.drift_u_ppm,
+            "offset_u_s": self.offset_u_s,
+        }
+
+
+@dataclass(frozen=True)
+class SyncedStep:
+    """One step with both loggers on the table's time vector.
+
+    ``table`` holds the table channels (trimmed to the DAQ coverage), ``daq`` the DAQ channels
+    resampled onto ``time_s`` (analog channels by cubic spline, digital ones by nearest sample).
+    """
+
+    step: PlannedStep
+    time_s: np.ndarray
+    sample_rate_hz: float
+    table: Mapping[str, np.ndarray]
+    daq: Mapping[str, np.ndarray]
+    relation: ClockRelation
+
+    def __len__(self) -> int:
+        return int(self.time_s.shape[0])
+
+
+def rising_edges(pulse: np.ndarray) -> np.ndarray:
+    """Indices of the samples where a 0/1 pulse goes from low to high."""
+    high = np.asarray(pulse) > 0.5
+    return np.flatnonzero(~high[:-1] & high[1:]) + 1
+
+
+def _regular_time(time_s: np.ndarray) -> np.ndarray:
+    """Replace jittered time stamps by their straight-line fit against the sample index.
+
+    A crystal-clocked logger samples uniformly; its time-stamp jitter (≈6 µs on the DAQ) is
+    noise of the stamps, not of the sampling, so the fit is the better time base.
+    """
+    index = np.arange(time_s.size, dtype=np.float64)
+    slope, intercept = np.polyfit(index, time_s - time_s[0], 1)
+    return time_s[0] + intercept + slope * index
+
+
+def _table_edge_times(data: StepData) -> np.ndarray:
+    """True freeze-pulse edge times on the table clock (latch-corrected), s."""
+    table = data.table
+    idx = rising_edges(table["sync_pulse"])
+    time_s = np.asarray(table.time_s)
+    if "fp_latch_s" in table.channels:
+        return time_s[idx] - np.asarray(table["fp_latch_s"])[idx]
+    return time_s[idx] - 0.5 / table.sample_rate_hz
+
+
+def _daq_edges(data: StepData, daq_time_s: np.ndarray) -> tuple[np.ndarray, float | None]:
+    """DAQ-clock times of the DAQ's sync-pulse rising edges, and the coarse table−DAQ offset.
+
+    The trigger marks the table's first sample on the DAQ clock, so it aligns the two records
+    to about one sample — far better than the half pulse period pairing needs. Without a
+    trigger the first edges are aligned instead (docs/method.md §2 (3)).
+    """
+    daq = data.daq
+    idx = rising_edges(daq["sync_pulse"])
+    if "trigger" not in daq.channels:
+        return daq_time_s[idx], None
+    trigger = np.asarray(daq["trigger"]) > 0.5
+    if not trigger.any():
+        raise AnalysisError(f"step {data.step.id}: the DAQ trigger never goes high")
+    first = int(np.argmax(trigger))
+    offset0 = float(data.table.time_s[0]) - float(daq_time_s[first])
+    return daq_time_s[idx[idx >= first]], offset0
+
+
+def _match(t_table: np.ndarray, t_pred: np.ndarray, tol_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the nearest predicted DAQ edge for every table edge, and which are within tol."""
+    k = np.clip(np.searchsorted(t_pred, t_table), 1, t_pred.size - 1)
+    k = np.where(np.abs(t_pred[k - 1] - t_table) < np.abs(t_pred[k] - t_table), k - 1, k)
+    return np.abs(t_pred[k] - t_table) < tol_s, k
+
+
+def _line(t_table: np.ndarray, t_daq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares ``t_table = c0 + c1·(t_daq − t_daq[0])``: coefficients and residuals."""
+    design = np.column_stack([np.ones_like(t_daq), t_daq - t_daq[0]])
+    coef, *_ = np.linalg.lstsq(design, t_table, rcond=None)
+    return coef, t_table - design @ coef
+
+
+def _check_counts(step_id: str, t_table: np.ndarray, t_daq: np.ndarray) -> float:
+    if t_table.size < _MIN_EDGES or t_daq.size < _MIN_EDGES:
+        raise AnalysisError(
+            f"step {step_id}: sync edges missing ({t_table.size} on the table, "
+            f"{t_daq.size} on the DAQ; need ≥ {_MIN_EDGES}) — check the freeze-pulse wiring"
+        )
+    return float(np.median(np.diff(t_daq)))
+
+
+def fit_clock_relation(step_id: str, t_table: np.ndarray, t_daq: np.ndarray,
+                       offset0: float | None = None) -> ClockRelation:
+    """Fit ``t_table = offset + t_daq·(1 + drift)`` over all paired edges (docs/method.md §2 (4)).
+
+    Edges are paired in two passes: the first second of edges with the coarse offset (trigger
+    or first edge), then every edge with the relation fitted on those, so drifts of hundreds
+    of ppm still pair correctly.
+
+    Raises
+    ------
+    AnalysisError
+        When edges are missing, cannot be paired, or do not lie on one straight line.
+    """
+    period_s = _check_counts(step_id, t_table, t_daq)
+    tol_s = _PAIR_TOLERANCE_PERIODS * period_s
+    coef = np.array([t_daq[0] + (t_table[0] - t_daq[0] if offset0 is None else offset0), 1.0])
+    for window_s in (1.0, np.inf):
+        sel = t_table <= t_table[0] + window_s
+        ok, k = _match(t_table[sel], coef[0] + coef[1] * (t_daq - t_daq[0]), tol_s)
+        if ok.sum() < _MIN_EDGES or np.unique(k[ok]).size != int(ok.sum()):
+            raise AnalysisError(f"step {step_id}: sync edges inconsistent (cannot pair edges)")
+        tt, td = t_table[sel][ok], t_daq[k[ok]]
+        coef, residual = _line(tt, td)
+        coef = np.array([coef[0] - coef[1] * (td[0] - t_daq[0]), coef[1]])
+    t_pred = coef[0] + coef[1] * (t_daq - t_daq[0])
+    inside = (t_pred >= t_table[0]) & (t_pred <= t_table[-1])
+    if tt.size < _MIN_PAIRED_FRACTION * inside.sum() or np.max(np.abs(residual)) > tol_s:
+        raise AnalysisError(
+            f"step {step_id}: sync edges inconsistent — {tt.size} of {int(inside.sum())} DAQ "
+            f"edges paired, worst residual {np.max(np.abs(residual)) * 1e6:.0f} µs"
+        )
+    sigma = float(np.sqrt(residual @ residual / max(tt.size - 2, 1)))
+    slope = float(coef[1])
+    return ClockRelation(
+        offset_s=float(coef[0] - slope * t_daq[0]),
+        drift_ppm=(slope - 1.0) * 1e6,
+        residual_rms_us=float(np.sqrt(np.mean(residual**2))) * 1e6,
+        edges_used=int(tt.size),
+        drift_u_ppm=sigma / float(np.sqrt(np.sum((td - td.mean()) ** 2))) * 1e6,
+    )
+
+
+def _resample(daq_time_s: np.ndarray, channels: Mapping[str, np.ndarray],
+              at_daq_s: np.ndarray) -> dict[str, np.ndarray]:
+    """DAQ channels at the DAQ-clock instants ``at_daq_s``."""
+    out: dict[str, np.ndarray] = {}
+    for name, values in channels.items():
+        if name in _DIGITAL:
+            idx = np.clip(np.searchsorted(daq_time_s, at_daq_s), 0, daq_time_s.size - 1)
+            out[name] = np.asarray(values)[idx]
+        else:
+            out[name] = CubicSpline(daq_time_s, np.asarray(values, dtype=np.float64))(at_daq_s)
+    return out
+
+
+def refine_offset(relation: ClockRelation, table_t0_s: float, trigger_daq_s: float | None,
+                  daq_dt_s: float) -> ClockRelation:
+    """Pin the offset with the trigger when the DAQ's pulse edges fall between its samples.
+
+    A DAQ edge is logged on its first high sample, so the true edge may lie up to one DAQ
+    sample earlier: the edge-based offset is the lower end of an interval one sample wide.
+    The trigger is generated by the DAQ on one of its samples and starts the table log, so
+    the table's first sample *is* that DAQ instant. When the trigger-based offset lies inside
+    the edge interval (the two agree) it is taken; otherwise (a trigger wired differently)
+    the edge-based offset stands. ``offset_u_s`` is the edge interval's rectangular
+    standard uncertainty, a conservative bound either way.
+    """
+    if trigger_daq_s is None:
+        return relation
+    k = 1.0 + relation.drift_ppm * 1e-6
+    width = daq_dt_s * k
+    from_trigger = table_t0_s - trigger_daq_s * k
+    u = width / np.sqrt(12.0)
+    if relation.offset_s - 1e-3 * width <= from_trigger < relation.offset_s + width:
+        return replace(relation, offset_s=float(from_trigger), offset_u_s=float(u))
+    return replace(relation, offset_u_s=float(u))
+
+
+def synchronise(data: StepData) -> SyncedStep:
+    """Synchronise one step: clock relation from all edges, trim, resample onto the table grid.
+
+    Parameters
+    ----------
+    data
+        A recorded step with a table log (``sync_pulse``, optionally ``fp_latch_s``) and a DAQ
+        log (``sync_pulse``, ``trigger``, sensor volts) on their own clocks.
+
+    Returns
+    -------
+    SyncedStep
+        Table samples covered by the DAQ record, with the DAQ channels on the same instants.
+    """
+    daq_time_s = _regular_time(np.asarray(data.daq.time_s, dtype=np.float64))
+    t_daq, offset0 = _daq_edges(data, daq_time_s)
+    relation = fit_clock_relation(data.step.id, _table_edge_times(data), t_daq, offset0)
+    table_t0 = float(data.table.time_s[0])
+    trigger_daq_s = None if offset0 is None else table_t0 - offset0
+    relation = refine_offset(relation, table_t0, trigger_daq_s,
+                             1.0 / float(data.daq.sample_rate_hz))
+    table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
+    at_daq_s = relation.to_daq_s(table_time_s)
+    inside = np.flatnonzero((at_daq_s >= daq_time_s[0]) & (at_daq_s <= daq_time_s[-1]))
+    if inside.size < 0.5 * table_time_s.size:
+        raise AnalysisError(f"step {data.step.id}: the DAQ record covers < 50 % of the table log")
+    keep = slice(int(inside[0]), int(inside[-1]) + 1)  # contiguous: views, no copies
+    table = {name: np.asarray(v)[keep] for name, v in data.table.channels.items()}
+    daq = _resample(daq_time_s, data.daq.channels, at_daq_s[keep])
+    return SyncedStep(
+        step=data.step,
+        time_s=table_time_s[keep],
+        sample_rate_hz=float(data.table.sample_rate_hz),
+        table=table,
+        daq=daq,
+        relation=relation,
+    )
+
+
+def synced_steps(data: Dataset, context: Any) -> list[SyncedStep]:
+    """All recorded steps synchronised, computed once per analysis pass (``context.cache``).
+
+    Raises
+    ------
+    AnalysisError
+        Naming the first step whose sync edges are missing or inconsistent.
+    """
+    cache: dict[str, Any] = context.cache
+    cached = cache.get(CACHE_KEY)
+    if cached is None or cached[0] is not data:
+        cache[CACHE_KEY] = (data, [synchronise(s) for s in data.steps if s.step.recorded])
+    result: list[SyncedStep] = cache[CACHE_KEY][1]
+    return result

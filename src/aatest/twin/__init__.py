@@ -1,0 +1,24 @@
+"""The digital twin of the rig, shared by the simulated turntable, DAQ and chamber plugins.
+
+Where each part lives (data flows top to bottom):
+
+- ``model``       the rig/sensor model YAML: every contract effect by name (docs/interfaces.md §4)
+- ``profiles``    commanded motion: hold, constant rate, sine synthesis, coordinated rates;
+                  controller-side limit refusal
+- ``table``       servo tracking, encoder ripple (1 and 2 cycles/°), motor band, motor-off
+                  drift; the estimator (position estimate, rate/accel as its differences)
+- ``kinematics``  two-axis frames, sensor seats, angular acceleration of the top, gravity,
+                  orthogonality and wobble
+- ``sensor``      the accelerometer: projection, cross-axis, g, hysteresis (vectorised play
+                  operator), dynamics, saturation, resolution, cubic, temperature, jerk
+- ``daq``         100 Hz pre-sample filter, white noise, slip ring, ADC
+- ``clocks``      DAQ crystal (drift, lead/lag, jitter), sync pulse, trigger, freeze-pulse
+                  registration one cycle late with ``fp_latch_s``
+- ``chamber``     set-point steps, first-order sensor lag, stabilisation
+- ``grid`` / ``fastmath``  uniform-grid phasors, fast trig and noise (the benchmark's budget)
+- ``synthesis``   one step's table log, DAQ log and truth, all vectorised
+- ``world``       the rig state in virtual lab time, shared by the simulated plugins
+- ``servers/``    the twin behind Modbus TCP and CAN (for the real drivers)
+- ``api``         ``simulate_step``, ``simulate_dataset``, ``realistic_rig_model``,
+                  ``nominal_rig_model``
+"""

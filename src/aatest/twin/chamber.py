@@ -1,0 +1,49 @@
+"""Temperature chamber: set-point steps and the sensor's first-order thermal lag.
+
+The chamber air follows a set-point step quickly compared with the sensor, so the air is taken
+to jump to the set-point and the sensor to follow with time constant τ:
+T(t) = T_set + (T_from − T_set)·exp(−(t − t_step)/τ). Stabilisation = the soak time has
+elapsed *and* the sensor is within the stable band of the set-point (docs/method.md §4.2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aatest.twin.model import ChamberModel
+
+
+@dataclass
+class ThermalState:
+    """Sensor temperature history as one exponential segment since the last set-point step."""
+
+    model: ChamberModel
+    setpoint_c: float
+    from_c: float
+    step_time_s: float = 0.0
+
+    @classmethod
+    def ambient(cls, model: ChamberModel, temperature_c: float | None = None) -> ThermalState:
+        t = model.ambient_c if temperature_c is None else temperature_c
+        return cls(model=model, setpoint_c=t, from_c=t)
+
+    def temperature_at(self, lab_time_s: np.ndarray | float) -> np.ndarray:
+        """Sensor temperature (°C) at lab times (not before the last step)."""
+        elapsed = np.maximum(np.asarray(lab_time_s, dtype=float) - self.step_time_s, 0.0)
+        decay = np.exp(-elapsed / self.model.sensor_time_constant_s)
+        return self.setpoint_c + (self.from_c - self.setpoint_c) * decay
+
+    def set_point(self, setpoint_c: float, lab_time_s: float) -> None:
+        """Step the chamber to a new set-point at ``lab_time_s``."""
+        self.from_c = float(self.temperature_at(lab_time_s))
+        self.setpoint_c = float(setpoint_c)
+        self.step_time_s = float(lab_time_s)
+
+    def time_to_stable_s(self, lab_time_s: float, soak_s: float) -> float:
+        """Lab seconds from ``lab_time_s`` until soak has elapsed and the sensor is in band."""
+        gap = abs(float(self.temperature_at(lab_time_s)) - self.setpoint_c)
+        band = self.model.stable_band_c
+        needed = 0.0 if gap <= band else self.model.sensor_time_constant_s * np.log(gap / band)
+        return max(float(soak_s), needed)

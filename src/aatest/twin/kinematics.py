@@ -1,0 +1,152 @@
+"""Two-axis table kinematics: frames, sensor axes, angular acceleration and gravity.
+
+Frames (docs/interfaces.md §4 "Frames"). Table-top coordinates are ordered (P, O, I) so that a sensor
+on I with x along P and y along O is right-handed. The outer axis O is fixed in the lab and
+horizontal; the inner axis I is carried by the outer gimbal and points up at outer 0°; the table
+top turns about I by the inner angle ψ. Every vector below is expressed in the *table-top* frame,
+which is the frame the sensors are bolted to.
+
+Why kinematics and not special cases: the coordinated two-axis excitation
+α = −ω_i·ω_o·sin(ω_i t) (docs/method.md §3) and the "outer motion seen along (sin ψ, cos ψ, 0)" rule
+both fall out of differentiating the body-frame angular velocity
+ω_top = ω_i·e_I + R_z(ψ)ᵀ·R_x(ε)ᵀ·ω_o·e_O, with ε the orthogonality error of the gimbal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: table-top unit vectors (P, O, I) coordinates
+E_P = np.array([1.0, 0.0, 0.0])
+E_O = np.array([0.0, 1.0, 0.0])
+E_I = np.array([0.0, 0.0, 1.0])
+
+ARCSEC_RAD = np.pi / (180.0 * 3600.0)
+
+#: sensor frames on the block, columns = sensor (x, y, z) in table-top coordinates;
+#: each right-handed with z the sensitive axis (S_Z on I, S_Y on O, S_X on P).
+SEAT_FRAMES: dict[str, np.ndarray] = {
+    "I": np.column_stack([E_P, E_O, E_I]),
+    "O": np.column_stack([E_I, E_P, E_O]),
+    "P": np.column_stack([E_O, E_I, E_P]),
+}
+
+
+def rotation(axis: np.ndarray, angle_rad: float) -> np.ndarray:
+    """Rotation matrix of ``angle_rad`` about the unit vector ``axis`` (Rodrigues)."""
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle_rad) * k + (1.0 - np.cos(angle_rad)) * (k @ k)
+
+
+def tilt(angle_deg: float, azimuth_deg: float) -> np.ndarray:
+    """Small rotation that tilts a frame's z axis by ``angle_deg`` towards azimuth (0° = +x).
+
+    Used for input-axis misalignment: z' = R·z leans towards x at azimuth 0°, towards y at 90°.
+    """
+    az = np.radians(azimuth_deg)
+    # rotating about (−sin az, cos az, 0) by +angle tips z towards (cos az, sin az, 0)
+    return rotation(np.array([-np.sin(az), np.cos(az), 0.0]), np.radians(angle_deg))
+
+
+def random_small_rotation(rng: np.random.Generator, sigma_deg: float) -> np.ndarray:
+    """A random rotation with independent N(0, σ²) angles about the three axes (degrees)."""
+    if sigma_deg <= 0.0:
+        return np.eye(3)
+    angles = np.radians(rng.normal(0.0, sigma_deg, 3))
+    return rotation(E_P, angles[0]) @ rotation(E_O, angles[1]) @ rotation(E_I, angles[2])
+
+
+@dataclass(frozen=True)
+class GimbalErrors:
+    """Geometric errors of the gimbal (datasheet: wobble ≤ 2″, orthogonality ≤ 3″)."""
+
+    orthogonality_arcsec: float = 0.0
+    wobble_arcsec: float = 0.0
+
+
+def angular_acceleration_top(
+    inner_sincos: tuple[np.ndarray, np.ndarray],
+    inner_rate_dps: np.ndarray,
+    inner_accel_dps2: np.ndarray,
+    outer_rate_dps: np.ndarray,
+    outer_accel_dps2: np.ndarray,
+    gimbal: GimbalErrors = GimbalErrors(),
+) -> np.ndarray:
+    """Angular acceleration of the table top in its own frame, shape (3, n), °/s².
+
+    d/dt of the body-frame angular velocity; includes the Coriolis-like cross term
+    ω_o·ω_i (in rad/s units, converted back to °/s²) that makes coordinated motion work.
+    ``inner_sincos`` = (sin ψ, cos ψ) of the inner angle (see :func:`sincos_deg`).
+    """
+    s, c = inner_sincos
+    eps = gimbal.orthogonality_arcsec * ARCSEC_RAD
+    # outer axis in the inner-base frame: R_x(ε)ᵀ·e_O = (0, cos ε, −sin ε)
+    v_o, v_i = np.cos(eps), -np.sin(eps)
+    cross = np.radians(inner_rate_dps) * outer_rate_dps  # (rad/s)·(°/s) = °/s²
+    alpha = np.empty((3,) + np.shape(s))
+    alpha[0] = v_o * (outer_accel_dps2 * s + cross * c)
+    alpha[1] = v_o * (outer_accel_dps2 * c - cross * s)
+    alpha[2] = inner_accel_dps2 + v_i * outer_accel_dps2
+    return _apply_wobble(alpha, s, c, gimbal.wobble_arcsec)
+
+
+def gravity_top(inner_sincos: tuple[np.ndarray, np.ndarray],
+                outer_sincos: tuple[np.ndarray, np.ndarray],
+                gimbal: GimbalErrors = GimbalErrors()) -> np.ndarray:
+    """Specific force of a body at rest (the 'up' unit vector, in g) in the top frame, (3, n).
+
+    +1 g along I at outer 0°, −1 g at outer 180° (docs/interfaces.md §4 "Gravity").
+    """
+    s, c = inner_sincos
+    sin_phi, cos_phi = outer_sincos
+    eps = gimbal.orthogonality_arcsec * ARCSEC_RAD
+    # up in the outer frame is (−sin φ, 0, cos φ); then R_x(ε)ᵀ, then R_z(ψ)ᵀ
+    u0 = -sin_phi
+    u1 = np.sin(eps) * cos_phi
+    u2 = np.cos(eps) * cos_phi
+    up = np.empty((3,) + np.shape(s))
+    up[0] = c * u0 + s * u1
+    up[1] = -s * u0 + c * u1
+    up[2] = u2
+    return _apply_wobble(up, s, c, gimbal.wobble_arcsec)
+
+
+def _apply_wobble(vec: np.ndarray, s: np.ndarray, c: np.ndarray,
+                  wobble_arcsec: float) -> np.ndarray:
+    """Tilt by the wobble angle about a direction fixed in the inner-base frame (small angle).
+
+    The bearing tilt is fixed relative to the outer gimbal, so the top sees it turn once per
+    inner revolution: v' = v + w·(a × v) with a = R_z(ψ)ᵀ·e_P = (cos ψ, −sin ψ, 0).
+    Updates ``vec`` in place (callers pass freshly built arrays) and returns it.
+    """
+    w = wobble_arcsec * ARCSEC_RAD
+    if w == 0.0:
+        return vec
+    a0, a1 = c, -s
+    z = vec[2].copy()
+    vec[2] += w * (a0 * vec[1] - a1 * vec[0])
+    vec[0] += w * (a1 * z)
+    vec[1] -= w * (a0 * z)
+    return vec
+
+
+def lab_horizontal_top(inner_sincos: tuple[np.ndarray, np.ndarray],
+                       outer_sincos: tuple[np.ndarray, np.ndarray],
+                       about_lab: np.ndarray) -> np.ndarray:
+    """Angular acceleration about the two horizontal lab axes, expressed in the top frame.
+
+    ``about_lab`` (2, n): about the lab axis along P at outer 0° and about O (°/s²).
+    R_y(φ)ᵀ·e_P = (cos φ, 0, sin φ) and e_O stay horizontal; R_z(ψ)ᵀ brings both to the top.
+    """
+    s, c = inner_sincos
+    sin_phi, cos_phi = outer_sincos
+    h1, h2 = about_lab
+    out = np.empty((3,) + np.shape(h1))
+    out[0] = h1 * (c * cos_phi) + h2 * s
+    out[1] = h2 * c - h1 * (s * cos_phi)
+    out[2] = h1 * sin_phi
+    return out

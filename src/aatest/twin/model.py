@@ -1,0 +1,301 @@
+"""The rig/sensor model YAML the twin loads and ``aatest diagnose --model-out`` writes.
+
+Every error term is one named effect of the contract vocabulary (docs/interfaces.md §4), with the
+same parameter names, so a diagnosed effect drops straight into the model. An effect is on
+when its field is present (not ``None``). Units: degrees, seconds, volts, °C.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+# --- the effect vocabulary (names and parameters are part of the public contract) -------------
+
+
+class BiasTemperature(_Model):
+    """bias = b0 + c·(T − T_ref)."""
+
+    coefficient_v_per_c: float
+
+
+class ScaleTemperature(_Model):
+    """scale = K·(1 + c·(T − T_ref))."""
+
+    coefficient_per_c: float
+
+
+class NonlinearityCubic(_Model):
+    """output = b0 + K·α·(1 + c3·(α/α_range)²)."""
+
+    c3: float
+
+
+class Saturation(_Model):
+    """The sensed acceleration clips at ±limit."""
+
+    limit_dps2: float = Field(gt=0)
+
+
+class Hysteresis(_Model):
+    """Sensed α follows a play (backlash) operator of this half width."""
+
+    half_width_dps2: float = Field(ge=0)
+
+
+class SensorDynamics(_Model):
+    """H(s) = ωn²/(s² + 2ζωn·s + ωn²)."""
+
+    natural_frequency_hz: float = Field(gt=0)
+    damping: float = Field(gt=0)
+
+
+class TimeDelay(_Model):
+    """Pure transport delay; the output lags the motion."""
+
+    delay_s: float = Field(ge=0)
+
+
+class ClockDrift(_Model):
+    """t_table = t0 + t_daq·(1 + drift_ppm·1e-6); DAQ slower → positive."""
+
+    drift_ppm: float
+
+
+class JerkSensitivity(_Model):
+    """Output term c·dα/dt."""
+
+    coefficient_v_per_dps3: float
+
+
+class GSensitivity(_Model):
+    """Sensed α += c·(specific force along the sensor axis in g)."""
+
+    coefficient_dps2_per_g: float
+
+
+class CrossAxis(_Model):
+    """Response to acceleration about the sensor's x / y axis, relative to z."""
+
+    ratio_x: float = 0.0
+    ratio_y: float = 0.0
+
+
+class Misalignment(_Model):
+    """Input axis tilted by ``angle_deg`` from the reference axis, towards ``azimuth_deg``
+    (0° = towards the sensor's x axis, 90° = towards y)."""
+
+    angle_deg: float
+    azimuth_deg: float = 0.0
+
+
+class RateRipple(_Model):
+    """Position-periodic table error θ = θ_cmd + a·sin(2π·n·θ_cmd + φ)."""
+
+    cycles_per_deg: float = Field(gt=0)
+    amplitude_deg: float
+    phase_rad: float = 0.0
+    rejection_bandwidth_hz: float | None = Field(
+        None, gt=0, description="None: the contract formula exactly. Else the ripple is a "
+        "position-periodic disturbance the servo rejects: the real amplitude at ripple "
+        "frequency f = n·|rate| is a·|S(f)|, S = x³/(1+x)³, x = jf/f_b (why 10 °/s shows "
+        "mainly the 2 cycles/° line, docs/method.md §1.2)")
+
+
+class MotorVibration(_Model):
+    """Narrow-band axis acceleration A·sin(2πft + φ) while the motor is on (A is the peak)."""
+
+    frequency_hz: float = Field(gt=0)
+    amplitude_dps2: float = Field(ge=0)
+    phase_rad: float = 0.0
+    bandwidth_hz: float = Field(0.0, ge=0, description="0: a pure tone; >0: a narrow band")
+
+
+class ExcessNoise(_Model):
+    """Extra white output noise (e.g. through a slip ring)."""
+
+    rms_v: float = Field(ge=0)
+
+
+#: effect name → parameter model, exactly the contract vocabulary
+EFFECTS: dict[str, type[_Model]] = {
+    "bias_temperature": BiasTemperature,
+    "scale_temperature": ScaleTemperature,
+    "nonlinearity_cubic": NonlinearityCubic,
+    "saturation": Saturation,
+    "hysteresis": Hysteresis,
+    "sensor_dynamics": SensorDynamics,
+    "time_delay": TimeDelay,
+    "clock_drift": ClockDrift,
+    "jerk_sensitivity": JerkSensitivity,
+    "g_sensitivity": GSensitivity,
+    "cross_axis": CrossAxis,
+    "misalignment": Misalignment,
+    "rate_ripple": RateRipple,
+    "motor_vibration": MotorVibration,
+    "excess_noise": ExcessNoise,
+}
+
+# --- the rig parts ------------------------------------------------------------------------------
+
+
+class SensorModel(_Model):
+    """One sensor channel: nominal terms plus any switched-on effects."""
+
+    channel: str = "v_sz"
+    axis: Literal["I", "O", "P"] = "I"
+    bias_v: float = 2.5
+    scale_v_per_dps2: float = 0.004014
+    range_dps2: float = 572.958
+    noise_rms_v: float = Field(0.001, ge=0)
+    resolution_dps2: float = Field(0.0, ge=0, description="threshold/resolution (0 = ideal)")
+    bias_temperature: BiasTemperature | None = None
+    scale_temperature: ScaleTemperature | None = None
+    nonlinearity_cubic: NonlinearityCubic | None = None
+    saturation: Saturation | None = None
+    hysteresis: Hysteresis | None = None
+    sensor_dynamics: SensorDynamics | None = None
+    time_delay: TimeDelay | None = None
+    jerk_sensitivity: JerkSensitivity | None = None
+    g_sensitivity: GSensitivity | None = None
+    cross_axis: CrossAxis | None = None
+    misalignment: Misalignment | None = None
+    excess_noise: ExcessNoise | None = None
+
+
+class AxisModel(_Model):
+    """One table axis: limits, servo and the table-side effects seen by log and sensor alike."""
+
+    rate_limit_dps: float = 1200.0
+    accel_limit_dps2: float = 1000.0
+    servo_bandwidth_hz: float = 40.0
+    encoder_resolution_deg: float = 0.01 / 3600.0
+    encoder_noise_deg: float = 0.2 / 3600.0
+    estimate_noise_deg: float = Field(
+        0.0, ge=0, description="white noise of the controller's position estimate (the rate and "
+        "acceleration estimates are its differences); ≈0.01″ reproduces the measured ≈30 °/s² "
+        "acceleration-estimate noise at 2 kHz")
+    rate_ripple: list[RateRipple] = Field(default_factory=list)
+    motor_vibration: MotorVibration | None = None
+    motor_off_drift_dps: float = Field(0.002, description="slow drift while the motor is off")
+
+
+class TableModel(_Model):
+    """The two-axis table and its controller/estimator."""
+
+    inner: AxisModel = AxisModel()
+    outer: AxisModel = AxisModel(rate_limit_dps=500.0, accel_limit_dps2=200.0)
+    controller_rate_hz: float = 5000.0
+    log_rate_hz: float = 2000.0
+    log_capacity_samples: int = 230_000
+    estimator: Literal["central", "five_point"] = "central"
+    wobble_arcsec: float = 2.0
+    orthogonality_arcsec: float = 3.0
+    #: payload imbalance: outer-axis excitation leaks into parasitic motion up to ≈35 Hz
+    unbalance_parasitic_dps2_per_dps2: float = 0.0
+    unbalance_resonance_hz: float = Field(
+        35.0, gt=0, description="the controller's correction of the unbalance torque rings at "
+        "this frequency: the leak is k·α_o through a 2nd-order resonance")
+    unbalance_damping: float = Field(0.1, gt=0)
+    floor_vibration_rms_dps2: float = Field(
+        0.0, ge=0, description="building vibration: band-limited rocking of the whole table "
+        "about the two horizontal lab axes (RMS per axis); sensors with a horizontal input "
+        "axis pick it up, a vertical one does not (docs/method.md §1.3)")
+    floor_vibration_band_hz: tuple[float, float] = (5.0, 30.0)
+
+
+class DaqModel(_Model):
+    """The on-table sensor logger with its own crystal clock."""
+
+    sample_rate_hz: float = 2000.0
+    clock_drift: ClockDrift | None = None
+    start_lead_s: float = Field(0.35, ge=0, description="DAQ starts logging this much earlier")
+    stop_lag_s: float = Field(0.4, ge=0, description="and stops this much later (by hand)")
+    timestamp_jitter_s: float = Field(6e-6, ge=0)
+    antialias_hz: float | None = Field(100.0, description="pre-sample filter corner; None = off")
+    adc_bits: int = Field(16, ge=8, le=32)
+    adc_range_v: tuple[float, float] = (0.0, 5.0)
+    sync_pulse_hz: float = 100.0
+    sync_edge_jitter_s: float = Field(
+        0.0, ge=0, description="RMS timing jitter of the generated pulse edges (what the "
+        "table latches) against the DAQ's sample clock; ≈3 µs reproduces the measured "
+        "2.4–3.5 µs clock-relation residual (docs/method.md §2)")
+    slip_ring: ExcessNoise | None = None
+
+
+class ChamberModel(_Model):
+    """Temperature chamber and the sensor's first-order thermal lag."""
+
+    ambient_c: float = 22.0
+    sensor_time_constant_s: float = Field(300.0, gt=0)
+    stable_band_c: float = Field(0.2, gt=0)
+
+
+class UnitModel(_Model):
+    """Three-sensor mounting block: random re-mount perturbations (1σ, degrees)."""
+
+    sensor_remount_sigma_deg: float = 0.05
+    block_remount_sigma_deg: float = 0.15
+    initial_mount_errors: bool = Field(
+        False, description="draw the first mounting from the same spreads (realistic rig); "
+        "False: the unit starts perfectly mounted and only re-mounts perturb it")
+
+
+class RigModel(_Model):
+    """The whole simulated rig; the YAML the twin loads and diagnose writes."""
+
+    t_ref_c: float = 25.0
+    sensors: list[SensorModel] = Field(default_factory=lambda: [SensorModel()])
+    table: TableModel = TableModel()
+    daq: DaqModel = DaqModel()
+    chamber: ChamberModel = ChamberModel()
+    unit: UnitModel = UnitModel()
+
+    def sensor(self, channel: str) -> SensorModel:
+        for s in self.sensors:
+            if s.channel == channel:
+                return s
+        raise KeyError(channel)
+
+
+def load_rig_model(path: str | Path) -> RigModel:
+    """Load a model YAML safely; errors carry file:line:column (via the engine loader)."""
+    from aatest.engine.procedure.yaml_loader import load_model_file
+
+    return load_model_file(Path(path), RigModel)
+
+
+def dump_rig_model(model: RigModel, path: str | Path) -> None:
+    """Write a model YAML that :func:`load_rig_model` reads back unchanged."""
+    from ruamel.yaml import YAML
+
+    yaml = YAML(typ="safe", pure=True)
+    yaml.default_flow_style = False
+    with Path(path).open("w", encoding="utf-8") as fh:
+        yaml.dump(model_document(model), fh)
+
+
+def model_document(model: BaseModel) -> dict:
+    """JSON-able dict of a model that omits switched-off effects (None where the default is
+    None) but keeps an explicit ``null`` where None overrides a non-None default (e.g.
+    ``antialias_hz: null``), so the YAML round trip is exact."""
+    doc: dict = {}
+    for name, field in type(model).model_fields.items():
+        value = getattr(model, name)
+        if value is None:
+            if field.default is not None:
+                doc[name] = None
+        elif isinstance(value, BaseModel):
+            doc[name] = model_document(value)
+        elif isinstance(value, list):
+            doc[name] = [model_document(v) if isinstance(v, BaseModel) else v for v in value]
+        else:
+            doc[name] = model.model_dump(mode="json", include={name})[name]
+    return doc

@@ -1,0 +1,185 @@
+"""Servo tracking, table-side disturbances and the controller's state estimator.
+
+Real motion of one axis = commanded profile through an equivalent closed-loop tracking model
++ position-periodic encoder ripple (1 and 2 cycles/°) + narrow-band motor vibration (motor on)
+or slow drift (motor off). Everything is an analytic function of time, so the table log and the
+sensor sample the same physical truth on their own clocks (docs/method.md §1.2, docs/interfaces.md §4
+"Table effects").
+
+The logged estimates are what the controller computes: the position estimate (true angle +
+estimator noise, quantised to the position resolution) and rate/acceleration as central or
+five-point differences of that estimate — which is why the acceleration estimate is noisy
+(≈ √6·σ/h²) while the rate estimate is clean (≈ σ/(√2·h)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import lru_cache
+
+import numpy as np
+from scipy import signal
+
+from aatest.twin.fastmath import sincos32, standard_normal
+from aatest.twin.grid import Grid
+from aatest.twin.model import AxisModel, MotorVibration, RateRipple, TableModel
+from aatest.twin.profiles import AxisProfile
+
+#: number of tones that synthesise a narrow vibration band (bandwidth_hz > 0)
+BAND_TONES = 4
+
+
+@dataclass(frozen=True)
+class Tones:
+    """Sum of sinusoids in acceleration: Σ A_k·sin(2π f_k t + φ_k), °/s² (peak per tone)."""
+
+    frequency_hz: np.ndarray
+    amplitude_dps2: np.ndarray
+    phase_rad: np.ndarray
+
+    def evaluate(self, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(angle_deg, rate_dps, accel_dps2) of the vibration, zero-mean in all three."""
+        w = 2 * np.pi * self.frequency_hz
+        a = self.amplitude_dps2
+        sums = grid.tone_sum(w, self.phase_rad, np.stack([a, a / w, a / (w * w)]))
+        return -sums[2].imag, -sums[1].real, sums[0].imag
+
+
+def make_vibration(model: MotorVibration | None, rng: np.random.Generator) -> Tones | None:
+    """A rig's motor vibration: a pure tone, or ``BAND_TONES`` tones spread over the band.
+
+    Tone amplitudes are A/√K so the band carries the power of one tone of peak A.
+    """
+    if model is None or model.amplitude_dps2 == 0.0:
+        return None
+    if model.bandwidth_hz == 0.0:
+        return Tones(np.array([model.frequency_hz]), np.array([model.amplitude_dps2]),
+                     np.array([model.phase_rad]))
+    freqs = model.frequency_hz + model.bandwidth_hz * (rng.random(BAND_TONES) - 0.5)
+    amps = np.full(BAND_TONES, model.amplitude_dps2 / np.sqrt(BAND_TONES))
+    return Tones(freqs, amps, rng.uniform(0, 2 * np.pi, BAND_TONES))
+
+
+def tracked(profile: AxisProfile, servo_bandwidth_hz: float) -> AxisProfile:
+    """Steady-state response of a type-3 tracking loop to the commanded profile.
+
+    H(s) = 1 − (s/ω_b)³/(1 + s/ω_b)³: zero error at constant position and rate, a small
+    amplitude/phase error on sines that grows as (f/f_b)³ (≈ 1.5 % at 10 Hz for 40 Hz).
+    """
+    if profile.amplitude_deg == 0.0 or servo_bandwidth_hz <= 0.0:
+        return profile
+    x = 1j * profile.frequency_hz / servo_bandwidth_hz
+    h = 1.0 - x**3 / (1.0 + x) ** 3
+    return replace(profile, amplitude_deg=profile.amplitude_deg * abs(h),
+                   phase_rad=profile.phase_rad + float(np.angle(h)))
+
+
+@dataclass(frozen=True)
+class AxisTruth:
+    """The real motion of one axis during a step, evaluable at any lab time."""
+
+    profile: AxisProfile
+    model: AxisModel
+    vibration: Tones | None
+    motor_on: bool
+    drift_dps: float = 0.0
+
+    def evaluate(self, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Real (angle_deg, rate_dps, accel_dps2) of the axis on a uniform lab-time grid."""
+        angle, rate, accel = self.profile.evaluate(grid)
+        for ripple in self.model.rate_ripple if self.profile.moving else ():
+            angle, rate, accel = _add_ripple(ripple, angle, rate, accel)
+        if self.motor_on and self.vibration is not None:
+            va, vr, vac = self.vibration.evaluate(grid)
+            angle, rate, accel = angle + va, rate + vr, accel + vac
+        elif not self.motor_on and self.drift_dps:
+            angle = angle + self.drift_dps * (grid.times - self.profile.t0_s)
+            rate = rate + self.drift_dps
+        return angle, rate, accel
+
+
+def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """θ += a·sin(2π n θ + φ) with exact chain-rule rate/acceleration (docs/interfaces.md §4).
+
+    With ``rejection_bandwidth_hz`` the amplitude and phase follow the servo's disturbance
+    sensitivity at the instantaneous ripple frequency (quasi-static: exact at constant rate).
+    """
+    k = 2 * np.pi * ripple.cycles_per_deg  # rad per degree
+    # the ripple is ≈1″: its terms are computed in single precision (relative 3e-7 is plenty)
+    sin, cos = sincos32(k * angle + ripple.phase_rad, np.float32)
+    a = np.float32(ripple.amplitude_deg)
+    if ripple.rejection_bandwidth_hz is None:
+        s, c = a * sin, a * cos
+    else:
+        # S(jr) = (jr)³/(1 + jr)³ = −j·r³ / (d_re + j·d_im), in real arithmetic for speed
+        r = np.abs(rate).astype(np.float32) * np.float32(
+            ripple.cycles_per_deg / ripple.rejection_bandwidth_hz)
+        r2 = r * r
+        r3 = r2 * r
+        d_re, d_im = 1.0 - 3.0 * r2, 3.0 * r - r3
+        scale = (-a) * r3 / (d_re * d_re + d_im * d_im)
+        s_re, s_im = scale * d_im, scale * d_re
+        s, c = sin * s_re + cos * s_im, cos * s_re - sin * s_im
+    krate = k * rate
+    return angle + s, rate + krate * c, accel + k * accel * c - krate * krate * s
+
+
+def _noisy(values: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    return values + sigma * standard_normal(rng, values.size) if sigma > 0.0 else values
+
+
+def quantise(values: np.ndarray, step: float) -> np.ndarray:
+    """Round to a multiple of ``step`` (no-op when step is 0)."""
+    return values if step <= 0.0 else np.round(values / step) * step
+
+
+#: stencil half-width needed on each side of the record
+STENCIL_PAD = 2
+
+
+def estimates(
+    true_angle_deg: np.ndarray, model: AxisModel, dt_s: float, method: str,
+    rng: np.random.Generator,
+) -> dict[str, np.ndarray]:
+    """Controller log of one axis from the true angle on ``N + 2·STENCIL_PAD`` log samples.
+
+    Returns position estimate, rate and acceleration estimates (differences of the position
+    estimate, as the controller computes them) and the raw feedback, each of length N.
+    """
+    est = quantise(_noisy(true_angle_deg, model.estimate_noise_deg, rng),
+                   model.encoder_resolution_deg)
+    raw = quantise(_noisy(true_angle_deg, model.encoder_noise_deg, rng),
+                   model.encoder_resolution_deg)
+    p = STENCIL_PAD
+    n = true_angle_deg.size - 2 * p
+    f = [est[p + k: p + k + n] for k in (-2, -1, 0, 1, 2)]
+    if method == "five_point":
+        rate = (-f[4] + 8 * f[3] - 8 * f[1] + f[0]) / (12 * dt_s)
+        accel = (-f[4] + 16 * f[3] - 30 * f[2] + 16 * f[1] - f[0]) / (12 * dt_s**2)
+    else:
+        rate = (f[3] - f[1]) / (2 * dt_s)
+        accel = (f[3] - 2 * f[2] + f[1]) / dt_s**2
+    return {"position_deg": f[2], "rate_dps": rate, "accel_dps2": accel,
+            "feedback_deg": raw[p: p + n]}
+
+
+def floor_rocking(table: TableModel, n: int, dt_s: float,
+                  rng: np.random.Generator) -> np.ndarray | None:
+    """Building vibration: (2, n) band-limited Gaussian rocking about the horizontal lab axes.
+
+    White noise through a Butterworth band-pass, scaled by the filter's noise gain so each
+    axis has ``floor_vibration_rms_dps2`` RMS. None when switched off.
+    """
+    if table.floor_vibration_rms_dps2 <= 0.0:
+        return None
+    b, a, gain = _band_filter(*table.floor_vibration_band_hz, round(dt_s, 15))
+    white = standard_normal(rng, 2 * n).reshape(2, n)
+    return signal.lfilter(b, a, white, axis=1) * (table.floor_vibration_rms_dps2 / gain)
+
+
+@lru_cache(maxsize=8)
+def _band_filter(lo_hz: float, hi_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarray, float]:
+    b, a = signal.butter(2, [lo_hz, hi_hz], btype="bandpass", fs=1.0 / dt_s)
+    impulse = signal.lfilter(b, a, np.r_[1.0, np.zeros(8191)])
+    return b, a, float(np.sqrt(np.sum(impulse**2)))

@@ -1,0 +1,229 @@
+"""The World: one simulated rig's state in virtual lab time, shared by the sim plugins.
+
+Holds the lab clock, the table's commanded state (angles, motor, current motion profile), the
+chamber/sensor temperature and the mounting of the sensors (pivot, re-mount perturbations).
+The simulated turntable, DAQ and chamber plugins drive it through the runner's call sequence
+and find it in ``RigContext.shared["sim.world"]``; signals are synthesised lazily, once per
+step, so the table log and the DAQ log see the same physical truth. Nothing sleeps.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+from aatest.engine.errors import EnvelopeRefused, PluginError, RigFault
+from aatest.engine.interfaces import RigContext
+from aatest.engine.steps import PlannedStep
+from aatest.twin import kinematics as kin
+from aatest.twin.chamber import ThermalState
+from aatest.twin.clocks import DaqClock
+from aatest.twin.model import RigModel, load_rig_model
+from aatest.twin.profiles import AxisProfile, step_profiles
+from aatest.twin.synthesis import SimulatedStep, StepSetup, synthesise
+from aatest.twin.table import AxisTruth, Tones, make_vibration, tracked
+
+SHARED_KEY = "sim.world"
+
+
+class World:
+    """State of the simulated rig, advanced in virtual lab time by the plugins.
+
+    Parameters
+    ----------
+    model
+        The rig model (table, DAQ, chamber, sensors, unit).
+    seed
+        Seeds every random draw; the same seed and call sequence give identical logs.
+    temperature_c
+        Initial sensor/chamber temperature; default the chamber model's ambient.
+    """
+
+    def __init__(self, model: RigModel, seed: int = 0, temperature_c: float | None = None) -> None:
+        self.model = model
+        self.seed = int(seed)
+        self._counter = 0
+        self.lab_time_s = 0.0
+        self.inner_deg = 0.0
+        self.outer_deg = 0.0
+        self.motor_on = False
+        self.thermal = ThermalState.ambient(model.chamber, temperature_c)
+        rng = self._rng("rig")
+        self.vibration: dict[str, Tones | None] = {
+            "inner": make_vibration(model.table.inner.motor_vibration, rng),
+            "outer": make_vibration(model.table.outer.motor_vibration, rng),
+        }
+        self.drift_sign = {"inner": rng.choice([-1.0, 1.0]), "outer": rng.choice([-1.0, 1.0])}
+        self.sync_phase = float(rng.uniform(0.05, 0.95))
+        self.pivoted = False
+        # with initial_mount_errors the first mounting is one draw of the re-mount spreads: a block
+        # sits a little off on the table and each sensor a little off in its seat, which is
+        # what makes (δ_e − δ_ep)/2 of the pivoted test differ from zero (docs/method.md §4.5)
+        mount, unit = self._rng("mount"), model.unit
+        drawn = unit.initial_mount_errors
+        self.block_error = kin.random_small_rotation(
+            mount, unit.block_remount_sigma_deg if drawn else 0.0)
+        self.seat_error = {s.channel: kin.random_small_rotation(
+            mount, unit.sensor_remount_sigma_deg if drawn else 0.0) for s in model.sensors}
+        self._motion: tuple[PlannedStep, AxisTruth, AxisTruth] | None = None
+        self._daq_start_s: float | None = None
+        self._result: SimulatedStep | None = None
+
+    # --- randomness ------------------------------------------------------------------------
+    def _rng(self, label: str) -> np.random.Generator:
+        """A generator seeded by (seed, label, counter): reproducible and independent per use."""
+        digest = hashlib.sha256(f"{label}:{self._counter}".encode()).digest()
+        return np.random.default_rng([self.seed, int.from_bytes(digest[:8], "little")])
+
+    # --- mounting --------------------------------------------------------------------------
+    def apply_mounting(self, step: PlannedStep) -> None:
+        """Pivot and re-mount the sensors as the step's operator instruction says."""
+        self.pivoted = step.mounting.pivoted
+        remount, unit = step.mounting.remount, self.model.unit
+        if remount == "none":
+            return
+        rng = self._rng(f"remount:{step.id}")
+        if remount in ("block", "both"):
+            self.block_error = kin.random_small_rotation(rng, unit.block_remount_sigma_deg)
+        if remount in ("sensors", "both"):
+            self.seat_error = {ch: kin.random_small_rotation(rng, unit.sensor_remount_sigma_deg)
+                               for ch in self.seat_error}
+
+    def sensor_axes(self) -> dict[str, np.ndarray]:
+        """Channel → sensor (x, y, z) axes as columns in table-top coordinates.
+
+        block error · seat frame · seat (re-mount) error · pivot · internal misalignment:
+        the pivot turns the sensor, and so its internal misalignment, 180° about its seat z.
+        """
+        pivot = np.diag([-1.0, -1.0, 1.0]) if self.pivoted else np.eye(3)
+        axes = {}
+        for s in self.model.sensors:
+            internal = (kin.tilt(s.misalignment.angle_deg, s.misalignment.azimuth_deg)
+                        if s.misalignment is not None else np.eye(3))
+            axes[s.channel] = (self.block_error @ kin.SEAT_FRAMES[s.axis]
+                               @ self.seat_error[s.channel] @ pivot @ internal)
+        return axes
+
+    # --- table -----------------------------------------------------------------------------
+    def _axis_truth(self, name: str, profile: AxisProfile, motor_on: bool) -> AxisTruth:
+        axis_model = getattr(self.model.table, name)
+        profile.check(name, axis_model.rate_limit_dps, axis_model.accel_limit_dps2)
+        return AxisTruth(tracked(profile, axis_model.servo_bandwidth_hz), axis_model,
+                         self.vibration[name], motor_on,
+                         self.drift_sign[name] * axis_model.motor_off_drift_dps)
+
+    def move_to(self, inner_deg: float, outer_deg: float) -> None:
+        """Position both axes; advances lab time by a limit-rate move (trapezoidal estimate)."""
+        t = 0.0
+        deltas = (("inner", inner_deg - self.inner_deg), ("outer", outer_deg - self.outer_deg))
+        for name, delta in deltas:
+            ax = getattr(self.model.table, name)
+            t = max(t, abs(delta) / ax.rate_limit_dps + ax.rate_limit_dps / ax.accel_limit_dps2
+                    if delta else 0.0)
+        self.inner_deg, self.outer_deg = float(inner_deg), float(outer_deg)
+        self.lab_time_s += t + 0.5
+
+    def begin_motion(self, step: PlannedStep) -> None:
+        """Start the step's profile now (refused beyond limits) and settle ``step.settle_s``."""
+        inner_p, outer_p = step_profiles(step.model_copy(update={
+            "inner_deg": self.inner_deg, "outer_deg": self.outer_deg}), self.lab_time_s)
+        motor = step.motor_on and self.motor_on
+        if not motor and (inner_p.moving or outer_p.moving):
+            raise EnvelopeRefused(f"step {step.id}: motion commanded with the motor off")
+        truths = (self._axis_truth("inner", inner_p, motor),
+                  self._axis_truth("outer", outer_p, motor))
+        self.apply_mounting(step)
+        self._motion = (step, *truths)
+        self._result = None
+        self.lab_time_s += step.settle_s
+
+    def end_motion(self) -> None:
+        """Stop the profile and return to the step's start position."""
+        self._motion = None
+        self.lab_time_s += 1.0
+
+    # --- DAQ and synthesis -----------------------------------------------------------------
+    def daq_clock(self, t0_s: float, sample_rate_hz: float | None = None) -> DaqClock:
+        """The DAQ clock of a logging run started at lab time ``t0_s``.
+
+        The logger is set to the step's rate (both loggers share the procedure's sampling,
+        docs/interfaces.md §3); ``DaqModel.sample_rate_hz`` is the rate when none is given.
+        """
+        daq = self.model.daq
+        drift = daq.clock_drift.drift_ppm if daq.clock_drift is not None else 0.0
+        rate = daq.sample_rate_hz if sample_rate_hz is None else sample_rate_hz
+        return DaqClock(t0_s, rate, drift, daq.timestamp_jitter_s,
+                        daq.sync_pulse_hz, self.sync_phase, daq.sync_edge_jitter_s)
+
+    def start_daq(self) -> None:
+        self._daq_start_s = self.lab_time_s
+        self._result = None
+
+    def result(self) -> SimulatedStep:
+        """Synthesise (once) the logs of the current step."""
+        if self._result is not None:
+            return self._result
+        if self._motion is None or self._daq_start_s is None:
+            raise RigFault("simulated rig: record requested without begin_motion and "
+                           "start_logging")
+        step, inner, outer = self._motion
+        self._counter += 1
+        clock = self.daq_clock(self._daq_start_s, step.sample_rate_hz)
+        setup = StepSetup(self.model, step, inner, outer, clock, self.thermal,
+                          self.sensor_axes(), self.model.daq.stop_lag_s)
+        self._result = synthesise(setup, self._rng(f"step:{step.id}"))
+        self.lab_time_s = float(self._daq_start_s + self._result.daq.time_s.size
+                                * setup.clock.lab_dt_s)
+        return self._result
+
+    # --- chamber ---------------------------------------------------------------------------
+    def set_temperature(self, setpoint_c: float) -> None:
+        self.thermal.set_point(setpoint_c, self.lab_time_s)
+
+    def wait_stable(self, soak_s: float) -> float:
+        self.lab_time_s += self.thermal.time_to_stable_s(self.lab_time_s, soak_s)
+        return float(self.thermal.temperature_at(self.lab_time_s))
+
+    def sensor_temperature_c(self) -> float:
+        return float(self.thermal.temperature_at(self.lab_time_s))
+
+
+def default_rig_model(context: RigContext) -> RigModel:
+    """The realistic rig for the context's sensor: SR207 models, else one per datasheet channel."""
+    from aatest.plugins.sensors.sr207 import default_models_for, sensor_model
+    from aatest.twin.api import realistic_rig_model
+
+    try:
+        sensors = default_models_for(context.sensor.model)
+    except KeyError:
+        sheet = context.datasheet
+        sensors = [sensor_model(ch, ax).model_copy(update={
+            "bias_v": sheet.nominal_bias_v, "scale_v_per_dps2": sheet.scale_v_per_dps2,
+            "range_dps2": sheet.range_dps2}) for ch, ax in sheet.channels.items()]
+    return realistic_rig_model(sensors)
+
+
+def shared_world(context: RigContext | None, model_path: str | None = None) -> World:
+    """The World of this rig: created by the first sim plugin, then shared via the context.
+
+    Plugins look the World up on every call (it may be rebuilt when a later plugin names the
+    model file); two plugins naming different model files is a configuration error.
+    """
+    if context is None:
+        from aatest.engine.interfaces import SensorDatasheet
+        from aatest.engine.steps import SensorRef
+
+        context = RigContext(sensor=SensorRef(model="sr207"),
+                             datasheet=SensorDatasheet(model="sr207"))
+    world = context.shared.get(SHARED_KEY)
+    known = context.shared.get(SHARED_KEY + ".model_path")
+    if world is not None and model_path and known not in (None, model_path):
+        raise PluginError(f"sim plugins disagree about the rig model: {model_path!r} vs {known!r}")
+    if world is None or (model_path and known is None):
+        # built before any plugin named a model file: nothing has run yet, so rebuild it
+        model = load_rig_model(model_path) if model_path else default_rig_model(context)
+        world = World(model, context.seed)
+        context.shared[SHARED_KEY] = world
+        context.shared[SHARED_KEY + ".model_path"] = model_path
+    return world

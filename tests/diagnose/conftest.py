@@ -1,0 +1,37 @@
+"""Run ``aatest diagnose`` as a user would: twin data → import directory → CLI → JSON."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+from typer.testing import CliRunner
+
+from aatest.cli import app
+from aatest.engine.data.exporter import export_csv
+from aatest.diagnose.scenarios import Hidden, scenario_dataset
+
+
+def diagnose_cli(tmp: Path, hidden: list[Hidden], seed: int, samples: int = 2**14
+                 ) -> tuple[int, dict[str, Any]]:
+    """Export a scenario as an import directory and diagnose it through the CLI."""
+    data = tmp / "import"
+    export_csv(scenario_dataset(hidden, seed, samples), data)
+    out = tmp / "diagnosis.json"
+    result = CliRunner().invoke(app, ["diagnose", str(data), "--json", str(out),
+                                      "--model-out", str(tmp / "model.yaml")])
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.output
+    return result.exit_code, json.loads(out.read_text())
+
+
+@pytest.fixture
+def run_diagnose(tmp_path: Path):
+    return lambda hidden, seed, samples=2**14: diagnose_cli(tmp_path, hidden, seed, samples)
+
+
+@pytest.fixture
+def diagnose_cli_fn():
+    """The CLI runner itself, for tests that make their own temporary directories."""
+    return diagnose_cli
