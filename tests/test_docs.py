@@ -5,7 +5,7 @@ guides link to each other, and the documents name modules, files, CLI options, p
 and physical numbers. These tests keep all of that true:
 
 - no tracked file refers to the retired shared folder or to a path above the repository root;
-- every ``docs/NAME.md §N`` citation names an existing document and a numbered heading in it;
+- every ``docs/<name>.md §N`` citation names an existing document and a numbered heading in it;
 - every relative Markdown link, every repository path and every ``aatest.…`` name in the
   documents exists;
 - the interfaces document names every CLI command and option, every procedure key and step kind
