@@ -47,7 +47,8 @@ ENTRY_POINT_GROUPS = frozenset({"aatest.turntables", "aatest.daqs", "aatest.cham
 
 SECTION = r"(?:§|\\u00a7)\s*(\d+(?:\.\d+)*)(?:\s*[–-]\s*(\d+(?:\.\d+)*))?"
 _SECTION_NC = r"(?:§|\\u00a7)\s*\d+(?:\.\d+)*(?:\s*[–-]\s*\d+(?:\.\d+)*)?"
-CITATION = re.compile(rf"docs/([\w-]+\.md)`{{0,2}}[\s#]*({_SECTION_NC}(?:\s*(?:,|and)\s*{_SECTION_NC})*)")
+CITATION = re.compile(
+    rf"docs/([\w-]+\.md)`{{0,2}}[\s#]*({_SECTION_NC}(?:\s*(?:,|and)\s*{_SECTION_NC})*)")
 DOC_NAME = re.compile(r"docs/([\w-]+\.md)")
 HEADING = re.compile(r"^#{1,6}\s+(\d+(?:\.\d+)*)\.?\s", re.MULTILINE)
 LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
@@ -233,7 +234,8 @@ def test_published_frequency_matrix_is_the_shipped_procedure() -> None:
     text = METHOD.read_text(encoding="utf-8")
     listed = text.split("The 28 points are:", 1)[1].split("Hz.", 1)[0]
     documented = [float(f) for f in re.findall(r"\d+\.\d+", listed)]
-    plan = expand(load_procedure(ROOT / "src/aatest/procedures/stepped-sine-frequency-response.yaml"))
+    shipped_file = ROOT / "src/aatest/procedures/stepped-sine-frequency-response.yaml"
+    plan = expand(load_procedure(shipped_file))
     shipped = sorted({s.frequency_hz for s in plan.steps if s.kind == "sine"})
     assert len(documented) == 28
     # the document rounds to 9 decimals: at most 5e-10 Hz off
@@ -275,7 +277,8 @@ DATASHEET_ROWS = [
 
 @pytest.mark.parametrize(("pattern", "field", "to_datasheet_unit"), DATASHEET_ROWS,
                          ids=[row[1] for row in DATASHEET_ROWS])
-def test_sensor_datasheet_is_the_plugins(pattern: str, field: str, to_datasheet_unit: float) -> None:
+def test_sensor_datasheet_is_the_plugins(pattern: str, field: str,
+                                        to_datasheet_unit: float) -> None:
     from aatest.plugins.sensors.sr207 import SR207
 
     sheet = SR207().datasheet()
