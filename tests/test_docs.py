@@ -15,6 +15,7 @@ and physical numbers. These tests keep all of that true:
 
 from __future__ import annotations
 
+import functools
 import importlib
 import re
 import subprocess
@@ -70,8 +71,9 @@ def _read(path: Path) -> str | None:
         return None
 
 
+@functools.cache
 def _tracked_texts() -> dict[str, str]:
-    """Repository-relative path → text of every tracked text file (git ls-files)."""
+    """Repository-relative path → text of every tracked text file (git ls-files; read once)."""
     try:
         listing = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True,
                                  check=True, text=True).stdout
@@ -92,11 +94,11 @@ def _sections(doc: Path) -> set[str]:
 
 def test_no_tracked_file_refers_outside_the_repository() -> None:
     this = Path(__file__).resolve().relative_to(ROOT).as_posix()
-    offenders = []
+    offenders: list[str] = []
     for name, text in _tracked_texts().items():
         if name == this:
             continue
-        for (allowed_file, allowed_text) in ALLOWED:
+        for allowed_file, allowed_text in ALLOWED:
             if name == allowed_file:
                 text = text.replace(allowed_text, "")
         for number, line in enumerate(text.splitlines(), start=1):
@@ -107,7 +109,8 @@ def test_no_tracked_file_refers_outside_the_repository() -> None:
 
 def test_every_cited_section_exists() -> None:
     sections: dict[str, set[str]] = {}
-    problems, cited = [], 0
+    problems: list[str] = []
+    cited = 0
     for name, text in _tracked_texts().items():
         for doc_name, refs in CITATION.findall(text):
             doc = DOCS / doc_name
@@ -132,7 +135,7 @@ def test_every_named_document_exists() -> None:
 @pytest.mark.parametrize("markdown", _markdown_files(), ids=lambda p: p.name)
 def test_relative_links_resolve(markdown: Path) -> None:
     prose = CODE_SPAN.sub("", _prose(markdown.read_text(encoding="utf-8")))
-    broken = []
+    broken: list[str] = []
     for target in LINK.findall(prose):
         if target.startswith("#") or re.match(r"[a-z][a-z0-9+.-]*:", target):
             continue
