@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import Field, model_serializer, model_validator
+from pydantic import ConfigDict, Field, model_serializer, model_validator
 
 from aatest.results._fields import Real
 from aatest.results.base import Overall, ResultModel, Verdict
@@ -28,6 +28,12 @@ from aatest.results.transfer_function import TransferFunctionResult
 SCHEMA_VERSION = 2
 
 
+def _third_party_keys(schema: dict[str, Any]) -> None:
+    """In the JSON the third-party results sit beside the built-in keys, not under ``extra``."""
+    schema["properties"].pop("extra", None)
+    schema["additionalProperties"] = True
+
+
 class AnalysisBlock(ResultModel):
     """``results.analysis``: one optional field per built-in analysis key.
 
@@ -35,6 +41,9 @@ class AnalysisBlock(ResultModel):
     each validated by its plugin's own ``Result`` model when the plugin runs; in the JSON they
     sit next to the built-in keys, as they always did.
     """
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True,
+                              json_schema_extra=_third_party_keys)
 
     sync: SyncResult | None = None
     reference: ReferenceResult | None = None
