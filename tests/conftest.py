@@ -1,5 +1,65 @@
-"""Suite-wide settings: matplotlib without a display, seeded hypothesis."""
+"""Suite-wide settings: matplotlib without a display, seeded hypothesis; and every results.json
+the engine writes during the suite is validated against the committed results.schema.json."""
 
+from __future__ import annotations
+
+import json
 import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+_SCHEMA = Path(__file__).parents[1] / "src" / "aatest" / "schemas" / "results.schema.json"
+
+
+def results_validator() -> Any:
+    """A draft 2020-12 validator of the committed results schema."""
+    import jsonschema
+
+    return jsonschema.Draft202012Validator(json.loads(_SCHEMA.read_text(encoding="utf-8")))
+
+
+def engine_results(root: Path) -> Iterator[tuple[Path, Any]]:
+    """Every results.json under ``root`` that the engine wrote (it always writes
+    ``schema_version``); hand-made fixtures and deliberately corrupted copies are left out."""
+    for path in sorted(root.rglob("results.json")):
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            continue
+        if isinstance(doc, dict) and "schema_version" in doc:
+            yield path, doc
+
+
+def assert_valid_results(root: Path) -> int:
+    """Validate every engine-written results.json under ``root``; return how many there were."""
+    validator = results_validator()
+    count = 0
+    for path, doc in engine_results(root):
+        errors = sorted(validator.iter_errors(doc), key=lambda e: list(e.absolute_path))
+        assert not errors, f"{path} violates results.schema.json: " + "; ".join(
+            f"{'/'.join(map(str, e.absolute_path))}: {e.message[:200]}" for e in errors[:5])
+        count += 1
+    return count
+
+
+@pytest.fixture(autouse=True)
+def _results_match_schema(request: pytest.FixtureRequest) -> Iterator[None]:
+    """After a test that used ``tmp_path``, validate the results.json files it wrote."""
+    used = "tmp_path" in request.fixturenames
+    tmp: Path | None = request.getfixturevalue("tmp_path") if used else None
+    yield
+    if tmp is not None:
+        assert_valid_results(tmp)
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _all_results_match_schema(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """At the end of the session, validate every results.json under the session's temp root
+    (module-scoped fixtures write there too)."""
+    yield
+    assert_valid_results(tmp_path_factory.getbasetemp())

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -63,12 +64,15 @@ def build_results(
     )
 
 
-def results_json(results: RunResults) -> dict[str, Any]:
-    """The JSON document of ``results`` (what is written, and what report plugins read)."""
-    return results.model_dump(mode="json")
+def results_json(results: RunResults | Mapping[str, Any]) -> dict[str, Any]:
+    """The JSON document of ``results`` (what is written, and what report plugins read); a
+    document that is already plain JSON values is returned as a copy."""
+    if isinstance(results, RunResults):
+        return results.model_dump(mode="json")
+    return dict(results)
 
 
-def write_results(results: RunResults, run_dir: Path) -> Path:
+def write_results(results: RunResults | Mapping[str, Any], run_dir: Path) -> Path:
     """Write atomically so a crash never leaves half a results file."""
     path = run_dir / RESULTS_FILE
     tmp = path.with_suffix(".json.tmp")

@@ -119,20 +119,27 @@ def analyse_and_report(
 
 
 def render_and_sign(
-    results: RunResults,
+    results: RunResults | dict[str, Any],
     run_dir: Path,
     template: str,
     template_dir: Path | None,
     key_path: Path | None,
     pdf: bool = False,
 ) -> Path:
-    """Write results.json, render the report (and its PDF), sign the bundle when a key is set."""
+    """Write results.json, render the report (and its PDF), sign the bundle when a key is set.
+
+    ``results`` is the typed record; a plain results.json document is written as given.
+    """
     from aatest.engine.run import signing
 
     private = None
     if key_path is not None:
         private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
-        results.signature = Signature(fingerprint=signing.key_fingerprint(private.public_key()))
+        fingerprint = signing.key_fingerprint(private.public_key())
+        if isinstance(results, RunResults):
+            results.signature = Signature(fingerprint=fingerprint)
+        else:
+            results["signature"] = {"fingerprint": fingerprint}
     write_results(results, run_dir)
     info = registry.load("report", template)
     reporter = info.target(registry.configure(info, {}))
