@@ -6,13 +6,17 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 from results_schema import assert_valid_results
 
+from aatest.engine import registry
+from aatest.engine.analysis import plugins
 from aatest.engine.analysis.results import read_results, results_json, write_results
 from aatest.engine.errors import InputError
-from aatest.results import SCHEMA_VERSION, RunResults
+from aatest.engine.interfaces import AnalysisOutput, NoOptions
+from aatest.results import SCHEMA_VERSION, ResultModel, RunResults
 from aatest.results.sync import SyncResult
 
 SYNC = {"drift_ppm": -7.5, "offset_s": 0.0121, "residual_rms_us": 3.2, "edges_used": 400,
@@ -67,3 +71,44 @@ def test_a_misspelt_key_is_refused(tmp_path: Path) -> None:
     with pytest.raises(AssertionError, match="violates results.schema.json"):
         assert_valid_results(tmp_path)
     (tmp_path / "results.json").unlink()  # keep the suite-wide check from seeing it again
+
+
+class _VendorResult(ResultModel):
+    ppm_per_c: float
+
+
+class _VendorAnalysis:
+    key: ClassVar[str] = "vendor_drift"
+    requires: ClassVar[tuple[str, ...]] = ()
+    Options: ClassVar[type[NoOptions]] = NoOptions
+    Result: ClassVar[type[_VendorResult]] = _VendorResult
+
+    def applies_to(self, data: object) -> bool:
+        return True
+
+    def run(self, data: object, context: object) -> AnalysisOutput[_VendorResult]:
+        return AnalysisOutput(_VendorResult(ppm_per_c=0.1))
+
+
+@pytest.fixture
+def vendor_installed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A third-party analysis 'installed' from a fake distribution."""
+    real_load = registry.load
+
+    def load(kind: str, name: str) -> registry.PluginInfo:
+        if name == "vendor_drift":
+            return registry.PluginInfo(kind, name, _VendorAnalysis, "vendor-dist", "2.0")
+        return real_load(kind, name)
+
+    monkeypatch.setattr(registry, "load", load)
+    monkeypatch.setattr(plugins, "installed_names", lambda: ["sync", "vendor_drift"])
+
+
+@pytest.mark.usefixtures("vendor_installed")
+def test_third_party_results_are_typed_by_their_plugin_when_read(tmp_path: Path) -> None:
+    write_results(_results(vendor_drift={"ppm_per_c": 0.1}), tmp_path)
+    assert read_results(tmp_path).analysis.extra["vendor_drift"] == _VendorResult(ppm_per_c=0.1)
+    write_results(_results(vendor_drift={"ppm": 0.1}), tmp_path)
+    with pytest.raises(InputError, match="analysis.vendor_drift: not a result of analysis "
+                                         "plugin 'vendor_drift' from distribution 'vendor-dist'"):
+        read_results(tmp_path)

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from pydantic import ValidationError
+from pydantic import TypeAdapter, ValidationError
 
 from aatest.engine.analysis.passes import AnalysisResults
 from aatest.engine.dataset import Dataset
@@ -82,17 +82,39 @@ def write_results(results: RunResults | Mapping[str, Any], run_dir: Path) -> Pat
     return path
 
 
+def _typed_extra(results: RunResults, path: Path) -> RunResults:
+    """Results of third-party analyses validated by their installed plugin's ``Result`` type
+    (kept as plain JSON values when the plugin is not installed here)."""
+    from aatest.engine.analysis import plugins
+
+    installed = set(plugins.installed_names())
+    typed: dict[str, Any] = {}
+    for key, value in results.analysis.extra.items():
+        if key not in installed:
+            typed[key] = value
+            continue
+        plugin = plugins.load(key)
+        try:
+            typed[key] = TypeAdapter(plugin.cls.Result).validate_python(value)
+        except ValidationError as exc:
+            raise InputError(f"{path}: analysis.{key}: not a result of {plugin.describe()}: "
+                             f"{exc.errors(include_url=False)[0]['msg']}") from exc
+    results.analysis.extra = typed
+    return results
+
+
 def read_results(run_dir: Path) -> RunResults:
     """Read ``run_dir/results.json`` into the typed model.
 
     Raises
     ------
     InputError
-        When the file is missing, is not JSON, or does not match the results schema.
+        When the file is missing, is not JSON, or does not match the results schema (or a
+        third-party result does not match its plugin's ``Result``).
     """
     path = run_dir / RESULTS_FILE
     try:
-        return RunResults.model_validate_json(path.read_bytes())
+        return _typed_extra(RunResults.model_validate_json(path.read_bytes()), path)
     except FileNotFoundError as exc:
         raise InputError(f"{path}: no results; run `aatest analyze {run_dir}` first") from exc
     except ValidationError as exc:
