@@ -58,3 +58,16 @@ def test_cli_prints_the_committed_schemas() -> None:
     assert runner.invoke(app, ["schema"]).output == SCHEMA_PATH.read_text(encoding="utf-8")
     out = runner.invoke(app, ["schema", "--results"]).output
     assert out == RESULTS_SCHEMA_PATH.read_text(encoding="utf-8")
+
+
+def test_procedure_schema_knows_the_builtin_analysis_options() -> None:
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(procedure_json_schema())
+    base = {"procedure": "x", "sensor": {"model": "m"}, "steps": [{"static": {}}]}
+    good = ["sync", {"scale_factor": {"reference": "fit", "orders": [1, 9]}},
+            {"transfer_function": {"delay": "none"}}, {"third_party": {"anything": 1}}]
+    assert list(validator.iter_errors(base | {"analysis": good})) == []
+    for bad in ({"scale_factor": {"referenc": "fit"}}, {"frf": {"harmonics": "six"}},
+                {"frf": {}, "bias": {}}):
+        assert list(validator.iter_errors(base | {"analysis": [bad]})), bad

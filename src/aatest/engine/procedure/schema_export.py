@@ -47,9 +47,35 @@ def _schema(model: type[BaseModel], schema_id: str, title: str) -> dict[str, Any
             **schema, "title": title}
 
 
+def _builtin_analysis_options() -> tuple[dict[str, Any], dict[str, Any]]:
+    """Options schemas of the analyses aatest itself ships (name → schema), and their $defs.
+
+    Third-party analyses are not listed (the committed schema must not depend on what else is
+    installed); their options stay a free mapping, checked by the loader.
+    """
+    from aatest.engine.analysis import plugins
+
+    options: dict[str, Any] = {}
+    defs: dict[str, Any] = {}
+    for name in plugins.installed_names():
+        plugin = plugins.load(name)
+        if plugin.distribution == "aatest":
+            schema = plugin.cls.Options.model_json_schema()
+            defs |= schema.pop("$defs", {})
+            options[name] = schema
+    return options, defs
+
+
 def procedure_json_schema() -> dict[str, Any]:
-    """The JSON Schema (draft 2020-12) of a procedure file."""
-    return _schema(Procedure, SCHEMA_ID, "aatest procedure")
+    """The JSON Schema (draft 2020-12) of a procedure file, with the options of every built-in
+    analysis under ``analysis: [{name: {options}}]``."""
+    schema = _schema(Procedure, SCHEMA_ID, "aatest procedure")
+    options, defs = _builtin_analysis_options()
+    for branch in schema["properties"]["analysis"]["items"]["anyOf"]:
+        if branch.get("type") == "object":
+            branch["properties"] = options
+    schema.setdefault("$defs", {}).update(defs)
+    return schema
 
 
 def results_json_schema() -> dict[str, Any]:
