@@ -8,7 +8,6 @@ from typing import Any
 import pytest
 
 from aatest.engine.analysis.passes import run_analyses
-from analyse import analyse
 from synthetic_rig import sine_step
 from twin_helpers import twin_dataset
 

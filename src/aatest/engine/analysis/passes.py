@@ -14,6 +14,7 @@ import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from graphlib import CycleError, TopologicalSorter
+from types import MappingProxyType
 from typing import Any
 
 from pydantic import BaseModel
@@ -91,7 +92,7 @@ def _requested_names(entries: Sequence[AnalysisEntry]) -> list[str]:
 def _run_one(plugin: AnalysisPlugin, data: Dataset, options: BaseModel,
              done: Mapping[str, AnalysisOutput[Any]]) -> AnalysisOutput[Any]:
     """Run one plugin with the outputs of its requirements (those that produced one)."""
-    upstream = {r: done[r] for r in plugin.requires if r in done}
+    upstream = MappingProxyType({r: done[r] for r in plugin.requires if r in done})
     out = plugin.cls().run(data, AnalysisContext(options=options, upstream=upstream))
     if not isinstance(out, AnalysisOutput) or not isinstance(out.result, plugin.cls.Result):
         raise PluginError(f"{plugin.describe()} returned {type(out).__name__}, not an "

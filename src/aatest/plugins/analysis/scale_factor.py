@@ -113,6 +113,16 @@ def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: str = "smoot
     return volts[trim:-trim], ref[trim:-trim], delay_s, cutoff
 
 
+def _select_order(u: np.ndarray, ref_dps2: np.ndarray, options: ScaleFactorOptions,
+                  resolution_dps2: float) -> tuple[dict[str, np.ndarray], int]:
+    """Cross-validation table over the options' orders and splits, and the order chosen."""
+    table = polyfit.cross_validate(u, ref_dps2, max_order=options.orders[1],
+                                   random_splits=options.random_splits, seed=options.seed,
+                                   id_fraction=options.identification_fraction)
+    low = options.orders[0]
+    return table, polyfit.choose_order(table, min_order=low, abs_tol=resolution_dps2)
+
+
 def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0,
               options: ScaleFactorOptions | None = None, resolution_dps2: float = 0.0
               ) -> dict[str, Any]:
@@ -126,10 +136,7 @@ def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0,
         raise AnalysisError("scale factor: the reference or the sensor output is constant")
     v_mean = float(np.mean(volts))
     u = volts - v_mean
-    table = polyfit.cross_validate(u, ref_dps2, max_order=opts.orders[1],
-                                   random_splits=opts.random_splits, seed=opts.seed,
-                                   id_fraction=opts.identification_fraction)
-    order = polyfit.choose_order(table, min_order=opts.orders[0], abs_tol=resolution_dps2)
+    table, order = _select_order(u, ref_dps2, opts, resolution_dps2)
     fit = polyfit.fit_polynomial(u, ref_dps2, order, inflation)
     line = polyfit.fit_polynomial(u, ref_dps2, 1, inflation)
     a0, a1 = line.coefficients
