@@ -78,3 +78,19 @@ def test_cli_validate_exits_2_with_located_problem(tmp_path: Path) -> None:
                           capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
     assert done.returncode == EXIT_BAD_INPUT
     assert f"{path}:6:20: analysis.0.scale_factor.referenc: unknown option" in done.stderr
+
+
+def test_options_survive_export_and_import(tmp_path: Path) -> None:
+    """``aatest analyze`` on an exported directory re-runs the analyses with their options."""
+    from dataclasses import replace
+
+    from aatest.engine.data.exporter import export_csv
+    from aatest.engine.data.importer import import_dataset
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "plugins" / "analysis"))
+    from synthetic_rig import SynthRig, make_dataset, static_step
+
+    entries = ["sync", {"scale_factor": {"reference": "central", "orders": [1, 4]}}]
+    data = make_dataset([static_step("t", 0, 0, samples=1024)], SynthRig())
+    export_csv(replace(data, metadata={**data.metadata, "analysis": entries}), tmp_path / "x")
+    assert import_dataset(tmp_path / "x").metadata["analysis"] == entries
