@@ -2,10 +2,12 @@
 
 Flow: the runner asks the *chamber* for a temperature, the *turntable* to move and record, the
 *daq* to record the sensors and emit the sync pulse/trigger; the recording is then read back
-by *analysis* plugins (ordered by what each ``requires``) and their results rendered by a *report* plugin.
+by *analysis* plugins (ordered by what each ``requires``) and their results rendered by a
+*report* plugin.
 
-Every plugin class has a nested pydantic ``Config`` (``extra="forbid"``) and is constructed as
-``PluginClass(config, context)``. Simulated plugins share the digital twin through
+Every rig plugin class has a nested pydantic ``Config`` (``extra="forbid"``) and is constructed
+as ``PluginClass(config, context)``; an analysis plugin has ``Options`` instead and is
+constructed without arguments. Simulated plugins share the digital twin through
 ``RigContext.shared``; real drivers ignore it.
 """
 

@@ -66,7 +66,8 @@ def test_antialias_corner_sources() -> None:
     def ds(meta: dict) -> Dataset:  # type: ignore[type-arg]
         return Dataset("p", FS, (), (), Path("x"), meta)
 
-    assert logger_antialias_hz(ds({}), AnalysisContext(options=TransferFunctionOptions(antialias_hz=80))) == 80.0
+    given = AnalysisContext(options=TransferFunctionOptions(antialias_hz=80))
+    assert logger_antialias_hz(ds({}), given) == 80.0
     assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "can", "antialias_hz": 50}}}),
                                AnalysisContext()) == 50.0
     assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "sim"}}}), AnalysisContext()) == 100.0

@@ -123,4 +123,4 @@ class BiasAnalysis:
         static = steps_of(context, "static")
         values = {sensor.channel: sensor_bias(static, sensor, scale_in_use(context, sensor))
                   for sensor in data.sensors}
-        return AnalysisOutput(BiasResult(values))
+        return AnalysisOutput(BiasResult.model_validate(values))

@@ -178,4 +178,4 @@ class FrfAnalysis:
             if points:
                 values[sensor.channel] = points
                 figures[f"bode_{sensor.channel}"] = bode_figure(points, f"FRF {sensor.channel}")
-        return AnalysisOutput(FrfResult(values), figures)
+        return AnalysisOutput(FrfResult.model_validate(values), figures)

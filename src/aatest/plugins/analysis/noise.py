@@ -110,4 +110,4 @@ class NoiseAnalysis:
         for sensor in data.sensors:
             values[sensor.channel], figures[f"noise_{sensor.channel}"] = sensor_noise(
                 static, sensor, scale_in_use(context, sensor), band_hz)
-        return AnalysisOutput(NoiseResult(values), figures)
+        return AnalysisOutput(NoiseResult.model_validate(values), figures)

@@ -193,4 +193,5 @@ class ReferenceAnalysis:
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[ReferenceResult]:
         options = options_of(context, ReferenceOptions)
         steps = steps_of(context, "sine")[:options.max_steps]
-        return AnalysisOutput(ReferenceResult({s.step.id: _compare(s) for s in steps}))
+        rows = {s.step.id: _compare(s) for s in steps}
+        return AnalysisOutput(ReferenceResult.model_validate(rows))

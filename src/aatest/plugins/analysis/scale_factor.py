@@ -220,4 +220,4 @@ class ScaleFactorAnalysis:
             out = sensor_scale_factor(steps, sensor, options)
             if out is not None:
                 values[sensor.channel], figures[f"scale_factor_{sensor.channel}"] = out
-        return AnalysisOutput(ScaleFactorResult(values), figures)
+        return AnalysisOutput(ScaleFactorResult.model_validate(values), figures)

@@ -194,4 +194,4 @@ class TemperatureAnalysis:
             values[sensor.channel] = row
             if "temperatures_c" in row:
                 figures[f"temperature_{sensor.channel}"] = _figure(row, sensor.channel)
-        return AnalysisOutput(TemperatureResult(values), figures)
+        return AnalysisOutput(TemperatureResult.model_validate(values), figures)

@@ -288,4 +288,4 @@ class TransferFunctionAnalysis:
             figures |= figs
             if row is not None:
                 values[sensor.channel] = row
-        return AnalysisOutput(TransferFunctionResult(values), figures)
+        return AnalysisOutput(TransferFunctionResult.model_validate(values), figures)
