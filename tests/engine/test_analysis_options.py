@@ -37,16 +37,17 @@ def _problems(analysis_yaml: str) -> list[str]:
     ("  - scale_factor:\n      orders: [3, 1]\n",
      "p.yaml:6:5: analysis.0.scale_factor: Value error, orders must be [low, high] with "
      "0 ≤ low ≤ high ≤ 20, high ≥ 1"),
-    ("  - frf: {harmonics: two}\n",
-     "p.yaml:6:11: analysis.0.frf.harmonics: Input should be a valid integer, unable to parse "
-     "string as an integer"),
+    ("  - frf: {harmonics: \"6\"}\n",
+     "p.yaml:6:11: analysis.0.frf.harmonics: Input should be a valid integer"),
+    ("  - scale_factor: {random_splits: true}\n",
+     "p.yaml:6:20: analysis.0.scale_factor.random_splits: Input should be a valid integer"),
     ("  - sync\n  - frf\n  - nonesuch\n",
      "p.yaml:8:5: analysis.2: no analysis plugin named 'nonesuch' (installed: bias, frf, "
      "misalignment, noise, reference, scale_factor, sync, temperature, transfer_function)"),
     ("  - transfer_function: {delay: sometimes}\n",
      "p.yaml:6:25: analysis.0.transfer_function.delay: Input should be 'estimate' or 'none'"),
-], ids=["unknown-option", "bad-reference", "orders-descending", "wrong-type", "unknown-name",
-        "bad-choice"])
+], ids=["unknown-option", "bad-reference", "orders-descending", "string-number", "bool-number",
+        "unknown-name", "bad-choice"])
 def test_option_problems_are_located(entry: str, expected: str) -> None:
     assert _problems(entry) == [expected]
 

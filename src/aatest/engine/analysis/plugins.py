@@ -8,6 +8,7 @@ both when the procedure is loaded (located errors, exit 2) and again when the an
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -38,9 +39,13 @@ class AnalysisPlugin:
         return tuple(self.cls.requires)
 
     def options(self, raw: Mapping[str, Any] | None = None) -> BaseModel:
-        """The validated options (pydantic ``ValidationError`` on a bad one)."""
+        """The validated options (pydantic ``ValidationError`` on a bad one).
+
+        Validated strictly as the JSON values they are (in YAML, in the recording), like
+        every procedure field: ``"5"`` is not a number, ``true`` not 1.
+        """
         model: type[BaseModel] = self.cls.Options
-        return model.model_validate(dict(raw or {}))
+        return model.model_validate_json(json.dumps(dict(raw or {}), default=str), strict=True)
 
     def describe(self) -> str:
         return f"analysis plugin {self.name!r} from distribution {self.distribution!r}"
