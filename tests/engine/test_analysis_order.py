@@ -127,3 +127,20 @@ def test_plugin_classes_are_checked_when_loaded(fake_plugins: dict[str, type],
     fake_plugins["bad"] = _fake("bad", (), attrs)
     with pytest.raises(PluginError, match=f"'bad' from distribution 'fake-dist'.*{match}"):
         plugins.load("bad")
+
+
+def test_a_failed_requirement_fails_its_dependants_not_the_pass() -> None:
+    from dataclasses import replace
+
+    import numpy as np
+
+    from aatest.engine.logs import SampledLog
+
+    data = make_dataset([sine_step("s", 8, 100.0, samples=4096)], SynthRig())
+    table = data.steps[0].table
+    channels = dict(table.channels) | {"sync_pulse": np.zeros(len(table))}
+    broken = replace(data.steps[0], table=SampledLog("table", 2000.0, table.time_s, channels))
+    done = run_analyses(replace(data, steps=(broken,)), ["frf"])
+    assert done.outputs == {}
+    assert "sync edges missing" in done.errors["sync"]
+    assert "the sync analysis failed" in done.errors["frf"]
