@@ -16,12 +16,10 @@ import time
 
 import numpy as np
 
-from aatest.engine.interfaces import AnalysisContext
+from aatest.engine.analysis import plugins
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.analysis.frf import FrfAnalysis
-from aatest.plugins.analysis.transfer_function import TransferFunctionAnalysis
 from aatest.twin.api import realistic_rig_model, simulate_dataset
-from aatest.plugins.analysis.sync import SyncAnalysis
 
 FS_HZ = 2000.0
 #: published cycle counts in a 2^17-sample record (docs/method.md §4.4: 28 points)
@@ -61,13 +59,16 @@ def main() -> None:
     data = simulate_dataset(realistic_rig_model(), steps, seed=args.seed)
     t_sim = time.perf_counter() - t0
     total = sum(len(s.table) for s in data.steps)
-    ctx = AnalysisContext()
     timings, cpu = {}, {}
-    for analysis in (SyncAnalysis(), FrfAnalysis(), TransferFunctionAnalysis()):
+    outputs: dict[str, AnalysisOutput[object]] = {}
+    for name in ("sync", "frf", "transfer_function"):  # each after what it requires
+        plugin = plugins.load(name)
+        ctx = AnalysisContext(options=plugin.options(),
+                              upstream={r: outputs[r] for r in plugin.requires})
         t, c = time.perf_counter(), time.process_time()
-        analysis.run(data, ctx)
-        timings[analysis.key] = time.perf_counter() - t
-        cpu[analysis.key] = time.process_time() - c
+        outputs[name] = plugin.cls().run(data, ctx)
+        timings[name] = time.perf_counter() - t
+        cpu[name] = time.process_time() - c
     elapsed, cpu_total = sum(timings.values()), sum(cpu.values())
     print(f"campaign: {len(steps)} steps × {args.samples} samples = {total} table samples "
           f"(simulated in {t_sim:.1f} s)")

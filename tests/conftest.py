@@ -1,5 +1,32 @@
-"""Suite-wide settings: matplotlib without a display, seeded hypothesis."""
+"""Suite-wide settings: matplotlib without a display, seeded hypothesis; and every results.json
+the engine writes during the suite is validated against the committed results.schema.json."""
+
+from __future__ import annotations
 
 import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from results_schema import assert_valid_results
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+
+@pytest.fixture(autouse=True)
+def _results_match_schema(request: pytest.FixtureRequest) -> Iterator[None]:
+    """After a test that used ``tmp_path``, validate the results.json files it wrote."""
+    used = "tmp_path" in request.fixturenames
+    tmp: Path | None = request.getfixturevalue("tmp_path") if used else None
+    yield
+    if tmp is not None:
+        assert_valid_results(tmp)
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _all_results_match_schema(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """At the end of the session, validate every results.json under the session's temp root
+    (module-scoped fixtures write there too)."""
+    yield
+    assert_valid_results(tmp_path_factory.getbasetemp())

@@ -252,11 +252,13 @@ def verify(
 
 @app.command()
 @guarded
-def schema() -> None:
-    """Print the procedure JSON Schema (for editors)."""
-    from aatest.engine.procedure.schema_export import procedure_json_schema
+def schema(
+    results: bool = typer.Option(False, "--results", help="The schema of results.json instead"),
+) -> None:
+    """Print the procedure JSON Schema (for editors), or with --results that of results.json."""
+    from aatest.engine.procedure.schema_export import render
 
-    _print_json(procedure_json_schema())
+    typer.echo(render(results), nl=False)
 
 
 @app.command()

@@ -139,8 +139,10 @@ def test_twin_dataset_survives_record_export_import(tmp_path: Path) -> None:
             assert_same_channels(getattr(original, log), getattr(rec, log))
             assert_same_channels(getattr(original, log), getattr(imp, log))
     analyses = pytest.importorskip("aatest.engine.analysis.passes")
-    on_recording = analyses.run_analyses(recorded, ["sync"]).values
-    on_export = analyses.run_analyses(imported, ["sync"]).values
+    on_recording = {k: v.model_dump()
+                    for k, v in analyses.run_analyses(recorded, ["sync"]).values.items()}
+    on_export = {k: v.model_dump()
+                 for k, v in analyses.run_analyses(imported, ["sync"]).values.items()}
     assert "sync" in on_recording
     assert _without_timings(on_export) == _without_timings(on_recording)
 

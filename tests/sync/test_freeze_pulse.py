@@ -12,10 +12,10 @@ from numpy.testing import assert_allclose
 
 from aatest.engine.dataset import StepData
 from aatest.engine.errors import AnalysisError
-from aatest.engine.interfaces import AnalysisContext
+from aatest.engine.analysis.passes import run_analysis
 from aatest.engine.logs import SampledLog
-from aatest.sync import fit_clock_relation, synced_steps, synchronise
-from aatest.plugins.analysis.sync import SyncAnalysis
+from aatest.plugins.analysis.sync import SyncOutput
+from aatest.sync import fit_clock_relation, synchronise, synchronise_all
 from synthetic_rig import SynthRig, make_dataset, make_step, sine_step
 
 
@@ -74,15 +74,18 @@ def test_refuses_bad_edges(spoil, match: str) -> None:  # type: ignore[no-untype
         synchronise(data)
 
 
-def test_analysis_summary_and_cache() -> None:
+def test_analysis_summary_carries_the_synced_steps() -> None:
     steps = [sine_step(f"s{i}", 8 + i, 100.0) for i in range(3)]
     data = make_dataset(steps, SynthRig(drift_ppm=-7.5))
-    ctx = AnalysisContext()
-    out = SyncAnalysis().run(data, ctx)
-    v = out.values
+    out = run_analysis("sync", data)
+    v = out.result.model_dump(mode="json")
     assert set(v) >= {"drift_ppm", "offset_s", "residual_rms_us", "edges_used"}
     assert abs(v["drift_ppm"] + 7.5) < 1.0 and len(v["steps"]) == 3
-    assert synced_steps(data, ctx) is synced_steps(data, ctx)
+    # the synchronised steps travel with the output (for dependants), not in results.json
+    assert isinstance(out, SyncOutput) and [s.step.id for s in out.steps] == ["s0", "s1", "s2"]
+    assert "steps" in v and all(set(row) >= {"step", "drift_ppm"} for row in v["steps"])
+    again = synchronise_all(data)
+    assert [s.relation for s in again] == [s.relation for s in out.steps]
 
 
 

@@ -12,7 +12,8 @@ Package map (data flows top to bottom):
                    signatures, and ``session`` (what each command does end to end)
 - ``recording/``   MCAP recording: per-step crash-safe files, the merged recording, reading back
 - ``data/``        measured-data import and CSV export (the import format)
-- ``analysis/``    the analysis pass over a dataset and ``results.json``
+- ``analysis/``    the analysis pass over a dataset (ordered by what each analysis requires) and
+                   the typed ``results.json`` (models in ``aatest.results``)
 
 The engine never imports a plugin module: plugins are found through entry points only.
 """

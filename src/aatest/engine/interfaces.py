@@ -2,10 +2,12 @@
 
 Flow: the runner asks the *chamber* for a temperature, the *turntable* to move and record, the
 *daq* to record the sensors and emit the sync pulse/trigger; the recording is then read back
-by *analysis* plugins (``sync`` first) and their results rendered by a *report* plugin.
+by *analysis* plugins (ordered by what each ``requires``) and their results rendered by a
+*report* plugin.
 
-Every plugin class has a nested pydantic ``Config`` (``extra="forbid"``) and is constructed as
-``PluginClass(config, context)``. Simulated plugins share the digital twin through
+Every rig plugin class has a nested pydantic ``Config`` (``extra="forbid"``) and is constructed
+as ``PluginClass(config, context)``; an analysis plugin has ``Options`` instead and is
+constructed without arguments. Simulated plugins share the digital twin through
 ``RigContext.shared``; real drivers ignore it.
 """
 
@@ -14,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, Generic, Protocol, TypeVar, runtime_checkable
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -178,33 +180,58 @@ class Chamber(Protocol):
     def close(self) -> None: ...
 
 
-@dataclass
-class AnalysisOutput:
-    """What one analysis adds: JSON-able values under its key, and SVG figures for reports."""
-
-    values: Any
-    figures: dict[str, str] = field(default_factory=dict)
+R = TypeVar("R")
 
 
-@dataclass
+class NoOptions(BaseModel):
+    """Options of an analysis that takes none."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+@dataclass(frozen=True)
+class AnalysisOutput(Generic[R]):
+    """What one analysis adds: its typed ``result`` (stored under ``results.analysis[key]``)
+    and SVG figures for reports.
+
+    A plugin may return a subclass carrying more for its dependants (the ``sync`` analysis adds
+    the synchronised steps); only ``result`` and ``figures`` are written to results.json.
+    """
+
+    result: R
+    figures: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class AnalysisContext:
-    """Shared state of one analysis pass (earlier results, cached synchronised steps)."""
+    """What the engine hands one analysis: its validated options and, keyed by analysis key,
+    the outputs of the analyses it ``requires`` (and nothing else, so results cannot depend on
+    the order analyses are listed in)."""
 
-    results: dict[str, Any] = field(default_factory=dict)
-    cache: dict[str, Any] = field(default_factory=dict)
-    options: dict[str, Any] = field(default_factory=dict)
+    options: BaseModel = field(default_factory=NoOptions)
+    upstream: Mapping[str, AnalysisOutput[Any]] = field(default_factory=dict)
 
 
 @runtime_checkable
 class Analysis(Protocol):
-    """Reads a :class:`Dataset` and returns the values stored under ``results.analysis[key]``."""
+    """Reads a :class:`Dataset` and returns the typed result stored under
+    ``results.analysis[key]``.
+
+    ``requires`` names the analysis *keys* whose outputs it reads from ``context.upstream``
+    (the engine runs them first); ``Options`` is a frozen pydantic model with a default for every
+    field (extra="forbid"), filled from the procedure's ``analysis: [{name: {options}}]``;
+    ``Result`` is the type of ``AnalysisOutput.result`` (a pydantic model).
+    """
 
     key: ClassVar[str]
+    requires: ClassVar[tuple[str, ...]]
+    Options: ClassVar[type[BaseModel]]
+    Result: ClassVar[type[Any]]
 
     def applies_to(self, data: Dataset) -> bool:
         """False when the data has nothing for this analysis (the engine then skips it)."""
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput: ...
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[Any]: ...
 
 
 @runtime_checkable

@@ -7,7 +7,7 @@ was commanded. Units: degrees, seconds, °/s, °/s², °C.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -80,9 +80,14 @@ class Plan(_Frozen):
     standard: str = "IEEE-671-style"
     sensor: SensorRef
     steps: tuple[PlannedStep, ...]
-    analysis: tuple[str, ...] = ()
+    #: procedure ``analysis:`` entries as written: a name or ``{name: {options}}``
+    analysis: tuple[str | dict[str, dict[str, Any]], ...] = ()
     report_template: str = "calibration-certificate"
     sign: bool = False
+
+    def __hash__(self) -> int:
+        # analysis options are dicts (unhashable); the JSON text identifies the whole plan
+        return hash(self.model_dump_json())
 
     @property
     def lab_duration_s(self) -> float:

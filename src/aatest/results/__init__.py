@@ -5,7 +5,8 @@ Analyses return these models; the engine assembles them into :class:`RunResults`
 records store read them and nothing else. ``aatest schema --results`` exports the JSON Schema.
 
 - ``base``      the base model, uncertainty budget rows, the certified-result fields, verdicts
-- one module per analysis result (sync, reference, bias, scale factor, FRF, …)
+- one module per analysis result (``sync``, ``reference``, ``bias``, ``scale_factor``,
+  ``frf``, ``transfer_function``, ``temperature``, ``misalignment``, ``noise``)
 - ``root``      :class:`RunResults`, the whole ``results.json``
 """
 
@@ -18,13 +19,17 @@ from aatest.results.base import (
     Verdict,
     VerdictValue,
 )
+from aatest.results.root import SCHEMA_VERSION, AnalysisBlock, RunResults
 
 __all__ = [
+    "SCHEMA_VERSION",
+    "AnalysisBlock",
     "BudgetRow",
     "Certified",
     "DecisionRule",
     "Overall",
     "ResultModel",
+    "RunResults",
     "Verdict",
     "VerdictValue",
 ]

@@ -1,15 +1,16 @@
-"""Synchronisation of the table and sensor loggers (docs/method.md §2).
+"""Synchronisation of the table and sensor loggers (docs/method.md §2): a pure library.
 
-:func:`synced_steps` is what every analysis calls first: it synchronises each recorded step
-once per analysis pass and caches the result in the shared :class:`AnalysisContext`.
+Functions take recorded data and return synchronised steps; they keep no state. The ``sync``
+analysis plugin calls :func:`synchronise_all` once per analysis pass and hands the steps to
+the analyses that require it.
 """
 
 from aatest.sync.freeze_pulse import (
     ClockRelation,
     SyncedStep,
     fit_clock_relation,
-    synced_steps,
     synchronise,
+    synchronise_all,
 )
 
-__all__ = ["ClockRelation", "SyncedStep", "fit_clock_relation", "synced_steps", "synchronise"]
+__all__ = ["ClockRelation", "SyncedStep", "fit_clock_relation", "synchronise", "synchronise_all"]

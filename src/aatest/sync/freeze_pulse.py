@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -25,7 +24,6 @@ from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import AnalysisError
 from aatest.engine.steps import PlannedStep
 
-CACHE_KEY = "sync.synced_steps"
 #: a paired edge further than this fraction of the pulse period from the fit is inconsistent
 _PAIR_TOLERANCE_PERIODS = 0.25
 #: at least this share of the DAQ edges inside the table record must find a table edge
@@ -270,17 +268,12 @@ def synchronise(data: StepData) -> SyncedStep:
     )
 
 
-def synced_steps(data: Dataset, context: Any) -> list[SyncedStep]:
-    """All recorded steps synchronised, computed once per analysis pass (``context.cache``).
+def synchronise_all(data: Dataset) -> list[SyncedStep]:
+    """Every recorded step of a dataset synchronised (steps not recorded are left out).
 
     Raises
     ------
     AnalysisError
         Naming the first step whose sync edges are missing or inconsistent.
     """
-    cache: dict[str, Any] = context.cache
-    cached = cache.get(CACHE_KEY)
-    if cached is None or cached[0] is not data:
-        cache[CACHE_KEY] = (data, [synchronise(s) for s in data.steps if s.step.recorded])
-    result: list[SyncedStep] = cache[CACHE_KEY][1]
-    return result
+    return [synchronise(s) for s in data.steps if s.step.recorded]

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from aatest.engine.interfaces import AnalysisContext
-from aatest.plugins.analysis.bias import BiasAnalysis, gravity_along_g
+from aatest.plugins.analysis.bias import gravity_along_g
+from analyse import analyse
 from synthetic_rig import SynthRig, SynthSensor, make_dataset, static_step
 
 
@@ -22,9 +22,9 @@ def test_bias_and_g_sensitivity_recovered() -> None:
     positions = [(0, 0), (0, 180), (0, 90), (90, 90), (180, 90), (270, 90)]
     steps = [static_step(f"r{r}-{i}-{o}", i, o, repetition=r) for r in (1, 2, 3)
              for i, o in positions]
-    out = BiasAnalysis().run(make_dataset(steps, SynthRig(sensors=sensors)), AnalysisContext())
+    out = analyse("bias", make_dataset(steps, SynthRig(sensors=sensors)))
     for s in sensors:
-        v = out.values[s.channel]
+        v = out[s.channel]
         assert v["bias_v"] == pytest.approx(s.bias_v, abs=1e-4)
         assert v["g_sensitivity_dps2_per_g"] == pytest.approx(s.g_dps2_per_g, rel=0.1)
         assert v["bias_within_datasheet"] and v["g_sensitivity_within_datasheet"]

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aatest.engine.interfaces import AnalysisContext
-from aatest.plugins.analysis.frf import FrfAnalysis, analyse_tone
+from aatest.plugins.analysis.frf import analyse_tone
+from aatest.engine.analysis.passes import run_analysis
 from synthetic_rig import SynthRig, SynthSensor, _sensor_gain, make_dataset, sine_step
 
 
@@ -31,13 +31,13 @@ def frf_values():  # type: ignore[no-untyped-def]
     sensor = SynthSensor(natural_frequency_hz=40.0, damping=0.6, delay_s=0.005)
     steps = [sine_step(f"f{c}", c, 100.0) for c in (8, 20, 41, 82)]
     data = make_dataset(steps, SynthRig(sensors=(sensor,)))
-    out = FrfAnalysis().run(data, AnalysisContext())
+    out = run_analysis("frf", data)
     return sensor, out
 
 
 def test_gain_phase_delay_match_truth(frf_values) -> None:  # type: ignore[no-untyped-def]
     sensor, out = frf_values
-    for p in out.values["v_sz"]:
+    for p in out.result.model_dump()["v_sz"]:
         h = sensor.scale_v_per_dps2 * _sensor_gain(sensor, p["frequency_hz"])
         assert p["gain_db"] == pytest.approx(20 * np.log10(abs(h)), abs=0.01)
         # sync resolves the loggers to ≤ 0.25 ms (edges between DAQ samples): phase follows

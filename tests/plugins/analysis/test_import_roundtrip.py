@@ -7,18 +7,14 @@ from typing import Any
 
 import pytest
 
-from aatest.engine.interfaces import AnalysisContext
-from aatest.plugins.analysis.frf import FrfAnalysis
-from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
-from aatest.plugins.analysis.sync import SyncAnalysis
+from aatest.engine.analysis.passes import run_analyses
 from synthetic_rig import sine_step
 from twin_helpers import twin_dataset
 
 
 def _analyse(data):  # type: ignore[no-untyped-def]
-    ctx = AnalysisContext()
-    return {a.key: a.run(data, ctx).values for a in (SyncAnalysis(), ScaleFactorAnalysis(),
-                                                     FrfAnalysis())}
+    done = run_analyses(data, ["sync", "scale_factor", "frf"])
+    return {key: result.model_dump() for key, result in done.values.items()}
 
 
 def test_same_numbers_after_csv_roundtrip(realistic_unit: Any, tmp_path: Path) -> None:

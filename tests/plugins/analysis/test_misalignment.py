@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from aatest.engine.errors import ImportDataError
-from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import Mounting
-from aatest.plugins.analysis.misalignment import MisalignmentAnalysis, misalignment_from_spectra
+from aatest.plugins.analysis.misalignment import misalignment_from_spectra
+from analyse import analyse
 from synthetic_rig import sine_step
 from aatest.twin.api import simulate_dataset
 
@@ -95,7 +95,7 @@ def test_matrix_estimator_against_twin(realistic_unit) -> None:  # type: ignore[
     model = realistic_unit.model_copy(update={"sensors": sensors})
     # one World for the whole sequence: the unit's (random) first mounting is shared by all
     data = simulate_dataset(model, _misalignment_steps(), seed=5)
-    out = MisalignmentAnalysis().run(data, AnalysisContext()).values
+    out = analyse("misalignment", data)
     assert set(out["sets"]) == {"A", "B"} and "1" in out["scenarios"]
     for s in model.sensors:
         mis, cross = s.misalignment, s.cross_axis

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aatest.engine.interfaces import AnalysisContext
-from aatest.plugins.analysis.noise import NoiseAnalysis
+from aatest.engine.analysis.passes import run_analysis
+from analyse import analyse
 from synthetic_rig import SynthRig, SynthSensor, make_dataset, static_step
 from twin_helpers import twin_dataset
 
@@ -14,8 +14,8 @@ from twin_helpers import twin_dataset
 def test_white_noise_figures() -> None:
     sensor = SynthSensor(noise_v=0.001)
     data = make_dataset([static_step("n", 0, 0, samples=32768)], SynthRig(sensors=(sensor,)))
-    out = NoiseAnalysis().run(data, AnalysisContext())
-    v = out.values["v_sz"]
+    out = run_analysis("noise", data)
+    v = out.result["v_sz"].model_dump()
     assert v["rms_v"] == pytest.approx(0.001 * np.sqrt(400 / 1000), rel=0.05)
     white = 0.001 / sensor.scale_v_per_dps2 / np.sqrt(2000.0)
     assert v["allan_dps2"]["white_noise_per_sqrt_hz"] == pytest.approx(white, rel=0.1)
@@ -25,6 +25,6 @@ def test_white_noise_figures() -> None:
 def test_noise_against_twin_motor_off(realistic_unit) -> None:  # type: ignore[no-untyped-def]
     model = realistic_unit.model_copy(update={"sensors": realistic_unit.sensors[:1]})
     data, _ = twin_dataset(model, [static_step("n", 0, 0, samples=16384, motor_on=False)])
-    v = NoiseAnalysis().run(data, AnalysisContext()).values["v_sz"]
+    v = analyse("noise", data)["v_sz"]
     # 1 mV RMS recorded behind the 100 Hz pre-sample filter: all of it below 400 Hz
     assert v["rms_v"] == pytest.approx(model.sensors[0].noise_rms_v, rel=0.1)

@@ -1,19 +1,15 @@
-"""Every analysis returns JSON-serialisable values and SVG figures on a mixed recording."""
+"""Every analysis returns its typed result (JSON-serialisable) and SVG figures on a mixed
+recording, and every plugin class satisfies the Analysis protocol and the engine's checks."""
 
 from __future__ import annotations
 
 import json
 
-from aatest.engine.interfaces import Analysis, AnalysisContext
+from aatest.engine.analysis import plugins
+from aatest.engine.analysis.passes import run_analyses
+from aatest.engine.interfaces import Analysis
 from aatest.plugins.analysis import ALIASES
-from aatest.plugins.analysis.bias import BiasAnalysis
-from aatest.plugins.analysis.frf import FrfAnalysis
-from aatest.plugins.analysis.noise import NoiseAnalysis
-from aatest.plugins.analysis.reference import ReferenceAnalysis
-from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
-from aatest.plugins.analysis.temperature import TemperatureAnalysis
-from aatest.plugins.analysis.transfer_function import TransferFunctionAnalysis
-from aatest.plugins.analysis.sync import SyncAnalysis
+from aatest.results import AnalysisBlock
 from synthetic_rig import SynthRig, make_dataset, sine_step, static_step
 
 
@@ -22,14 +18,17 @@ def test_all_analyses_json_and_protocol() -> None:
     steps += [static_step(f"t{i}", 0, o, samples=4096, temperature_c=t)
               for i, (o, t) in enumerate([(0, 20.0), (180, 0.0), (0, -10.0), (180, 30.0)])]
     data = make_dataset(steps, SynthRig())
-    ctx = AnalysisContext()
-    plugins = [SyncAnalysis(), ReferenceAnalysis(), ScaleFactorAnalysis(), FrfAnalysis(),
-               TransferFunctionAnalysis(), BiasAnalysis(), TemperatureAnalysis(),
-               NoiseAnalysis()]
-    for plugin in plugins:
-        assert isinstance(plugin, Analysis)
-        assert plugin.applies_to(data), plugin.key
-        out = plugin.run(data, ctx)
-        json.dumps(out.values, allow_nan=True)
+    names = ["sync", "reference", "scale_factor", "frf", "transfer_function", "bias",
+             "temperature", "noise"]
+    for name in names:
+        plugin = plugins.load(name)
+        assert isinstance(plugin.cls(), Analysis)
+        assert plugin.cls().applies_to(data), name
+    done = run_analyses(data, names)
+    assert done.errors == {} and set(done.outputs) == set(names)
+    for key, out in done.outputs.items():
+        assert isinstance(out.result, plugins.load(key).cls.Result)
         assert all(svg.lstrip().startswith("<?xml") for svg in out.figures.values())
+    block = AnalysisBlock.model_validate(done.values)
+    json.dumps(block.model_dump(mode="json"), allow_nan=False)
     assert ALIASES == {"thd": "frf", "snr": "frf"}

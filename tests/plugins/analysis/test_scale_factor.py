@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from aatest.engine.interfaces import AnalysisContext
-from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
+from aatest.engine.analysis.passes import run_analysis
 from synthetic_rig import SynthRig, SynthSensor, make_dataset, sine_step
 
 
@@ -13,8 +12,8 @@ from synthetic_rig import SynthRig, SynthSensor, make_dataset, sine_step
 def test_scale_and_offset_recovered(c3: float, order: int) -> None:
     sensor = SynthSensor(scale_v_per_dps2=0.00398, bias_v=2.4971, c3=c3, delay_s=0.006)
     data = make_dataset([sine_step("cal", 16, 400.0, samples=32768)], SynthRig(sensors=(sensor,)))
-    out = ScaleFactorAnalysis().run(data, AnalysisContext())
-    v = out.values["v_sz"]
+    out = run_analysis("scale_factor", data)
+    v = out.result["v_sz"].model_dump()
     # the scale factor is the best straight line: a cubic raises it by ¾·c3·(A/range)²
     best_line = sensor.scale_v_per_dps2 * (1 + 0.75 * c3 * (400.0 / sensor.range_dps2) ** 2)
     assert v["scale_v_per_dps2"] == pytest.approx(best_line, rel=1e-3)
@@ -24,4 +23,5 @@ def test_scale_and_offset_recovered(c3: float, order: int) -> None:
     assert v["order"] == order
     assert v["alignment_delay_s"] == pytest.approx(0.006 + 0.0036, abs=5e-4)
     assert {"rmse_dps2", "coefficients", "ci95"} <= set(v)
+    assert v["reference"] == "smoothed"  # the default, named for the certificate
     assert out.figures["scale_factor_v_sz"].lstrip().startswith("<?xml")

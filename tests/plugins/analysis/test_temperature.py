@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aatest.engine.interfaces import AnalysisContext
-from aatest.plugins.analysis.temperature import TemperatureAnalysis, hysteresis_v
+from aatest.plugins.analysis.temperature import hysteresis_v
+from analyse import analyse
 from synthetic_rig import sine_step, static_step
 from twin_helpers import twin_dataset
 
@@ -27,7 +27,7 @@ def test_coefficients_against_twin(realistic_unit) -> None:  # type: ignore[no-u
             for i, t in enumerate(SEQUENCE_C[::3])]
     temps = SEQUENCE_C + SEQUENCE_C[::3]
     data, _ = twin_dataset(model, static + sine, temperatures_c=temps)
-    v = TemperatureAnalysis().run(data, AnalysisContext()).values["v_sz"]
+    v = analyse("temperature", data)["v_sz"]
     s = model.sensors[0]
     assert v["bias_coefficient_v_per_c"] == pytest.approx(
         s.bias_temperature.coefficient_v_per_c, rel=0.1)

@@ -58,13 +58,19 @@ def test_antialias_corner_sources() -> None:
 
     from aatest.engine.dataset import Dataset
     from aatest.engine.interfaces import AnalysisContext
-    from aatest.plugins.analysis.transfer_function import logger_antialias_hz
+    from aatest.plugins.analysis.transfer_function import (
+        TransferFunctionOptions,
+        logger_antialias_hz,
+    )
 
     def ds(meta: dict) -> Dataset:  # type: ignore[type-arg]
         return Dataset("p", FS, (), (), Path("x"), meta)
 
-    assert logger_antialias_hz(ds({}), AnalysisContext(options={"antialias_hz": 80})) == 80.0
+    given = AnalysisContext(options=TransferFunctionOptions(antialias_hz=80))
+    assert logger_antialias_hz(ds({}), given) == 80.0
     assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "can", "antialias_hz": 50}}}),
                                AnalysisContext()) == 50.0
     assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "sim"}}}), AnalysisContext()) == 100.0
     assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "can"}}}), AnalysisContext()) is None
+    none = AnalysisContext(options=TransferFunctionOptions(antialias_hz="none"))
+    assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "sim"}}}), none) is None

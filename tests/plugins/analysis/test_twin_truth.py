@@ -8,11 +8,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from aatest.engine.interfaces import AnalysisContext
-from aatest.plugins.analysis.bias import BiasAnalysis
-from aatest.plugins.analysis.frf import FrfAnalysis
-from aatest.plugins.analysis.scale_factor import ScaleFactorAnalysis
-from aatest.plugins.analysis.sync import SyncAnalysis
+from aatest.engine.analysis.passes import run_analyses, run_analysis
+from analyse import analyse
 from twin_helpers import twin_dataset
 from synthetic_rig import sine_step, static_step
 
@@ -25,9 +22,8 @@ def cal_run(realistic_unit):  # type: ignore[no-untyped-def]
              sine_step("f5", 41, 100.0, samples=16384, settle_s=2.0),
              sine_step("f10", 82, 100.0, samples=16384, settle_s=2.0)]
     data, truths = twin_dataset(realistic_unit, steps)
-    ctx = AnalysisContext()
-    results = {a.key: a.run(data, ctx).values for a in (SyncAnalysis(), ScaleFactorAnalysis(),
-                                                        FrfAnalysis())}
+    done = run_analyses(data, ["sync", "scale_factor", "frf"])
+    results = {key: result.model_dump() for key, result in done.values.items()}
     return realistic_unit, data, truths, results
 
 
@@ -80,7 +76,7 @@ def test_bias_against_twin(realistic_unit) -> None:  # type: ignore[no-untyped-d
     steps = [static_step(f"r{r}-{i}-{o}", i, o, samples=4096, repetition=r, settle_s=1.0)
              for r in (1, 2) for i, o in positions]
     data, truths = twin_dataset(realistic_unit, steps)
-    values = BiasAnalysis().run(data, AnalysisContext()).values
+    values = analyse("bias", data)
     temp = float(np.mean([t["temperature_c"] for t in truths]))
     for s in realistic_unit.sensors:
         truth_bias = s.bias_v + s.bias_temperature.coefficient_v_per_c * (temp - 25.0)
@@ -102,15 +98,12 @@ def tf_run():  # type: ignore[no-untyped-def]
     steps = [sine_step(f"c{c}", c, 100.0, samples=n, settle_s=1.0)
              for c in sorted({int(round(f * n / FS)) for f in F28})]
     data, _ = twin_dataset(model, steps)
-    ctx = AnalysisContext(options={"antialias_hz": model.daq.antialias_hz})
-    from aatest.plugins.analysis.transfer_function import TransferFunctionAnalysis
-
-    return model, TransferFunctionAnalysis().run(data, ctx)
+    return model, run_analysis("transfer_function", data, {"antialias_hz": model.daq.antialias_hz})
 
 
 def test_transfer_function_against_twin(tf_run) -> None:  # type: ignore[no-untyped-def]
     model, out = tf_run
-    v = out.values["v_sz"]
+    v = out.result.model_dump()["v_sz"]
     assert {"poles", "zeros", "delay_s", "fit_pct", "nAIC", "FPE", "num", "den", "dt"} <= set(v)
     assert v["fit_pct"] > 95.0 and v["zeros_outside_unit_circle"] == 0
     phys = v["second_order_delay"]
@@ -125,10 +118,10 @@ def test_references_against_twin_truth(cal_run) -> None:  # type: ignore[no-unty
     the calibration uses (the true motion also carries ≈125 Hz servo vibration that no
     smoothing reference keeps, and the sensor barely sees)."""
     from aatest.plugins.analysis.reference import METHODS, reference_accel, zero_phase_lowpass
-    from aatest.sync import synced_steps
+    from aatest.sync import synchronise_all
 
     _, data, truths, _ = cal_run
-    synced = synced_steps(data, AnalysisContext())[0]
+    synced = synchronise_all(data)[0]
     truth = np.asarray(truths[0]["inner_accel_dps2"])[: len(synced)]
     broad, inband = {}, {}
     for method in METHODS:

@@ -1,79 +1,153 @@
-"""The analysis pass: run the requested analysis plugins, in order, over one dataset.
+"""The analysis pass: run the requested analysis plugins over one dataset, in dependency order.
 
 Analyses read only the dataset (built from the recording or an import), so this pass can be
-re-run offline at any time with ``aatest analyze``. Aliases let procedures name sub-results
+re-run offline at any time with ``aatest analyze``. Each plugin declares what it ``requires``;
+a requested analysis pulls those in, and the pass runs them first (a topological order, ties
+broken by name), handing each plugin only the outputs of its own requirements. So the results
+never depend on the order names are listed in. Aliases let procedures name sub-results
 (``thd``, ``snr``) that one plugin (``frf``) produces.
 """
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from graphlib import CycleError, TopologicalSorter
+from types import MappingProxyType
 from typing import Any
 
-from aatest.engine import registry
+from pydantic import BaseModel
+
+from aatest.engine.analysis import plugins as _plugins
+from aatest.engine.analysis.plugins import AnalysisEntry, AnalysisPlugin
 from aatest.engine.dataset import Dataset
-from aatest.engine.errors import AnalysisError
-from aatest.engine.interfaces import AnalysisContext
+from aatest.engine.errors import AnalysisError, PluginError
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 
 log = logging.getLogger("aatest.analysis")
 
 
 @dataclass
 class AnalysisResults:
-    values: dict[str, Any] = field(default_factory=dict)
-    figures: dict[str, dict[str, str]] = field(default_factory=dict)
+    """Typed outputs by analysis key, and what failed or did not apply (by plugin name)."""
+
+    outputs: dict[str, AnalysisOutput[Any]] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
     skipped: list[str] = field(default_factory=list)
 
+    @property
+    def values(self) -> dict[str, Any]:
+        """Key → typed result."""
+        return {key: out.result for key, out in self.outputs.items()}
 
-def _aliases() -> dict[str, str]:
-    try:
-        from aatest.plugins.analysis import ALIASES
-    except ImportError:
-        return {}
-    return dict(ALIASES)
-
-
-def resolve_names(requested: list[str] | tuple[str, ...]) -> list[str]:
-    """Plugin names in run order: aliases mapped, duplicates dropped, ``sync`` first.
-
-    With no request, every installed analysis runs (each decides whether it applies).
-    """
-    aliases = _aliases()
-    names = list(requested) or [ep.name for ep in registry.entry_points("analysis")]
-    ordered: list[str] = []
-    for name in names:
-        plugin = aliases.get(name, name)
-        if plugin not in ordered:
-            ordered.append(plugin)
-    if "sync" in ordered:
-        ordered.remove("sync")
-        ordered.insert(0, "sync")
-    return ordered
+    @property
+    def figures(self) -> dict[str, dict[str, str]]:
+        """Key → figure name → SVG, for the analyses that drew any."""
+        return {key: dict(out.figures) for key, out in self.outputs.items() if out.figures}
 
 
-def run_analyses(data: Dataset, requested: list[str] | tuple[str, ...]) -> AnalysisResults:
-    """Run each analysis; a data problem in one is recorded and the others still run."""
-    out = AnalysisResults()
-    context = AnalysisContext(results=out.values)
-    explicit = bool(requested)
-    for name in resolve_names(requested):
-        info = registry.load("analysis", name)
-        plugin = info.target()
-        key = getattr(plugin, "key", name)
-        if not plugin.applies_to(data):
-            out.skipped.append(name)
-            if explicit:
-                log.warning("analysis %r does not apply to this data; skipped", name)
+def _with_requirements(names: Sequence[str]) -> dict[str, AnalysisPlugin]:
+    """The named plugins and, transitively, every plugin they require."""
+    found: dict[str, AnalysisPlugin] = {}
+    todo: list[tuple[str, AnalysisPlugin | None]] = [(n, None) for n in reversed(names)]
+    while todo:
+        name, requirer = todo.pop()
+        if name in found:
             continue
         try:
-            result = plugin.run(data, context)
-        except AnalysisError as exc:
-            out.errors[name] = str(exc)
-            log.error("analysis %r: %s", name, exc)
-            continue
-        out.values[key] = result.values
-        if result.figures:
-            out.figures[key] = dict(result.figures)
+            found[name] = _plugins.load(name)
+        except PluginError as exc:
+            if requirer is None:
+                raise
+            raise PluginError(f"{requirer.describe()} requires {name!r}: {exc}") from exc
+        todo.extend((r, found[name]) for r in found[name].requires)
+    return found
+
+
+def order(names: Sequence[str]) -> list[AnalysisPlugin]:
+    """Plugins in run order: requirements first, otherwise by name.
+
+    Raises
+    ------
+    PluginError
+        When a plugin requires an analysis that is not installed, or requirements form a cycle
+        (the error names the plugins and their distributions).
+    """
+    by_name = _with_requirements(names)
+    graph = TopologicalSorter({n: sorted(by_name[n].requires) for n in sorted(by_name)})
+    try:
+        return [by_name[n] for n in graph.static_order()]
+    except CycleError as exc:
+        cycle = [by_name[n].describe() for n in dict.fromkeys(exc.args[1])]
+        raise PluginError("analysis requirements form a cycle: " + " → ".join(cycle)) from exc
+
+
+def _requested_names(entries: Sequence[AnalysisEntry]) -> list[str]:
+    aliases = _plugins.aliases()
+    names = [aliases.get(n, n) for n in (_plugins.split_entry(e)[0] for e in entries)]
+    return list(dict.fromkeys(names))
+
+
+def _run_one(plugin: AnalysisPlugin, data: Dataset, options: BaseModel,
+             done: Mapping[str, AnalysisOutput[Any]]) -> AnalysisOutput[Any]:
+    """Run one plugin with the outputs of its requirements (those that produced one)."""
+    upstream = MappingProxyType({r: done[r] for r in plugin.requires if r in done})
+    out = plugin.cls().run(data, AnalysisContext(options=options, upstream=upstream))
+    if not isinstance(out, AnalysisOutput) or not isinstance(out.result, plugin.cls.Result):
+        raise PluginError(f"{plugin.describe()} returned {type(out).__name__}, not an "
+                          f"AnalysisOutput holding its {plugin.cls.Result.__name__}")
     return out
+
+
+def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
+                 options: Mapping[str, BaseModel] | None = None) -> AnalysisResults:
+    """Run each analysis; a data problem in one is recorded and the others still run.
+
+    Parameters
+    ----------
+    data
+        The dataset to analyse.
+    requested
+        Procedure ``analysis:`` entries (names or ``{name: {options}}``); empty: every
+        installed analysis (each decides whether it applies).
+    options
+        Already validated options by plugin name, overriding those in ``requested``.
+    """
+    explicit = bool(requested)
+    names = _requested_names(requested) if explicit else _plugins.installed_names()
+    chosen = dict(_plugins.requested_options(requested)) | dict(options or {})
+    out = AnalysisResults()
+    by_name: dict[str, AnalysisOutput[Any]] = {}
+    for plugin in order(names):
+        if not plugin.cls().applies_to(data):
+            out.skipped.append(plugin.name)
+            if explicit and plugin.name in names:
+                log.warning("analysis %r does not apply to this data; skipped", plugin.name)
+            continue
+        try:
+            result = _run_one(plugin, data, chosen.get(plugin.name) or plugin.options(), by_name)
+        except AnalysisError as exc:
+            out.errors[plugin.name] = str(exc)
+            log.error("analysis %r: %s", plugin.name, exc)
+            continue
+        out.outputs[plugin.key] = by_name[plugin.name] = result
+    return out
+
+
+def run_analysis(name: str, data: Dataset, options: Mapping[str, Any] | None = None
+                 ) -> AnalysisOutput[Any]:
+    """Run one analysis (and what it requires, with default options) and return its output.
+
+    Raises
+    ------
+    AnalysisError
+        When it, or an analysis it requires, fails, or when it does not apply to ``data``.
+    """
+    plugin = _plugins.load(name)
+    done = run_analyses(data, [name], {plugin.name: plugin.options(options)})
+    if plugin.key not in done.outputs:
+        reason = done.errors.get(plugin.name) or "; ".join(done.errors.values()) \
+            or "it does not apply to this data"
+        raise AnalysisError(f"analysis {name!r} produced no result: {reason}")
+    return done.outputs[plugin.key]

@@ -1,41 +1,26 @@
-"""``results.json``: the one document between analysis and report (docs/interfaces.md §1)."""
+"""``results.json``: the one document between analysis and report (docs/interfaces.md §1).
+
+The engine builds a typed :class:`~aatest.results.RunResults` and writes its JSON dump
+(NaN and infinities become ``null``); :func:`read_results` reads any results.json back into the
+same model, including files written before it was typed.
+"""
 
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from pydantic import TypeAdapter, ValidationError
 
 from aatest.engine.analysis.passes import AnalysisResults
 from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
+from aatest.results import SCHEMA_VERSION, AnalysisBlock, RunResults
 
 RESULTS_FILE = "results.json"
-
-
-def _jsonable(value: Any) -> Any:
-    """numpy scalars/arrays → plain JSON; NaN/inf → None (JSON has no NaN)."""
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, (np.bool_,)):
-        return bool(value)
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        f = float(value)
-        return f if math.isfinite(f) else None
-    if isinstance(value, complex):
-        return [value.real, value.imag]
-    return value
 
 
 def step_summaries(data: Dataset) -> list[dict[str, Any]]:
@@ -48,38 +33,92 @@ def step_summaries(data: Dataset) -> list[dict[str, Any]]:
     return rows
 
 
+def _scalar(value: Any) -> Any:
+    """numpy scalars and arrays as Python values; anything else as its text."""
+    return value.tolist() if hasattr(value, "tolist") else str(value)
+
+
+def _plain_metadata(meta: dict[str, Any]) -> dict[str, Any]:
+    """The run metadata (without the plan) as plain JSON values."""
+    return json.loads(json.dumps({k: v for k, v in meta.items() if k != "plan"},
+                                 default=_scalar))
+
+
 def build_results(
     data: Dataset, analysis: AnalysisResults, lab_duration_s: float, wall_duration_s: float
-) -> dict[str, Any]:
+) -> RunResults:
+    """Assemble the typed results of one analysis pass."""
     meta = dict(data.metadata)
-    return _jsonable({
-        "procedure": data.procedure,
-        "rig": meta.get("rig", {}),
-        "steps": step_summaries(data),
-        "analysis": analysis.values,
-        "analysis_errors": analysis.errors,
-        "analysis_skipped": analysis.skipped,
-        "lab_duration_s": lab_duration_s,
-        "wall_duration_s": wall_duration_s,
-        "metadata": {k: v for k, v in meta.items() if k != "plan"},
-        "figures": analysis.figures,
-    })
+    return RunResults(
+        schema_version=SCHEMA_VERSION,
+        procedure=data.procedure,
+        rig=_plain_metadata({"rig": meta.get("rig") or {}})["rig"],
+        steps=step_summaries(data),
+        analysis=AnalysisBlock.model_validate(analysis.values),
+        analysis_errors=analysis.errors,
+        analysis_skipped=analysis.skipped,
+        lab_duration_s=lab_duration_s,
+        wall_duration_s=wall_duration_s,
+        metadata=_plain_metadata(meta),
+        figures=analysis.figures,
+    )
 
 
-def write_results(results: Mapping[str, Any], run_dir: Path) -> Path:
+def results_json(results: RunResults | Mapping[str, Any]) -> dict[str, Any]:
+    """The JSON document of ``results`` (what is written, and what report plugins read); a
+    document that is already plain JSON values is returned as a copy."""
+    if isinstance(results, RunResults):
+        return results.model_dump(mode="json")
+    return dict(results)
+
+
+def write_results(results: RunResults | Mapping[str, Any], run_dir: Path) -> Path:
     """Write atomically so a crash never leaves half a results file."""
     path = run_dir / RESULTS_FILE
     tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(results, indent=2, allow_nan=False), encoding="utf-8")
+    text = json.dumps(results_json(results), indent=2, allow_nan=False)
+    tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path)
     return path
 
 
-def read_results(run_dir: Path) -> dict[str, Any]:
+def _typed_extra(results: RunResults, path: Path) -> RunResults:
+    """Results of third-party analyses validated by their installed plugin's ``Result`` type
+    (kept as plain JSON values when the plugin is not installed here)."""
+    from aatest.engine.analysis import plugins
+
+    installed = set(plugins.installed_names())
+    typed: dict[str, Any] = {}
+    for key, value in results.analysis.extra.items():
+        if key not in installed:
+            typed[key] = value
+            continue
+        plugin = plugins.load(key)
+        try:
+            typed[key] = TypeAdapter(plugin.cls.Result).validate_python(value)
+        except ValidationError as exc:
+            raise InputError(f"{path}: analysis.{key}: not a result of {plugin.describe()}: "
+                             f"{exc.errors(include_url=False)[0]['msg']}") from exc
+    results.analysis.extra = typed
+    return results
+
+
+def read_results(run_dir: Path) -> RunResults:
+    """Read ``run_dir/results.json`` into the typed model.
+
+    Raises
+    ------
+    InputError
+        When the file is missing, is not JSON, or does not match the results schema (or a
+        third-party result does not match its plugin's ``Result``).
+    """
     path = run_dir / RESULTS_FILE
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return _typed_extra(RunResults.model_validate_json(path.read_bytes()), path)
     except FileNotFoundError as exc:
         raise InputError(f"{path}: no results; run `aatest analyze {run_dir}` first") from exc
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from exc
+    except ValidationError as exc:
+        first = exc.errors(include_url=False)[0]
+        where = ".".join(str(p) for p in first.get("loc", ()))
+        raise InputError(f"{path}: {where}: {first['msg']} ({exc.error_count()} problem(s))"
+                         ) from exc

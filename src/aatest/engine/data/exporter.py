@@ -139,7 +139,7 @@ def manifest(dataset: Dataset, entries: list[dict[str, Any]]) -> dict[str, Any]:
     if isinstance(t_ref_c, (int, float)):
         doc["t_ref_c"] = float(t_ref_c)
     analysis = dataset.metadata.get("analysis")
-    if isinstance(analysis, (list, tuple)) and all(isinstance(a, str) for a in analysis):
+    if isinstance(analysis, (list, tuple)) and all(isinstance(a, (str, dict)) for a in analysis):
         doc["analysis"] = list(analysis)
     template = dataset.metadata.get("report_template")
     if isinstance(template, str):

@@ -128,7 +128,8 @@ class DatasetManifest(_Strict):
     procedure: str = "imported"
     t_ref_c: float | None = None
     model: str | None = None
-    analysis: list[str] | None = None
+    #: analysis names or ``{name: {options}}`` entries, as in a procedure
+    analysis: list[str | dict[str, dict[str, Any]]] | None = None
     report_template: str | None = None
 
     @model_validator(mode="after")

@@ -23,12 +23,18 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, StrictStr, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictStr, ValidationError, model_validator
 
-from aatest.engine.errors import Problem, ProcedureError
+from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.procedure import models as _procedure_models
 from aatest.engine.procedure.models import STEP_KINDS, Procedure
-from aatest.engine.procedure.yaml_loader import parse_yaml, read_text, validate_tree
+from aatest.engine.procedure.yaml_loader import (
+    locate,
+    parse_yaml,
+    problems_from_validation,
+    read_text,
+    validate_tree,
+)
 
 
 class PluginSpec(BaseModel):
@@ -100,9 +106,53 @@ def _guarded(filename: str, text: str, model: type[Any]) -> tuple[Any, Any]:
         raise ProcedureError([Problem(filename, 1, 1, "", message)]) from exc
 
 
+def _option_problems(exc: ValidationError, path: tuple[Any, ...], fields: list[str], tree: Any,
+                     filename: str) -> list[Problem]:
+    """Located problems of one analysis' options (unknown ones with a "did you mean")."""
+    problems = []
+    for p in problems_from_validation(exc, tree, filename):
+        where = path + tuple(int(x) if x.isdigit() else x for x in p.field.split(".") if x)
+        line, col = locate(tree, where)
+        message = p.message
+        if message == _UNKNOWN_KEY:
+            close = difflib.get_close_matches(where[-1], fields, n=1, cutoff=0.6)
+            message = f"unknown option; did you mean {close[0]!r}?" if close else \
+                f"unknown option; options: {', '.join(fields) or 'none'}"
+        problems.append(Problem(filename, line, col, ".".join(map(str, where)), message))
+    return problems
+
+
+def _analysis_problems(proc: Procedure, tree: Any, filename: str) -> list[Problem]:
+    """Every ``analysis:`` entry must name an installed analysis and give it valid options."""
+    from aatest.engine.analysis import plugins
+
+    problems = []
+    for i, entry in enumerate(proc.analysis):
+        name, options = plugins.split_entry(entry)
+        path: tuple[Any, ...] = ("analysis", i) + (() if isinstance(entry, str) else (name,))
+        try:
+            plugin = plugins.load(name)
+        except PluginError as exc:
+            line, col = locate(tree, path)
+            problems.append(Problem(filename, line, col, ".".join(map(str, path)), str(exc)))
+            continue
+        try:
+            plugin.options(options)
+        except ValidationError as exc:
+            fields = list(plugin.cls.Options.model_fields)
+            problems += _option_problems(exc, path, fields, tree, filename)
+    return problems
+
+
 def parse_procedure(text: str, filename: str = "<procedure>") -> Procedure:
-    """Validate procedure YAML given as text (``filename`` labels the problems)."""
+    """Validate procedure YAML given as text (``filename`` labels the problems).
+
+    Analysis options are validated by each analysis plugin's own ``Options`` model.
+    """
     proc, tree = _guarded(filename, text, Procedure)
+    problems = _analysis_problems(proc, tree, filename)
+    if problems:
+        raise ProcedureError(problems)
     return proc.with_source(filename, tree)  # type: ignore[no-any-return]
 
 

@@ -340,6 +340,13 @@ class ReportOptions(_Strict):
     sign: StrictBool = False
 
 
+#: one ``analysis:`` entry: a plugin name (or alias) or ``{name: {options}}``
+AnalysisEntry = Annotated[
+    Name | Annotated[dict[Name, dict[str, Any]], Field(min_length=1, max_length=1)],
+    Field(description="an analysis name, or a mapping {name: {options}} with one key"),
+]
+
+
 class Procedure(_Strict):
     """A test procedure: the root of the procedure YAML."""
 
@@ -350,7 +357,9 @@ class Procedure(_Strict):
     rig: RigPlugins = RigPlugins()
     sampling: Sampling = Sampling()
     steps: Annotated[tuple[StepEntry, ...], *NonEmpty]
-    analysis: tuple[Name, ...] = ()
+    analysis: tuple[AnalysisEntry, ...] = Field(
+        (), description="analyses to run: a name, or {name: {options}} (options are checked "
+        "against the analysis plugin's own Options model when the procedure is loaded)")
     report: ReportOptions = ReportOptions()
 
     # where the procedure came from (set by the loader; used to locate planning problems)

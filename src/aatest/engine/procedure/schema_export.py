@@ -1,17 +1,24 @@
-"""JSON Schema of the procedure YAML, generated from the pydantic models (never hand-edited).
+"""JSON Schemas generated from the pydantic models (never hand-edited).
 
-The committed copy ``src/aatest/schemas/procedure.schema.json`` is what editors use for
-completion and checking; ``tests/engine/test_schema_fresh.py`` fails when it is stale.
+Two documents, both committed under ``src/aatest/schemas/`` and checked for staleness by
+``tests/engine/test_schema_fresh.py``:
+
+- ``procedure.schema.json``: the procedure YAML, for editors (completion and checking);
+- ``results.schema.json``: ``results.json`` (:class:`aatest.results.RunResults`), for anyone
+  who reads results without aatest.
 
 Example
 -------
-Regenerate the committed copy after changing :mod:`aatest.engine.procedure.models`::
+Regenerate the committed copies after changing the models::
 
-    python -m aatest.engine.procedure.schema_export          # writes src/aatest/schemas/procedure.schema.json
-    aatest schema > procedure.schema.json           # the same document on stdout
+    python -m aatest.engine.procedure.schema_export          # writes both committed copies
+    aatest schema > procedure.schema.json                    # the same documents on stdout
+    aatest schema --results > results.schema.json
 
 >>> procedure_json_schema()["title"]
 'aatest procedure'
+>>> results_json_schema()["title"]
+'aatest results'
 """
 
 from __future__ import annotations
@@ -21,34 +28,77 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.procedure.models import Procedure
+from pydantic import BaseModel
 
-#: where the committed copy lives (package data, shipped with the wheel)
-SCHEMA_PATH = Path(__file__).resolve().parents[2] / "schemas" / "procedure.schema.json"
+from aatest.engine.procedure.models import Procedure
+from aatest.results import RunResults
+
+#: where the committed copies live (package data, shipped with the wheel)
+SCHEMA_DIR = Path(__file__).resolve().parents[2] / "schemas"
+SCHEMA_PATH = SCHEMA_DIR / "procedure.schema.json"
+RESULTS_SCHEMA_PATH = SCHEMA_DIR / "results.schema.json"
 SCHEMA_ID = "https://aatest.invalid/schemas/procedure.schema.json"
+RESULTS_SCHEMA_ID = "https://aatest.invalid/schemas/results.schema.json"
+
+
+def _schema(model: type[BaseModel], schema_id: str, title: str) -> dict[str, Any]:
+    schema = model.model_json_schema(mode="validation")
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "$id": schema_id,
+            **schema, "title": title}
+
+
+def _builtin_analysis_options() -> tuple[dict[str, Any], dict[str, Any]]:
+    """Options schemas of the analyses aatest itself ships (name → schema), and their $defs.
+
+    Third-party analyses are not listed (the committed schema must not depend on what else is
+    installed); their options stay a free mapping, checked by the loader.
+    """
+    from aatest.engine.analysis import plugins
+
+    options: dict[str, Any] = {}
+    defs: dict[str, Any] = {}
+    for name in plugins.installed_names():
+        plugin = plugins.load(name)
+        if plugin.distribution == "aatest":
+            schema = plugin.cls.Options.model_json_schema()
+            defs |= schema.pop("$defs", {})
+            options[name] = schema
+    return options, defs
 
 
 def procedure_json_schema() -> dict[str, Any]:
-    """The JSON Schema (draft 2020-12) of a procedure file."""
-    schema = Procedure.model_json_schema(mode="validation")
-    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "$id": SCHEMA_ID,
-            **schema, "title": "aatest procedure"}
+    """The JSON Schema (draft 2020-12) of a procedure file, with the options of every built-in
+    analysis under ``analysis: [{name: {options}}]``."""
+    schema = _schema(Procedure, SCHEMA_ID, "aatest procedure")
+    options, defs = _builtin_analysis_options()
+    for branch in schema["properties"]["analysis"]["items"]["anyOf"]:
+        if branch.get("type") == "object":
+            branch["properties"] = options
+    schema.setdefault("$defs", {}).update(defs)
+    return schema
 
 
-def render() -> str:
-    """The schema as the exact text committed (2-space indent, trailing newline)."""
-    return json.dumps(procedure_json_schema(), indent=2) + "\n"  # as `aatest schema` prints it
+def results_json_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of ``results.json``."""
+    return _schema(RunResults, RESULTS_SCHEMA_ID, "aatest results")
+
+
+def render(results: bool = False) -> str:
+    """A schema as the exact text committed (2-space indent, trailing newline)."""
+    schema = results_json_schema() if results else procedure_json_schema()
+    return json.dumps(schema, indent=2) + "\n"  # as `aatest schema [--results]` prints it
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Write the schema to ``argv[0]`` (default: the committed copy); ``-`` means stdout."""
+    """Write both committed copies; ``-`` prints the procedure schema (``- --results``: the
+    results schema) to stdout instead."""
     args = sys.argv[1:] if argv is None else argv
-    target = args[0] if args else str(SCHEMA_PATH)
-    if target == "-":
-        sys.stdout.write(render())
-    else:
-        Path(target).parent.mkdir(parents=True, exist_ok=True)
-        Path(target).write_text(render(), encoding="utf-8")
+    if args and args[0] == "-":
+        sys.stdout.write(render("--results" in args))
+        return 0
+    for path, results in ((SCHEMA_PATH, False), (RESULTS_SCHEMA_PATH, True)):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(render(results), encoding="utf-8")
     return 0
 
 

@@ -14,11 +14,13 @@ from typing import Any
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.errors import InputError
-from aatest.engine.analysis.results import build_results, read_results, write_results
+from aatest.engine.analysis.results import build_results, read_results, results_json, write_results
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state
 from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
 from aatest.engine.steps import Plan, SensorRef
+from aatest.results import RunResults
+from aatest.results.root import Signature
 
 log = logging.getLogger("aatest")
 
@@ -99,7 +101,8 @@ def analyse_and_report(
     wall_duration_s: float | None = None,
     pdf: bool = False,
 ) -> dict[str, Any]:
-    """Read a recording/import, run its analyses, write results.json and the signed report."""
+    """Read a recording/import, run its analyses, write results.json and the signed report;
+    return the results.json document (what report plugins read)."""
     from aatest.engine.recording import read_dataset
 
     data = read_dataset(data_path)
@@ -112,28 +115,35 @@ def analyse_and_report(
     out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
     render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
-    return results
+    return results_json(results)
 
 
 def render_and_sign(
-    results: dict[str, Any],
+    results: RunResults | dict[str, Any],
     run_dir: Path,
     template: str,
     template_dir: Path | None,
     key_path: Path | None,
     pdf: bool = False,
 ) -> Path:
-    """Write results.json, render the report (and its PDF), sign the bundle when a key is set."""
+    """Write results.json, render the report (and its PDF), sign the bundle when a key is set.
+
+    ``results`` is the typed record; a plain results.json document is written as given.
+    """
     from aatest.engine.run import signing
 
     private = None
     if key_path is not None:
         private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
-        results["signature"] = {"fingerprint": signing.key_fingerprint(private.public_key())}
+        fingerprint = signing.key_fingerprint(private.public_key())
+        if isinstance(results, RunResults):
+            results.signature = Signature(fingerprint=fingerprint)
+        else:
+            results["signature"] = {"fingerprint": fingerprint}
     write_results(results, run_dir)
     info = registry.load("report", template)
     reporter = info.target(registry.configure(info, {}))
-    report = reporter.render(results, run_dir, template_dir)
+    report = reporter.render(results_json(results), run_dir, template_dir)
     if pdf:
         from aatest.plugins.report.pdf import render_pdf
 
@@ -198,8 +208,8 @@ def report(
 ) -> Path:
     """``aatest report``: re-render (and re-sign) from an existing results.json."""
     results = read_results(run_dir)
-    results.pop("signature", None)
-    template = str(results.get("metadata", {}).get("report_template") or "calibration-certificate")
+    results.signature = None
+    template = str(results.metadata.get("report_template") or "calibration-certificate")
     stale_pdf = run_dir / "report.pdf"
     if not pdf and stale_pdf.exists():
         stale_pdf.unlink()  # it shows the old report; a new signature must not cover it

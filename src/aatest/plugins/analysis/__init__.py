@@ -1,7 +1,9 @@
 """Analysis plugins: turn synchronised recordings into the numbers a calibration lab signs.
 
-Every plugin reads only the :class:`~aatest.engine.dataset.Dataset` (via the shared ``sync``
-cache) and returns the contract keys of ``results.json`` (docs/interfaces.md §1).
+Every plugin reads only the :class:`~aatest.engine.dataset.Dataset` and the outputs of the
+analyses it ``requires`` (the synchronised steps come from ``sync``'s output), and returns its
+typed result (:mod:`aatest.results`) whose fields are the keys of ``results.json``
+(docs/interfaces.md §1).
 """
 
 #: procedure analysis names that are computed inside another plugin (engine resolves them)

@@ -9,15 +9,18 @@ from __future__ import annotations
 
 import io
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+from pydantic import BaseModel
 from scipy import stats
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.dataset import SensorInfo
+from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import PlannedStep
-from aatest.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.plugins.analysis.sync import SyncOutput
+from aatest.sync.freeze_pulse import SyncedStep
 
 #: a sensor counts as excited by a step when its projection of the motion exceeds this
 _EXCITED_WEIGHT = 0.5
@@ -120,12 +123,35 @@ def json_floats(values: Iterable[float]) -> list[float]:
     return [float(v) for v in values]
 
 
-def static_records(data: Dataset, context: AnalysisContext) -> list[SyncedStep]:
-    """The synchronised static steps (bias, g-sensitivity and noise are read from these)."""
-    return [s for s in synced_steps(data, context) if s.step.kind == "static"]
+def steps_of(context: AnalysisContext, kind: str | None = None) -> list[SyncedStep]:
+    """The synchronised steps from the ``sync`` output (of one step ``kind`` if given).
+
+    Raises
+    ------
+    AnalysisError
+        When the ``sync`` analysis produced nothing (it failed, or was not required).
+    """
+    out = context.upstream.get("sync")
+    if not isinstance(out, SyncOutput):
+        raise AnalysisError("no synchronised steps: the sync analysis failed or is not required")
+    return [s for s in out.steps if kind is None or s.step.kind == kind]
 
 
 def scale_in_use(context: AnalysisContext, sensor: SensorInfo) -> float:
-    """V per °/s²: calibrated earlier in this analysis pass if it was, else the datasheet's."""
-    calibrated = context.cache.get("scale_factor", {}).get(sensor.channel, {})
-    return float(calibrated.get("scale_v_per_dps2", sensor.nominal_scale_v_per_dps2))
+    """V per °/s²: the calibrated scale factor when ``scale_factor`` is required and produced
+    one for this channel, else the datasheet's."""
+    out = context.upstream.get("scale_factor")
+    calibrated = out.result.get(sensor.channel) if out is not None else None
+    if calibrated is None:
+        return float(sensor.nominal_scale_v_per_dps2)
+    return float(calibrated.scale_v_per_dps2)
+
+
+OptionsT = TypeVar("OptionsT", bound=BaseModel)
+
+
+def options_of(context: AnalysisContext, model: type[OptionsT]) -> OptionsT:
+    """The context's options as ``model`` (its defaults when the context carries none)."""
+    if isinstance(context.options, model):
+        return context.options
+    return model.model_validate(context.options.model_dump())

@@ -17,8 +17,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
-from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis._common import scale_in_use, static_records, t95
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.plugins.analysis._common import scale_in_use, steps_of, t95
+from aatest.results.bias import BiasResult
 from aatest.sync.freeze_pulse import SyncedStep
 
 _UP_G = 0.9  # |g component| above which a position counts as "axis up/down"
@@ -103,17 +104,23 @@ def sensor_bias(steps: list[SyncedStep], sensor: SensorInfo, scale: float) -> di
 
 
 class BiasAnalysis:
-    """Bias K0 and g-sensitivity of every sensor from the static positions."""
+    """Bias K0 and g-sensitivity of every sensor from the static positions.
+
+    Requires only ``sync``: the g-sensitivity is converted to °/s² with the datasheet scale
+    factor (a 1 % scale error is irrelevant next to its limit), so a static-only procedure
+    needs no sine calibration and the bias never depends on which analyses ran.
+    """
 
     key: ClassVar[str] = "bias"
+    requires: ClassVar[tuple[str, ...]] = ("sync",)
+    Options: ClassVar[type[NoOptions]] = NoOptions
+    Result: ClassVar[type[BiasResult]] = BiasResult
 
     def applies_to(self, data: Dataset) -> bool:
         return any(s.step.kind == "static" for s in data.steps)
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        static = static_records(data, context)
-        values: dict[str, Any] = {}
-        for sensor in data.sensors:
-            values[sensor.channel] = sensor_bias(static, sensor, scale_in_use(context, sensor))
-        context.cache["bias"] = values
-        return AnalysisOutput(values=values)
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[BiasResult]:
+        static = steps_of(context, "static")
+        values = {sensor.channel: sensor_bias(static, sensor, scale_in_use(context, sensor))
+                  for sensor in data.sensors}
+        return AnalysisOutput(BiasResult.model_validate(values))

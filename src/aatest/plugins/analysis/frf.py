@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
@@ -23,10 +24,13 @@ from aatest.plugins.analysis._common import (
     input_accel_dps2,
     is_excited,
     new_figure,
+    options_of,
+    steps_of,
     to_svg,
     whole_cycles,
 )
-from aatest.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.results.frf import FrfResult
+from aatest.sync.freeze_pulse import SyncedStep
 
 HARMONICS = 6
 _COHERENCE_TOL_CYCLES = 1e-3
@@ -56,21 +60,23 @@ class Tone:
         return float(np.sqrt(self.noise_bin_power / 2.0) / self.amplitudes[0])
 
 
-def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float) -> Tone:
-    """Fundamental, harmonics 1–6 and noise of a record at a known excitation frequency."""
+def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float,
+                 harmonics: int = HARMONICS) -> Tone:
+    """Fundamental, harmonics 1..``harmonics`` and noise of a record at a known excitation
+    frequency (the THD sums harmonics 2..``harmonics``)."""
     n, cycles = whole_cycles(x.size, frequency_hz, fs_hz)
     seg = np.asarray(x[:n], dtype=np.float64)
     spec = np.fft.rfft(seg - seg.mean()) * 2.0 / n
     coherent = abs(frequency_hz * n / fs_hz - round(frequency_hz * n / fs_hz)) < \
         _COHERENCE_TOL_CYCLES
-    bins = cycles * np.arange(1, HARMONICS + 1)
+    bins = cycles * np.arange(1, harmonics + 1)
     bins = bins[bins < spec.size]
     mask = np.ones(spec.size, dtype=bool)
     mask[0] = False
     guard = 0 if coherent else 2  # leakage of a cut record stays within ±2 bins
     for b in bins:
         mask[max(b - guard, 1):b + guard + 1] = False
-    amps = np.zeros(HARMONICS)
+    amps = np.zeros(harmonics)
     amps[:bins.size] = np.abs(spec[bins])
     noise = np.abs(spec[mask]) ** 2
     return Tone(fundamental=complex(spec[cycles]), amplitudes=amps,
@@ -78,12 +84,16 @@ def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float) -> Tone:
                 noise_bin_power=float(np.mean(noise)) if noise.size else 0.0, coherent=coherent)
 
 
-def frf_point(synced: SyncedStep, sensor: SensorInfo) -> dict[str, Any]:
-    """One FRF point of a sensor from one sine step (contract keys and more)."""
+def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
+              ) -> dict[str, Any]:
+    """One FRF point of a sensor from one sine step (contract keys and more).
+
+    ``snr6_db``/``table_snr6_db`` keep their names but count ``harmonics`` harmonics.
+    """
     step, fs = synced.step, synced.sample_rate_hz
     f0 = float(step.frequency_hz or 0.0)
-    table = analyse_tone(input_accel_dps2(synced, sensor.axis), f0, fs)
-    sensor_tone = analyse_tone(synced.daq[sensor.channel], f0, fs)
+    table = analyse_tone(input_accel_dps2(synced, sensor.axis), f0, fs, harmonics)
+    sensor_tone = analyse_tone(synced.daq[sensor.channel], f0, fs, harmonics)
     ratio = sensor_tone.fundamental / table.fundamental
     phase_rad = float(np.angle(ratio))
     u_rel = float(np.hypot(table.u_relative, sensor_tone.u_relative))
@@ -93,9 +103,9 @@ def frf_point(synced: SyncedStep, sensor: SensorInfo) -> dict[str, Any]:
         "gain_db": float(20 * np.log10(abs(ratio))), "phase_deg": float(np.degrees(phase_rad)),
         "delay_s": delay_s, "delay_samples": delay_s * fs,
         "thd": sensor_tone.thd, "snr_db": sensor_tone.snr_db(1),
-        "snr6_db": sensor_tone.snr_db(HARMONICS),
+        "snr6_db": sensor_tone.snr_db(harmonics),
         "table_thd": table.thd, "table_snr_db": table.snr_db(1),
-        "table_snr6_db": table.snr_db(HARMONICS),
+        "table_snr6_db": table.snr_db(harmonics),
         "measured_accel_dps2": abs(table.fundamental),
         "gain_v_per_dps2": abs(ratio), "re": ratio.real, "im": ratio.imag,
         "u_gain_db": 20 / np.log(10) * u_rel, "u_phase_deg": float(np.degrees(u_rel)),
@@ -131,25 +141,41 @@ def bode_figure(points: list[dict[str, Any]], title: str) -> str:
     return to_svg(fig)
 
 
+class FrfOptions(BaseModel):
+    """Harmonics counted in the THD (2..H) and the harmonic SNR (1..H)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    harmonics: int = Field(HARMONICS, ge=2, le=50, description="highest harmonic H")
+
+
+def channel_points(steps: list[SyncedStep], sensor: SensorInfo, harmonics: int = HARMONICS
+                   ) -> list[dict[str, Any]]:
+    """The FRF points of one sensor, sorted by group and frequency, phases unwrapped."""
+    points = [frf_point(s, sensor, harmonics) for s in steps if is_excited(s.step, sensor)]
+    points.sort(key=lambda p: (p["group"], p["frequency_hz"]))
+    unwrap_phases(points)
+    return points
+
+
 class FrfAnalysis:
     """Stepped-sine FRF, THD and SNR of every sensor and of the table (per group)."""
 
     key: ClassVar[str] = "frf"
+    requires: ClassVar[tuple[str, ...]] = ("sync",)
+    Options: ClassVar[type[FrfOptions]] = FrfOptions
+    Result: ClassVar[type[FrfResult]] = FrfResult
 
     def applies_to(self, data: Dataset) -> bool:
         return any(s.step.kind == "sine" for s in data.steps)
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        steps = [s for s in synced_steps(data, context) if s.step.kind == "sine"]
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[FrfResult]:
+        steps = steps_of(context, "sine")
+        harmonics = options_of(context, FrfOptions).harmonics
         values: dict[str, list[dict[str, Any]]] = {}
         figures: dict[str, str] = {}
         for sensor in data.sensors:
-            points = [frf_point(s, sensor) for s in steps if is_excited(s.step, sensor)]
-            if not points:
-                continue
-            points.sort(key=lambda p: (p["group"], p["frequency_hz"]))
-            unwrap_phases(points)
-            values[sensor.channel] = points
-            figures[f"bode_{sensor.channel}"] = bode_figure(points, f"FRF {sensor.channel}")
-        context.cache["frf"] = values
-        return AnalysisOutput(values=values, figures=figures)
+            points = channel_points(steps, sensor, harmonics)
+            if points:
+                values[sensor.channel] = points
+                figures[f"bode_{sensor.channel}"] = bode_figure(points, f"FRF {sensor.channel}")
+        return AnalysisOutput(FrfResult.model_validate(values), figures)

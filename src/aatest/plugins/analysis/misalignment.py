@@ -22,8 +22,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
-from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis._common import fundamental
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.plugins.analysis._common import fundamental, steps_of
 from aatest.plugins.analysis.misalignment_method import (
     AXIS_SENSOR,
     ORIGINAL_SETS,
@@ -32,7 +32,8 @@ from aatest.plugins.analysis.misalignment_method import (
     evaluate,
     misalignment_from_spectra,
 )
-from aatest.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.results.misalignment import MisalignmentResult
+from aatest.sync.freeze_pulse import SyncedStep
 
 __all__ = ["MisalignmentAnalysis", "misalignment_from_spectra"]
 
@@ -138,17 +139,19 @@ class MisalignmentAnalysis:
     """Cross-axis ratios and misalignment of a three-sensor unit (published + matrix LS)."""
 
     key: ClassVar[str] = "misalignment"
+    requires: ClassVar[tuple[str, ...]] = ("sync",)
+    Options: ClassVar[type[NoOptions]] = NoOptions
+    Result: ClassVar[type[MisalignmentResult]] = MisalignmentResult
 
     def applies_to(self, data: Dataset) -> bool:
         axes = {s.axis for s in data.sensors}
         return axes >= {"I", "O", "P"} and any(
             s.step.mounting.scenario and s.step.kind == "sine" for s in data.steps)
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[MisalignmentResult]:
         sensors = sorted((s for s in data.sensors if s.axis in _TABLE_INDEX),
                          key=lambda s: _TABLE_INDEX[s.axis])[:3]
-        steps = [s for s in synced_steps(data, context)
-                 if s.step.kind == "sine" and s.step.mounting.scenario]
+        steps = [s for s in steps_of(context, "sine") if s.step.mounting.scenario]
         mats = set_matrices(steps, sensors)
         values = evaluate(_spectra(mats, sensors))
         for row in values["sets"].values():
@@ -162,4 +165,4 @@ class MisalignmentAnalysis:
                          "pivoted": k not in ORIGINAL_SETS} for k, m in mats.items()},
             "columns": ["P", "O", "I"], "rows": [s.channel for s in sensors],
         }
-        return AnalysisOutput(values=values)
+        return AnalysisOutput(MisalignmentResult.model_validate(values))

@@ -12,11 +12,13 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis._common import new_figure, scale_in_use, static_records, to_svg
+from aatest.plugins.analysis._common import new_figure, options_of, scale_in_use, steps_of, to_svg
+from aatest.results.noise import NoiseResult
 from aatest.sync.freeze_pulse import SyncedStep
 
 BAND_HZ = 400.0
@@ -53,20 +55,21 @@ def allan_terms(rate: np.ndarray, fs_hz: float) -> dict[str, Any]:
     }
 
 
-def sensor_noise(steps: list[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: float
-                 ) -> tuple[dict[str, Any], str]:
+def sensor_noise(steps: list[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: float,
+                 band_hz: float = BAND_HZ) -> tuple[dict[str, Any], str]:
     """Noise figures of one sensor over its static steps, and the PSD/Allan figure."""
     fs = steps[0].sample_rate_hz
-    rms = [band_rms(s.daq[sensor.channel], fs)[0] for s in steps]
+    rms = [band_rms(s.daq[sensor.channel], fs, band_hz)[0] for s in steps]
     longest = max(steps, key=len)
     volts = np.asarray(longest.daq[sensor.channel], dtype=float)
-    _, f, psd = band_rms(volts, fs)
+    _, f, psd = band_rms(volts, fs, band_hz)
     allan = allan_terms((volts - volts.mean()) / scale_v_per_dps2, fs)
     worst = float(max(rms))
     values = {"rms_v": float(np.mean(rms)), "rms_max_v": worst, "rms_per_step_v": rms,
-              "rms_dps2": float(np.mean(rms)) / scale_v_per_dps2, "band_hz": BAND_HZ,
+              "rms_dps2": float(np.mean(rms)) / scale_v_per_dps2, "band_hz": band_hz,
+              "scale_v_per_dps2_used": scale_v_per_dps2,
               "within_datasheet": bool(worst <= sensor.noise_rms_v),
-              "psd_floor_v_per_sqrt_hz": float(np.sqrt(np.median(psd[(f > 1) & (f < BAND_HZ)]))),
+              "psd_floor_v_per_sqrt_hz": float(np.sqrt(np.median(psd[(f > 1) & (f < band_hz)]))),
               "allan_dps2": allan, "record_step": longest.step.id}
     fig, ax = new_figure(2, height_in=2.4)
     ax[0, 0].loglog(f[1:], np.sqrt(psd[1:]), lw=0.6, rasterized=True)
@@ -77,19 +80,34 @@ def sensor_noise(steps: list[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: 
     return values, to_svg(fig)
 
 
+class NoiseOptions(BaseModel):
+    """The band the output RMS is integrated over (the datasheet's: DC–400 Hz)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    band_hz: float = Field(BAND_HZ, gt=0, description="upper band edge, Hz")
+
+
 class NoiseAnalysis:
-    """PSD, DC–400 Hz RMS and Allan deviation of every sensor from the static records."""
+    """PSD, DC–400 Hz RMS and Allan deviation of every sensor from the static records.
+
+    Requires ``scale_factor`` as well as ``sync``: the noise in °/s² (and the Allan terms) use
+    the calibrated scale factor when the run calibrated one, else the datasheet's.
+    """
 
     key: ClassVar[str] = "noise"
+    requires: ClassVar[tuple[str, ...]] = ("sync", "scale_factor")
+    Options: ClassVar[type[NoiseOptions]] = NoiseOptions
+    Result: ClassVar[type[NoiseResult]] = NoiseResult
 
     def applies_to(self, data: Dataset) -> bool:
         return any(s.step.kind == "static" for s in data.steps)
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        static = static_records(data, context)
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[NoiseResult]:
+        static = steps_of(context, "static")
+        band_hz = options_of(context, NoiseOptions).band_hz
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
         for sensor in data.sensors:
             values[sensor.channel], figures[f"noise_{sensor.channel}"] = sensor_noise(
-                static, sensor, scale_in_use(context, sensor))
-        return AnalysisOutput(values=values, figures=figures)
+                static, sensor, scale_in_use(context, sensor), band_hz)
+        return AnalysisOutput(NoiseResult.model_validate(values), figures)

@@ -26,15 +26,24 @@ import time
 from typing import ClassVar
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
 
 from aatest.engine.dataset import Dataset
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis._common import fundamental
-from aatest.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.plugins.analysis._common import fundamental, options_of, steps_of
+from aatest.results.reference import ReferenceResult
+from aatest.results.scale_factor import ReferenceChoice
+from aatest.sync.freeze_pulse import SyncedStep
 
 METHODS = ("table", "central_position", "five_point_position", "central_rate",
            "five_point_rate", "savgol", "smooth", "levant")
+#: the public reference names (procedure options, results) → the method implementing each:
+#: ``central``/``five_point`` differentiate the rate estimate once (the position estimate
+#: twice would amplify its noise by far more)
+PUBLIC_METHODS: dict[ReferenceChoice, str] = {
+    "fit": "savgol", "table_estimate": "table", "central": "central_rate",
+    "five_point": "five_point_rate", "smoothed": "smooth", "sliding_mode": "levant"}
 
 
 def _pad_edges(x: np.ndarray, width: int) -> np.ndarray:
@@ -163,15 +172,26 @@ def _compare(synced: SyncedStep) -> dict[str, dict[str, float]]:
     return out
 
 
+class ReferenceOptions(BaseModel):
+    """How many sine steps to compare the references on (each comparison runs all eight)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    max_steps: int = Field(3, ge=1, description="sine steps compared, in plan order")
+
+
 class ReferenceAnalysis:
     """Compares the acceleration references on every sine step (which one to trust)."""
 
     key: ClassVar[str] = "reference"
+    requires: ClassVar[tuple[str, ...]] = ("sync",)
+    Options: ClassVar[type[ReferenceOptions]] = ReferenceOptions
+    Result: ClassVar[type[ReferenceResult]] = ReferenceResult
 
     def applies_to(self, data: Dataset) -> bool:
         return any(s.step.kind == "sine" for s in data.steps)
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        steps = [s for s in synced_steps(data, context) if s.step.kind == "sine"]
-        limit = int(context.options.get("reference_max_steps", 3))
-        return AnalysisOutput(values={s.step.id: _compare(s) for s in steps[:limit]})
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[ReferenceResult]:
+        options = options_of(context, ReferenceOptions)
+        steps = steps_of(context, "sine")[:options.max_steps]
+        rows = {s.step.id: _compare(s) for s in steps}
+        return AnalysisOutput(ReferenceResult.model_validate(rows))

@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.errors import AnalysisError
@@ -26,14 +27,50 @@ from aatest.plugins.analysis._common import (
     input_accel_dps2,
     is_excited,
     new_figure,
+    options_of,
+    steps_of,
     to_svg,
 )
-from aatest.plugins.analysis.reference import default_cutoff_hz, reference_accel, zero_phase_lowpass
-from aatest.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.plugins.analysis.reference import (
+    PUBLIC_METHODS,
+    default_cutoff_hz,
+    reference_accel,
+    zero_phase_lowpass,
+)
+from aatest.results.scale_factor import ReferenceName, ScaleFactorResult
+from aatest.sync.freeze_pulse import SyncedStep
 
 _MAX_CAL_FREQUENCY_HZ = 2.0
 #: datasheet threshold/resolution, fraction of the range (0.005 % FR)
 RESOLUTION_FR = 0.00005
+_MAX_ORDER = 20
+
+
+class ScaleFactorOptions(BaseModel):
+    """The reference calibrated against and the order selection (docs/method.md §4.3).
+
+    ``reference``: ``smoothed`` (default; zero-phase low-pass of the table's estimate),
+    ``table_estimate`` (the controller's own estimate), ``central``/``five_point`` (first
+    difference of the rate estimate), ``fit`` (Savitzky–Golay local polynomial fit of the
+    position) or ``sliding_mode`` (Levant's differentiator of the rate). The old
+    implementation names (``smooth``, ``table``, ``savgol``, ``levant``) are accepted.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    reference: ReferenceName = "smoothed"
+    orders: tuple[int, int] = Field((0, 15), description="lowest and highest order scanned")
+    identification_fraction: float = Field(0.25, gt=0, lt=1,
+                                           description="share of samples identified on")
+    random_splits: int = Field(3, ge=0, description="random splits besides the fixed one")
+    seed: int = Field(0, ge=0, description="seed of the random splits")
+
+    @model_validator(mode="after")
+    def _orders_ascend(self) -> ScaleFactorOptions:
+        low, high = self.orders
+        if not 0 <= low <= high <= _MAX_ORDER or high < 1:
+            raise ValueError(f"orders must be [low, high] with 0 ≤ low ≤ high ≤ {_MAX_ORDER}, "
+                             "high ≥ 1")
+        return self
 
 
 def calibration_steps(steps: list[SyncedStep], sensor: SensorInfo) -> list[SyncedStep]:
@@ -55,7 +92,7 @@ def _fractional_delay(x: np.ndarray, delay_s: float, fs_hz: float) -> np.ndarray
     return np.fft.irfft(np.fft.rfft(x) * np.exp(-2j * np.pi * freqs * delay_s), n=x.size)
 
 
-def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: str = "smooth"
+def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: str = "smoothed"
                  ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """(volts, reference °/s², delay s, filter corner Hz) of one step, time-aligned.
 
@@ -64,8 +101,9 @@ def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: str = "smoot
     """
     fs, f0 = synced.sample_rate_hz, float(synced.step.frequency_hz or 1.0)
     cutoff = default_cutoff_hz(synced)
-    ref = input_accel_dps2(synced, sensor.axis, reference_accel(synced, reference))
-    if reference != "smooth":
+    method = PUBLIC_METHODS[reference]  # type: ignore[index]
+    ref = input_accel_dps2(synced, sensor.axis, reference_accel(synced, method))
+    if method != "smooth":
         ref = zero_phase_lowpass(ref, fs, cutoff)
     volts = zero_phase_lowpass(synced.daq[sensor.channel], fs, cutoff)
     ratio = fundamental(volts, f0, fs) / fundamental(ref, f0, fs)
@@ -75,18 +113,30 @@ def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: str = "smoot
     return volts[trim:-trim], ref[trim:-trim], delay_s, cutoff
 
 
-def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0, seed: int = 0,
-              max_order: int = 15, resolution_dps2: float = 0.0) -> dict[str, Any]:
+def _select_order(u: np.ndarray, ref_dps2: np.ndarray, options: ScaleFactorOptions,
+                  resolution_dps2: float) -> tuple[dict[str, np.ndarray], int]:
+    """Cross-validation table over the options' orders and splits, and the order chosen."""
+    table = polyfit.cross_validate(u, ref_dps2, max_order=options.orders[1],
+                                   random_splits=options.random_splits, seed=options.seed,
+                                   id_fraction=options.identification_fraction)
+    low = options.orders[0]
+    return table, polyfit.choose_order(table, min_order=low, abs_tol=resolution_dps2)
+
+
+def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0,
+              options: ScaleFactorOptions | None = None, resolution_dps2: float = 0.0
+              ) -> dict[str, Any]:
     """Cross-validated polynomial calibration of volts against a reference acceleration.
 
-    ``resolution_dps2`` is the smallest RMSE gain that counts when choosing the order.
+    ``options`` sets the orders scanned and the splits; ``resolution_dps2`` is the smallest
+    RMSE gain that counts when choosing the order.
     """
+    opts = options or ScaleFactorOptions()
     if np.std(ref_dps2) <= 0 or np.std(volts) <= 0:
         raise AnalysisError("scale factor: the reference or the sensor output is constant")
     v_mean = float(np.mean(volts))
     u = volts - v_mean
-    table = polyfit.cross_validate(u, ref_dps2, max_order=max_order, seed=seed)
-    order = polyfit.choose_order(table, abs_tol=resolution_dps2)
+    table, order = _select_order(u, ref_dps2, opts, resolution_dps2)
     fit = polyfit.fit_polynomial(u, ref_dps2, order, inflation)
     line = polyfit.fit_polynomial(u, ref_dps2, 1, inflation)
     a0, a1 = line.coefficients
@@ -128,20 +178,18 @@ def _figure(volts: np.ndarray, ref: np.ndarray, result: dict[str, Any]) -> str:
     return to_svg(fig)
 
 
-def sensor_scale_factor(steps: list[SyncedStep], sensor: SensorInfo, options: dict[str, Any]
-                        ) -> tuple[dict[str, Any], str] | None:
+def sensor_scale_factor(steps: list[SyncedStep], sensor: SensorInfo,
+                        options: ScaleFactorOptions) -> tuple[dict[str, Any], str] | None:
     """Calibration values and figure of one sensor, or None without suitable steps."""
     chosen = calibration_steps(steps, sensor)
     if not chosen:
         return None
-    reference = str(options.get("reference", "smooth"))
+    reference = options.reference
     parts = [aligned_pair(s, sensor, reference) for s in chosen]
     volts = np.concatenate([p[0] for p in parts])
     ref = np.concatenate([p[1] for p in parts])
     inflation = chosen[0].sample_rate_hz / (2.0 * parts[0][3])
-    result = calibrate(volts, ref, inflation, int(options.get("seed", 0)),
-                       int(options.get("max_order", 15)),
-                       RESOLUTION_FR * sensor.range_dps2)
+    result = calibrate(volts, ref, inflation, options, RESOLUTION_FR * sensor.range_dps2)
     dev_pct = 100.0 * (result["scale_v_per_dps2"] / sensor.nominal_scale_v_per_dps2 - 1.0)
     result |= {
         "reference": reference, "alignment_delay_s": float(np.mean([p[2] for p in parts])),
@@ -156,17 +204,20 @@ class ScaleFactorAnalysis:
     """Polynomial scale-factor calibration of every sensor with a suitable sine step."""
 
     key: ClassVar[str] = "scale_factor"
+    requires: ClassVar[tuple[str, ...]] = ("sync",)
+    Options: ClassVar[type[ScaleFactorOptions]] = ScaleFactorOptions
+    Result: ClassVar[type[ScaleFactorResult]] = ScaleFactorResult
 
     def applies_to(self, data: Dataset) -> bool:
         return any(s.step.kind == "sine" for s in data.steps)
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        steps = synced_steps(data, context)
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[ScaleFactorResult]:
+        steps = steps_of(context)
+        options = options_of(context, ScaleFactorOptions)
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
         for sensor in data.sensors:
-            out = sensor_scale_factor(steps, sensor, context.options)
+            out = sensor_scale_factor(steps, sensor, options)
             if out is not None:
                 values[sensor.channel], figures[f"scale_factor_{sensor.channel}"] = out
-        context.cache["scale_factor"] = values
-        return AnalysisOutput(values=values, figures=figures)
+        return AnalysisOutput(ScaleFactorResult.model_validate(values), figures)

@@ -2,16 +2,26 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from aatest.engine.dataset import Dataset
-from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.results.sync import SyncResult
+from aatest.sync.freeze_pulse import SyncedStep, synchronise_all
 
 
-def summarise(steps: list[SyncedStep]) -> dict[str, object]:
+@dataclass(frozen=True)
+class SyncOutput(AnalysisOutput[SyncResult]):
+    """The sync result plus the synchronised steps themselves (not written to results.json);
+    every analysis that ``requires`` sync reads them from ``context.upstream["sync"]``."""
+
+    steps: tuple[SyncedStep, ...] = ()
+
+
+def summarise(steps: list[SyncedStep]) -> SyncResult:
     """Overall contract keys over all steps plus a per-step list under ``steps``.
 
     The overall drift is the edge-weighted mean of the per-step drifts (one crystal); the
@@ -24,7 +34,7 @@ def summarise(steps: list[SyncedStep]) -> dict[str, object]:
     pooled_us = float(np.sqrt(np.sum(edges * np.array([r.residual_rms_us for r in rel]) ** 2)
                               / edges.sum()))
     u_drift = np.array([r.drift_u_ppm for r in rel])
-    return {
+    return SyncResult.model_validate({
         "drift_ppm": float(np.sum(edges * drift) / edges.sum()),
         "offset_s": rel[0].offset_s,
         "residual_rms_us": pooled_us,
@@ -32,7 +42,7 @@ def summarise(steps: list[SyncedStep]) -> dict[str, object]:
         "drift_u_ppm": float(np.sqrt(np.sum((edges * u_drift) ** 2)) / edges.sum()),
         "drift_spread_ppm": float(np.std(drift, ddof=1)) if drift.size > 1 else 0.0,
         "steps": [{"step": s.step.id, **s.relation.as_dict()} for s in steps],
-    }
+    })
 
 
 def sync_figure(steps: list[SyncedStep]) -> str:
@@ -50,13 +60,17 @@ def sync_figure(steps: list[SyncedStep]) -> str:
 
 
 class SyncAnalysis:
-    """Freeze-pulse synchronisation; must run first, the other analyses reuse its cache."""
+    """Freeze-pulse synchronisation of every recorded step; the steps go to its dependants."""
 
     key: ClassVar[str] = "sync"
+    requires: ClassVar[tuple[str, ...]] = ()
+    Options: ClassVar[type[NoOptions]] = NoOptions
+    Result: ClassVar[type[SyncResult]] = SyncResult
 
     def applies_to(self, data: Dataset) -> bool:
         return any(s.step.recorded for s in data.steps)
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        steps = synced_steps(data, context)
-        return AnalysisOutput(values=summarise(steps), figures={"sync": sync_figure(steps)})
+    def run(self, data: Dataset, context: AnalysisContext) -> SyncOutput:
+        steps = synchronise_all(data)
+        return SyncOutput(result=summarise(steps), figures={"sync": sync_figure(steps)},
+                          steps=tuple(steps))

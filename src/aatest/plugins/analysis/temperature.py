@@ -16,18 +16,20 @@ from typing import Any, ClassVar
 import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
-from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.plugins.analysis._common import (
     fundamental,
     input_accel_dps2,
     is_excited,
     new_figure,
+    steps_of,
     t95,
     to_svg,
 )
 from aatest.plugins.analysis.bias import gravity_along_g
 from aatest.plugins.analysis.polyfit import fit_polynomial
-from aatest.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.results.temperature import TemperatureResult
+from aatest.sync.freeze_pulse import SyncedStep
 
 T_REF_C = 25.0
 _MIN_SPAN_C = 5.0
@@ -162,6 +164,9 @@ class TemperatureAnalysis:
     """Bias, scale factor and noise of every sensor against its temperature."""
 
     key: ClassVar[str] = "temperature"
+    requires: ClassVar[tuple[str, ...]] = ("sync",)
+    Options: ClassVar[type[NoOptions]] = NoOptions
+    Result: ClassVar[type[TemperatureResult]] = TemperatureResult
 
     def applies_to(self, data: Dataset) -> bool:
         """At least three set-points, or logged sensor temperatures spanning ≥ 5 °C."""
@@ -172,8 +177,8 @@ class TemperatureAnalysis:
                   if s.step.recorded and "temperature_c" in s.daq.channels]
         return len(logged) >= 3 and max(logged) - min(logged) >= _MIN_SPAN_C
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        steps = synced_steps(data, context)
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[TemperatureResult]:
+        steps = steps_of(context)
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
         for sensor in data.sensors:
@@ -189,4 +194,4 @@ class TemperatureAnalysis:
             values[sensor.channel] = row
             if "temperatures_c" in row:
                 figures[f"temperature_{sensor.channel}"] = _figure(row, sensor.channel)
-        return AnalysisOutput(values=values, figures=figures)
+        return AnalysisOutput(TemperatureResult.model_validate(values), figures)

@@ -14,28 +14,33 @@ natural frequency and damping; the Bode plot extrapolates to 500 Hz.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
 
 from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.plugins.analysis._common import (
     group_of,
     input_accel_dps2,
     is_excited,
     new_figure,
+    options_of,
+    steps_of,
     to_svg,
 )
-from aatest.plugins.analysis.frf import FrfAnalysis
 from aatest.plugins.analysis.tfest import (
     DiscreteTf,
     fit_discrete_tf,
     model_metrics,
     second_order_delay_fit,
 )
-from aatest.sync.freeze_pulse import SyncedStep, synced_steps
+from aatest.results.frf import FrfPoint
+from aatest.results.transfer_function import TransferFunctionResult
+from aatest.sync.freeze_pulse import SyncedStep
 
 MAX_POLES = 5
 MIN_POINTS = 6
@@ -43,6 +48,24 @@ XCORR_MIN_STRENGTH = 0.9
 _MAX_LAG_S = 0.05
 _FIT_TIE_PCT = 0.5
 _SCAN_MAX_POLES = 2
+
+
+class TransferFunctionOptions(BaseModel):
+    """Model structures tried, the identification split and the anti-alias de-embedding.
+
+    ``delay``: ``estimate`` tries every structure without a delay, with the cross-correlation
+    delay and (n ≤ 2) with scanned integer delays; ``none`` only without. Every
+    ``validation_every``-th FRF point (in frequency order) is kept for validation.
+    ``antialias_hz``: the logger's pre-sample filter corner to de-embed from the physical
+    model; ``auto`` finds it in the run metadata, ``none`` de-embeds nothing.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    max_poles: int = Field(MAX_POLES, ge=0, le=8, description="largest n (zeros m ≤ n)")
+    min_points: int = Field(MIN_POINTS, ge=MIN_POINTS, description="FRF points a group needs")
+    delay: Literal["estimate", "none"] = "estimate"
+    validation_every: int = Field(3, ge=2, description="every k-th point validates")
+    antialias_hz: float | Literal["auto", "none"] = Field("auto", description="Hz, auto, none")
 
 
 def xcorr_delay(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
@@ -65,14 +88,14 @@ def xcorr_delay(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, float]
             "accepted": bool(strength >= XCORR_MIN_STRENGTH)}
 
 
-def _split(n_points: int) -> tuple[np.ndarray, np.ndarray]:
+def _split(n_points: int, every: int = 3) -> tuple[np.ndarray, np.ndarray]:
     idx = np.arange(n_points)
-    return idx[idx % 3 != 2], idx[idx % 3 == 2]
+    return idx[idx % every != every - 1], idx[idx % every == every - 1]
 
 
-def _candidate(f: np.ndarray, h: np.ndarray, n: int, m: int, d: int, source: str, dt: float
-               ) -> tuple[DiscreteTf, dict[str, Any]]:
-    ident, valid = _split(f.size)
+def _candidate(f: np.ndarray, h: np.ndarray, n: int, m: int, d: int, source: str, dt: float,
+               every: int = 3) -> tuple[DiscreteTf, dict[str, Any]]:
+    ident, valid = _split(f.size, every)
     model = fit_discrete_tf(f[ident], h[ident], n, m, dt, d)
     metrics = model_metrics(model, f[ident], h[ident], f[valid], h[valid], source != "none")
     return model, {"n": n, "m": m, "delay_samples": d, "delay_source": source, **metrics}
@@ -89,19 +112,23 @@ def _choose(rows: list[dict[str, Any]]) -> int:
     return min(near, key=lambda i: (rows[i]["n_params"], -rows[i]["fit_pct"]))
 
 
-def estimate(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float]
+def estimate(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],
+             options: TransferFunctionOptions | None = None
              ) -> tuple[DiscreteTf, list[dict[str, Any]], int]:
     """All candidate models of one FRF; returns the chosen model, the table, its index."""
+    opts = options or TransferFunctionOptions()
     order = np.argsort(f)
     f, h = f[order], h[order]
-    delays = [(0, "none")] + ([(int(xcorr["delay_samples"]), "xcorr")] if xcorr["accepted"]
-                              else [])
-    fitted = [_candidate(f, h, n, m, d, src, dt) for n in range(MAX_POLES + 1)
+    with_delay = opts.delay == "estimate"
+    delays = [(0, "none")] + ([(int(xcorr["delay_samples"]), "xcorr")]
+                              if xcorr["accepted"] and with_delay else [])
+    every = opts.validation_every
+    fitted = [_candidate(f, h, n, m, d, src, dt, every) for n in range(opts.max_poles + 1)
               for m in range(n + 1) for d, src in delays]
     plain = [r for _, r in fitted if r["delay_source"] == "none" and r["n"] <= _SCAN_MAX_POLES]
-    top = int(xcorr["delay_samples"])
+    top = int(xcorr["delay_samples"]) if with_delay else -1
     for r in plain:
-        fitted += [_candidate(f, h, r["n"], r["m"], d, "scan", dt)
+        fitted += [_candidate(f, h, r["n"], r["m"], d, "scan", dt, every)
                    for d in range(1, top + 2)]
     rows = [r for _, r in fitted]
     k = _choose(rows)
@@ -161,9 +188,9 @@ def logger_antialias_hz(data: Dataset, context: AnalysisContext) -> float | None
     """The DAQ pre-sample filter corner to de-embed, from (in order) the option
     ``antialias_hz``, the rig model stored with a simulated dataset, the DAQ options in the run
     metadata, the simulated DAQ's default; otherwise none (nothing is de-embedded)."""
-    if "antialias_hz" in context.options:
-        value = context.options["antialias_hz"]
-        return float(value) if value else None
+    value = options_of(context, TransferFunctionOptions).antialias_hz
+    if value != "auto":
+        return None if value == "none" or not value else float(value)
     model = data.metadata.get("model")
     if isinstance(model, dict) and model.get("daq", {}).get("antialias_hz"):
         return float(model["daq"]["antialias_hz"])
@@ -179,18 +206,19 @@ def logger_antialias_hz(data: Dataset, context: AnalysisContext) -> float | None
     return None
 
 
-def group_model(points: list[dict[str, Any]], steps: list[SyncedStep], sensor: SensorInfo,
-                antialias_hz: float | None = None) -> tuple[dict[str, Any], str]:
+def group_model(points: list[FrfPoint], steps: list[SyncedStep], sensor: SensorInfo,
+                antialias_hz: float | None = None,
+                options: TransferFunctionOptions | None = None) -> tuple[dict[str, Any], str]:
     """The chosen transfer function of one group of FRF points, and its Bode figure.
 
     Discrete models describe sensor and logger lumped (as measured); the physical
     second-order-plus-delay model has the logger's known pre-sample filter de-embedded.
     """
-    f = np.array([p["frequency_hz"] for p in points])
-    h = np.array([complex(p["re"], p["im"]) for p in points])
+    f = np.array([p.frequency_hz for p in points])
+    h = np.array([complex(p.re, p.im) for p in points])
     dt = 1.0 / steps[0].sample_rate_hz
     xc = xcorr_delay(steps, sensor)
-    model, rows, k = estimate(f, h, dt, xc)
+    model, rows, k = estimate(f, h, dt, xc, options)
     best = rows[k]
     values = {
         "poles": _pairs(model.poles()), "zeros": _pairs(model.zeros()),
@@ -208,36 +236,56 @@ def group_model(points: list[dict[str, Any]], steps: list[SyncedStep], sensor: S
     return values, _bode(f, h, model, f"{sensor.channel} n={best['n']} m={best['m']}")
 
 
-def _frf_points(data: Dataset, context: AnalysisContext) -> dict[str, list[dict[str, Any]]]:
-    if "frf" not in context.cache:
-        FrfAnalysis().run(data, context)
-    points: dict[str, list[dict[str, Any]]] = context.cache["frf"]
-    return points
+def _frf_points(context: AnalysisContext) -> dict[str, list[FrfPoint]]:
+    """The FRF points by channel, from the ``frf`` analysis this one requires."""
+    out = context.upstream.get("frf")
+    if out is None:
+        raise AnalysisError("transfer function: the frf analysis produced no points")
+    return dict(out.result.root)
+
+
+def channel_models(points: list[FrfPoint], steps: list[SyncedStep], sensor: SensorInfo,
+                   antialias_hz: float | None, options: TransferFunctionOptions
+                   ) -> tuple[dict[str, Any] | None, dict[str, str]]:
+    """The models of every group with enough points, the best group's first; and figures."""
+    groups: dict[str, Any] = {}
+    figures: dict[str, str] = {}
+    for g in sorted({p.group for p in points}):
+        gp = [p for p in points if p.group == g]
+        gs = [s for s in steps if group_of(s.step) == g and is_excited(s.step, sensor)]
+        if len(gp) >= options.min_points:
+            groups[g], figures[f"tf_{sensor.channel}_{g}"] = group_model(
+                gp, gs, sensor, antialias_hz, options)
+    if not groups:
+        return None, figures
+    snr = {g: np.median([p.snr_db for p in points if p.group == g]) for g in groups}
+    main = max(groups, key=lambda g: snr[g])
+    return {**groups[main], "group": main, "groups": groups}, figures
 
 
 class TransferFunctionAnalysis:
     """Discrete transfer-function models per sensor (best group) and per test group."""
 
     key: ClassVar[str] = "transfer_function"
+    requires: ClassVar[tuple[str, ...]] = ("sync", "frf")
+    Options: ClassVar[type[TransferFunctionOptions]] = TransferFunctionOptions
+    Result: ClassVar[type[TransferFunctionResult]] = TransferFunctionResult
 
     def applies_to(self, data: Dataset) -> bool:
         return len([s for s in data.steps if s.step.kind == "sine"]) >= MIN_POINTS
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput:
-        steps = [s for s in synced_steps(data, context) if s.step.kind == "sine"]
+    def run(self, data: Dataset, context: AnalysisContext
+            ) -> AnalysisOutput[TransferFunctionResult]:
+        steps = steps_of(context, "sine")
+        options = options_of(context, TransferFunctionOptions)
+        antialias_hz = logger_antialias_hz(data, context)
+        points = _frf_points(context)
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
         for sensor in data.sensors:
-            pts = _frf_points(data, context).get(sensor.channel, [])
-            groups: dict[str, Any] = {}
-            for g in sorted({p["group"] for p in pts}):
-                gp = [p for p in pts if p["group"] == g]
-                gs = [s for s in steps if group_of(s.step) == g and is_excited(s.step, sensor)]
-                if len(gp) >= MIN_POINTS:
-                    groups[g], figures[f"tf_{sensor.channel}_{g}"] = group_model(
-                        gp, gs, sensor, logger_antialias_hz(data, context))
-            if groups:
-                snr = {g: np.median([p["snr_db"] for p in pts if p["group"] == g]) for g in groups}
-                main = max(groups, key=lambda g: snr[g])
-                values[sensor.channel] = {**groups[main], "group": main, "groups": groups}
-        return AnalysisOutput(values=values, figures=figures)
+            row, figs = channel_models(points.get(sensor.channel, []), steps, sensor,
+                                       antialias_hz, options)
+            figures |= figs
+            if row is not None:
+                values[sensor.channel] = row
+        return AnalysisOutput(TransferFunctionResult.model_validate(values), figures)

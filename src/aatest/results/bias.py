@@ -1,0 +1,47 @@
+"""``analysis.bias``: bias K0 and g-sensitivity per channel from static positions (method §4.1)."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from aatest.results._fields import PerChannel, Real
+from aatest.results.base import Certified, ResultModel
+
+
+class LineFit(ResultModel):
+    """V = b + k·g over every position of one mounting."""
+
+    bias_v: Real
+    g_slope_v_per_g: Real
+    residual_rms_v: Real
+
+
+class MountingBias(ResultModel):
+    """Bias of one mounting (original or pivoted); pair statistics need up and down positions."""
+
+    bias_v: Real | None = None
+    bias_u_v: Real | None = None
+    bias_spread_v: Real | None = None
+    bias_ci95_halfwidth_v: Real | None = None
+    g_sensitivity_dps2_per_g: Real | None = None
+    g_sensitivity_u_dps2_per_g: Real | None = None
+    repetitions: int | None = None
+    per_repetition_bias_v: list[Real] = Field(default_factory=list)
+    line: LineFit
+
+
+class BiasChannel(Certified):
+    """Bias of one sensor channel, overall and per mounting (certified: ``bias_v``)."""
+
+    bias_v: Real | None = Field(None, description="K0, V (None without up/down pairs)")
+    g_sensitivity_dps2_per_g: Real | None = Field(None, description="°/s² per g")
+    bias_u_v: Real | None = Field(None, description="standard uncertainty of K0 (type A), V")
+    scale_v_per_dps2_used: Real | None = Field(None, description="scale used for g-sensitivity")
+    bias_within_datasheet: bool | None = None
+    g_sensitivity_limit_dps2_per_g: Real | None = None
+    g_sensitivity_within_datasheet: bool | None = None
+    mountings: dict[str, MountingBias] = Field(default_factory=dict)
+
+
+class BiasResult(PerChannel[BiasChannel]):
+    """Channel → bias."""

@@ -1,0 +1,87 @@
+"""``analysis.scale_factor``: polynomial scale-factor calibration per channel (method §4.3)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BeforeValidator, Field
+
+from aatest.results._fields import PerChannel, Real
+from aatest.results.base import Certified, ResultModel
+
+#: acceleration references a scale factor can be calibrated against (docs/interfaces.md §2)
+ReferenceChoice = Literal["fit", "table_estimate", "central", "five_point", "smoothed",
+                          "sliding_mode"]
+#: the implementation names used before the public ones (still accepted, read as these)
+REFERENCE_ALIASES: dict[str, str] = {"smooth": "smoothed", "table": "table_estimate",
+                                     "savgol": "fit", "levant": "sliding_mode",
+                                     "central_rate": "central", "five_point_rate": "five_point"}
+
+
+def _public_reference(value: Any) -> Any:
+    return REFERENCE_ALIASES.get(value, value) if isinstance(value, str) else value
+
+
+#: a reference name; the old implementation names are mapped to the public ones
+ReferenceName = Annotated[ReferenceChoice, BeforeValidator(_public_reference)]
+
+
+class PolyFitSummary(ResultModel):
+    """Statistics of a fitted polynomial (ascending powers, physical units)."""
+
+    order: int
+    coefficients: list[Real]
+    std_uncertainty: list[Real]
+    ci95: list[list[Real]]
+    covariance: list[list[Real]]
+    correlation: list[list[Real]]
+    sse: Real
+    rmse: Real
+    r2: Real
+    n: int
+
+
+class Validation(ResultModel):
+    """Cross-validation per order 0..max: mean validation RMSE and identification nAIC."""
+
+    rmse_dps2: list[Real]
+    naic: list[Real]
+
+
+class InverseModel(ResultModel):
+    """volts = Σ c_i·α^i, α in °/s²."""
+
+    order: int
+    coefficients_v: list[Real]
+    ci95: list[list[Real]]
+    rmse_v: Real
+    note: str = ""
+
+
+class ScaleFactorChannel(Certified):
+    """Scale-factor calibration of one channel (certified: ``scale_v_per_dps2``)."""
+
+    scale_v_per_dps2: Real = Field(description="1/slope of the best straight line, V/(°/s²)")
+    scale_u_v_per_dps2: Real
+    scale_ci95: list[Real]
+    offset_v: Real
+    offset_u_v: Real
+    order: int = Field(ge=0, description="chosen polynomial order")
+    rmse_dps2: Real
+    coefficients: list[Real] = Field(description="°/s² from (V − volts_mean_v), ascending")
+    ci95: list[list[Real]]
+    fit: PolyFitSummary
+    volts_mean_v: Real
+    validation: Validation
+    nonlinearity_dps2: Real
+    inverse: InverseModel
+    reference: ReferenceName = Field(description="the acceleration reference calibrated against")
+    alignment_delay_s: Real
+    steps: list[str]
+    scale_deviation_pct: Real
+    scale_within_datasheet: bool
+    nonlinearity_pct_fr: Real
+
+
+class ScaleFactorResult(PerChannel[ScaleFactorChannel]):
+    """Channel → scale-factor calibration."""

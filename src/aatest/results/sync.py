@@ -1,0 +1,35 @@
+"""``analysis.sync``: the clock relation between the table and the sensor logger (method §2)."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from aatest.results._fields import Real
+from aatest.results.base import ResultModel
+
+
+class ClockFields(ResultModel):
+    """``t_table = offset_s + t_daq·(1 + drift_ppm·1e-6)`` and how well the edges agree."""
+
+    drift_ppm: Real = Field(description="DAQ clock drift against the table clock, ppm")
+    offset_s: Real = Field(description="table time at DAQ time zero, s")
+    residual_rms_us: Real = Field(description="RMS of the edge residuals, µs")
+    edges_used: int = Field(ge=0, description="paired sync-pulse edges")
+    drift_u_ppm: Real = Field(0.0, description="standard uncertainty of the drift, ppm")
+
+
+class StepSync(ClockFields):
+    """The clock relation of one recorded step."""
+
+    step: str = Field(description="step id")
+    offset_u_s: Real = Field(0.0, description="standard uncertainty of the offset, s")
+
+
+class SyncResult(ClockFields):
+    """Overall relation (edge-weighted drift, pooled residual) and one entry per step.
+
+    ``offset_s`` is that of the first step; each record has its own start.
+    """
+
+    drift_spread_ppm: Real = Field(0.0, description="standard deviation of the step drifts, ppm")
+    steps: list[StepSync] = Field(default_factory=list)

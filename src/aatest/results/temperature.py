@@ -1,0 +1,39 @@
+"""``analysis.temperature``: bias and scale factor against temperature (method §4.2)."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from aatest.results._fields import PerChannel, Real
+from aatest.results.base import Certified
+
+
+class TemperatureChannel(Certified):
+    """Temperature coefficients of one channel (certified: the coefficients).
+
+    The static part (bias) needs ≥ 3 temperatures spanning ≥ 5 °C, the dynamic part (scale
+    factor) the same on sine steps; what is missing stays None.
+    """
+
+    bias_coefficient_v_per_c: Real | None = None
+    scale_coefficient_per_c: Real | None = None
+    hysteresis_v: Real | None = None
+    bias_coefficient_u_v_per_c: Real | None = None
+    bias_coefficient_ci95_v_per_c: list[Real] | None = None
+    bias_at_25c_v: Real | None = None
+    bias_coefficient_within_datasheet: bool | None = None
+    temperatures_c: list[Real] | None = None
+    bias_v: list[Real] | None = None
+    noise_rms_v: list[Real] | None = None
+    branch: list[str] | None = Field(None, description="heating | cooling per static step")
+    scale_coefficient_u_per_c: Real | None = None
+    scale_coefficient_ci95_per_c: list[Real] | None = None
+    scale_at_25c_v_per_dps2: Real | None = None
+    scale_coefficient_within_datasheet: bool | None = None
+    scale_temperatures_c: list[Real] | None = None
+    scale_v_per_dps2: list[Real] | None = None
+    scale_hysteresis_per_c_ref: Real | None = None
+
+
+class TemperatureResult(PerChannel[TemperatureChannel]):
+    """Channel → temperature coefficients."""
