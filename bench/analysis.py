@@ -19,9 +19,9 @@ import numpy as np
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.frf import FrfAnalysis
+from aatest.plugins.analysis.sync import SyncAnalysis
 from aatest.plugins.analysis.transfer_function import TransferFunctionAnalysis
 from aatest.twin.api import realistic_rig_model, simulate_dataset
-from aatest.plugins.analysis.sync import SyncAnalysis
 
 FS_HZ = 2000.0
 #: published cycle counts in a 2^17-sample record (docs/method.md §4.4: 28 points)
@@ -34,7 +34,7 @@ def campaign(samples: int) -> list[PlannedStep]:
     """All envelope-feasible steps of the five test groups."""
     steps = []
     for cycles in CYCLES_2_17:
-        c = max(int(round(cycles * samples / 2**17)), 1)
+        c = max(round(cycles * samples / 2**17), 1)
         f = c * FS_HZ / samples
         w = 2 * np.pi * f
         for group, accel in [("amp-0.2deg", 0.2 * w**2)] + [(f"accel-{a:g}", float(a))

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import ast
 import importlib.util
+import itertools
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -111,7 +112,7 @@ def _path(
 
 def _describe_cycle(cycle: list[str], edges: dict[tuple[str, str], list[tuple[str, str]]]) -> str:
     lines = [f"cycle {' -> '.join(cycle)}:"]
-    for a, b in zip(cycle, cycle[1:], strict=False):
+    for a, b in itertools.pairwise(cycle):
         pairs = edges[(a, b)]
         more = f" (+{len(pairs) - 1} more)" if len(pairs) > 1 else ""
         lines.append(f"    {pairs[0][0]} -> {pairs[0][1]}{more}")

@@ -81,7 +81,7 @@ def load(kind: str, name: str) -> PluginInfo:
     dist, version = _distribution(ep)
     try:
         target = ep.load()
-    except Exception as exc:  # noqa: BLE001 - any import failure is the plugin's fault
+    except Exception as exc:  # any import failure is the plugin's fault
         raise PluginError(
             f"{kind} plugin {name!r} from distribution {dist!r} failed to import: {exc}"
         ) from exc
@@ -105,7 +105,8 @@ def configure(info: PluginInfo, options: dict[str, Any]) -> BaseModel | None:
         return model.model_validate(options)
     except ValidationError as exc:
         detail = "; ".join(
-            f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors(include_url=False)
+            f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"
+            for e in exc.errors(include_url=False)
         )
         raise PluginError(
             f"{info.kind} plugin {info.name!r} ({info.distribution}): bad options: {detail}"

@@ -20,9 +20,20 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from aatest.engine.procedure.models import (MAX_COUNT, ConstantRate, CoordinatedRates, Misalignment,
-                                     MultiPosition, Operator, Repeat, SineStep, SineSweep,
-                                     StaticStep, SweepFrequencies, TemperatureSteps)
+from aatest.engine.procedure.models import (
+    MAX_COUNT,
+    ConstantRate,
+    CoordinatedRates,
+    Misalignment,
+    MultiPosition,
+    Operator,
+    Repeat,
+    SineStep,
+    SineSweep,
+    StaticStep,
+    SweepFrequencies,
+    TemperatureSteps,
+)
 from aatest.engine.steps import Mounting
 
 if TYPE_CHECKING:
@@ -34,6 +45,8 @@ REMOUNT = {"A": "none", "B": "none", "C": "sensors", "D": "sensors", "E": "block
            "G": "both", "H": "both"}
 _REMOUNT_TEXT = {"sensors": "the sensors on the block", "block": "the mounting block",
                  "both": "the sensors on the block and the block on the table"}
+#: experiments 1–3 run in the original mounting, 4–6 with every sensor pivoted 180°
+FIRST_PIVOTED_EXPERIMENT = 4
 
 
 def snap_frequency(freq_hz: float, rate_hz: float, samples: int) -> tuple[float, int]:
@@ -192,7 +205,7 @@ def misalignment(w: Walker, body: Misalignment, path: YamlPath) -> None:
     motion = sine_motion(freq_hz, cycles, accel_dps2=body.accel_dps2)
     for scenario in body.scenarios:
         pivoted, remount = scenario in "BDFH", REMOUNT[scenario]
-        experiments = [e for e in body.experiments if (e >= 4) == pivoted]
+        experiments = [e for e in body.experiments if (e >= FIRST_PIVOTED_EXPERIMENT) == pivoted]
         mounting_text = ("every sensor pivoted 180° about its sensitive axis" if pivoted
                          else "every sensor in its original orientation")
         for rep in range(1, body.repetitions + 1):

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,10 +18,10 @@ from typing import Any
 import numpy as np
 from mcap.reader import make_reader
 
-from aatest.engine.recording import format as fmt
 from aatest.engine.dataset import Dataset, SensorInfo, StepData
-from aatest.engine.logs import SampledLog
 from aatest.engine.errors import RecordingError
+from aatest.engine.logs import SampledLog
+from aatest.engine.recording import format as fmt
 from aatest.engine.recording.writer import (
     RECORDING_NAME,
     STEPS_DIR,

@@ -51,7 +51,8 @@ def open_state(run_dir: Path, procedure: str, sha256: str, seed: int, resume: bo
     if not resume:
         if (run_dir / STATE_FILE).exists():
             raise InputError(
-                f"{run_dir} already holds a run; use --resume to continue it or choose another --out"
+                f"{run_dir} already holds a run; "
+                "use --resume to continue it or choose another --out"
             )
         run_dir.mkdir(parents=True, exist_ok=True)
         state = RunState(procedure, sha256, seed)

@@ -14,7 +14,7 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +34,7 @@ def procedure_sha256(text: str) -> str:
 
 
 def default_run_dir(procedure: str, root: Path = Path("runs")) -> Path:
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     return root / f"{stamp}-{procedure}"
 
 
@@ -83,7 +83,7 @@ def run_metadata(
         "sensor": plan.sensor.model_dump(),
         "sensors": [vars(s) for s in rig.sensor_infos()],
         "aatest_version": aatest.__version__,
-        "started_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "started_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "plan": [s.model_dump(mode="json") for s in plan.steps],
         "analysis": list(plan.analysis),
     }

@@ -32,8 +32,12 @@ COMMAND_BASE = 0x100
 SAMPLE_BASE = 0x180
 STATUS_BASE = 0x700
 SEQ_MODULO = 1 << 16
-FD_LENGTHS = (8, 12, 16, 20, 24, 32, 48, 64)
+#: a classic CAN frame carries at most 8 data bytes; a longer payload needs CAN FD
+CLASSIC_PAYLOAD_BYTES = 8
+FD_LENGTHS = (CLASSIC_PAYLOAD_BYTES, 12, 16, 20, 24, 32, 48, 64)
 FLAG_SYNC, FLAG_TRIGGER = 0x01, 0x02
+#: the sync and trigger inputs are 0/1 levels: above half is high
+LOGIC_HIGH_ABOVE = 0.5
 #: SocketCAN error-frame class bit for bus-off (linux/can/error.h CAN_ERR_BUSOFF)
 CAN_ERR_BUSOFF = 0x040
 
@@ -57,7 +61,7 @@ class LoggerState(enum.IntEnum):
 
 def sample_dtype(n_channels: int) -> np.dtype:
     """Structured dtype of one sample frame with ``n_channels`` voltages, FD-padded."""
-    fields = list(SAMPLE_HEADER.descr) + [("volts", "<f4", (n_channels,))]
+    fields = [*list(SAMPLE_HEADER.descr), ("volts", "<f4", (n_channels,))]
     size = SAMPLE_HEADER.itemsize + 4 * n_channels
     length = next((n for n in FD_LENGTHS if n >= size), None)
     if length is None:
@@ -88,8 +92,9 @@ def encode_samples(time_s: np.ndarray, volts: np.ndarray, sync: np.ndarray, trig
     n, channels = volts.shape
     frames = np.zeros(n, dtype=sample_dtype(channels))
     frames["seq"] = (first_seq + np.arange(n)) % SEQ_MODULO
-    frames["flags"] = ((np.asarray(sync) > 0.5) * FLAG_SYNC) | ((np.asarray(trigger) > 0.5)
-                                                                 * FLAG_TRIGGER)
+    high_sync = np.asarray(sync) > LOGIC_HIGH_ABOVE
+    high_trigger = np.asarray(trigger) > LOGIC_HIGH_ABOVE
+    frames["flags"] = (high_sync * FLAG_SYNC) | (high_trigger * FLAG_TRIGGER)
     frames["n_channels"] = channels
     frames["time_ns"] = np.round(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64)
     frames["temperature_cc"] = np.round(np.asarray(temperature_c) * 100.0).astype(np.int16)
@@ -170,7 +175,7 @@ def fill_gaps(decoded: DecodedSamples, index: np.ndarray, total: int,
     time_s[after] = decoded.time_s[-1] + (grid[after] - index[-1]) / sample_rate_hz
 
     def _spread(values: np.ndarray) -> np.ndarray:
-        out = np.full((total,) + values.shape[1:], np.nan)
+        out = np.full((total, *values.shape[1:]), np.nan)
         out[index] = values
         return out
 
@@ -213,9 +218,9 @@ def dbc_text(channels: Sequence[str], node_id: int = 1) -> str:
     return "\n".join([
         'VERSION ""', "", "NS_ :", "", "BS_:", "", "BU_: LOGGER", "",
         f"BO_ {frame_id} SAMPLE: {length} LOGGER", *signals, "",
-        f'BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","reserved",'
-        f'"reserved","reserved","reserved","reserved","reserved","reserved","reserved",'
-        f'"reserved","reserved","reserved","StandardCAN_FD","ExtendedCAN_FD";',
+        'BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","reserved",'
+        '"reserved","reserved","reserved","reserved","reserved","reserved","reserved",'
+        '"reserved","reserved","reserved","StandardCAN_FD","ExtendedCAN_FD";',
         'BA_DEF_DEF_ "VFrameFormat" "StandardCAN";',
         f'BA_ "VFrameFormat" BO_ {frame_id} 14;', "", *valtypes, "",
     ])
