@@ -114,6 +114,7 @@ def static(w: Walker, body: StaticStep, path: YamlPath) -> None:
 
 def sine(w: Walker, body: SineStep, path: YamlPath) -> None:
     rec = w.record(body)
+    cycles: int | None
     if body.cycles is not None:
         freq_hz, cycles = body.cycles * rec["sample_rate_hz"] / rec["samples"], body.cycles
     else:

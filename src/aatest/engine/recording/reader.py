@@ -132,13 +132,13 @@ def _decode(stream: Any, path: Path) -> _FileContents:
     _check_format(contents.run_meta, path)
     by_topic = {ch.topic: ch for ch in summary.channels.values()}
     for values in step_records:  # one step at a time: peak memory is one step's bytes
-        record = fmt.from_json_values(values)
-        step = PlannedStep.model_validate(record["step"])
+        step_record = fmt.from_json_values(values)
+        step = PlannedStep.model_validate(step_record["step"])
         logs = []
         for key in ("table_topic", "daq_topic"):
-            channel = _step_channel(by_topic, record[key], step.id, values, path)
+            channel = _step_channel(by_topic, step_record[key], step.id, values, path)
             logs.append(_decode_log(reader, channel, summary, path))
-        contents.steps.append((int(record["index"]), StepData(step, logs[0], logs[1])))
+        contents.steps.append((int(step_record["index"]), StepData(step, logs[0], logs[1])))
     return contents
 
 

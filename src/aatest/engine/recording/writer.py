@@ -59,7 +59,7 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-def atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
+def atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> Path:
     """Write ``path`` through a temporary sibling, fsync it, then rename it into place."""
     tmp = path.with_name(f".{path.name}{_TEMP_MARK}{os.getpid()}")
     try:

@@ -25,6 +25,7 @@ import enum
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -149,7 +150,7 @@ def frame_index(seq: np.ndarray) -> np.ndarray:
     """
     if seq.size == 0:
         return np.zeros(0, dtype=np.int64)
-    steps = np.diff(seq.astype(np.int64)) % SEQ_MODULO
+    steps = np.mod(np.diff(seq.astype(np.int64)), SEQ_MODULO)
     return np.concatenate([[int(seq[0])], int(seq[0]) + np.cumsum(steps)])
 
 
@@ -194,7 +195,7 @@ def status_payload(state: LoggerState, frames_sent: int, errors: int = 0) -> byt
     return record.tobytes()
 
 
-def parse_status(payload: bytes) -> tuple[LoggerState, int, int]:
+def parse_status(payload: bytes | bytearray) -> tuple[LoggerState, int, int]:
     """(state, error flags, frames sent) of a STATUS frame."""
     record = np.frombuffer(bytes(payload[:8]), dtype=STATUS_FORMAT)[0]
     return LoggerState(int(record["state"])), int(record["errors"]), int(record["frames_sent"])
@@ -232,8 +233,13 @@ def decode_with_dbc(dbc_file: str | Path, payloads: Sequence[bytes], channels: S
     than :func:`decode_samples`, for loggers whose layout is only known as a DBC)."""
     import cantools
 
-    message = cantools.database.load_file(str(dbc_file)).get_message_by_frame_id(frame_id)
-    rows = [message.decode(p, decode_choices=False, scaling=True) for p in payloads]
+    # A DBC file always loads as a CAN database; without choices every signal value is a number.
+    database = cast("cantools.database.can.Database", cantools.database.load_file(str(dbc_file)))
+    message = database.get_message_by_frame_id(frame_id)
+    rows = [
+        cast("dict[str, float]", message.decode(p, decode_choices=False, scaling=True))
+        for p in payloads
+    ]
 
     def col(name: str) -> np.ndarray:
         return np.array([float(r[name]) for r in rows], dtype=np.float64)
