@@ -40,6 +40,7 @@ class PluginInfo:
 
     @property
     def config_model(self) -> type[BaseModel] | None:
+        """Return the plugin's options model (its ``Config`` attribute), if it has one."""
         return getattr(self.target, "Config", None)
 
 
@@ -66,6 +67,7 @@ def _validate(kind: str, name: str, target: Any, dist: str) -> None:
 
 
 def entry_points(kind: str) -> list[metadata.EntryPoint]:
+    """Return the installed entry points of one plugin kind, sorted by name."""
     if kind not in GROUPS:
         raise PluginError(f"unknown plugin kind {kind!r}; kinds: {', '.join(GROUPS)}")
     return sorted(metadata.entry_points(group=GROUPS[kind]), key=lambda ep: ep.name)

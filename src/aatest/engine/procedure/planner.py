@@ -58,6 +58,7 @@ class SkippedPoint:
     reasons: tuple[str, ...]
 
     def to_json(self) -> dict[str, Any]:
+        """Return the point as the JSON object of the plan's skipped list."""
         return {"label": self.label, "frequency_hz": self.frequency_hz,
                 "amplitude_deg": self.amplitude_deg, "accel_dps2": self.accel_dps2,
                 "group": self.group, "reasons": list(self.reasons)}

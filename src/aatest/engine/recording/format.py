@@ -147,7 +147,10 @@ def schema_data(log: SampledLog, columns: list[dict[str, str]]) -> bytes:
 
 
 def log_time_offset_ns(time_s: np.ndarray) -> int:
-    """Smallest non-negative offset making every ``round(t·1e9) + offset`` non-negative."""
+    """Smallest non-negative offset making every ``round(t·1e9) + offset`` non-negative.
+
+    ``time_s`` are sample times in s; the offset is in integer ns.
+    """
     if time_s.size == 0:
         return 0
     first = float(np.min(time_s))
@@ -155,7 +158,10 @@ def log_time_offset_ns(time_s: np.ndarray) -> int:
 
 
 def block_log_times_ns(time_s: np.ndarray, offset_ns: int) -> list[int]:
-    """Log time of every block's first sample, in integer nanoseconds."""
+    """Log time of every block's first sample, in integer nanoseconds.
+
+    ``time_s`` are the sample times in s, ``offset_ns`` the run's log-time offset in ns.
+    """
     firsts = np.asarray(time_s[::BLOCK_SAMPLES], dtype=np.float64)
     return [max(0, round(t * 1e9) + offset_ns) for t in firsts.tolist()]
 

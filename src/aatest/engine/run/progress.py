@@ -58,9 +58,11 @@ class StepProgress:
         self._progress.stop()
 
     def begin(self, step: PlannedStep) -> None:
+        """Show the step that starts now."""
         self._progress.update(self._task, label=f"{step.id}: {describe(step)}")
 
     def end(self, step: PlannedStep) -> None:
+        """Count the step as done and take its lab time off the time left."""
         self._remaining_lab_s -= step.lab_duration_s
         lab_left = self._fmt(max(self._remaining_lab_s, 0))
         self._progress.update(self._task, advance=1, lab_left=lab_left)

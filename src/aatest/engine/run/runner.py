@@ -30,10 +30,12 @@ PromptHandler = Callable[[PlannedStep], None]
 
 
 def procedure_sha256(text: str) -> str:
+    """Return the hex SHA-256 of the procedure text, which ties a run to its procedure."""
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def default_run_dir(procedure: str, root: Path = Path("runs")) -> Path:
+    """Return ``root/<UTC time stamp>-<procedure>``, a fresh run directory name."""
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     return root / f"{stamp}-{procedure}"
 
