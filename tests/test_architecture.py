@@ -101,7 +101,7 @@ def find_package_cycles(graph: grimp.ImportGraph) -> list[str]:
 def _path(
     predecessors: npt.NDArray[np.int32], source: int, target: int, names: list[str]
 ) -> list[str] | None:
-    """Return the packages on the shortest path source → target, or None if unreachable."""
+    """Return the packages from source up to (not including) target, None if unreachable."""
     if predecessors[source, target] < 0 and source != target:
         return None
     hops = [target]
