@@ -32,7 +32,7 @@ def campaign(samples: int) -> list[PlannedStep]:
     """All envelope-feasible steps of the five test groups."""
     steps = []
     for cycles in CYCLES_2_17:
-        c = max(int(round(cycles * samples / 2**17)), 1)
+        c = max(round(cycles * samples / 2**17), 1)
         f = c * FS_HZ / samples
         w = 2 * np.pi * f
         for group, accel in [("amp-0.2deg", 0.2 * w**2)] + [(f"accel-{a:g}", float(a))

@@ -20,7 +20,6 @@ import tempfile
 import time
 from pathlib import Path
 
-from aatest.engine.data.exporter import export_csv
 from aatest.diagnose.command import diagnose_command
 from aatest.diagnose.scenarios import (
     clean_rig,
@@ -31,6 +30,7 @@ from aatest.diagnose.scenarios import (
     suite_cases,
     with_effects,
 )
+from aatest.engine.data.exporter import export_csv
 from aatest.twin.api import simulate_dataset
 
 #: the two steps of the 12-step diagnostic plan left out to make the 10-step bench dataset
@@ -55,8 +55,8 @@ def bench_once(samples: int, effect: str | None, seed: int) -> tuple[float, list
 
 def run_suite(samples: int) -> None:
     """Score the hidden-effect suite (in-process pipeline on exported/imported data)."""
-    from aatest.engine.recording import read_dataset
     from aatest.diagnose.pipeline import diagnose_dataset
+    from aatest.engine.recording import read_dataset
 
     cases, bad = suite_cases(), 0
     for name, hidden, seed in cases:

@@ -8,8 +8,9 @@ and the peak traced memory. Target ≥ 1000× on one core.
     python bench/twin.py [--steps N] [--channels 1|3]
 
 "One core": BLAS threads are limited to one (set before NumPy loads), so the twin computes on
-one core at a time; ``--pin`` also pins the process to a single CPU. The ratio is reported against wall time (the target) and against the process's
-CPU time, which stays meaningful when other jobs share the machine.
+one core at a time; ``--pin`` also pins the process to a single CPU. The ratio is reported
+against wall time (the target) and against the process's CPU time, which stays meaningful when
+other jobs share the machine.
 """
 
 from __future__ import annotations
@@ -57,10 +58,9 @@ def _own_steps(settle_s: float = 5.0) -> list[PlannedStep]:
 def _shipped_steps() -> list[PlannedStep] | None:
     """The shipped procedure's plan, when the planner and procedure are importable."""
     try:
+        import aatest
         from aatest.engine.procedure.loader import load_procedure
         from aatest.engine.procedure.planner import expand
-
-        import aatest
 
         path = Path(aatest.__file__).parent / "procedures" / "stepped-sine-frequency-response.yaml"
         return [s for s in expand(load_procedure(path)).steps if s.recorded]

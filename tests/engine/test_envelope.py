@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from aatest.engine.procedure.envelope import check_envelope, step_violations
 from aatest.engine.errors import EXIT_BAD_INPUT, EnvelopeError, ProcedureError
 from aatest.engine.interfaces import AxisLimits, SensorDatasheet, TableEnvelope
+from aatest.engine.procedure.envelope import check_envelope, step_violations
 from aatest.engine.procedure.loader import load_procedure, parse_procedure
 from aatest.engine.procedure.planner import default_datasheet, expand
 from aatest.engine.steps import PlannedStep

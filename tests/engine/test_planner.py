@@ -11,8 +11,14 @@ from numpy.testing import assert_allclose
 
 import aatest
 from aatest.engine.procedure.loader import load_procedure, parse_procedure
-from aatest.engine.procedure.planner import expand, expand_traced, snap_frequency, sweep_points, trace_of
 from aatest.engine.procedure.models import SweepFrequencies
+from aatest.engine.procedure.planner import (
+    expand,
+    expand_traced,
+    snap_frequency,
+    sweep_points,
+    trace_of,
+)
 
 SHIPPED = Path(aatest.__file__).parent / "procedures"
 DATA = Path(__file__).parents[1] / "data" / "procedures"
@@ -74,7 +80,7 @@ def test_generic_rule_is_nearest_integer_and_differs_at_two_published_points() -
     cycles = np.array([c for _, c in points])
     published = np.rint(PUBLISHED_HZ * 131072 / 2000).astype(int)
     assert len(cycles) == 28
-    differs = {(int(g), int(p)) for g, p in zip(cycles, published) if g != p}
+    differs = {(int(g), int(p)) for g, p in zip(cycles, published, strict=True) if g != p}
     assert differs == {(113, 112), (162, 163)}
 
 

@@ -220,7 +220,7 @@ def test_truncated_recording_is_a_recording_error(tmp_path: Path, cut: float) ->
     data = path.read_bytes()
     bad = tmp_path / "cut.mcap"
     bad.write_bytes(data[: int(len(data) * cut)])
-    with pytest.raises(RecordingError, match="cut.mcap"):
+    with pytest.raises(RecordingError, match=r"cut\.mcap"):
         read_dataset(bad)
 
 
@@ -233,7 +233,7 @@ def test_flipped_bytes_inside_chunks_are_a_recording_error(tmp_path: Path) -> No
         data[pos] ^= 0xFF
     bad = tmp_path / "flipped.mcap"
     bad.write_bytes(bytes(data))
-    with pytest.raises(RecordingError, match="flipped.mcap"):
+    with pytest.raises(RecordingError, match=r"flipped\.mcap"):
         read_dataset(bad)
 
 
@@ -247,7 +247,7 @@ def test_foreign_mcap_and_garbage_are_rejected(tmp_path: Path) -> None:
         read_dataset(foreign)
     garbage = tmp_path / "garbage.mcap"
     garbage.write_bytes(b"hello, not mcap" * 10)
-    with pytest.raises(RecordingError, match="garbage.mcap"):
+    with pytest.raises(RecordingError, match=r"garbage\.mcap"):
         read_dataset(garbage)
     empty = tmp_path / "empty"
     empty.mkdir()

@@ -115,9 +115,12 @@ def _rig(log: _Log, fail_on: str | None = None) -> Rig:
     return Rig(_Table(log, fail_on), _Daq(log), _Chamber(log), sheet, context)  # type: ignore[arg-type]
 
 
-def _run(tmp_path: Path, written: list[str], log: _Log, resume: bool, fail_on: str | None = None) -> Any:
+def _run(
+    tmp_path: Path, written: list[str], log: _Log, resume: bool, fail_on: str | None = None
+) -> Any:
     state = open_state(tmp_path, "t", "abc", 1, resume)
-    return run_plan(_plan(), _rig(log, fail_on), _Recorder(written), state, tmp_path, show_progress=False)
+    rig = _rig(log, fail_on)
+    return run_plan(_plan(), rig, _Recorder(written), state, tmp_path, show_progress=False)
 
 
 def test_every_step_runs_once_in_order_and_the_rig_ends_safe(tmp_path: Path) -> None:
@@ -127,7 +130,9 @@ def test_every_step_runs_once_in_order_and_the_rig_ends_safe(tmp_path: Path) -> 
     calls = log.calls
     assert calls.index("chamber -10") < calls.index("begin a") < calls.index("chamber 20")
     assert calls.count("chamber -10") == 1 and "soak 600" in calls and "soak 300" in calls
-    assert calls[-5:] == ["table.safe_stop", "chamber.off", "table.close", "daq.close", "chamber.close"]
+    assert calls[-5:] == [
+        "table.safe_stop", "chamber.off", "table.close", "daq.close", "chamber.close"
+    ]
 
 
 def test_fault_ends_in_safe_state_and_resume_repeats_nothing(tmp_path: Path) -> None:

@@ -40,6 +40,7 @@ class PluginInfo:
 
     @property
     def config_model(self) -> type[BaseModel] | None:
+        """Return the plugin's options model (its ``Config`` attribute), if it has one."""
         return getattr(self.target, "Config", None)
 
 
@@ -66,6 +67,7 @@ def _validate(kind: str, name: str, target: Any, dist: str) -> None:
 
 
 def entry_points(kind: str) -> list[metadata.EntryPoint]:
+    """Return the installed entry points of one plugin kind, sorted by name."""
     if kind not in GROUPS:
         raise PluginError(f"unknown plugin kind {kind!r}; kinds: {', '.join(GROUPS)}")
     return sorted(metadata.entry_points(group=GROUPS[kind]), key=lambda ep: ep.name)
@@ -81,7 +83,7 @@ def load(kind: str, name: str) -> PluginInfo:
     dist, version = _distribution(ep)
     try:
         target = ep.load()
-    except Exception as exc:  # noqa: BLE001 - any import failure is the plugin's fault
+    except Exception as exc:  # any import failure is the plugin's fault
         raise PluginError(
             f"{kind} plugin {name!r} from distribution {dist!r} failed to import: {exc}"
         ) from exc
@@ -105,7 +107,8 @@ def configure(info: PluginInfo, options: dict[str, Any]) -> BaseModel | None:
         return model.model_validate(options)
     except ValidationError as exc:
         detail = "; ".join(
-            f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors(include_url=False)
+            f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"
+            for e in exc.errors(include_url=False)
         )
         raise PluginError(
             f"{info.kind} plugin {info.name!r} ({info.distribution}): bad options: {detail}"

@@ -57,7 +57,7 @@ class PlannedStep(_Frozen):
 
     @property
     def lab_duration_s(self) -> float:
-        """Lab time the step occupies: soak, settling and the record itself."""
+        """Lab time the step occupies in s: soak, settling and the record itself."""
         return (self.soak_s or 0.0) + self.settle_s + self.duration_s
 
     @property
@@ -91,6 +91,7 @@ class Plan(_Frozen):
 
     @property
     def lab_duration_s(self) -> float:
+        """Lab time of the whole plan in s: the sum over its steps."""
         return float(sum(s.lab_duration_s for s in self.steps))
 
     def to_contract_json(self) -> dict[str, object]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -155,7 +156,7 @@ def test_absent_logger_is_a_rig_fault() -> None:
     daq.close()
 
 
-def test_dbc_decoding_matches_the_built_in_decoder(tmp_path) -> None:  # noqa: ANN001
+def test_dbc_decoding_matches_the_built_in_decoder(tmp_path: Path) -> None:
     pytest.importorskip("cantools")
     record = daq_log(n=40)
     volts = np.column_stack([record["v_sz"], record["v_sy"]])

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import itertools
-from importlib import metadata
 from collections.abc import Callable, Iterator
+from importlib import metadata
 
 import pytest
 
 from aatest.plugins.daq.can import CanDaq
-from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
-from aatest.twin.model import RigModel
 from aatest.plugins.turntable.modbus import ModbusTurntable
+from aatest.twin.model import RigModel
+from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 from aatest.twin.servers.modbus_controller import FaultInjection
 from aatest.twin.servers.modbus_server import SimModbusServer
 

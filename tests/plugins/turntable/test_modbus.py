@@ -41,7 +41,7 @@ def test_sine_step_round_trip_is_physical(make_rig: Callable) -> None:
     assert len(daq) > SINE.samples and set(np.unique(daq["trigger"])) == {0.0, 1.0}
     assert 0.3 < np.mean(table["sync_pulse"]) < 0.7
     # the served log is the twin's own log, bit for bit where the map uses f64
-    twin = rig.server.controller._record.table  # noqa: SLF001 - test looks behind the wire
+    twin = rig.server.controller._record.table  # test looks behind the wire
     np.testing.assert_array_equal(table["inner_position_deg"], twin["inner_position_deg"])
     np.testing.assert_allclose(table["inner_accel_dps2"], twin["inner_accel_dps2"], rtol=1e-7)
 
@@ -51,7 +51,7 @@ def test_controller_label_is_the_step_id(make_rig: Callable) -> None:
     rig.daq.start()
     rig.turntable.start()
     run_step(rig, SINE)
-    assert rig.server.controller._label() == "s01-sine"  # noqa: SLF001
+    assert rig.server.controller._label() == "s01-sine"
 
 
 def test_refused_command_is_a_rig_fault(make_rig: Callable) -> None:

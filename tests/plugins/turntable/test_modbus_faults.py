@@ -12,8 +12,8 @@ import pytest
 from aatest.engine.errors import EXIT_RIG_FAULT, RigFault
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.turntable.modbus import ModbusTurntable
-from aatest.twin.servers.modbus_controller import FaultInjection
 from aatest.plugins.turntable.modbus_map import Command, Fault, Status
+from aatest.twin.servers.modbus_controller import FaultInjection
 
 STEP = PlannedStep(id="s01", kind="sine", axis="inner", frequency_hz=1.0, accel_dps2=50.0,
                    samples=2048, settle_s=1.0)
@@ -49,7 +49,7 @@ def test_timeout_on_slow_controller(make_rig: Callable) -> None:
     assert time.monotonic() - started < 5.0
 
 
-def _arm_for_record(rig) -> None:  # noqa: ANN001 - the test rig of conftest
+def _arm_for_record(rig) -> None:  # the test rig of conftest
     """Everything the runner does before ``record``: start, move, begin motion, start DAQ."""
     rig.daq.start()
     rig.turntable.start()

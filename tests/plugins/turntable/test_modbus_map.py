@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -60,7 +62,7 @@ def test_registers_do_not_overlap_and_fit_fc23() -> None:
     spans += [(Reg.LOG_LABEL, Reg.LOG_LABEL + mm.LABEL_REGISTERS),
               (Reg.WINDOW, Reg.WINDOW + mm.WINDOW_REGISTERS)]
     spans.sort()
-    for (a0, a1), (b0, _b1) in zip(spans, spans[1:]):
+    for (a0, a1), (b0, _b1) in itertools.pairwise(spans):
         assert a1 <= b0, (a0, b0)
     assert mm.WINDOW_REGISTERS <= 125
 

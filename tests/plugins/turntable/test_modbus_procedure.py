@@ -16,9 +16,9 @@ from typer.testing import CliRunner
 from aatest.cli import app
 from aatest.engine.errors import EXIT_RIG_FAULT
 from aatest.engine.recording import read_dataset
+from aatest.plugins.turntable.modbus_map import Fault
 from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 from aatest.twin.servers.modbus_controller import FaultInjection
-from aatest.plugins.turntable.modbus_map import Fault
 from aatest.twin.servers.modbus_server import SimModbusServer
 
 SEED = 5
@@ -133,7 +133,7 @@ def test_fault_mid_run_exits_3_keeps_data_and_resumes(served: Served, tmp_path: 
     steps = json.loads((out_dir / "results.json").read_text())["steps"]
     assert [s["kind"] for s in steps] == ["static", "sine"]
     after = read_dataset(out_dir).steps  # now from the merged recording.mcap
-    for old, new in zip(before, after):  # what was recorded before the fault is untouched
+    for old, new in zip(before, after, strict=False):  # recorded before the fault: untouched
         assert old.step == new.step
         for log_before, log_after in ((old.table, new.table), (old.daq, new.daq)):
             for name, values in log_before.channels.items():
@@ -165,7 +165,7 @@ def test_stepped_sine_frf_matches_the_in_process_rig(served: Served, tmp_path: P
     local = _analysis(tmp_path / "inproc")["frf"]["v_sz"]
     assert [p["frequency_hz"] for p in wire] == [p["frequency_hz"] for p in local]
     assert len(wire) == 3
-    for got, ref in zip(wire, local):
+    for got, ref in zip(wire, local, strict=True):
         # only the f32 channels differ. Measured at 1, 3, 9 Hz: |Δgain| ≤ 7e-8 dB and
         # |Δphase| ≤ 5e-9 ° on a −48 dB response
         assert got["gain_db"] == pytest.approx(ref["gain_db"], abs=1e-4)

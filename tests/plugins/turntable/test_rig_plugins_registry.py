@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from aatest.engine import registry
 from aatest.cli import app
+from aatest.engine import registry
 from aatest.engine.errors import PluginError
 
 PROCEDURE = """\

@@ -1,4 +1,6 @@
-"""Strict, vectorised reading of the numeric CSV files of an import directory (docs/interfaces.md §3).
+"""Strict, vectorised reading of the numeric CSV files of an import directory.
+
+The format is docs/interfaces.md §3.
 
 What is tolerated: a UTF-8 byte-order mark, CRLF or CR line ends, blank lines, ``#`` comment
 lines, whitespace around cells and names, quoted header names, any column order and extra

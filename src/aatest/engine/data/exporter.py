@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 from ruamel.yaml import YAML
 
+from aatest.engine.data.importer import DAQ_REQUIRED, MANIFEST, TABLE_REQUIRED
 from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import InputError
-from aatest.engine.data.importer import DAQ_REQUIRED, MANIFEST, TABLE_REQUIRED
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import Mounting, PlannedStep
 
@@ -57,7 +57,7 @@ def _column_text(values: np.ndarray) -> np.ndarray:
 def write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
     """Write named equal-length columns as a header row plus one row per sample."""
     texts = [_column_text(values) for values in columns.values()]
-    rows = map(",".join, zip(*texts))
+    rows = map(",".join, zip(*texts, strict=False))
     with open(path, "w", encoding="utf-8", newline="\n") as stream:
         stream.write(",".join(columns) + "\n")
         for row in rows:

@@ -20,9 +20,20 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from aatest.engine.procedure.models import (MAX_COUNT, ConstantRate, CoordinatedRates, Misalignment,
-                                     MultiPosition, Operator, Repeat, SineStep, SineSweep,
-                                     StaticStep, SweepFrequencies, TemperatureSteps)
+from aatest.engine.procedure.models import (
+    MAX_COUNT,
+    ConstantRate,
+    CoordinatedRates,
+    Misalignment,
+    MultiPosition,
+    Operator,
+    Repeat,
+    SineStep,
+    SineSweep,
+    StaticStep,
+    SweepFrequencies,
+    TemperatureSteps,
+)
 from aatest.engine.steps import Mounting
 
 if TYPE_CHECKING:
@@ -34,10 +45,16 @@ REMOUNT = {"A": "none", "B": "none", "C": "sensors", "D": "sensors", "E": "block
            "G": "both", "H": "both"}
 _REMOUNT_TEXT = {"sensors": "the sensors on the block", "block": "the mounting block",
                  "both": "the sensors on the block and the block on the table"}
+#: experiments 1–3 run in the original mounting, 4–6 with every sensor pivoted 180°
+FIRST_PIVOTED_EXPERIMENT = 4
 
 
 def snap_frequency(freq_hz: float, rate_hz: float, samples: int) -> tuple[float, int]:
-    """Nearest coherent frequency: (c·Fs/N, c) with c = round(f·N/Fs) (halves up), c ≥ 1."""
+    """Nearest coherent frequency: (c·Fs/N, c) with c = round(f·N/Fs) (halves up), c ≥ 1.
+
+    ``freq_hz`` and the returned frequency are in Hz, ``rate_hz`` (the sample rate Fs) in Hz;
+    ``samples`` (N) and the cycle count c are dimensionless counts.
+    """
     cycles = max(1, math.floor(freq_hz * samples / rate_hz + 0.5))
     return cycles * rate_hz / samples, cycles
 
@@ -45,6 +62,8 @@ def snap_frequency(freq_hz: float, rate_hz: float, samples: int) -> tuple[float,
 def sweep_points(freqs: SweepFrequencies, rate_hz: float,
                  samples: int) -> list[tuple[float, int | None]]:
     """(frequency_hz, cycles) of a sweep grid, ascending and without duplicates.
+
+    Frequencies in Hz at the sample rate ``rate_hz`` (Hz); cycles per record, dimensionless.
 
     Explicit ``cycles`` define the grid; otherwise start·ratio^k ≤ stop, stop itself and
     ``include``, each snapped with :func:`snap_frequency` unless ``snap: none``.
@@ -71,7 +90,11 @@ def num(value: float) -> str:
 
 def sine_motion(freq_hz: float, cycles: int | None, *, accel_dps2: float | None = None,
                 amplitude_deg: float | None = None) -> dict[str, Any]:
-    """Sine fields for a peak acceleration (A = α/ω²) or a position amplitude (α = A·ω²)."""
+    """Sine fields for a peak acceleration (A = α/ω²) or a position amplitude (α = A·ω²).
+
+    ``freq_hz`` in Hz, ``accel_dps2`` (α) in °/s², ``amplitude_deg`` (A) in °; exactly one of
+    the last two is given, the other is derived.
+    """
     omega2 = (2.0 * math.pi * freq_hz) ** 2
     if accel_dps2 is not None:
         amplitude_deg, group = accel_dps2 / omega2, f"accel-{num(accel_dps2)}"
@@ -93,6 +116,7 @@ def _sine_label(axis: str, motion: dict[str, Any], by_amplitude: bool) -> str:
 
 
 def static(w: Walker, body: StaticStep, path: YamlPath) -> None:
+    """Emit one static step at the given table position."""
     label = f"static-i{num(body.inner_deg)}-o{num(body.outer_deg)}"
     label = f"static-{body.label}" if body.label else label
     w.emit(label, path, kind="static", inner_deg=body.inner_deg, outer_deg=body.outer_deg,
@@ -100,7 +124,9 @@ def static(w: Walker, body: StaticStep, path: YamlPath) -> None:
 
 
 def sine(w: Walker, body: SineStep, path: YamlPath) -> None:
+    """Emit one sine step, its frequency snapped to a whole number of cycles per record."""
     rec = w.record(body)
+    cycles: int | None
     if body.cycles is not None:
         freq_hz, cycles = body.cycles * rec["sample_rate_hz"] / rec["samples"], body.cycles
     else:
@@ -126,6 +152,7 @@ def sine_sweep(w: Walker, body: SineSweep, path: YamlPath) -> None:
 
 
 def constant_rate(w: Walker, body: ConstantRate, path: YamlPath) -> None:
+    """Emit one constant-rate step per listed rate."""
     for rate_dps in body.rates_dps:
         w.emit(f"rate-{body.axis}-{num(rate_dps)}dps", path, kind="constant_rate", axis=body.axis,
                rate_dps=rate_dps, inner_deg=body.inner_deg, outer_deg=body.outer_deg,
@@ -147,6 +174,7 @@ def coordinated_rates(w: Walker, body: CoordinatedRates, path: YamlPath) -> None
 
 
 def multi_position(w: Walker, body: MultiPosition, path: YamlPath) -> None:
+    """Emit a static step per position, mounting and repetition, with the mounting prompts."""
     rec = w.record(body)
     for mount in body.mountings:
         mounting = Mounting(pivoted=mount == "pivoted")
@@ -192,7 +220,7 @@ def misalignment(w: Walker, body: Misalignment, path: YamlPath) -> None:
     motion = sine_motion(freq_hz, cycles, accel_dps2=body.accel_dps2)
     for scenario in body.scenarios:
         pivoted, remount = scenario in "BDFH", REMOUNT[scenario]
-        experiments = [e for e in body.experiments if (e >= 4) == pivoted]
+        experiments = [e for e in body.experiments if (e >= FIRST_PIVOTED_EXPERIMENT) == pivoted]
         mounting_text = ("every sensor pivoted 180° about its sensitive axis" if pivoted
                          else "every sensor in its original orientation")
         for rep in range(1, body.repetitions + 1):
@@ -212,6 +240,7 @@ def misalignment(w: Walker, body: Misalignment, path: YamlPath) -> None:
 
 
 def repeat(w: Walker, body: Repeat, path: YamlPath) -> None:
+    """Expand the nested steps ``count`` times, each repetition numbered in the step ids."""
     outer_rep, outer_suffix = w.repetition, w.rep_suffix
     for rep in range(1, body.count + 1):
         w.repetition, w.rep_suffix = rep, f"{outer_suffix}-r{rep}"

@@ -29,14 +29,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from aatest.engine.procedure import generators
-from aatest.engine.procedure.envelope import YamlPath, step_violations
 from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.interfaces import SensorDatasheet, TableEnvelope
+from aatest.engine.procedure import generators
+from aatest.engine.procedure.envelope import YamlPath, step_violations
 from aatest.engine.procedure.generators import snap_frequency, sweep_points
 from aatest.engine.procedure.models import Overrides, Procedure, StepEntry
-from aatest.engine.steps import Plan, PlannedStep, SensorRef
 from aatest.engine.procedure.yaml_loader import locate
+from aatest.engine.steps import Plan, PlannedStep, SensorRef
 
 #: upper bound on the steps one procedure may expand to
 MAX_STEPS = 20_000
@@ -58,6 +58,7 @@ class SkippedPoint:
     reasons: tuple[str, ...]
 
     def to_json(self) -> dict[str, Any]:
+        """Return the point as the JSON object of the plan's skipped list."""
         return {"label": self.label, "frequency_hz": self.frequency_hz,
                 "amplitude_deg": self.amplitude_deg, "accel_dps2": self.accel_dps2,
                 "group": self.group, "reasons": list(self.reasons)}

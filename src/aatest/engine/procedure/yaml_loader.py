@@ -23,18 +23,18 @@ M = TypeVar("M", bound=BaseModel)
 def _plain(node: Any) -> Any:
     """Round-trip nodes → plain dicts/lists/scalars (pydantic must not see ruamel types)."""
     if isinstance(node, CommentedMap):
-        return {str(k) if not isinstance(k, (int, float, bool)) else k: _plain(v) for k, v in node.items()}
+        return {_plain_key(k): _plain(v) for k, v in node.items()}
     if isinstance(node, CommentedSeq):
         return [_plain(v) for v in node]
-    if isinstance(node, str):
-        return str(node)
-    if isinstance(node, bool):
-        return bool(node)
-    if isinstance(node, int):
-        return int(node)
-    if isinstance(node, float):
-        return float(node)
+    for scalar in (str, bool, int, float):  # bool before int: a bool is an int
+        if isinstance(node, scalar):
+            return scalar(node)
     return node
+
+
+def _plain_key(key: Any) -> Any:
+    """Keep numeric and boolean mapping keys, turn every other key into ``str``."""
+    return key if isinstance(key, (int, float, bool)) else str(key)
 
 
 def parse_yaml(text: str, filename: str) -> tuple[Any, Any]:

@@ -22,9 +22,10 @@ metadata ``step_id``, ``source`` (``table``/``daq``), ``samples`` (total samples
 ``log_time_offset_ns`` (see below) and ``step_record_sha256``, the SHA-256 of the step's
 ``step`` metadata record (its values as a JSON object with sorted keys and no spaces) — MCAP
 protects chunks with CRCs but not metadata, so a reader can tell a damaged step record from a
-good one; likewise ``schema_sha256`` of the channel's schema data. Channel ids are ``2·index − 1`` (table) and ``2·index``
-(DAQ), ``index`` being the step's 1-based plan position, so they are unique in a run and the
-per-step files merge without re-encoding. Each chunk holds messages of one channel only.
+good one; likewise ``schema_sha256`` of the channel's schema data. Channel ids are
+``2·index − 1`` (table) and ``2·index`` (DAQ), ``index`` being the step's 1-based plan
+position, so they are unique in a run and the per-step files merge without re-encoding.
+Each chunk holds messages of one channel only.
 
 **Schemas.** name ``aatest.table_block`` / ``aatest.daq_block``, encoding ``aatest.block/v1``.
 The schema data is UTF-8 JSON::
@@ -115,9 +116,9 @@ def _storage(name: str, values: np.ndarray) -> np.ndarray:
     arr = np.asarray(values)
     if arr.dtype.kind not in _ALLOWED_KINDS:
         raise TypeError(f"channel {name!r} has unsupported dtype {arr.dtype}")
-    if name in _BINARY_CHANNELS and arr.dtype != np.uint8:
-        if arr.size == 0 or bool(np.all((arr == 0) | (arr == 1))):
-            return arr.astype(np.uint8)
+    is_pulse = name in _BINARY_CHANNELS and arr.dtype != np.uint8
+    if is_pulse and (arr.size == 0 or bool(np.all((arr == 0) | (arr == 1)))):
+        return arr.astype(np.uint8)
     return arr.astype(arr.dtype.newbyteorder("<"), copy=False)
 
 
@@ -146,17 +147,23 @@ def schema_data(log: SampledLog, columns: list[dict[str, str]]) -> bytes:
 
 
 def log_time_offset_ns(time_s: np.ndarray) -> int:
-    """Smallest non-negative offset making every ``round(t·1e9) + offset`` non-negative."""
+    """Smallest non-negative offset making every ``round(t·1e9) + offset`` non-negative.
+
+    ``time_s`` are sample times in s; the offset is in integer ns.
+    """
     if time_s.size == 0:
         return 0
     first = float(np.min(time_s))
-    return 0 if first >= 0 else int(math.ceil(-first * 1e9))
+    return 0 if first >= 0 else math.ceil(-first * 1e9)
 
 
 def block_log_times_ns(time_s: np.ndarray, offset_ns: int) -> list[int]:
-    """Log time of every block's first sample, in integer nanoseconds."""
+    """Log time of every block's first sample, in integer nanoseconds.
+
+    ``time_s`` are the sample times in s, ``offset_ns`` the run's log-time offset in ns.
+    """
     firsts = np.asarray(time_s[::BLOCK_SAMPLES], dtype=np.float64)
-    return [max(0, int(round(t * 1e9)) + offset_ns) for t in firsts.tolist()]
+    return [max(0, round(t * 1e9) + offset_ns) for t in firsts.tolist()]
 
 
 def parse_schema(data: bytes) -> tuple[np.dtype, dict[str, Any]]:

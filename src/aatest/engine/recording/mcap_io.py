@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import struct
 import zlib
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import IO, Any
 
 import zstandard
@@ -182,7 +182,7 @@ class ChunkedWriter:
         """Data end, summary (schemas, channels, statistics, indexes, offsets), footer."""
         self._write(DataEnd(data_section_crc=0))
         summary_start = self._offset
-        groups = [
+        groups: list[tuple[Opcode, Sequence[McapRecord]]] = [
             (Opcode.SCHEMA, list(self.schemas.values())),
             (Opcode.CHANNEL, list(self.channels.values())),
             (Opcode.STATISTICS, [self.stats]),

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,10 +18,10 @@ from typing import Any
 import numpy as np
 from mcap.reader import make_reader
 
-from aatest.engine.recording import format as fmt
 from aatest.engine.dataset import Dataset, SensorInfo, StepData
-from aatest.engine.logs import SampledLog
 from aatest.engine.errors import RecordingError
+from aatest.engine.logs import SampledLog
+from aatest.engine.recording import format as fmt
 from aatest.engine.recording.writer import (
     RECORDING_NAME,
     STEPS_DIR,
@@ -133,13 +132,13 @@ def _decode(stream: Any, path: Path) -> _FileContents:
     _check_format(contents.run_meta, path)
     by_topic = {ch.topic: ch for ch in summary.channels.values()}
     for values in step_records:  # one step at a time: peak memory is one step's bytes
-        record = fmt.from_json_values(values)
-        step = PlannedStep.model_validate(record["step"])
+        step_record = fmt.from_json_values(values)
+        step = PlannedStep.model_validate(step_record["step"])
         logs = []
         for key in ("table_topic", "daq_topic"):
-            channel = _step_channel(by_topic, record[key], step.id, values, path)
+            channel = _step_channel(by_topic, step_record[key], step.id, values, path)
             logs.append(_decode_log(reader, channel, summary, path))
-        contents.steps.append((int(record["index"]), StepData(step, logs[0], logs[1])))
+        contents.steps.append((int(step_record["index"]), StepData(step, logs[0], logs[1])))
     return contents
 
 

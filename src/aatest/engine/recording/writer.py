@@ -5,10 +5,10 @@ Each step is written to a temporary file, flushed, ``fsync``-ed and atomically r
 ``steps/<NNN>-<step_id>.mcap``, so a step file either exists complete or not at all; completed
 steps can never be corrupted by a later crash. :meth:`RunRecorder.finalize` then merges the run
 metadata and every step file, in plan order and in one streaming pass that copies the
-compressed chunks verbatim (:mod:`aatest.engine.recording.mcap_io`), into ``recording.mcap`` (again via a
-temporary file and an atomic rename). The step files are kept: they are what ``--resume``
-counts as done, and what :func:`~aatest.engine.recording.read_dataset` reads if steps were
-completed after the last merge. The file layout is described in
+compressed chunks verbatim (:mod:`aatest.engine.recording.mcap_io`), into ``recording.mcap``
+(again via a temporary file and an atomic rename). The step files are kept: they are what
+``--resume`` counts as done, and what :func:`~aatest.engine.recording.read_dataset` reads if
+steps were completed after the last merge. The file layout is described in
 :mod:`aatest.engine.recording.format`.
 """
 
@@ -27,9 +27,9 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 
 import aatest
-from aatest.engine.recording import format as fmt
 from aatest.engine.errors import RecordingError
 from aatest.engine.logs import TABLE, SampledLog
+from aatest.engine.recording import format as fmt
 from aatest.engine.recording.mcap_io import ChunkedWriter
 from aatest.engine.steps import PlannedStep
 
@@ -59,7 +59,7 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-def atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
+def atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> Path:
     """Write ``path`` through a temporary sibling, fsync it, then rename it into place."""
     tmp = path.with_name(f".{path.name}{_TEMP_MARK}{os.getpid()}")
     try:

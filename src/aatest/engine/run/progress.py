@@ -13,7 +13,8 @@ from aatest.engine.steps import Plan, PlannedStep
 def describe(step: PlannedStep) -> str:
     """A short human label of what the table is doing in a step."""
     if step.kind == "sine":
-        return f"sine {step.frequency_hz:.4f} Hz, {step.amplitude_deg:.4f}° ({step.accel_dps2:g} °/s²)"
+        amplitude = f"{step.amplitude_deg:.4f}° ({step.accel_dps2:g} °/s²)"
+        return f"sine {step.frequency_hz:.4f} Hz, {amplitude}"
     if step.kind == "constant_rate":
         outer = f", outer {step.outer_rate_dps:g} °/s" if step.outer_rate_dps else ""
         return f"rate {step.rate_dps:g} °/s{outer}"
@@ -57,8 +58,11 @@ class StepProgress:
         self._progress.stop()
 
     def begin(self, step: PlannedStep) -> None:
+        """Show the step that starts now."""
         self._progress.update(self._task, label=f"{step.id}: {describe(step)}")
 
     def end(self, step: PlannedStep) -> None:
+        """Count the step as done and take its lab time off the time left."""
         self._remaining_lab_s -= step.lab_duration_s
-        self._progress.update(self._task, advance=1, lab_left=self._fmt(max(self._remaining_lab_s, 0)))
+        lab_left = self._fmt(max(self._remaining_lab_s, 0))
+        self._progress.update(self._task, advance=1, lab_left=lab_left)

@@ -19,6 +19,12 @@ STATE_FILE = "run_state.json"
 
 @dataclass
 class RunState:
+    """What ``--resume`` needs beyond the recording.
+
+    The procedure hash and seed the run belongs to, the finished chamber steps, the wall time
+    spent so far (``wall_duration_s``, s) and the operator prompts already shown.
+    """
+
     procedure: str
     procedure_sha256: str
     seed: int
@@ -28,6 +34,7 @@ class RunState:
     finished: bool = False
 
     def save(self, run_dir: Path) -> None:
+        """Write the state atomically (temporary file, fsync, rename) into ``run_dir``."""
         tmp = run_dir / (STATE_FILE + ".tmp")
         with tmp.open("w", encoding="utf-8") as fh:
             json.dump(asdict(self), fh, indent=2)
@@ -37,6 +44,7 @@ class RunState:
 
     @classmethod
     def load(cls, run_dir: Path) -> RunState:
+        """Read the state of ``run_dir``; a missing or damaged file is an InputError."""
         path = run_dir / STATE_FILE
         try:
             return cls(**json.loads(path.read_text(encoding="utf-8")))
@@ -51,7 +59,8 @@ def open_state(run_dir: Path, procedure: str, sha256: str, seed: int, resume: bo
     if not resume:
         if (run_dir / STATE_FILE).exists():
             raise InputError(
-                f"{run_dir} already holds a run; use --resume to continue it or choose another --out"
+                f"{run_dir} already holds a run; "
+                "use --resume to continue it or choose another --out"
             )
         run_dir.mkdir(parents=True, exist_ok=True)
         state = RunState(procedure, sha256, seed)

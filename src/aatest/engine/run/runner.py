@@ -14,7 +14,7 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -30,11 +30,13 @@ PromptHandler = Callable[[PlannedStep], None]
 
 
 def procedure_sha256(text: str) -> str:
+    """Return the hex SHA-256 of the procedure text, which ties a run to its procedure."""
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def default_run_dir(procedure: str, root: Path = Path("runs")) -> Path:
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    """Return ``root/<UTC time stamp>-<procedure>``, a fresh run directory name."""
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     return root / f"{stamp}-{procedure}"
 
 
@@ -83,7 +85,7 @@ def run_metadata(
         "sensor": plan.sensor.model_dump(),
         "sensors": [vars(s) for s in rig.sensor_infos()],
         "aatest_version": aatest.__version__,
-        "started_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "started_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "plan": [s.model_dump(mode="json") for s in plan.steps],
         "analysis": list(plan.analysis),
     }

@@ -70,7 +70,7 @@ def _enlarge_receive_buffer(bus: can.BusABC, size_bytes: int = UDP_RECEIVE_BUFFE
 def send(bus: can.BusABC, arbitration_id: int, payload: bytes, fd: bool, where: str) -> None:
     """Send one frame; a send failure (bus-off, no buffer) becomes RigFault."""
     msg = can.Message(arbitration_id=arbitration_id, data=payload, is_extended_id=False,
-                      is_fd=fd and len(payload) > 8)
+                      is_fd=fd and len(payload) > cf.CLASSIC_PAYLOAD_BYTES)
     try:
         bus.send(msg, timeout=1.0)
     except can.CanError as exc:

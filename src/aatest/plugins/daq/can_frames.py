@@ -25,6 +25,7 @@ import enum
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -32,8 +33,12 @@ COMMAND_BASE = 0x100
 SAMPLE_BASE = 0x180
 STATUS_BASE = 0x700
 SEQ_MODULO = 1 << 16
-FD_LENGTHS = (8, 12, 16, 20, 24, 32, 48, 64)
+#: a classic CAN frame carries at most 8 data bytes; a longer payload needs CAN FD
+CLASSIC_PAYLOAD_BYTES = 8
+FD_LENGTHS = (CLASSIC_PAYLOAD_BYTES, 12, 16, 20, 24, 32, 48, 64)
 FLAG_SYNC, FLAG_TRIGGER = 0x01, 0x02
+#: the sync and trigger inputs are 0/1 levels: above half is high
+LOGIC_HIGH_ABOVE = 0.5
 #: SocketCAN error-frame class bit for bus-off (linux/can/error.h CAN_ERR_BUSOFF)
 CAN_ERR_BUSOFF = 0x040
 
@@ -57,7 +62,7 @@ class LoggerState(enum.IntEnum):
 
 def sample_dtype(n_channels: int) -> np.dtype:
     """Structured dtype of one sample frame with ``n_channels`` voltages, FD-padded."""
-    fields = list(SAMPLE_HEADER.descr) + [("volts", "<f4", (n_channels,))]
+    fields = [*list(SAMPLE_HEADER.descr), ("volts", "<f4", (n_channels,))]
     size = SAMPLE_HEADER.itemsize + 4 * n_channels
     length = next((n for n in FD_LENGTHS if n >= size), None)
     if length is None:
@@ -88,8 +93,9 @@ def encode_samples(time_s: np.ndarray, volts: np.ndarray, sync: np.ndarray, trig
     n, channels = volts.shape
     frames = np.zeros(n, dtype=sample_dtype(channels))
     frames["seq"] = (first_seq + np.arange(n)) % SEQ_MODULO
-    frames["flags"] = ((np.asarray(sync) > 0.5) * FLAG_SYNC) | ((np.asarray(trigger) > 0.5)
-                                                                 * FLAG_TRIGGER)
+    high_sync = np.asarray(sync) > LOGIC_HIGH_ABOVE
+    high_trigger = np.asarray(trigger) > LOGIC_HIGH_ABOVE
+    frames["flags"] = (high_sync * FLAG_SYNC) | (high_trigger * FLAG_TRIGGER)
     frames["n_channels"] = channels
     frames["time_ns"] = np.round(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64)
     frames["temperature_cc"] = np.round(np.asarray(temperature_c) * 100.0).astype(np.int16)
@@ -144,7 +150,7 @@ def frame_index(seq: np.ndarray) -> np.ndarray:
     """
     if seq.size == 0:
         return np.zeros(0, dtype=np.int64)
-    steps = np.diff(seq.astype(np.int64)) % SEQ_MODULO
+    steps = np.mod(np.diff(seq.astype(np.int64)), SEQ_MODULO)
     return np.concatenate([[int(seq[0])], int(seq[0]) + np.cumsum(steps)])
 
 
@@ -170,7 +176,7 @@ def fill_gaps(decoded: DecodedSamples, index: np.ndarray, total: int,
     time_s[after] = decoded.time_s[-1] + (grid[after] - index[-1]) / sample_rate_hz
 
     def _spread(values: np.ndarray) -> np.ndarray:
-        out = np.full((total,) + values.shape[1:], np.nan)
+        out = np.full((total, *values.shape[1:]), np.nan)
         out[index] = values
         return out
 
@@ -189,7 +195,7 @@ def status_payload(state: LoggerState, frames_sent: int, errors: int = 0) -> byt
     return record.tobytes()
 
 
-def parse_status(payload: bytes) -> tuple[LoggerState, int, int]:
+def parse_status(payload: bytes | bytearray) -> tuple[LoggerState, int, int]:
     """(state, error flags, frames sent) of a STATUS frame."""
     record = np.frombuffer(bytes(payload[:8]), dtype=STATUS_FORMAT)[0]
     return LoggerState(int(record["state"])), int(record["errors"]), int(record["frames_sent"])
@@ -213,9 +219,9 @@ def dbc_text(channels: Sequence[str], node_id: int = 1) -> str:
     return "\n".join([
         'VERSION ""', "", "NS_ :", "", "BS_:", "", "BU_: LOGGER", "",
         f"BO_ {frame_id} SAMPLE: {length} LOGGER", *signals, "",
-        f'BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","reserved",'
-        f'"reserved","reserved","reserved","reserved","reserved","reserved","reserved",'
-        f'"reserved","reserved","reserved","StandardCAN_FD","ExtendedCAN_FD";',
+        'BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","reserved",'
+        '"reserved","reserved","reserved","reserved","reserved","reserved","reserved",'
+        '"reserved","reserved","reserved","StandardCAN_FD","ExtendedCAN_FD";',
         'BA_DEF_DEF_ "VFrameFormat" "StandardCAN";',
         f'BA_ "VFrameFormat" BO_ {frame_id} 14;', "", *valtypes, "",
     ])
@@ -227,8 +233,13 @@ def decode_with_dbc(dbc_file: str | Path, payloads: Sequence[bytes], channels: S
     than :func:`decode_samples`, for loggers whose layout is only known as a DBC)."""
     import cantools
 
-    message = cantools.database.load_file(str(dbc_file)).get_message_by_frame_id(frame_id)
-    rows = [message.decode(p, decode_choices=False, scaling=True) for p in payloads]
+    # A DBC file always loads as a CAN database; without choices every signal value is a number.
+    database = cast("cantools.database.can.Database", cantools.database.load_file(str(dbc_file)))
+    message = database.get_message_by_frame_id(frame_id)
+    rows = [
+        cast("dict[str, float]", message.decode(p, decode_choices=False, scaling=True))
+        for p in payloads
+    ]
 
     def col(name: str) -> np.ndarray:
         return np.array([float(r[name]) for r in rows], dtype=np.float64)

@@ -16,6 +16,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from operator import methodcaller
 from typing import Literal, TypeVar
 
 import numpy as np
@@ -89,8 +90,9 @@ class ModbusTurntable:
     def _write(self, values: dict[Reg, float]) -> None:
         for reg, value in values.items():
             words = mm.encode(reg, value)
-            self._call(f"write {reg.name}", lambda c, r=reg, w=words: c.write_registers(
-                int(r), w, device_id=self.config.unit_id))
+            request = methodcaller("write_registers", int(reg), words,
+                                   device_id=self.config.unit_id)
+            self._call(f"write {reg.name}", request)
 
     def _command(self, command: Command) -> None:
         """Issue ``command``; raise RigFault when refused (with the controller's reason)."""
@@ -229,11 +231,11 @@ class ModbusTurntable:
         parts = []
         for start in range(0, samples, per):
             select = [channel.code, 0, *mm.encode(Reg.WINDOW_START, start)]
-            response = self._call(f"log window {channel.name}@{start}",
-                                  lambda c, v=select: c.readwrite_registers(
-                                      read_address=int(Reg.WINDOW), read_count=mm.WINDOW_REGISTERS,
-                                      write_address=int(Reg.WINDOW_CHANNEL), values=v,
-                                      device_id=self.config.unit_id))
+            request = methodcaller(
+                "readwrite_registers", read_address=int(Reg.WINDOW),
+                read_count=mm.WINDOW_REGISTERS, write_address=int(Reg.WINDOW_CHANNEL),
+                values=select, device_id=self.config.unit_id)
+            response = self._call(f"log window {channel.name}@{start}", request)
             parts.append(mm.decode_channel_window(response.registers, channel,
                                                   min(per, samples - start)))
         return np.concatenate(parts) if parts else np.zeros(0)
