@@ -35,7 +35,6 @@ import aatest
 ALLOWED_IMPORTS: frozenset[tuple[str, str]] = frozenset(
     {
         # (b) engine → plugins; also closes the engine ↔ plugins.analysis cycle.
-        ("aatest.engine.analysis.passes", "aatest.plugins.analysis"),
         # (b) engine → plugins; also closes the engine ↔ plugins.report cycle.
         ("aatest.engine.run.session", "aatest.plugins.report.pdf"),
         # (c) twin → plugins: the SR207 sensor plugin ↔ twin cycle.

@@ -9,6 +9,7 @@ both when the procedure is loaded (located errors, exit 2) and again when the an
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -22,6 +23,9 @@ from aatest.engine.errors import InputError, PluginError
 AnalysisEntry = str | Mapping[str, Mapping[str, Any] | None]
 
 
+log = logging.getLogger("aatest.analysis")
+
+
 @dataclass(frozen=True)
 class AnalysisPlugin:
     """One installed analysis: its entry-point name, class and distribution."""
@@ -32,10 +36,12 @@ class AnalysisPlugin:
 
     @property
     def key(self) -> str:
+        """The plugin's key in ``results.json`` → ``analysis``."""
         return str(self.cls.key)
 
     @property
     def requires(self) -> tuple[str, ...]:
+        """Names of the analyses whose outputs this one reads (run before it)."""
         return tuple(self.cls.requires)
 
     def options(self, raw: Mapping[str, Any] | None = None) -> BaseModel:
@@ -48,16 +54,26 @@ class AnalysisPlugin:
         return model.model_validate_json(json.dumps(dict(raw or {}), default=str), strict=True)
 
     def describe(self) -> str:
+        """How errors name the plugin: its entry-point name and distribution."""
         return f"analysis plugin {self.name!r} from distribution {self.distribution!r}"
 
 
 def aliases() -> dict[str, str]:
-    """Procedure names computed inside another plugin (``thd``/``snr`` → ``frf``)."""
-    try:
-        from aatest.plugins.analysis import ALIASES
-    except ImportError:
-        return {}
-    return dict(ALIASES)
+    """Procedure names computed inside another plugin (``thd``/``snr`` → ``frf``).
+
+    A plugin declares them as ``aliases: ClassVar[tuple[str, ...]]``; the engine learns them
+    from the installed entry points, never by importing a plugin package.
+    """
+    found: dict[str, str] = {}
+    for entry in registry.entry_points("analysis"):
+        try:
+            info = registry.load("analysis", entry.name)
+        except PluginError as exc:  # named when used; a broken plugin has no aliases to offer
+            log.warning("%s", exc)
+            continue
+        for alias in getattr(info.target, "aliases", ()):
+            found.setdefault(str(alias), info.name)
+    return found
 
 
 def _check_options_model(plugin: AnalysisPlugin) -> None:

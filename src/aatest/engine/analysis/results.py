@@ -47,7 +47,11 @@ def _plain_metadata(meta: dict[str, Any]) -> dict[str, Any]:
 def build_results(
     data: Dataset, analysis: AnalysisResults, lab_duration_s: float, wall_duration_s: float
 ) -> RunResults:
-    """Assemble the typed results of one analysis pass."""
+    """Assemble the typed results of one analysis pass.
+
+    ``lab_duration_s`` is the lab time the recorded steps took (s); ``wall_duration_s`` the
+    computer time of the run (s).
+    """
     meta = dict(data.metadata)
     return RunResults(
         schema_version=SCHEMA_VERSION,

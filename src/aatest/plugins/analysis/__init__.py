@@ -5,8 +5,3 @@ analyses it ``requires`` (the synchronised steps come from ``sync``'s output), a
 typed result (:mod:`aatest.results`) whose fields are the keys of ``results.json``
 (docs/interfaces.md §1).
 """
-
-#: procedure analysis names that are computed inside another plugin (engine resolves them)
-ALIASES: dict[str, str] = {"thd": "frf", "snr": "frf"}
-
-__all__ = ["ALIASES"]

@@ -161,6 +161,8 @@ class FrfAnalysis:
     """Stepped-sine FRF, THD and SNR of every sensor and of the table (per group)."""
 
     key: ClassVar[str] = "frf"
+    #: procedure names of sub-results this plugin computes (``analysis: [thd, snr]``)
+    aliases: ClassVar[tuple[str, ...]] = ("thd", "snr")
     requires: ClassVar[tuple[str, ...]] = ("sync",)
     Options: ClassVar[type[FrfOptions]] = FrfOptions
     Result: ClassVar[type[FrfResult]] = FrfResult
