@@ -50,7 +50,9 @@ def test_foreign_dataset(tmp_path: Path, case: str) -> None:
     found = {f["effect"]: f["parameters"] for f in doc["findings"]}
     if hidden.effect is None:
         assert (code, found) == (0, {}), "clean data must yield no finding"
+        assert doc["unexplained"] == []
         return
+    assert doc["unexplained"] == [], "a vocabulary effect leaves nothing unexplained"
     assert code == 1 and list(found) == [hidden.effect], found
     value = found[hidden.effect][PARAMETER[hidden.effect]]
     assert value == pytest.approx(hidden.value, rel=0.25)

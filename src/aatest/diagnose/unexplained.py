@@ -1,0 +1,190 @@
+"""Honest about what it cannot name: generic extensions on top of the named model.
+
+After forward selection the residual is tested for remaining structure
+(:mod:`aatest.diagnose.generic`). Each generic extension is fitted *jointly* with the named
+model — its design columns appended to the named design, coefficients refitted on one fold
+of time blocks and scored on the other — and accepted by the same rule as a named effect:
+held-out ΔBIC below −:data:`~aatest.diagnose.selection.BIC_THRESHOLD` and a material drop of
+the held-out RMS. What is accepted goes to ``unexplained`` (docs/interfaces.md §4).
+
+Then a backward pass re-tests every named effect with the generic extensions present: a
+vocabulary effect whose signature does not match (a scale-factor trend absorbed by a cubic,
+a bias step absorbed by a temperature coefficient) loses its evidence once the generic
+extension explains the structure, and is withdrawn with that reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from aatest.diagnose.design import (
+    Fit,
+    Gram,
+    Spec,
+    column_names,
+    fit_gram,
+    fold_of,
+    step_columns,
+)
+from aatest.diagnose.effects.base import Context
+from aatest.diagnose.generic import Proposal, proposals
+from aatest.diagnose.selection import BIC_THRESHOLD, MIN_REDUCTION, SHAPE_PARAMS, Finding
+
+#: generic extensions accepted per channel at most
+MAX_UNEXPLAINED = 4
+_LINEAR = ("bias_temperature", "scale_temperature", "nonlinearity_cubic", "jerk_sensitivity",
+           "g_sensitivity", "cross_axis")
+_SHAPE_RESET: dict[str, dict[str, Any]] = {
+    "saturation": {"saturation_dps2": None}, "hysteresis": {"hysteresis_dps2": 0.0},
+    "sensor_dynamics": {"dynamics": None}, "time_delay": {"delay_s": 0.0},
+    "rate_ripple": {"ripple_cpd": ()}, "motor_vibration": {"vibration_hz": ()}}
+
+
+@dataclass
+class Joint:
+    """The named spec plus accepted generic extensions, fitted together."""
+
+    spec: Spec
+    generics: list[Proposal]
+    fit: Fit
+    #: held-out ΔBIC of each generic when it was accepted, with RMS before/after (V)
+    evidence: list[dict[str, float]] = field(default_factory=list)
+
+
+@dataclass
+class Outcome:
+    """What the generic pass found on one channel."""
+
+    joint: Joint
+    unexplained: list[dict[str, Any]]
+    #: named effects withdrawn by the backward pass, with the reason
+    withdrawn: dict[str, str]
+
+
+def without(spec: Spec, effect: str) -> Spec | None:
+    """``spec`` with a named effect switched off (None when it cannot be removed here)."""
+    if effect in _LINEAR:
+        return replace(spec, linear=spec.linear - {effect})
+    if effect in _SHAPE_RESET:
+        return replace(spec, **_SHAPE_RESET[effect])
+    return None
+
+
+def _design(ctx: Context, spec: Spec, names: list[str], generics: list[Proposal]
+            ) -> dict[int, np.ndarray]:
+    """Per-step design: the named columns, then every generic extension's columns."""
+    out = {}
+    for sr in ctx.replay.steps:
+        x = step_columns(sr, ctx.info, spec, names)
+        extra = [p.columns(sr, x[:, 1]) for p in generics]
+        out[sr.index] = np.hstack([x, *extra]) if extra else x
+    return out
+
+
+def _generic_names(generics: list[Proposal], ctx: Context) -> list[str]:
+    names = []
+    for p in generics:
+        sr = ctx.replay.steps[0]
+        width = p.columns(sr, np.zeros(sr.n)).shape[1]
+        names += [f"{p.key}#{j}" for j in range(width)]
+    return names
+
+
+def joint_fit(ctx: Context, spec: Spec, generics: list[Proposal]) -> Fit:
+    """Named spec and generic columns fitted together (two folds of time blocks)."""
+    names = column_names(spec, ctx.replay)
+    design = _design(ctx, spec, names, generics)
+    names += _generic_names(generics, ctx)
+    p = len(names)
+    g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
+    for sr in ctx.replay.steps:
+        x, y = design[sr.index], ctx.targets[sr.index]
+        folds = fold_of(sr.n)
+        for f in (0, 1):
+            xf, yf = x[folds == f], y[folds == f]
+            g.xtx[f] += xf.T @ xf
+            g.xty[f] += xf.T @ yf
+            g.yty[f] += yf @ yf
+            g.count[f] += yf.size
+    return fit_gram(g, spec)
+
+
+def _rmse(fit: Fit) -> float:
+    return float(np.sqrt(fit.sse_held_out / max(fit.n, 1)))
+
+
+def _bic_change(ctx: Context, new: Fit, old: Fit, extra_params: int) -> float:
+    """BIC(new) − BIC(old) on held-out SSE with n_eff independent samples."""
+    n_eff = new.n / ctx.correlation
+    dk = new.k - old.k + extra_params
+    ratio = max(new.sse_held_out, 1e-300) / max(old.sse_held_out, 1e-300)
+    return float(n_eff * np.log(ratio) + dk * np.log(n_eff))
+
+
+def _residuals(ctx: Context, joint: Joint) -> dict[int, np.ndarray]:
+    design = _design(ctx, joint.spec, column_names(joint.spec, ctx.replay), joint.generics)
+    return {i: ctx.targets[i] - x @ joint.fit.coef for i, x in design.items()}
+
+
+def _best_addition(ctx: Context, joint: Joint) -> tuple[float, Proposal, Fit] | None:
+    """The passing generic extension with the lowest held-out ΔBIC, if any."""
+    taken = {p.key for p in joint.generics}
+    residuals = _residuals(ctx, joint)
+    best = None
+    for prop in proposals(ctx.replay.steps, residuals, ctx.info.range_dps2):
+        if prop.key in taken:
+            continue
+        fit = joint_fit(ctx, joint.spec, [*joint.generics, prop])
+        dbic = _bic_change(ctx, fit, joint.fit, prop.shape_params)
+        material = _rmse(fit) < (1.0 - MIN_REDUCTION) * _rmse(joint.fit)
+        if dbic < -BIC_THRESHOLD and material and (best is None or dbic < best[0]):
+            best = (dbic, prop, fit)
+    return best
+
+
+def _withdraw(ctx: Context, joint: Joint, findings: list[Finding]) -> dict[str, str]:
+    """Backward pass: named effects that lose their evidence next to the generic ones."""
+    withdrawn: dict[str, str] = {}
+    for f in sorted(findings, key=lambda f: -f.delta_bic):  # weakest first
+        reduced = without(joint.spec, f.effect)
+        if reduced is None:
+            continue
+        fit = joint_fit(ctx, reduced, joint.generics)
+        cost = _bic_change(ctx, joint.fit, fit, SHAPE_PARAMS.get(f.effect, 0))
+        if cost > -BIC_THRESHOLD:
+            kinds = ", ".join(sorted({p.kind for p in joint.generics}))
+            withdrawn[f.effect] = (f"withdrawn: with the generic extension ({kinds}) in the "
+                                   f"model its ΔBIC is only {cost:.1f} — its signature does "
+                                   "not match the structure")
+            joint.spec, joint.fit = reduced, fit
+    return withdrawn
+
+
+def _entry(ctx: Context, joint: Joint, prop: Proposal, evidence: dict[str, float]
+           ) -> dict[str, Any]:
+    names = joint.fit.names
+    coef = np.array([joint.fit.coef[j] for j, n in enumerate(names)
+                     if n.startswith(f"{prop.key}#")])
+    description, extension = prop.describe(coef, ctx.scale_of(joint.fit))
+    return {"kind": prop.kind, "description": description, "evidence": evidence,
+            "extension": extension, "channel": ctx.info.channel}
+
+
+def explain(ctx: Context, named: Fit, findings: list[Finding]) -> Outcome:
+    """Generic extensions on top of ``named``, then the backward pass over ``findings``."""
+    joint = Joint(named.spec, [], named)  # the same design and folds as joint_fit(…, [])
+    while len(joint.generics) < MAX_UNEXPLAINED:
+        best = _best_addition(ctx, joint)
+        if best is None:
+            break
+        dbic, prop, fit = best
+        joint.evidence.append({"delta_bic": dbic, "rmse_v_before": _rmse(joint.fit),
+                               "rmse_v_after": _rmse(fit)})
+        joint.generics.append(prop)
+        joint.fit = fit
+    withdrawn = _withdraw(ctx, joint, findings) if joint.generics else {}
+    entries = [_entry(ctx, joint, p, e) for p, e in zip(joint.generics, joint.evidence)]
+    return Outcome(joint, entries, withdrawn)
