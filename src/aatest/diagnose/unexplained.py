@@ -7,10 +7,10 @@ of time blocks and scored on the other — and accepted by the same rule as a na
 held-out ΔBIC below −:data:`~aatest.diagnose.selection.BIC_THRESHOLD` and a material drop of
 the held-out RMS. What is accepted goes to ``unexplained`` (docs/interfaces.md §4).
 
-Then a backward pass re-tests every named effect with the generic extensions present: a
-vocabulary effect whose signature does not match (a scale-factor trend absorbed by a cubic,
-a bias step absorbed by a temperature coefficient) loses its evidence once the generic
-extension explains the structure, and is withdrawn with that reason.
+Then the backward pass (:mod:`aatest.diagnose.refit`) re-tests every named effect in the
+joint model: a vocabulary effect whose signature does not match (a scale-factor trend
+absorbed by a cubic, a bias step absorbed by a temperature coefficient) loses its evidence
+once the generic extension explains the structure, and is withdrawn with that reason.
 """
 
 from __future__ import annotations
@@ -31,18 +31,11 @@ from aatest.diagnose.design import (
 )
 from aatest.diagnose.effects.base import Context
 from aatest.diagnose.generic import Proposal, proposals
-from aatest.diagnose.selection import BIC_THRESHOLD, MIN_REDUCTION, SHAPE_PARAMS, Finding
+from aatest.diagnose.refit import backward_pass
+from aatest.diagnose.selection import BIC_THRESHOLD, MIN_REDUCTION, Finding
 
 #: generic extensions accepted per channel at most
 MAX_UNEXPLAINED = 4
-_LINEAR = ("bias_temperature", "scale_temperature", "nonlinearity_cubic", "jerk_sensitivity",
-           "g_sensitivity", "cross_axis")
-_SHAPE_RESET: dict[str, dict[str, Any]] = {
-    "saturation": {"saturation_dps2": None}, "hysteresis": {"hysteresis_dps2": 0.0},
-    "sensor_dynamics": {"dynamics": None}, "time_delay": {"delay_s": 0.0},
-    "rate_ripple": {"ripple_cpd": ()}, "motor_vibration": {"vibration_hz": ()}}
-
-
 @dataclass
 class Joint:
     """The named spec plus accepted generic extensions, fitted together."""
@@ -64,21 +57,15 @@ class Outcome:
     withdrawn: dict[str, str]
 
 
-def without(spec: Spec, effect: str) -> Spec | None:
-    """``spec`` with a named effect switched off (None when it cannot be removed here)."""
-    if effect in _LINEAR:
-        return replace(spec, linear=spec.linear - {effect})
-    if effect in _SHAPE_RESET:
-        return replace(spec, **_SHAPE_RESET[effect])
-    return None
-
-
 def _design(ctx: Context, spec: Spec, names: list[str], generics: list[Proposal]
             ) -> dict[int, np.ndarray]:
     """Per-step design: the named columns, then every generic extension's columns."""
     out = {}
     for sr in ctx.replay.steps:
-        x = step_columns(sr, ctx.info, spec, names)
+        key = ("named design", spec, sr.index)  # re-used by every proposal tried on spec
+        if key not in ctx.step_cache:
+            ctx.step_cache[key] = step_columns(sr, ctx.info, spec, names)
+        x = ctx.step_cache[key]
         extra = [p.columns(sr, x[:, 1]) for p in generics]
         out[sr.index] = np.hstack([x, *extra]) if extra else x
     return out
@@ -112,11 +99,12 @@ def joint_fit(ctx: Context, spec: Spec, generics: list[Proposal]) -> Fit:
     return fit_gram(g, spec)
 
 
-def _rmse(fit: Fit) -> float:
+def held_out_rmse(fit: Fit) -> float:
+    """Held-out RMS residual (V)."""
     return float(np.sqrt(fit.sse_held_out / max(fit.n, 1)))
 
 
-def _bic_change(ctx: Context, new: Fit, old: Fit, extra_params: int) -> float:
+def bic_change(ctx: Context, new: Fit, old: Fit, extra_params: int) -> float:
     """BIC(new) − BIC(old) on held-out SSE with n_eff independent samples."""
     n_eff = new.n / ctx.correlation
     dk = new.k - old.k + extra_params
@@ -138,29 +126,11 @@ def _best_addition(ctx: Context, joint: Joint) -> tuple[float, Proposal, Fit] | 
         if prop.key in taken:
             continue
         fit = joint_fit(ctx, joint.spec, [*joint.generics, prop])
-        dbic = _bic_change(ctx, fit, joint.fit, prop.shape_params)
-        material = _rmse(fit) < (1.0 - MIN_REDUCTION) * _rmse(joint.fit)
+        dbic = bic_change(ctx, fit, joint.fit, prop.shape_params)
+        material = held_out_rmse(fit) < (1.0 - MIN_REDUCTION) * held_out_rmse(joint.fit)
         if dbic < -BIC_THRESHOLD and material and (best is None or dbic < best[0]):
             best = (dbic, prop, fit)
     return best
-
-
-def _withdraw(ctx: Context, joint: Joint, findings: list[Finding]) -> dict[str, str]:
-    """Backward pass: named effects that lose their evidence next to the generic ones."""
-    withdrawn: dict[str, str] = {}
-    for f in sorted(findings, key=lambda f: -f.delta_bic):  # weakest first
-        reduced = without(joint.spec, f.effect)
-        if reduced is None:
-            continue
-        fit = joint_fit(ctx, reduced, joint.generics)
-        cost = _bic_change(ctx, joint.fit, fit, SHAPE_PARAMS.get(f.effect, 0))
-        if cost > -BIC_THRESHOLD:
-            kinds = ", ".join(sorted({p.kind for p in joint.generics}))
-            withdrawn[f.effect] = (f"withdrawn: with the generic extension ({kinds}) in the "
-                                   f"model its ΔBIC is only {cost:.1f} — its signature does "
-                                   "not match the structure")
-            joint.spec, joint.fit = reduced, fit
-    return withdrawn
 
 
 def _entry(ctx: Context, joint: Joint, prop: Proposal, evidence: dict[str, float]
@@ -174,17 +144,20 @@ def _entry(ctx: Context, joint: Joint, prop: Proposal, evidence: dict[str, float
 
 
 def explain(ctx: Context, named: Fit, findings: list[Finding]) -> Outcome:
-    """Generic extensions on top of ``named``, then the backward pass over ``findings``."""
+    """Generic extensions on top of ``named``, then the backward pass over ``findings``.
+
+    ``findings`` (this channel's named effects) gain their marginal evidence in place.
+    """
     joint = Joint(named.spec, [], named)  # the same design and folds as joint_fit(…, [])
     while len(joint.generics) < MAX_UNEXPLAINED:
         best = _best_addition(ctx, joint)
         if best is None:
             break
         dbic, prop, fit = best
-        joint.evidence.append({"delta_bic": dbic, "rmse_v_before": _rmse(joint.fit),
-                               "rmse_v_after": _rmse(fit)})
+        joint.evidence.append({"delta_bic": dbic, "rmse_v_before": held_out_rmse(joint.fit),
+                               "rmse_v_after": held_out_rmse(fit)})
         joint.generics.append(prop)
         joint.fit = fit
-    withdrawn = _withdraw(ctx, joint, findings) if joint.generics else {}
+    withdrawn = backward_pass(ctx, joint, findings)
     entries = [_entry(ctx, joint, p, e) for p, e in zip(joint.generics, joint.evidence)]
     return Outcome(joint, entries, withdrawn)
