@@ -151,7 +151,8 @@ def write_dataset(out: Path, hidden: Hidden = Hidden(), samples: int = 16384, la
         daq = np.column_stack([t_daq + 1000.0, _square_100hz(t_daq), (t_tab >= 0).astype(int),
                                _sensor_v(rec, hidden, rng), rec.temp_c,
                                rng.normal(size=t_daq.size)])
-        table_cols = "time_s,position_deg,rate_dps,accel_dps2,sync_pulse" + (",fp_latch_s" if latch else "")
+        table_cols = ("time_s,position_deg,rate_dps,accel_dps2,sync_pulse"
+                      + (",fp_latch_s" if latch else ""))
         np.savetxt(out / f"{sid}_table.csv", table if latch else table[:, :5], delimiter=",",
                    header=table_cols, comments="", fmt="%.12g")
         np.savetxt(out / f"{sid}_daq.csv", daq, delimiter=",", comments="", fmt="%.12g",

@@ -57,6 +57,9 @@ def test_foreign_dataset(tmp_path: Path, case: str) -> None:
     value = found[hidden.effect][PARAMETER[hidden.effect]]
     assert value == pytest.approx(hidden.value, rel=0.25)
     assert doc["gain"]["rmse_v_after"] < doc["gain"]["rmse_v_before"]
+    if hidden.effect != "clock_drift":  # measured from the edges, not part of the joint fit
+        marginal = doc["findings"][0]["marginal"]
+        assert marginal["delta_bic"] < -10 and marginal["rmse_v_without"] > marginal["rmse_v_with"]
 
 
 @pytest.mark.parametrize("case", list(SUB_SAMPLE), ids=list(SUB_SAMPLE))

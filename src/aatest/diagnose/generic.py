@@ -34,6 +34,8 @@ LINE_SNR = 12.0
 MAX_LINES = 3
 #: samples either side of a change point that must remain (s)
 MIN_SEGMENT_S = 0.25
+#: lines at the excitation's first harmonics belong to the motion, not to a separate source
+MAX_HARMONIC = 10
 #: a table log sees a line when its acceleration is at least this share of the sensor's
 SEEN_BY_TABLE = 0.3
 
@@ -63,8 +65,8 @@ def _alpha_proposals(range_dps2: float) -> list[Proposal]:
     def even(coef: np.ndarray, k: float) -> tuple[str, dict[str, Any]]:
         c2 = float(coef[0] / k)
         return (f"even-order static non-linearity: output ∝ α², c2 = {c2:.3g} of the range "
-                "(the same sign for +α and −α, not a cubic)", {"model": "K·(α + c2·α²/α_range)",
-                                                                "c2": c2})
+                "(the same sign for +α and −α, not a cubic)",
+                {"model": "K·(α + c2·α²/α_range)", "c2": c2})
 
     def asym(coef: np.ndarray, k: float) -> tuple[str, dict[str, Any]]:
         d = float(coef[0] / k)
@@ -150,6 +152,16 @@ def _line_power(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray],
     return total
 
 
+def _harmonic(f_hz: float, steps: tuple[StepReplay, ...], tol_hz: float) -> bool:
+    """Whether ``f_hz`` is a low harmonic of a step's excitation (then it is motion-related:
+    a static non-linearity or a timing error, not a line of its own)."""
+    for sr in steps:
+        f0 = sr.inner.frequency_hz or sr.outer.frequency_hz
+        if f0 > 0 and any(abs(f_hz - k * f0) <= tol_hz for k in range(1, MAX_HARMONIC + 1)):
+            return True
+    return False
+
+
 def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray]
                       ) -> list[float]:
     """Frequencies (Hz) of lines common to the residual of the steps, strongest first."""
@@ -163,9 +175,9 @@ def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.nda
     acc = acc / len(steps)
     floor = float(np.median(acc))
     idx, _ = signal.find_peaks(acc, height=LINE_SNR * floor, distance=4)
-    idx = [i for i in idx if f[i] > 2.0 * fs / nper]
-    idx.sort(key=lambda i: -acc[i])
     df = fs / nper
+    idx = [i for i in idx if f[i] > 2.0 * df and not _harmonic(f[i], steps, 2.0 * df)]
+    idx.sort(key=lambda i: -acc[i])
     out = []
     for i in idx[:MAX_LINES]:
         res = optimize.minimize_scalar(lambda x: -_line_power(steps, residuals, x),
@@ -199,13 +211,16 @@ def _line_proposal(steps: tuple[StepReplay, ...], f_hz: float) -> Proposal:
         amps = np.hypot(coef[0::2], coef[1::2])
         phases = np.arctan2(coef[1::2], coef[0::2])
         amp_v = float(np.median(amps))
+        # phase coherence over steps (1 = the same phase at every record start)
+        coherence = float(abs(np.sum(amps * np.exp(1j * phases))) / max(amps.sum(), 1e-300))
         seen = table_dps2 >= SEEN_BY_TABLE * amp_v / abs(k)
         where = ("also in the table log (motion)" if seen
                  else "in the sensor only (not in the table log)")
         return (f"{f_hz:.1f} Hz line, {1e3 * amp_v:.2g} mV, {where}",
                 {"model": "A_i·sin(2π·f·t + φ_i) per step", "frequency_hz": f_hz,
                  "amplitude_v": amp_v, "amplitude_v_per_step": amps.tolist(),
-                 "phase_rad_per_step": phases.tolist(), "seen_by_table": bool(seen),
+                 "phase_rad_per_step": phases.tolist(), "phase_coherence": coherence,
+                 "seen_by_table": bool(seen),
                  "table_accel_dps2": table_dps2})
 
     return Proposal("spectral_line", f"line@{f_hz:.2f}", columns, describe, shape_params=1)

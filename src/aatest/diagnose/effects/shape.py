@@ -157,7 +157,8 @@ def fit_dynamics(ctx: Context) -> CandidateFit:
                        {"natural_frequency_hz": ci_fn, "damping": ci_z},
                        extra={"equivalent_lag_s": 2 * zeta / (2 * np.pi * fn)})
     if ctx.within_sync_resolution(2 * zeta / (2 * np.pi * fn)) and not _droops(fn, zeta, ctx):
-        out.veto = "its lag is within the sync's resolution and its magnitude is flat over the tested band"
+        out.veto = ("its lag is within the sync's resolution and its magnitude is flat over "
+                    "the tested band")
     return out
 
 
