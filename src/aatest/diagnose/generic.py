@@ -176,14 +176,15 @@ def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.nda
     floor = float(np.median(acc))
     idx, _ = signal.find_peaks(acc, height=LINE_SNR * floor, distance=4)
     df = fs / nper
-    idx = [i for i in idx if f[i] > 2.0 * df and not _harmonic(f[i], steps, 2.0 * df)]
-    idx.sort(key=lambda i: -acc[i])
+    idx = sorted((i for i in idx if f[i] > 2.0 * df), key=lambda i: -acc[i])
+    tol_hz = 2.0 / min(sr.n * sr.dt_s for sr in steps)  # two bins of the shortest record
     out = []
     for i in idx[:MAX_LINES]:
         res = optimize.minimize_scalar(lambda x: -_line_power(steps, residuals, x),
                                        bounds=(f[i] - df, f[i] + df), method="bounded",
                                        options={"xatol": 1e-4})
-        out.append(float(res.x))
+        if not _harmonic(float(res.x), steps, tol_hz):
+            out.append(float(res.x))
     return out
 
 
