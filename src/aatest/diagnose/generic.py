@@ -182,7 +182,7 @@ def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.nda
     for i in idx[:MAX_LINES]:
         res = optimize.minimize_scalar(lambda x: -_line_power(steps, residuals, x),
                                        bounds=(f[i] - df, f[i] + df), method="bounded",
-                                       options={"xatol": 1e-4})
+                                       options={"xatol": 2e-3})
         if not _harmonic(float(res.x), steps, tol_hz):
             out.append(float(res.x))
     return out

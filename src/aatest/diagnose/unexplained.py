@@ -31,6 +31,7 @@ from aatest.diagnose.design import (
 )
 from aatest.diagnose.effects.base import Context
 from aatest.diagnose.generic import Proposal, proposals
+from aatest.diagnose.replay import StepReplay
 from aatest.diagnose.refit import backward_pass
 from aatest.diagnose.selection import BIC_THRESHOLD, MIN_REDUCTION, Finding
 
@@ -57,45 +58,67 @@ class Outcome:
     withdrawn: dict[str, str]
 
 
-def _design(ctx: Context, spec: Spec, names: list[str], generics: list[Proposal]
-            ) -> dict[int, np.ndarray]:
-    """Per-step design: the named columns, then every generic extension's columns."""
-    out = {}
-    for sr in ctx.replay.steps:
-        key = ("named design", spec, sr.index)  # re-used by every proposal tried on spec
-        if key not in ctx.step_cache:
-            ctx.step_cache[key] = step_columns(sr, ctx.info, spec, names)
-        x = ctx.step_cache[key]
-        extra = [p.columns(sr, x[:, 1]) for p in generics]
-        out[sr.index] = np.hstack([x, *extra]) if extra else x
-    return out
+def _named_columns(ctx: Context, spec: Spec, names: list[str], sr: StepReplay) -> np.ndarray:
+    """One step's named design (cached: re-used by every proposal tried on ``spec``)."""
+    key = ("named design", spec, sr.index)
+    if key not in ctx.step_cache:
+        ctx.step_cache[key] = step_columns(sr, ctx.info, spec, names)
+    return ctx.step_cache[key]
+
+
+def _named_gram(ctx: Context, spec: Spec, names: list[str], sr: StepReplay) -> list[tuple]:
+    """Per-fold (XᵀX, Xᵀy, yᵀy, count) of one step's named design (cached)."""
+    key = ("named gram", spec, sr.index)
+    if key not in ctx.step_cache:
+        x, y, folds = _named_columns(ctx, spec, names, sr), ctx.targets[sr.index], fold_of(sr.n)
+        ctx.step_cache[key] = [(x[m].T @ x[m], x[m].T @ y[m], float(y[m] @ y[m]), int(m.sum()))
+                               for m in (folds == 0, folds == 1)]
+    return ctx.step_cache[key]
+
+
+def _generic_columns(sr: StepReplay, alpha: np.ndarray, generics: list[Proposal]) -> np.ndarray:
+    if not generics:
+        return np.zeros((sr.n, 0))
+    return np.hstack([p.columns(sr, alpha) for p in generics])
 
 
 def _generic_names(generics: list[Proposal], ctx: Context) -> list[str]:
-    names = []
-    for p in generics:
-        sr = ctx.replay.steps[0]
-        width = p.columns(sr, np.zeros(sr.n)).shape[1]
-        names += [f"{p.key}#{j}" for j in range(width)]
-    return names
+    sr = ctx.replay.steps[0]
+    return [f"{p.key}#{j}" for p in generics
+            for j in range(p.columns(sr, np.zeros(sr.n)).shape[1])]
+
+
+def _add_step(g: Gram, ctx: Context, spec: Spec, k: int, sr: StepReplay,
+              generics: list[Proposal]) -> None:
+    """Add one step to the joint Gram: cached named blocks, then the generic blocks."""
+    x = _named_columns(ctx, spec, g.names[:k], sr)
+    gen = _generic_columns(sr, x[:, 1], generics)
+    used = np.flatnonzero(np.any(gen != 0.0, axis=0))  # other steps' columns are zero here
+    gen, cols = gen[:, used], k + used
+    y, folds = ctx.targets[sr.index], fold_of(sr.n)
+    for f, (xtx, xty, yty, cnt) in enumerate(_named_gram(ctx, spec, g.names[:k], sr)):
+        g.xtx[f][:k, :k] += xtx
+        g.xty[f][:k] += xty
+        g.yty[f] += yty
+        g.count[f] += cnt
+        if used.size:
+            m = folds == f
+            xm, gm = x[m], gen[m]
+            cross = xm.T @ gm
+            g.xtx[f][:k, cols] += cross
+            g.xtx[f][cols, :k] += cross.T
+            g.xtx[f][np.ix_(cols, cols)] += gm.T @ gm
+            g.xty[f][cols] += gm.T @ y[m]
 
 
 def joint_fit(ctx: Context, spec: Spec, generics: list[Proposal]) -> Fit:
     """Named spec and generic columns fitted together (two folds of time blocks)."""
-    names = column_names(spec, ctx.replay)
-    design = _design(ctx, spec, names, generics)
-    names += _generic_names(generics, ctx)
+    named = column_names(spec, ctx.replay)
+    names = named + _generic_names(generics, ctx)
     p = len(names)
     g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
     for sr in ctx.replay.steps:
-        x, y = design[sr.index], ctx.targets[sr.index]
-        folds = fold_of(sr.n)
-        for f in (0, 1):
-            xf, yf = x[folds == f], y[folds == f]
-            g.xtx[f] += xf.T @ xf
-            g.xty[f] += xf.T @ yf
-            g.yty[f] += yf @ yf
-            g.count[f] += yf.size
+        _add_step(g, ctx, spec, len(named), sr, generics)
     return fit_gram(g, spec)
 
 
@@ -113,8 +136,13 @@ def bic_change(ctx: Context, new: Fit, old: Fit, extra_params: int) -> float:
 
 
 def _residuals(ctx: Context, joint: Joint) -> dict[int, np.ndarray]:
-    design = _design(ctx, joint.spec, column_names(joint.spec, ctx.replay), joint.generics)
-    return {i: ctx.targets[i] - x @ joint.fit.coef for i, x in design.items()}
+    names = column_names(joint.spec, ctx.replay)
+    out = {}
+    for sr in ctx.replay.steps:
+        x = _named_columns(ctx, joint.spec, names, sr)
+        full = np.hstack([x, _generic_columns(sr, x[:, 1], joint.generics)])
+        out[sr.index] = ctx.targets[sr.index] - full @ joint.fit.coef
+    return out
 
 
 def _best_addition(ctx: Context, joint: Joint) -> tuple[float, Proposal, Fit] | None:
