@@ -77,7 +77,7 @@ def main() -> None:
     args = parser.parse_args()
     for effect in ([args.effect] if args.effect else [None, "time_delay", "motor_vibration"]):
         wall, findings, tested = bench_once(args.samples, effect, args.seed)
-        names = ", ".join(f["effect"] for f in findings) or "none"
+        names = ", ".join(f.get("effect") or f"unexplained {f['kind']}" for f in findings) or "none"
         print(f"diagnose 10 steps × {args.samples} samples, hidden {effect or 'nothing'}: "
               f"{wall:.1f} s wall, {tested} candidates tested, findings: {names}")
     if args.suite:

@@ -5,6 +5,18 @@ crystal clock that starts earlier and stops later, a 100 Hz sync pulse generated
 registered by the table at its next sample (optionally with ``fp_latch_s``), an extra column,
 and an ideal sensor b0 + K·α + white noise with at most one hidden effect. Nothing here shares
 code with aatest's simulation, so passing these tests is not the twin agreeing with itself.
+
+Hidden effects are either contract vocabulary (§4 names and units) or *out of vocabulary*,
+written from their physics so diagnose must report them as ``unexplained``:
+
+* ``even_order`` — value c2: output b0 + K·(α + c2·α²/α_range), an even-order term (the
+  same sign for +α and −α).
+* ``asymmetric_scale`` — value a: K·(1 + a/2) for α > 0 and K·(1 − a/2) for α < 0.
+* ``mains_50hz`` — value V: a 50 Hz pickup of that amplitude in the sensor voltage only
+  (on the DAQ clock; the table log never sees it).
+* ``bias_step`` — value V: the bias jumps by that much 60 % into the record of step 3.
+* ``scale_ageing`` — value per hour: K·(1 + value·elapsed_h), elapsed over the whole session
+  (steps back to back), with the temperature cycled so that time and temperature differ.
 """
 
 from __future__ import annotations
@@ -22,6 +34,14 @@ DAQ_LEAD_S = 0.3
 #: (kind, frequency Hz, peak acceleration °/s²) of each step
 PLAN = (("sine", 1.0, 100.0), ("sine", 2.0, 200.0), ("sine", 4.0, 300.0), ("sine", 0.5, 50.0),
         ("static", 0.0, 0.0), ("static", 0.0, 0.0), ("sine", 3.0, 400.0), ("sine", 6.0, 100.0))
+#: step temperatures (°C): a ramp, or cycled (time and temperature not confounded)
+RAMP_C = tuple(float(v) for v in np.linspace(10, 40, len(PLAN)))
+CYCLED_C = (25.0, 40.0, 10.0, 35.0, 15.0, 30.0, 20.0, 25.0)
+#: step whose record holds the ``bias_step`` and where (share of the record)
+BIAS_STEP_AT = (2, 0.6)
+MAINS_HZ = 50.0
+#: effects outside the contract vocabulary, written from their physics (module docstring)
+OUT_OF_VOCABULARY = ("even_order", "asymmetric_scale", "mains_50hz", "bias_step", "scale_ageing")
 
 
 @dataclass(frozen=True)
@@ -58,14 +78,55 @@ def _table_log(n: int, kind: str, f_hz: float, accel: float, drift: float, rng: 
     return np.column_stack(columns), t, [float(e) for e in true_edges]
 
 
-def _sensor_v(alpha: np.ndarray, temp_c: np.ndarray, hidden: Hidden, rng: np.random.Generator
-              ) -> np.ndarray:
+@dataclass(frozen=True)
+class _Record:
+    """What the sensor saw during one DAQ record: motion, temperature and clock."""
+
+    alpha_dps2: np.ndarray
+    jerk_dps3: np.ndarray
+    temp_c: np.ndarray
+    t_daq_s: np.ndarray
+    #: seconds since the session started (steps back to back), per sample
+    elapsed_s: np.ndarray
+    step: int
+
+
+def _sensed(rec: _Record, hidden: Hidden) -> np.ndarray:
+    """Acceleration-equivalent output before K (°/s²): the sensing element's response."""
+    alpha, v = rec.alpha_dps2, hidden.value
     if hidden.effect == "nonlinearity_cubic":
-        alpha = alpha * (1 + hidden.value * (alpha / RANGE_DPS2) ** 2)
-    v = BIAS_V + K_V_PER_DPS2 * alpha + rng.normal(0.0, 0.001, alpha.size)
+        return alpha * (1 + v * (alpha / RANGE_DPS2) ** 2)
+    if hidden.effect == "even_order":
+        return alpha + v * alpha**2 / RANGE_DPS2
+    if hidden.effect == "asymmetric_scale":
+        return alpha * np.where(alpha > 0, 1 + v / 2, 1 - v / 2)
+    if hidden.effect == "scale_ageing":
+        return alpha * (1 + v * rec.elapsed_s / 3600.0)
+    return alpha
+
+
+def _sensor_v(rec: _Record, hidden: Hidden, rng: np.random.Generator) -> np.ndarray:
+    """Sensor voltage b0 + K·sensed + white noise, plus the additive hidden terms (V)."""
+    v = BIAS_V + K_V_PER_DPS2 * _sensed(rec, hidden) + rng.normal(0.0, 0.001, rec.alpha_dps2.size)
     if hidden.effect == "bias_temperature":
-        v += hidden.value * (temp_c - 25.0)
+        v += hidden.value * (rec.temp_c - 25.0)
+    elif hidden.effect == "jerk_sensitivity":
+        v += hidden.value * rec.jerk_dps3
+    elif hidden.effect == "mains_50hz":
+        v += hidden.value * np.sin(2 * np.pi * MAINS_HZ * rec.t_daq_s + 0.4)
+    elif hidden.effect == "bias_step" and rec.step == BIAS_STEP_AT[0]:
+        t = rec.t_daq_s - DAQ_LEAD_S
+        v += hidden.value * (t >= BIAS_STEP_AT[1] * t[-1])
     return v
+
+
+def _motion(kind: str, f_hz: float, accel: float, t_tab: np.ndarray, delay: float
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """(α °/s², dα/dt °/s³) the sensor feels at table times ``t_tab``, lagged by ``delay``."""
+    if kind != "sine":
+        return 0 * t_tab, 0 * t_tab
+    w = 2 * np.pi * f_hz
+    return -accel * np.sin(w * (t_tab - delay)), -accel * w * np.cos(w * (t_tab - delay))
 
 
 def write_dataset(out: Path, hidden: Hidden = Hidden(), samples: int = 16384, latch: bool = False,
@@ -76,17 +137,22 @@ def write_dataset(out: Path, hidden: Hidden = Hidden(), samples: int = 16384, la
     drift = (hidden.value if hidden.effect == "clock_drift" else 5.0) * 1e-6
     delay = hidden.value if hidden.effect == "time_delay" else 0.0
     entries = []
-    for k, ((kind, f_hz, accel), temp_c) in enumerate(zip(PLAN, np.linspace(10, 40, len(PLAN)))):
+    temps = CYCLED_C if hidden.effect == "scale_ageing" else RAMP_C
+    session_s = 0.0
+    for k, ((kind, f_hz, accel), temp_c) in enumerate(zip(PLAN, temps)):
         sid = f"s{k + 1:02d}"
         f_hz = round(f_hz * samples / FS_HZ) * FS_HZ / samples
         table, t, _ = _table_log(samples, kind, f_hz, accel, drift, rng)
         t_daq = np.arange(samples + int(0.5 * FS_HZ)) / FS_HZ
         t_tab = -DAQ_LEAD_S + t_daq * (1 + drift)
-        alpha = -accel * np.sin(2 * np.pi * f_hz * (t_tab - delay)) if kind == "sine" else 0 * t_tab
-        temp = np.full(t_daq.size, temp_c)
+        alpha, jerk = _motion(kind, f_hz, accel, t_tab, delay)
+        rec = _Record(alpha, jerk, np.full(t_daq.size, temp_c), t_daq, session_s + t_daq, k)
+        session_s += t_daq[-1] + 2.0  # a short pause between steps
         daq = np.column_stack([t_daq + 1000.0, _square_100hz(t_daq), (t_tab >= 0).astype(int),
-                               _sensor_v(alpha, temp, hidden, rng), temp, rng.normal(size=t_daq.size)])
-        table_cols = "time_s,position_deg,rate_dps,accel_dps2,sync_pulse" + (",fp_latch_s" if latch else "")
+                               _sensor_v(rec, hidden, rng), rec.temp_c,
+                               rng.normal(size=t_daq.size)])
+        table_cols = ("time_s,position_deg,rate_dps,accel_dps2,sync_pulse"
+                      + (",fp_latch_s" if latch else ""))
         np.savetxt(out / f"{sid}_table.csv", table if latch else table[:, :5], delimiter=",",
                    header=table_cols, comments="", fmt="%.12g")
         np.savetxt(out / f"{sid}_daq.csv", daq, delimiter=",", comments="", fmt="%.12g",

@@ -23,7 +23,12 @@ CASES = {
 #: (diagnose refines unlatched edge drift with the phase trend, so no known gap remains)
 KNOWN_GAPS: dict[str, str] = {}
 PARAMETER = {"bias_temperature": "coefficient_v_per_c", "time_delay": "delay_s",
-             "nonlinearity_cubic": "c3", "clock_drift": "drift_ppm"}
+             "nonlinearity_cubic": "c3", "clock_drift": "drift_ppm",
+             "jerk_sensitivity": "coefficient_v_per_dps3"}
+#: sub-sample timing effects (one sample is 0.5 ms): a 0.04 ms lead (c/K) and a 0.2 ms lag
+SUB_SAMPLE = {"jerk-1.6e-7": Hidden("jerk_sensitivity", 1.6e-7),
+              "delay-0.2ms": Hidden("time_delay", 2e-4)}
+TIME_FAMILY = {"time_delay", "jerk_sensitivity", "sensor_dynamics", "hysteresis"}
 
 
 def _diagnose(data: Path) -> tuple[int, dict]:
@@ -45,8 +50,36 @@ def test_foreign_dataset(tmp_path: Path, case: str) -> None:
     found = {f["effect"]: f["parameters"] for f in doc["findings"]}
     if hidden.effect is None:
         assert (code, found) == (0, {}), "clean data must yield no finding"
+        assert doc["unexplained"] == []
         return
+    assert doc["unexplained"] == [], "a vocabulary effect leaves nothing unexplained"
     assert code == 1 and list(found) == [hidden.effect], found
     value = found[hidden.effect][PARAMETER[hidden.effect]]
     assert value == pytest.approx(hidden.value, rel=0.25)
     assert doc["gain"]["rmse_v_after"] < doc["gain"]["rmse_v_before"]
+    if hidden.effect != "clock_drift":  # measured from the edges, not part of the joint fit
+        marginal = doc["findings"][0]["marginal"]
+        assert marginal["delta_bic"] < -10 and marginal["rmse_v_without"] > marginal["rmse_v_with"]
+
+
+@pytest.mark.parametrize("case", list(SUB_SAMPLE), ids=list(SUB_SAMPLE))
+def test_sub_sample_timing_is_evidence_with_latch_times(tmp_path: Path, case: str) -> None:
+    """With ``fp_latch_s`` the alignment is resolved: the effect is named, within 25 %."""
+    hidden = SUB_SAMPLE[case]
+    code, doc = _diagnose(write_dataset(tmp_path / "data", hidden, samples=8192, latch=True,
+                                        seed=11))
+    found = {f["effect"]: f["parameters"] for f in doc["findings"]}
+    assert code == 1 and list(found) == [hidden.effect], found
+    assert found[hidden.effect][PARAMETER[hidden.effect]] == pytest.approx(hidden.value, rel=0.25)
+    assert doc["logger"]["fp_latch_s"] is True
+
+
+@pytest.mark.parametrize("case", list(SUB_SAMPLE), ids=list(SUB_SAMPLE))
+def test_sub_sample_timing_is_not_claimed_without_latch_times(tmp_path: Path, case: str) -> None:
+    """Without ``fp_latch_s`` the same data only align to a sample: nothing may be claimed."""
+    code, doc = _diagnose(write_dataset(tmp_path / "data", SUB_SAMPLE[case], samples=8192,
+                                        seed=11))
+    assert not {f["effect"] for f in doc["findings"]} & TIME_FAMILY, doc["findings"]
+    assert doc["logger"]["fp_latch_s"] is False
+    vetoed = {c["effect"]: c for c in doc["candidates"]}[SUB_SAMPLE[case].effect]
+    assert not vetoed["accepted"]

@@ -22,6 +22,7 @@ QUICK = 2**13
 def test_clean_data_gives_no_finding_and_exit_0(run_diagnose) -> None:
     code, doc = run_diagnose([], seed=21, samples=QUICK)
     assert doc["findings"] == []
+    assert doc["unexplained"] == []
     assert code == 0
     assert doc["baseline"]["rmse_v"] == pytest.approx(0.001, rel=0.1)  # the sensor noise
     untestable = [c for c in doc["candidates"] if c.get("testable") is False]

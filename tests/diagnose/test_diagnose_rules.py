@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from aatest.diagnose.pipeline import diagnose_dataset
-from aatest.diagnose.scenarios import Hidden, scenario_dataset
+from aatest.diagnose.scenarios import Hidden, scenario_dataset, without_latch
 
 SAMPLES = 2**13
 
@@ -18,12 +18,16 @@ def _row(doc: dict, effect: str) -> dict:
     return next(c for c in doc["candidates"] if c["effect"] == effect)
 
 
-def test_a_sub_sample_delay_is_not_evidence_of_time_delay() -> None:
-    """0.3 ms < one 0.5 ms sample: the sync pulse cannot resolve it, so no finding."""
-    doc = diagnose_dataset(scenario_dataset([Hidden("time_delay", {"delay_s": 3e-4}, ())], 31,
-                                            SAMPLES))
+def test_a_sub_sample_delay_is_evidence_only_with_latch_times() -> None:
+    """0.3 ms < one 0.5 ms sample: without ``fp_latch_s`` the sync cannot resolve it."""
+    data = scenario_dataset([Hidden("time_delay", {"delay_s": 3e-4}, ())], 31, SAMPLES)
+    doc = diagnose_dataset(without_latch(data))
+    assert not doc["logger"]["fp_latch_s"]
     assert "time_delay" not in _effects(doc)
     assert "jerk_sensitivity" not in _effects(doc)
+    latched = diagnose_dataset(data)
+    assert _effects(latched) == ["time_delay"]
+    assert latched["findings"][0]["parameters"]["delay_s"] == pytest.approx(3e-4, rel=0.25)
 
 
 def test_clock_drift_within_tolerance_is_not_a_finding() -> None:

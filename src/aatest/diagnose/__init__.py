@@ -6,6 +6,8 @@ Flow (docs/interfaces.md §4, issue 5)::
       ─ nominal fit (bias, K, logger filter, ±1-sample alignment) ─ residual views
       ─ candidates (effects/: linear by least squares, shape by bounded optimisation)
       ─ forward selection (held-out ΔBIC, materiality, physics vetoes) ─ findings
+      ─ generic extensions for what remains (α², |α|, lines, trend, step) ─ unexplained
+      ─ backward pass on the joint model (withdraw what it does not need, marginal evidence)
       ─ model_out (extended RigModel YAML) ─ JSON + report
 
 Rules a user should know, because the data alone cannot decide them:
@@ -14,9 +16,14 @@ Rules a user should know, because the data alone cannot decide them:
   white noise — plus the logger's pre-sample filter when the data's model states one, or when
   the residual noise visibly rolls off like the rig's documented 100 Hz filter (docs/method.md
   §1.3); with white noise the replay that fits the signal better decides.
-* **Alignment.** The sync pulse aligns the loggers to about one sample: the nominal model may
-  shift the sensor by up to ±1 sample, and a delay, lead (jerk term) or dynamics whose lag is
-  within one sample is never evidence by itself (docs/interfaces.md §4).
+* **Alignment.** Without ``fp_latch_s`` the sync pulse aligns the loggers to about one sample:
+  the nominal model may shift the sensor by up to 1.5 samples (±½ for the edge estimate, one
+  for the rule), and a delay, lead (jerk term) or dynamics whose lag is within that is never
+  evidence by itself. With ``fp_latch_s`` (and sync edges) the alignment is resolved below one
+  sample: no nuisance shift, and sub-sample delays and leads are evidence (docs/interfaces.md §4).
+* **Unexplained.** Structure left after selection that the vocabulary cannot name is fitted
+  with a generic extension and reported under ``unexplained`` with its kind and gain; a named
+  effect that the joint model no longer needs is withdrawn (its candidate row says why).
 * **Look-alikes.** Time-family effects (delay, jerk, dynamics) compete on held-out score; a
   jerk term that lags is refused (that is a delay), dynamics must show droop/peaking or
   frequency-dependent lag beyond a delay. Table effects are attributed to the table only when

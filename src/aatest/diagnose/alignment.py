@@ -1,9 +1,14 @@
-"""Logger alignment in the nominal model: the sync pulse resolves it to about one sample.
+"""Logger alignment in the nominal model: what the sync pulse resolves, and what it does not.
 
-Every sine step may be shifted by up to ±1 sample period (docs/interfaces.md §4: an offset smaller
-than one sample is not evidence of ``time_delay``). The shifts are nuisance parameters of
-the nominal replay; effects that move the timing (delay, jerk, dynamics) are fitted without
-them and must beat the nominal *with* them.
+Without ``fp_latch_s`` the table registers an edge at its next sample, so the pulse aligns the
+loggers to about one sample: the edge estimate itself is uncertain by ±½ sample, and on top of
+it an offset smaller than one sample is not evidence of ``time_delay`` (docs/interfaces.md §4).
+Every sine step may then be shifted by up to ``Context.alignment_freedom_s`` (1.5 samples).
+The shifts are nuisance parameters of the nominal replay; effects that move the timing (delay,
+jerk, dynamics) are fitted without them and must beat the nominal *with* them.
+
+With ``fp_latch_s`` every edge time is known below one sample, the alignment is resolved and
+there is no nuisance: a sub-sample delay or lead is then evidence like any other effect.
 """
 
 from __future__ import annotations
@@ -17,14 +22,15 @@ from aatest.diagnose.effects.base import Context, scalar_search
 
 
 def nominal_fit(ctx: Context, base: Spec | None = None) -> Fit:
-    """Bias and scale calibrated on the data, each step's alignment free within ±1 sample.
+    """Bias and scale calibrated on the data; alignment free within ±1 sample unless resolved.
 
-    A common offset is searched first, then every sine step's own offset with the linear
-    coefficients held, then the coefficients are refitted.
+    Without latch times a common offset is searched first, then every sine step's own offset
+    with the linear coefficients held, then the coefficients are refitted. With them the
+    loggers are taken as aligned (``Context.alignment_resolved``).
     """
     base = base or Spec()
-    dt = ctx.replay.dt_s
-    if not ctx.dynamic_steps:
+    dt = ctx.alignment_freedom_s
+    if not ctx.dynamic_steps or ctx.alignment_resolved:
         return ctx.fit(base)
     _, fit = scalar_search(ctx, lambda d: replace(base, delay_s=d, step_shift_s=()), -dt, dt,
                            list(np.linspace(-dt, dt, 9)), xtol=1e-7)
@@ -45,8 +51,9 @@ def _parabola_min(grid: np.ndarray, costs: np.ndarray) -> float:
 
 
 def refine_step_shifts(ctx: Context, fit: Fit) -> Spec:
-    """Per-step offsets (total shift within ±1 sample) that minimise each step's residual."""
-    dt = ctx.replay.dt_s
+    """Per-step offsets (total shift within the alignment freedom) that minimise each step's
+    residual."""
+    dt = ctx.alignment_freedom_s
     spec = fit.spec
     shifts = [spec.shift_of(s.index) for s in ctx.replay.steps]
     for sr in ctx.replay.steps:

@@ -3,7 +3,8 @@
 Reads a run directory, a recording or an import directory, runs the diagnose pipeline, prints
 a short summary, writes the JSON and the extended model, and renders the diagnosis report
 through the ``diagnosis`` report plugin when it is installed (its absence never breaks
-diagnose). Returns the findings; the CLI exits 1 when there are any, 0 otherwise.
+diagnose). Returns the findings and the unexplained structure (what the nominal model gets
+wrong, named or not); the CLI exits 1 when there is any, 0 otherwise.
 """
 
 from __future__ import annotations
@@ -40,6 +41,9 @@ def summary(doc: dict[str, Any]) -> str:
         params = ", ".join(f"{k}={v:.4g}" for k, v in f["parameters"].items())
         lines.append(f"finding {f['effect']} ({f.get('attributed_to', 'sensor')}, "
                      f"{f.get('channel', '')}): {params}; ΔBIC {f['evidence']['delta_bic']:.1f}")
+    for u in doc.get("unexplained", []):
+        lines.append(f"unexplained {u['kind']} ({u.get('channel', '')}): {u['description']}; "
+                     f"ΔBIC {u['evidence']['delta_bic']:.1f}")
     if doc.get("steps_skipped"):
         lines.append("steps left out (no sync edges, no trigger): " + ", ".join(doc["steps_skipped"]))
     untestable = [c["effect"] for c in doc["candidates"] if c.get("testable") is False]
@@ -47,6 +51,10 @@ def summary(doc: dict[str, Any]) -> str:
         lines.append("not testable with these data: " + ", ".join(sorted(set(untestable))))
     lines.append(f"gain: {1e3 * gain['rmse_v_before']:.3f} → {1e3 * gain['rmse_v_after']:.3f} mV "
                  f"({gain['reduction_pct']:.1f} % lower)")
+    if doc.get("unexplained"):
+        named = doc["gain_named"]
+        lines.append(f"gain of the named effects alone: {1e3 * named['rmse_v_after']:.3f} mV "
+                     f"({named['reduction_pct']:.1f} % lower)")
     return "\n".join(lines)
 
 
@@ -64,7 +72,14 @@ def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Path) 
 
 
 def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) -> list[dict]:
-    """Diagnose ``data``; write JSON / model / report; return the findings (contract dicts)."""
+    """Diagnose ``data``; write JSON / model / report.
+
+    Returns
+    -------
+    list of dict
+        The findings, then the ``unexplained`` entries (contract dicts): empty when the
+        nominal model explains the data.
+    """
     from aatest.engine.recording import read_dataset
 
     dataset = read_dataset(Path(data))
@@ -80,4 +95,4 @@ def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) 
     out_dir = Path(json_out).parent if json_out is not None else Path(data)
     if out_dir.is_dir():
         _render_report(doc, figures, out_dir)
-    return list(doc["findings"])
+    return list(doc["findings"]) + list(doc["unexplained"])

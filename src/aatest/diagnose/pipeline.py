@@ -34,7 +34,7 @@ from aatest.diagnose.selection import (
     forward_select,
     rmse,
 )
-
+from aatest.diagnose.unexplained import Outcome, explain
 
 
 def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,
@@ -191,35 +191,39 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
     """The diagnosis document for one assumed logger chain (``figures`` filled when given)."""
     findings: list[Finding] = []
     candidates: list[dict[str, Any]] = []
+    unexplained: list[dict[str, Any]] = []
     channels, views = [], {}
-    sse_before = sse_after = 0.0
+    sse = np.zeros(3)  # held-out SSE: baseline, named model, named + generic extensions
     n_total = 0
     drift_f: Finding | None = None
     for i, channel in enumerate(replay.channels):
         result, ctx = diagnose_channel(dataset, replay, channel, corner)
-        findings += result.findings
-        candidates += list(result.candidates.values())
         noise_f, noise_row = _noise_finding(ctx, dataset.sensor(channel).noise_rms_v)
-        candidates.append(noise_row)
-        findings += [noise_f] if noise_f else []
         if i == 0:
             drift_f, drift_row = _drift_finding(ctx, tol)
             candidates.append(drift_row)
             findings += [drift_f] if drift_f else []
         baseline, result.final = _with_drift(ctx, result, drift_f)
-        sse_before += baseline.sse_held_out
-        sse_after += result.final.sse_held_out
+        outcome = explain(ctx, result.final, result.findings)
+        _apply_withdrawals(result, outcome)
+        findings += result.findings + ([noise_f] if noise_f else [])
+        candidates += list(result.candidates.values()) + [noise_row]
+        unexplained += outcome.unexplained
+        result.final = ctx.fit(outcome.joint.spec)
+        sse += [baseline.sse_held_out, result.final.sse_held_out, outcome.joint.fit.sse_held_out]
         n_total += result.final.n
         channels.append(_calibration(result, ctx))
         views[channel] = residual_views(ctx, result.nominal, result.final)
         if figures is not None:
             figures.update(residual_figures(ctx, result.nominal, result.final, views[channel]))
     findings = sorted(_dedupe_table_effects(findings), key=lambda f: f.delta_bic)
-    before, after = np.sqrt(sse_before / n_total), np.sqrt(sse_after / n_total)
+    before, named, after = np.sqrt(sse / n_total)
     return {
         "baseline": {"rmse_v": float(before)},
         "findings": [f.as_dict() for f in findings],
+        "unexplained": sorted(unexplained, key=lambda u: u["evidence"]["delta_bic"]),
         "gain": _gain(before, after),
+        "gain_named": _gain(before, named),
         "candidates": candidates,
         "channels": channels,
         "logger": {"antialias_hz": corner, "source": source, "t_ref_c": replay.t_ref_c,
@@ -227,6 +231,15 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
         "residuals": views,
         "steps_skipped": list(replay.skipped),
     }
+
+
+def _apply_withdrawals(result: ChannelResult, outcome: Outcome) -> None:
+    """Drop the named findings the backward pass withdrew; say why in their candidate rows."""
+    result.findings = [f for f in result.findings if f.effect not in outcome.withdrawn]
+    for key, row in result.candidates.items():
+        reason = outcome.withdrawn.get(row["effect"])
+        if reason is not None and row.get("accepted"):
+            result.candidates[key] = {**row, "accepted": False, "reason": reason}
 
 
 def _gain(before: float, after: float) -> dict[str, float]:

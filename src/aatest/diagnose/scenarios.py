@@ -140,6 +140,22 @@ def scenario_dataset(hidden: list[Hidden], seed: int, samples: int = 2**14) -> A
     return simulate_dataset(rig, diagnostic_plan(samples), seed, procedure="diagnose-scenario")
 
 
+def without_latch(dataset: Any) -> Any:
+    """The same data as a rig that does not log ``fp_latch_s`` would have recorded it.
+
+    The table then only shows at which sample it registered each edge, so the sync resolves
+    the logger alignment to one sample (docs/interfaces.md §4).
+    """
+    from dataclasses import replace as dc_replace
+
+    steps = tuple(dc_replace(s, table=dc_replace(
+        s.table, channels={k: v for k, v in s.table.channels.items() if k != "fp_latch_s"},
+        units={k: v for k, v in s.table.units.items() if k != "fp_latch_s"}))
+        for s in dataset.steps)
+    return dc_replace(dataset, steps=steps,
+                      metadata={**dataset.metadata, "fp_latch_s_present": False})
+
+
 #: hidden effect → finding names that count as naming it (one-mounting look-alikes)
 ACCEPTED_NAMES = {"misalignment": ("misalignment", "cross_axis"),
                   "cross_axis": ("cross_axis", "misalignment")}

@@ -19,6 +19,8 @@ from aatest.diagnose.design import ChannelInfo, Fit, Spec, fit_spec
 from aatest.diagnose.replay import Replay
 
 Z95 = 1.959964
+#: logger offset (samples) a sync without latch times leaves open: ½ edge estimate + 1 rule
+UNLATCHED_FREEDOM_SAMPLES = 1.5
 
 
 @dataclass
@@ -50,6 +52,29 @@ class Context:
     def sigma2(self) -> float:
         """Residual variance of the current model (V²)."""
         return self.current.sse_in / max(self.current.n - self.current.k, 1)
+
+    @property
+    def alignment_resolved(self) -> bool:
+        """Whether latch times (``fp_latch_s``) resolve the logger alignment below one sample.
+
+        Only when every step was aligned on its sync edges: a step placed by its trigger alone
+        is aligned to one sample whatever the table logged.
+        """
+        return bool(self.replay.fp_latch) and all(s.relation is not None
+                                                  for s in self.replay.steps)
+
+    @property
+    def alignment_freedom_s(self) -> float:
+        """Largest logger offset (s) the sync leaves open: 0 with latch times, else 1.5 samples.
+
+        Without latch times the edge is placed half a sample before the registering sample
+        (±½ sample), and a further sub-sample offset is not evidence (docs/interfaces.md §4).
+        """
+        return 0.0 if self.alignment_resolved else UNLATCHED_FREEDOM_SAMPLES * self.replay.dt_s
+
+    def within_sync_resolution(self, shift_s: float) -> bool:
+        """Whether a timing shift (s) is one the sync cannot tell from a logger offset."""
+        return not self.alignment_resolved and abs(shift_s) <= self.alignment_freedom_s
 
     @property
     def dynamic_steps(self) -> list[int]:

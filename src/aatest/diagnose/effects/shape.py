@@ -6,6 +6,8 @@ nominal model *with* its ±1-sample alignment nuisance — so a shift the sync p
 resolve is never evidence (docs/interfaces.md §4). Signatures that tell them apart: a delay lags at
 flat magnitude, a jerk term leads, second-order dynamics droop or peak in magnitude and lag
 non-linearly in frequency, hysteresis lags more at small amplitude, saturation flattens peaks.
+With ``fp_latch_s`` the alignment is resolved and there is no nuisance to beat: a sub-sample
+lag or lead is then evidence (:mod:`aatest.diagnose.alignment`).
 """
 
 from __future__ import annotations
@@ -59,9 +61,9 @@ def fit_delay(ctx: Context) -> CandidateFit:
     d, fit = scalar_search(ctx, make, 0.0, MAX_DELAY_S, _DELAY_SEEDS, xtol=1e-7)
     ci = curvature_ci(ctx, make, d, max(1e-6, 0.01 * d), lo=0.0)
     out = CandidateFit("time_delay", fit, {"delay_s": d}, {"delay_s": ci})
-    if d <= ctx.replay.dt_s:
-        out.veto = (f"lag {d * 1e3:.3f} ms is within one sample: the sync pulse cannot tell it "
-                    "from a logger offset")
+    if ctx.within_sync_resolution(d):
+        out.veto = (f"lag {d * 1e3:.3f} ms is within the sync's resolution without fp_latch_s: "
+                    "it cannot be told from a logger offset")
     return out
 
 
@@ -73,9 +75,9 @@ def fit_jerk(ctx: Context) -> CandidateFit:
                        {"coefficient_v_per_dps3": ci}, extra={"equivalent_lead_s": lead_s})
     if lead_s <= 0:
         out.veto = "the term lags the motion: a lag is time_delay's signature, not jerk's"
-    elif lead_s <= ctx.replay.dt_s:
-        out.veto = (f"lead {lead_s * 1e3:.3f} ms is within one sample: the sync pulse cannot tell "
-                    "it from a logger offset")
+    elif ctx.within_sync_resolution(lead_s):
+        out.veto = (f"lead {lead_s * 1e3:.3f} ms is within the sync's resolution without "
+                    "fp_latch_s: it cannot be told from a logger offset")
     return out
 
 
@@ -154,8 +156,9 @@ def fit_dynamics(ctx: Context) -> CandidateFit:
     out = CandidateFit("sensor_dynamics", fit, {"natural_frequency_hz": fn, "damping": zeta},
                        {"natural_frequency_hz": ci_fn, "damping": ci_z},
                        extra={"equivalent_lag_s": 2 * zeta / (2 * np.pi * fn)})
-    if 2 * zeta / (2 * np.pi * fn) <= ctx.replay.dt_s and not _droops(fn, zeta, ctx):
-        out.veto = "its lag is within one sample and its magnitude is flat over the tested band"
+    if ctx.within_sync_resolution(2 * zeta / (2 * np.pi * fn)) and not _droops(fn, zeta, ctx):
+        out.veto = ("its lag is within the sync's resolution and its magnitude is flat over "
+                    "the tested band")
     return out
 
 
@@ -189,10 +192,12 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
         ci = curvature_ci(ctx, make, r0, max(0.01 * r0, 1e-4), lo=0.0)
         return CandidateFit("hysteresis", coarse, {"half_width_dps2": r0}, {"half_width_dps2": ci})
 
-    from aatest.diagnose.alignment import refine_step_shifts
-
     def profiled(r: float):
         """The fit at half width r with every step's alignment re-optimised for it."""
+        if ctx.alignment_resolved:
+            return ctx.fit(make(r))
+        from aatest.diagnose.alignment import refine_step_shifts
+
         return ctx.fit(refine_step_shifts(ctx, ctx.fit(make(r))))
 
     res = optimize.minimize_scalar(lambda r: profiled(r).sse_in, bounds=(0.5 * r0, min(3 * r0, hi)),

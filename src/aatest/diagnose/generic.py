@@ -1,0 +1,237 @@
+"""Generic, data-driven extensions for structure the effect vocabulary cannot name.
+
+After the named effects are selected, the residual may still hold structure. Each proposal
+here reads the residual, describes one kind of structure physically and returns the design
+columns of a generic extension for it (docs/interfaces.md §4 ``unexplained``):
+
+* ``static_nonlinearity`` — output ∝ α² (even order: the same sign for +α and −α, which a
+  cubic, odd in α, cannot be);
+* ``asymmetry`` — output ∝ |α|: a scale factor that differs for α > 0 and α < 0;
+* ``spectral_line`` — a sine at one frequency in every step (phase free per step), compared
+  with the table's position log: a line the table does not show is electrical, not motion;
+* ``trend`` — bias and scale drifting linearly with elapsed session time (steps taken back
+  to back; a step's own duration is known, the pauses between steps are not);
+* ``step_change`` — the bias jumps once inside one record (the largest CUSUM change point).
+
+Columns are per step, on the record grid, in volts per unit coefficient; the selection in
+:mod:`aatest.diagnose.unexplained` fits them jointly with the named model on held-out blocks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import optimize, signal
+
+from aatest.diagnose.replay import StepReplay
+
+#: a residual line stands this far above the median of the step-averaged residual spectrum
+LINE_SNR = 12.0
+#: spectral lines proposed per pass, strongest first
+MAX_LINES = 3
+#: samples either side of a change point that must remain (s)
+MIN_SEGMENT_S = 0.25
+#: lines at the excitation's first harmonics belong to the motion, not to a separate source
+MAX_HARMONIC = 10
+#: a table log sees a line when its acceleration is at least this share of the sensor's
+SEEN_BY_TABLE = 0.3
+
+ColumnFn = Callable[[StepReplay, np.ndarray], np.ndarray]
+
+
+@dataclass
+class Proposal:
+    """One generic extension: its kind, columns and how to describe the fitted result.
+
+    ``columns(step, alpha_dps2)`` returns the step's (n, m) columns; ``describe(coef, K)``
+    turns the fitted coefficients into (description, extension parameters).
+    """
+
+    kind: str
+    key: str
+    columns: ColumnFn
+    describe: Callable[[np.ndarray, float], tuple[str, dict[str, Any]]]
+    #: nonlinear parameters chosen from the data (a frequency, a change point)
+    shape_params: int = 0
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def _alpha_proposals(range_dps2: float) -> list[Proposal]:
+    """Even-order and asymmetric static responses to the sensed acceleration α."""
+
+    def even(coef: np.ndarray, k: float) -> tuple[str, dict[str, Any]]:
+        c2 = float(coef[0] / k)
+        return (f"even-order static non-linearity: output ∝ α², c2 = {c2:.3g} of the range "
+                "(the same sign for +α and −α, not a cubic)",
+                {"model": "K·(α + c2·α²/α_range)", "c2": c2})
+
+    def asym(coef: np.ndarray, k: float) -> tuple[str, dict[str, Any]]:
+        d = float(coef[0] / k)
+        return (f"asymmetric scale factor: K+ / K− = {(1 + d) / (1 - d):.5f} "
+                f"({200 * d:.3g} % apart)", {"model": "K·α·(1 ± d) for α ≷ 0", "d": d,
+                                              "scale_pos_rel": 1 + d, "scale_neg_rel": 1 - d})
+
+    return [Proposal("static_nonlinearity", "alpha^2",
+                     lambda sr, a: (a * a / range_dps2)[:, None], even),
+            Proposal("asymmetry", "|alpha|", lambda sr, a: np.abs(a)[:, None], asym)]
+
+
+def _session_times_s(steps: tuple[StepReplay, ...]) -> dict[int, np.ndarray]:
+    """Elapsed session time (s) of every sample, steps back to back in recorded order."""
+    out, start = {}, 0.0
+    for sr in steps:
+        out[sr.index] = start + sr.time_s
+        start += float(sr.time_s[-1]) + sr.dt_s
+    return out
+
+
+def _trend_proposal(steps: tuple[StepReplay, ...]) -> Proposal:
+    elapsed = _session_times_s(steps)
+
+    def columns(sr: StepReplay, a: np.ndarray) -> np.ndarray:
+        tau_h = elapsed[sr.index] / 3600.0
+        return np.column_stack([tau_h, a * tau_h])
+
+    def describe(coef: np.ndarray, k: float) -> tuple[str, dict[str, Any]]:
+        bias, scale = float(coef[0]), float(coef[1] / k)
+        return (f"drift with elapsed time: scale factor {100 * scale:+.3g} %/h, bias "
+                f"{1e3 * bias:+.3g} mV/h (steps taken back to back)",
+                {"model": "b0 + b1·t + K·α·(1 + s1·t), t in hours of recording",
+                 "bias_v_per_h": bias, "scale_per_h": scale})
+
+    return Proposal("trend", "trend", columns, describe)
+
+
+def _change_point(r: np.ndarray, margin: int) -> tuple[int, float]:
+    """(index, statistic) of the single mean shift that best splits ``r`` (CUSUM)."""
+    n = r.size
+    k = np.arange(margin, n - margin)
+    c = np.cumsum(r - r.mean())[k - 1]
+    stat = np.abs(c) * np.sqrt(n / (k * (n - k)))
+    best = int(np.argmax(stat))
+    return int(k[best]), float(stat[best] / r.std())
+
+
+def _step_change_proposal(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray]
+                          ) -> Proposal | None:
+    """The strongest single bias step inside any record, as a generic extension."""
+    best: tuple[float, StepReplay, int] | None = None
+    for sr in steps:
+        margin = int(MIN_SEGMENT_S / sr.dt_s)
+        if sr.n <= 4 * margin:
+            continue
+        idx, stat = _change_point(residuals[sr.index], margin)
+        if best is None or stat > best[0]:
+            best = (stat, sr, idx)
+    if best is None:
+        return None
+    _, at, idx = best
+    t_at = float(at.time_s[idx])
+
+    def columns(sr: StepReplay, a: np.ndarray) -> np.ndarray:
+        return ((sr.time_s >= t_at) * (sr.index == at.index)).astype(float)[:, None]
+
+    def describe(coef: np.ndarray, k: float) -> tuple[str, dict[str, Any]]:
+        return (f"bias step of {1e3 * float(coef[0]):+.3g} mV at {t_at:.3f} s into step "
+                f"{at.step.id}", {"model": "b0 + Δb·[t ≥ t_step] in one record",
+                                  "step": at.step.id, "time_s": t_at, "delta_v": float(coef[0])})
+
+    return Proposal("step_change", f"step@{at.step.id}", columns, describe, shape_params=1)
+
+
+def _line_power(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray], f_hz: float
+                ) -> float:
+    """Σ over steps of the residual's power at ``f_hz`` (a periodogram at one frequency)."""
+    total = 0.0
+    for sr in steps:
+        z = residuals[sr.index] @ np.exp(-2j * np.pi * f_hz * sr.time_s)
+        total += abs(z) ** 2 / sr.n
+    return total
+
+
+def _harmonic(f_hz: float, steps: tuple[StepReplay, ...], tol_hz: float) -> bool:
+    """Whether ``f_hz`` is a low harmonic of a step's excitation (then it is motion-related:
+    a static non-linearity or a timing error, not a line of its own)."""
+    for sr in steps:
+        f0 = sr.inner.frequency_hz or sr.outer.frequency_hz
+        if f0 > 0 and any(abs(f_hz - k * f0) <= tol_hz for k in range(1, MAX_HARMONIC + 1)):
+            return True
+    return False
+
+
+def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray]
+                      ) -> list[float]:
+    """Frequencies (Hz) of lines common to the residual of the steps, strongest first."""
+    fs = 1.0 / steps[0].dt_s
+    nper = int(min(4096, min(sr.n for sr in steps)))
+    acc = None
+    for sr in steps:
+        f, p = signal.welch(residuals[sr.index], fs=fs, nperseg=nper, detrend="linear")
+        p = p / max(float(np.median(p)), 1e-300)
+        acc = p if acc is None else acc + p
+    acc = acc / len(steps)
+    floor = float(np.median(acc))
+    idx, _ = signal.find_peaks(acc, height=LINE_SNR * floor, distance=4)
+    df = fs / nper
+    idx = sorted((i for i in idx if f[i] > 2.0 * df), key=lambda i: -acc[i])
+    tol_hz = 2.0 / min(sr.n * sr.dt_s for sr in steps)  # two bins of the shortest record
+    out = []
+    for i in idx[:MAX_LINES]:
+        res = optimize.minimize_scalar(lambda x: -_line_power(steps, residuals, x),
+                                       bounds=(f[i] - df, f[i] + df), method="bounded",
+                                       options={"xatol": 2e-3})
+        if not _harmonic(float(res.x), steps, tol_hz):
+            out.append(float(res.x))
+    return out
+
+
+def table_line_dps2(sr: StepReplay, f_hz: float) -> float:
+    """Acceleration amplitude (°/s²) of a line at ``f_hz`` in the table's position log."""
+    amp = 0.0
+    for dev in sr.table_deviation_deg.values():
+        z = (dev - dev.mean()) @ np.exp(-2j * np.pi * f_hz * sr.time_s)
+        amp = max(amp, 2.0 * abs(z) / dev.size * (2 * np.pi * f_hz) ** 2)
+    return amp
+
+
+def _line_proposal(steps: tuple[StepReplay, ...], f_hz: float) -> Proposal:
+    index = {sr.index: j for j, sr in enumerate(steps)}
+    table_dps2 = max(table_line_dps2(sr, f_hz) for sr in steps)
+
+    def columns(sr: StepReplay, a: np.ndarray) -> np.ndarray:
+        w = 2 * np.pi * f_hz * sr.time_s
+        out = np.zeros((sr.n, 2 * len(steps)))
+        out[:, 2 * index[sr.index]] = np.sin(w)
+        out[:, 2 * index[sr.index] + 1] = np.cos(w)
+        return out
+
+    def describe(coef: np.ndarray, k: float) -> tuple[str, dict[str, Any]]:
+        amps = np.hypot(coef[0::2], coef[1::2])
+        phases = np.arctan2(coef[1::2], coef[0::2])
+        amp_v = float(np.median(amps))
+        # phase coherence over steps (1 = the same phase at every record start)
+        coherence = float(abs(np.sum(amps * np.exp(1j * phases))) / max(amps.sum(), 1e-300))
+        seen = table_dps2 >= SEEN_BY_TABLE * amp_v / abs(k)
+        where = ("also in the table log (motion)" if seen
+                 else "in the sensor only (not in the table log)")
+        return (f"{f_hz:.1f} Hz line, {1e3 * amp_v:.2g} mV, {where}",
+                {"model": "A_i·sin(2π·f·t + φ_i) per step", "frequency_hz": f_hz,
+                 "amplitude_v": amp_v, "amplitude_v_per_step": amps.tolist(),
+                 "phase_rad_per_step": phases.tolist(), "phase_coherence": coherence,
+                 "seen_by_table": bool(seen),
+                 "table_accel_dps2": table_dps2})
+
+    return Proposal("spectral_line", f"line@{f_hz:.2f}", columns, describe, shape_params=1)
+
+
+def proposals(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray],
+              range_dps2: float) -> list[Proposal]:
+    """Every generic extension the residual suggests (before any is fitted)."""
+    out = _alpha_proposals(range_dps2) + [_trend_proposal(steps)]
+    change = _step_change_proposal(steps, residuals)
+    out += [change] if change is not None else []
+    out += [_line_proposal(steps, f) for f in _peak_frequencies(steps, residuals)]
+    return out
