@@ -19,8 +19,8 @@ from typing import Any, ClassVar, Protocol, TypeVar, runtime_checkable
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.dataset import Dataset
+from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep, SensorRef
 
