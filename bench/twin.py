@@ -29,6 +29,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from aatest.engine.steps import PlannedStep  # noqa: E402
+from aatest.plugins.sensors.sr207 import SR207, SR207Unit  # noqa: E402
 from aatest.twin.api import World, realistic_rig_model, run_step  # noqa: E402
 from aatest.twin.model import RigModel  # noqa: E402
 
@@ -79,7 +80,7 @@ def main() -> None:
     steps = (None if args.own else _shipped_steps()) or _own_steps()
     if args.steps:
         steps = steps[: args.steps]
-    model = realistic_rig_model("sr207-aamu" if args.channels == 3 else "sr207")
+    model = realistic_rig_model((SR207Unit() if args.channels == 3 else SR207()).datasheet())
     if args.pin and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     _run(model, steps[:1])  # warm caches (filters, imports) outside the timing

@@ -19,6 +19,7 @@ from aatest.plugins.daq.sim import SimDaq
 from aatest.plugins.sensors.sr207 import SR207, SR207Unit
 from aatest.twin.api import nominal_rig_model
 from aatest.twin.model import dump_rig_model
+from aatest.twin.session import TwinSession
 from aatest.plugins.turntable.sim import SimTurntable
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "twin"))
@@ -155,3 +156,31 @@ def test_sensor_plugins() -> None:
     assert SR207().datasheet().scale_v_per_dps2 == pytest.approx(0.23 * np.pi / 180, rel=1e-3)
     with pytest.raises(Exception):
         SR207.Config(unknown=1)  # type: ignore[call-arg]
+
+
+def test_plugins_share_one_typed_twin_session() -> None:
+    ctx, table, daq, chamber = _rig()
+    session = ctx.resources.get(TwinSession)
+    assert session is not None and session.world is table.world is daq.world is chamber.world
+    assert session.seed == ctx.seed and session.datasheet is ctx.datasheet
+
+
+def test_plugins_naming_different_model_files_are_a_configuration_error(tmp_path: Path) -> None:
+    first, second = tmp_path / "a.yaml", tmp_path / "b.yaml"
+    for path in (first, second):
+        dump_rig_model(nominal_rig_model(), path)
+    ctx = RigContext(sensor=SensorRef(model="sr207"), datasheet=SensorDatasheet(model="sr207"))
+    SimTurntable(SimTurntable.Config(model=str(first)), ctx)
+    SimChamber(SimChamber.Config(model=str(first)), ctx)  # the same file: fine
+    with pytest.raises(PluginError, match="disagree about the rig model"):
+        SimDaq(SimDaq.Config(model=str(second)), ctx)
+
+
+def test_the_twin_simulates_the_datasheet_it_is_handed() -> None:
+    sheet = SensorDatasheet(model="acme", range_dps2=2000.0, nominal_scale_v_per_dps2=0.001,
+                            channels={"v_a": "I", "v_b": "P"})
+    ctx = RigContext(sensor=SensorRef(model="acme"), datasheet=sheet, seed=2)
+    table, daq = SimTurntable(SimTurntable.Config(), ctx), SimDaq(SimDaq.Config(), ctx)
+    assert list(daq.channels())[:2] == ["v_a", "v_b"]
+    assert [(s.scale_v_per_dps2, s.range_dps2) for s in table.world.model.sensors] == [
+        (0.001, 2000.0)] * 2

@@ -6,6 +6,7 @@ import numpy as np
 from numpy.testing import assert_allclose
 
 from aatest.engine.logs import DAQ_AUX_CHANNELS, TABLE_CHANNELS
+from aatest.plugins.sensors.sr207 import SR207Unit
 from aatest.twin.api import (
     nominal_rig_model,
     realistic_rig_model,
@@ -15,6 +16,9 @@ from aatest.twin.api import (
 from aatest.twin.model import RigModel
 
 from twin_steps import sine_step, static_step
+
+#: the three-sensor unit (S_Z on I, S_Y on O, S_X on P)
+AAMU = SR207Unit().datasheet()
 
 
 def test_simulate_step_logs_have_contract_channels() -> None:
@@ -51,7 +55,7 @@ def test_nominal_model_is_ideal() -> None:
 
 def test_simulate_dataset_builds_dataset() -> None:
     steps = [static_step(samples=2048, id="a"), sine_step(1.0, 10.0, samples=2048, id="b")]
-    data = simulate_dataset(realistic_rig_model("sr207-aamu"), steps, seed=5)
+    data = simulate_dataset(realistic_rig_model(AAMU), steps, seed=5)
     assert [s.step.id for s in data.steps] == ["a", "b"]
     assert [s.channel for s in data.sensors] == ["v_sz", "v_sy", "v_sx"]
     assert data.sample_rate_hz == 2000.0

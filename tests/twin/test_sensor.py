@@ -9,10 +9,14 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from aatest.engine.steps import Mounting, PlannedStep
+from aatest.plugins.sensors.sr207 import SR207Unit
 from aatest.twin import kinematics as kin
 from aatest.twin.api import World, realistic_rig_model, run_step, simulate_step
 from aatest.twin.sensor import play_operator
 from twin_steps import aligned_daq, fundamental, sine_step, static_step
+
+#: the three-sensor unit (S_Z on I, S_Y on O, S_X on P)
+AAMU = SR207Unit().datasheet()
 
 K = 0.004014
 
@@ -60,7 +64,7 @@ def test_coordinated_two_axis_rates_give_omega_i_times_omega_o() -> None:
     """Inner 360 °/s, outer 20 °/s: S_Y sees α = −ω_i·ω_o·sin(ω_i t), 2π·20 = 125.7 °/s² at 1 Hz."""
     step = PlannedStep(id="coord", kind="constant_rate", axis="both", duration_s=8.0,
                        settle_s=1.0, samples=16000, rate_dps=360.0, outer_rate_dps=20.0)
-    sim = simulate_step(realistic_rig_model("sr207-aamu", drift_ppm=0.0), step, 47)
+    sim = simulate_step(realistic_rig_model(AAMU, drift_ppm=0.0), step, 47)
     expected = np.radians(360.0) * 20.0
     amp_y = abs(fundamental(aligned_daq(sim, "v_sy"), 8)) / K
     assert_allclose(amp_y, expected, rtol=0.01)
@@ -99,7 +103,7 @@ def test_vectorised_play_operator_equals_its_recursive_definition(xs: list, r: f
 
 def test_remount_scatter_has_the_stated_spread() -> None:
     """Block re-mounts tilt the unit with σ per axis; the z tilt is Rayleigh, mean σ·√(π/2)."""
-    model = realistic_rig_model("sr207-aamu")
+    model = realistic_rig_model(AAMU)
     world = World(model, seed=48)
     tilts = []
     for i in range(300):
@@ -112,7 +116,7 @@ def test_remount_scatter_has_the_stated_spread() -> None:
 
 def test_pivot_flips_the_equivalent_misalignment() -> None:
     """Experiment 2 (excite O), original vs pivoted: S_Z's cross response changes sign."""
-    real = realistic_rig_model("sr207-aamu", drift_ppm=0.0)
+    real = realistic_rig_model(AAMU, drift_ppm=0.0)
     # noise (≈1.4e-4 of 100 °/s² per bin after the 100 Hz filter), hysteresis, the resolution
     # threshold and leakage of the incoherent 35 Hz motor band make a 0.03 °/s² cross response
     # irregular at the 1e-4 level (as measured at very low acceleration): switch them off to
@@ -162,7 +166,7 @@ def test_chamber_temperature_drives_the_bias_with_thermal_lag() -> None:
 @pytest.mark.slow
 def test_full_length_step_on_three_channels() -> None:
     step = sine_step(1.0, 400.0, samples=2**17)
-    sim = simulate_step(realistic_rig_model("sr207-aamu"), step, 51)
+    sim = simulate_step(realistic_rig_model(AAMU), step, 51)
     assert len(sim.table) == 2**17 and sim.daq.sensor_channels() == ["v_sz", "v_sy", "v_sx"]
 
 
@@ -170,7 +174,7 @@ def test_first_mounting_is_a_draw_and_the_nominal_mounting_is_perfect() -> None:
     from aatest.twin.api import nominal_rig_model
     from aatest.twin.model import RigModel
 
-    real = World(realistic_rig_model("sr207-aamu"), seed=52)
+    real = World(realistic_rig_model(AAMU), seed=52)
     tilt_deg = np.degrees(np.arccos(real.block_error[2, 2]))
     assert 0.0 < tilt_deg < 5 * real.model.unit.block_remount_sigma_deg
     assert_allclose(World(nominal_rig_model(), seed=52).block_error, np.eye(3))
@@ -179,7 +183,7 @@ def test_first_mounting_is_a_draw_and_the_nominal_mounting_is_perfect() -> None:
 
 def test_horizontal_sensors_pick_up_more_building_vibration() -> None:
     """Outer 0°: S_Z vertical, S_Y and S_X horizontal; the floor rocks about horizontal axes."""
-    model = realistic_rig_model("sr207-aamu")
+    model = realistic_rig_model(AAMU)
     sim = simulate_step(model, static_step(samples=16384, motor_on=False), 53)
     rms = {ch: np.std(sim.daq[ch]) for ch in ("v_sz", "v_sy", "v_sx")}
     # 0.3 °/s² RMS of 5–30 Hz rocking, partly attenuated by the sensor's 30 Hz dynamics

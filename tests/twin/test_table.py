@@ -7,11 +7,15 @@ import pytest
 from numpy.testing import assert_allclose
 
 from aatest.engine.errors import EnvelopeRefused
+from aatest.plugins.sensors.sr207 import SR207Unit
 from aatest.twin.api import nominal_rig_model, realistic_rig_model, simulate_step
 from aatest.twin.grid import Grid
 from aatest.twin.profiles import AxisProfile
 from aatest.twin.table import tracked
 from twin_steps import aligned_daq, fundamental, rate_step, sine_step, static_step
+
+#: the three-sensor unit (S_Z on I, S_Y on O, S_X on P)
+AAMU = SR207Unit().datasheet()
 
 FS = 2000.0
 
@@ -113,7 +117,7 @@ def test_controller_refuses_beyond_limits() -> None:
 
 
 def test_outer_unbalance_leaks_into_the_perpendicular_axis() -> None:
-    base = realistic_rig_model("sr207-aamu")
+    base = realistic_rig_model(AAMU)
     perfect_mount = base.unit.model_copy(update={"sensor_remount_sigma_deg": 0.0,
                                                  "block_remount_sigma_deg": 0.0})
     base = base.model_copy(update={"unit": perfect_mount})

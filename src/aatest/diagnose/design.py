@@ -29,6 +29,7 @@ from aatest.diagnose.replay import (
     sensor_acceleration,
     sensor_axes,
 )
+from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.twin.kinematics import E_I
 from aatest.twin.daq import antialias_filter
 from aatest.twin.sensor import dynamics_filter, lowpass, play_operator
@@ -73,7 +74,7 @@ class ChannelInfo:
     antialias_hz: float | None
     t_ref_c: float
     #: datasheet scale factor, used when the data cannot calibrate K (no motion along z)
-    nominal_scale_v_per_dps2: float = 0.004014
+    nominal_scale_v_per_dps2: float = REFERENCE_SCALE_V_PER_DPS2
 
 
 def column_names(spec: Spec, replay: Replay) -> list[str]:

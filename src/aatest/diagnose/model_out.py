@@ -12,6 +12,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from aatest.engine.datasheet import (
+    REFERENCE_BIAS_V,
+    REFERENCE_RANGE_DPS2,
+    REFERENCE_SCALE_V_PER_DPS2,
+)
 from aatest.twin import model as m
 
 _SENSOR_EFFECTS = set(m.EFFECTS) - {"clock_drift", "rate_ripple", "motor_vibration"}
@@ -19,9 +24,10 @@ _SENSOR_EFFECTS = set(m.EFFECTS) - {"clock_drift", "rate_ripple", "motor_vibrati
 
 def _sensor(channel: str, axis: str, calib: dict[str, float], noise_v: float,
             range_dps2: float) -> m.SensorModel:
-    return m.SensorModel(channel=channel, axis=axis, bias_v=calib.get("bias_v", 2.5),
-                         scale_v_per_dps2=calib.get("scale_v_per_dps2", 0.004014),
-                         range_dps2=range_dps2, noise_rms_v=noise_v)
+    return m.SensorModel(
+        channel=channel, axis=axis, bias_v=calib.get("bias_v", REFERENCE_BIAS_V),
+        scale_v_per_dps2=calib.get("scale_v_per_dps2", REFERENCE_SCALE_V_PER_DPS2),
+        range_dps2=range_dps2, noise_rms_v=noise_v)
 
 
 def extended_model(channels: list[dict[str, Any]], findings: list[dict[str, Any]],
@@ -37,7 +43,7 @@ def extended_model(channels: list[dict[str, Any]], findings: list[dict[str, Any]
         Contract findings (``effect``, ``parameters``, optional ``channel``, ``azimuth_deg``…).
     """
     sensors = {c["channel"]: _sensor(c["channel"], c["axis"], c, c.get("noise_rms_v", 0.001),
-                                     c.get("range_dps2", 572.958)) for c in channels}
+                                     c.get("range_dps2", REFERENCE_RANGE_DPS2)) for c in channels}
     table, daq = m.TableModel(), m.DaqModel(antialias_hz=antialias_hz)
     for f in findings:
         name, params = f["effect"], dict(f["parameters"])

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2 as _K_V
 from aatest.engine.steps import PlannedStep
 from aatest.twin import model as m
 
@@ -98,7 +99,7 @@ DRAWS: dict[str, Callable[[np.random.Generator], Hidden]] = {
     "sensor_dynamics": lambda r: Hidden("sensor_dynamics", {"natural_frequency_hz": _u(r, 15.0, 40.0), "damping": _u(r, 0.4, 0.8)}, ("natural_frequency_hz", "damping")),
     "time_delay": lambda r: Hidden("time_delay", {"delay_s": _u(r, 0.002, 0.015)}, ("delay_s",)),
     "clock_drift": lambda r: Hidden("clock_drift", {"drift_ppm": _signed(r, 60.0, 200.0)}, ("drift_ppm",)),
-    "jerk_sensitivity": lambda r: Hidden("jerk_sensitivity", {"coefficient_v_per_dps3": 0.004014 * _u(r, 1.5e-3, 5e-3)}, ("coefficient_v_per_dps3",)),
+    "jerk_sensitivity": lambda r: Hidden("jerk_sensitivity", {"coefficient_v_per_dps3": _K_V * _u(r, 1.5e-3, 5e-3)}, ("coefficient_v_per_dps3",)),
     "g_sensitivity": lambda r: Hidden("g_sensitivity", {"coefficient_dps2_per_g": _signed(r, 0.5, 2.0)}, ("coefficient_dps2_per_g",)),
     "cross_axis": lambda r: Hidden("cross_axis", {"ratio_x": _signed(r, 0.004, 0.015), "ratio_y": _signed(r, 0.004, 0.015)}, ("ratio_x", "ratio_y")),
     "misalignment": lambda r: Hidden("misalignment", {"angle_deg": _u(r, 0.3, 1.0)}, ("angle_deg",), {"azimuth_deg": _u(r, 0.0, 360.0)}),

@@ -4,7 +4,9 @@ Package map (data flows top to bottom):
 
 - ``errors``       the one exception tree (``AatestError``) and the CLI exit codes
 - ``steps``, ``logs``, ``dataset``  the shared records: planned steps, raw logs, analysis input
-- ``interfaces``   one ``Protocol`` per plugin kind, the sensor datasheet, the table envelope
+- ``datasheet``    the sensor datasheet and the per-channel sensor record (every sensor number
+                   and its default defined once)
+- ``interfaces``   one ``Protocol`` per plugin kind, the rig context, the table envelope
 - ``registry``     installed plugins by entry-point group, validated when loaded
 - ``procedure/``   procedure YAML → pydantic models (with FILE:LINE:COLUMN errors) → plan →
                    envelope check; the JSON Schema export

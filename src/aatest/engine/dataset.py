@@ -2,7 +2,9 @@
 
 A :class:`Dataset` is built either from an aatest recording (``recording.mcap``) or from a
 measured-data import directory (docs/interfaces.md §3), so analyses and ``diagnose`` never care
-where the data came from and can always be re-run offline.
+where the data came from and can always be re-run offline. Its per-channel sensor record,
+:class:`SensorInfo`, is defined with the datasheet it comes from in
+:mod:`aatest.engine.datasheet` and re-exported here.
 """
 
 from __future__ import annotations
@@ -11,30 +13,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, Literal
+from typing import Any
 
+from aatest.engine.datasheet import SensorAxis, SensorInfo
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 
-SensorAxis = Literal["I", "O", "P"]
-
-
-@dataclass(frozen=True)
-class SensorInfo:
-    """Nominal (datasheet) description of one sensor channel."""
-
-    channel: str
-    axis: SensorAxis = "I"
-    nominal_bias_v: float = 2.5
-    nominal_scale_v_per_dps2: float = 0.004014
-    range_dps2: float = 572.958
-    model: str = "unknown"
-    serial: str = "unknown"
-    noise_rms_v: float = 0.003
-    bias_tolerance_v: float = 0.01
-    scale_tolerance_pct: float = 1.0
-    bias_temperature_limit_v_per_c: float = 0.0004
-    scale_temperature_limit_per_c: float = 0.0005
+__all__ = ["Dataset", "SensorAxis", "SensorInfo", "StepData"]
 
 
 @dataclass(frozen=True)

@@ -8,19 +8,21 @@ by *analysis* plugins (ordered by what each ``requires``) and their results rend
 Every rig plugin class has a nested pydantic ``Config`` (``extra="forbid"``) and is constructed
 as ``PluginClass(config, context)``; an analysis plugin has ``Options`` instead and is
 constructed without arguments. Simulated plugins share the digital twin through
-``RigContext.shared``; real drivers ignore it.
+``RigContext.resources`` (one object per type); real drivers ignore it. The sensor datasheet
+is defined in :mod:`aatest.engine.datasheet` and re-exported here.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Generic, Protocol, TypeVar, runtime_checkable
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.dataset import Dataset
+from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep, SensorRef
 
@@ -58,66 +60,54 @@ class TableEnvelope(BaseModel):
     max_frequency_hz: float = 10.0
 
 
-class SensorDatasheet(BaseModel):
-    """Datasheet of a sensor model: the envelope and the nominals analyses compare against."""
+_T = TypeVar("_T")
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
-    model: str
-    range_dps2: float = 572.958
-    nominal_bias_v: float = 2.5
-    bias_tolerance_v: float = 0.01
-    scale_v_per_dps2: float = 0.004014
-    scale_tolerance_pct: float = 1.0
-    noise_rms_v: float = 0.003
-    #: fraction of range a test may command (docs/method.md §4.4: 80 %)
-    test_ceiling_fraction: float = 0.8
-    #: smallest useful peak acceleration (noise floor, docs/method.md §4.4: 0.8 °/s²)
-    floor_dps2: float = 0.8
-    bias_temperature_limit_v_per_c: float = 0.0004
-    scale_temperature_limit_per_c: float = 0.0005
-    cross_axis_limit: float = 0.01
-    misalignment_limit_deg: float = 0.5
-    #: None: 0.1 % FR/g or 0.01 rad/s²/g, whichever is greater (docs/method.md §1.3)
-    g_sensitivity_limit_dps2_per_g: float | None = None
-    #: non-linearity limit, % of full range (docs/method.md §1.3: ±0.05 % FR)
-    nonlinearity_limit_pct_fr: float = 0.05
-    #: channel name → sensitive axis in the table frame (I, O, P)
-    channels: Mapping[str, str] = Field(default_factory=lambda: {"v_sz": "I"})
 
-    def sensor_infos(self, serial: str) -> tuple[SensorInfo, ...]:
-        return tuple(
-            SensorInfo(
-                channel=ch,
-                axis=ax,  # type: ignore[arg-type]
-                nominal_bias_v=self.nominal_bias_v,
-                nominal_scale_v_per_dps2=self.scale_v_per_dps2,
-                range_dps2=self.range_dps2,
-                model=self.model,
-                serial=serial,
-                noise_rms_v=self.noise_rms_v,
-                bias_tolerance_v=self.bias_tolerance_v,
-                scale_tolerance_pct=self.scale_tolerance_pct,
-                bias_temperature_limit_v_per_c=self.bias_temperature_limit_v_per_c,
-                scale_temperature_limit_per_c=self.scale_temperature_limit_per_c,
-            )
-            for ch, ax in self.channels.items()
-        )
+class SharedResources:
+    """Objects the plugins of one rig share, at most one per type.
+
+    Keyed by class rather than by string, so a plugin asks for exactly the type it needs and a
+    type checker sees what comes back. The simulated plugins share their digital-twin session
+    here (:class:`aatest.twin.session.TwinSession`); real drivers ignore it.
+    """
+
+    def __init__(self) -> None:
+        self._by_type: dict[type, object] = {}
+
+    def get(self, kind: type[_T]) -> _T | None:
+        """The shared object of type ``kind``, or None when no plugin made one yet."""
+        found = self._by_type.get(kind)
+        return found if isinstance(found, kind) else None
+
+    def setdefault(self, kind: type[_T], make: Callable[[], _T]) -> _T:
+        """The shared object of type ``kind``; ``make()`` creates it when there is none."""
+        found = self.get(kind)
+        if found is None:
+            found = make()
+            if not isinstance(found, kind):
+                raise TypeError(f"shared resource for {kind.__name__} is a "
+                                f"{type(found).__name__}")
+            self._by_type[kind] = found
+        return found
 
 
 @dataclass
 class RigContext:
-    """What the engine hands every rig plugin at construction."""
+    """What the engine hands every rig plugin at construction.
+
+    ``datasheet`` is the resolved sensor plugin's datasheet (channels, range, nominals);
+    ``resources`` holds what the plugins of this rig share (the simulated ones: the twin).
+    """
 
     sensor: SensorRef
     datasheet: SensorDatasheet
     seed: int = 0
-    #: objects shared between plugins of one rig (the simulated ones share the twin here)
-    shared: dict[str, Any] = field(default_factory=dict)
+    resources: SharedResources = field(default_factory=SharedResources)
 
 
 @runtime_checkable
 class SensorPlugin(Protocol):
-    """A sensor model: its datasheet (and, for the twin, its default error model)."""
+    """A sensor model: its datasheet (the twin derives its realistic error model from it)."""
 
     def datasheet(self) -> SensorDatasheet: ...
 

@@ -18,7 +18,11 @@ Where each part lives (data flows top to bottom):
 - ``grid`` / ``fastmath``  uniform-grid phasors, fast trig and noise (the benchmark's budget)
 - ``synthesis``   one step's table log, DAQ log and truth, all vectorised
 - ``world``       the rig state in virtual lab time, shared by the simulated plugins
+- ``session``     ``TwinSession``: the one World of a rig, shared through ``RigContext.resources``
+- ``defaults``    the realistic rig: sensor error terms built from a datasheet, table, logger
 - ``servers/``    the twin behind Modbus TCP and CAN (for the real drivers)
 - ``api``         ``simulate_step``, ``simulate_dataset``, ``realistic_rig_model``,
                   ``nominal_rig_model``
+
+The twin imports no sensor plugin: it gets the sensor's datasheet explicitly.
 """

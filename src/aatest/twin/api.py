@@ -2,9 +2,9 @@
 
 ``simulate_step`` runs one planned step through exactly the call sequence the runner uses on the
 simulated plugins (move, begin motion, start DAQ, record, stop), so data built here is the data
-a simulated run records. ``realistic_rig_model`` gives the measured-behaviour defaults of
-docs/method.md §1.2–1.3 and §2; ``nominal_rig_model`` the ideal one clock / no error term model that
-``diagnose`` replays (docs/interfaces.md §4).
+a simulated run records. ``realistic_rig_model`` (from :mod:`aatest.twin.defaults`) gives the
+measured-behaviour defaults of docs/method.md §1.2–1.3 and §2; ``nominal_rig_model`` the ideal
+one clock / no error term model that ``diagnose`` replays (docs/interfaces.md §4).
 """
 
 from __future__ import annotations
@@ -14,29 +14,13 @@ from pathlib import Path
 
 from aatest.engine.dataset import Dataset, SensorInfo, StepData
 from aatest.engine.steps import PlannedStep
-from aatest.twin.model import (
-    ClockDrift,
-    DaqModel,
-    ExcessNoise,
-    MotorVibration,
-    RateRipple,
-    RigModel,
-    SensorModel,
-    TableModel,
-    UnitModel,
-)
+from aatest.twin.defaults import realistic_rig_model
+from aatest.twin.model import DaqModel, RigModel, SensorModel, TableModel, UnitModel
 from aatest.twin.synthesis import SimulatedStep
 from aatest.twin.world import World
 
 __all__ = ["SimulatedStep", "World", "nominal_rig_model", "realistic_rig_model", "run_step",
            "sensor_infos", "simulate_dataset", "simulate_step"]
-
-#: table-side defaults that reproduce docs/method.md §1.2 (motor line, ripple, estimate noise)
-REALISTIC_VIBRATION = MotorVibration(frequency_hz=35.0, amplitude_dps2=6.0, bandwidth_hz=6.0)
-REALISTIC_RIPPLE = (
-    RateRipple(cycles_per_deg=1.0, amplitude_deg=1.0 / 3600, rejection_bandwidth_hz=40.0),
-    RateRipple(cycles_per_deg=2.0, amplitude_deg=1.0 / 3600, phase_rad=1.0,
-               rejection_bandwidth_hz=40.0))
 
 
 def run_step(world: World, step: PlannedStep) -> SimulatedStep:
@@ -114,38 +98,6 @@ def simulate_dataset(model: RigModel, steps: Sequence[PlannedStep], seed: int, *
                    steps=tuple(data), source=Path(f"<sim seed={seed}>"),
                    metadata={"simulated": True, "seed": seed,
                              "model": model.model_dump(mode="json")})
-
-
-def realistic_rig_model(sensors: str | Sequence[SensorModel] = "sr207",
-                        *, drift_ppm: float = 12.0, slip_ring: bool = False) -> RigModel:
-    """The rig as measured (docs/method.md §1.2–1.3, §2).
-
-    Parameters
-    ----------
-    sensors
-        ``"sr207"`` (single sensor), ``"sr207-aamu"`` (three-sensor unit) or explicit models.
-    drift_ppm
-        DAQ crystal rate error.
-    slip_ring
-        Route the sensors through the slip ring (≈11 mV RMS added).
-    """
-    if isinstance(sensors, str):
-        from aatest.plugins.sensors.sr207 import default_models_for
-
-        sensors = default_models_for(sensors)
-    axis = {"rate_ripple": list(REALISTIC_RIPPLE), "motor_vibration": REALISTIC_VIBRATION,
-            "estimate_noise_deg": 0.01 / 3600}
-    base = TableModel()
-    table = base.model_copy(update={
-        "inner": base.inner.model_copy(update=axis),
-        "outer": base.outer.model_copy(update=axis),
-        "unbalance_parasitic_dps2_per_dps2": 0.004,  # cross ratios 0.03–1.1 % (§4.5)
-        "floor_vibration_rms_dps2": 0.3,  # horizontal sensors noisier than the vertical one
-    })
-    daq = DaqModel(clock_drift=ClockDrift(drift_ppm=drift_ppm), sync_edge_jitter_s=3e-6,
-                   slip_ring=ExcessNoise(rms_v=0.011) if slip_ring else None)
-    return RigModel(sensors=list(sensors), table=table, daq=daq,
-                    unit=UnitModel(initial_mount_errors=True))
 
 
 def nominal_rig_model(sensors: Sequence[SensorModel] | None = None) -> RigModel:

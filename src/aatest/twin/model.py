@@ -12,6 +12,12 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from aatest.engine.datasheet import (
+    REFERENCE_BIAS_V,
+    REFERENCE_RANGE_DPS2,
+    REFERENCE_SCALE_V_PER_DPS2,
+)
+
 
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid")
@@ -147,13 +153,17 @@ EFFECTS: dict[str, type[_Model]] = {
 
 
 class SensorModel(_Model):
-    """One sensor channel: nominal terms plus any switched-on effects."""
+    """One sensor channel: nominal terms plus any switched-on effects.
+
+    Bias, scale factor and range default to the reference sensor's datasheet
+    (:mod:`aatest.engine.datasheet`).
+    """
 
     channel: str = "v_sz"
     axis: Literal["I", "O", "P"] = "I"
-    bias_v: float = 2.5
-    scale_v_per_dps2: float = 0.004014
-    range_dps2: float = 572.958
+    bias_v: float = REFERENCE_BIAS_V
+    scale_v_per_dps2: float = REFERENCE_SCALE_V_PER_DPS2
+    range_dps2: float = REFERENCE_RANGE_DPS2
     noise_rms_v: float = Field(0.001, ge=0)
     resolution_dps2: float = Field(0.0, ge=0, description="threshold/resolution (0 = ideal)")
     bias_temperature: BiasTemperature | None = None

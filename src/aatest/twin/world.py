@@ -3,8 +3,9 @@
 Holds the lab clock, the table's commanded state (angles, motor, current motion profile), the
 chamber/sensor temperature and the mounting of the sensors (pivot, re-mount perturbations).
 The simulated turntable, DAQ and chamber plugins drive it through the runner's call sequence
-and find it in ``RigContext.shared["sim.world"]``; signals are synthesised lazily, once per
-step, so the table log and the DAQ log see the same physical truth. Nothing sleeps.
+and share it through one :class:`~aatest.twin.session.TwinSession`; signals are synthesised
+lazily, once per step, so the table log and the DAQ log see the same physical truth. Nothing
+sleeps.
 """
 
 from __future__ import annotations
@@ -13,18 +14,15 @@ import hashlib
 
 import numpy as np
 
-from aatest.engine.errors import EnvelopeRefused, PluginError, RigFault
-from aatest.engine.interfaces import RigContext
+from aatest.engine.errors import EnvelopeRefused, RigFault
 from aatest.engine.steps import PlannedStep
 from aatest.twin import kinematics as kin
 from aatest.twin.chamber import ThermalState
 from aatest.twin.clocks import DaqClock
-from aatest.twin.model import RigModel, load_rig_model
+from aatest.twin.model import RigModel
 from aatest.twin.profiles import AxisProfile, step_profiles
 from aatest.twin.synthesis import SimulatedStep, StepSetup, synthesise
 from aatest.twin.table import AxisTruth, Tones, make_vibration, tracked
-
-SHARED_KEY = "sim.world"
 
 
 class World:
@@ -187,43 +185,3 @@ class World:
 
     def sensor_temperature_c(self) -> float:
         return float(self.thermal.temperature_at(self.lab_time_s))
-
-
-def default_rig_model(context: RigContext) -> RigModel:
-    """The realistic rig for the context's sensor: SR207 models, else one per datasheet channel."""
-    from aatest.plugins.sensors.sr207 import default_models_for, sensor_model
-    from aatest.twin.api import realistic_rig_model
-
-    try:
-        sensors = default_models_for(context.sensor.model)
-    except KeyError:
-        sheet = context.datasheet
-        sensors = [sensor_model(ch, ax).model_copy(update={
-            "bias_v": sheet.nominal_bias_v, "scale_v_per_dps2": sheet.scale_v_per_dps2,
-            "range_dps2": sheet.range_dps2}) for ch, ax in sheet.channels.items()]
-    return realistic_rig_model(sensors)
-
-
-def shared_world(context: RigContext | None, model_path: str | None = None) -> World:
-    """The World of this rig: created by the first sim plugin, then shared via the context.
-
-    Plugins look the World up on every call (it may be rebuilt when a later plugin names the
-    model file); two plugins naming different model files is a configuration error.
-    """
-    if context is None:
-        from aatest.engine.interfaces import SensorDatasheet
-        from aatest.engine.steps import SensorRef
-
-        context = RigContext(sensor=SensorRef(model="sr207"),
-                             datasheet=SensorDatasheet(model="sr207"))
-    world = context.shared.get(SHARED_KEY)
-    known = context.shared.get(SHARED_KEY + ".model_path")
-    if world is not None and model_path and known not in (None, model_path):
-        raise PluginError(f"sim plugins disagree about the rig model: {model_path!r} vs {known!r}")
-    if world is None or (model_path and known is None):
-        # built before any plugin named a model file: nothing has run yet, so rebuild it
-        model = load_rig_model(model_path) if model_path else default_rig_model(context)
-        world = World(model, context.seed)
-        context.shared[SHARED_KEY] = world
-        context.shared[SHARED_KEY + ".model_path"] = model_path
-    return world

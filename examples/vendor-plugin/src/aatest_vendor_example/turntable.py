@@ -3,7 +3,7 @@
 The table has one continuous axis (aatest's *inner* axis) and no outer axis: its envelope says
 so (outer travel pinned at 0°), so the planner refuses any procedure that tilts or excites the
 outer axis before anything moves. The motion itself is simulated here by the aatest twin
-(shared with the simulated DAQ through ``RigContext.shared``), with the table model's limits
+(shared with the simulated DAQ through ``RigContext.resources``), with the table model's limits
 set from this table's datasheet; a real vendor driver would talk to its controller instead.
 """
 
@@ -35,7 +35,7 @@ class SingleAxisTable:
     def __init__(self, config: Config | None, context: RigContext) -> None:
         self.config = config if config is not None else self.Config()
         self.context = context
-        self._world()  # the twin takes this table's limits before the simulated DAQ shares it
+        self._twin = self._session()
 
     def envelope(self) -> TableEnvelope:
         cfg = self.config
@@ -44,20 +44,25 @@ class SingleAxisTable:
                              outer=_LOCKED, max_log_rate_hz=cfg.log_rate_hz,
                              max_frequency_hz=cfg.max_frequency_hz)
 
-    def _world(self):  # noqa: ANN202 - the twin's World (aatest.twin), imported lazily
-        from aatest.twin.world import SHARED_KEY, World, default_rig_model
+    def _session(self):  # noqa: ANN202 - the twin's TwinSession (aatest.twin), imported lazily
+        """Share the twin, built with this table's limits, before the simulated DAQ asks."""
+        from aatest.twin.defaults import realistic_rig_model
+        from aatest.twin.session import TwinSession, twin_session
 
-        world = self.context.shared.get(SHARED_KEY) if self.context is not None else None
-        if world is None and self.context is not None:
-            model = default_rig_model(self.context)
+        context = self.context
+        if context is not None and context.resources.get(TwinSession) is None:
+            model = realistic_rig_model(context.datasheet)
             inner = model.table.inner.model_copy(update={
                 "rate_limit_dps": self.config.rate_limit_dps,
                 "accel_limit_dps2": self.config.accel_limit_dps2})
             model = model.model_copy(update={"table": model.table.model_copy(
                 update={"inner": inner, "log_rate_hz": self.config.log_rate_hz})})
-            world = World(model, self.context.seed)
-            self.context.shared[SHARED_KEY] = world
-        return world
+            context.resources.setdefault(
+                TwinSession, lambda: TwinSession(context.datasheet, context.seed, model))
+        return twin_session(context)
+
+    def _world(self):  # noqa: ANN202 - the twin's World
+        return self._twin.world
 
     def start(self) -> None:
         self._world().motor_on = True

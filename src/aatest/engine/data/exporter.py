@@ -21,7 +21,6 @@ channels to their own precision (read back as float64).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Collection
 from pathlib import Path
@@ -144,7 +143,7 @@ def manifest(dataset: Dataset, entries: list[dict[str, Any]]) -> dict[str, Any]:
     template = dataset.metadata.get("report_template")
     if isinstance(template, str):
         doc["report_template"] = template
-    doc["sensors"] = [dataclasses.asdict(s) for s in dataset.sensors]
+    doc["sensors"] = [s.model_dump(mode="json") for s in dataset.sensors]
     doc["steps"] = entries
     return doc
 

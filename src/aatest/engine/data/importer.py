@@ -12,7 +12,8 @@ whose ``t_ref_c`` sets the temperature reference, default 25 °C), ``analysis`` 
 ``aatest analyze`` runs, as in a procedure) and ``report_template``; per step ``amplitude_deg``,
 ``cycles``, ``rate_dps``, ``outer_rate_dps``, ``temperature_c``, ``group``, ``repetition``,
 ``motor_on``, ``settle_s``, ``mounting``; per sensor every
-:class:`~aatest.engine.dataset.SensorInfo` field.
+:class:`~aatest.engine.datasheet.SensorInfo` field (the contract keys ``channel``, ``axis``,
+``nominal_bias_v``, ``nominal_scale_v_per_dps2``, ``range_dps2`` among them).
 
 Channel mapping. The table CSV's ``position_deg, rate_dps, accel_dps2`` are the moving axis
 (``outer_*`` for ``axis: outer``, else ``inner_*``). Any column named like a canonical table
@@ -63,21 +64,11 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-class SensorEntry(_Strict):
-    """One sensor channel of the DAQ files (nominal, datasheet values)."""
+class SensorEntry(SensorInfo):
+    """One sensor channel of the DAQ files: the engine's sensor record, keys and defaults alike.
 
-    channel: str = Field(min_length=1)
-    axis: Literal["I", "O", "P"] = "I"
-    nominal_bias_v: float = 2.5
-    nominal_scale_v_per_dps2: float = Field(0.004014, gt=0)
-    range_dps2: float = Field(572.958, gt=0)
-    model: str = "unknown"
-    serial: str = "unknown"
-    noise_rms_v: float = Field(0.003, ge=0)
-    bias_tolerance_v: float = Field(0.01, ge=0)
-    scale_tolerance_pct: float = Field(1.0, ge=0)
-    bias_temperature_limit_v_per_c: float = Field(0.0004, ge=0)
-    scale_temperature_limit_per_c: float = Field(0.0005, ge=0)
+    The only import-side rule is that a channel may not be named like a DAQ column of its own.
+    """
 
     @field_validator("channel")
     @classmethod
@@ -255,7 +246,7 @@ def import_dataset(directory: str | Path) -> Dataset:
         daq, daq_present = _daq_log(entry, daq_csv, rate_hz, sensor_channels, t_ref_c)
         steps.append(StepData(_planned(entry, len(table), rate_hz), table, daq))
         present[entry.id] = {"table": table_present, "daq": daq_present}
-    sensors = tuple(SensorInfo(**s.model_dump()) for s in manifest.sensors)
+    sensors = tuple(SensorInfo(**s.model_dump()) for s in manifest.sensors)  # the plain record
     return Dataset(
         procedure=manifest.procedure, sample_rate_hz=rate_hz, sensors=sensors,
         steps=tuple(steps), source=directory,

@@ -9,7 +9,6 @@ the file and what is wrong. The layout is described in :mod:`aatest.engine.recor
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,7 +32,6 @@ from aatest.engine.steps import PlannedStep
 
 IMPORT_MANIFEST = "dataset.yaml"
 _DECODE_ERRORS = fmt.DECODE_ERRORS
-_SENSOR_FIELDS = {f.name for f in dataclasses.fields(SensorInfo)}
 
 
 @dataclass
@@ -201,7 +199,7 @@ def _sensors(run_meta: dict[str, Any], steps: list[StepData]) -> tuple[SensorInf
     entries = run_meta.get("sensors")
     if isinstance(entries, list) and entries:
         return tuple(
-            SensorInfo(**{k: v for k, v in entry.items() if k in _SENSOR_FIELDS})
+            SensorInfo.from_metadata(entry)
             for entry in entries
             if isinstance(entry, dict)
         )

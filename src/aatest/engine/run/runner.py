@@ -83,7 +83,7 @@ def run_metadata(
         "plugin_versions": rig.versions,
         "seed": seed,
         "sensor": plan.sensor.model_dump(),
-        "sensors": [vars(s) for s in rig.sensor_infos()],
+        "sensors": [s.model_dump(mode="json") for s in rig.sensor_infos()],
         "aatest_version": aatest.__version__,
         "started_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "plan": [s.model_dump(mode="json") for s in plan.steps],

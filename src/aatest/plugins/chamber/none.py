@@ -21,8 +21,13 @@ class NoChamber:
         self.context = context
 
     def _ambient_c(self) -> float:
-        world = self.context.shared.get("sim.world") if self.context is not None else None
-        return world.sensor_temperature_c() if world is not None else self.config.ambient_c
+        """The twin's sensor temperature on a simulated rig, else the configured ambient."""
+        from aatest.twin.session import TwinSession  # only to look it up; real rigs have none
+
+        session = self.context.resources.get(TwinSession) if self.context is not None else None
+        if session is None:
+            return self.config.ambient_c
+        return session.world.sensor_temperature_c()
 
     def set_temperature(self, setpoint_c: float) -> None:
         """Accept only the ambient set-point (the planner should never ask for another)."""

@@ -5,7 +5,8 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict
 
 from aatest.engine.interfaces import RigContext
-from aatest.twin.world import World, shared_world
+from aatest.twin.session import twin_session
+from aatest.twin.world import World
 
 
 class SimChamber:
@@ -18,11 +19,11 @@ class SimChamber:
     def __init__(self, config: Config, context: RigContext) -> None:
         self.config = config
         self.context = context
-        shared_world(context, config.model)
+        self._twin = twin_session(context, config.model)
 
     @property
     def world(self) -> World:
-        return shared_world(self.context, self.config.model)
+        return self._twin.world
 
     def set_temperature(self, setpoint_c: float) -> None:
         self.world.set_temperature(setpoint_c)

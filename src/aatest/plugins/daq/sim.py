@@ -9,11 +9,10 @@ from pydantic import BaseModel, ConfigDict
 from aatest.engine.interfaces import RigContext
 from aatest.engine.logs import DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.twin.defaults import SLIP_RING_RMS_V
 from aatest.twin.model import ExcessNoise
-from aatest.twin.world import World, shared_world
-
-#: measured noise the slip ring adds (docs/method.md §1.3: ≥ 11 mV RMS)
-SLIP_RING_RMS_V = 0.011
+from aatest.twin.session import twin_session
+from aatest.twin.world import World
 
 
 class SimDaq:
@@ -29,6 +28,7 @@ class SimDaq:
     def __init__(self, config: Config, context: RigContext) -> None:
         self.config = config
         self.context = context
+        self._twin = twin_session(context, config.model)
         self._route_signals()
 
     def _route_signals(self) -> None:
@@ -41,7 +41,7 @@ class SimDaq:
 
     @property
     def world(self) -> World:
-        return shared_world(self.context, self.config.model)
+        return self._twin.world
 
     def channels(self) -> Sequence[str]:
         return [s.channel for s in self.world.model.sensors] + list(DAQ_AUX_CHANNELS)

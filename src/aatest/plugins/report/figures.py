@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy import signal
 
+from aatest.engine.datasheet import REFERENCE_RANGE_DPS2
 from aatest.plugins.report import extract as ex
 
 #: applied per plot (never globally, other plugins draw with matplotlib too): stable SVG ids,
@@ -73,7 +74,7 @@ def calibration_curve(entry: Mapping[str, Any], sensor: Mapping[str, Any],
         return None
     k_v = ex.as_float(entry.get("scale_v_per_dps2")) or 1.0 / coefficients[1]
     # stay inside the calibrated span: a high-order polynomial is not an extrapolator
-    peak = peak_dps2 or 0.7 * (ex.as_float(sensor.get("range_dps2")) or 572.958)
+    peak = peak_dps2 or 0.7 * (ex.as_float(sensor.get("range_dps2")) or REFERENCE_RANGE_DPS2)
     u_v = np.linspace(-peak * k_v, peak * k_v, 201)
     y = np.polynomial.polynomial.polyval(u_v, coefficients)
     band = _poly_band(entry, len(coefficients), u_v)

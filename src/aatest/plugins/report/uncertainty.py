@@ -17,6 +17,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.plugins.report import extract as ex
 from aatest.plugins.report.gum import Input, Measurand, Ops
 
@@ -51,7 +52,7 @@ def _scale_fit_inputs(entry: Mapping[str, Any], noise_v: float, results: Mapping
     which is the sum of reference-acceleration noise and sensor noise (in °/s²); each part
     of the budget gets its share of it.
     """
-    k_v = ex.as_float(entry.get("scale_v_per_dps2")) or 0.004014
+    k_v = ex.as_float(entry.get("scale_v_per_dps2")) or REFERENCE_SCALE_V_PER_DPS2
     coeffs = entry.get("coefficients") or []
     a1 = ex.as_float(coeffs[1]) if len(coeffs) > 1 else None
     u_a1 = ex.ci_std(entry.get("ci95"), 1) if a1 else None
@@ -229,8 +230,9 @@ def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigCons
              if isinstance(entry, Mapping) else None)
     if g_hat is None:
         return None
-    k_v = ex.as_float(entry.get("scale_v_per_dps2_used")) or ex.as_float(
-        ex.sensors(results).get(channel, {}).get("nominal_scale_v_per_dps2")) or 0.004014
+    nominal = ex.sensors(results).get(channel, {}).get("nominal_scale_v_per_dps2")
+    k_v = (ex.as_float(entry.get("scale_v_per_dps2_used")) or ex.as_float(nominal)
+           or REFERENCE_SCALE_V_PER_DPS2)
     tc = _bias_tc_v_per_c(results, channel)
     tilt = math.hypot(c.position_accuracy_arcsec, c.wobble_arcsec) * ARCSEC_RAD
     inputs = [

@@ -17,6 +17,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.plugins.report import extract as ex
 from aatest.plugins.report.gum import Input, Measurand, Ops
 from aatest.plugins.report.uncertainty import ARCSEC_RAD, RigConstants
@@ -131,7 +132,7 @@ def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: st
     channel = _channel_of(sensor, results)
     noise_v, source = ex.noise_rms_v(results, channel)
     info = ex.sensors(results).get(channel, {})
-    k_v = ex.as_float(info.get("nominal_scale_v_per_dps2")) or 0.004014
+    k_v = ex.as_float(info.get("nominal_scale_v_per_dps2")) or REFERENCE_SCALE_V_PER_DPS2
     accel_dps2, samples = _misalignment_steps(results, c)
     rel = noise_v * math.sqrt(2.0 / samples) / (k_v * accel_dps2)
     wobble_deg = c.wobble_arcsec / 3600.0

@@ -12,6 +12,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from aatest.engine.datasheet import (
+    REFERENCE_BIAS_V,
+    REFERENCE_RANGE_DPS2,
+    REFERENCE_SCALE_V_PER_DPS2,
+)
 from aatest.plugins.report import extract as ex
 
 DPS2_PER_RAD_S2 = 57.29577951308232
@@ -64,9 +69,10 @@ def _static_verdicts(results: Mapping[str, Any], ch: str, sensor: Mapping[str, A
                      u: Mapping[str, float]) -> list[Verdict]:
     rows: list[Verdict] = []
     bias = (ex.analysis(results, "bias") or {}).get(ch) or {}
-    range_dps2 = _limit(sensor, "range_dps2", 572.958)
+    range_dps2 = _limit(sensor, "range_dps2", REFERENCE_RANGE_DPS2)
     if (b := ex.as_float(bias.get("bias_v"))) is not None:
-        rows.append(_verdict("bias", ch, b, _limit(sensor, "nominal_bias_v", 2.5), "V",
+        nominal_v = _limit(sensor, "nominal_bias_v", REFERENCE_BIAS_V)
+        rows.append(_verdict("bias", ch, b, nominal_v, "V",
                              _limit(sensor, "bias_tolerance_v", 0.01), u.get(f"bias/{ch}")))
     if (g := ex.as_float(bias.get("g_sensitivity_dps2_per_g"))) is not None:
         # the analysis' own limit when stated, so report and results agree; else 0.1 % FR/g
@@ -77,7 +83,7 @@ def _static_verdicts(results: Mapping[str, Any], ch: str, sensor: Mapping[str, A
                              u.get(f"g_sensitivity/{ch}")))
     scale = (ex.analysis(results, "scale_factor") or {}).get(ch) or {}
     if (k := ex.as_float(scale.get("scale_v_per_dps2"))) is not None:
-        nominal = _limit(sensor, "nominal_scale_v_per_dps2", 0.004014)
+        nominal = _limit(sensor, "nominal_scale_v_per_dps2", REFERENCE_SCALE_V_PER_DPS2)
         limit_pct = _limit(sensor, "scale_tolerance_pct", 1.0)
         u_k = u.get(f"scale_factor/{ch}")
         rows.append(_verdict("scale factor deviation", ch, 100.0 * (k / nominal - 1.0), 0.0, "%",

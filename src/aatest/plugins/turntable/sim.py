@@ -13,7 +13,8 @@ from aatest.engine.errors import EnvelopeRefused, RigFault
 from aatest.engine.interfaces import AxisLimits, RigContext, TableEnvelope
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.twin.world import World, shared_world
+from aatest.twin.session import twin_session
+from aatest.twin.world import World
 
 
 class SimTurntable:
@@ -29,7 +30,7 @@ class SimTurntable:
     def __init__(self, config: Config, context: RigContext) -> None:
         self.config = config
         self.context = context
-        shared_world(context, config.model)
+        self._twin = twin_session(context, config.model)
 
     @property
     def serial(self) -> str:
@@ -38,7 +39,7 @@ class SimTurntable:
 
     @property
     def world(self) -> World:
-        return shared_world(self.context, self.config.model)
+        return self._twin.world
 
     def envelope(self) -> TableEnvelope:
         """The limits the controller enforces (from the rig model)."""
@@ -82,7 +83,7 @@ class SimTurntable:
     def safe_stop(self) -> None:
         """Stop motion and switch the motor off; never raises."""
         try:
-            world = self.context.shared.get("sim.world")
+            world = self._twin.built_world
             if world is not None:
                 world.end_motion()
                 world.motor_on = False

@@ -94,7 +94,7 @@ class SimModbusServer:
     seed
         Seed of the twin.
     model
-        Twin model; default the realistic sr207 rig.
+        Twin model; default the realistic rig with the reference sensor.
     faults
         Fault injection for tests.
     lifetime_s
@@ -105,9 +105,9 @@ class SimModbusServer:
                  model: RigModel | None = None, faults: FaultInjection | None = None,
                  lifetime_s: float | None = None) -> None:
         if model is None:
-            from aatest.twin.api import realistic_rig_model
+            from aatest.twin.defaults import realistic_rig_model
 
-            model = realistic_rig_model("sr207")
+            model = realistic_rig_model()
         self.controller = SimController(model, seed, faults)
         self.host, self.port = host, int(port)
         self.lifetime_s = lifetime_s

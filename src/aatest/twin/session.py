@@ -1,0 +1,100 @@
+"""The twin session: the one :class:`~aatest.twin.world.World` the simulated plugins of a rig share.
+
+The first simulated plugin of a rig creates the session in the rig's typed shared resources
+(``RigContext.resources``, keyed by the :class:`TwinSession` class), the others find it there;
+nothing is looked up by a string key. The session builds its World lazily, on first use, from
+the rig-model file a plugin was configured with, else from the twin's realistic defaults for
+the sensor datasheet the engine resolved (``RigContext.datasheet``). Two plugins naming
+different model files is a configuration error.
+"""
+
+from __future__ import annotations
+
+from aatest.engine.datasheet import SensorDatasheet
+from aatest.engine.errors import PluginError
+from aatest.engine.interfaces import RigContext
+from aatest.engine.steps import SensorRef
+from aatest.twin.defaults import realistic_rig_model
+from aatest.twin.model import RigModel, load_rig_model
+from aatest.twin.world import World
+
+__all__ = ["TwinSession", "twin_session"]
+
+
+class TwinSession:
+    """The shared twin of one simulated rig and the model file it is built from.
+
+    Parameters
+    ----------
+    datasheet
+        The sensor's datasheet; without a model file the twin simulates one realistic sensor
+        per datasheet channel (:func:`aatest.twin.defaults.realistic_rig_model`).
+    seed
+        Seed of every random draw of the World.
+    model
+        An explicit rig model (e.g. a vendor table that sets its own limits); a model file
+        named by a plugin still takes precedence.
+    """
+
+    def __init__(self, datasheet: SensorDatasheet, seed: int = 0,
+                 model: RigModel | None = None) -> None:
+        self.datasheet = datasheet
+        self.seed = int(seed)
+        self.model = model
+        self.model_path: str | None = None
+        self._world: World | None = None
+
+    def claim(self, model_path: str | None) -> None:
+        """Note the model file a plugin was configured with (None or empty: no preference).
+
+        Raises
+        ------
+        PluginError
+            Another plugin of this rig already named a different model file.
+        """
+        if not model_path:
+            return
+        if self.model_path is None:
+            self.model_path = model_path
+            self._world = None  # built before any plugin named a model file: nothing ran yet
+        elif self.model_path != model_path:
+            raise PluginError(f"sim plugins disagree about the rig model: {model_path!r} vs "
+                              f"{self.model_path!r}")
+
+    @property
+    def world(self) -> World:
+        """The shared World, built on first use."""
+        if self._world is None:
+            if self.model_path:
+                model = load_rig_model(self.model_path)
+            else:
+                model = self.model if self.model is not None else realistic_rig_model(
+                    self.datasheet)
+            self._world = World(model, self.seed)
+        return self._world
+
+    @property
+    def built_world(self) -> World | None:
+        """The World if one was built, else None (a safe stop must not build one)."""
+        return self._world
+
+
+def twin_session(context: RigContext | None, model_path: str | None = None) -> TwinSession:
+    """The twin session of this rig, created by the first simulated plugin that asks.
+
+    Parameters
+    ----------
+    context
+        The rig context the engine handed the plugin; None (a plugin built on its own, e.g.
+        in a test) gives a private session for the reference sensor.
+    model_path
+        The rig-model YAML the asking plugin was configured with, if any.
+    """
+    if context is None:
+        context = RigContext(sensor=SensorRef(model="reference"),
+                             datasheet=SensorDatasheet(model="reference"))
+    rig = context
+    session = rig.resources.setdefault(TwinSession,
+                                       lambda: TwinSession(rig.datasheet, rig.seed))
+    session.claim(model_path)
+    return session
