@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -24,6 +25,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLES = REPO / "examples" / "vendor-plugin"
+IGNORED = shutil.ignore_patterns("build", "*.egg-info", "__pycache__")
 
 
 def write_distribution(site: Path, name: str, version: str,
@@ -95,6 +97,8 @@ def vendor_venv(tmp_path_factory: pytest.TempPathFactory) -> Path:
     # already satisfied from the test environment (offline), else from the pip cache or index
     _pip(python, *_build_requirements())
     _pip(python, "--no-deps", "--no-build-isolation", "--no-index", "--editable", str(REPO))
+    # built from a copy: setuptools leaves build/ and *.egg-info behind in the source tree
+    source = shutil.copytree(EXAMPLES, python.parents[2] / "vendor-plugin", ignore=IGNORED)
     # dependencies (aatest, pydantic) must resolve from what is installed: no index at all
-    _pip(python, "--no-build-isolation", "--no-index", "--no-cache-dir", str(EXAMPLES))
+    _pip(python, "--no-build-isolation", "--no-index", "--no-cache-dir", str(source))
     return python.parent

@@ -44,7 +44,7 @@ def _aatest(scripts: Path, *args: str, cwd: Path) -> subprocess.CompletedProcess
                           text=True, timeout=300)
 
 
-def test_installed_only_in_the_fresh_venv(vendor_venv: Path, tmp_path: Path) -> None:
+def test_installed_only_in_the_fresh_venv(vendor_venv: Path) -> None:
     where = subprocess.run(
         [vendor_venv / "python", "-c", "import aatest_vendor_example as m; print(m.__file__)"],
         capture_output=True, text=True, check=True).stdout.strip()
