@@ -86,7 +86,7 @@ def _pip(python: Path, *args: str) -> None:
     """Run this interpreter's pip on the venv of ``python`` (pip ≥ 22.3: ``--python``)."""
     done = subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install",
                            "--disable-pip-version-check", *args],
-                          capture_output=True, text=True, timeout=300)
+                          check=False, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, f"pip install {' '.join(args)} failed:\n{done.stdout}{done.stderr}"
 
 

@@ -40,8 +40,8 @@ def _procedure(tmp_path: Path, axis: str, accel_dps2: float) -> Path:
 def _aatest(scripts: Path, *args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     """The ``aatest`` command of the fresh venv (no PYTHONPATH leaking in from this process)."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
-    return subprocess.run([scripts / "aatest", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=300)
+    return subprocess.run([scripts / "aatest", *args], cwd=cwd, env=env, check=False,
+                          capture_output=True, text=True, timeout=300)
 
 
 def test_installed_only_in_the_fresh_venv(vendor_venv: Path) -> None:

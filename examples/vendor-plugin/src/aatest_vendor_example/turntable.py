@@ -13,6 +13,8 @@ aatest's ``modbus`` turntable). Only aatest's public plugin API is used.
 
 from __future__ import annotations
 
+import logging
+
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine import registry
@@ -20,6 +22,8 @@ from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.interfaces import AxisLimits, RigContext, TableEnvelope, Turntable
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
+
+log = logging.getLogger(__name__)
 
 #: the installed turntable plugin that simulates this table's motion
 SIMULATOR = "sim"
@@ -99,8 +103,8 @@ class SingleAxisTable:
         """Stop and switch the motor off; never raises, may be called twice."""
         try:
             self._controller.safe_stop()
-        except Exception:  # noqa: BLE001 - a safe stop must never raise
-            pass
+        except Exception as exc:  # noqa: BLE001 - a safe stop must never raise
+            log.error("ACME SR-1: safe stop failed: %s", exc)
 
     def close(self) -> None:
         """Leave the table safe and release it."""

@@ -45,13 +45,14 @@ class SimTurntable:
 
     @property
     def world(self) -> World:
+        """The shared twin, its controller held to the configured axis limits."""
         world = shared_world(self.context, self.config.model)
         limits = {"inner": self.config.inner_limits, "outer": self.config.outer_limits}
         table = world.model.table
         update = {axis: getattr(table, axis).model_copy(update={
             "rate_limit_dps": lim.rate_dps, "accel_limit_dps2": lim.accel_dps2})
             for axis, lim in limits.items() if lim is not None}
-        if update:  # impose the configured limits on the twin's controller
+        if update:
             world.model = world.model.model_copy(update={"table": table.model_copy(update=update)})
         return world
 
