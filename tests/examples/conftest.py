@@ -40,6 +40,12 @@ def write_distribution(site: Path, name: str, version: str,
 
 
 @pytest.fixture
+def example_dir() -> Path:
+    """The example vendor package's source tree (its ``pyproject.toml`` and ``src/``)."""
+    return EXAMPLES
+
+
+@pytest.fixture
 def install(tmp_path_factory: pytest.TempPathFactory,
             monkeypatch: pytest.MonkeyPatch) -> Callable[..., None]:
     site = tmp_path_factory.mktemp("site")

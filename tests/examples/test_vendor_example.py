@@ -6,7 +6,9 @@ The real install (pip, fresh venv, the aatest CLI) is ``test_vendor_install.py``
 
 from __future__ import annotations
 
+import ast
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -15,6 +17,10 @@ from aatest.engine import registry
 from aatest.engine.errors import EnvelopeRefused, PluginError
 from aatest.engine.interfaces import RigContext
 from aatest.engine.steps import PlannedStep, SensorRef
+
+#: aatest's public plugin API: all a vendor package may import from aatest
+PUBLIC_API = {"aatest.engine.interfaces", "aatest.engine.errors", "aatest.engine.steps",
+              "aatest.engine.logs", "aatest.engine.registry"}
 
 
 def _table(**options: Any) -> Any:
@@ -29,6 +35,28 @@ def _table(**options: Any) -> Any:
 def _rate_step(rate_dps: float, axis: str = "inner") -> PlannedStep:
     return PlannedStep(id=f"rate-{axis}-{rate_dps:g}", kind="constant_rate", axis=axis,
                        duration_s=0.5, settle_s=1.0, samples=1000, rate_dps=rate_dps)
+
+
+def _aatest_imports(source: str) -> set[str]:
+    """Every ``aatest`` module a source imports (``from aatest.engine import registry`` counts
+    as ``aatest.engine.registry``)."""
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module == "aatest.engine":
+            names.update(f"aatest.engine.{alias.name}" for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+    return {name for name in names if name.split(".")[0] == "aatest"}
+
+
+def test_imports_only_the_public_plugin_api(example_dir: Path) -> None:
+    modules = sorted((example_dir / "src").rglob("*.py"))
+    assert len(modules) == 3
+    used = set().union(*(_aatest_imports(m.read_text()) for m in modules))
+    assert used - PUBLIC_API == set()
+    assert "aatest.engine.registry" in used  # the turntable loads the simulator by name
 
 
 @pytest.mark.usefixtures("vendor_example")
