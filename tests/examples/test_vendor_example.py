@@ -1,60 +1,102 @@
-"""The example vendor package is discovered, listed, validated and used by a procedure."""
+"""The example vendor package inside this process (light-weight install): its envelope, the
+simulated controller holding it to that envelope, and errors that name the distribution.
+
+The real install (pip, fresh venv, the aatest CLI) is ``test_vendor_install.py``.
+"""
 
 from __future__ import annotations
 
-import json
+import ast
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
-from typer.testing import CliRunner
 
 from aatest.engine import registry
-from aatest.cli import app
-from aatest.engine.errors import EXIT_BAD_INPUT, PluginError
+from aatest.engine.errors import EnvelopeRefused, PluginError
+from aatest.engine.interfaces import RigContext
+from aatest.engine.steps import PlannedStep, SensorRef
 
-PROCEDURE = """\
-procedure: vendor-sine
-sensor: {{model: acme-mems-aa, serial: "M-7"}}
-rig: {{turntable: acme-single-axis, daq: sim, chamber: none}}
-sampling: {{rate_hz: 2000, samples: 8000, settle_s: 1}}
-steps:
-  - sine: {{axis: {axis}, frequency_hz: 2.0, accel_dps2: {accel}, snap: coherent}}
-analysis: [sync]
-report: {{template: calibration-certificate, sign: false}}
-"""
+#: aatest's public plugin API: all a vendor package may import from aatest
+PUBLIC_API = {"aatest.engine.interfaces", "aatest.engine.errors", "aatest.engine.steps",
+              "aatest.engine.logs", "aatest.engine.registry"}
 
 
-def _procedure(tmp_path: Path, axis: str = "inner", accel: float = 1200.0) -> Path:
-    path = tmp_path / f"vendor-{axis}.yaml"
-    path.write_text(PROCEDURE.format(axis=axis, accel=accel))
-    return path
-
-
-@pytest.mark.usefixtures("vendor_example")
-def test_discovered_with_distribution_and_version() -> None:
-    table = registry.load("turntable", "acme-single-axis")
+def _table(**options: Any) -> Any:
+    """The SR-1 constructed as the engine does, for the example's own sensor."""
     sensor = registry.load("sensor", "acme-mems-aa")
-    assert (table.distribution, table.version) == ("aatest-vendor-example", "0.1.0")
-    assert sensor.distribution == "aatest-vendor-example"
-    assert "acme-single-axis" in [p.name for p in registry.discover("turntable")]
+    sheet = sensor.target(registry.configure(sensor, {}), None).datasheet()
+    info = registry.load("turntable", "acme-single-axis")
+    context = RigContext(sensor=SensorRef(model="acme-mems-aa"), datasheet=sheet, seed=7)
+    return info.target(registry.configure(info, options), context)
 
 
-@pytest.mark.usefixtures("vendor_example")
-def test_listed_by_aatest_plugins() -> None:
-    result = CliRunner().invoke(app, ["plugins"])
-    assert result.exit_code == 0, result.output
-    lines = [line.split() for line in result.output.splitlines()]
-    assert ["acme-single-axis", "aatest-vendor-example", "0.1.0"] in lines
-    assert ["acme-mems-aa", "aatest-vendor-example", "0.1.0"] in lines
+def _rate_step(rate_dps: float, axis: str = "inner") -> PlannedStep:
+    return PlannedStep(id=f"rate-{axis}-{rate_dps:g}", kind="constant_rate", axis=axis,
+                       duration_s=0.5, settle_s=1.0, samples=1000, rate_dps=rate_dps)
+
+
+def _aatest_imports(source: str) -> set[str]:
+    """Every ``aatest`` module a source imports (``from aatest.engine import registry`` counts
+    as ``aatest.engine.registry``)."""
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module == "aatest.engine":
+            names.update(f"aatest.engine.{alias.name}" for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+    return {name for name in names if name.split(".")[0] == "aatest"}
+
+
+def test_imports_only_the_public_plugin_api(example_dir: Path) -> None:
+    modules = sorted((example_dir / "src").rglob("*.py"))
+    assert len(modules) == 3
+    used = set().union(*(_aatest_imports(m.read_text()) for m in modules))
+    assert used - PUBLIC_API == set()
+    assert "aatest.engine.registry" in used  # the turntable loads the simulator by name
 
 
 @pytest.mark.usefixtures("vendor_example")
 def test_declares_its_own_envelope() -> None:
-    info = registry.load("turntable", "acme-single-axis")
-    envelope = info.target(registry.configure(info, {}), None).envelope()
-    assert envelope.inner.accel_dps2 == 1500.0 and envelope.max_frequency_hz == 20.0
-    assert not envelope.outer.continuous and envelope.outer.max_deg == 0.0
+    envelope = _table().envelope()
+    assert (envelope.inner.rate_dps, envelope.inner.accel_dps2) == (720.0, 1500.0)
+    assert envelope.max_frequency_hz == 20.0
+    assert not envelope.outer.continuous and envelope.outer.max_deg == envelope.outer.min_deg == 0
+
+
+@pytest.mark.usefixtures("vendor_example")
+@pytest.mark.parametrize(("options", "rate_dps", "refused"), [
+    ({}, 700.0, False),
+    ({}, 800.0, True),  # within the twin's own 1200 °/s, beyond the SR-1's 720 °/s
+    ({"rate_limit_dps": 900.0}, 800.0, False),
+], ids=["within", "beyond-sr1", "configured-limit"])
+def test_simulated_controller_enforces_the_declared_limits(
+        options: dict[str, float], rate_dps: float, refused: bool) -> None:
+    table = _table(**options)
+    table.start()
+    try:
+        if refused:
+            with pytest.raises(EnvelopeRefused, match="controller limit"):
+                table.begin_motion(_rate_step(rate_dps))
+        else:
+            table.begin_motion(_rate_step(rate_dps))  # accepted: no EnvelopeRefused
+            table.end_motion()
+    finally:
+        table.close()
+
+
+@pytest.mark.usefixtures("vendor_example")
+def test_refuses_the_missing_outer_axis_itself() -> None:
+    table = _table()
+    table.start()
+    with pytest.raises(EnvelopeRefused, match="ACME SR-1 has no outer axis"):
+        table.begin_motion(_rate_step(10.0, axis="outer"))
+    with pytest.raises(EnvelopeRefused, match=r"no outer axis \(asked for 90°\)"):
+        table.move_to(0.0, 90.0)
+    table.close()
 
 
 @pytest.mark.usefixtures("vendor_example")
@@ -76,22 +118,3 @@ def test_broken_vendor_plugins_are_named(install: Callable[..., None]) -> None:
     with pytest.raises(PluginError, match="'no-module' from distribution 'acme-broken' "
                                           "failed to import"):
         registry.load("sensor", "no-module")
-
-
-@pytest.mark.usefixtures("vendor_example")
-def test_used_by_a_procedure_beyond_the_two_axis_limits(tmp_path: Path) -> None:
-    # 1200 °/s² exceeds the built-in two-axis table (1000 °/s²) but not this table (1500)
-    out = tmp_path / "run"
-    result = CliRunner().invoke(app, ["run", str(_procedure(tmp_path)), "--out", str(out)])
-    results = json.loads((out / "results.json").read_text())
-    assert result.exit_code == 0 or "calibration-certificate.html.j2" in result.output, \
-        result.output  # TEMP: tolerate the report template bug owned elsewhere
-    assert results["steps"][0]["accel_dps2"] == 1200.0
-    assert "acme-single-axis" in json.dumps(results["rig"])
-
-
-@pytest.mark.usefixtures("vendor_example")
-def test_planner_refuses_the_missing_outer_axis(tmp_path: Path) -> None:
-    result = CliRunner().invoke(app, ["validate", str(_procedure(tmp_path, "outer", 100.0))])
-    assert result.exit_code == EXIT_BAD_INPUT, result.output
-    assert "outer" in result.output

@@ -1,8 +1,12 @@
 """Example vendor plugins for aatest (see ``docs/vendor-plugins.md``).
 
 * ``acme-single-axis`` (group ``aatest.turntables``): a single-axis rate table that declares its
-  own envelope (no outer axis, its own rate/acceleration limits and terminal frequency).
+  own envelope (no outer axis, its own rate/acceleration limits and terminal frequency) and, having
+  no hardware here, moves by wrapping aatest's simulated turntable loaded through the registry.
 * ``acme-mems-aa`` (group ``aatest.sensors``): a MEMS angular accelerometer datasheet.
+
+Only aatest's public plugin API is imported: ``aatest.engine.interfaces``, ``.errors``,
+``.steps``, ``.logs`` and ``.registry``.
 """
 
 __version__ = "0.1.0"

@@ -6,8 +6,6 @@ and noise floor from it, the analyses compare against its nominals and tolerance
 
 from __future__ import annotations
 
-from typing import Any
-
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.interfaces import SensorDatasheet
@@ -22,7 +20,8 @@ class MemsAngularAccelerometer:
         model_config = ConfigDict(extra="forbid")
         range_dps2: float = Field(2000.0, gt=0)
 
-    def __init__(self, config: Config | None = None, context: Any = None) -> None:
+    def __init__(self, config: Config | None = None, context: None = None) -> None:
+        # sensor plugins are constructed as ``Cls(config, None)``: a datasheet needs no rig
         self.config = config if config is not None else self.Config()
 
     def datasheet(self) -> SensorDatasheet:

@@ -21,11 +21,18 @@ class SimTurntable:
     """Turntable plugin backed by the shared :class:`~aatest.twin.world.World`."""
 
     class Config(BaseModel):
-        """Options: ``model`` = path of a rig-model YAML (default: the realistic SR207 rig)."""
+        """Options: ``model`` = path of a rig-model YAML (default: the realistic SR207 rig).
+
+        ``inner_limits``/``outer_limits`` replace an axis's limits of the rig model: the
+        controller enforces their rate (°/s) and acceleration (°/s²), the envelope reports them
+        whole (travel too). A host plugin wraps the twin this way as a table of other limits.
+        """
 
         model_config = ConfigDict(extra="forbid")
         model: str | None = None
         serial: str = "digital-twin"
+        inner_limits: AxisLimits | None = None
+        outer_limits: AxisLimits | None = None
 
     def __init__(self, config: Config, context: RigContext) -> None:
         self.config = config
@@ -39,16 +46,25 @@ class SimTurntable:
 
     @property
     def world(self) -> World:
-        return self._twin.world
+        """The shared twin, its controller held to the configured axis limits."""
+        world = self._twin.world
+        limits = {"inner": self.config.inner_limits, "outer": self.config.outer_limits}
+        table = world.model.table
+        update = {axis: getattr(table, axis).model_copy(update={
+            "rate_limit_dps": lim.rate_dps, "accel_limit_dps2": lim.accel_dps2})
+            for axis, lim in limits.items() if lim is not None}
+        if update:
+            world.model = world.model.model_copy(update={"table": table.model_copy(update=update)})
+        return world
 
     def envelope(self) -> TableEnvelope:
-        """The limits the controller enforces (from the rig model)."""
+        """The limits the controller enforces (configured, else from the rig model)."""
         table = self.world.model.table
         return TableEnvelope(
-            inner=AxisLimits(rate_dps=table.inner.rate_limit_dps,
-                             accel_dps2=table.inner.accel_limit_dps2),
-            outer=AxisLimits(rate_dps=table.outer.rate_limit_dps,
-                             accel_dps2=table.outer.accel_limit_dps2),
+            inner=self.config.inner_limits or AxisLimits(
+                rate_dps=table.inner.rate_limit_dps, accel_dps2=table.inner.accel_limit_dps2),
+            outer=self.config.outer_limits or AxisLimits(
+                rate_dps=table.outer.rate_limit_dps, accel_dps2=table.outer.accel_limit_dps2),
             max_log_rate_hz=table.log_rate_hz, log_capacity_samples=table.log_capacity_samples)
 
     def start(self) -> None:
