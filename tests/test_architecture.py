@@ -34,12 +34,8 @@ import aatest
 # so the list can only shrink.
 ALLOWED_IMPORTS: frozenset[tuple[str, str]] = frozenset(
     {
-        # (b) engine → plugins; also closes the engine ↔ plugins.analysis cycle.
         # (b) engine → plugins; also closes the engine ↔ plugins.report cycle.
         ("aatest.engine.run.session", "aatest.plugins.report.pdf"),
-        # (c) twin → plugins: the SR207 sensor plugin ↔ twin cycle.
-        ("aatest.twin.world", "aatest.plugins.sensors.sr207"),
-        ("aatest.twin.api", "aatest.plugins.sensors.sr207"),
         # (c) twin → plugins: the simulated CAN logger reuses the CAN driver's frame codec
         # (twin ↔ plugins.daq cycle).
         ("aatest.twin.servers.can_sim", "aatest.plugins.daq.can"),
