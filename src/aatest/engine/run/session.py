@@ -1,6 +1,7 @@
 """What each CLI command does, end to end, without any CLI concerns.
 
-procedure → plan → envelope → rig → runner → recording → analyses → results → report → signature
+procedure → plan → envelope → rig → runner → recording → analyses → uncertainty → verdicts →
+results → report → signature
 """
 
 from __future__ import annotations
@@ -9,12 +10,15 @@ import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from collections.abc import Mapping
 from typing import Any
 
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.errors import InputError
 from aatest.engine.analysis.results import build_results, read_results, write_results
+from aatest.engine.dataset import Dataset
+from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state
 from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
@@ -109,10 +113,35 @@ def analyse_and_report(
         s.step.lab_duration_s for s in data.steps
     )
     results = build_results(data, analysis, lab, wall_duration_s or 0.0)
+    decide(results, data)
     out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
     render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
     return results
+
+
+def acceptance_of(metadata: Mapping[str, Any]) -> Acceptance:
+    """The procedure's acceptance, from the procedure text stored in the recording.
+
+    Imported data has no procedure: the default (simple rule, datasheet limits) applies.
+    """
+    from aatest.engine.procedure.loader import parse_procedure
+
+    text = metadata.get("procedure_text")
+    if not text:
+        return Acceptance()
+    source = f"{metadata.get('recording', 'recording')} (procedure_text)"
+    return parse_procedure(str(text), source).acceptance
+
+
+def decide(results: dict[str, Any], data: Dataset) -> None:
+    """The engine's decisions, after the analyses: uncertainty budgets, then verdicts."""
+    from aatest.engine.analysis.verdicts import apply_verdicts
+    from aatest.engine.analysis.verdicts_limits import datasheets
+    from aatest.uncertainty import apply_uncertainty
+
+    apply_uncertainty(results)
+    apply_verdicts(results, datasheets(data.metadata, data.sensors), acceptance_of(data.metadata))
 
 
 def render_and_sign(
