@@ -147,8 +147,8 @@ def _exit_on_outcome(results: dict[str, Any]) -> None:
     if failed(results):
         for v in results["verdicts"]:
             if v["verdict"] != "pass":
-                typer.echo(f"{v['verdict']}: {v['quantity']} {v['channel']}: |{v['value']:.6g}| "
-                           f"vs limit {v['limit']:.6g} {v['unit']} ({v['rule']})", err=True)
+                typer.echo(f"{v['verdict']}: {v['quantity']} {v['channel']}: {v['value']:.6g} "
+                           f"vs limit ±{v['limit']:.6g} {v['unit']} ({v['rule']})", err=True)
         raise typer.Exit(EXIT_FINDING)
 
 
