@@ -30,6 +30,8 @@ sim_server_app = typer.Typer(no_args_is_help=True, help="Serve the simulated rig
 app.add_typer(sim_server_app, name="sim-server")
 
 _state = {"debug": False}
+#: a defect of aatest (docs/interfaces.md: "never exit 1", which means a failed verdict)
+EXIT_INTERNAL = 4
 F = TypeVar("F", bound=Callable[..., Any])
 
 
@@ -56,7 +58,7 @@ def guarded(fn: F) -> F:
         except Exception as exc:  # noqa: BLE001 - the last line of defence
             if _state["debug"]:
                 traceback.print_exc()
-            _fail(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", 1)
+            _fail(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", EXIT_INTERNAL)
 
     return wrapper  # type: ignore[return-value]
 
