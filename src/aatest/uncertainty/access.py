@@ -31,7 +31,7 @@ class ResultsContractError(InputError, LookupError):
 def require(entry: Mapping[str, Any], key: str, where: str) -> Any:
     """``entry[key]`` for a contract key; its absence is an error naming ``where``."""
     if not isinstance(entry, Mapping) or key not in entry:
-        raise ResultsContractError(f"results: {where}: missing contract key {key!r}")
+        raise ResultsContractError(f"results.json: {where}: missing contract key {key!r}")
     return entry[key]
 
 

@@ -164,4 +164,4 @@ def failed(results: Mapping[str, Any]) -> bool:
     """True when the run must exit 1: a ``fail``, or a ``conditional-fail`` under ``guarded``."""
     return any(v["verdict"] == "fail"
                or (v["verdict"] == "conditional-fail" and v["rule"] == "guarded")
-               for v in ex.require(results, "verdicts", "results"))
+               for v in ex.require(results, "verdicts", "top level"))

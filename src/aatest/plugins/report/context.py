@@ -108,7 +108,7 @@ def _own_figures(results: Mapping[str, Any], sections: Collection[str],
 
 def _rule(results: Mapping[str, Any]) -> str:
     """The decision rule the verdicts were made under (one per run)."""
-    rules = sorted({str(v["rule"]) for v in ex.require(results, "verdicts", "results")})
+    rules = sorted({str(v["rule"]) for v in ex.require(results, "verdicts", "top level")})
     return ", ".join(rules) or "no quantity judged"
 
 
@@ -143,8 +143,8 @@ def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: s
         "sync": ex.analysis(results, "sync") if "sync" in present else None,
         "misalignment": misalignment_rows(results) if "misalignment" in present else [],
         "misalignment_sets": ex.misalignment_sets(results),
-        "verdicts": ex.require(results, "verdicts", "results"),
-        "overall": ex.require(results, "overall", "results"),
+        "verdicts": ex.require(results, "verdicts", "top level"),
+        "overall": ex.require(results, "overall", "top level"),
         "rule": _rule(results),
         "budgets": budget_views(results, channels(results)),
         "figures": _analysis_figures(results, present)
