@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from ruamel.yaml import YAML
 from typer.testing import CliRunner
 
 from aatest.cli import app
@@ -87,3 +88,19 @@ def test_unknown_limit_is_a_located_error(tmp_path: Path) -> None:
     assert done.exit_code == 2
     lines = len(SHIPPED.read_text(encoding="utf-8").splitlines())
     assert f"{procedure}:{lines + 2}:12: acceptance.limits.scale_factor_deviaton_pct:" in done.output
+
+
+def test_imported_data_judged_by_its_dataset_datasheet(tmp_path: Path,
+                                                      default_run: tuple[int, Path, Any]) -> None:
+    """Without a procedure, the datasheet values in dataset.yaml are the limits."""
+    data = tmp_path / "import"
+    assert RUNNER.invoke(app, ["export", str(default_run[1]), "--csv", str(data)]).exit_code == 0
+    yaml = YAML(typ="safe")
+    manifest = yaml.load(data / "dataset.yaml")
+    for sensor in manifest["sensors"]:
+        sensor["scale_tolerance_pct"] = 0.001
+    yaml.dump(manifest, data / "dataset.yaml")
+    done = RUNNER.invoke(app, ["analyze", str(data)])
+    assert done.exit_code == 1, done.output
+    verdict = _scale_verdict(json.loads((data / "results.json").read_text()))
+    assert verdict["limit"] == 0.001 and verdict["verdict"] == "fail"
