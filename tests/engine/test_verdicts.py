@@ -72,6 +72,8 @@ def test_results_verdicts_and_exit_decision() -> None:
     sx = rows[("scale_factor_deviation_pct", "v_sx")]
     assert sx["verdict"] == "fail" and sx["value"] == pytest.approx(-0.18, abs=1e-9)
     assert rows[("scale_factor_deviation_pct", "v_sz")]["verdict"] == "pass"
+    noise = rows[("noise_rms_v", "v_sz")]
+    assert (noise["value"], noise["limit"], noise["verdict"]) == (0.00101, 0.003, "pass")
     assert strict["overall"] == "fail" and failed(strict)
     u = sx["expanded_uncertainty"]
     assert 0 < u < 0.1

@@ -75,6 +75,7 @@ def _static(results: Mapping[str, Any], ch: str, sheet: SensorDatasheet) -> Iter
             yield ("g_sensitivity_dps2_per_g", g,
                    ex.as_float(bias.get("g_sensitivity_expanded_uncertainty_dps2_per_g")))
     yield from _thermal(results, ch)
+    yield from _noise(results, ch)
 
 
 def _thermal(results: Mapping[str, Any], ch: str) -> Iterator[Judged]:
@@ -88,6 +89,15 @@ def _thermal(results: Mapping[str, Any], ch: str) -> Iterator[Judged]:
     if (c := ex.require_float(temperature, "scale_coefficient_per_c", where)) is not None:
         yield ("scale_temperature_per_c", c,
                ex.as_float(temperature.get("scale_coefficient_expanded_uncertainty_per_c")))
+
+
+def _noise(results: Mapping[str, Any], ch: str) -> Iterator[Judged]:
+    """Output noise: the worst step decides (the noise analysis' ``rms_max_v``)."""
+    noise = ex.channel_entry(results, "noise", ch)
+    if isinstance(noise, Mapping):
+        worst = ex.as_float(noise.get("rms_max_v", noise.get("rms_v")))
+        if worst is not None:
+            yield "noise_rms_v", worst, None
 
 
 def _misalignment(results: Mapping[str, Any]) -> Iterator[tuple[str, Judged]]:

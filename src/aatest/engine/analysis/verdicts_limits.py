@@ -33,6 +33,7 @@ QUANTITY_UNITS: dict[str, str] = {
     "misalignment_deg": "deg",
     "bias_temperature_v_per_c": "V/°C",
     "scale_temperature_per_c": "1/°C",
+    "noise_rms_v": "V",
 }
 
 
@@ -58,6 +59,7 @@ def datasheet_limits(sheet: SensorDatasheet) -> dict[str, float]:
         "misalignment_deg": sheet.misalignment_limit_deg,
         "bias_temperature_v_per_c": sheet.bias_temperature_limit_v_per_c,
         "scale_temperature_per_c": sheet.scale_temperature_limit_per_c,
+        "noise_rms_v": sheet.noise_rms_v,
     }
 
 

@@ -358,6 +358,7 @@ class AcceptanceLimits(_Strict):
     misalignment_deg: PositiveFloat | None = Field(None, description="pivoted-method angle")
     bias_temperature_v_per_c: PositiveFloat | None = Field(None, description="in V/°C")
     scale_temperature_per_c: PositiveFloat | None = Field(None, description="relative, in 1/°C")
+    noise_rms_v: PositiveFloat | None = Field(None, description="worst step's output noise, V RMS")
 
 
 class Acceptance(_Strict):
