@@ -90,7 +90,7 @@ def _own_figures(results: Mapping[str, Any], sections: Collection[str],
         if wanted("frf", v["name"]) and v["frf"]:
             makers.append(("frf", f"Bode {v['name']}", lambda v=v: fig.bode(
                 [r["point"] for r in v["frf"]], v["transfer_function"],
-                [r["gain"]["expanded_uncertainty"] if r["gain"] else 0.0 for r in v["frf"]])))
+                [(r["gain"] or {}).get("expanded_uncertainty") or 0.0 for r in v["frf"]])))
         if wanted("temperature", v["name"]) and isinstance(v["temperature"], Mapping):
             makers.append(("temperature", f"bias vs temperature {v['name']}",
                            lambda v=v: fig.bias_vs_temperature(v["temperature"])))
