@@ -30,6 +30,8 @@ sim_server_app = typer.Typer(no_args_is_help=True, help="Serve the simulated rig
 app.add_typer(sim_server_app, name="sim-server")
 
 _state = {"debug": False}
+#: a defect of aatest (docs/interfaces.md: "never exit 1", which means a failed verdict)
+EXIT_INTERNAL = 4
 F = TypeVar("F", bound=Callable[..., Any])
 
 
@@ -56,7 +58,7 @@ def guarded(fn: F) -> F:
         except Exception as exc:  # noqa: BLE001 - the last line of defence
             if _state["debug"]:
                 traceback.print_exc()
-            _fail(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", 1)
+            _fail(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", EXIT_INTERNAL)
 
     return wrapper  # type: ignore[return-value]
 
@@ -131,15 +133,25 @@ def run(
         f"run complete: {run_dir} — {len(results['steps'])} steps, lab {results['lab_duration_s']:.1f} s, "
         f"wall {results['wall_duration_s']:.1f} s"
     )
-    _report_analysis_errors(results)
+    _exit_on_outcome(results)
 
 
-def _report_analysis_errors(results: dict[str, Any]) -> None:
+def _exit_on_outcome(results: dict[str, Any]) -> None:
+    """After everything is written: exit 2 on failed analyses, 1 on a failed verdict."""
+    from aatest.engine.analysis.verdicts import failed
+
     errors = results.get("analysis_errors") or {}
     for name, message in errors.items():
         typer.echo(f"analysis {name}: {message}", err=True)
     if errors:
         raise typer.Exit(2)
+    typer.echo(f"overall verdict: {results['overall']}")
+    if failed(results):
+        for v in results["verdicts"]:
+            if v["verdict"] != "pass":
+                typer.echo(f"{v['verdict']}: {v['quantity']} {v['channel']}: {v['value']:.6g} "
+                           f"vs limit ±{v['limit']:.6g} {v['unit']} ({v['rule']})", err=True)
+        raise typer.Exit(EXIT_FINDING)
 
 
 @app.command()
@@ -161,7 +173,7 @@ def analyze(
     if json_out is not None:
         json_out.write_text(json.dumps(results, indent=2), encoding="utf-8")
     typer.echo(f"analysed {len(results['steps'])} steps → {target / 'results.json'}")
-    _report_analysis_errors(results)
+    _exit_on_outcome(results)
 
 
 @app.command()

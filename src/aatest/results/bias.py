@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from aatest.results._fields import PerChannel, Real
-from aatest.results.base import Certified, ResultModel
+from aatest.results.base import BudgetRow, Certified, ResultModel
 
 
 class LineFit(ResultModel):
@@ -41,6 +41,9 @@ class BiasChannel(Certified):
     g_sensitivity_limit_dps2_per_g: Real | None = None
     g_sensitivity_within_datasheet: bool | None = None
     mountings: dict[str, MountingBias] = Field(default_factory=dict)
+    g_sensitivity_expanded_uncertainty_dps2_per_g: Real | None = Field(
+        None, ge=0, description="U of the g-sensitivity, (°/s²)/g")
+    g_sensitivity_budget: list[BudgetRow] = Field(default_factory=list)
 
 
 class BiasResult(PerChannel[BiasChannel]):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from aatest.results._fields import PerChannel, Real
-from aatest.results.base import Certified
+from aatest.results.base import BudgetRow, Certified
 
 
 class TemperatureChannel(Certified):
@@ -33,6 +33,9 @@ class TemperatureChannel(Certified):
     scale_temperatures_c: list[Real] | None = None
     scale_v_per_dps2: list[Real] | None = None
     scale_hysteresis_per_c_ref: Real | None = None
+    scale_coefficient_expanded_uncertainty_per_c: Real | None = Field(
+        None, ge=0, description="U of the scale coefficient, 1/°C")
+    scale_coefficient_budget: list[BudgetRow] = Field(default_factory=list)
 
 
 class TemperatureResult(PerChannel[TemperatureChannel]):

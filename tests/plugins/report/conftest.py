@@ -1,157 +1,19 @@
-"""A hand-made, contract-shaped ``results.json`` with realistic numbers (docs/method.md §1.3, §4).
-
-Three-sensor unit (v_sz on I, v_sy on O, v_sx on P); FRF points follow a 60 Hz, ζ = 0.7
-second-order sensor with a 13.5 ms transport delay at −47.9 dB (K = 4.014 mV/(°/s²)).
-"""
+"""Fixtures of the report tests: contract-shaped results as the engine decided them, a run dir."""
 
 from __future__ import annotations
 
 import copy
-import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
-from scipy import signal
-
-K_V_PER_DPS2 = 0.004014
-CHANNELS = {"v_sz": ("I", "SZ", "A1234-Z"), "v_sy": ("O", "SY", "A1234-Y"),
-            "v_sx": ("P", "SX", "A1234-X")}
-FRF_HZ = (0.396728516, 0.991821289, 1.998901367, 3.997802734, 5.996704102, 7.995605469,
-          9.994506836)
-
-
-def _frf_points(delay_s: float = 0.0135) -> list[dict[str, Any]]:
-    points = []
-    for f in FRF_HZ:
-        s = 2j * math.pi * f
-        wn = 2 * math.pi * 60.0
-        h = K_V_PER_DPS2 * wn**2 / (s**2 + 2 * 0.7 * wn * s + wn**2) * np.exp(-s * delay_s)
-        points.append({
-            "frequency_hz": f, "accel_dps2": 100.0, "gain_db": 20 * math.log10(abs(h)),
-            "phase_deg": math.degrees(np.angle(h)), "delay_s": -np.angle(h) / (2 * math.pi * f),
-            "thd": 0.002 + 0.0004 * f, "snr_db": 49.0 - 0.1 * f,
-        })
-    return points
-
-
-def _transfer_function(delay_s: float = 0.0135, dt: float = 0.0005) -> dict[str, Any]:
-    """The FRF's sensor model, discretised (ZOH) at 2 kHz, with a separate delay term."""
-    wn = 2 * math.pi * 60.0
-    num, den, _ = signal.cont2discrete(([K_V_PER_DPS2 * wn**2], [1, 2 * 0.7 * wn, wn**2]), dt)
-    num, den = np.ravel(num), np.ravel(den)
-    return {"poles": [[p.real, p.imag] for p in np.roots(den)],
-            "zeros": [[z.real, z.imag] for z in np.roots(np.trim_zeros(num, "f"))],
-            "delay_s": delay_s, "fit_pct": 98.4, "nAIC": -14.2, "FPE": 6.1e-7,
-            "num": num.tolist(), "den": den.tolist(), "dt": dt}
-
-
-def _steps() -> list[dict[str, Any]]:
-    steps: list[dict[str, Any]] = []
-    for rep in (1, 2, 3):
-        for outer in (0.0, 180.0):
-            steps.append({"id": f"st-o{outer:g}-r{rep}", "kind": "static", "axis": "none",
-                          "duration_s": 67.5, "samples": 135000, "outer_deg": outer,
-                          "repetition": rep, "status": "recorded"})
-    steps.append({"id": "sf-1hz", "kind": "sine", "axis": "inner", "duration_s": 65.536,
-                  "samples": 131072, "frequency_hz": 1.007080078, "accel_dps2": 400.0,
-                  "amplitude_deg": 400.0 / (2 * math.pi * 1.007080078) ** 2, "status": "recorded"})
-    for t in (22.0, -21.0, 48.0):
-        steps.append({"id": f"ch-{t:g}", "kind": "chamber", "temperature_c": t, "soak_s": 900.0})
-    return steps
-
-
-def _misalignment() -> dict[str, Any]:
-    rng = np.random.default_rng(7)
-    sets: dict[str, Any] = {}
-    for i, label in enumerate("ABCDEFGH"):
-        pivoted = i % 2 == 1
-        sets[label] = {}
-        for sensor, true_deg in (("SZ", 0.21), ("SY", -0.12), ("SX", 0.34)):
-            mount = 0.45 + 0.05 * rng.standard_normal()  # mounting error > |δ|
-            de = abs(mount + (-true_deg if pivoted else true_deg))
-            phase = 0.15 * rng.standard_normal()  # cross response nearly in phase
-            sets[label][sensor] = {
-                "cross_ratio_x": abs(math.sin(math.radians(de))) * 0.8,
-                "cross_ratio_y": abs(math.sin(math.radians(de))) * 0.6,
-                "delta_A": [0.4 * math.sin(math.radians(de)) * math.cos(phase),
-                            0.4 * math.sin(math.radians(de)) * math.sin(phase)], "delta_e_deg": de,
-            }
-    scenarios = {
-        str(n): {s: {"delta_deg": (sets[o][s]["delta_e_deg"] - sets[p][s]["delta_e_deg"]) / 2}
-                 for s in ("SZ", "SY", "SX")}
-        for n, (o, p) in zip("1234", ("AB", "CD", "EF", "GH"))
-    }
-    return {"sets": sets, "scenarios": scenarios}
-
-
-def _temperature_points() -> list[dict[str, Any]]:
-    temps = (22, 7.5, -2, -11, -21, -14, -5, 4, 20, 29, 38, 48, 38, 29, 22)
-    rng = np.random.default_rng(3)
-    points = []
-    for i, t in enumerate(temps):
-        branch = "cooling" if i < 5 else "heating" if i < 12 else "return"
-        bias = 2.4987 - 0.00031 * (t - 25) + (0.0002 if branch == "cooling" else 0.0)
-        scale = K_V_PER_DPS2 * (1 + 0.00021 * (t - 25))
-        points.append({"temperature_c": t, "branch": branch,
-                       "bias_v": bias + 2e-5 * rng.standard_normal(),
-                       "scale_v_per_dps2": scale * (1 + 2e-5 * rng.standard_normal())})
-    return points
-
-
-def _analysis() -> dict[str, Any]:
-    bias, scale, temperature, noise, frf, tf = {}, {}, {}, {}, {}, {}
-    for n, ch in enumerate(CHANNELS):
-        b = 2.4987 + 0.0011 * n
-        bias[ch] = {"bias_v": b, "g_sensitivity_dps2_per_g": 0.21 - 0.05 * n,
-                    "repetitions": [{"bias_v": b + d, "g_sensitivity_dps2_per_g": 0.21 - 0.05 * n + g}
-                                    for d, g in ((-2.1e-5, 0.004), (0.4e-5, -0.002), (1.7e-5, 0.001))]}
-        a1 = 1.0 / (K_V_PER_DPS2 * (1 - 0.0009 * n))
-        scale[ch] = {"scale_v_per_dps2": 1 / a1, "offset_v": b, "order": 1, "rmse_dps2": 14.5,
-                     "coefficients": [-0.32, a1], "ci95": [[-0.40, -0.24], [a1 - 0.069, a1 + 0.069]],
-                     "r2": 0.997, "nonlinearity_dps2": 0.11}
-        temperature[ch] = {"bias_coefficient_v_per_c": -0.00031, "scale_coefficient_per_c": 0.00021,
-                           "hysteresis_v": 0.0002, "points": _temperature_points()}
-        noise[ch] = {"rms_v": 0.00101}
-        frf[ch] = _frf_points()
-        tf[ch] = _transfer_function()
-    return {"sync": {"drift_ppm": 12.3, "offset_s": 0.3521, "residual_rms_us": 2.9,
-                     "edges_used": 6553},
-            "bias": bias, "scale_factor": scale, "frf": frf, "transfer_function": tf,
-            "temperature": temperature, "misalignment": _misalignment(), "noise": noise}
-
-
-_SVG = ('<svg xmlns="http://www.w3.org/2000/svg" width="120" height="40" viewBox="0 0 120 40">'
-        '<rect x="1" y="1" width="118" height="38" fill="#eef"/><text x="8" y="25">PSD</text></svg>')
-
-
-def make_results() -> dict[str, Any]:
-    sensors = [{"channel": ch, "axis": ax, "model": "sr207-aamu", "serial": serial,
-                "nominal_bias_v": 2.5, "nominal_scale_v_per_dps2": K_V_PER_DPS2,
-                "range_dps2": 572.958, "noise_rms_v": 0.003, "bias_tolerance_v": 0.01,
-                "scale_tolerance_pct": 1.0}
-               for ch, (ax, _, serial) in CHANNELS.items()]
-    return {
-        "procedure": "full-calibration", "rig": {"turntable": "sim", "daq": "sim", "chamber": "sim"},
-        "steps": _steps(), "analysis": _analysis(), "analysis_errors": {}, "analysis_skipped": [],
-        "lab_duration_s": 86400.0, "wall_duration_s": 312.4,
-        "metadata": {
-            "procedure_sha256": "3f" * 32, "procedure_text": "procedure: full-calibration\n"
-            "steps:\n  - static: {positions: [up, down]}\n", "rig": {"turntable": "sim"},
-            "plugins": {"turntable": {"name": "sim", "distribution": "aatest", "version": "0.1.0"}},
-            "seed": 42, "sensors": sensors, "aatest_version": "0.1.0",
-            "started_utc": "2026-11-21T06:00:00Z", "operator": "A. Tester <script>x</script>",
-            "table_serial": "TT-2207", "ambient_c": 22.4,
-        },
-        "figures": {"noise": {"psd": _SVG}},
-    }
+from contract_results import decided, make_results
 
 
 @pytest.fixture
 def results() -> dict[str, Any]:
-    """Fresh contract-shaped results (tests may mutate their copy)."""
-    return copy.deepcopy(make_results())
+    """Fresh contract-shaped results with budgets and verdicts (tests may mutate their copy)."""
+    return decided(copy.deepcopy(make_results()))
 
 
 @pytest.fixture

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from contract_results import decided, make_results
 
 from aatest.engine import registry
 from aatest.engine.run.signing import (
@@ -18,6 +19,7 @@ from aatest.engine.run.signing import (
     sign_bundle,
     verify_bundle,
 )
+from aatest.uncertainty.access import ResultsContractError
 from aatest.plugins.report.html import (
     CalibrationCertificate,
     DiagnosisReport,
@@ -89,17 +91,43 @@ def test_sections_degrade_when_keys_are_absent(results: dict[str, Any], run_dir:
     text = _visible_text(FAST.render(results, run_dir, None).read_text())
     assert "Scale factor" in text and "Frequency response" not in text
     assert "Misalignment (pivoted method)" not in text and "Unsigned report." in text
-    bare = {"procedure": "empty", "steps": [], "analysis": {}}
+    bare = {"procedure": "empty", "steps": [], "analysis": {}, "verdicts": [], "overall": "none"}
     for cls in (CalibrationCertificate, FrequencyResponseReport, MisalignmentReport):
         html = cls(cls.Config(plots=False)).render(bare, run_dir, None).read_text()
         assert "Traceability" in _visible_text(html)
 
 
-def test_verdict_fails_outside_datasheet(results: dict[str, Any], run_dir: Path) -> None:
-    results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.5123  # 12.3 mV off, limit ±10 mV
+def test_verdict_fails_outside_datasheet(run_dir: Path) -> None:
+    """The certificate shows the engine's verdict: 12.3 mV off nominal, limit ±10 mV."""
+    raw = make_results()
+    raw["analysis"]["bias"]["v_sz"]["bias_v"] = 2.5123
+    results = decided(raw)
     html = FAST.render(results, run_dir, None).read_text()
-    row = re.search(r"<tr><td class=\"t\">bias</td><td class=\"t\">v_sz</td>.*?</tr>", html, re.S)
-    assert row and 'class="fail"' in row.group(0) and "-0.00230" in row.group(0)
+    row = re.search(r"<tr><td class=\"t\">bias_deviation_v</td><td class=\"t\">v_sz</td>.*?</tr>",
+                    html, re.S)
+    assert row and 'class="fail"' in row.group(0) and "0.0123" in row.group(0)
+    assert results["overall"] == "fail" and 'class="fail">fail</strong>' in html
+
+
+def test_report_never_decides(results: dict[str, Any], run_dir: Path) -> None:
+    """A value changed after the engine decided leaves the verdict as decided; results
+    without the engine's verdicts cannot be rendered."""
+    results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.6
+    html = FAST.render(results, run_dir, None).read_text()
+    row = re.search(r"<tr><td class=\"t\">bias_deviation_v</td><td class=\"t\">v_sz</td>.*?</tr>",
+                    html, re.S)
+    assert row and 'class="pass"' in row.group(0)
+    del results["verdicts"]
+    with pytest.raises(ResultsContractError, match="verdicts"):
+        FAST.render(results, run_dir, None)
+
+
+def test_certificate_names_reference_rule_and_budgets(results: dict[str, Any],
+                                                      run_dir: Path) -> None:
+    text = _visible_text(FAST.render(results, run_dir, None).read_text())
+    assert "Decision rule: simple" in text and f"Overall verdict: {results['overall']}" in text
+    assert "smooth" in text  # the scale factor's acceleration reference
+    assert "table position accuracy rectangular" in text  # a budget row from the results
 
 
 def test_tampered_figure_is_withheld(results: dict[str, Any], run_dir: Path) -> None:

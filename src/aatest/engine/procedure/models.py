@@ -346,6 +346,38 @@ AnalysisEntry = Annotated[
     Field(description="an analysis name, or a mapping {name: {options}} with one key"),
 ]
 
+DecisionRule = Literal["simple", "guarded", "shared-risk"]
+
+
+class AcceptanceLimits(_Strict):
+    """Acceptance limits on |value|, each overriding the sensor datasheet's (docs/method.md §1.3).
+
+    Units are in the names; an unset limit comes from the sensor plugin's datasheet.
+    """
+
+    scale_factor_deviation_pct: PositiveFloat | None = Field(
+        None, description="|K/K_nominal − 1| in %")
+    bias_deviation_v: PositiveFloat | None = Field(None, description="|bias − nominal bias| in V")
+    nonlinearity_pct_fr: PositiveFloat | None = Field(None, description="in % of full range")
+    g_sensitivity_dps2_per_g: PositiveFloat | None = Field(None, description="in (°/s²)/g")
+    cross_axis_ratio: PositiveFloat | None = Field(None, description="worst x/y ratio (1 = 100 %)")
+    misalignment_deg: PositiveFloat | None = Field(None, description="pivoted-method angle")
+    bias_temperature_v_per_c: PositiveFloat | None = Field(None, description="in V/°C")
+    scale_temperature_per_c: PositiveFloat | None = Field(None, description="relative, in 1/°C")
+    noise_rms_v: PositiveFloat | None = Field(None, description="worst step's output noise, V RMS")
+
+
+class Acceptance(_Strict):
+    """How results are judged: the ILAC-G8 decision rule and limits overriding the datasheet.
+
+    ``simple``: pass iff |value| ≤ limit; ``guarded``: the guard band is the expanded
+    uncertainty U (pass iff |value| + U ≤ limit, fail iff |value| − U > limit, otherwise
+    conditional); ``shared-risk``: as simple, a verdict within U of the limit is conditional.
+    """
+
+    rule: DecisionRule = "simple"
+    limits: AcceptanceLimits = AcceptanceLimits()
+
 
 class Procedure(_Strict):
     """A test procedure: the root of the procedure YAML."""
@@ -360,6 +392,7 @@ class Procedure(_Strict):
     analysis: tuple[AnalysisEntry, ...] = Field(
         (), description="analyses to run: a name, or {name: {options}} (options are checked "
         "against the analysis plugin's own Options model when the procedure is loaded)")
+    acceptance: Acceptance = Acceptance()
     report: ReportOptions = ReportOptions()
 
     # where the procedure came from (set by the loader; used to locate planning problems)

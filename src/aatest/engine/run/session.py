@@ -1,12 +1,14 @@
 """What each CLI command does, end to end, without any CLI concerns.
 
-procedure → plan → envelope → rig → runner → recording → analyses → results → report → signature
+procedure → plan → envelope → rig → runner → recording → analyses → uncertainty → verdicts →
+results → report → signature
 """
 
 from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -15,6 +17,8 @@ from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.errors import InputError
 from aatest.engine.analysis.results import build_results, read_results, results_json, write_results
+from aatest.engine.dataset import Dataset
+from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state
 from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
@@ -111,11 +115,42 @@ def analyse_and_report(
     lab = lab_duration_s if lab_duration_s is not None else sum(
         s.step.lab_duration_s for s in data.steps
     )
-    results = build_results(data, analysis, lab, wall_duration_s or 0.0)
+    results = decide(build_results(data, analysis, lab, wall_duration_s or 0.0), data)
     out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
     render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
     return results_json(results)
+
+
+def acceptance_of(metadata: Mapping[str, Any]) -> Acceptance:
+    """The procedure's acceptance, from the procedure text stored in the recording.
+
+    Imported data has no procedure: the default (simple rule, datasheet limits) applies.
+    """
+    from aatest.engine.procedure.loader import parse_procedure
+
+    text = metadata.get("procedure_text")
+    if not text:
+        return Acceptance()
+    source = f"{metadata.get('recording', 'recording')} (procedure_text)"
+    return parse_procedure(str(text), source).acceptance
+
+
+def decide(results: RunResults, data: Dataset) -> RunResults:
+    """The engine's decisions, after the analyses: uncertainty budgets, then verdicts.
+
+    Both stages fill fields of the typed results; the document they return is validated
+    again, so a stage writing a key the models do not know is an error, not a silent extra.
+    """
+    from aatest.engine.analysis.verdicts import apply_verdicts
+    from aatest.engine.analysis.verdicts_limits import datasheets
+    from aatest.uncertainty import apply_uncertainty
+
+    document = results_json(results)
+    apply_uncertainty(document)
+    apply_verdicts(document, datasheets(data.metadata, data.sensors),
+                   acceptance_of(data.metadata))
+    return RunResults.model_validate(document)
 
 
 def render_and_sign(

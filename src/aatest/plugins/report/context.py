@@ -2,7 +2,9 @@
 
 Templates hold no logic (docs/style.md): everything they show — sections that exist, values with
 expanded uncertainties, verdicts, figures — is prepared here from ``results.json``, and a
-section is present only when its analysis key is.
+section is present only when its analysis key is. Uncertainties, budgets and verdicts are the
+engine's (:mod:`aatest.uncertainty`, :mod:`aatest.engine.analysis.verdicts`): they are shown as
+the results state them, never recomputed, and results without them are an error.
 """
 
 from __future__ import annotations
@@ -12,13 +14,12 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from aatest.plugins.report import extract as ex
 from aatest.plugins.report import figures as fig
-from aatest.plugins.report.budgets import Budgets, channels, evaluate_all
 from aatest.plugins.report.sandbox import vet_svg
+from aatest.plugins.report.stated import budget_views, frf_rows, misalignment_rows, stated
 from aatest.plugins.report.traceability import traceability
-from aatest.plugins.report.uncertainty import RigConstants
-from aatest.plugins.report.verdicts import verdicts
+from aatest.uncertainty import access as ex
+from aatest.uncertainty.budgets import channels
 
 #: every section a report may show
 ALL_SECTIONS = frozenset({"sync", "scale_factor", "bias", "temperature", "noise", "frf",
@@ -35,7 +36,7 @@ def _coefficient_rows(entry: Mapping[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-def _channel_view(results: Mapping[str, Any], ch: str, budgets: Budgets) -> dict[str, Any]:
+def _channel_view(results: Mapping[str, Any], ch: str) -> dict[str, Any]:
     def block(key: str) -> Any:
         value = (ex.analysis(results, key) or {})
         return value.get(ch) if isinstance(value, Mapping) else None
@@ -46,6 +47,8 @@ def _channel_view(results: Mapping[str, Any], ch: str, budgets: Budgets) -> dict
     return {
         "r2": r2,
         "name": ch,
+        "reference": (ex.require(scale, "reference", f"analysis.scale_factor.{ch}")
+                      if isinstance(scale, Mapping) else None),
         "sensor": ex.sensors(results).get(ch, {}),
         "scale": scale,
         "coefficients": _coefficient_rows(scale) if isinstance(scale, Mapping) else [],
@@ -53,9 +56,8 @@ def _channel_view(results: Mapping[str, Any], ch: str, budgets: Budgets) -> dict
         "temperature": block("temperature"),
         "noise": block("noise"),
         "transfer_function": block("transfer_function"),
-        "frf": budgets.frf.get(ch, []),
-        "u": {key.split("/")[0]: ev for key, ev in budgets.by_key.items()
-              if key.count("/") == 1 and key.endswith("/" + ch)},
+        "frf": frf_rows(results, ch),
+        "u": stated(results, ch),
     }
 
 
@@ -87,8 +89,8 @@ def _own_figures(results: Mapping[str, Any], sections: Collection[str],
                            lambda v=v: fig.calibration_curve(v["scale"], v["sensor"], peak)))
         if wanted("frf", v["name"]) and v["frf"]:
             makers.append(("frf", f"Bode {v['name']}", lambda v=v: fig.bode(
-                [r.point for r in v["frf"]], v["transfer_function"],
-                [r.gain.expanded_uncertainty if r.gain else 0.0 for r in v["frf"]])))
+                [r["point"] for r in v["frf"]], v["transfer_function"],
+                [(r["gain"] or {}).get("expanded_uncertainty") or 0.0 for r in v["frf"]])))
         if wanted("temperature", v["name"]) and isinstance(v["temperature"], Mapping):
             makers.append(("temperature", f"bias vs temperature {v['name']}",
                            lambda v=v: fig.bias_vs_temperature(v["temperature"])))
@@ -104,12 +106,10 @@ def _own_figures(results: Mapping[str, Any], sections: Collection[str],
     return out
 
 
-def _misalignment_rows(results: Mapping[str, Any], budgets: Budgets) -> list[dict[str, Any]]:
-    scenarios = (ex.analysis(results, "misalignment") or {}).get("scenarios") or {}
-    return [{"scenario": s, "sensor": sensor, "delta_deg": (entry or {}).get("delta_deg"),
-             "u": budgets.by_key.get(f"misalignment/{s}/{sensor}")}
-            for s, sensors in sorted(scenarios.items())
-            for sensor, entry in sorted((sensors or {}).items())]
+def _rule(results: Mapping[str, Any]) -> str:
+    """The decision rule the verdicts were made under (one per run)."""
+    rules = sorted({str(v["rule"]) for v in ex.require(results, "verdicts", "top level")})
+    return ", ".join(rules) or "no quantity judged"
 
 
 def _header(results: Mapping[str, Any], run_dir: Path, kind: str, title: str) -> dict[str, Any]:
@@ -124,11 +124,16 @@ def _header(results: Mapping[str, Any], run_dir: Path, kind: str, title: str) ->
 
 
 def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: str,
-                  sections: Collection[str], constants: RigConstants,
-                  plots: bool = True) -> dict[str, Any]:
-    """Everything a measurement report template needs."""
-    budgets = evaluate_all(results, constants)
-    views = [_channel_view(results, ch, budgets) for ch in channels(results)]
+                  sections: Collection[str], plots: bool = True) -> dict[str, Any]:
+    """Everything a measurement report template needs.
+
+    Raises
+    ------
+    ResultsContractError
+        When the results lack the engine's decisions (``verdicts``, ``overall``) or a
+        contract key a section shows.
+    """
+    views = [_channel_view(results, ch) for ch in channels(results)]
     present = {s for s in sections if ex.analysis(results, s) is not None}
     return {
         **_header(results, run_dir, kind, title),
@@ -136,10 +141,12 @@ def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: s
         "sections": sorted(present),
         "channels": views,
         "sync": ex.analysis(results, "sync") if "sync" in present else None,
-        "misalignment": _misalignment_rows(results, budgets) if "misalignment" in present else [],
-        "misalignment_sets": (ex.analysis(results, "misalignment") or {}).get("sets") or {},
-        "verdicts": verdicts(results, budgets.expanded()),
-        "budgets": budgets.shown(),
+        "misalignment": misalignment_rows(results) if "misalignment" in present else [],
+        "misalignment_sets": ex.misalignment_sets(results),
+        "verdicts": ex.require(results, "verdicts", "top level"),
+        "overall": ex.require(results, "overall", "top level"),
+        "rule": _rule(results),
+        "budgets": budget_views(results, channels(results)),
         "figures": _analysis_figures(results, present)
         + (_own_figures(results, present, views) if plots else []),
         "steps": results.get("steps") or [],

@@ -18,14 +18,12 @@ from pydantic import BaseModel, ConfigDict
 
 from aatest.plugins.report.context import ALL_SECTIONS, build_context, build_diagnosis_context
 from aatest.plugins.report.sandbox import load_template, render_loaded
-from aatest.plugins.report.uncertainty import RigConstants
 
 
 class ReportConfig(BaseModel):
-    """Options of every HTML report: the rig accuracies used in the uncertainty budgets."""
+    """Options of every HTML report (uncertainties and verdicts are the engine's, not options)."""
 
     model_config = ConfigDict(extra="forbid")
-    rig: RigConstants = RigConstants()
     #: draw our own matplotlib plots (analysis figures are always included)
     plots: bool = True
 
@@ -51,7 +49,7 @@ class _HtmlReport:
 
     def context(self, results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
         return build_context(results, run_dir, self.template, self.title, self.sections,
-                             self.config.rig, self.config.plots)
+                             self.config.plots)
 
     def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path:
         """Render ``results`` into ``run_dir/<output_name>`` and return that path."""

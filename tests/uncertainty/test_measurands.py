@@ -8,15 +8,15 @@ from typing import Any
 import pytest
 from numpy.testing import assert_allclose
 
-from aatest.plugins.report.gum import Input, Measurand, evaluate, monte_carlo
-from aatest.plugins.report.uncertainty import (
+from aatest.uncertainty.gum import Input, Measurand, evaluate, monte_carlo
+from aatest.uncertainty.measurands import (
     RigConstants,
     bias_measurand,
     g_sensitivity_measurand,
     scale_factor_measurand,
     temperature_measurand,
 )
-from aatest.plugins.report.uncertainty_dynamic import (
+from aatest.uncertainty.dynamic import (
     frf_gain_measurand,
     frf_phase_measurand,
     misalignment_measurand,
@@ -61,7 +61,7 @@ def test_gum_matches_monte_carlo_within_10pct(results: dict[str, Any], name: str
     assert_allclose(mc.standard_uncertainty, gum.standard_uncertainty, rtol=0.10)
     assert_allclose(mc.mean, gum.value, atol=3 * gum.standard_uncertainty)
     assert gum.expanded_uncertainty == pytest.approx(2 * gum.standard_uncertainty)
-    shares = sum(r.share_pct for r in gum.rows)
+    shares = sum(gum.share_pct(r) for r in gum.rows)
     assert shares == pytest.approx(100.0, rel=1e-6)
 
 
@@ -81,7 +81,7 @@ def test_high_frequency_gain_is_limited_by_reference_amplitude(results: dict[str
     """At 10 Hz, 100 °/s², A = 91″: 1″ rectangular → u ≈ 0.055 dB, dominating the budget."""
     gum = evaluate(_measurands(results)["gain_high"])
     assert_allclose(gum.standard_uncertainty, 20 / math.log(10) / 91.3 / math.sqrt(3), rtol=0.02)
-    assert max(gum.rows, key=lambda r: r.share_pct).label == "table position accuracy"
+    assert max(gum.rows, key=gum.share_pct).label == "table position accuracy"
 
 
 def test_cosine_error_input_moments() -> None:
@@ -128,7 +128,7 @@ def test_static_statistics_from_the_analysis(results: dict[str, Any]) -> None:
 def test_columnar_temperature_results(results: dict[str, Any]) -> None:
     """Columns (temperatures_c, bias_v, branch) are read like points; a stated u wins."""
     from aatest.plugins.report import figures
-    from aatest.plugins.report.extract import temperature_points
+    from aatest.uncertainty.access import temperature_points
 
     entry = results["analysis"]["temperature"]["v_sz"]
     points = entry.pop("points")
@@ -139,7 +139,7 @@ def test_columnar_temperature_results(results: dict[str, Any]) -> None:
     assert len(temperature_points(entry, "bias_v")) == 15
     assert len(temperature_points(entry, "scale_v_per_dps2")) == 15
     regression = evaluate(temperature_measurand(results, "v_sz", "scale_coefficient_per_c", C))
-    assert regression.rows[0].note.startswith("regression over 15")
+    assert regression.rows[0].basis.startswith("regression over 15")
     entry["bias_coefficient_u_v_per_c"] = 9.3e-8
     stated = evaluate(temperature_measurand(results, "v_sz", "bias_coefficient_v_per_c", C))
     assert stated.rows[0].standard_uncertainty == 9.3e-8

@@ -21,9 +21,13 @@ from typing import Any, Literal
 import numpy as np
 from uncertainties import ufloat, umath
 
+from aatest.results.base import BudgetRow
+
 Distribution = Literal["normal", "rectangular", "cosine_error"]
 #: coverage factor for ≈95 % coverage of a normal output (the brief asks k = 2)
 K_COVERAGE = 2.0
+#: coverage probability of k = 2 for a normal output: P(|z| ≤ 2)
+P_COVERAGE = math.erf(K_COVERAGE / math.sqrt(2.0))
 
 
 @dataclass(frozen=True)
@@ -96,22 +100,8 @@ class Measurand:
 
 
 @dataclass(frozen=True)
-class BudgetRow:
-    """One line of an uncertainty budget (JCGM 100 §8): u(x_i), c_i and u_i(y) = |c_i|·u(x_i)."""
-
-    label: str
-    note: str
-    distribution: str
-    standard_uncertainty: float
-    unit: str
-    sensitivity: float
-    contribution: float
-    share_pct: float
-
-
-@dataclass(frozen=True)
 class Evaluation:
-    """Result of a GUM evaluation: y, u_c(y), U = k·u_c(y) and the budget."""
+    """Result of a GUM evaluation: y, u_c(y), U = k·u_c(y) and the budget (JCGM 100 §8)."""
 
     name: str
     unit: str
@@ -120,6 +110,12 @@ class Evaluation:
     expanded_uncertainty: float
     k: float
     rows: tuple[BudgetRow, ...]
+    coverage_probability: float = P_COVERAGE
+
+    def share_pct(self, row: BudgetRow) -> float:
+        """A row's share of the combined variance, u_i(y)²/u_c(y)², in %."""
+        u_c = self.standard_uncertainty
+        return 100.0 * row.contribution**2 / u_c**2 if u_c > 0 else 0.0
 
     @property
     def relative_expanded(self) -> float | None:
@@ -141,12 +137,11 @@ def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
     for item in measurand.inputs:
         c = float(derivatives.get(item.name, 0.0))
         u_x = item.standard_uncertainty()
-        contribution = abs(c) * u_x
-        share = 100.0 * contribution**2 / u_c**2 if u_c > 0 else 0.0
-        rows.append(
-            BudgetRow(item.label, item.note, item.distribution, u_x, item.unit, c, contribution,
-                      share)
-        )
+        rows.append(BudgetRow(
+            name=item.name, label=item.label, value=item.mean(), standard_uncertainty=u_x,
+            unit=item.unit, distribution=item.distribution, sensitivity=c,
+            contribution=abs(c) * u_x, basis=item.note,
+        ))
     return Evaluation(
         measurand.name, measurand.unit, float(getattr(y, "nominal_value", y)), u_c, k * u_c, k,
         tuple(rows),

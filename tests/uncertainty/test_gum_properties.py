@@ -1,4 +1,4 @@
-"""Properties of the GUM engine and the template number filters (hypothesis)."""
+"""Properties of the GUM engine and the ci95 reader (hypothesis)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from aatest.plugins.report.extract import ci_std
-from aatest.plugins.report.gum import Input, Measurand, evaluate, monte_carlo
-from aatest.plugins.report.sandbox import _fixed, _num
+from aatest.uncertainty.access import ci_std
+from aatest.uncertainty.gum import Input, Measurand, evaluate, monte_carlo
 
 finite = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False).filter(lambda v: abs(v) > 1e-3)
 spread = st.floats(min_value=1e-6, max_value=10.0)
@@ -36,14 +35,6 @@ def test_linear_model_is_exact_and_matches_monte_carlo(terms: list[tuple[float, 
                              for c, i in zip(coefficients, inputs)))
     assert_allclose(gum.standard_uncertainty, expected, rtol=1e-9)
     assert_allclose(monte_carlo(measurand, 60_000, 1).standard_uncertainty, expected, rtol=0.03)
-
-
-@given(st.floats(allow_nan=True, allow_infinity=True) | st.none() | st.text(max_size=5))
-def test_number_filters_never_raise(value: Any) -> None:
-    for text in (_num(value), _fixed(value)):
-        assert isinstance(text, str)
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        assert _num(value) == "—" and _fixed(value) == "—"
 
 
 @given(st.floats(min_value=-1e6, max_value=1e6), st.floats(min_value=0, max_value=1e3))

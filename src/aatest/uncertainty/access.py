@@ -1,8 +1,13 @@
-"""Tolerant readers of ``results.json``: contract keys first, optional extras when present.
+"""The one place that reads and writes the results: contract keys strictly, extras tolerantly.
 
-The analysis plugins promise the keys of docs/interfaces.md §1 and may add more; every reader here
-returns ``None`` (or an empty container) when a value is absent, so report sections and
-uncertainty rows degrade gracefully instead of failing on a missing extra.
+The analysis plugins promise the keys of docs/interfaces.md §1 and may add more. A contract key
+is read with :func:`require` / :func:`require_float` (absent: :class:`ResultsContractError`, so a
+broken analysis cannot silently lose its budget or verdict); optional extras are read with the
+tolerant helpers, which return ``None`` or an empty container. :func:`certify` writes the
+certified fields (:class:`aatest.results.base.Certified`) the uncertainty stage adds.
+
+The results are today's ``results.json`` dict; when they become the typed
+``aatest.results.RunResults`` these accessors are the functions to switch to attribute access.
 """
 
 from __future__ import annotations
@@ -13,8 +18,69 @@ from typing import Any
 
 import numpy as np
 
+from aatest.engine.errors import InputError
+
 #: two-sided 95 % quantile of the normal distribution (ci95 half-width → standard uncertainty)
 Z95 = 1.959963984540054
+
+
+class ResultsContractError(InputError, LookupError):
+    """The results lack a key docs/interfaces.md §1 promises."""
+
+
+def require(entry: Mapping[str, Any], key: str, where: str) -> Any:
+    """``entry[key]`` for a contract key; its absence is an error naming ``where``."""
+    if not isinstance(entry, Mapping) or key not in entry:
+        raise ResultsContractError(f"results.json: {where}: missing contract key {key!r}")
+    return entry[key]
+
+
+def require_float(entry: Mapping[str, Any], key: str, where: str) -> float | None:
+    """A contract number: error when absent, ``None`` when stated as null/NaN (not estimated)."""
+    return as_float(require(entry, key, where))
+
+
+def channel_entry(results: Mapping[str, Any], key: str, channel: str) -> Any:
+    """``results["analysis"][key][channel]`` or None when that analysis or channel is absent."""
+    block = analysis(results, key)
+    return block.get(channel) if isinstance(block, Mapping) else None
+
+
+def frf_points(results: Mapping[str, Any], channel: str) -> list[dict[str, Any]]:
+    """The FRF points of one channel (``analysis.frf[CH]``), empty without an FRF."""
+    points = channel_entry(results, "frf", channel) or []
+    return [p for p in points if isinstance(p, Mapping)]
+
+
+def misalignment_scenarios(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """``analysis.misalignment.scenarios``: scenario → sensor → entry (empty when absent)."""
+    block = analysis(results, "misalignment")
+    scenarios = require(block, "scenarios", "analysis.misalignment") if block else {}
+    return {str(s): dict(sensors or {}) for s, sensors in sorted(scenarios.items())}
+
+
+def misalignment_sets(results: Mapping[str, Any]) -> dict[str, Any]:
+    """``analysis.misalignment.sets``: set label → sensor → entry (empty when absent)."""
+    block = analysis(results, "misalignment")
+    return dict(require(block, "sets", "analysis.misalignment")) if block else {}
+
+
+def certify(entry: dict[str, Any], evaluation: Any, prefix: str = "", unit_suffix: str = ""
+            ) -> None:
+    """Write an evaluation's U, k, coverage probability and budget into a result entry.
+
+    Without ``prefix`` the generic fields of :class:`aatest.results.base.Certified` are
+    written; with one (``gain``, ``phase``, ``g_sensitivity``, …) the quantity's own
+    ``<prefix>_expanded_uncertainty<unit_suffix>`` and ``<prefix>_budget``.
+    """
+    budget = [row.model_dump(mode="json") for row in evaluation.rows]
+    if prefix:
+        entry[f"{prefix}_expanded_uncertainty{unit_suffix}"] = evaluation.expanded_uncertainty
+        entry[f"{prefix}_budget"] = budget
+        return
+    entry.update(expanded_uncertainty=evaluation.expanded_uncertainty,
+                 coverage_factor=evaluation.k,
+                 coverage_probability=evaluation.coverage_probability, budget=budget)
 
 
 def as_float(value: Any) -> float | None:

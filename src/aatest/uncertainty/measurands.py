@@ -1,7 +1,7 @@
 """Measurement models and uncertainty budgets (GUM, k = 2) for the calibration certificate.
 
 Each ``*_measurand`` function turns an analysis result plus rig constants into a
-:class:`~aatest.plugins.report.gum.Measurand`: the final quantity's model with one input per
+:class:`~aatest.uncertainty.gum.Measurand`: the final quantity's model with one input per
 budget row (fit/reference noise, sensor noise, table position accuracy, wobble/orthogonality,
 sync residual, environment temperature, repeatability over repetitions). Statistical inputs
 come from the analysis (ci95, per-repetition values, measured noise); the rest are the rig's
@@ -18,8 +18,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
-from aatest.plugins.report import extract as ex
-from aatest.plugins.report.gum import Input, Measurand, Ops
+from aatest.uncertainty import access as ex
+from aatest.uncertainty.gum import Input, Measurand, Ops
 
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 
@@ -44,20 +44,19 @@ def _rel(name: str, label: str, u: float, note: str, dist: str = "normal") -> In
     return Input(name, label, 0.0, u, dist, "1", note)  # type: ignore[arg-type]
 
 
-def _scale_fit_inputs(entry: Mapping[str, Any], noise_v: float, results: Mapping[str, Any],
-                      c: RigConstants) -> list[Input]:
+def _scale_fit_inputs(entry: Mapping[str, Any], k_v: float, noise_v: float,
+                      results: Mapping[str, Any], c: RigConstants, where: str) -> list[Input]:
     """Split the fit's relative uncertainty into reference-noise and sensor-noise parts.
 
     The slope variance of a least-squares fit is proportional to the residual variance,
     which is the sum of reference-acceleration noise and sensor noise (in °/s²); each part
     of the budget gets its share of it.
     """
-    k_v = ex.as_float(entry.get("scale_v_per_dps2")) or REFERENCE_SCALE_V_PER_DPS2
-    coeffs = entry.get("coefficients") or []
+    coeffs = ex.require(entry, "coefficients", where) or []
     a1 = ex.as_float(coeffs[1]) if len(coeffs) > 1 else None
-    u_a1 = ex.ci_std(entry.get("ci95"), 1) if a1 else None
+    u_a1 = ex.ci_std(ex.require(entry, "ci95", where), 1) if a1 else None
     u_k = ex.as_float(entry.get("scale_u_v_per_dps2")) or ex.ci_std(entry.get("scale_ci95"))
-    rmse = ex.as_float(entry.get("rmse_dps2"))
+    rmse = ex.require_float(entry, "rmse_dps2", where)
     sine = ex.steps_of_kind(results, "sine")
     if u_k is not None:
         rel_fit, source = u_k / k_v, "from the analysis' u(K)"
@@ -115,14 +114,15 @@ def scale_factor_measurand(results: Mapping[str, Any], channel: str,
     α = (2πf)²·A, so the reference scales with the amplitude A (position accuracy) and with
     f² (clock rate after sync); an axis tilt ε scales it by cos ε.
     """
-    entry = (ex.analysis(results, "scale_factor") or {}).get(channel)
-    k_hat = ex.as_float(entry.get("scale_v_per_dps2")) if isinstance(entry, Mapping) else None
+    entry = ex.channel_entry(results, "scale_factor", channel)
+    where = f"analysis.scale_factor.{channel}"
+    k_hat = ex.require_float(entry, "scale_v_per_dps2", where) if entry is not None else None
     if k_hat is None:
         return None
     noise_v, _ = ex.noise_rms_v(results, channel)
     amp_arcsec = _reference_amplitude_deg(results) * 3600.0
     inputs = [
-        *_scale_fit_inputs(entry, noise_v, results, c),
+        *_scale_fit_inputs(entry, k_hat, noise_v, results, c, where),
         _rel("position", "table position accuracy", c.position_accuracy_arcsec / amp_arcsec,
              f"{c.position_accuracy_arcsec:g}″ over a {amp_arcsec / 3600:.3g}° amplitude",
              "rectangular"),
@@ -190,8 +190,9 @@ def _bias_tc_v_per_c(results: Mapping[str, Any], channel: str) -> float:
 
 def bias_measurand(results: Mapping[str, Any], channel: str, c: RigConstants) -> Measurand | None:
     """b = b̂ + e_noise + e_temp + e_rep  [V]; b̂ = (A+ + A−)/2 cancels table tilt exactly."""
-    entry = (ex.analysis(results, "bias") or {}).get(channel)
-    b_hat = ex.as_float(entry.get("bias_v")) if isinstance(entry, Mapping) else None
+    entry = ex.channel_entry(results, "bias", channel)
+    where = f"analysis.bias.{channel}"
+    b_hat = ex.require_float(entry, "bias_v", where) if entry is not None else None
     if b_hat is None:
         return None
     tc = _bias_tc_v_per_c(results, channel)
@@ -225,9 +226,10 @@ def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigCons
     datasheet tolerance when the run did not calibrate K, ``scale_rel_u=None``); a
     tilt ε of the table reduces the ±1 g projection by cos ε.
     """
-    entry = (ex.analysis(results, "bias") or {}).get(channel)
-    g_hat = (ex.as_float(entry.get("g_sensitivity_dps2_per_g"))
-             if isinstance(entry, Mapping) else None)
+    entry = ex.channel_entry(results, "bias", channel)
+    where = f"analysis.bias.{channel}"
+    g_hat = (ex.require_float(entry, "g_sensitivity_dps2_per_g", where)
+             if entry is not None else None)
     if g_hat is None:
         return None
     nominal = ex.sensors(results).get(channel, {}).get("nominal_scale_v_per_dps2")
@@ -299,8 +301,9 @@ def temperature_measurand(results: Mapping[str, Any], channel: str, key: str,
     statistics, the branch hysteresis spread over the span, rectangular); ``e_therm`` is the
     relative error of the temperature span from the thermometer (√2·u_T/ΔT).
     """
-    entry = (ex.analysis(results, "temperature") or {}).get(channel)
-    value = ex.as_float(entry.get(key)) if isinstance(entry, Mapping) else None
+    entry = ex.channel_entry(results, "temperature", channel)
+    where = f"analysis.temperature.{channel}"
+    value = ex.require_float(entry, key, where) if entry is not None else None
     if value is None:
         return None
     point_key, unit = TEMPERATURE_COEFFICIENTS[key]

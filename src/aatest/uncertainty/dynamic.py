@@ -18,9 +18,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
-from aatest.plugins.report import extract as ex
-from aatest.plugins.report.gum import Input, Measurand, Ops
-from aatest.plugins.report.uncertainty import ARCSEC_RAD, RigConstants
+from aatest.uncertainty import access as ex
+from aatest.uncertainty.gum import Input, Measurand, Ops
+from aatest.uncertainty.measurands import ARCSEC_RAD, RigConstants
 
 #: misalignment scenario → (original, pivoted) set labels (docs/interfaces.md §5)
 SCENARIO_SETS: dict[str, tuple[str, str]] = {"1": ("A", "B"), "2": ("C", "D"), "3": ("E", "F"),
@@ -56,9 +56,9 @@ def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConst
 def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
                        c: RigConstants) -> Measurand | None:
     """G = Ĝ + 20·log10((1 + e_out) / ((1 + e_pos)·(1 + e_tilt)))  [dB]."""
-    gain = ex.as_float(point.get("gain_db"))
-    f_hz = ex.as_float(point.get("frequency_hz"))
-    accel = ex.as_float(point.get("accel_dps2"))
+    gain = ex.require_float(point, "gain_db", "analysis.frf point")
+    f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
+    accel = ex.require_float(point, "accel_dps2", "analysis.frf point")
     if gain is None or not f_hz or not accel:
         return None
     amp_arcsec = abs(accel) / (2 * math.pi * f_hz) ** 2 * 3600.0
@@ -84,8 +84,8 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
 def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
                         c: RigConstants) -> Measurand | None:
     """φ = φ̂ + e_out·180/π − 360·f·δt  [deg]."""
-    phase = ex.as_float(point.get("phase_deg"))
-    f_hz = ex.as_float(point.get("frequency_hz"))
+    phase = ex.require_float(point, "phase_deg", "analysis.frf point")
+    f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
     if phase is None or not f_hz:
         return None
     sync = ex.analysis(results, "sync") or {}
@@ -122,12 +122,15 @@ def _misalignment_steps(results: Mapping[str, Any], c: RigConstants) -> tuple[fl
 def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: str,
                            c: RigConstants) -> Measurand | None:
     """δ = (arcsin(sin δ̂_e + n_o) − arcsin(sin δ̂_ep + n_p))·90/π + (w_o − w_p)/2  [deg]."""
-    sets = (ex.analysis(results, "misalignment") or {}).get("sets") or {}
-    original, pivoted = SCENARIO_SETS.get(scenario, (None, None))
-    try:
-        de_o = float(sets[original][sensor]["delta_e_deg"])
-        de_p = float(sets[pivoted][sensor]["delta_e_deg"])
-    except (KeyError, TypeError, ValueError):
+    sets = ex.misalignment_sets(results)
+    if not sets:
+        return None
+    original, pivoted = SCENARIO_SETS[scenario]
+    de_o = ex.require_float(ex.require(sets, original, "analysis.misalignment.sets").get(sensor),
+                            "delta_e_deg", f"analysis.misalignment.sets.{original}.{sensor}")
+    de_p = ex.require_float(ex.require(sets, pivoted, "analysis.misalignment.sets").get(sensor),
+                            "delta_e_deg", f"analysis.misalignment.sets.{pivoted}.{sensor}")
+    if de_o is None or de_p is None:
         return None
     channel = _channel_of(sensor, results)
     noise_v, source = ex.noise_rms_v(results, channel)

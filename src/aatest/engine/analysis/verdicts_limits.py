@@ -1,0 +1,99 @@
+"""Where acceptance limits come from: the sensor's datasheet, overridden by the procedure.
+
+One source of limits (docs/method.md §1.3): the sensor plugin's
+:class:`~aatest.engine.interfaces.SensorDatasheet` for recorded runs, the datasheet values of
+``dataset.yaml`` for imported data, each overridable by the procedure's ``acceptance.limits``.
+The quantity names are the limit names of :class:`~aatest.engine.procedure.models.AcceptanceLimits`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from aatest.engine.dataset import SensorInfo
+from aatest.engine.interfaces import SensorDatasheet
+from aatest.engine.procedure.models import Acceptance
+from aatest.engine.steps import SensorRef
+
+log = logging.getLogger("aatest.verdicts")
+
+#: 0.01 rad/s² in °/s²
+DPS2_PER_RAD_S2 = math.degrees(1.0)
+
+#: judged quantity → unit of its value, limit and expanded uncertainty
+QUANTITY_UNITS: dict[str, str] = {
+    "scale_factor_deviation_pct": "%",
+    "bias_deviation_v": "V",
+    "nonlinearity_pct_fr": "% FR",
+    "g_sensitivity_dps2_per_g": "(°/s²)/g",
+    "cross_axis_ratio": "1",
+    "misalignment_deg": "deg",
+    "bias_temperature_v_per_c": "V/°C",
+    "scale_temperature_per_c": "1/°C",
+    "noise_rms_v": "V",
+}
+
+
+def g_sensitivity_limit_dps2_per_g(sheet: SensorDatasheet) -> float:
+    """The datasheet's linear-acceleration limit in (°/s²)/g.
+
+    Stated by the sensor plugin, else 0.1 % FR/g or 0.01 rad/s²/g, whichever is greater
+    (docs/method.md §1.3), FR being the datasheet range ``range_dps2`` (572.958 °/s² → 0.573).
+    """
+    if sheet.g_sensitivity_limit_dps2_per_g is not None:
+        return sheet.g_sensitivity_limit_dps2_per_g
+    return max(0.001 * sheet.range_dps2, 0.01 * DPS2_PER_RAD_S2)
+
+
+def datasheet_limits(sheet: SensorDatasheet) -> dict[str, float]:
+    """Every acceptance limit as the datasheet states it, by quantity name."""
+    return {
+        "scale_factor_deviation_pct": sheet.scale_tolerance_pct,
+        "bias_deviation_v": sheet.bias_tolerance_v,
+        "nonlinearity_pct_fr": sheet.nonlinearity_limit_pct_fr,
+        "g_sensitivity_dps2_per_g": g_sensitivity_limit_dps2_per_g(sheet),
+        "cross_axis_ratio": sheet.cross_axis_limit,
+        "misalignment_deg": sheet.misalignment_limit_deg,
+        "bias_temperature_v_per_c": sheet.bias_temperature_limit_v_per_c,
+        "scale_temperature_per_c": sheet.scale_temperature_limit_per_c,
+        "noise_rms_v": sheet.noise_rms_v,
+    }
+
+
+def limits(sheet: SensorDatasheet, acceptance: Acceptance) -> dict[str, float]:
+    """The datasheet's limits with the procedure's overrides applied."""
+    overrides = acceptance.limits.model_dump(exclude_none=True)
+    return datasheet_limits(sheet) | overrides
+
+
+def _from_info(info: SensorInfo) -> SensorDatasheet:
+    """A datasheet from one channel's stated values (imported data); other limits default."""
+    return SensorDatasheet(
+        model=info.model, range_dps2=info.range_dps2, nominal_bias_v=info.nominal_bias_v,
+        bias_tolerance_v=info.bias_tolerance_v, scale_v_per_dps2=info.nominal_scale_v_per_dps2,
+        scale_tolerance_pct=info.scale_tolerance_pct, noise_rms_v=info.noise_rms_v,
+        bias_temperature_limit_v_per_c=info.bias_temperature_limit_v_per_c,
+        scale_temperature_limit_per_c=info.scale_temperature_limit_per_c,
+        channels={info.channel: info.axis},
+    )
+
+
+def datasheets(metadata: Mapping[str, Any], sensors: Sequence[SensorInfo]
+               ) -> dict[str, SensorDatasheet]:
+    """Each channel's datasheet: the recorded sensor model's plugin, else the channel's values.
+
+    A recording names its sensor model (``metadata["sensor"]``), whose plugin states every
+    limit; imported data states its datasheet values per channel in ``dataset.yaml``.
+    """
+    from aatest.engine.run.rig import sensor_datasheet
+
+    sensor = metadata.get("sensor")
+    if isinstance(sensor, Mapping) and sensor.get("model"):
+        sheet, source = sensor_datasheet(SensorRef.model_validate(dict(sensor)))
+        log.debug("limits from the datasheet of %s (%s)", sensor["model"], source)
+        # the recorded nominals are the datasheet's; the channel list is the recording's
+        return {info.channel: sheet for info in sensors} or dict.fromkeys(sheet.channels, sheet)
+    return {info.channel: _from_info(info) for info in sensors}

@@ -1,0 +1,18 @@
+"""The uncertainty stage: GUM budgets of every certified result, decided by the engine.
+
+Runs after the analyses, before the verdicts and the report; writes each certified result's
+expanded uncertainty, coverage factor and probability, and budget into the results
+(:class:`aatest.results.base.Certified`). Reports only render what is written here.
+
+- ``gum``         GUM (JCGM 100) propagation of a measurement model, and a JCGM 101 Monte Carlo check
+- ``measurands``  measurement models of the static results: scale factor, bias, g-sensitivity,
+                  temperature coefficients; the rig's stated accuracies (``RigConstants``)
+- ``dynamic``     measurement models of FRF gain/phase points and pivoted misalignment angles
+- ``access``      the one module that reads and writes the results (contract keys strictly)
+- ``budgets``     the stage itself: :func:`apply_uncertainty`
+"""
+
+from aatest.uncertainty.budgets import apply_uncertainty
+from aatest.uncertainty.measurands import RigConstants
+
+__all__ = ["RigConstants", "apply_uncertainty"]
