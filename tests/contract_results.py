@@ -17,7 +17,7 @@ from scipy import signal
 from aatest.engine.analysis.verdicts import apply_verdicts
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.uncertainty import apply_uncertainty
+from aatest.engine.uncertainty import apply_uncertainty
 
 K_V_PER_DPS2 = 0.004014
 CHANNELS = {"v_sz": ("I", "SZ", "A1234-Z"), "v_sy": ("O", "SY", "A1234-Y"),

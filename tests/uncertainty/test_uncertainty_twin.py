@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from aatest.engine.run.session import run
-from aatest.uncertainty.gum import evaluate
-from aatest.uncertainty.measurands import RigConstants, scale_factor_measurand
+from aatest.engine.uncertainty.gum import evaluate
+from aatest.engine.uncertainty.measurands import RigConstants, scale_factor_measurand
 
 PROCEDURE = Path(__file__).resolve().parents[3] / "src/aatest/procedures/scale-factor.yaml"
 

@@ -19,7 +19,7 @@ from aatest.engine.run.signing import (
     sign_bundle,
     verify_bundle,
 )
-from aatest.uncertainty.access import ResultsContractError
+from aatest.engine.uncertainty.access import ResultsContractError
 from aatest.plugins.report.html import (
     CalibrationCertificate,
     DiagnosisReport,

@@ -24,7 +24,7 @@ from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS, limits
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
-from aatest.uncertainty import access as ex
+from aatest.engine.uncertainty import access as ex
 
 #: verdicts from best to worst; the overall verdict is the worst one
 SEVERITY: tuple[VerdictValue, ...] = ("pass", "conditional-pass", "conditional-fail", "fail")

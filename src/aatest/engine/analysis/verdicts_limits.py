@@ -41,7 +41,7 @@ def g_sensitivity_limit_dps2_per_g(sheet: SensorDatasheet) -> float:
     """The datasheet's linear-acceleration limit in (°/s²)/g.
 
     Stated by the sensor plugin, else 0.1 % FR/g or 0.01 rad/s²/g, whichever is greater
-    (docs/method.md §1.3), FR being the datasheet range ``range_dps2`` (572.958 °/s² → 0.573).
+    (docs/method.md §1.3), FR being the datasheet range ``range_dps2`` (the reference sensor: 0.573).
     """
     if sheet.g_sensitivity_limit_dps2_per_g is not None:
         return sheet.g_sensitivity_limit_dps2_per_g
@@ -49,7 +49,11 @@ def g_sensitivity_limit_dps2_per_g(sheet: SensorDatasheet) -> float:
 
 
 def datasheet_limits(sheet: SensorDatasheet) -> dict[str, float]:
-    """Every acceptance limit as the datasheet states it, by quantity name."""
+    """Every acceptance limit as the datasheet states it, by quantity name.
+
+    Each limit is in the unit its name carries (``_pct`` in %, ``_v`` in V, ``_dps2_per_g``
+    in (°/s²)/g, ``_per_c`` in 1/°C, ``_deg`` in °; a ``_ratio`` is dimensionless).
+    """
     return {
         "scale_factor_deviation_pct": sheet.scale_tolerance_pct,
         "bias_deviation_v": sheet.bias_tolerance_v,
@@ -64,7 +68,11 @@ def datasheet_limits(sheet: SensorDatasheet) -> dict[str, float]:
 
 
 def limits(sheet: SensorDatasheet, acceptance: Acceptance) -> dict[str, float]:
-    """The datasheet's limits with the procedure's overrides applied."""
+    """The datasheet's limits with the procedure's overrides applied.
+
+    Units as in :func:`datasheet_limits` (each in its name's unit: %, V, °, (°/s²)/g, 1/°C;
+    ratios dimensionless).
+    """
     overrides = acceptance.limits.model_dump(exclude_none=True)
     return datasheet_limits(sheet) | overrides
 

@@ -144,7 +144,7 @@ def decide(results: RunResults, data: Dataset) -> RunResults:
     """
     from aatest.engine.analysis.verdicts import apply_verdicts
     from aatest.engine.analysis.verdicts_limits import datasheets
-    from aatest.uncertainty import apply_uncertainty
+    from aatest.engine.uncertainty import apply_uncertainty
 
     document = results_json(results)
     apply_uncertainty(document)

@@ -3,7 +3,7 @@
 Templates hold no logic (docs/style.md): everything they show — sections that exist, values with
 expanded uncertainties, verdicts, figures — is prepared here from ``results.json``, and a
 section is present only when its analysis key is. Uncertainties, budgets and verdicts are the
-engine's (:mod:`aatest.uncertainty`, :mod:`aatest.engine.analysis.verdicts`): they are shown as
+engine's (:mod:`aatest.engine.uncertainty`, :mod:`aatest.engine.analysis.verdicts`): they are shown as
 the results state them, never recomputed, and results without them are an error.
 """
 
@@ -18,8 +18,8 @@ from aatest.plugins.report import figures as fig
 from aatest.plugins.report.sandbox import vet_svg
 from aatest.plugins.report.stated import budget_views, frf_rows, misalignment_rows, stated
 from aatest.plugins.report.traceability import traceability
-from aatest.uncertainty import access as ex
-from aatest.uncertainty.budgets import channels
+from aatest.engine.uncertainty import access as ex
+from aatest.engine.uncertainty.budgets import channels
 
 #: every section a report may show
 ALL_SECTIONS = frozenset({"sync", "scale_factor", "bias", "temperature", "noise", "frf",

@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from scipy import signal
 
 from aatest.engine.datasheet import REFERENCE_RANGE_DPS2
-from aatest.uncertainty import access as ex
+from aatest.engine.uncertainty import access as ex
 
 #: applied per plot (never globally, other plugins draw with matplotlib too): stable SVG ids,
 #: text kept as text (smaller, searchable), a compact font

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from aatest.uncertainty import access as ex
+from aatest.engine.uncertainty import access as ex
 
 #: (label, analysis key, value key, U key, budget key, unit) of each certified static quantity
 _STATIC: tuple[tuple[str, str, str, str, str, str], ...] = (

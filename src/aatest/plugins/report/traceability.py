@@ -15,7 +15,7 @@ from typing import Any
 
 import aatest
 from aatest.engine.run.signing import file_sha256
-from aatest.uncertainty import access as ex
+from aatest.engine.uncertainty import access as ex
 
 RECORDING_FILE = "recording.mcap"
 

@@ -18,9 +18,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
-from aatest.uncertainty import access as ex
-from aatest.uncertainty.gum import Input, Measurand, Ops
-from aatest.uncertainty.measurands import ARCSEC_RAD, RigConstants
+from aatest.engine.uncertainty import access as ex
+from aatest.engine.uncertainty.gum import Input, Measurand, Ops
+from aatest.engine.uncertainty.measurands import ARCSEC_RAD, RigConstants
 
 #: misalignment scenario → (original, pivoted) set labels (docs/interfaces.md §5)
 SCENARIO_SETS: dict[str, tuple[str, str]] = {"1": ("A", "B"), "2": ("C", "D"), "3": ("E", "F"),

@@ -1,7 +1,7 @@
 """Measurement models and uncertainty budgets (GUM, k = 2) for the calibration certificate.
 
 Each ``*_measurand`` function turns an analysis result plus rig constants into a
-:class:`~aatest.uncertainty.gum.Measurand`: the final quantity's model with one input per
+:class:`~aatest.engine.uncertainty.gum.Measurand`: the final quantity's model with one input per
 budget row (fit/reference noise, sensor noise, table position accuracy, wobble/orthogonality,
 sync residual, environment temperature, repeatability over repetitions). Statistical inputs
 come from the analysis (ci95, per-repetition values, measured noise); the rest are the rig's
@@ -18,8 +18,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
-from aatest.uncertainty import access as ex
-from aatest.uncertainty.gum import Input, Measurand, Ops
+from aatest.engine.uncertainty import access as ex
+from aatest.engine.uncertainty.gum import Input, Measurand, Ops
 
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 

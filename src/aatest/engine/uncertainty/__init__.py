@@ -12,7 +12,7 @@ expanded uncertainty, coverage factor and probability, and budget into the resul
 - ``budgets``     the stage itself: :func:`apply_uncertainty`
 """
 
-from aatest.uncertainty.budgets import apply_uncertainty
-from aatest.uncertainty.measurands import RigConstants
+from aatest.engine.uncertainty.budgets import apply_uncertainty
+from aatest.engine.uncertainty.measurands import RigConstants
 
 __all__ = ["RigConstants", "apply_uncertainty"]

@@ -11,14 +11,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from aatest.uncertainty import access as ex
-from aatest.uncertainty.dynamic import (
+from aatest.engine.uncertainty import access as ex
+from aatest.engine.uncertainty.dynamic import (
     frf_gain_measurand,
     frf_phase_measurand,
     misalignment_measurand,
 )
-from aatest.uncertainty.gum import Evaluation, Measurand, evaluate
-from aatest.uncertainty.measurands import (
+from aatest.engine.uncertainty.gum import Evaluation, Measurand, evaluate
+from aatest.engine.uncertainty.measurands import (
     RigConstants,
     bias_measurand,
     g_sensitivity_measurand,
