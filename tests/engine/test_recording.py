@@ -299,3 +299,15 @@ def test_damaged_recording_is_an_error_or_unchanged(
         assert mine.step == ref.step
         assert_logs_equal(ref.table, mine.table)
         assert_logs_equal(ref.daq, mine.daq)
+
+
+def test_golden_v1_recording_still_reads_bit_exact() -> None:
+    """A recording written by format v1 (``aatest.block/v1``, per-step topics) keeps reading.
+
+    ``data/golden_v1/recording.mcap`` was written by the v1 writer from ``step_logs`` (2 steps
+    of 2048 samples, seeds 0 and 1); the reader dispatches on the schema encoding.
+    """
+    dataset = read_dataset(HERE / "data" / "golden_v1" / "recording.mcap")
+    steps = [sine_step(f"s{i:02d}", 2048) for i in (1, 2)]
+    expected = {step.id: (step, *step_logs(step, seed)) for seed, step in enumerate(steps)}
+    assert_dataset_matches(dataset, expected)
