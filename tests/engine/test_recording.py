@@ -15,6 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.reader import NonSeekingReader, make_reader
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap.writer import Writer
 from recording_data import SENSOR, run_meta, sine_step, step_logs
 
@@ -104,31 +105,43 @@ def test_rewriting_a_step_replaces_it(tmp_path: Path) -> None:
 
 
 def test_plain_mcap_reader_decodes_blocks_as_documented(tmp_path: Path) -> None:
-    """A user with only ``mcap`` and NumPy can rebuild the DAQ log from the docstring recipe."""
-    logs = record_run(tmp_path, n_steps=1)
+    """With only ``mcap`` and ``protobuf`` (the schema embedded in the file), the DAQ log of a
+    step is rebuilt as the format docstring says: stable topic, blocks in sequence order."""
+    logs = record_run(tmp_path, n_steps=2)
     path = RunRecorder(tmp_path).finalize()
-    _, _, daq = logs["s01"]
+    _, _, daq = logs["s02"]
     with open(path, "rb") as stream:
         reader = make_reader(stream)
         assert reader.get_header().profile == "aatest"
         names = [m.name for m in reader.iter_metadata()]
-        messages = list(reader.iter_messages(topics=["/s01/daq"]))
-    assert names == ["run", "step"]
-    blocks = []
-    offset_ns = int(messages[0][1].metadata["log_time_offset_ns"])
-    assert offset_ns == pytest.approx(-daq.time_s[0] * 1e9, abs=1)
-    for schema, channel, message in sorted(messages, key=lambda m: m[2].sequence):
-        assert schema.encoding == ENCODING and channel.message_encoding == ENCODING
-        doc = json.loads(schema.data)
-        dtype = np.dtype([(c["name"], c["dtype"]) for c in doc["columns"]])
-        block = np.frombuffer(message.data, dtype=dtype)
-        assert len(block) <= BLOCK_SAMPLES
-        assert message.log_time == round(block["time_s"][0] * 1e9) + offset_ns >= 0
-        assert message.publish_time == message.log_time
-        blocks.append(block)
-    records = np.concatenate(blocks)
-    np.testing.assert_array_equal(records["v_sz"], daq["v_sz"])
-    assert records.dtype["sync_pulse"] == np.uint8
+        messages = list(reader.iter_messages(topics=["/daq"]))
+    assert names == ["run", "step", "step"]
+    schema = messages[0][0]
+    assert (schema.encoding, messages[0][1].message_encoding) == (ENCODING, ENCODING) == (
+        "protobuf", "protobuf")
+    pool = descriptor_pool.DescriptorPool()
+    for file in descriptor_pb2.FileDescriptorSet.FromString(schema.data).file:
+        pool.Add(file)
+    block_type = message_factory.GetMessageClass(pool.FindMessageTypeByName(schema.name))
+    blocks = [block_type.FromString(m.data) for _, _, m in messages]
+    mine = sorted((b for b in blocks if b.step_id == "s02"), key=lambda b: b.sequence)
+    assert len(mine) == -(-len(daq) // BLOCK_SAMPLES) and all(b.source == "daq" for b in mine)
+    times = [m.log_time for _, _, m in messages]
+    assert times == sorted(times)  # one run time line: step s02 after s01
+
+    def column(name: str) -> np.ndarray:
+        parts = []
+        for block in mine:
+            ch = block.time if name == "time_s" else next(c for c in block.channels
+                                                          if c.name == name)
+            parts.append(np.array(ch.codes) * ch.quantum + ch.offset if len(ch.codes)
+                         else np.array(ch.values))
+        return np.concatenate(parts)
+
+    np.testing.assert_array_equal(column("v_sz"), daq["v_sz"])
+    np.testing.assert_array_equal(column("time_s"), daq.time_s)
+    np.testing.assert_array_equal(column("sync_pulse"), daq["sync_pulse"])
+    assert all(len(next(c for c in b.channels if c.name == "sync_pulse").codes) for b in mine)
 
 
 @pytest.mark.parametrize("kind", ["step", "merged"])
@@ -154,7 +167,8 @@ def test_files_are_valid_mcap_for_seeking_and_streaming_readers(tmp_path: Path, 
     assert times == sorted(times)
     assert (stats.message_start_time, stats.message_end_time) == (times[0], times[-1])
     if kind == "merged":
-        assert len(summary.schemas) == 2  # identical block schemas are stored once
+        assert len(summary.schemas) == 1  # one protobuf schema for the whole run
+        assert {ch.topic for ch in summary.channels.values()} == {"/table", "/daq"}
 
 
 def test_finalize_keeps_plan_order_not_write_order(tmp_path: Path) -> None:
@@ -311,3 +325,50 @@ def test_golden_v1_recording_still_reads_bit_exact() -> None:
     steps = [sine_step(f"s{i:02d}", 2048) for i in (1, 2)]
     expected = {step.id: (step, *step_logs(step, seed)) for seed, step in enumerate(steps)}
     assert_dataset_matches(dataset, expected)
+
+
+def _adc(volts: np.ndarray, lsb_v: float, lo_v: float) -> np.ndarray:
+    """A 16-bit ±10 V ADC reading: code·LSB + low end, as the twin's DAQ computes it."""
+    return np.round((volts - lo_v) / lsb_v) * lsb_v + lo_v
+
+
+@pytest.mark.parametrize("on_grid", [True, False], ids=["adc-codes", "off-grid-float"])
+def test_quantised_channels_round_trip_bit_exact_as_codes_or_floats(
+    tmp_path: Path, on_grid: bool
+) -> None:
+    """decode(encode(x)) == x bit for bit: as codes on the declared grid, as float64 off it."""
+    from aatest.engine.recording.codec import encode_blocks
+    from aatest.engine.recording.proto import block_class
+
+    step = sine_step("s01", 3 * BLOCK_SAMPLES + 5)
+    table, daq = step_logs(step, seed=3)
+    lsb_v, lo_v = 20.0 / 2**16, -10.0
+    volts = _adc(daq["v_sz"], lsb_v, lo_v) if on_grid else daq["v_sz"]
+    daq = SampledLog(daq.source, daq.sample_rate_hz, daq.time_s,
+                     {**daq.channels, "v_sz": volts}, daq.units, {"v_sz": (lsb_v, lo_v)})
+    recorder = RunRecorder(tmp_path)
+    recorder.write_step(step, table, daq)
+    got = read_dataset(recorder.finalize()).steps[0].daq
+    assert got["v_sz"].view(np.uint64).tolist() == volts.view(np.uint64).tolist()
+    assert dict(got.quantisation) == {"v_sz": (lsb_v, lo_v)}
+    header = {"step_id": "s01", "source": "daq"}
+    blocks = [block_class().FromString(b) for b in encode_blocks(daq, header, BLOCK_SAMPLES,
+                                                                 [0, 1, 2, 3])]
+    coded = [len(next(c for c in b.channels if c.name == "v_sz").codes) > 0 for b in blocks]
+    assert coded == [on_grid] * 4
+
+
+def test_one_sample_off_the_grid_keeps_only_its_block_as_floats(tmp_path: Path) -> None:
+    """Never lossy silently: a single value off the ADC grid makes its block float64."""
+    step = sine_step("s01", 2 * BLOCK_SAMPLES)
+    table, daq = step_logs(step, seed=4)
+    lsb_v, lo_v = 20.0 / 2**16, -10.0
+    volts = _adc(daq["v_sz"], lsb_v, lo_v)
+    volts[BLOCK_SAMPLES + 7] += lsb_v / 3
+    daq = SampledLog(daq.source, daq.sample_rate_hz, daq.time_s,
+                     {**daq.channels, "v_sz": volts}, daq.units, {"v_sz": (lsb_v, lo_v)})
+    recorder = RunRecorder(tmp_path)
+    recorder.write_step(step, table, daq)
+    got = read_dataset(recorder.finalize()).steps[0].daq
+    np.testing.assert_array_equal(got["v_sz"], volts)
+    assert got["v_sz"].view(np.uint64).tolist() == volts.view(np.uint64).tolist()
