@@ -35,9 +35,10 @@ def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dtype) -> np.ndarray:
-    """Physical values of integer ``codes``: integers as themselves, floats ``code·quantum + offset``.
+    """Physical values of ``codes``: integer dtypes as themselves, floats ``code·quantum + offset``.
 
     The one formula the writer checks against and every reader must use (float64 arithmetic).
+    ``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an encoder).
     """
     if dtype.kind in "iub":
         return codes.astype(dtype)
@@ -112,7 +113,10 @@ def encode_blocks(
 
 
 def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None]:
-    """Decode one ``Channel`` message → (values in their logged dtype, (quantum, offset) or None)."""
+    """One ``Channel`` message → (values in the logged dtype, (quantum, offset) or None).
+
+    Values, quantum and offset are in the channel's own unit (e.g. V, deg, s).
+    """
     dtype = np.dtype(message.dtype)
     if dtype.kind not in _ALLOWED_KINDS or dtype.byteorder == ">":
         raise ValueError(f"channel {message.name!r} has unsupported dtype {dtype}")
@@ -137,6 +141,9 @@ def blocks_to_log(
     quantisation: Mapping[str, tuple[float, float]],
 ) -> SampledLog:
     """Rebuild one step's :class:`SampledLog` from its decoded ``SampleBlock`` messages.
+
+    ``sample_rate_hz`` is the logger's nominal rate in Hz, ``samples`` the count the step record
+    gives, ``quantisation`` the declared ``(quantum, offset)`` per channel in its own unit (V, deg).
 
     Raises
     ------

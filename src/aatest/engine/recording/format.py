@@ -63,7 +63,6 @@ import numpy as np
 import zstandard
 from mcap.exceptions import McapError
 
-
 FORMAT = "aatest.recording/v2"
 PROFILE = "aatest"
 ENCODING = "protobuf"

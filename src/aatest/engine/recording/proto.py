@@ -65,7 +65,7 @@ def _message(
     message = file.message_type.add(name=name)
     for field_name, number, kind, repeated in fields:
         entry = message.field.add(
-            name=field_name, number=number, type=kind,  # type: ignore[arg-type]
+            name=field_name, number=number, type=kind,
             label=_F.LABEL_REPEATED if repeated else _F.LABEL_OPTIONAL,
         )
         if kind == _F.TYPE_MESSAGE:
