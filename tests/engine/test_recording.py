@@ -371,3 +371,21 @@ def test_one_sample_off_the_grid_keeps_only_its_block_as_floats(tmp_path: Path) 
     got = read_dataset(recorder.finalize()).steps[0].daq
     np.testing.assert_array_equal(got["v_sz"], volts)
     assert got["v_sz"].view(np.uint64).tolist() == volts.view(np.uint64).tolist()
+
+
+def test_encoder_counts_with_negative_zero_stay_codes() -> None:
+    """A rounded encoder reading just below 0 is −0.0: equal to 0.0, so the block stays codes."""
+    from aatest.engine.recording.codec import channel_values, encode_blocks
+    from aatest.engine.recording.proto import block_class
+
+    q_deg = 0.01 / 3600.0
+    angle = np.round(np.random.default_rng(5).normal(0, 3 * q_deg, 1000) / q_deg) * q_deg
+    assert np.any(np.signbit(angle) & (angle == 0))
+    log = SampledLog("table", 2000.0, np.arange(1000) / 2000.0, {"inner_position_deg": angle},
+                     {"inner_position_deg": "deg"}, {"inner_position_deg": (q_deg, 0.0)})
+    block = block_class().FromString(next(encode_blocks(log, {}, BLOCK_SAMPLES, [0])))
+    values, quantum = channel_values(block.channels[0])
+    assert quantum == (q_deg, 0.0) and len(block.channels[0].codes) == 1000
+    np.testing.assert_array_equal(values, angle)
+    nonzero = angle != 0
+    assert values[nonzero].view(np.uint64).tolist() == angle[nonzero].view(np.uint64).tolist()

@@ -4,7 +4,7 @@ Why codes: loggers produce integers — ADC codes, encoder counts, 0/1 pulses, s
 and a float64 of an ADC reading costs 8 bytes of mostly incompressible mantissa where its code
 costs 2–3. A channel of a block is stored as integer ``codes`` (with ``quantum`` and ``offset``)
 only when ``codes * quantum + offset``, computed in float64, gives back *every* value of the
-block bit for bit; otherwise it is stored as float64 ``values``. The choice is made per block
+block bit for bit (a −0.0 comes back as +0.0, the same number); otherwise it is stored as float64 ``values``. The choice is made per block
 and per channel, so data off the grid (a clipped sample, a float estimate, jittered time stamps)
 are never rounded: decoding always returns the exact logged array, in its logged dtype.
 
@@ -29,9 +29,15 @@ _MAX_EXACT_CODE = float(2**53)
 _ALLOWED_KINDS = "fiub"
 
 
-def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
-    """Bitwise equality of two float64 arrays (tells -0.0 from 0.0 and keeps NaN payloads)."""
-    return bool(np.array_equal(a.view(np.uint64), b.view(np.uint64)))
+def _same_values(decoded: np.ndarray, logged: np.ndarray) -> bool:
+    """Bitwise equality of two float64 arrays, except that −0.0 may come back as +0.0.
+
+    The one value an integer code cannot carry is the sign of a zero (a rounded encoder reading
+    just below 0 is −0.0); it is the same physical value, equal under ``==`` and in every
+    computation the analyses make, so it does not force the block to float64.
+    """
+    return bool(np.array_equal(np.where(logged == 0.0, 0.0, logged).view(np.uint64),
+                               decoded.view(np.uint64)))
 
 
 def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dtype) -> np.ndarray:
@@ -60,7 +66,7 @@ def _codes(
     if not bool(np.all(np.abs(scaled) < _MAX_EXACT_CODE)):  # also False for NaN/inf
         return None
     codes = scaled.astype(np.int64)
-    if not _same_bits(codes.astype(np.float64) * step + offset, exact):
+    if not _same_values(codes.astype(np.float64) * step + offset, exact):
         return None
     return codes, step, offset
 
