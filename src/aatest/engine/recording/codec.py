@@ -4,9 +4,10 @@ Why codes: loggers produce integers — ADC codes, encoder counts, 0/1 pulses, s
 and a float64 of an ADC reading costs 8 bytes of mostly incompressible mantissa where its code
 costs 2–3. A channel of a block is stored as integer ``codes`` (with ``quantum`` and ``offset``)
 only when ``codes * quantum + offset``, computed in float64, gives back *every* value of the
-block bit for bit (a −0.0 comes back as +0.0, the same number); otherwise it is stored as float64 ``values``. The choice is made per block
-and per channel, so data off the grid (a clipped sample, a float estimate, jittered time stamps)
-are never rounded: decoding always returns the exact logged array, in its logged dtype.
+block bit for bit (a −0.0 comes back as +0.0, the same number); otherwise it is stored as
+float64 ``values``. The choice is made per block and per channel, so data off the grid (a
+clipped sample, a float estimate, jittered time stamps) are never rounded: decoding always
+returns the exact logged array, in its logged dtype.
 
 Where the quantum comes from: integer and boolean arrays are their own codes; float arrays use
 the ``(quantum, offset)`` the logger declared in :attr:`SampledLog.quantisation` (``time_s``

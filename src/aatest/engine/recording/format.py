@@ -34,7 +34,8 @@ consecutive samples of *all* channels of one logger in one step, with ``step_id`
 (``time``) and one ``Channel`` per logged channel. A channel's samples are either packed float64
 ``values`` or packed integer ``codes`` with ``value = code·quantum + offset`` (float64), used
 only where that reproduces every logged value bit for bit (ADC codes, encoder counts, 0/1
-pulses; a −0.0 returns as +0.0; :mod:`aatest.engine.recording.codec`); ``dtype`` restores the logged NumPy dtype.
+pulses; a −0.0 returns as +0.0; :mod:`aatest.engine.recording.codec`); ``dtype`` restores the
+logged NumPy dtype.
 Concatenating a step's blocks in ``sequence`` order gives its log; ``step_record_sha256`` in
 every block is the SHA-256 of the step's metadata record (values as a JSON object with sorted
 keys and no spaces) — MCAP protects chunks with CRCs but not metadata.
