@@ -389,3 +389,91 @@ def test_encoder_counts_with_negative_zero_stay_codes() -> None:
     np.testing.assert_array_equal(values, angle)
     nonzero = angle != 0
     assert values[nonzero].view(np.uint64).tolist() == angle[nonzero].view(np.uint64).tolist()
+
+
+QUICK = HERE.parents[1] / "tests" / "data" / "procedures" / "quick-sine-3-steps.yaml"
+#: runs the CLI with the recorder's file writes failing with ENOSPC once the file whose name
+#: contains FAIL_IN has received FAIL_AFTER bytes (a disk that fills up mid-write)
+_FULL_DISK_CLI = """
+import builtins, errno, os, sys
+from aatest.engine.recording import writer
+
+class _FullDisk:
+    def __init__(self, stream):
+        self._stream, self._left = stream, int(os.environ["FAIL_AFTER"])
+    def write(self, data):
+        if len(data) > self._left:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self._left -= len(data)
+        return self._stream.write(data)
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+    def __enter__(self):
+        return self
+    def __exit__(self, *exc):
+        return self._stream.__exit__(*exc)
+
+def _open(path, mode="r", *args, **kwargs):
+    stream = builtins.open(path, mode, *args, **kwargs)
+    fail_in = os.environ.get("FAIL_IN")
+    return _FullDisk(stream) if fail_in and fail_in in str(path) and "w" in mode else stream
+
+writer.open = _open
+from aatest.cli import main
+sys.argv = ["aatest", *sys.argv[1:]]
+main()
+"""
+
+
+def _cli(run_dir: Path, *extra: str, fail_in: str = "", fail_after: int = 0) -> tuple[int, str]:
+    env = {**os.environ, "FAIL_IN": fail_in, "FAIL_AFTER": str(fail_after)}
+    done = subprocess.run(
+        [sys.executable, "-c", _FULL_DISK_CLI, "run", str(QUICK), "--out", str(run_dir),
+         "--no-progress", *extra], capture_output=True, text=True, timeout=300, env=env,
+        stdin=subprocess.DEVNULL)
+    return done.returncode, done.stderr
+
+
+def _step_files(run_dir: Path) -> list[str]:
+    """Plan position and suffix of every file in ``steps/``: ``001.mcap``, ``002.mcap.corrupt``."""
+    return sorted(p.name[:3] + (".mcap.corrupt" if p.name.endswith(".corrupt") else ".mcap")
+                  for p in (run_dir / "steps").iterdir() if p.name != "run.json")
+
+
+def _recorded_ids(path: Path) -> list[str]:
+    return [s.step.id for s in read_dataset(path).steps]
+
+
+@pytest.mark.parametrize("fail_in", ["002-", "recording.mcap"], ids=["writing-step", "merging"])
+def test_full_disk_is_a_fault_that_keeps_steps_and_resumes(tmp_path: Path, fail_in: str) -> None:
+    """ENOSPC while a step file or the merged recording is written: exit 3, one reason line,
+    no half-written file, the completed steps intact; ``--resume`` then completes the run."""
+    run_dir = tmp_path / "run"
+    code, stderr = _cli(run_dir, fail_in=fail_in, fail_after=50_000)
+    assert code == 3, stderr
+    assert "No space left on device" in stderr and "--resume" in stderr
+    assert "Traceback" not in stderr
+    kept = _step_files(run_dir)
+    assert kept == (["001.mcap"] if fail_in == "002-" else ["001.mcap", "002.mcap", "003.mcap"])
+    assert not (run_dir / "recording.mcap").exists()
+    assert len(_recorded_ids(run_dir)) == len(kept)  # the kept steps read
+    code, stderr = _cli(run_dir, "--resume")
+    assert code == 0, stderr
+    ids = _recorded_ids(run_dir / "recording.mcap")
+    assert len(ids) == len(set(ids)) == 3
+
+
+def test_corrupt_step_file_on_resume_is_named_and_the_others_kept(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    code, _ = _cli(run_dir, fail_in="003-", fail_after=10_000)
+    assert code == 3
+    damaged = next((run_dir / "steps").glob("001-*.mcap"))
+    damaged.write_bytes(damaged.read_bytes()[:5000])
+    code, stderr = _cli(run_dir, "--resume")
+    assert code == 2, stderr
+    assert str(damaged) in stderr and "corrupt step file" in stderr and "Traceback" not in stderr
+    assert _step_files(run_dir) == ["001.mcap.corrupt", "002.mcap"]
+    code, stderr = _cli(run_dir, "--resume")
+    assert code == 0, stderr
+    ids = _recorded_ids(run_dir / "recording.mcap")
+    assert len(ids) == len(set(ids)) == 3

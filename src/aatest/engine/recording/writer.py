@@ -26,7 +26,7 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 
 import aatest
-from aatest.engine.errors import RecordingError
+from aatest.engine.errors import RecordingError, StorageFault
 from aatest.engine.logs import SampledLog
 from aatest.engine.recording import codec, proto
 from aatest.engine.recording import format as fmt
@@ -60,7 +60,15 @@ def _fsync_dir(path: Path) -> None:
 
 
 def atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> Path:
-    """Write ``path`` through a temporary sibling, fsync it, then rename it into place."""
+    """Write ``path`` through a temporary sibling, fsync it, then rename it into place.
+
+    Raises
+    ------
+    StorageFault
+        The file system refused the write (disk full, quota, I/O error). Nothing of ``path`` is
+        left half-written and earlier files are untouched, so ``--resume`` completes the run
+        once there is space again (exit 3, like a rig fault: the station, not the input, failed).
+    """
     tmp = path.with_name(f".{path.name}{_TEMP_MARK}{os.getpid()}")
     try:
         with open(tmp, "wb") as stream:
@@ -68,6 +76,12 @@ def atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> Path:
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise StorageFault(
+            f"{path}: cannot write ({exc.strerror or exc}); completed steps are kept — free "
+            "space and continue with `aatest run --resume --out RUN_DIR`"
+        ) from exc
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -300,6 +314,7 @@ def complete_step_files(steps_dir: Path, clean: bool = False) -> dict[str, tuple
     are renamed ``*.corrupt`` so they are never read again.
     """
     found: dict[str, tuple[Path, int]] = {}
+    corrupt: list[Path] = []
     for path in sorted(steps_dir.glob("*.mcap*")):
         if _TEMP_MARK in path.name:
             if clean:
@@ -309,13 +324,27 @@ def complete_step_files(steps_dir: Path, clean: bool = False) -> dict[str, tuple
             continue
         scanned = scan_step_file(path)
         if scanned is None:
-            if clean:
-                path.replace(path.with_name(path.name + ".corrupt"))
+            corrupt.append(path)
             continue
         step_id, index = scanned
         if step_id not in found or found[step_id][1] < index:
             found[step_id] = (path, index)
+    if clean and corrupt:
+        _set_aside(corrupt, len(found))
     return dict(sorted(found.items(), key=lambda item: (item[1][1], item[1][0].name)))
+
+
+def _set_aside(corrupt: list[Path], kept: int) -> None:
+    """Rename damaged step files ``*.corrupt`` and say so: writes are atomic, so a damaged
+    file with a final name means the disk or a person changed it, which must not go unnoticed."""
+    for path in corrupt:
+        path.replace(path.with_name(path.name + ".corrupt"))
+    names = ", ".join(str(p) for p in corrupt)
+    raise RecordingError(
+        f"{names}: corrupt step file (no valid MCAP summary or step record); renamed *.corrupt, "
+        f"the {kept} other completed step(s) are kept — run `aatest run --resume` again to "
+        "record the step anew"
+    )
 
 
 def load_run_metadata(steps_dir: Path) -> dict[str, Any]:
