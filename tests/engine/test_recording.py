@@ -430,7 +430,7 @@ def _cli(run_dir: Path, *extra: str, fail_in: str = "", fail_after: int = 0) -> 
     done = subprocess.run(
         [sys.executable, "-c", _FULL_DISK_CLI, "run", str(QUICK), "--out", str(run_dir),
          "--no-progress", *extra], capture_output=True, text=True, timeout=300, env=env,
-        stdin=subprocess.DEVNULL)
+        stdin=subprocess.DEVNULL, check=False)
     return done.returncode, done.stderr
 
 
