@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -477,3 +479,55 @@ def test_corrupt_step_file_on_resume_is_named_and_the_others_kept(tmp_path: Path
     assert code == 0, stderr
     ids = _recorded_ids(run_dir / "recording.mcap")
     assert len(ids) == len(set(ids)) == 3
+
+
+MCAP_TS = HERE.parent / "mcap_ts"
+
+
+def _summary(recording: Path) -> dict[str, object]:
+    """What the TypeScript check must find: messages per topic, samples, first/last values."""
+    with open(recording, "rb") as stream:
+        counts = make_reader(stream).get_summary().statistics.channel_message_counts
+    steps: dict[str, object] = {}
+    for data in read_dataset(recording).steps:
+        for log in (data.table, data.daq):
+            arrays = {"time_s": log.time_s, **log.channels}
+            steps[f"{data.step.id}/{log.source}"] = {
+                "samples": len(log),
+                "first": {k: v[0].item() for k, v in arrays.items()},
+                "last": {k: v[-1].item() for k, v in arrays.items()},
+            }
+    return {"messages": {"/table": counts[1], "/daq": counts[2]}, "steps": steps}
+
+
+def test_official_typescript_reader_decodes_a_recording(tmp_path: Path) -> None:
+    """``@mcap/core`` reads every record (CRCs validated), protobufjs decodes the embedded
+    schema, and the decoded counts and values equal what aatest reads."""
+    node = shutil.which("node")
+    if node is None or not (MCAP_TS / "node_modules" / "@mcap" / "core").is_dir():
+        pytest.skip("needs node and `npm ci --prefix tests/mcap_ts` (done by .ci/run)")
+    record_run(tmp_path, n_steps=2, samples=2 * BLOCK_SAMPLES + 9)
+    recording = RunRecorder(tmp_path).finalize()
+    summary = tmp_path / "summary.json"
+    summary.write_text(json.dumps(_summary(recording)))
+    done = subprocess.run([node, str(MCAP_TS / "read_recording.mjs"), str(recording),
+                           str(summary)], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    assert "CRCs valid" in done.stdout
+
+
+def test_typescript_check_fails_on_a_wrong_summary(tmp_path: Path) -> None:
+    """The check can fail: one changed value in the summary is reported."""
+    node = shutil.which("node")
+    if node is None or not (MCAP_TS / "node_modules" / "@mcap" / "core").is_dir():
+        pytest.skip("needs node and `npm ci --prefix tests/mcap_ts` (done by .ci/run)")
+    record_run(tmp_path, n_steps=1)
+    recording = RunRecorder(tmp_path).finalize()
+    summary = _summary(recording)
+    summary["steps"]["s01/daq"]["last"]["v_sz"] += 1e-9  # type: ignore[index]
+    path = tmp_path / "summary.json"
+    path.write_text(json.dumps(summary))
+    done = subprocess.run([node, str(MCAP_TS / "read_recording.mjs"), str(recording), str(path)],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 1 and "v_sz" in done.stderr
