@@ -135,8 +135,8 @@ def test_plain_mcap_reader_decodes_blocks_as_documented(tmp_path: Path) -> None:
         for block in mine:
             ch = block.time if name == "time_s" else next(c for c in block.channels
                                                           if c.name == name)
-            parts.append(np.array(ch.codes) * ch.quantum + ch.offset if len(ch.codes)
-                         else np.array(ch.values))
+            codes = np.cumsum(ch.codes) if ch.delta else np.array(ch.codes, dtype=np.int64)
+            parts.append(codes * ch.quantum + ch.offset if len(ch.codes) else np.array(ch.values))
         return np.concatenate(parts)
 
     np.testing.assert_array_equal(column("v_sz"), daq["v_sz"])

@@ -6,7 +6,8 @@
 // chunk and of the data section; chunks are zstd (fzstd). The protobuf schema embedded in
 // the file (a FileDescriptorSet) is loaded with protobufjs and every message decoded with it.
 // The per-topic message counts, per-step sample counts and the first and last physical value
-// of every channel (code * quantum + offset, float64, as the format says) must equal the
+// of every channel (code * quantum + offset in float64, codes summed when stored as
+// differences, as the format says) must equal the
 // JSON summary written by Python (tests/engine/test_recording.py). Exit 0 when they do, else
 // 1 with the first difference on stderr.
 import { readFileSync } from "node:fs";
@@ -36,7 +37,11 @@ const got = { messages: {}, steps: {} };
 
 function physical(channel) {
   if (channel.codes.length > 0) {
-    return channel.codes.map((code) => Number(code) * channel.quantum + channel.offset);
+    let code = 0;
+    return channel.codes.map((stored) => {
+      code = channel.delta ? code + Number(stored) : Number(stored);
+      return code * channel.quantum + channel.offset;
+    });
   }
   return channel.values;
 }

@@ -9,6 +9,9 @@ float64 ``values``. The choice is made per block and per channel, so data off th
 clipped sample, a float estimate, jittered time stamps) are never rounded: decoding always
 returns the exact logged array, in its logged dtype.
 
+Codes of smooth signals and counters (an encoder following a sine, sample numbers) are stored as
+differences (``delta``), which the varints and zstd then shrink to a byte or less each.
+
 Where the quantum comes from: integer and boolean arrays are their own codes; float arrays use
 the ``(quantum, offset)`` the logger declared in :attr:`SampledLog.quantisation` (``time_s``
 included), else quantum 1 when every value is a whole number (0/1 pulses stored as float).
@@ -82,7 +85,9 @@ def _fill_channel(
         message.values.extend(values.astype(np.float64).tolist())
         return
     codes, step, offset = coded
-    message.codes.extend(codes.tolist())
+    steps = np.diff(codes, prepend=np.int64(0))
+    message.delta = bool(np.abs(steps).sum() < np.abs(codes).sum())  # smooth signals, counters
+    message.codes.extend((steps if message.delta else codes).tolist())
     message.quantum, message.offset = step, offset
 
 
@@ -132,7 +137,10 @@ def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None
         if len(message.values):
             raise ValueError(f"channel {message.name!r} has both codes and values")
         quantum = (float(message.quantum), float(message.offset))
-        return decode_codes(np.array(codes, dtype=np.int64), *quantum, dtype), quantum
+        integers = np.array(codes, dtype=np.int64)
+        if message.delta:
+            integers = np.cumsum(integers)
+        return decode_codes(integers, *quantum, dtype), quantum
     return np.array(message.values, dtype=np.float64).astype(dtype), None
 
 

@@ -32,7 +32,8 @@ data the serialised ``FileDescriptorSet`` (:mod:`aatest.engine.recording.proto` 
 consecutive samples of *all* channels of one logger in one step, with ``step_id``,
 ``step_index``, ``sequence`` (block number in the step's log), ``first_sample``, the time stamps
 (``time``) and one ``Channel`` per logged channel. A channel's samples are either packed float64
-``values`` or packed integer ``codes`` with ``value = code·quantum + offset`` (float64), used
+``values`` or packed integer ``codes`` (their running sum when ``delta`` is set) with
+``value = code·quantum + offset`` (float64), used
 only where that reproduces every logged value bit for bit (ADC codes, encoder counts, 0/1
 pulses; a −0.0 returns as +0.0; :mod:`aatest.engine.recording.codec`); ``dtype`` restores the
 logged NumPy dtype.

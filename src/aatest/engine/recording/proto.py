@@ -16,6 +16,7 @@ messages (MCAP schema encoding ``protobuf``). The equivalent ``.proto`` text::
       repeated sint64 codes = 5;      // integer codes: value = code * quantum + offset
       double quantum = 6;             // size of one code step (e.g. one ADC LSB in V)
       double offset = 7;              // value of code 0
+      bool delta = 8;                 // codes hold differences: code[i] = Σ codes[0..i]
     }
     message SampleBlock {             // up to BLOCK_SAMPLES consecutive samples of one logger
       string step_id = 1;
@@ -47,7 +48,7 @@ _CHANNEL_FIELDS = (
     ("name", 1, _F.TYPE_STRING, False), ("unit", 2, _F.TYPE_STRING, False),
     ("dtype", 3, _F.TYPE_STRING, False), ("values", 4, _F.TYPE_DOUBLE, True),
     ("codes", 5, _F.TYPE_SINT64, True), ("quantum", 6, _F.TYPE_DOUBLE, False),
-    ("offset", 7, _F.TYPE_DOUBLE, False),
+    ("offset", 7, _F.TYPE_DOUBLE, False), ("delta", 8, _F.TYPE_BOOL, False),
 )
 _BLOCK_FIELDS = (
     ("step_id", 1, _F.TYPE_STRING, False), ("step_index", 2, _F.TYPE_UINT32, False),
