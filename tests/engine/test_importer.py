@@ -263,6 +263,14 @@ PARITY_CASES = {
 }
 
 
+PARITY_CASES |= {
+    "blank_line_inside": "time_s,a\n0,1\n\n1,2\n",
+    "comment_inside": "time_s,a\n0,1\n# pause\n1,2\n",
+    "padded_cells": "time_s,a\n0, 1.5 \n 1,2\n",
+    "no_final_newline": "time_s,a\n0,1\n1,2",
+}
+
+
 @pytest.mark.parametrize("name", list(PARITY_CASES), ids=list(PARITY_CASES))
 def test_arrow_and_tolerant_csv_paths_agree(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str

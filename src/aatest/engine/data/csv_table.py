@@ -10,9 +10,9 @@ without data rows, a missing or duplicated column, a row with a different number
 than the header (a truncated last row), a cell that is not a finite number, and a time column
 that is not strictly increasing.
 
-Parsing. A plain file — ASCII, ``\n`` line ends, no blank or comment line after the header, no
-whitespace inside cells — is read by Arrow's multi-threaded C++ CSV reader (``pyarrow.csv``),
-its data rows then lying on consecutive lines. Anything else, and any file Arrow refuses, takes
+Parsing. A plain file — ASCII, ``\n`` line ends, no quotes, no blank or comment line — is read
+by Arrow's multi-threaded C++ CSV reader (``pyarrow.csv``), its data rows then lying on
+consecutive lines. Anything else, and any file Arrow refuses, takes
 the tolerant path: one ``np.loadtxt`` call over the kept lines, and only when that fails a
 per-row scan (Python, error path only) finds the first offending line to report. Both paths
 accept and reject the same files with the same messages.
@@ -33,6 +33,8 @@ import pyarrow.csv as pa_csv
 from aatest.engine.errors import ImportDataError
 
 TIME_COLUMN = "time_s"
+#: bytes that send a file to the tolerant path (CR line ends, NUL, quotes)
+_NOT_PLAIN = (b"\r", b"\x00", b'"')
 
 
 @dataclass(frozen=True)
@@ -195,18 +197,22 @@ def _checked(table: CsvColumns) -> CsvColumns:
 
 
 def _plain_header(raw: bytes) -> tuple[int, tuple[str, ...]] | None:
-    """(header line index, names) when the file qualifies for the Arrow path, else None."""
-    if not raw.isascii() or b"\r" in raw or b"\x00" in raw:
-        return None
+    """(header line index, names) when the file may take the Arrow path, else None.
+
+    Only single-byte searches (memchr speed, no copies); blank and comment lines are caught
+    after parsing, by the row count (:func:`_read_plain`).
+    """
     end = raw.find(b"\n")
-    first = raw[: end if end >= 0 else len(raw)].decode("ascii")
-    body = raw[end + 1:] if end >= 0 else b""
-    names = tuple(first.split(","))
-    plain = (end >= 0 and body.strip() != b"" and b"\n\n" not in body.rstrip(b"\n")
-             and b"\n#" not in body and not body.startswith((b"#", b"\n")) and b" " not in body
-             and b"\t" not in body and b"\"" not in body and len(set(names)) == len(names)
-             and all(n and n == n.strip().strip('"') for n in names))
-    return (0, names) if plain else None
+    if end <= 0 or raw[end + 1: end + 2] in (b"", b"\n") or raw.startswith(b"#"):
+        return None
+    if not raw.isascii():
+        return None
+    if any(raw.find(c) >= 0 for c in _NOT_PLAIN):
+        return None
+    names = tuple(raw[:end].decode("ascii").split(","))
+    if len(set(names)) != len(names) or not all(n == n.strip() and n for n in names):
+        return None
+    return 0, names
 
 
 def _read_plain(path: Path, required: Sequence[str], optional: Sequence[str]) -> CsvColumns | None:
@@ -232,6 +238,9 @@ def _read_plain(path: Path, required: Sequence[str], optional: Sequence[str]) ->
         )
     except (pa.ArrowInvalid, pa.ArrowTypeError):
         return None
+    lines = raw.count(b"\n") + (not raw.endswith(b"\n"))
+    if table.num_rows == 0 or table.num_rows != lines - header_index - 1:
+        return None  # Arrow skipped blank lines: their numbers are the tolerant path's job
     columns = {n: table.column(n).to_numpy() for n in wanted}
     rows = np.arange(table.num_rows, dtype=np.int64) + header_index + 2
     return CsvColumns(path, columns, header, rows)
