@@ -3,12 +3,16 @@
 Usage::
 
     python bench/recording.py [--steps N] [--samples 131072] [--dir DIR]
+    python bench/recording.py --measure RUN_DIR   # size of a finished run's recording.mcap
 
 Data come from the digital twin (realistic rig model: noise, ripple, drift), so the zstd
 compression ratio is that of real-looking data, not of zeros. Prints, per step: raw and
 on-disk size, write (atomic step file incl. fsync) and read MB/s of raw sample data, and the
 ratio lab time / wall time (how much faster than the rig the recorder is); for the run:
-finalize (one-pass merge) time and throughput, and the full read_dataset time.
+finalize (one-pass merge) time and throughput, and the full read_dataset time. Sizes are in
+MB (10^6 bytes); "ratio" is raw sample bytes / bytes on disk. ``--measure`` prints the same for
+a recorded run (e.g. the shipped stepped-sine procedure, whose format-v1 recording was
+:data:`V1_STEPPED_SINE_MB`) and how it compares with the ≤ :data:`TARGET_MB` MB target.
 """
 
 from __future__ import annotations
@@ -26,6 +30,10 @@ from aatest.engine.steps import PlannedStep
 from aatest.twin.api import realistic_rig_model, simulate_dataset
 
 MB = 1e6
+#: the shipped stepped-sine recording in format v1 (aatest.block/v1), measured on main
+V1_STEPPED_SINE_MB = 657.0
+#: issue 14's target for that recording
+TARGET_MB = 250.0
 
 
 def _raw_bytes(log: SampledLog) -> int:
@@ -46,12 +54,31 @@ def _twin_steps(n_steps: int, samples: int) -> list[StepData]:
     return list(simulate_dataset(realistic_rig_model(), steps, seed=1).steps)
 
 
+def measure(run_dir: Path) -> None:
+    """Print a finished run's recording size, its raw/disk ratio and the v1 comparison."""
+    recording = run_dir / "recording.mcap" if run_dir.is_dir() else run_dir
+    disk = recording.stat().st_size
+    started = time.perf_counter()
+    dataset = read_dataset(recording)
+    read_s = time.perf_counter() - started
+    raw = sum(_raw_bytes(s.table) + _raw_bytes(s.daq) for s in dataset.steps)
+    print(f"{recording}: {len(dataset.steps)} steps, raw {raw / MB:.1f} MB, on disk "
+          f"{disk / MB:.1f} MB (ratio {raw / disk:.2f}); read in {read_s:.1f} s")
+    print(f"vs format v1 of the stepped-sine run ({V1_STEPPED_SINE_MB:.0f} MB): "
+          f"{V1_STEPPED_SINE_MB * MB / disk:.2f}x smaller; target <= {TARGET_MB:.0f} MB: "
+          f"{'met' if disk <= TARGET_MB * MB else 'NOT met'}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=8)
     parser.add_argument("--samples", type=int, default=2**17)
     parser.add_argument("--dir", type=Path, default=None)
+    parser.add_argument("--measure", type=Path, default=None, help="a finished run directory")
     args = parser.parse_args()
+    if args.measure is not None:
+        measure(args.measure)
+        return
     base = args.dir or Path(tempfile.mkdtemp(prefix="aatest-bench-"))
     data = _twin_steps(args.steps, args.samples)
     recorder = RunRecorder(base / "run")
@@ -79,7 +106,8 @@ def main() -> None:
     merged = recorder.finalize()
     finalize_s = time.perf_counter() - started
     print(f"finalize: {finalize_s:.2f} s, {raw_total / MB / finalize_s:.0f} MB/s raw, "
-          f"recording.mcap {merged.stat().st_size / MB:.1f} MB, "
+          f"recording.mcap {merged.stat().st_size / MB:.1f} MB "
+          f"(ratio {raw_total / merged.stat().st_size:.2f}), "
           f"lab/wall = {lab_s / finalize_s:.0f}x")
     started = time.perf_counter()
     dataset = read_dataset(base / "run")

@@ -246,3 +246,62 @@ def test_random_truncation_and_garbage_only_raise_import_errors(
     for log in (dataset.steps[0].table, dataset.steps[0].daq):
         assert np.all(np.diff(log.time_s) > 0)
         assert all(np.all(np.isfinite(v)) for v in log.channels.values())
+
+
+PARITY_CASES = {
+    "plain": "time_s,a,note\n0,1.5,x\n0.5,2,y\n1,-0.0,z\n",
+    "truncated": "time_s,a,note\n0,1.5,x\n0.5,2\n",
+    "text_in_number": "time_s,a\n0,1.5\n0.5,1.2e\n",
+    "inf": "time_s,a\n0,1.5\n0.5,inf\n",
+    "not_increasing": "time_s,a\n0,1.5\n0,2\n",
+    "missing": "time_s,b\n0,1\n",
+    "empty_cell": "time_s,a\n0,\n1,2\n",
+    "header_only": "time_s,a\n",
+    "trailing_blank_lines": "time_s,a\n0,1\n1,2\n\n\n",
+    "comment_and_crlf": "# c\r\ntime_s,a\r\n0,1\r\n\r\n1,2\r\n",
+    "quoted_extra_text": 'time_s,a,note\n0,1,"p, q"\n1,2,r\n',
+}
+
+
+PARITY_CASES |= {
+    "blank_line_inside": "time_s,a\n0,1\n\n1,2\n",
+    "comment_inside": "time_s,a\n0,1\n# pause\n1,2\n",
+    "padded_cells": "time_s,a\n0, 1.5 \n 1,2\n",
+    "no_final_newline": "time_s,a\n0,1\n1,2",
+}
+
+
+@pytest.mark.parametrize("name", list(PARITY_CASES), ids=list(PARITY_CASES))
+def test_arrow_and_tolerant_csv_paths_agree(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
+    """The Arrow fast path accepts and rejects exactly what the tolerant path does, with the
+    same located messages and bit-identical values."""
+    from aatest.engine.data import csv_table
+
+    path = tmp_path / "x.csv"
+    path.write_bytes(PARITY_CASES[name].encode())
+
+    def outcome() -> object:
+        try:
+            got = csv_table.read_csv(path, ["time_s", "a"])
+        except ImportDataError as exc:
+            return str(exc)
+        return ({k: v.view(np.uint64).tolist() for k, v in got.columns.items()},
+                got.header, got.row_lines.tolist())
+
+    fast = outcome()
+    monkeypatch.setattr(csv_table, "_read_plain", lambda *args: None)
+    assert fast == outcome()
+
+
+def test_plain_csv_takes_the_arrow_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from aatest.engine.data import csv_table
+
+    path = tmp_path / "x.csv"
+    path.write_text(PARITY_CASES["plain"])
+    monkeypatch.setattr(csv_table, "_split_lines", lambda p: pytest.fail("tolerant path taken"))
+    got = csv_table.read_csv(path, ["time_s", "a"])
+    assert got.row_lines.tolist() == [2, 3, 4]
+    assert got.columns["a"].view(np.uint64).tolist() == np.array([1.5, 2.0, -0.0]).view(
+        np.uint64).tolist()

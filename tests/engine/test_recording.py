@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -12,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.reader import NonSeekingReader, make_reader
@@ -104,31 +106,43 @@ def test_rewriting_a_step_replaces_it(tmp_path: Path) -> None:
 
 
 def test_plain_mcap_reader_decodes_blocks_as_documented(tmp_path: Path) -> None:
-    """A user with only ``mcap`` and NumPy can rebuild the DAQ log from the docstring recipe."""
-    logs = record_run(tmp_path, n_steps=1)
+    """With only ``mcap`` and ``protobuf`` (the schema embedded in the file), the DAQ log of a
+    step is rebuilt as the format docstring says: stable topic, blocks in sequence order."""
+    logs = record_run(tmp_path, n_steps=2)
     path = RunRecorder(tmp_path).finalize()
-    _, _, daq = logs["s01"]
+    _, _, daq = logs["s02"]
     with open(path, "rb") as stream:
         reader = make_reader(stream)
         assert reader.get_header().profile == "aatest"
         names = [m.name for m in reader.iter_metadata()]
-        messages = list(reader.iter_messages(topics=["/s01/daq"]))
-    assert names == ["run", "step"]
-    blocks = []
-    offset_ns = int(messages[0][1].metadata["log_time_offset_ns"])
-    assert offset_ns == pytest.approx(-daq.time_s[0] * 1e9, abs=1)
-    for schema, channel, message in sorted(messages, key=lambda m: m[2].sequence):
-        assert schema.encoding == ENCODING and channel.message_encoding == ENCODING
-        doc = json.loads(schema.data)
-        dtype = np.dtype([(c["name"], c["dtype"]) for c in doc["columns"]])
-        block = np.frombuffer(message.data, dtype=dtype)
-        assert len(block) <= BLOCK_SAMPLES
-        assert message.log_time == round(block["time_s"][0] * 1e9) + offset_ns >= 0
-        assert message.publish_time == message.log_time
-        blocks.append(block)
-    records = np.concatenate(blocks)
-    np.testing.assert_array_equal(records["v_sz"], daq["v_sz"])
-    assert records.dtype["sync_pulse"] == np.uint8
+        messages = list(reader.iter_messages(topics=["/daq"]))
+    assert names == ["run", "step", "step"]
+    schema = messages[0][0]
+    assert (schema.encoding, messages[0][1].message_encoding) == (ENCODING, ENCODING) == (
+        "protobuf", "protobuf")
+    pool = descriptor_pool.DescriptorPool()
+    for file in descriptor_pb2.FileDescriptorSet.FromString(schema.data).file:
+        pool.Add(file)
+    block_type = message_factory.GetMessageClass(pool.FindMessageTypeByName(schema.name))
+    blocks = [block_type.FromString(m.data) for _, _, m in messages]
+    mine = sorted((b for b in blocks if b.step_id == "s02"), key=lambda b: b.sequence)
+    assert len(mine) == -(-len(daq) // BLOCK_SAMPLES) and all(b.source == "daq" for b in mine)
+    times = [m.log_time for _, _, m in messages]
+    assert times == sorted(times)  # one run time line: step s02 after s01
+
+    def column(name: str) -> np.ndarray:
+        parts = []
+        for block in mine:
+            ch = block.time if name == "time_s" else next(c for c in block.channels
+                                                          if c.name == name)
+            codes = np.cumsum(ch.codes) if ch.delta else np.array(ch.codes, dtype=np.int64)
+            parts.append(codes * ch.quantum + ch.offset if len(ch.codes) else np.array(ch.values))
+        return np.concatenate(parts)
+
+    np.testing.assert_array_equal(column("v_sz"), daq["v_sz"])
+    np.testing.assert_array_equal(column("time_s"), daq.time_s)
+    np.testing.assert_array_equal(column("sync_pulse"), daq["sync_pulse"])
+    assert all(len(next(c for c in b.channels if c.name == "sync_pulse").codes) for b in mine)
 
 
 @pytest.mark.parametrize("kind", ["step", "merged"])
@@ -154,7 +168,8 @@ def test_files_are_valid_mcap_for_seeking_and_streaming_readers(tmp_path: Path, 
     assert times == sorted(times)
     assert (stats.message_start_time, stats.message_end_time) == (times[0], times[-1])
     if kind == "merged":
-        assert len(summary.schemas) == 2  # identical block schemas are stored once
+        assert len(summary.schemas) == 1  # one protobuf schema for the whole run
+        assert {ch.topic for ch in summary.channels.values()} == {"/table", "/daq"}
 
 
 def test_finalize_keeps_plan_order_not_write_order(tmp_path: Path) -> None:
@@ -299,3 +314,220 @@ def test_damaged_recording_is_an_error_or_unchanged(
         assert mine.step == ref.step
         assert_logs_equal(ref.table, mine.table)
         assert_logs_equal(ref.daq, mine.daq)
+
+
+def test_golden_v1_recording_still_reads_bit_exact() -> None:
+    """A recording written by format v1 (``aatest.block/v1``, per-step topics) keeps reading.
+
+    ``data/golden_v1/recording.mcap`` was written by the v1 writer from ``step_logs`` (2 steps
+    of 2048 samples, seeds 0 and 1); the reader dispatches on the schema encoding.
+    """
+    dataset = read_dataset(HERE / "data" / "golden_v1" / "recording.mcap")
+    steps = [sine_step(f"s{i:02d}", 2048) for i in (1, 2)]
+    expected = {step.id: (step, *step_logs(step, seed)) for seed, step in enumerate(steps)}
+    assert_dataset_matches(dataset, expected)
+
+
+def _adc(volts: np.ndarray, lsb_v: float, lo_v: float) -> np.ndarray:
+    """A 16-bit ±10 V ADC reading: code·LSB + low end, as the twin's DAQ computes it."""
+    return np.round((volts - lo_v) / lsb_v) * lsb_v + lo_v
+
+
+@pytest.mark.parametrize("on_grid", [True, False], ids=["adc-codes", "off-grid-float"])
+def test_quantised_channels_round_trip_bit_exact_as_codes_or_floats(
+    tmp_path: Path, on_grid: bool
+) -> None:
+    """decode(encode(x)) == x bit for bit: as codes on the declared grid, as float64 off it."""
+    from aatest.engine.recording.codec import encode_blocks
+    from aatest.engine.recording.proto import block_class
+
+    step = sine_step("s01", 3 * BLOCK_SAMPLES + 5)
+    table, daq = step_logs(step, seed=3)
+    lsb_v, lo_v = 20.0 / 2**16, -10.0
+    volts = _adc(daq["v_sz"], lsb_v, lo_v) if on_grid else daq["v_sz"]
+    daq = SampledLog(daq.source, daq.sample_rate_hz, daq.time_s,
+                     {**daq.channels, "v_sz": volts}, daq.units, {"v_sz": (lsb_v, lo_v)})
+    recorder = RunRecorder(tmp_path)
+    recorder.write_step(step, table, daq)
+    got = read_dataset(recorder.finalize()).steps[0].daq
+    assert got["v_sz"].view(np.uint64).tolist() == volts.view(np.uint64).tolist()
+    assert dict(got.quantisation) == {"v_sz": (lsb_v, lo_v)}
+    header = {"step_id": "s01", "source": "daq"}
+    blocks = [block_class().FromString(b) for b in encode_blocks(daq, header, BLOCK_SAMPLES,
+                                                                 [0, 1, 2, 3])]
+    coded = [len(next(c for c in b.channels if c.name == "v_sz").codes) > 0 for b in blocks]
+    assert coded == [on_grid] * 4
+
+
+def test_one_sample_off_the_grid_keeps_only_its_block_as_floats(tmp_path: Path) -> None:
+    """Never lossy silently: a single value off the ADC grid makes its block float64."""
+    step = sine_step("s01", 2 * BLOCK_SAMPLES)
+    table, daq = step_logs(step, seed=4)
+    lsb_v, lo_v = 20.0 / 2**16, -10.0
+    volts = _adc(daq["v_sz"], lsb_v, lo_v)
+    volts[BLOCK_SAMPLES + 7] += lsb_v / 3
+    daq = SampledLog(daq.source, daq.sample_rate_hz, daq.time_s,
+                     {**daq.channels, "v_sz": volts}, daq.units, {"v_sz": (lsb_v, lo_v)})
+    recorder = RunRecorder(tmp_path)
+    recorder.write_step(step, table, daq)
+    got = read_dataset(recorder.finalize()).steps[0].daq
+    np.testing.assert_array_equal(got["v_sz"], volts)
+    assert got["v_sz"].view(np.uint64).tolist() == volts.view(np.uint64).tolist()
+
+
+def test_encoder_counts_with_negative_zero_stay_codes() -> None:
+    """A rounded encoder reading just below 0 is −0.0: equal to 0.0, so the block stays codes."""
+    from aatest.engine.recording.codec import channel_values, encode_blocks
+    from aatest.engine.recording.proto import block_class
+
+    q_deg = 0.01 / 3600.0
+    angle = np.round(np.random.default_rng(5).normal(0, 3 * q_deg, 1000) / q_deg) * q_deg
+    assert np.any(np.signbit(angle) & (angle == 0))
+    log = SampledLog("table", 2000.0, np.arange(1000) / 2000.0, {"inner_position_deg": angle},
+                     {"inner_position_deg": "deg"}, {"inner_position_deg": (q_deg, 0.0)})
+    block = block_class().FromString(next(encode_blocks(log, {}, BLOCK_SAMPLES, [0])))
+    values, quantum = channel_values(block.channels[0])
+    assert quantum == (q_deg, 0.0) and len(block.channels[0].codes) == 1000
+    np.testing.assert_array_equal(values, angle)
+    nonzero = angle != 0
+    assert values[nonzero].view(np.uint64).tolist() == angle[nonzero].view(np.uint64).tolist()
+
+
+QUICK = HERE.parents[1] / "tests" / "data" / "procedures" / "quick-sine-3-steps.yaml"
+#: runs the CLI with the recorder's file writes failing with ENOSPC once the file whose name
+#: contains FAIL_IN has received FAIL_AFTER bytes (a disk that fills up mid-write)
+_FULL_DISK_CLI = """
+import builtins, errno, os, sys
+from aatest.engine.recording import writer
+
+class _FullDisk:
+    def __init__(self, stream):
+        self._stream, self._left = stream, int(os.environ["FAIL_AFTER"])
+    def write(self, data):
+        if len(data) > self._left:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self._left -= len(data)
+        return self._stream.write(data)
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+    def __enter__(self):
+        return self
+    def __exit__(self, *exc):
+        return self._stream.__exit__(*exc)
+
+def _open(path, mode="r", *args, **kwargs):
+    stream = builtins.open(path, mode, *args, **kwargs)
+    fail_in = os.environ.get("FAIL_IN")
+    return _FullDisk(stream) if fail_in and fail_in in str(path) and "w" in mode else stream
+
+writer.open = _open
+from aatest.cli import main
+sys.argv = ["aatest", *sys.argv[1:]]
+main()
+"""
+
+
+def _cli(run_dir: Path, *extra: str, fail_in: str = "", fail_after: int = 0) -> tuple[int, str]:
+    env = {**os.environ, "FAIL_IN": fail_in, "FAIL_AFTER": str(fail_after)}
+    done = subprocess.run(
+        [sys.executable, "-c", _FULL_DISK_CLI, "run", str(QUICK), "--out", str(run_dir),
+         "--no-progress", *extra], capture_output=True, text=True, timeout=300, env=env,
+        stdin=subprocess.DEVNULL, check=False)
+    return done.returncode, done.stderr
+
+
+def _step_files(run_dir: Path) -> list[str]:
+    """Plan position and suffix of every file in ``steps/``: ``001.mcap``, ``002.mcap.corrupt``."""
+    return sorted(p.name[:3] + (".mcap.corrupt" if p.name.endswith(".corrupt") else ".mcap")
+                  for p in (run_dir / "steps").iterdir() if p.name != "run.json")
+
+
+def _recorded_ids(path: Path) -> list[str]:
+    return [s.step.id for s in read_dataset(path).steps]
+
+
+@pytest.mark.parametrize("fail_in", ["002-", "recording.mcap"], ids=["writing-step", "merging"])
+def test_full_disk_is_a_fault_that_keeps_steps_and_resumes(tmp_path: Path, fail_in: str) -> None:
+    """ENOSPC while a step file or the merged recording is written: exit 3, one reason line,
+    no half-written file, the completed steps intact; ``--resume`` then completes the run."""
+    run_dir = tmp_path / "run"
+    code, stderr = _cli(run_dir, fail_in=fail_in, fail_after=50_000)
+    assert code == 3, stderr
+    assert "No space left on device" in stderr and "--resume" in stderr
+    assert "Traceback" not in stderr
+    kept = _step_files(run_dir)
+    assert kept == (["001.mcap"] if fail_in == "002-" else ["001.mcap", "002.mcap", "003.mcap"])
+    assert not (run_dir / "recording.mcap").exists()
+    assert len(_recorded_ids(run_dir)) == len(kept)  # the kept steps read
+    code, stderr = _cli(run_dir, "--resume")
+    assert code == 0, stderr
+    ids = _recorded_ids(run_dir / "recording.mcap")
+    assert len(ids) == len(set(ids)) == 3
+
+
+def test_corrupt_step_file_on_resume_is_named_and_the_others_kept(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    code, _ = _cli(run_dir, fail_in="003-", fail_after=10_000)
+    assert code == 3
+    damaged = next((run_dir / "steps").glob("001-*.mcap"))
+    damaged.write_bytes(damaged.read_bytes()[:5000])
+    code, stderr = _cli(run_dir, "--resume")
+    assert code == 2, stderr
+    assert str(damaged) in stderr and "corrupt step file" in stderr and "Traceback" not in stderr
+    assert _step_files(run_dir) == ["001.mcap.corrupt", "002.mcap"]
+    code, stderr = _cli(run_dir, "--resume")
+    assert code == 0, stderr
+    ids = _recorded_ids(run_dir / "recording.mcap")
+    assert len(ids) == len(set(ids)) == 3
+
+
+MCAP_TS = HERE.parent / "mcap_ts"
+
+
+def _summary(recording: Path) -> dict[str, object]:
+    """What the TypeScript check must find: messages per topic, samples, first/last values."""
+    with open(recording, "rb") as stream:
+        counts = make_reader(stream).get_summary().statistics.channel_message_counts
+    steps: dict[str, object] = {}
+    for data in read_dataset(recording).steps:
+        for log in (data.table, data.daq):
+            arrays = {"time_s": log.time_s, **log.channels}
+            steps[f"{data.step.id}/{log.source}"] = {
+                "samples": len(log),
+                "first": {k: v[0].item() for k, v in arrays.items()},
+                "last": {k: v[-1].item() for k, v in arrays.items()},
+            }
+    return {"messages": {"/table": counts[1], "/daq": counts[2]}, "steps": steps}
+
+
+def test_official_typescript_reader_decodes_a_recording(tmp_path: Path) -> None:
+    """``@mcap/core`` reads every record (CRCs validated), protobufjs decodes the embedded
+    schema, and the decoded counts and values equal what aatest reads."""
+    node = shutil.which("node")
+    if node is None or not (MCAP_TS / "node_modules" / "@mcap" / "core").is_dir():
+        pytest.skip("needs node and `npm ci --prefix tests/mcap_ts` (done by .ci/run)")
+    record_run(tmp_path, n_steps=2, samples=2 * BLOCK_SAMPLES + 9)
+    recording = RunRecorder(tmp_path).finalize()
+    summary = tmp_path / "summary.json"
+    summary.write_text(json.dumps(_summary(recording)))
+    done = subprocess.run([node, str(MCAP_TS / "read_recording.mjs"), str(recording),
+                           str(summary)], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    assert "CRCs valid" in done.stdout
+
+
+def test_typescript_check_fails_on_a_wrong_summary(tmp_path: Path) -> None:
+    """The check can fail: one changed value in the summary is reported."""
+    node = shutil.which("node")
+    if node is None or not (MCAP_TS / "node_modules" / "@mcap" / "core").is_dir():
+        pytest.skip("needs node and `npm ci --prefix tests/mcap_ts` (done by .ci/run)")
+    record_run(tmp_path, n_steps=1)
+    recording = RunRecorder(tmp_path).finalize()
+    summary = _summary(recording)
+    summary["steps"]["s01/daq"]["last"]["v_sz"] += 1e-9  # type: ignore[index]
+    path = tmp_path / "summary.json"
+    path.write_text(json.dumps(summary))
+    done = subprocess.run([node, str(MCAP_TS / "read_recording.mjs"), str(recording), str(path)],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 1 and "v_sz" in done.stderr

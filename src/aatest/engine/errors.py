@@ -88,6 +88,10 @@ class RigFault(AatestError, RuntimeError):
     exit_code = EXIT_RIG_FAULT
 
 
+class StorageFault(RigFault):
+    """The run directory cannot be written (disk full, I/O error): completed steps are kept."""
+
+
 class EnvelopeRefused(RigFault):
     """A controller refused a command outside its limits (a rig-side guard tripped)."""
 

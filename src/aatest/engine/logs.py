@@ -49,6 +49,11 @@ class SampledLog:
         Channel name → 1-D array, each the same length as ``time_s``.
     units
         Channel name → unit string.
+    quantisation
+        Optional channel name (or ``"time_s"``) → ``(quantum, offset)`` when the logger produces
+        integer codes: every value is ``code·quantum + offset`` in float64 (an ADC: one LSB in V
+        and the range's low end; an encoder: its resolution in degrees and 0). The recording
+        stores such channels as their codes where that is bit-exact (docs/interfaces.md §2).
     """
 
     source: str
@@ -56,6 +61,7 @@ class SampledLog:
     time_s: np.ndarray
     channels: Mapping[str, np.ndarray]
     units: Mapping[str, str] = field(default_factory=dict)
+    quantisation: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         time = np.asarray(self.time_s, dtype=np.float64)
@@ -74,6 +80,8 @@ class SampledLog:
         object.__setattr__(self, "time_s", time)
         object.__setattr__(self, "channels", MappingProxyType(frozen))
         object.__setattr__(self, "units", MappingProxyType(dict(self.units)))
+        quanta = {str(k): (float(q), float(o)) for k, (q, o) in self.quantisation.items()}
+        object.__setattr__(self, "quantisation", MappingProxyType(quanta))
 
     def __len__(self) -> int:
         return int(self.time_s.shape[0])

@@ -16,6 +16,9 @@ import numpy as np
 
 from aatest.twin.fastmath import standard_normal
 
+#: resolution of the DAQ's time stamps: a 10 MHz counter (far below the µs jitter)
+TIMESTAMP_TICK_S = 1e-7
+
 
 @dataclass(frozen=True)
 class DaqClock:
@@ -66,9 +69,13 @@ class DaqClock:
         return np.arange(n) / self.sample_rate_hz
 
     def stamped(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """Logged time stamps: nominal DAQ times plus white jitter."""
+        """Logged time stamps: nominal DAQ times plus white jitter, read from the logger's
+        time-stamp counter (ticks of :data:`TIMESTAMP_TICK_S` s) when jittered."""
         t = self.daq_times(n)
-        return t + self.jitter_s * standard_normal(rng, n) if self.jitter_s else t
+        if not self.jitter_s:
+            return t
+        return np.round((t + self.jitter_s * standard_normal(rng, n)) / TIMESTAMP_TICK_S) \
+            * TIMESTAMP_TICK_S
 
     def sync_level(self, daq_time_s: np.ndarray) -> np.ndarray:
         """Sync pulse level (0/1) at DAQ clock times: high for the first half period."""

@@ -18,12 +18,12 @@ from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, TABLE, TABLE_CHANNELS, Sam
 from aatest.engine.steps import PlannedStep
 from aatest.twin import kinematics as kin
 from aatest.twin.chamber import ThermalState
-from aatest.twin.clocks import DaqClock, table_sync
+from aatest.twin.clocks import TIMESTAMP_TICK_S, DaqClock, table_sync
 from aatest.twin.daq import noiseless, record_channel
 from aatest.twin.grid import Grid, sincos_deg
 from aatest.twin.model import RigModel
 from aatest.twin.sensor import SensorInputs, dynamics_filter, lowpass, output_volts
-from aatest.twin.table import STENCIL_PAD, AxisTruth, estimates, floor_rocking
+from aatest.twin.table import STENCIL_PAD, AxisTruth, estimate_quanta, estimates, floor_rocking
 
 
 @dataclass(frozen=True)
@@ -120,8 +120,12 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
     moving = "outer" if step.axis == "outer" else "inner"
     truth.update(time_s=time_s, angle_deg=truth[f"{moving}_angle_deg"],
                  rate_dps=truth[f"{moving}_rate_dps"], accel_dps2=truth[f"{moving}_accel_dps2"])
+    # encoder counts: the controller's log channels are integer multiples of these
+    quanta = {f"{a}_{c}": (q, 0.0) for a, _, m in axes if m.encoder_resolution_deg > 0.0
+              for c, q in estimate_quanta(m, dt, tm.estimator).items()}
     log = SampledLog(TABLE, step.sample_rate_hz, time_s,
-                     _read_only({c: channels[c] for c in TABLE_CHANNELS}), dict(TABLE_CHANNELS))
+                     _read_only({c: channels[c] for c in TABLE_CHANNELS}), dict(TABLE_CHANNELS),
+                     {"time_s": (dt, 0.0), **quanta})
     return log, truth
 
 
@@ -205,7 +209,10 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
     channels["trigger"] = (np.arange(n) >= setup.trigger_index).astype(np.float64)
     channels["temperature_c"] = np.round(temperature, 2)
     units = {c: "V" for c in channels if c.startswith("v_")} | dict(DAQ_AUX_CHANNELS)
-    log = SampledLog(DAQ, clock.sample_rate_hz, clock.stamped(n, rng), _read_only(channels), units)
+    lo_v, hi_v = model.daq.adc_range_v  # ADC codes: volts = code·LSB + low end (daq.quantise_adc)
+    adc = {c: ((hi_v - lo_v) / 2**model.daq.adc_bits, lo_v) for c in channels if c.startswith("v_")}
+    log = SampledLog(DAQ, clock.sample_rate_hz, clock.stamped(n, rng), _read_only(channels), units,
+                     {"time_s": (TIMESTAMP_TICK_S, 0.0), **adc})
     return log, truth
 
 

@@ -147,21 +147,33 @@ def estimates(
     Returns position estimate, rate and acceleration estimates (differences of the position
     estimate, as the controller computes them) and the raw feedback, each of length N.
     """
-    est = quantise(_noisy(true_angle_deg, model.estimate_noise_deg, rng),
-                   model.encoder_resolution_deg)
-    raw = quantise(_noisy(true_angle_deg, model.encoder_noise_deg, rng),
-                   model.encoder_resolution_deg)
+    res = model.encoder_resolution_deg
+    noisy = _noisy(true_angle_deg, model.estimate_noise_deg, rng)
+    counts = np.round(noisy / res) if res > 0.0 else noisy  # the controller works in counts
+    raw = quantise(_noisy(true_angle_deg, model.encoder_noise_deg, rng), res)
     p = STENCIL_PAD
     n = true_angle_deg.size - 2 * p
-    f = [est[p + k: p + k + n] for k in (-2, -1, 0, 1, 2)]
+    f = [counts[p + k: p + k + n] for k in (-2, -1, 0, 1, 2)]
     if method == "five_point":
-        rate = (-f[4] + 8 * f[3] - 8 * f[1] + f[0]) / (12 * dt_s)
-        accel = (-f[4] + 16 * f[3] - 30 * f[2] + 16 * f[1] - f[0]) / (12 * dt_s**2)
+        rate = -f[4] + 8 * f[3] - 8 * f[1] + f[0]
+        accel = -f[4] + 16 * f[3] - 30 * f[2] + 16 * f[1] - f[0]
     else:
-        rate = (f[3] - f[1]) / (2 * dt_s)
-        accel = (f[3] - 2 * f[2] + f[1]) / dt_s**2
-    return {"position_deg": f[2], "rate_dps": rate, "accel_dps2": accel,
-            "feedback_deg": raw[p: p + n]}
+        rate = f[3] - f[1]
+        accel = f[3] - 2 * f[2] + f[1]
+    quanta = estimate_quanta(model, dt_s, method)
+    return {"position_deg": f[2] * quanta["position_deg"], "rate_dps": rate * quanta["rate_dps"],
+            "accel_dps2": accel * quanta["accel_dps2"], "feedback_deg": raw[p: p + n]}
+
+
+def estimate_quanta(model: AxisModel, dt_s: float, method: str) -> dict[str, float]:
+    """Value of one count of each controller log channel (deg, °/s, °/s²): the estimates are
+    integer combinations of encoder counts times these; with an ideal encoder (resolution 0)
+    the "counts" are the angles themselves (deg)."""
+    res = model.encoder_resolution_deg or 1.0
+    rate_den, accel_den = (12 * dt_s, 12 * dt_s**2) if method == "five_point" else (
+        2 * dt_s, dt_s**2)
+    return {"position_deg": res, "feedback_deg": res, "rate_dps": res / rate_den,
+            "accel_dps2": res / accel_den}
 
 
 def floor_rocking(table: TableModel, n: int, dt_s: float,

@@ -10,22 +10,31 @@ without data rows, a missing or duplicated column, a row with a different number
 than the header (a truncated last row), a cell that is not a finite number, and a time column
 that is not strictly increasing.
 
-Parsing is one ``np.loadtxt`` call over the kept lines; only when it fails does a per-row
-scan (Python, error path only) find the first offending line to report.
+Parsing. A plain file — ASCII, ``\n`` line ends, no quotes, no blank or comment line — is read
+by Arrow's multi-threaded C++ CSV reader (``pyarrow.csv``), its data rows then lying on
+consecutive lines. Anything else, and any file Arrow refuses, takes
+the tolerant path: one ``np.loadtxt`` call over the kept lines, and only when that fails a
+per-row scan (Python, error path only) finds the first offending line to report. Both paths
+accept and reject the same files with the same messages.
 """
 
 from __future__ import annotations
 
+import io
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pa_csv
 
 from aatest.engine.errors import ImportDataError
 
 TIME_COLUMN = "time_s"
+#: bytes that send a file to the tolerant path (CR line ends, NUL, quotes)
+_NOT_PLAIN = (b"\r", b"\x00", b'"')
 
 
 @dataclass(frozen=True)
@@ -144,15 +153,12 @@ def read_csv(path: Path, required: Sequence[str], optional: Sequence[str] = ()) 
         The file is malformed; the message names the file, the line and the problem.
     """
     path = Path(path)
+    fast = _read_plain(path, required, optional)
+    if fast is not None:
+        return _checked(fast)
     lines = _split_lines(path)
     header_index, header = _header(path, lines)
-    missing = [name for name in required if name not in header]
-    if missing:
-        raise ImportDataError(
-            path, f"missing required column(s) {', '.join(map(repr, missing))}; "
-            f"header has {', '.join(header)}", line=header_index + 1,
-        )
-    wanted = list(required) + [n for n in optional if n in header and n not in required]
+    wanted = _wanted(path, header, header_index, required, optional)
     rows = np.array(
         [i for i in range(header_index + 1, len(lines)) if _is_content(lines[i])], dtype=np.int64
     )
@@ -161,10 +167,83 @@ def read_csv(path: Path, required: Sequence[str], optional: Sequence[str] = ()) 
     _check_field_counts(path, lines, rows, len(header))
     values = _parse_numbers(path, lines, rows, header, wanted)
     columns = {name: np.ascontiguousarray(values[:, k]) for k, name in enumerate(wanted)}
-    result = CsvColumns(path, columns, header, rows + 1)
-    if TIME_COLUMN in columns:
-        _check_increasing(result)
-    return result
+    return _checked(CsvColumns(path, columns, header, rows + 1))
+
+
+def _wanted(
+    path: Path, header: tuple[str, ...], header_index: int, required: Sequence[str],
+    optional: Sequence[str],
+) -> list[str]:
+    """The columns to parse: all required (else an error at the header line), present optional."""
+    missing = [name for name in required if name not in header]
+    if missing:
+        raise ImportDataError(
+            path, f"missing required column(s) {', '.join(map(repr, missing))}; "
+            f"header has {', '.join(header)}", line=header_index + 1,
+        )
+    return list(required) + [n for n in optional if n in header and n not in required]
+
+
+def _checked(table: CsvColumns) -> CsvColumns:
+    """Every wanted cell finite and the time column strictly increasing, else a located error."""
+    for name, values in table.columns.items():
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise ImportDataError(table.path, f"column {name!r} is not a finite number",
+                                  line=int(table.row_lines[bad[0]]))
+    if TIME_COLUMN in table.columns:
+        _check_increasing(table)
+    return table
+
+
+def _plain_header(raw: bytes) -> tuple[int, tuple[str, ...]] | None:
+    """(header line index, names) when the file may take the Arrow path, else None.
+
+    Only single-byte searches (memchr speed, no copies); blank and comment lines are caught
+    after parsing, by the row count (:func:`_read_plain`).
+    """
+    end = raw.find(b"\n")
+    if end <= 0 or raw[end + 1: end + 2] in (b"", b"\n") or raw.startswith(b"#"):
+        return None
+    if not raw.isascii():
+        return None
+    if any(raw.find(c) >= 0 for c in _NOT_PLAIN):
+        return None
+    names = tuple(raw[:end].decode("ascii").split(","))
+    if len(set(names)) != len(names) or not all(n == n.strip() and n for n in names):
+        return None
+    return 0, names
+
+
+def _read_plain(path: Path, required: Sequence[str], optional: Sequence[str]) -> CsvColumns | None:
+    """The Arrow path (see the module docstring); None when the file is not plain or Arrow
+    refuses it, so that the tolerant path reads it or reports the located error."""
+    try:
+        raw = path.read_bytes()
+    except OSError:
+        return None  # the tolerant path reports it
+    plain = _plain_header(raw)
+    if plain is None:
+        return None
+    header_index, header = plain
+    wanted = _wanted(path, header, header_index, required, optional)
+    try:
+        table = pa_csv.read_csv(
+            io.BytesIO(raw),
+            read_options=pa_csv.ReadOptions(column_names=list(header), skip_rows=1),
+            parse_options=pa_csv.ParseOptions(newlines_in_values=False),
+            convert_options=pa_csv.ConvertOptions(
+                include_columns=wanted, column_types={n: pa.float64() for n in wanted},
+                strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[]),
+        )
+    except (pa.ArrowInvalid, pa.ArrowTypeError):
+        return None
+    lines = raw.count(b"\n") + (not raw.endswith(b"\n"))
+    if table.num_rows == 0 or table.num_rows != lines - header_index - 1:
+        return None  # Arrow skipped blank lines: their numbers are the tolerant path's job
+    columns = {n: table.column(n).to_numpy() for n in wanted}
+    rows = np.arange(table.num_rows, dtype=np.int64) + header_index + 2
+    return CsvColumns(path, columns, header, rows)
 
 
 def _parse_numbers(
@@ -177,10 +256,6 @@ def _parse_numbers(
                             ndmin=2, comments=None, dtype=np.float64)
     except ValueError as exc:
         raise _locate_bad_cell(path, lines, rows, usecols, header, exc) from exc
-    bad_row, bad_col = np.nonzero(~np.isfinite(values))
-    if bad_row.size:
-        raise ImportDataError(path, f"column {wanted[bad_col[0]]!r} is not a finite number",
-                              line=int(rows[bad_row[0]]) + 1)
     return values
 
 

@@ -8,8 +8,16 @@ This is the one entry point the engine and the CLI use:
   directory into a :class:`~aatest.engine.dataset.Dataset`.
 
 The file format — topics, schemas, block layout, timestamps, metadata records — is documented
-in :mod:`aatest.engine.recording.format` so that anyone with the plain ``mcap`` reader and NumPy
-can decode a recording without aatest.
+in :mod:`aatest.engine.recording.format` so that anyone with an MCAP reader and protobuf can
+decode a recording without aatest. Modules, in the order data flows through them when writing:
+
+- ``codec``     a SampledLog ↔ protobuf ``SampleBlock`` messages (exact integer codes or floats);
+- ``proto``     the ``SampleBlock`` message and its descriptor set (the MCAP schema data);
+- ``format``    format constants, topics, run time line, metadata record helpers;
+- ``mcap_io``   the MCAP writer with caller-chosen ids and verbatim chunk copying;
+- ``writer``    RunRecorder: atomic step files, the merge, storage faults, corrupt-file checks;
+- ``reader``    read_dataset: dispatches each topic on its schema encoding (v2, or v1 through
+  ``legacy_v1``).
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
-"""The aatest recording format (MCAP), version 1: constants and the sample-block codec.
+"""The aatest recording format (MCAP), version 2: constants, topics and log times.
 
-A recording is a standard MCAP file (https://mcap.dev) with zstd-compressed chunks, so the
-plain ``mcap`` reader (Python, C++, Go, the ``mcap`` CLI, Foxglove) opens it. Everything needed
-to decode it is in the file itself:
+A recording is a standard MCAP file (https://mcap.dev) with zstd-compressed chunks whose
+messages are protobuf with the schema embedded, so any MCAP reader or viewer (Python, C++, Go,
+TypeScript ``@mcap/core``, the ``mcap`` CLI, Foxglove) opens it, decodes it and can plot a whole
+run. Everything needed to decode it is in the file itself:
 
 **Header.** ``profile = "aatest"``.
 
@@ -12,45 +13,43 @@ to decode it is in the file itself:
   ``procedure_text``, ``procedure_sha256``, ``rig``, ``plugin_versions``, ``seed``,
   ``sensors`` (list of :class:`~aatest.engine.dataset.SensorInfo` dicts), ``plan`` (list of
   planned steps), ``aatest_version``, ``started_utc``; plus ``format`` =
-  ``"aatest.recording/v1"``.
+  ``"aatest.recording/v2"``.
 - ``"step"`` (one per recorded step, in plan order): ``step`` (the
   :class:`~aatest.engine.steps.PlannedStep` as JSON), ``index`` (1-based position in the plan),
-  ``table_topic``/``daq_topic``, ``table_sample_rate_hz``/``daq_sample_rate_hz``, ``extra``.
+  ``extra``, and per logger (``table_…``/``daq_…``): ``_topic``, ``_sample_rate_hz``,
+  ``_samples``, ``_log_time_ns`` (``[first, last]`` log time of its blocks) and
+  ``_quantisation`` (the logger's declared ``{channel: [quantum, offset]}``).
 
-**Channels.** Per step two topics, ``/<step_id>/table`` and ``/<step_id>/daq``; channel
-metadata ``step_id``, ``source`` (``table``/``daq``), ``samples`` (total samples of the log) and
-``log_time_offset_ns`` (see below) and ``step_record_sha256``, the SHA-256 of the step's
-``step`` metadata record (its values as a JSON object with sorted keys and no spaces) — MCAP
-protects chunks with CRCs but not metadata, so a reader can tell a damaged step record from a
-good one; likewise ``schema_sha256`` of the channel's schema data. Channel ids are
-``2·index − 1`` (table) and ``2·index`` (DAQ), ``index`` being the step's 1-based plan
-position, so they are unique in a run and the per-step files merge without re-encoding.
-Each chunk holds messages of one channel only.
+**Channels.** Two stable topics for the whole run, ``/table`` (channel id 1) and ``/daq``
+(channel id 2), message encoding ``protobuf``, channel metadata ``source``. Each chunk holds
+messages of one step and one topic, so per-step files merge without re-encoding.
 
-**Schemas.** name ``aatest.table_block`` / ``aatest.daq_block``, encoding ``aatest.block/v1``.
-The schema data is UTF-8 JSON::
+**Schema.** One schema, id 1, name ``aatest.recording.v2.SampleBlock``, encoding ``protobuf``,
+data the serialised ``FileDescriptorSet`` (:mod:`aatest.engine.recording.proto` prints the
+``.proto``).
 
-    {"columns": [{"name": "time_s", "dtype": "<f8", "unit": "s"}, ...],
-     "source": "table", "sample_rate_hz": 2000.0}
+**Messages.** Each message is one ``SampleBlock``: up to :data:`BLOCK_SAMPLES` (4096)
+consecutive samples of *all* channels of one logger in one step, with ``step_id``,
+``step_index``, ``sequence`` (block number in the step's log), ``first_sample``, the time stamps
+(``time``) and one ``Channel`` per logged channel. A channel's samples are either packed float64
+``values`` or packed integer ``codes`` (their running sum when ``delta`` is set) with
+``value = code·quantum + offset`` (float64), used
+only where that reproduces every logged value bit for bit (ADC codes, encoder counts, 0/1
+pulses; a −0.0 returns as +0.0; :mod:`aatest.engine.recording.codec`); ``dtype`` restores the
+logged NumPy dtype.
+Concatenating a step's blocks in ``sequence`` order gives its log; ``step_record_sha256`` in
+every block is the SHA-256 of the step's metadata record (values as a JSON object with sorted
+keys and no spaces) — MCAP protects chunks with CRCs but not metadata.
 
-``dtype`` is a NumPy dtype string, always little-endian (``<f8``, ``<f4``, ``|u1``, ...): time
-and table channels are ``<f8``; ``sync_pulse`` and ``trigger`` are ``|u1`` (0/1); DAQ volts and
-temperature keep the logger's own dtype (``<f8`` or ``<f4``).
+**Log times** (integer ns) lay the steps out on one run time line so a viewer plots the run:
+step *k* starts at ``origin_k = Σ_{j<k} ceil(duration_j + 2·STEP_MARGIN_S)`` s (durations from
+the run's ``plan``; :data:`UNPLANNED_STEP_S` for a step not in it), and a block's ``log_time``
+is ``origin_k + STEP_MARGIN_S + time_s[first sample]`` (each logger's own clock, so the DAQ's
+lead before the trigger stays positive), never below ``origin_k``. The exact times are always
+the ``time`` channel.
 
-**Messages.** Message encoding ``aatest.block/v1``. Each message is one block of up to
-:data:`BLOCK_SAMPLES` (4096) consecutive samples of *all* channels of one logger, as a packed
-(no padding) array of records in column order; decode with::
-
-    dtype = np.dtype([(c["name"], c["dtype"]) for c in json.loads(schema.data)["columns"]])
-    block = np.frombuffer(message.data, dtype=dtype)
-
-``sequence`` is the block number (0, 1, ...) within the step's log; concatenating the blocks
-in sequence order gives the log. ``log_time`` and ``publish_time`` are the integer nanoseconds
-of the block's first sample on *that logger's own clock* (the clocks are not synchronised),
-shifted by the channel's ``log_time_offset_ns``: ``log_time = round(time_s·1e9) +
-log_time_offset_ns``. The offset is 0 unless a logger's clock starts before zero (the DAQ starts
-before the trigger), in which case it is the smallest whole number of nanoseconds that makes
-every log time non-negative. The exact times are always the ``time_s`` column.
+Format v1 (``aatest.block/v1``, one topic per step) is still read:
+:mod:`aatest.engine.recording.legacy_v1`.
 """
 
 from __future__ import annotations
@@ -59,24 +58,26 @@ import hashlib
 import json
 import math
 import struct
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import zstandard
 from mcap.exceptions import McapError
 
-from aatest.engine.logs import DAQ_AUX_CHANNELS, TABLE_CHANNELS, SampledLog
-
-FORMAT = "aatest.recording/v1"
+FORMAT = "aatest.recording/v2"
 PROFILE = "aatest"
-ENCODING = "aatest.block/v1"
+ENCODING = "protobuf"
 BLOCK_SAMPLES = 4096
+#: seconds before and after each step on the run time line (covers the DAQ's lead and lag)
+STEP_MARGIN_S = 5
+#: time-line slot of a step the plan does not list, in s
+UNPLANNED_STEP_S = 3600
+#: MCAP ids: the one schema, and the two stable channels
+SCHEMA_ID = 1
+CHANNEL_IDS = {"table": 1, "daq": 2}
 RUN_RECORD = "run"
 STEP_RECORD = "step"
-TIME_COLUMN = "time_s"
-#: channels stored as 0/1 bytes when their values allow it
-_BINARY_CHANNELS = ("sync_pulse", "trigger")
-_ALLOWED_KINDS = "fiub"
 
 
 #: what a damaged or foreign file can make the mcap/zstd/json layers raise
@@ -94,112 +95,32 @@ DECODE_ERRORS: tuple[type[BaseException], ...] = (
 )
 
 
-def schema_name(source: str) -> str:
-    """MCAP schema name of one logger's block schema."""
-    return f"aatest.{source}_block"
+def topic(source: str) -> str:
+    """MCAP topic of one logger's blocks for the whole run: ``/table`` or ``/daq``."""
+    return f"/{source}"
 
 
-def topic(step_id: str, source: str) -> str:
-    """MCAP topic of one step's log from one logger."""
-    return f"/{step_id}/{source}"
+def step_origin_ns(plan: Sequence[Any] | None, index: int) -> int:
+    """Run time-line start of the step at 1-based plan position ``index``, in integer ns."""
+    entries = list(plan or [])
+    total_s = 0
+    for position in range(1, index):
+        entry = entries[position - 1] if position <= len(entries) else None
+        duration = entry.get("duration_s") if isinstance(entry, dict) else None
+        span = float(duration) if isinstance(duration, (int, float)) else UNPLANNED_STEP_S
+        total_s += math.ceil(span + 2 * STEP_MARGIN_S)
+    return total_s * 1_000_000_000
 
 
-def _unit(log: SampledLog, name: str) -> str:
-    if name in log.units:
-        return str(log.units[name])
-    known = {**TABLE_CHANNELS, **DAQ_AUX_CHANNELS}
-    return known.get(name, "V" if name.startswith("v_") else "")
+def block_log_times_ns(time_s: np.ndarray, origin_ns: int, block_samples: int) -> list[int]:
+    """Log time of every block's first sample on the run time line, in integer ns.
 
-
-def _storage(name: str, values: np.ndarray) -> np.ndarray:
-    """The array as stored: little-endian, 0/1 pulse channels as uint8."""
-    arr = np.asarray(values)
-    if arr.dtype.kind not in _ALLOWED_KINDS:
-        raise TypeError(f"channel {name!r} has unsupported dtype {arr.dtype}")
-    is_pulse = name in _BINARY_CHANNELS and arr.dtype != np.uint8
-    if is_pulse and (arr.size == 0 or bool(np.all((arr == 0) | (arr == 1)))):
-        return arr.astype(np.uint8)
-    return arr.astype(arr.dtype.newbyteorder("<"), copy=False)
-
-
-def log_records(log: SampledLog) -> tuple[np.ndarray, list[dict[str, str]]]:
-    """Pack a log into one structured array (``time_s`` first) and its column descriptions."""
-    if TIME_COLUMN in log.channels:
-        raise ValueError(f"{log.source} log has a channel named {TIME_COLUMN!r}")
-    arrays = {TIME_COLUMN: np.asarray(log.time_s, dtype="<f8")}
-    arrays.update({name: _storage(name, values) for name, values in log.channels.items()})
-    dtype = np.dtype([(name, arr.dtype.str) for name, arr in arrays.items()])
-    records = np.empty(len(log), dtype=dtype)
-    for name, arr in arrays.items():
-        records[name] = arr
-    columns = [
-        {"name": name, "dtype": arr.dtype.str,
-         "unit": "s" if name == TIME_COLUMN else _unit(log, name)}
-        for name, arr in arrays.items()
-    ]
-    return records, columns
-
-
-def schema_data(log: SampledLog, columns: list[dict[str, str]]) -> bytes:
-    """The JSON schema document of a log's block schema."""
-    doc = {"columns": columns, "source": log.source, "sample_rate_hz": float(log.sample_rate_hz)}
-    return json.dumps(doc, sort_keys=True).encode("utf-8")
-
-
-def log_time_offset_ns(time_s: np.ndarray) -> int:
-    """Smallest non-negative offset making every ``round(t·1e9) + offset`` non-negative.
-
-    ``time_s`` are sample times in s; the offset is in integer ns.
+    ``time_s`` are the logger's sample times in s, ``origin_ns`` the step's origin
+    (:func:`step_origin_ns`).
     """
-    if time_s.size == 0:
-        return 0
-    first = float(np.min(time_s))
-    return 0 if first >= 0 else math.ceil(-first * 1e9)
-
-
-def block_log_times_ns(time_s: np.ndarray, offset_ns: int) -> list[int]:
-    """Log time of every block's first sample, in integer nanoseconds.
-
-    ``time_s`` are the sample times in s, ``offset_ns`` the run's log-time offset in ns.
-    """
-    firsts = np.asarray(time_s[::BLOCK_SAMPLES], dtype=np.float64)
-    return [max(0, round(t * 1e9) + offset_ns) for t in firsts.tolist()]
-
-
-def parse_schema(data: bytes) -> tuple[np.dtype, dict[str, Any]]:
-    """Decode a block schema → (record dtype, schema document); ValueError if malformed."""
-    doc = json.loads(data.decode("utf-8"))
-    if not isinstance(doc, dict) or not isinstance(doc.get("columns"), list):
-        raise ValueError("schema has no column list")
-    fields = []
-    for col in doc["columns"]:
-        dtype = np.dtype(str(col["dtype"]))
-        if dtype.kind not in _ALLOWED_KINDS or dtype.byteorder == ">":
-            raise ValueError(f"column {col['name']!r} has unsupported dtype {dtype}")
-        fields.append((str(col["name"]), dtype.str))
-    if not fields or fields[0][0] != TIME_COLUMN:
-        raise ValueError(f"first column must be {TIME_COLUMN!r}")
-    return np.dtype(fields), doc
-
-
-def _frozen_column(records: np.ndarray, name: str) -> np.ndarray:
-    """A contiguous read-only copy of one column (SampledLog then keeps it without copying)."""
-    column = np.array(records[name], copy=True)
-    column.flags.writeable = False
-    return column
-
-
-def records_to_log(records: np.ndarray, doc: dict[str, Any]) -> SampledLog:
-    """Rebuild a :class:`SampledLog` from the concatenated records of one step's log."""
-    units = {str(c["name"]): str(c.get("unit", "")) for c in doc["columns"][1:]}
-    channels = {name: _frozen_column(records, name) for name in units}
-    return SampledLog(
-        source=str(doc.get("source", "")),
-        sample_rate_hz=float(doc["sample_rate_hz"]),
-        time_s=np.ascontiguousarray(records[TIME_COLUMN]),
-        channels=channels,
-        units=units,
-    )
+    firsts = np.asarray(time_s[::block_samples], dtype=np.float64)
+    start_ns = origin_ns + STEP_MARGIN_S * 1_000_000_000
+    return [max(origin_ns, start_ns + round(t * 1e9)) for t in firsts.tolist()]
 
 
 def json_values(meta: dict[str, Any]) -> dict[str, str]:

@@ -14,12 +14,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from mcap.reader import make_reader
 
 from aatest.engine.dataset import Dataset, SensorInfo, StepData
 from aatest.engine.errors import RecordingError
 from aatest.engine.logs import SampledLog
+from aatest.engine.recording import codec, legacy_v1, proto
 from aatest.engine.recording import format as fmt
 from aatest.engine.recording.writer import (
     RECORDING_NAME,
@@ -128,14 +128,11 @@ def _decode(stream: Any, path: Path) -> _FileContents:
         elif record.name == fmt.STEP_RECORD:
             step_records.append(dict(record.metadata))
     _check_format(contents.run_meta, path)
-    by_topic = {ch.topic: ch for ch in summary.channels.values()}
     for values in step_records:  # one step at a time: peak memory is one step's bytes
         step_record = fmt.from_json_values(values)
         step = PlannedStep.model_validate(step_record["step"])
-        logs = []
-        for key in ("table_topic", "daq_topic"):
-            channel = _step_channel(by_topic, step_record[key], step.id, values, path)
-            logs.append(_decode_log(reader, channel, summary, path))
+        logs = [_step_log(reader, summary, step_record, values, source, path)
+                for source in ("table", "daq")]
         contents.steps.append((int(step_record["index"]), StepData(step, logs[0], logs[1])))
     return contents
 
@@ -144,54 +141,78 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
     if not run_meta:
         raise RecordingError(f"{path}: not an aatest recording (no 'run' metadata record)")
     version = run_meta.get("format", fmt.FORMAT)
-    if version != fmt.FORMAT:
+    if version not in (fmt.FORMAT, legacy_v1.FORMAT_V1):
         raise RecordingError(
-            f"{path}: unsupported recording format {version!r} (need {fmt.FORMAT})"
+            f"{path}: unsupported recording format {version!r} "
+            f"(need {fmt.FORMAT} or {legacy_v1.FORMAT_V1})"
         )
 
 
-def _step_channel(
-    by_topic: dict[str, Any], topic: str, step_id: str, values: dict[str, str], path: Path
-) -> Any:
-    """The channel a step record names, after checking both still agree (no CRC on metadata)."""
-    channel = by_topic.get(topic)
+def _step_log(
+    reader: Any, summary: Any, record: dict[str, Any], values: dict[str, str], source: str,
+    path: Path,
+) -> SampledLog:
+    """One logger's log of one step, decoded by the format its schema encoding names."""
+    step_id = str(record["step"]["id"])
+    topic = record[f"{source}_topic"]
+    channel = next((ch for ch in summary.channels.values() if ch.topic == topic), None)
     if channel is None:
         raise RecordingError(f"{path}: step topic {topic!r} has no channel")
+    schema = summary.schemas.get(channel.schema_id)
+    where = f"{path}: topic {topic!r} of step {step_id!r}"
+    try:
+        if schema is not None and schema.encoding == legacy_v1.ENCODING_V1:
+            return _decode_v1(reader, channel, schema, step_id, values, where)
+        if schema is not None and (schema.encoding, schema.name) == (fmt.ENCODING,
+                                                                     proto.BLOCK_MESSAGE):
+            return _decode_v2(reader, record, values, source, where)
+    except ValueError as exc:
+        raise RecordingError(f"{where}: {exc}") from exc
+    raise RecordingError(f"{path}: topic {topic!r} uses no known aatest schema")
+
+
+def _decode_v1(
+    reader: Any, channel: Any, schema: Any, step_id: str, values: dict[str, str], where: str
+) -> SampledLog:
+    """A v1 log: per-step topic, JSON schema, packed NumPy records."""
     meta = channel.metadata
     expected = meta.get("step_record_sha256")
     if meta.get("step_id") != step_id or (expected and expected != fmt.record_digest(values)):
-        raise RecordingError(
-            f"{path}: step record of {step_id!r} does not match channel {topic!r} "
-            "(corrupt metadata)"
-        )
-    return channel
-
-
-def _decode_log(reader: Any, channel: Any, summary: Any, path: Path) -> SampledLog:
-    """Concatenate one channel's blocks in sequence order and rebuild the SampledLog."""
-    topic = channel.topic
-    schema = summary.schemas.get(channel.schema_id)
-    if schema is None or schema.encoding != fmt.ENCODING:
-        raise RecordingError(f"{path}: topic {topic!r} does not use the {fmt.ENCODING} schema")
-    expected = channel.metadata.get("schema_sha256")
+        raise RecordingError(f"{where}: step record does not match its channel (corrupt metadata)")
+    expected = meta.get("schema_sha256")
     if expected and expected != hashlib.sha256(schema.data).hexdigest():
-        raise RecordingError(f"{path}: schema of topic {topic!r} is corrupt (checksum mismatch)")
-    dtype, doc = fmt.parse_schema(schema.data)
+        raise RecordingError(f"{where}: schema is corrupt (checksum mismatch)")
     parts = sorted(
         (message.sequence, message.data)
-        for _, _, message in reader.iter_messages(topics=[topic], log_time_order=False)
+        for _, _, message in reader.iter_messages(topics=[channel.topic], log_time_order=False)
     )
-    payload = b"".join(data for _, data in parts)
-    del parts
-    if len(payload) % dtype.itemsize:
-        raise RecordingError(f"{path}: topic {topic!r} holds a partial sample block")
-    records = np.frombuffer(payload, dtype=dtype)
-    expected = int(channel.metadata.get("samples", len(records)))
-    if len(records) != expected:
-        raise RecordingError(
-            f"{path}: topic {topic!r} has {len(records)} samples, its channel says {expected}"
-        )
-    return fmt.records_to_log(records, doc)
+    samples = meta.get("samples")
+    return legacy_v1.decode_log([data for _, data in parts], schema.data,
+                                int(samples) if samples is not None else None)
+
+
+def _decode_v2(
+    reader: Any, record: dict[str, Any], values: dict[str, str], source: str, where: str
+) -> SampledLog:
+    """A v2 log: the step's protobuf blocks on the stable topic, found by their log times."""
+    digest = fmt.record_digest(values)
+    span = record[f"{source}_log_time_ns"]
+    blocks = []
+    if span:
+        for _, _, message in reader.iter_messages(
+            topics=[record[f"{source}_topic"]], starting_at=span[0], ending_at=span[1],
+            log_time_order=False,
+        ):
+            block = proto.block_class().FromString(message.data)
+            if block.step_id != record["step"]["id"] or block.source != source:
+                continue  # a neighbouring step's block in the same time range
+            if block.step_record_sha256 != digest:
+                raise RecordingError(f"{where}: step record does not match its blocks "
+                                     "(corrupt metadata)")
+            blocks.append(block)
+    quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
+    return codec.blocks_to_log(blocks, source, float(record[f"{source}_sample_rate_hz"]),
+                               int(record[f"{source}_samples"]), quanta)
 
 
 def _sensors(run_meta: dict[str, Any], steps: list[StepData]) -> tuple[SensorInfo, ...]:

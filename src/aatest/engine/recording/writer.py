@@ -15,7 +15,6 @@ steps were completed after the last merge. The file layout is described in
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 import re
@@ -27,8 +26,9 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 
 import aatest
-from aatest.engine.errors import RecordingError
-from aatest.engine.logs import TABLE, SampledLog
+from aatest.engine.errors import RecordingError, StorageFault
+from aatest.engine.logs import SampledLog
+from aatest.engine.recording import codec, proto
 from aatest.engine.recording import format as fmt
 from aatest.engine.recording.mcap_io import ChunkedWriter
 from aatest.engine.steps import PlannedStep
@@ -38,8 +38,8 @@ STEPS_DIR = "steps"
 RUN_META_NAME = "run.json"
 #: chunk size before compression; 4 MiB keeps zstd efficient and memory bounded
 CHUNK_BYTES = 4 * 1024 * 1024
-#: channel ids are uint16 in MCAP and two per step
-MAX_STEP_INDEX = 32767
+#: the step index is a uint32 in every block
+MAX_STEP_INDEX = 2**32 - 1
 _STEP_FILE = re.compile(r"^(\d{3,})-(.+)\.mcap$")
 _TEMP_MARK = ".tmp-"
 
@@ -60,7 +60,15 @@ def _fsync_dir(path: Path) -> None:
 
 
 def atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> Path:
-    """Write ``path`` through a temporary sibling, fsync it, then rename it into place."""
+    """Write ``path`` through a temporary sibling, fsync it, then rename it into place.
+
+    Raises
+    ------
+    StorageFault
+        The file system refused the write (disk full, quota, I/O error). Nothing of ``path`` is
+        left half-written and earlier files are untouched, so ``--resume`` completes the run
+        once there is space again (exit 3, like a rig fault: the station, not the input, failed).
+    """
     tmp = path.with_name(f".{path.name}{_TEMP_MARK}{os.getpid()}")
     try:
         with open(tmp, "wb") as stream:
@@ -68,6 +76,12 @@ def atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> Path:
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise StorageFault(
+            f"{path}: cannot write ({exc.strerror or exc}); completed steps are kept — free "
+            "space and continue with `aatest run --resume --out RUN_DIR`"
+        ) from exc
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -80,54 +94,59 @@ def new_writer(stream: IO[bytes]) -> ChunkedWriter:
     return ChunkedWriter(stream, profile=fmt.PROFILE, library=f"aatest {aatest.__version__}")
 
 
-def channel_id(index: int, source: str) -> int:
-    """Run-unique MCAP channel id of a step's log: 2·index − 1 (table), 2·index (DAQ)."""
+def _check_index(index: int) -> None:
     if not 1 <= index <= MAX_STEP_INDEX:
         raise ValueError(f"step index {index} outside 1..{MAX_STEP_INDEX}")
-    return 2 * index - (1 if source == TABLE else 0)
+
+
+def _register(writer: ChunkedWriter) -> None:
+    """The one protobuf schema and the two stable channels (identical in every file)."""
+    writer.add_schema(Schema(id=fmt.SCHEMA_ID, name=proto.BLOCK_MESSAGE, encoding=fmt.ENCODING,
+                             data=proto.schema_data()))
+    for source, cid in fmt.CHANNEL_IDS.items():
+        writer.add_channel(Channel(id=cid, topic=fmt.topic(source), message_encoding=fmt.ENCODING,
+                                   schema_id=fmt.SCHEMA_ID, metadata={"source": source}))
 
 
 def _write_log(
-    writer: ChunkedWriter, step_id: str, index: int, log: SampledLog, digest: str
+    writer: ChunkedWriter, header: dict[str, Any], log: SampledLog, times_ns: list[int]
 ) -> None:
-    """Register one logger's schema and channel for a step and add its sample blocks."""
-    records, columns = fmt.log_records(log)
-    cid = channel_id(index, log.source)
-    schema = fmt.schema_data(log, columns)
-    writer.add_schema(Schema(id=cid, name=fmt.schema_name(log.source), encoding=fmt.ENCODING,
-                             data=schema))
-    offset_ns = fmt.log_time_offset_ns(log.time_s)
-    writer.add_channel(Channel(
-        id=cid, topic=fmt.topic(step_id, log.source), message_encoding=fmt.ENCODING,
-        schema_id=cid, metadata={"step_id": step_id, "source": log.source,
-                                 "samples": str(len(log)), "log_time_offset_ns": str(offset_ns),
-                                 "step_record_sha256": digest,
-                                 "schema_sha256": hashlib.sha256(schema).hexdigest()},
-    ))
-    times_ns = fmt.block_log_times_ns(log.time_s, offset_ns)
-    messages = [
-        Message(channel_id=cid, log_time=t_ns, publish_time=t_ns, sequence=seq,
-                data=records[seq * fmt.BLOCK_SAMPLES:(seq + 1) * fmt.BLOCK_SAMPLES].tobytes())
-        for seq, t_ns in enumerate(times_ns)
-    ]
-    per_chunk = max(1, CHUNK_BYTES // max(1, records.dtype.itemsize * fmt.BLOCK_SAMPLES))
-    for first in range(0, len(messages), per_chunk):
-        writer.add_chunk(messages[first:first + per_chunk])
+    """Add one logger's sample blocks of a step, in chunks of about :data:`CHUNK_BYTES`."""
+    cid = fmt.CHANNEL_IDS[log.source]
+    pending: list[Message] = []
+    size = 0
+    blocks = codec.encode_blocks(log, {**header, "source": log.source,
+                                       "sample_rate_hz": float(log.sample_rate_hz)},
+                                 fmt.BLOCK_SAMPLES, times_ns)
+    for seq, (t_ns, data) in enumerate(zip(times_ns, blocks, strict=True)):
+        pending.append(Message(channel_id=cid, log_time=t_ns, publish_time=t_ns, sequence=seq,
+                               data=data))
+        size += len(data)
+        if size >= CHUNK_BYTES:
+            writer.add_chunk(pending)
+            pending, size = [], 0
+    writer.add_chunk(pending)
 
 
 def step_record(
-    step: PlannedStep, index: int, table: SampledLog, daq: SampledLog, extra: dict[str, Any] | None
+    step: PlannedStep, index: int, logs: dict[str, tuple[SampledLog, list[int]]],
+    extra: dict[str, Any] | None,
 ) -> dict[str, Any]:
-    """The ``step`` metadata record of one step (before JSON encoding of its values)."""
-    return {
-        "step": step.model_dump(mode="json"),
-        "index": index,
-        "table_topic": fmt.topic(step.id, table.source),
-        "daq_topic": fmt.topic(step.id, daq.source),
-        "table_sample_rate_hz": float(table.sample_rate_hz),
-        "daq_sample_rate_hz": float(daq.sample_rate_hz),
-        "extra": extra or {},
-    }
+    """The ``step`` metadata record of one step (before JSON encoding of its values).
+
+    ``logs`` maps each logger (``table``, ``daq``) to its log and its blocks' log times in ns.
+    """
+    record: dict[str, Any] = {"step": step.model_dump(mode="json"), "index": index,
+                              "extra": extra or {}}
+    for source, (log, times_ns) in logs.items():
+        record |= {
+            f"{source}_topic": fmt.topic(log.source),
+            f"{source}_sample_rate_hz": float(log.sample_rate_hz),
+            f"{source}_samples": len(log),
+            f"{source}_log_time_ns": [times_ns[0], times_ns[-1]] if times_ns else [],
+            f"{source}_quantisation": {k: list(v) for k, v in log.quantisation.items()},
+        }
+    return record
 
 
 def write_step_file(
@@ -139,14 +158,23 @@ def write_step_file(
     extra: dict[str, Any] | None = None,
 ) -> None:
     """Write one self-contained step recording (run metadata, step metadata, both logs)."""
-    table, daq = logs
+    _check_index(index)
+    for log, source in zip(logs, fmt.CHANNEL_IDS, strict=True):
+        if log.source != source:
+            raise ValueError(f"step {step.id!r}: expected a {source} log, got {log.source!r}")
+        codec.check_dtypes(log)
+    origin_ns = fmt.step_origin_ns(run_meta.get("plan"), index)
+    timed = {log.source: (log, fmt.block_log_times_ns(log.time_s, origin_ns, fmt.BLOCK_SAMPLES))
+             for log in logs}
     writer = new_writer(stream)
     writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
-    record = fmt.json_values(step_record(step, index, table, daq, extra))
+    record = fmt.json_values(step_record(step, index, timed, extra))
     writer.add_metadata(fmt.STEP_RECORD, record)
-    digest = fmt.record_digest(record)
-    _write_log(writer, step.id, index, table, digest)
-    _write_log(writer, step.id, index, daq, digest)
+    _register(writer)
+    header = {"step_id": step.id, "step_index": index,
+              "step_record_sha256": fmt.record_digest(record)}
+    for log, times_ns in timed.values():
+        _write_log(writer, header, log, times_ns)
     writer.finish()
 
 
@@ -286,6 +314,7 @@ def complete_step_files(steps_dir: Path, clean: bool = False) -> dict[str, tuple
     are renamed ``*.corrupt`` so they are never read again.
     """
     found: dict[str, tuple[Path, int]] = {}
+    corrupt: list[Path] = []
     for path in sorted(steps_dir.glob("*.mcap*")):
         if _TEMP_MARK in path.name:
             if clean:
@@ -295,13 +324,27 @@ def complete_step_files(steps_dir: Path, clean: bool = False) -> dict[str, tuple
             continue
         scanned = scan_step_file(path)
         if scanned is None:
-            if clean:
-                path.replace(path.with_name(path.name + ".corrupt"))
+            corrupt.append(path)
             continue
         step_id, index = scanned
         if step_id not in found or found[step_id][1] < index:
             found[step_id] = (path, index)
+    if clean and corrupt:
+        _set_aside(corrupt, len(found))
     return dict(sorted(found.items(), key=lambda item: (item[1][1], item[1][0].name)))
+
+
+def _set_aside(corrupt: list[Path], kept: int) -> None:
+    """Rename damaged step files ``*.corrupt`` and say so: writes are atomic, so a damaged
+    file with a final name means the disk or a person changed it, which must not go unnoticed."""
+    for path in corrupt:
+        path.replace(path.with_name(path.name + ".corrupt"))
+    names = ", ".join(str(p) for p in corrupt)
+    raise RecordingError(
+        f"{names}: corrupt step file (no valid MCAP summary or step record); renamed *.corrupt, "
+        f"the {kept} other completed step(s) are kept — run `aatest run --resume` again to "
+        "record the step anew"
+    )
 
 
 def load_run_metadata(steps_dir: Path) -> dict[str, Any]:

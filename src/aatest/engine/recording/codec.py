@@ -1,0 +1,193 @@
+"""Exact, compact coding of sampled logs as protobuf ``SampleBlock`` messages (format v2).
+
+Why codes: loggers produce integers — ADC codes, encoder counts, 0/1 pulses, sample numbers —
+and a float64 of an ADC reading costs 8 bytes of mostly incompressible mantissa where its code
+costs 2–3. A channel of a block is stored as integer ``codes`` (with ``quantum`` and ``offset``)
+only when ``codes * quantum + offset``, computed in float64, gives back *every* value of the
+block bit for bit (a −0.0 comes back as +0.0, the same number); otherwise it is stored as
+float64 ``values``. The choice is made per block and per channel, so data off the grid (a
+clipped sample, a float estimate, jittered time stamps) are never rounded: decoding always
+returns the exact logged array, in its logged dtype.
+
+Codes of smooth signals and counters (an encoder following a sine, sample numbers) are stored as
+differences (``delta``), which the varints and zstd then shrink to a byte or less each.
+
+Where the quantum comes from: integer and boolean arrays are their own codes; float arrays use
+the ``(quantum, offset)`` the logger declared in :attr:`SampledLog.quantisation` (``time_s``
+included), else quantum 1 when every value is a whole number (0/1 pulses stored as float).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+import numpy as np
+
+from aatest.engine.logs import SampledLog
+from aatest.engine.recording.proto import block_class
+
+TIME_COLUMN = "time_s"
+#: largest |code| a float64 carries exactly (2^53)
+_MAX_EXACT_CODE = float(2**53)
+_ALLOWED_KINDS = "fiub"
+
+
+def _same_values(decoded: np.ndarray, logged: np.ndarray) -> bool:
+    """Bitwise equality of two float64 arrays, except that −0.0 may come back as +0.0.
+
+    The one value an integer code cannot carry is the sign of a zero (a rounded encoder reading
+    just below 0 is −0.0); it is the same physical value, equal under ``==`` and in every
+    computation the analyses make, so it does not force the block to float64.
+    """
+    return bool(np.array_equal(np.where(logged == 0.0, 0.0, logged).view(np.uint64),
+                               decoded.view(np.uint64)))
+
+
+def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dtype) -> np.ndarray:
+    """Physical values of ``codes``: integer dtypes as themselves, floats ``code·quantum + offset``.
+
+    The one formula the writer checks against and every reader must use (float64 arithmetic).
+    ``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an encoder).
+    """
+    if dtype.kind in "iub":
+        return codes.astype(dtype)
+    return (codes.astype(np.float64) * quantum + offset).astype(dtype)
+
+
+def _codes(
+    values: np.ndarray, quantum: tuple[float, float] | None
+) -> tuple[np.ndarray, float, float] | None:
+    """(codes, quantum, offset) reproducing ``values`` exactly, or None if there are none."""
+    if values.dtype.kind in "iub":
+        return values.astype(np.int64), 1.0, 0.0
+    exact = values.astype(np.float64)
+    step, offset = quantum if quantum is not None else (1.0, 0.0)
+    if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
+        return None
+    with np.errstate(invalid="ignore", over="ignore"):
+        scaled = np.round((exact - offset) / step)
+    if not bool(np.all(np.abs(scaled) < _MAX_EXACT_CODE)):  # also False for NaN/inf
+        return None
+    codes = scaled.astype(np.int64)
+    if not _same_values(codes.astype(np.float64) * step + offset, exact):
+        return None
+    return codes, step, offset
+
+
+def _fill_channel(
+    message: Any, name: str, unit: str, values: np.ndarray, quantum: tuple[float, float] | None
+) -> None:
+    """Fill one ``Channel`` message with codes when exact, else float64 values."""
+    message.name, message.unit, message.dtype = name, unit, values.dtype.str
+    coded = _codes(values, quantum)
+    if coded is None:
+        message.values.extend(values.astype(np.float64).tolist())
+        return
+    codes, step, offset = coded
+    steps = np.diff(codes, prepend=np.int64(0))
+    message.delta = bool(np.abs(steps).sum() < np.abs(codes).sum())  # smooth signals, counters
+    message.codes.extend((steps if message.delta else codes).tolist())
+    message.quantum, message.offset = step, offset
+
+
+def check_dtypes(log: SampledLog) -> None:
+    """Refuse channels a block cannot carry (complex, strings, objects)."""
+    for name, values in log.channels.items():
+        if values.dtype.kind not in _ALLOWED_KINDS:
+            raise TypeError(f"channel {name!r} has unsupported dtype {values.dtype}")
+    if TIME_COLUMN in log.channels:
+        raise ValueError(f"{log.source} log has a channel named {TIME_COLUMN!r}")
+
+
+def encode_blocks(
+    log: SampledLog, header: Mapping[str, object], block_samples: int, log_times_ns: list[int]
+) -> Iterator[bytes]:
+    """Serialised ``SampleBlock`` messages of a log, ``block_samples`` samples each.
+
+    ``header`` holds the block fields common to the log (``step_id``, ``step_index``, ``source``,
+    ``sample_rate_hz``, ``step_record_sha256``); ``log_times_ns`` the MCAP log time of every
+    block's first sample, in integer ns.
+    """
+    check_dtypes(log)
+    block_type = block_class()
+    declared = dict(log.quantisation)
+    for sequence, log_time_ns in enumerate(log_times_ns):
+        part = slice(sequence * block_samples, (sequence + 1) * block_samples)
+        block = block_type(sequence=sequence, first_sample=part.start, log_time_ns=log_time_ns,
+                           **header)
+        _fill_channel(block.time, TIME_COLUMN, "s", log.time_s[part],
+                      declared.get(TIME_COLUMN))
+        for name, values in log.channels.items():
+            _fill_channel(block.channels.add(), name, str(log.units.get(name, "")),
+                          values[part], declared.get(name))
+        yield block.SerializeToString()
+
+
+def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None]:
+    """One ``Channel`` message → (values in the logged dtype, (quantum, offset) or None).
+
+    Values, quantum and offset are in the channel's own unit (e.g. V, deg, s).
+    """
+    dtype = np.dtype(message.dtype)
+    if dtype.kind not in _ALLOWED_KINDS or dtype.byteorder == ">":
+        raise ValueError(f"channel {message.name!r} has unsupported dtype {dtype}")
+    codes = message.codes
+    if len(codes):
+        if len(message.values):
+            raise ValueError(f"channel {message.name!r} has both codes and values")
+        quantum = (float(message.quantum), float(message.offset))
+        integers = np.array(codes, dtype=np.int64)
+        if message.delta:
+            integers = np.cumsum(integers)
+        return decode_codes(integers, *quantum, dtype), quantum
+    return np.array(message.values, dtype=np.float64).astype(dtype), None
+
+
+def _frozen(parts: list[np.ndarray], dtype: np.dtype) -> np.ndarray:
+    """Concatenated read-only array (SampledLog then keeps it without copying)."""
+    values = np.concatenate(parts) if parts else np.empty(0, dtype=dtype)
+    values.flags.writeable = False
+    return values
+
+
+def blocks_to_log(
+    blocks: list[Any], source: str, sample_rate_hz: float, samples: int,
+    quantisation: Mapping[str, tuple[float, float]],
+) -> SampledLog:
+    """Rebuild one step's :class:`SampledLog` from its decoded ``SampleBlock`` messages.
+
+    ``sample_rate_hz`` is the logger's nominal rate in Hz, ``samples`` the count the step record
+    gives, ``quantisation`` the declared ``(quantum, offset)`` per channel in its own unit (V, deg).
+
+    Raises
+    ------
+    ValueError
+        Blocks are missing, repeated or out of place, channels differ between blocks, or the
+        sample count is not ``samples``.
+    """
+    blocks = sorted(blocks, key=lambda b: b.sequence)
+    if [b.sequence for b in blocks] != list(range(len(blocks))):
+        raise ValueError(f"block sequence numbers {[b.sequence for b in blocks]} have gaps")
+    names = [c.name for c in blocks[0].channels] if blocks else []
+    columns: dict[str, list[np.ndarray]] = {name: [] for name in [TIME_COLUMN, *names]}
+    dtypes: dict[str, np.dtype] = {}
+    units = {c.name: c.unit for c in blocks[0].channels} if blocks else {}
+    position = 0
+    for block in blocks:
+        if [c.name for c in block.channels] != names or block.first_sample != position:
+            raise ValueError(f"block {block.sequence} does not continue the log")
+        for message in (block.time, *block.channels):
+            values, _ = channel_values(message)
+            columns[message.name].append(values)
+            dtypes[message.name] = values.dtype
+        position += columns[TIME_COLUMN][-1].size
+    if position != samples:
+        raise ValueError(f"has {position} samples, its step record says {samples}")
+    arrays = {name: _frozen(parts, dtypes.get(name, np.dtype("<f8")))
+              for name, parts in columns.items()}
+    time_s = arrays.pop(TIME_COLUMN).astype(np.float64, copy=False)
+    for name, values in arrays.items():
+        if values.size != position:
+            raise ValueError(f"channel {name!r} has {values.size} samples, time has {position}")
+    return SampledLog(source, sample_rate_hz, time_s, arrays, units, quantisation)
