@@ -4,9 +4,10 @@ The driver speaks only the documented register map (``docs/modbus-register-map.m
 writes demands and the log configuration, issues commands through a sequence-numbered
 handshake (one FC 23 transaction: write COMMAND+SEQ, read ACK+RESULT), waits on the
 *controller's* clock and status bits, and downloads the table log in windows of 120 registers.
-Every pymodbus error, timeout, refused command or fault bit is translated here, at the plugin
-boundary, into :class:`~aatest.engine.errors.RigFault` with a one-line reason naming the
-controller; :meth:`ModbusTurntable.safe_stop` then commands an emergency stop (motion stopped,
+Every pymodbus error, socket error, timeout, partial frame, refused command or fault bit is
+translated here, at the plugin boundary (``_call`` and :func:`~aatest.engine.errors.rig_boundary`
+on every public step), into :class:`~aatest.engine.errors.RigFault` with a one-line reason
+naming the controller; :meth:`ModbusTurntable.safe_stop` then commands an emergency stop (motion stopped,
 motor off) and never raises. Construction never connects; :meth:`ModbusTurntable.start` does.
 """
 
@@ -24,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from aatest.engine.errors import RigFault
+from aatest.engine.errors import RigFault, rig_boundary
 from aatest.engine.interfaces import RigContext, TableEnvelope
 from aatest.engine.logs import TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
@@ -73,6 +74,9 @@ class ModbusTurntable:
         except ModbusException as exc:
             raise RigFault(f"{self._where}: no answer to {what} within "
                            f"{self.config.timeout_s:g} s ({exc.__class__.__name__})") from exc
+        except OSError as exc:  # reset, refused, broken pipe, unreachable: the link is gone
+            raise RigFault(f"{self._where}: connection lost during {what} "
+                           f"({exc.__class__.__name__}: {exc})") from exc
         if getattr(response, "isError", lambda: False)():
             raise RigFault(f"{self._where}: {what} answered with Modbus exception "
                            f"{getattr(response, 'exception_code', '?')}")
@@ -134,6 +138,7 @@ class ModbusTurntable:
         """The declared envelope (checked against the controller's limits in :meth:`start`)."""
         return self.config.envelope
 
+    @rig_boundary
     def start(self) -> None:
         """Connect, check the map version and limits, set the declared envelope as the
         controller's user limits (it then refuses anything beyond it too), configure the
@@ -184,6 +189,7 @@ class ModbusTurntable:
                                f"{declared:g} exceeds the controller's {actual:g}; "
                                "fix the rig file")
 
+    @rig_boundary
     def move_to(self, inner_deg: float, outer_deg: float) -> None:
         self._write({Reg.MODE: Mode.POSITION, Reg.INNER_POSITION_DEMAND_DEG: inner_deg,
                      Reg.OUTER_POSITION_DEMAND_DEG: outer_deg})
@@ -191,6 +197,7 @@ class ModbusTurntable:
         self._wait("in position", lambda s: Status.IN_POSITION in s and Status.MOVING not in s,
                    self.config.move_timeout_s)
 
+    @rig_boundary
     def begin_motion(self, step: PlannedStep) -> None:
         """Write the log configuration, the settling time and the step's demands, start,
         and wait until the controller reports the profile settled."""
@@ -205,6 +212,7 @@ class ModbusTurntable:
         self._wait("settled", lambda s: Status.SETTLED in s,
                    step.settle_s + self.config.move_timeout_s)
 
+    @rig_boundary
     def record(self, step: PlannedStep) -> SampledLog:
         """Arm the log (started by the DAQ trigger), wait for it, download it."""
         previous = int(self._value(Reg.LOG_ID))
@@ -240,6 +248,7 @@ class ModbusTurntable:
                                                   min(per, samples - start)))
         return np.concatenate(parts) if parts else np.zeros(0)
 
+    @rig_boundary
     def end_motion(self) -> None:
         """Stop the profile; the controller returns to its start position."""
         self._command(Command.STOP)
