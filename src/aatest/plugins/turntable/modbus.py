@@ -144,16 +144,7 @@ class ModbusTurntable:
         controller's user limits (it then refuses anything beyond it too), configure the
         freeze-pulse and trigger inputs, clear faults, motor on."""
         cfg = self.config
-        self._client = ModbusTcpClient(cfg.host, port=cfg.port, timeout=cfg.timeout_s,
-                                       retries=cfg.retries, reconnect_delay=0)
-        try:
-            connected = self._client.connect()
-        except (OSError, ModbusException) as exc:
-            connected, reason = False, str(exc)
-        else:
-            reason = "connection refused or host unreachable"
-        if not connected:
-            raise RigFault(f"{self._where}: cannot connect ({reason})")
+        self._connect()
         version = int(self._value(Reg.MAP_VERSION))
         if version != mm.MAP_VERSION:
             raise RigFault(f"{self._where}: register map version {version}, driver speaks "
@@ -173,6 +164,22 @@ class ModbusTurntable:
         status = self._status()
         if Status.INTERLOCK_CLOSED not in status:
             raise RigFault(f"{self._where}: safety interlock open; close it and retry")
+
+    def _connect(self) -> None:
+        """(Re)open the TCP connection; RigFault when the controller cannot be reached."""
+        cfg = self.config
+        if self._client is not None:
+            self._client.close()
+        self._client = ModbusTcpClient(cfg.host, port=cfg.port, timeout=cfg.timeout_s,
+                                       retries=cfg.retries, reconnect_delay=0)
+        try:
+            connected = self._client.connect()
+        except (OSError, ModbusException) as exc:
+            connected, reason = False, str(exc)
+        else:
+            reason = "connection refused or host unreachable"
+        if not connected:
+            raise RigFault(f"{self._where}: cannot connect ({reason})")
 
     def _check_limits(self) -> None:
         """The declared envelope must lie inside the controller's factory limits."""
@@ -257,13 +264,23 @@ class ModbusTurntable:
                    self.config.move_timeout_s)
 
     def safe_stop(self) -> None:
-        """Emergency stop (motion stopped, motor off); never raises, idempotent."""
+        """Emergency stop (motion stopped, motor off); never raises, idempotent.
+
+        When the link was reset, the command is sent once more over a new connection; a
+        controller that cannot be reached at all is logged (each attempt bounded by
+        ``timeout_s``) and left to its own watchdog.
+        """
         if self._client is None:
             return
-        try:
-            self._command(Command.EMERGENCY_STOP)
-        except Exception as exc:  # noqa: BLE001 - a safe stop must not raise
-            log.error("%s: emergency stop not confirmed: %s", self._where, exc)
+        for reconnect in (False, True):  # a reset link is reopened once: the table must stop
+            try:
+                if reconnect:
+                    self._connect()
+                self._command(Command.EMERGENCY_STOP)
+                return
+            except Exception as exc:  # noqa: BLE001 - a safe stop must not raise
+                log.error("%s: emergency stop not confirmed%s: %s", self._where,
+                          " after reconnecting" if reconnect else "", exc)
 
     def close(self) -> None:
         if self._client is not None:
