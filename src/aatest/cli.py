@@ -61,9 +61,9 @@ def guarded(fn: F) -> F:
             if _state["debug"]:
                 traceback.print_exc()
             _fail(f"error: {exc}" if "\n" not in str(exc) else str(exc), exc.exit_code)
-        except KeyboardInterrupt:
-            _fail("interrupted: the rig was brought to a safe state; continue with --resume",
-                  EXIT_RIG_FAULT)
+        except KeyboardInterrupt as exc:
+            _fail(f"interrupted ({str(exc) or 'SIGINT'}): the rig was brought to a safe state; "
+                  "continue with --resume", EXIT_RIG_FAULT)
         except Exception as exc:  # noqa: BLE001 - the last line of defence
             if _state["debug"]:
                 traceback.print_exc()
