@@ -124,6 +124,8 @@ def validate(
         f"{procedure}: OK — {len(prepared.plan.steps)} steps, "
         f"lab duration {prepared.plan.lab_duration_s:.1f} s"
     )
+    for line in prepared.expansion.skipped_lines():  # nothing disappears silently
+        typer.echo(line)
 
 
 @app.command()

@@ -123,7 +123,7 @@ def rig_boundary(method: Callable[Concatenate[S, P], T]) -> Callable[Concatenate
             return method(self, *args, **kwargs)
         except AatestError:
             raise
-        except Exception as exc:  # noqa: BLE001 - this is the translation boundary
+        except Exception as exc:  # the translation boundary: every library error
             where = getattr(self, "_where", type(self).__name__)
             detail = " ".join(str(exc).split()) or "no detail"
             raise RigFault(f"{where}: {method.__name__} failed: "

@@ -10,6 +10,7 @@ Everything else is forwarded byte for byte.
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import struct
 import threading
@@ -170,7 +171,5 @@ class FaultProxy:
 
 def _close(*sockets: socket.socket) -> None:
     for sock in sockets:
-        try:
+        with contextlib.suppress(OSError):
             sock.close()
-        except OSError:
-            pass

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+from tcp_proxy import Action, FaultProxy, Request, Trigger
 from typer.testing import CliRunner
 
 from aatest.cli import app
@@ -23,8 +24,6 @@ from aatest.engine.errors import EXIT_RIG_FAULT
 from aatest.plugins.turntable.modbus_map import Command, Reg
 from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 from aatest.twin.servers.modbus_server import SimModbusServer
-
-from tcp_proxy import Action, FaultProxy, Request, Trigger
 
 SEED = 11
 TIMEOUT_S = 0.5  # the driver's per-request timeout; a stall lasts 3× as long

@@ -95,7 +95,7 @@ def test_concurrent_resume_exits_2(tmp_path: Path) -> None:
     _first_step_file(run_dir, first, timeout_s=60.0)
     second = _aatest("run", str(procedure), "--out", str(run_dir), "--resume", "--no-progress")
     _out, err = second.communicate(timeout=60)
-    first_out, first_err = first.communicate(timeout=120)
+    _first_out, first_err = first.communicate(timeout=120)
     assert second.returncode == EXIT_BAD_INPUT, err
     assert f"(PID {first.pid}," in err
     assert first.returncode == 0, first_err

@@ -7,9 +7,10 @@ answers PING/START/STOP commands with STATUS frames. Reception runs in a python-
 silent: a gap in the sequence counter, or fewer frames than the logger reports sent, raises
 :class:`~aatest.engine.errors.RigFault` (``on_frame_loss: fault``, the default) or is kept in
 the record as NaN samples (``on_frame_loss: record``). A bus-off error frame, a failed send,
-or a logger that stops talking raises RigFault with a one-line reason; any other error out of
-python-can or the decoder is translated by :func:`~aatest.engine.errors.rig_boundary`. Optionally the sample
-frames are decoded with cantools from a DBC file (``can_frames.dbc_text`` writes one).
+or a logger that stops talking raises RigFault with a one-line reason; any other error out
+of python-can or the decoder is translated by :func:`~aatest.engine.errors.rig_boundary`.
+Optionally the sample frames are decoded with cantools from a DBC file
+(``can_frames.dbc_text`` writes one).
 """
 
 from __future__ import annotations

@@ -5,10 +5,12 @@ writes demands and the log configuration, issues commands through a sequence-num
 handshake (one FC 23 transaction: write COMMAND+SEQ, read ACK+RESULT), waits on the
 *controller's* clock and status bits, and downloads the table log in windows of 120 registers.
 Every pymodbus error, socket error, timeout, partial frame, refused command or fault bit is
-translated here, at the plugin boundary (``_call`` and :func:`~aatest.engine.errors.rig_boundary`
-on every public step), into :class:`~aatest.engine.errors.RigFault` with a one-line reason
-naming the controller; :meth:`ModbusTurntable.safe_stop` then commands an emergency stop (motion stopped,
-motor off) and never raises. Construction never connects; :meth:`ModbusTurntable.start` does.
+translated here, at the plugin boundary (``_call``, and
+:func:`~aatest.engine.errors.rig_boundary` on every public step), into
+:class:`~aatest.engine.errors.RigFault` with a one-line reason naming the controller;
+:meth:`ModbusTurntable.safe_stop` then commands an emergency stop (motion stopped, motor off;
+once more over a new connection when the link was reset) and never raises. Construction never
+connects; :meth:`ModbusTurntable.start` does.
 """
 
 from __future__ import annotations
