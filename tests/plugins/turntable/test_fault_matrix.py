@@ -173,7 +173,12 @@ def _fault_then_resume(lab: Lab, heal: Callable[[], None]) -> tuple[str, list[st
 
 @pytest.mark.parametrize("instant", list(INSTANTS), ids=list(INSTANTS))
 def test_link_fault_at_any_instant_exits_3_and_resumes(lab: Lab, instant: str) -> None:
-    match, occurrence, action = INSTANTS[instant]
+    _link_fault(lab, instant, *INSTANTS[instant])
+
+
+def _link_fault(lab: Lab, instant: str, match: Callable[[Request], bool], occurrence: int,
+                action: Action) -> None:
+    """Fire ``action`` at the ``occurrence``-th request matching ``match``; exit 3; resume."""
     proxy, server = lab.proxy, lab.servers[0]
     assert proxy is not None
     # "kill": the controller dies at that request; its sockets close and its state is lost
@@ -207,3 +212,19 @@ def test_can_frame_loss_burst_exits_3_and_resumes(lab: Lab, burst: str) -> None:
     reason, kept = _fault_then_resume(lab, heal)
     assert f"lost {length} of" in reason and "CAN logger node 1" in reason, reason
     assert kept == []  # the first record is the damaged one: nothing of it is kept
+
+
+#: the long matrix: every action at many more instants (window reads, status polls, requests)
+LONG_INSTANTS = {
+    f"{name}-{n}-{action}": (match, n, action)
+    for name, match, counts in (("request", any_request, range(1, 60, 7)),
+                                ("status-poll", reads(Reg.STATUS), range(1, 30, 4)),
+                                ("window", writes(Reg.WINDOW_CHANNEL), range(1, 400, 37)))
+    for n in counts for action in ("reset", "blackhole", "stall", "kill")
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("instant", list(LONG_INSTANTS), ids=list(LONG_INSTANTS))
+def test_long_matrix_exits_3_and_resumes(lab: Lab, instant: str) -> None:
+    _link_fault(lab, instant, *LONG_INSTANTS[instant])
