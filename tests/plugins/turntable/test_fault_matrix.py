@@ -5,12 +5,19 @@ the steps already recorded, and ``run --resume`` then completes the run.
 Faults come from a loopback proxy between the Modbus driver and the simulated controller
 (:mod:`tcp_proxy`: reset, black-hole, stall at the n-th matching request), from stopping the
 controller's server at a chosen request (what the OS does to its sockets on ``kill -9``), and
-from bursts of lost CAN frames.
+from bursts of lost CAN frames. Slow (``-m slow``): a 112-case long matrix, and ``kill -9`` of a
+real ``aatest sim-server modbus`` process (CAN on udp_multicast) that is then restarted.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -100,6 +107,8 @@ class Lab:
     proxy: FaultProxy | None = None
     servers: list[SimModbusServer] = field(default_factory=list)
     logger: SimCanLogger | None = None
+    #: the rig file's daq line; default the in-process logger on a virtual bus
+    daq: str | None = None
 
     @property
     def channel(self) -> str:
@@ -122,10 +131,14 @@ class Lab:
         rig = self.tmp_path / "rig.yaml"
         rig.write_text(f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {self.proxy.port}, "
                        f"timeout_s: {TIMEOUT_S}, retries: 0, poll_interval_s: 0.01}}\n"
-                       f"daq: {{plugin: can, interface: virtual, channel: {self.channel}, "
-                       f"response_timeout_s: 1.0, frame_timeout_s: 1.0}}\n"
+                       f"daq: {self.daq or self._virtual_daq}\n"
                        "chamber: {plugin: none}\n")
         return rig
+
+    @property
+    def _virtual_daq(self) -> str:
+        return (f"{{plugin: can, interface: virtual, channel: {self.channel}, "
+                "response_timeout_s: 1.0, frame_timeout_s: 1.0}")
 
     def close(self) -> None:
         if self.proxy is not None:
@@ -228,3 +241,62 @@ LONG_INSTANTS = {
 @pytest.mark.parametrize("instant", list(LONG_INSTANTS), ids=list(LONG_INSTANTS))
 def test_long_matrix_exits_3_and_resumes(lab: Lab, instant: str) -> None:
     _link_fault(lab, instant, *LONG_INSTANTS[instant])
+
+
+#: kill -9 of a real ``aatest sim-server modbus`` process, at instants like the measured ones
+#: (issue 14: 1.5, 2 and 2.5 s into a static multi-position run ended with exit 1 on main)
+PROCESS_KILLS = {"settle": (command(Command.START_MOTION), 2),
+                 "record": (command(Command.ARM_LOG), 1),
+                 "download": (writes(Reg.WINDOW_CHANNEL), 30)}
+
+
+class ServerProcess:
+    """``aatest sim-server modbus`` in its own process, its CAN logger on udp_multicast."""
+
+    def __init__(self, group: str) -> None:
+        with socket.socket() as sock:
+            sock.bind(("127.0.0.1", 0))
+            self.port = int(sock.getsockname()[1])
+        env = {**os.environ, "AATEST_SIM_CAN_CHANNEL": group,
+               "AATEST_SIM_CAN_INTERFACE": "udp_multicast"}
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "aatest.cli", "sim-server", "modbus", "--host", "127.0.0.1",
+             "--port", str(self.port), "--seed", str(SEED)], stdout=subprocess.PIPE, text=True,
+            env=env)
+        assert self.process.stdout is not None
+        ready, _, _ = select.select([self.process.stdout], [], [], 30.0)
+        assert ready and f"127.0.0.1:{self.port}" in self.process.stdout.readline()
+
+    def kill(self) -> None:
+        self.process.send_signal(signal.SIGKILL)
+        self.process.wait(10.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("instant", list(PROCESS_KILLS), ids=list(PROCESS_KILLS))
+def test_kill_9_of_the_server_process_exits_3_and_resumes(rig_entry_points: None,
+                                                          tmp_path: Path, instant: str) -> None:
+    pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")
+    group = f"239.74.164.{10 + os.getpid() % 240}"
+    servers = [ServerProcess(group)]
+    match, occurrence = PROCESS_KILLS[instant]
+    proxy = FaultProxy(servers[0].port, Trigger(match, occurrence, "kill",
+                                                on_fire=servers[0].kill))
+    lab = Lab(tmp_path, proxy=proxy,
+              daq=f"{{plugin: can, interface: udp_multicast, channel: '{group}'}}")
+
+    def heal() -> None:
+        assert proxy.fired is not None
+        proxy.heal()
+        servers.append(ServerProcess(group))  # the operator restarts the controller
+        proxy.upstream_port = servers[-1].port
+
+    try:
+        reason, _kept = _fault_then_resume(lab, heal)
+        assert "Modbus controller 127.0.0.1" in reason, reason
+    finally:
+        proxy.close()
+        for server in servers:
+            if server.process.poll() is None:
+                server.process.send_signal(signal.SIGINT)
+                server.process.wait(10.0)
