@@ -67,9 +67,12 @@ def guarded(fn: F) -> F:
         except Exception as exc:  # noqa: BLE001 - the last line of defence
             if _state["debug"]:
                 traceback.print_exc()
-            report = write_crash_report(exc, _run_dir_of(kwargs))
+            try:
+                report = f"crash report: {write_crash_report(exc, _run_dir_of(kwargs))}"
+            except OSError as unwritable:  # e.g. a full disk: still one line and exit 4
+                report = f"no crash report: {unwritable}"
             _fail(f"internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "
-                  f"(crash report: {report}; rerun with --debug)", EXIT_INTERNAL)
+                  f"({report}; rerun with --debug)", EXIT_INTERNAL)
 
     return wrapper  # type: ignore[return-value]
 
