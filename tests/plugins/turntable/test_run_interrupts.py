@@ -88,14 +88,24 @@ def test_second_run_on_a_locked_directory_exits_2_naming_the_holder(tmp_path: Pa
 
 
 def test_concurrent_resume_exits_2(tmp_path: Path) -> None:
-    """Two real processes: the second ``run --resume`` exits 2 while the first still runs."""
+    """Two real processes: ``run --resume`` exits 2 while another process holds the run."""
     procedure, run_dir = tmp_path / "procedure.yaml", tmp_path / "run"
-    procedure.write_text(PROCEDURE)
-    first = _aatest("run", str(procedure), "--out", str(run_dir), "--no-progress")
-    _first_step_file(run_dir, first, timeout_s=60.0)
-    second = _aatest("run", str(procedure), "--out", str(run_dir), "--resume", "--no-progress")
-    _out, err = second.communicate(timeout=60)
-    _first_out, first_err = first.communicate(timeout=120)
-    assert second.returncode == EXIT_BAD_INPUT, err
-    assert f"(PID {first.pid}," in err
-    assert first.returncode == 0, first_err
+    procedure.write_text(PROCEDURE.replace("samples: 40000", "samples: 2000"))
+    first = CliRunner().invoke(app, ["run", str(procedure), "--out", str(run_dir),
+                                     "--no-progress"])
+    assert first.exit_code == 0, first.output
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\n"
+         "from pathlib import Path\nfrom aatest.engine.run.run_state import run_lock\n"
+         "with run_lock(Path(sys.argv[1])):\n    print('locked', flush=True)\n"
+         "    time.sleep(60)\n", str(run_dir)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "locked"
+        second = _aatest("run", str(procedure), "--out", str(run_dir), "--resume",
+                         "--no-progress")
+        _out, err = second.communicate(timeout=60)
+        assert second.returncode == EXIT_BAD_INPUT, err
+        assert f"(PID {holder.pid}," in err
+    finally:
+        holder.kill()
+        holder.wait(10)
