@@ -1,24 +1,28 @@
 """``aatest`` command line (docs/interfaces.md §1).
 
 The CLI is the one place where errors become exit codes: an :class:`AatestError` prints its
-message (one line per located problem) and exits with its code; anything else is a bug and
-prints a traceback only with ``--debug``.
+message (one line per located problem) and exits with its code; anything else is a bug: one
+line, a crash report file and exit 4 (a traceback on the console only with ``--debug``).
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import signal
 import sys
+import threading
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from functools import wraps
 from pathlib import Path
 from typing import Any, Optional, TypeVar
 
 import typer
 
-from aatest.engine.errors import EXIT_FINDING, AatestError
+from aatest.crash_report import write_crash_report
+from aatest.engine.errors import EXIT_FINDING, EXIT_INTERNAL, EXIT_RIG_FAULT, AatestError
 
 app = typer.Typer(
     add_completion=False,
@@ -41,26 +45,64 @@ def _fail(message: str, code: int) -> None:
 
 
 def guarded(fn: F) -> F:
-    """Translate aatest errors into one-line messages and exit codes."""
+    """Translate errors into one-line messages and exit codes (docs/interfaces.md §1).
+
+    aatest errors exit with their own code; an operator interrupt (Ctrl-C, SIGTERM) happens
+    after the rig life cycle has reached its safe state and exits 3, resumable like a rig fault;
+    anything else is a defect: one line, a crash report, exit 4 — never 1.
+    """
 
     @wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
-            return fn(*args, **kwargs)
+            with _terminate_as_interrupt():
+                return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort):
             raise
         except AatestError as exc:
             if _state["debug"]:
                 traceback.print_exc()
             _fail(f"error: {exc}" if "\n" not in str(exc) else str(exc), exc.exit_code)
-        except KeyboardInterrupt:
-            _fail("interrupted: the rig was brought to a safe state; continue with --resume", 3)
+        except KeyboardInterrupt as exc:
+            _fail(f"interrupted ({str(exc) or 'SIGINT'}): the rig was brought to a safe state; "
+                  "continue with --resume", EXIT_RIG_FAULT)
         except Exception as exc:  # noqa: BLE001 - the last line of defence
             if _state["debug"]:
                 traceback.print_exc()
-            _fail(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug)", EXIT_INTERNAL)
+            try:
+                report = f"crash report: {write_crash_report(exc, _run_dir_of(kwargs))}"
+            except OSError as unwritable:  # e.g. a full disk: still one line and exit 4
+                report = f"no crash report: {unwritable}"
+            _fail(f"internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "
+                  f"({report}; rerun with --debug)", EXIT_INTERNAL)
 
     return wrapper  # type: ignore[return-value]
+
+
+def _run_dir_of(kwargs: dict[str, Any]) -> Path | None:
+    """The command's run directory (``--out`` or ``RUN_DIR``) when it names one."""
+    for key in ("out", "run_dir"):
+        value = kwargs.get(key)
+        if isinstance(value, Path) and value.is_dir():
+            return value
+    return None
+
+
+@contextmanager
+def _terminate_as_interrupt() -> Iterator[None]:
+    """Let SIGTERM unwind like Ctrl-C, so the rig's ``finally`` reaches its safe state."""
+
+    def interrupt(_signum: int, _frame: Any) -> None:
+        raise KeyboardInterrupt("SIGTERM")
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 @app.callback()
@@ -87,6 +129,8 @@ def validate(
         f"{procedure}: OK — {len(prepared.plan.steps)} steps, "
         f"lab duration {prepared.plan.lab_duration_s:.1f} s"
     )
+    for line in prepared.expansion.skipped_lines():  # nothing disappears silently
+        typer.echo(line)
 
 
 @app.command()

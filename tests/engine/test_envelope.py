@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
 
+from aatest.cli import app
 from aatest.engine.errors import EXIT_BAD_INPUT, EnvelopeError, ProcedureError
 from aatest.engine.interfaces import AxisLimits, SensorDatasheet, TableEnvelope
 from aatest.engine.procedure.envelope import check_envelope, step_violations
 from aatest.engine.procedure.loader import load_procedure, parse_procedure
-from aatest.engine.procedure.planner import default_datasheet, expand
+from aatest.engine.procedure.planner import default_datasheet, expand, expand_traced
+from aatest.engine.procedure.yaml_loader import locate
 from aatest.engine.steps import PlannedStep
 
 DATA = Path(__file__).parents[1] / "data" / "procedures"
@@ -94,32 +98,102 @@ def test_travel_limits_of_an_axis_with_stops() -> None:
     assert _limits(_sine(1.0, 2.0, axis="outer", outer_deg=-89.0), env) == {"outer.min_deg"}
 
 
-def test_sweep_without_skip_rejects_every_point_beyond_the_ceiling() -> None:
+def test_sweep_without_skip_groups_the_points_of_an_element_into_one_problem() -> None:
     proc = parse_procedure(
         "procedure: s\nsensor: {model: sr207}\nsteps:\n  - sine_sweep:\n"
         "      frequencies: {include: [1, 8, 9]}\n      amplitudes_deg: [0.2]\n")
     with pytest.raises(EnvelopeError) as info:
-        check_envelope(expand(proc), ENV, SHEET, None)
-    assert len(info.value.problems) == 2
-    assert all("sensor.test_ceiling_dps2" in str(p) for p in info.value.problems)
+        check_envelope(expand(proc), ENV, SHEET, None, locate=lambda p: locate(proc.source_tree, p))
+    (problem,) = info.value.problems
+    assert (problem.line, problem.column) == (6, 24)  # the 0.2 itself
+    assert problem.field == "steps.0.sine_sweep.amplitudes_deg.0"
+    # worst point: A·(2πf)² = 0.2° · (2π · 9.0027 Hz)² = 639.93 °/s² (ceiling 0.8 · 573 °/s²)
+    assert problem.message == (
+        "2 steps from this entry leave the envelope (s002-sine-inner-7.9956Hz-0.2deg … "
+        "s003-sine-inner-9.0027Hz-0.2deg): 2 × [sensor.test_ceiling_dps2], worst: peak "
+        "acceleration 639.932 °/s² exceeds sensor.test_ceiling_dps2 458.366 °/s² "
+        "(80% of the sr207 range)")
 
 
 def test_skip_is_decided_against_the_given_envelope() -> None:
     text = ("procedure: s\nsensor: {model: sr207}\nsteps:\n  - static: {}\n  - sine_sweep:\n"
-            "      frequencies: {include: [1, 2]}\n      accelerations_dps2: [300]\n"
+            "      frequencies: {include: [1, 3]}\n      amplitudes_deg: [0.5]\n"
             "      skip_outside_envelope: true\n")
-    small = SensorDatasheet(model="small", range_dps2=100.0)
-    plan = expand(parse_procedure(text), datasheet=small)
-    assert [s.kind for s in plan.steps] == ["static"]
+    small = SensorDatasheet(model="small", range_dps2=100.0)  # ceiling 80 °/s²
+    expansion = expand_traced(parse_procedure(text), datasheet=small)
+    assert [s.kind for s in expansion.plan.steps] == ["static", "sine"]  # 3 Hz: 178 °/s²
+    (skipped,) = expansion.skipped
+    assert skipped.limits == ("sensor.test_ceiling_dps2",)
     assert len(expand(parse_procedure(text)).steps) == 3
 
 
-def test_a_plan_with_every_point_skipped_is_an_error() -> None:
+def test_a_group_with_every_point_outside_is_an_error_at_its_element() -> None:
     text = ("procedure: s\nsensor: {model: sr207}\nsteps:\n  - sine_sweep:\n"
-            "      frequencies: {include: [9]}\n      amplitudes_deg: [1]\n"
+            "      frequencies: {include: [1, 2]}\n      accelerations_dps2: [100, 2000]\n"
             "      skip_outside_envelope: true\n")
-    with pytest.raises(ProcedureError, match="plans no steps"):
+    with pytest.raises(ProcedureError) as info:
         expand(parse_procedure(text))
+    (problem,) = info.value.problems
+    assert (problem.line, problem.column, problem.field) == (
+        6, 33, "steps.0.sine_sweep.accelerations_dps2.1")
+    assert problem.message.startswith("every one of the 2 points of this group lies outside "
+                                      "the envelope (peak table acceleration 2000 °/s² exceeds "
+                                      "inner.accel_dps2 1000 °/s²")
+
+
+STEPPED_SINE = Path(__file__).parents[2] / "src" / "aatest" / "procedures" / \
+    "stepped-sine-frequency-response.yaml"
+
+
+def _stepped_sine_with_2000(tmp_path: Path, skip: bool) -> Path:
+    """The measured case of issue 14: the 400 °/s² group changed to 2000 °/s²."""
+    text = STEPPED_SINE.read_text().replace("accelerations_dps2: [1, 10, 100, 400]",
+                                            "accelerations_dps2: [1, 10, 100, 2000]")
+    assert "2000]" in text
+    if not skip:
+        text = text.replace("skip_outside_envelope: true", "skip_outside_envelope: false")
+    path = tmp_path / "stepped-sine-2000.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_measured_case_with_skip_names_the_group_that_is_entirely_outside(
+        tmp_path: Path) -> None:
+    path = _stepped_sine_with_2000(tmp_path, skip=True)
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == EXIT_BAD_INPUT
+    assert result.output.startswith(
+        f"error: {path}:27:40: steps.0.sine_sweep.accelerations_dps2.3: every one of the 28 "
+        "points of this group lies outside the envelope"), result.output
+
+
+def test_measured_case_without_skip_gives_one_problem_per_offending_element(
+        tmp_path: Path) -> None:
+    path = _stepped_sine_with_2000(tmp_path, skip=False)
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == EXIT_BAD_INPUT
+    lines = result.output.splitlines()
+    assert [line.split(": ")[0:2] for line in lines] == [
+        [f"{path}:26:24", "steps.0.sine_sweep.amplitudes_deg.0"],
+        [f"{path}:27:40", "steps.0.sine_sweep.accelerations_dps2.3"]]
+    assert "4 steps from this entry" in lines[0] and "4 × [sensor.test_ceiling_dps2]" in lines[0]
+    assert "28 steps from this entry" in lines[1] and "28 × [inner.accel_dps2]" in lines[1]
+    assert "28 × [sensor.test_ceiling_dps2]" in lines[1]
+
+
+def test_validate_and_plan_list_the_skipped_points_with_their_limit() -> None:
+    result = CliRunner().invoke(app, ["validate", str(STEPPED_SINE)])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert lines[0].endswith("OK — 136 steps, lab duration 9592.9 s")
+    assert lines[1] == "skipped 4 point(s) outside the envelope (skip_outside_envelope: true):"
+    assert len(lines) == 6
+    assert all(line.startswith("  sine-inner-") and line.endswith("[sensor.test_ceiling_dps2]")
+               for line in lines[2:])
+    result = CliRunner().invoke(app, ["plan", "--json", str(STEPPED_SINE)])
+    skipped = json.loads(result.output)["skipped"]
+    assert [s["limits"] for s in skipped] == [["sensor.test_ceiling_dps2"]] * 4
+    assert len(skipped) + len(json.loads(result.output)["steps"]) == 28 * 5
 
 
 def test_every_shipped_procedure_fits_with_the_plugin_datasheets() -> None:

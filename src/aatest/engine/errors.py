@@ -8,13 +8,17 @@ may catch either. Library and vendor errors are translated at the plugin boundar
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import wraps
 from pathlib import Path
+from typing import Concatenate, ParamSpec, TypeVar
 
 EXIT_OK = 0
 EXIT_FINDING = 1
 EXIT_BAD_INPUT = 2
 EXIT_RIG_FAULT = 3
+EXIT_INTERNAL = 4
 
 
 @dataclass(frozen=True)
@@ -100,3 +104,33 @@ class VerificationFailed(AatestError):
     """A signed bundle does not verify (exit 1)."""
 
     exit_code = EXIT_FINDING
+
+
+P = ParamSpec("P")
+T = TypeVar("T")
+S = TypeVar("S")
+
+
+def rig_boundary(method: Callable[Concatenate[S, P], T]) -> Callable[Concatenate[S, P], T]:
+    """Translate every non-aatest error leaving a driver method into a one-line RigFault.
+
+    The plugin boundary of docs/interfaces.md §1: whatever a vendor library, a socket or a
+    partial frame throws (``ConnectionResetError``, timeouts, decode errors) ends as exit 3 with
+    one reason line naming the plugin (its ``_where`` attribute) and the method that failed, so
+    the engine brings the rig to its safe state and the run stays resumable. ``KeyboardInterrupt``
+    and other ``BaseException`` pass through untouched.
+    """
+
+    @wraps(method)
+    def wrapper(self: S, /, *args: P.args, **kwargs: P.kwargs) -> T:
+        try:
+            return method(self, *args, **kwargs)
+        except AatestError:
+            raise
+        except Exception as exc:  # the translation boundary: every library error
+            where = getattr(self, "_where", type(self).__name__)
+            detail = " ".join(str(exc).split()) or "no detail"
+            raise RigFault(f"{where}: {method.__name__} failed: "
+                           f"{type(exc).__name__}: {detail}") from exc
+
+    return wrapper

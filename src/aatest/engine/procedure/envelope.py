@@ -15,8 +15,11 @@ Checked per step (peak values of θ = A·sin(ωt): rate A·ω, acceleration A·�
 
 Violations of the motion and sensor limits are *skippable*: a ``sine_sweep`` with
 ``skip_outside_envelope: true`` drops such points at planning time (they are listed as
-skipped); everything that reaches :func:`check_envelope` must pass, or the whole plan is
-rejected with one located problem per violation.
+skipped; a group with every point outside is an error); everything that reaches
+:func:`check_envelope` must pass, or the whole plan is rejected. Problems are located at the YAML
+element that produced the steps (for a sweep, its ``amplitudes_deg``/``accelerations_dps2``
+element): one problem per violation when the element made one step, else one grouped problem
+per element naming how many steps break which limit and the worst case.
 
 Example
 -------
@@ -195,13 +198,36 @@ def check_envelope(plan: Plan, envelope: TableEnvelope, datasheet: SensorDatashe
     if locate is None:
         locate = file_locator(procedure_file) if procedure_file else (lambda _path: (1, 1))
     filename = procedure_file or f"<{plan.procedure}>"
-    problems = []
+    by_source: dict[YamlPath, list[tuple[str, Violation]]] = {}
     for step in plan.steps:
         for v in step_violations(step, envelope, datasheet):
-            line, col = locate(sources.get(step.id, ("steps",)))
-            problems.append(Problem(filename, line, col, step.id, f"{v.message} [{v.limit}]"))
+            by_source.setdefault(tuple(sources.get(step.id, ("steps",))), []).append((step.id, v))
+    problems = []
+    for source, found in by_source.items():
+        line, col = locate(source)
+        if len({step_id for step_id, _ in found}) == 1:
+            problems += [Problem(filename, line, col, step_id, f"{v.message} [{v.limit}]")
+                         for step_id, v in found]
+        else:
+            problems.append(Problem(filename, line, col, ".".join(map(str, source)),
+                                    _grouped_message(found)))
     if problems:
         raise EnvelopeError(problems)
+
+
+def _grouped_message(found: list[tuple[str, Violation]]) -> str:
+    """One sentence for every step one YAML element produces that leaves the envelope: how
+    many steps, their first and last ids, and per broken limit the count and the worst case."""
+    ids = list(dict.fromkeys(step_id for step_id, _ in found))
+    by_limit: dict[str, list[Violation]] = {}
+    for _step_id, v in found:
+        by_limit.setdefault(v.limit, []).append(v)
+    parts = []
+    for limit, violations in by_limit.items():
+        worst = max(violations, key=lambda v: abs(v.value - v.limit_value))
+        parts.append(f"{len(violations)} × [{limit}], worst: {worst.message}")
+    return (f"{len(ids)} steps from this entry leave the envelope ({ids[0]} … {ids[-1]}): "
+            + "; ".join(parts))
 
 
 def describe(violations: list[Violation]) -> list[dict[str, Any]]:

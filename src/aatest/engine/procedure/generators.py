@@ -138,17 +138,27 @@ def sine(w: Walker, body: SineStep, path: YamlPath) -> None:
 
 
 def sine_sweep(w: Walker, body: SineSweep, path: YamlPath) -> None:
-    """Constant-position groups first, then constant-acceleration groups, each ascending in f."""
+    """Constant-position groups first, then constant-acceleration groups, each ascending in f.
+
+    With ``skip_outside_envelope`` a point outside the envelope is dropped (and listed); a group
+    whose every point is outside is an error located at its list element, never a silent gap.
+    """
     rec = w.record(body)
     points = sweep_points(body.frequencies, rec["sample_rate_hz"], rec["samples"])
-    groups = [({"amplitude_deg": a}, True) for a in body.amplitudes_deg]
-    groups += [({"accel_dps2": a}, False) for a in body.accelerations_dps2]
-    for size, by_amplitude in groups:
-        for freq_hz, cycles in points:
-            motion = sine_motion(freq_hz, cycles, **size)
-            w.emit_or_skip(_sine_label(body.axis, motion, by_amplitude), path,
-                           body.skip_outside_envelope, axis=body.axis, inner_deg=body.inner_deg,
-                           outer_deg=body.outer_deg, **motion, **rec)
+    groups = [("amplitudes_deg", i, {"amplitude_deg": a})
+              for i, a in enumerate(body.amplitudes_deg)]
+    groups += [("accelerations_dps2", i, {"accel_dps2": a})
+               for i, a in enumerate(body.accelerations_dps2)]
+    for key, index, size in groups:
+        source = (*path, key, index)  # each step traces back to its own group element
+        kept = [w.emit_or_skip(_sine_label(body.axis, motion, key == "amplitudes_deg"), source,
+                               body.skip_outside_envelope, axis=body.axis,
+                               inner_deg=body.inner_deg, outer_deg=body.outer_deg, **motion, **rec)
+                for motion in (sine_motion(f, c, **size) for f, c in points)]
+        if kept and not any(kept):
+            raise w.fail(source, f"every one of the {len(kept)} points of this group lies "
+                         f"outside the envelope ({w.skipped[-1].describe()}); remove or "
+                         "reduce it")
 
 
 def constant_rate(w: Walker, body: ConstantRate, path: YamlPath) -> None:

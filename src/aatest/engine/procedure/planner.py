@@ -56,12 +56,17 @@ class SkippedPoint:
     accel_dps2: float
     group: str
     reasons: tuple[str, ...]
+    limits: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        """The reasons, each with the limit it breaks: ``message [limit]; ...``."""
+        return "; ".join(f"{r} [{lim}]" for r, lim in zip(self.reasons, self.limits, strict=True))
 
     def to_json(self) -> dict[str, Any]:
         """Return the point as the JSON object of the plan's skipped list."""
         return {"label": self.label, "frequency_hz": self.frequency_hz,
                 "amplitude_deg": self.amplitude_deg, "accel_dps2": self.accel_dps2,
-                "group": self.group, "reasons": list(self.reasons)}
+                "group": self.group, "reasons": list(self.reasons), "limits": list(self.limits)}
 
 
 @dataclass(frozen=True)
@@ -75,6 +80,14 @@ class Expansion:
     def to_contract_json(self) -> dict[str, Any]:
         """The ``plan --json`` document with the extra key ``skipped``."""
         return {**self.plan.to_contract_json(), "skipped": [s.to_json() for s in self.skipped]}
+
+    def skipped_lines(self) -> list[str]:
+        """What ``validate`` prints about dropped points: a count, then one line per point."""
+        if not self.skipped:
+            return []
+        head = (f"skipped {len(self.skipped)} point(s) outside the envelope "
+                "(skip_outside_envelope: true):")
+        return [head, *(f"  {s.label}: {s.describe()}" for s in self.skipped)]
 
 
 _TRACES: OrderedDict[Plan, Expansion] = OrderedDict()
@@ -140,17 +153,23 @@ class _Walker:
         self.prompt = None
         self.drafts.append(_Draft(label + self.rep_suffix, source, fields))
 
-    def emit_or_skip(self, label: str, source: YamlPath, skip: bool, **fields: Any) -> None:
-        """Emit a sweep point, or drop it when allowed and it leaves the envelope."""
-        candidate = PlannedStep(id=label, **fields)
-        reasons = [v.message for v in step_violations(candidate, self.envelope, self.datasheet)
-                   if v.skippable]
-        if skip and reasons:
-            self.skipped.append(SkippedPoint(
-                label, source, fields["frequency_hz"], fields["amplitude_deg"],
-                fields["accel_dps2"], fields["group"], tuple(reasons)))
-            return
+    def emit_or_skip(self, label: str, source: YamlPath, skip: bool, **fields: Any) -> bool:
+        """Emit a sweep point, or drop it when allowed and it leaves the envelope.
+
+        Returns whether the point was emitted.
+        """
+        if skip:
+            candidate = PlannedStep(id=label, **fields)
+            broken = [v for v in step_violations(candidate, self.envelope, self.datasheet)
+                      if v.skippable]
+            if broken:
+                self.skipped.append(SkippedPoint(
+                    label, source, fields["frequency_hz"], fields["amplitude_deg"],
+                    fields["accel_dps2"], fields["group"], tuple(v.message for v in broken),
+                    tuple(v.limit for v in broken)))
+                return False
         self.emit(label, source, **fields)
+        return True
 
     # --- the walk -----------------------------------------------------------------------------
     def walk(self, entries: tuple[StepEntry, ...], base: YamlPath) -> None:

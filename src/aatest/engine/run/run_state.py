@@ -2,19 +2,25 @@
 
 Recorded steps are known from the atomic per-step recording files; this file adds what the
 recording cannot show (the procedure hash the run belongs to, seed, finished chamber steps,
-wall time spent so far). It is replaced atomically on every change.
+wall time spent so far). It is replaced atomically on every change. While a run executes, it
+holds an exclusive ``fcntl.flock`` on ``run.lock`` (which names its PID), so a second
+``run --resume`` on the same directory stops at once with exit 2 (docs/interfaces.md §1).
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from aatest.engine.errors import InputError
 
 STATE_FILE = "run_state.json"
+LOCK_FILE = "run.lock"
 
 
 @dataclass
@@ -73,3 +79,35 @@ def open_state(run_dir: Path, procedure: str, sha256: str, seed: int, resume: bo
             f"(sha256 {state.procedure_sha256[:12]}… vs {sha256[:12]}…); resume refused"
         )
     return state
+
+
+@contextmanager
+def run_lock(run_dir: Path) -> Iterator[None]:
+    """Hold the run directory's lock for the duration of a run.
+
+    The kernel drops an ``flock`` when its holder dies, so a crashed or killed run never leaves
+    a stale lock behind; the PID written into the file is only there to name the holder.
+
+    Raises
+    ------
+    InputError
+        Another process holds the lock (the message names its PID).
+    """
+    run_dir.mkdir(parents=True, exist_ok=True)
+    path = run_dir / LOCK_FILE
+    with path.open("a+", encoding="utf-8") as fh:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError as exc:
+            fh.seek(0)
+            holder = fh.read().strip() or "unknown"
+            raise InputError(f"{run_dir} is in use by another aatest run (PID {holder}, lock "
+                             f"{path}); wait for it to end or stop it first") from exc
+        try:
+            fh.seek(0)
+            fh.truncate()
+            fh.write(f"{os.getpid()}\n")
+            fh.flush()
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)

@@ -20,7 +20,7 @@ from aatest.engine.analysis.results import build_results, read_results, results_
 from aatest.engine.dataset import Dataset
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run.rig import build_rig
-from aatest.engine.run.run_state import STATE_FILE, RunState, open_state
+from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock
 from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
 from aatest.engine.steps import Plan, SensorRef
 from aatest.results import RunResults
@@ -200,17 +200,27 @@ def run(
     pdf: bool = False,
 ) -> tuple[Path, dict[str, Any]]:
     """``aatest run``: execute (or resume) a procedure and produce its results and report."""
-    from aatest.engine.recording import RunRecorder
-
     prepared = prepare(procedure, rig_file)
     plan = prepared.plan
     if out_dir is None:
         if resume:
             raise InputError("--resume needs --out RUN_DIR (the run to continue)")
         out_dir = default_run_dir(plan.procedure)
-    sha = procedure_sha256(prepared.text)
     if resume:
         seed = RunState.load(out_dir).seed
+    with run_lock(out_dir):  # a second run on this directory exits 2, naming this one
+        return _run_locked(prepared, out_dir, resume, seed, key_path, show_progress, operator, pdf)
+
+
+def _run_locked(
+    prepared: Prepared, out_dir: Path, resume: bool, seed: int, key_path: Path | None,
+    show_progress: bool, operator: str | None, pdf: bool,
+) -> tuple[Path, dict[str, Any]]:
+    """The body of :func:`run`, executed while holding the run directory's lock."""
+    from aatest.engine.recording import RunRecorder
+
+    plan = prepared.plan
+    sha = procedure_sha256(prepared.text)
     state = open_state(out_dir, plan.procedure, sha, seed, resume)
     recorder = RunRecorder(out_dir)
     if not state.finished:  # a finished run that is "resumed" is only analysed again

@@ -7,8 +7,10 @@ answers PING/START/STOP commands with STATUS frames. Reception runs in a python-
 silent: a gap in the sequence counter, or fewer frames than the logger reports sent, raises
 :class:`~aatest.engine.errors.RigFault` (``on_frame_loss: fault``, the default) or is kept in
 the record as NaN samples (``on_frame_loss: record``). A bus-off error frame, a failed send,
-or a logger that stops talking raises RigFault with a one-line reason. Optionally the sample
-frames are decoded with cantools from a DBC file (``can_frames.dbc_text`` writes one).
+or a logger that stops talking raises RigFault with a one-line reason; any other error out
+of python-can or the decoder is translated by :func:`~aatest.engine.errors.rig_boundary`.
+Optionally the sample frames are decoded with cantools from a DBC file
+(``can_frames.dbc_text`` writes one).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import can
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from aatest.engine.errors import RigFault
+from aatest.engine.errors import RigFault, rig_boundary
 from aatest.engine.interfaces import RigContext
 from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
@@ -73,7 +75,7 @@ def send(bus: can.BusABC, arbitration_id: int, payload: bytes, fd: bool, where: 
                       is_fd=fd and len(payload) > cf.CLASSIC_PAYLOAD_BYTES)
     try:
         bus.send(msg, timeout=1.0)
-    except can.CanError as exc:
+    except (can.CanError, OSError) as exc:
         raise RigFault(f"{where}: CAN send failed ({exc}); bus-off or disconnected") from exc
 
 
@@ -142,6 +144,7 @@ class CanDaq:
     def channels(self) -> Sequence[str]:
         return [*self._channels, *DAQ_AUX_CHANNELS]
 
+    @rig_boundary
     def start(self) -> None:
         """Open the bus and check that the logger answers a PING."""
         cfg = self.config
@@ -177,6 +180,7 @@ class CanDaq:
                                                  or quiet > self.config.frame_timeout_s):
                 raise RigFault(f"{self._where}: no {what} (logger silent for {quiet:.1f} s)")
 
+    @rig_boundary
     def start_logging(self, step: PlannedStep) -> None:
         """Start the logger (its trigger line starts the table log)."""
         self._rx.samples = []
@@ -185,6 +189,7 @@ class CanDaq:
         self._command(cf.Opcode.START)
         self._expect(cf.LoggerState.LOGGING, "acknowledgement of START")
 
+    @rig_boundary
     def stop_logging(self) -> SampledLog:
         """Stop, wait for the end-of-record status, decode, and account for every frame."""
         self._command(cf.Opcode.STOP)

@@ -4,10 +4,13 @@ The driver speaks only the documented register map (``docs/modbus-register-map.m
 writes demands and the log configuration, issues commands through a sequence-numbered
 handshake (one FC 23 transaction: write COMMAND+SEQ, read ACK+RESULT), waits on the
 *controller's* clock and status bits, and downloads the table log in windows of 120 registers.
-Every pymodbus error, timeout, refused command or fault bit is translated here, at the plugin
-boundary, into :class:`~aatest.engine.errors.RigFault` with a one-line reason naming the
-controller; :meth:`ModbusTurntable.safe_stop` then commands an emergency stop (motion stopped,
-motor off) and never raises. Construction never connects; :meth:`ModbusTurntable.start` does.
+Every pymodbus error, socket error, timeout, partial frame, refused command or fault bit is
+translated here, at the plugin boundary (``_call``, and
+:func:`~aatest.engine.errors.rig_boundary` on every public step), into
+:class:`~aatest.engine.errors.RigFault` with a one-line reason naming the controller;
+:meth:`ModbusTurntable.safe_stop` then commands an emergency stop (motion stopped, motor off;
+once more over a new connection when the link was reset) and never raises. Construction never
+connects; :meth:`ModbusTurntable.start` does.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from aatest.engine.errors import RigFault
+from aatest.engine.errors import RigFault, rig_boundary
 from aatest.engine.interfaces import RigContext, TableEnvelope
 from aatest.engine.logs import TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
@@ -73,6 +76,9 @@ class ModbusTurntable:
         except ModbusException as exc:
             raise RigFault(f"{self._where}: no answer to {what} within "
                            f"{self.config.timeout_s:g} s ({exc.__class__.__name__})") from exc
+        except OSError as exc:  # reset, refused, broken pipe, unreachable: the link is gone
+            raise RigFault(f"{self._where}: connection lost during {what} "
+                           f"({exc.__class__.__name__}: {exc})") from exc
         if getattr(response, "isError", lambda: False)():
             raise RigFault(f"{self._where}: {what} answered with Modbus exception "
                            f"{getattr(response, 'exception_code', '?')}")
@@ -134,21 +140,13 @@ class ModbusTurntable:
         """The declared envelope (checked against the controller's limits in :meth:`start`)."""
         return self.config.envelope
 
+    @rig_boundary
     def start(self) -> None:
         """Connect, check the map version and limits, set the declared envelope as the
         controller's user limits (it then refuses anything beyond it too), configure the
         freeze-pulse and trigger inputs, clear faults, motor on."""
         cfg = self.config
-        self._client = ModbusTcpClient(cfg.host, port=cfg.port, timeout=cfg.timeout_s,
-                                       retries=cfg.retries, reconnect_delay=0)
-        try:
-            connected = self._client.connect()
-        except (OSError, ModbusException) as exc:
-            connected, reason = False, str(exc)
-        else:
-            reason = "connection refused or host unreachable"
-        if not connected:
-            raise RigFault(f"{self._where}: cannot connect ({reason})")
+        self._connect()
         version = int(self._value(Reg.MAP_VERSION))
         if version != mm.MAP_VERSION:
             raise RigFault(f"{self._where}: register map version {version}, driver speaks "
@@ -169,6 +167,22 @@ class ModbusTurntable:
         if Status.INTERLOCK_CLOSED not in status:
             raise RigFault(f"{self._where}: safety interlock open; close it and retry")
 
+    def _connect(self) -> None:
+        """(Re)open the TCP connection; RigFault when the controller cannot be reached."""
+        cfg = self.config
+        if self._client is not None:
+            self._client.close()
+        self._client = ModbusTcpClient(cfg.host, port=cfg.port, timeout=cfg.timeout_s,
+                                       retries=cfg.retries, reconnect_delay=0)
+        try:
+            connected = self._client.connect()
+        except (OSError, ModbusException) as exc:
+            connected, reason = False, str(exc)
+        else:
+            reason = "connection refused or host unreachable"
+        if not connected:
+            raise RigFault(f"{self._where}: cannot connect ({reason})")
+
     def _check_limits(self) -> None:
         """The declared envelope must lie inside the controller's factory limits."""
         env = self.config.envelope
@@ -184,6 +198,7 @@ class ModbusTurntable:
                                f"{declared:g} exceeds the controller's {actual:g}; "
                                "fix the rig file")
 
+    @rig_boundary
     def move_to(self, inner_deg: float, outer_deg: float) -> None:
         self._write({Reg.MODE: Mode.POSITION, Reg.INNER_POSITION_DEMAND_DEG: inner_deg,
                      Reg.OUTER_POSITION_DEMAND_DEG: outer_deg})
@@ -191,6 +206,7 @@ class ModbusTurntable:
         self._wait("in position", lambda s: Status.IN_POSITION in s and Status.MOVING not in s,
                    self.config.move_timeout_s)
 
+    @rig_boundary
     def begin_motion(self, step: PlannedStep) -> None:
         """Write the log configuration, the settling time and the step's demands, start,
         and wait until the controller reports the profile settled."""
@@ -205,6 +221,7 @@ class ModbusTurntable:
         self._wait("settled", lambda s: Status.SETTLED in s,
                    step.settle_s + self.config.move_timeout_s)
 
+    @rig_boundary
     def record(self, step: PlannedStep) -> SampledLog:
         """Arm the log (started by the DAQ trigger), wait for it, download it."""
         previous = int(self._value(Reg.LOG_ID))
@@ -240,6 +257,7 @@ class ModbusTurntable:
                                                   min(per, samples - start)))
         return np.concatenate(parts) if parts else np.zeros(0)
 
+    @rig_boundary
     def end_motion(self) -> None:
         """Stop the profile; the controller returns to its start position."""
         self._command(Command.STOP)
@@ -248,13 +266,23 @@ class ModbusTurntable:
                    self.config.move_timeout_s)
 
     def safe_stop(self) -> None:
-        """Emergency stop (motion stopped, motor off); never raises, idempotent."""
+        """Emergency stop (motion stopped, motor off); never raises, idempotent.
+
+        When the link was reset, the command is sent once more over a new connection; a
+        controller that cannot be reached at all is logged (each attempt bounded by
+        ``timeout_s``) and left to its own watchdog.
+        """
         if self._client is None:
             return
-        try:
-            self._command(Command.EMERGENCY_STOP)
-        except Exception as exc:  # noqa: BLE001 - a safe stop must not raise
-            log.error("%s: emergency stop not confirmed: %s", self._where, exc)
+        for reconnect in (False, True):  # a reset link is reopened once: the table must stop
+            try:
+                if reconnect:
+                    self._connect()
+                self._command(Command.EMERGENCY_STOP)
+                return
+            except Exception as exc:  # noqa: BLE001 - a safe stop must not raise
+                log.error("%s: emergency stop not confirmed%s: %s", self._where,
+                          " after reconnecting" if reconnect else "", exc)
 
     def close(self) -> None:
         if self._client is not None:
