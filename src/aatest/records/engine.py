@@ -57,7 +57,7 @@ def open_engine(url: URL) -> Engine:
         engine.dispose()
         cause = getattr(exc, "orig", None) or exc
         raise RecordsUnavailable(
-            f"records database {redacted(url)} cannot be reached: {str(cause).strip()}"
+            f"records database {redacted(url)} cannot be reached: {' '.join(str(cause).split())}"
             " (check --records / AATEST_RECORDS)"
         ) from exc
     return engine

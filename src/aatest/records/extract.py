@@ -92,3 +92,33 @@ def unit_of(results: Mapping[str, Any]) -> tuple[str, str]:
     model = str(sensor.get("model") or "unknown")
     serial = sensor.get("serial")
     return model, str(serial) if serial else "unspecified"
+
+
+def _sensor_rows(results: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    rows = (results.get("metadata") or {}).get("sensors") or []
+    return [r for r in rows if isinstance(r, Mapping) and r.get("channel")]
+
+
+def datasheet_limits(results: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
+    """Acceptance band ``(low, high)`` per key quantity from the sensor datasheet in the run.
+
+    Scale factor: nominal ± tolerance %; bias: nominal ± tolerance V; g-sensitivity: ±limit
+    when the bias analysis states one. Quantities without a datasheet limit are left out.
+    """
+    limits: dict[str, tuple[float, float]] = {}
+    for row in _sensor_rows(results):
+        channel = str(row["channel"])
+        nominal, tol = _finite(row.get("nominal_scale_v_per_dps2")), _finite(
+            row.get("scale_tolerance_pct"))
+        if nominal is not None and tol is not None:
+            half = abs(nominal) * tol / 100.0
+            limits[f"scale_factor.{channel}"] = (nominal - half, nominal + half)
+        bias, bias_tol = _finite(row.get("nominal_bias_v")), _finite(row.get("bias_tolerance_v"))
+        if bias is not None and bias_tol is not None:
+            limits[f"bias.{channel}"] = (bias - bias_tol, bias + bias_tol)
+    for channel, row in _channels(results, "bias").items():
+        g_limit = _finite(row.get("g_sensitivity_limit_dps2_per_g")) if isinstance(
+            row, Mapping) else None
+        if g_limit is not None:
+            limits[f"g_sensitivity.{channel}"] = (-g_limit, g_limit)
+    return limits

@@ -96,8 +96,8 @@ class RecordStore:
             return _records(connection, rows)
 
     def history(self, serial: str) -> list[CalibrationRecord]:
-        """The current (not superseded) records of a unit, oldest first."""
-        return self.query(RecordFilter(serial=serial))
+        """The current (not superseded) calibrations of a unit, oldest first (no diagnoses)."""
+        return [r for r in self.query(RecordFilter(serial=serial)) if r.command != "diagnose"]
 
     def get(self, key: str) -> CalibrationRecord:
         """The newest record with certificate number ``key`` (or record id ``key``)."""
@@ -110,6 +110,19 @@ class RecordStore:
         if not found:
             raise RecordsError(f"no record {key!r} in {self.name}")
         return found[0]
+
+    def query_certificate(self, number: str) -> list[CalibrationRecord]:
+        """Every record (also superseded ones) under certificate ``number``, oldest first."""
+        with self.engine.connect() as connection:
+            rows = connection.execute(_base().where(
+                calibrations.c.certificate_number == number).order_by(calibrations.c.id)).all()
+            return _records(connection, rows)
+
+    def results_of(self, record_id: int) -> dict[str, Any]:
+        """The stored results document of a record (without figures)."""
+        with self.engine.connect() as connection:
+            return dict(connection.execute(select(calibrations.c.results).where(
+                calibrations.c.id == record_id)).scalar_one())
 
     def latest_for_bundle(self, bundle: str) -> CalibrationRecord | None:
         """The newest record registered for the bundle whose main file is ``bundle``."""
