@@ -326,26 +326,6 @@ def history(
     typer.echo(commands.history(serial, records, load_lab(lab), as_json, html))
 
 
-def _filter(serial: Optional[str], model: Optional[str], procedure: Optional[str],
-            verdict: Optional[str], since: Optional[str], until: Optional[str],
-            superseded: bool) -> Any:
-    from datetime import datetime
-
-    from aatest.records.models import RecordFilter
-
-    def when(text: Optional[str], option: str) -> Optional[datetime]:
-        try:
-            return datetime.fromisoformat(text) if text else None
-        except ValueError as exc:
-            from aatest.engine.errors import InputError
-
-            raise InputError(f"{option} {text!r}: expected a date like 2026-01-31") from exc
-
-    return RecordFilter(serial=serial, model=model, procedure=procedure, verdict=verdict,
-                        since_utc=when(since, "--since"), until_utc=when(until, "--until"),
-                        include_superseded=superseded)
-
-
 _SERIAL = typer.Option(None, "--serial")
 _MODEL = typer.Option(None, "--model", help="Sensor model")
 _PROCEDURE = typer.Option(None, "--procedure")
@@ -367,7 +347,7 @@ def records_list(
     """List calibration records matching the filters, oldest first."""
     from aatest.records import commands
 
-    where = _filter(serial, model, procedure, verdict, since, until, superseded)
+    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
     typer.echo(commands.list_records(records, where))
 
 
@@ -395,7 +375,7 @@ def records_export(
     """Export matching records to CSV (one row per record, quantities as columns)."""
     from aatest.records import commands
 
-    where = _filter(serial, model, procedure, verdict, since, until, superseded)
+    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
     typer.echo(f"exported {commands.export_records(records, where, csv)} records to {csv}")
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +17,22 @@ from aatest.records.store import RecordStore
 from aatest.records.trend import write_trend_html
 from aatest.records.url import is_default_missing, resolve_url
 from aatest.records.verify import find_record, record_reasons
+
+
+def _moment(text: str | None, option: str) -> datetime | None:
+    try:
+        return datetime.fromisoformat(text) if text else None
+    except ValueError as exc:
+        raise RecordsError(f"{option} {text!r}: expected an ISO date like 2026-01-31") from exc
+
+
+def record_filter(serial: str | None, model: str | None, procedure: str | None,
+                  verdict: str | None, since: str | None, until: str | None,
+                  superseded: bool) -> RecordFilter:
+    """The query of ``records list|export`` from its options (dates in ISO form, UTC)."""
+    return RecordFilter(serial=serial, model=model, procedure=procedure, verdict=verdict,
+                        since_utc=_moment(since, "--since"), until_utc=_moment(until, "--until"),
+                        include_superseded=superseded)
 
 
 def open_for_reading(records_url: str | None) -> RecordStore:

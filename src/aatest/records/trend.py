@@ -55,7 +55,9 @@ def _plot(records: Sequence[CalibrationRecord], name: str,
     values = [r.quantities[name].value for r in rows]
     errors = [r.quantities[name].expanded_uncertainty or 0.0 for r in rows]
     figure, axes = plt.subplots(figsize=(7.0, 3.0))
-    axes.errorbar(when, values, yerr=errors, fmt="o", capsize=4, label="calibration ± U")
+    stated = any(r.quantities[name].expanded_uncertainty is not None for r in rows)
+    axes.errorbar(when, values, yerr=errors, fmt="o", capsize=4,
+                  label="calibration ± U" if stated else "calibration (U not stated)")
     if limits is not None:
         for bound in limits:
             axes.axhline(bound, color="tab:red", linestyle="--", linewidth=1)
