@@ -159,3 +159,24 @@ def test_reading_a_missing_store_does_not_create_it(tmp_path: Path) -> None:
     missing = tmp_path / "nowhere.sqlite"
     code, _, stderr = aatest("records", "list", "--records", f"sqlite:///{missing}")
     assert code == 2 and "no records store at" in stderr and not missing.exists()
+
+
+def test_diagnosis_is_registered_but_not_a_calibration(sqlite_url: str, tmp_path: Path) -> None:
+    """What ``aatest diagnose`` wrote is recorded for the unit, without a certificate number."""
+    from aatest.records.hook import register_diagnosis, registering
+    from aatest.records.lab import LabProfile
+    from aatest.records.models import RecordFilter
+    from aatest.records.store import RecordStore
+
+    (run, _) = _two_runs(sqlite_url, tmp_path)
+    (run / "diagnosis.html").write_text("<html>diagnosis</html>", encoding="utf-8")
+    with registering(sqlite_url, LabProfile(), "diagnose") as registrar:
+        record_id = register_diagnosis(registrar, run, None)
+    with RecordStore.open(sqlite_url) as store:
+        everything = store.query(RecordFilter(serial="A1234"))
+        history = store.history("A1234")
+    diagnosis = next(r for r in everything if r.id == record_id)
+    assert diagnosis.command == "diagnose" and diagnosis.certificate_number is None
+    assert diagnosis.bundle == str((run / "diagnosis.html").resolve())
+    assert "diagnosis.html" in diagnosis.files and "recording.mcap" in diagnosis.files
+    assert len(history) == 2 and all(r.command == "run" for r in history)
