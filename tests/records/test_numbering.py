@@ -35,7 +35,7 @@ def _station(url: str, count: int, barrier: object, queue: object) -> None:
 
 
 def _issue_concurrently(url: str, stations: int, each: int) -> list[str]:
-    RecordStore.open(url).close()  # migrate once, so the stations race on numbers only
+    """Every station opens the new, empty store itself: migration and numbering both race."""
     context = multiprocessing.get_context("spawn")
     barrier, queue = context.Barrier(stations), context.Queue()
     workers = [context.Process(target=_station, args=(url, each, barrier, queue))
