@@ -30,7 +30,8 @@ def _write_version_1(url: str) -> None:
     assert schema.current_revision(engine) == "0001"
     when = datetime(2025, 6, 1, 8, 0, tzinfo=timezone.utc)
     with engine.begin() as connection:
-        connection.execute(text("INSERT INTO units (id, model, serial) VALUES (1, 'sr207', 'OLD1')"))
+        connection.execute(text(
+            "INSERT INTO units (id, model, serial) VALUES (1, 'sr207', 'OLD1')"))
         connection.execute(text(
             "INSERT INTO certificate_counters (prefix, year, last_number) VALUES ('LAB', 2025, 7)"))
         connection.execute(text(
@@ -43,7 +44,8 @@ def _write_version_1(url: str) -> None:
             " 'Old Lab', :when, :when, 'pass', '[]', :results, '/old/report.html')"),
             {"when": when, "results": json.dumps(RESULTS_V1)})
         connection.execute(text(
-            "INSERT INTO signed_files (calibration_id, name, sha256) VALUES (1, 'report.html', :h)"),
+            "INSERT INTO signed_files (calibration_id, name, sha256)"
+            " VALUES (1, 'report.html', :h)"),
             {"h": "c" * 64})
     engine.dispose()
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime, timedelta, timezone
+from pathlib import Path
 
 import pytest
 
@@ -14,7 +15,8 @@ from aatest.records.url import redacted, resolve_url
 T0 = datetime(2026, 3, 1, 9, 30, tzinfo=timezone.utc)
 
 
-def _registration(serial: str, bundle: str, day: int, scale: float, **extra: object) -> Registration:
+def _registration(serial: str, bundle: str, day: int, scale: float,
+                  **extra: object) -> Registration:
     fields: dict[str, object] = dict(
         model="sr207", serial=serial, command="run", procedure="scale-factor", lab="Test Lab",
         calibrated_utc=T0 + timedelta(days=day), bundle=bundle, overall_verdict="pass",
@@ -100,7 +102,7 @@ def test_unreachable_database_names_the_url_without_password() -> None:
     assert caught.value.exit_code == 2 and isinstance(caught.value, ConnectionError)
 
 
-def test_environment_then_default(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_environment_then_default(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setenv("AATEST_RECORDS", "sqlite:///from-env.sqlite")
     assert resolve_url().database == "from-env.sqlite"
     assert resolve_url("sqlite:///explicit.sqlite").database == "explicit.sqlite"

@@ -59,7 +59,8 @@ def history(serial: str, records_url: str | None, lab: LabProfile, as_json: bool
 
 def _line(record: CalibrationRecord) -> str:
     return (f"{record.certificate_number or '—':18s} {record.calibrated_utc:%Y-%m-%d %H:%M}  "
-            f"{record.model}/{record.serial:10s} {record.procedure:30s} {record.overall_verdict:16s}"
+            f"{record.model}/{record.serial:10s} {record.procedure:30s} "
+            f"{record.overall_verdict:16s}"
             f" {record.command:8s} {record.bundle}")
 
 

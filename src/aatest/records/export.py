@@ -23,7 +23,8 @@ def write_csv(path: Path, records: Sequence[CalibrationRecord]) -> Path:
         writer.writerow(header)
         for record in records:
             base = record.model_dump(mode="json", include=set(BASE_COLUMNS))
-            row: list[object] = [base.get(c) if base.get(c) is not None else "" for c in BASE_COLUMNS]
+            row: list[object] = [
+                base.get(c) if base.get(c) is not None else "" for c in BASE_COLUMNS]
             for name in names:
                 q = record.quantities.get(name)
                 row += ["", "", ""] if q is None else [

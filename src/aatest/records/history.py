@@ -122,7 +122,8 @@ def history_text(serial: str, records: Sequence[CalibrationRecord], interval_mon
     due = next_due(records, interval_months)
     if due is not None:
         overdue = " — OVERDUE" if due < datetime.now(due.tzinfo) else ""
-        lines.append(f"next due: {due.date().isoformat()} (interval {interval_months} months){overdue}")
+        lines.append(f"next due: {due.date().isoformat()}"
+                     f" (interval {interval_months} months){overdue}")
     return "\n".join(lines)
 
 

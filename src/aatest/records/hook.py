@@ -1,9 +1,10 @@
 """Registration of what ``run``/``analyze``/``report`` produce, at the one point they share.
 
-The CLI opens a :func:`registering` scope (records URL, lab profile, command); the session
-calls :func:`before_signing` once results are complete — a certificate number is issued and
+The CLI opens a :func:`registering` scope (records URL, lab profile, command), which installs
+a :class:`Registrar` as the engine's bundle observer; the session calls its ``before_signing``
+once results are complete — a certificate number is issued and
 written into the results, so it is in ``results.json`` and on the certificate before the
-signature covers them — and :func:`after_signing` once the bundle is final, which appends the
+signature covers them — and ``after_signing`` once the bundle is final, which appends the
 record with the SHA-256 of every bundle file. Outside a scope (library use, other tests) both
 are no-ops, so nothing is registered behind a caller's back.
 
@@ -16,12 +17,12 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator, Mapping, MutableMapping
 from contextlib import contextmanager
-from contextvars import ContextVar
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from aatest.engine.run import bundle_hooks
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
 from aatest.records.lab import LabProfile
@@ -62,6 +63,14 @@ class Registrar:
         except RecordsUnavailable as exc:
             self.error = exc
 
+    def before_signing(self, results: MutableMapping[str, Any]) -> None:
+        """Bundle observer: the certificate number, before the results are written."""
+        self.assign_certificate(results)
+
+    def after_signing(self, results: Mapping[str, Any], report: Path) -> None:
+        """Bundle observer: register the finished bundle."""
+        self.register(results, report)
+
     def register(self, results: Mapping[str, Any], bundle: Path) -> int | None:
         """Append the record of ``bundle``; ``None`` when the store is unreachable."""
         if self.error is not None:
@@ -74,35 +83,17 @@ class Registrar:
             return None
 
 
-_ACTIVE: ContextVar[Registrar | None] = ContextVar("aatest_records_registrar", default=None)
-
-
 @contextmanager
 def registering(records_url: str | None, lab: LabProfile, command: str) -> Iterator[Registrar]:
     """Register everything the enclosed session call produces; raise a deferred DB error."""
     registrar = Registrar(records_url, lab, command)
-    token = _ACTIVE.set(registrar)
     try:
-        yield registrar
+        with bundle_hooks.observing(registrar):
+            yield registrar
     finally:
-        _ACTIVE.reset(token)
         registrar.close()
     if registrar.error is not None:
         raise RecordsUnavailable(f"{registrar.error} — the files were written, but not registered")
-
-
-def before_signing(results: MutableMapping[str, Any]) -> None:
-    """Session hook: put a certificate number into ``results`` (no-op outside a scope)."""
-    registrar = _ACTIVE.get()
-    if registrar is not None:
-        registrar.assign_certificate(results)
-
-
-def after_signing(results: Mapping[str, Any], bundle: Path) -> None:
-    """Session hook: register the finished bundle (no-op outside a scope)."""
-    registrar = _ACTIVE.get()
-    if registrar is not None:
-        registrar.register(results, bundle)
 
 
 def bundle_files(bundle: Path) -> dict[str, str]:
@@ -138,8 +129,8 @@ def registration_for(
         results=json.loads(json.dumps(stored)), bundle=str(Path(bundle).resolve()),
         key_fingerprint=signature.get("fingerprint") if isinstance(signature, Mapping) else None,
         files=bundle_files(Path(bundle)),
-        quantities={q.name: QuantityRecord(value=q.value, expanded_uncertainty=q.expanded_uncertainty,
-                                           unit=q.unit)
+        quantities={q.name: QuantityRecord(value=q.value, unit=q.unit,
+                                           expanded_uncertainty=q.expanded_uncertainty)
                     for q in extract.key_quantities(results, lab.frf_reference_frequency_hz)},
     )
 

@@ -15,11 +15,11 @@ from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.errors import InputError
 from aatest.engine.analysis.results import build_results, read_results, write_results
+from aatest.engine.run import bundle_hooks
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state
 from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
 from aatest.engine.steps import Plan, SensorRef
-from aatest.records import hook as records_hook
 
 log = logging.getLogger("aatest")
 
@@ -131,7 +131,7 @@ def render_and_sign(
     if key_path is not None:
         private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
         results["signature"] = {"fingerprint": signing.key_fingerprint(private.public_key())}
-    records_hook.before_signing(results)  # the certificate number, before results are written
+    bundle_hooks.before_signing(results)  # e.g. a certificate number, before results are written
     write_results(results, run_dir)
     info = registry.load("report", template)
     reporter = info.target(registry.configure(info, {}))
@@ -142,7 +142,7 @@ def render_and_sign(
         render_pdf(report)
     if private is not None:
         signing.sign_bundle(report, private)
-    records_hook.after_signing(results, report)
+    bundle_hooks.after_signing(results, report)
     return report
 
 
