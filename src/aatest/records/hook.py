@@ -22,6 +22,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from pydantic import BaseModel
+
 from aatest.engine.run import bundle_hooks
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
@@ -32,6 +34,24 @@ from aatest.records.store import RecordStore, as_utc
 CERTIFICATE_KEY = "certificate_number"
 #: commands whose results earn a new certificate number (``report`` re-signs the same one)
 ISSUING_COMMANDS = frozenset({"run", "analyze"})
+#: the results as the session holds them: the ``results.json`` dict or a typed pydantic model
+Results = MutableMapping[str, Any] | BaseModel
+
+
+def as_document(results: Results) -> dict[str, Any]:
+    """The ``results.json`` document of ``results`` (a dict, or a typed model dumped as JSON)."""
+    if isinstance(results, BaseModel):
+        return dict(results.model_dump(mode="json"))
+    return dict(results)
+
+
+def _set_certificate(results: Results, number: str | None) -> None:
+    if isinstance(results, BaseModel):
+        setattr(results, CERTIFICATE_KEY, number)  # the typed root declares the field
+    elif number is None:
+        results.pop(CERTIFICATE_KEY, None)
+    else:
+        results[CERTIFICATE_KEY] = number
 
 
 @dataclass
@@ -53,29 +73,31 @@ class Registrar:
         if self._store is not None:
             self._store.close()
 
-    def assign_certificate(self, results: MutableMapping[str, Any]) -> None:
+    def assign_certificate(self, results: Results) -> None:
         """Issue a number into ``results`` (``run``/``analyze``); keep it on re-signing."""
-        if self.command not in ISSUING_COMMANDS and results.get(CERTIFICATE_KEY):
+        if self.command not in ISSUING_COMMANDS and as_document(results).get(CERTIFICATE_KEY):
             return
-        results.pop(CERTIFICATE_KEY, None)
+        _set_certificate(results, None)
         try:
-            results[CERTIFICATE_KEY] = self.store().issue_certificate(self.lab.certificate_prefix)
+            number = self.store().issue_certificate(self.lab.certificate_prefix)
         except RecordsUnavailable as exc:
             self.error = exc
+            return
+        _set_certificate(results, number)
 
-    def before_signing(self, results: MutableMapping[str, Any]) -> None:
+    def before_signing(self, results: Results) -> None:
         """Bundle observer: the certificate number, before the results are written."""
         self.assign_certificate(results)
 
-    def after_signing(self, results: Mapping[str, Any], report: Path) -> None:
+    def after_signing(self, results: Results, report: Path) -> None:
         """Bundle observer: register the finished bundle."""
         self.register(results, report)
 
-    def register(self, results: Mapping[str, Any], bundle: Path) -> int | None:
+    def register(self, results: Results, bundle: Path) -> int | None:
         """Append the record of ``bundle``; ``None`` when the store is unreachable."""
         if self.error is not None:
             return None
-        registration = registration_for(results, bundle, self.command, self.lab)
+        registration = registration_for(as_document(results), bundle, self.command, self.lab)
         try:
             return self.store().register(registration)
         except RecordsUnavailable as exc:

@@ -7,7 +7,7 @@ and :func:`after_signing` at the two points that matter. Without an observer bot
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, MutableMapping
+from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
@@ -17,10 +17,13 @@ from typing import Any, Protocol
 class BundleObserver(Protocol):
     """Told about a bundle before its results are written and once it is signed."""
 
-    def before_signing(self, results: MutableMapping[str, Any]) -> None:
-        """Complete ``results`` (e.g. a certificate number) before they are written and signed."""
+    def before_signing(self, results: Any) -> None:
+        """Complete ``results`` (e.g. a certificate number) before they are written and signed.
 
-    def after_signing(self, results: Mapping[str, Any], report: Path) -> None:
+        ``results`` is what the session writes: the ``results.json`` dict or the typed model.
+        """
+
+    def after_signing(self, results: Any, report: Path) -> None:
         """The bundle around ``report`` is final (written and, with a key, signed)."""
 
 
@@ -37,14 +40,14 @@ def observing(observer: BundleObserver) -> Iterator[BundleObserver]:
         _OBSERVER.reset(token)
 
 
-def before_signing(results: MutableMapping[str, Any]) -> None:
+def before_signing(results: Any) -> None:
     """Let the observer, if any, complete ``results`` before they are written."""
     observer = _OBSERVER.get()
     if observer is not None:
         observer.before_signing(results)
 
 
-def after_signing(results: Mapping[str, Any], report: Path) -> None:
+def after_signing(results: Any, report: Path) -> None:
     """Tell the observer, if any, that the bundle around ``report`` is final."""
     observer = _OBSERVER.get()
     if observer is not None:
