@@ -4,6 +4,7 @@ the engine writes during the suite is validated against the committed results.sc
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -30,3 +31,7 @@ def _all_results_match_schema(tmp_path_factory: pytest.TempPathFactory) -> Itera
     (module-scoped fixtures write there too)."""
     yield
     assert_valid_results(tmp_path_factory.getbasetemp())
+# CLI runs register calibration records: never into the user's own store (tests/records
+# points each of its tests at a fresh one)
+os.environ.setdefault("AATEST_RECORDS", "sqlite:///" + os.path.join(
+    tempfile.mkdtemp(prefix="aatest-test-records-"), "records.sqlite"))

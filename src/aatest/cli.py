@@ -32,6 +32,8 @@ app = typer.Typer(
 )
 sim_server_app = typer.Typer(no_args_is_help=True, help="Serve the simulated rig over a real protocol.")
 app.add_typer(sim_server_app, name="sim-server")
+records_app = typer.Typer(no_args_is_help=True, help="Query the calibration records.")
+app.add_typer(records_app, name="records")
 
 _state = {"debug": False}
 #: a defect of aatest (docs/interfaces.md: "never exit 1", which means a failed verdict)
@@ -111,6 +113,20 @@ def _main(debug: bool = typer.Option(False, "--debug", help="Show tracebacks."))
     logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING, format="%(levelname)s: %(message)s")
 
 
+_RECORDS_HELP = "Records database URL (else AATEST_RECORDS, else the default SQLite file)"
+_LAB_HELP = "Lab profile YAML (else AATEST_LAB): name, certificate prefix, interval"
+
+
+def _registering(records: Optional[str], lab: Optional[Path], command: str) -> Any:
+    """The records scope of a command that produces a bundle (checks the URL up front)."""
+    from aatest.records.hook import registering
+    from aatest.records.lab import load_lab
+    from aatest.records.url import resolve_url
+
+    resolve_url(records)
+    return registering(records, load_lab(lab), command)
+
+
 def _print_json(doc: Any) -> None:
     typer.echo(json.dumps(doc, indent=2, allow_nan=False))
 
@@ -166,13 +182,16 @@ def run(
     no_progress: bool = typer.Option(False, "--no-progress"),
     operator: Optional[str] = typer.Option(None, "--operator", help="Name on the certificate"),
     pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
+    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
-    """Run a procedure: record both loggers, analyse, report (and sign)."""
+    """Run a procedure: record both loggers, analyse, report (and sign), register the record."""
     from aatest.engine.run import session
 
-    run_dir, results = session.run(
-        procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator, pdf=pdf
-    )
+    with _registering(records, lab, "run"):
+        run_dir, results = session.run(
+            procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator, pdf=pdf
+        )
     typer.echo(
         f"run complete: {run_dir} — {len(results['steps'])} steps, lab {results['lab_duration_s']:.1f} s, "
         f"wall {results['wall_duration_s']:.1f} s"
@@ -205,15 +224,18 @@ def analyze(
     json_out: Optional[Path] = typer.Option(None, "--json", help="Also write results here"),
     out: Optional[Path] = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
     sign_key: Optional[Path] = typer.Option(None, "--sign-key"),
+    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
     """Analyse recorded or imported data and write results.json and the report."""
     from aatest.engine.run import session
 
     target = out or (data if data.is_dir() else data.parent)
     wall = session.run_wall_duration(data) if data.is_dir() else None
-    results = session.analyse_and_report(
-        data, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
-    )
+    with _registering(records, lab, "analyze"):
+        results = session.analyse_and_report(
+            data, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
+        )
     if json_out is not None:
         json_out.write_text(json.dumps(results, indent=2), encoding="utf-8")
     typer.echo(f"analysed {len(results['steps'])} steps → {target / 'results.json'}")
@@ -240,11 +262,16 @@ def diagnose(
     data: Path = typer.Argument(..., help="Run directory, recording or import directory"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
     model_out: Optional[Path] = typer.Option(None, "--model-out", help="Write the extended model YAML"),
+    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
     """Show what the simulation gets wrong, name the cause, extend the model, measure the gain."""
     from aatest.diagnose.command import diagnose_command
+    from aatest.records.hook import register_diagnosis
 
-    findings = diagnose_command(data, json_out, model_out)
+    with _registering(records, lab, "diagnose") as registrar:
+        findings = diagnose_command(data, json_out, model_out)
+        register_diagnosis(registrar, data, json_out)
     raise typer.Exit(EXIT_FINDING if findings else 0)
 
 
@@ -267,11 +294,14 @@ def report(
     template: Optional[Path] = typer.Option(None, "--template", help="A lab's own template directory"),
     sign_key: Optional[Path] = typer.Option(None, "--sign-key"),
     pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
+    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
-    """Re-render (and sign) the report of a run."""
+    """Re-render (and sign) the report of a run; the new record supersedes the old one."""
     from aatest.engine.run import session
 
-    typer.echo(f"report: {session.report(run_dir, template, sign_key, pdf)}")
+    with _registering(records, lab, "report"):
+        typer.echo(f"report: {session.report(run_dir, template, sign_key, pdf)}")
 
 
 @app.command()
@@ -293,15 +323,18 @@ def keygen(
 def verify(
     report_file: Path = typer.Argument(..., help="Signed report"),
     public_key: Optional[Path] = typer.Option(None, "--public-key", help="Trusted public key"),
+    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
 ) -> None:
-    """Check a signed report bundle: exit 0 untouched, 1 tampered or wrong key."""
+    """Check a signed report bundle and its record: exit 0 untouched, 1 tampered or wrong key."""
     from aatest.engine.run import signing
+    from aatest.records.commands import verify_against_record
 
     result = signing.verify_bundle(report_file, public_key)
-    if result.ok:
-        typer.echo(f"{report_file}: signature valid")
+    record_problems, note = verify_against_record(report_file, records)
+    if result.ok and not record_problems:
+        typer.echo(f"{report_file}: signature valid; {note}")
         return
-    for reason in result.reasons:
+    for reason in result.reasons + record_problems:
         typer.echo(f"{report_file}: {reason}", err=True)
     raise typer.Exit(EXIT_FINDING)
 
@@ -333,6 +366,75 @@ def plugins() -> None:
                 typer.echo(f"  {info.name:24s} {info.distribution} {info.version}")
             except PluginError as exc:
                 typer.echo(f"  {ep.name:24s} BROKEN: {exc}")
+
+
+@app.command()
+@guarded
+def history(
+    serial: str = typer.Argument(..., help="Unit serial number"),
+    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
+    as_json: bool = typer.Option(False, "--json", help="Print the history as JSON"),
+    html: Optional[Path] = typer.Option(None, "--html", help="Write trend plots to this HTML file"),
+    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
+) -> None:
+    """A unit's calibrations: dates, certificates, key results ± U, verdicts, drift, next due."""
+    from aatest.records import commands
+    from aatest.records.lab import load_lab
+
+    typer.echo(commands.history(serial, records, load_lab(lab), as_json, html))
+
+
+_SERIAL = typer.Option(None, "--serial")
+_MODEL = typer.Option(None, "--model", help="Sensor model")
+_PROCEDURE = typer.Option(None, "--procedure")
+_VERDICT = typer.Option(None, "--verdict", help="pass | fail | conditional-pass | ... | none")
+_SINCE = typer.Option(None, "--since", help="Calibrated on/after (ISO date, UTC)")
+_UNTIL = typer.Option(None, "--until", help="Calibrated on/before (ISO date, UTC)")
+_SUPERSEDED = typer.Option(False, "--superseded", help="Include superseded records")
+_RECORDS = typer.Option(None, "--records", help=_RECORDS_HELP)
+
+
+@records_app.command("list")
+@guarded
+def records_list(
+    serial: Optional[str] = _SERIAL, model: Optional[str] = _MODEL,
+    procedure: Optional[str] = _PROCEDURE, verdict: Optional[str] = _VERDICT,
+    since: Optional[str] = _SINCE, until: Optional[str] = _UNTIL, superseded: bool = _SUPERSEDED,
+    records: Optional[str] = _RECORDS,
+) -> None:
+    """List calibration records matching the filters, oldest first."""
+    from aatest.records import commands
+
+    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
+    typer.echo(commands.list_records(records, where))
+
+
+@records_app.command("show")
+@guarded
+def records_show(
+    key: str = typer.Argument(..., help="Certificate number or record id"),
+    records: Optional[str] = _RECORDS,
+) -> None:
+    """Show one record as JSON, with any file changed or removed since registration."""
+    from aatest.records import commands
+
+    _print_json(commands.show_record(records, key))
+
+
+@records_app.command("export")
+@guarded
+def records_export(
+    csv: Path = typer.Option(..., "--csv", help="CSV file to write"),
+    serial: Optional[str] = _SERIAL, model: Optional[str] = _MODEL,
+    procedure: Optional[str] = _PROCEDURE, verdict: Optional[str] = _VERDICT,
+    since: Optional[str] = _SINCE, until: Optional[str] = _UNTIL, superseded: bool = _SUPERSEDED,
+    records: Optional[str] = _RECORDS,
+) -> None:
+    """Export matching records to CSV (one row per record, quantities as columns)."""
+    from aatest.records import commands
+
+    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
+    typer.echo(f"exported {commands.export_records(records, where, csv)} records to {csv}")
 
 
 @sim_server_app.command("modbus")

@@ -19,6 +19,7 @@ from aatest.engine.errors import InputError
 from aatest.engine.analysis.results import build_results, read_results, results_json, write_results
 from aatest.engine.dataset import Dataset
 from aatest.engine.procedure.models import Acceptance
+from aatest.engine.run import bundle_hooks
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock
 from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
@@ -175,6 +176,7 @@ def render_and_sign(
             results.signature = Signature(fingerprint=fingerprint)
         else:
             results["signature"] = {"fingerprint": fingerprint}
+    bundle_hooks.before_signing(results)  # e.g. a certificate number, before results are written
     write_results(results, run_dir)
     info = registry.load("report", template)
     reporter = info.target(registry.configure(info, {}))
@@ -185,6 +187,7 @@ def render_and_sign(
         render_pdf(report)
     if private is not None:
         signing.sign_bundle(report, private)
+    bundle_hooks.after_signing(results, report)
     return report
 
 

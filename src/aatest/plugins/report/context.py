@@ -119,6 +119,7 @@ def _header(results: Mapping[str, Any], run_dir: Path, kind: str, title: str) ->
         "report": {"kind": kind, "title": title,
                    "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")},
         "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
+        "certificate_number": results.get("certificate_number"),  # issued by aatest.records
         "trace": traceability(results, run_dir),
     }
 

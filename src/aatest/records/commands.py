@@ -1,0 +1,103 @@
+"""What ``aatest history``, ``records …`` and the records side of ``verify`` do, without the CLI."""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from aatest.records.errors import RecordsError
+from aatest.records.export import write_csv
+from aatest.records.extract import datasheet_limits
+from aatest.records.history import history_json, history_text
+from aatest.records.lab import LabProfile
+from aatest.records.models import CalibrationRecord, RecordFilter
+from aatest.records.store import RecordStore
+from aatest.records.trend import write_trend_html
+from aatest.records.url import is_default_missing, resolve_url
+from aatest.records.verify import find_record, record_reasons
+
+
+def _moment(text: str | None, option: str) -> datetime | None:
+    try:
+        return datetime.fromisoformat(text) if text else None
+    except ValueError as exc:
+        raise RecordsError(f"{option} {text!r}: expected an ISO date like 2026-01-31") from exc
+
+
+def record_filter(serial: str | None, model: str | None, procedure: str | None,
+                  verdict: str | None, since: str | None, until: str | None,
+                  superseded: bool) -> RecordFilter:
+    """The query of ``records list|export`` from its options (dates in ISO form, UTC)."""
+    return RecordFilter(serial=serial, model=model, procedure=procedure, verdict=verdict,
+                        since_utc=_moment(since, "--since"), until_utc=_moment(until, "--until"),
+                        include_superseded=superseded)
+
+
+def open_for_reading(records_url: str | None) -> RecordStore:
+    """The store to query; a SQLite file that does not exist is an error, not a new database."""
+    return RecordStore.open(records_url, create=False)
+
+
+def history(serial: str, records_url: str | None, lab: LabProfile, as_json: bool,
+            html: Path | None) -> str:
+    """The text (or JSON) ``aatest history`` prints; writes the trend page when ``html``."""
+    with open_for_reading(records_url) as store:
+        records = store.history(serial)
+        if not records:
+            raise RecordsError(f"no calibration records of unit {serial!r} in {store.name}")
+        if html is not None:
+            limits = datasheet_limits(store.results_of(records[-1].id))
+            write_trend_html(html, serial, records, limits, lab.name,
+                             lab.calibration_interval_months)
+    if as_json:
+        return json.dumps(history_json(serial, records), indent=2, allow_nan=False)
+    text = history_text(serial, records, lab.calibration_interval_months)
+    return text + (f"\ntrend plots: {html}" if html is not None else "")
+
+
+def _line(record: CalibrationRecord) -> str:
+    return (f"{record.certificate_number or '—':18s} {record.calibrated_utc:%Y-%m-%d %H:%M}  "
+            f"{record.model}/{record.serial:10s} {record.procedure:30s} "
+            f"{record.overall_verdict:16s}"
+            f" {record.command:8s} {record.bundle}")
+
+
+def list_records(records_url: str | None, where: RecordFilter) -> str:
+    """One line per matching record (``aatest records list``)."""
+    with open_for_reading(records_url) as store:
+        records = store.query(where)
+    return "\n".join(_line(r) for r in records) if records else "no matching records"
+
+
+def show_record(records_url: str | None, key: str) -> dict[str, Any]:
+    """One record with the state of its files on disk (``aatest records show``)."""
+    with open_for_reading(records_url) as store:
+        record = store.get(key)
+    document = record.model_dump(mode="json")
+    report = Path(record.bundle)
+    document["bundle_problems"] = record_reasons(report, record) if report.parent.is_dir() else [
+        f"bundle directory {report.parent} removed"]
+    return document
+
+
+def export_records(records_url: str | None, where: RecordFilter, path: Path) -> int:
+    """Write matching records to ``path`` as CSV; how many."""
+    with open_for_reading(records_url) as store:
+        records = store.query(where)
+    write_csv(path, records)
+    return len(records)
+
+
+def verify_against_record(report: Path, records_url: str | None) -> tuple[list[str], str]:
+    """Problems of ``report`` against its record, and a one-line note on what was checked."""
+    url = resolve_url(records_url)
+    if is_default_missing(url):
+        return [], "no records store: bundle not checked against a record"
+    with open_for_reading(records_url) as store:
+        record = find_record(report, store)
+        if record is None:
+            return [], f"no record of this bundle in {store.name}"
+        label = record.certificate_number or f"record {record.id}"
+        return record_reasons(report, record), f"matches its record {label} in {store.name}"

@@ -1,0 +1,182 @@
+"""Registration of what ``run``/``analyze``/``report`` produce, at the one point they share.
+
+The CLI opens a :func:`registering` scope (records URL, lab profile, command), which installs
+a :class:`Registrar` as the engine's bundle observer; the session calls its ``before_signing``
+once results are complete — a certificate number is issued and
+written into the results, so it is in ``results.json`` and on the certificate before the
+signature covers them — and ``after_signing`` once the bundle is final, which appends the
+record with the SHA-256 of every bundle file. Outside a scope (library use, other tests) both
+are no-ops, so nothing is registered behind a caller's back.
+
+An unreachable database must not cost the measurement: the files are written without a
+number, and the :class:`RecordsUnavailable` error is raised when the scope closes (exit 2).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator, Mapping, MutableMapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+
+from aatest.engine.run import bundle_hooks
+from aatest.records import extract
+from aatest.records.errors import RecordsUnavailable
+from aatest.records.lab import LabProfile
+from aatest.records.models import QuantityRecord, Registration
+from aatest.records.store import RecordStore, as_utc
+
+CERTIFICATE_KEY = "certificate_number"
+#: commands whose results earn a new certificate number (``report`` re-signs the same one)
+ISSUING_COMMANDS = frozenset({"run", "analyze"})
+#: the results as the session holds them: the ``results.json`` dict or a typed pydantic model
+Results = MutableMapping[str, Any] | BaseModel
+
+
+def as_document(results: Results) -> dict[str, Any]:
+    """The ``results.json`` document of ``results`` (a dict, or a typed model dumped as JSON)."""
+    if isinstance(results, BaseModel):
+        return dict(results.model_dump(mode="json"))
+    return dict(results)
+
+
+def _set_certificate(results: Results, number: str | None) -> None:
+    if isinstance(results, BaseModel):
+        setattr(results, CERTIFICATE_KEY, number)  # the typed root declares the field
+    elif number is None:
+        results.pop(CERTIFICATE_KEY, None)
+    else:
+        results[CERTIFICATE_KEY] = number
+
+
+@dataclass
+class Registrar:
+    """The records side of one CLI command."""
+
+    records_url: str | None
+    lab: LabProfile
+    command: str
+    error: RecordsUnavailable | None = None
+    _store: RecordStore | None = field(default=None, repr=False)
+
+    def store(self) -> RecordStore:
+        if self._store is None:
+            self._store = RecordStore.open(self.records_url)
+        return self._store
+
+    def close(self) -> None:
+        if self._store is not None:
+            self._store.close()
+
+    def assign_certificate(self, results: Results) -> None:
+        """Issue a number into ``results`` (``run``/``analyze``); keep it on re-signing."""
+        if self.command not in ISSUING_COMMANDS and as_document(results).get(CERTIFICATE_KEY):
+            return
+        _set_certificate(results, None)
+        try:
+            number = self.store().issue_certificate(self.lab.certificate_prefix)
+        except RecordsUnavailable as exc:
+            self.error = exc
+            return
+        _set_certificate(results, number)
+
+    def before_signing(self, results: Results) -> None:
+        """Bundle observer: the certificate number, before the results are written."""
+        self.assign_certificate(results)
+
+    def after_signing(self, results: Results, report: Path) -> None:
+        """Bundle observer: register the finished bundle."""
+        self.register(results, report)
+
+    def register(self, results: Results, bundle: Path) -> int | None:
+        """Append the record of ``bundle``; ``None`` when the store is unreachable."""
+        if self.error is not None:
+            return None
+        registration = registration_for(as_document(results), bundle, self.command, self.lab)
+        try:
+            return self.store().register(registration)
+        except RecordsUnavailable as exc:
+            self.error = exc
+            return None
+
+
+@contextmanager
+def registering(records_url: str | None, lab: LabProfile, command: str) -> Iterator[Registrar]:
+    """Register everything the enclosed session call produces; raise a deferred DB error."""
+    registrar = Registrar(records_url, lab, command)
+    try:
+        with bundle_hooks.observing(registrar):
+            yield registrar
+    finally:
+        registrar.close()
+    if registrar.error is not None:
+        raise RecordsUnavailable(f"{registrar.error} — the files were written, but not registered")
+
+
+def bundle_files(bundle: Path) -> dict[str, str]:
+    """SHA-256 of the bundle's files: what the signature covers (also for unsigned bundles)."""
+    from aatest.engine.run.signing import bundle_hashes
+
+    return bundle_hashes(bundle)
+
+
+def _calibrated_utc(results: Mapping[str, Any]) -> datetime:
+    started = (results.get("metadata") or {}).get("started_utc")
+    try:
+        return as_utc(datetime.fromisoformat(str(started)))
+    except ValueError:
+        return datetime.now(timezone.utc)  # imported data without a start time: registered now
+
+
+def registration_for(
+    results: Mapping[str, Any], bundle: Path, command: str, lab: LabProfile
+) -> Registration:
+    """The record of ``bundle`` (its main file, e.g. ``report.html``) and its ``results``."""
+    meta = results.get("metadata") or {}
+    model, serial = extract.unit_of(results)
+    signature = results.get("signature") or {}
+    stored = {k: v for k, v in results.items() if k != "figures"}  # figures are in the bundle
+    return Registration(
+        model=model, serial=serial, certificate_number=results.get(CERTIFICATE_KEY),
+        command=command, procedure=str(results.get("procedure") or meta.get("procedure") or "?"),
+        procedure_sha256=meta.get("procedure_sha256"), rig=dict(results.get("rig") or {}),
+        plugin_versions={str(k): str(v) for k, v in (meta.get("plugin_versions") or {}).items()},
+        operator=meta.get("operator"), lab=lab.name, calibrated_utc=_calibrated_utc(results),
+        overall_verdict=extract.overall_verdict(results), verdicts=extract.verdict_rows(results),
+        results=json.loads(json.dumps(stored)), bundle=str(Path(bundle).resolve()),
+        key_fingerprint=signature.get("fingerprint") if isinstance(signature, Mapping) else None,
+        files=bundle_files(Path(bundle)),
+        quantities={q.name: QuantityRecord(value=q.value, unit=q.unit,
+                                           expanded_uncertainty=q.expanded_uncertainty)
+                    for q in extract.key_quantities(results, lab.frf_reference_frequency_hz)},
+    )
+
+
+def _results_for(data: Path) -> dict[str, Any]:
+    """The run's results next to ``data``, else the recording's own metadata."""
+    from aatest.engine.analysis.results import RESULTS_FILE
+
+    folder = data if data.is_dir() else data.parent
+    if (folder / RESULTS_FILE).is_file():
+        return dict(json.loads((folder / RESULTS_FILE).read_text(encoding="utf-8")))
+    from aatest.engine.recording import read_dataset
+
+    dataset = read_dataset(data)
+    return {"procedure": dataset.procedure, "metadata": dict(dataset.metadata)}
+
+
+def register_diagnosis(registrar: Registrar, data: Path, json_out: Path | None) -> int | None:
+    """Register what ``aatest diagnose`` wrote (its report, else its JSON) for the run's unit."""
+    out_dir = json_out.parent if json_out is not None else data
+    report = out_dir / "diagnosis.html"
+    bundle = report if report.is_file() else json_out
+    if bundle is None or not bundle.is_file():
+        return None
+    results = _results_for(data)
+    results.pop(CERTIFICATE_KEY, None)  # a diagnosis is not a certificate
+    return registrar.register(results, bundle)

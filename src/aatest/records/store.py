@@ -1,0 +1,206 @@
+"""The records store: register bundles, issue certificate numbers, query a unit's history.
+
+One code path for SQLite and PostgreSQL (SQLAlchemy Core). Records are append-only: a new
+registration of the same bundle supersedes the previous record instead of changing it. The
+store keeps hashes and fingerprints only, never a private key.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Iterable
+from datetime import datetime, timezone
+from typing import Any
+
+from sqlalchemy import Select, select
+from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy.engine import URL, Connection, Engine, Row
+from sqlalchemy.orm import aliased
+
+from aatest.records import numbering, schema
+from aatest.records.engine import open_engine
+from aatest.records.errors import RecordsError
+from aatest.records.models import CalibrationRecord, QuantityRecord, RecordFilter, Registration
+from aatest.records.tables import calibrations, quantities, signed_files, units
+from aatest.records.url import is_default_missing, redacted, resolve_url
+
+
+def as_utc(moment: datetime) -> datetime:
+    """An aware UTC datetime (SQLite hands back naive ones; they were stored as UTC)."""
+    return moment.replace(tzinfo=timezone.utc) if moment.tzinfo is None else moment.astimezone(
+        timezone.utc)
+
+
+class RecordStore:
+    """A migrated records database; open it with :meth:`open`."""
+
+    def __init__(self, engine: Engine, url: URL) -> None:
+        self.engine = engine
+        self.url = url
+
+    @classmethod
+    def open(cls, records_url: str | None = None, create: bool = True) -> RecordStore:
+        """Connect to ``records_url`` (else ``AATEST_RECORDS``, else the default file), migrate.
+
+        With ``create=False`` a SQLite file that does not exist is an error instead of being
+        created (readers must not leave empty databases behind).
+        """
+        url = resolve_url(records_url)
+        if not create and is_default_missing(url):
+            raise RecordsError(f"no records store at {redacted(url)}")
+        engine = open_engine(url)
+        if schema.current_revision(engine) != schema.head_revision():
+            schema.upgrade(engine)
+        return cls(engine, url)
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    def __enter__(self) -> RecordStore:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    @property
+    def name(self) -> str:
+        """The store's URL without password, for messages."""
+        return redacted(self.url)
+
+    def issue_certificate(self, prefix: str, issued_utc: datetime | None = None) -> str:
+        """Allocate the next certificate number of ``prefix`` (see :mod:`.numbering`)."""
+        when = as_utc(issued_utc or datetime.now(timezone.utc))
+        with self.engine.begin() as connection:
+            return numbering.allocate(connection, prefix, when)
+
+    def register(self, registration: Registration) -> int:
+        """Append a record (superseding the previous record of the same bundle); its id."""
+        with self.engine.begin() as connection:
+            unit_id = _unit_id(connection, registration.model, registration.serial)
+            previous = connection.execute(
+                select(calibrations.c.id).where(calibrations.c.bundle == registration.bundle)
+                .order_by(calibrations.c.id.desc()).limit(1)
+            ).scalar()
+            fields = registration.model_dump(exclude={"model", "serial", "files", "quantities"})
+            record_id = connection.execute(calibrations.insert().values(
+                **fields, unit_id=unit_id, supersedes_id=previous,
+                registered_utc=datetime.now(timezone.utc),
+            ).returning(calibrations.c.id)).scalar_one()
+            _insert_children(connection, record_id, registration)
+        return int(record_id)
+
+    def query(self, where: RecordFilter) -> list[CalibrationRecord]:
+        """Records matching ``where``, oldest calibration first."""
+        with self.engine.connect() as connection:
+            rows = connection.execute(_filtered(where)).all()
+            return _records(connection, rows)
+
+    def history(self, serial: str) -> list[CalibrationRecord]:
+        """The current (not superseded) calibrations of a unit, oldest first (no diagnoses)."""
+        return [r for r in self.query(RecordFilter(serial=serial)) if r.command != "diagnose"]
+
+    def get(self, key: str) -> CalibrationRecord:
+        """The newest record with certificate number ``key`` (or record id ``key``)."""
+        column = calibrations.c.id if key.isdigit() else calibrations.c.certificate_number
+        with self.engine.connect() as connection:
+            rows = connection.execute(
+                _base().where(column == (int(key) if key.isdigit() else key))
+                .order_by(calibrations.c.id.desc()).limit(1)).all()
+            found = _records(connection, rows)
+        if not found:
+            raise RecordsError(f"no record {key!r} in {self.name}")
+        return found[0]
+
+    def query_certificate(self, number: str) -> list[CalibrationRecord]:
+        """Every record (also superseded ones) under certificate ``number``, oldest first."""
+        with self.engine.connect() as connection:
+            rows = connection.execute(_base().where(
+                calibrations.c.certificate_number == number).order_by(calibrations.c.id)).all()
+            return _records(connection, rows)
+
+    def results_of(self, record_id: int) -> dict[str, Any]:
+        """The stored results document of a record (without figures)."""
+        with self.engine.connect() as connection:
+            return dict(connection.execute(select(calibrations.c.results).where(
+                calibrations.c.id == record_id)).scalar_one())
+
+    def latest_for_bundle(self, bundle: str) -> CalibrationRecord | None:
+        """The newest record registered for the bundle whose main file is ``bundle``."""
+        with self.engine.connect() as connection:
+            rows = connection.execute(_base().where(calibrations.c.bundle == bundle)
+                                      .order_by(calibrations.c.id.desc()).limit(1)).all()
+            found = _records(connection, rows)
+        return found[0] if found else None
+
+
+def _unit_id(connection: Connection, model: str, serial: str) -> int:
+    dialect = postgresql if connection.dialect.name == "postgresql" else sqlite
+    connection.execute(dialect.insert(units).values(model=model, serial=serial)
+                       .on_conflict_do_nothing(index_elements=["model", "serial"]))
+    return int(connection.execute(select(units.c.id).where(
+        (units.c.model == model) & (units.c.serial == serial))).scalar_one())
+
+
+def _insert_children(connection: Connection, record_id: int, registration: Registration) -> None:
+    if registration.files:
+        connection.execute(signed_files.insert(), [
+            {"calibration_id": record_id, "name": name, "sha256": digest}
+            for name, digest in registration.files.items()])
+    if registration.quantities:
+        connection.execute(quantities.insert(), [
+            {"calibration_id": record_id, "name": name, **q.model_dump()}
+            for name, q in registration.quantities.items()])
+
+
+def _base() -> Select[Any]:
+    newer = aliased(calibrations, name="newer")
+    superseded_by = (select(newer.c.id).where(newer.c.supersedes_id == calibrations.c.id)
+                     .limit(1).scalar_subquery())
+    return (select(calibrations, units.c.model, units.c.serial,
+                   superseded_by.label("superseded_by"))
+            .join(units, units.c.id == calibrations.c.unit_id))
+
+
+def _filtered(where: RecordFilter) -> Select[Any]:
+    query = _base()
+    for column, value in ((units.c.serial, where.serial), (units.c.model, where.model),
+                          (calibrations.c.procedure, where.procedure),
+                          (calibrations.c.overall_verdict, where.verdict)):
+        if value is not None:
+            query = query.where(column == value)
+    if where.since_utc is not None:
+        query = query.where(calibrations.c.calibrated_utc >= as_utc(where.since_utc))
+    if where.until_utc is not None:
+        query = query.where(calibrations.c.calibrated_utc <= as_utc(where.until_utc))
+    if not where.include_superseded:
+        newer = aliased(calibrations, name="newest")
+        query = query.where(~select(newer.c.id).where(
+            newer.c.supersedes_id == calibrations.c.id).exists())
+    return query.order_by(calibrations.c.calibrated_utc, calibrations.c.id)
+
+
+def _children(connection: Connection, ids: Iterable[int]) -> tuple[dict[int, Any], dict[int, Any]]:
+    ids = list(ids)
+    files: dict[int, dict[str, str]] = defaultdict(dict)
+    values: dict[int, dict[str, QuantityRecord]] = defaultdict(dict)
+    for row in connection.execute(select(signed_files).where(
+            signed_files.c.calibration_id.in_(ids))):
+        files[row.calibration_id][row.name] = row.sha256
+    for row in connection.execute(select(quantities).where(quantities.c.calibration_id.in_(ids))):
+        values[row.calibration_id][row.name] = QuantityRecord(
+            value=row.value, expanded_uncertainty=row.expanded_uncertainty, unit=row.unit)
+    return files, values
+
+
+def _records(connection: Connection, rows: list[Row[Any]]) -> list[CalibrationRecord]:
+    files, values = _children(connection, (row.id for row in rows))
+    out = []
+    for row in rows:
+        data = row._asdict()
+        for drop in ("unit_id", "results"):
+            data.pop(drop, None)
+        data.update(calibrated_utc=as_utc(row.calibrated_utc),
+                    registered_utc=as_utc(row.registered_utc),
+                    files=files.get(row.id, {}), quantities=values.get(row.id, {}))
+        out.append(CalibrationRecord(**data))
+    return out
