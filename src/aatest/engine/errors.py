@@ -96,3 +96,7 @@ class VerificationFailed(AatestError):
     """A signed bundle does not verify (exit 1)."""
 
     exit_code = EXIT_FINDING
+
+
+class RunAborted(RigFault):
+    """An operator aborted the run; the rig was brought to its safe state like on a fault (exit 3)."""

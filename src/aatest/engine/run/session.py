@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.errors import InputError
 from aatest.engine.analysis.results import build_results, read_results, results_json, write_results
+from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state
 from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
@@ -100,9 +102,13 @@ def analyse_and_report(
     lab_duration_s: float | None = None,
     wall_duration_s: float | None = None,
     pdf: bool = False,
+    extra_metadata: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Read a recording/import, run its analyses, write results.json and the signed report;
-    return the results.json document (what report plugins read)."""
+    return the results.json document (what report plugins read).
+
+    ``extra_metadata`` is merged into the results metadata (e.g. who confirmed each prompt).
+    """
     from aatest.engine.recording import read_dataset
 
     data = read_dataset(data_path)
@@ -112,6 +118,7 @@ def analyse_and_report(
         s.step.lab_duration_s for s in data.steps
     )
     results = build_results(data, analysis, lab, wall_duration_s or 0.0)
+    results.metadata.update(extra_metadata or {})
     out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
     render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
@@ -163,8 +170,15 @@ def run(
     show_progress: bool = True,
     operator: str | None = None,
     pdf: bool = False,
+    events: RunEvents | None = None,
+    confirm_prompts: ConfirmPrompts = "ask",
 ) -> tuple[Path, dict[str, Any]]:
-    """``aatest run``: execute (or resume) a procedure and produce its results and report."""
+    """``aatest run``: execute (or resume) a procedure and produce its results and report.
+
+    ``events`` lets a caller (the station) observe, answer prompts and abort; without a
+    responder the terminal answers, and without a terminal the run is refused before the rig
+    moves unless ``confirm_prompts`` is ``"auto"`` (see :func:`events.terminal_responder`).
+    """
     from aatest.engine.recording import RunRecorder
 
     prepared = prepare(procedure, rig_file)
@@ -176,6 +190,13 @@ def run(
     sha = procedure_sha256(prepared.text)
     if resume:
         seed = RunState.load(out_dir).seed
+    events = events or RunEvents()
+    if events.responder is None:
+        shown = RunState.load(out_dir).prompts_shown if resume else []
+        events.responder = terminal_responder(
+            plan, shown, operator or default_operator(), confirm_prompts,
+            sys.stdin is not None and sys.stdin.isatty(),
+        )
     state = open_state(out_dir, plan.procedure, sha, seed, resume)
     recorder = RunRecorder(out_dir)
     if not state.finished:  # a finished run that is "resumed" is only analysed again
@@ -184,7 +205,7 @@ def run(
             meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
             meta["report_template"] = plan.report_template
             recorder.write_run_metadata(meta)
-        run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress)
+        run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress, events=events)
         recorder.finalize()
         state.finished = True
         state.save(out_dir)
@@ -199,6 +220,7 @@ def run(
     results = analyse_and_report(
         out_dir, out_dir, plan.report_template, None, key,
         lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s, pdf=pdf,
+        extra_metadata={"prompt_answers": state.prompt_answers},
     )
     return out_dir, results
 
