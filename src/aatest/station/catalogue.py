@@ -17,6 +17,7 @@ from aatest.engine.errors import AatestError, InputError, ProblemsError
 from aatest.engine.run.progress import describe
 from aatest.engine.run.run_state import STATE_FILE, RunState
 from aatest.engine.run.runner import procedure_sha256
+from aatest.station.verdicts import banner
 
 #: run files the page may link to (report plugins write ``report.html``; ``--pdf`` its PDF)
 RUN_FILES = {"report.html": "text/html", "report.pdf": "application/pdf",
@@ -130,10 +131,5 @@ def results_summary(run_dir: Path) -> dict[str, Any]:
     if not path.is_file():
         return {}
     doc = json.loads(path.read_text(encoding="utf-8"))
-    keys = ("quantity", "channel", "value", "expanded_uncertainty", "limit", "unit", "verdict")
-    return {
-        "overall": doc.get("overall", "none"),
-        "verdicts": [{k: v.get(k) for k in keys} for v in doc.get("verdicts", [])],
-        "analysis_errors": doc.get("analysis_errors", {}),
-        "signed": doc.get("signature") is not None,
-    }
+    return {**banner(doc), "analysis_errors": doc.get("analysis_errors", {}),
+            "signed": doc.get("signature") is not None}

@@ -45,5 +45,4 @@ def serve(options: StationOptions) -> None:
 
     app = build(options)
     print(f"aatest station on http://{options.host}:{options.port}/", flush=True)
-    uvicorn.run(app, host=options.host, port=options.port, log_level="warning",
-                ws="websockets")
+    uvicorn.run(app, host=options.host, port=options.port, log_level="warning")

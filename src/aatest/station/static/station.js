@@ -20,8 +20,12 @@ async function loadProcedures() {
   for (const id of doc.procedures) { const o = document.createElement("option"); o.value = o.textContent = id; select.appendChild(o); }
 }
 
+let validations = 0;
 async function validate() {
-  const doc = await (await fetch("/api/validate?id=" + encodeURIComponent($("procedure").value))).json();
+  const id = $("procedure").value, mine = ++validations;
+  const doc = await (await fetch("/api/validate?id=" + encodeURIComponent(id))).json();
+  if (mine !== validations) return;  // a later request superseded this one
+  $("plan").dataset.procedure = id;
   $("problems").innerHTML = "";
   const body = $("plan").querySelector("tbody");
   body.innerHTML = "";
@@ -82,6 +86,7 @@ function showResult(msg) {
   $("result").hidden = false;
   const v = $("verdict"); v.className = "verdict " + (msg.overall || "none");
   v.textContent = "Verdict: " + (msg.overall || "none").toUpperCase();
+  v.title = msg.judged_by === "certificate" ? "judged as on the calibration certificate" : "from results.json";
   const body = $("verdicts").querySelector("tbody"); body.innerHTML = "";
   for (const r of msg.verdicts || []) {
     const tr = body.insertRow(); cell(tr, r.quantity); cell(tr, r.channel); cell(tr, `${num(r.value)} ${r.unit}`);
