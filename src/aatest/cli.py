@@ -36,8 +36,6 @@ records_app = typer.Typer(no_args_is_help=True, help="Query the calibration reco
 app.add_typer(records_app, name="records")
 
 _state = {"debug": False}
-#: a defect of aatest (docs/interfaces.md: "never exit 1", which means a failed verdict)
-EXIT_INTERNAL = 4
 F = TypeVar("F", bound=Callable[..., Any])
 
 
@@ -184,13 +182,22 @@ def run(
     pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
     records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
     lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
+    confirm_prompts: str = typer.Option(
+        "ask", "--confirm-prompts",
+        help="ask: a person confirms each operator prompt (refused without a terminal); "
+        "auto: confirm them unattended (logged on the certificate)",
+    ),
 ) -> None:
     """Run a procedure: record both loggers, analyse, report (and sign), register the record."""
+    from aatest.engine.errors import InputError
     from aatest.engine.run import session
 
+    if confirm_prompts not in ("ask", "auto"):
+        raise InputError(f"--confirm-prompts: expected 'ask' or 'auto', got {confirm_prompts!r}")
     with _registering(records, lab, "run"):
         run_dir, results = session.run(
-            procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator, pdf=pdf
+            procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator,
+            pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
         )
     typer.echo(
         f"run complete: {run_dir} — {len(results['steps'])} steps, lab {results['lab_duration_s']:.1f} s, "
@@ -435,6 +442,26 @@ def records_export(
 
     where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
     typer.echo(f"exported {commands.export_records(records, where, csv)} records to {csv}")
+
+
+@app.command()
+@guarded
+def station(
+    host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on (loopback default)"),
+    port: int = typer.Option(8671, "--port"),
+    records: Optional[str] = typer.Option(None, "--records", help="Records store URL for history"),
+    token_file: Optional[Path] = typer.Option(
+        None, "--token-file", help="Access token (≥ 32 characters; or AATEST_STATION_TOKEN)"
+    ),
+    runs: Path = typer.Option(Path("runs"), "--runs", help="Runs directory (new runs, history)"),
+    lab: Optional[Path] = typer.Option(None, "--lab", help="Lab directory of procedure YAMLs"),
+    rig: Optional[Path] = typer.Option(None, "--rig", help="Rig YAML (default: each procedure's)"),
+) -> None:
+    """Serve the operator's station: run, watch and answer procedures from a browser."""
+    from aatest.station.serve import StationOptions, serve
+
+    serve(StationOptions(host=host, port=port, records=records, token_file=token_file,
+                         runs_dir=runs, lab_dir=lab, rig_file=rig))
 
 
 @sim_server_app.command("modbus")

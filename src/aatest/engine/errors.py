@@ -106,6 +106,10 @@ class VerificationFailed(AatestError):
     exit_code = EXIT_FINDING
 
 
+class RunAborted(RigFault):
+    """An operator aborted the run; the rig was brought to its safe state like on a fault (exit 3)."""
+
+
 P = ParamSpec("P")
 T = TypeVar("T")
 S = TypeVar("S")

@@ -69,7 +69,7 @@ def _procedure(tmp_path: Path, samples: int, *steps: str, kind: dict = SCALE_FAC
 
 
 def _run(*args: str) -> tuple[int, str]:
-    result = CliRunner().invoke(app, ["run", *args, "--seed", str(SEED)])
+    result = CliRunner().invoke(app, ["run", *args, "--seed", str(SEED), "--confirm-prompts", "auto"])
     return result.exit_code, result.output
 
 

@@ -28,7 +28,7 @@ class RunState:
     """What ``--resume`` needs beyond the recording.
 
     The procedure hash and seed the run belongs to, the finished chamber steps, the wall time
-    spent so far (``wall_duration_s``, s) and the operator prompts already shown.
+    spent so far (``wall_duration_s``, s), the operator prompts already shown and their answers.
     """
 
     procedure: str
@@ -37,6 +37,8 @@ class RunState:
     chamber_steps_done: list[str] = field(default_factory=list)
     wall_duration_s: float = 0.0
     prompts_shown: list[str] = field(default_factory=list)
+    #: who confirmed each prompt and when (``PromptAnswer.as_json()``), for traceability
+    prompt_answers: list[dict[str, str]] = field(default_factory=list)
     finished: bool = False
 
     def save(self, run_dir: Path) -> None:

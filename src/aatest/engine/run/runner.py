@@ -10,23 +10,21 @@ completed so far; ``--resume`` continues with the first step not on disk.
 from __future__ import annotations
 
 import hashlib
-import sys
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import aatest
+from aatest.engine.errors import AatestError, InputError
+from aatest.engine.run.events import RunEvents
 from aatest.engine.run.progress import StepProgress
 from aatest.engine.run.rig import Rig, running
 from aatest.engine.run.run_state import RunState
 from aatest.engine.steps import Plan, PlannedStep
 
 DEFAULT_SOAK_S = 900.0
-
-PromptHandler = Callable[[PlannedStep], None]
 
 
 def procedure_sha256(text: str) -> str:
@@ -40,11 +38,14 @@ def default_run_dir(procedure: str, root: Path = Path("runs")) -> Path:
     return root / f"{stamp}-{procedure}"
 
 
-def console_prompt(step: PlannedStep) -> None:
-    """Show an operator instruction; wait for Enter only when a person can answer."""
-    print(f"\n>>> OPERATOR ({step.id}): {step.prompt}", file=sys.stderr)
-    if sys.stdin is not None and sys.stdin.isatty():
-        input("    press Enter when done ")
+def _ask(events: RunEvents, step: PlannedStep, state: RunState) -> None:
+    """Have the operator's instruction confirmed and record who confirmed it, and when."""
+    if events.responder is None:
+        raise InputError(f"step {step.id} has an operator prompt and nobody is set to answer it")
+    events.observer.prompt_raised(step)
+    answer = events.responder.answer(step)
+    state.prompts_shown.append(step.id)
+    state.prompt_answers.append(answer.as_json())
 
 
 @dataclass
@@ -108,31 +109,46 @@ def run_plan(
     recorder: Any,
     state: RunState,
     run_dir: Path,
-    prompt: PromptHandler = console_prompt,
     show_progress: bool = True,
+    events: RunEvents | None = None,
 ) -> None:
-    """Execute every step not yet recorded; persist progress after each one."""
+    """Execute every step not yet recorded; persist progress after each one.
+
+    ``events`` carries the observer, the prompt responder and the abort flag
+    (:mod:`aatest.engine.run.events`); an abort ends like a fault, in the rig's safe stop.
+    """
+    events = events or RunEvents()
     done = set(recorder.completed_step_ids()) | set(state.chamber_steps_done)
     chamber = _ChamberTracker()
     started = time.perf_counter()
     try:
         with running(rig), StepProgress(plan, done, enabled=show_progress) as progress:
+            events.observer.run_started(plan, frozenset(done))
             for step in plan.steps:
                 if step.id in done:
                     chamber.soak_s = step.soak_s or chamber.soak_s
                     continue
+                events.abort.check()
                 progress.begin(step)
+                events.observer.step_started(step)
                 if step.prompt and step.id not in state.prompts_shown:
-                    prompt(step)
-                    state.prompts_shown.append(step.id)
+                    _ask(events, step, state)
+                    events.abort.check()
                 chamber.ensure(rig, step)
                 if step.kind == "chamber":
                     state.chamber_steps_done.append(step.id)
                 else:
                     table, daq = execute_step(rig, step)
+                    events.observer.step_samples(step, table, daq)
+                    events.abort.check()  # aborted while recording: the step is not kept
                     recorder.write_step(step, table, daq)
                 state.save(run_dir)
                 progress.end(step)
+                events.observer.step_finished(step)
+        events.observer.run_finished()
+    except AatestError as exc:
+        events.observer.run_stopped(str(exc))
+        raise
     finally:
         state.wall_duration_s += time.perf_counter() - started
         state.save(run_dir)

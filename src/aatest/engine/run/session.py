@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Mapping
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ from aatest.engine.analysis.results import build_results, read_results, results_
 from aatest.engine.dataset import Dataset
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run import bundle_hooks
+from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock
 from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
@@ -105,9 +107,13 @@ def analyse_and_report(
     lab_duration_s: float | None = None,
     wall_duration_s: float | None = None,
     pdf: bool = False,
+    extra_metadata: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Read a recording/import, run its analyses, write results.json and the signed report;
-    return the results.json document (what report plugins read)."""
+    return the results.json document (what report plugins read).
+
+    ``extra_metadata`` is merged into the results metadata (e.g. who confirmed each prompt).
+    """
     from aatest.engine.recording import read_dataset
 
     data = read_dataset(data_path)
@@ -116,7 +122,9 @@ def analyse_and_report(
     lab = lab_duration_s if lab_duration_s is not None else sum(
         s.step.lab_duration_s for s in data.steps
     )
-    results = decide(build_results(data, analysis, lab, wall_duration_s or 0.0), data)
+    results = build_results(data, analysis, lab, wall_duration_s or 0.0)
+    results.metadata.update(extra_metadata or {})
+    results = decide(results, data)
     out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
     render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
@@ -201,8 +209,15 @@ def run(
     show_progress: bool = True,
     operator: str | None = None,
     pdf: bool = False,
+    events: RunEvents | None = None,
+    confirm_prompts: ConfirmPrompts = "ask",
 ) -> tuple[Path, dict[str, Any]]:
-    """``aatest run``: execute (or resume) a procedure and produce its results and report."""
+    """``aatest run``: execute (or resume) a procedure and produce its results and report.
+
+    ``events`` lets a caller (the station) observe, answer prompts and abort; without a
+    responder the terminal answers, and without a terminal the run is refused before the rig
+    moves unless ``confirm_prompts`` is ``"auto"`` (see :func:`events.terminal_responder`).
+    """
     prepared = prepare(procedure, rig_file)
     plan = prepared.plan
     if out_dir is None:
@@ -211,13 +226,21 @@ def run(
         out_dir = default_run_dir(plan.procedure)
     if resume:
         seed = RunState.load(out_dir).seed
+    events = events or RunEvents()
+    if events.responder is None:
+        shown = RunState.load(out_dir).prompts_shown if resume else []
+        events.responder = terminal_responder(
+            plan, shown, operator or default_operator(), confirm_prompts,
+            sys.stdin is not None and sys.stdin.isatty(),
+        )
     with run_lock(out_dir):  # a second run on this directory exits 2, naming this one
-        return _run_locked(prepared, out_dir, resume, seed, key_path, show_progress, operator, pdf)
+        return _run_locked(prepared, out_dir, resume, seed, key_path, show_progress, operator, pdf,
+                           events)
 
 
 def _run_locked(
     prepared: Prepared, out_dir: Path, resume: bool, seed: int, key_path: Path | None,
-    show_progress: bool, operator: str | None, pdf: bool,
+    show_progress: bool, operator: str | None, pdf: bool, events: RunEvents,
 ) -> tuple[Path, dict[str, Any]]:
     """The body of :func:`run`, executed while holding the run directory's lock."""
     from aatest.engine.recording import RunRecorder
@@ -232,7 +255,7 @@ def _run_locked(
             meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
             meta["report_template"] = plan.report_template
             recorder.write_run_metadata(meta)
-        run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress)
+        run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress, events=events)
         recorder.finalize()
         state.finished = True
         state.save(out_dir)
@@ -247,6 +270,7 @@ def _run_locked(
     results = analyse_and_report(
         out_dir, out_dir, plan.report_template, None, key,
         lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s, pdf=pdf,
+        extra_metadata={"prompt_answers": state.prompt_answers},
     )
     return out_dir, results
 

@@ -1,0 +1,140 @@
+"""The station's ASGI application: the page, a small JSON API and one websocket.
+
+- ``GET /`` the page; ``/static/…`` its script, style and the vendored uPlot
+- ``GET /api/procedures`` listed procedure ids; ``GET /api/validate?id=…`` problems or steps
+- ``GET /api/runs`` recent runs; ``GET /runs/{name}/{file}`` a run's report, PDF or results
+- ``WS /ws`` live events to every browser; commands (start, resume, answer, abort) are taken
+  only from the controlling browser (the first connected; the next one when it leaves)
+"""
+
+from __future__ import annotations
+
+import asyncio
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from aatest.engine.errors import AatestError
+from aatest.engine.run.session import default_operator
+from aatest.station.catalogue import RUN_FILES, Procedures, RunsDirHistory, validation
+from aatest.station.control import RunController
+from aatest.station.security import Asgi, Guard
+
+STATIC = Path(str(resources.files("aatest.station") / "static"))
+HISTORY_ROWS = 20
+
+
+@dataclass
+class Hub:
+    """The connected browsers; the first in the list controls, the others watch."""
+
+    clients: list[WebSocket] = field(default_factory=list)
+    loop: asyncio.AbstractEventLoop | None = None
+
+    def publish(self, event: dict[str, Any]) -> None:
+        """Send ``event`` to every browser; callable from the run's worker thread."""
+        if self.loop is not None:
+            self.loop.call_soon_threadsafe(lambda: self.loop and self.loop.create_task(
+                self._send_all(event)))
+
+    async def _send_all(self, event: dict[str, Any]) -> None:
+        for ws in list(self.clients):
+            try:
+                await ws.send_json(event)
+            except (RuntimeError, WebSocketDisconnect):
+                await self.leave(ws)
+
+    async def announce_roles(self) -> None:
+        """Tell each browser whether it controls or watches."""
+        for i, ws in enumerate(list(self.clients)):
+            try:
+                await ws.send_json({"type": "role", "role": "control" if i == 0 else "watch"})
+            except (RuntimeError, WebSocketDisconnect):
+                await self.leave(ws)
+
+    async def leave(self, ws: WebSocket) -> None:
+        """Forget a browser; the next one takes control."""
+        if ws in self.clients:
+            self.clients.remove(ws)
+            await self.announce_roles()
+
+
+async def _command(controller: RunController, hub: Hub, ws: WebSocket, msg: dict[str, Any]) -> None:
+    """Run one command from a browser; only the controlling one may act."""
+    if not hub.clients or hub.clients[0] is not ws:
+        await ws.send_json({"type": "error", "message": "this page is watching; another controls"})
+        return
+    who = str(msg.get("operator") or default_operator())
+    kind = msg.get("type")
+    try:
+        if kind == "start":
+            controller.start(str(msg.get("procedure")), who)
+        elif kind == "resume":
+            controller.resume(str(msg.get("run")), who)
+        elif kind == "answer" and not controller.answer(str(msg.get("step")), who):
+            await ws.send_json({"type": "error", "message": "no such prompt is waiting"})
+        elif kind == "abort":
+            controller.abort(who)
+    except AatestError as exc:
+        await ws.send_json({"type": "error", "message": str(exc)})
+
+
+def create_app(procedures: Procedures, history: RunsDirHistory, rig_file: Path | None,
+               token: str | None, replay_s: float = 2.0) -> Asgi:
+    """Build the station application (wrapped in the origin/token guard)."""
+    hub = Hub()
+    controller = RunController(procedures, history, rig_file, hub.publish, replay_s)
+
+    async def page(request: Request) -> Response:
+        return FileResponse(STATIC / "index.html")
+
+    async def list_procedures(request: Request) -> Response:
+        return JSONResponse({"procedures": list(procedures.listing())})
+
+    async def validate(request: Request) -> Response:
+        try:
+            path = procedures.path(request.query_params.get("id", ""))
+        except AatestError as exc:
+            return JSONResponse({"ok": False, "problems": [str(exc)]}, status_code=404)
+        return JSONResponse(await asyncio.to_thread(validation, path, rig_file))
+
+    async def runs(request: Request) -> Response:
+        return JSONResponse({"runs": history.recent(HISTORY_ROWS)})
+
+    async def run_file(request: Request) -> Response:
+        name, file = request.path_params["name"], request.path_params["file"]
+        try:
+            target = history.run_dir(name) / file
+        except AatestError:
+            return Response("unknown run", status_code=404)
+        if file not in RUN_FILES or not target.is_file():
+            return Response("no such file in this run", status_code=404)
+        return FileResponse(target, media_type=RUN_FILES[file])
+
+    async def websocket(ws: WebSocket) -> None:
+        hub.loop = asyncio.get_running_loop()
+        await ws.accept()
+        hub.clients.append(ws)
+        await ws.send_json(controller.snapshot.as_json())
+        await hub.announce_roles()
+        try:
+            while True:
+                await _command(controller, hub, ws, await ws.receive_json())
+        except WebSocketDisconnect:
+            await hub.leave(ws)
+
+    app = Starlette(routes=[
+        Route("/", page), Route("/api/procedures", list_procedures),
+        Route("/api/validate", validate), Route("/api/runs", runs),
+        Route("/runs/{name}/{file}", run_file), WebSocketRoute("/ws", websocket),
+        Mount("/static", StaticFiles(directory=STATIC)),
+    ])
+    return Guard(app, token)

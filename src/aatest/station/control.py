@@ -1,0 +1,143 @@
+"""One run at a time, driven from the page: start, resume, answer prompts, abort.
+
+The run itself is exactly ``aatest run`` (:func:`aatest.engine.run.session.run`) in a worker
+thread, with the station's observer, responder and abort flag plugged into its events. The
+latest state is kept as a snapshot so a browser that connects mid-run sees the same page.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from aatest.engine.errors import AatestError, InputError
+from aatest.engine.run.events import AbortFlag, RunEvents
+from aatest.engine.run.rig import sensor_datasheet
+from aatest.engine.run.runner import default_run_dir
+from aatest.station.catalogue import Procedures, RunsDirHistory, results_summary
+from aatest.station.live import Publish, StationObserver, StationResponder
+
+
+@dataclass
+class Snapshot:
+    """What a newly connected browser needs to draw the current run."""
+
+    run: dict[str, Any] = field(default_factory=dict)
+    steps: dict[str, dict[str, Any]] = field(default_factory=dict)
+    prompt: dict[str, Any] | None = None
+
+    def apply(self, event: dict[str, Any]) -> None:
+        """Fold one published event into the snapshot."""
+        kind = event["type"]
+        if kind == "run_started":
+            self.steps = {s["id"]: s for s in event["steps"]}
+            self.run.update(procedure=event["procedure"], state="running")
+        elif kind == "step" and event["id"] in self.steps:
+            self.steps[event["id"]]["state"] = event["state"]
+        elif kind == "prompt":
+            self.prompt = event
+        elif kind == "prompt_answered":
+            self.prompt = None
+        elif kind in ("stopped", "finished", "analysing", "run_dir"):
+            self.run.update({k: v for k, v in event.items() if k != "type"}, state=kind)
+            if kind != "analysing":
+                self.prompt = None
+
+    def as_json(self) -> dict[str, Any]:
+        """The snapshot message sent on connect."""
+        return {"type": "snapshot", "run": self.run, "steps": list(self.steps.values()),
+                "prompt": self.prompt}
+
+
+@dataclass
+class RunController:
+    """Starts at most one run; routes the controlling browser's commands to it."""
+
+    procedures: Procedures
+    history: RunsDirHistory
+    rig_file: Path | None
+    publish: Publish
+    replay_s: float = 2.0
+    snapshot: Snapshot = field(default_factory=Snapshot)
+    _thread: threading.Thread | None = None
+    _abort: AbortFlag = field(default_factory=AbortFlag)
+    _responder: StationResponder | None = None
+
+    def emit(self, event: dict[str, Any]) -> None:
+        """Record the event in the snapshot and send it to every browser."""
+        self.snapshot.apply(event)
+        self.publish(event)
+
+    @property
+    def busy(self) -> bool:
+        """Whether a run is in progress."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self, procedure_id: str, operator: str) -> str:
+        """Start a fresh run of a listed procedure; return the run's directory name."""
+        path = self.procedures.path(procedure_id)
+        from aatest.engine.run.session import prepare
+
+        procedure = prepare(path, self.rig_file).plan.procedure
+        run_dir = default_run_dir(procedure, self.history.runs_dir)
+        self._launch(path, run_dir, resume=False, operator=operator)
+        return run_dir.name
+
+    def resume(self, run_name: str, operator: str) -> str:
+        """Continue a stopped run from the history (its procedure must still be listed)."""
+        from aatest.engine.run.run_state import RunState
+
+        run_dir = self.history.run_dir(run_name)
+        procedure_id = self.procedures.by_sha256(RunState.load(run_dir).procedure_sha256)
+        if procedure_id is None:
+            raise InputError(f"run {run_name}: its procedure file is no longer listed unchanged")
+        self._launch(self.procedures.path(procedure_id), run_dir, resume=True, operator=operator)
+        return run_name
+
+    def abort(self, who: str) -> None:
+        """Ask the running step loop to stop through the rig's safe stop."""
+        if self.busy:
+            self._abort.request(f"abort requested by {who}")
+
+    def answer(self, step_id: str, who: str) -> bool:
+        """Confirm the pending prompt of ``step_id`` as ``who``."""
+        return self._responder is not None and self._responder.confirm(step_id, who)
+
+    def _launch(self, path: Path, run_dir: Path, resume: bool, operator: str) -> None:
+        if self.busy:
+            raise InputError("a run is in progress; wait for it or abort it first")
+        from aatest.engine.run.session import prepare
+
+        plan = prepare(path, self.rig_file).plan
+        sheet, _version = sensor_datasheet(plan.sensor)
+        sensors = [{"channel": s.channel, "axis": s.axis} for s in
+                   sheet.sensor_infos(plan.sensor.serial)]
+        self._abort = AbortFlag()
+        self._responder = StationResponder(self.emit, self._abort, sensors)
+        events = RunEvents(StationObserver(self.emit, self._abort, self.replay_s),
+                           self._responder, self._abort)
+        self.snapshot = Snapshot(run={"name": run_dir.name, "operator": operator})
+        self.emit({"type": "run_dir", "name": run_dir.name, "resume": resume})
+        self._thread = threading.Thread(
+            target=self._work, args=(path, run_dir, resume, operator, events), daemon=True
+        )
+        self._thread.start()
+
+    def _work(self, path: Path, run_dir: Path, resume: bool, operator: str,
+              events: RunEvents) -> None:
+        from aatest.engine.run import session
+
+        try:
+            session.run(path, self.rig_file, run_dir, resume, 0, None, show_progress=False,
+                        operator=operator, events=events)
+        except AatestError as exc:
+            self.emit({"type": "stopped", "reason": str(exc), "exit_code": exc.exit_code,
+                       "resumable": (run_dir / "run_state.json").is_file()})
+            return
+        except Exception as exc:  # noqa: BLE001 - a worker thread must report, not vanish
+            self.emit({"type": "stopped", "reason": f"internal error: {exc}", "exit_code": 4,
+                       "resumable": (run_dir / "run_state.json").is_file()})
+            return
+        self.emit({"type": "finished", "name": run_dir.name, **results_summary(run_dir)})

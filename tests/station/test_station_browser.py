@@ -1,0 +1,108 @@
+"""The station in a real browser: run, watch, answer prompts, abort and resume."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from conftest import Station, shot
+
+pytestmark = pytest.mark.browser
+
+
+def _open(page: Any, station: Station, procedure_id: str) -> None:
+    page.goto(station.url)
+    page.wait_for_function("document.getElementById('role').textContent.includes('control')")
+    page.select_option("#procedure", procedure_id)
+    page.click("#validate")
+    page.wait_for_selector(f"#plan[data-procedure='{procedure_id}'] tbody tr")
+
+
+def _only_run(station: Station) -> Path:
+    (run,) = [d for d in station.runs.iterdir() if d.is_dir()]
+    return run
+
+
+def test_scale_factor_from_the_page_shows_the_verdict(station: Station, page: Any) -> None:
+    _open(page, station, "lab/quick-scale-factor.yaml")
+    assert page.locator("#plan tbody tr").count() == 1
+    shot(page, "scale-factor-validated")
+    page.click("#start")
+    page.wait_for_selector("#verdict:has-text('Verdict')", timeout=120_000)
+    shot(page, "scale-factor-verdict")
+    results = json.loads((_only_run(station) / "results.json").read_text())
+    scale = results["analysis"]["scale_factor"]["v_sz"]["scale_v_per_dps2"]
+    assert scale == pytest.approx(0.004014, rel=0.01)  # the twin's sensor: nominal within 1 %
+    assert page.locator("#verdict").inner_text() == "Verdict: PASS"
+    assert "scale factor deviation" in page.locator("#verdicts").inner_text()
+    assert page.locator("#links a[href$='report.html']").count() == 1
+    report = page.locator("#links a[href$='report.html']").get_attribute("href")
+    assert page.request.get(station.url + report).ok
+
+
+def test_live_plot_updates_during_a_step(station: Station, page: Any) -> None:
+    _open(page, station, "lab/quick-sine-3-steps.yaml")
+    page.click("#start")
+    page.wait_for_function("Number(document.getElementById('sample-count').textContent) > 0")
+    first = int(page.locator("#sample-count").inner_text())
+    page.wait_for_function(f"Number(document.getElementById('sample-count').textContent) > {first}")
+    shot(page, "live-plot")
+    assert page.locator("#plot-table canvas").count() == 1
+    assert page.locator("#plot-daq canvas").count() == 1
+    page.wait_for_selector("#verdict", state="visible", timeout=120_000)
+    # the plot now holds the last step, s003 (3.9062 Hz at 100 °/s²): the plotted table
+    # position swings by the commanded 0.1660°, the sensor about its 2.5 V bias by
+    # 100 °/s² × 4.014 mV/(°/s²) = 0.4014 V
+    position = page.evaluate("state.plots.tdata[1]")
+    assert max(map(abs, position)) == pytest.approx(0.1660, rel=0.03)
+    volts = page.evaluate("state.plots.ddata[1]")
+    assert max(volts) == pytest.approx(2.5 + 0.4014, abs=0.05)
+    assert min(volts) == pytest.approx(2.5 - 0.4014, abs=0.05)
+
+
+def test_prompts_of_a_pivoted_misalignment_answered_in_the_page(station: Station, page: Any) -> None:
+    _open(page, station, "lab/quick-pivoted-misalignment.yaml")
+    page.fill("#operator", "Ada Operator")
+    page.click("#start")
+    for step, orientation in (("s001-mis-A-e1-inner-r1", "original orientation"),
+                              ("s002-mis-B-e4-inner-r1", "pivoted 180°")):
+        page.wait_for_selector(f"#prompt-step:has-text('{step}')")
+        assert orientation in page.locator("#prompt-sensors").inner_text()
+        shot(page, f"prompt-{step}")
+        page.click("#continue")
+    page.wait_for_selector("#verdict", state="visible", timeout=120_000)
+    shot(page, "misalignment-finished")
+    state = json.loads((_only_run(station) / "run_state.json").read_text())
+    assert [a["step_id"] for a in state["prompt_answers"]] == [
+        "s001-mis-A-e1-inner-r1", "s002-mis-B-e4-inner-r1"]
+    assert {a["answered_by"] for a in state["prompt_answers"]} == {"Ada Operator"}
+    assert {a["via"] for a in state["prompt_answers"]} == {"station"}
+    results = json.loads((_only_run(station) / "results.json").read_text())
+    assert results["metadata"]["prompt_answers"] == state["prompt_answers"]
+
+
+def test_abort_mid_step_then_resume(station: Station, page: Any) -> None:
+    _open(page, station, "lab/quick-sine-3-steps.yaml")
+    page.click("#start")
+    page.wait_for_selector("#steps li[data-id='s001-sine-inner-0.9766Hz-100dps2'][data-state='done']")
+    page.wait_for_function("Number(document.getElementById('sample-count').textContent) > 0"
+                           " && document.getElementById('current').textContent.startsWith('s002')")
+    page.click("#abort")
+    page.wait_for_selector("#stopped", state="visible")
+    shot(page, "aborted")
+    assert "aborted" in page.locator("#stopped-text").inner_text()
+    run = _only_run(station)
+    state = json.loads((run / "run_state.json").read_text())
+    assert not state["finished"]
+    kept = sorted(p.name for p in run.rglob("*.mcap"))
+    assert len(kept) == 1 and "s001" in kept[0]  # only the completed step is on disk
+    page.click("#resume")
+    page.wait_for_selector("#verdict", state="visible", timeout=120_000)
+    shot(page, "resumed-finished")
+    results = json.loads((run / "results.json").read_text())
+    assert [s["id"] for s in results["steps"]] == [
+        "s001-sine-inner-0.9766Hz-100dps2", "s002-sine-inner-1.9531Hz-100dps2",
+        "s003-sine-inner-3.9062Hz-100dps2"]
