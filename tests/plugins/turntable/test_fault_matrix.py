@@ -157,7 +157,7 @@ def lab(rig_entry_points: None, tmp_path: Path) -> Iterator[Lab]:
 
 def _run(procedure: Path, rig: Path, out: Path, *extra: str) -> tuple[int, str]:
     result = CliRunner().invoke(app, ["run", str(procedure), "--rig", str(rig), "--out", str(out),
-                                      "--seed", str(SEED), "--no-progress", *extra])
+                                      "--seed", str(SEED), "--no-progress", "--confirm-prompts", "auto", *extra])
     return result.exit_code, result.output
 
 

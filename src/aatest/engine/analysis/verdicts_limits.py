@@ -41,11 +41,13 @@ def g_sensitivity_limit_dps2_per_g(sheet: SensorDatasheet) -> float:
     """The datasheet's linear-acceleration limit in (°/s²)/g.
 
     Stated by the sensor plugin, else 0.1 % FR/g or 0.01 rad/s²/g, whichever is greater
-    (docs/method.md §1.3), FR being the datasheet range ``range_dps2`` (the reference sensor: 0.573).
+    (docs/method.md §1.3). FR is the full span of the ±``range_dps2`` input range, as in the
+    non-linearity's % FR: with FR = range the two terms would be equal for the reference sensor
+    and "whichever is greater" would mean nothing (the reference sensor: 1.146 (°/s²)/g).
     """
     if sheet.g_sensitivity_limit_dps2_per_g is not None:
         return sheet.g_sensitivity_limit_dps2_per_g
-    return max(0.001 * sheet.range_dps2, 0.01 * DPS2_PER_RAD_S2)
+    return max(0.001 * 2.0 * sheet.range_dps2, 0.01 * DPS2_PER_RAD_S2)
 
 
 def datasheet_limits(sheet: SensorDatasheet) -> dict[str, float]:
