@@ -9,7 +9,6 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-
 from results_schema import assert_valid_results
 
 os.environ.setdefault("MPLBACKEND", "Agg")

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import wraps
 from pathlib import Path
-from typing import Any, Optional, TypeVar
+from typing import Any, TypeVar
 
 import typer
 
@@ -115,7 +115,7 @@ _RECORDS_HELP = "Records database URL (else AATEST_RECORDS, else the default SQL
 _LAB_HELP = "Lab profile YAML (else AATEST_LAB): name, certificate prefix, interval"
 
 
-def _registering(records: Optional[str], lab: Optional[Path], command: str) -> Any:
+def _registering(records: str | None, lab: Path | None, command: str) -> Any:
     """The records scope of a command that produces a bundle (checks the URL up front)."""
     from aatest.records.hook import registering
     from aatest.records.lab import load_lab
@@ -133,7 +133,7 @@ def _print_json(doc: Any) -> None:
 @guarded
 def validate(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Optional[Path] = typer.Option(None, "--rig", help="Rig YAML (default: simulated rig)"),
+    rig: Path | None = typer.Option(None, "--rig", help="Rig YAML (default: simulated rig)"),
 ) -> None:
     """Check a procedure against its schema and the rig envelope; nothing moves."""
     from aatest.engine.run.session import prepare
@@ -151,7 +151,7 @@ def validate(
 @guarded
 def plan(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Optional[Path] = typer.Option(None, "--rig"),
+    rig: Path | None = typer.Option(None, "--rig"),
     as_json: bool = typer.Option(False, "--json", help="Print the expanded plan as JSON"),
 ) -> None:
     """Expand the procedure's generators into the step list."""
@@ -172,16 +172,16 @@ def plan(
 @guarded
 def run(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Optional[Path] = typer.Option(None, "--rig"),
-    out: Optional[Path] = typer.Option(None, "--out", help="Run directory"),
+    rig: Path | None = typer.Option(None, "--rig"),
+    out: Path | None = typer.Option(None, "--out", help="Run directory"),
     resume: bool = typer.Option(False, "--resume", help="Continue an interrupted run in --out"),
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated rig"),
-    sign_key: Optional[Path] = typer.Option(None, "--sign-key", help="Ed25519 private key"),
+    sign_key: Path | None = typer.Option(None, "--sign-key", help="Ed25519 private key"),
     no_progress: bool = typer.Option(False, "--no-progress"),
-    operator: Optional[str] = typer.Option(None, "--operator", help="Name on the certificate"),
+    operator: str | None = typer.Option(None, "--operator", help="Name on the certificate"),
     pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
-    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
+    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
     confirm_prompts: str = typer.Option(
         "ask", "--confirm-prompts",
         help="ask: a person confirms each operator prompt (refused without a terminal); "
@@ -228,11 +228,11 @@ def _exit_on_outcome(results: dict[str, Any]) -> None:
 @guarded
 def analyze(
     data: Path = typer.Argument(..., help="Run directory, recording.mcap or import directory"),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="Also write results here"),
-    out: Optional[Path] = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
-    sign_key: Optional[Path] = typer.Option(None, "--sign-key"),
-    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
+    json_out: Path | None = typer.Option(None, "--json", help="Also write results here"),
+    out: Path | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
+    sign_key: Path | None = typer.Option(None, "--sign-key"),
+    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
     """Analyse recorded or imported data and write results.json and the report."""
     from aatest.engine.run import session
@@ -267,10 +267,10 @@ def export(
 @guarded
 def diagnose(
     data: Path = typer.Argument(..., help="Run directory, recording or import directory"),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
-    model_out: Optional[Path] = typer.Option(None, "--model-out", help="Write the extended model YAML"),
-    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
+    json_out: Path | None = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
+    model_out: Path | None = typer.Option(None, "--model-out", help="Write the extended model YAML"),
+    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
     """Show what the simulation gets wrong, name the cause, extend the model, measure the gain."""
     from aatest.diagnose.command import diagnose_command
@@ -298,11 +298,11 @@ def misalignment(
 @guarded
 def report(
     run_dir: Path = typer.Argument(..., help="Run directory with results.json"),
-    template: Optional[Path] = typer.Option(None, "--template", help="A lab's own template directory"),
-    sign_key: Optional[Path] = typer.Option(None, "--sign-key"),
+    template: Path | None = typer.Option(None, "--template", help="A lab's own template directory"),
+    sign_key: Path | None = typer.Option(None, "--sign-key"),
     pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
-    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
+    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
     """Re-render (and sign) the report of a run; the new record supersedes the old one."""
     from aatest.engine.run import session
@@ -329,8 +329,8 @@ def keygen(
 @guarded
 def verify(
     report_file: Path = typer.Argument(..., help="Signed report"),
-    public_key: Optional[Path] = typer.Option(None, "--public-key", help="Trusted public key"),
-    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
+    public_key: Path | None = typer.Option(None, "--public-key", help="Trusted public key"),
+    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
 ) -> None:
     """Check a signed report bundle and its record: exit 0 untouched, 1 tampered or wrong key."""
     from aatest.engine.run import signing
@@ -379,10 +379,10 @@ def plugins() -> None:
 @guarded
 def history(
     serial: str = typer.Argument(..., help="Unit serial number"),
-    records: Optional[str] = typer.Option(None, "--records", help=_RECORDS_HELP),
+    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
     as_json: bool = typer.Option(False, "--json", help="Print the history as JSON"),
-    html: Optional[Path] = typer.Option(None, "--html", help="Write trend plots to this HTML file"),
-    lab: Optional[Path] = typer.Option(None, "--lab", help=_LAB_HELP),
+    html: Path | None = typer.Option(None, "--html", help="Write trend plots to this HTML file"),
+    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
     """A unit's calibrations: dates, certificates, key results ± U, verdicts, drift, next due."""
     from aatest.records import commands
@@ -404,10 +404,10 @@ _RECORDS = typer.Option(None, "--records", help=_RECORDS_HELP)
 @records_app.command("list")
 @guarded
 def records_list(
-    serial: Optional[str] = _SERIAL, model: Optional[str] = _MODEL,
-    procedure: Optional[str] = _PROCEDURE, verdict: Optional[str] = _VERDICT,
-    since: Optional[str] = _SINCE, until: Optional[str] = _UNTIL, superseded: bool = _SUPERSEDED,
-    records: Optional[str] = _RECORDS,
+    serial: str | None = _SERIAL, model: str | None = _MODEL,
+    procedure: str | None = _PROCEDURE, verdict: str | None = _VERDICT,
+    since: str | None = _SINCE, until: str | None = _UNTIL, superseded: bool = _SUPERSEDED,
+    records: str | None = _RECORDS,
 ) -> None:
     """List calibration records matching the filters, oldest first."""
     from aatest.records import commands
@@ -420,7 +420,7 @@ def records_list(
 @guarded
 def records_show(
     key: str = typer.Argument(..., help="Certificate number or record id"),
-    records: Optional[str] = _RECORDS,
+    records: str | None = _RECORDS,
 ) -> None:
     """Show one record as JSON, with any file changed or removed since registration."""
     from aatest.records import commands
@@ -432,10 +432,10 @@ def records_show(
 @guarded
 def records_export(
     csv: Path = typer.Option(..., "--csv", help="CSV file to write"),
-    serial: Optional[str] = _SERIAL, model: Optional[str] = _MODEL,
-    procedure: Optional[str] = _PROCEDURE, verdict: Optional[str] = _VERDICT,
-    since: Optional[str] = _SINCE, until: Optional[str] = _UNTIL, superseded: bool = _SUPERSEDED,
-    records: Optional[str] = _RECORDS,
+    serial: str | None = _SERIAL, model: str | None = _MODEL,
+    procedure: str | None = _PROCEDURE, verdict: str | None = _VERDICT,
+    since: str | None = _SINCE, until: str | None = _UNTIL, superseded: bool = _SUPERSEDED,
+    records: str | None = _RECORDS,
 ) -> None:
     """Export matching records to CSV (one row per record, quantities as columns)."""
     from aatest.records import commands
@@ -449,13 +449,13 @@ def records_export(
 def station(
     host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on (loopback default)"),
     port: int = typer.Option(8671, "--port"),
-    records: Optional[str] = typer.Option(None, "--records", help="Records store URL for history"),
-    token_file: Optional[Path] = typer.Option(
+    records: str | None = typer.Option(None, "--records", help="Records store URL for history"),
+    token_file: Path | None = typer.Option(
         None, "--token-file", help="Access token (≥ 32 characters; or AATEST_STATION_TOKEN)"
     ),
     runs: Path = typer.Option(Path("runs"), "--runs", help="Runs directory (new runs, history)"),
-    lab: Optional[Path] = typer.Option(None, "--lab", help="Lab directory of procedure YAMLs"),
-    rig: Optional[Path] = typer.Option(None, "--rig", help="Rig YAML (default: each procedure's)"),
+    lab: Path | None = typer.Option(None, "--lab", help="Lab directory of procedure YAMLs"),
+    rig: Path | None = typer.Option(None, "--rig", help="Rig YAML (default: each procedure's)"),
 ) -> None:
     """Serve the operator's station: run, watch and answer procedures from a browser."""
     from aatest.station.serve import StationOptions, serve
@@ -470,8 +470,8 @@ def sim_server_modbus(
     host: str = typer.Option("127.0.0.1", "--host"),
     port: int = typer.Option(5020, "--port"),
     seed: int = typer.Option(0, "--seed"),
-    can_interface: Optional[str] = typer.Option(None, "--can-interface", help="python-can interface of the simulated CAN logger"),
-    can_channel: Optional[str] = typer.Option(None, "--can-channel"),
+    can_interface: str | None = typer.Option(None, "--can-interface", help="python-can interface of the simulated CAN logger"),
+    can_channel: str | None = typer.Option(None, "--can-channel"),
 ) -> None:
     """Serve the simulated turntable over Modbus TCP (and its sensor logger on CAN)."""
     from aatest.twin.servers.modbus_server import serve_forever

@@ -10,8 +10,8 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.engine.data.exporter import export_csv
 from aatest.diagnose.scenarios import Hidden, scenario_dataset
+from aatest.engine.data.exporter import export_csv
 
 
 def diagnose_cli(tmp: Path, hidden: list[Hidden], seed: int, samples: int = 2**14

@@ -4,11 +4,10 @@ import json
 from pathlib import Path
 
 import pytest
+from foreign_dataset import Hidden, write_dataset
 from typer.testing import CliRunner
 
 from aatest.cli import app
-
-from foreign_dataset import Hidden, write_dataset
 
 CASES = {
     "clean": (Hidden(), False),

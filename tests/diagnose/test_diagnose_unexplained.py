@@ -15,11 +15,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from foreign_dataset import BIAS_STEP_AT, MAINS_HZ, Hidden, write_dataset
 from typer.testing import CliRunner
 
 from aatest.cli import app
-
-from foreign_dataset import BIAS_STEP_AT, MAINS_HZ, Hidden, write_dataset
 
 KIND = {"even_order": "static_nonlinearity", "asymmetric_scale": "asymmetry",
         "mains_50hz": "spectral_line", "bias_step": "step_change", "scale_ageing": "trend"}

@@ -18,7 +18,7 @@ from aatest.engine.interfaces import AnalysisOutput, NoOptions
 from aatest.results.base import ResultModel
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "plugins" / "analysis"))
-from synthetic_rig import SynthRig, make_dataset, sine_step, static_step  # noqa: E402
+from synthetic_rig import SynthRig, make_dataset, sine_step, static_step
 
 
 @pytest.fixture(scope="module")

@@ -88,8 +88,8 @@ def test_defaults_are_the_reference_sensor() -> None:
     assert sheet.range_dps2 == record.range_dps2 == REFERENCE_RANGE_DPS2
     assert sheet.scale_v_per_dps2 == record.nominal_scale_v_per_dps2 == REFERENCE_SCALE_V_PER_DPS2
     # 0.23 V/(rad/s²) and ±10 rad/s² (docs/method.md §1.3)
-    assert REFERENCE_SCALE_V_PER_DPS2 == pytest.approx(0.23 * 3.141592653589793 / 180, rel=1e-4)
-    assert REFERENCE_RANGE_DPS2 == pytest.approx(10 * 180 / 3.141592653589793, rel=1e-6)
+    assert pytest.approx(0.23 * 3.141592653589793 / 180, rel=1e-4) == REFERENCE_SCALE_V_PER_DPS2
+    assert pytest.approx(10 * 180 / 3.141592653589793, rel=1e-6) == REFERENCE_RANGE_DPS2
 
 
 def test_record_reads_metadata_written_by_any_version() -> None:

@@ -10,8 +10,8 @@ import pytest
 from recording_data import run_meta, sine_step, step_logs
 from ruamel.yaml import YAML
 
-from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.data.exporter import export_csv
+from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.logs import SampledLog
 from aatest.engine.recording import RunRecorder, read_dataset
 from aatest.engine.steps import PlannedStep

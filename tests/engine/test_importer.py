@@ -10,8 +10,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from aatest.engine.errors import ImportDataError, ProblemsError
 from aatest.engine.data.importer import DatasetFileError, import_dataset
+from aatest.engine.errors import ImportDataError, ProblemsError
 from aatest.engine.recording import read_dataset
 
 RATE_HZ = 2000.0

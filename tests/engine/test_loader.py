@@ -12,8 +12,13 @@ from ruamel.yaml import YAML
 
 import aatest
 from aatest.engine.errors import EXIT_BAD_INPUT, ProcedureError
-from aatest.engine.procedure.loader import (PluginSpec, load_procedure, load_rig, parse_procedure,
-                                  rig_from_procedure)
+from aatest.engine.procedure.loader import (
+    PluginSpec,
+    load_procedure,
+    load_rig,
+    parse_procedure,
+    rig_from_procedure,
+)
 from aatest.engine.procedure.planner import expand
 
 SHIPPED = Path(aatest.__file__).parent / "procedures"

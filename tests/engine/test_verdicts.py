@@ -12,8 +12,8 @@ from aatest.engine.analysis.verdicts import decide, failed, overall
 from aatest.engine.analysis.verdicts_limits import g_sensitivity_limit_dps2_per_g, limits
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance, AcceptanceLimits
-from aatest.results.base import Verdict
 from aatest.engine.uncertainty.access import ResultsContractError
+from aatest.results.base import Verdict
 
 CASES = [  # value, limit, U, rule, verdict
     (0.9, 1.0, 0.05, "simple", "pass"), (1.1, 1.0, 0.05, "simple", "fail"),

@@ -17,13 +17,13 @@ from aatest.plugins.chamber.none import NoChamber
 from aatest.plugins.chamber.sim import SimChamber
 from aatest.plugins.daq.sim import SimDaq
 from aatest.plugins.sensors.sr207 import SR207, SR207Unit
+from aatest.plugins.turntable.sim import SimTurntable
 from aatest.twin.api import nominal_rig_model
 from aatest.twin.model import dump_rig_model
 from aatest.twin.session import TwinSession
-from aatest.plugins.turntable.sim import SimTurntable
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "twin"))
-from twin_steps import sine_step, static_step  # noqa: E402
+from twin_steps import sine_step, static_step
 
 
 def _rig(model: str = "sr207-aamu", seed: int = 7, **table_opts: object):

@@ -11,7 +11,7 @@ import json
 import re
 import shutil
 import subprocess
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -25,11 +25,11 @@ from aatest.records.history import add_months
 PROCEDURE = Path(__file__).parents[2] / "src" / "aatest" / "procedures" / "scale-factor.yaml"
 NOMINAL_V_PER_DPS2 = 0.004014
 AGING_PER_YEAR = 0.004  # +0.4 % of nominal per year
-STARTS = [datetime(2024, 1, 15, 9, 0, tzinfo=timezone.utc),
-          datetime(2024, 7, 15, 9, 0, tzinfo=timezone.utc),
-          datetime(2025, 1, 15, 9, 0, tzinfo=timezone.utc),
-          datetime(2025, 7, 15, 9, 0, tzinfo=timezone.utc),
-          datetime(2026, 1, 15, 9, 0, tzinfo=timezone.utc)]
+STARTS = [datetime(2024, 1, 15, 9, 0, tzinfo=UTC),
+          datetime(2024, 7, 15, 9, 0, tzinfo=UTC),
+          datetime(2025, 1, 15, 9, 0, tzinfo=UTC),
+          datetime(2025, 7, 15, 9, 0, tzinfo=UTC),
+          datetime(2026, 1, 15, 9, 0, tzinfo=UTC)]
 
 
 def _scale_at(moment: datetime) -> float:
@@ -58,7 +58,7 @@ def _at(moment: datetime) -> type[datetime]:
 @pytest.fixture
 def aged_unit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
     """Five registered calibrations of A1234; returns the records URL."""
-    import aatest.engine.run.runner as runner
+    from aatest.engine.run import runner
 
     url = f"sqlite:///{tmp_path / 'records.sqlite'}"
     for index, start in enumerate(STARTS):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import pytest
 from sqlalchemy import text
@@ -28,7 +28,7 @@ def _write_version_1(url: str) -> None:
     engine = open_engine(resolve_url(url))
     schema.upgrade(engine, "0001")
     assert schema.current_revision(engine) == "0001"
-    when = datetime(2025, 6, 1, 8, 0, tzinfo=timezone.utc)
+    when = datetime(2025, 6, 1, 8, 0, tzinfo=UTC)
     with engine.begin() as connection:
         connection.execute(text(
             "INSERT INTO units (id, model, serial) VALUES (1, 'sr207', 'OLD1')"))
@@ -55,7 +55,7 @@ def test_upgrade_from_version_1_keeps_and_backfills_records(store_url: str) -> N
     with RecordStore.open(store_url) as store:  # opening migrates to head
         assert schema.current_revision(store.engine) == schema.head_revision() == "0002"
         (record,) = store.history("OLD1")
-        next_number = store.issue_certificate("LAB", datetime(2025, 9, 1, tzinfo=timezone.utc))
+        next_number = store.issue_certificate("LAB", datetime(2025, 9, 1, tzinfo=UTC))
     assert record.certificate_number == "LAB-2025-000007"
     assert record.key_fingerprint == "f" * 64
     assert record.files == {"report.html": "c" * 64}

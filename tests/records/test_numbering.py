@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import multiprocessing
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import pytest
 from sqlalchemy import select
@@ -19,10 +19,10 @@ def test_format_number() -> None:
 
 def test_numbers_restart_per_prefix_and_year(store_url: str) -> None:
     with RecordStore.open(store_url) as store:
-        jan = datetime(2026, 1, 2, tzinfo=timezone.utc)
+        jan = datetime(2026, 1, 2, tzinfo=UTC)
         issued = [store.issue_certificate("LAB", jan), store.issue_certificate("LAB", jan),
                   store.issue_certificate("CAL", jan),
-                  store.issue_certificate("LAB", datetime(2027, 1, 1, tzinfo=timezone.utc))]
+                  store.issue_certificate("LAB", datetime(2027, 1, 1, tzinfo=UTC))]
     assert issued == ["LAB-2026-000001", "LAB-2026-000002", "CAL-2026-000001", "LAB-2027-000001"]
 
 
@@ -50,7 +50,7 @@ def _issue_concurrently(url: str, stations: int, each: int) -> list[str]:
 
 
 def _assert_consecutive(url: str, issued: list[str], total: int) -> None:
-    year = datetime.now(timezone.utc).year
+    year = datetime.now(UTC).year
     assert len(issued) == total
     assert sorted(issued) == [format_number("LAB", year, n) for n in range(1, total + 1)]
     with RecordStore.open(url) as store, store.engine.connect() as connection:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import pytest
@@ -12,7 +12,7 @@ from aatest.records.models import QuantityRecord, RecordFilter, Registration
 from aatest.records.store import RecordStore
 from aatest.records.url import redacted, resolve_url
 
-T0 = datetime(2026, 3, 1, 9, 30, tzinfo=timezone.utc)
+T0 = datetime(2026, 3, 1, 9, 30, tzinfo=UTC)
 
 
 def _registration(serial: str, bundle: str, day: int, scale: float,

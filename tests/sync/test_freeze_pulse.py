@@ -9,14 +9,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
+from synthetic_rig import SynthRig, make_dataset, make_step, sine_step
 
+from aatest.engine.analysis.passes import run_analysis
 from aatest.engine.dataset import StepData
 from aatest.engine.errors import AnalysisError
-from aatest.engine.analysis.passes import run_analysis
 from aatest.engine.logs import SampledLog
 from aatest.plugins.analysis.sync import SyncOutput
 from aatest.sync import fit_clock_relation, synchronise, synchronise_all
-from synthetic_rig import SynthRig, make_dataset, make_step, sine_step
 
 
 @pytest.mark.parametrize("drift_ppm", [-40.0, 0.0, 12.0, 250.0], ids=["neg", "zero", "pos", "big"])

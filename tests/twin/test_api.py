@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.testing import assert_allclose
+from twin_steps import sine_step, static_step
 
 from aatest.engine.logs import DAQ_AUX_CHANNELS, TABLE_CHANNELS
 from aatest.plugins.sensors.sr207 import SR207Unit
@@ -14,8 +15,6 @@ from aatest.twin.api import (
     simulate_step,
 )
 from aatest.twin.model import RigModel
-
-from twin_steps import sine_step, static_step
 
 #: the three-sensor unit (S_Z on I, S_Y on O, S_X on P)
 AAMU = SR207Unit().datasheet()
@@ -45,7 +44,7 @@ def test_nominal_model_is_ideal() -> None:
     """Nominal replay: one clock, no noise, output = bias + K·α exactly (no dynamics)."""
     step = sine_step(1.0, 200.0, samples=4096)
     sim = simulate_step(nominal_rig_model(), step, seed=0)
-    lead = int(round(0.35 * 2000))
+    lead = round(0.35 * 2000)
     v = sim.daq["v_sz"][lead: lead + step.samples]
     expected = 2.5 + 0.004014 * sim.truth["accel_dps2"]
     assert_allclose(v, expected, atol=1e-7)

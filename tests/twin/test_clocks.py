@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.testing import assert_allclose
+from twin_steps import static_step
 
 from aatest.twin.api import realistic_rig_model, simulate_step
 from aatest.twin.synthesis import SimulatedStep
-from twin_steps import static_step
 
 
 def rising_rows(pulse: np.ndarray) -> np.ndarray:

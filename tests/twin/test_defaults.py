@@ -7,12 +7,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from twin_steps import static_step
 
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.twin.api import simulate_step
 from aatest.twin.defaults import realistic_rig_model, realistic_sensor_models
-
-from twin_steps import static_step
 
 SRC = Path(__file__).parents[2] / "src" / "aatest"
 

@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from twin_steps import aligned_daq, fundamental, model_from_yaml, rate_step, sine_step, static_step
 
 from aatest.twin.api import nominal_rig_model, simulate_step
 from aatest.twin.model import RigModel
-from twin_steps import aligned_daq, fundamental, model_from_yaml, rate_step, sine_step, static_step
 
 K_V_PER_DPS2 = 0.004014
 BIAS_V = 2.5

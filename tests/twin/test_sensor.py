@@ -7,13 +7,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
+from twin_steps import aligned_daq, fundamental, sine_step, static_step
 
 from aatest.engine.steps import Mounting, PlannedStep
 from aatest.plugins.sensors.sr207 import SR207Unit
 from aatest.twin import kinematics as kin
 from aatest.twin.api import World, realistic_rig_model, run_step, simulate_step
 from aatest.twin.sensor import play_operator
-from twin_steps import aligned_daq, fundamental, sine_step, static_step
 
 #: the three-sensor unit (S_Z on I, S_Y on O, S_X on P)
 AAMU = SR207Unit().datasheet()

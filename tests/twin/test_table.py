@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from twin_steps import aligned_daq, fundamental, rate_step, sine_step, static_step
 
 from aatest.engine.errors import EnvelopeRefused
 from aatest.plugins.sensors.sr207 import SR207Unit
@@ -12,7 +13,6 @@ from aatest.twin.api import nominal_rig_model, realistic_rig_model, simulate_ste
 from aatest.twin.grid import Grid
 from aatest.twin.profiles import AxisProfile
 from aatest.twin.table import tracked
-from twin_steps import aligned_daq, fundamental, rate_step, sine_step, static_step
 
 #: the three-sensor unit (S_Z on I, S_Y on O, S_X on P)
 AAMU = SR207Unit().datasheet()

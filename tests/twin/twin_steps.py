@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 from ruamel.yaml import YAML
 
+from aatest.engine.steps import PlannedStep
 from aatest.twin.model import RigModel, load_rig_model, model_document
 from aatest.twin.synthesis import SimulatedStep
-from aatest.engine.steps import PlannedStep
 
 FS_HZ = 2000.0
 

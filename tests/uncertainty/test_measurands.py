@@ -8,6 +8,11 @@ from typing import Any
 import pytest
 from numpy.testing import assert_allclose
 
+from aatest.engine.uncertainty.dynamic import (
+    frf_gain_measurand,
+    frf_phase_measurand,
+    misalignment_measurand,
+)
 from aatest.engine.uncertainty.gum import Input, Measurand, evaluate, monte_carlo
 from aatest.engine.uncertainty.measurands import (
     RigConstants,
@@ -15,11 +20,6 @@ from aatest.engine.uncertainty.measurands import (
     g_sensitivity_measurand,
     scale_factor_measurand,
     temperature_measurand,
-)
-from aatest.engine.uncertainty.dynamic import (
-    frf_gain_measurand,
-    frf_phase_measurand,
-    misalignment_measurand,
 )
 
 C = RigConstants()
@@ -127,8 +127,8 @@ def test_static_statistics_from_the_analysis(results: dict[str, Any]) -> None:
 
 def test_columnar_temperature_results(results: dict[str, Any]) -> None:
     """Columns (temperatures_c, bias_v, branch) are read like points; a stated u wins."""
-    from aatest.plugins.report import figures
     from aatest.engine.uncertainty.access import temperature_points
+    from aatest.plugins.report import figures
 
     entry = results["analysis"]["temperature"]["v_sz"]
     points = entry.pop("points")

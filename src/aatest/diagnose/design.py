@@ -18,7 +18,6 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
-from scipy import signal
 
 from aatest.diagnose.replay import (
     PAD_SAMPLES,
@@ -30,8 +29,8 @@ from aatest.diagnose.replay import (
     sensor_axes,
 )
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
-from aatest.twin.kinematics import E_I
 from aatest.twin.daq import antialias_filter
+from aatest.twin.kinematics import E_I
 from aatest.twin.sensor import dynamics_filter, lowpass, play_operator
 
 #: contiguous time blocks per step; even blocks form fold A, odd blocks fold B

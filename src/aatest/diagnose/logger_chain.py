@@ -10,12 +10,12 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from aatest.engine.dataset import Dataset
+from aatest.diagnose.alignment import nominal_fit
 from aatest.diagnose.design import ChannelInfo, predict
 from aatest.diagnose.effects.base import Context
 from aatest.diagnose.replay import Replay
+from aatest.engine.dataset import Dataset
 from aatest.twin.daq import antialias_filter
-from aatest.diagnose.alignment import nominal_fit
 
 #: the logger pre-sample filter of the documented rig (docs/method.md §1.3), tried when unstated
 DEFAULT_ANTIALIAS_HZ = 100.0

@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset
 from aatest.diagnose.alignment import nominal_fit
 from aatest.diagnose.design import Fit, predict
 from aatest.diagnose.effects.base import Context, replace_spec
@@ -35,6 +34,7 @@ from aatest.diagnose.selection import (
     rmse,
 )
 from aatest.diagnose.unexplained import Outcome, explain
+from aatest.engine.dataset import Dataset
 
 
 def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,

@@ -19,8 +19,8 @@ import numpy as np
 from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import AnalysisError
 from aatest.engine.steps import PlannedStep
-from aatest.twin import kinematics as kin
 from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, synchronise
+from aatest.twin import kinematics as kin
 
 #: samples of analytic motion computed beyond each end of a record, so that delays and
 #: filters applied to the prediction start in steady state (0.5 s at 2 kHz)

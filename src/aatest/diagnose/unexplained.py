@@ -15,7 +15,7 @@ once the generic extension explains the structure, and is withdrawn with that re
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -31,8 +31,8 @@ from aatest.diagnose.design import (
 )
 from aatest.diagnose.effects.base import Context
 from aatest.diagnose.generic import Proposal, proposals
-from aatest.diagnose.replay import StepReplay
 from aatest.diagnose.refit import backward_pass
+from aatest.diagnose.replay import StepReplay
 from aatest.diagnose.selection import BIC_THRESHOLD, MIN_REDUCTION, Finding
 
 #: generic extensions accepted per channel at most

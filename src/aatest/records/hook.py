@@ -18,7 +18,7 @@ import json
 from collections.abc import Iterator, Mapping, MutableMapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -130,7 +130,7 @@ def _calibrated_utc(results: Mapping[str, Any]) -> datetime:
     try:
         return as_utc(datetime.fromisoformat(str(started)))
     except ValueError:
-        return datetime.now(timezone.utc)  # imported data without a start time: registered now
+        return datetime.now(UTC)  # imported data without a start time: registered now
 
 
 def registration_for(

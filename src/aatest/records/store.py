@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Iterable
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from typing import Any
 
 from sqlalchemy import Select, select
@@ -27,8 +27,8 @@ from aatest.records.url import is_default_missing, redacted, resolve_url
 
 def as_utc(moment: datetime) -> datetime:
     """An aware UTC datetime (SQLite hands back naive ones; they were stored as UTC)."""
-    return moment.replace(tzinfo=timezone.utc) if moment.tzinfo is None else moment.astimezone(
-        timezone.utc)
+    return moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(
+        UTC)
 
 
 class RecordStore:
@@ -69,7 +69,7 @@ class RecordStore:
 
     def issue_certificate(self, prefix: str, issued_utc: datetime | None = None) -> str:
         """Allocate the next certificate number of ``prefix`` (see :mod:`.numbering`)."""
-        when = as_utc(issued_utc or datetime.now(timezone.utc))
+        when = as_utc(issued_utc or datetime.now(UTC))
         with self.engine.begin() as connection:
             return numbering.allocate(connection, prefix, when)
 
@@ -84,7 +84,7 @@ class RecordStore:
             fields = registration.model_dump(exclude={"model", "serial", "files", "quantities"})
             record_id = connection.execute(calibrations.insert().values(
                 **fields, unit_id=unit_id, supersedes_id=previous,
-                registered_utc=datetime.now(timezone.utc),
+                registered_utc=datetime.now(UTC),
             ).returning(calibrations.c.id)).scalar_one()
             _insert_children(connection, record_id, registration)
         return int(record_id)

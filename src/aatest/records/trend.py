@@ -14,13 +14,13 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.dates as mdates  # noqa: E402 - after the backend is chosen
-import matplotlib.pyplot as plt  # noqa: E402
-from jinja2 import Environment, select_autoescape  # noqa: E402
-from markupsafe import Markup  # noqa: E402
+import matplotlib.dates as mdates
+import matplotlib.pyplot as plt
+from jinja2 import Environment, select_autoescape
+from markupsafe import Markup
 
-from aatest.records.history import fit_drift, next_due, quantity_names  # noqa: E402
-from aatest.records.models import CalibrationRecord  # noqa: E402
+from aatest.records.history import fit_drift, next_due, quantity_names
+from aatest.records.models import CalibrationRecord
 
 _PAGE = """<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Calibration history — {{ serial }}</title>

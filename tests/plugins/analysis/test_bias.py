@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
-
-from aatest.plugins.analysis.bias import gravity_along_g
 from analyse import analyse
 from synthetic_rig import SynthRig, SynthSensor, make_dataset, static_step
+
+from aatest.plugins.analysis.bias import gravity_along_g
 
 
 @pytest.mark.parametrize("axis, inner, outer, g", [("I", 0, 0, 1.0), ("I", 0, 180, -1.0),

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from aatest.plugins.analysis.frf import analyse_tone
-from aatest.engine.analysis.passes import run_analysis
 from synthetic_rig import SynthRig, SynthSensor, _sensor_gain, make_dataset, sine_step
+
+from aatest.engine.analysis.passes import run_analysis
+from aatest.plugins.analysis.frf import analyse_tone
 
 
 def test_tone_metrics_of_a_known_signal() -> None:

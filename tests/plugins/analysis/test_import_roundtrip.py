@@ -6,10 +6,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from aatest.engine.analysis.passes import run_analyses
 from synthetic_rig import sine_step
 from twin_helpers import twin_dataset
+
+from aatest.engine.analysis.passes import run_analyses
 
 
 def _analyse(data):  # type: ignore[no-untyped-def]

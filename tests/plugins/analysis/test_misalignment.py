@@ -6,12 +6,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from analyse import analyse
+from synthetic_rig import sine_step
 
 from aatest.engine.errors import ImportDataError
 from aatest.engine.steps import Mounting
 from aatest.plugins.analysis.misalignment import misalignment_from_spectra
-from analyse import analyse
-from synthetic_rig import sine_step
 from aatest.twin.api import simulate_dataset
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from aatest.engine.analysis.passes import run_analysis
 from analyse import analyse
 from synthetic_rig import SynthRig, SynthSensor, make_dataset, static_step
 from twin_helpers import twin_dataset
+
+from aatest.engine.analysis.passes import run_analysis
 
 
 def test_white_noise_figures() -> None:

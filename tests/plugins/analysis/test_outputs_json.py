@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import json
 
+from synthetic_rig import SynthRig, make_dataset, sine_step, static_step
+
 from aatest.engine.analysis import plugins
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.interfaces import Analysis
 from aatest.engine.analysis.plugins import aliases
+from aatest.engine.interfaces import Analysis
 from aatest.results import AnalysisBlock
-from synthetic_rig import SynthRig, make_dataset, sine_step, static_step
 
 
 def test_all_analyses_json_and_protocol() -> None:

@@ -6,11 +6,11 @@ import time
 
 import numpy as np
 import pytest
+from synthetic_rig import SynthRig, make_step, sine_step
 
 from aatest.plugins.analysis._common import fundamental
 from aatest.plugins.analysis.reference import METHODS, levant_differentiator, reference_accel
 from aatest.sync import SyncedStep, synchronise
-from synthetic_rig import SynthRig, make_step, sine_step
 
 
 @pytest.fixture(scope="module")

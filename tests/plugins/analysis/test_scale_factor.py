@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from synthetic_rig import SynthRig, SynthSensor, make_dataset, sine_step
 
 from aatest.engine.analysis.passes import run_analysis
-from synthetic_rig import SynthRig, SynthSensor, make_dataset, sine_step
 
 
 @pytest.mark.parametrize("c3, order", [(0.0, 1), (0.02, 3)], ids=["linear", "cubic"])

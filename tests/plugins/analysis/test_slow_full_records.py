@@ -6,7 +6,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-
 from analyse import analyse
 from synthetic_rig import sine_step
 from twin_helpers import twin_dataset

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from aatest.plugins.analysis.temperature import hysteresis_v
 from analyse import analyse
 from synthetic_rig import sine_step, static_step
 from twin_helpers import twin_dataset
+
+from aatest.plugins.analysis.temperature import hysteresis_v
 
 SEQUENCE_C = [22, 7.5, -2, -11, -21, -14, -5, 4, 20, 29, 38, 48, 38, 29, 22]
 

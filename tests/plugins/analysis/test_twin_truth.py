@@ -6,12 +6,12 @@ from typing import Any
 
 import numpy as np
 import pytest
+from analyse import analyse
 from scipy import signal
+from synthetic_rig import sine_step, static_step
+from twin_helpers import twin_dataset
 
 from aatest.engine.analysis.passes import run_analyses, run_analysis
-from analyse import analyse
-from twin_helpers import twin_dataset
-from synthetic_rig import sine_step, static_step
 
 FS = 2000.0
 
@@ -87,9 +87,10 @@ def test_bias_against_twin(realistic_unit) -> None:  # type: ignore[no-untyped-d
 
 @pytest.fixture(scope="module")
 def tf_run():  # type: ignore[no-untyped-def]
+    from test_tfest import F28
+
     from aatest.twin.api import realistic_rig_model
     from aatest.twin.model import SensorDynamics, SensorModel, TimeDelay
-    from test_tfest import F28
 
     sensor = SensorModel(sensor_dynamics=SensorDynamics(natural_frequency_hz=30.0, damping=0.9),
                          time_delay=TimeDelay(delay_s=0.0015))

@@ -23,8 +23,8 @@ from typing import Any
 from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS, limits
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
 from aatest.engine.uncertainty import access as ex
+from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
 
 #: verdicts from best to worst; the overall verdict is the worst one
 SEVERITY: tuple[VerdictValue, ...] = ("pass", "conditional-pass", "conditional-fail", "fail")
@@ -121,7 +121,7 @@ def _misalignment(results: Mapping[str, Any]) -> Iterator[tuple[str, Judged]]:
 
 def _sheet_of_sensor(sensor: str, sheets: Mapping[str, SensorDatasheet]) -> SensorDatasheet:
     """A misalignment sensor label (``SZ scenario 1``) → its channel's (``v_sz``) datasheet."""
-    channel = f"v_{sensor.split()[0].lower()}"
+    channel = f"v_{sensor.split(maxsplit=1)[0].lower()}"
     return sheets.get(channel) or next(iter(sheets.values()))
 
 

@@ -24,8 +24,17 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, PrivateAttr, Strict,
-                      StrictBool, StrictStr, model_validator)
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    Strict,
+    StrictBool,
+    StrictStr,
+    model_validator,
+)
 
 # --- strict scalar types (YAML "5" must not become 5, true must not become 1) -----------------
 Float = Annotated[float, Strict()]

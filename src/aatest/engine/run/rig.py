@@ -58,7 +58,7 @@ def _construct(kind: str, name: str, options: dict[str, Any], context: RigContex
         plugin = info.target(config, context)
     except AatestError:
         raise
-    except Exception as exc:  # noqa: BLE001 - translate vendor errors at the boundary
+    except Exception as exc:
         raise PluginError(f"{kind} plugin {name!r} ({info.distribution}) failed: {exc}") from exc
     return plugin, f"{info.distribution} {info.version}"
 
@@ -98,7 +98,7 @@ def running(rig: Rig) -> Iterator[Rig]:
                     start()
             except AatestError:
                 raise
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:
                 raise RigFault(f"{name} failed to start: {exc}") from exc
             started.append((name, part))
         yield rig

@@ -8,17 +8,17 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Mapping
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.errors import InputError
 from aatest.engine.analysis.results import build_results, read_results, results_json, write_results
 from aatest.engine.dataset import Dataset
+from aatest.engine.errors import InputError
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run import bundle_hooks
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder

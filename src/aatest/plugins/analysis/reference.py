@@ -132,9 +132,9 @@ def reference_accel(synced: SyncedStep, method: str = "smooth", cutoff_hz: float
     if method == "table":
         return np.asarray(est, dtype=np.float64)
     if method in ("central_position", "five_point_position"):
-        return second_difference(pos, fs, method.split("_p")[0])
+        return second_difference(pos, fs, method.split("_p", maxsplit=1)[0])
     if method in ("central_rate", "five_point_rate"):
-        return first_difference(rate, fs, method.split("_r")[0])
+        return first_difference(rate, fs, method.split("_r", maxsplit=1)[0])
     if method == "savgol":
         return savgol_accel(pos, fs)
     if method == "smooth":

@@ -10,16 +10,16 @@ the results state them, never recomputed, and results without them are an error.
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Mapping
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from aatest.engine.uncertainty import access as ex
+from aatest.engine.uncertainty.budgets import channels
 from aatest.plugins.report import figures as fig
 from aatest.plugins.report.sandbox import vet_svg
 from aatest.plugins.report.stated import budget_views, frf_rows, misalignment_rows, stated
 from aatest.plugins.report.traceability import traceability
-from aatest.engine.uncertainty import access as ex
-from aatest.engine.uncertainty.budgets import channels
 
 #: every section a report may show
 ALL_SECTIONS = frozenset({"sync", "scale_factor", "bias", "temperature", "noise", "frf",
@@ -117,7 +117,7 @@ def _header(results: Mapping[str, Any], run_dir: Path, kind: str, title: str) ->
     signature = results.get("signature")
     return {
         "report": {"kind": kind, "title": title,
-                   "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")},
+                   "generated_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")},
         "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
         "certificate_number": results.get("certificate_number"),  # issued by aatest.records
         "trace": traceability(results, run_dir),

@@ -28,10 +28,10 @@ import numpy as np
 from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.twin.model import RigModel
-from aatest.twin.world import World
 from aatest.plugins.turntable import modbus_map as mm
 from aatest.plugins.turntable.modbus_map import Command, Fault, Mode, Refusal, Reg, Status
+from aatest.twin.model import RigModel
+from aatest.twin.world import World
 
 log = logging.getLogger("aatest.sim.modbus")
 

@@ -42,7 +42,7 @@ _FC_HOLDING = (3, 6, 16, 22, 23)
 class _ControllerContext(ModbusServerContext):
     """Routes every holding-register request of any unit id to one controller."""
 
-    def __init__(self, controller: SimController, release: asyncio.Event) -> None:  # noqa: D107
+    def __init__(self, controller: SimController, release: asyncio.Event) -> None:
         # deliberately no super().__init__: no pymodbus datastore, the controller is the store
         self.controller = controller
         self.old_simulator = True
@@ -60,13 +60,13 @@ class _ControllerContext(ModbusServerContext):
         if self.controller.hanging:
             try:
                 await asyncio.wait_for(self._release.wait(), faults.hang_s)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 pass
             return False
         return True
 
     async def async_getValues(self, device_id: int, func_code: int, address: int,
-                              count: int = 1) -> list[int] | ExcCodes:  # noqa: N802
+                              count: int = 1) -> list[int] | ExcCodes:
         if func_code not in _FC_HOLDING:
             return ExcCodes.ILLEGAL_FUNCTION
         if not await self._gate():
@@ -75,7 +75,7 @@ class _ControllerContext(ModbusServerContext):
         return ExcCodes.ILLEGAL_ADDRESS if values is None else values
 
     async def async_setValues(self, device_id: int, func_code: int, address: int,
-                              values: Any) -> ExcCodes | None:  # noqa: N802
+                              values: Any) -> ExcCodes | None:
         if func_code not in _FC_HOLDING:
             return ExcCodes.ILLEGAL_FUNCTION
         if not await self._gate():
