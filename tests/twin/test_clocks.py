@@ -30,7 +30,9 @@ def daq_and_table_edges(sim: SimulatedStep) -> tuple[np.ndarray, np.ndarray]:
 
 def _without_edge_jitter(drift_ppm: float):
     model = realistic_rig_model(drift_ppm=drift_ppm)
-    return model.model_copy(update={"daq": model.daq.model_copy(update={"sync_edge_jitter_s": 0.0})})
+    return model.model_copy(
+        update={"daq": model.daq.model_copy(update={"sync_edge_jitter_s": 0.0})}
+    )
 
 
 def test_freeze_pulse_registered_one_cycle_late_with_latch_time() -> None:
@@ -73,7 +75,9 @@ def test_daq_starts_earlier_stops_later_and_triggers_the_table() -> None:
     assert_allclose(daq_lab[first], 0.0, atol=1e-9)  # trigger = first table sample
     assert np.all(np.asarray(sim.daq["trigger"])[:first] == 0.0)
     # the contract's clock relation holds: t_table = offset + t_daq·(1 + drift·1e-6)
-    predicted = sim.truth["offset_s"] + np.asarray(sim.daq.time_s) * (1 + sim.truth["drift_ppm"] * 1e-6)
+    predicted = sim.truth["offset_s"] + np.asarray(sim.daq.time_s) * (
+        1 + sim.truth["drift_ppm"] * 1e-6
+    )
     assert np.std(predicted - daq_lab) < 10e-6  # only the 6 µs time-stamp jitter remains
     pulse = np.asarray(sim.daq["sync_pulse"])
     assert set(np.unique(pulse)) == {0.0, 1.0}
@@ -100,5 +104,6 @@ def test_both_loggers_follow_the_step_rate() -> None:
     assert sim.table.sample_rate_hz == sim.daq.sample_rate_hz == 1000.0
     assert_allclose(np.diff(sim.table.time_s), 1e-3)
     rows = rising_rows(sim.table["sync_pulse"])
-    assert_allclose(np.diff(sim.table.time_s[rows] - np.asarray(sim.table["fp_latch_s"])[rows]),
-                    0.01, atol=2e-5)  # 100 Hz edges, ±3 µs jitter
+    assert_allclose(
+        np.diff(sim.table.time_s[rows] - np.asarray(sim.table["fp_latch_s"])[rows]), 0.01, atol=2e-5
+    )  # 100 Hz edges, ±3 µs jitter

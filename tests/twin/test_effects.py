@@ -33,17 +33,29 @@ def _sensed(v: np.ndarray) -> np.ndarray:
 
 
 def test_bias_temperature(tmp_path: Path) -> None:
-    model = model_from_yaml(tmp_path, _base(), sensor={"bias_temperature": {"coefficient_v_per_c": 4e-4}})
+    model = model_from_yaml(
+        tmp_path, _base(), sensor={"bias_temperature": {"coefficient_v_per_c": 4e-4}}
+    )
     step = static_step(samples=8192)
-    means = [np.mean(simulate_step(model, step, 1, temperature_c=t).daq["v_sz"]) for t in (5.0, 45.0)]
+    means = [
+        np.mean(simulate_step(model, step, 1, temperature_c=t).daq["v_sz"]) for t in (5.0, 45.0)
+    ]
     assert_allclose((means[1] - means[0]) / 40.0, 4e-4, rtol=0.01)
 
 
 def test_scale_temperature(tmp_path: Path) -> None:
-    model = model_from_yaml(tmp_path, _base(), sensor={"scale_temperature": {"coefficient_per_c": 5e-4}})
+    model = model_from_yaml(
+        tmp_path, _base(), sensor={"scale_temperature": {"coefficient_per_c": 5e-4}}
+    )
     step = sine_step(1.0, 200.0, samples=8192)
-    amps = [abs(fundamental(aligned_daq(simulate_step(model, step, 2, temperature_c=t), "v_sz"),
-                            step.cycles)) for t in (5.0, 45.0)]
+    amps = [
+        abs(
+            fundamental(
+                aligned_daq(simulate_step(model, step, 2, temperature_c=t), "v_sz"), step.cycles
+            )
+        )
+        for t in (5.0, 45.0)
+    ]
     ratio = amps[1] / amps[0]  # (1 + 20c)/(1 − 20c)
     assert_allclose((ratio - 1) / (20 * (ratio + 1)), 5e-4, rtol=0.02)
 
@@ -58,7 +70,9 @@ def test_nonlinearity_cubic(tmp_path: Path) -> None:
 
 
 def test_saturation(tmp_path: Path) -> None:
-    model = model_from_yaml(tmp_path, nominal_rig_model(), sensor={"saturation": {"limit_dps2": 300.0}})
+    model = model_from_yaml(
+        tmp_path, nominal_rig_model(), sensor={"saturation": {"limit_dps2": 300.0}}
+    )
     sim = simulate_step(model, sine_step(1.0, 400.0, samples=8192), 4)
     y = _sensed(np.asarray(sim.daq["v_sz"]))
     assert_allclose([y.max(), -y.min()], [300.0, 300.0], rtol=1e-4)
@@ -77,12 +91,16 @@ def test_hysteresis(tmp_path: Path) -> None:
 
 
 def test_sensor_dynamics(tmp_path: Path) -> None:
-    model = model_from_yaml(tmp_path, _base(), sensor={
-        "sensor_dynamics": {"natural_frequency_hz": 30.0, "damping": 0.7}})
+    model = model_from_yaml(
+        tmp_path,
+        _base(),
+        sensor={"sensor_dynamics": {"natural_frequency_hz": 30.0, "damping": 0.7}},
+    )
     step = sine_step(10.0, 100.0)
     sim = simulate_step(model, step, 6)
     h = fundamental(aligned_daq(sim, "v_sz"), step.cycles) / (
-        K_V_PER_DPS2 * fundamental(sim.truth["accel_dps2"], step.cycles))
+        K_V_PER_DPS2 * fundamental(sim.truth["accel_dps2"], step.cycles)
+    )
     inv = 1.0 / h  # = 1 − r² + 2jζr
     r = np.sqrt(1.0 - inv.real)
     assert_allclose(step.frequency_hz / r, 30.0, rtol=0.01)
@@ -93,8 +111,10 @@ def test_time_delay(tmp_path: Path) -> None:
     model = model_from_yaml(tmp_path, _base(), sensor={"time_delay": {"delay_s": 0.004}})
     step = sine_step(2.0, 100.0)
     sim = simulate_step(model, step, 7)
-    phase = np.angle(fundamental(aligned_daq(sim, "v_sz"), step.cycles)
-                     / fundamental(sim.truth["accel_dps2"], step.cycles))
+    phase = np.angle(
+        fundamental(aligned_daq(sim, "v_sz"), step.cycles)
+        / fundamental(sim.truth["accel_dps2"], step.cycles)
+    )
     assert_allclose(-phase / (2 * np.pi * step.frequency_hz), 0.004, atol=2e-6)
 
 
@@ -109,7 +129,9 @@ def test_clock_drift(tmp_path: Path) -> None:
 
 
 def test_jerk_sensitivity(tmp_path: Path) -> None:
-    model = model_from_yaml(tmp_path, _base(), sensor={"jerk_sensitivity": {"coefficient_v_per_dps3": 1e-6}})
+    model = model_from_yaml(
+        tmp_path, _base(), sensor={"jerk_sensitivity": {"coefficient_v_per_dps3": 1e-6}}
+    )
     sim = simulate_step(model, sine_step(5.0, 100.0, samples=8192), 9)
     alpha = sim.truth["alpha_v_sz"]
     jerk = np.gradient(alpha, 1 / 2000.0)
@@ -119,28 +141,38 @@ def test_jerk_sensitivity(tmp_path: Path) -> None:
 
 
 def test_g_sensitivity(tmp_path: Path) -> None:
-    model = model_from_yaml(tmp_path, _base(), sensor={"g_sensitivity": {"coefficient_dps2_per_g": 0.573}})
-    up, down = (np.mean(simulate_step(model, static_step(samples=8192, outer_deg=o), 10).daq["v_sz"])
-                for o in (0.0, 180.0))
+    model = model_from_yaml(
+        tmp_path, _base(), sensor={"g_sensitivity": {"coefficient_dps2_per_g": 0.573}}
+    )
+    up, down = (
+        np.mean(simulate_step(model, static_step(samples=8192, outer_deg=o), 10).daq["v_sz"])
+        for o in (0.0, 180.0)
+    )
     assert_allclose((up - down) / 2 / K_V_PER_DPS2, 0.573, rtol=0.01)
 
 
 @pytest.mark.parametrize(("inner_deg", "ratio"), [(0.0, -0.005), (90.0, 0.01)], ids=["y", "x"])
 def test_cross_axis(tmp_path: Path, inner_deg: float, ratio: float) -> None:
-    model = model_from_yaml(tmp_path, _base(), sensor={"cross_axis": {"ratio_x": 0.01, "ratio_y": -0.005}})
+    model = model_from_yaml(
+        tmp_path, _base(), sensor={"cross_axis": {"ratio_x": 0.01, "ratio_y": -0.005}}
+    )
     step = sine_step(1.0, 100.0, axis="outer", inner_deg=inner_deg)
     sim = simulate_step(model, step, 11)
     h = fundamental(aligned_daq(sim, "v_sz"), step.cycles) / (
-        K_V_PER_DPS2 * fundamental(sim.truth["outer_accel_dps2"], step.cycles))
+        K_V_PER_DPS2 * fundamental(sim.truth["outer_accel_dps2"], step.cycles)
+    )
     assert_allclose(h.real, ratio, atol=2e-4)
 
 
 def test_misalignment(tmp_path: Path) -> None:
-    model = model_from_yaml(tmp_path, _base(), sensor={"misalignment": {"angle_deg": 0.5, "azimuth_deg": 90.0}})
+    model = model_from_yaml(
+        tmp_path, _base(), sensor={"misalignment": {"angle_deg": 0.5, "azimuth_deg": 90.0}}
+    )
     step = sine_step(1.0, 100.0, axis="outer")
     sim = simulate_step(model, step, 12)
     h = fundamental(aligned_daq(sim, "v_sz"), step.cycles) / (
-        K_V_PER_DPS2 * fundamental(sim.truth["outer_accel_dps2"], step.cycles))
+        K_V_PER_DPS2 * fundamental(sim.truth["outer_accel_dps2"], step.cycles)
+    )
     assert_allclose(np.degrees(np.arcsin(h.real)), 0.5, atol=0.005)
 
 
@@ -160,7 +192,9 @@ def test_motor_vibration(tmp_path: Path) -> None:
     model = model_from_yaml(tmp_path, _base(), table_axis={"motor_vibration": vib})
     sim = simulate_step(model, static_step(samples=16000), 14)  # 280 cycles of 35 Hz
     assert_allclose(abs(fundamental(_sensed(aligned_daq(sim, "v_sz")), 280)), 5.0, rtol=0.01)
-    assert_allclose(abs(fundamental(np.asarray(sim.table["inner_accel_dps2"]), 280)), 5.0, rtol=0.01)
+    assert_allclose(
+        abs(fundamental(np.asarray(sim.table["inner_accel_dps2"]), 280)), 5.0, rtol=0.01
+    )
 
 
 def test_excess_noise(tmp_path: Path) -> None:

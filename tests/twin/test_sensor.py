@@ -55,7 +55,7 @@ def test_g_sensitivity_flips_sign_between_input_axis_up_and_down() -> None:
     for outer in (0.0, 90.0, 180.0):
         sim = simulate_step(model, static_step(samples=16384, outer_deg=outer, motor_on=False), 46)
         means[outer] = np.mean(sim.daq["v_sz"])
-    up, level, down = ((means[o] - means[90.0]) / K for o in (0.0, 90.0, 180.0))
+    up, _level, down = ((means[o] - means[90.0]) / K for o in (0.0, 90.0, 180.0))
     assert_allclose(up, 0.573, atol=0.02) and assert_allclose(down, -0.573, atol=0.02)
     assert up > 0 > down
 

@@ -51,8 +51,9 @@ def test_motor_off_no_band_and_slow_drift() -> None:
     assert_allclose(abs(slope), 0.002, rtol=0.05)  # drifts slowly away from zero
 
 
-@pytest.mark.parametrize(("rate_dps", "lines_hz"), [(30.0, (30.0, 60.0)), (50.0, (50.0, 100.0))],
-                         ids=["30dps", "50dps"])
+@pytest.mark.parametrize(
+    ("rate_dps", "lines_hz"), [(30.0, (30.0, 60.0)), (50.0, (50.0, 100.0))], ids=["30dps", "50dps"]
+)
 def test_constant_rate_ripple_peaks_scale_with_rate(rate_dps: float, lines_hz: tuple) -> None:
     sim = simulate_step(realistic_rig_model(), rate_step(rate_dps, samples=16000), seed=33)
     pos = np.asarray(sim.table["inner_position_deg"])
@@ -97,7 +98,9 @@ def test_acceleration_estimate_is_noisy_rate_estimate_clean() -> None:
     assert 20.0 < np.std(accel_err) < 40.0
     assert np.std(rate_err) < 0.01
     # relative to the signal: acceleration ≈ 7 % noise, rate ≈ 7e-5 (≈ 1000× cleaner)
-    assert np.std(accel_err) / 400 > 300 * np.std(rate_err) / np.max(np.abs(sim.truth["inner_rate_dps"]))
+    assert np.std(accel_err) / 400 > 300 * np.std(rate_err) / np.max(
+        np.abs(sim.truth["inner_rate_dps"])
+    )
 
 
 def test_tracking_loop_follows_sines_with_small_error() -> None:
@@ -118,19 +121,22 @@ def test_controller_refuses_beyond_limits() -> None:
 
 def test_outer_unbalance_leaks_into_the_perpendicular_axis() -> None:
     base = realistic_rig_model(AAMU)
-    perfect_mount = base.unit.model_copy(update={"sensor_remount_sigma_deg": 0.0,
-                                                 "block_remount_sigma_deg": 0.0})
+    perfect_mount = base.unit.model_copy(
+        update={"sensor_remount_sigma_deg": 0.0, "block_remount_sigma_deg": 0.0}
+    )
     base = base.model_copy(update={"unit": perfect_mount})
-    model = base.model_copy(update={"table": base.table.model_copy(
-        update={"unbalance_parasitic_dps2_per_dps2": 0.02})})
+    model = base.model_copy(
+        update={"table": base.table.model_copy(update={"unbalance_parasitic_dps2_per_dps2": 0.02})}
+    )
     step = sine_step(1.0, 100.0, axis="outer")
     sim = simulate_step(model, step, seed=37)
     x = fundamental(aligned_daq(sim, "v_sx"), step.cycles)
     o = fundamental(aligned_daq(sim, "v_sy"), step.cycles)
     assert_allclose(abs(x) / abs(o), 0.02, atol=0.005)  # misalignments add < 0.5 %
     # the controller's correction rings: the leak is resonant in the 30–40 Hz band
-    balanced = base.model_copy(update={"table": base.table.model_copy(
-        update={"unbalance_parasitic_dps2_per_dps2": 0.0})})
+    balanced = base.model_copy(
+        update={"table": base.table.model_copy(update={"unbalance_parasitic_dps2_per_dps2": 0.0})}
+    )
     still = simulate_step(balanced, step, seed=37)
     freq = np.fft.rfftfreq(len(sim.table), 1 / 2000.0)
     band = (freq > 30) & (freq < 40)

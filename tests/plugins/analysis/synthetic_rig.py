@@ -179,7 +179,8 @@ def make_step(step: PlannedStep, rig: SynthRig, seed: int, temperature_c: float 
 def make_dataset(steps: list[PlannedStep], rig: SynthRig, seed: int = 1,
                  temperatures_c: list[float] | None = None) -> Dataset:
     temps = temperatures_c or [25.0] * len(steps)
-    data = tuple(make_step(s, rig, seed + i, t) for i, (s, t) in enumerate(zip(steps, temps)))
+    pairs = enumerate(zip(steps, temps, strict=True))
+    data = tuple(make_step(s, rig, seed + i, t) for i, (s, t) in pairs)
     infos = tuple(SensorInfo(channel=s.channel, axis=s.axis)  # type: ignore[arg-type]
                   for s in rig.sensors)
     return Dataset(procedure="synthetic", sample_rate_hz=FS_HZ, sensors=infos, steps=data,

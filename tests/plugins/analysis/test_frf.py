@@ -17,8 +17,11 @@ def test_tone_metrics_of_a_known_signal() -> None:
     t = np.arange(n) / fs
     f = c * fs / n
     rng = np.random.default_rng(3)
-    x = 2.0 * np.sin(2 * np.pi * f * t) + 0.02 * np.sin(2 * np.pi * 3 * f * t) \
+    x = (
+        2.0 * np.sin(2 * np.pi * f * t)
+        + 0.02 * np.sin(2 * np.pi * 3 * f * t)
         + rng.normal(0, 0.01, n)
+    )
     tone = analyse_tone(x, f, fs)
     assert tone.coherent
     assert abs(tone.fundamental) == pytest.approx(2.0, rel=1e-3)
@@ -46,15 +49,20 @@ def test_gain_phase_delay_match_truth(frf_values) -> None:  # type: ignore[no-un
         truth_delay = -np.angle(h) / (2 * np.pi * p["frequency_hz"])
         assert p["delay_s"] == pytest.approx(truth_delay, abs=0.25e-3)
         assert p["snr_db"] > 40 and p["thd"] < 0.01
-        # the table estimate is noise-dominated broadband (docs/method.md §1.2), yet exact at the bin
+        # the table estimate is noise-dominated broadband (docs/method.md §1.2),
+        # yet exact at the bin
         assert -30 < p["table_snr_db"] < 0
         assert p["coherent"]
     assert "bode_v_sz" in out.figures
 
 
 @settings(max_examples=30, deadline=None)
-@given(amp=st.floats(0.01, 100), phase=st.floats(-np.pi, np.pi), cycles=st.integers(1, 200),
-       h3=st.floats(0, 0.1))
+@given(
+    amp=st.floats(0.01, 100),
+    phase=st.floats(-np.pi, np.pi),
+    cycles=st.integers(1, 200),
+    h3=st.floats(0, 0.1),
+)
 def test_tone_fundamental_property(amp: float, phase: float, cycles: int, h3: float) -> None:
     """Any coherent tone: amplitude, phase and THD exact at the bin."""
     fs, n = 2000.0, 4096

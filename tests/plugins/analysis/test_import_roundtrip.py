@@ -32,6 +32,6 @@ def test_same_numbers_after_csv_roundtrip(realistic_unit: Any, tmp_path: Path) -
     assert b["sync"]["offset_s"] == pytest.approx(a["sync"]["offset_s"], abs=1e-9)
     assert b["scale_factor"]["v_sz"]["scale_v_per_dps2"] == pytest.approx(
         a["scale_factor"]["v_sz"]["scale_v_per_dps2"], rel=1e-9)
-    for pa, pb in zip(a["frf"]["v_sz"], b["frf"]["v_sz"]):
+    for pa, pb in zip(a["frf"]["v_sz"], b["frf"]["v_sz"], strict=True):
         assert pb["gain_db"] == pytest.approx(pa["gain_db"], abs=1e-9)
         assert pb["phase_deg"] == pytest.approx(pa["phase_deg"], abs=1e-7)

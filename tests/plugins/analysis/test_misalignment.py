@@ -70,7 +70,7 @@ def test_csv_errors_name_file_and_line(tmp_path: Path, row: str, match: str) -> 
 def test_missing_column(tmp_path: Path) -> None:
     path = tmp_path / "s.csv"
     path.write_text("set,experiment,sensor,re\nA,1,SZ,1\n")
-    with pytest.raises(ImportDataError, match="s.csv:1: missing column"):
+    with pytest.raises(ImportDataError, match=r"s\.csv:1: missing column"):
         misalignment_from_spectra(path)
 
 

@@ -18,7 +18,7 @@ def twin_dataset(model: Any, steps: Sequence[PlannedStep], seed: int = 11,
 
     temps = list(temperatures_c) if temperatures_c is not None else [None] * len(steps)
     data, truths = [], []
-    for i, (step, temp) in enumerate(zip(steps, temps)):
+    for i, (step, temp) in enumerate(zip(steps, temps, strict=True)):
         sim = simulate_step(model, step, seed + i, temperature_c=temp)
         data.append(StepData(step=step, table=sim.table, daq=sim.daq))
         truths.append(sim.truth)

@@ -129,16 +129,20 @@ class Lab:
     def rig_file(self) -> Path:
         assert self.proxy is not None
         rig = self.tmp_path / "rig.yaml"
-        rig.write_text(f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {self.proxy.port}, "
-                       f"timeout_s: {TIMEOUT_S}, retries: 0, poll_interval_s: 0.01}}\n"
-                       f"daq: {self.daq or self._virtual_daq}\n"
-                       "chamber: {plugin: none}\n")
+        rig.write_text(
+            f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {self.proxy.port}, "
+            f"timeout_s: {TIMEOUT_S}, retries: 0, poll_interval_s: 0.01}}\n"
+            f"daq: {self.daq or self._virtual_daq}\n"
+            "chamber: {plugin: none}\n"
+        )
         return rig
 
     @property
     def _virtual_daq(self) -> str:
-        return (f"{{plugin: can, interface: virtual, channel: {self.channel}, "
-                "response_timeout_s: 1.0, frame_timeout_s: 1.0}")
+        return (
+            f"{{plugin: can, interface: virtual, channel: {self.channel}, "
+            "response_timeout_s: 1.0, frame_timeout_s: 1.0}"
+        )
 
     def close(self) -> None:
         if self.proxy is not None:
@@ -156,8 +160,23 @@ def lab(rig_entry_points: None, tmp_path: Path) -> Iterator[Lab]:
 
 
 def _run(procedure: Path, rig: Path, out: Path, *extra: str) -> tuple[int, str]:
-    result = CliRunner().invoke(app, ["run", str(procedure), "--rig", str(rig), "--out", str(out),
-                                      "--seed", str(SEED), "--no-progress", "--confirm-prompts", "auto", *extra])
+    result = CliRunner().invoke(
+        app,
+        [
+            "run",
+            str(procedure),
+            "--rig",
+            str(rig),
+            "--out",
+            str(out),
+            "--seed",
+            str(SEED),
+            "--no-progress",
+            "--confirm-prompts",
+            "auto",
+            *extra,
+        ],
+    )
     return result.exit_code, result.output
 
 
@@ -189,8 +208,9 @@ def test_link_fault_at_any_instant_exits_3_and_resumes(lab: Lab, instant: str) -
     _link_fault(lab, instant, *INSTANTS[instant])
 
 
-def _link_fault(lab: Lab, instant: str, match: Callable[[Request], bool], occurrence: int,
-                action: Action) -> None:
+def _link_fault(
+    lab: Lab, instant: str, match: Callable[[Request], bool], occurrence: int, action: Action
+) -> None:
     """Fire ``action`` at the ``occurrence``-th request matching ``match``; exit 3; resume."""
     proxy, server = lab.proxy, lab.servers[0]
     assert proxy is not None
@@ -216,8 +236,9 @@ def test_can_frame_loss_burst_exits_3_and_resumes(lab: Lab, burst: str) -> None:
     assert lab.logger is not None
     logger = lab.logger
 
-    logger.faults = CanFaultInjection(drop_frames=frozenset(range(first, first + length)),
-                                      record_number=1)
+    logger.faults = CanFaultInjection(
+        drop_frames=frozenset(range(first, first + length)), record_number=1
+    )
 
     def heal() -> None:
         logger.faults = CanFaultInjection()
@@ -230,10 +251,13 @@ def test_can_frame_loss_burst_exits_3_and_resumes(lab: Lab, burst: str) -> None:
 #: the long matrix: every action at many more instants (window reads, status polls, requests)
 LONG_INSTANTS = {
     f"{name}-{n}-{action}": (match, n, action)
-    for name, match, counts in (("request", any_request, range(1, 60, 7)),
-                                ("status-poll", reads(Reg.STATUS), range(1, 30, 4)),
-                                ("window", writes(Reg.WINDOW_CHANNEL), range(1, 400, 37)))
-    for n in counts for action in ("reset", "blackhole", "stall", "kill")
+    for name, match, counts in (
+        ("request", any_request, range(1, 60, 7)),
+        ("status-poll", reads(Reg.STATUS), range(1, 30, 4)),
+        ("window", writes(Reg.WINDOW_CHANNEL), range(1, 400, 37)),
+    )
+    for n in counts
+    for action in ("reset", "blackhole", "stall", "kill")
 }
 
 
@@ -245,9 +269,11 @@ def test_long_matrix_exits_3_and_resumes(lab: Lab, instant: str) -> None:
 
 #: kill -9 of a real ``aatest sim-server modbus`` process, at instants like the measured ones
 #: (issue 14: 1.5, 2 and 2.5 s into a static multi-position run ended with exit 1 on main)
-PROCESS_KILLS = {"settle": (command(Command.START_MOTION), 2),
-                 "record": (command(Command.ARM_LOG), 1),
-                 "download": (writes(Reg.WINDOW_CHANNEL), 30)}
+PROCESS_KILLS = {
+    "settle": (command(Command.START_MOTION), 2),
+    "record": (command(Command.ARM_LOG), 1),
+    "download": (writes(Reg.WINDOW_CHANNEL), 30),
+}
 
 
 class ServerProcess:
@@ -257,12 +283,29 @@ class ServerProcess:
         with socket.socket() as sock:
             sock.bind(("127.0.0.1", 0))
             self.port = int(sock.getsockname()[1])
-        env = {**os.environ, "AATEST_SIM_CAN_CHANNEL": group,
-               "AATEST_SIM_CAN_INTERFACE": "udp_multicast"}
+        env = {
+            **os.environ,
+            "AATEST_SIM_CAN_CHANNEL": group,
+            "AATEST_SIM_CAN_INTERFACE": "udp_multicast",
+        }
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "aatest.cli", "sim-server", "modbus", "--host", "127.0.0.1",
-             "--port", str(self.port), "--seed", str(SEED)], stdout=subprocess.PIPE, text=True,
-            env=env)
+            [
+                sys.executable,
+                "-m",
+                "aatest.cli",
+                "sim-server",
+                "modbus",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(self.port),
+                "--seed",
+                str(SEED),
+            ],
+            stdout=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
         assert self.process.stdout is not None
         ready, _, _ = select.select([self.process.stdout], [], [], 30.0)
         assert ready and f"127.0.0.1:{self.port}" in self.process.stdout.readline()
@@ -274,16 +317,17 @@ class ServerProcess:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("instant", list(PROCESS_KILLS), ids=list(PROCESS_KILLS))
-def test_kill_9_of_the_server_process_exits_3_and_resumes(rig_entry_points: None,
-                                                          tmp_path: Path, instant: str) -> None:
+def test_kill_9_of_the_server_process_exits_3_and_resumes(
+    rig_entry_points: None, tmp_path: Path, instant: str
+) -> None:
     pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")
     group = f"239.74.164.{10 + os.getpid() % 240}"
     servers = [ServerProcess(group)]
     match, occurrence = PROCESS_KILLS[instant]
-    proxy = FaultProxy(servers[0].port, Trigger(match, occurrence, "kill",
-                                                on_fire=servers[0].kill))
-    lab = Lab(tmp_path, proxy=proxy,
-              daq=f"{{plugin: can, interface: udp_multicast, channel: '{group}'}}")
+    proxy = FaultProxy(servers[0].port, Trigger(match, occurrence, "kill", on_fire=servers[0].kill))
+    lab = Lab(
+        tmp_path, proxy=proxy, daq=f"{{plugin: can, interface: udp_multicast, channel: '{group}'}}"
+    )
 
     def heal() -> None:
         assert proxy.fired is not None

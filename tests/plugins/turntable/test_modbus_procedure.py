@@ -36,8 +36,10 @@ SCALE_FACTOR = {"analysis": "sync, reference, scale_factor", "report": "calibrat
 FRF = {"analysis": "sync, frf", "report": "frequency-response"}
 SINE = "  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 400, snap: coherent}"
 STATIC = "  - multi_position: {positions: [[0, 180]], repetitions: 1, mountings: [original]}"
-SWEEP = ("  - sine_sweep: {axis: inner, frequencies: {start_hz: 1, ratio: 3, stop_hz: 9, "
-         "snap: coherent}, accelerations_dps2: [100]}")
+SWEEP = (
+    "  - sine_sweep: {axis: inner, frequencies: {start_hz: 1, ratio: 3, stop_hz: 9, "
+    "snap: coherent}, accelerations_dps2: [100]}"
+)
 
 
 @dataclass
@@ -55,9 +57,11 @@ def served(rig_entry_points: None, tmp_path: Path) -> Iterator[Served]:
     server.attach(logger)
     server.start()
     rig = tmp_path / "rig.yaml"
-    rig.write_text(f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {server.port}, "
-                   f"timeout_s: 2.0, retries: 0}}\ndaq: {{plugin: can, interface: virtual, "
-                   f"channel: e2e-{tmp_path.name}}}\nchamber: {{plugin: none}}\n")
+    rig.write_text(
+        f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {server.port}, "
+        f"timeout_s: 2.0, retries: 0}}\ndaq: {{plugin: can, interface: virtual, "
+        f"channel: e2e-{tmp_path.name}}}\nchamber: {{plugin: none}}\n"
+    )
     yield Served(server, logger, rig)
     server.stop()
 
@@ -69,7 +73,9 @@ def _procedure(tmp_path: Path, samples: int, *steps: str, kind: dict = SCALE_FAC
 
 
 def _run(*args: str) -> tuple[int, str]:
-    result = CliRunner().invoke(app, ["run", *args, "--seed", str(SEED), "--confirm-prompts", "auto"])
+    result = CliRunner().invoke(
+        app, ["run", *args, "--seed", str(SEED), "--confirm-prompts", "auto"]
+    )
     return result.exit_code, result.output
 
 
@@ -92,25 +98,39 @@ def test_scale_factor_matches_the_in_process_rig(served: Served, tmp_path: Path)
     # factor (its 95 % interval is ±4e-5), 1.5e-10 V on the offset, 3e-7 ppm on the drift.
     assert k_wire == pytest.approx(k_local, rel=1e-6)
     assert wire["scale_factor"]["v_sz"]["offset_v"] == pytest.approx(
-        local["scale_factor"]["v_sz"]["offset_v"], abs=1e-6)
+        local["scale_factor"]["v_sz"]["offset_v"], abs=1e-6
+    )
     assert wire["sync"]["drift_ppm"] == pytest.approx(local["sync"]["drift_ppm"], abs=1e-3)
 
 
 FAULTS = {
-    "fault-bit": (FaultInjection(fault_on_record=Fault.INTERLOCK_OPEN, record_number=2), None,
-                  "controller fault (fault bits INTERLOCK_OPEN"),
-    "stops-answering": (FaultInjection(hang_on_record=True, record_number=2, hang_s=3.0), None,
-                        "no answer to command ARM_LOG within 2 s"),
-    "can-bus-off": (None, CanFaultInjection(bus_off_after_frames=300, record_number=2),
-                    "bus-off; logging stopped"),
-    "can-frame-loss": (None, CanFaultInjection(drop_frames=frozenset({1000}), record_number=2),
-                       "lost 1 of"),
+    "fault-bit": (
+        FaultInjection(fault_on_record=Fault.INTERLOCK_OPEN, record_number=2),
+        None,
+        "controller fault (fault bits INTERLOCK_OPEN",
+    ),
+    "stops-answering": (
+        FaultInjection(hang_on_record=True, record_number=2, hang_s=3.0),
+        None,
+        "no answer to command ARM_LOG within 2 s",
+    ),
+    "can-bus-off": (
+        None,
+        CanFaultInjection(bus_off_after_frames=300, record_number=2),
+        "bus-off; logging stopped",
+    ),
+    "can-frame-loss": (
+        None,
+        CanFaultInjection(drop_frames=frozenset({1000}), record_number=2),
+        "lost 1 of",
+    ),
 }
 
 
 @pytest.mark.parametrize("fault", list(FAULTS), ids=list(FAULTS))
-def test_fault_mid_run_exits_3_keeps_data_and_resumes(served: Served, tmp_path: Path,
-                                                      fault: str) -> None:
+def test_fault_mid_run_exits_3_keeps_data_and_resumes(
+    served: Served, tmp_path: Path, fault: str
+) -> None:
     server, rig = served.server, served.rig
     table_fault, can_fault, reason = FAULTS[fault]
     server.controller.faults = table_fault or FaultInjection()

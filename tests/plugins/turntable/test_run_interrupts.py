@@ -37,9 +37,13 @@ STEPS = 8
 
 
 def _aatest(*args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen([sys.executable, "-m", "aatest.cli", *args], text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    return subprocess.Popen(
+        [sys.executable, "-m", "aatest.cli", *args],
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
 
 
 def _first_step_file(run_dir: Path, process: subprocess.Popen[str], timeout_s: float) -> None:
@@ -54,19 +58,31 @@ def _first_step_file(run_dir: Path, process: subprocess.Popen[str], timeout_s: f
 def test_signal_mid_run_exits_3_and_resumes(tmp_path: Path, signum: signal.Signals) -> None:
     procedure, run_dir = tmp_path / "procedure.yaml", tmp_path / "run"
     procedure.write_text(PROCEDURE)
-    process = _aatest("run", str(procedure), "--out", str(run_dir), "--no-progress", "--confirm-prompts", "auto")
+    process = _aatest(
+        "run", str(procedure), "--out", str(run_dir), "--no-progress", "--confirm-prompts", "auto"
+    )
     _first_step_file(run_dir, process, timeout_s=60.0)
     process.send_signal(signum)
     _out, err = process.communicate(timeout=60)
     assert process.returncode == EXIT_RIG_FAULT, err
     lines = [line for line in err.splitlines() if line.startswith("interrupted")]
-    assert lines == [f"interrupted ({signum.name}): the rig was brought to a safe state; "
-                     "continue with --resume"], err
+    assert lines == [
+        f"interrupted ({signum.name}): the rig was brought to a safe state; continue with --resume"
+    ], err
     assert "Traceback" not in err
     kept = list((run_dir / "steps").glob("*.mcap"))
     assert 1 <= len(kept) < STEPS
     assert json.loads((run_dir / "run_state.json").read_text())["finished"] is False
-    resumed = _aatest("run", str(procedure), "--out", str(run_dir), "--resume", "--no-progress", "--confirm-prompts", "auto")
+    resumed = _aatest(
+        "run",
+        str(procedure),
+        "--out",
+        str(run_dir),
+        "--resume",
+        "--no-progress",
+        "--confirm-prompts",
+        "auto",
+    )
     out, err = resumed.communicate(timeout=120)
     assert resumed.returncode == 0, err
     assert f"{STEPS} steps" in out
@@ -76,14 +92,34 @@ def test_second_run_on_a_locked_directory_exits_2_naming_the_holder(tmp_path: Pa
     procedure, run_dir = tmp_path / "procedure.yaml", tmp_path / "run"
     procedure.write_text(PROCEDURE.replace("samples: 40000", "samples: 2000"))
     with run_lock(run_dir):  # another run (here: this process) holds the directory
-        result = CliRunner().invoke(app, ["run", str(procedure), "--out", str(run_dir),
-                                          "--no-progress", "--confirm-prompts", "auto"])
+        result = CliRunner().invoke(
+            app,
+            [
+                "run",
+                str(procedure),
+                "--out",
+                str(run_dir),
+                "--no-progress",
+                "--confirm-prompts",
+                "auto",
+            ],
+        )
         assert result.exit_code == EXIT_BAD_INPUT, result.output
         assert f"in use by another aatest run (PID {os.getpid()}" in result.output
         assert not (run_dir / "run_state.json").exists()  # nothing was started
     assert (run_dir / LOCK_FILE).read_text().strip() == str(os.getpid())
-    result = CliRunner().invoke(app, ["run", str(procedure), "--out", str(run_dir),
-                                      "--no-progress", "--confirm-prompts", "auto"])
+    result = CliRunner().invoke(
+        app,
+        [
+            "run",
+            str(procedure),
+            "--out",
+            str(run_dir),
+            "--no-progress",
+            "--confirm-prompts",
+            "auto",
+        ],
+    )
     assert result.exit_code == 0, result.output  # the lock is released with its holder
 
 
@@ -91,18 +127,44 @@ def test_concurrent_resume_exits_2(tmp_path: Path) -> None:
     """Two real processes: ``run --resume`` exits 2 while another process holds the run."""
     procedure, run_dir = tmp_path / "procedure.yaml", tmp_path / "run"
     procedure.write_text(PROCEDURE.replace("samples: 40000", "samples: 2000"))
-    first = CliRunner().invoke(app, ["run", str(procedure), "--out", str(run_dir),
-                                     "--no-progress", "--confirm-prompts", "auto"])
+    first = CliRunner().invoke(
+        app,
+        [
+            "run",
+            str(procedure),
+            "--out",
+            str(run_dir),
+            "--no-progress",
+            "--confirm-prompts",
+            "auto",
+        ],
+    )
     assert first.exit_code == 0, first.output
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time\n"
-         "from pathlib import Path\nfrom aatest.engine.run.run_state import run_lock\n"
-         "with run_lock(Path(sys.argv[1])):\n    print('locked', flush=True)\n"
-         "    time.sleep(60)\n", str(run_dir)], stdout=subprocess.PIPE, text=True)
+        [
+            sys.executable,
+            "-c",
+            "import sys, time\n"
+            "from pathlib import Path\nfrom aatest.engine.run.run_state import run_lock\n"
+            "with run_lock(Path(sys.argv[1])):\n    print('locked', flush=True)\n"
+            "    time.sleep(60)\n",
+            str(run_dir),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert holder.stdout is not None and holder.stdout.readline().strip() == "locked"
-        second = _aatest("run", str(procedure), "--out", str(run_dir), "--resume",
-                         "--no-progress", "--confirm-prompts", "auto")
+        second = _aatest(
+            "run",
+            str(procedure),
+            "--out",
+            str(run_dir),
+            "--resume",
+            "--no-progress",
+            "--confirm-prompts",
+            "auto",
+        )
         _out, err = second.communicate(timeout=60)
         assert second.returncode == EXIT_BAD_INPUT, err
         assert f"(PID {holder.pid}," in err

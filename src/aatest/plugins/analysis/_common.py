@@ -71,7 +71,7 @@ def whole_cycles(n_samples: int, frequency_hz: float, fs_hz: float) -> tuple[int
     cycles = int(np.floor(n_samples / per_cycle + 1e-6))
     if cycles < 1:
         raise ValueError(f"record of {n_samples} samples holds no full cycle at {frequency_hz} Hz")
-    return min(int(round(cycles * per_cycle)), n_samples), cycles
+    return min(round(cycles * per_cycle), n_samples), cycles
 
 
 def fundamental(x: np.ndarray, frequency_hz: float, fs_hz: float) -> complex:

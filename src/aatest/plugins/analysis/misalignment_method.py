@@ -28,6 +28,8 @@ AXIS_SENSOR = {v: k for k, v in SENSOR_AXIS.items()}
 #: sensor → table axis of its own x and y (seat frames)
 SENSOR_XY = {"SZ": ("P", "O"), "SY": ("I", "P"), "SX": ("O", "I")}
 EXPERIMENT_AXIS = {1: "I", 2: "O", 3: "P", 4: "I", 5: "O", 6: "P"}
+#: experiments 4–6 are the pivoted mounting (1–3 the original one)
+FIRST_PIVOTED_EXPERIMENT = 4
 _COLUMNS = ("set", "experiment", "sensor", "re", "im")
 
 Spectra = dict[tuple[str, str, str], complex]  # (set, input axis, sensor) → fundamental
@@ -84,7 +86,8 @@ def _parse_row(path: Path, line: int, row: dict[str, str]) -> tuple[tuple[str, s
         raise ImportDataError(path, f"experiment/re/im not numeric ({exc})", line) from exc
     if experiment not in EXPERIMENT_AXIS:
         raise ImportDataError(path, f"experiment {experiment} is not 1..6", line)
-    if experiment >= 4 and set_name in ORIGINAL_SETS:  # 1–3 in a pivoted set: same axes
+    # the original-mounting sets A/C/E/G hold only experiments 1–3
+    if experiment >= FIRST_PIVOTED_EXPERIMENT and set_name in ORIGINAL_SETS:
         raise ImportDataError(path, f"experiment {experiment} (pivoted) does not belong to the "
                               f"original-mounting set {set_name} (A/C/E/G take 1–3)", line)
     return (set_name, EXPERIMENT_AXIS[experiment], sensor), value
