@@ -19,6 +19,7 @@ from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.analysis.results import build_results, read_results, results_json, write_results
 from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
+from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run import bundle_hooks
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
@@ -92,6 +93,10 @@ def default_operator() -> str:
 
 
 def signing_key(explicit: Path | None) -> Path | None:
+    """The signing key: ``explicit`` (``--sign-key``), else ``AATEST_SIGNING_KEY``, else None.
+
+    None leaves the report unsigned (a warning, not an error: a bench run need not be signed).
+    """
     if explicit is not None:
         return explicit
     env = os.environ.get(SIGNING_KEY_ENV)
@@ -112,6 +117,9 @@ def analyse_and_report(
     """Read a recording/import, run its analyses, write results.json and the signed report;
     return the results.json document (what report plugins read).
 
+    ``lab_duration_s`` (s) defaults to the sum of the recorded steps' lab time, and
+    ``wall_duration_s`` (s) to 0 for imported data that has no run behind it; both are
+    reported so the lab-time-to-wall-time ratio of a run stays on record.
     ``extra_metadata`` is merged into the results metadata (e.g. who confirmed each prompt).
     """
     from aatest.engine.recording import read_dataset
@@ -188,11 +196,12 @@ def render_and_sign(
     write_results(results, run_dir)
     info = registry.load("report", template)
     reporter = info.target(registry.configure(info, {}))
+    if pdf and not isinstance(reporter, PdfRenderer):
+        raise InputError(f"report '{template}' cannot print a PDF (its plugin has no "
+                         "render_pdf); run without --pdf or choose another report")
     report = reporter.render(results_json(results), run_dir, template_dir)
-    if pdf:
-        from aatest.plugins.report.pdf import render_pdf
-
-        render_pdf(report)
+    if pdf and isinstance(reporter, PdfRenderer):
+        reporter.render_pdf(report)
     if private is not None:
         signing.sign_bundle(report, private)
     bundle_hooks.after_signing(results, report)
@@ -289,4 +298,9 @@ def report(
 
 
 def run_wall_duration(run_dir: Path) -> float | None:
+    """Wall-clock time (s) the run in ``run_dir`` has taken so far, None without a run state.
+
+    ``aatest analyze`` of a run directory reports it beside the lab time, so the ratio of lab
+    time to wall time stays visible after the run; imported data has no run state.
+    """
     return RunState.load(run_dir).wall_duration_s if (run_dir / STATE_FILE).exists() else None

@@ -28,8 +28,8 @@ import numpy as np
 from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.turntable import modbus_map as mm
-from aatest.plugins.turntable.modbus_map import Command, Fault, Mode, Refusal, Reg, Status
+from aatest.protocols import modbus_map as mm
+from aatest.protocols.modbus_map import Command, Fault, Mode, Refusal, Reg, Status
 from aatest.twin.model import RigModel
 from aatest.twin.world import World
 
