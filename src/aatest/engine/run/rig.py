@@ -35,6 +35,11 @@ class Rig:
     config: dict[str, Any] = field(default_factory=dict)
 
     def sensor_infos(self) -> tuple[SensorInfo, ...]:
+        """The sensors under test on this rig, one record per sensing axis, with their serials.
+
+        Derived from the one datasheet and the procedure's serial (not copied field by field),
+        so the recording's metadata and the verdicts' limits name the same sensors.
+        """
         return self.datasheet.sensor_infos(self.context.sensor.serial)
 
 
