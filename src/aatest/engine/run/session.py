@@ -16,7 +16,13 @@ from typing import Any
 
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import build_results, read_results, results_json, write_results
+from aatest.engine.analysis.results import (
+    RESULTS_FILE,
+    build_results,
+    read_results,
+    results_json,
+    write_results,
+)
 from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
 from aatest.engine.interfaces import PdfRenderer
@@ -287,8 +293,19 @@ def _run_locked(
 def report(
     run_dir: Path, template_dir: Path | None, key_path: Path | None, pdf: bool = False
 ) -> Path:
-    """``aatest report``: re-render (and re-sign) from an existing results.json."""
+    """``aatest report``: re-render (and re-sign) from an existing results.json.
+
+    A results.json written before the engine decided verdicts (schema version 1, no
+    ``verdicts`` key) is refused with InputError (exit 2): rendering it would print a
+    certificate without pass/fail, and the report never decides verdicts itself.
+    """
     results = read_results(run_dir)
+    if "verdicts" not in results.model_fields_set:
+        raise InputError(
+            f"{run_dir / RESULTS_FILE}: no 'verdicts' (schema_version {results.schema_version}, "
+            "written before the engine decided verdicts); regenerate it with "
+            f"`aatest analyze {run_dir}`, then run `aatest report` again"
+        )
     results.signature = None
     template = str(results.metadata.get("report_template") or "calibration-certificate")
     stale_pdf = run_dir / "report.pdf"
