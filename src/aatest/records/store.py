@@ -95,6 +95,19 @@ class RecordStore:
             rows = connection.execute(_filtered(where)).all()
             return _records(connection, rows)
 
+    def recent(self, limit: int) -> list[CalibrationRecord]:
+        """The ``limit`` newest current calibrations (not superseded, no diagnoses), newest first.
+
+        What a station's history list shows; a lab's store grows without bound, so the limit
+        is applied in the database rather than after loading every record.
+        """
+        query = (_filtered(RecordFilter()).where(calibrations.c.command != "diagnose")
+                 .order_by(None)
+                 .order_by(calibrations.c.calibrated_utc.desc(), calibrations.c.id.desc())
+                 .limit(limit))
+        with self.engine.connect() as connection:
+            return _records(connection, connection.execute(query).all())
+
     def history(self, serial: str) -> list[CalibrationRecord]:
         """The current (not superseded) calibrations of a unit, oldest first (no diagnoses)."""
         return [r for r in self.query(RecordFilter(serial=serial)) if r.command != "diagnose"]
