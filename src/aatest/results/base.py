@@ -23,6 +23,7 @@ Overall = Literal["pass", "fail", "conditional-pass", "conditional-fail", "none"
 DATASHEET_FLAGS = frozenset({
     "bias_within_datasheet", "g_sensitivity_within_datasheet", "scale_within_datasheet",
     "bias_coefficient_within_datasheet", "scale_coefficient_within_datasheet", "within_datasheet",
+    "within_limit", "cross_within_limit",
 })
 
 
