@@ -26,6 +26,13 @@ from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep, SensorRef
 
+# The public names; SensorDatasheet is re-exported (sensor plugins return it).
+__all__ = [
+    "GROUPS", "Analysis", "AnalysisContext", "AnalysisOutput", "AxisLimits", "Chamber", "Daq",
+    "NoOptions", "PdfRenderer", "Reporter", "RigContext", "SensorDatasheet", "SensorPlugin",
+    "SharedResources", "TableEnvelope", "Turntable",
+]
+
 #: entry-point group per plugin kind
 GROUPS: dict[str, str] = {
     "turntable": "aatest.turntables",

@@ -8,7 +8,7 @@ store keeps hashes and fingerprints only, never a private key.
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from datetime import UTC, datetime
 from typing import Any
 
@@ -205,7 +205,7 @@ def _children(connection: Connection, ids: Iterable[int]) -> tuple[dict[int, Any
     return files, values
 
 
-def _records(connection: Connection, rows: list[Row[Any]]) -> list[CalibrationRecord]:
+def _records(connection: Connection, rows: Sequence[Row[Any]]) -> list[CalibrationRecord]:
     files, values = _children(connection, (row.id for row in rows))
     out = []
     for row in rows:
