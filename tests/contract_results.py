@@ -85,7 +85,7 @@ def _misalignment() -> dict[str, Any]:
     scenarios = {
         str(n): {s: {"delta_deg": (sets[o][s]["delta_e_deg"] - sets[p][s]["delta_e_deg"]) / 2}
                  for s in ("SZ", "SY", "SX")}
-        for n, (o, p) in zip("1234", ("AB", "CD", "EF", "GH"))
+        for n, (o, p) in zip("1234", ("AB", "CD", "EF", "GH"), strict=True)
     }
     return {"sets": sets, "scenarios": scenarios}
 
@@ -108,14 +108,18 @@ def _analysis() -> dict[str, Any]:
     bias, scale, temperature, noise, frf, tf = {}, {}, {}, {}, {}, {}
     for n, ch in enumerate(CHANNELS):
         b = 2.4987 + 0.0011 * n
-        bias[ch] = {"bias_v": b, "g_sensitivity_dps2_per_g": 0.21 - 0.05 * n,
-                    "repetitions": [{"bias_v": b + d, "g_sensitivity_dps2_per_g": 0.21 - 0.05 * n + g}
-                                    for d, g in ((-2.1e-5, 0.004), (0.4e-5, -0.002), (1.7e-5, 0.001))]}
+        g_sens = 0.21 - 0.05 * n
+        spread = ((-2.1e-5, 0.004), (0.4e-5, -0.002), (1.7e-5, 0.001))
+        bias[ch] = {"bias_v": b, "g_sensitivity_dps2_per_g": g_sens,
+                    "repetitions": [{"bias_v": b + d, "g_sensitivity_dps2_per_g": g_sens + g}
+                                    for d, g in spread]}
         a1 = 1.0 / (K_V_PER_DPS2 * (1 - 0.0009 * n))
         scale[ch] = {"scale_v_per_dps2": 1 / a1, "offset_v": b, "order": 1, "rmse_dps2": 14.5,
-                     "coefficients": [-0.32, a1], "ci95": [[-0.40, -0.24], [a1 - 0.069, a1 + 0.069]],
+                     "coefficients": [-0.32, a1],
+                     "ci95": [[-0.40, -0.24], [a1 - 0.069, a1 + 0.069]],
                      "r2": 0.997, "nonlinearity_dps2": 0.11, "reference": "smooth"}
-        temperature[ch] = {"bias_coefficient_v_per_c": -0.00031, "scale_coefficient_per_c": 0.00021,
+        temperature[ch] = {"bias_coefficient_v_per_c": -0.00031,
+                           "scale_coefficient_per_c": 0.00021,
                            "hysteresis_v": 0.0002, "points": _temperature_points()}
         noise[ch] = {"rms_v": 0.00101}
         frf[ch] = _frf_points()
@@ -127,7 +131,8 @@ def _analysis() -> dict[str, Any]:
 
 
 _SVG = ('<svg xmlns="http://www.w3.org/2000/svg" width="120" height="40" viewBox="0 0 120 40">'
-        '<rect x="1" y="1" width="118" height="38" fill="#eef"/><text x="8" y="25">PSD</text></svg>')
+        '<rect x="1" y="1" width="118" height="38" fill="#eef"/>'
+        '<text x="8" y="25">PSD</text></svg>')
 
 
 def make_results() -> dict[str, Any]:
@@ -137,7 +142,8 @@ def make_results() -> dict[str, Any]:
                 "scale_tolerance_pct": 1.0}
                for ch, (ax, _, serial) in CHANNELS.items()]
     return {
-        "procedure": "full-calibration", "rig": {"turntable": "sim", "daq": "sim", "chamber": "sim"},
+        "procedure": "full-calibration",
+        "rig": {"turntable": "sim", "daq": "sim", "chamber": "sim"},
         "steps": _steps(), "analysis": _analysis(), "analysis_errors": {}, "analysis_skipped": [],
         "lab_duration_s": 86400.0, "wall_duration_s": 312.4,
         "metadata": {

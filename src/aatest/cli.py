@@ -30,7 +30,8 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     help="Characterise and calibrate angular accelerometers on turntables.",
 )
-sim_server_app = typer.Typer(no_args_is_help=True, help="Serve the simulated rig over a real protocol.")
+sim_server_app = typer.Typer(no_args_is_help=True,
+                             help="Serve the simulated rig over a real protocol.")
 app.add_typer(sim_server_app, name="sim-server")
 records_app = typer.Typer(no_args_is_help=True, help="Query the calibration records.")
 app.add_typer(records_app, name="records")
@@ -108,7 +109,8 @@ def _terminate_as_interrupt() -> Iterator[None]:
 @app.callback()
 def _main(debug: bool = typer.Option(False, "--debug", help="Show tracebacks.")) -> None:
     _state["debug"] = debug
-    logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING, format="%(levelname)s: %(message)s")
+    logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING,
+                        format="%(levelname)s: %(message)s")
 
 
 _RECORDS_HELP = "Records database URL (else AATEST_RECORDS, else the default SQLite file)"
@@ -200,7 +202,8 @@ def run(
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
         )
     typer.echo(
-        f"run complete: {run_dir} — {len(results['steps'])} steps, lab {results['lab_duration_s']:.1f} s, "
+        f"run complete: {run_dir} — {len(results['steps'])} steps, "
+        f"lab {results['lab_duration_s']:.1f} s, "
         f"wall {results['wall_duration_s']:.1f} s"
     )
     _exit_on_outcome(results)
@@ -268,7 +271,8 @@ def export(
 def diagnose(
     data: Path = typer.Argument(..., help="Run directory, recording or import directory"),
     json_out: Path | None = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
-    model_out: Path | None = typer.Option(None, "--model-out", help="Write the extended model YAML"),
+    model_out: Path | None = typer.Option(
+        None, "--model-out", help="Write the extended model YAML"),
     records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
     lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
 ) -> None:
@@ -320,7 +324,8 @@ def keygen(
     """Create an Ed25519 signing key pair."""
     from aatest.engine.run import signing
 
-    secret = typer.prompt("passphrase", hide_input=True, confirmation_prompt=True) if passphrase else None
+    secret = (typer.prompt("passphrase", hide_input=True, confirmation_prompt=True)
+              if passphrase else None)
     signing.generate_keypair(keyfile, secret)
     typer.echo(f"private key: {keyfile} (mode 0600)\npublic key:  {keyfile}.pub")
 
@@ -470,13 +475,15 @@ def sim_server_modbus(
     host: str = typer.Option("127.0.0.1", "--host"),
     port: int = typer.Option(5020, "--port"),
     seed: int = typer.Option(0, "--seed"),
-    can_interface: str | None = typer.Option(None, "--can-interface", help="python-can interface of the simulated CAN logger"),
+    can_interface: str | None = typer.Option(
+        None, "--can-interface", help="python-can interface of the simulated CAN logger"),
     can_channel: str | None = typer.Option(None, "--can-channel"),
 ) -> None:
     """Serve the simulated turntable over Modbus TCP (and its sensor logger on CAN)."""
     from aatest.twin.servers.modbus_server import serve_forever
 
-    can_options = {k: v for k, v in (("can_interface", can_interface), ("can_channel", can_channel)) if v}
+    can_options = {k: v for k, v in (("can_interface", can_interface),
+                                     ("can_channel", can_channel)) if v}
     serve_forever(host, port, seed, **can_options)
 
 

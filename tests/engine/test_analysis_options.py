@@ -76,7 +76,8 @@ def test_cli_validate_exits_2_with_located_problem(tmp_path: Path) -> None:
     path = tmp_path / "p.yaml"
     path.write_text(HEAD + "  - scale_factor: {referenc: fit}\n", encoding="utf-8")
     done = subprocess.run([sys.executable, "-m", "aatest.cli", "validate", str(path)],
-                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL,
+                          check=False)
     assert done.returncode == EXIT_BAD_INPUT
     assert f"{path}:6:20: analysis.0.scale_factor.referenc: unknown option" in done.stderr
 

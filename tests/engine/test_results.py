@@ -66,9 +66,9 @@ def test_a_misspelt_key_is_refused(tmp_path: Path) -> None:
     doc = results_json(_results(sync=SyncResult.model_validate(SYNC)))
     doc["analysis"]["sync"]["drift_pmm"] = 1.0
     (tmp_path / "results.json").write_text(json.dumps(doc), encoding="utf-8")
-    with pytest.raises(InputError, match="analysis.sync.drift_pmm: Extra inputs"):
+    with pytest.raises(InputError, match=r"analysis\.sync\.drift_pmm: Extra inputs"):
         read_results(tmp_path)
-    with pytest.raises(AssertionError, match="violates results.schema.json"):
+    with pytest.raises(AssertionError, match=r"violates results\.schema\.json"):
         assert_valid_results(tmp_path)
     (tmp_path / "results.json").unlink()  # keep the suite-wide check from seeing it again
 
@@ -109,6 +109,6 @@ def test_third_party_results_are_typed_by_their_plugin_when_read(tmp_path: Path)
     write_results(_results(vendor_drift={"ppm_per_c": 0.1}), tmp_path)
     assert read_results(tmp_path).analysis.extra["vendor_drift"] == _VendorResult(ppm_per_c=0.1)
     write_results(_results(vendor_drift={"ppm": 0.1}), tmp_path)
-    with pytest.raises(InputError, match="analysis.vendor_drift: not a result of analysis "
+    with pytest.raises(InputError, match=r"analysis\.vendor_drift: not a result of analysis "
                                          "plugin 'vendor_drift' from distribution 'vendor-dist'"):
         read_results(tmp_path)

@@ -87,7 +87,8 @@ def test_unknown_limit_is_a_located_error(tmp_path: Path) -> None:
     done = RUNNER.invoke(app, ["run", str(procedure), "--out", str(tmp_path / "run")])
     assert done.exit_code == 2
     lines = len(SHIPPED.read_text(encoding="utf-8").splitlines())
-    assert f"{procedure}:{lines + 2}:12: acceptance.limits.scale_factor_deviaton_pct:" in done.output
+    where = f"{procedure}:{lines + 2}:12: acceptance.limits.scale_factor_deviaton_pct:"
+    assert where in done.output
 
 
 def test_imported_data_judged_by_its_dataset_datasheet(tmp_path: Path,

@@ -53,5 +53,5 @@ def test_tags_are_not_executed() -> None:
 
 
 def test_duplicate_keys_are_rejected() -> None:
-    with pytest.raises(ProcedureError, match="dup.yaml:2"):
+    with pytest.raises(ProcedureError, match=r"dup\.yaml:2"):
         parse_yaml("name: a\nname: b\n", "dup.yaml")

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from pydantic import ValidationError
 
 from aatest.engine.errors import EnvelopeRefused, PluginError, RigFault
 from aatest.engine.interfaces import Chamber, Daq, RigContext, SensorDatasheet, Turntable
@@ -46,7 +47,7 @@ def _record(table: SimTurntable, daq: SimDaq, step: PlannedStep):
 
 
 def test_plugins_satisfy_protocols_and_share_one_world() -> None:
-    ctx, table, daq, chamber = _rig()
+    _, table, daq, chamber = _rig()
     assert isinstance(table, Turntable) and isinstance(daq, Daq) and isinstance(chamber, Chamber)
     assert table.world is daq.world is chamber.world
     assert list(daq.channels())[:3] == ["v_sz", "v_sy", "v_sx"]
@@ -73,11 +74,13 @@ def test_runner_sequence_records_both_logs_in_virtual_time() -> None:
     assert len(dlog) > len(tlog)
     assert table.world.lab_time_s - t_before > step.settle_s + step.duration_s
     # the table log sees a 100 °/s² sine on the inner axis
-    assert_allclose(np.std(tlog["inner_position_deg"]) * np.sqrt(2) * (2 * np.pi * step.frequency_hz) ** 2,
-                    100.0, rtol=0.02)
+    omega = 2 * np.pi * step.frequency_hz
+    amplitude_deg = np.std(tlog["inner_position_deg"]) * np.sqrt(2)
+    assert_allclose(amplitude_deg * omega**2, 100.0, rtol=0.02)
 
 
-@pytest.mark.parametrize(("axis", "accel"), [("inner", 1200.0), ("outer", 250.0)], ids=["inner", "outer"])
+@pytest.mark.parametrize(("axis", "accel"), [("inner", 1200.0), ("outer", 250.0)],
+                         ids=["inner", "outer"])
 def test_controller_refuses_commands_beyond_limits(axis: str, accel: float) -> None:
     _, table, _, _ = _rig()
     table.start()
@@ -119,7 +122,7 @@ def test_model_file_option_loads_the_rig_model(tmp_path: Path) -> None:
     dump_rig_model(nominal_rig_model(), path)
     _, table, daq, _ = _rig_with_file(path)
     table.start()
-    tlog, dlog = _record(table, daq, static_step(samples=1024))
+    _, dlog = _record(table, daq, static_step(samples=1024))
     assert np.std(dlog["v_sz"]) < 1e-6  # nominal model: no noise, no vibration
     assert_allclose(dlog["v_sz"], 2.5, atol=1e-6)
 
@@ -152,9 +155,10 @@ def test_pivot_flips_cross_axis_response() -> None:
 
 def test_sensor_plugins() -> None:
     assert SR207().datasheet().channels == {"v_sz": "I"}
-    assert SR207Unit(SR207Unit.Config(), None).datasheet().channels == {"v_sz": "I", "v_sy": "O", "v_sx": "P"}
+    unit = SR207Unit(SR207Unit.Config(), None).datasheet()
+    assert unit.channels == {"v_sz": "I", "v_sy": "O", "v_sx": "P"}
     assert SR207().datasheet().scale_v_per_dps2 == pytest.approx(0.23 * np.pi / 180, rel=1e-3)
-    with pytest.raises(Exception):
+    with pytest.raises(ValidationError, match="unknown"):
         SR207.Config(unknown=1)  # type: ignore[call-arg]
 
 

@@ -51,7 +51,7 @@ def test_two_runs_appear_in_history_with_distinct_certificates(
     assert len(set(numbers)) == 2 and all(n.startswith("LAB-") for n in numbers)
     assert [r["bundle"] for r in document["records"]] == [
         str((run / "report.html").resolve()) for run in runs]
-    for record, run in zip(document["records"], runs):
+    for record, run in zip(document["records"], runs, strict=True):
         stated = json.loads((run / "results.json").read_text())
         assert stated["certificate_number"] == record["certificate_number"]
         assert record["certificate_number"] in (run / "report.html").read_text()
@@ -151,7 +151,7 @@ def test_records_show_and_export(sqlite_url: str, tmp_path: Path) -> None:
                              "--records", sqlite_url)
     assert code == 0, stderr
     rows = list(csv.DictReader(target.open(encoding="utf-8")))
-    assert [r["certificate_number"] for r in rows][0] == number and len(rows) == 2
+    assert rows[0]["certificate_number"] == number and len(rows) == 2
     assert float(rows[0]["scale_factor.v_sz"]) == pytest.approx(0.004014, rel=0.01)
 
 

@@ -21,7 +21,7 @@ def _open(page: Any, station: Station, procedure_id: str) -> None:
 
 
 def _only_run(station: Station) -> Path:
-    (run,) = [d for d in station.runs.iterdir() if d.is_dir()]
+    (run,) = [d for d in station.runs.iterdir() if (d / "run_state.json").is_file()]
     return run
 
 
@@ -62,7 +62,9 @@ def test_live_plot_updates_during_a_step(station: Station, page: Any) -> None:
     assert min(volts) == pytest.approx(2.5 - 0.4014, abs=0.05)
 
 
-def test_prompts_of_a_pivoted_misalignment_answered_in_the_page(station: Station, page: Any) -> None:
+def test_prompts_of_a_pivoted_misalignment_answered_in_the_page(
+    station: Station, page: Any
+) -> None:
     _open(page, station, "lab/quick-pivoted-misalignment.yaml")
     page.fill("#operator", "Ada Operator")
     page.click("#start")
@@ -81,12 +83,14 @@ def test_prompts_of_a_pivoted_misalignment_answered_in_the_page(station: Station
     assert {a["via"] for a in state["prompt_answers"]} == {"station"}
     results = json.loads((_only_run(station) / "results.json").read_text())
     assert results["metadata"]["prompt_answers"] == state["prompt_answers"]
+    assert results["metadata"]["confirm_prompts"] == "station"
 
 
 def test_abort_mid_step_then_resume(station: Station, page: Any) -> None:
     _open(page, station, "lab/quick-sine-3-steps.yaml")
     page.click("#start")
-    page.wait_for_selector("#steps li[data-id='s001-sine-inner-0.9766Hz-100dps2'][data-state='done']")
+    page.wait_for_selector(
+        "#steps li[data-id='s001-sine-inner-0.9766Hz-100dps2'][data-state='done']")
     page.wait_for_function("Number(document.getElementById('sample-count').textContent) > 0"
                            " && document.getElementById('current').textContent.startsWith('s002')")
     page.click("#abort")
@@ -105,3 +109,36 @@ def test_abort_mid_step_then_resume(station: Station, page: Any) -> None:
     assert [s["id"] for s in results["steps"]] == [
         "s001-sine-inner-0.9766Hz-100dps2", "s002-sine-inner-1.9531Hz-100dps2",
         "s003-sine-inner-3.9062Hz-100dps2"]
+
+
+def test_upload_a_bad_then_a_good_procedure_and_start_it(
+    station: Station, page: Any, tmp_path: Path
+) -> None:
+    """A bad file shows its FILE:LINE:COLUMN lines; a good one its steps, and it runs."""
+    page.goto(station.url)
+    page.wait_for_function("document.getElementById('role').textContent.includes('control')")
+    broken = Path(__file__).parents[1] / "data" / "procedures" / "broken-unknown-key.yaml"
+    page.set_input_files("#upload", str(broken))
+    page.wait_for_selector("#problems li")
+    problems = page.locator("#problems li").all_inner_texts()
+    assert problems[0].startswith("broken-unknown-key.yaml:8:7: steps.0.sine.amplitde_deg:")
+    assert page.locator("#plan tbody tr").count() == 0
+    assert "not valid" in page.locator("#upload-state").inner_text()
+    shot(page, "upload-rejected")
+    good = tmp_path / "my-scale-factor.yaml"
+    good.write_text((station.lab / "quick-scale-factor.yaml").read_text())
+    page.set_input_files("#upload", str(good))
+    page.wait_for_selector("#plan[data-procedure^='upload/my-scale-factor.'] tbody tr")
+    assert page.locator("#problems li").count() == 0
+    assert page.locator("#plan tbody tr").count() == 1
+    assert "sine" in page.locator("#plan tbody").inner_text()
+    chosen = page.locator("#procedure").input_value()
+    assert chosen.startswith("upload/my-scale-factor.") and chosen.endswith(".yaml")
+    shot(page, "upload-validated")
+    page.click("#start")
+    page.wait_for_selector("#verdict:has-text('Verdict')", timeout=120_000)
+    assert page.locator("#verdict").inner_text() == "Verdict: PASS"
+    stored = station.runs / ".station" / "uploads" / chosen.removeprefix("upload/")
+    assert stored.read_text() == good.read_text()
+    results = json.loads((_only_run(station) / "results.json").read_text())
+    assert results["procedure"] == "quick-scale-factor"

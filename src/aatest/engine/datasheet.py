@@ -71,6 +71,10 @@ class SensorInfo(SensorNominals):
         return cls(**{k: v for k, v in entry.items() if k in cls.model_fields})
 
 
+#: the channels of a single-axis sensor: one channel, sensitive about the inner axis
+_SINGLE_AXIS: Mapping[str, SensorAxis] = {"v_sz": "I"}
+
+
 class SensorDatasheet(SensorNominals):
     """Datasheet of a sensor model: the envelope and the nominals analyses compare against.
 
@@ -90,7 +94,7 @@ class SensorDatasheet(SensorNominals):
     #: non-linearity limit, % of full range (docs/method.md §1.3: ±0.05 % FR)
     nonlinearity_limit_pct_fr: float = 0.05
     #: channel name → sensitive axis in the table frame (I, O, P)
-    channels: Mapping[str, SensorAxis] = Field(default_factory=lambda: {"v_sz": "I"})
+    channels: Mapping[str, SensorAxis] = Field(default_factory=lambda: _SINGLE_AXIS)
 
     @model_validator(mode="before")
     @classmethod

@@ -107,7 +107,7 @@ class VerificationFailed(AatestError):
 
 
 class RunAborted(RigFault):
-    """An operator aborted the run; the rig was brought to its safe state like on a fault (exit 3)."""
+    """An operator aborted the run; the rig was brought to its safe state as on a fault (exit 3)."""
 
 
 P = ParamSpec("P")

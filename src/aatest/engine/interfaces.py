@@ -26,6 +26,13 @@ from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep, SensorRef
 
+# The public names; SensorDatasheet is re-exported (sensor plugins return it).
+__all__ = [
+    "GROUPS", "Analysis", "AnalysisContext", "AnalysisOutput", "AxisLimits", "Chamber", "Daq",
+    "NoOptions", "PdfRenderer", "Reporter", "RigContext", "SensorDatasheet", "SensorPlugin",
+    "SharedResources", "TableEnvelope", "Turntable",
+]
+
 #: entry-point group per plugin kind
 GROUPS: dict[str, str] = {
     "turntable": "aatest.turntables",
@@ -109,20 +116,34 @@ class RigContext:
 class SensorPlugin(Protocol):
     """A sensor model: its datasheet (the twin derives its realistic error model from it)."""
 
-    def datasheet(self) -> SensorDatasheet: ...
+    def datasheet(self) -> SensorDatasheet:
+        """Return the sensor's datasheet: channels, range (°/s²), nominal scale factor and bias.
+
+        The one source of the sensor's numbers: the planner checks steps against its range,
+        the verdict stage takes its default limits from it, the twin derives its error model.
+        """
 
 
 @runtime_checkable
 class Turntable(Protocol):
     """A motion simulator with its controller and its own logger (the table clock)."""
 
-    def envelope(self) -> TableEnvelope: ...
+    def envelope(self) -> TableEnvelope:
+        """Return what the table can do (rates in °/s, accelerations in °/s², log rate in Hz).
+
+        Called before anything moves, so a step outside the envelope is refused at planning
+        time (exit 2) rather than faulting the controller mid-run; it must not touch the rig.
+        """
 
     def start(self) -> None:
         """Connect, clear faults, switch the motor on."""
 
     def move_to(self, inner_deg: float, outer_deg: float) -> None:
-        """Position both axes and wait until they are in position."""
+        """Position both axes (``inner_deg``, ``outer_deg``, in °) and wait until in position.
+
+        Static and pivoted steps need the table at rest at a known attitude before logging,
+        so the call returns only when the controller reports both axes in position.
+        """
 
     def begin_motion(self, step: PlannedStep) -> None:
         """Start the step's motion profile and let it settle for ``step.settle_s``."""
@@ -136,16 +157,23 @@ class Turntable(Protocol):
     def safe_stop(self) -> None:
         """Stop motion and switch the motor off; must never raise and be idempotent."""
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the connection; called once at the end of a run, after ``safe_stop``."""
 
 
 @runtime_checkable
 class Daq(Protocol):
     """The on-table sensor logger: its own clock, sensor channels, sync pulse and trigger."""
 
-    def channels(self) -> Sequence[str]: ...
+    def channels(self) -> Sequence[str]:
+        """Return the sensor channel names this logger records, in log order.
 
-    def start(self) -> None: ...
+        The recording and the analyses match channels to the datasheet by these names, so a
+        logger wired differently from the datasheet is found before the first step.
+        """
+
+    def start(self) -> None:
+        """Connect to the logger and check it answers; a logger that does not is a RigFault."""
 
     def start_logging(self, step: PlannedStep) -> None:
         """Start logging and the trigger (the table log starts on it)."""
@@ -153,21 +181,29 @@ class Daq(Protocol):
     def stop_logging(self) -> SampledLog:
         """Stop logging (a little after the table log ends) and return the DAQ log."""
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the logger's bus or connection; called once at the end of a run."""
 
 
 @runtime_checkable
 class Chamber(Protocol):
     """A temperature chamber (or none)."""
 
-    def set_temperature(self, setpoint_c: float) -> None: ...
+    def set_temperature(self, setpoint_c: float) -> None:
+        """Command the chamber to ``setpoint_c`` (°C) and return without waiting.
+
+        The runner overlaps the ramp with nothing else on purpose: :meth:`wait_stable` is the
+        separate call that blocks, so a chamber's own stabilisation criterion stays its own.
+        """
 
     def wait_stable(self, soak_s: float) -> float:
-        """Wait for stabilisation; return the sensor temperature reached (°C)."""
+        """Wait for stabilisation plus ``soak_s`` (s); return the sensor temperature (°C)."""
 
-    def off(self) -> None: ...
+    def off(self) -> None:
+        """Switch heating and cooling off (the safe state of a chamber); must never raise."""
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the chamber's connection; called once at the end of a run."""
 
 
 R = TypeVar("R")
@@ -221,11 +257,38 @@ class Analysis(Protocol):
     def applies_to(self, data: Dataset) -> bool:
         """False when the data has nothing for this analysis (the engine then skips it)."""
 
-    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[Any]: ...
+    def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[Any]:
+        """Analyse ``data`` with ``context.options`` and the required upstream outputs.
+
+        Returns the typed result (quantities in the units its model's field names state)
+        and any SVG figures; it must not read anything but ``data`` and ``context``, so the
+        result of a recording is the same whichever other analyses ran.
+        """
 
 
 @runtime_checkable
 class Reporter(Protocol):
     """Renders results into a report file in ``run_dir`` and returns its path."""
 
-    def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path: ...
+    def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path:
+        """Render the results.json document into a file in ``run_dir``; return its path.
+
+        ``template_dir`` is a lab's own template directory (None: the shipped templates). The
+        report only presents: verdicts and uncertainties are already in ``results``.
+        """
+
+
+@runtime_checkable
+class PdfRenderer(Protocol):
+    """Optional capability of a report plugin: print its rendered report as a PDF copy.
+
+    The engine never imports a report module; when ``--pdf`` is asked it checks the loaded
+    report plugin for this capability (``isinstance(reporter, PdfRenderer)``) and a report
+    without it is refused with exit 2 instead of silently leaving the PDF out.
+    """
+
+    def render_pdf(self, report: Path) -> Path:
+        """Print ``report`` (the file :meth:`Reporter.render` returned) beside it; return the PDF.
+
+        Raises :class:`~aatest.engine.errors.PluginError` when no PDF can be produced.
+        """

@@ -54,6 +54,10 @@ def _years(moments: Sequence[datetime]) -> np.ndarray:
     return np.array([(m - first).total_seconds() / SECONDS_PER_YEAR for m in moments])
 
 
+#: a straight line needs two points; its slope's uncertainty from the scatter needs a third
+_POINTS_FOR_SLOPE = 2
+
+
 def fit_drift(records: Sequence[CalibrationRecord], name: str) -> Drift | None:
     """Least-squares drift of ``name`` per year; weighted by 1/U² when every point states U.
 
@@ -61,7 +65,7 @@ def fit_drift(records: Sequence[CalibrationRecord], name: str) -> Drift | None:
     the scaled covariance (needs three points).
     """
     rows = [r for r in records if name in r.quantities]
-    if len(rows) < 2:
+    if len(rows) < _POINTS_FOR_SLOPE:
         return None
     t_years = _years([r.calibrated_utc for r in rows])
     if np.ptp(t_years) * 365.25 < 1.0:
@@ -70,7 +74,8 @@ def fit_drift(records: Sequence[CalibrationRecord], name: str) -> Drift | None:
     us = [r.quantities[name].expanded_uncertainty for r in rows]
     sigma = np.array(us, dtype=float) if all(u and u > 0 for u in us) else None
     params, cov = curve_fit(lambda t, a, b: a + b * t, t_years, values, sigma=sigma)
-    u_slope = math.sqrt(cov[1, 1]) if len(rows) > 2 and math.isfinite(cov[1, 1]) else None
+    scatter_known = len(rows) > _POINTS_FOR_SLOPE and math.isfinite(cov[1, 1])
+    u_slope = math.sqrt(cov[1, 1]) if scatter_known else None
     return Drift(name, rows[0].quantities[name].unit, float(params[1]), u_slope, len(rows),
                  rows[0].calibrated_utc, float(params[0]))
 

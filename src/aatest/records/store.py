@@ -8,7 +8,7 @@ store keeps hashes and fingerprints only, never a private key.
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from datetime import UTC, datetime
 from typing import Any
 
@@ -94,6 +94,19 @@ class RecordStore:
         with self.engine.connect() as connection:
             rows = connection.execute(_filtered(where)).all()
             return _records(connection, rows)
+
+    def recent(self, limit: int) -> list[CalibrationRecord]:
+        """The ``limit`` newest current calibrations (not superseded, no diagnoses), newest first.
+
+        What a station's history list shows; a lab's store grows without bound, so the limit
+        is applied in the database rather than after loading every record.
+        """
+        query = (_filtered(RecordFilter()).where(calibrations.c.command != "diagnose")
+                 .order_by(None)
+                 .order_by(calibrations.c.calibrated_utc.desc(), calibrations.c.id.desc())
+                 .limit(limit))
+        with self.engine.connect() as connection:
+            return _records(connection, connection.execute(query).all())
 
     def history(self, serial: str) -> list[CalibrationRecord]:
         """The current (not superseded) calibrations of a unit, oldest first (no diagnoses)."""
@@ -192,7 +205,7 @@ def _children(connection: Connection, ids: Iterable[int]) -> tuple[dict[int, Any
     return files, values
 
 
-def _records(connection: Connection, rows: list[Row[Any]]) -> list[CalibrationRecord]:
+def _records(connection: Connection, rows: Sequence[Row[Any]]) -> list[CalibrationRecord]:
     files, values = _children(connection, (row.id for row in rows))
     out = []
     for row in rows:

@@ -52,11 +52,12 @@ def _plot(records: Sequence[CalibrationRecord], name: str,
           limits: tuple[float, float] | None, due: datetime | None) -> tuple[Markup, str]:
     rows = [r for r in records if name in r.quantities]
     when = [r.calibrated_utc for r in rows]
+    when_days = mdates.date2num(when)  # matplotlib's date numbers: the axis is a date axis
     values = [r.quantities[name].value for r in rows]
     errors = [r.quantities[name].expanded_uncertainty or 0.0 for r in rows]
     figure, axes = plt.subplots(figsize=(7.0, 3.0))
     stated = any(r.quantities[name].expanded_uncertainty is not None for r in rows)
-    axes.errorbar(when, values, yerr=errors, fmt="o", capsize=4,
+    axes.errorbar(when_days, values, yerr=errors, fmt="o", capsize=4,
                   label="calibration ± U" if stated else "calibration (U not stated)")
     if limits is not None:
         for bound in limits:
@@ -66,11 +67,12 @@ def _plot(records: Sequence[CalibrationRecord], name: str,
     caption = "drift: fewer than two calibrations on different days"
     if drift is not None:
         span = [when[0], due or when[-1]]
-        axes.plot(span, [drift.at(t) for t in span], color="tab:gray",
+        axes.plot(mdates.date2num(span), [drift.at(t) for t in span], color="tab:gray",
                   label=f"drift {drift.per_year:+.3g}/year")
         caption = f"fitted drift {drift.per_year:+.4g} {drift.unit}/year over {drift.points} points"
     if due is not None:
-        axes.axvline(due, color="tab:green", linestyle=":", label="next due")
+        axes.axvline(float(mdates.date2num(due)), color="tab:green", linestyle=":",
+                     label="next due")
     axes.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m-%d"))
     axes.set_ylabel(f"{name} [{rows[0].quantities[name].unit}]")
     axes.legend(fontsize="small")

@@ -6,9 +6,10 @@ interface: add fields, never rename them. Units are in the names (``_v``, ``_dps
 
 from __future__ import annotations
 
-from typing import Literal
+from collections.abc import Mapping
+from typing import Any, ClassVar, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 #: ILAC-G8 decision rules: plain comparison, guard band = U, or shared risk (U reported only)
 DecisionRule = Literal["simple", "guarded", "shared-risk"]
@@ -18,10 +19,33 @@ VerdictValue = Literal["pass", "fail", "conditional-pass", "conditional-fail"]
 Overall = Literal["pass", "fail", "conditional-pass", "conditional-fail", "none"]
 
 
+#: the analyses' own pass/fail flags, written before verdicts moved into the engine (schema 1)
+DATASHEET_FLAGS = frozenset({
+    "bias_within_datasheet", "g_sensitivity_within_datasheet", "scale_within_datasheet",
+    "bias_coefficient_within_datasheet", "scale_coefficient_within_datasheet", "within_datasheet",
+    "within_limit", "cross_within_limit",
+})
+
+
 class ResultModel(BaseModel):
-    """Base of every result model: unknown keys are errors, so a misspelt key cannot hide."""
+    """Base of every result model: unknown keys are errors, so a misspelt key cannot hide.
+
+    A key an earlier version wrote and this one retired is named in ``retired_keys``: it is
+    read and dropped (never written again), so an old results.json still loads while a
+    misspelt key is still an error.
+    """
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True)
+    #: keys of older results.json files that are accepted on reading and dropped
+    retired_keys: ClassVar[frozenset[str]] = frozenset()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _drop_retired_keys(cls, data: Any) -> Any:
+        """Drop the retired keys of an old document before the strict validation."""
+        if cls.retired_keys and isinstance(data, Mapping) and cls.retired_keys & data.keys():
+            return {k: v for k, v in data.items() if k not in cls.retired_keys}
+        return data
 
 
 class BudgetRow(ResultModel):

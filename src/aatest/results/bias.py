@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from pydantic import Field
 
 from aatest.results._fields import PerChannel, Real
-from aatest.results.base import BudgetRow, Certified, ResultModel
+from aatest.results.base import DATASHEET_FLAGS, BudgetRow, Certified, ResultModel
 
 
 class LineFit(ResultModel):
@@ -33,13 +35,14 @@ class MountingBias(ResultModel):
 class BiasChannel(Certified):
     """Bias of one sensor channel, overall and per mounting (certified: ``bias_v``)."""
 
+    #: the analysis' own pass/fail flags of schema 1; verdicts are the engine's
+    retired_keys: ClassVar[frozenset[str]] = DATASHEET_FLAGS
+
     bias_v: Real | None = Field(None, description="K0, V (None without up/down pairs)")
     g_sensitivity_dps2_per_g: Real | None = Field(None, description="°/s² per g")
     bias_u_v: Real | None = Field(None, description="standard uncertainty of K0 (type A), V")
     scale_v_per_dps2_used: Real | None = Field(None, description="scale used for g-sensitivity")
-    bias_within_datasheet: bool | None = None
     g_sensitivity_limit_dps2_per_g: Real | None = None
-    g_sensitivity_within_datasheet: bool | None = None
     mountings: dict[str, MountingBias] = Field(default_factory=dict)
     g_sensitivity_expanded_uncertainty_dps2_per_g: Real | None = Field(
         None, ge=0, description="U of the g-sensitivity, (°/s²)/g")

@@ -2,21 +2,25 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from pydantic import Field
 
 from aatest.results._fields import ComplexPair, Real
-from aatest.results.base import Certified, ResultModel
+from aatest.results.base import DATASHEET_FLAGS, Certified, ResultModel
 
 
 class SetSensor(ResultModel):
     """Published method, one sensor in one set."""
 
+    #: the analysis' own pass/fail flags of schema 1; verdicts are the engine's
+    retired_keys: ClassVar[frozenset[str]] = DATASHEET_FLAGS
+
     cross_ratio_x: Real
     cross_ratio_y: Real
-    delta_A: ComplexPair
+    delta_A: ComplexPair  # noqa: N815 - the published method's symbol, a results.json key
     delta_e_deg: Real
     A_z: ComplexPair
-    cross_within_limit: bool | None = None
 
 
 class ScenarioSensor(Certified):
@@ -29,6 +33,9 @@ class ScenarioSensor(Certified):
 class MatrixScenarioSensor(Certified):
     """Sensitivity-matrix estimate of one sensor in one scenario (certified: the angle)."""
 
+    #: the analysis' own pass/fail flags of schema 1; verdicts are the engine's
+    retired_keys: ClassVar[frozenset[str]] = DATASHEET_FLAGS
+
     sensor_tilt_x_deg: Real
     sensor_tilt_y_deg: Real
     u_sensor_tilt_deg: list[Real]
@@ -36,7 +43,6 @@ class MatrixScenarioSensor(Certified):
     azimuth_deg: Real
     mounting_tilt_deg: list[Real]
     u_mounting_tilt_deg: list[Real]
-    within_limit: bool
     repetitions: int
 
 

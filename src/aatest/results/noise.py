@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from pydantic import Field
 
 from aatest.results._fields import PerChannel, Real
-from aatest.results.base import ResultModel
+from aatest.results.base import DATASHEET_FLAGS, ResultModel
 
 
 class AllanTerms(ResultModel):
@@ -21,6 +23,9 @@ class AllanTerms(ResultModel):
 class NoiseChannel(ResultModel):
     """Noise figures of one channel over its static steps."""
 
+    #: the analysis' own pass/fail flags of schema 1; verdicts are the engine's
+    retired_keys: ClassVar[frozenset[str]] = DATASHEET_FLAGS
+
     rms_v: Real = Field(description="mean DC–band RMS over the static steps, V")
     rms_max_v: Real
     rms_per_step_v: list[Real]
@@ -28,7 +33,6 @@ class NoiseChannel(ResultModel):
     scale_v_per_dps2_used: Real | None = Field(
         None, description="calibrated scale factor if available, else the datasheet's")
     band_hz: Real
-    within_datasheet: bool
     psd_floor_v_per_sqrt_hz: Real
     allan_dps2: AllanTerms
     record_step: str

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import BeforeValidator, Field
 
 from aatest.results._fields import PerChannel, Real
-from aatest.results.base import Certified, ResultModel
+from aatest.results.base import DATASHEET_FLAGS, Certified, ResultModel
 
 #: acceleration references a scale factor can be calibrated against (docs/interfaces.md §2)
 ReferenceChoice = Literal["fit", "table_estimate", "central", "five_point", "smoothed",
@@ -61,6 +61,9 @@ class InverseModel(ResultModel):
 class ScaleFactorChannel(Certified):
     """Scale-factor calibration of one channel (certified: ``scale_v_per_dps2``)."""
 
+    #: the analysis' own pass/fail flags of schema 1; verdicts are the engine's
+    retired_keys: ClassVar[frozenset[str]] = DATASHEET_FLAGS
+
     scale_v_per_dps2: Real = Field(description="1/slope of the best straight line, V/(°/s²)")
     scale_u_v_per_dps2: Real
     scale_ci95: list[Real]
@@ -79,7 +82,6 @@ class ScaleFactorChannel(Certified):
     alignment_delay_s: Real
     steps: list[str]
     scale_deviation_pct: Real
-    scale_within_datasheet: bool
     nonlinearity_pct_fr: Real
 
 

@@ -29,7 +29,7 @@ class Candidate(ResultModel):
     V: Real
     n_params: int
     N: int
-    nAIC: Real
+    nAIC: Real  # noqa: N815 - MATLAB's name of the criterion, a results.json key (§1)
     FPE: Real
     stable: bool
     zeros_outside_unit_circle: int
@@ -68,7 +68,7 @@ class TfModel(ResultModel):
     zeros: list[ComplexPair]
     delay_s: Real
     fit_pct: Real
-    nAIC: Real
+    nAIC: Real  # noqa: N815 - MATLAB's name of the criterion, a results.json key (§1)
     FPE: Real
     num: list[Real]
     den: list[Real]

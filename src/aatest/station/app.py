@@ -2,6 +2,8 @@
 
 - ``GET /`` the page; ``/static/…`` its script, style and the vendored uPlot
 - ``GET /api/procedures`` listed procedure ids; ``GET /api/validate?id=…`` problems or steps
+- ``POST /api/upload?name=FILE.yaml`` a procedure's text as the body: validated like a file on
+  disk (problems, or the planned steps and the new id ``upload/…``); kept only when valid
 - ``GET /api/runs`` recent runs; ``GET /runs/{name}/{file}`` a run's report, PDF or results
 - ``WS /ws`` live events to every browser; commands (start, resume, answer, abort) are taken
   only from the controlling browser (the first connected; the next one when it leaves)
@@ -24,9 +26,10 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from aatest.engine.errors import AatestError
 from aatest.engine.run.session import default_operator
-from aatest.station.catalogue import RUN_FILES, Procedures, RunsDirHistory, validation
+from aatest.station.catalogue import RUN_FILES, History, Procedures, validation
 from aatest.station.control import RunController
 from aatest.station.security import Asgi, Guard
+from aatest.station.uploads import MAX_UPLOAD_BYTES, UploadError, Uploads
 
 STATIC = Path(str(resources.files("aatest.station") / "static"))
 HISTORY_ROWS = 20
@@ -87,11 +90,26 @@ async def _command(controller: RunController, hub: Hub, ws: WebSocket, msg: dict
         await ws.send_json({"type": "error", "message": str(exc)})
 
 
-def create_app(procedures: Procedures, history: RunsDirHistory, rig_file: Path | None,
-               token: str | None, replay_s: float = 2.0) -> Asgi:
+async def _body(request: Request, limit_bytes: int) -> bytes:
+    """The request body, refused (413) as soon as it exceeds ``limit_bytes``."""
+    declared = request.headers.get("content-length", "")
+    if declared.isdigit() and int(declared) > limit_bytes:
+        raise UploadError(f"upload of {declared} bytes; at most {limit_bytes}", status=413)
+    chunks, size = [], 0
+    async for chunk in request.stream():
+        size += len(chunk)
+        if size > limit_bytes:
+            raise UploadError(f"upload over {limit_bytes} bytes", status=413)
+        chunks.append(chunk)
+    return b"".join(chunks)
+
+
+def create_app(procedures: Procedures, history: History, rig_file: Path | None,
+               token: str | None, replay_s: float = 2.0, records_url: str | None = None) -> Asgi:
     """Build the station application (wrapped in the origin/token guard)."""
     hub = Hub()
-    controller = RunController(procedures, history, rig_file, hub.publish, replay_s)
+    controller = RunController(procedures, history, rig_file, hub.publish, replay_s,
+                               records_url)
 
     async def page(request: Request) -> Response:
         return FileResponse(STATIC / "index.html")
@@ -106,8 +124,21 @@ def create_app(procedures: Procedures, history: RunsDirHistory, rig_file: Path |
             return JSONResponse({"ok": False, "problems": [str(exc)]}, status_code=404)
         return JSONResponse(await asyncio.to_thread(validation, path, rig_file))
 
+    async def upload(request: Request) -> Response:
+        name = request.query_params.get("name", "")
+        if procedures.upload_dir is None:
+            return JSONResponse({"ok": False, "problems": ["uploads are off"]}, status_code=404)
+        try:
+            body = await _body(request, MAX_UPLOAD_BYTES)
+            result = await asyncio.to_thread(
+                Uploads(procedures.upload_dir).accept, name, body, rig_file)
+        except UploadError as exc:
+            return JSONResponse({"ok": False, "problems": [str(exc)]}, status_code=exc.status)
+        return JSONResponse(result)
+
     async def runs(request: Request) -> Response:
-        return JSONResponse({"runs": history.recent(HISTORY_ROWS)})
+        rows = await asyncio.to_thread(history.recent, HISTORY_ROWS)
+        return JSONResponse({"runs": rows, **history.source()})
 
     async def run_file(request: Request) -> Response:
         name, file = request.path_params["name"], request.path_params["file"]
@@ -134,6 +165,7 @@ def create_app(procedures: Procedures, history: RunsDirHistory, rig_file: Path |
     app = Starlette(routes=[
         Route("/", page), Route("/api/procedures", list_procedures),
         Route("/api/validate", validate), Route("/api/runs", runs),
+        Route("/api/upload", upload, methods=["POST"]),
         Route("/runs/{name}/{file}", run_file), WebSocketRoute("/ws", websocket),
         Mount("/static", StaticFiles(directory=STATIC)),
     ])

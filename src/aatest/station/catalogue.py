@@ -1,8 +1,10 @@
 """What the station offers: procedures by id, their validation, recent runs and their files.
 
 The browser never sends a file-system path: procedures are named by an id
-(``shipped/<file>`` or ``lab/<file>``) looked up in the listing built here, runs by their
-directory name looked up in the runs directory, and run files by a fixed set of names.
+(``shipped/<file>``, ``lab/<file>`` or ``upload/<file>``) looked up in the listing built here,
+runs by their directory name looked up in the runs directory, and run files by a fixed set of
+names. The history comes from the runs directory, or from the calibration records store when
+the station is started with ``--records`` (:class:`RecordsHistory`).
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ import json
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from aatest.engine.errors import AatestError, InputError, ProblemsError
 from aatest.engine.run.progress import describe
@@ -19,24 +21,33 @@ from aatest.engine.run.run_state import STATE_FILE, RunState
 from aatest.engine.run.runner import procedure_sha256
 from aatest.station.verdicts import banner
 
+if TYPE_CHECKING:
+    from aatest.records.models import CalibrationRecord
+    from aatest.records.store import RecordStore
+
 #: run files the page may link to (report plugins write ``report.html``; ``--pdf`` its PDF)
 RUN_FILES = {"report.html": "text/html", "report.pdf": "application/pdf",
              "results.json": "application/json"}
+#: id prefix of procedures uploaded from the browser (kept in the station's upload directory)
+UPLOAD_PREFIX = "upload/"
 
 
 @dataclass(frozen=True)
 class Procedures:
-    """The shipped procedures and those of an optional lab directory, by id."""
+    """The shipped procedures, those of an optional lab directory and the uploaded ones, by id."""
 
     lab_dir: Path | None = None
+    upload_dir: Path | None = None
 
     def listing(self) -> dict[str, Path]:
-        """Id → file: ``shipped/<name>.yaml`` then ``lab/<name>.yaml``, sorted by name."""
+        """Id → file: ``shipped/<name>.yaml``, ``lab/<name>.yaml``, ``upload/<name>.yaml``."""
         shipped = Path(str(resources.files("aatest") / "procedures"))
         found = {f"shipped/{p.name}": p for p in sorted(shipped.glob("*.yaml"))}
-        if self.lab_dir is not None:
+        for prefix, directory in (("lab/", self.lab_dir), (UPLOAD_PREFIX, self.upload_dir)):
+            if directory is None or not directory.is_dir():
+                continue
             for pattern in ("*.yaml", "*.yml"):
-                found.update({f"lab/{p.name}": p for p in sorted(self.lab_dir.glob(pattern))})
+                found.update({f"{prefix}{p.name}": p for p in sorted(directory.glob(pattern))})
         return found
 
     def path(self, procedure_id: str) -> Path:
@@ -72,11 +83,34 @@ def validation(path: Path, rig_file: Path | None) -> dict[str, Any]:
 
 
 class History(Protocol):
-    """Recent runs for the history list (the runs directory, or a records store later)."""
+    """Recent runs for the history list, and the run directories the page may open."""
+
+    @property
+    def runs_dir(self) -> Path:
+        """Where the station's runs are written (and their files served from)."""
+        ...
+
+    def run_dir(self, name: str) -> Path:
+        """The directory of run ``name`` under ``runs_dir``; unknown names are an InputError."""
+        ...
 
     def recent(self, limit: int) -> list[dict[str, Any]]:
         """Newest first: name, procedure, finished, overall verdict, report links."""
         ...
+
+    def source(self) -> dict[str, str]:
+        """Where the list comes from, for the page: ``{"source": "runs" | "records", …}``."""
+        ...
+
+
+def _run_dir_named(runs_dir: Path, name: str) -> Path:
+    """The run directory ``name`` directly under ``runs_dir``; anything else is refused."""
+    candidate = runs_dir / name
+    if "/" in name or "\\" in name or name in ("", ".", "..") or not (
+        candidate / STATE_FILE
+    ).is_file():
+        raise InputError(f"unknown run {name!r}")
+    return candidate
 
 
 @dataclass(frozen=True)
@@ -87,12 +121,7 @@ class RunsDirHistory:
 
     def run_dir(self, name: str) -> Path:
         """The directory of run ``name``; names with separators or unknown runs are refused."""
-        candidate = self.runs_dir / name
-        if "/" in name or "\\" in name or name in ("", ".", "..") or not (
-            candidate / STATE_FILE
-        ).is_file():
-            raise InputError(f"unknown run {name!r}")
-        return candidate
+        return _run_dir_named(self.runs_dir, name)
 
     def recent(self, limit: int) -> list[dict[str, Any]]:
         """The ``limit`` most recently changed runs, newest first."""
@@ -102,15 +131,70 @@ class RunsDirHistory:
         dirs.sort(key=lambda d: (d / STATE_FILE).stat().st_mtime, reverse=True)
         return [run_summary(d) for d in dirs[:limit]]
 
+    def source(self) -> dict[str, str]:
+        """The runs directory (its name only: the page needs no local path)."""
+        return {"source": "runs", "where": self.runs_dir.name}
 
-def history_for(records: str | None, runs_dir: Path) -> RunsDirHistory:
-    """The history source: the runs directory; ``--records`` plugs a records store in here."""
-    if records is not None:
-        raise InputError(
-            f"--records {records}: no records store client is installed in this aatest; "
-            "start the station without --records to list runs from --runs"
-        )
-    return RunsDirHistory(runs_dir)
+
+@dataclass(frozen=True)
+class RecordsHistory:
+    """History read from the calibration records store (``aatest station --records URL``).
+
+    Lists the newest registered calibrations of every station and command that used the store,
+    not only this station's runs. Run files and Resume stay tied to the runs directory: a record
+    whose bundle lies in a run directory under ``runs_dir`` links its files; others (runs made
+    elsewhere) are listed without links, so no path stored in the database is served.
+    """
+
+    store: RecordStore
+    runs_dir: Path
+
+    def run_dir(self, name: str) -> Path:
+        """The directory of run ``name`` under ``runs_dir`` (as :class:`RunsDirHistory`)."""
+        return _run_dir_named(self.runs_dir, name)
+
+    def recent(self, limit: int) -> list[dict[str, Any]]:
+        """The ``limit`` newest current calibrations in the store, newest first."""
+        return [self._row(record) for record in self.store.recent(limit)]
+
+    def source(self) -> dict[str, str]:
+        """The store's URL without its password."""
+        return {"source": "records", "store": self.store.name}
+
+    def _local_run(self, bundle: str) -> Path | None:
+        """The run directory under ``runs_dir`` that holds ``bundle``, if any."""
+        run_dir = Path(bundle).parent
+        try:
+            inside = run_dir.resolve().parent == self.runs_dir.resolve()
+            return _run_dir_named(self.runs_dir, run_dir.name) if inside else None
+        except (InputError, OSError):
+            return None
+
+    def _row(self, record: CalibrationRecord) -> dict[str, Any]:
+        local = self._local_run(record.bundle)
+        return {
+            "name": local.name if local is not None else None,
+            "procedure": record.procedure, "finished": True,
+            "overall": record.overall_verdict,
+            "files": sorted(n for n in RUN_FILES if local is not None and (local / n).is_file()),
+            "certificate_number": record.certificate_number,
+            "unit": f"{record.model}/{record.serial}",
+            "calibrated_utc": record.calibrated_utc.isoformat(timespec="seconds"),
+            "operator": record.operator, "command": record.command, "source": "records",
+        }
+
+
+def history_for(records: str | None, runs_dir: Path) -> History:
+    """The history source: the records store at ``records`` when given, else the runs directory.
+
+    The store is opened (and migrated) once, when the station starts: an unreachable database
+    is an error then (exit 2), not a history list that silently stays empty.
+    """
+    if records is None:
+        return RunsDirHistory(runs_dir)
+    from aatest.records.store import RecordStore
+
+    return RecordsHistory(RecordStore.open(records), runs_dir)
 
 
 def run_summary(run_dir: Path) -> dict[str, Any]:

@@ -16,7 +16,7 @@ from aatest.engine.errors import AatestError, InputError
 from aatest.engine.run.events import AbortFlag, RunEvents
 from aatest.engine.run.rig import sensor_datasheet
 from aatest.engine.run.runner import default_run_dir
-from aatest.station.catalogue import Procedures, RunsDirHistory, results_summary
+from aatest.station.catalogue import History, Procedures, results_summary
 from aatest.station.live import Publish, StationObserver, StationResponder
 
 
@@ -56,10 +56,13 @@ class RunController:
     """Starts at most one run; routes the controlling browser's commands to it."""
 
     procedures: Procedures
-    history: RunsDirHistory
+    history: History
     rig_file: Path | None
     publish: Publish
     replay_s: float = 2.0
+    #: records store the runs are registered in, as by ``aatest run --records`` (None: the
+    #: default store, ``AATEST_RECORDS`` or the user's file)
+    records_url: str | None = None
     snapshot: Snapshot = field(default_factory=Snapshot)
     _thread: threading.Thread | None = None
     _abort: AbortFlag = field(default_factory=AbortFlag)
@@ -128,10 +131,21 @@ class RunController:
     def _work(self, path: Path, run_dir: Path, resume: bool, operator: str,
               events: RunEvents) -> None:
         from aatest.engine.run import session
+        from aatest.records.errors import RecordsUnavailable
+        from aatest.records.hook import registering
+        from aatest.records.lab import load_lab
 
+        notice = None
         try:
-            session.run(path, self.rig_file, run_dir, resume, 0, None, show_progress=False,
-                        operator=operator, events=events)
+            try:
+                # registered like `aatest run`: a certificate number, then the signed bundle
+                with registering(self.records_url, load_lab(), "run"):
+                    session.run(path, self.rig_file, run_dir, resume, 0, None,
+                                show_progress=False, operator=operator, events=events)
+            except RecordsUnavailable as exc:
+                if not (run_dir / "results.json").is_file():
+                    raise
+                notice = str(exc)  # the run is complete on disk; only its record is missing
         except AatestError as exc:
             self.emit({"type": "stopped", "reason": str(exc), "exit_code": exc.exit_code,
                        "resumable": (run_dir / "run_state.json").is_file()})
@@ -140,4 +154,5 @@ class RunController:
             self.emit({"type": "stopped", "reason": f"internal error: {exc}", "exit_code": 4,
                        "resumable": (run_dir / "run_state.json").is_file()})
             return
-        self.emit({"type": "finished", "name": run_dir.name, **results_summary(run_dir)})
+        self.emit({"type": "finished", "name": run_dir.name, "notice": notice,
+                   **results_summary(run_dir)})

@@ -11,6 +11,9 @@ from aatest.station.app import create_app
 from aatest.station.catalogue import Procedures, history_for
 from aatest.station.security import Asgi, load_token
 
+#: the station's own directory inside the runs directory (uploaded procedures live there)
+STATION_DIR = ".station"
+
 
 class StationOptions(BaseModel):
     """What ``aatest station`` was given on its command line."""
@@ -33,10 +36,11 @@ def build(options: StationOptions) -> Asgi:
     token = load_token(options.host, options.token_file)
     if options.lab_dir is not None and not options.lab_dir.is_dir():
         raise InputError(f"--lab {options.lab_dir}: not a directory")
-    history = history_for(options.records, options.runs_dir)
     options.runs_dir.mkdir(parents=True, exist_ok=True)
-    return create_app(Procedures(options.lab_dir), history, options.rig_file, token,
-                      options.replay_s)
+    history = history_for(options.records, options.runs_dir)
+    uploads = options.runs_dir / STATION_DIR / "uploads"
+    return create_app(Procedures(options.lab_dir, uploads), history, options.rig_file, token,
+                      options.replay_s, options.records)
 
 
 def serve(options: StationOptions) -> None:

@@ -82,9 +82,13 @@ class SyncedStep:
         return int(self.time_s.shape[0])
 
 
+#: a 0/1 logic level is high above half its swing
+LOGIC_THRESHOLD = 0.5
+
+
 def rising_edges(pulse: np.ndarray) -> np.ndarray:
     """Indices of the samples where a 0/1 pulse goes from low to high."""
-    high = np.asarray(pulse) > 0.5
+    high = np.asarray(pulse) > LOGIC_THRESHOLD
     return np.flatnonzero(~high[:-1] & high[1:]) + 1
 
 
@@ -120,7 +124,7 @@ def _daq_edges(data: StepData, daq_time_s: np.ndarray) -> tuple[np.ndarray, floa
     idx = rising_edges(daq["sync_pulse"])
     if "trigger" not in daq.channels:
         return daq_time_s[idx], None
-    trigger = np.asarray(daq["trigger"]) > 0.5
+    trigger = np.asarray(daq["trigger"]) > LOGIC_THRESHOLD
     if not trigger.any():
         raise AnalysisError(f"step {data.step.id}: the DAQ trigger never goes high")
     first = int(np.argmax(trigger))

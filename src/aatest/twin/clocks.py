@@ -1,4 +1,5 @@
-"""Logger clocks and the freeze-pulse synchronisation signals (docs/method.md §2, docs/interfaces.md §4).
+"""Logger clocks and the freeze-pulse synchronisation signals (docs/method.md §2, §4 of
+docs/interfaces.md).
 
 The table controller's clock is the lab reference. The DAQ runs on its own crystal:
 DAQ sample j is taken at lab time t0 + (j/fs)·(1 + drift_ppm·1e-6), so a positive drift means a
@@ -18,6 +19,8 @@ from aatest.twin.fastmath import standard_normal
 
 #: resolution of the DAQ's time stamps: a 10 MHz counter (far below the µs jitter)
 TIMESTAMP_TICK_S = 1e-7
+#: the sync pulse is high for this fraction of each period (a square wave)
+HIGH_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -81,7 +84,7 @@ class DaqClock:
         """Sync pulse level (0/1) at DAQ clock times: high for the first half period."""
         cycles = daq_time_s * self.sync_hz - self.sync_phase
         frac = cycles - np.floor(cycles)
-        return (frac < 0.5).astype(np.float64)
+        return (frac < HIGH_FRACTION).astype(np.float64)
 
     def edges(self, daq_start_s: float, daq_stop_s: float,
               rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:

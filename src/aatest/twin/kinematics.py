@@ -1,7 +1,7 @@
 """Two-axis table kinematics: frames, sensor axes, angular acceleration and gravity.
 
-Frames (docs/interfaces.md §4 "Frames"). Table-top coordinates are ordered (P, O, I) so that a sensor
-on I with x along P and y along O is right-handed. The outer axis O is fixed in the lab and
+Frames (docs/interfaces.md §4 "Frames"). Table-top coordinates are ordered (P, O, I) so that a
+sensor on I with x along P and y along O is right-handed. The outer axis O is fixed in the lab and
 horizontal; the inner axis I is carried by the outer gimbal and points up at outer 0°; the table
 top turns about I by the inner angle ψ. Every vector below is expressed in the *table-top* frame,
 which is the frame the sensors are bolted to.
@@ -87,7 +87,7 @@ def angular_acceleration_top(
     # outer axis in the inner-base frame: R_x(ε)ᵀ·e_O = (0, cos ε, −sin ε)
     v_o, v_i = np.cos(eps), -np.sin(eps)
     cross = np.radians(inner_rate_dps) * outer_rate_dps  # (rad/s)·(°/s) = °/s²
-    alpha = np.empty((3,) + np.shape(s))
+    alpha = np.empty((3, *np.shape(s)))
     alpha[0] = v_o * (outer_accel_dps2 * s + cross * c)
     alpha[1] = v_o * (outer_accel_dps2 * c - cross * s)
     alpha[2] = inner_accel_dps2 + v_i * outer_accel_dps2
@@ -108,7 +108,7 @@ def gravity_top(inner_sincos: tuple[np.ndarray, np.ndarray],
     u0 = -sin_phi
     u1 = np.sin(eps) * cos_phi
     u2 = np.cos(eps) * cos_phi
-    up = np.empty((3,) + np.shape(s))
+    up = np.empty((3, *np.shape(s)))
     up[0] = c * u0 + s * u1
     up[1] = -s * u0 + c * u1
     up[2] = u2
@@ -145,7 +145,7 @@ def lab_horizontal_top(inner_sincos: tuple[np.ndarray, np.ndarray],
     s, c = inner_sincos
     sin_phi, cos_phi = outer_sincos
     h1, h2 = about_lab
-    out = np.empty((3,) + np.shape(h1))
+    out = np.empty((3, *np.shape(h1)))
     out[0] = h1 * (c * cos_phi) + h2 * s
     out[1] = h2 * c - h1 * (s * cos_phi)
     out[2] = h1 * sin_phi

@@ -47,7 +47,7 @@ class StepSetup:
 
     @property
     def trigger_index(self) -> int:
-        return int(round(self.model.daq.start_lead_s * self.clock.sample_rate_hz))
+        return round(self.model.daq.start_lead_s * self.clock.sample_rate_hz)
 
     @property
     def trigger_time_s(self) -> float:
@@ -96,6 +96,18 @@ class SimulatedStep:
     daq: SampledLog
     truth: LazyTruth
 
+
+
+def _noiseless_truth(clean: np.ndarray, model: RigModel,
+                     lab_dt_s: float) -> Callable[[LazyTruth], Any]:
+    """The deferred truth of one channel's volts without noise (bound now, computed on use)."""
+    return lambda _truth: noiseless(clean, model.daq, lab_dt_s)
+
+
+def _axis_truth(axis_z: np.ndarray,
+                undelayed: Callable[[], np.ndarray]) -> Callable[[LazyTruth], Any]:
+    """The deferred truth of the acceleration along one sensitive axis (°/s²)."""
+    return lambda _truth: axis_z @ undelayed()
 
 def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, dict[str, Any]]:
     step, tm = setup.step, setup.model.table
@@ -197,12 +209,11 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s)
         clean = output_volts(sensor, inp, model.t_ref_c)
         channels[sensor.channel] = record_channel(clean, sensor, model.daq, clock.lab_dt_s, rng)
-        truth.defer(f"volts_{sensor.channel}",
-                    lambda _, c=clean: noiseless(c, model.daq, clock.lab_dt_s))
+        truth.defer(f"volts_{sensor.channel}", _noiseless_truth(clean, model, clock.lab_dt_s))
     for sensor in model.sensors:  # true acceleration along each sensitive axis, undelayed
         axis_z = setup.axes[sensor.channel][:, 2]
         truth.defer(f"alpha_{sensor.channel}",
-                    lambda _, z=axis_z: z @ _undelayed(setup, grid, motion, floor))
+                    _axis_truth(axis_z, lambda: _undelayed(setup, grid, motion, floor)))
     channels_of = [s.channel for s in model.sensors]
     truth.defer("sensor_accel_dps2", lambda t: {ch: t[f"alpha_{ch}"] for ch in channels_of})
     channels["sync_pulse"] = clock.sync_level(clock.daq_times(n))

@@ -3,8 +3,8 @@
 Real motion of one axis = commanded profile through an equivalent closed-loop tracking model
 + position-periodic encoder ripple (1 and 2 cycles/°) + narrow-band motor vibration (motor on)
 or slow drift (motor off). Everything is an analytic function of time, so the table log and the
-sensor sample the same physical truth on their own clocks (docs/method.md §1.2, docs/interfaces.md §4
-"Table effects").
+sensor sample the same physical truth on their own clocks (docs/method.md §1.2,
+docs/interfaces.md §4 "Table effects").
 
 The logged estimates are what the controller computes: the position estimate (true angle +
 estimator noise, quantised to the position resolution) and rate/acceleration as central or

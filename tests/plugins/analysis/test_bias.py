@@ -27,5 +27,5 @@ def test_bias_and_g_sensitivity_recovered() -> None:
         v = out[s.channel]
         assert v["bias_v"] == pytest.approx(s.bias_v, abs=1e-4)
         assert v["g_sensitivity_dps2_per_g"] == pytest.approx(s.g_dps2_per_g, rel=0.1)
-        assert v["bias_within_datasheet"] and v["g_sensitivity_within_datasheet"]
+        assert "bias_within_datasheet" not in v  # pass/fail is the engine's verdict stage
         assert v["mountings"]["original"]["repetitions"] == 3

@@ -34,6 +34,6 @@ def test_coefficients_against_twin(realistic_unit) -> None:  # type: ignore[no-u
     assert v["scale_coefficient_per_c"] == pytest.approx(
         s.scale_temperature.coefficient_per_c, rel=0.1)
     assert v["hysteresis_v"] is not None and v["hysteresis_v"] < 2e-4
-    assert v["bias_coefficient_within_datasheet"] and v["scale_coefficient_within_datasheet"]
+    assert "bias_coefficient_within_datasheet" not in v  # pass/fail: the engine's verdicts
     lo, hi = v["bias_coefficient_ci95_v_per_c"]
     assert lo < s.bias_temperature.coefficient_v_per_c < hi or abs(hi - lo) < 2e-5

@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 from aatest.engine.errors import RigFault
 from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.daq import can_frames as cf
 from aatest.plugins.daq.can import CanDaq
+from aatest.protocols import can_frames as cf
 from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 
 STEP = PlannedStep(id="s", kind="static", samples=1000)

@@ -28,7 +28,7 @@ from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.engine.errors import EXIT_RIG_FAULT
-from aatest.plugins.turntable.modbus_map import Command, Reg
+from aatest.protocols.modbus_map import Command, Reg
 from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 from aatest.twin.servers.modbus_server import SimModbusServer
 

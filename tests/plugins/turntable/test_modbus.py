@@ -13,7 +13,7 @@ from aatest.engine.logs import TABLE_CHANNELS
 from aatest.engine.run.runner import execute_step as run_step
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.turntable.modbus import ModbusTurntable
-from aatest.plugins.turntable.modbus_map import Status
+from aatest.protocols.modbus_map import Status
 
 SINE = PlannedStep(id="s01-sine", kind="sine", axis="inner", frequency_hz=2.0, accel_dps2=100.0,
                    samples=4096, settle_s=2.0)

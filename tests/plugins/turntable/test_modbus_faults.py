@@ -12,7 +12,7 @@ import pytest
 from aatest.engine.errors import EXIT_RIG_FAULT, RigFault
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.turntable.modbus import ModbusTurntable
-from aatest.plugins.turntable.modbus_map import Command, Fault, Status
+from aatest.protocols.modbus_map import Command, Fault, Status
 from aatest.twin.servers.modbus_controller import FaultInjection
 
 STEP = PlannedStep(id="s01", kind="sine", axis="inner", frequency_hz=1.0, accel_dps2=50.0,

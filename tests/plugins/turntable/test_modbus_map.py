@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from aatest.plugins.turntable import modbus_map as mm
-from aatest.plugins.turntable.modbus_map import Reg
+from aatest.protocols import modbus_map as mm
+from aatest.protocols.modbus_map import Reg
 
 
 def test_float64_is_abcd_high_word_first() -> None:

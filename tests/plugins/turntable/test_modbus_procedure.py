@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 from aatest.cli import app
 from aatest.engine.errors import EXIT_RIG_FAULT
 from aatest.engine.recording import read_dataset
-from aatest.plugins.turntable.modbus_map import Fault
+from aatest.protocols.modbus_map import Fault
 from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 from aatest.twin.servers.modbus_controller import FaultInjection
 from aatest.twin.servers.modbus_server import SimModbusServer

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from aatest.plugins.turntable import modbus_map as mm
+from aatest.protocols import modbus_map as mm
 
 DOC = Path(__file__).parents[3] / "docs" / "modbus-register-map.md"
 

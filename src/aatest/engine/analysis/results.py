@@ -40,8 +40,9 @@ def _scalar(value: Any) -> Any:
 
 def _plain_metadata(meta: dict[str, Any]) -> dict[str, Any]:
     """The run metadata (without the plan) as plain JSON values."""
-    return json.loads(json.dumps({k: v for k, v in meta.items() if k != "plan"},
-                                 default=_scalar))
+    plain: dict[str, Any] = json.loads(json.dumps(
+        {k: v for k, v in meta.items() if k != "plan"}, default=_scalar))
+    return plain
 
 
 def build_results(

@@ -83,7 +83,8 @@ def _from_info(info: SensorInfo) -> SensorDatasheet:
     """A datasheet from one channel's stated values (imported data); other limits default."""
     return SensorDatasheet(
         model=info.model, range_dps2=info.range_dps2, nominal_bias_v=info.nominal_bias_v,
-        bias_tolerance_v=info.bias_tolerance_v, scale_v_per_dps2=info.nominal_scale_v_per_dps2,
+        bias_tolerance_v=info.bias_tolerance_v,
+        nominal_scale_v_per_dps2=info.nominal_scale_v_per_dps2,
         scale_tolerance_pct=info.scale_tolerance_pct, noise_rms_v=info.noise_rms_v,
         bias_temperature_limit_v_per_c=info.bias_temperature_limit_v_per_c,
         scale_temperature_limit_per_c=info.scale_temperature_limit_per_c,

@@ -77,12 +77,17 @@ def _vocabulary() -> frozenset[str]:
 _UNKNOWN_KEY = "Extra inputs are not permitted"
 
 
+#: dotted parts of a step's own key: "steps", the step's index, the key
+_STEP_KEY_DEPTH = 3
+
+
 def _with_hint(problem: Problem, vocabulary: frozenset[str]) -> Problem:
     """Add a hint to an unknown-key problem: the closest known key, or the step kinds."""
     if problem.message != _UNKNOWN_KEY or not problem.field:
         return problem
     parts = problem.field.split(".")
-    is_step_kind = len(parts) >= 3 and parts[-3] == "steps" and parts[-2].isdigit()
+    # "….steps.<index>.<key>": the unknown key is where a step kind belongs
+    is_step_kind = len(parts) >= _STEP_KEY_DEPTH and parts[-3] == "steps" and parts[-2].isdigit()
     choices = STEP_KINDS if is_step_kind else sorted(vocabulary)
     close = difflib.get_close_matches(parts[-1], choices, n=1, cutoff=0.75)
     message = f"unknown key; did you mean {close[0]!r}?" if close else "unknown key"

@@ -1,5 +1,5 @@
-"""The procedure YAML as typed, frozen models (docs/interfaces.md §2; the JSON Schema made from them is
-the contract).
+"""The procedure YAML as typed, frozen models (docs/interfaces.md §2; the JSON Schema made from
+them is the contract).
 
 A procedure says *what* to do: the device under test, the rig plugins, the sampling, a list of
 steps and step *generators*, the analyses and the report. Every step entry is a mapping with

@@ -35,6 +35,11 @@ class Rig:
     config: dict[str, Any] = field(default_factory=dict)
 
     def sensor_infos(self) -> tuple[SensorInfo, ...]:
+        """The sensors under test on this rig, one record per sensing axis, with their serials.
+
+        Derived from the one datasheet and the procedure's serial (not copied field by field),
+        so the recording's metadata and the verdicts' limits name the same sensors.
+        """
         return self.datasheet.sensor_infos(self.context.sensor.serial)
 
 
@@ -51,7 +56,9 @@ def sensor_datasheet(sensor: SensorRef) -> tuple[SensorDatasheet, str]:
     return sheet, f"{info.distribution} {info.version}"
 
 
-def _construct(kind: str, name: str, options: dict[str, Any], context: RigContext) -> tuple[Any, str]:
+def _construct(
+    kind: str, name: str, options: dict[str, Any], context: RigContext
+) -> tuple[Any, str]:
     info = registry.load(kind, name)
     config = registry.configure(info, options)
     try:
@@ -76,7 +83,8 @@ def build_rig(rig_config: Any, sensor: SensorRef, seed: int) -> Rig:
             kind, spec.plugin, dict(spec.options), context
         )
         config[kind] = {"plugin": spec.plugin, **dict(spec.options)}
-    return Rig(parts["turntable"], parts["daq"], parts["chamber"], datasheet, context, versions, config)
+    return Rig(parts["turntable"], parts["daq"], parts["chamber"], datasheet, context, versions,
+               config)
 
 
 def _safely(action: str, fn: Any) -> None:
@@ -91,7 +99,8 @@ def running(rig: Rig) -> Iterator[Rig]:
     """Start the rig; on any exit (fault, Ctrl-C, success) leave it safe and closed."""
     started: list[tuple[str, Any]] = []
     try:
-        for name, part in (("chamber", rig.chamber), ("daq", rig.daq), ("turntable", rig.turntable)):
+        parts = (("chamber", rig.chamber), ("daq", rig.daq), ("turntable", rig.turntable))
+        for name, part in parts:
             start = getattr(part, "start", None)
             try:
                 if start is not None:

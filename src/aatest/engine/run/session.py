@@ -12,13 +12,20 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import build_results, read_results, results_json, write_results
+from aatest.engine.analysis.results import (
+    RESULTS_FILE,
+    build_results,
+    read_results,
+    results_json,
+    write_results,
+)
 from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
+from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run import bundle_hooks
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
@@ -30,6 +37,9 @@ from aatest.results import RunResults
 from aatest.results.root import Signature
 
 log = logging.getLogger("aatest")
+
+#: how a run's prompts were confirmed (results metadata ``confirm_prompts``)
+PromptMode = Literal["ask", "auto", "station"]
 
 SIGNING_KEY_ENV = "AATEST_SIGNING_KEY"
 PASSPHRASE_ENV = "AATEST_SIGNING_PASSPHRASE"
@@ -47,7 +57,7 @@ class Prepared:
     expansion: Any
 
     def plan_json(self) -> dict[str, Any]:
-        """``aatest plan --json``: the steps, lab duration and the points skipped as out of envelope."""
+        """``aatest plan --json``: the steps, lab duration and the points out of envelope."""
         return dict(self.expansion.to_contract_json())
 
 
@@ -64,9 +74,8 @@ def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
     sensor = SensorRef(model=proc.sensor.model, serial=proc.sensor.serial)
     envelope, datasheet = _declared_limits(rig_config, sensor)
     expansion = expand_traced(proc, envelope=envelope, datasheet=datasheet)
-    check_envelope(
-        expansion.plan, envelope, datasheet, procedure_file=str(procedure), sources=expansion.sources
-    )
+    check_envelope(expansion.plan, envelope, datasheet, procedure_file=str(procedure),
+                   sources=expansion.sources)
     return Prepared(procedure, text, expansion.plan, rig_config, expansion)
 
 
@@ -92,18 +101,23 @@ def default_operator() -> str:
 
 
 def signing_key(explicit: Path | None) -> Path | None:
+    """The signing key: ``explicit`` (``--sign-key``), else ``AATEST_SIGNING_KEY``, else None.
+
+    None leaves the report unsigned (a warning, not an error: a bench run need not be signed).
+    """
     if explicit is not None:
         return explicit
     env = os.environ.get(SIGNING_KEY_ENV)
     return Path(env) if env else None
 
 
-def analyse_and_report(
+def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run` one to one
     data_path: Path,
     out_dir: Path,
     template: str | None = None,
     template_dir: Path | None = None,
     key_path: Path | None = None,
+    *,
     lab_duration_s: float | None = None,
     wall_duration_s: float | None = None,
     pdf: bool = False,
@@ -112,6 +126,9 @@ def analyse_and_report(
     """Read a recording/import, run its analyses, write results.json and the signed report;
     return the results.json document (what report plugins read).
 
+    ``lab_duration_s`` (s) defaults to the sum of the recorded steps' lab time, and
+    ``wall_duration_s`` (s) to 0 for imported data that has no run behind it; both are
+    reported so the lab-time-to-wall-time ratio of a run stays on record.
     ``extra_metadata`` is merged into the results metadata (e.g. who confirmed each prompt).
     """
     from aatest.engine.recording import read_dataset
@@ -188,18 +205,19 @@ def render_and_sign(
     write_results(results, run_dir)
     info = registry.load("report", template)
     reporter = info.target(registry.configure(info, {}))
-    report = reporter.render(results_json(results), run_dir, template_dir)
-    if pdf:
-        from aatest.plugins.report.pdf import render_pdf
-
-        render_pdf(report)
+    if pdf and not isinstance(reporter, PdfRenderer):
+        raise InputError(f"report '{template}' cannot print a PDF (its plugin has no "
+                         "render_pdf); run without --pdf or choose another report")
+    report: Path = reporter.render(results_json(results), run_dir, template_dir)
+    if pdf and isinstance(reporter, PdfRenderer):
+        reporter.render_pdf(report)
     if private is not None:
         signing.sign_bundle(report, private)
     bundle_hooks.after_signing(results, report)
     return report
 
 
-def run(
+def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later ones by keyword
     procedure: Path,
     rig_file: Path | None,
     out_dir: Path | None,
@@ -207,6 +225,7 @@ def run(
     seed: int,
     key_path: Path | None,
     show_progress: bool = True,
+    *,
     operator: str | None = None,
     pdf: bool = False,
     events: RunEvents | None = None,
@@ -217,6 +236,9 @@ def run(
     ``events`` lets a caller (the station) observe, answer prompts and abort; without a
     responder the terminal answers, and without a terminal the run is refused before the rig
     moves unless ``confirm_prompts`` is ``"auto"`` (see :func:`events.terminal_responder`).
+    How prompts were confirmed is recorded in the results metadata as ``confirm_prompts``
+    (``ask``: a person at the terminal, ``auto``: unattended, ``station``: the caller's
+    responder, i.e. the operator's station), beside ``prompt_answers`` (who, when, how).
     """
     prepared = prepare(procedure, rig_file)
     plan = prepared.plan
@@ -227,6 +249,7 @@ def run(
     if resume:
         seed = RunState.load(out_dir).seed
     events = events or RunEvents()
+    mode: PromptMode = "station" if events.responder is not None else confirm_prompts
     if events.responder is None:
         shown = RunState.load(out_dir).prompts_shown if resume else []
         events.responder = terminal_responder(
@@ -234,17 +257,33 @@ def run(
             sys.stdin is not None and sys.stdin.isatty(),
         )
     with run_lock(out_dir):  # a second run on this directory exits 2, naming this one
-        return _run_locked(prepared, out_dir, resume, seed, key_path, show_progress, operator, pdf,
-                           events)
+        return _run_locked(_RunRequest(prepared, out_dir, resume, seed, key_path, show_progress,
+                                       operator, pdf, events, mode))
 
 
-def _run_locked(
-    prepared: Prepared, out_dir: Path, resume: bool, seed: int, key_path: Path | None,
-    show_progress: bool, operator: str | None, pdf: bool, events: RunEvents,
-) -> tuple[Path, dict[str, Any]]:
+@dataclass(frozen=True)
+class _RunRequest:
+    """What :func:`run` resolved, handed to the part that runs under the directory lock."""
+
+    prepared: Prepared
+    out_dir: Path
+    resume: bool
+    seed: int
+    key_path: Path | None
+    show_progress: bool
+    operator: str | None
+    pdf: bool
+    events: RunEvents
+    prompt_mode: PromptMode
+
+
+def _run_locked(request: _RunRequest) -> tuple[Path, dict[str, Any]]:
     """The body of :func:`run`, executed while holding the run directory's lock."""
     from aatest.engine.recording import RunRecorder
 
+    prepared, out_dir, resume, seed = (request.prepared, request.out_dir, request.resume,
+                                       request.seed)
+    operator, events = request.operator, request.events
     plan = prepared.plan
     sha = procedure_sha256(prepared.text)
     state = open_state(out_dir, plan.procedure, sha, seed, resume)
@@ -255,13 +294,14 @@ def _run_locked(
             meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
             meta["report_template"] = plan.report_template
             recorder.write_run_metadata(meta)
-        run_plan(plan, rig, recorder, state, out_dir, show_progress=show_progress, events=events)
+        run_plan(plan, rig, recorder, state, out_dir, show_progress=request.show_progress,
+                 events=events)
         recorder.finalize()
         state.finished = True
         state.save(out_dir)
     # only now, with every step inside recording.mcap, the per-step copies can go
     recorder.prune_step_files()
-    key = signing_key(key_path)
+    key = signing_key(request.key_path)
     if plan.sign and key is None:
         log.warning(
             "procedure asks for a signed report but no key is configured "
@@ -269,8 +309,10 @@ def _run_locked(
         )
     results = analyse_and_report(
         out_dir, out_dir, plan.report_template, None, key,
-        lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s, pdf=pdf,
-        extra_metadata={"prompt_answers": state.prompt_answers},
+        lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s,
+        pdf=request.pdf,
+        extra_metadata={"prompt_answers": state.prompt_answers,
+                        "confirm_prompts": request.prompt_mode},
     )
     return out_dir, results
 
@@ -278,8 +320,19 @@ def _run_locked(
 def report(
     run_dir: Path, template_dir: Path | None, key_path: Path | None, pdf: bool = False
 ) -> Path:
-    """``aatest report``: re-render (and re-sign) from an existing results.json."""
+    """``aatest report``: re-render (and re-sign) from an existing results.json.
+
+    A results.json written before the engine decided verdicts (schema version 1, no
+    ``verdicts`` key) is refused with InputError (exit 2): rendering it would print a
+    certificate without pass/fail, and the report never decides verdicts itself.
+    """
     results = read_results(run_dir)
+    if "verdicts" not in results.model_fields_set:
+        raise InputError(
+            f"{run_dir / RESULTS_FILE}: no 'verdicts' (schema_version {results.schema_version}, "
+            "written before the engine decided verdicts); regenerate it with "
+            f"`aatest analyze {run_dir}`, then run `aatest report` again"
+        )
     results.signature = None
     template = str(results.metadata.get("report_template") or "calibration-certificate")
     stale_pdf = run_dir / "report.pdf"
@@ -289,4 +342,9 @@ def report(
 
 
 def run_wall_duration(run_dir: Path) -> float | None:
+    """Wall-clock time (s) the run in ``run_dir`` has taken so far, None without a run state.
+
+    ``aatest analyze`` of a run directory reports it beside the lab time, so the ratio of lab
+    time to wall time stays visible after the run; imported data has no run state.
+    """
     return RunState.load(run_dir).wall_duration_s if (run_dir / STATE_FILE).exists() else None

@@ -38,8 +38,6 @@ from aatest.sync.freeze_pulse import SyncedStep
 __all__ = ["MisalignmentAnalysis", "misalignment_from_spectra"]
 
 _TABLE_INDEX = {"P": 0, "O": 1, "I": 2}  # table-top coordinates (P, O, I)
-_LIMIT_DEG = 0.5
-_CROSS_LIMIT = 0.01
 
 
 def input_direction(step: SyncedStep) -> np.ndarray:
@@ -117,7 +115,7 @@ def matrix_estimates(angles: dict[str, dict[str, np.ndarray]], sensors: list[Sen
                 "sensor_tilt_x_deg": ox, "sensor_tilt_y_deg": oy, "u_sensor_tilt_deg": [uox, uoy],
                 "sensor_angle_deg": total, "azimuth_deg": float(np.degrees(np.arctan2(oy, ox))),
                 "mounting_tilt_deg": _mean_u(mount)[0], "u_mounting_tilt_deg": _mean_u(mount)[1],
-                "within_limit": bool(total <= _LIMIT_DEG), "repetitions": n,
+                "repetitions": n,
             }
         result[key] = scen
     return result
@@ -154,10 +152,6 @@ class MisalignmentAnalysis:
         steps = [s for s in steps_of(context, "sine") if s.step.mounting.scenario]
         mats = set_matrices(steps, sensors)
         values = evaluate(_spectra(mats, sensors))
-        for row in values["sets"].values():
-            for v in row.values():
-                v["cross_within_limit"] = bool(max(v["cross_ratio_x"], v["cross_ratio_y"])
-                                               <= _CROSS_LIMIT)
         values["matrix"] = {
             "scenarios": matrix_estimates(_angles_by_set(mats, sensors), sensors),
             "sets": {k: {"re": np.mean(m, axis=0).real.tolist(),

@@ -68,7 +68,6 @@ def sensor_noise(steps: list[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: 
     values = {"rms_v": float(np.mean(rms)), "rms_max_v": worst, "rms_per_step_v": rms,
               "rms_dps2": float(np.mean(rms)) / scale_v_per_dps2, "band_hz": band_hz,
               "scale_v_per_dps2_used": scale_v_per_dps2,
-              "within_datasheet": bool(worst <= sensor.noise_rms_v),
               "psd_floor_v_per_sqrt_hz": float(np.sqrt(np.median(psd[(f > 1) & (f < band_hz)]))),
               "allan_dps2": allan, "record_step": longest.step.id}
     fig, ax = new_figure(2, height_in=2.4)

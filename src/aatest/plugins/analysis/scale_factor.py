@@ -194,7 +194,6 @@ def sensor_scale_factor(steps: list[SyncedStep], sensor: SensorInfo,
     result |= {
         "reference": reference, "alignment_delay_s": float(np.mean([p[2] for p in parts])),
         "steps": [s.step.id for s in chosen], "scale_deviation_pct": dev_pct,
-        "scale_within_datasheet": bool(abs(dev_pct) <= sensor.scale_tolerance_pct),
         "nonlinearity_pct_fr": 100.0 * result["nonlinearity_dps2"] / (2 * sensor.range_dps2),
     }
     return result, _figure(volts, ref, result)

@@ -90,11 +90,9 @@ def bias_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str
     noise = np.array([float(np.std(s.daq[sensor.channel])) for s in steps])
     g = np.array([gravity_along_g(sensor.axis, s.step.inner_deg, s.step.outer_deg) for s in steps])
     b0, c, u, half = _slope(temps - T_REF_C, volts, g)
-    limit = sensor.bias_temperature_limit_v_per_c
     return {
         "bias_coefficient_v_per_c": c, "bias_coefficient_u_v_per_c": u,
         "bias_coefficient_ci95_v_per_c": [c - half, c + half], "bias_at_25c_v": b0,
-        "bias_coefficient_within_datasheet": bool(abs(c) <= limit),
         "hysteresis_v": hysteresis_v(temps, volts - c * (temps - T_REF_C)),
         "temperatures_c": temps.tolist(), "bias_v": volts.tolist(), "noise_rms_v": noise.tolist(),
         "branch": ["heating" if b > 0 else "cooling" for b in branches(temps)],
@@ -122,7 +120,6 @@ def scale_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[st
         "scale_coefficient_per_c": float(c), "scale_coefficient_u_per_c": u,
         "scale_coefficient_ci95_per_c": [float(c - half), float(c + half)],
         "scale_at_25c_v_per_dps2": float(k0),
-        "scale_coefficient_within_datasheet": bool(abs(c) <= sensor.scale_temperature_limit_per_c),
         "scale_temperatures_c": temps.tolist(), "scale_v_per_dps2": gains.tolist(),
         "scale_hysteresis_per_c_ref": hysteresis_v(temps, gains / k0 - c * (temps - T_REF_C)),
     }

@@ -1,7 +1,7 @@
 """DAQ plugin for an on-table sensor logger on a CAN (FD) bus, through python-can.
 
 The logger streams one sample frame per sample (sequence counter, logger time stamp, sync
-pulse and trigger bits, temperature, volts; see :mod:`aatest.plugins.daq.can_frames`) and
+pulse and trigger bits, temperature, volts; see :mod:`aatest.protocols.can_frames`) and
 answers PING/START/STOP commands with STATUS frames. Reception runs in a python-can
 ``Notifier`` thread; decoding is vectorised at the end of the record. Frame loss is never
 silent: a gap in the sequence counter, or fewer frames than the logger reports sent, raises
@@ -17,66 +17,23 @@ from __future__ import annotations
 
 import logging
 import queue
-import socket
 import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import can
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.errors import RigFault, rig_boundary
 from aatest.engine.interfaces import RigContext
 from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.daq import can_frames as cf
+from aatest.protocols import can_frames as cf
+from aatest.protocols.can_bus import open_bus, send
 
 log = logging.getLogger("aatest.daq.can")
-#: socket receive buffer asked for on udp_multicast buses (the kernel caps it at rmem_max)
-UDP_RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
-
-
-def open_bus(interface: str, channel: str, fd: bool = True,
-             bitrate: int | None = None) -> can.BusABC:
-    """A python-can bus; errors become RigFault naming the interface and channel."""
-    kwargs: dict[str, Any] = {"interface": interface, "channel": channel, "fd": fd}
-    if bitrate is not None and interface not in ("virtual", "udp_multicast", "socketcan"):
-        kwargs["bitrate"] = bitrate
-    try:
-        bus = can.Bus(**kwargs)
-    except (can.CanError, OSError, ImportError, ValueError) as exc:
-        raise RigFault(f"CAN {interface} {channel}: cannot open the bus ({exc})") from exc
-    if interface == "udp_multicast":
-        _enlarge_receive_buffer(bus)
-    return bus
-
-
-def _enlarge_receive_buffer(bus: can.BusABC, size_bytes: int = UDP_RECEIVE_BUFFER_BYTES) -> None:
-    """Give a udp_multicast bus a deep socket buffer (best effort, python-can internals).
-
-    A UDP "bus" drops datagrams when the receiving thread is descheduled; the kernel buffer
-    (capped by net.core.rmem_max) rides out such stalls. Loss is still detected, never silent.
-    """
-    sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
-    if sock is None:
-        return
-    try:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size_bytes)
-    except OSError as exc:
-        log.debug("cannot enlarge the udp_multicast receive buffer: %s", exc)
-
-
-def send(bus: can.BusABC, arbitration_id: int, payload: bytes, fd: bool, where: str) -> None:
-    """Send one frame; a send failure (bus-off, no buffer) becomes RigFault."""
-    msg = can.Message(arbitration_id=arbitration_id, data=payload, is_extended_id=False,
-                      is_fd=fd and len(payload) > cf.CLASSIC_PAYLOAD_BYTES)
-    try:
-        bus.send(msg, timeout=1.0)
-    except (can.CanError, OSError) as exc:
-        raise RigFault(f"{where}: CAN send failed ({exc}); bus-off or disconnected") from exc
 
 
 class _Collector(can.Listener):
@@ -233,8 +190,3 @@ class CanDaq:
         if self._bus is not None:
             self._bus.shutdown()
             self._bus = None
-
-
-def volts_matrix(log_: SampledLog) -> np.ndarray:
-    """The sensor channels of a DAQ log as an (n, channels) array, in log order."""
-    return np.column_stack([log_[c] for c in log_.sensor_channels()])

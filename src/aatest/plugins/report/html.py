@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
+from aatest.plugins.report import pdf
 from aatest.plugins.report.context import ALL_SECTIONS, build_context, build_diagnosis_context
 from aatest.plugins.report.sandbox import load_template, render_loaded
 
@@ -57,6 +58,10 @@ class _HtmlReport:
         template = load_template(f"{self.template}.html.j2", template_dir)  # fail before work
         html = render_loaded(template, self.context(results, run_dir))
         return _write(run_dir / self.output_name, html)
+
+    def render_pdf(self, report: Path) -> Path:
+        """Print the rendered ``report`` to ``report.pdf`` beside it (the engine's PDF seam)."""
+        return pdf.render_pdf(report)
 
 
 class CalibrationCertificate(_HtmlReport):

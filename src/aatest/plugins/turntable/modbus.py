@@ -31,8 +31,8 @@ from aatest.engine.errors import RigFault, rig_boundary
 from aatest.engine.interfaces import RigContext, TableEnvelope
 from aatest.engine.logs import TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.turntable import modbus_map as mm
-from aatest.plugins.turntable.modbus_map import Command, Fault, Mode, Refusal, Reg, Status
+from aatest.protocols import modbus_map as mm
+from aatest.protocols.modbus_map import Command, Fault, Mode, Refusal, Reg, Status
 
 log = logging.getLogger("aatest.turntable.modbus")
 T = TypeVar("T")

@@ -25,6 +25,32 @@ async function validate() {
   const id = $("procedure").value, mine = ++validations;
   const doc = await (await fetch("/api/validate?id=" + encodeURIComponent(id))).json();
   if (mine !== validations) return;  // a later request superseded this one
+  showValidation(doc, id);
+}
+
+// An uploaded file is sent as text with its name (never a path); the station validates it like
+// a file on disk and keeps it only when valid, under the id it answers with.
+async function upload() {
+  const file = $("upload").files[0];
+  if (!file) return;
+  const mine = ++validations;
+  $("upload-state").textContent = `uploading ${file.name}…`;
+  const response = await fetch("/api/upload?name=" + encodeURIComponent(file.name),
+    { method: "POST", headers: { "Content-Type": "application/x-yaml" }, body: await file.text() });
+  const doc = await response.json();
+  if (mine !== validations) return;
+  $("upload").value = "";
+  if (doc.ok) {
+    await loadProcedures();
+    $("procedure").value = doc.id;
+    $("upload-state").textContent = `${doc.name}: valid, listed as ${doc.id}`;
+  } else {
+    $("upload-state").textContent = `${doc.name || file.name}: not valid, not kept`;
+  }
+  showValidation(doc, doc.id || `rejected/${doc.name || file.name}`);
+}
+
+function showValidation(doc, id) {
   $("plan").dataset.procedure = id;
   $("problems").innerHTML = "";
   const body = $("plan").querySelector("tbody");
@@ -144,9 +170,13 @@ function onEvent(msg) {
 async function loadHistory() {
   const doc = await (await fetch("/api/runs")).json();
   const body = $("history").querySelector("tbody"); body.innerHTML = "";
+  $("history-source").textContent = doc.source === "records"
+    ? `Recent calibrations from the records store ${doc.store}` : "Recent runs in the runs directory";
   for (const r of doc.runs) {
-    const tr = body.insertRow(); tr.dataset.run = r.name;
-    cell(tr, r.name); cell(tr, r.procedure); cell(tr, r.finished ? "finished" : "stopped"); cell(tr, r.overall || "—");
+    const tr = body.insertRow(); tr.dataset.run = r.name || "";
+    const label = r.source === "records"
+      ? [r.certificate_number, r.unit, r.calibrated_utc, r.operator].filter(Boolean).join(" · ") : r.name;
+    cell(tr, label); cell(tr, r.procedure); cell(tr, r.finished ? "finished" : "stopped"); cell(tr, r.overall || "—");
     const files = cell(tr, "");
     for (const f of r.files) { const a = document.createElement("a"); a.href = `/runs/${encodeURIComponent(r.name)}/${f}`; a.textContent = f; a.target = "_blank"; files.appendChild(a); files.appendChild(document.createTextNode(" ")); }
     const act = cell(tr, "");
@@ -162,6 +192,7 @@ function connect() {
 }
 
 $("validate").onclick = validate;
+$("upload").onchange = upload;
 $("start").onclick = () => send({ type: "start", procedure: $("procedure").value });
 $("abort").onclick = () => send({ type: "abort" });
 $("continue").onclick = () => send({ type: "answer", step: $("continue").dataset.step });

@@ -2,7 +2,7 @@
 
 It listens for PING/START/STOP on the bus like the real logger, tells the controller that
 the DAQ (and so the trigger line) started, and streams the twin's DAQ log of the record as
-sample frames (:mod:`aatest.plugins.daq.can_frames`), then an end-of-record STATUS with the
+sample frames (:mod:`aatest.protocols.can_frames`), then an end-of-record STATUS with the
 number of frames sent. The table log and this stream come from the same World synthesis, so
 the real drivers see one consistent rig. On a lossy transport (``udp_multicast``) the stream
 is paced to ``frame_rate_hz`` as a real bus' bit rate would. :class:`CanFaultInjection` drops
@@ -21,8 +21,8 @@ from typing import Any
 import can
 
 from aatest.engine.logs import SampledLog
-from aatest.plugins.daq import can_frames as cf
-from aatest.plugins.daq.can import open_bus, send, volts_matrix
+from aatest.protocols import can_frames as cf
+from aatest.protocols.can_bus import open_bus, send, volts_matrix
 
 log = logging.getLogger("aatest.sim.can")
 _PACE_BATCH = 64

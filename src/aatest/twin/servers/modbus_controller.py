@@ -28,8 +28,8 @@ import numpy as np
 from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.turntable import modbus_map as mm
-from aatest.plugins.turntable.modbus_map import Command, Fault, Mode, Refusal, Reg, Status
+from aatest.protocols import modbus_map as mm
+from aatest.protocols.modbus_map import Command, Fault, Mode, Refusal, Reg, Status
 from aatest.twin.model import RigModel
 from aatest.twin.world import World
 
@@ -38,6 +38,8 @@ log = logging.getLogger("aatest.sim.modbus")
 DaqLogSink = Callable[[SampledLog], None]
 #: registers past this address hold no live status
 _LIVE_END = int(Reg.MODE)
+#: no fault bit set (an IntFlag value, immutable: safe as a dataclass default)
+NO_FAULT = Fault(0)
 
 
 @dataclass
@@ -45,7 +47,7 @@ class FaultInjection:
     """Faults the simulated controller produces on purpose (tests only; all bounded)."""
 
     #: fault bits set the moment a record starts (motion stops, motor off)
-    fault_on_record: Fault = Fault(0)
+    fault_on_record: Fault = NO_FAULT
     #: stop answering the moment a record starts (a controller dying mid-step)
     hang_on_record: bool = False
     #: the record-triggered faults above hit every record, or only this one (1 = first)
@@ -184,28 +186,38 @@ class SimController:
             log.info("command %s refused: %s", command, refusal.name)
 
     def _dispatch(self, command: Command | None) -> Refusal:
+        """Carry out one command; its refusal code answers it (``ACCEPTED`` when done).
+
+        Stopping, clearing faults and aborting a log are obeyed even with a fault active, as
+        a real controller must; anything that moves or records is refused while a fault bit
+        is set.
+        """
         if command is None:
             return Refusal.UNKNOWN_COMMAND
-        if command in (Command.EMERGENCY_STOP, Command.MOTOR_OFF, Command.STOP):
-            self._stop(motor_off=command != Command.STOP)
-            return Refusal.ACCEPTED
-        if command == Command.CLEAR_FAULTS:
-            self._fault = Fault(0)
-            return Refusal.ACCEPTED
-        if command == Command.ABORT_LOG:
-            self._armed, self._record = False, None
-            self._status &= ~(Status.LOG_ARMED | Status.LOG_RECORDING | Status.LOG_DONE)
+        if command in (Command.EMERGENCY_STOP, Command.MOTOR_OFF, Command.STOP,
+                       Command.CLEAR_FAULTS, Command.ABORT_LOG):
+            self._obey_in_any_state(command)
             return Refusal.ACCEPTED
         if self._fault:
             return Refusal.FAULT_ACTIVE
-        if command == Command.MOTOR_ON:
-            self.world.motor_on = True
-            return Refusal.ACCEPTED
-        if command == Command.START_MOTION:
-            return self._start_motion()
-        if command == Command.ARM_LOG:
-            return self._arm_log()
-        return Refusal.UNKNOWN_COMMAND
+        handlers = {Command.MOTOR_ON: self._motor_on, Command.START_MOTION: self._start_motion,
+                    Command.ARM_LOG: self._arm_log}
+        handler = handlers.get(command)
+        return handler() if handler is not None else Refusal.UNKNOWN_COMMAND
+
+    def _obey_in_any_state(self, command: Command) -> None:
+        """Stop (motor off unless plain STOP), clear the faults, or abort the armed log."""
+        if command == Command.CLEAR_FAULTS:
+            self._fault = NO_FAULT
+        elif command == Command.ABORT_LOG:
+            self._armed, self._record = False, None
+            self._status &= ~(Status.LOG_ARMED | Status.LOG_RECORDING | Status.LOG_DONE)
+        else:
+            self._stop(motor_off=command != Command.STOP)
+
+    def _motor_on(self) -> Refusal:
+        self.world.motor_on = True
+        return Refusal.ACCEPTED
 
     def _stop(self, motor_off: bool) -> None:
         """End the profile and return to its start position (hold there); motor off if asked."""

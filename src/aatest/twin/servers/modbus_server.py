@@ -15,11 +15,12 @@ The controller's datastore is plugged in through pymodbus' ``ModbusServerContext
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import os
 import threading
 import time
-from typing import Any
+from typing import Any, cast
 
 from pymodbus.constants import ExcCodes
 from pymodbus.datastore import ModbusServerContext
@@ -58,14 +59,13 @@ class _ControllerContext(ModbusServerContext):
         if faults.response_delay_s:
             await asyncio.sleep(faults.response_delay_s)
         if self.controller.hanging:
-            try:
+            with contextlib.suppress(TimeoutError):  # the hang simply ends after hang_s
                 await asyncio.wait_for(self._release.wait(), faults.hang_s)
-            except TimeoutError:
-                pass
             return False
         return True
 
-    async def async_getValues(self, device_id: int, func_code: int, address: int,
+    # pymodbus calls its datastore methods by these camelCase names (the overridden API)
+    async def async_getValues(self, device_id: int, func_code: int, address: int,  # noqa: N802
                               count: int = 1) -> list[int] | ExcCodes:
         if func_code not in _FC_HOLDING:
             return ExcCodes.ILLEGAL_FUNCTION
@@ -74,7 +74,7 @@ class _ControllerContext(ModbusServerContext):
         values = self.controller.read(address, count)
         return ExcCodes.ILLEGAL_ADDRESS if values is None else values
 
-    async def async_setValues(self, device_id: int, func_code: int, address: int,
+    async def async_setValues(self, device_id: int, func_code: int, address: int,  # noqa: N802
                               values: Any) -> ExcCodes | None:
         if func_code not in _FC_HOLDING:
             return ExcCodes.ILLEGAL_FUNCTION
@@ -148,7 +148,9 @@ class SimModbusServer:
             await asyncio.sleep(0.005)
         if task.done():
             task.result()
-        self.port = self._server.transport.sockets[0].getsockname()[1]
+        # pymodbus keeps the asyncio.Server of create_server() in `transport` (typed loosely)
+        listening = cast("asyncio.Server", self._server.transport)
+        self.port = listening.sockets[0].getsockname()[1]
         log.info("simulated Modbus controller on %s:%d", self.host, self.port)
         self._ready.set()
         if self.lifetime_s is not None:
