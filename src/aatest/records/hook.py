@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 from pydantic import BaseModel
 
@@ -91,9 +91,10 @@ class Registrar:
         results are written (so the signature covers what the certificate prints)."""
         self.assign_certificate(results)
         # the typed root (RunResults) declares ``metadata`` as a dict, like the JSON document
-        metadata = cast(Any, results).metadata if isinstance(results, BaseModel) else \
+        metadata = getattr(results, "metadata", None) if isinstance(results, BaseModel) else \
             results.setdefault("metadata", {})
-        metadata[LAB_METADATA_KEY] = self.lab.certificate_identity()
+        if isinstance(metadata, MutableMapping):
+            metadata[LAB_METADATA_KEY] = self.lab.certificate_identity()
 
     def after_signing(self, results: Results, report: Path) -> None:
         """Bundle observer: register the finished bundle."""
