@@ -41,7 +41,7 @@ def test_model_selection_on_noisy_points() -> None:
     h, _ = _second_order(30.0, 0.9, 3)
     rng = np.random.default_rng(4)
     h = h * (1 + rng.normal(0, 2e-4, h.size) + 1j * rng.normal(0, 2e-4, h.size))
-    model, rows, k = estimate(F28, h, 1 / FS, {"delay_samples": 22, "accepted": True,
+    _model, rows, k = estimate(F28, h, 1 / FS, {"delay_samples": 22, "accepted": True,
                                                "strength": 0.99, "delay_s": 0.011})
     best = rows[k]
     assert best["fit_pct"] > 98.0 and best["stable"]

@@ -44,6 +44,10 @@ _MAX_CAL_FREQUENCY_HZ = 2.0
 #: datasheet threshold/resolution, fraction of the range (0.005 % FR)
 RESOLUTION_FR = 0.00005
 _MAX_ORDER = 20
+#: two planned frequencies closer than this are the same point
+_SAME_FREQUENCY_HZ = 1e-9
+#: fewer residuals than this have no autocorrelation to speak of
+_MIN_RESIDUALS = 3
 
 
 class ScaleFactorOptions(BaseModel):
@@ -83,7 +87,8 @@ def calibration_steps(steps: list[SyncedStep], sensor: SensorInfo) -> list[Synce
     top = max(s.step.accel_dps2 or 0.0 for s in cands)
     cands = [s for s in cands if (s.step.accel_dps2 or 0.0) >= 0.999 * top]
     best_f = min({float(s.step.frequency_hz or 0.0) for s in cands}, key=lambda f: abs(f - 1.0))
-    return [s for s in cands if abs(float(s.step.frequency_hz or 0.0) - best_f) < 1e-9]
+    return [s for s in cands
+            if abs(float(s.step.frequency_hz or 0.0) - best_f) < _SAME_FREQUENCY_HZ]
 
 
 def _fractional_delay(x: np.ndarray, delay_s: float, fs_hz: float) -> np.ndarray:
@@ -125,14 +130,15 @@ def _line(volts: np.ndarray, ref_dps2: np.ndarray) -> np.ndarray:
 def correlation_inflation(residual: np.ndarray) -> float:
     """Variance inflation of a mean-like estimate from serially correlated residuals.
 
-    1 + 2·Σ ρ_k over the lags before the autocorrelation first drops to zero (the initial
-    positive sequence): white residuals give 1, residuals of a reference whose noise is
-    coloured (ripple, a local fit, a differentiator's chatter) give the factor by which the
-    least-squares covariance understates the coefficients' variance. Computed by FFT.
+    1 + 2·Σ r_k (r_k: the residuals' autocorrelation at lag k) over the lags before the
+    autocorrelation first drops to zero (the initial positive sequence): white residuals
+    give 1; residuals of a reference whose noise is coloured (ripple, a local fit, a
+    differentiator's chatter) give the factor by which the least-squares covariance
+    understates the coefficients' variance. Computed by FFT.
     """
     x = np.asarray(residual, dtype=np.float64) - float(np.mean(residual))
     n = x.size
-    if n < 3 or not np.any(x):
+    if n < _MIN_RESIDUALS or not np.any(x):
         return 1.0
     spectrum = np.fft.rfft(x, 2 * n)
     acf = np.fft.irfft(spectrum * np.conj(spectrum), 2 * n)[:n]

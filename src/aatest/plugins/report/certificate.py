@@ -106,7 +106,7 @@ class Certificate:
     conformity: str
     adjustment: Mapping[str, Any]
     signatories: list[Mapping[str, str]]
-    prompts: list[Mapping[str, str]]
+    prompts: list[dict[str, str]]
     confirmation: str
     unattended: bool
     notes: list[str] = field(default_factory=list)
@@ -260,7 +260,8 @@ def _prompts(results: Mapping[str, Any]) -> tuple[list[dict[str, str]], str, boo
 
 def _item(results: Mapping[str, Any]) -> dict[str, Any]:
     meta = results.get("metadata") or {}
-    sensor = meta.get("sensor") if isinstance(meta.get("sensor"), Mapping) else {}
+    stated = meta.get("sensor")
+    sensor: Mapping[str, Any] = stated if isinstance(stated, Mapping) else {}
     channels = list(ex.sensors(results).values())
     first = channels[0] if channels else {}
     return {"description": "angular accelerometer",

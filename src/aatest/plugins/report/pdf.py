@@ -32,8 +32,6 @@ _LAUNCH_FLAGS = (
     "--disable-component-update", "--disable-sync", "--no-first-run",
 )
 _FLAGS = ("--headless", *_LAUNCH_FLAGS)
-#: A4 margins leaving room for the footer (Chromium prints the templates inside the margins)
-_MARGIN = {"top": "14mm", "bottom": "16mm", "left": "12mm", "right": "12mm"}
 #: how a page names the document it belongs to (the certificate template sets it)
 _IDENT_SCRIPT = ("() => (document.querySelector('meta[name=\"aatest-certificate\"]') || {})"
                  ".content || document.title")
@@ -75,7 +73,10 @@ def _print_with_playwright(browser: str, html_path: Path, pdf_path: Path, timeou
                 identification = str(page.evaluate(_IDENT_SCRIPT))
                 page.pdf(path=str(pdf_path), format="A4", print_background=True,
                          display_header_footer=True, header_template="<span></span>",
-                         footer_template=footer_template(identification), margin=_MARGIN)
+                         footer_template=footer_template(identification),
+                         # A4 margins leaving room for the footer (printed inside the margin)
+                         margin={"top": "14mm", "bottom": "16mm", "left": "12mm",
+                                 "right": "12mm"})
             finally:
                 chromium.close()
     except Error as exc:
@@ -99,7 +100,13 @@ def _print_with_command_line(browser: str, html_path: Path, pdf_path: Path, time
 
 
 def render_pdf(html_path: Path, timeout_s: float = 120.0) -> Path:
-    """Print ``html_path`` to ``report.pdf`` beside it; raise PluginError when that is impossible."""
+    """Print ``html_path`` to ``report.pdf`` beside it.
+
+    Raises
+    ------
+    PluginError
+        When no browser is installed or it produced no PDF.
+    """
     browser = find_browser()
     if browser is None:
         raise PluginError("PDF reports need Chromium: install Debian's 'chromium' package")
