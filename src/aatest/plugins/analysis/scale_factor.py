@@ -1,8 +1,10 @@
 """Scale-factor calibration from a single-frequency sine (docs/method.md §4.3).
 
 Per sensor: the sine steps along its axis at ≤ 2 Hz with the largest acceleration (the 1 Hz,
-70 %-of-range test) are synchronised, the reference (default: zero-phase low-pass of the table
-estimate) and the sensor volts pass the *same* zero-phase filter, the reference is delayed by
+70 %-of-range test) are synchronised; the sensor volts pass a zero-phase low-pass, the reference
+is the chosen method's output as that method makes it (default ``smoothed``: the table estimate
+through the same zero-phase low-pass; ``table_estimate`` is the controller's raw estimate, so
+its noise shows in the RMSE as in the study, docs/method.md §4.3), the reference is delayed by
 the sensor's phase delay at the fundamental (so the fit sees no phase loop), and polynomials of
 order 0–15 are cross-validated. The chosen forward model (°/s² from volts) is reported with its
 statistics; the contract's ``scale_v_per_dps2``/``offset_v`` come from the best straight line
