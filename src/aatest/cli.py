@@ -114,7 +114,8 @@ def _main(debug: bool = typer.Option(False, "--debug", help="Show tracebacks."))
 
 
 _RECORDS_HELP = "Records database URL (else AATEST_RECORDS, else the default SQLite file)"
-_LAB_HELP = "Lab profile YAML (else AATEST_LAB): name, certificate prefix, interval"
+_LAB_HELP = ("Lab profile YAML (else AATEST_LAB): name, address, accreditation, signatories, "
+             "certificate prefix, interval")
 
 
 def _registering(records: str | None, lab: Path | None, command: str) -> Any:

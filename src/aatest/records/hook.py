@@ -27,6 +27,7 @@ from pydantic import BaseModel
 from aatest.engine.run import bundle_hooks
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
+from aatest.records.lab import METADATA_KEY as LAB_METADATA_KEY
 from aatest.records.lab import LabProfile
 from aatest.records.models import QuantityRecord, Registration
 from aatest.records.store import RecordStore, as_utc
@@ -86,8 +87,14 @@ class Registrar:
         _set_certificate(results, number)
 
     def before_signing(self, results: Results) -> None:
-        """Bundle observer: the certificate number, before the results are written."""
+        """Bundle observer: the certificate number and the issuing lab's identity, before the
+        results are written (so the signature covers what the certificate prints)."""
         self.assign_certificate(results)
+        # the typed root (RunResults) declares ``metadata`` as a dict, like the JSON document
+        metadata = getattr(results, "metadata", None) if isinstance(results, BaseModel) else \
+            results.setdefault("metadata", {})
+        if isinstance(metadata, MutableMapping):
+            metadata[LAB_METADATA_KEY] = self.lab.certificate_identity()
 
     def after_signing(self, results: Results, report: Path) -> None:
         """Bundle observer: register the finished bundle."""

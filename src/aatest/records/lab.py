@@ -1,9 +1,20 @@
 """The lab profile: who issues the certificates, with which prefix, and how often units return.
 
-Read from ``--lab lab.yaml`` or ``AATEST_LAB``; without one, a neutral default is used so a
-single PC can work out of the box::
+One profile serves the records store and the certificate (ISO/IEC 17025 §7.8.2.1: the lab's
+name and address, its accreditation, who authorises the certificate). Read from
+``--lab lab.yaml`` or ``AATEST_LAB``; without one, a neutral default is used so a single PC can
+work out of the box::
 
     name: Example Calibration Lab
+    address: |
+      Calibration Street 1
+      12345 Example Town, Country
+    accreditation:                     # omit when the lab is not accredited
+      body: DAkkS
+      number: D-K-12345-01-00
+      scope: angular acceleration, 0.1–10 Hz, up to 1000 °/s²
+    signatories:                       # who authorises the certificate (name, function)
+      - {name: Dr. A. Example, function: Head of the calibration laboratory}
     certificate_prefix: LAB            # numbers look like LAB-2026-000123
     calibration_interval_months: 12    # next due date = last calibration + interval
     frf_reference_frequency_hz: 1.0    # the FRF point tracked in the history
@@ -13,23 +24,63 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
 LAB_ENV = "AATEST_LAB"
+#: the key of the lab's identity in ``results.json`` ``metadata`` (written before signing)
+METADATA_KEY = "lab"
 
 
-class LabProfile(BaseModel):
-    """A calibration lab as the records store needs to know it."""
-
+class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    name: str = Field("aatest lab", min_length=1, description="lab name on the records")
+
+class Accreditation(_Strict):
+    """The lab's accreditation as the certificate states it (ISO/IEC 17025 §7.8.1)."""
+
+    body: str = Field(min_length=1, description="accreditation body, e.g. DAkkS, UKAS, A2LA")
+    number: str = Field(min_length=1, description="the lab's accreditation number")
+    scope: str = Field("", description="the accredited scope this calibration falls under")
+
+
+class Signatory(_Strict):
+    """A person who authorises certificates (ISO/IEC 17025 §7.8.2.1 o)."""
+
+    name: str = Field(min_length=1, description="full name as printed")
+    function: str = Field(min_length=1, description="role, e.g. Head of the calibration lab")
+
+
+class LabProfile(_Strict):
+    """A calibration lab as the records store and the certificate need to know it."""
+
+    name: str = Field("aatest lab", min_length=1,
+                      description="lab name on records and certificates")
+    address: str = Field("", description="postal address printed under the lab's name")
+    accreditation: Accreditation | None = Field(None, description="none: not accredited")
+    signatories: tuple[Signatory, ...] = Field(
+        (), description="who authorises the certificates; the first one signs")
     certificate_prefix: str = Field(
         "LAB", pattern=r"^[A-Z0-9][A-Z0-9_]{0,15}$", description="prefix of certificate numbers")
     calibration_interval_months: int = Field(12, ge=1, le=120, description="recall interval")
     frf_reference_frequency_hz: float = Field(
         1.0, gt=0, description="frequency whose FRF gain is tracked over time, Hz")
+
+    def certificate_identity(self) -> dict[str, Any]:
+        """What the certificate prints about the lab (stored in the results' metadata);
+        ``default_profile`` says no profile was given (the certificate then says so)."""
+        return {"name": self.name, "address": self.address,
+                "accreditation": (self.accreditation.model_dump()
+                                  if self.accreditation is not None else None),
+                "signatories": [s.model_dump() for s in self.signatories],
+                "calibration_interval_months": self.calibration_interval_months,
+                "default_profile": self == LabProfile()}
+
+
+def lab_path(path: Path | None = None) -> Path | None:
+    """The profile file in use: ``path``, else ``AATEST_LAB``, else none."""
+    return path or (Path(os.environ[LAB_ENV]) if os.environ.get(LAB_ENV) else None)
 
 
 def load_lab(path: Path | None = None) -> LabProfile:
@@ -40,7 +91,7 @@ def load_lab(path: Path | None = None) -> LabProfile:
     """
     from aatest.engine.procedure.yaml_loader import load_model_file
 
-    chosen = path or (Path(os.environ[LAB_ENV]) if os.environ.get(LAB_ENV) else None)
+    chosen = lab_path(path)
     if chosen is None:
         return LabProfile()
     return load_model_file(chosen, LabProfile)

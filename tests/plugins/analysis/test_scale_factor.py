@@ -25,3 +25,19 @@ def test_scale_and_offset_recovered(c3: float, order: int) -> None:
     assert {"rmse_dps2", "coefficients", "ci95"} <= set(v)
     assert v["reference"] == "smoothed"  # the default, named for the certificate
     assert out.figures["scale_factor_v_sz"].lstrip().startswith("<?xml")
+
+
+def test_correlation_inflation_of_white_and_coloured_residuals() -> None:
+    """White residuals inflate nothing; AR(1) residuals with coefficient φ inflate the variance
+    of a mean-like estimate by (1 + φ)/(1 − φ) (their integrated autocorrelation)."""
+    import numpy as np
+    from scipy import signal
+
+    from aatest.plugins.analysis.scale_factor import correlation_inflation
+
+    rng = np.random.default_rng(7)
+    white = rng.standard_normal(200_000)
+    assert correlation_inflation(white) == pytest.approx(1.0, abs=0.05)
+    phi = 0.8
+    coloured = signal.lfilter([1.0], [1.0, -phi], white)
+    assert correlation_inflation(coloured) == pytest.approx((1 + phi) / (1 - phi), rel=0.1)

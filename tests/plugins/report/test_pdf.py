@@ -10,11 +10,13 @@ from aatest.plugins.report.pdf import find_browser
 QUICK = Path(__file__).parents[2] / "data" / "procedures" / "quick-sine-3-steps.yaml"
 
 
-@pytest.mark.skipif(find_browser() is None, reason="PDF test skipped: Debian chromium not installed")
+@pytest.mark.skipif(find_browser() is None,
+                    reason="PDF test skipped: Debian chromium not installed")
 def test_pdf_is_signed_and_tampering_it_is_detected(tmp_path: Path) -> None:
     key = tmp_path / "lab.key"
     signing.generate_keypair(key)
-    run_dir, _ = session.run(QUICK, None, tmp_path / "run", False, 1, key, show_progress=False, pdf=True)
+    run_dir, _ = session.run(QUICK, None, tmp_path / "run", False, 1, key, show_progress=False,
+                             pdf=True)
     pdf = run_dir / "report.pdf"
     assert pdf.read_bytes()[:5] == b"%PDF-" and pdf.stat().st_size > 10_000
     assert signing.verify_bundle(run_dir / "report.html").ok

@@ -1,8 +1,10 @@
 """Scale-factor calibration from a single-frequency sine (docs/method.md §4.3).
 
 Per sensor: the sine steps along its axis at ≤ 2 Hz with the largest acceleration (the 1 Hz,
-70 %-of-range test) are synchronised, the reference (default: zero-phase low-pass of the table
-estimate) and the sensor volts pass the *same* zero-phase filter, the reference is delayed by
+70 %-of-range test) are synchronised; the sensor volts pass a zero-phase low-pass, the reference
+is the chosen method's output as that method makes it (default ``smoothed``: the table estimate
+through the same zero-phase low-pass; ``table_estimate`` is the controller's raw estimate, so
+its noise shows in the RMSE as in the study, docs/method.md §4.3), the reference is delayed by
 the sensor's phase delay at the fundamental (so the fit sees no phase loop), and polynomials of
 order 0–15 are cross-validated. The chosen forward model (°/s² from volts) is reported with its
 statistics; the contract's ``scale_v_per_dps2``/``offset_v`` come from the best straight line
@@ -37,13 +39,17 @@ from aatest.plugins.analysis.reference import (
     reference_accel,
     zero_phase_lowpass,
 )
-from aatest.results.scale_factor import ReferenceName, ScaleFactorResult
+from aatest.results.scale_factor import ReferenceChoice, ReferenceName, ScaleFactorResult
 from aatest.sync.freeze_pulse import SyncedStep
 
 _MAX_CAL_FREQUENCY_HZ = 2.0
 #: datasheet threshold/resolution, fraction of the range (0.005 % FR)
 RESOLUTION_FR = 0.00005
 _MAX_ORDER = 20
+#: two planned frequencies closer than this are the same point
+_SAME_FREQUENCY_HZ = 1e-9
+#: fewer residuals than this have no autocorrelation to speak of
+_MIN_RESIDUALS = 3
 
 
 class ScaleFactorOptions(BaseModel):
@@ -83,7 +89,8 @@ def calibration_steps(steps: list[SyncedStep], sensor: SensorInfo) -> list[Synce
     top = max(s.step.accel_dps2 or 0.0 for s in cands)
     cands = [s for s in cands if (s.step.accel_dps2 or 0.0) >= 0.999 * top]
     best_f = min({float(s.step.frequency_hz or 0.0) for s in cands}, key=lambda f: abs(f - 1.0))
-    return [s for s in cands if abs(float(s.step.frequency_hz or 0.0) - best_f) < 1e-9]
+    return [s for s in cands
+            if abs(float(s.step.frequency_hz or 0.0) - best_f) < _SAME_FREQUENCY_HZ]
 
 
 def _fractional_delay(x: np.ndarray, delay_s: float, fs_hz: float) -> np.ndarray:
@@ -92,25 +99,55 @@ def _fractional_delay(x: np.ndarray, delay_s: float, fs_hz: float) -> np.ndarray
     return np.fft.irfft(np.fft.rfft(x) * np.exp(-2j * np.pi * freqs * delay_s), n=x.size)
 
 
-def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: str = "smoothed"
+def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: ReferenceChoice = "smoothed"
                  ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """(volts, reference °/s², delay s, filter corner Hz) of one step, time-aligned.
 
-    Both signals pass the same zero-phase low-pass; the reference is delayed by the phase
-    delay of the sensor at the excitation frequency; filter and shift edges are trimmed.
+    The sensor volts pass a zero-phase low-pass (they are the fit's regressor, so their noise
+    would bias the slope); the reference is the named method's output as it is (the
+    ``smoothed`` one is low-passed at the same corner), delayed by the phase delay of the
+    sensor at the excitation frequency; filter and shift edges are trimmed.
     """
     fs, f0 = synced.sample_rate_hz, float(synced.step.frequency_hz or 1.0)
     cutoff = default_cutoff_hz(synced)
-    method = PUBLIC_METHODS[reference]  # type: ignore[index]
+    method = PUBLIC_METHODS[reference]
+    # each reference is used as its method makes it: only ``smoothed`` is low-passed (inside
+    # reference_accel); the table estimate, the differences, the local fit and the
+    # sliding-mode differentiator keep their own noise, which the fit's RMSE then shows
     ref = input_accel_dps2(synced, sensor.axis, reference_accel(synced, method))
-    if method != "smooth":
-        ref = zero_phase_lowpass(ref, fs, cutoff)
     volts = zero_phase_lowpass(synced.daq[sensor.channel], fs, cutoff)
     ratio = fundamental(volts, f0, fs) / fundamental(ref, f0, fs)
     delay_s = float(-np.angle(ratio * np.sign(ratio.real or 1.0)) / (2 * np.pi * f0))
     ref = _fractional_delay(ref, delay_s, fs)
     trim = int(3.0 * fs / cutoff) + int(abs(delay_s) * fs) + 8
     return volts[trim:-trim], ref[trim:-trim], delay_s, cutoff
+
+
+def _line(volts: np.ndarray, ref_dps2: np.ndarray) -> np.ndarray:
+    """Least-squares straight line of the reference on the volts, evaluated (°/s²)."""
+    coef = np.polynomial.polynomial.polyfit(volts - volts.mean(), ref_dps2, 1)
+    return np.asarray(np.polynomial.polynomial.polyval(volts - volts.mean(), coef))
+
+
+def correlation_inflation(residual: np.ndarray) -> float:
+    """Variance inflation of a mean-like estimate from serially correlated residuals.
+
+    1 + 2·Σ r_k (r_k: the residuals' autocorrelation at lag k) over the lags before the
+    autocorrelation first drops to zero (the initial positive sequence): white residuals
+    give 1; residuals of a reference whose noise is coloured (ripple, a local fit, a
+    differentiator's chatter) give the factor by which the least-squares covariance
+    understates the coefficients' variance. Computed by FFT.
+    """
+    x = np.asarray(residual, dtype=np.float64) - float(np.mean(residual))
+    n = x.size
+    if n < _MIN_RESIDUALS or not np.any(x):
+        return 1.0
+    spectrum = np.fft.rfft(x, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum), 2 * n)[:n]
+    acf = acf / acf[0]
+    stop = np.flatnonzero(acf <= 0.0)
+    positive = acf[1:int(stop[0])] if stop.size else acf[1:]
+    return float(max(1.0, 1.0 + 2.0 * positive.sum()))
 
 
 def _select_order(u: np.ndarray, ref_dps2: np.ndarray, options: ScaleFactorOptions,
@@ -188,7 +225,10 @@ def sensor_scale_factor(steps: list[SyncedStep], sensor: SensorInfo,
     parts = [aligned_pair(s, sensor, reference) for s in chosen]
     volts = np.concatenate([p[0] for p in parts])
     ref = np.concatenate([p[1] for p in parts])
-    inflation = chosen[0].sample_rate_hz / (2.0 * parts[0][3])
+    if reference == "smoothed":  # residuals band-limited by the known low-pass corner
+        inflation = chosen[0].sample_rate_hz / (2.0 * parts[0][3])
+    else:
+        inflation = correlation_inflation(ref - _line(volts, ref))
     result = calibrate(volts, ref, inflation, options, RESOLUTION_FR * sensor.range_dps2)
     dev_pct = 100.0 * (result["scale_v_per_dps2"] / sensor.nominal_scale_v_per_dps2 - 1.0)
     result |= {

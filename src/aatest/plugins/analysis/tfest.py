@@ -172,7 +172,9 @@ def second_order_delay_fit(f_hz: np.ndarray, h: np.ndarray, delay0_s: float) -> 
             best = sol
     assert best is not None
     dof = max(2 * h.size - 4, 1)
-    cov = np.linalg.pinv(best.jac.T @ best.jac) * 2 * best.cost / dof
+    # a dense residual without jac_sparsity gives a dense Jacobian (the stubs allow sparse too)
+    jac = np.asarray(best.jac, dtype=np.float64)
+    cov = np.linalg.pinv(jac.T @ jac) * 2 * best.cost / dof
     u = np.sqrt(np.clip(np.diag(cov), 0, None))
     k, wn, zeta, tau = best.x
     return {"gain_v_per_dps2": float(k), "natural_frequency_hz": float(wn / (2 * np.pi)),

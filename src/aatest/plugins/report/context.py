@@ -3,14 +3,15 @@
 Templates hold no logic (docs/style.md): everything they show — sections that exist, values with
 expanded uncertainties, verdicts, figures — is prepared here from ``results.json``, and a
 section is present only when its analysis key is. Uncertainties, budgets and verdicts are the
-engine's (:mod:`aatest.engine.uncertainty`, :mod:`aatest.engine.analysis.verdicts`): they are shown as
-the results state them, never recomputed, and results without them are an error.
+engine's (:mod:`aatest.engine.uncertainty`, :mod:`aatest.engine.analysis.verdicts`): they are
+shown as the results state them, never recomputed, and results without them are an error.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Mapping
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -75,10 +76,12 @@ def _own_figures(results: Mapping[str, Any], sections: Collection[str],
                  views: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Plots made here from the contract keys, for each section and channel the analysis
     plugins gave no figure of their own (a figure name containing the channel counts)."""
-    given = results.get("figures") if isinstance(results.get("figures"), Mapping) else {}
+    stated = results.get("figures")
+    given: Mapping[str, Any] = stated if isinstance(stated, Mapping) else {}
 
     def wanted(section: str, channel: str = "") -> bool:
-        names = given.get(section) if isinstance(given.get(section), Mapping) else {}
+        listed = given.get(section)
+        names: Mapping[str, Any] = listed if isinstance(listed, Mapping) else {}
         return section in sections and not any(channel in str(name) for name in names)
 
     makers: list[tuple[str, str, Callable[[], str | None]]] = []
@@ -86,14 +89,14 @@ def _own_figures(results: Mapping[str, Any], sections: Collection[str],
     for v in views:
         if wanted("scale_factor", v["name"]) and isinstance(v["scale"], Mapping):
             makers.append(("scale_factor", f"calibration curve {v['name']}",
-                           lambda v=v: fig.calibration_curve(v["scale"], v["sensor"], peak)))
+                           partial(fig.calibration_curve, v["scale"], v["sensor"], peak)))
         if wanted("frf", v["name"]) and v["frf"]:
-            makers.append(("frf", f"Bode {v['name']}", lambda v=v: fig.bode(
-                [r["point"] for r in v["frf"]], v["transfer_function"],
+            makers.append(("frf", f"Bode {v['name']}", partial(
+                fig.bode, [r["point"] for r in v["frf"]], v["transfer_function"],
                 [(r["gain"] or {}).get("expanded_uncertainty") or 0.0 for r in v["frf"]])))
         if wanted("temperature", v["name"]) and isinstance(v["temperature"], Mapping):
             makers.append(("temperature", f"bias vs temperature {v['name']}",
-                           lambda v=v: fig.bias_vs_temperature(v["temperature"])))
+                           partial(fig.bias_vs_temperature, v["temperature"])))
     sets = (ex.analysis(results, "misalignment") or {}).get("sets")
     if wanted("misalignment") and isinstance(sets, Mapping):
         makers.append(("misalignment", "cross responses in the complex plane",
@@ -177,7 +180,8 @@ def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[s
     candidates = sorted((c for c in diag.get("candidates") or [] if isinstance(c, Mapping)),
                         key=rank)
     figures = _analysis_figures(results, {"diagnose"})
-    residuals = diag.get("residuals") if isinstance(diag.get("residuals"), Mapping) else {}
+    stated = diag.get("residuals")
+    residuals: Mapping[str, Any] = stated if isinstance(stated, Mapping) else {}
     own = [("candidates and gain", fig.diagnosis_bars(diag))]
     own += [(f"residual RMS per step {ch}", fig.residual_steps(view))
             for ch, view in sorted(residuals.items()) if isinstance(view, Mapping)]

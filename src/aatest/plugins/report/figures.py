@@ -17,6 +17,7 @@ from typing import Any, TypeVar
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.typing import RcKeyType
 from scipy import signal
 
 from aatest.engine.datasheet import REFERENCE_RANGE_DPS2
@@ -24,7 +25,10 @@ from aatest.engine.uncertainty import access as ex
 
 #: applied per plot (never globally, other plugins draw with matplotlib too): stable SVG ids,
 #: text kept as text (smaller, searchable), a compact font
-_STYLE = {"svg.hashsalt": "aatest", "svg.fonttype": "none", "font.size": 9}
+_STYLE: dict[RcKeyType, Any] = {"svg.hashsalt": "aatest", "svg.fonttype": "none",
+                                 "font.size": 9}
+#: a line needs two points; a complex number is stated as [re, im]
+_PAIR = 2
 
 _Plot = TypeVar("_Plot", bound=Callable[..., "str | None"])
 
@@ -50,7 +54,8 @@ def _poly_band(entry: Mapping[str, Any], n_coef: int, u_v: np.ndarray) -> np.nda
     """Standard deviation of y(u) = Σ a_i u^i (°/s²): φᵀΣφ with the fit's covariance when
     reported, else from the coefficients' ci95 taken as independent."""
     powers = np.vander(u_v, n_coef, increasing=True)
-    fit = entry.get("fit") if isinstance(entry.get("fit"), Mapping) else {}
+    stated = entry.get("fit")
+    fit: Mapping[str, Any] = stated if isinstance(stated, Mapping) else {}
     cov = np.asarray(fit.get("covariance") or [], dtype=float)
     if cov.shape == (n_coef, n_coef):
         return np.sqrt(np.clip(np.einsum("ij,jk,ik->i", powers, cov, powers), 0.0, None))
@@ -70,7 +75,7 @@ def calibration_curve(entry: Mapping[str, Any], sensor: Mapping[str, Any],
     adds to its best straight line (the non-linearity) against the ±RMSE band.
     """
     coefficients = [float(c) for c in entry.get("coefficients") or []]
-    if len(coefficients) < 2:
+    if len(coefficients) < _PAIR:
         return None
     k_v = ex.as_float(entry.get("scale_v_per_dps2")) or 1.0 / coefficients[1]
     # stay inside the calibrated span: a high-order polynomial is not an extrapolator
@@ -146,7 +151,7 @@ def bode(points: Sequence[Mapping[str, Any]], tf: Mapping[str, Any] | None,
 def bias_vs_temperature(entry: Mapping[str, Any]) -> str | None:
     """Bias per temperature point, by branch, with the fitted slope (mV/°C)."""
     points = ex.temperature_points(entry, "bias_v")
-    if len(points) < 2:
+    if len(points) < _PAIR:
         return None
     fig = Figure(figsize=(6.4, 3.4), layout="constrained")
     ax = fig.subplots()
@@ -168,10 +173,10 @@ def bias_vs_temperature(entry: Mapping[str, Any]) -> str | None:
 def _relative_cross(entry: Mapping[str, Any]) -> complex | None:
     """ΔA relative to the sensitive response's magnitude |A_z| (≈ sin δ_e), or raw ΔA."""
     value, main = entry.get("delta_A"), entry.get("A_z")
-    if not isinstance(value, Sequence) or len(value) != 2:
+    if not isinstance(value, Sequence) or len(value) != _PAIR:
         return None
     cross = complex(float(value[0]), float(value[1]))
-    if isinstance(main, Sequence) and len(main) == 2 and abs(complex(*map(float, main))) > 0:
+    if isinstance(main, Sequence) and len(main) == _PAIR and abs(complex(*map(float, main))) > 0:
         return cross / abs(complex(*map(float, main)))
     return cross
 
@@ -184,14 +189,14 @@ def misalignment_plane(sets: Mapping[str, Any]) -> str | None:
                bool(((block or {}).get(sensor) or {}).get("A_z")))
               for i, sensor in enumerate(("SZ", "SY", "SX"))
               for label, block in sorted(sets.items())]
-    points = [p for p in points if p[3] is not None]
-    if not points:
+    drawn = [(i, sensor, label, z, rel) for i, sensor, label, z, rel in points if z is not None]
+    if not drawn:
         return None
-    relative = all(p[4] for p in points)
+    relative = all(p[4] for p in drawn)
     scale = 100.0 if relative else 1.0
     fig = Figure(figsize=(5.0, 4.2), layout="constrained")
     ax = fig.subplots()
-    for i, sensor, label, z, _ in points:
+    for i, sensor, label, z, _ in drawn:
         pivoted = "ABCDEFGH".find(label) % 2 == 1
         xy = (scale * z.real, scale * z.imag)
         ax.plot(*xy, "s" if pivoted else "o", color=f"C{i}", mfc="none" if pivoted else f"C{i}",

@@ -17,6 +17,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict
 
 from aatest.plugins.report import pdf
+from aatest.plugins.report.certificate import build_certificate
 from aatest.plugins.report.context import ALL_SECTIONS, build_context, build_diagnosis_context
 from aatest.plugins.report.sandbox import load_template, render_loaded
 
@@ -72,6 +73,15 @@ class CalibrationCertificate(_HtmlReport):
 
     template = "calibration-certificate"
     title = "Calibration certificate"
+
+    def context(self, results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
+        """The measurement view plus the ISO/IEC 17025 §7.8 content (:mod:`.certificate`)."""
+        view = super().context(results, run_dir)
+        trace = view["trace"]
+        view["cert"] = build_certificate(
+            results, run_dir, [c["name"] for c in view["channels"]], view["rule"],
+            trace.procedure_sha256, trace.recording_sha256, view["report"]["generated_utc"])
+        return view
 
 
 class FrequencyResponseReport(_HtmlReport):

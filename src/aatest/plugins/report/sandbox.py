@@ -38,6 +38,9 @@ from aatest.engine.errors import InputError
 BUILTIN_TEMPLATES = Path(__file__).resolve().parents[2] / "reports"
 _MAX_REPEAT = 100_000
 _MAX_EXPONENT = 1_000
+#: |values| at or above / below these print in scientific notation
+_SCIENTIFIC_ABOVE = 1e6
+_SCIENTIFIC_BELOW = 1e-3
 
 
 class TemplateError(InputError):
@@ -86,7 +89,7 @@ class _ReportEnvironment(ImmutableSandboxedEnvironment):
 
 def _as_float(value: Any) -> float | None:
     """A finite float, or None for missing keys (Undefined), None, NaN and non-numbers."""
-    if isinstance(value, Undefined) or isinstance(value, bool):
+    if isinstance(value, Undefined | bool):
         return None
     try:
         f = float(value)
@@ -100,7 +103,7 @@ def _num(value: Any, digits: int = 4) -> str:
     f = _as_float(value)
     if f is None:
         return "—"
-    if f != 0 and (abs(f) >= 1e6 or abs(f) < 1e-3):
+    if f != 0 and (abs(f) >= _SCIENTIFIC_ABOVE or abs(f) < _SCIENTIFIC_BELOW):
         return f"{f:.{max(digits - 1, 0)}e}"
     return f"{f:.{digits}g}" if abs(f) >= 10 ** digits else f"{f:#.{digits}g}".rstrip(".")
 
@@ -187,6 +190,17 @@ def _local(tag: str) -> str:
     return tag.rsplit("}", 1)[-1]
 
 
+def _attribute_problem(name: str, value: str) -> str | None:
+    """Why an SVG attribute is not plain drawing (None when it is)."""
+    if name.startswith("on"):
+        return f"event attribute {name} is not allowed"
+    if name == "href" and not value.startswith(("#", "data:image/png")):
+        return "external references are not allowed"
+    if name == "style" and _BAD_CSS.search(value):
+        return "external CSS in a style attribute"
+    return None
+
+
 def _svg_problem(root: ET.Element) -> str | None:
     if _local(root.tag) != "svg":
         return f"root element is <{_local(root.tag)}>, not <svg>"
@@ -195,13 +209,9 @@ def _svg_problem(root: ET.Element) -> str | None:
         if tag not in _ALLOWED_TAGS:
             return f"element <{tag}> is not allowed"
         for attr, value in element.attrib.items():
-            name = _local(attr).lower()
-            if name.startswith("on"):
-                return f"event attribute {name} is not allowed"
-            if name == "href" and not (value.startswith("#") or value.startswith("data:image/png")):
-                return "external references are not allowed"
-            if name == "style" and _BAD_CSS.search(value):
-                return "external CSS in a style attribute"
+            problem = _attribute_problem(_local(attr).lower(), value)
+            if problem is not None:
+                return problem
         if tag == "style" and _BAD_CSS.search(element.text or ""):
             return "external CSS in a <style> element"
     return None

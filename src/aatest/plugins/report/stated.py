@@ -76,8 +76,9 @@ def _worst_frf(results: Mapping[str, Any], ch: str) -> list[dict[str, Any]]:
     at = f"{ch} at {p['frequency_hz']:.4f} Hz"
     return [_budget(f"FRF gain {at}", "dB", p["gain_db"], p["gain_expanded_uncertainty_db"],
                     p.get("coverage_factor"), p["gain_budget"]),
-            _budget(f"FRF phase {at}", "deg", p["phase_deg"], p.get("phase_expanded_uncertainty_deg"),
-                    p.get("coverage_factor"), p.get("phase_budget") or [])]
+            _budget(f"FRF phase {at}", "deg", p["phase_deg"],
+                    p.get("phase_expanded_uncertainty_deg"), p.get("coverage_factor"),
+                    p.get("phase_budget") or [])]
 
 
 def budget_views(results: Mapping[str, Any], channels: Sequence[str]) -> list[dict[str, Any]]:

@@ -1,0 +1,310 @@
+"""The ISO/IEC 17025 §7.8 content of a calibration certificate, prepared for the template.
+
+Everything here is read from ``results.json`` (and, for the temperatures measured during the
+calibration, from the run's recording): the issuing lab (``metadata.lab``, written from the lab
+profile before signing), the item, the method and its hash, the dates, the results with U, k
+and coverage probability and their measurands, the reference's traceability, the conformity
+statement under the engine's decision rule, adjustments, the signatory, and who confirmed each
+operator prompt and how. Nothing is evaluated here: values, uncertainties and verdicts are the
+engine's; what the run did not record is printed as "not recorded", never invented.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aatest.engine.errors import AatestError
+from aatest.engine.uncertainty import access as ex
+
+#: the ISO/IEC 17025 §7.8.2.1 items the certificate covers, in the order they are printed
+ITEMS = ("title", "lab", "identification", "item", "method", "dates", "environment",
+         "results", "measurands", "traceability", "conformity", "adjustment", "signatory",
+         "pages")
+
+#: measurand of each certified quantity when the results state none (docs/method.md §4)
+MEASURANDS: dict[str, str] = {
+    "scale_factor": "scale factor: linear coefficient of the best straight line of output "
+                    "voltage against angular acceleration about the sensitive axis, over the "
+                    "sine's ±α at its frequency f (the non-linearity is reported separately)",
+    "bias": "bias: output voltage at zero angular acceleration, (A+ + A−)/2 of the means with "
+            "the input axis up and down",
+    "g_sensitivity": "g-sensitivity: output change per g of specific force along the input "
+                     "axis, expressed as equivalent angular acceleration, (A+ − A−)/2 ÷ scale",
+    "bias_coefficient_v_per_c": "bias temperature coefficient: slope of the bias against the "
+                                "sensor temperature over the chamber steps",
+    "scale_coefficient_per_c": "scale-factor temperature coefficient: relative slope of the "
+                               "scale factor against the sensor temperature",
+    "frf_gain": "FRF gain: magnitude of the complex fundamental-bin ratio of output volts to "
+                "angular acceleration about the sensitive axis at f",
+    "frf_phase": "FRF phase: argument of the same complex fundamental-bin ratio at f",
+}
+
+#: (label, analysis key, value key, U key, unit) of each certified static quantity
+_STATIC: tuple[tuple[str, str, str, str, str], ...] = (
+    ("scale_factor", "scale_factor", "scale_v_per_dps2", "expanded_uncertainty", "V/(°/s²)"),
+    ("bias", "bias", "bias_v", "expanded_uncertainty", "V"),
+    ("g_sensitivity", "bias", "g_sensitivity_dps2_per_g",
+     "g_sensitivity_expanded_uncertainty_dps2_per_g", "(°/s²)/g"),
+    ("bias_coefficient_v_per_c", "temperature", "bias_coefficient_v_per_c",
+     "expanded_uncertainty", "V/°C"),
+    ("scale_coefficient_per_c", "temperature", "scale_coefficient_per_c",
+     "scale_coefficient_expanded_uncertainty_per_c", "1/°C"),
+)
+
+#: how each confirmation channel is named on the certificate
+_VIA = {"tty": "ask (confirmed at the terminal)", "station": "station (confirmed in the "
+        "operator's browser station)", "auto": "auto (confirmed UNATTENDED by --confirm-prompts "
+        "auto: nobody checked the instruction was carried out)"}
+
+
+@dataclass(frozen=True)
+class Environment:
+    """Temperatures logged during the calibration, °C (None: nothing logged them)."""
+
+    min_c: float | None
+    mean_c: float | None
+    max_c: float | None
+    samples: int
+    source: str
+
+
+@dataclass(frozen=True)
+class ResultRow:
+    """One certified value as the certificate states it."""
+
+    channel: str
+    quantity: str
+    value: float
+    unit: str
+    expanded_uncertainty: float | None
+    coverage_factor: float | None
+    coverage_probability: float | None
+    measurand: str
+    at: str = ""
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """The §7.8 view of one calibration (see :data:`ITEMS`)."""
+
+    identification: str
+    numbered: bool
+    lab: Mapping[str, Any]
+    item: Mapping[str, Any]
+    method: Mapping[str, Any]
+    calibrated_utc: str
+    issued_utc: str
+    environment: Environment
+    results: list[ResultRow]
+    traceability: list[tuple[str, str]]
+    traceability_source: str
+    conformity: str
+    adjustment: Mapping[str, Any]
+    signatories: list[Mapping[str, str]]
+    prompts: list[dict[str, str]]
+    confirmation: str
+    unattended: bool
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def measurands(self) -> list[tuple[str, str]]:
+        """(quantity, definition) of every quantity certified, once each, in order."""
+        seen: dict[str, str] = {}
+        for row in self.results:
+            seen.setdefault(row.quantity, row.measurand)
+        return list(seen.items())
+
+
+def _lab(meta: Mapping[str, Any]) -> dict[str, Any]:
+    lab = meta.get("lab")
+    if isinstance(lab, Mapping):
+        return dict(lab)
+    return {"name": "aatest lab", "address": "", "accreditation": None, "signatories": [],
+            "default_profile": True}
+
+
+def _temperatures(run_dir: Path, meta: Mapping[str, Any]) -> tuple[np.ndarray, str]:
+    """Every finite temperature sample the loggers recorded (°C) and the file read."""
+    from aatest.engine.recording.reader import read_dataset
+
+    candidates = [Path(run_dir)]
+    if meta.get("recording"):
+        candidates.append(Path(str(meta["recording"])))
+    for path in candidates:
+        try:
+            data = read_dataset(path)
+        except (AatestError, OSError, ValueError, LookupError):  # no readable recording here
+            continue
+        parts = [np.asarray(log[name], dtype=np.float64)
+                 for s in data.steps for log in (s.daq, s.table)
+                 for name in log.channels if name.startswith("temperature")]
+        values = np.concatenate(parts) if parts else np.empty(0)
+        return values[np.isfinite(values)], str(path)
+    return np.empty(0), "no recording"
+
+
+def environment(results: Mapping[str, Any], run_dir: Path) -> Environment:
+    """Min/mean/max of the temperatures logged during the calibration (docs: §7.8.4.1 a)."""
+    meta = results.get("metadata") or {}
+    values, source = _temperatures(run_dir, meta)
+    if values.size == 0:
+        return Environment(None, None, None, 0, source)
+    return Environment(float(values.min()), float(values.mean()), float(values.max()),
+                       int(values.size), source)
+
+
+def _measurand(entry: Mapping[str, Any], label: str) -> str:
+    stated = entry.get("measurand")  # the engine's own text when the results carry one
+    return str(stated) if isinstance(stated, str) and stated else MEASURANDS[label]
+
+
+def result_rows(results: Mapping[str, Any], channels: Sequence[str]) -> list[ResultRow]:
+    """Every certified value with its unit, U, k, coverage probability and measurand."""
+    rows = []
+    for ch in channels:
+        for label, block, key, u_key, unit in _STATIC:
+            entry = ex.channel_entry(results, block, ch)
+            value = ex.as_float(entry.get(key)) if isinstance(entry, Mapping) else None
+            if entry is None or value is None:
+                continue
+            rows.append(ResultRow(ch, label, value, unit, ex.as_float(entry.get(u_key)),
+                                  ex.as_float(entry.get("coverage_factor")),
+                                  ex.as_float(entry.get("coverage_probability")),
+                                  _measurand(entry, label)))
+        for p in ex.frf_points(results, ch):
+            at = f"{float(p.get('frequency_hz') or 0.0):.4g} Hz"
+            for label, key, u_key, unit in (
+                    ("frf_gain", "gain_db", "gain_expanded_uncertainty_db", "dB"),
+                    ("frf_phase", "phase_deg", "phase_expanded_uncertainty_deg", "deg")):
+                value = ex.as_float(p.get(key))
+                if value is not None:
+                    rows.append(ResultRow(ch, label, value, unit, ex.as_float(p.get(u_key)),
+                                          ex.as_float(p.get("coverage_factor")),
+                                          ex.as_float(p.get("coverage_probability")),
+                                          _measurand(p, label), at))
+    return rows
+
+
+def _flatten(value: Any) -> str:
+    if isinstance(value, Mapping):
+        return "; ".join(f"{k}: {_flatten(v)}" for k, v in value.items())
+    if isinstance(value, list | tuple):
+        return "; ".join(_flatten(v) for v in value)
+    return str(value)
+
+
+def reference_traceability(results: Mapping[str, Any]) -> tuple[list[tuple[str, str]], str]:
+    """(item, statement) rows of the reference's traceability and where they were stated:
+    the results' ``metadata.traceability``, else the rig description's ``traceability``."""
+    meta = results.get("metadata") or {}
+    sources: list[tuple[str, Any]] = [("results metadata", meta.get("traceability"))]
+    for name, rig in (("rig description", meta.get("rig")), ("rig description",
+                                                               results.get("rig"))):
+        if isinstance(rig, Mapping):
+            sources.append((name, rig.get("traceability")))
+    for name, stated in sources:
+        if isinstance(stated, Mapping) and stated:
+            return [(str(k), _flatten(v)) for k, v in stated.items()], name
+        if isinstance(stated, list) and stated:
+            return [(str(i.get("instrument") or i.get("name") or f"#{n + 1}")
+                     if isinstance(i, Mapping) else f"#{n + 1}", _flatten(i))
+                    for n, i in enumerate(stated)], name
+        if isinstance(stated, str) and stated:
+            return [("reference", stated)], name
+    return [], "not stated"
+
+
+def _conformity(results: Mapping[str, Any], rule: str) -> str:
+    verdicts = ex.require(results, "verdicts", "top level")
+    overall = ex.require(results, "overall", "top level")
+    if not verdicts:
+        return "No conformity statement: no quantity was judged against a specification."
+    return (f"Conformity with the sensor's datasheet limits, decided by the engine under the "
+            f"decision rule '{rule}' (ILAC-G8): overall {overall}; each judged quantity with "
+            "its limit, U and verdict is listed below.")
+
+
+def _adjustment(results: Mapping[str, Any]) -> dict[str, Any]:
+    meta = results.get("metadata") or {}
+    stated = results.get("adjustment") or meta.get("adjustment")
+    if isinstance(stated, Mapping) and stated.get("made"):
+        return {"made": True, "as_found": stated.get("as_found"),
+                "as_left": stated.get("as_left"), "text": str(stated.get("note") or "")}
+    return {"made": False, "text": "No adjustment was made: the results are both the "
+                                   "as-found and the as-left values."}
+
+
+def _prompts(results: Mapping[str, Any]) -> tuple[list[dict[str, str]], str, bool]:
+    """Who confirmed which operator prompt, when and through which channel; the mode."""
+    meta = results.get("metadata") or {}
+    texts = {str(s.get("id")): str(s.get("prompt") or "") for s in results.get("steps") or []
+             if isinstance(s, Mapping)}
+    rows = []
+    for answer in meta.get("prompt_answers") or []:
+        if isinstance(answer, Mapping):
+            step = str(answer.get("step_id") or "—")
+            rows.append({"step_id": step, "prompt": texts.get(step, ""),
+                         "answered_by": str(answer.get("answered_by") or "—"),
+                         "answered_utc": str(answer.get("answered_utc") or "—"),
+                         "via": str(answer.get("via") or "—")})
+    modes = sorted({r["via"] for r in rows})
+    if not rows:
+        return rows, "no operator prompts in this run", False
+    return rows, "; ".join(_VIA.get(m, m) for m in modes), "auto" in modes
+
+
+def _item(results: Mapping[str, Any]) -> dict[str, Any]:
+    meta = results.get("metadata") or {}
+    stated = meta.get("sensor")
+    sensor: Mapping[str, Any] = stated if isinstance(stated, Mapping) else {}
+    channels = list(ex.sensors(results).values())
+    first = channels[0] if channels else {}
+    return {"description": "angular accelerometer",
+            "model": str(sensor.get("model") or first.get("model") or "not recorded"),
+            "serial": str(sensor.get("serial") or first.get("serial") or "not recorded"),
+            "channels": channels}
+
+
+def _method(results: Mapping[str, Any], procedure_sha256: str) -> dict[str, str]:
+    meta = results.get("metadata") or {}
+    standard = str(meta.get("standard") or "not stated")
+    return {"procedure": str(results.get("procedure") or meta.get("procedure") or "—"),
+            "sha256": procedure_sha256, "standard": standard,
+            "description": "angular acceleration generated by a position turntable (sine "
+                           "profile, docs/method.md §3); reference from the table's logs; "
+                           "evaluation per IEEE Std 671 (test procedures) and in the manner "
+                           "of ISO 16063 (sensitivity as a complex ratio at the fundamental)"}
+
+
+def build_certificate(results: Mapping[str, Any], run_dir: Path, channels: Sequence[str],
+                      rule: str, procedure_sha256: str, recording_sha256: str,
+                      issued_utc: str) -> Certificate:
+    """The §7.8 view of ``results`` (issued at ``issued_utc``, ISO 8601)."""
+    meta = results.get("metadata") or {}
+    lab = _lab(meta)
+    number = results.get("certificate_number")
+    identification = str(number) if number else \
+        f"{results.get('procedure') or 'run'}-{recording_sha256[:12]}"
+    prompts, confirmation, unattended = _prompts(results)
+    trace_rows, trace_source = reference_traceability(results)
+    notes = []
+    if lab.get("default_profile"):
+        notes.append("No lab profile was given (--lab or AATEST_LAB): the issuing lab's "
+                     "identity, accreditation and signatories are not stated.")
+    if not number:
+        notes.append("No certificate number was issued (no records store): the run's "
+                     "identifier is the procedure and the recording's SHA-256 prefix.")
+    return Certificate(
+        identification=identification, numbered=bool(number), lab=lab, item=_item(results),
+        method=_method(results, procedure_sha256),
+        calibrated_utc=str(meta.get("started_utc") or "not recorded"), issued_utc=issued_utc,
+        environment=environment(results, run_dir), results=result_rows(results, channels),
+        traceability=trace_rows, traceability_source=trace_source,
+        conformity=_conformity(results, rule), adjustment=_adjustment(results),
+        signatories=[dict(s) for s in lab.get("signatories") or [] if isinstance(s, Mapping)],
+        prompts=prompts, confirmation=confirmation, unattended=unattended, notes=notes)
