@@ -25,7 +25,11 @@ REQUIRED_METHODS: dict[str, tuple[str, ...]] = {
     "sensor": ("datasheet",),
     "analysis": ("applies_to", "run"),
     "report": ("render",),
+    "effect": ("columns", "forward", "testable", "signature"),
 }
+#: kinds whose options are not a ``Config`` model (an effect has typed ``parameters`` instead,
+#: checked by :mod:`aatest.effects` when it is loaded)
+_NO_CONFIG = frozenset({"analysis", "effect"})
 
 
 @dataclass(frozen=True)
@@ -59,7 +63,7 @@ def _validate(kind: str, name: str, target: Any, dist: str) -> None:
             f"{', '.join(missing)}"
         )
     config = getattr(target, "Config", None)
-    if kind != "analysis" and not (isinstance(config, type) and issubclass(config, BaseModel)):
+    if kind not in _NO_CONFIG and not (isinstance(config, type) and issubclass(config, BaseModel)):
         raise PluginError(
             f"{kind} plugin {name!r} from distribution {dist!r} must define a pydantic "
             f"'Config' model for its options"

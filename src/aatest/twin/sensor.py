@@ -4,7 +4,8 @@ Signal path of one sensor channel (docs/interfaces.md §4 vocabulary, same param
 
     α_top (table-top frame) ─ axis projection (misalignment, pivot, re-mount) ─ cross_axis
     ─ g_sensitivity ─ hysteresis (play) ─ sensor_dynamics ─ saturation ─ resolution
-    ─ nonlinearity_cubic ─ scale (scale_temperature) ─ bias (bias_temperature) ─ jerk → volts
+    ─ nonlinearity_cubic ─ plugin effects in °/s² ─ scale (scale_temperature)
+    ─ bias (bias_temperature) ─ jerk ─ plugin effects in V → volts
 
 ``time_delay`` is applied upstream by evaluating the motion at t − delay (exact for any delay,
 no fractional-delay filter); white noise is added by the DAQ chain (see :mod:`daq`) so that
@@ -19,6 +20,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
+from aatest.effects import EffectInputs, load_effect
 from aatest.twin.model import SensorModel
 
 
@@ -120,9 +122,19 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
         alpha = np.clip(alpha, -lim, lim)
     if model.resolution_dps2 > 0.0:
         alpha = np.round(alpha / model.resolution_dps2) * model.resolution_dps2
+    d_temp = inp.temperature_c - t_ref_c
+    plugin_inputs = EffectInputs(alpha, sensed, d_temp, np.arange(alpha.size) * inp.dt_s,
+                                 inp.dt_s, model.range_dps2)
     if model.nonlinearity_cubic is not None:
         alpha = alpha * (1.0 + model.nonlinearity_cubic.c3 * (alpha / model.range_dps2) ** 2)
-    d_temp = inp.temperature_c - t_ref_c
+    plugin_volts = np.zeros_like(alpha)
+    for pe in model.plugin_effects or ():
+        eff = load_effect(pe.effect, pe.distribution).effect
+        term = eff.forward(plugin_inputs, pe.parameters)
+        if eff.enters == "acceleration":
+            alpha = alpha + term
+        else:
+            plugin_volts = plugin_volts + term
     scale = model.scale_v_per_dps2
     if model.scale_temperature is not None:
         scale = scale * (1.0 + model.scale_temperature.coefficient_per_c * d_temp)
@@ -132,4 +144,4 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
     if model.jerk_sensitivity is not None:
         jerk = np.gradient(sensed, inp.dt_s)
         volts = volts + model.jerk_sensitivity.coefficient_v_per_dps3 * jerk
-    return volts
+    return volts + plugin_volts
