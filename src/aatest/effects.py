@@ -44,12 +44,7 @@ from aatest.engine.errors import PluginError
 
 #: the contract vocabulary (docs/interfaces.md §4); a plugin may reuse a name only with
 #: ``shadows = True``
-BUILTIN_EFFECTS: frozenset[str] = frozenset({
-    "bias_temperature", "scale_temperature", "nonlinearity_cubic", "saturation", "hysteresis",
-    "sensor_dynamics", "time_delay", "clock_drift", "jerk_sensitivity", "g_sensitivity",
-    "cross_axis", "misalignment", "rate_ripple", "motor_vibration", "excess_noise"})
-
-ENTERS = ("acceleration", "voltage")
+BUILTIN_EFFECTS = registry.BUILTIN_EFFECTS
 
 
 @dataclass(frozen=True)
@@ -82,7 +77,7 @@ class EffectInputs:
     temperature_delta_c
         Sensor temperature minus the model's reference temperature (°C).
     time_s
-        Time since the record start (s).
+        Time since the table record started (s; negative while the logger runs ahead).
     dt_s
         Sample spacing (s).
     range_dps2
@@ -187,33 +182,8 @@ class InstalledEffect:
         return self.effect.name
 
 
-def _validate(effect: Effect, dist: str) -> None:
-    """Check what the registry's method check cannot: names, units, bounds, domain."""
-    who = f"effect plugin {effect.name!r} from distribution {dist!r}"
-    params = list(getattr(effect, "parameters", ()))
-    shape = list(getattr(effect, "shape_parameters", ()))
-    if not params:
-        raise PluginError(f"{who} declares no parameters")
-    names = [getattr(p, "name", None) for p in params + shape]
-    if len(set(names)) != len(names):
-        raise PluginError(f"{who} declares a parameter twice: {names}")
-    for p in params + shape:
-        if not (isinstance(p.name, str) and p.name.isidentifier()):
-            raise PluginError(f"{who}: parameter name {p.name!r} is not an identifier")
-        if not (isinstance(p.unit, str) and p.unit.strip()):
-            raise PluginError(f"{who}: parameter {p.name!r} states no unit (use '1' when "
-                              "dimensionless)")
-    for p in shape:
-        if p.lower is None or p.upper is None or not p.lower < p.upper:
-            raise PluginError(f"{who}: shape parameter {p.name!r} needs bounds lower < upper")
-    if effect.enters not in ENTERS:
-        raise PluginError(f"{who}: 'enters' must be one of {', '.join(ENTERS)}, "
-                          f"not {effect.enters!r}")
-    if effect.attributed_to not in ("sensor", "table"):
-        raise PluginError(f"{who}: 'attributed_to' must be 'sensor' or 'table'")
-
-
 def _load(name: str) -> InstalledEffect:
+    """Load one effect (declaration checked by the registry), then construct it."""
     info = registry.load("effect", name)
     target, dist = info.target, info.distribution
     if not (isinstance(target, type) and issubclass(target, Effect)):
@@ -224,29 +194,13 @@ def _load(name: str) -> InstalledEffect:
     except Exception as exc:  # a plugin that cannot be built is the plugin's fault
         raise PluginError(f"effect plugin {name!r} from distribution {dist!r} cannot be "
                           f"constructed: {exc}") from exc
-    if effect.name != name:
-        raise PluginError(f"effect plugin {name!r} from distribution {dist!r} calls itself "
-                          f"{effect.name!r}: the entry-point name must be the effect name")
-    _validate(effect, dist)
-    if name in BUILTIN_EFFECTS and not effect.shadows:
-        raise PluginError(f"effect plugin {name!r} from distribution {dist!r} shadows the "
-                          "built-in effect of that name; set 'shadows = True' to replace it "
-                          "deliberately")
     return InstalledEffect(effect, dist, info.version)
 
 
 @lru_cache(maxsize=1)
 def _installed() -> dict[str, InstalledEffect]:
-    points = registry.entry_points("effect")
-    by_name: dict[str, list[str]] = {}
-    for ep in points:
-        dist = ep.dist.metadata["Name"] if getattr(ep, "dist", None) is not None else "unknown"
-        by_name.setdefault(ep.name, []).append(dist)
-    for name, dists in by_name.items():
-        if len(dists) > 1:
-            raise PluginError(f"effect {name!r} is declared by several distributions "
-                              f"({', '.join(sorted(dists))}): uninstall all but one")
-    return {name: _load(name) for name in by_name}
+    return {name: _load(name) for name in sorted({ep.name for ep in
+                                                  registry.entry_points("effect")})}
 
 
 def installed_effects() -> dict[str, InstalledEffect]:

@@ -85,6 +85,8 @@ class SensorInputs:
     temperature_c : (n,) sensor temperature.
     axes : (3, 3) sensor x, y, z axes as columns, in table-top coordinates.
     dt_s : sample spacing in lab seconds.
+    time_s : (n,) lab time since the table record started (s), for time-dependent plugin
+        effects; None: since the first sample.
     """
 
     alpha_top_dps2: np.ndarray
@@ -92,6 +94,7 @@ class SensorInputs:
     temperature_c: np.ndarray
     axes: np.ndarray
     dt_s: float
+    time_s: np.ndarray | None = None
 
 
 def sensed_acceleration(model: SensorModel, inp: SensorInputs) -> np.ndarray:
@@ -123,8 +126,8 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
     if model.resolution_dps2 > 0.0:
         alpha = np.round(alpha / model.resolution_dps2) * model.resolution_dps2
     d_temp = inp.temperature_c - t_ref_c
-    plugin_inputs = EffectInputs(alpha, sensed, d_temp, np.arange(alpha.size) * inp.dt_s,
-                                 inp.dt_s, model.range_dps2)
+    time_s = inp.time_s if inp.time_s is not None else np.arange(alpha.size) * inp.dt_s
+    plugin_inputs = EffectInputs(alpha, sensed, d_temp, time_s, inp.dt_s, model.range_dps2)
     if model.nonlinearity_cubic is not None:
         alpha = alpha * (1.0 + model.nonlinearity_cubic.c3 * (alpha / model.range_dps2) ** 2)
     plugin_volts = np.zeros_like(alpha)
