@@ -143,7 +143,8 @@ def test_broken_plugins_are_refused_naming_the_distribution(
     assert "'acme-broken'" in str(info.value)
     if cls is not NotAnEffect:  # the registry checks declarations, the class is checked on use
         listing = CliRunner().invoke(app, ["plugins"]).output
-        assert f"{name}" in listing and "BROKEN" in listing and message.split("'")[0] in listing
+        head = message.split("'", maxsplit=1)[0]
+        assert name in listing and "BROKEN" in listing and head in listing
 
 
 def test_a_broken_plugin_stops_diagnose_with_exit_2(install: Install, tmp_path: Path) -> None:

@@ -47,7 +47,7 @@ export_csv(simulate_dataset(rig, diagnostic_plan(samples), seed, procedure="plug
 """
 
 
-def _venv_run(scripts: Path, *args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+def _venv_run(scripts: Path, *args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     return subprocess.run([str(a) for a in args], cwd=cwd, env=env, check=False,
                           capture_output=True, text=True, timeout=600)

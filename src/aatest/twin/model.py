@@ -176,7 +176,8 @@ class PluginEffect(_Model):
                              f"not {', '.join(self.parameters) or 'none'}")
         for p in eff.shape_parameters:
             value = self.parameters[p.name]
-            if not (p.lower is None or p.lower <= value) or not (p.upper is None or value <= p.upper):
+            below = p.lower is not None and value < p.lower
+            if below or (p.upper is not None and value > p.upper):
                 raise ValueError(f"{self.effect}.{p.name} = {value:g} {p.unit} is outside "
                                  f"[{p.lower:g}, {p.upper:g}]")
         return self

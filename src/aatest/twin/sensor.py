@@ -138,7 +138,7 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
             alpha = alpha + term
         else:
             plugin_volts = plugin_volts + term
-    scale = model.scale_v_per_dps2
+    scale: float | np.ndarray = model.scale_v_per_dps2
     if model.scale_temperature is not None:
         scale = scale * (1.0 + model.scale_temperature.coefficient_per_c * d_temp)
     volts = model.bias_v + scale * alpha

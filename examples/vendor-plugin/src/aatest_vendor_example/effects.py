@@ -28,6 +28,8 @@ from aatest.effects import Effect, EffectInputs, EffectParameter, Excitation
 
 #: the effect needs sine steps reaching this share of the range to be told from noise
 MIN_RANGE_FRACTION = 0.1
+#: an asymmetry this large is a broken sensor, not a scale-factor effect
+MAX_ASYMMETRY = 0.5
 
 
 class AsymmetricScale(Effect):
@@ -57,6 +59,6 @@ class AsymmetricScale(Effect):
         lo, hi = ci95["asymmetry"]
         if lo <= 0.0 <= hi:
             return "the asymmetry's 95 % interval includes zero"
-        if abs(parameters["asymmetry"]) >= 0.5:
+        if abs(parameters["asymmetry"]) >= MAX_ASYMMETRY:
             return "an asymmetry of 50 % or more is a broken sensor, not a scale-factor effect"
         return None
