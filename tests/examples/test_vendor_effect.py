@@ -92,6 +92,8 @@ def test_found_when_installed(with_plugin: tuple[int, dict[str, Any], Path]) -> 
     lo, hi = finding["ci95"]["asymmetry"]
     assert lo < finding["parameters"]["asymmetry"] < hi and lo > 0
     assert finding["plugin"]["distribution"] == "aatest-vendor-example"
+    # the backward pass re-tests it in the joint model: removing it alone costs evidence
+    assert finding["marginal"]["delta_bic"] < -10.0
     assert doc["unexplained"] == []  # the plugin explains the structure: nothing left over
     assert doc["gain"]["reduction_pct"] > 50.0
 

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 from aatest.diagnose.design import Spec
 from aatest.diagnose.effects.base import Context, linear_ci
 from aatest.diagnose.selection import BIC_THRESHOLD, SHAPE_PARAMS, Finding
+from aatest.effects import spec_token
 
 if TYPE_CHECKING:
     from aatest.diagnose.unexplained import Joint
@@ -37,6 +38,10 @@ _SHAPE_RESET: dict[str, dict[str, Any]] = {
 
 def without(spec: Spec, effect: str) -> Spec | None:
     """``spec`` with a named effect switched off (None when it is not part of the spec)."""
+    token = spec_token(effect)  # a plugin effect (aatest.effects), even one shadowing a built-in
+    if token in spec.linear:
+        return replace(spec, linear=spec.linear - {token},
+                       plugin_shape=tuple(e for e in spec.plugin_shape if e[0] != effect))
     if effect in _LINEAR_PARAMS or effect == "cross_axis":
         return replace(spec, linear=spec.linear - {effect})
     if effect in _SHAPE_RESET:
