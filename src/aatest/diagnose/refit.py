@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from aatest.diagnose.design import Spec
 from aatest.diagnose.effects.base import Context, linear_ci
+from aatest.diagnose.effects.plugins import joint_parameters
 from aatest.diagnose.selection import BIC_THRESHOLD, SHAPE_PARAMS, Finding
 from aatest.effects import spec_token
 
@@ -92,6 +93,12 @@ def _annotate(ctx: Context, joint: Joint, finding: Finding) -> None:
     if m is not None:
         finding.extra["marginal"] = {"delta_bic": m[0], "rmse_v_without": m[1],
                                      "rmse_v_with": held_out_rmse(joint.fit)}
+    plugin = joint_parameters(ctx, joint.fit, finding.effect)
+    if plugin is not None:  # a plugin effect reports its joint-fit parameters (shape kept)
+        finding.parameters = {**finding.parameters, **plugin[0]}
+        finding.ci95 = {**finding.ci95, **plugin[1]}
+        finding.extra["joint_fit"] = {"parameters": plugin[0], "ci95": plugin[1]}
+        return
     spec = _LINEAR_PARAMS.get(finding.effect)
     if spec is not None and spec[0] in joint.fit.names:
         column, key, per_scale = spec

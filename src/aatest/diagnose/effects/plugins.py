@@ -26,7 +26,14 @@ from aatest.diagnose.effects.base import (
     replace_spec,
     scalar_search,
 )
-from aatest.effects import Effect, Excitation, InstalledEffect, column_name, spec_token
+from aatest.effects import (
+    Effect,
+    Excitation,
+    InstalledEffect,
+    column_name,
+    load_effect,
+    spec_token,
+)
 
 #: evaluations of the joint search over two or more shape parameters at most
 MAX_SHAPE_EVALUATIONS = 60
@@ -121,3 +128,25 @@ def fitter(installed: InstalledEffect) -> Callable[[Context], CandidateFit]:
 def testability(installed: InstalledEffect) -> Callable[[Context], str | None]:
     """The candidate's testability check: the plugin's own, on what the data exercise."""
     return lambda ctx: installed.effect.testable(excitation(ctx))
+
+
+def joint_parameters(ctx: Context, fit: Fit, effect: str
+                     ) -> tuple[dict[str, float], dict[str, list[float]]] | None:
+    """A plugin effect's linear parameters and 95 % bounds read from a joint fit.
+
+    The forward selection fits an effect on top of those accepted before it; once later
+    effects are in the model, the joint fit (all effects and generic extensions together) is
+    the one to report. None when ``effect`` is not a plugin effect of ``fit``.
+    """
+    if spec_token(effect) not in fit.spec.linear:
+        return None
+    eff = load_effect(effect).effect
+    params: dict[str, float] = {}
+    ci: dict[str, list[float]] = {}
+    for p in eff.parameters:
+        column = column_name(effect, p.name)
+        if column not in fit.names:
+            return None
+        params[p.name], ci[p.name] = linear_ci(ctx, fit, column,
+                                               divide_by_scale=eff.enters == "acceleration")
+    return params, ci
