@@ -48,9 +48,9 @@ def installed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[None]
     fx.refresh()
 
 
-def _diagnose(data: Path) -> dict[str, Any]:
+def _diagnose(data: Path, *options: str) -> dict[str, Any]:
     out = data.parent / f"{data.name}.json"
-    result = CliRunner().invoke(app, ["diagnose", str(data), "--json", str(out)])
+    result = CliRunner().invoke(app, ["diagnose", str(data), "--json", str(out), *options])
     assert "Traceback" not in result.output, result.output
     return json.loads(out.read_text())
 
@@ -99,9 +99,21 @@ def test_found_beside_a_builtin_effect(tmp_path: Path) -> None:
     data = tmp_path / "twin"
     export_csv(simulate_dataset(rig.model_copy(update={"sensors": [sensor]}),
                                 diagnostic_plan(2**13), 9, procedure="plugin-pair"), data)
-    doc = _diagnose(data)
+    model_out = tmp_path / "model.yaml"
+    doc = _diagnose(data, "--model-out", str(model_out))
     assert _names(doc) == ["asymmetric_scale", "bias_temperature"]
     found = {f["effect"]: f["parameters"] for f in doc["findings"]}
     assert found["asymmetric_scale"]["asymmetry"] == pytest.approx(-0.015, rel=0.25)
     assert found["bias_temperature"]["coefficient_v_per_c"] == pytest.approx(3e-4, rel=0.25)
     assert doc["unexplained"] == []
+
+    # the extended model, simulated by the twin (plugin forward model included) on a new seed,
+    # reproduces the behaviour: diagnosing it finds the same effects and values again
+    extended = m.load_rig_model(model_out)
+    again = tmp_path / "again"
+    export_csv(simulate_dataset(extended, diagnostic_plan(2**13), 19, procedure="again"), again)
+    redo = _diagnose(again)
+    assert _names(redo) == ["asymmetric_scale", "bias_temperature"]
+    for f in redo["findings"]:
+        for key, value in f["parameters"].items():
+            assert value == pytest.approx(found[f["effect"]][key], rel=0.1), (f["effect"], key)

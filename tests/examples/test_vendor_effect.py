@@ -26,7 +26,7 @@ from aatest.engine.errors import EXIT_BAD_INPUT, EXIT_FINDING
 
 ASYMMETRY = 0.02
 SEED = 11
-SAMPLES = 2**13
+SAMPLES = 2**12
 #: the generator the venv runs: twin + plugin forward model → import directory
 GENERATE = """\
 import sys
