@@ -265,6 +265,47 @@ def design_column_names(tokens: Iterable[str]) -> list[str]:
             for p in load_effect(n).effect.parameters]
 
 
+def evaluate_columns(installed: InstalledEffect, inputs: EffectInputs,
+                     shape: Mapping[str, float]) -> dict[str, np.ndarray]:
+    """Call a plugin's :meth:`Effect.columns` and check what it returns.
+
+    One finite array of the inputs' length per linear parameter; anything else — or an
+    exception inside the plugin — is a :class:`PluginError` naming the distribution (exit 2),
+    not an internal error of aatest.
+    """
+    eff, who = installed.effect, (f"effect plugin {installed.name!r} from distribution "
+                                  f"{installed.distribution!r}")
+    try:
+        cols = eff.columns(inputs, shape)
+    except Exception as exc:  # vendor code: translated at the plugin boundary
+        raise PluginError(f"{who} failed in columns(): {type(exc).__name__}: {exc}") from exc
+    out: dict[str, np.ndarray] = {}
+    for p in eff.parameters:
+        if p.name not in cols:
+            raise PluginError(f"{who}: columns() returned no column for parameter {p.name!r}")
+        col = np.asarray(cols[p.name], dtype=float)
+        if col.shape != inputs.alpha_dps2.shape or not np.all(np.isfinite(col)):
+            raise PluginError(f"{who}: the column of {p.name!r} must be {inputs.alpha_dps2.size} "
+                              "finite values, one per sample")
+        out[p.name] = col
+    return out
+
+
+def forward(installed: InstalledEffect, inputs: EffectInputs,
+            parameters: Mapping[str, float]) -> np.ndarray:
+    """A plugin's :meth:`Effect.forward`, checked like :func:`evaluate_columns`."""
+    who = (f"effect plugin {installed.name!r} from distribution "
+           f"{installed.distribution!r}")
+    try:
+        term = np.asarray(installed.effect.forward(inputs, parameters), dtype=float)
+    except Exception as exc:  # vendor code: translated at the plugin boundary
+        raise PluginError(f"{who} failed in forward(): {type(exc).__name__}: {exc}") from exc
+    if term.shape != inputs.alpha_dps2.shape or not np.all(np.isfinite(term)):
+        raise PluginError(f"{who}: forward() must return {inputs.alpha_dps2.size} finite "
+                          "values, one per sample")
+    return term
+
+
 def design_columns(tokens: Iterable[str], inputs: EffectInputs,
                    shapes: Mapping[str, Mapping[str, float]]) -> dict[str, np.ndarray]:
     """Columns (per :func:`column_name`) of the plugin effects switched on among ``tokens``.
@@ -274,16 +315,16 @@ def design_columns(tokens: Iterable[str], inputs: EffectInputs,
     """
     out: dict[str, np.ndarray] = {}
     for n in plugin_names(tokens):
-        eff = load_effect(n).effect
+        installed = load_effect(n)
         shape = dict(shapes.get(n, {}))
-        for p in eff.shape_parameters:
+        for p in installed.effect.shape_parameters:
             shape.setdefault(p.name, 0.5 * (float(p.lower or 0.0) + float(p.upper or 0.0)))
-        cols = eff.columns(inputs, shape)
-        for p in eff.parameters:
-            out[column_name(n, p.name)] = np.asarray(cols[p.name], dtype=float)
+        for name, col in evaluate_columns(installed, inputs, shape).items():
+            out[column_name(n, name)] = col
     return out
 
 
 __all__ = ["BUILTIN_EFFECTS", "Effect", "EffectInputs", "EffectParameter", "Excitation",
            "InstalledEffect", "column_name", "design_column_names", "design_columns",
+           "evaluate_columns", "forward",
            "installed_effects", "load_effect", "plugin_names", "refresh", "spec_token"]

@@ -78,6 +78,15 @@ class Unbounded(SettlingBias):
     shape_parameters = (EffectParameter("time_constant_s", "s"),)
 
 
+class Raising(EvenSquare):
+    """A plugin with a bug in its model."""
+
+    name = "raising"
+
+    def columns(self, inputs: EffectInputs, shape: Mapping[str, float]) -> dict[str, np.ndarray]:
+        return {"c2": inputs.alpha_dps2 * np.ones((2, 2))}  # shapes do not broadcast
+
+
 class NotAnEffect:
     """Has the methods and declarations but does not derive from ``Effect``."""
 
@@ -199,6 +208,20 @@ def test_twin_applies_the_forward_models(install: Install, monkeypatch: pytest.M
     expected = (k * alpha * np.where(alpha > 0, 0.02, -0.02)
                 + 0.01 * np.exp(-np.clip(t, 0, None) / 0.5))
     np.testing.assert_allclose(diff, expected, atol=1e-12)
+
+
+def test_a_failing_plugin_model_is_the_plugins_error(install: Install) -> None:
+    install("acme-buggy", {"raising": _here(Raising)})
+    sensor = m.SensorModel(plugin_effects=[m.PluginEffect(effect="raising",
+                                                          parameters={"c2": 0.1})])
+    with pytest.raises(PluginError, match=r"'raising' from distribution 'acme-buggy' failed in "
+                                          r"forward\(\): ValueError") as info:
+        output_volts(sensor, _inputs(), 25.0)
+    assert info.value.exit_code == EXIT_BAD_INPUT
+    inputs = EffectInputs(np.ones(8), np.ones(8), np.zeros(8), np.arange(8.0), 1e-3, 500.0)
+    with pytest.raises(PluginError, match="'raising' from distribution 'acme-buggy' failed in "
+                                          "columns"):
+        fx.design_columns([fx.spec_token("raising")], inputs, {})
 
 
 def test_model_parameters_are_checked_against_the_plugin(install: Install) -> None:

@@ -20,7 +20,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
-from aatest.effects import EffectInputs, load_effect
+from aatest.effects import EffectInputs, forward, load_effect
 from aatest.twin.model import SensorModel
 
 
@@ -132,9 +132,9 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
         alpha = alpha * (1.0 + model.nonlinearity_cubic.c3 * (alpha / model.range_dps2) ** 2)
     plugin_volts = np.zeros_like(alpha)
     for pe in model.plugin_effects or ():
-        eff = load_effect(pe.effect, pe.distribution).effect
-        term = eff.forward(plugin_inputs, pe.parameters)
-        if eff.enters == "acceleration":
+        installed = load_effect(pe.effect, pe.distribution)
+        term = forward(installed, plugin_inputs, pe.parameters)
+        if installed.effect.enters == "acceleration":
             alpha = alpha + term
         else:
             plugin_volts = plugin_volts + term
