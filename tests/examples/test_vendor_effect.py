@@ -96,6 +96,8 @@ def test_found_when_installed(with_plugin: tuple[int, dict[str, Any], Path]) -> 
     assert finding["marginal"]["delta_bic"] < -10.0
     assert doc["unexplained"] == []  # the plugin explains the structure: nothing left over
     assert doc["gain"]["reduction_pct"] > 50.0
+    report = with_plugin[2].parent / "diagnosis.html"  # rendered next to the JSON
+    assert "asymmetric_scale" in report.read_text(encoding="utf-8")
 
 
 def test_model_out_names_the_plugin(with_plugin: tuple[int, dict[str, Any], Path]) -> None:
@@ -111,7 +113,8 @@ def test_model_out_names_the_plugin(with_plugin: tuple[int, dict[str, Any], Path
 
 def test_unexplained_when_not_installed(dataset: Path) -> None:
     assert "asymmetric_scale" not in installed_effects()  # this process never installed it
-    out = dataset.parent / "without.json"
+    out = dataset.parent / "without" / "without.json"
+    out.parent.mkdir()
     result = CliRunner().invoke(app, ["diagnose", str(dataset), "--json", str(out)])
     assert "Traceback" not in result.output
     doc = json.loads(out.read_text())
