@@ -28,6 +28,7 @@ from aatest.diagnose.replay import (
     sensor_acceleration,
     sensor_axes,
 )
+from aatest.effects import EffectInputs, design_column_names, design_columns
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.twin.daq import antialias_filter
 from aatest.twin.kinematics import E_I
@@ -54,6 +55,9 @@ class Spec:
     #: per-step alignment offsets (s) on top of ``delay_s``, indexed by step (empty = none):
     #: the sync pulse aligns each step's loggers to about one sample only
     step_shift_s: tuple[float, ...] = ()
+    #: shape-parameter values of plugin effects (aatest.effects) in ``linear``:
+    #: ((effect, ((parameter, value), …)), …)
+    plugin_shape: tuple[tuple[str, tuple[tuple[str, float], ...]], ...] = ()
 
     def shift_of(self, index: int) -> float:
         """Total time shift of the prediction for step ``index`` (s)."""
@@ -85,6 +89,7 @@ def column_names(spec: Spec, replay: Replay) -> list[str]:
             names.append(name)
     if "cross_axis" in spec.linear:
         names += ["cross_x", "cross_y"]
+    names += design_column_names(spec.linear)  # plugin effects (aatest.effects)
     for n in spec.ripple_cpd:
         names += [f"ripple{n:g}_s", f"ripple{n:g}_c"]
     for s in replay.steps:
@@ -152,6 +157,8 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
     if "cross_axis" in lin:
         cols["cross_x"] = _dynamics(alpha3[0], spec, sr.dt_s)
         cols["cross_y"] = _dynamics(alpha3[1], spec, sr.dt_s)
+    plugin_inputs = EffectInputs(shaped, sensed, temp, t_eval, sr.dt_s, info.range_dps2)
+    cols |= design_columns(lin, plugin_inputs, {e: dict(v) for e, v in spec.plugin_shape})
     return cols
 
 

@@ -2,7 +2,10 @@
 
 The model's effect fields are named exactly as the vocabulary (``aatest.twin.model``),
 so each finding drops into its place: sensor effects into the channel's ``SensorModel``, table
-effects into the inner axis, clock drift into the DAQ. The logger's pre-sample filter the
+effects into the inner axis, clock drift into the DAQ. An effect from an installed plugin
+(entry-point group ``aatest.effects``) goes into its channel's ``plugin_effects`` with the
+distribution that provides it, so the twin applies the plugin's forward model and a model
+loaded where the plugin is missing says what to install. The logger's pre-sample filter the
 replay assumed is kept, so re-running the same procedure on the twin with this model
 reproduces the measured behaviour.
 """
@@ -12,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from aatest.effects import installed_effects
 from aatest.engine.datasheet import (
     REFERENCE_BIAS_V,
     REFERENCE_RANGE_DPS2,
@@ -45,9 +49,14 @@ def extended_model(channels: list[dict[str, Any]], findings: list[dict[str, Any]
     sensors = {c["channel"]: _sensor(c["channel"], c["axis"], c, c.get("noise_rms_v", 0.001),
                                      c.get("range_dps2", REFERENCE_RANGE_DPS2)) for c in channels}
     table, daq = m.TableModel(), m.DaqModel(antialias_hz=antialias_hz)
+    plugins = installed_effects()
     for f in findings:
         name, params = f["effect"], dict(f["parameters"])
-        if name == "clock_drift":
+        if name in plugins and (name not in m.EFFECTS or plugins[name].effect.shadows):
+            if f.get("channel") in sensors:
+                sensors[f["channel"]] = _plugin_effect(sensors[f["channel"]], name, params,
+                                                       plugins[name].distribution)
+        elif name == "clock_drift":
             daq = daq.model_copy(update={"clock_drift": m.ClockDrift(**params)})
         elif name in ("rate_ripple", "motor_vibration"):
             table = _table_effect(table, name, params, f)
@@ -59,6 +68,15 @@ def extended_model(channels: list[dict[str, Any]], findings: list[dict[str, Any]
             ch = f["channel"]
             sensors[ch] = sensors[ch].model_copy(update={name: m.EFFECTS[name](**params)})
     return m.RigModel(t_ref_c=t_ref_c, sensors=list(sensors.values()), table=table, daq=daq)
+
+
+def _plugin_effect(sensor: m.SensorModel, name: str, params: dict[str, float],
+                   distribution: str) -> m.SensorModel:
+    """The sensor with one plugin effect added (replacing an earlier one of the same name)."""
+    kept = [pe for pe in sensor.plugin_effects or () if pe.effect != name]
+    entry = m.PluginEffect(effect=name, distribution=distribution,
+                           parameters={k: float(v) for k, v in params.items()})
+    return sensor.model_copy(update={"plugin_effects": [*kept, entry]})
 
 
 def _table_effect(table: m.TableModel, name: str, params: dict[str, float],

@@ -19,7 +19,9 @@ from typing import TYPE_CHECKING, Any
 
 from aatest.diagnose.design import Spec
 from aatest.diagnose.effects.base import Context, linear_ci
+from aatest.diagnose.effects.plugins import joint_parameters
 from aatest.diagnose.selection import BIC_THRESHOLD, SHAPE_PARAMS, Finding
+from aatest.effects import spec_token
 
 if TYPE_CHECKING:
     from aatest.diagnose.unexplained import Joint
@@ -37,6 +39,10 @@ _SHAPE_RESET: dict[str, dict[str, Any]] = {
 
 def without(spec: Spec, effect: str) -> Spec | None:
     """``spec`` with a named effect switched off (None when it is not part of the spec)."""
+    token = spec_token(effect)  # a plugin effect (aatest.effects), even one shadowing a built-in
+    if token in spec.linear:
+        return replace(spec, linear=spec.linear - {token},
+                       plugin_shape=tuple(e for e in spec.plugin_shape if e[0] != effect))
     if effect in _LINEAR_PARAMS or effect == "cross_axis":
         return replace(spec, linear=spec.linear - {effect})
     if effect in _SHAPE_RESET:
@@ -87,6 +93,12 @@ def _annotate(ctx: Context, joint: Joint, finding: Finding) -> None:
     if m is not None:
         finding.extra["marginal"] = {"delta_bic": m[0], "rmse_v_without": m[1],
                                      "rmse_v_with": held_out_rmse(joint.fit)}
+    plugin = joint_parameters(ctx, joint.fit, finding.effect)
+    if plugin is not None:  # a plugin effect reports its joint-fit parameters (shape kept)
+        finding.parameters = {**finding.parameters, **plugin[0]}
+        finding.ci95 = {**finding.ci95, **plugin[1]}
+        finding.extra["joint_fit"] = {"parameters": plugin[0], "ci95": plugin[1]}
+        return
     spec = _LINEAR_PARAMS.get(finding.effect)
     if spec is not None and spec[0] in joint.fit.names:
         column, key, per_scale = spec

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from aatest.diagnose.design import Fit, predict
-from aatest.diagnose.effects import CANDIDATES, Candidate
+from aatest.diagnose.effects import Candidate, vocabulary
 from aatest.diagnose.effects.base import CandidateFit, Context
 
 BIC_THRESHOLD = 10.0
@@ -128,9 +128,14 @@ def _passes(cf: CandidateFit, dbic: float, ctx: Context) -> bool:
             and after < (1.0 - MIN_REDUCTION) * before)
 
 
-def forward_select(ctx: Context, candidates: tuple[Candidate, ...] = CANDIDATES
+def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
                    ) -> tuple[list[Finding], dict[str, dict[str, Any]]]:
-    """Accept effects one by one while the best remaining one passes the stopping rule."""
+    """Accept effects one by one while the best remaining one passes the stopping rule.
+
+    ``candidates`` defaults to the built-ins plus the installed effect plugins.
+    """
+    candidates = vocabulary() if candidates is None else candidates
+    SHAPE_PARAMS.update({c.effect: c.shape_params for c in candidates if c.shape_params})
     rows: dict[str, dict[str, Any]] = {}
     findings: list[Finding] = []
     accepted: dict[str, int] = {}

@@ -41,6 +41,7 @@ GROUPS: dict[str, str] = {
     "sensor": "aatest.sensors",
     "analysis": "aatest.analyses",
     "report": "aatest.reports",
+    "effect": "aatest.effects",  # diagnose's open effect vocabulary (aatest.effects.Effect)
 }
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from aatest.engine.datasheet import (
     REFERENCE_BIAS_V,
@@ -149,6 +149,40 @@ EFFECTS: dict[str, type[_Model]] = {
     "excess_noise": ExcessNoise,
 }
 
+class PluginEffect(_Model):
+    """An effect from an installed plugin (entry-point group ``aatest.effects``).
+
+    ``distribution`` names the package that provides it, so a model that needs a missing
+    plugin says what to install. Checked when the model is built or loaded: the effect must be
+    installed and ``parameters`` must be exactly its parameters (shape ones within bounds).
+    """
+
+    effect: str
+    distribution: str | None = None
+    parameters: dict[str, float]
+
+    @model_validator(mode="after")
+    def _installed(self) -> PluginEffect:
+        from aatest.effects import load_effect
+        from aatest.engine.errors import PluginError
+
+        try:
+            eff = load_effect(self.effect, self.distribution).effect
+        except PluginError as exc:  # located by the loader: FILE:LINE: field: this message
+            raise ValueError(str(exc)) from exc
+        declared = [p.name for p in (*eff.parameters, *eff.shape_parameters)]
+        if sorted(declared) != sorted(self.parameters):
+            raise ValueError(f"effect {self.effect!r} takes parameters {', '.join(declared)}, "
+                             f"not {', '.join(self.parameters) or 'none'}")
+        for p in eff.shape_parameters:
+            value = self.parameters[p.name]
+            below = p.lower is not None and value < p.lower
+            if below or (p.upper is not None and value > p.upper):
+                raise ValueError(f"{self.effect}.{p.name} = {value:g} {p.unit} is outside "
+                                 f"[{p.lower:g}, {p.upper:g}]")
+        return self
+
+
 # --- the rig parts ------------------------------------------------------------------------------
 
 
@@ -178,6 +212,9 @@ class SensorModel(_Model):
     cross_axis: CrossAxis | None = None
     misalignment: Misalignment | None = None
     excess_noise: ExcessNoise | None = None
+    plugin_effects: list[PluginEffect] | None = Field(
+        None, description="effects from installed plugins (aatest.effects), applied after the "
+        "built-in chain: in °/s² before the scale factor or in volts, as each plugin declares")
 
 
 class AxisModel(_Model):

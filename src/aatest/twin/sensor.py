@@ -4,7 +4,8 @@ Signal path of one sensor channel (docs/interfaces.md §4 vocabulary, same param
 
     α_top (table-top frame) ─ axis projection (misalignment, pivot, re-mount) ─ cross_axis
     ─ g_sensitivity ─ hysteresis (play) ─ sensor_dynamics ─ saturation ─ resolution
-    ─ nonlinearity_cubic ─ scale (scale_temperature) ─ bias (bias_temperature) ─ jerk → volts
+    ─ nonlinearity_cubic ─ plugin effects in °/s² ─ scale (scale_temperature)
+    ─ bias (bias_temperature) ─ jerk ─ plugin effects in V → volts
 
 ``time_delay`` is applied upstream by evaluating the motion at t − delay (exact for any delay,
 no fractional-delay filter); white noise is added by the DAQ chain (see :mod:`daq`) so that
@@ -19,6 +20,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
+from aatest.effects import EffectInputs, forward, load_effect
 from aatest.twin.model import SensorModel
 
 
@@ -83,6 +85,8 @@ class SensorInputs:
     temperature_c : (n,) sensor temperature.
     axes : (3, 3) sensor x, y, z axes as columns, in table-top coordinates.
     dt_s : sample spacing in lab seconds.
+    time_s : (n,) lab time since the table record started (s), for time-dependent plugin
+        effects; None: since the first sample.
     """
 
     alpha_top_dps2: np.ndarray
@@ -90,6 +94,7 @@ class SensorInputs:
     temperature_c: np.ndarray
     axes: np.ndarray
     dt_s: float
+    time_s: np.ndarray | None = None
 
 
 def sensed_acceleration(model: SensorModel, inp: SensorInputs) -> np.ndarray:
@@ -120,9 +125,19 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
         alpha = np.clip(alpha, -lim, lim)
     if model.resolution_dps2 > 0.0:
         alpha = np.round(alpha / model.resolution_dps2) * model.resolution_dps2
+    d_temp = inp.temperature_c - t_ref_c
+    time_s = inp.time_s if inp.time_s is not None else np.arange(alpha.size) * inp.dt_s
+    plugin_inputs = EffectInputs(alpha, sensed, d_temp, time_s, inp.dt_s, model.range_dps2)
     if model.nonlinearity_cubic is not None:
         alpha = alpha * (1.0 + model.nonlinearity_cubic.c3 * (alpha / model.range_dps2) ** 2)
-    d_temp = inp.temperature_c - t_ref_c
+    plugin_volts = np.zeros_like(alpha)
+    for pe in model.plugin_effects or ():
+        installed = load_effect(pe.effect, pe.distribution)
+        term = forward(installed, plugin_inputs, pe.parameters)
+        if installed.effect.enters == "acceleration":
+            alpha = alpha + term
+        else:
+            plugin_volts = plugin_volts + term
     scale: float | np.ndarray = model.scale_v_per_dps2  # per sample once temperature-dependent
     if model.scale_temperature is not None:
         scale = scale * (1.0 + model.scale_temperature.coefficient_per_c * d_temp)
@@ -132,4 +147,4 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
     if model.jerk_sensitivity is not None:
         jerk = np.gradient(sensed, inp.dt_s)
         volts = volts + model.jerk_sensitivity.coefficient_v_per_dps3 * jerk
-    return volts
+    return volts + plugin_volts

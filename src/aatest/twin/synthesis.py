@@ -206,7 +206,8 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
         if delay not in motion:  # (the floor noise is not re-timed by the tiny delays)
             motion[delay] = _top_motion(setup, grid.shifted(-delay), floor)
         alpha, up = motion[delay]
-        inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s)
+        inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s,
+                           grid.times - setup.trigger_time_s)
         clean = output_volts(sensor, inp, model.t_ref_c)
         channels[sensor.channel] = record_channel(clean, sensor, model.daq, clock.lab_dt_s, rng)
         truth.defer(f"volts_{sensor.channel}", _noiseless_truth(clean, model, clock.lab_dt_s))

@@ -4,9 +4,11 @@
   own envelope (no outer axis, its own rate/acceleration limits and terminal frequency) and, having
   no hardware here, moves by wrapping aatest's simulated turntable loaded through the registry.
 * ``acme-mems-aa`` (group ``aatest.sensors``): a MEMS angular accelerometer datasheet.
+* ``asymmetric_scale`` (group ``aatest.effects``): an effect model for ``aatest diagnose`` and
+  the twin — a scale factor that differs for α > 0 and α < 0.
 
 Only aatest's public plugin API is imported: ``aatest.engine.interfaces``, ``.errors``,
-``.steps``, ``.logs`` and ``.registry``.
+``.steps``, ``.logs`` and ``.registry``, and ``aatest.effects``.
 """
 
 __version__ = "0.1.0"

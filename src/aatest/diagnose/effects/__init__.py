@@ -1,9 +1,14 @@
 """The effect library: one candidate per contract effect (docs/interfaces.md §4 vocabulary).
 
-``CANDIDATES`` maps each effect to (testability check, fit, attribution). Effects handled
-outside the residual fit — ``clock_drift`` (from the sync edges), ``excess_noise`` (from the
-residual spectrum), ``misalignment`` (the cross-axis fit read as a tilt) — live in
+``CANDIDATES`` maps each built-in effect to (testability check, fit, attribution). Effects
+handled outside the residual fit — ``clock_drift`` (from the sync edges), ``excess_noise``
+(from the residual spectrum), ``misalignment`` (the cross-axis fit read as a tilt) — live in
 :mod:`aatest.diagnose.effects.logger` and the selection.
+
+The vocabulary is open: :func:`vocabulary` adds every installed effect plugin (entry-point
+group ``aatest.effects``, :mod:`aatest.effects`) as a candidate of the same kind, replacing a
+built-in only when the plugin declares ``shadows = True``
+(:mod:`aatest.diagnose.effects.plugins`).
 """
 
 from __future__ import annotations
@@ -11,8 +16,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from aatest.diagnose.effects import linear, shape, table, vibration
+from aatest.diagnose.effects import linear, plugins, shape, table, vibration
 from aatest.diagnose.effects.base import CandidateFit, Context
+from aatest.effects import installed_effects
 
 
 @dataclass(frozen=True)
@@ -27,6 +33,10 @@ class Candidate:
     time_family: bool = False
     #: how many times the effect may be accepted (several ripple lines, e.g. 1 and 2 cycles/°)
     repeatable: int = 1
+    #: nonlinear parameters the fit searches (counted by the BIC on top of the design columns)
+    shape_params: int = 0
+    #: the distribution that provides a plugin effect (None: built-in)
+    distribution: str | None = None
 
 
 def _lin(name: str) -> Callable[[Context], CandidateFit]:
@@ -50,4 +60,26 @@ CANDIDATES: tuple[Candidate, ...] = (
               attributed_to="table"),
 )
 
-__all__ = ["CANDIDATES", "Candidate", "CandidateFit", "Context"]
+
+
+def plugin_candidates() -> tuple[Candidate, ...]:
+    """One candidate per installed effect plugin (validated on load; a broken one raises)."""
+    return tuple(Candidate(name, plugins.testability(inst), plugins.fitter(inst),
+                           attributed_to=inst.effect.attributed_to,
+                           shape_params=len(inst.effect.shape_parameters),
+                           distribution=inst.distribution)
+                 for name, inst in sorted(installed_effects().items()))
+
+
+def vocabulary() -> tuple[Candidate, ...]:
+    """The candidates of a diagnosis: the built-ins, then the installed plugin effects.
+
+    A plugin that shadows a built-in (declared, else loading fails) takes its place.
+    """
+    extra = plugin_candidates()
+    shadowed = {c.effect for c in extra}
+    return tuple(c for c in CANDIDATES if c.effect not in shadowed) + extra
+
+
+__all__ = ["CANDIDATES", "Candidate", "CandidateFit", "Context", "plugin_candidates",
+           "vocabulary"]
