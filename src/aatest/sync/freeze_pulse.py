@@ -82,9 +82,13 @@ class SyncedStep:
         return int(self.time_s.shape[0])
 
 
+#: a 0/1 logic channel (pulse, trigger) is high above this
+_LOGIC_HIGH = 0.5
+
+
 def rising_edges(pulse: np.ndarray) -> np.ndarray:
     """Indices of the samples where a 0/1 pulse goes from low to high."""
-    high = np.asarray(pulse) > 0.5
+    high = np.asarray(pulse) > _LOGIC_HIGH
     return np.flatnonzero(~high[:-1] & high[1:]) + 1
 
 
@@ -120,7 +124,7 @@ def _daq_edges(data: StepData, daq_time_s: np.ndarray) -> tuple[np.ndarray, floa
     idx = rising_edges(daq["sync_pulse"])
     if "trigger" not in daq.channels:
         return daq_time_s[idx], None
-    trigger = np.asarray(daq["trigger"]) > 0.5
+    trigger = np.asarray(daq["trigger"]) > _LOGIC_HIGH
     if not trigger.any():
         raise AnalysisError(f"step {data.step.id}: the DAQ trigger never goes high")
     first = int(np.argmax(trigger))
@@ -229,6 +233,27 @@ def refine_offset(relation: ClockRelation, table_t0_s: float, trigger_daq_s: flo
     return replace(relation, offset_u_s=float(u))
 
 
+def clock_relation(data: StepData) -> ClockRelation:
+    """The DAQ-to-table clock relation of one step, checked like :func:`synchronise` checks it,
+    without resampling anything (for summaries that need no samples)."""
+    return _relation(data, _regular_time(np.asarray(data.daq.time_s, dtype=np.float64)))[0]
+
+
+def _relation(data: StepData, daq_time_s: np.ndarray) -> tuple[ClockRelation, np.ndarray, slice]:
+    """The step's clock relation, the table instants on the DAQ clock (s) and the covered part."""
+    t_daq, offset0 = _daq_edges(data, daq_time_s)
+    relation = fit_clock_relation(data.step.id, _table_edge_times(data), t_daq, offset0)
+    table_t0 = float(data.table.time_s[0])
+    trigger_daq_s = None if offset0 is None else table_t0 - offset0
+    relation = refine_offset(relation, table_t0, trigger_daq_s,
+                             1.0 / float(data.daq.sample_rate_hz))
+    at_daq_s = relation.to_daq_s(np.asarray(data.table.time_s, dtype=np.float64))
+    inside = np.flatnonzero((at_daq_s >= daq_time_s[0]) & (at_daq_s <= daq_time_s[-1]))
+    if inside.size < 0.5 * at_daq_s.size:
+        raise AnalysisError(f"step {data.step.id}: the DAQ record covers < 50 % of the table log")
+    return relation, at_daq_s, slice(int(inside[0]), int(inside[-1]) + 1)
+
+
 def synchronise(data: StepData) -> SyncedStep:
     """Synchronise one step: clock relation from all edges, trim, resample onto the table grid.
 
@@ -244,18 +269,8 @@ def synchronise(data: StepData) -> SyncedStep:
         Table samples covered by the DAQ record, with the DAQ channels on the same instants.
     """
     daq_time_s = _regular_time(np.asarray(data.daq.time_s, dtype=np.float64))
-    t_daq, offset0 = _daq_edges(data, daq_time_s)
-    relation = fit_clock_relation(data.step.id, _table_edge_times(data), t_daq, offset0)
-    table_t0 = float(data.table.time_s[0])
-    trigger_daq_s = None if offset0 is None else table_t0 - offset0
-    relation = refine_offset(relation, table_t0, trigger_daq_s,
-                             1.0 / float(data.daq.sample_rate_hz))
+    relation, at_daq_s, keep = _relation(data, daq_time_s)  # keep: contiguous, views
     table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
-    at_daq_s = relation.to_daq_s(table_time_s)
-    inside = np.flatnonzero((at_daq_s >= daq_time_s[0]) & (at_daq_s <= daq_time_s[-1]))
-    if inside.size < 0.5 * table_time_s.size:
-        raise AnalysisError(f"step {data.step.id}: the DAQ record covers < 50 % of the table log")
-    keep = slice(int(inside[0]), int(inside[-1]) + 1)  # contiguous: views, no copies
     table = {name: np.asarray(v)[keep] for name, v in data.table.channels.items()}
     daq = _resample(daq_time_s, data.daq.channels, at_daq_s[keep])
     return SyncedStep(

@@ -12,6 +12,7 @@ limit (0.1 % FR/g or 0.01 rad/s²/g, whichever is greater).
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -72,7 +73,7 @@ def _line_fit(g: list[float], v: list[float]) -> dict[str, float]:
             "residual_rms_v": float(np.sqrt(np.mean(resid**2)))}
 
 
-def sensor_bias(steps: list[SyncedStep], sensor: SensorInfo, scale: float) -> dict[str, Any]:
+def sensor_bias(steps: Sequence[SyncedStep], sensor: SensorInfo, scale: float) -> dict[str, Any]:
     """Bias results of one sensor, overall and per mounting."""
     by_mount: dict[str, dict[int, dict[str, list[float]]]] = defaultdict(
         lambda: defaultdict(lambda: {"up": [], "down": []}))
@@ -117,7 +118,7 @@ class BiasAnalysis:
     Result: ClassVar[type[BiasResult]] = BiasResult
 
     def applies_to(self, data: Dataset) -> bool:
-        return any(s.step.kind == "static" for s in data.steps)
+        return any(p.kind == "static" for p in data.planned)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[BiasResult]:
         static = steps_of(context, "static")

@@ -17,13 +17,14 @@ Two estimators on the same recordings:
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
-from aatest.plugins.analysis._common import fundamental, steps_of
+from aatest.plugins.analysis._common import fundamental, select, steps_of
 from aatest.plugins.analysis.misalignment_method import (
     AXIS_SENSOR,
     ORIGINAL_SETS,
@@ -67,7 +68,7 @@ def _row_angles(row: np.ndarray, axis: str) -> np.ndarray:
     return np.degrees(np.arctan(ratios))
 
 
-def set_matrices(steps: list[SyncedStep], sensors: list[SensorInfo]
+def set_matrices(steps: Sequence[SyncedStep], sensors: list[SensorInfo]
                  ) -> dict[str, list[np.ndarray]]:
     """Per set: one complex 3×3 matrix S per repetition (outputs V per °/s² along P, O, I)."""
     by_set: dict[tuple[str, int], tuple[list[np.ndarray], list[np.ndarray]]] = defaultdict(
@@ -146,12 +147,12 @@ class MisalignmentAnalysis:
     def applies_to(self, data: Dataset) -> bool:
         axes = {s.axis for s in data.sensors}
         return axes >= {"I", "O", "P"} and any(
-            s.step.mounting.scenario and s.step.kind == "sine" for s in data.steps)
+            p.mounting.scenario and p.kind == "sine" for p in data.planned)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[MisalignmentResult]:
         sensors = sorted((s for s in data.sensors if s.axis in _TABLE_INDEX),
                          key=lambda s: _TABLE_INDEX[s.axis])[:3]
-        steps = [s for s in steps_of(context, "sine") if s.step.mounting.scenario]
+        steps = select(steps_of(context, "sine"), lambda p: bool(p.mounting.scenario))
         mats = set_matrices(steps, sensors)
         values = evaluate(_spectra(mats, sensors))
         for row in values["sets"].values():
