@@ -52,7 +52,10 @@ def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dty
     """
     if dtype.kind in "iub":
         return codes.astype(dtype)
-    return (codes.astype(np.float64) * quantum + offset).astype(dtype)
+    values = codes.astype(np.float64)
+    values *= quantum  # in place: the same float64 operations, without temporaries
+    values += offset
+    return values.astype(dtype, copy=False)
 
 
 def _codes(
@@ -139,7 +142,7 @@ def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None
         quantum = (float(message.quantum), float(message.offset))
         integers = np.array(codes, dtype=np.int64)
         if message.delta:
-            integers = np.cumsum(integers)
+            np.cumsum(integers, out=integers)
         return decode_codes(integers, *quantum, dtype), quantum
     return np.array(message.values, dtype=np.float64).astype(dtype), None
 

@@ -16,7 +16,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import breakup_chunk
 
 from aatest.engine.dataset import Dataset, LazySteps, SensorInfo
 from aatest.engine.errors import RecordingError
@@ -45,6 +48,7 @@ class _StepEntry:
     path: Path
     record: dict[str, Any]
     values: dict[str, str]
+    chunks: _StepChunks
 
     @property
     def samples(self) -> dict[str, int]:
@@ -57,6 +61,7 @@ class _StepEntry:
 class _FileContents:
     """What one MCAP file holds: run metadata and its step records (logs not yet decoded)."""
 
+    chunks: _StepChunks
     run_meta: dict[str, Any] = field(default_factory=dict)
     steps: list[_StepEntry] = field(default_factory=list)
 
@@ -153,8 +158,7 @@ def _checked_summary(reader: Any, path: Path) -> Any:
 
 
 def _contents(reader: Any, path: Path) -> _FileContents:
-    _checked_summary(reader, path)
-    contents = _FileContents()
+    contents = _FileContents(chunks=_StepChunks(path, _checked_summary(reader, path)))
     step_records = []
     for record in reader.iter_metadata():
         if record.name == fmt.RUN_RECORD:
@@ -166,16 +170,50 @@ def _contents(reader: Any, path: Path) -> _FileContents:
         step_record = fmt.from_json_values(values)
         step = PlannedStep.model_validate(step_record["step"])
         contents.steps.append(_StepEntry(int(step_record["index"]), step, path, step_record,
-                                         values))
+                                         values, contents.chunks))
     return contents
 
 
-def _load_log(entry: _StepEntry, source: str) -> SampledLog:
+class _StepChunks:
+    """Reads the messages of one topic and time range from the chunks that can hold them.
+
+    The summary (chunk indexes, channels, schemas) is read once per file and kept, so reading
+    a step costs only its own chunks (each CRC-checked), not the file's index again.
+    """
+
+    def __init__(self, path: Path, summary: Any) -> None:
+        self.path, self.summary = path, summary
+        self.channels_by_topic = {ch.topic: ch for ch in summary.channels.values()}
+
+    def iter_messages(self, topics: list[str], starting_at: int | None = None,
+                      ending_at: int | None = None, log_time_order: bool = False
+                      ) -> Iterator[tuple[Any, Any, Message]]:
+        """``(None, channel, message)`` of ``topics`` with ``starting_at ≤ log_time ≤
+        ending_at`` (ns), in file order (``log_time_order`` is accepted for the mcap API)."""
+        ids = {self.channels_by_topic[t].id for t in topics if t in self.channels_by_topic}
+        low = -1 if starting_at is None else starting_at
+        high = 2**64 if ending_at is None else ending_at
+        chosen = [ix for ix in self.summary.chunk_indexes
+                  if ix.message_end_time >= low and ix.message_start_time <= high
+                  and ids & set(ix.message_index_offsets)]
+        with open(self.path, "rb") as stream:
+            for index in sorted(chosen, key=lambda ix: ix.chunk_start_offset):
+                for record in self.read_chunk(stream, index):
+                    if (isinstance(record, Message) and record.channel_id in ids
+                            and low <= record.log_time <= high):
+                        yield None, self.summary.channels[record.channel_id], record
+
+    @staticmethod
+    def read_chunk(stream: Any, index: Any) -> list[Any]:
+        """The records of one chunk, its CRC checked (flipped bits must not pass)."""
+        stream.seek(index.chunk_start_offset + 1 + 8)  # opcode and record length
+        return list(breakup_chunk(Chunk.read(ReadDataStream(stream)), validate_crc=True))
+
+
+def _load_log(entry: _StepEntry, source: str, chunks: _StepChunks) -> SampledLog:
     """Decode one log of one step: only the chunks holding that step's blocks are read."""
-    with _translated(entry.path), open(entry.path, "rb") as stream:
-        reader = make_reader(stream, validate_crcs=True)  # flipped bits must not pass
-        summary = _checked_summary(reader, entry.path)
-        return _step_log(reader, summary, entry.record, entry.values, source, entry.path)
+    with _translated(entry.path):
+        return _step_log(chunks, chunks.summary, entry.record, entry.values, source, entry.path)
 
 
 def _check_format(run_meta: dict[str, Any], path: Path) -> None:
@@ -275,7 +313,8 @@ def _build_dataset(
     ordered = sorted(entries, key=lambda entry: entry.index)
 
     def load(index: int, log_source: str) -> SampledLog:
-        return _load_log(ordered[index], log_source)
+        entry = ordered[index]
+        return _load_log(entry, log_source, entry.chunks)
 
     steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered])
     rate = run_meta.get("sample_rate_hz") or (
