@@ -26,6 +26,9 @@ from aatest.sync.freeze_pulse import SyncedStep
 _UP_G = 0.9  # |g component| above which a position counts as "axis up/down"
 _RAD_DPS2 = float(np.degrees(1.0))
 
+#: positions a bias line (bias against gravity component) needs
+_MIN_LINE_POINTS = 2
+
 
 def gravity_along_g(sensor_axis: str, inner_deg: float, outer_deg: float) -> float:
     """Specific force of gravity along a sensor axis (g) for a table at rest.
@@ -87,7 +90,7 @@ def sensor_bias(steps: Sequence[SyncedStep], sensor: SensorInfo, scale: float) -
         if abs(g) >= _UP_G:
             by_mount[mount][s.step.repetition]["up" if g > 0 else "down"].append(mean_v)
     mountings = {m: _pair_stats(by_mount[m], scale) | {"line": _line_fit(*lines[m])}
-                 for m in lines if len(lines[m][0]) >= 2}
+                 for m in lines if len(lines[m][0]) >= _MIN_LINE_POINTS}
     paired = [r for r in mountings.values() if "bias_v" in r]
     if not paired:
         return {"mountings": mountings}

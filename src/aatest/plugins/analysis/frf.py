@@ -122,7 +122,7 @@ def unwrap_phases(points: list[dict[str, Any]]) -> None:
     for group in {p["group"] for p in points}:
         rows = sorted((p for p in points if p["group"] == group), key=lambda p: p["frequency_hz"])
         phases = np.degrees(np.unwrap(np.radians([p["phase_deg"] for p in rows])))
-        for p, ph in zip(rows, phases):
+        for p, ph in zip(rows, phases, strict=True):
             p["phase_deg"] = float(ph)
             p["delay_s"] = float(-np.radians(ph) / (2 * np.pi * p["frequency_hz"]))
             p["delay_samples"] = p["delay_s"] * p["sample_rate_hz"]

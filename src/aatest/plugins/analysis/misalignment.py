@@ -42,6 +42,9 @@ _TABLE_INDEX = {"P": 0, "O": 1, "I": 2}  # table-top coordinates (P, O, I)
 _LIMIT_DEG = 0.5
 _CROSS_LIMIT = 0.01
 
+#: sensor axes (P, O, I): a set's input directions must span all three
+_AXES = 3
+
 
 def input_direction(step: SyncedStep) -> np.ndarray:
     """Unit acceleration direction of the step in table-top (P, O, I) coordinates."""
@@ -81,7 +84,7 @@ def set_matrices(steps: Sequence[SyncedStep], sensors: list[SensorInfo]
     out: dict[str, list[np.ndarray]] = defaultdict(list)
     for (set_name, _), (v_cols, y_cols) in sorted(by_set.items()):
         v, y = np.column_stack(v_cols), np.column_stack(y_cols)
-        if np.linalg.matrix_rank(v) < 3:
+        if np.linalg.matrix_rank(v) < _AXES:
             continue
         out[set_name].append(y @ np.linalg.pinv(v))
     return out

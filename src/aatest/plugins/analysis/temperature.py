@@ -37,6 +37,12 @@ from aatest.sync.freeze_pulse import SyncedStep
 
 T_REF_C = 25.0
 _MIN_SPAN_C = 5.0
+#: temperatures a coefficient needs (a slope and a check of it)
+_MIN_SETPOINTS = 3
+#: points each branch (cooling, heating) needs for a hysteresis
+_MIN_BRANCH_POINTS = 2
+#: spread of the gravity component (g) above which it joins the bias fit
+_MIN_G_SPREAD = 0.5
 
 
 def step_temperature_c(step: SyncedStep) -> float | None:
@@ -50,7 +56,8 @@ def step_temperature_c(step: SyncedStep) -> float | None:
 def _slope(x: np.ndarray, y: np.ndarray, extra: np.ndarray | None = None
            ) -> tuple[float, float, float, float]:
     """Intercept, slope, slope std uncertainty and 95 % half-width of y = a + b·x (+ c·extra)."""
-    cols = [np.ones_like(x), x] + ([extra] if extra is not None and np.ptp(extra) > 0.5 else [])
+    spread = extra is not None and np.ptp(extra) > _MIN_G_SPREAD
+    cols = [np.ones_like(x), x] + ([extra] if extra is not None and spread else [])
     design = np.column_stack(cols)
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     resid = y - design @ coef
@@ -74,7 +81,7 @@ def hysteresis_v(temps: np.ndarray, values: np.ndarray) -> float | None:
     """Largest |heating − cooling| difference on the branches' common temperature range."""
     side = branches(temps)
     cool, heat = side < 0, side > 0
-    if cool.sum() < 2 or heat.sum() < 2:
+    if cool.sum() < _MIN_BRANCH_POINTS or heat.sum() < _MIN_BRANCH_POINTS:
         return None
     lo = max(temps[cool].min(), temps[heat].min())
     hi = min(temps[cool].max(), temps[heat].max())
@@ -147,7 +154,7 @@ def _figure(row: dict[str, Any], channel: str) -> str:
         ax[0, 0].plot(temps[sel], bias[sel] * 1e3, marker, ms=4, label=name)
     ax[0, 0].set(xlabel="sensor temperature / °C", ylabel="bias / mV", title=f"{channel}")
     ax[0, 0].legend(fontsize=6)
-    if rows == 2:
+    if rows > 1:
         ax[1, 0].plot(row["scale_temperatures_c"], np.array(row["scale_v_per_dps2"]) * 1e3, "o",
                       ms=4)
         ax[1, 0].set(xlabel="sensor temperature / °C", ylabel="scale / (mV/(°/s²))")
@@ -181,7 +188,7 @@ def _planned(steps: Sequence[SyncedStep]) -> Sequence[PlannedStep]:
 
 def _spans(steps: Sequence[SyncedStep]) -> bool:
     temps = [t for s in steps if (t := step_temperature_c(s)) is not None]
-    return len(temps) >= 3 and (max(temps) - min(temps)) >= _MIN_SPAN_C
+    return len(temps) >= _MIN_SETPOINTS and (max(temps) - min(temps)) >= _MIN_SPAN_C
 
 
 class TemperatureAnalysis:
@@ -195,11 +202,11 @@ class TemperatureAnalysis:
     def applies_to(self, data: Dataset) -> bool:
         """At least three set-points, or logged sensor temperatures spanning ≥ 5 °C."""
         temps = {s.step.temperature_c for s in data.steps if s.step.temperature_c is not None}
-        if len(temps) >= 3:
+        if len(temps) >= _MIN_SETPOINTS:
             return True
         logged = [float(np.mean(s.daq["temperature_c"])) for s in data.steps
                   if s.step.recorded and "temperature_c" in s.daq.channels]
-        return len(logged) >= 3 and max(logged) - min(logged) >= _MIN_SPAN_C
+        return len(logged) >= _MIN_SETPOINTS and max(logged) - min(logged) >= _MIN_SPAN_C
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[TemperatureResult]:
         steps = steps_of(context)
