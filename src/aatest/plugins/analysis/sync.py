@@ -41,6 +41,8 @@ class SyncedSteps(Sequence[SyncedStep]):
                  planned: Sequence[PlannedStep], keep: bool) -> None:
         self._steps, self._indices, self.planned = steps, tuple(indices), tuple(planned)
         self._kept: dict[int, SyncedStep] | None = {} if keep else None
+        #: clock relations already fitted (by the sync pass), reused when a step is read
+        self.relations: dict[int, ClockRelation] = {}
 
     @classmethod
     def of(cls, data: Dataset) -> SyncedSteps:
@@ -54,7 +56,7 @@ class SyncedSteps(Sequence[SyncedStep]):
         chosen = [k for k, p in enumerate(self.planned) if keep(p)]
         view = SyncedSteps(self._steps, [self._indices[k] for k in chosen],
                            [self.planned[k] for k in chosen], keep=False)
-        view._kept = self._kept
+        view._kept, view.relations = self._kept, self.relations
         return view
 
     def __len__(self) -> int:
@@ -71,9 +73,9 @@ class SyncedSteps(Sequence[SyncedStep]):
             return [self[k] for k in range(*index.indices(len(self)))]
         i = self._indices[index]
         if self._kept is None:
-            return synchronise(self._steps[i])
+            return synchronise(self._steps[i], self.relations.get(i))
         if i not in self._kept:
-            self._kept[i] = synchronise(self._steps[i])
+            self._kept[i] = synchronise(self._steps[i], self.relations.get(i))
         return self._kept[i]
 
     def __iter__(self) -> Iterator[SyncedStep]:
@@ -150,7 +152,9 @@ class SyncAnalysis:
         if synced._kept is not None:  # steps in memory: synchronise them all now, and keep
             related: list[SyncedStep | _Related] = list(synced)
         else:  # one step at a time: only its clock relation stays
-            related = [_Related(p, clock_relation(data.steps[i]))
+            synced.relations.update(
+                (i, clock_relation(data.steps[i])) for i in synced._indices)
+            related = [_Related(p, synced.relations[i])
                        for i, p in zip(synced._indices, synced.planned, strict=True)]
         return SyncOutput(result=summarise(related), figures={"sync": sync_figure(related)},
                           steps=synced)
