@@ -145,3 +145,18 @@ def test_streamed_results_equal_the_eager_reference() -> None:
         else:
             assert got[key] == value, key
     assert floats > 500 and len(got) > 0.5 * len(want)
+
+
+def test_partial_step_decodes_only_the_named_channels() -> None:
+    """The sync pass reads only the pulses; its clock relation is the full step's."""
+    from aatest.plugins.analysis.sync import _SYNC_CHANNELS
+    from aatest.sync.freeze_pulse import clock_relation
+
+    steps = read_dataset(RECORDING).steps
+    assert isinstance(steps, LazySteps)
+    part, full = steps.partial(2, _SYNC_CHANNELS), steps[2]
+    assert set(part.table.channels) == {"sync_pulse", "fp_latch_s"}
+    assert set(part.daq.channels) == {"sync_pulse", "trigger"}
+    assert (part.table.time_s == full.table.time_s).all()
+    assert (part.daq["trigger"] == full.daq["trigger"]).all()
+    assert clock_relation(part) == clock_relation(full)

@@ -9,7 +9,7 @@ where the data came from and can always be re-run offline. Its per-channel senso
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -21,8 +21,9 @@ from aatest.engine.steps import PlannedStep
 
 __all__ = ["Dataset", "LazySteps", "SensorAxis", "SensorInfo", "StepData"]
 
-#: ``load(index, source)``: the ``"table"`` or ``"daq"`` log of the step at ``index``
-LogLoader = Callable[[int, str], SampledLog]
+#: ``load(index, source, channels)``: the ``"table"`` or ``"daq"`` log of the step at ``index``
+#: (only ``channels`` and the time stamps when not None)
+LogLoader = Callable[[int, str, Collection[str] | None], SampledLog]
 
 
 @dataclass(frozen=True)
@@ -57,7 +58,7 @@ class LazyStepData(StepData):
     def _log(self, source: str) -> SampledLog:
         logs: dict[str, SampledLog] = self.__dict__["_logs"]
         if source not in logs:
-            logs[source] = self.__dict__["_load"](self.__dict__["_index"], source)
+            logs[source] = self.__dict__["_load"](self.__dict__["_index"], source, None)
         return logs[source]
 
     @property  # overrides the read-only field: computed on first access
@@ -112,6 +113,17 @@ class LazySteps(Sequence[StepData]):
 
     def __iter__(self) -> Iterator[StepData]:
         return (self[i] for i in range(len(self)))
+
+    def partial(self, index: int, channels: Mapping[str, Collection[str]]) -> StepData:
+        """Step ``index`` with only some channels decoded (and the time stamps), by source.
+
+        Why: a pass that reads a few channels of every step (the sync pulses) decodes a
+        fraction of the data. ``channels`` maps ``"table"``/``"daq"`` to channel names.
+        """
+        i = range(len(self))[index]
+        logs = {source: self._load(i, source, channels.get(source, ()))
+                for source in ("table", "daq")}
+        return StepData(self.planned[i], logs["table"], logs["daq"])
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ included), else quantum 1 when every value is a whole number (0/1 pulses stored 
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -147,13 +147,16 @@ def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None
     return np.array(message.values, dtype=np.float64).astype(dtype), None
 
 
-def _allocated(blocks: list[Any], samples: int) -> dict[str, np.ndarray]:
+def _allocated(blocks: list[Any], samples: int, keep: Collection[str] | None
+               ) -> dict[str, np.ndarray]:
     """One empty array per channel (``time_s`` first), ``samples`` long, in its logged dtype.
 
     Filled block by block in place: no per-block arrays to concatenate afterwards.
     """
     columns: dict[str, np.ndarray] = {}
     for message in (blocks[0].time, *blocks[0].channels):
+        if keep is not None and message.name != TIME_COLUMN and message.name not in keep:
+            continue
         dtype = np.dtype(message.dtype)
         if dtype.kind not in _ALLOWED_KINDS or dtype.byteorder == ">":
             raise ValueError(f"channel {message.name!r} has unsupported dtype {dtype}")
@@ -163,12 +166,13 @@ def _allocated(blocks: list[Any], samples: int) -> dict[str, np.ndarray]:
 
 def blocks_to_log(
     blocks: list[Any], source: str, sample_rate_hz: float, samples: int,
-    quantisation: Mapping[str, tuple[float, float]],
+    quantisation: Mapping[str, tuple[float, float]], channels: Collection[str] | None = None,
 ) -> SampledLog:
     """Rebuild one step's :class:`SampledLog` from its decoded ``SampleBlock`` messages.
 
     ``sample_rate_hz`` is the logger's nominal rate in Hz, ``samples`` the count the step record
     gives, ``quantisation`` the declared ``(quantum, offset)`` per channel in its own unit (V, deg).
+    ``channels``: decode only these (and the time stamps), e.g. the sync pulses; default all.
 
     Raises
     ------
@@ -184,8 +188,8 @@ def blocks_to_log(
             raise ValueError(f"has 0 samples, its step record says {samples}")
         return SampledLog(source, sample_rate_hz, np.empty(0), {}, {}, quantisation)
     names = [c.name for c in blocks[0].channels]
-    units = {c.name: c.unit for c in blocks[0].channels}
-    columns = _allocated(blocks, samples)
+    columns = _allocated(blocks, samples, channels)
+    units = {c.name: c.unit for c in blocks[0].channels if c.name in columns}
     position = 0
     for block in blocks:
         if [c.name for c in block.channels] != names or block.first_sample != position:
@@ -194,6 +198,8 @@ def blocks_to_log(
         if position + size > samples:
             raise ValueError(f"has more samples than the {samples} its step record says")
         for message in (block.time, *block.channels):
+            if message.name not in columns:
+                continue
             values, _ = channel_values(message)
             if values.size != size:
                 raise ValueError(f"channel {message.name!r} has {values.size} samples in "
@@ -207,5 +213,6 @@ def blocks_to_log(
     for values in columns.values():
         values.flags.writeable = False  # SampledLog then keeps it without copying
     time_s = columns.pop(TIME_COLUMN).astype(np.float64, copy=False)
-    arrays = columns
-    return SampledLog(source, sample_rate_hz, time_s, arrays, units, quantisation)
+    kept = quantisation if channels is None else {
+        k: v for k, v in quantisation.items() if k == TIME_COLUMN or k in columns}
+    return SampledLog(source, sample_rate_hz, time_s, columns, units, kept)

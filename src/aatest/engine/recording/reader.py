@@ -10,7 +10,7 @@ the file and what is wrong. The layout is described in :mod:`aatest.engine.recor
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -210,10 +210,13 @@ class _StepChunks:
         return list(breakup_chunk(Chunk.read(ReadDataStream(stream)), validate_crc=True))
 
 
-def _load_log(entry: _StepEntry, source: str, chunks: _StepChunks) -> SampledLog:
-    """Decode one log of one step: only the chunks holding that step's blocks are read."""
+def _load_log(entry: _StepEntry, source: str, chunks: _StepChunks,
+              channels: Collection[str] | None = None) -> SampledLog:
+    """Decode one log of one step (only ``channels`` when given, v2): only the chunks holding
+    that step's blocks are read."""
     with _translated(entry.path):
-        return _step_log(chunks, chunks.summary, entry.record, entry.values, source, entry.path)
+        return _step_log(chunks, chunks.summary, entry.record, entry.values, source, entry.path,
+                         channels)
 
 
 def _check_format(run_meta: dict[str, Any], path: Path) -> None:
@@ -229,7 +232,7 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
 
 def _step_log(
     reader: Any, summary: Any, record: dict[str, Any], values: dict[str, str], source: str,
-    path: Path,
+    path: Path, channels: Collection[str] | None = None,
 ) -> SampledLog:
     """One logger's log of one step, decoded by the format its schema encoding names."""
     step_id = str(record["step"]["id"])
@@ -244,7 +247,7 @@ def _step_log(
             return _decode_v1(reader, channel, schema, step_id, values, where)
         if schema is not None and (schema.encoding, schema.name) == (fmt.ENCODING,
                                                                      proto.BLOCK_MESSAGE):
-            return _decode_v2(reader, record, values, source, where)
+            return _decode_v2(reader, record, values, source, where, channels)
     except ValueError as exc:
         raise RecordingError(f"{where}: {exc}") from exc
     raise RecordingError(f"{path}: topic {topic!r} uses no known aatest schema")
@@ -271,7 +274,8 @@ def _decode_v1(
 
 
 def _decode_v2(
-    reader: Any, record: dict[str, Any], values: dict[str, str], source: str, where: str
+    reader: Any, record: dict[str, Any], values: dict[str, str], source: str, where: str,
+    channels: Collection[str] | None = None,
 ) -> SampledLog:
     """A v2 log: the step's protobuf blocks on the stable topic, found by their log times."""
     digest = fmt.record_digest(values)
@@ -291,7 +295,7 @@ def _decode_v2(
             blocks.append(block)
     quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
     return codec.blocks_to_log(blocks, source, float(record[f"{source}_sample_rate_hz"]),
-                               int(record[f"{source}_samples"]), quanta)
+                               int(record[f"{source}_samples"]), quanta, channels)
 
 
 def _sensors(run_meta: dict[str, Any], steps: LazySteps) -> tuple[SensorInfo, ...]:
@@ -312,9 +316,9 @@ def _build_dataset(
 ) -> Dataset:
     ordered = sorted(entries, key=lambda entry: entry.index)
 
-    def load(index: int, log_source: str) -> SampledLog:
+    def load(index: int, log_source: str, channels: Collection[str] | None) -> SampledLog:
         entry = ordered[index]
-        return _load_log(entry, log_source, entry.chunks)
+        return _load_log(entry, log_source, entry.chunks, channels)
 
     steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered])
     rate = run_meta.get("sample_rate_hz") or (

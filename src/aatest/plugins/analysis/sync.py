@@ -21,6 +21,9 @@ from aatest.engine.steps import PlannedStep
 from aatest.results.sync import SyncResult
 from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
 
+#: the channels a clock relation reads (besides the time stamps)
+_SYNC_CHANNELS = {"table": ("sync_pulse", "fp_latch_s"), "daq": ("sync_pulse", "trigger")}
+
 
 class SyncedSteps(Sequence[SyncedStep]):
     """Recorded steps synchronised when read; ``planned`` and :meth:`where` decode nothing.
@@ -152,8 +155,10 @@ class SyncAnalysis:
         if synced._kept is not None:  # steps in memory: synchronise them all now, and keep
             related: list[SyncedStep | _Related] = list(synced)
         else:  # one step at a time: only its clock relation stays
+            steps = data.steps
+            assert isinstance(steps, LazySteps)  # what keep=False means
             synced.relations.update(
-                (i, clock_relation(data.steps[i])) for i in synced._indices)
+                (i, clock_relation(steps.partial(i, _SYNC_CHANNELS))) for i in synced._indices)
             related = [_Related(p, synced.relations[i])
                        for i, p in zip(synced._indices, synced.planned, strict=True)]
         return SyncOutput(result=summarise(related), figures={"sync": sync_figure(related)},
