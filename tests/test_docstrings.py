@@ -52,7 +52,6 @@ Definition = ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef
 ALLOWED_UNDOCUMENTED: frozenset[str] = frozenset(
     {
         "aatest.engine.dataset:Dataset.sensor",
-        "aatest.engine.dataset:Dataset.steps_of_kind",
     }
 )
 ALLOWED_WITHOUT_UNITS: frozenset[str] = frozenset(

@@ -33,7 +33,7 @@ steps:
     outer_deg: 0
     table: s01_table.csv
     daq: s01_daq.csv
-"""
+"""  # noqa: E501 - the contract's example manifest, verbatim
 
 
 def contract_columns(rng: np.random.Generator) -> tuple[dict, dict]:
@@ -54,7 +54,7 @@ def contract_columns(rng: np.random.Generator) -> tuple[dict, dict]:
 
 def csv_text(columns: dict, newline: str = "\n") -> str:
     names = list(columns)
-    rows = zip(*(np.asarray(columns[k]).astype(str) for k in names))
+    rows = zip(*(np.asarray(columns[k]).astype(str) for k in names), strict=True)
     return newline.join([",".join(names), *(",".join(r) for r in rows)]) + newline
 
 
@@ -108,7 +108,7 @@ def test_layout_tolerance(tmp_path: Path, columns: tuple) -> None:
     spaced = "\ufeff" + text.replace(",", " , ").replace("\n", "  \n", 1) + "\n\n"
     (directory / "s01_daq.csv").write_text(spaced, encoding="utf-8")
     dataset = import_dataset(directory)
-    for mine, ref in zip(dataset.steps, reference.steps):
+    for mine, ref in zip(dataset.steps, reference.steps, strict=True):
         for log, ref_log in ((mine.table, ref.table), (mine.daq, ref.daq)):
             np.testing.assert_array_equal(log.time_s, ref_log.time_s)
             for name in ref_log.channels:
@@ -139,7 +139,7 @@ def test_t_ref_from_model_file(tmp_path: Path, columns: tuple) -> None:
     np.testing.assert_array_equal(dataset.steps[0].daq["temperature_c"], 20.0)
 
 
-def _damage(text: str, how: str) -> tuple[str, int]:
+def _damage(text: str, how: str) -> tuple[str, int]:  # noqa: PLR0911 - one return per damage kind
     """Return damaged CSV text and the 1-based line the error must name."""
     lines = text.split("\n")
     if how == "truncated_last_row":

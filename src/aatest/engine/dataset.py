@@ -9,17 +9,21 @@ where the data came from and can always be re-run offline. Its per-channel senso
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, overload
 
 from aatest.engine.datasheet import SensorAxis, SensorInfo
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 
-__all__ = ["Dataset", "SensorAxis", "SensorInfo", "StepData"]
+__all__ = ["Dataset", "LazySteps", "SensorAxis", "SensorInfo", "StepData"]
+
+#: ``load(index, source, channels)``: the ``"table"`` or ``"daq"`` log of the step at ``index``
+#: (only ``channels`` and the time stamps when not None)
+LogLoader = Callable[[int, str, Collection[str] | None], SampledLog]
 
 
 @dataclass(frozen=True)
@@ -30,6 +34,97 @@ class StepData:
     table: SampledLog
     daq: SampledLog
 
+    def samples(self, source: str) -> int:
+        """Sample count (samples, no unit) of the ``"table"`` or ``"daq"`` log."""
+        return len(self.table if source == "table" else self.daq)
+
+
+class LazyStepData(StepData):
+    """A recorded step whose two logs are decoded from their source when first read.
+
+    Why: a stepped-sine recording decodes to gigabytes; a dataset of these holds only the
+    planned steps, and a log lives as long as the caller holds its step (docs/architecture.md,
+    bounded memory). Each log is decoded at most once per object.
+    """
+
+    def __init__(self, step: PlannedStep, index: int, load: LogLoader,
+                 samples: Mapping[str, int]) -> None:
+        object.__setattr__(self, "step", step)
+        object.__setattr__(self, "_index", index)
+        object.__setattr__(self, "_load", load)
+        object.__setattr__(self, "_samples", dict(samples))
+        object.__setattr__(self, "_logs", {})
+
+    def _log(self, source: str) -> SampledLog:
+        logs: dict[str, SampledLog] = self.__dict__["_logs"]
+        if source not in logs:
+            logs[source] = self.__dict__["_load"](self.__dict__["_index"], source, None)
+        return logs[source]
+
+    @property  # overrides the read-only field: computed on first access
+    def table(self) -> SampledLog:
+        """The table controller's log (decoded now if not yet)."""
+        return self._log("table")
+
+    @property  # overrides the read-only field: computed on first access
+    def daq(self) -> SampledLog:
+        """The sensor logger's log (decoded now if not yet)."""
+        return self._log("daq")
+
+    def samples(self, source: str) -> int:
+        """Sample count (samples, no unit) of a log, from its record: nothing is decoded."""
+        known: dict[str, int] = self.__dict__["_samples"]
+        return known[source] if source in known else len(self._log(source))
+
+    def __repr__(self) -> str:
+        return f"LazyStepData(step={self.step.id!r}, index={self.__dict__['_index']})"
+
+
+class LazySteps(Sequence[StepData]):
+    """The steps of a recording, decoded one at a time when an element is read.
+
+    Indexing returns a fresh :class:`LazyStepData`: iterating holds one step's logs at a time,
+    whatever the number of steps, and filtering on ``.step`` (kind, group, ...) decodes
+    nothing. ``planned`` gives the planned steps without building step objects.
+    """
+
+    def __init__(self, planned: Sequence[PlannedStep], load: LogLoader,
+                 samples: Sequence[Mapping[str, int]]) -> None:
+        if len(samples) != len(planned):
+            raise ValueError("one sample-count record per planned step is needed")
+        self.planned = tuple(planned)
+        self._load = load
+        self._samples = tuple(samples)
+
+    def __len__(self) -> int:
+        return len(self.planned)
+
+    @overload
+    def __getitem__(self, index: int) -> StepData: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> Sequence[StepData]: ...
+
+    def __getitem__(self, index: int | slice) -> StepData | Sequence[StepData]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        i = range(len(self))[index]  # IndexError and negative indices as for a tuple
+        return LazyStepData(self.planned[i], i, self._load, self._samples[i])
+
+    def __iter__(self) -> Iterator[StepData]:
+        return (self[i] for i in range(len(self)))
+
+    def partial(self, index: int, channels: Mapping[str, Collection[str]]) -> StepData:
+        """Step ``index`` with only some channels decoded (and the time stamps), by source.
+
+        Why: a pass that reads a few channels of every step (the sync pulses) decodes a
+        fraction of the data. ``channels`` maps ``"table"``/``"daq"`` to channel names.
+        """
+        i = range(len(self))[index]
+        logs = {source: self._load(i, source, channels.get(source, ()))
+                for source in ("table", "daq")}
+        return StepData(self.planned[i], logs["table"], logs["daq"])
+
 
 @dataclass(frozen=True)
 class Dataset:
@@ -38,12 +133,15 @@ class Dataset:
     procedure: str
     sample_rate_hz: float
     sensors: tuple[SensorInfo, ...]
-    steps: tuple[StepData, ...]
+    #: a tuple, or :class:`LazySteps` (a recording: each step decoded when read)
+    steps: Sequence[StepData]
     source: Path
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "metadata", MappingProxyType(dict(self.metadata)))
+        if not isinstance(self.steps, (tuple, LazySteps)):
+            object.__setattr__(self, "steps", tuple(self.steps))
 
     def sensor(self, channel: str) -> SensorInfo:
         for info in self.sensors:
@@ -51,5 +149,13 @@ class Dataset:
                 return info
         raise KeyError(channel)
 
+    @property
+    def planned(self) -> tuple[PlannedStep, ...]:
+        """The planned step of every recorded step, in order, without decoding any log."""
+        if isinstance(self.steps, LazySteps):
+            return self.steps.planned
+        return tuple(s.step for s in self.steps)
+
     def steps_of_kind(self, kind: str) -> list[StepData]:
+        """The steps of one kind (``"sine"``, ``"static"`` …); lazy steps stay undecoded."""
         return [s for s in self.steps if s.step.kind == kind]

@@ -233,7 +233,33 @@ def refine_offset(relation: ClockRelation, table_t0_s: float, trigger_daq_s: flo
     return replace(relation, offset_u_s=float(u))
 
 
-def synchronise(data: StepData) -> SyncedStep:
+def clock_relation(data: StepData) -> ClockRelation:
+    """The DAQ-to-table clock relation of one step, checked like :func:`synchronise` checks it,
+    without resampling anything (for summaries that need no samples)."""
+    return _relation(data, _regular_time(np.asarray(data.daq.time_s, dtype=np.float64)))[0]
+
+
+def _relation(data: StepData, daq_time_s: np.ndarray, known: ClockRelation | None = None
+              ) -> tuple[ClockRelation, np.ndarray, slice]:
+    """The step's clock relation (``known``: already fitted), the table instants on the DAQ
+    clock (s) and the covered part."""
+    relation = known if known is not None else _fitted_relation(data, daq_time_s)
+    at_daq_s = relation.to_daq_s(np.asarray(data.table.time_s, dtype=np.float64))
+    inside = np.flatnonzero((at_daq_s >= daq_time_s[0]) & (at_daq_s <= daq_time_s[-1]))
+    if inside.size < 0.5 * at_daq_s.size:
+        raise AnalysisError(f"step {data.step.id}: the DAQ record covers < 50 % of the table log")
+    return relation, at_daq_s, slice(int(inside[0]), int(inside[-1]) + 1)
+
+
+def _fitted_relation(data: StepData, daq_time_s: np.ndarray) -> ClockRelation:
+    t_daq, offset0 = _daq_edges(data, daq_time_s)
+    relation = fit_clock_relation(data.step.id, _table_edge_times(data), t_daq, offset0)
+    table_t0 = float(data.table.time_s[0])
+    trigger_daq_s = None if offset0 is None else table_t0 - offset0
+    return refine_offset(relation, table_t0, trigger_daq_s, 1.0 / float(data.daq.sample_rate_hz))
+
+
+def synchronise(data: StepData, relation: ClockRelation | None = None) -> SyncedStep:
     """Synchronise one step: clock relation from all edges, trim, resample onto the table grid.
 
     Parameters
@@ -241,6 +267,8 @@ def synchronise(data: StepData) -> SyncedStep:
     data
         A recorded step with a table log (``sync_pulse``, optionally ``fp_latch_s``) and a DAQ
         log (``sync_pulse``, ``trigger``, sensor volts) on their own clocks.
+    relation
+        Its clock relation when already fitted (:func:`clock_relation`), else fitted here.
 
     Returns
     -------
@@ -248,18 +276,8 @@ def synchronise(data: StepData) -> SyncedStep:
         Table samples covered by the DAQ record, with the DAQ channels on the same instants.
     """
     daq_time_s = _regular_time(np.asarray(data.daq.time_s, dtype=np.float64))
-    t_daq, offset0 = _daq_edges(data, daq_time_s)
-    relation = fit_clock_relation(data.step.id, _table_edge_times(data), t_daq, offset0)
-    table_t0 = float(data.table.time_s[0])
-    trigger_daq_s = None if offset0 is None else table_t0 - offset0
-    relation = refine_offset(relation, table_t0, trigger_daq_s,
-                             1.0 / float(data.daq.sample_rate_hz))
+    relation, at_daq_s, keep = _relation(data, daq_time_s, relation)  # keep: contiguous
     table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
-    at_daq_s = relation.to_daq_s(table_time_s)
-    inside = np.flatnonzero((at_daq_s >= daq_time_s[0]) & (at_daq_s <= daq_time_s[-1]))
-    if inside.size < 0.5 * table_time_s.size:
-        raise AnalysisError(f"step {data.step.id}: the DAQ record covers < 50 % of the table log")
-    keep = slice(int(inside[0]), int(inside[-1]) + 1)  # contiguous: views, no copies
     table = {name: np.asarray(v)[keep] for name, v in data.table.channels.items()}
     daq = _resample(daq_time_s, data.daq.channels, at_daq_s[keep])
     return SyncedStep(

@@ -28,7 +28,8 @@ def step_summaries(data: Dataset) -> list[dict[str, Any]]:
     rows = []
     for sd in data.steps:
         row = sd.step.model_dump(mode="json", exclude_none=True)
-        row.update(table_samples=len(sd.table), daq_samples=len(sd.daq), status="recorded")
+        row.update(table_samples=sd.samples("table"), daq_samples=sd.samples("daq"),
+                   status="recorded")
         rows.append(row)
     return rows
 

@@ -19,7 +19,7 @@ included), else quantum 1 when every value is a whole number (0/1 pulses stored 
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -52,7 +52,10 @@ def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dty
     """
     if dtype.kind in "iub":
         return codes.astype(dtype)
-    return (codes.astype(np.float64) * quantum + offset).astype(dtype)
+    values = codes.astype(np.float64)
+    values *= quantum  # in place: the same float64 operations, without temporaries
+    values += offset
+    return values.astype(dtype, copy=False)
 
 
 def _codes(
@@ -139,26 +142,37 @@ def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None
         quantum = (float(message.quantum), float(message.offset))
         integers = np.array(codes, dtype=np.int64)
         if message.delta:
-            integers = np.cumsum(integers)
+            np.cumsum(integers, out=integers)
         return decode_codes(integers, *quantum, dtype), quantum
     return np.array(message.values, dtype=np.float64).astype(dtype), None
 
 
-def _frozen(parts: list[np.ndarray], dtype: np.dtype) -> np.ndarray:
-    """Concatenated read-only array (SampledLog then keeps it without copying)."""
-    values = np.concatenate(parts) if parts else np.empty(0, dtype=dtype)
-    values.flags.writeable = False
-    return values
+def _allocated(blocks: list[Any], samples: int, keep: Collection[str] | None
+               ) -> dict[str, np.ndarray]:
+    """One empty array per channel (``time_s`` first), ``samples`` long, in its logged dtype.
+
+    Filled block by block in place: no per-block arrays to concatenate afterwards.
+    """
+    columns: dict[str, np.ndarray] = {}
+    for message in (blocks[0].time, *blocks[0].channels):
+        if keep is not None and message.name != TIME_COLUMN and message.name not in keep:
+            continue
+        dtype = np.dtype(message.dtype)
+        if dtype.kind not in _ALLOWED_KINDS or dtype.byteorder == ">":
+            raise ValueError(f"channel {message.name!r} has unsupported dtype {dtype}")
+        columns[message.name] = np.empty(samples, dtype=dtype)
+    return columns
 
 
 def blocks_to_log(
     blocks: list[Any], source: str, sample_rate_hz: float, samples: int,
-    quantisation: Mapping[str, tuple[float, float]],
+    quantisation: Mapping[str, tuple[float, float]], channels: Collection[str] | None = None,
 ) -> SampledLog:
     """Rebuild one step's :class:`SampledLog` from its decoded ``SampleBlock`` messages.
 
     ``sample_rate_hz`` is the logger's nominal rate in Hz, ``samples`` the count the step record
     gives, ``quantisation`` the declared ``(quantum, offset)`` per channel in its own unit (V, deg).
+    ``channels``: decode only these (and the time stamps), e.g. the sync pulses; default all.
 
     Raises
     ------
@@ -169,25 +183,36 @@ def blocks_to_log(
     blocks = sorted(blocks, key=lambda b: b.sequence)
     if [b.sequence for b in blocks] != list(range(len(blocks))):
         raise ValueError(f"block sequence numbers {[b.sequence for b in blocks]} have gaps")
-    names = [c.name for c in blocks[0].channels] if blocks else []
-    columns: dict[str, list[np.ndarray]] = {name: [] for name in [TIME_COLUMN, *names]}
-    dtypes: dict[str, np.dtype] = {}
-    units = {c.name: c.unit for c in blocks[0].channels} if blocks else {}
+    if not blocks:
+        if samples:
+            raise ValueError(f"has 0 samples, its step record says {samples}")
+        return SampledLog(source, sample_rate_hz, np.empty(0), {}, {}, quantisation)
+    names = [c.name for c in blocks[0].channels]
+    columns = _allocated(blocks, samples, channels)
+    units = {c.name: c.unit for c in blocks[0].channels if c.name in columns}
     position = 0
     for block in blocks:
         if [c.name for c in block.channels] != names or block.first_sample != position:
             raise ValueError(f"block {block.sequence} does not continue the log")
+        size = len(block.time.codes) or len(block.time.values)
+        if position + size > samples:
+            raise ValueError(f"has more samples than the {samples} its step record says")
         for message in (block.time, *block.channels):
+            if message.name not in columns:
+                continue
             values, _ = channel_values(message)
-            columns[message.name].append(values)
-            dtypes[message.name] = values.dtype
-        position += columns[TIME_COLUMN][-1].size
+            if values.size != size:
+                raise ValueError(f"channel {message.name!r} has {values.size} samples in "
+                                 f"block {block.sequence}, time has {size}")
+            if values.dtype != columns[message.name].dtype:
+                raise ValueError(f"channel {message.name!r} changes dtype between blocks")
+            columns[message.name][position:position + size] = values
+        position += size
     if position != samples:
         raise ValueError(f"has {position} samples, its step record says {samples}")
-    arrays = {name: _frozen(parts, dtypes.get(name, np.dtype("<f8")))
-              for name, parts in columns.items()}
-    time_s = arrays.pop(TIME_COLUMN).astype(np.float64, copy=False)
-    for name, values in arrays.items():
-        if values.size != position:
-            raise ValueError(f"channel {name!r} has {values.size} samples, time has {position}")
-    return SampledLog(source, sample_rate_hz, time_s, arrays, units, quantisation)
+    for values in columns.values():
+        values.flags.writeable = False  # SampledLog then keeps it without copying
+    time_s = columns.pop(TIME_COLUMN).astype(np.float64, copy=False)
+    kept = quantisation if channels is None else {
+        k: v for k, v in quantisation.items() if k == TIME_COLUMN or k in columns}
+    return SampledLog(source, sample_rate_hz, time_s, columns, units, kept)

@@ -10,13 +10,18 @@ the file and what is wrong. The layout is described in :mod:`aatest.engine.recor
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Collection, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import breakup_chunk
 
-from aatest.engine.dataset import Dataset, SensorInfo, StepData
+from aatest.engine.dataset import Dataset, LazySteps, SensorInfo
 from aatest.engine.errors import RecordingError
 from aatest.engine.logs import SampledLog
 from aatest.engine.recording import codec, legacy_v1, proto
@@ -34,16 +39,40 @@ IMPORT_MANIFEST = "dataset.yaml"
 _DECODE_ERRORS = fmt.DECODE_ERRORS
 
 
+@dataclass(frozen=True)
+class _StepEntry:
+    """One step of a file, as its metadata record gives it: nothing of its logs is decoded."""
+
+    index: int
+    step: PlannedStep
+    path: Path
+    record: dict[str, Any]
+    values: dict[str, str]
+    chunks: _StepChunks
+
+    @property
+    def samples(self) -> dict[str, int]:
+        """Sample count of each log, from the record (absent in old records: decoded later)."""
+        return {source: int(self.record[f"{source}_samples"]) for source in ("table", "daq")
+                if self.record.get(f"{source}_samples") is not None}
+
+
 @dataclass
 class _FileContents:
-    """What one MCAP file holds: run metadata, step records and the decoded step data."""
+    """What one MCAP file holds: run metadata and its step records (logs not yet decoded)."""
 
+    chunks: _StepChunks
     run_meta: dict[str, Any] = field(default_factory=dict)
-    steps: list[tuple[int, StepData]] = field(default_factory=list)
+    steps: list[_StepEntry] = field(default_factory=list)
 
 
 def read_dataset(path: str | Path) -> Dataset:
     """Load a run directory, a recording file or an import directory as a :class:`Dataset`.
+
+    A recording's steps are a :class:`~aatest.engine.dataset.LazySteps`: reading the file
+    checks its header, summary and step records; each step's logs are decoded (and their
+    chunk CRCs checked) when that step is read, so memory holds one step, not the run. A
+    corrupt chunk is then a :class:`RecordingError` naming the file and the step.
 
     Parameters
     ----------
@@ -83,7 +112,7 @@ def _read_run_dir(run_dir: Path) -> Dataset:
             f"{IMPORT_MANIFEST}: not a run or import directory"
         )
     run_meta = load_run_metadata(steps_dir)
-    steps: list[tuple[int, StepData]] = []
+    steps: list[_StepEntry] = []
     for path, _ in files.values():
         contents = _read_file(path)
         run_meta = run_meta or contents.run_meta
@@ -100,10 +129,16 @@ def _is_stale(recording: Path, step_ids: set[str]) -> bool:
 
 
 def _read_file(path: Path) -> _FileContents:
-    """Decode one aatest MCAP file, translating every low-level failure to RecordingError."""
+    """Read one aatest MCAP file's header, summary and records (no log is decoded)."""
+    with _translated(path), open(path, "rb") as stream:
+        return _contents(make_reader(stream, validate_crcs=True), path)
+
+
+@contextmanager
+def _translated(path: Path) -> Iterator[None]:
+    """Every low-level decoding failure becomes a RecordingError naming the file."""
     try:
-        with open(path, "rb") as stream:
-            return _decode(stream, path)
+        yield
     except RecordingError:
         raise
     except _DECODE_ERRORS as exc:
@@ -112,15 +147,18 @@ def _read_file(path: Path) -> _FileContents:
         ) from exc
 
 
-def _decode(stream: Any, path: Path) -> _FileContents:
-    reader = make_reader(stream, validate_crcs=True)  # flipped bits must not pass
+def _checked_summary(reader: Any, path: Path) -> Any:
     header = reader.get_header()
     if header.profile != fmt.PROFILE:
         raise RecordingError(f"{path}: not an aatest recording (MCAP profile {header.profile!r})")
     summary = reader.get_summary()
     if summary is None:
         raise RecordingError(f"{path}: recording has no summary section (unfinished write)")
-    contents = _FileContents()
+    return summary
+
+
+def _contents(reader: Any, path: Path) -> _FileContents:
+    contents = _FileContents(chunks=_StepChunks(path, _checked_summary(reader, path)))
     step_records = []
     for record in reader.iter_metadata():
         if record.name == fmt.RUN_RECORD:
@@ -128,13 +166,57 @@ def _decode(stream: Any, path: Path) -> _FileContents:
         elif record.name == fmt.STEP_RECORD:
             step_records.append(dict(record.metadata))
     _check_format(contents.run_meta, path)
-    for values in step_records:  # one step at a time: peak memory is one step's bytes
+    for values in step_records:
         step_record = fmt.from_json_values(values)
         step = PlannedStep.model_validate(step_record["step"])
-        logs = [_step_log(reader, summary, step_record, values, source, path)
-                for source in ("table", "daq")]
-        contents.steps.append((int(step_record["index"]), StepData(step, logs[0], logs[1])))
+        contents.steps.append(_StepEntry(int(step_record["index"]), step, path, step_record,
+                                         values, contents.chunks))
     return contents
+
+
+class _StepChunks:
+    """Reads the messages of one topic and time range from the chunks that can hold them.
+
+    The summary (chunk indexes, channels, schemas) is read once per file and kept, so reading
+    a step costs only its own chunks (each CRC-checked), not the file's index again.
+    """
+
+    def __init__(self, path: Path, summary: Any) -> None:
+        self.path, self.summary = path, summary
+        self.channels_by_topic = {ch.topic: ch for ch in summary.channels.values()}
+
+    def iter_messages(self, topics: list[str], starting_at: int | None = None,
+                      ending_at: int | None = None, log_time_order: bool = False
+                      ) -> Iterator[tuple[Any, Any, Message]]:
+        """``(None, channel, message)`` of ``topics`` with ``starting_at ≤ log_time ≤
+        ending_at`` (ns), in file order (``log_time_order`` is accepted for the mcap API)."""
+        ids = {self.channels_by_topic[t].id for t in topics if t in self.channels_by_topic}
+        low = -1 if starting_at is None else starting_at
+        high = 2**64 if ending_at is None else ending_at
+        chosen = [ix for ix in self.summary.chunk_indexes
+                  if ix.message_end_time >= low and ix.message_start_time <= high
+                  and ids & set(ix.message_index_offsets)]
+        with open(self.path, "rb") as stream:
+            for index in sorted(chosen, key=lambda ix: ix.chunk_start_offset):
+                for record in self.read_chunk(stream, index):
+                    if (isinstance(record, Message) and record.channel_id in ids
+                            and low <= record.log_time <= high):
+                        yield None, self.summary.channels[record.channel_id], record
+
+    @staticmethod
+    def read_chunk(stream: Any, index: Any) -> list[Any]:
+        """The records of one chunk, its CRC checked (flipped bits must not pass)."""
+        stream.seek(index.chunk_start_offset + 1 + 8)  # opcode and record length
+        return list(breakup_chunk(Chunk.read(ReadDataStream(stream)), validate_crc=True))
+
+
+def _load_log(entry: _StepEntry, source: str, chunks: _StepChunks,
+              channels: Collection[str] | None = None) -> SampledLog:
+    """Decode one log of one step (only ``channels`` when given, v2): only the chunks holding
+    that step's blocks are read."""
+    with _translated(entry.path):
+        return _step_log(chunks, chunks.summary, entry.record, entry.values, source, entry.path,
+                         channels)
 
 
 def _check_format(run_meta: dict[str, Any], path: Path) -> None:
@@ -150,7 +232,7 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
 
 def _step_log(
     reader: Any, summary: Any, record: dict[str, Any], values: dict[str, str], source: str,
-    path: Path,
+    path: Path, channels: Collection[str] | None = None,
 ) -> SampledLog:
     """One logger's log of one step, decoded by the format its schema encoding names."""
     step_id = str(record["step"]["id"])
@@ -165,7 +247,7 @@ def _step_log(
             return _decode_v1(reader, channel, schema, step_id, values, where)
         if schema is not None and (schema.encoding, schema.name) == (fmt.ENCODING,
                                                                      proto.BLOCK_MESSAGE):
-            return _decode_v2(reader, record, values, source, where)
+            return _decode_v2(reader, record, values, source, where, channels)
     except ValueError as exc:
         raise RecordingError(f"{where}: {exc}") from exc
     raise RecordingError(f"{path}: topic {topic!r} uses no known aatest schema")
@@ -192,7 +274,8 @@ def _decode_v1(
 
 
 def _decode_v2(
-    reader: Any, record: dict[str, Any], values: dict[str, str], source: str, where: str
+    reader: Any, record: dict[str, Any], values: dict[str, str], source: str, where: str,
+    channels: Collection[str] | None = None,
 ) -> SampledLog:
     """A v2 log: the step's protobuf blocks on the stable topic, found by their log times."""
     digest = fmt.record_digest(values)
@@ -212,10 +295,10 @@ def _decode_v2(
             blocks.append(block)
     quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
     return codec.blocks_to_log(blocks, source, float(record[f"{source}_sample_rate_hz"]),
-                               int(record[f"{source}_samples"]), quanta)
+                               int(record[f"{source}_samples"]), quanta, channels)
 
 
-def _sensors(run_meta: dict[str, Any], steps: list[StepData]) -> tuple[SensorInfo, ...]:
+def _sensors(run_meta: dict[str, Any], steps: LazySteps) -> tuple[SensorInfo, ...]:
     """Sensors from the run metadata, else nominal defaults for every DAQ voltage channel."""
     entries = run_meta.get("sensors")
     if isinstance(entries, list) and entries:
@@ -229,9 +312,15 @@ def _sensors(run_meta: dict[str, Any], steps: list[StepData]) -> tuple[SensorInf
 
 
 def _build_dataset(
-    run_meta: dict[str, Any], indexed: list[tuple[int, StepData]], source: Path, complete: bool
+    run_meta: dict[str, Any], entries: list[_StepEntry], source: Path, complete: bool
 ) -> Dataset:
-    ordered = [data for _, data in sorted(indexed, key=lambda item: item[0])]
+    ordered = sorted(entries, key=lambda entry: entry.index)
+
+    def load(index: int, log_source: str, channels: Collection[str] | None) -> SampledLog:
+        entry = ordered[index]
+        return _load_log(entry, log_source, entry.chunks, channels)
+
+    steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered])
     rate = run_meta.get("sample_rate_hz") or (
         ordered[0].step.sample_rate_hz if ordered else 2000.0
     )
@@ -245,9 +334,8 @@ def _build_dataset(
     return Dataset(
         procedure=procedure if isinstance(procedure, str) else "unknown",
         sample_rate_hz=float(rate),
-        sensors=_sensors(run_meta, ordered),
-        steps=tuple(ordered),
+        sensors=_sensors(run_meta, steps),
+        steps=steps,
         source=source,
         metadata=metadata,
     )
-

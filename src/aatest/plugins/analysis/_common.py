@@ -8,7 +8,7 @@ sensor on O sees ``cos ψ`` and one on P ``sin ψ`` of the outer acceleration.
 from __future__ import annotations
 
 import io
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar
 
 import numpy as np
@@ -19,7 +19,7 @@ from aatest.engine.dataset import SensorInfo
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.analysis.sync import SyncOutput
+from aatest.plugins.analysis.sync import SyncedSteps, SyncOutput
 from aatest.sync.freeze_pulse import SyncedStep
 
 #: a sensor counts as excited by a step when its projection of the motion exceeds this
@@ -123,8 +123,12 @@ def json_floats(values: Iterable[float]) -> list[float]:
     return [float(v) for v in values]
 
 
-def steps_of(context: AnalysisContext, kind: str | None = None) -> list[SyncedStep]:
+def steps_of(context: AnalysisContext, kind: str | None = None) -> SyncedSteps:
     """The synchronised steps from the ``sync`` output (of one step ``kind`` if given).
+
+    A view that synchronises a step when it is read (one step in memory at a time); filter
+    it with ``.where(predicate on the PlannedStep)`` rather than a list comprehension, which
+    would synchronise every step to look at its ``.step``.
 
     Raises
     ------
@@ -132,9 +136,21 @@ def steps_of(context: AnalysisContext, kind: str | None = None) -> list[SyncedSt
         When the ``sync`` analysis produced nothing (it failed, or was not required).
     """
     out = context.upstream.get("sync")
-    if not isinstance(out, SyncOutput):
+    if not isinstance(out, SyncOutput) or not isinstance(out.steps, SyncedSteps):
         raise AnalysisError("no synchronised steps: the sync analysis failed or is not required")
-    return [s for s in out.steps if kind is None or s.step.kind == kind]
+    return out.steps if kind is None else out.steps.where(lambda step: step.kind == kind)
+
+
+def select(steps: Sequence[SyncedStep], keep: Callable[[PlannedStep], bool]
+           ) -> Sequence[SyncedStep]:
+    """The steps whose planned step passes ``keep``, synchronising none of the others.
+
+    On the lazy view of ``sync`` this is a view again (nothing synchronised yet); on a plain
+    list, a list.
+    """
+    if isinstance(steps, SyncedSteps):
+        return steps.where(keep)
+    return [s for s in steps if keep(s.step)]
 
 
 def scale_in_use(context: AnalysisContext, sensor: SensorInfo) -> float:

@@ -12,6 +12,7 @@ limit (0.1 % FR/g or 0.01 rad/s²/g, whichever is greater).
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -24,6 +25,9 @@ from aatest.sync.freeze_pulse import SyncedStep
 
 _UP_G = 0.9  # |g component| above which a position counts as "axis up/down"
 _RAD_DPS2 = float(np.degrees(1.0))
+
+#: positions a bias line (bias against gravity component) needs
+_MIN_LINE_POINTS = 2
 
 
 def gravity_along_g(sensor_axis: str, inner_deg: float, outer_deg: float) -> float:
@@ -72,7 +76,7 @@ def _line_fit(g: list[float], v: list[float]) -> dict[str, float]:
             "residual_rms_v": float(np.sqrt(np.mean(resid**2)))}
 
 
-def sensor_bias(steps: list[SyncedStep], sensor: SensorInfo, scale: float) -> dict[str, Any]:
+def sensor_bias(steps: Sequence[SyncedStep], sensor: SensorInfo, scale: float) -> dict[str, Any]:
     """Bias results of one sensor, overall and per mounting."""
     by_mount: dict[str, dict[int, dict[str, list[float]]]] = defaultdict(
         lambda: defaultdict(lambda: {"up": [], "down": []}))
@@ -86,7 +90,7 @@ def sensor_bias(steps: list[SyncedStep], sensor: SensorInfo, scale: float) -> di
         if abs(g) >= _UP_G:
             by_mount[mount][s.step.repetition]["up" if g > 0 else "down"].append(mean_v)
     mountings = {m: _pair_stats(by_mount[m], scale) | {"line": _line_fit(*lines[m])}
-                 for m in lines if len(lines[m][0]) >= 2}
+                 for m in lines if len(lines[m][0]) >= _MIN_LINE_POINTS}
     paired = [r for r in mountings.values() if "bias_v" in r]
     if not paired:
         return {"mountings": mountings}
@@ -115,7 +119,7 @@ class BiasAnalysis:
     Result: ClassVar[type[BiasResult]] = BiasResult
 
     def applies_to(self, data: Dataset) -> bool:
-        return any(s.step.kind == "static" for s in data.steps)
+        return any(p.kind == "static" for p in data.planned)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[BiasResult]:
         static = steps_of(context, "static")

@@ -11,6 +11,7 @@ listed in a procedure are aliases of this analysis.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -25,6 +26,7 @@ from aatest.plugins.analysis._common import (
     is_excited,
     new_figure,
     options_of,
+    select,
     steps_of,
     to_svg,
     whole_cycles,
@@ -120,7 +122,7 @@ def unwrap_phases(points: list[dict[str, Any]]) -> None:
     for group in {p["group"] for p in points}:
         rows = sorted((p for p in points if p["group"] == group), key=lambda p: p["frequency_hz"])
         phases = np.degrees(np.unwrap(np.radians([p["phase_deg"] for p in rows])))
-        for p, ph in zip(rows, phases):
+        for p, ph in zip(rows, phases, strict=True):
             p["phase_deg"] = float(ph)
             p["delay_s"] = float(-np.radians(ph) / (2 * np.pi * p["frequency_hz"]))
             p["delay_samples"] = p["delay_s"] * p["sample_rate_hz"]
@@ -148,10 +150,11 @@ class FrfOptions(BaseModel):
     harmonics: int = Field(HARMONICS, ge=2, le=50, description="highest harmonic H")
 
 
-def channel_points(steps: list[SyncedStep], sensor: SensorInfo, harmonics: int = HARMONICS
+def channel_points(steps: Sequence[SyncedStep], sensor: SensorInfo, harmonics: int = HARMONICS
                    ) -> list[dict[str, Any]]:
     """The FRF points of one sensor, sorted by group and frequency, phases unwrapped."""
-    points = [frf_point(s, sensor, harmonics) for s in steps if is_excited(s.step, sensor)]
+    points = [frf_point(s, sensor, harmonics)
+              for s in select(steps, lambda p: is_excited(p, sensor))]
     points.sort(key=lambda p: (p["group"], p["frequency_hz"]))
     unwrap_phases(points)
     return points
@@ -168,7 +171,7 @@ class FrfAnalysis:
     Result: ClassVar[type[FrfResult]] = FrfResult
 
     def applies_to(self, data: Dataset) -> bool:
-        return any(s.step.kind == "sine" for s in data.steps)
+        return any(p.kind == "sine" for p in data.planned)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[FrfResult]:
         steps = steps_of(context, "sine")

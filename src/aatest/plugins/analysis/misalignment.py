@@ -17,13 +17,14 @@ Two estimators on the same recordings:
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
-from aatest.plugins.analysis._common import fundamental, steps_of
+from aatest.plugins.analysis._common import fundamental, select, steps_of
 from aatest.plugins.analysis.misalignment_method import (
     AXIS_SENSOR,
     ORIGINAL_SETS,
@@ -38,6 +39,9 @@ from aatest.sync.freeze_pulse import SyncedStep
 __all__ = ["MisalignmentAnalysis", "misalignment_from_spectra"]
 
 _TABLE_INDEX = {"P": 0, "O": 1, "I": 2}  # table-top coordinates (P, O, I)
+
+#: sensor axes (P, O, I): a set's input directions must span all three
+_AXES = 3
 
 
 def input_direction(step: SyncedStep) -> np.ndarray:
@@ -65,7 +69,7 @@ def _row_angles(row: np.ndarray, axis: str) -> np.ndarray:
     return np.degrees(np.arctan(ratios))
 
 
-def set_matrices(steps: list[SyncedStep], sensors: list[SensorInfo]
+def set_matrices(steps: Sequence[SyncedStep], sensors: list[SensorInfo]
                  ) -> dict[str, list[np.ndarray]]:
     """Per set: one complex 3×3 matrix S per repetition (outputs V per °/s² along P, O, I)."""
     by_set: dict[tuple[str, int], tuple[list[np.ndarray], list[np.ndarray]]] = defaultdict(
@@ -78,7 +82,7 @@ def set_matrices(steps: list[SyncedStep], sensors: list[SensorInfo]
     out: dict[str, list[np.ndarray]] = defaultdict(list)
     for (set_name, _), (v_cols, y_cols) in sorted(by_set.items()):
         v, y = np.column_stack(v_cols), np.column_stack(y_cols)
-        if np.linalg.matrix_rank(v) < 3:
+        if np.linalg.matrix_rank(v) < _AXES:
             continue
         out[set_name].append(y @ np.linalg.pinv(v))
     return out
@@ -144,12 +148,12 @@ class MisalignmentAnalysis:
     def applies_to(self, data: Dataset) -> bool:
         axes = {s.axis for s in data.sensors}
         return axes >= {"I", "O", "P"} and any(
-            s.step.mounting.scenario and s.step.kind == "sine" for s in data.steps)
+            p.mounting.scenario and p.kind == "sine" for p in data.planned)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[MisalignmentResult]:
         sensors = sorted((s for s in data.sensors if s.axis in _TABLE_INDEX),
                          key=lambda s: _TABLE_INDEX[s.axis])[:3]
-        steps = [s for s in steps_of(context, "sine") if s.step.mounting.scenario]
+        steps = select(steps_of(context, "sine"), lambda p: bool(p.mounting.scenario))
         mats = set_matrices(steps, sensors)
         values = evaluate(_spectra(mats, sensors))
         values["matrix"] = {

@@ -9,6 +9,7 @@ terms read off the log-log curve: white noise N (slope −½, σ·√τ), bias i
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -55,7 +56,7 @@ def allan_terms(rate: np.ndarray, fs_hz: float) -> dict[str, Any]:
     }
 
 
-def sensor_noise(steps: list[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: float,
+def sensor_noise(steps: Sequence[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: float,
                  band_hz: float = BAND_HZ) -> tuple[dict[str, Any], str]:
     """Noise figures of one sensor over its static steps, and the PSD/Allan figure."""
     fs = steps[0].sample_rate_hz

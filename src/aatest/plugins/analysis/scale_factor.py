@@ -15,6 +15,7 @@ dependent variable), which is why the scale factor is 1/slope of that fit.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -79,7 +80,7 @@ class ScaleFactorOptions(BaseModel):
         return self
 
 
-def calibration_steps(steps: list[SyncedStep], sensor: SensorInfo) -> list[SyncedStep]:
+def calibration_steps(steps: Sequence[SyncedStep], sensor: SensorInfo) -> list[SyncedStep]:
     """The scale-factor steps of a sensor: sine, along its axis, ≤ 2 Hz, largest acceleration,
     frequency closest to 1 Hz (all repetitions of that point)."""
     cands = [s for s in steps if s.step.kind == "sine" and is_excited(s.step, sensor)
@@ -215,7 +216,7 @@ def _figure(volts: np.ndarray, ref: np.ndarray, result: dict[str, Any]) -> str:
     return to_svg(fig)
 
 
-def sensor_scale_factor(steps: list[SyncedStep], sensor: SensorInfo,
+def sensor_scale_factor(steps: Sequence[SyncedStep], sensor: SensorInfo,
                         options: ScaleFactorOptions) -> tuple[dict[str, Any], str] | None:
     """Calibration values and figure of one sensor, or None without suitable steps."""
     chosen = calibration_steps(steps, sensor)

@@ -1,16 +1,88 @@
-"""The ``sync`` analysis: the clock relation of every step, summarised for results.json."""
+"""The ``sync`` analysis: the clock relation of every step, summarised for results.json.
+
+Memory: a recording's steps are decoded when read (:class:`~aatest.engine.dataset.LazySteps`),
+so the synchronised steps handed to the other analyses are a :class:`SyncedSteps` view that
+synchronises a step when it is read and keeps nothing: an analysis iterating them holds one
+step at a time, whatever the number of steps. Steps already in memory (a simulated or test
+dataset) are synchronised once and kept, as before.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, overload
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset
+from aatest.engine.dataset import Dataset, LazySteps, StepData
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.engine.steps import PlannedStep
 from aatest.results.sync import SyncResult
-from aatest.sync.freeze_pulse import SyncedStep, synchronise_all
+from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
+
+#: the channels a clock relation reads (besides the time stamps)
+_SYNC_CHANNELS = {"table": ("sync_pulse", "fp_latch_s"), "daq": ("sync_pulse", "trigger")}
+
+
+class SyncedSteps(Sequence[SyncedStep]):
+    """Recorded steps synchronised when read; ``planned`` and :meth:`where` decode nothing.
+
+    Parameters
+    ----------
+    steps
+        The dataset's steps (any sequence; a :class:`LazySteps` decodes a step when read).
+    indices
+        Which of ``steps`` this view holds, in order.
+    planned
+        The planned step of each held step.
+    keep
+        Synchronise each step once and keep it (steps already in memory), else on every read.
+    """
+
+    def __init__(self, steps: Sequence[StepData], indices: Sequence[int],
+                 planned: Sequence[PlannedStep], keep: bool) -> None:
+        self._steps, self._indices, self.planned = steps, tuple(indices), tuple(planned)
+        self._kept: dict[int, SyncedStep] | None = {} if keep else None
+        #: clock relations already fitted (by the sync pass), reused when a step is read
+        self.relations: dict[int, ClockRelation] = {}
+
+    @classmethod
+    def of(cls, data: Dataset) -> SyncedSteps:
+        """Every recorded step of ``data``."""
+        pairs = [(i, p) for i, p in enumerate(data.planned) if p.recorded]
+        return cls(data.steps, [i for i, _ in pairs], [p for _, p in pairs],
+                   keep=not isinstance(data.steps, LazySteps))
+
+    def where(self, keep: Callable[[PlannedStep], bool]) -> SyncedSteps:
+        """The steps whose planned step passes ``keep`` (a view sharing this one's cache)."""
+        chosen = [k for k, p in enumerate(self.planned) if keep(p)]
+        view = SyncedSteps(self._steps, [self._indices[k] for k in chosen],
+                           [self.planned[k] for k in chosen], keep=False)
+        view._kept, view.relations = self._kept, self.relations
+        return view
+
+    def __len__(self) -> int:
+        return len(self._indices)
+
+    @overload
+    def __getitem__(self, index: int) -> SyncedStep: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> Sequence[SyncedStep]: ...
+
+    def __getitem__(self, index: int | slice) -> SyncedStep | Sequence[SyncedStep]:
+        if isinstance(index, slice):
+            return [self[k] for k in range(*index.indices(len(self)))]
+        i = self._indices[index]
+        if self._kept is None:
+            return synchronise(self._steps[i], self.relations.get(i))
+        if i not in self._kept:
+            self._kept[i] = synchronise(self._steps[i], self.relations.get(i))
+        return self._kept[i]
+
+    def __iter__(self) -> Iterator[SyncedStep]:
+        return (self[k] for k in range(len(self)))
 
 
 @dataclass(frozen=True)
@@ -18,10 +90,18 @@ class SyncOutput(AnalysisOutput[SyncResult]):
     """The sync result plus the synchronised steps themselves (not written to results.json);
     every analysis that ``requires`` sync reads them from ``context.upstream["sync"]``."""
 
-    steps: tuple[SyncedStep, ...] = ()
+    steps: Sequence[SyncedStep] = ()
 
 
-def summarise(steps: list[SyncedStep]) -> SyncResult:
+@dataclass(frozen=True)
+class _Related:
+    """A step's planned step and clock relation: what the summary reads of a synced step."""
+
+    step: PlannedStep
+    relation: ClockRelation
+
+
+def summarise(steps: Sequence[SyncedStep | _Related]) -> SyncResult:
     """Overall contract keys over all steps plus a per-step list under ``steps``.
 
     The overall drift is the edge-weighted mean of the per-step drifts (one crystal); the
@@ -45,7 +125,7 @@ def summarise(steps: list[SyncedStep]) -> SyncResult:
     })
 
 
-def sync_figure(steps: list[SyncedStep]) -> str:
+def sync_figure(steps: Sequence[SyncedStep | _Related]) -> str:
     """Drift and clock-relation residual of every step (one crystal: a flat drift line)."""
     from aatest.plugins.analysis._common import new_figure, to_svg
 
@@ -68,9 +148,18 @@ class SyncAnalysis:
     Result: ClassVar[type[SyncResult]] = SyncResult
 
     def applies_to(self, data: Dataset) -> bool:
-        return any(s.step.recorded for s in data.steps)
+        return any(p.recorded for p in data.planned)
 
     def run(self, data: Dataset, context: AnalysisContext) -> SyncOutput:
-        steps = synchronise_all(data)
-        return SyncOutput(result=summarise(steps), figures={"sync": sync_figure(steps)},
-                          steps=tuple(steps))
+        synced = SyncedSteps.of(data)
+        if synced._kept is not None:  # steps in memory: synchronise them all now, and keep
+            related: list[SyncedStep | _Related] = list(synced)
+        else:  # one step at a time: only its clock relation stays
+            steps = data.steps
+            assert isinstance(steps, LazySteps)  # what keep=False means
+            synced.relations.update(
+                (i, clock_relation(steps.partial(i, _SYNC_CHANNELS))) for i in synced._indices)
+            related = [_Related(p, synced.relations[i])
+                       for i, p in zip(synced._indices, synced.planned, strict=True)]
+        return SyncOutput(result=summarise(related), figures={"sync": sync_figure(related)},
+                          steps=synced)

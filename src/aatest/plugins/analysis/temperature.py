@@ -11,28 +11,38 @@ K(T) = K₀(1 + c·(T − 25 °C)) against 0.05 %/°C.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis._common import (
     fundamental,
     input_accel_dps2,
     is_excited,
     new_figure,
+    select,
     steps_of,
     t95,
     to_svg,
 )
 from aatest.plugins.analysis.bias import gravity_along_g
 from aatest.plugins.analysis.polyfit import fit_polynomial
+from aatest.plugins.analysis.sync import SyncedSteps
 from aatest.results.temperature import TemperatureResult
 from aatest.sync.freeze_pulse import SyncedStep
 
 T_REF_C = 25.0
 _MIN_SPAN_C = 5.0
+#: temperatures a coefficient needs (a slope and a check of it)
+_MIN_SETPOINTS = 3
+#: points each branch (cooling, heating) needs for a hysteresis
+_MIN_BRANCH_POINTS = 2
+#: spread of the gravity component (g) above which it joins the bias fit
+_MIN_G_SPREAD = 0.5
 
 
 def step_temperature_c(step: SyncedStep) -> float | None:
@@ -46,7 +56,8 @@ def step_temperature_c(step: SyncedStep) -> float | None:
 def _slope(x: np.ndarray, y: np.ndarray, extra: np.ndarray | None = None
            ) -> tuple[float, float, float, float]:
     """Intercept, slope, slope std uncertainty and 95 % half-width of y = a + b·x (+ c·extra)."""
-    cols = [np.ones_like(x), x] + ([extra] if extra is not None and np.ptp(extra) > 0.5 else [])
+    spread = extra is not None and np.ptp(extra) > _MIN_G_SPREAD
+    cols = [np.ones_like(x), x] + ([extra] if extra is not None and spread else [])
     design = np.column_stack(cols)
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     resid = y - design @ coef
@@ -70,7 +81,7 @@ def hysteresis_v(temps: np.ndarray, values: np.ndarray) -> float | None:
     """Largest |heating − cooling| difference on the branches' common temperature range."""
     side = branches(temps)
     cool, heat = side < 0, side > 0
-    if cool.sum() < 2 or heat.sum() < 2:
+    if cool.sum() < _MIN_BRANCH_POINTS or heat.sum() < _MIN_BRANCH_POINTS:
         return None
     lo = max(temps[cool].min(), temps[heat].min())
     hi = min(temps[cool].max(), temps[heat].max())
@@ -83,12 +94,16 @@ def hysteresis_v(temps: np.ndarray, values: np.ndarray) -> float | None:
     return float(np.max(np.abs(v_heat - v_cool)))
 
 
-def bias_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, Any]:
+def bias_vs_temperature(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, Any]:
     """Bias slope, hysteresis and noise of one sensor over the static steps."""
-    temps = np.array([step_temperature_c(s) for s in steps], dtype=float)
-    volts = np.array([float(np.mean(s.daq[sensor.channel])) for s in steps])
-    noise = np.array([float(np.std(s.daq[sensor.channel])) for s in steps])
-    g = np.array([gravity_along_g(sensor.axis, s.step.inner_deg, s.step.outer_deg) for s in steps])
+    rows = [(step_temperature_c(s), float(np.mean(s.daq[sensor.channel])),
+             float(np.std(s.daq[sensor.channel])),
+             gravity_along_g(sensor.axis, s.step.inner_deg, s.step.outer_deg))
+            for s in steps]  # one pass: each step is read (synchronised) once
+    temps = np.array([r[0] for r in rows], dtype=float)
+    volts = np.array([r[1] for r in rows])
+    noise = np.array([r[2] for r in rows])
+    g = np.array([r[3] for r in rows])
     b0, c, u, half = _slope(temps - T_REF_C, volts, g)
     return {
         "bias_coefficient_v_per_c": c, "bias_coefficient_u_v_per_c": u,
@@ -106,10 +121,11 @@ def _gain(step: SyncedStep, sensor: SensorInfo) -> complex:
         input_accel_dps2(step, sensor.axis), f0, fs)
 
 
-def scale_vs_temperature(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, Any]:
+def scale_vs_temperature(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, Any]:
     """Scale-factor temperature coefficient from the sine steps' fundamental gains."""
-    temps = np.array([step_temperature_c(s) for s in steps], dtype=float)
-    gains = np.array([abs(_gain(s, sensor)) for s in steps])
+    rows = [(step_temperature_c(s), abs(_gain(s, sensor))) for s in steps]  # one read each
+    temps = np.array([r[0] for r in rows], dtype=float)
+    gains = np.array([r[1] for r in rows])
     fit = fit_polynomial(temps - T_REF_C, gains, 1)
     (k0, b), cov = fit.coefficients, fit.covariance
     c = b / k0
@@ -135,7 +151,7 @@ def _figure(row: dict[str, Any], channel: str) -> str:
         ax[0, 0].plot(temps[sel], bias[sel] * 1e3, marker, ms=4, label=name)
     ax[0, 0].set(xlabel="sensor temperature / °C", ylabel="bias / mV", title=f"{channel}")
     ax[0, 0].legend(fontsize=6)
-    if rows == 2:
+    if rows > 1:
         ax[1, 0].plot(row["scale_temperatures_c"], np.array(row["scale_v_per_dps2"]) * 1e3, "o",
                       ms=4)
         ax[1, 0].set(xlabel="sensor temperature / °C", ylabel="scale / (mV/(°/s²))")
@@ -143,18 +159,33 @@ def _figure(row: dict[str, Any], channel: str) -> str:
     return to_svg(fig)
 
 
-def _same_point(steps: list[SyncedStep]) -> list[SyncedStep]:
+def _point(step: PlannedStep) -> tuple[float, float | None]:
+    return round(float(step.frequency_hz or 0), 6), step.accel_dps2
+
+
+def _same_point(steps: Sequence[SyncedStep], planned: Sequence[PlannedStep]
+                ) -> Sequence[SyncedStep]:
     """The sine steps of the (frequency, acceleration) point seen at the most temperatures."""
-    if not steps:
+    if not planned:
         return []
-    keys = [(round(float(s.step.frequency_hz or 0), 6), s.step.accel_dps2) for s in steps]
+    keys = [_point(p) for p in planned]
     best = max(set(keys), key=keys.count)
-    return [s for s, k in zip(steps, keys) if k == best]
+    return select(steps, lambda p: _point(p) == best)
 
 
-def _spans(steps: list[SyncedStep]) -> bool:
+def _excited_sine(sensor: SensorInfo) -> Callable[[PlannedStep], bool]:
+    """Whether a planned step is a sine step exciting ``sensor``."""
+    return lambda p: p.kind == "sine" and is_excited(p, sensor)
+
+
+def _planned(steps: Sequence[SyncedStep]) -> Sequence[PlannedStep]:
+    """The planned steps, without synchronising anything on the lazy view."""
+    return steps.planned if isinstance(steps, SyncedSteps) else [s.step for s in steps]
+
+
+def _spans(steps: Sequence[SyncedStep]) -> bool:
     temps = [t for s in steps if (t := step_temperature_c(s)) is not None]
-    return len(temps) >= 3 and (max(temps) - min(temps)) >= _MIN_SPAN_C
+    return len(temps) >= _MIN_SETPOINTS and (max(temps) - min(temps)) >= _MIN_SPAN_C
 
 
 class TemperatureAnalysis:
@@ -168,20 +199,20 @@ class TemperatureAnalysis:
     def applies_to(self, data: Dataset) -> bool:
         """At least three set-points, or logged sensor temperatures spanning ≥ 5 °C."""
         temps = {s.step.temperature_c for s in data.steps if s.step.temperature_c is not None}
-        if len(temps) >= 3:
+        if len(temps) >= _MIN_SETPOINTS:
             return True
         logged = [float(np.mean(s.daq["temperature_c"])) for s in data.steps
                   if s.step.recorded and "temperature_c" in s.daq.channels]
-        return len(logged) >= 3 and max(logged) - min(logged) >= _MIN_SPAN_C
+        return len(logged) >= _MIN_SETPOINTS and max(logged) - min(logged) >= _MIN_SPAN_C
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[TemperatureResult]:
         steps = steps_of(context)
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
         for sensor in data.sensors:
-            static = [s for s in steps if s.step.kind == "static"]
-            sine = _same_point([s for s in steps
-                                if s.step.kind == "sine" and is_excited(s.step, sensor)])
+            static = select(steps, lambda p: p.kind == "static")
+            excited = select(steps, _excited_sine(sensor))
+            sine = _same_point(excited, _planned(excited))
             row: dict[str, Any] = {"bias_coefficient_v_per_c": None,
                                    "scale_coefficient_per_c": None, "hysteresis_v": None}
             if _spans(static):

@@ -14,6 +14,7 @@ natural frequency and damping; the Bode plot extrapolates to 500 Hz.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -23,12 +24,14 @@ from scipy import signal
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis._common import (
     group_of,
     input_accel_dps2,
     is_excited,
     new_figure,
     options_of,
+    select,
     steps_of,
     to_svg,
 )
@@ -68,7 +71,7 @@ class TransferFunctionOptions(BaseModel):
     antialias_hz: float | Literal["auto", "none"] = Field("auto", description="Hz, auto, none")
 
 
-def xcorr_delay(steps: list[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
+def xcorr_delay(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
     """Delay (s, whole samples) maximising the summed normalised input–output correlation."""
     fs = steps[0].sample_rate_hz
     max_lag = int(_MAX_LAG_S * fs)
@@ -206,7 +209,7 @@ def logger_antialias_hz(data: Dataset, context: AnalysisContext) -> float | None
     return None
 
 
-def group_model(points: list[FrfPoint], steps: list[SyncedStep], sensor: SensorInfo,
+def group_model(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: SensorInfo,
                 antialias_hz: float | None = None,
                 options: TransferFunctionOptions | None = None) -> tuple[dict[str, Any], str]:
     """The chosen transfer function of one group of FRF points, and its Bode figure.
@@ -244,7 +247,12 @@ def _frf_points(context: AnalysisContext) -> dict[str, list[FrfPoint]]:
     return dict(out.result.root)
 
 
-def channel_models(points: list[FrfPoint], steps: list[SyncedStep], sensor: SensorInfo,
+def _in_group(group: str, sensor: SensorInfo) -> Callable[[PlannedStep], bool]:
+    """Whether a planned step belongs to ``group`` and excites ``sensor``."""
+    return lambda p: group_of(p) == group and is_excited(p, sensor)
+
+
+def channel_models(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: SensorInfo,
                    antialias_hz: float | None, options: TransferFunctionOptions
                    ) -> tuple[dict[str, Any] | None, dict[str, str]]:
     """The models of every group with enough points, the best group's first; and figures."""
@@ -252,7 +260,7 @@ def channel_models(points: list[FrfPoint], steps: list[SyncedStep], sensor: Sens
     figures: dict[str, str] = {}
     for g in sorted({p.group for p in points}):
         gp = [p for p in points if p.group == g]
-        gs = [s for s in steps if group_of(s.step) == g and is_excited(s.step, sensor)]
+        gs = select(steps, _in_group(g, sensor))
         if len(gp) >= options.min_points:
             groups[g], figures[f"tf_{sensor.channel}_{g}"] = group_model(
                 gp, gs, sensor, antialias_hz, options)
@@ -272,7 +280,7 @@ class TransferFunctionAnalysis:
     Result: ClassVar[type[TransferFunctionResult]] = TransferFunctionResult
 
     def applies_to(self, data: Dataset) -> bool:
-        return len([s for s in data.steps if s.step.kind == "sine"]) >= MIN_POINTS
+        return len([p for p in data.planned if p.kind == "sine"]) >= MIN_POINTS
 
     def run(self, data: Dataset, context: AnalysisContext
             ) -> AnalysisOutput[TransferFunctionResult]:

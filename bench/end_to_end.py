@@ -1,0 +1,159 @@
+"""Benchmark ``aatest run`` end to end: lab time ÷ wall time per phase, peak RSS, recording MB.
+
+The shipped stepped-sine frequency-response procedure (136 steps of 2^17 samples at 2 kHz) runs
+on the simulated rig through the same calls as ``aatest run`` (:mod:`aatest.engine.run.session`),
+each phase timed on its own:
+
+- ``record``  the runner drives the twin and writes one step file per step;
+- ``merge``   the step files become ``recording.mcap``;
+- ``analyse`` the recording is read and the procedure's analyses run;
+- ``report``  uncertainty, verdicts, results.json, the HTML certificate (and its signature).
+
+It prints wall and CPU seconds per phase, lab ÷ wall (issue 14 asks ≥ 500× on this 2-core
+machine) and lab ÷ CPU (meaningful when other jobs share the machine), the peak resident memory
+of each phase and of the whole process (issue 14: ≤ 800 MB, not growing with the number of
+steps — compare ``--steps 68`` with the full run) and the recording's size in MB.
+
+    python bench/end_to_end.py [--steps N] [--dir DIR] [--seed 0] [--analyse-only RUN_DIR]
+
+``--analyse-only`` re-times the analyse and report phases on an existing run directory. Peak
+RSS per phase uses Linux's resettable high-water mark (``/proc/self/clear_refs``, which resets
+``getrusage``'s ``ru_maxrss`` too); the whole-run figure is the largest phase peak.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+from aatest.engine.recording import RECORDING_NAME, RunRecorder
+from aatest.engine.run import session
+from aatest.engine.run.rig import build_rig
+from aatest.engine.run.run_state import open_state
+from aatest.engine.run.runner import procedure_sha256, run_metadata, run_plan
+
+PROCEDURE = Path(__file__).resolve().parents[1] / "src/aatest/procedures" \
+    / "stepped-sine-frequency-response.yaml"
+MB = 1e6
+T = TypeVar("T")
+
+
+def _reset_peak() -> bool:
+    """Reset the kernel's resident high-water mark of this process (Linux ≥ 4.0)."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+    except OSError:
+        return False
+    return True
+
+
+def _peak_mb() -> float:
+    """VmHWM of this process in MB (since the last reset), else ru_maxrss."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024 / MB
+    except OSError:
+        pass
+    return _maxrss_mb()
+
+
+def _maxrss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / MB
+
+
+class Phases:
+    """Wall, CPU and peak RSS of each named phase."""
+
+    def __init__(self) -> None:
+        self.rows: list[tuple[str, float, float, float]] = []
+
+    def time(self, name: str, action: Callable[[], T]) -> T:
+        _reset_peak()
+        wall, cpu = time.perf_counter(), time.process_time()
+        result = action()
+        self.rows.append((name, time.perf_counter() - wall, time.process_time() - cpu,
+                          _peak_mb()))
+        return result
+
+
+def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> None:
+    plan = prepared.plan
+    state = open_state(out, plan.procedure, procedure_sha256(prepared.text), seed, False)
+    recorder = RunRecorder(out)
+    rig = build_rig(prepared.rig_config, plan.sensor, seed)
+    meta = run_metadata(plan, rig, prepared.text, seed, "bench")
+    meta["report_template"] = plan.report_template
+    recorder.write_run_metadata(meta)
+    phases.time("record", lambda: run_plan(plan, rig, recorder, state, out,
+                                           show_progress=False))
+    phases.time("merge", recorder.finalize)
+    state.finished = True
+    state.save(out)
+    recorder.prune_step_files()
+
+
+def _analyse_and_report(prepared: Any, out: Path, phases: Phases) -> None:
+    from aatest.engine.analysis.passes import run_analyses
+    from aatest.engine.analysis.results import build_results
+    from aatest.engine.recording import read_dataset
+
+    def analyse() -> tuple[Any, Any]:
+        data = read_dataset(out)
+        return data, run_analyses(data, list(data.metadata.get("analysis", [])))
+
+    data, analysis = phases.time("analyse", analyse)
+
+    def report() -> None:
+        results = build_results(data, analysis, prepared.plan.lab_duration_s, 0.0)
+        results = session.decide(results, data)
+        session.render_and_sign(results, out, prepared.plan.report_template or
+                                "calibration-certificate", None, None)
+
+    phases.time("report", report)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--procedure", type=Path, default=PROCEDURE)
+    parser.add_argument("--steps", type=int, default=None, help="only the first N steps")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--dir", type=Path, default=None, help="run directory (kept)")
+    parser.add_argument("--analyse-only", type=Path, default=None, metavar="RUN_DIR")
+    args = parser.parse_args()
+    prepared = session.prepare(args.procedure, None)
+    if args.steps is not None:
+        prepared.plan = prepared.plan.model_copy(
+            update={"steps": prepared.plan.steps[:args.steps]})
+    phases = Phases()
+    if args.analyse_only is not None:
+        out = args.analyse_only
+    else:
+        out = args.dir or Path(tempfile.mkdtemp(prefix="aatest-bench-e2e-")) / "run"
+        if out.exists():
+            shutil.rmtree(out)
+        _record(prepared, out, args.seed, phases)
+    _analyse_and_report(prepared, out, phases)
+    lab_s = prepared.plan.lab_duration_s
+    recording_mb = (out / RECORDING_NAME).stat().st_size / MB
+    print(f"{prepared.plan.procedure}: {len(prepared.plan.steps)} steps, lab time {lab_s:.0f} s,"
+          f" recording {recording_mb:.1f} MB ({out})")
+    print(f"  {'phase':<8} {'wall/s':>8} {'CPU/s':>8} {'peak RSS/MB':>12}")
+    for name, wall, cpu, peak in phases.rows:
+        print(f"  {name:<8} {wall:8.2f} {cpu:8.2f} {peak:12.0f}")
+    wall = sum(r[1] for r in phases.rows)
+    cpu = sum(r[2] for r in phases.rows)
+    peak = max([r[3] for r in phases.rows] + [_maxrss_mb()])  # the reset lowers ru_maxrss too
+    print(f"  {'total':<8} {wall:8.2f} {cpu:8.2f} {peak:12.0f}")
+    print(f"lab ÷ wall {lab_s / wall:.0f}x, lab ÷ CPU {lab_s / cpu:.0f}x (target ≥ 500x); "
+          f"peak RSS {peak:.0f} MB (target ≤ 800 MB); recording {recording_mb:.1f} MB")
+
+
+if __name__ == "__main__":
+    main()
