@@ -144,6 +144,11 @@ class Dataset:
             object.__setattr__(self, "steps", tuple(self.steps))
 
     def sensor(self, channel: str) -> SensorInfo:
+        """The sensor recorded on DAQ ``channel`` (its axis, serial and nominal scale in V/(°/s²)).
+
+        Analyses address sensors by the logger channel their volts arrive on, because that is
+        what a recording stores; a channel without a sensor is a ``KeyError``, not a guess.
+        """
         for info in self.sensors:
             if info.channel == channel:
                 return info
