@@ -102,7 +102,7 @@ class ChannelState:
     filters: dict[str, np.ndarray] = field(default_factory=dict)
     play_dps2: float | None = None
     walk_v: float = 0.0
-    markov_v: float | None = None
+    markov_v: float = 0.0
     elapsed_s: float = 0.0
     drift_rng: np.random.Generator | None = None
 
@@ -111,8 +111,8 @@ def bias_drift_v(drift: BiasDrift, n: int, dt_s: float, state: ChannelState) -> 
     """Bias wander (V) over the next ``n`` samples: linear rate + random walk + Gauss–Markov.
 
     Vectorised: the walk is a cumulative sum, the first-order Gauss–Markov process an lfilter
-    (x_k = φ·x_{k−1} + √(1−φ²)·σ·w_k), both continued from ``state``. The Gauss–Markov process
-    starts in its stationary distribution.
+    (x_k = φ·x_{k−1} + √(1−φ²)·σ·w_k), both continued from ``state``. All three start at 0 at
+    the record's first sample: ``bias_v`` is the bias then, the drift what follows.
     """
     rng = state.drift_rng if state.drift_rng is not None else np.random.default_rng(0)
     state.drift_rng = rng
@@ -125,8 +125,6 @@ def bias_drift_v(drift: BiasDrift, n: int, dt_s: float, state: ChannelState) -> 
         out = out + walk
     if drift.instability_v > 0.0:
         phi = float(np.exp(-dt_s / drift.correlation_s))
-        if state.markov_v is None:
-            state.markov_v = float(drift.instability_v * standard_normal(rng, 1)[0])
         w = np.sqrt(1.0 - phi * phi) * drift.instability_v * standard_normal(rng, n)
         markov, _ = signal.lfilter([1.0], [1.0, -phi], w, zi=[phi * state.markov_v])
         state.markov_v = float(markov[-1])

@@ -222,6 +222,16 @@ class World:
             yield concatenate_logs(pending)
         self.lab_time_s = start_s + daq_record_samples(setup) * setup.clock.lab_dt_s
 
+    def table_record(self, step: PlannedStep) -> SampledLog:
+        """The table log the controller returns for ``step``: the step's own log, or, when
+        the runner asks for a different length or rate (periodic snapshots while the DAQ
+        streams a long record), the log at that rate."""
+        motion = self._motion[0] if self._motion is not None else None
+        if motion is not None and (step.samples, step.sample_rate_hz) != (
+                motion.samples, motion.sample_rate_hz):
+            return self.snapshot_log(step)
+        return self.result().table
+
     def snapshot_log(self, table_step: PlannedStep) -> SampledLog:
         """The table log of the current step as ``table_step`` asks for it (the controller's
         periodic snapshots of a long record: its own rate and sample count)."""
