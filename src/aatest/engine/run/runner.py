@@ -145,6 +145,13 @@ def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: Ru
     return table, last
 
 
+def _streamed(rig: Rig, step: PlannedStep) -> bool:
+    """True when ``step`` is a long static record and the rig's DAQ streams it."""
+    if step.kind != "static" or not supports_streaming(rig.daq):
+        return False
+    return streams_record(step, _envelope(rig))
+
+
 def _envelope(rig: Rig) -> TableEnvelope:
     """The table's envelope with the DAQ's streaming capability (as the planner saw it)."""
     return rig.turntable.envelope().model_copy(
@@ -194,7 +201,7 @@ def run_plan(
                 chamber.ensure(rig, step)
                 if step.kind == "chamber":
                     state.chamber_steps_done.append(step.id)
-                elif streams_record(step, _envelope(rig)):
+                elif _streamed(rig, step):
                     table, last = execute_streamed_step(rig, step, recorder, events)
                     events.observer.step_samples(step, table, last)
                 else:
