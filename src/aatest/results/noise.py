@@ -41,13 +41,14 @@ class NoiseResult(PerChannel[NoiseChannel]):
 
 class AllanFit(ResultModel):
     """Noise terms from a least-squares fit of the Allan variance of a long static record,
-    σ²(τ) = N²/τ + (0.664·B)² + K²·τ/3 (IEEE 952/1554-style reading, rate-like output in
-    °/s²): N white noise in (°/s²)·√s (angle-random-walk-like), B bias instability in °/s²,
-    K rate random walk in (°/s²)/√s."""
+    σ²(τ) = N²/τ + (0.664·B)² + K²·τ/3 + R²·τ²/2 (IEEE 952/1554-style reading, rate-like
+    output in °/s²): N white noise in (°/s²)·√s (angle-random-walk-like), B bias instability in
+    °/s², K rate random walk in (°/s²)/√s, R rate ramp (steady drift) in (°/s²)/s."""
 
     white_noise_dps2_sqrt_s: Real | None = Field(None, description="N, (°/s²)·√s")
     bias_instability_dps2: Real | None = Field(None, description="B, °/s²")
     rate_random_walk_dps2_per_sqrt_s: Real | None = Field(None, description="K, (°/s²)/√s")
+    rate_ramp_dps2_per_s: Real | None = Field(None, description="R, (°/s²)/s")
 
 
 class DriftInterval(ResultModel):

@@ -122,6 +122,8 @@ class NoiseAnalysis:
 
 #: the bias peak-to-peak is taken over means of this length, s (white noise averaged out)
 _PEAK_TO_PEAK_WINDOW_S = 60.0
+#: an Allan-fit term below this share of the variance at every τ is reported as absent
+_MIN_TERM_SHARE = 1e-3
 #: minimum clusters at the longest τ of a reported Allan deviation (oadev: τ ≤ T/2)
 _MIN_CLUSTERS = 2
 
@@ -134,24 +136,26 @@ def block_means(values: np.ndarray, per_block: int) -> np.ndarray:
 
 
 def fit_allan(taus_s: np.ndarray, adev: np.ndarray) -> dict[str, float | None]:
-    """N, B, K of σ²(τ) = N²/τ + (0.664·B)² + K²·τ/3 by non-negative least squares on the
-    Allan variance, each point weighted by 1/σ² (relative errors count alike).
+    """N, B, K, R of σ²(τ) = N²/τ + (0.664·B)² + K²·τ/3 + R²·τ²/2 by non-negative least squares
+    on the Allan variance, each point weighted by 1/σ² (relative errors count alike).
 
-    ``taus_s`` in s, ``adev`` in the rate-like unit u (°/s²): N in u·√s, B in u, K in u/√s;
-    a term the data do not support comes back None.
+    ``taus_s`` in s, ``adev`` in the rate-like unit u (°/s²): N in u·√s, B in u, K in u/√s,
+    R (rate ramp: a steady drift) in u/s; a term the data do not support comes back None.
     """
     from scipy.optimize import nnls
 
     taus, var = np.asarray(taus_s, float), np.asarray(adev, float) ** 2
-    if taus.size < 3:
-        return {"white_noise_dps2_sqrt_s": None, "bias_instability_dps2": None,
-                "rate_random_walk_dps2_per_sqrt_s": None}
-    design = np.column_stack([1.0 / taus, np.ones_like(taus), taus / 3.0]) / var[:, None]
-    coef, _ = nnls(design, np.ones_like(taus))
-    n2, b2, k2 = (float(c) for c in coef)
-    return {"white_noise_dps2_sqrt_s": float(np.sqrt(n2)) if n2 > 0 else None,
-            "bias_instability_dps2": float(np.sqrt(b2) / 0.664) if b2 > 0 else None,
-            "rate_random_walk_dps2_per_sqrt_s": float(np.sqrt(k2)) if k2 > 0 else None}
+    names = ("white_noise_dps2_sqrt_s", "bias_instability_dps2",
+             "rate_random_walk_dps2_per_sqrt_s", "rate_ramp_dps2_per_s")
+    if taus.size < len(names):
+        return dict.fromkeys(names)
+    design = np.column_stack([1.0 / taus, np.ones_like(taus), taus / 3.0, taus**2 / 2.0])
+    coef, _ = nnls(design / var[:, None], np.ones_like(taus))
+    roots = np.sqrt(coef) * np.array([1.0, 1.0 / 0.664, 1.0, 1.0])
+    # a term is supported when it makes at least 0.1 % of the variance somewhere on the curve
+    share = (design * coef / var[:, None]).max(axis=0)
+    return {name: float(root) if part > _MIN_TERM_SHARE else None
+            for name, root, part in zip(names, roots, share, strict=True)}
 
 
 def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | None,
