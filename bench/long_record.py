@@ -20,7 +20,6 @@ import tempfile
 import time
 from pathlib import Path
 
-
 PROCEDURE = "long-static-drift"
 
 
@@ -60,8 +59,8 @@ def _report(wall_s: float) -> None:
 
 
 def _child(*args: str) -> dict[str, float]:
-    done = subprocess.run([sys.executable, __file__, "--child", *args], check=True, capture_output=True,
-                          text=True)
+    done = subprocess.run([sys.executable, __file__, "--child", *args], check=True,
+                          capture_output=True, text=True)
     return dict(json.loads(done.stdout.strip().splitlines()[-1]))
 
 

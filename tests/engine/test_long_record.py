@@ -18,7 +18,12 @@ import pytest
 from mcap.reader import make_reader
 
 from aatest.engine.errors import RigFault
-from aatest.engine.interfaces import StreamingDaq, TableEnvelope, supports_streaming
+from aatest.engine.interfaces import (
+    SensorDatasheet,
+    StreamingDaq,
+    TableEnvelope,
+    supports_streaming,
+)
 from aatest.engine.logs import SampledLog
 from aatest.engine.procedure.envelope import snapshot_step, step_violations, streams_record
 from aatest.engine.recording import read_dataset
@@ -27,7 +32,6 @@ from aatest.engine.steps import PlannedStep
 from aatest.plugins.daq.sim import SimDaq
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.world import World
-from aatest.engine.interfaces import SensorDatasheet
 
 FS_HZ = 2000.0
 #: 10 min of lab time: long enough for several generation blocks and stream chunks
@@ -198,3 +202,36 @@ def test_fault_mid_record_keeps_the_chunks_and_resume_records_the_step(
     trigger = int(np.flatnonzero(long.daq["trigger"] > 0.5)[0])
     assert (len(long.daq) - trigger) / FS_HZ == pytest.approx(600.4, abs=0.01)  # + stop lag
     assert len(long.table) == 600
+
+
+# --- the shipped 2-hour procedure, end to end (slow) --------------------------------------------
+
+
+@pytest.mark.slow
+def test_shipped_two_hour_drift_procedure_end_to_end(tmp_path: Path) -> None:
+    import json
+
+    from typer.testing import CliRunner
+
+    import aatest
+    from aatest.cli import app
+    from aatest.twin.daq import antialias_filter
+    from aatest.twin.defaults import REALISTIC_DRIFT
+
+    procedure = Path(aatest.__file__).parent / "procedures" / "long-static-drift.yaml"
+    out = tmp_path / "run"
+    result = CliRunner().invoke(app, ["run", str(procedure), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    drift = json.loads((out / "results.json").read_text())["analysis"]["drift"]["v_sz"]
+    assert drift["duration_s"] == pytest.approx(7200.0, rel=1e-3)
+    assert drift["max_tau_s"] >= 1000.0
+    assert len(drift["intervals"]) == 4  # bias and temperature every 30 min
+    model = realistic_rig_model(SensorDatasheet(model="sr207"))
+    sensor = model.sensors[0]
+    gain = antialias_filter(float(model.daq.antialias_hz), 1.0 / FS_HZ)[2]
+    white = sensor.noise_rms_v / gain / np.sqrt(FS_HZ) / sensor.scale_v_per_dps2
+    assert drift["allan_fit"]["white_noise_dps2_sqrt_s"] == pytest.approx(white, rel=0.10)
+    # steady drift 1e-4 V/h; the random walk (5e-7 V/√s) and the Gauss–Markov bias
+    # instability (1e-5 V, 300 s) move a 2-h slope by a few 1e-5 V/h
+    assert drift["drift_v_per_h"] == pytest.approx(REALISTIC_DRIFT.rate_v_per_h, abs=6e-5)
+    assert (out / "report.html").exists()

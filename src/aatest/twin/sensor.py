@@ -195,7 +195,7 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
     if model.nonlinearity_cubic is not None:
         alpha = alpha * (1.0 + model.nonlinearity_cubic.c3 * (alpha / model.range_dps2) ** 2)
     d_temp = inp.temperature_c - t_ref_c
-    scale = model.scale_v_per_dps2
+    scale: float | np.ndarray = model.scale_v_per_dps2
     if model.scale_temperature is not None:
         scale = scale * (1.0 + model.scale_temperature.coefficient_per_c * d_temp)
     volts = model.bias_v + scale * alpha

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -57,7 +58,7 @@ class StepSetup:
 
     @property
     def trigger_index(self) -> int:
-        return int(round(self.model.daq.start_lead_s * self.clock.sample_rate_hz))
+        return round(self.model.daq.start_lead_s * self.clock.sample_rate_hz)
 
     @property
     def trigger_time_s(self) -> float:
@@ -228,10 +229,10 @@ def daq_record_samples(setup: StepSetup) -> int:
 def daq_units(setup: StepSetup) -> tuple[dict[str, str], dict[str, tuple[float, float]]]:
     """(units, quantisation) of the step's DAQ log: volts of every sensor and the ADC codes."""
     model = setup.model
-    units = {s.channel: "V" for s in model.sensors if s.channel.startswith("v_")} | dict(DAQ_AUX_CHANNELS)
+    volts = [s.channel for s in model.sensors if s.channel.startswith("v_")]
+    units = dict.fromkeys(volts, "V") | dict(DAQ_AUX_CHANNELS)
     lo_v, hi_v = model.daq.adc_range_v  # ADC codes: volts = code·LSB + low end (daq.quantise_adc)
-    adc = {s.channel: ((hi_v - lo_v) / 2**model.daq.adc_bits, lo_v) for s in model.sensors
-           if s.channel.startswith("v_")}
+    adc = dict.fromkeys(volts, ((hi_v - lo_v) / 2**model.daq.adc_bits, lo_v))
     return units, {"time_s": (TIMESTAMP_TICK_S, 0.0), **adc}
 
 
@@ -281,14 +282,15 @@ def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generato
                                                  carried)
         if truth is not None:
             truth.defer(f"volts_{sensor.channel}",
-                        lambda _, c=clean: noiseless(c, model.daq, clock.lab_dt_s))
+                        partial(_noiseless_truth, clean_v=clean, daq=model.daq,
+                                dt_s=clock.lab_dt_s))
     if truth is not None:
         for sensor in model.sensors:  # true acceleration along each sensitive axis, undelayed
-            axis_z = setup.axes[sensor.channel][:, 2]
             truth.defer(f"alpha_{sensor.channel}",
-                        lambda _, z=axis_z: z @ _undelayed(setup, grid, motion, floor))
-        channels_of = [s.channel for s in model.sensors]
-        truth.defer("sensor_accel_dps2", lambda t: {ch: t[f"alpha_{ch}"] for ch in channels_of})
+                        partial(_alpha_truth, axis_z=setup.axes[sensor.channel][:, 2],
+                                setup=setup, grid=grid, motion=motion, floor=floor))
+        truth.defer("sensor_accel_dps2", partial(
+            _accel_truth, channels=[s.channel for s in model.sensors]))
     index = np.arange(first, first + grid.n)
     channels["sync_pulse"] = clock.sync_level(index / clock.sample_rate_hz)
     channels["trigger"] = (index >= setup.trigger_index).astype(np.float64)
@@ -337,6 +339,24 @@ def _record_block(clean_v: np.ndarray, sensor: SensorModel, daq: DaqModel, dt_s:
     if extra:
         filtered = filtered + float(np.hypot.reduce(extra)) * standard_normal(rng, clean_v.size)
     return quantise_adc(filtered, daq)
+
+
+def _noiseless_truth(_: LazyTruth, clean_v: np.ndarray, daq: DaqModel,
+                     dt_s: float) -> np.ndarray:
+    """Truth entry: the clean output (V) after the pre-sample filter (sample spacing s)."""
+    return noiseless(clean_v, daq, dt_s)
+
+
+def _alpha_truth(_: LazyTruth, axis_z: np.ndarray, setup: StepSetup, grid: Grid,
+                 motion: dict[float, tuple[np.ndarray, np.ndarray]],
+                 floor: np.ndarray | None) -> np.ndarray:
+    """Truth entry: acceleration along a sensitive axis, undelayed (°/s²)."""
+    return np.asarray(axis_z @ _undelayed(setup, grid, motion, floor))
+
+
+def _accel_truth(truth: LazyTruth, channels: list[str]) -> dict[str, np.ndarray]:
+    """Truth entry: channel → acceleration along its sensitive axis (°/s²)."""
+    return {ch: truth[f"alpha_{ch}"] for ch in channels}
 
 
 def _daq_log(setup: StepSetup, rng: np.random.Generator,

@@ -195,7 +195,7 @@ class World:
         self._result = synthesise(setup, self._rng(f"step:{step.id}"),
                                   self._rng(f"daq:{step.id}") if long else None,
                                   self._rng(f"drift:{step.id}"))
-        self.lab_time_s = float(self._daq_start_s + self._result.daq.time_s.size
+        self.lab_time_s = float(setup.clock.t0_s + self._result.daq.time_s.size
                                 * setup.clock.lab_dt_s)
         return self._result
 

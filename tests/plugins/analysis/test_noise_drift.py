@@ -46,7 +46,8 @@ def _long_record(seed: int) -> tuple[Dataset, World]:
     daq = concatenate_logs(list(world.stream_daq(4)))
     table = world.snapshot_log(snapshot_step(step, TableEnvelope(streaming_daq=True)))
     sensor = model.sensors[0]
-    info = SensorInfo(channel=sensor.channel, axis="I", nominal_scale_v_per_dps2=sensor.scale_v_per_dps2)
+    info = SensorInfo(channel=sensor.channel, axis="I",
+                      nominal_scale_v_per_dps2=sensor.scale_v_per_dps2)
     data = Dataset(procedure="drift-test", sample_rate_hz=FS_HZ, sensors=(info,),
                    steps=(StepData(step, table, daq),), source=Path("memory"))
     return data, world

@@ -42,8 +42,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.errors import EnvelopeError, Problem, ProcedureError
-from aatest.engine.interfaces import AxisLimits, SensorDatasheet, TableEnvelope
+from aatest.engine.interfaces import AxisLimits, TableEnvelope
 from aatest.engine.procedure.yaml_loader import locate as locate_in_tree
 from aatest.engine.procedure.yaml_loader import parse_yaml, read_text
 from aatest.engine.steps import Plan, PlannedStep

@@ -16,11 +16,16 @@ import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import aatest
 from aatest.engine.errors import AatestError, InputError, RigFault
-from aatest.engine.interfaces import STREAM_CHUNK_S, TableEnvelope, supports_streaming
+from aatest.engine.interfaces import (
+    STREAM_CHUNK_S,
+    StreamingDaq,
+    TableEnvelope,
+    supports_streaming,
+)
 from aatest.engine.logs import SampledLog
 from aatest.engine.procedure.envelope import snapshot_step, streams_record
 from aatest.engine.run.events import RunEvents
@@ -124,7 +129,8 @@ def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: Ru
     streamed = recorder.stream_step(step)
     last: SampledLog | None = None
     try:
-        for chunk in rig.daq.stream_logging(step, chunk_s):
+        daq = cast(StreamingDaq, rig.daq)  # checked by _streamed (supports_streaming)
+        for chunk in daq.stream_logging(step, chunk_s):
             streamed.add(chunk)
             last = chunk
             events.abort.check()

@@ -20,14 +20,16 @@ from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
 
 from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.plugins.analysis._common import new_figure, options_of, scale_in_use, steps_of, to_svg
-from aatest.engine.errors import AnalysisError
 from aatest.results.noise import DriftResult, NoiseResult
 from aatest.sync.freeze_pulse import SyncedStep
 
 BAND_HZ = 400.0
 _SLOPE_TOL = 0.15
+#: points needed to read local log-log slopes off an Allan curve
+_MIN_SLOPE_POINTS = 3
 
 
 def band_rms(volts: np.ndarray, fs_hz: float, band_hz: float = BAND_HZ
@@ -44,20 +46,9 @@ def allan_terms(rate: np.ndarray, fs_hz: float) -> dict[str, Any]:
     """Overlapping Allan deviation of a rate-like signal and its noise terms."""
     import allantools
 
-    taus, adev, _, _ = allantools.oadev(np.asarray(rate, dtype=float), rate=fs_hz,
-                                        data_type="freq", taus="octave")[:4]
-    taus, adev = np.asarray(taus), np.asarray(adev)
-    slope = np.gradient(np.log(adev), np.log(taus)) if taus.size > 2 else np.zeros_like(taus)
-    white = np.abs(slope + 0.5) < _SLOPE_TOL
-    walk = np.abs(slope - 0.5) < _SLOPE_TOL
-    return {
-        "tau_s": taus.tolist(), "adev": adev.tolist(),
-        "white_noise_per_sqrt_hz": float(np.median(adev[white] * np.sqrt(taus[white])))
-        if white.any() else None,
-        "bias_instability": float(adev.min() / 0.664) if adev.size else None,
-        "random_walk": float(np.median(adev[walk] / np.sqrt(taus[walk] / 3.0)))
-        if walk.any() else None,
-    }
+    taus, adev = allantools.oadev(np.asarray(rate, dtype=float), rate=fs_hz,
+                                  data_type="freq", taus="octave")[:2]
+    return allan_terms_of(np.asarray(taus, float), np.asarray(adev, float))
 
 
 def sensor_noise(steps: list[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: float,
@@ -124,6 +115,10 @@ class NoiseAnalysis:
 _PEAK_TO_PEAK_WINDOW_S = 60.0
 #: an Allan-fit term below this share of the variance at every τ is reported as absent
 _MIN_TERM_SHARE = 1e-3
+#: a 0/1 logic channel is high above this level
+_LOGIC_HIGH = 0.5
+#: fewest averaged values a drift fit and an Allan curve are made from
+_MIN_MEANS = 4
 #: minimum clusters at the longest τ of a reported Allan deviation (oadev: τ ≤ T/2)
 _MIN_CLUSTERS = 2
 
@@ -171,22 +166,22 @@ def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | 
     """
     import allantools
 
-    per = max(1, int(round(average_s * fs_hz)))
+    per = max(1, round(average_s * fs_hz))
     tau0_s = per / fs_hz
     means_v = block_means(volts, per)
     t_h = block_means(time_s - time_s[0], per) / 3600.0
-    if means_v.size < 4:
+    if means_v.size < _MIN_MEANS:
         raise AnalysisError(f"record of {volts.size} samples is too short for a drift fit "
                             f"at {average_s} s averaging")
     (slope, intercept), cov = np.polyfit(t_h, means_v, 1, cov=True)
-    window = max(1, int(round(_PEAK_TO_PEAK_WINDOW_S / tau0_s)))
+    window = max(1, round(_PEAK_TO_PEAK_WINDOW_S / tau0_s))
     smooth = block_means(means_v, window) if means_v.size >= 2 * window else means_v
     rate = (means_v - means_v.mean()) / scale_v_per_dps2
     taus, adev = allantools.oadev(rate, rate=1.0 / tau0_s, data_type="freq", taus="octave")[:2]
     taus, adev = np.asarray(taus, float), np.asarray(adev, float)
     keep = taus * _MIN_CLUSTERS <= rate.size * tau0_s
     taus, adev = taus[keep], adev[keep]
-    per_interval = max(1, int(round(interval_s / tau0_s)))
+    per_interval = max(1, round(interval_s / tau0_s))
     starts = np.arange(0, means_v.size, per_interval)
     temps = block_means(temperature_c, per) if temperature_c is not None else None
     intervals = [{"start_h": float(t_h[i]), "bias_v": float(means_v[i:i + per_interval].mean()),
@@ -206,7 +201,8 @@ def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | 
 
 def allan_terms_of(taus: np.ndarray, adev: np.ndarray) -> dict[str, Any]:
     """:func:`allan_terms` read off an already computed Allan deviation (τ in s)."""
-    slope = np.gradient(np.log(adev), np.log(taus)) if taus.size > 2 else np.zeros_like(taus)
+    slope = (np.gradient(np.log(adev), np.log(taus)) if taus.size >= _MIN_SLOPE_POINTS
+             else np.zeros_like(taus))
     white = np.abs(slope + 0.5) < _SLOPE_TOL
     walk = np.abs(slope - 0.5) < _SLOPE_TOL
     return {
@@ -273,7 +269,7 @@ class DriftAnalysis:
                              temperature[record] if temperature is not None else None,
                              daq.sample_rate_hz, float(sensor.nominal_scale_v_per_dps2),
                              options.average_s, options.temperature_every_s)
-            per = max(1, int(round(options.average_s * daq.sample_rate_hz)))
+            per = max(1, round(options.average_s * daq.sample_rate_hz))
             t_h = block_means(daq.time_s[record] - daq.time_s[record][0], per) / 3600.0
             figures[f"drift_{sensor.channel}"] = drift_figure(
                 sensor.channel, found, t_h, block_means(volts, per))
@@ -287,5 +283,5 @@ def _after_trigger(daq: Any) -> slice:
     trigger = daq.channels.get("trigger")
     if trigger is None:
         return slice(None)
-    on = np.flatnonzero(np.asarray(trigger) > 0.5)
+    on = np.flatnonzero(np.asarray(trigger) > _LOGIC_HIGH)
     return slice(int(on[0]) if on.size else 0, None)
