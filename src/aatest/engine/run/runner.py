@@ -116,7 +116,8 @@ def execute_step(rig: Rig, step: PlannedStep) -> tuple[Any, Any]:
 def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: RunEvents,
                           chunk_s: float = STREAM_CHUNK_S) -> tuple[SampledLog, SampledLog]:
     """Record one long static step with the DAQ streaming: each chunk goes to the recording as
-    it arrives (memory: one chunk), the table logs snapshots (:func:`snapshot_step`).
+    it arrives (memory: one chunk of ``chunk_s`` lab seconds), the table logs snapshots
+    (:func:`snapshot_step`).
 
     Order: position, settle, then the DAQ streams (its trigger starts the table's snapshot
     log), then the table's log is collected and the step file written atomically. A fault or

@@ -113,6 +113,8 @@ class NoiseAnalysis:
 
 #: the bias peak-to-peak is taken over means of this length, s (white noise averaged out)
 _PEAK_TO_PEAK_WINDOW_S = 60.0
+#: first reduction stage of a long record, s (block means at 20 Hz)
+_STAGE_S = 0.05
 #: an Allan-fit term below this share of the variance at every τ is reported as absent
 _MIN_TERM_SHARE = 1e-3
 #: a 0/1 logic channel is high above this level
@@ -128,6 +130,30 @@ def block_means(values: np.ndarray, per_block: int) -> np.ndarray:
     incomplete tail is dropped. Vectorised: a reshape view, no copy of the record."""
     whole = values.size // per_block
     return np.asarray(values[: whole * per_block], dtype=float).reshape(whole, per_block).mean(1)
+
+
+def reduce_rate(values: np.ndarray, fs_hz: float, average_s: float) -> np.ndarray:
+    """The record reduced to one value per ``average_s`` s without aliasing (``fs_hz`` in Hz).
+
+    A plain 1 s mean lets a narrow band near a rig line through its sinc sidelobes (the motor's
+    35 Hz band: ≈1 % of several °/s², as large as the sensor's own white noise per second). So:
+    means over :data:`_STAGE_S` (nulls at multiples of 20 Hz, what is left folds below 10 Hz),
+    then a zero-phase FIR low-pass and decimation to ``average_s`` (scipy ``resample_poly``,
+    its Kaiser-window filter), which removes the
+    folded band and keeps the white-noise density below the new Nyquist frequency. Values in
+    the input's unit; the incomplete tail is dropped.
+    """
+    from scipy.signal import resample_poly
+
+    stage = max(1, round(min(_STAGE_S, average_s) * fs_hz))
+    coarse = block_means(values, stage)
+    factor = max(1, round(average_s * fs_hz / stage))
+    if factor == 1:
+        return coarse
+    whole = coarse.size // factor * factor
+    # the edges are padded along a fitted line, so a drifting record has no edge transient
+    reduced = resample_poly(coarse[:whole], 1, factor, padtype="line")
+    return np.asarray(reduced, dtype=float)
 
 
 def fit_allan(taus_s: np.ndarray, adev: np.ndarray) -> dict[str, float | None]:
@@ -158,9 +184,9 @@ def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | 
              interval_s: float) -> dict[str, Any]:
     """Bias drift, interval table and Allan deviation of one channel at rest.
 
-    The 2 kHz record (``volts``, V; ``time_s``, s, the logger's clock) is first reduced to
-    means over ``average_s`` s, then: least-squares line of the bias (V/h), peak-to-peak of
-    its 60 s means (V), mean bias and ``temperature_c`` (°C) per ``interval_s`` s, and the
+    The 2 kHz record (``volts``, V; ``time_s``, s, the logger's clock) is first reduced to one
+    value per ``average_s`` s (:func:`reduce_rate`), then: least-squares line of the bias
+    (V/h), peak-to-peak of its 60 s means (V), mean bias and ``temperature_c`` (°C) per ``interval_s`` s, and the
     overlapping Allan deviation (allantools, octave τ) of the means in °/s² (divided by
     ``scale_v_per_dps2``, V per °/s²) with its fitted noise terms.
     """
@@ -168,8 +194,8 @@ def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | 
 
     per = max(1, round(average_s * fs_hz))
     tau0_s = per / fs_hz
-    means_v = block_means(volts, per)
-    t_h = block_means(time_s - time_s[0], per) / 3600.0
+    means_v = reduce_rate(volts, fs_hz, average_s)
+    t_h = block_means(time_s - time_s[0], per)[: means_v.size] / 3600.0
     if means_v.size < _MIN_MEANS:
         raise AnalysisError(f"record of {volts.size} samples is too short for a drift fit "
                             f"at {average_s} s averaging")
@@ -183,7 +209,8 @@ def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | 
     taus, adev = taus[keep], adev[keep]
     per_interval = max(1, round(interval_s / tau0_s))
     starts = np.arange(0, means_v.size, per_interval)
-    temps = block_means(temperature_c, per) if temperature_c is not None else None
+    temps = (block_means(temperature_c, per)[: means_v.size] if temperature_c is not None
+             else None)
     intervals = [{"start_h": float(t_h[i]), "bias_v": float(means_v[i:i + per_interval].mean()),
                   "temperature_c": float(temps[i:i + per_interval].mean())
                   if temps is not None else None} for i in starts]
@@ -270,9 +297,10 @@ class DriftAnalysis:
                              daq.sample_rate_hz, float(sensor.nominal_scale_v_per_dps2),
                              options.average_s, options.temperature_every_s)
             per = max(1, round(options.average_s * daq.sample_rate_hz))
-            t_h = block_means(daq.time_s[record] - daq.time_s[record][0], per) / 3600.0
+            means_v = reduce_rate(volts, daq.sample_rate_hz, options.average_s)
+            t_h = block_means(daq.time_s[record] - daq.time_s[record][0], per)[: means_v.size]
             figures[f"drift_{sensor.channel}"] = drift_figure(
-                sensor.channel, found, t_h, block_means(volts, per))
+                sensor.channel, found, t_h / 3600.0, means_v)
             found.pop("_intercept_v")
             values[sensor.channel] = {**found, "record_step": longest.step.id}
         return AnalysisOutput(DriftResult.model_validate(values), figures)
