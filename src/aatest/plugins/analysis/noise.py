@@ -186,9 +186,9 @@ def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | 
 
     The 2 kHz record (``volts``, V; ``time_s``, s, the logger's clock) is first reduced to one
     value per ``average_s`` s (:func:`reduce_rate`), then: least-squares line of the bias
-    (V/h), peak-to-peak of its 60 s means (V), mean bias and ``temperature_c`` (°C) per ``interval_s`` s, and the
-    overlapping Allan deviation (allantools, octave τ) of the means in °/s² (divided by
-    ``scale_v_per_dps2``, V per °/s²) with its fitted noise terms.
+    (V/h), peak-to-peak of its 60 s means (V), mean bias and ``temperature_c`` (°C) per
+    ``interval_s`` s, and the overlapping Allan deviation (allantools, octave τ) of the means
+    in °/s² (divided by ``scale_v_per_dps2``, V per °/s²) with its fitted noise terms.
     """
     import allantools
 
