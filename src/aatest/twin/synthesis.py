@@ -153,9 +153,33 @@ def _read_only(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return channels
 
 
+#: rows of a snapshot log whose pulse edges are generated together (bounded memory)
+SNAPSHOT_ROWS_PER_WINDOW = 600
+
+
 def _table_pulse(setup: StepSetup, time_s: np.ndarray,
                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Sync pulse as registered by the table, with the latch times (table clock)."""
+    """Sync pulse as registered by the table, with the latch times (table clock).
+
+    A snapshot log (rows further apart than the pulse period, hours long) is done in windows of
+    :data:`SNAPSHOT_ROWS_PER_WINDOW` rows, each with the edges since the row before it, so the
+    200 edges per second of a long record are never all in memory at once.
+    """
+    dt_s = float(time_s[1] - time_s[0]) if time_s.size > 1 else 0.0
+    if time_s.size <= SNAPSHOT_ROWS_PER_WINDOW or dt_s * setup.clock.sync_hz <= 1.0:
+        return _pulse_rows(setup, time_s, rng)
+    levels, latches = [], []
+    for first in range(0, time_s.size, SNAPSHOT_ROWS_PER_WINDOW):
+        start = max(first - 1, 0)  # the row before: its edges register on row `first`
+        level, latch = _pulse_rows(setup, time_s[start:first + SNAPSHOT_ROWS_PER_WINDOW], rng)
+        levels.append(level[first - start:])
+        latches.append(latch[first - start:])
+    return np.concatenate(levels), np.concatenate(latches)
+
+
+def _pulse_rows(setup: StepSetup, time_s: np.ndarray,
+                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_table_pulse` of consecutive rows ``time_s`` (table clock, s)."""
     clock, trig = setup.clock, setup.trigger_time_s
     daq_span = (np.array([time_s[0] - 0.05, time_s[-1] + 0.05]) + trig - clock.t0_s) / clock.scale
     edge_daq, rising = clock.edges(float(daq_span[0]), float(daq_span[1]), rng)
