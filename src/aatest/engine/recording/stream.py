@@ -23,8 +23,8 @@ from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
-from mcap.reader import make_reader
 from mcap.records import Message
+from mcap.stream_reader import StreamReader
 
 from aatest.engine.errors import StorageFault
 from aatest.engine.logs import DAQ, SampledLog
@@ -188,7 +188,11 @@ class DaqSpool:
         """The spooled DAQ messages in order, each block now carrying the step's digest."""
         block_type = proto.block_class()
         with open(self.path, "rb") as stream:
-            for _, _, message in make_reader(stream).iter_messages(log_time_order=False):
+            # a linear pass, one chunk decompressed at a time (the indexed reader's unordered
+            # iteration queues every message of the file before yielding the first)
+            for message in StreamReader(stream, validate_crcs=True).records:
+                if not isinstance(message, Message):
+                    continue
                 block = block_type.FromString(message.data)
                 block.step_record_sha256 = digest
                 yield Message(channel_id=message.channel_id, log_time=message.log_time,
