@@ -101,7 +101,8 @@ def test_planning_problems_are_located_too() -> None:
 
 def test_every_shipped_procedure_validates() -> None:
     names = sorted(p.stem for p in SHIPPED.glob("*.yaml"))
-    assert names == ["pivoted-misalignment", "scale-factor", "static-multi-position",
+    assert names == ["long-static-drift", "pivoted-misalignment", "scale-factor",
+                     "static-multi-position",
                      "stepped-sine-frequency-response", "temperature-steps"]
     for path in SHIPPED.glob("*.yaml"):
         proc = load_procedure(path)

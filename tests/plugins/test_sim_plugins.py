@@ -87,7 +87,11 @@ def test_controller_refuses_commands_beyond_limits(axis: str, accel: float) -> N
     with pytest.raises(EnvelopeRefused, match="acceleration"):
         table.begin_motion(sine_step(1.0, accel, samples=1024, axis=axis))
     with pytest.raises(EnvelopeRefused, match="capacity"):
-        table.begin_motion(static_step(samples=300_000))
+        table.begin_motion(sine_step(1.0, 10.0, samples=300_000, axis=axis))
+    # a long static record is streamed by the DAQ; only a full-rate table log of it is refused
+    table.begin_motion(static_step(samples=300_000))
+    with pytest.raises(EnvelopeRefused, match="capacity"):
+        table.record(static_step(samples=300_000))
 
 
 def test_safe_stop_is_idempotent_and_never_raises() -> None:

@@ -14,7 +14,7 @@ is defined in :mod:`aatest.engine.datasheet` and re-exported here.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Generic, Protocol, TypeVar, runtime_checkable
@@ -66,6 +66,9 @@ class TableEnvelope(BaseModel):
     log_capacity_samples: int = 230_000
     #: usable terminal frequency with payload (docs/method.md §1.2: 10 Hz, not 11.25 Hz)
     max_frequency_hz: float = 10.0
+    #: the rig's DAQ streams long records (:class:`StreamingDaq`); set by the engine from the
+    #: DAQ plugin, not by the turntable: a static step may then exceed ``log_capacity_samples``
+    streaming_daq: bool = False
 
 
 _T = TypeVar("_T")
@@ -184,6 +187,33 @@ class Daq(Protocol):
 
     def close(self) -> None:
         """Release the logger's bus or connection; called once at the end of a run."""
+
+
+#: lab seconds of DAQ samples per chunk the runner asks a streaming DAQ for
+STREAM_CHUNK_S = 60.0
+
+
+@runtime_checkable
+class StreamingDaq(Daq, Protocol):
+    """Optional capability of a DAQ plugin: deliver a long record in chunks as it is logged.
+
+    A plugin that has ``stream_logging`` may record a static step longer than the table's log
+    capacity (hours): the runner writes each chunk to the recording as it arrives, so memory is
+    one chunk, and the table only logs periodic snapshots meanwhile. Plugins without it keep
+    the one-shot ``start_logging``/``stop_logging`` and are refused such steps at planning
+    (docs/vendor-plugins.md).
+    """
+
+    def stream_logging(self, step: PlannedStep, chunk_s: float) -> Iterator[SampledLog]:
+        """Start logging and the trigger, then yield the DAQ log in consecutive chunks of about
+        ``chunk_s`` lab seconds (each a :class:`SampledLog` of the same channels, continuing
+        the previous one) until the record ends ``stop_lag`` after the table's span; the
+        iterator ending is the logger stopping. A fault raises :class:`RigFault`."""
+
+
+def supports_streaming(daq: object) -> bool:
+    """True when a DAQ plugin offers the optional :class:`StreamingDaq` capability."""
+    return callable(getattr(daq, "stream_logging", None))
 
 
 @runtime_checkable

@@ -1,4 +1,5 @@
-"""``analysis.noise``: output noise at rest per channel (method §1.3)."""
+"""``analysis.noise``: output noise at rest per channel (method §1.3); ``analysis.drift``: bias
+drift and long-τ Allan deviation of a long static record."""
 
 from __future__ import annotations
 
@@ -40,3 +41,45 @@ class NoiseChannel(ResultModel):
 
 class NoiseResult(PerChannel[NoiseChannel]):
     """Channel → noise."""
+
+
+class AllanFit(ResultModel):
+    """Noise terms from a least-squares fit of the Allan variance of a long static record,
+    σ²(τ) = N²/τ + (0.664·B)² + K²·τ/3 + R²·τ²/2 (IEEE 952/1554-style reading, rate-like
+    output in °/s²): N white noise in (°/s²)·√s (angle-random-walk-like), B bias instability in
+    °/s², K rate random walk in (°/s²)/√s, R rate ramp (steady drift) in (°/s²)/s."""
+
+    white_noise_dps2_sqrt_s: Real | None = Field(None, description="N, (°/s²)·√s")
+    bias_instability_dps2: Real | None = Field(None, description="B, °/s²")
+    rate_random_walk_dps2_per_sqrt_s: Real | None = Field(None, description="K, (°/s²)/√s")
+    rate_ramp_dps2_per_s: Real | None = Field(None, description="R, (°/s²)/s")
+
+
+class DriftInterval(ResultModel):
+    """Mean output bias and temperature over one reporting interval of the record."""
+
+    start_h: Real = Field(description="interval start after the record's first sample, h")
+    bias_v: Real = Field(description="mean output at rest, V")
+    temperature_c: Real | None = Field(None, description="mean logged temperature, °C")
+
+
+class DriftChannel(ResultModel):
+    """Bias drift and long-τ Allan deviation of one channel over the longest static record."""
+
+    record_step: str
+    duration_s: Real = Field(description="record length, s")
+    average_s: Real = Field(description="averaging interval the record was reduced to, s")
+    bias_v: Real = Field(description="mean output at rest over the record, V")
+    drift_v_per_h: Real = Field(description="slope of the least-squares line of the bias, V/h")
+    drift_sigma_v_per_h: Real = Field(description="standard error of that slope, V/h")
+    drift_dps2_per_h: Real = Field(description="the slope in input units, (°/s²)/h")
+    peak_to_peak_v: Real = Field(description="peak-to-peak of the 60 s means of the bias, V")
+    scale_v_per_dps2_used: Real = Field(description="datasheet scale factor, V/(°/s²)")
+    allan_dps2: AllanTerms
+    allan_fit: AllanFit
+    max_tau_s: Real = Field(description="longest averaging time of the Allan deviation, s")
+    intervals: list[DriftInterval]
+
+
+class DriftResult(PerChannel[DriftChannel]):
+    """Channel → bias drift and Allan deviation of a long static record."""

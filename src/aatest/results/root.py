@@ -17,7 +17,7 @@ from aatest.results.base import Overall, ResultModel, Verdict
 from aatest.results.bias import BiasResult
 from aatest.results.frf import FrfResult
 from aatest.results.misalignment import MisalignmentResult
-from aatest.results.noise import NoiseResult
+from aatest.results.noise import DriftResult, NoiseResult
 from aatest.results.reference import ReferenceResult
 from aatest.results.scale_factor import ScaleFactorResult
 from aatest.results.sync import SyncResult
@@ -54,6 +54,7 @@ class AnalysisBlock(ResultModel):
     temperature: TemperatureResult | None = None
     misalignment: MisalignmentResult | None = None
     noise: NoiseResult | None = None
+    drift: DriftResult | None = None
     extra: dict[str, Any] = Field(default_factory=dict,
                                   description="key → result of a third-party analysis")
 

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 
 from aatest.engine.datasheet import SensorAxis, SensorDatasheet
 from aatest.twin.model import (
+    BiasDrift,
     BiasTemperature,
     ClockDrift,
     CrossAxis,
@@ -46,6 +47,10 @@ REALISTIC_RIPPLE = (
     RateRipple(cycles_per_deg=2.0, amplitude_deg=1.0 / 3600, phase_rad=1.0,
                rejection_bandwidth_hz=40.0))
 
+#: bias wander at rest (long static record): ≈ 0.1 mV/h warm-up slope, 1e-5 V bias instability
+#: (300 s correlation), 5e-7 V/√s random walk — a few µV over one 67 s position record
+REALISTIC_DRIFT = BiasDrift(rate_v_per_h=1e-4, random_walk_v_per_sqrt_s=5e-7, instability_v=1e-5,
+                            correlation_s=300.0)
 #: measured noise the slip ring adds, V RMS (docs/method.md §1.3: ≥ 11 mV)
 SLIP_RING_RMS_V = 0.011
 #: individual terms of the simulated units per seat axis: (bias − nominal in V, azimuth of the
@@ -82,6 +87,7 @@ def realistic_sensor_model(sheet: SensorDatasheet, channel: str, axis: SensorAxi
         g_sensitivity=GSensitivity(coefficient_dps2_per_g=0.573),  # 0.01 rad/s²/g
         cross_axis=CrossAxis(ratio_x=0.003, ratio_y=-0.002),
         misalignment=Misalignment(angle_deg=0.2, azimuth_deg=azimuth_deg),
+        bias_drift=REALISTIC_DRIFT,
     )
 
 

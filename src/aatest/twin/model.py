@@ -124,6 +124,20 @@ class MotorVibration(_Model):
     bandwidth_hz: float = Field(0.0, ge=0, description="0: a pure tone; >0: a narrow band")
 
 
+class BiasDrift(_Model):
+    """Slow bias wander of a sensor at rest (docs/method.md §1.3, long static test), in volts.
+
+    bias(t) += rate·t + random walk (increments N(0, K²·dt): rate random walk in the Allan
+    reading, slope +½) + a first-order Gauss–Markov process of RMS ``instability_v`` and
+    correlation time ``correlation_s`` (the flat bias-instability region). Not a diagnose effect.
+    """
+
+    rate_v_per_h: float = 0.0
+    random_walk_v_per_sqrt_s: float = Field(0.0, ge=0)
+    instability_v: float = Field(0.0, ge=0)
+    correlation_s: float = Field(100.0, gt=0)
+
+
 class ExcessNoise(_Model):
     """Extra white output noise (e.g. through a slip ring)."""
 
@@ -215,6 +229,7 @@ class SensorModel(_Model):
     plugin_effects: list[PluginEffect] | None = Field(
         None, description="effects from installed plugins (aatest.effects), applied after the "
         "built-in chain: in °/s² before the scale factor or in volts, as each plugin declares")
+    bias_drift: BiasDrift | None = None
 
 
 class AxisModel(_Model):

@@ -14,14 +14,15 @@ no fractional-delay filter); white noise is added by the DAQ chain (see :mod:`da
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 from scipy import signal
 
 from aatest.effects import EffectInputs, forward, load_effect
-from aatest.twin.model import SensorModel
+from aatest.twin.fastmath import standard_normal
+from aatest.twin.model import BiasDrift, SensorModel
 
 
 def play_operator(x: np.ndarray, half_width: float, y0: float | None = None) -> np.ndarray:
@@ -76,6 +77,64 @@ def lowpass(x: np.ndarray, b: np.ndarray, a: np.ndarray) -> np.ndarray:
     return signal.lfilter(b, a, x, zi=zi)[0]
 
 
+def lowpass_carry(x: np.ndarray, b: np.ndarray, a: np.ndarray, key: str,
+                  state: ChannelState | None) -> np.ndarray:
+    """:func:`lowpass` of one block of a longer record, continuing the filter state of the
+    previous block (kept in ``state`` under ``key``); the first block starts in steady state,
+    so a record filtered block by block is the record filtered at once."""
+    if state is None:
+        return lowpass(x, b, a)
+    zi = state.filters.get(key)
+    if zi is None:
+        zi = signal.lfilter_zi(b, a) * x[0]
+    y, state.filters[key] = signal.lfilter(b, a, x, zi=zi)
+    return np.asarray(y)
+
+
+@dataclass
+class ChannelState:
+    """What one sensor channel carries from one generation block of a record to the next.
+
+    ``filters`` holds lfilter states by stage; ``play_v`` the hysteresis output; the drift
+    terms their last values (V); ``drift_rng`` draws the drift increments, a stream of its own
+    so switching the drift on leaves every other noise realisation unchanged; ``elapsed_s``
+    is the time since the record's first sample.
+    """
+
+    filters: dict[str, np.ndarray] = field(default_factory=dict)
+    play_dps2: float | None = None
+    walk_v: float = 0.0
+    markov_v: float = 0.0
+    elapsed_s: float = 0.0
+    drift_rng: np.random.Generator | None = None
+
+
+def bias_drift_v(drift: BiasDrift, n: int, dt_s: float, state: ChannelState) -> np.ndarray:
+    """Bias wander (V) over the next ``n`` samples: linear rate + random walk + Gauss–Markov.
+
+    Vectorised: the walk is a cumulative sum, the first-order Gauss–Markov process an lfilter
+    (x_k = φ·x_{k−1} + √(1−φ²)·σ·w_k), both continued from ``state``. All three start at 0 at
+    the record's first sample: ``bias_v`` is the bias then, the drift what follows.
+    """
+    rng = state.drift_rng if state.drift_rng is not None else np.random.default_rng(0)
+    state.drift_rng = rng
+    t_s = state.elapsed_s + dt_s * np.arange(n)
+    out = drift.rate_v_per_h * t_s / 3600.0
+    if drift.random_walk_v_per_sqrt_s > 0.0:
+        steps = drift.random_walk_v_per_sqrt_s * np.sqrt(dt_s) * standard_normal(rng, n)
+        walk = state.walk_v + np.cumsum(steps)
+        state.walk_v = float(walk[-1])
+        out = out + walk
+    if drift.instability_v > 0.0:
+        phi = float(np.exp(-dt_s / drift.correlation_s))
+        w = np.sqrt(1.0 - phi * phi) * drift.instability_v * standard_normal(rng, n)
+        markov, _ = signal.lfilter([1.0], [1.0, -phi], w, zi=[phi * state.markov_v])
+        state.markov_v = float(markov[-1])
+        out = out + markov
+    state.elapsed_s += dt_s * n
+    return np.asarray(out, dtype=float)
+
+
 @dataclass(frozen=True)
 class SensorInputs:
     """What one sensor experiences over a record, on the DAQ sample grid.
@@ -97,8 +156,12 @@ class SensorInputs:
     time_s: np.ndarray | None = None
 
 
-def sensed_acceleration(model: SensorModel, inp: SensorInputs) -> np.ndarray:
-    """Acceleration the sensing element responds to, before dynamics (°/s²)."""
+def sensed_acceleration(model: SensorModel, inp: SensorInputs,
+                        state: ChannelState | None = None) -> np.ndarray:
+    """Acceleration the sensing element responds to, before dynamics (°/s²).
+
+    ``state`` continues the hysteresis of the previous block of a record generated in blocks.
+    """
     if model.cross_axis is not None:  # one projection on a blended axis: z + r_x·x + r_y·y
         cx, cy = model.cross_axis.ratio_x, model.cross_axis.ratio_y
         axis = inp.axes[:, 2] + cx * inp.axes[:, 0] + cy * inp.axes[:, 1]
@@ -108,18 +171,27 @@ def sensed_acceleration(model: SensorModel, inp: SensorInputs) -> np.ndarray:
     if model.g_sensitivity is not None:
         alpha += model.g_sensitivity.coefficient_dps2_per_g * (inp.axes[:, 2] @ inp.up_g)
     if model.hysteresis is not None:
-        alpha = play_operator(alpha, model.hysteresis.half_width_dps2)
+        start = state.play_dps2 if state is not None else None
+        alpha = play_operator(alpha, model.hysteresis.half_width_dps2, start)
+        if state is not None and alpha.size:
+            state.play_dps2 = float(alpha[-1])
     return alpha
 
 
-def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.ndarray:
-    """Noise-free sensor output voltage (before the DAQ's filter, noise and ADC)."""
-    sensed = sensed_acceleration(model, inp)
+def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
+                 state: ChannelState | None = None) -> np.ndarray:
+    """Sensor output voltage before the DAQ's filter, white noise and ADC (V).
+
+    ``state`` carries the filter, hysteresis and bias-drift states from the previous block when
+    a long record is generated block by block (:mod:`aatest.twin.synthesis`); the bias drift
+    (``bias_drift``, a random process of its own stream) is only generated with a state.
+    """
+    sensed = sensed_acceleration(model, inp, state)
     alpha = sensed
     if model.sensor_dynamics is not None:
         b, a = dynamics_filter(model.sensor_dynamics.natural_frequency_hz,
                                model.sensor_dynamics.damping, round(inp.dt_s, 15))
-        alpha = lowpass(alpha, b, a)
+        alpha = lowpass_carry(alpha, b, a, "dynamics", state)
     if model.saturation is not None:
         lim = model.saturation.limit_dps2
         alpha = np.clip(alpha, -lim, lim)
@@ -144,6 +216,8 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float) -> np.nd
     volts = model.bias_v + scale * alpha
     if model.bias_temperature is not None:
         volts = volts + model.bias_temperature.coefficient_v_per_c * d_temp
+    if model.bias_drift is not None and state is not None:
+        volts = volts + bias_drift_v(model.bias_drift, volts.size, inp.dt_s, state)
     if model.jerk_sensitivity is not None:
         jerk = np.gradient(sensed, inp.dt_s)
         volts = volts + model.jerk_sensitivity.coefficient_v_per_dps3 * jerk

@@ -9,21 +9,32 @@ sampled on the table clock from the trigger on; the DAQ log on its own crystal c
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
+from scipy import signal
 
 from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.twin import kinematics as kin
 from aatest.twin.chamber import ThermalState
 from aatest.twin.clocks import TIMESTAMP_TICK_S, DaqClock, table_sync
-from aatest.twin.daq import noiseless, record_channel
+from aatest.twin.daq import antialias_filter, noiseless, quantise_adc
+from aatest.twin.fastmath import standard_normal
 from aatest.twin.grid import Grid, sincos_deg
-from aatest.twin.model import RigModel
-from aatest.twin.sensor import SensorInputs, dynamics_filter, lowpass, output_volts
-from aatest.twin.table import STENCIL_PAD, AxisTruth, estimate_quanta, estimates, floor_rocking
+from aatest.twin.model import DaqModel, RigModel, SensorModel, TableModel
+from aatest.twin.sensor import (
+    ChannelState,
+    SensorInputs,
+    dynamics_filter,
+    lowpass,
+    lowpass_carry,
+    output_volts,
+)
+from aatest.twin.table import STENCIL_PAD, AxisTruth, estimate_quanta, estimates
+from aatest.twin.table import _band_filter as band_filter
 
 
 @dataclass(frozen=True)
@@ -141,6 +152,11 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
     return log, truth
 
 
+def table_log(setup: StepSetup, rng: np.random.Generator) -> SampledLog:
+    """The table controller's log of a step alone (e.g. its snapshots during a long record)."""
+    return _table_log(setup, rng)[0]
+
+
 def _read_only(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Hand fresh arrays to the (immutable) log without the defensive copy it makes of
     writeable ones; nothing else holds them for writing."""
@@ -149,9 +165,33 @@ def _read_only(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return channels
 
 
+#: rows of a snapshot log whose pulse edges are generated together (bounded memory)
+SNAPSHOT_ROWS_PER_WINDOW = 600
+
+
 def _table_pulse(setup: StepSetup, time_s: np.ndarray,
                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Sync pulse as registered by the table, with the latch times (table clock)."""
+    """Sync pulse as registered by the table, with the latch times (table clock).
+
+    A snapshot log (rows further apart than the pulse period, hours long) is done in windows of
+    :data:`SNAPSHOT_ROWS_PER_WINDOW` rows, each with the edges since the row before it, so the
+    200 edges per second of a long record are never all in memory at once.
+    """
+    dt_s = float(time_s[1] - time_s[0]) if time_s.size > 1 else 0.0
+    if time_s.size <= SNAPSHOT_ROWS_PER_WINDOW or dt_s * setup.clock.sync_hz <= 1.0:
+        return _pulse_rows(setup, time_s, rng)
+    levels, latches = [], []
+    for first in range(0, time_s.size, SNAPSHOT_ROWS_PER_WINDOW):
+        start = max(first - 1, 0)  # the row before: its edges register on row `first`
+        level, latch = _pulse_rows(setup, time_s[start:first + SNAPSHOT_ROWS_PER_WINDOW], rng)
+        levels.append(level[first - start:])
+        latches.append(latch[first - start:])
+    return np.concatenate(levels), np.concatenate(latches)
+
+
+def _pulse_rows(setup: StepSetup, time_s: np.ndarray,
+                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_table_pulse` of consecutive rows ``time_s`` (table clock, s)."""
     clock, trig = setup.clock, setup.trigger_time_s
     daq_span = (np.array([time_s[0] - 0.05, time_s[-1] + 0.05]) + trig - clock.t0_s) / clock.scale
     edge_daq, rising = clock.edges(float(daq_span[0]), float(daq_span[1]), rng)
@@ -192,15 +232,80 @@ def _top_motion(setup: StepSetup, grid: Grid,
     return alpha, kin.gravity_top(sc_i, sc_o, setup.gimbal)
 
 
-def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, LazyTruth]:
-    model, clock = setup.model, setup.clock
+#: records longer than this are generated in blocks of :data:`GENERATION_BLOCK` samples
+SINGLE_BLOCK_MAX = 2**18
+#: generation block of a long record (≈ 65.5 s at 2 kHz); the state of every filter, noise
+#: process and random stream carries over from one block to the next
+GENERATION_BLOCK = 2**17
+
+
+def generation_block(n: int) -> int:
+    """Samples per generation block of an ``n``-sample DAQ record (the whole of a short one).
+
+    Why blocks: memory of a long record is bounded by one block; why a fixed block: a record
+    generated block by block is the same whether it is delivered at once or streamed in chunks
+    of whole blocks (:func:`daq_blocks`).
+    """
+    return n if n <= SINGLE_BLOCK_MAX else GENERATION_BLOCK
+
+
+@dataclass
+class _DaqState:
+    """What one DAQ record carries from block to block: filter states and drift states."""
+
+    floor_zi: np.ndarray | None = None
+    sensors: dict[str, ChannelState] = field(default_factory=dict)
+
+
+def daq_record_samples(setup: StepSetup) -> int:
+    """Number of samples of the step's DAQ record (lead + table span + stop lag)."""
+    return _daq_samples(setup)
+
+
+def daq_units(setup: StepSetup) -> tuple[dict[str, str], dict[str, tuple[float, float]]]:
+    """(units, quantisation) of the step's DAQ log: volts of every sensor and the ADC codes."""
+    model = setup.model
+    volts = [s.channel for s in model.sensors if s.channel.startswith("v_")]
+    units = dict.fromkeys(volts, "V") | dict(DAQ_AUX_CHANNELS)
+    lo_v, hi_v = model.daq.adc_range_v  # ADC codes: volts = code·LSB + low end (daq.quantise_adc)
+    adc = dict.fromkeys(volts, ((hi_v - lo_v) / 2**model.daq.adc_bits, lo_v))
+    return units, {"time_s": (TIMESTAMP_TICK_S, 0.0), **adc}
+
+
+def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | None = None,
+               drift_rng: np.random.Generator | None = None) -> Iterator[SampledLog]:
+    """The step's DAQ log, generated block by block (:func:`generation_block`).
+
+    Every random draw comes from ``rng`` in block order and every stateful stage (the floor's
+    band-pass, the sensor dynamics, the anti-alias filter, the bias drift) continues across
+    blocks, so the concatenated blocks do not depend on how a consumer groups them. ``truth``
+    (one-shot synthesis of a short record) receives the deferred noise-free entries;
+    ``drift_rng`` draws the sensors' bias drift (``SensorModel.bias_drift``).
+    """
+    clock = setup.clock
     n = _daq_samples(setup)
-    grid = Grid(clock.t0_s, clock.lab_dt_s, n)
+    block = generation_block(n)
+    units, quanta = daq_units(setup)
+    drift = drift_rng if drift_rng is not None else np.random.default_rng(0)
+    state = _DaqState(sensors={s.channel: ChannelState(drift_rng=drift)
+                               for s in setup.model.sensors})
+    for first in range(0, max(n, 1), block):
+        m = min(block, n - first)
+        grid = Grid(clock.t0_s + first * clock.lab_dt_s, clock.lab_dt_s, m)
+        channels = _daq_block(setup, grid, first, rng, state, truth if block == n else None)
+        yield SampledLog(DAQ, clock.sample_rate_hz, _stamped(clock, first, m, rng),
+                         _read_only(channels), units, quanta)
+
+
+def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generator,
+               state: _DaqState, truth: LazyTruth | None) -> dict[str, np.ndarray]:
+    """Channels of one generation block starting at DAQ sample ``first``."""
+    model, clock = setup.model, setup.clock
     temperature = setup.thermal.temperature_at(grid.times)
     channels: dict[str, np.ndarray] = {}
-    truth = LazyTruth(daq_time_s=grid.times - setup.trigger_time_s)
     motion: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-    floor = floor_rocking(model.table, n, clock.lab_dt_s, rng)
+    floor, state.floor_zi = floor_rocking_block(model.table, grid.n, clock.lab_dt_s, rng,
+                                                state.floor_zi)
     for sensor in model.sensors:
         delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
         if delay not in motion:  # (the floor noise is not re-timed by the tiny delays)
@@ -208,24 +313,109 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
         alpha, up = motion[delay]
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s,
                            grid.times - setup.trigger_time_s)
-        clean = output_volts(sensor, inp, model.t_ref_c)
-        channels[sensor.channel] = record_channel(clean, sensor, model.daq, clock.lab_dt_s, rng)
-        truth.defer(f"volts_{sensor.channel}", _noiseless_truth(clean, model, clock.lab_dt_s))
-    for sensor in model.sensors:  # true acceleration along each sensitive axis, undelayed
-        axis_z = setup.axes[sensor.channel][:, 2]
-        truth.defer(f"alpha_{sensor.channel}",
-                    _axis_truth(axis_z, lambda: _undelayed(setup, grid, motion, floor)))
-    channels_of = [s.channel for s in model.sensors]
-    truth.defer("sensor_accel_dps2", lambda t: {ch: t[f"alpha_{ch}"] for ch in channels_of})
-    channels["sync_pulse"] = clock.sync_level(clock.daq_times(n))
-    channels["trigger"] = (np.arange(n) >= setup.trigger_index).astype(np.float64)
+        carried = state.sensors.setdefault(sensor.channel, ChannelState())
+        clean = output_volts(sensor, inp, model.t_ref_c, carried)
+        channels[sensor.channel] = _record_block(clean, sensor, model.daq, clock.lab_dt_s, rng,
+                                                 carried)
+        if truth is not None:
+            truth.defer(f"volts_{sensor.channel}",
+                        partial(_noiseless_truth, clean_v=clean, daq=model.daq,
+                                dt_s=clock.lab_dt_s))
+    if truth is not None:
+        for sensor in model.sensors:  # true acceleration along each sensitive axis, undelayed
+            truth.defer(f"alpha_{sensor.channel}",
+                        partial(_alpha_truth, axis_z=setup.axes[sensor.channel][:, 2],
+                                setup=setup, grid=grid, motion=motion, floor=floor))
+        truth.defer("sensor_accel_dps2", partial(
+            _accel_truth, channels=[s.channel for s in model.sensors]))
+    index = np.arange(first, first + grid.n)
+    channels["sync_pulse"] = clock.sync_level(index / clock.sample_rate_hz)
+    channels["trigger"] = (index >= setup.trigger_index).astype(np.float64)
     channels["temperature_c"] = np.round(temperature, 2)
-    units = {c: "V" for c in channels if c.startswith("v_")} | dict(DAQ_AUX_CHANNELS)
-    lo_v, hi_v = model.daq.adc_range_v  # ADC codes: volts = code·LSB + low end (daq.quantise_adc)
-    adc = {c: ((hi_v - lo_v) / 2**model.daq.adc_bits, lo_v) for c in channels if c.startswith("v_")}
-    log = SampledLog(DAQ, clock.sample_rate_hz, clock.stamped(n, rng), _read_only(channels), units,
-                     {"time_s": (TIMESTAMP_TICK_S, 0.0), **adc})
-    return log, truth
+    return channels
+
+
+def _stamped(clock: DaqClock, first: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Logged time stamps of DAQ samples ``first``…``first + n − 1`` (s, DAQ clock): the
+    nominal times plus white jitter on the time-stamp counter's ticks, as
+    :meth:`DaqClock.stamped` for the whole record."""
+    t = np.arange(first, first + n) / clock.sample_rate_hz
+    if not clock.jitter_s:
+        return t
+    return np.round((t + clock.jitter_s * standard_normal(rng, n)) / TIMESTAMP_TICK_S) \
+        * TIMESTAMP_TICK_S
+
+
+def floor_rocking_block(table: TableModel, n: int, dt_s: float, rng: np.random.Generator,
+                        zi: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Building vibration (2, n) °/s² of the next block, continuing the band-pass state ``zi``
+    (:func:`aatest.twin.table.floor_rocking` block by block); None when switched off."""
+    if table.floor_vibration_rms_dps2 <= 0.0:
+        return None, None
+    b, a, gain = band_filter(*table.floor_vibration_band_hz, round(dt_s, 15))
+    white = standard_normal(rng, 2 * n).reshape(2, n)
+    start = zi if zi is not None else np.zeros((2, max(len(a), len(b)) - 1))
+    rocking, state = signal.lfilter(b, a, white, axis=1, zi=start)
+    return rocking * (table.floor_vibration_rms_dps2 / gain), state
+
+
+def _record_block(clean_v: np.ndarray, sensor: SensorModel, daq: DaqModel, dt_s: float,
+                  rng: np.random.Generator, state: ChannelState) -> np.ndarray:
+    """Logged volts of one block of a channel, as :func:`aatest.twin.daq.record_channel`
+    with the pre-sample filter continued from the previous block."""
+    signal_v = clean_v
+    gain = 1.0
+    if daq.antialias_hz is not None:
+        b, a, gain = antialias_filter(float(daq.antialias_hz), round(dt_s, 15))
+    if sensor.noise_rms_v:
+        signal_v = clean_v + (sensor.noise_rms_v / gain) * standard_normal(rng, clean_v.size)
+    filtered = signal_v
+    if daq.antialias_hz is not None:
+        filtered = lowpass_carry(signal_v, b, a, "antialias", state)
+    extra = [n.rms_v for n in (sensor.excess_noise, daq.slip_ring) if n is not None and n.rms_v]
+    if extra:
+        filtered = filtered + float(np.hypot.reduce(extra)) * standard_normal(rng, clean_v.size)
+    return quantise_adc(filtered, daq)
+
+
+def _noiseless_truth(_: LazyTruth, clean_v: np.ndarray, daq: DaqModel,
+                     dt_s: float) -> np.ndarray:
+    """Truth entry: the clean output (V) after the pre-sample filter (sample spacing s)."""
+    return noiseless(clean_v, daq, dt_s)
+
+
+def _alpha_truth(_: LazyTruth, axis_z: np.ndarray, setup: StepSetup, grid: Grid,
+                 motion: dict[float, tuple[np.ndarray, np.ndarray]],
+                 floor: np.ndarray | None) -> np.ndarray:
+    """Truth entry: acceleration along a sensitive axis, undelayed (°/s²)."""
+    return np.asarray(axis_z @ _undelayed(setup, grid, motion, floor))
+
+
+def _accel_truth(truth: LazyTruth, channels: list[str]) -> dict[str, np.ndarray]:
+    """Truth entry: channel → acceleration along its sensitive axis (°/s²)."""
+    return {ch: truth[f"alpha_{ch}"] for ch in channels}
+
+
+def _daq_log(setup: StepSetup, rng: np.random.Generator,
+             drift_rng: np.random.Generator | None = None) -> tuple[SampledLog, LazyTruth]:
+    """The whole DAQ log at once: the concatenation of :func:`daq_blocks`."""
+    clock = setup.clock
+    n = _daq_samples(setup)
+    truth = LazyTruth(daq_time_s=Grid(clock.t0_s, clock.lab_dt_s, n).times - setup.trigger_time_s)
+    blocks = list(daq_blocks(setup, rng, truth, drift_rng))
+    return concatenate_logs(blocks), truth
+
+
+def concatenate_logs(blocks: list[SampledLog]) -> SampledLog:
+    """One log of consecutive blocks of the same logger (same channels, units, quantisation)."""
+    if len(blocks) == 1:
+        return blocks[0]
+    first = blocks[0]
+    channels = {name: np.concatenate([b.channels[name] for b in blocks])
+                for name in first.channels}
+    return SampledLog(first.source, first.sample_rate_hz,
+                      np.concatenate([b.time_s for b in blocks]), _read_only(channels),
+                      dict(first.units), dict(first.quantisation))
 
 
 def _undelayed(setup: StepSetup, grid: Grid, motion: dict[float, tuple[np.ndarray, np.ndarray]],
@@ -235,10 +425,16 @@ def _undelayed(setup: StepSetup, grid: Grid, motion: dict[float, tuple[np.ndarra
     return motion[0.0][0]
 
 
-def synthesise(setup: StepSetup, rng: np.random.Generator) -> SimulatedStep:
-    """Table log, DAQ log and truth of one step (all vectorised)."""
+def synthesise(setup: StepSetup, rng: np.random.Generator,
+               daq_rng: np.random.Generator | None = None,
+               drift_rng: np.random.Generator | None = None) -> SimulatedStep:
+    """Table log, DAQ log and truth of one step (all vectorised).
+
+    ``daq_rng`` (default: ``rng`` after the table log) draws the DAQ log, ``drift_rng`` the
+    sensors' bias drift; a streamed record uses the same two streams (:func:`daq_blocks`).
+    """
     table, table_truth = _table_log(setup, rng)
-    daq, truth = _daq_log(setup, rng)
+    daq, truth = _daq_log(setup, daq_rng if daq_rng is not None else rng, drift_rng)
     truth.update(table_truth)
     truth["drift_ppm"] = setup.clock.drift_ppm
     # t_table_log = offset + t_daq·(1 + drift): the DAQ's sample 0 precedes the trigger

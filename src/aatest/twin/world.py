@@ -11,17 +11,28 @@ sleeps.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Iterator
 
 import numpy as np
 
 from aatest.engine.errors import EnvelopeRefused, RigFault
+from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.twin import kinematics as kin
 from aatest.twin.chamber import ThermalState
 from aatest.twin.clocks import DaqClock
 from aatest.twin.model import RigModel
 from aatest.twin.profiles import AxisProfile, step_profiles
-from aatest.twin.synthesis import SimulatedStep, StepSetup, synthesise
+from aatest.twin.synthesis import (
+    SINGLE_BLOCK_MAX,
+    SimulatedStep,
+    StepSetup,
+    concatenate_logs,
+    daq_blocks,
+    daq_record_samples,
+    synthesise,
+    table_log,
+)
 from aatest.twin.table import AxisTruth, Tones, make_vibration, tracked
 
 
@@ -155,25 +166,79 @@ class World:
                         daq.sync_pulse_hz, self.sync_phase, daq.sync_edge_jitter_s)
 
     def start_daq(self) -> None:
+        """Start the DAQ (and its trigger) at the current lab time."""
         self._daq_start_s = self.lab_time_s
         self._result = None
 
-    def result(self) -> SimulatedStep:
-        """Synthesise (once) the logs of the current step."""
-        if self._result is not None:
-            return self._result
+    def _setup(self) -> StepSetup:
+        """The current step's setup (the motion and the DAQ start are known)."""
         if self._motion is None or self._daq_start_s is None:
             raise RigFault("simulated rig: record requested without begin_motion and "
                            "start_logging")
         step, inner, outer = self._motion
-        self._counter += 1
         clock = self.daq_clock(self._daq_start_s, step.sample_rate_hz)
-        setup = StepSetup(self.model, step, inner, outer, clock, self.thermal,
-                          self.sensor_axes(), self.model.daq.stop_lag_s)
-        self._result = synthesise(setup, self._rng(f"step:{step.id}"))
-        self.lab_time_s = float(self._daq_start_s + self._result.daq.time_s.size
+        return StepSetup(self.model, step, inner, outer, clock, self.thermal,
+                         self.sensor_axes(), self.model.daq.stop_lag_s)
+
+    def result(self) -> SimulatedStep:
+        """Synthesise (once) the logs of the current step.
+
+        A long record (more than :data:`SINGLE_BLOCK_MAX` DAQ samples) draws its DAQ log from
+        a stream of its own, the one :meth:`stream_daq` uses, so both give the same log.
+        """
+        if self._result is not None:
+            return self._result
+        setup = self._setup()
+        step = setup.step
+        self._counter += 1
+        long = daq_record_samples(setup) > SINGLE_BLOCK_MAX
+        self._result = synthesise(setup, self._rng(f"step:{step.id}"),
+                                  self._rng(f"daq:{step.id}") if long else None,
+                                  self._rng(f"drift:{step.id}"))
+        self.lab_time_s = float(setup.clock.t0_s + self._result.daq.time_s.size
                                 * setup.clock.lab_dt_s)
         return self._result
+
+    def stream_daq(self, blocks_per_chunk: int = 1) -> Iterator[SampledLog]:
+        """The current step's DAQ log in chunks of ``blocks_per_chunk`` generation blocks.
+
+        Generated lazily, one chunk in memory at a time, with the random streams and filter
+        states a one-shot :meth:`result` of the same long record uses (same samples). Lab time
+        advances as the chunks are taken.
+        """
+        setup = self._setup()
+        step = setup.step
+        self._counter += 1
+        daq_rng, drift_rng = self._rng(f"daq:{step.id}"), self._rng(f"drift:{step.id}")
+        start_s = float(setup.clock.t0_s)
+        pending: list[SampledLog] = []
+        for block in daq_blocks(setup, daq_rng, drift_rng=drift_rng):
+            pending.append(block)
+            if len(pending) >= blocks_per_chunk:
+                yield concatenate_logs(pending)
+                pending = []
+            self.lab_time_s = max(self.lab_time_s, start_s + float(block.time_s[-1]))
+        if pending:
+            yield concatenate_logs(pending)
+        self.lab_time_s = start_s + daq_record_samples(setup) * setup.clock.lab_dt_s
+
+    def table_record(self, step: PlannedStep) -> SampledLog:
+        """The table log the controller returns for ``step``: the step's own log, or, when
+        the runner asks for a different length or rate (periodic snapshots while the DAQ
+        streams a long record), the log at that rate."""
+        motion = self._motion[0] if self._motion is not None else None
+        if motion is not None and (step.samples, step.sample_rate_hz) != (
+                motion.samples, motion.sample_rate_hz):
+            return self.snapshot_log(step)
+        return self.result().table
+
+    def snapshot_log(self, table_step: PlannedStep) -> SampledLog:
+        """The table log of the current step as ``table_step`` asks for it (the controller's
+        periodic snapshots of a long record: its own rate and sample count)."""
+        setup = self._setup()
+        snapshot = StepSetup(self.model, table_step, setup.inner, setup.outer, setup.clock,
+                             setup.thermal, setup.axes, setup.stop_lag_s)
+        return table_log(snapshot, self._rng(f"table:{table_step.id}"))
 
     # --- chamber ---------------------------------------------------------------------------
     def set_temperature(self, setpoint_c: float) -> None:

@@ -15,6 +15,7 @@ decode a recording without aatest. Modules, in the order data flows through them
 - ``proto``     the ``SampleBlock`` message and its descriptor set (the MCAP schema data);
 - ``format``    format constants, topics, run time line, metadata record helpers;
 - ``mcap_io``   the MCAP writer with caller-chosen ids and verbatim chunk copying;
+- ``stream``    a long record's DAQ chunks spooled as they arrive, then written as its step file;
 - ``writer``    RunRecorder: atomic step files, the merge, storage faults, corrupt-file checks;
 - ``reader``    read_dataset: dispatches each topic on its schema encoding (v2, or v1 through
   ``legacy_v1``).

@@ -31,6 +31,7 @@ from aatest.engine.logs import SampledLog
 from aatest.engine.recording import codec, proto
 from aatest.engine.recording import format as fmt
 from aatest.engine.recording.mcap_io import ChunkedWriter
+from aatest.engine.recording.stream import DaqSpool, spool_path
 from aatest.engine.steps import PlannedStep
 
 RECORDING_NAME = "recording.mcap"
@@ -99,7 +100,7 @@ def _check_index(index: int) -> None:
         raise ValueError(f"step index {index} outside 1..{MAX_STEP_INDEX}")
 
 
-def _register(writer: ChunkedWriter) -> None:
+def register_channels(writer: ChunkedWriter) -> None:
     """The one protobuf schema and the two stable channels (identical in every file)."""
     writer.add_schema(Schema(id=fmt.SCHEMA_ID, name=proto.BLOCK_MESSAGE, encoding=fmt.ENCODING,
                              data=proto.schema_data()))
@@ -170,12 +171,88 @@ def write_step_file(
     writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
     record = fmt.json_values(step_record(step, index, timed, extra))
     writer.add_metadata(fmt.STEP_RECORD, record)
-    _register(writer)
+    register_channels(writer)
     header = {"step_id": step.id, "step_index": index,
               "step_record_sha256": fmt.record_digest(record)}
     for log, times_ns in timed.values():
         _write_log(writer, header, log, times_ns)
     writer.finish()
+
+
+def write_streamed_step(
+    stream: IO[bytes],
+    run_meta: dict[str, Any],
+    step: PlannedStep,
+    index: int,
+    table: SampledLog,
+    spool: DaqSpool,
+    extra: dict[str, Any] | None = None,
+) -> None:
+    """Write one step file from its table log and the closed spool of its streamed DAQ log.
+
+    The result is the file :func:`write_step_file` writes for the same logs (same records,
+    blocks and chunks), built one block at a time: memory is one chunk, not the record.
+    """
+    _check_index(index)
+    if table.source != "table":
+        raise ValueError(f"step {step.id!r}: expected a table log, got {table.source!r}")
+    codec.check_dtypes(table)
+    origin_ns = fmt.step_origin_ns(run_meta.get("plan"), index)
+    table_times = fmt.block_log_times_ns(table.time_s, origin_ns, fmt.BLOCK_SAMPLES)
+    record = step_record(step, index, {"table": (table, table_times)}, extra) | spool.daq_record()
+    values = fmt.json_values(record)
+    digest = fmt.record_digest(values)
+    writer = new_writer(stream)
+    writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
+    writer.add_metadata(fmt.STEP_RECORD, values)
+    register_channels(writer)
+    _write_log(writer, {"step_id": step.id, "step_index": index, "step_record_sha256": digest},
+               table, table_times)
+    pending: list[Message] = []
+    size = 0
+    for message in spool.blocks_with_digest(digest):
+        pending.append(message)
+        size += len(message.data)
+        if size >= CHUNK_BYTES:
+            writer.add_chunk(pending)
+            pending, size = [], 0
+    writer.add_chunk(pending)
+    writer.finish()
+
+
+class StreamedStep:
+    """One step whose DAQ log arrives in chunks (:meth:`RunRecorder.stream_step`).
+
+    ``add`` each chunk as it arrives (it is encoded and written to the spool at once), then
+    ``finish`` with the table log: the step file is written atomically and the spool deleted.
+    After a fault, ``abandon`` closes the spool so every sample received stays on disk.
+    """
+
+    def __init__(self, recorder: RunRecorder, step: PlannedStep, index: int, path: Path,
+                 meta: dict[str, Any]) -> None:
+        self._recorder, self.step, self.index, self.path = recorder, step, index, path
+        self._meta = meta
+        origin_ns = fmt.step_origin_ns(meta.get("plan"), index)
+        self.spool = DaqSpool(spool_path(path), meta, step.id, index, origin_ns, new_writer)
+
+    def add(self, chunk: SampledLog) -> None:
+        """Encode and spool one chunk of the DAQ log."""
+        self.spool.add(chunk)
+
+    def finish(self, table: SampledLog, extra: dict[str, Any] | None = None) -> Path:
+        """Write the complete step file from the table log and the spool; delete the spool."""
+        self.spool.close()
+        spool = self.spool
+        atomic_write(self.path, lambda s: write_streamed_step(s, self._meta, self.step,
+                                                              self.index, table, spool, extra))
+        spool.path.unlink(missing_ok=True)
+        self._recorder._completed(self.step.id, self.path, self.index)
+        return self.path
+
+    def abandon(self) -> Path:
+        """Close the spool after a fault; return its path (it keeps the samples recorded)."""
+        self.spool.abandon()
+        return self.spool.path
 
 
 def scan_step_file(path: Path) -> tuple[str, int] | None:
@@ -233,19 +310,38 @@ class RunRecorder:
         ``index`` (1-based plan position) defaults to the step's position in the run
         metadata's ``plan``, else to the next free number. Re-writing a step replaces it.
         """
+        path, index = self._step_path(step, index)
+        meta = self._run_meta or {"format": fmt.FORMAT, "aatest_version": aatest.__version__}
+        atomic_write(path, lambda s: write_step_file(s, meta, step, index, (table, daq), extra))
+        self._completed(step.id, path, index)
+        return path
+
+    def stream_step(self, step: PlannedStep, index: int | None = None) -> StreamedStep:
+        """Start a step whose DAQ log is streamed in chunks (a long static record).
+
+        The chunks go to a spool ``steps/<NNN>-<id>.mcap.partial`` as they arrive; the step
+        file appears atomically when :meth:`StreamedStep.finish` is called, as with
+        :meth:`write_step`.
+        """
+        path, index = self._step_path(step, index)
+        meta = self._run_meta or {"format": fmt.FORMAT, "aatest_version": aatest.__version__}
+        return StreamedStep(self, step, index, path, meta)
+
+    def _step_path(self, step: PlannedStep, index: int | None) -> tuple[Path, int]:
         existing = self._files if self._files is not None else self._step_files()
         index = index or self._plan_index(step.id) or existing.get(step.id, (None, 0))[1] or (
             max((i for _, i in existing.values()), default=0) + 1
         )
-        path = self.steps_dir / f"{index:03d}-{_safe_name(step.id)}.mcap"
-        meta = self._run_meta or {"format": fmt.FORMAT, "aatest_version": aatest.__version__}
-        atomic_write(path, lambda s: write_step_file(s, meta, step, index, (table, daq), extra))
-        old = existing.pop(step.id, None)
+        return self.steps_dir / f"{index:03d}-{_safe_name(step.id)}.mcap", index
+
+    def _completed(self, step_id: str, path: Path, index: int) -> None:
+        """Note a step file just written (replacing an older file of the same step)."""
+        existing = self._files if self._files is not None else self._step_files()
+        old = existing.pop(step_id, None)
         if old is not None and old[0] != path:
             old[0].unlink(missing_ok=True)
-        existing[step.id] = (path, index)
+        existing[step_id] = (path, index)
         self._files = dict(sorted(existing.items(), key=lambda item: (item[1][1], item[1][0].name)))
-        return path
 
     def completed_step_ids(self) -> list[str]:
         """Ids of completed steps in plan order; leftovers of interrupted writes are removed."""

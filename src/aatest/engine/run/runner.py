@@ -3,6 +3,8 @@
 Per recorded step: (re)establish the chamber set-point if needed, move to the start position,
 start the motion and let it settle, start the DAQ (its trigger starts the table log), record,
 stop the DAQ, bring the table to rest, then write the step's recording file atomically. A
+static step longer than the table's log capacity is streamed instead (the DAQ delivers chunks
+that are written as they arrive; the table logs snapshots: :func:`execute_streamed_step`). A
 fault at any point leaves the rig safe (see :mod:`aatest.engine.run.rig`) and keeps every step
 completed so far; ``--resume`` continues with the first step not on disk.
 """
@@ -14,10 +16,18 @@ import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import aatest
-from aatest.engine.errors import AatestError, InputError
+from aatest.engine.errors import AatestError, InputError, RigFault
+from aatest.engine.interfaces import (
+    STREAM_CHUNK_S,
+    StreamingDaq,
+    TableEnvelope,
+    supports_streaming,
+)
+from aatest.engine.logs import SampledLog
+from aatest.engine.procedure.envelope import snapshot_step, streams_record
 from aatest.engine.run.events import RunEvents
 from aatest.engine.run.progress import StepProgress
 from aatest.engine.run.rig import Rig, running
@@ -103,6 +113,67 @@ def execute_step(rig: Rig, step: PlannedStep) -> tuple[Any, Any]:
     return table, daq
 
 
+def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: RunEvents,
+                          chunk_s: float = STREAM_CHUNK_S) -> tuple[SampledLog, SampledLog]:
+    """Record one long static step with the DAQ streaming: each chunk goes to the recording as
+    it arrives (memory: one chunk of ``chunk_s`` lab seconds), the table logs snapshots
+    (:func:`snapshot_step`).
+
+    Order: position, settle, then the DAQ streams (its trigger starts the table's snapshot
+    log), then the table's log is collected and the step file written atomically. A fault or
+    an abort mid-record leaves the chunks received in the step's ``.partial`` spool (named in
+    the message); the step itself is not complete, so ``--resume`` records it again.
+    Returns the table log and the last DAQ chunk (for the observer).
+    """
+    rig.turntable.move_to(step.inner_deg, step.outer_deg)
+    rig.turntable.begin_motion(step)
+    streamed = recorder.stream_step(step)
+    last: SampledLog | None = None
+    try:
+        daq = cast(StreamingDaq, rig.daq)  # checked by _streamed (supports_streaming)
+        for chunk in daq.stream_logging(step, chunk_s):
+            streamed.add(chunk)
+            last = chunk
+            events.abort.check()
+        table = rig.turntable.record(snapshot_step(step, _envelope(rig)))
+        rig.turntable.end_motion()
+        if last is None:
+            raise RigFault(f"step {step.id}: the DAQ streamed no samples")
+        streamed.finish(table)
+    except AatestError as exc:
+        kept = streamed.abandon()
+        seconds = streamed.spool.duration_s
+        raise _with_note(exc, f"step {step.id}: the {seconds:.0f} s of DAQ samples recorded "
+                              f"before this are kept in {kept}; `aatest run --resume` records "
+                              "the step again") from exc
+    except BaseException:
+        streamed.abandon()
+        raise
+    return table, last
+
+
+def _streamed(rig: Rig, step: PlannedStep) -> bool:
+    """True when ``step`` is a long static record and the rig's DAQ streams it."""
+    if step.kind != "static" or not supports_streaming(rig.daq):
+        return False
+    return streams_record(step, _envelope(rig))
+
+
+def _envelope(rig: Rig) -> TableEnvelope:
+    """The table's envelope with the DAQ's streaming capability (as the planner saw it)."""
+    return rig.turntable.envelope().model_copy(
+        update={"streaming_daq": supports_streaming(rig.daq)})
+
+
+def _with_note(exc: AatestError, note: str) -> AatestError:
+    """The same error (type, exit code) with a sentence added, when its type allows it."""
+    try:
+        noted = type(exc)(f"{exc}; {note}")
+    except TypeError:  # an error type with structured arguments: keep it as it is
+        return exc
+    return noted
+
+
 def run_plan(
     plan: Plan,
     rig: Rig,
@@ -137,6 +208,9 @@ def run_plan(
                 chamber.ensure(rig, step)
                 if step.kind == "chamber":
                     state.chamber_steps_done.append(step.id)
+                elif _streamed(rig, step):
+                    table, last = execute_streamed_step(rig, step, recorder, events)
+                    events.observer.step_samples(step, table, last)
                 else:
                     table, daq = execute_step(rig, step)
                     events.observer.step_samples(step, table, daq)

@@ -81,9 +81,13 @@ def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
 
 def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any]:
     """The turntable plugin's envelope and the sensor's datasheet (constructing moves nothing)."""
+    from aatest.engine.interfaces import supports_streaming
+
     rig = build_rig(rig_config, sensor, seed=0)
-    try:
-        return rig.turntable.envelope(), rig.datasheet
+    try:  # long static records need a streaming DAQ (docs/interfaces.md §3)
+        envelope = rig.turntable.envelope().model_copy(
+            update={"streaming_daq": supports_streaming(rig.daq)})
+        return envelope, rig.datasheet
     finally:
         rig.turntable.close()
         rig.daq.close()

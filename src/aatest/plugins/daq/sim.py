@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Iterator, Sequence
 
 from pydantic import BaseModel, ConfigDict
 
@@ -12,6 +13,7 @@ from aatest.engine.steps import PlannedStep
 from aatest.twin.defaults import SLIP_RING_RMS_V
 from aatest.twin.model import ExcessNoise
 from aatest.twin.session import twin_session
+from aatest.twin.synthesis import GENERATION_BLOCK
 from aatest.twin.world import World
 
 
@@ -57,6 +59,16 @@ class SimDaq:
     def stop_logging(self) -> SampledLog:
         """Stop (``stop_lag_s`` after the table log) and return the DAQ log."""
         return self.world.result().daq
+
+    def stream_logging(self, step: PlannedStep, chunk_s: float) -> Iterator[SampledLog]:
+        """Start logging now and yield the record in chunks of whole generation blocks
+        (≥ ``chunk_s`` lab seconds of samples; the last one shorter), generated lazily with
+        continuous noise, filter and drift state: the same samples as one-shot logging of
+        the same long record."""
+        self._route_signals()
+        self.world.start_daq()
+        per_chunk = max(1, math.ceil(chunk_s * step.sample_rate_hz / GENERATION_BLOCK))
+        yield from self.world.stream_daq(per_chunk)
 
     def close(self) -> None:
         """Nothing to release."""

@@ -24,7 +24,7 @@ from aatest.plugins.report.traceability import traceability
 
 #: every section a report may show
 ALL_SECTIONS = frozenset({"sync", "scale_factor", "bias", "temperature", "noise", "frf",
-                          "transfer_function", "misalignment"})
+                          "transfer_function", "misalignment", "drift"})
 
 
 def _coefficient_rows(entry: Mapping[str, Any]) -> list[dict[str, Any]]:
@@ -56,6 +56,7 @@ def _channel_view(results: Mapping[str, Any], ch: str) -> dict[str, Any]:
         "bias": block("bias"),
         "temperature": block("temperature"),
         "noise": block("noise"),
+        "drift": block("drift"),
         "transfer_function": block("transfer_function"),
         "frf": frf_rows(results, ch),
         "u": stated(results, ch),

@@ -82,7 +82,7 @@ class SimTurntable:
         if step.sample_rate_hz > table.log_rate_hz * (1 + 1e-12):
             raise EnvelopeRefused(f"step {step.id}: log rate {step.sample_rate_hz:g} Hz exceeds "
                                   f"the controller's {table.log_rate_hz:g} Hz")
-        if step.samples > table.log_capacity_samples:
+        if step.samples > table.log_capacity_samples and step.kind != "static":
             raise EnvelopeRefused(f"step {step.id}: {step.samples} samples exceed the log "
                                   f"capacity of {table.log_capacity_samples}")
         if not self.world.motor_on:
@@ -90,8 +90,13 @@ class SimTurntable:
         self.world.begin_motion(step)
 
     def record(self, step: PlannedStep) -> SampledLog:
-        """The table log of ``step``, started by the DAQ trigger."""
-        return self.world.result().table
+        """The table log of ``step``, started by the DAQ trigger (at rest during a long
+        record: the periodic snapshots the runner asks for, within the log capacity)."""
+        table = self.world.model.table
+        if step.samples > table.log_capacity_samples:
+            raise EnvelopeRefused(f"step {step.id}: {step.samples} samples exceed the log "
+                                  f"capacity of {table.log_capacity_samples}")
+        return self.world.table_record(step)
 
     def end_motion(self) -> None:
         self.world.end_motion()

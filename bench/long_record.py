@@ -1,0 +1,100 @@
+"""Benchmark: the shipped ``long-static-drift`` procedure on the twin, 30 min against 2 h.
+
+Prints, per record length, lab time ÷ wall time and peak resident memory of each phase in its
+own process (peak RSS is per process): *record* (``aatest run`` up to the merged
+recording: the DAQ streams 60 s chunks into the step file, the table logs 1 s snapshots) and
+*analyse* (``aatest analyze`` of the run: reading the recording and the drift analysis), plus
+the recording's size. The record phase must not grow with the record length.
+
+    python bench/long_record.py [--minutes 30 120] [--keep DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+PROCEDURE = "long-static-drift"
+
+
+def _procedure_text(minutes: float) -> str:
+    """The shipped procedure with its record length set to ``minutes``."""
+    import aatest
+
+    text = (Path(aatest.__file__).parent / "procedures" / f"{PROCEDURE}.yaml").read_text()
+    return text.replace("duration_s: 7200", f"duration_s: {minutes * 60:g}")
+
+
+def _record(procedure: Path, run_dir: Path) -> None:
+    """Child process: run the procedure up to the merged recording (no analysis)."""
+    from aatest.engine.run import session
+
+    def skip_analysis(*_args: object, **_kwargs: object) -> dict[str, object]:
+        return {}
+
+    session.analyse_and_report = skip_analysis  # type: ignore[assignment] # measure recording only
+    started = time.perf_counter()
+    session.run(procedure, None, run_dir, False, 0, None, show_progress=False)
+    _report(time.perf_counter() - started)
+
+
+def _analyse(run_dir: Path, out_dir: Path) -> None:
+    """Child process: read the recording and run its analyses (``aatest analyze``)."""
+    from aatest.engine.run import session
+
+    started = time.perf_counter()
+    session.analyse_and_report(run_dir, out_dir)
+    _report(time.perf_counter() - started)
+
+
+def _report(wall_s: float) -> None:
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(json.dumps({"wall_s": wall_s, "peak_rss_mb": peak_mb}))
+
+
+def _child(*args: str) -> dict[str, float]:
+    done = subprocess.run([sys.executable, __file__, "--child", *args], check=True,
+                          capture_output=True, text=True)
+    return dict(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, nargs="+", default=[30.0, 120.0])
+    parser.add_argument("--keep", type=Path, default=None, help="keep the runs under DIR")
+    parser.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        if args.child[0] == "record":
+            _record(Path(args.child[1]), Path(args.child[2]))
+        else:
+            _analyse(Path(args.child[1]), Path(args.child[2]))
+        return
+    root = args.keep or Path(tempfile.mkdtemp(prefix="aatest-long-"))
+    root.mkdir(parents=True, exist_ok=True)
+    print(f"{'record':>8} {'lab s':>8} {'phase':>8} {'wall s':>8} {'lab/wall':>9} "
+          f"{'peak RSS MB':>12} {'recording MB':>13}")
+    for minutes in args.minutes:
+        procedure = root / f"{PROCEDURE}-{minutes:g}min.yaml"
+        procedure.write_text(_procedure_text(minutes))
+        run_dir = root / f"run-{minutes:g}min"
+        recorded = _child("record", str(procedure), str(run_dir))
+        from aatest.engine.run.session import prepare
+
+        lab_s = prepare(procedure, None).plan.lab_duration_s
+        size_mb = (run_dir / "recording.mcap").stat().st_size / 1e6
+        analysed = _child("analyse", str(run_dir), str(run_dir / "analysis"))
+        for phase, numbers in (("record", recorded), ("analyse", analysed)):
+            print(f"{minutes:>6g}min {lab_s:>8.0f} {phase:>8} {numbers['wall_s']:>8.1f} "
+                  f"{lab_s / numbers['wall_s']:>9.0f} {numbers['peak_rss_mb']:>12.0f} "
+                  f"{size_mb:>13.1f}")
+
+
+if __name__ == "__main__":
+    main()
