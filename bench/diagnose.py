@@ -29,6 +29,7 @@ import argparse
 import contextlib
 import io
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -172,13 +173,16 @@ def main() -> None:
     if args.child is not None:
         child(args.child, args.profile)
         return
+    cores = os.cpu_count() or 1
     for case in args.case or list(CASES):
+        load = os.getloadavg()[0]
         r = bench_case(case, args.seed, args.profile)
         found = ", ".join(r["findings"] + [f"unexplained {k}" for k in r["unexplained"]]) or "none"
         print(f"{case:10s} {CASES[case][2]}: {r['size_mb']:.1f} MB CSV; import "
               f"{r['import_s']:.1f} s; diagnose {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU "
               f"(import included), "
-              f"peak RSS {r['rss_mb']:.0f} MB; {r['tested']} candidates tested; found: {found}",
+              f"peak RSS {r['rss_mb']:.0f} MB; {r['tested']} candidates tested; found: {found} "
+              f"[load average {load:.1f} on {cores} cores]",
               flush=True)
         if case == "stepped16":
             ok = r["wall_s"] <= TARGET_WALL_S and r["rss_mb"] <= TARGET_RSS_MB

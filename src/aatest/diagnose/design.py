@@ -305,7 +305,7 @@ def _fold_products(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
 #: key of the column-memory budget inside a gram cache
 _BUDGET = "design column budget"
 #: bytes of design columns kept per channel for re-use (Gram blocks are always kept)
-COLUMN_BUDGET_BYTES = 96 * 2**20
+COLUMN_BUDGET_BYTES = 64 * 2**20
 
 
 @dataclass
