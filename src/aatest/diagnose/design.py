@@ -328,7 +328,9 @@ class _StepBlock:
 
     def extend(self, sr: StepReplay, info: ChannelInfo, spec: Spec, missing: list[str],
                y: np.ndarray) -> int:
-        """Build the ``missing`` columns and their products; return bytes of columns added."""
+        """Build the ``missing`` columns and their products; return bytes of columns added
+        (the rebuilt old ones included, when the budget had released them)."""
+        before = 0 if self.columns is None else self.columns.nbytes
         new = _design(sr, info, spec, set(missing))
         added = [name for name in missing if name in new]
         self.zero |= set(missing) - set(added)
@@ -351,7 +353,6 @@ class _StepBlock:
         self.xtx = xtx
         self.xty = np.concatenate([self.xty, _fold_products(cols_new, y, sr.n)], axis=1)
         self.names += added
-        before = 0 if self.columns is None else self.columns.nbytes
         self.columns = cols_new if self.columns is None else np.hstack([self.columns, cols_new])
         return self.columns.nbytes - before
 
