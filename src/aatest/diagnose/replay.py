@@ -91,9 +91,10 @@ def fit_axis_motion(time_s: np.ndarray, position_deg: np.ndarray, moving: bool,
     columns = [np.ones_like(t)]
     if moving and constant_rate:
         columns.append(t)
-    use_sine = moving and frequency_hz is not None and frequency_hz > 0.0
+    f_hz = float(frequency_hz) if moving and frequency_hz is not None else 0.0
+    use_sine = f_hz > 0.0
     if use_sine:
-        w = 2 * np.pi * float(frequency_hz)
+        w = 2 * np.pi * f_hz
         columns += [np.sin(w * t), np.cos(w * t)]
     coef, *_ = np.linalg.lstsq(np.column_stack(columns), pos, rcond=None)
     coef = list(coef)
@@ -101,7 +102,7 @@ def fit_axis_motion(time_s: np.ndarray, position_deg: np.ndarray, moving: bool,
     rate = coef.pop(0) if moving and constant_rate else 0.0
     ramp = moving and constant_rate
     if use_sine:
-        return AxisMotion(offset, rate, coef[0], coef[1], float(frequency_hz), ramp)
+        return AxisMotion(offset, rate, coef[0], coef[1], f_hz, ramp)
     return AxisMotion(offset, rate, fitted_rate=ramp)
 
 
@@ -293,7 +294,8 @@ def replay_dataset(dataset: Dataset) -> Replay:
         When no step can be synchronised.
     """
     channels = [s.channel for s in dataset.sensors]
-    steps, skipped = [], []
+    steps: list[StepReplay] = []
+    skipped: list[str] = []
     for data in dataset.steps:
         if not data.step.recorded:
             continue
