@@ -1,11 +1,24 @@
-"""Benchmark ``aatest diagnose``: wall time on a 10-step dataset of 2^15 samples per step.
+"""Benchmark ``aatest diagnose``: wall time and peak RSS per dataset, each in a fresh process.
 
-The dataset is the diagnostic plan (static ±1 g, sines at several frequencies, accelerations
-and temperatures, outer-axis sines, a constant-rate step) simulated on the twin, exported in
-the import format and diagnosed as a user would (``diagnose_command``), with every candidate
-of the effect library tested. Target: under 20 s on the project machine.
+Cases (twin data exported in the import format, diagnosed as a user would with
+``diagnose_command``, every candidate of the effect library tested):
 
-    python bench/diagnose.py [--samples 32768] [--effect time_delay] [--seed 1] [--suite]
+* ``single``     the 12-step diagnostic plan, 2^14 samples per step, one hidden ``time_delay``;
+* ``multi``      the same plan with three hidden effects (``bias_temperature``,
+                 ``sensor_dynamics``, ``motor_vibration``);
+* ``stepped16``  the reviewer's dataset: 16 inner-axis sine steps at different frequencies and
+                 accelerations, 2^14 samples per step (about 20 MB of CSV) — target ≤ 10 s and
+                 ≤ 600 MB peak RSS on the project machine (issue 15 item 5);
+* ``long``       the diagnostic plan with 2^17 samples per step.
+
+Each case's dataset is simulated and exported in this process; the diagnosis runs in a fresh
+``python`` subprocess so ``ru_maxrss`` (peak resident set) is that case's alone. The child
+reports the import time (reading the directory once, before the diagnosis), then the wall
+and CPU (user + system) time of ``diagnose_command`` (which imports again). On a machine
+shared with other work, CPU seconds are the steadier number; the targets are stated in wall
+time on an otherwise idle machine.
+
+    python bench/diagnose.py [--case stepped16 ...] [--seed 1] [--suite]
 
 ``--suite`` also runs the full hidden-effect suite and prints its score.
 """
@@ -16,46 +29,125 @@ import argparse
 import contextlib
 import io
 import json
+import os
+import resource
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
-from aatest.diagnose.command import diagnose_command
-from aatest.diagnose.scenarios import (
-    clean_rig,
-    diagnostic_plan,
-    draw_hidden,
-    judge,
-    scenario_dataset,
-    suite_cases,
-    with_effects,
-)
-from aatest.engine.data.exporter import export_csv
-from aatest.twin.api import simulate_dataset
+import numpy as np
 
-#: the two steps of the 12-step diagnostic plan left out to make the 10-step bench dataset
-_LEFT_OUT = ("f1-a400", "rate50")
+from aatest.engine.steps import PlannedStep
+
+#: issue 15 item 5 targets for the 16-step case
+TARGET_WALL_S = 10.0
+TARGET_RSS_MB = 600.0
+FS_HZ = 2000.0
 
 
-def bench_once(samples: int, effect: str | None, seed: int) -> tuple[float, list[dict], int]:
-    """(diagnose wall seconds, findings, candidates tested) for one exported dataset."""
-    hidden = [draw_hidden(effect, seed)] if effect else []
-    plan = [s for s in diagnostic_plan(samples) if s.id not in _LEFT_OUT]
-    data = simulate_dataset(with_effects(clean_rig(seed), hidden), plan, seed)
+def stepped_sine_plan(samples: int = 2**14, count: int = 16) -> list[PlannedStep]:
+    """``count`` coherent inner-axis sines: 0.5–20 Hz (log-spaced), 20–400 °/s² (cycled)."""
+    freqs_hz = np.geomspace(0.5, 20.0, count)
+    accels = np.resize([20.0, 50.0, 100.0, 200.0, 400.0, 300.0, 150.0, 75.0], count)
+    steps = []
+    for i, (f_nom, accel) in enumerate(zip(freqs_hz, accels, strict=True)):
+        cycles = max(1, round(f_nom * samples / FS_HZ))
+        f = cycles * FS_HZ / samples
+        steps.append(PlannedStep(id=f"s{i:02d}-f{f:.2f}-a{accel:g}", kind="sine", axis="inner",
+                                 samples=samples, sample_rate_hz=FS_HZ, duration_s=samples / FS_HZ,
+                                 frequency_hz=f, cycles=cycles, accel_dps2=float(accel),
+                                 amplitude_deg=float(accel) / (2 * np.pi * f) ** 2))
+    return steps
+
+
+def _hidden(names: list[str], seed: int) -> list[Any]:
+    from aatest.diagnose.scenarios import draw_hidden
+
+    return [draw_hidden(n, seed) for n in names]
+
+
+#: case → (plan builder, hidden effects, description)
+CASES: dict[str, tuple[Any, list[str], str]] = {
+    "single": (lambda: _plan(2**14), ["time_delay"], "12-step plan × 2^14, time_delay"),
+    "multi": (lambda: _plan(2**14), ["bias_temperature", "sensor_dynamics", "motor_vibration"],
+              "12-step plan × 2^14, bias_temperature + sensor_dynamics + motor_vibration"),
+    "stepped16": (lambda: stepped_sine_plan(2**14), [], "16 sine steps × 2^14, clean"),
+    "long": (lambda: _plan(2**17), [], "12-step plan × 2^17, clean"),
+}
+
+
+def _plan(samples: int) -> list[PlannedStep]:
+    from aatest.diagnose.scenarios import diagnostic_plan
+
+    return diagnostic_plan(samples)
+
+
+def export_case(case: str, seed: int, out: Path) -> float:
+    """Simulate and export one case to ``out``; return its size on disk (MB)."""
+    from aatest.diagnose.scenarios import clean_rig, with_effects
+    from aatest.engine.data.exporter import export_csv
+    from aatest.twin.api import simulate_dataset
+
+    plan_of, effects, _ = CASES[case]
+    rig = with_effects(clean_rig(seed), _hidden(effects, seed))
+    export_csv(simulate_dataset(rig, plan_of(), seed, procedure=f"bench-{case}"), out)
+    return sum(p.stat().st_size for p in out.rglob("*") if p.is_file()) / 1e6
+
+
+def child(data: Path, profile: Path | None) -> None:
+    """Diagnose ``data`` in this (fresh) process; print one JSON line of measurements."""
+    from aatest.diagnose.command import diagnose_command
+    from aatest.engine.recording import read_dataset
+
+    start = time.perf_counter()
+    read_dataset(data)
+    import_s = time.perf_counter() - start
+    out = data.parent / "d.json"
+    usage0 = resource.getrusage(resource.RUSAGE_SELF)
+    cpu0 = usage0.ru_utime + usage0.ru_stime
+    start = time.perf_counter()
+    with contextlib.redirect_stdout(io.StringIO()):
+        if profile is not None:
+            import cProfile
+
+            cProfile.runctx("diagnose_command(data, out, None)", globals(),
+                            {"diagnose_command": diagnose_command, "data": data, "out": out},
+                            str(profile))
+        else:
+            diagnose_command(data, out, None)
+    wall = time.perf_counter() - start
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    doc = json.loads(out.read_text())
+    print(json.dumps({
+        "import_s": import_s, "wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime - cpu0,
+        "rss_mb": usage.ru_maxrss / 1024.0,
+        "findings": [f["effect"] for f in doc["findings"]],
+        "unexplained": [u["kind"] for u in doc["unexplained"]],
+        "tested": sum(1 for c in doc["candidates"] if c.get("testable"))}))
+
+
+def bench_case(case: str, seed: int, profile: Path | None) -> dict[str, Any]:
+    """Export ``case`` and diagnose it in a fresh subprocess; return its measurements."""
     with tempfile.TemporaryDirectory() as tmp:
-        export_csv(data, Path(tmp) / "import")
-        out = Path(tmp) / "d.json"
-        start = time.perf_counter()
-        with contextlib.redirect_stdout(io.StringIO()):
-            findings = diagnose_command(Path(tmp) / "import", out, None)
-        wall = time.perf_counter() - start
-        tested = sum(1 for c in json.loads(out.read_text())["candidates"] if c.get("testable"))
-    return wall, findings, tested
+        data = Path(tmp) / "import"
+        size_mb = export_case(case, seed, data)
+        cmd = [sys.executable, __file__, "--child", str(data)]
+        if profile is not None:
+            cmd += ["--profile", str(profile.with_suffix(f".{case}.prof"))]
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            raise SystemExit(f"{case}: diagnose failed\n{proc.stderr}")
+        return {"size_mb": size_mb, **json.loads(proc.stdout.strip().splitlines()[-1])}
 
 
 def run_suite(samples: int) -> None:
     """Score the hidden-effect suite (in-process pipeline on exported/imported data)."""
     from aatest.diagnose.pipeline import diagnose_dataset
+    from aatest.diagnose.scenarios import judge, scenario_dataset, suite_cases
+    from aatest.engine.data.exporter import export_csv
     from aatest.engine.recording import read_dataset
 
     cases, bad = suite_cases(), 0
@@ -64,22 +156,39 @@ def run_suite(samples: int) -> None:
             export_csv(scenario_dataset(hidden, seed, samples), tmp)
             problems = judge(diagnose_dataset(read_dataset(Path(tmp))), hidden)
         bad += bool(problems)
-        print(f"{name:40s} {'ok' if not problems else '; '.join(problems)}")
+        print(f"{name:40s} {'ok' if not problems else '; '.join(problems)}", flush=True)
     print(f"suite score: {len(cases) - bad}/{len(cases)} = {100 * (1 - bad / len(cases)):.1f} %")
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--samples", type=int, default=2**15)
-    parser.add_argument("--effect", default=None, help="hide this effect (default: clean)")
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--case", action="append", choices=sorted(CASES),
+                        help="run only this case (repeatable; default all)")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--profile", type=Path, default=None,
+                        help="write a cProfile per case to PROFILE.<case>.prof")
     parser.add_argument("--suite", action="store_true")
+    parser.add_argument("--child", type=Path, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    for effect in ([args.effect] if args.effect else [None, "time_delay", "motor_vibration"]):
-        wall, findings, tested = bench_once(args.samples, effect, args.seed)
-        names = ", ".join(f.get("effect") or f"unexplained {f['kind']}" for f in findings) or "none"
-        print(f"diagnose 10 steps × {args.samples} samples, hidden {effect or 'nothing'}: "
-              f"{wall:.1f} s wall, {tested} candidates tested, findings: {names}")
+    if args.child is not None:
+        child(args.child, args.profile)
+        return
+    cores = os.cpu_count() or 1
+    for case in args.case or list(CASES):
+        load = os.getloadavg()[0]
+        r = bench_case(case, args.seed, args.profile)
+        found = ", ".join(r["findings"] + [f"unexplained {k}" for k in r["unexplained"]]) or "none"
+        print(f"{case:10s} {CASES[case][2]}: {r['size_mb']:.1f} MB CSV; import "
+              f"{r['import_s']:.1f} s; diagnose {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU "
+              f"(import included), "
+              f"peak RSS {r['rss_mb']:.0f} MB; {r['tested']} candidates tested; found: {found} "
+              f"[load average {load:.1f} on {cores} cores]",
+              flush=True)
+        if case == "stepped16":
+            ok = r["wall_s"] <= TARGET_WALL_S and r["rss_mb"] <= TARGET_RSS_MB
+            print(f"target stepped16: ≤ {TARGET_WALL_S:g} s and ≤ {TARGET_RSS_MB:g} MB: "
+                  f"{r['wall_s']:.1f} s, {r['rss_mb']:.0f} MB -> {'MET' if ok else 'NOT MET'}",
+                  flush=True)
     if args.suite:
         run_suite(2**14)
 

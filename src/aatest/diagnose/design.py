@@ -14,10 +14,13 @@ and scoring on the other (held-out SSE) costs a small linear solve, not a pass o
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
+from scipy import signal
 
 from aatest.diagnose.replay import (
     PAD_SAMPLES,
@@ -32,7 +35,7 @@ from aatest.effects import EffectInputs, design_column_names, design_columns
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.twin.daq import antialias_filter
 from aatest.twin.kinematics import E_I
-from aatest.twin.sensor import dynamics_filter, lowpass, play_operator
+from aatest.twin.sensor import dynamics_filter, play_operator
 
 #: contiguous time blocks per step; even blocks form fold A, odd blocks fold B
 BLOCKS_PER_STEP = 8
@@ -99,27 +102,42 @@ def column_names(spec: Spec, replay: Replay) -> list[str]:
 
 
 @lru_cache(maxsize=8)
-def _aa(corner_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+def _aa(corner_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(b, a, unit steady-state initial conditions) of the logger's pre-sample filter."""
     b, a, _ = antialias_filter(corner_hz, dt_s)
-    return b, a
+    return b, a, signal.lfilter_zi(b, a)
+
+
+@lru_cache(maxsize=64)
+def _dyn(natural_frequency_hz: float, damping: float, dt_s: float
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(b, a, unit steady-state initial conditions) of the sensor's second-order dynamics."""
+    b, a = dynamics_filter(natural_frequency_hz, damping, dt_s)
+    return b, a, signal.lfilter_zi(b, a)
+
+
+def _steady_lowpass(x: np.ndarray, filt: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+    """``aatest.twin.sensor.lowpass`` with its initial conditions computed once per filter."""
+    b, a, zi = filt
+    return signal.lfilter(b, a, x, zi=zi * x[0])[0]
 
 
 def _logger(x: np.ndarray, info: ChannelInfo, dt_s: float) -> np.ndarray:
     """The logger's pre-sample filter (part of the nominal chain when the rig has one)."""
     if info.antialias_hz is None:
         return x
-    b, a = _aa(float(info.antialias_hz), round(dt_s, 15))
-    return lowpass(x, b, a)
+    return _steady_lowpass(x, _aa(float(info.antialias_hz), round(dt_s, 15)))
 
 
 def _dynamics(x: np.ndarray, spec: Spec, dt_s: float) -> np.ndarray:
     if spec.dynamics is None:
         return x
-    b, a = dynamics_filter(float(spec.dynamics[0]), float(spec.dynamics[1]), round(dt_s, 15))
-    return lowpass(x, b, a)
+    return _steady_lowpass(x, _dyn(float(spec.dynamics[0]), float(spec.dynamics[1]),
+                                   round(dt_s, 15)))
 
 
-def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float) -> tuple[np.ndarray, np.ndarray]:
+def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """Inner-axis acceleration of a unit position ripple sin/cos(2π·n·θ) (°/s² per °)."""
     if not sr.inner.moving:
         zero = np.zeros_like(t_eval)
@@ -136,26 +154,35 @@ def _eval_times(sr: StepReplay, spec: Spec) -> tuple[np.ndarray, tuple[float, fl
     return tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref), (shift, spec.warp_ppm, t_ref)
 
 
+#: design columns built on the sensed acceleration (computed by :func:`_sensor_columns`)
+_SENSOR_COLUMNS = frozenset({"scale", "scale_temperature", "nonlinearity_cubic",
+                             "jerk_sensitivity", "cross_x", "cross_y"})
+
+
 def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
-                    key: tuple, temp: np.ndarray) -> dict[str, np.ndarray]:
-    """The sensor chain: α → hysteresis → dynamics → saturation, and the terms built on it."""
+                    key: tuple, temp: np.ndarray, wanted: set[str]) -> dict[str, np.ndarray]:
+    """The sensor chain: α → hysteresis → dynamics → saturation, and the ``wanted`` terms on it."""
+    if not wanted & _SENSOR_COLUMNS:
+        return {}
     alpha3 = sensor_acceleration(sr, info.axis, t_eval, key)
     sensed = alpha3[2]
     if spec.hysteresis_dps2 > 0.0 and sr.dynamic:
         sensed = play_operator(sensed, spec.hysteresis_dps2)
-    shaped = _dynamics(sensed, spec, sr.dt_s)
-    if spec.saturation_dps2 is not None:
-        shaped = np.clip(shaped, -spec.saturation_dps2, spec.saturation_dps2)
-    cols: dict[str, np.ndarray] = {"scale": shaped}
-    lin = spec.linear
-    if "scale_temperature" in lin:
-        cols["scale_temperature"] = shaped * temp
-    if "nonlinearity_cubic" in lin:
-        cols["nonlinearity_cubic"] = shaped**3 / info.range_dps2**2
-    if "jerk_sensitivity" in lin:
+    cols: dict[str, np.ndarray] = {}
+    if wanted & {"scale", "scale_temperature", "nonlinearity_cubic"}:
+        shaped = _dynamics(sensed, spec, sr.dt_s)
+        if spec.saturation_dps2 is not None:
+            shaped = np.clip(shaped, -spec.saturation_dps2, spec.saturation_dps2)
+        cols["scale"] = shaped
+        if "scale_temperature" in wanted:
+            cols["scale_temperature"] = shaped * temp
+        if "nonlinearity_cubic" in wanted:
+            cols["nonlinearity_cubic"] = shaped**3 / info.range_dps2**2
+    if "jerk_sensitivity" in wanted:
         cols["jerk_sensitivity"] = np.gradient(sensed, sr.dt_s)
-    if "cross_axis" in lin:
+    if "cross_x" in wanted:
         cols["cross_x"] = _dynamics(alpha3[0], spec, sr.dt_s)
+    if "cross_y" in wanted:
         cols["cross_y"] = _dynamics(alpha3[1], spec, sr.dt_s)
     plugin_inputs = EffectInputs(shaped, sensed, temp, t_eval, sr.dt_s, info.range_dps2)
     cols |= design_columns(lin, plugin_inputs, {e: dict(v) for e, v in spec.plugin_shape})
@@ -163,19 +190,53 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
 
 
 def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
-                   t_eval: np.ndarray) -> dict[str, np.ndarray]:
+                   t_eval: np.ndarray, wanted: set[str]) -> dict[str, np.ndarray]:
     """Inner-axis ripple and vibration as seen along the sensor axis, through its dynamics."""
     z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
     cols: dict[str, np.ndarray] = {}
     for n in spec.ripple_cpd:
+        names = (f"ripple{n:g}_s", f"ripple{n:g}_c")
+        if wanted.isdisjoint(names):
+            continue
         rs, rc = _ripple_columns(sr, t_eval, n)
-        cols[f"ripple{n:g}_s"] = _dynamics(z_inner * rs, spec, sr.dt_s)
-        cols[f"ripple{n:g}_c"] = _dynamics(z_inner * rc, spec, sr.dt_s)
+        cols[names[0]] = _dynamics(z_inner * rs, spec, sr.dt_s)
+        cols[names[1]] = _dynamics(z_inner * rc, spec, sr.dt_s)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
+        names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
+        if wanted.isdisjoint(names):
+            continue
         w = 2 * np.pi * f_hz
-        cols[f"vib{sr.index}_{j}_s"] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
-        cols[f"vib{sr.index}_{j}_c"] = _dynamics(z_inner * np.cos(w * t_eval), spec, sr.dt_s)
+        cols[names[0]] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
+        cols[names[1]] = _dynamics(z_inner * np.cos(w * t_eval), spec, sr.dt_s)
     return cols
+
+
+def _design(sr: StepReplay, info: ChannelInfo, spec: Spec, wanted: set[str]
+            ) -> dict[str, np.ndarray]:
+    """The ``wanted`` design columns of one step on its record grid, by name (volts per unit
+    coefficient); a name absent from the result is zero on this step (another step's
+    vibration term, a term of an effect this step cannot excite)."""
+    cut = slice(PAD_SAMPLES, PAD_SAMPLES + sr.n)
+    out: dict[str, np.ndarray] = {}
+    if "bias" in wanted:
+        out["bias"] = np.ones(sr.n)
+    dynamic = wanted - {"bias", "bias_temperature", "g_sensitivity"}
+    temp: np.ndarray | None = None
+    if dynamic or "bias_temperature" in wanted:
+        temp = _temperature(sr, info, sr.n + 2 * PAD_SAMPLES)
+    if dynamic:
+        assert temp is not None
+        t_eval, key = _eval_times(sr, spec)
+        cols = (_sensor_columns(sr, info, spec, t_eval, key, temp, dynamic)
+                | _table_columns(sr, info, spec, t_eval, dynamic))
+        out |= {name: _logger(col, info, sr.dt_s)[cut] for name, col in cols.items()
+                if name in dynamic}
+    if "bias_temperature" in wanted:
+        assert temp is not None
+        out["bias_temperature"] = temp[cut]
+    if "g_sensitivity" in wanted:
+        out["g_sensitivity"] = gravity_along(sr, info.axis)
+    return out
 
 
 def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
@@ -186,25 +247,13 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
     indices of the columns this step can make non-zero (others, e.g. another step's
     vibration terms, are zero by construction).
     """
-    t_eval, key = _eval_times(sr, spec)
-    temp = _temperature(sr, info, t_eval.size)
-    cols = _sensor_columns(sr, info, spec, t_eval, key, temp) | _table_columns(sr, info, spec, t_eval)
-    cut = slice(PAD_SAMPLES, PAD_SAMPLES + sr.n)
+    cols = _design(sr, info, spec, set(names))
     out = np.zeros((sr.n, len(names)))
-    out[:, 0] = 1.0
-    used = [0]
-    for j, name in enumerate(names):
-        if name in cols:
-            out[:, j] = _logger(cols[name], info, sr.dt_s)[cut]
-            used.append(j)
-    static = {"bias_temperature": lambda: temp[cut],
-              "g_sensitivity": lambda: gravity_along(sr, info.axis)}
-    for name, column in static.items():
-        if name in names:
-            used.append(names.index(name))
-            out[:, used[-1]] = column()
+    used = [j for j, name in enumerate(names) if name in cols]
+    for j in used:
+        out[:, j] = cols[names[j]]
     if used_out is not None:
-        used_out.extend(sorted(used))
+        used_out.extend(used)
     return out
 
 
@@ -246,53 +295,138 @@ def _step_key(spec: Spec, sr: StepReplay) -> Spec:
     return key
 
 
-def _step_gram(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
-               y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """One step's per-fold XᵀX, Xᵀy, yᵀy and counts (only its non-zero columns multiplied)."""
-    used_list: list[int] = []
-    x = step_columns(sr, info, spec, names, used_list)
-    p = len(names)
-    used = np.asarray(used_list, dtype=int)
-    xu = np.ascontiguousarray(x[:, used])
-    xtx, xty, yty, cnt = np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2)
-    edges = _block_edges(sr.n)
-    for b in range(BLOCKS_PER_STEP):
-        blk = slice(edges[b], edges[b + 1])
-        xb, yb = xu[blk], y[blk]
-        f = b % 2
-        xtx[f][np.ix_(used, used)] += xb.T @ xb
-        xty[f][used] += xb.T @ yb
-        yty[f] += yb @ yb
-        cnt[f] += yb.size
-    return xtx, xty, yty, cnt
-
-
+@lru_cache(maxsize=64)
 def _block_edges(n: int) -> np.ndarray:
     """Start indices of the contiguous time blocks of an n-sample record (and n)."""
-    return np.searchsorted(np.arange(n) * BLOCKS_PER_STEP // max(n, 1), np.arange(BLOCKS_PER_STEP + 1))
+    return np.searchsorted(np.arange(n) * BLOCKS_PER_STEP // max(n, 1),
+                           np.arange(BLOCKS_PER_STEP + 1))
+
+
+def _fold_products(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """Per-fold aᵀb, shape (2, …): a, b are (n, ·) or (n,) on one step's record."""
+    edges = _block_edges(n)
+    parts = [a[edges[k]:edges[k + 1]].T @ b[edges[k]:edges[k + 1]] for k in range(BLOCKS_PER_STEP)]
+    return np.stack([sum(parts[0::2]), sum(parts[1::2])])
+
+
+#: key of the column-memory budget inside a gram cache
+_BUDGET = "design column budget"
+#: bytes of design columns kept per channel for re-use (Gram blocks are always kept)
+COLUMN_BUDGET_BYTES = 64 * 2**20
+
+
+@dataclass
+class _StepBlock:
+    """One step's design under one shape: which columns it has, their Gram blocks per fold.
+
+    Linear candidates extend a model without changing its shape, so their step blocks share
+    every column but the new one: only the new column is built and multiplied (XᵀX grows by
+    one row and column). ``columns`` is dropped when the memory budget needs it and rebuilt
+    from the replay on demand.
+    """
+
+    names: list[str]
+    zero: set[str]
+    xtx: np.ndarray  # (2, m, m)
+    xty: np.ndarray  # (2, m)
+    yty: np.ndarray  # (2,)
+    count: np.ndarray  # (2,)
+    columns: np.ndarray | None  # (n, m) or None once released
+
+    def extend(self, sr: StepReplay, info: ChannelInfo, spec: Spec, missing: list[str],
+               y: np.ndarray) -> int:
+        """Build the ``missing`` columns and their products; return bytes of columns added
+        (the rebuilt old ones included, when the budget had released them)."""
+        before = 0 if self.columns is None else self.columns.nbytes
+        new = _design(sr, info, spec, set(missing))
+        added = [name for name in missing if name in new]
+        self.zero |= set(missing) - set(added)
+        if not added:
+            return 0
+        cols_new = np.column_stack([new[name] for name in added])
+        del new
+        if self.columns is None and self.names:
+            old = _design(sr, info, spec, set(self.names))
+            self.columns = np.column_stack([old[name] for name in self.names])
+        m, q = len(self.names), len(added)
+        xtx = np.zeros((2, m + q, m + q))
+        xtx[:, :m, :m] = self.xtx
+        if m:
+            assert self.columns is not None
+            cross = _fold_products(self.columns, cols_new, sr.n)
+            xtx[:, :m, m:] = cross
+            xtx[:, m:, :m] = cross.transpose(0, 2, 1)
+        xtx[:, m:, m:] = _fold_products(cols_new, cols_new, sr.n)
+        self.xtx = xtx
+        self.xty = np.concatenate([self.xty, _fold_products(cols_new, y, sr.n)], axis=1)
+        self.names += added
+        self.columns = cols_new if self.columns is None else np.hstack([self.columns, cols_new])
+        return self.columns.nbytes - before
+
+
+class _ColumnBudget:
+    """Least-recently-used step blocks holding columns, released beyond the byte budget."""
+
+    def __init__(self, limit_bytes: int) -> None:
+        self.limit = limit_bytes
+        self.used = 0
+        self.order: OrderedDict[Any, _StepBlock] = OrderedDict()
+
+    def touch(self, key: Any, block: _StepBlock, added_bytes: int) -> None:
+        self.used += added_bytes
+        self.order[key] = block
+        self.order.move_to_end(key)
+        while self.used > self.limit and len(self.order) > 1:
+            _, old = self.order.popitem(last=False)
+            if old.columns is not None:
+                self.used -= old.columns.nbytes
+                old.columns = None
+
+
+def _step_block(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
+                y: np.ndarray, cache: dict) -> _StepBlock:
+    """The step's Gram block with (at least) the columns ``names``, from/into ``cache``."""
+    key = ("step block", sr.index, replace(_step_key(spec, sr), linear=frozenset()))
+    block = cache.get(key)
+    if block is None:
+        y_parts = _fold_products(y, y, sr.n)
+        edges = _block_edges(sr.n)
+        sizes = np.diff(edges)
+        block = _StepBlock([], set(), np.zeros((2, 0, 0)), np.zeros((2, 0)), y_parts,
+                           np.array([sizes[0::2].sum(), sizes[1::2].sum()], dtype=float), None)
+        cache[key] = block
+    missing = [nm for nm in names if nm not in block.zero and nm not in block.names]
+    added = block.extend(sr, info, spec, missing, y) if missing else 0
+    budget = cache.setdefault(_BUDGET, _ColumnBudget(COLUMN_BUDGET_BYTES))
+    budget.touch(key, block, added)
+    return block
 
 
 def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
          cache: dict | None = None) -> Gram:
     """Per-fold Gram matrices of ``spec`` over all steps, against ``targets[step]`` (volts).
 
-    ``cache`` keeps each step's contribution under the part of the spec it depends on, so a
-    search over a shape parameter recomputes only the steps that parameter can change.
+    ``cache`` keeps each step's Gram block under the shape the step depends on (see
+    :class:`_StepBlock`): a search over a shape parameter rebuilds only the steps it can
+    change, and a linear extension builds only its new column. Without ``cache`` nothing is
+    kept beyond this call.
     """
     names = column_names(spec, replay)
     p = len(names)
     g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
+    store: dict = cache if cache is not None else {}
     for sr in replay.steps:
-        key = (sr.index, _step_key(spec, sr))
-        part = cache.get(key) if cache is not None else None
-        if part is None:
-            part = _step_gram(sr, info, spec, names, targets[sr.index])
-            if cache is not None:
-                cache[key] = part
-        g.xtx += part[0]
-        g.xty += part[1]
-        g.yty += part[2]
-        g.count += part[3]
+        block = _step_block(sr, info, spec, names, targets[sr.index], store)
+        pos = [names.index(nm) for nm in block.names if nm in names]
+        sub = [j for j, nm in enumerate(block.names) if nm in names]
+        ix = np.ix_(pos, pos)
+        for f in (0, 1):
+            g.xtx[f][ix] += block.xtx[f][np.ix_(sub, sub)]
+            g.xty[f][pos] += block.xty[f][sub]
+        g.yty += block.yty
+        g.count += block.count
+        if cache is None:
+            store.clear()
     return g
 
 

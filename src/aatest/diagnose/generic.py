@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize, signal
 
+from aatest.diagnose.periodogram import dft_at
 from aatest.diagnose.replay import StepReplay
 
 #: a residual line stands this far above the median of the step-averaged residual spectrum
@@ -147,7 +148,7 @@ def _line_power(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray],
     """Σ over steps of the residual's power at ``f_hz`` (a periodogram at one frequency)."""
     total = 0.0
     for sr in steps:
-        z = residuals[sr.index] @ np.exp(-2j * np.pi * f_hz * sr.time_s)
+        z = dft_at(residuals[sr.index], sr.time_s, f_hz)
         total += abs(z) ** 2 / sr.n
     return total
 
@@ -192,7 +193,7 @@ def table_line_dps2(sr: StepReplay, f_hz: float) -> float:
     """Acceleration amplitude (°/s²) of a line at ``f_hz`` in the table's position log."""
     amp = 0.0
     for dev in sr.table_deviation_deg.values():
-        z = (dev - dev.mean()) @ np.exp(-2j * np.pi * f_hz * sr.time_s)
+        z = dft_at(dev - dev.mean(), sr.time_s, f_hz)
         amp = max(amp, 2.0 * abs(z) / dev.size * (2 * np.pi * f_hz) ** 2)
     return amp
 

@@ -21,9 +21,12 @@ from aatest.twin.daq import antialias_filter
 DEFAULT_ANTIALIAS_HZ = 100.0
 #: residual noise PSD ratio (high band / low band) below which the noise is filtered
 ROLLOFF_RATIO = 0.5
+#: |ln(fc / 100 Hz)| below which a fitted corner is the documented filter (the grid's step)
+SAME_CORNER_LOG = 0.05
 
 
-def channel_info(dataset: Dataset, channel: str, corner: float | None, t_ref_c: float) -> ChannelInfo:
+def channel_info(dataset: Dataset, channel: str, corner: float | None, t_ref_c: float
+                 ) -> ChannelInfo:
     """Design inputs of one channel (axis, range, logger filter, T_ref)."""
     s = dataset.sensor(channel)
     return ChannelInfo(channel, s.axis, s.range_dps2, corner, t_ref_c, s.nominal_scale_v_per_dps2)
@@ -90,7 +93,7 @@ def estimate_corner_hz(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:
     f, p = freq[band], psd[band]
     best = (np.inf, DEFAULT_ANTIALIAS_HZ)
     for fc in np.geomspace(0.01 * fs, 0.4 * fs, 121):
-        b, a, gain = antialias_filter(float(fc), round(1.0 / fs, 15))
+        b, a, _gain = antialias_filter(float(fc), round(1.0 / fs, 15))
         h2 = np.abs(signal.freqz(b, a, worN=f, fs=fs)[1]) ** 2
         coef, _ = nnls(np.column_stack([h2, np.ones_like(f)]) / p[:, None], np.ones_like(f))
         model = coef[0] * h2 + coef[1]
@@ -101,7 +104,8 @@ def estimate_corner_hz(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:
             best = (misfit, float(fc))
     fc = best[1]
     # within the grid's resolution of the documented rig's filter: take the documented value
-    return DEFAULT_ANTIALIAS_HZ if abs(np.log(fc / DEFAULT_ANTIALIAS_HZ)) < 0.05 else round(fc, 1)
+    return (DEFAULT_ANTIALIAS_HZ if abs(np.log(fc / DEFAULT_ANTIALIAS_HZ)) < SAME_CORNER_LOG
+            else round(fc, 1))
 
 
 def logger_options(dataset: Dataset, replay: Replay) -> list[tuple[float | None, str]]:

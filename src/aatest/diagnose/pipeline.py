@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from aatest.diagnose.alignment import nominal_fit
 from aatest.diagnose.design import Fit, predict
@@ -163,6 +164,9 @@ def _calibration(result: ChannelResult, ctx: Context) -> dict[str, Any]:
                                     for s in ctx.replay.steps]}
 
 
+# the design products are thin (tens of columns): threaded BLAS gains nothing on them and, on
+# a busy machine, each call waits for its threads to wake (measured 500× slower per dot)
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def diagnose_dataset(dataset: Dataset, clock_tolerance_ppm: float | None = None,
                      figures: dict[str, str] | None = None) -> dict[str, Any]:
     """Run the whole pipeline; return the diagnosis document (contract keys plus extras).

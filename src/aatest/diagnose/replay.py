@@ -25,6 +25,9 @@ from aatest.twin import kinematics as kin
 #: samples of analytic motion computed beyond each end of a record, so that delays and
 #: filters applied to the prediction start in steady state (0.5 s at 2 kHz)
 PAD_SAMPLES = 1024
+#: commanded-acceleration evaluations kept per step (3 × padded samples each; a 2^17-sample
+#: step holds 3.2 MB per entry, so the memo is kept short)
+ALPHA_MEMO = 4
 
 
 @dataclass(frozen=True)
@@ -88,9 +91,10 @@ def fit_axis_motion(time_s: np.ndarray, position_deg: np.ndarray, moving: bool,
     columns = [np.ones_like(t)]
     if moving and constant_rate:
         columns.append(t)
-    use_sine = moving and frequency_hz is not None and frequency_hz > 0.0
+    f_hz = float(frequency_hz) if moving and frequency_hz is not None else 0.0
+    use_sine = f_hz > 0.0
     if use_sine:
-        w = 2 * np.pi * float(frequency_hz)
+        w = 2 * np.pi * f_hz
         columns += [np.sin(w * t), np.cos(w * t)]
     coef, *_ = np.linalg.lstsq(np.column_stack(columns), pos, rcond=None)
     coef = list(coef)
@@ -98,7 +102,7 @@ def fit_axis_motion(time_s: np.ndarray, position_deg: np.ndarray, moving: bool,
     rate = coef.pop(0) if moving and constant_rate else 0.0
     ramp = moving and constant_rate
     if use_sine:
-        return AxisMotion(offset, rate, coef[0], coef[1], float(frequency_hz), ramp)
+        return AxisMotion(offset, rate, coef[0], coef[1], f_hz, ramp)
     return AxisMotion(offset, rate, fitted_rate=ramp)
 
 
@@ -196,16 +200,20 @@ def sensor_acceleration(replay: StepReplay, axis: str, time_s: np.ndarray,
                         memo_key: tuple | None = None) -> np.ndarray:
     """Commanded angular acceleration in the sensor frame, (3, n) rows x, y, z (°/s²).
 
-    With ``memo_key`` the result is kept on the step (small LRU), for repeated evaluations on
-    the same time grid during a parameter search.
+    With ``memo_key`` the result is kept on the step (the :data:`ALPHA_MEMO` most recently
+    used), for repeated evaluations on the same time grid during a parameter search (the
+    dynamics, hysteresis and saturation searches re-use one grid; a delay search moves it).
     """
     if memo_key is not None:
         key = ("alpha", axis, memo_key)
-        if key not in replay.memo:
-            if len(replay.memo) > 24:
-                replay.memo.pop(next(iter(replay.memo)))
-            replay.memo[key] = sensor_acceleration(replay, axis, time_s)
-        return replay.memo[key]
+        value = replay.memo.pop(key, None)
+        if value is None:
+            value = sensor_acceleration(replay, axis, time_s)
+            alphas = [k for k in replay.memo if k[0] == "alpha"]
+            for old in alphas[: max(len(alphas) - ALPHA_MEMO + 1, 0)]:
+                del replay.memo[old]
+        replay.memo[key] = value  # most recently used last
+        return value
     m = replay.motion(time_s)
     top = kin.angular_acceleration_top(_sincos(m["inner_angle"]), m["inner_rate"],
                                        m["inner_accel"], m["outer_rate"], m["outer_accel"])
@@ -286,7 +294,8 @@ def replay_dataset(dataset: Dataset) -> Replay:
         When no step can be synchronised.
     """
     channels = [s.channel for s in dataset.sensors]
-    steps, skipped = [], []
+    steps: list[StepReplay] = []
+    skipped: list[str] = []
     for data in dataset.steps:
         if not data.step.recorded:
             continue

@@ -24,13 +24,15 @@ _MAX_HARMONIC = 10
 _LINES = 5
 #: a spectral line stands this far above the median level of its step's residual spectrum
 _LINE_SNR = 20.0
+#: a line within this fraction of an integer multiple of the excitation is its harmonic
+_HARMONIC_TOL = 0.02
 
 
 def _classify(f_hz: float, sr: StepReplay) -> str:
     f0 = sr.inner.frequency_hz or sr.outer.frequency_hz
     if f0 > 0:
         k = f_hz / f0
-        if 1 <= round(k) <= _MAX_HARMONIC and abs(k - round(k)) < 0.02:
+        if 1 <= round(k) <= _MAX_HARMONIC and abs(k - round(k)) < _HARMONIC_TOL:
             return f"harmonic {round(k)} of {f0:.3f} Hz"
     rate = abs(sr.inner.rate_dps) or abs(sr.outer.rate_dps)
     if rate > 0:
@@ -41,10 +43,11 @@ def _classify(f_hz: float, sr: StepReplay) -> str:
 def spectrum_lines(ctx: Context, residuals: dict[int, np.ndarray]) -> list[dict[str, Any]]:
     """Strongest narrow lines of the residual spectrum per step, classified."""
     fs = 1.0 / ctx.replay.dt_s
-    lines = []
+    lines: list[dict[str, Any]] = []
     for sr in ctx.replay.steps:
-        r = residuals[sr.index]
-        f, p = signal.periodogram(r, fs=fs, detrend="linear", window="hann")
+        # one segment: detrending the record first is periodogram's detrend="linear"
+        r = signal.detrend(np.asarray(residuals[sr.index], dtype=np.float64), type="linear")
+        f, p = signal.periodogram(r, fs=fs, detrend=False, window="hann")
         floor = float(np.median(p[1:])) or 1e-30
         idx, _ = signal.find_peaks(p, height=_LINE_SNR * floor, distance=8)
         for i in idx[np.argsort(p[idx])[::-1][:_LINES]]:
@@ -59,8 +62,9 @@ def spectrum_lines(ctx: Context, residuals: dict[int, np.ndarray]) -> list[dict[
 def _binned(x: np.ndarray, r: np.ndarray) -> list[dict[str, float]]:
     """Residual RMS in quantile bins of ``x``."""
     edges = np.unique(np.quantile(x, np.linspace(0, 1, _BINS + 1)))
-    if edges.size < 2:
-        return [{"from": float(edges[0]), "to": float(edges[0]), "rms_v": float(np.sqrt(np.mean(r * r)))}]
+    if edges.size < 2:  # noqa: PLR2004 - one distinct value: a single bin, no edges between
+        rms = float(np.sqrt(np.mean(r * r)))
+        return [{"from": float(edges[0]), "to": float(edges[0]), "rms_v": rms}]
     which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
     out = []
     for b in range(edges.size - 1):

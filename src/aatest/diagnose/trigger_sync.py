@@ -16,6 +16,8 @@ from aatest.engine.dataset import StepData
 from aatest.sync.freeze_pulse import ClockRelation, SyncedStep
 
 _DIGITAL = ("sync_pulse", "trigger")
+#: a digital trigger line (0/1 volts-as-logged) is high above this level
+TRIGGER_THRESHOLD = 0.5
 
 
 def trigger_aligned(data: StepData) -> SyncedStep | None:
@@ -23,7 +25,7 @@ def trigger_aligned(data: StepData) -> SyncedStep | None:
     daq, table = data.daq, data.table
     if "trigger" not in daq.channels:
         return None
-    high = np.asarray(daq["trigger"]) > 0.5
+    high = np.asarray(daq["trigger"]) > TRIGGER_THRESHOLD
     if not high.any():
         return None
     n = daq.time_s.size

@@ -10,9 +10,10 @@ degree); a motor line stays at one frequency whatever the motion, and is present
 from __future__ import annotations
 
 import numpy as np
-from scipy import optimize, signal
+from scipy import optimize
 
 from aatest.diagnose.effects.base import Z95, CandidateFit, Context, replace_spec
+from aatest.diagnose.periodogram import lomb_scargle_power
 from aatest.diagnose.replay import StepReplay, ripple_regressors
 
 #: ripple search range, cycles per degree
@@ -92,7 +93,7 @@ def _ripple_seed(steps: list[StepReplay], known: tuple[float, ...]) -> tuple[flo
     theta = np.concatenate([s.inner.evaluate(s.time_s[::_DECIMATE])[0] for s in steps])
     dev = np.concatenate([d[::_DECIMATE] for d in devs])
     grid = np.arange(RIPPLE_CPD[0], RIPPLE_CPD[1], 0.01)
-    power = signal.lombscargle(theta, dev - dev.mean(), 2 * np.pi * grid)
+    power = lomb_scargle_power(theta, dev - dev.mean(), 2 * np.pi * grid)
     for k in known:
         power[np.abs(grid - k) <= 0.05] = 0.0
     return float(grid[int(np.argmax(power))]), 0.01

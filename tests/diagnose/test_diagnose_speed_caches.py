@@ -1,0 +1,155 @@
+"""The speed-ups of ``aatest diagnose`` change no number: caches and fast sums against the
+direct computation (timings are measured in ``bench/diagnose.py``, never here).
+
+* per-step Gram blocks grown column by column, shared across specs and partly released under a
+  memory budget, give the per-fold XᵀX, Xᵀy, yᵀy of the full design built from scratch;
+* the O(n)-memory Lomb–Scargle periodogram equals SciPy's, the factorised single-frequency DFT
+  equals the direct sum;
+* the commanded-acceleration memo stays short and returns what an uncached evaluation does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from scipy import signal
+
+from aatest.diagnose import design
+from aatest.diagnose.design import ChannelInfo, Spec, fit_gram, fold_of, gram, step_columns
+from aatest.diagnose.periodogram import dft_at, lomb_scargle_power
+from aatest.diagnose.replay import ALPHA_MEMO, replay_dataset, sensor_acceleration
+from aatest.diagnose.scenarios import draw_hidden, scenario_dataset
+
+INFO = ChannelInfo("v_sz", "I", 572.958, 100.0, 25.0)
+
+
+@pytest.fixture(scope="module")
+def replay():
+    """Twelve steps (static, sines at several temperatures, outer-axis sines, ramps) of 2^12."""
+    hidden = [draw_hidden("sensor_dynamics", 3), draw_hidden("bias_temperature", 3)]
+    return replay_dataset(scenario_dataset(hidden, seed=3, samples=2**12))
+
+
+def _targets(replay) -> dict[int, np.ndarray]:
+    return {s.index: s.volts["v_sz"] for s in replay.steps}
+
+
+def _direct(replay, spec: Spec) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-fold XᵀX, Xᵀy, yᵀy, counts from each step's full design matrix (no cache)."""
+    names = design.column_names(spec, replay)
+    p = len(names)
+    xtx, xty, yty, cnt = np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2)
+    for sr in replay.steps:
+        x, y, folds = step_columns(sr, INFO, spec, names), sr.volts["v_sz"], fold_of(sr.n)
+        for f in (0, 1):
+            m = folds == f
+            xtx[f] += x[m].T @ x[m]
+            xty[f] += x[m].T @ y[m]
+            yty[f] += y[m] @ y[m]
+            cnt[f] += m.sum()
+    return xtx, xty, yty, cnt
+
+
+#: specs in the order a diagnosis meets them: linear extensions of one shape, shape changes,
+#: table terms, then back to earlier shapes (their blocks are re-used or rebuilt)
+SPECS = [
+    Spec(),
+    Spec(linear=frozenset({"bias_temperature"})),
+    Spec(linear=frozenset({"bias_temperature", "scale_temperature", "cross_axis"})),
+    Spec(linear=frozenset({"nonlinearity_cubic", "jerk_sensitivity", "g_sensitivity"})),
+    Spec(delay_s=0.0031),
+    Spec(linear=frozenset({"bias_temperature"}), dynamics=(31.0, 0.6)),
+    Spec(linear=frozenset({"bias_temperature", "scale_temperature"}), dynamics=(31.0, 0.6)),
+    Spec(hysteresis_dps2=2.0, saturation_dps2=300.0),
+    Spec(ripple_cpd=(2.0,), vibration_hz=(33.3,)),
+    Spec(linear=frozenset({"cross_axis"}), ripple_cpd=(2.0,), vibration_hz=(33.3,),
+         dynamics=(31.0, 0.6)),
+    Spec(),
+    Spec(linear=frozenset({"bias_temperature", "scale_temperature", "cross_axis"})),
+]
+
+
+def _assert_same(g, direct) -> None:
+    xtx, xty, yty, cnt = direct
+    scale = np.sqrt(np.outer(np.diag(xtx[0] + xtx[1]), np.diag(xtx[0] + xtx[1]))) + 1e-300
+    assert_allclose(g.xtx / scale, xtx / scale, rtol=0, atol=1e-12)
+    assert_allclose(g.xty, xty, rtol=1e-11, atol=1e-12 * np.abs(xty).max())
+    assert_allclose(g.yty, yty, rtol=1e-12)
+    assert_allclose(g.count, cnt, rtol=0)
+
+
+def test_cached_gram_blocks_equal_the_full_design(replay) -> None:
+    """One shared cache across every spec (as a Context uses it) changes no Gram entry."""
+    cache: dict = {}
+    targets = _targets(replay)
+    for spec in SPECS:
+        _assert_same(gram(replay, INFO, spec, targets, cache), _direct(replay, spec))
+
+
+def test_released_columns_are_rebuilt_identically(replay, monkeypatch) -> None:
+    """A budget too small to hold any column forces every extension to rebuild: same numbers."""
+    monkeypatch.setattr(design, "COLUMN_BUDGET_BYTES", 1)
+    cache: dict = {}
+    targets = _targets(replay)
+    for spec in SPECS:
+        _assert_same(gram(replay, INFO, spec, targets, cache), _direct(replay, spec))
+    budget = cache[design._BUDGET]
+    held = [b for b in budget.order.values() if b.columns is not None]
+    assert len(held) <= 1  # only the block just used keeps its columns
+
+
+def test_fit_with_and_without_cache_agree(replay) -> None:
+    """The coefficients and held-out SSE a candidate is judged on do not depend on the cache."""
+    targets = _targets(replay)
+    cache: dict = {}
+    for spec in SPECS[:3]:
+        gram(replay, INFO, spec, targets, cache)  # warm the cache with the smaller specs
+    spec = Spec(linear=frozenset({"bias_temperature", "scale_temperature"}), dynamics=(31.0, 0.6))
+    cached = fit_gram(gram(replay, INFO, spec, targets, cache), spec)
+    fresh = fit_gram(gram(replay, INFO, spec, targets, None), spec)
+    assert_allclose(cached.coef, fresh.coef, rtol=1e-9)
+    assert_allclose(cached.sse_held_out, fresh.sse_held_out, rtol=1e-9)
+    # the data hold bias_temperature: its coefficient is the twin's drawn truth (V/°C)
+    truth = draw_hidden("bias_temperature", 3).parameters["coefficient_v_per_c"]
+    assert_allclose(cached.value("bias_temperature"), truth, rtol=0.05)
+
+
+def test_lomb_scargle_power_equals_scipy() -> None:
+    rng = np.random.default_rng(5)
+    theta = np.sort(rng.uniform(-40.0, 40.0, 3000))
+    y = 0.3 * np.sin(2 * np.pi * 1.37 * theta + 0.4) + rng.normal(size=theta.size)
+    omega = 2 * np.pi * np.arange(0.2, 6.0, 0.01)  # evenly spaced: swept by rotation
+    expected = signal.lombscargle(theta, y - y.mean(), omega)
+    got = lomb_scargle_power(theta, y - y.mean(), omega)
+    assert_allclose(got, expected, rtol=1e-9, atol=1e-10 * expected.max())
+    assert abs(omega[np.argmax(got)] / (2 * np.pi) - 1.37) < 0.01
+    uneven = np.sort(rng.uniform(1.0, 30.0, 7))  # not evenly spaced: exact phasors each time
+    assert_allclose(lomb_scargle_power(theta, y, uneven), signal.lombscargle(theta, y, uneven),
+                    rtol=1e-9)
+
+
+@pytest.mark.parametrize("n", [16, 1000, 16384, 16387])
+def test_dft_at_equals_the_direct_sum(n: int) -> None:
+    rng = np.random.default_rng(n)
+    values = rng.normal(size=n)
+    t = 0.25 + 0.0005 * np.arange(n)
+    for f_hz in (0.0, 3.3, 49.999, 999.0):
+        direct = values @ np.exp(-2j * np.pi * f_hz * t)
+        assert abs(dft_at(values, t, f_hz) - direct) <= 1e-11 * np.sqrt(n) * (1 + f_hz * t[-1])
+    jittered = t + rng.normal(scale=1e-6, size=n)  # not uniform: the direct sum is used
+    direct = values @ np.exp(-2j * np.pi * 3.3 * jittered)
+    assert abs(dft_at(values, jittered, 3.3) - direct) <= 1e-9
+
+
+def test_acceleration_memo_is_short_and_exact(replay) -> None:
+    sr = next(s for s in replay.steps if s.dynamic)
+    tp = sr.padded_time_s
+    for k in range(3 * ALPHA_MEMO):
+        shift = 1e-4 * k
+        cached = sensor_acceleration(sr, "I", tp - shift, ("test", shift))
+        assert_allclose(cached, sensor_acceleration(sr, "I", tp - shift), rtol=0, atol=0)
+    assert sum(1 for key in sr.memo if key[0] == "alpha") <= ALPHA_MEMO
+    again = sensor_acceleration(sr, "I", tp - 1e-4 * (3 * ALPHA_MEMO - 1),
+                                ("test", 1e-4 * (3 * ALPHA_MEMO - 1)))
+    assert_allclose(again, sensor_acceleration(sr, "I", tp - 1e-4 * (3 * ALPHA_MEMO - 1)))
