@@ -77,10 +77,12 @@ def certify(entry: dict[str, Any], evaluation: Any, prefix: str = "", unit_suffi
     if prefix:
         entry[f"{prefix}_expanded_uncertainty{unit_suffix}"] = evaluation.expanded_uncertainty
         entry[f"{prefix}_budget"] = budget
+        entry[f"{prefix}_measurand"] = evaluation.definition
         return
     entry.update(expanded_uncertainty=evaluation.expanded_uncertainty,
                  coverage_factor=evaluation.k,
-                 coverage_probability=evaluation.coverage_probability, budget=budget)
+                 coverage_probability=evaluation.coverage_probability, budget=budget,
+                 measurand=evaluation.definition)
 
 
 def as_float(value: Any) -> float | None:
@@ -96,6 +98,14 @@ def analysis(results: Mapping[str, Any], key: str) -> Any:
     """``results["analysis"][key]`` or None."""
     block = results.get("analysis") or {}
     return block.get(key) if isinstance(block, Mapping) else None
+
+
+def stated_instruments(results: Mapping[str, Any]) -> Mapping[str, Any] | None:
+    """The rig description's ``instruments`` block as recorded with the run, or None."""
+    for rig in ((results.get("metadata") or {}).get("rig"), results.get("rig")):
+        if isinstance(rig, Mapping) and isinstance(rig.get("instruments"), Mapping):
+            return rig["instruments"]  # type: ignore[no-any-return]
+    return None
 
 
 def sensors(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:

@@ -58,6 +58,8 @@ class Input:
     distribution: Distribution = "normal"
     unit: str = ""
     note: str = ""
+    kind: Literal["A", "B"] = "B"
+    evaluated: bool = True
 
     def mean(self) -> float:
         """Expectation of the input (for ``cosine_error``: E[cos ε] − 1 = sin a / a − 1)."""
@@ -97,6 +99,7 @@ class Measurand:
     unit: str
     model: Model
     inputs: tuple[Input, ...]
+    definition: str = ""
 
 
 @dataclass(frozen=True)
@@ -111,6 +114,7 @@ class Evaluation:
     k: float
     rows: tuple[BudgetRow, ...]
     coverage_probability: float = P_COVERAGE
+    definition: str = ""
 
     def share_pct(self, row: BudgetRow) -> float:
         """A row's share of the combined variance, u_i(y)²/u_c(y)², in %."""
@@ -140,11 +144,12 @@ def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
         rows.append(BudgetRow(
             name=item.name, label=item.label, value=item.mean(), standard_uncertainty=u_x,
             unit=item.unit, distribution=item.distribution, sensitivity=c,
-            contribution=abs(c) * u_x, basis=item.note,
+            contribution=abs(c) * u_x, basis=item.note, quantity=item.label, type=item.kind,
+            evaluated=item.evaluated,
         ))
     return Evaluation(
         measurand.name, measurand.unit, float(getattr(y, "nominal_value", y)), u_c, k * u_c, k,
-        tuple(rows),
+        tuple(rows), definition=measurand.definition,
     )
 
 
