@@ -106,7 +106,9 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
     axes = (("inner", setup.inner, tm.inner), ("outer", setup.outer, tm.outer))
     for name, axis, axis_model in axes:
         angle, rate, accel = axis.evaluate(grid)
-        est = estimates(angle, axis_model, dt, tm.estimator, rng)
+        encoder = axis_model.encoder_error  # what the encoder reports, not where the table is
+        seen = angle + encoder.error_deg(angle) if encoder is not None else angle
+        est = estimates(seen, axis_model, dt, tm.estimator, rng)
         channels[f"{name}_position_deg"] = est["position_deg"]
         channels[f"{name}_rate_dps"] = est["rate_dps"]
         channels[f"{name}_accel_dps2"] = est["accel_dps2"]

@@ -49,6 +49,10 @@ class EncoderSpec(Traceable):
     accuracy_arcsec: float = Field(1.0, ge=0, description="position accuracy bound, arcsec")
     resolution_counts_per_rev: int = Field(129_600_000, gt=0,
                                            description="counts per revolution (0.01″ steps)")
+    error_cycles_per_rev: int = Field(
+        360, gt=0, description="highest spatial frequency of the encoder's angle error "
+        "(graduation/interpolation period), cycles per revolution: bounds how fast the error "
+        "can change over a small motion")
 
     @property
     def resolution_arcsec(self) -> float:

@@ -41,12 +41,22 @@ def not_evaluated(name: str, label: str, reason: str, unit: str = "1") -> Input:
 # --- reference --------------------------------------------------------------------------------
 
 def encoder_accuracy(c: RigConstants, amplitude_arcsec: float) -> Input:
-    """Encoder accuracy a over the motion amplitude A: relative half-width a/A (rectangular)."""
+    """Encoder accuracy a over the motion amplitude A (rectangular, relative half-width).
+
+    Over a motion of amplitude A the error can change by at most 2A times its slope, and its
+    slope is bounded by a·2π·n (n: the error's highest spatial frequency, cycles/rev); and by
+    no more than a itself: the half-width is min(a/A, a·2π·n/rev).
+    """
     enc = c.instruments.encoder
+    a_rad = enc.accuracy_arcsec * ARCSEC_RAD
+    slope = a_rad * enc.error_cycles_per_rev
+    over_amplitude = enc.accuracy_arcsec / amplitude_arcsec
+    bound = min(slope, over_amplitude)
+    how = (f"over A = {amplitude_arcsec:.1f}″" if over_amplitude <= slope else
+           f"slope bound a·2π·{enc.error_cycles_per_rev}/rev (A = {amplitude_arcsec:.1f}″)")
     what = f"encoder accuracy ±{enc.accuracy_arcsec:g}″"
-    return rel("encoder_accuracy", "reference: encoder accuracy",
-               enc.accuracy_arcsec / amplitude_arcsec,
-               f"{c.source(what, enc.cert_text())} over A = {amplitude_arcsec:.1f}″", "rectangular")
+    return rel("encoder_accuracy", "reference: encoder accuracy", bound,
+               f"{c.source(what, enc.cert_text())} {how}", "rectangular")
 
 
 def encoder_resolution(c: RigConstants, amplitude_arcsec: float) -> Input:

@@ -37,13 +37,18 @@ def _record_samples(point: Mapping[str, Any], results: Mapping[str, Any], c: Rig
 
 
 def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
-               u_key: str, to_relative: float) -> tuple[float, str]:
+               u_key: str, to_relative: float, channel: str = "") -> tuple[float, str]:
     """Relative (gain) or radian (phase) standard uncertainty of the bin ratio Y/X, and its basis.
 
-    The FRF analysis' own ``u_gain_db``/``u_phase_deg`` are used when stated; otherwise white
-    noise at the bin of both the sensor output (``snr_db``) and the table reference
-    (``table_snr_db``), each 1/√(N·SNR).
+    Measured next to the bin in the recording when it is at hand (output and reference, each
+    √(mean |X_k|²/2)/|X_1| over nearby bins); else the FRF analysis' own ``u_gain_db`` /
+    ``u_phase_deg``; else white noise at the bin from the SNRs, 1/√(N·SNR) each.
     """
+    local = c.evidence.bin_noise.get(str(point.get("step")))
+    if local is not None and channel in local.channels_rel:
+        out, ref = local.channels_rel[channel], local.table_rel
+        return (math.hypot(out, ref), f"noise next to the bin in the recording: output "
+                f"{out * 100:.4f} %, reference {ref * 100:.4f} % of the fundamental")
     stated = ex.as_float(point.get(u_key))
     if stated is not None:
         return stated * to_relative, f"u from the FRF analysis ({u_key})"
@@ -88,7 +93,7 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
     if gain is None or not f_hz or not accel:
         return None
     amp_arcsec = abs(accel) / (2 * math.pi * f_hz) ** 2 * 3600.0
-    noise, basis = _bin_noise(point, results, c, "u_gain_db", math.log(10.0) / 20.0)
+    noise, basis = _bin_noise(point, results, c, "u_gain_db", math.log(10.0) / 20.0, channel)
     fs = ex.as_float(point.get("sample_rate_hz")) or c.sample_rate_hz
     method = (2 * math.pi * f_hz / fs) ** 2 / 12.0
     thd = ex.as_float(point.get("table_thd"))
@@ -153,7 +158,7 @@ def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
     f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
     if phase is None or not f_hz:
         return None
-    noise, basis = _bin_noise(point, results, c, "u_phase_deg", math.pi / 180.0)
+    noise, basis = _bin_noise(point, results, c, "u_phase_deg", math.pi / 180.0, channel)
     u_sync, sync_note = _sync_offset_s(results, point)
     _, at = _point_temperature(point, results, c, channel)
     inputs = (

@@ -60,6 +60,7 @@ class Input:
     note: str = ""
     kind: Literal["A", "B"] = "B"
     evaluated: bool = True
+    dof: float = math.inf
 
     def mean(self) -> float:
         """Expectation of the input (for ``cosine_error``: E[cos ε] − 1 = sin a / a − 1)."""
@@ -127,6 +128,24 @@ class Evaluation:
         return self.expanded_uncertainty / abs(self.value) if self.value else None
 
 
+def coverage_factor(u_c: float, contributions: list[tuple[float, float]],
+                    k_infinite: float = K_COVERAGE) -> float:
+    """k for the coverage probability of ``k_infinite`` at the effective degrees of freedom.
+
+    Welch–Satterthwaite (JCGM 100 G.4): ν_eff = u_c⁴ / Σ u_i⁴/ν_i over the contributions
+    (u_i(y), ν_i) with finite ν_i; k = t-quantile at ν_eff (G.6.4). Infinite ν_eff gives
+    ``k_infinite`` itself.
+    """
+    from scipy.stats import norm, t
+
+    finite = sum(u**4 / dof for u, dof in contributions if math.isfinite(dof) and dof > 0)
+    if u_c <= 0 or finite <= 0:
+        return k_infinite
+    dof_eff = u_c**4 / finite
+    probability = 2.0 * norm.cdf(k_infinite) - 1.0
+    return float(max(k_infinite, t.ppf(0.5 + probability / 2.0, dof_eff)))
+
+
 def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
     """Propagate the inputs through the model by the GUM law (first order, independent inputs)."""
     variables: dict[str, Any] = {
@@ -137,6 +156,8 @@ def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
     y = measurand.model(UMATH_OPS, variables)
     derivatives = {var.tag: d for var, d in getattr(y, "derivatives", {}).items()}
     u_c = float(getattr(y, "std_dev", 0.0))
+    k = coverage_factor(u_c, [(abs(float(derivatives.get(i.name, 0.0)))
+                               * i.standard_uncertainty(), i.dof) for i in measurand.inputs], k)
     rows = []
     for item in measurand.inputs:
         c = float(derivatives.get(item.name, 0.0))

@@ -244,29 +244,54 @@ def _static_mean_std_v(results: Mapping[str, Any], channel: str, c: RigConstants
     return noise_v / math.sqrt(independent), note
 
 
-def _mounting_u(entry: Mapping[str, Any], u_key: str) -> float | None:
-    """u of the mean over mountings (original/pivoted) when only those are reported."""
+def _pooled_mountings(entry: Mapping[str, Any], key: str, u_key: str
+                      ) -> tuple[float, float, int] | None:
+    """Type A of the mean over every repetition of every mounting: (u, degrees of freedom, n).
+
+    Each mounting reports its mean over r repetitions and u = s/√r; the within- and
+    between-mounting sums of squares are pooled over all n = Σr values (the pivot changes
+    nothing the quantity depends on), s² = SS/(n − 1), u = s/√n with n − 1 degrees of freedom.
+    """
     mountings = entry.get("mountings")
     if not isinstance(mountings, Mapping):
         return None
-    us = [ex.as_float(m.get(u_key)) for m in mountings.values() if isinstance(m, Mapping)]
-    if not us or any(u is None for u in us):
+    parts = []
+    for m in mountings.values():
+        if not isinstance(m, Mapping):
+            continue
+        value, u, reps = ex.as_float(m.get(key)), ex.as_float(m.get(u_key)), m.get("repetitions")
+        if value is None or u is None or not isinstance(reps, int) or reps < 1:
+            return None
+        parts.append((value, u, reps))
+    n = sum(r for _, _, r in parts)
+    if not parts or n < 2:
         return None
-    return math.sqrt(sum(u * u for u in us if u is not None)) / len(us)
+    grand = sum(v * r for v, _, r in parts) / n
+    within = sum((r - 1) * r * u * u for _, u, r in parts)
+    between = sum(r * (v - grand) ** 2 for v, _, r in parts)
+    return math.sqrt((within + between) / (n - 1) / n), float(n - 1), n
 
 
 def _static_statistics(results: Mapping[str, Any], entry: Mapping[str, Any], channel: str,
                        c: RigConstants, key: str, u_key: str, volts_per_unit: float,
                        unit: str) -> list[Input]:
-    """Type A inputs of a static quantity: the analysis' own u when stated (it already holds
-    noise and repeatability), else sensor noise over the records plus repeatability."""
-    u = ex.as_float(entry.get(u_key)) or _mounting_u(entry, u_key)
-    if u is not None:
+    """Type A inputs of a static quantity: pooled over every repetition and mounting when the
+    analysis reports them (noise, hysteresis and repeatability alike, with their degrees of
+    freedom), else the analysis' own u, else sensor noise over the records plus repeatability."""
+    pooled = _pooled_mountings(entry, key, u_key)
+    if pooled is not None:
+        u, dof, n = pooled
         return [Input("noise", "static means (noise, repeatability)", 0.0, u, "normal", unit,
-                      "type A, from the analysis")]
+                      f"measured: s/√n over {n} repetitions × mountings ({dof:.0f} degrees of "
+                      "freedom)", "A", dof=dof)]
+    stated = ex.as_float(entry.get(u_key))
+    if stated is not None:
+        return [Input("noise", "static means (noise, repeatability)", 0.0, stated, "normal",
+                      unit, "measured: type A, from the analysis", "A")]
     reps = max(len(ex.repetition_values(entry, key)), 1)
     u_mean, note = _static_mean_std_v(results, channel, c, 2 * reps)
-    return [Input("noise", "sensor noise", 0.0, u_mean / volts_per_unit, "normal", unit, note),
+    return [Input("noise", "sensor noise", 0.0, u_mean / volts_per_unit, "normal", unit,
+                  note, "A"),
             *_repeat_input(entry, key, 1.0, unit)]
 
 
@@ -306,6 +331,7 @@ def bias_measurand(results: Mapping[str, Any], channel: str, c: RigConstants) ->
     temp_input, at_temperature = comp.temperature(c, _static_steps(results), tc, tc_note, "V")
     inputs = [
         *_static_statistics(results, entry, channel, c, "bias_v", "bias_u_v", 1.0, "V"),
+        _static_disturbance(c, channel, 1.0, "V"),
         comp.logger_offset(c),
         comp.logger_gain(c),
         comp.logger_resolution_v(c),
@@ -314,7 +340,8 @@ def bias_measurand(results: Mapping[str, Any], channel: str, c: RigConstants) ->
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
         logged = (b_hat - x["logger_offset"] - x["logger_resolution"]) / (1.0 + x["logger_gain"])
-        return logged + x["noise"] + x["temperature"] + x.get("repeatability", 0.0)
+        return (logged + x["noise"] + x["disturbance"] + x["temperature"]
+                + x.get("repeatability", 0.0))
 
     definition = (f"bias K0 of {channel}: output (V) at zero angular rate and acceleration, the "
                   f"mean of the +1 g and −1 g positions of the sensitive axis (g-sensitivity "
@@ -329,6 +356,60 @@ def _scale_input(results: Mapping[str, Any], channel: str, scale_rel_u: float | 
     tol_pct = ex.as_float(ex.sensors(results).get(channel, {}).get("scale_tolerance_pct")) or 1.0
     return _rel("scale", "scale factor", tol_pct / 100.0,
                 f"nominal K, datasheet ±{tol_pct:g} % (not calibrated in this run)", "rectangular")
+
+
+def _static_disturbance(c: RigConstants, channel: str, scale: float, unit: str) -> Input:
+    """Residual of the strongest periodic line (e.g. the motor band) in the static means:
+    at most V/(π·f·T) per record, the same in every record when the timing repeats — so
+    rectangular, not averaged over records."""
+    line = c.evidence.static_line_bound_v(channel, _static_ids(c))
+    if line is None:
+        return comp.not_evaluated("disturbance", "periodic disturbance in the static means",
+                                  "no static record at hand", unit)
+    return Input("disturbance", "periodic disturbance in the static means", 0.0,
+                 line.residual_bound_v * scale, "rectangular", unit,
+                 f"measured: strongest line {line.amplitude_v * 1e3:.2f} mV at "
+                 f"{line.frequency_hz:.1f} Hz; ≤ V/(π·f·T) of it stays in a record mean")
+
+
+def _static_ids(c: RigConstants) -> list[str]:
+    return list(c.evidence.static_lines)
+
+
+def _drift_between_records(c: RigConstants, steps: list[str], tc: float, tc_note: str,
+                           k_v: float, unit: str) -> Input:
+    """Bias drift between the +1 g and −1 g records: TC × the logged temperature's spread
+    between records (a constant thermometer error cancels in the difference)."""
+    logged = c.evidence.temperature_over(steps)
+    if logged is None:
+        lab = c.instruments.lab
+        return Input("temperature", "temperature drift between the ±1 g records", 0.0,
+                     tc * lab.temperature_tolerance_c / (2 * k_v), "rectangular", unit,
+                     f"not logged: {c.source(f'lab tolerance ±{lab.temperature_tolerance_c:g} °C')}"
+                     f" × {tc_note}, over 2K")
+    spread_c = max(logged.std_c, 0.01 / math.sqrt(12.0))  # the log's 0.01 °C resolution
+    return Input("temperature", "temperature drift between the ±1 g records", 0.0,
+                 tc * math.sqrt(2.0) * spread_c / (2 * k_v), "normal", unit,
+                 f"measured: spread of the logged temperature over the records "
+                 f"{spread_c:.3f} °C × {tc_note}, √2 over 2K")
+
+
+def _dithered_resolution(results: Mapping[str, Any], channel: str, c: RigConstants,
+                         k_v: float, unit: str) -> Input:
+    """Logger resolution in a half-difference of means: averaged over the samples when the
+    output noise dithers the converter (σ ≥ q/2), else one step q/√12."""
+    lg = c.instruments.logger
+    noise_v, source = ex.noise_rms_v(results, channel)
+    samples = sum(ex.step_values(ex.steps_of_kind(results, "static"), "samples"))
+    what = f"logger resolution q = {lg.step_v * 1e6:.0f} µV ({lg.bits} bit)"
+    if noise_v >= lg.step_v / 2 and samples >= 2:
+        u_v = lg.resolution_u_v * math.sqrt(2.0 / samples)
+        note = (f"{c.source(what)}; dithered by {noise_v * 1e3:.2f} mV noise ({source}): "
+                f"q/√12 over {samples / 2:.0f} samples per sign")
+    else:
+        u_v, note = lg.resolution_u_v, f"{c.source(what)}; not dithered: q/√12"
+    return Input("logger_resolution", "logger resolution", 0.0, u_v * math.sqrt(2.0) / (2 * k_v),
+                 "normal", unit, note + ", of a half-difference over 2K")
 
 
 def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigConstants,
@@ -352,28 +433,25 @@ def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigCons
     k_v = (ex.as_float(entry.get("scale_v_per_dps2_used")) or ex.as_float(nominal)
            or REFERENCE_SCALE_V_PER_DPS2)
     tc, tc_note = _bias_tc_note(results, channel)
-    stability = comp.temperature(c, _static_steps(results), tc, tc_note, "V")[0]
+    static_ids = _static_steps(results)
     tilt = math.hypot(c.position_accuracy_arcsec, c.wobble_arcsec) * ARCSEC_RAD
     unit = "(°/s²)/g"
-    resolution = comp.logger_resolution_v(c, math.sqrt(2.0) / 2.0 / k_v)
     inputs = [
         *_static_statistics(results, entry, channel, c, "g_sensitivity_dps2_per_g",
                             "g_sensitivity_u_dps2_per_g", k_v, unit),
-        Input("temperature", "temperature drift between the +1 g and −1 g records", 0.0,
-              stability.spread / (2 * k_v), stability.distribution, unit,
-              stability.note + "; half of it, over 2K"),
+        _static_disturbance(c, channel, 1.0 / k_v, unit),
+        _drift_between_records(c, static_ids, tc, tc_note, k_v, unit),
+        _dithered_resolution(results, channel, c, k_v, unit),
         _scale_input(results, channel, scale_rel_u),
         comp.logger_gain(c),
-        Input(resolution.name, resolution.label, 0.0, resolution.spread, "normal", unit,
-              resolution.note + ", of a half-difference over K"),
         Input("tilt", "table position / wobble (tilt of gravity)", 0.0, tilt, "cosine_error", "1",
               c.source("encoder accuracy and wobble") + ", cos ε − 1 of the gravity projection"),
         comp.mounting(c, results, channel),
     ]
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
-        g = (g_hat + x["noise"] + x["temperature"] + x.get("repeatability", 0.0)
-             + x["logger_resolution"])
+        g = (g_hat + x["noise"] + x["disturbance"] + x["temperature"]
+             + x.get("repeatability", 0.0) + x["logger_resolution"])
         chain = (1.0 + x["scale"]) * (1.0 + x["logger_gain"])
         return g / (chain * (1.0 + x["tilt"]) * (1.0 + x["mounting"]))
 
