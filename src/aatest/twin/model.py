@@ -152,6 +152,8 @@ class LoggerError(_Model):
 
     gain_error: float = 0.0
     offset_v: float = 0.0
+    timing_offset_s: float = Field(0.0, description="the logger samples this much late "
+                                   "against the table's latch (not seen by the sync fit)")
 
 
 class ExcessNoise(_Model):
@@ -324,7 +326,8 @@ class RigModel(_Model):
         rng = np.random.default_rng([int(seed), 0x1A7E])
         logger = LoggerError(
             gain_error=float(rng.uniform(-1, 1)) * spec.logger.gain_accuracy_pct / 100.0,
-            offset_v=float(rng.uniform(-1, 1)) * spec.logger.offset_accuracy_v)
+            offset_v=float(rng.uniform(-1, 1)) * spec.logger.offset_accuracy_v,
+            timing_offset_s=float(rng.uniform(-1, 1)) * spec.logger.timing_accuracy_us * 1e-6)
         encoder = EncoderError(
             harmonic_deg=spec.encoder.accuracy_arcsec / 3600.0 * float(rng.uniform(0.0, 1.0)),
             harmonic_cycles_per_rev=spec.encoder.error_cycles_per_rev,

@@ -47,7 +47,7 @@ class StepSetup:
 
     @property
     def trigger_index(self) -> int:
-        return int(round(self.model.daq.start_lead_s * self.clock.sample_rate_hz))
+        return round(self.model.daq.start_lead_s * self.clock.sample_rate_hz)
 
     @property
     def trigger_time_s(self) -> float:
@@ -193,6 +193,8 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, La
     floor = floor_rocking(model.table, n, clock.lab_dt_s, rng)
     for sensor in model.sensors:
         delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
+        if model.daq.logger_error is not None:  # the logger's own timing error (drawn)
+            delay += model.daq.logger_error.timing_offset_s
         if delay not in motion:  # (the floor noise is not re-timed by the tiny delays)
             motion[delay] = _top_motion(setup, grid.shifted(-delay), floor)
         alpha, up = motion[delay]

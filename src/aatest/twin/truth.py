@@ -47,12 +47,12 @@ def _mounted_axes(sensor: SensorModel) -> np.ndarray:
     """Sensor axes on a perfectly mounted seat: only the sensor's internal misalignment."""
     internal = (kin.tilt(sensor.misalignment.angle_deg, sensor.misalignment.azimuth_deg)
                 if sensor.misalignment is not None else np.eye(3))
-    return kin.SEAT_FRAMES[sensor.axis] @ internal  # type: ignore[no-any-return]
+    return kin.SEAT_FRAMES[sensor.axis] @ internal
 
 
 def _rotation_axis(sensor: SensorModel) -> np.ndarray:
     """The table-top direction of the sensor's nominal sensitive axis (the excited axis)."""
-    return kin.SEAT_FRAMES[sensor.axis][:, 2]  # type: ignore[no-any-return]
+    return kin.SEAT_FRAMES[sensor.axis][:, 2]
 
 
 def _ratio(model: RigModel, channel: str, frequency_hz: float, accel_dps2: float,
@@ -75,8 +75,8 @@ def _ratio_once(model: RigModel, channel: str, frequency_hz: float, accel_dps2: 
     sensor = model.sensor(channel)
     # the logger's own sample spacing: its filters are discretised at it
     dt_s = 1.0 / model.daq.sample_rate_hz
-    settle = int(math.ceil(_SETTLE_CYCLES / frequency_hz / dt_s))
-    n = settle + int(math.ceil(_CYCLES / frequency_hz / dt_s))
+    settle = math.ceil(_SETTLE_CYCLES / frequency_hz / dt_s)
+    n = settle + math.ceil(_CYCLES / frequency_hz / dt_s)
     t = np.arange(n) * dt_s
     delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
     omega = 2.0 * math.pi * frequency_hz

@@ -38,8 +38,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from aatest.engine.data.csv_table import CsvColumns, read_csv
 from aatest.engine.dataset import Dataset, SensorInfo, StepData
 from aatest.engine.errors import ImportDataError, Problem, ProblemsError
-from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
+from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.procedure.yaml_loader import locate, parse_yaml, read_text, validate_tree
 from aatest.engine.steps import Mounting, PlannedStep
 

@@ -87,6 +87,8 @@ def _vocabulary() -> frozenset[str]:
 
 
 _UNKNOWN_KEY = "Extra inputs are not permitted"
+#: ``steps.<i>.<kind>``: a field this deep under ``steps`` names a step kind
+_STEP_FIELD_DEPTH = 3
 
 
 def _with_hint(problem: Problem, vocabulary: frozenset[str]) -> Problem:
@@ -94,7 +96,7 @@ def _with_hint(problem: Problem, vocabulary: frozenset[str]) -> Problem:
     if problem.message != _UNKNOWN_KEY or not problem.field:
         return problem
     parts = problem.field.split(".")
-    is_step_kind = len(parts) >= 3 and parts[-3] == "steps" and parts[-2].isdigit()
+    is_step_kind = len(parts) >= _STEP_FIELD_DEPTH and parts[-3] == "steps" and parts[-2].isdigit()
     choices = STEP_KINDS if is_step_kind else sorted(vocabulary)
     close = difflib.get_close_matches(parts[-1], choices, n=1, cutoff=0.75)
     message = f"unknown key; did you mean {close[0]!r}?" if close else "unknown key"

@@ -67,6 +67,10 @@ class LoggerSpec(Traceable):
     gain_accuracy_pct: float = Field(0.1, ge=0, description="gain error bound, % of reading")
     bits: int = Field(16, ge=4, le=32, description="converter resolution, bits")
     range_v: tuple[float, float] = Field((-10.0, 10.0), description="input range, V")
+    timing_accuracy_us: float = Field(
+        10.0, ge=0, description="bound of the logger's sampling instant against the table's "
+        "freeze-pulse latch (latch latency, channel skew), µs: a constant time offset the sync "
+        "fit cannot see")
 
     @model_validator(mode="after")
     def _ordered(self) -> LoggerSpec:
@@ -77,7 +81,7 @@ class LoggerSpec(Traceable):
     @property
     def step_v(self) -> float:
         """One converter step q (16 bits over ±10 V: 305 µV), V."""
-        return (self.range_v[1] - self.range_v[0]) / 2**self.bits
+        return float(self.range_v[1] - self.range_v[0]) / float(2**self.bits)
 
     @property
     def resolution_u_v(self) -> float:

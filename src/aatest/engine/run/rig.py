@@ -51,7 +51,8 @@ def sensor_datasheet(sensor: SensorRef) -> tuple[SensorDatasheet, str]:
     return sheet, f"{info.distribution} {info.version}"
 
 
-def _construct(kind: str, name: str, options: dict[str, Any], context: RigContext) -> tuple[Any, str]:
+def _construct(kind: str, name: str, options: dict[str, Any], context: RigContext
+               ) -> tuple[Any, str]:
     info = registry.load(kind, name)
     config = registry.configure(info, options)
     try:
@@ -79,7 +80,8 @@ def build_rig(rig_config: Any, sensor: SensorRef, seed: int) -> Rig:
     instruments = getattr(rig_config, "instruments", None)
     if instruments is not None:  # the stated accuracies the uncertainty budgets read
         config["instruments"] = instruments.model_dump(mode="json")
-    return Rig(parts["turntable"], parts["daq"], parts["chamber"], datasheet, context, versions, config)
+    return Rig(parts["turntable"], parts["daq"], parts["chamber"], datasheet, context, versions,
+               config)
 
 
 def _safely(action: str, fn: Any) -> None:
@@ -94,7 +96,8 @@ def running(rig: Rig) -> Iterator[Rig]:
     """Start the rig; on any exit (fault, Ctrl-C, success) leave it safe and closed."""
     started: list[tuple[str, Any]] = []
     try:
-        for name, part in (("chamber", rig.chamber), ("daq", rig.daq), ("turntable", rig.turntable)):
+        parts = (("chamber", rig.chamber), ("daq", rig.daq), ("turntable", rig.turntable))
+        for name, part in parts:
             start = getattr(part, "start", None)
             try:
                 if start is not None:

@@ -87,7 +87,7 @@ def reference_method(results: Mapping[str, Any], steps: Sequence[str], chosen: s
                 gain = ex.as_float(entry.get("gain")) if isinstance(entry, Mapping) else None
                 if gain is not None:
                     gains.setdefault(str(method), []).append(gain)
-    if len(gains) < 2:
+    if len(gains) < ex.PAIR:
         return not_evaluated("reference_method", "reference: method error",
                              "no reference analysis comparing methods in this run")
     mean = {m: sum(v) / len(v) for m, v in gains.items()}

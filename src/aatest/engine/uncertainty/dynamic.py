@@ -21,8 +21,10 @@ from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.engine.uncertainty import access as ex
 from aatest.engine.uncertainty import components as comp
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
-from aatest.engine.uncertainty.measurands import ARCSEC_RAD, RigConstants
+from aatest.engine.uncertainty.measurands import RigConstants
 
+#: an offset u below this means the latch times aligned the loggers (else: one sample only)
+LATCHED_OFFSET_U_S = 1e-4
 #: misalignment scenario → (original, pivoted) set labels (docs/interfaces.md §5)
 SCENARIO_SETS: dict[str, tuple[str, str]] = {"1": ("A", "B"), "2": ("C", "D"), "3": ("E", "F"),
                                              "4": ("G", "H")}
@@ -145,7 +147,7 @@ def _sync_offset_s(results: Mapping[str, Any], point: Mapping[str, Any]) -> tupl
         for entry in steps:
             if isinstance(entry, Mapping) and entry.get("step") == point.get("step"):
                 stated = ex.as_float(entry.get("offset_u_s"))
-                latched = stated is not None and stated < 1e-4
+                latched = stated is not None and stated < LATCHED_OFFSET_U_S
                 if latched:
                     return stated or 0.0, "measured: sync analysis offset_u_s of this record"
     return u, note
@@ -166,11 +168,15 @@ def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
               "measured: " + basis, "A"),
         Input("sync", "synchronisation: logger alignment", 0.0, u_sync, "normal", "s",
               sync_note),
+        Input("timing", "synchronisation: logger timing against the latch", 0.0,
+              c.instruments.logger.timing_accuracy_us * 1e-6, "rectangular", "s",
+              c.source(f"logger timing accuracy ±{c.instruments.logger.timing_accuracy_us:g} µs",
+                       c.instruments.logger.cert_text()) + "; enters as 360·f·δt"),
         comp.not_evaluated("repeatability", "repeatability", "one record per frequency", "deg"),
     )
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
-        return (phase + x["noise"] * (180.0 / math.pi) - 360.0 * f_hz * x["sync"]
+        return (phase + x["noise"] * (180.0 / math.pi) - 360.0 * f_hz * (x["sync"] + x["timing"])
                 + x["repeatability"])
 
     return Measurand(f"FRF phase at {f_hz:.4f} Hz", "deg", model, inputs,

@@ -149,6 +149,8 @@ def _bin_noise(record: Any, cycles: int, channels: list[str]) -> BinNoise | None
     return BinNoise(table, per_channel) if table is not None else None
 
 
+#: a record shorter than this has no spectrum worth the name
+_MIN_STATIC_SAMPLES = 64
 #: lines below this frequency are drift, not a periodic disturbance
 _LINE_MIN_HZ = 2.0
 
@@ -157,7 +159,7 @@ def static_line(volts: np.ndarray, sample_rate_hz: float) -> StaticLine | None:
     """The strongest line above 2 Hz of a static record, as a peak amplitude, with the bound
     of its residual in the record mean (Hann-windowed spectrum, amplitude-corrected)."""
     n = volts.size
-    if n < 64:
+    if n < _MIN_STATIC_SAMPLES:
         return None
     window = np.hanning(n)
     spec = np.abs(np.fft.rfft((volts - np.mean(volts)) * window)) * 2.0 / np.sum(window)

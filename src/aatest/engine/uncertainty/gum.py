@@ -44,6 +44,9 @@ class Ops:
 UMATH_OPS = Ops(umath.sin, umath.cos, umath.asin, umath.log10, umath.sqrt)
 NUMPY_OPS = Ops(np.sin, np.cos, np.arcsin, np.log10, np.sqrt)
 
+#: below this half-width the cosine-error moments are taken from their series
+_SERIES_BELOW_RAD = 1e-2
+
 Model = Callable[[Ops, Mapping[str, Any]], Any]
 
 
@@ -75,7 +78,7 @@ class Input:
         if self.distribution == "rectangular":
             return a / math.sqrt(3.0)
         if self.distribution == "cosine_error":
-            if a < 1e-2:  # series: the closed form below cancels catastrophically
+            if a < _SERIES_BELOW_RAD:  # series: the closed form below cancels catastrophically
                 return a**2 / math.sqrt(45.0)
             second = 0.5 + math.sin(2 * a) / (4 * a)  # E[cos² ε]
             first = math.sin(a) / a
@@ -169,7 +172,8 @@ def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
             evaluated=item.evaluated,
         ))
     return Evaluation(
-        measurand.name, measurand.unit, float(getattr(y, "nominal_value", y)), u_c, k * u_c, k,
+        measurand.name, measurand.unit, float(getattr(y, "nominal_value", y) or 0.0), u_c,
+        k * u_c, k,
         tuple(rows), definition=measurand.definition,
     )
 

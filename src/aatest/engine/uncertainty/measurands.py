@@ -25,6 +25,9 @@ from aatest.engine.uncertainty.components import ARCSEC_RAD
 from aatest.engine.uncertainty.evidence import Evidence, gather
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
 
+#: a slope needs three points to have a statistical uncertainty
+MIN_REGRESSION_POINTS = 3
+
 __all__ = ["ARCSEC_RAD", "RigConstants", "bias_measurand", "g_sensitivity_measurand",
            "scale_factor_measurand", "temperature_measurand"]
 
@@ -75,7 +78,7 @@ class RigConstants(BaseModel):
                    evidence=gather(data))
 
     def source(self, what: str, cert: str = "") -> str:
-        """``rig description: <what> (<cert>)`` or ``stated default: <what> (no rig description)``."""
+        """``rig description: <what> (<cert>)``, or ``stated default: <what>`` without one."""
         if self.instruments_stated:
             return f"rig description: {what}" + (f" ({cert})" if cert else "")
         return f"stated default: {what} (the rig description states none)"
@@ -244,6 +247,18 @@ def _static_mean_std_v(results: Mapping[str, Any], channel: str, c: RigConstants
     return noise_v / math.sqrt(independent), note
 
 
+def _mounting_u(entry: Mapping[str, Any], u_key: str) -> float | None:
+    """u of the mean over mountings (original/pivoted) when only their u are reported."""
+    mountings = entry.get("mountings")
+    if not isinstance(mountings, Mapping):
+        return None
+    us = [ex.as_float(m.get(u_key)) for m in mountings.values() if isinstance(m, Mapping)]
+    known = [u for u in us if u is not None]
+    if not known or len(known) != len(us):
+        return None
+    return math.sqrt(sum(u * u for u in known)) / len(known)
+
+
 def _pooled_mountings(entry: Mapping[str, Any], key: str, u_key: str
                       ) -> tuple[float, float, int] | None:
     """Type A of the mean over every repetition of every mounting: (u, degrees of freedom, n).
@@ -264,7 +279,7 @@ def _pooled_mountings(entry: Mapping[str, Any], key: str, u_key: str
             return None
         parts.append((value, u, reps))
     n = sum(r for _, _, r in parts)
-    if not parts or n < 2:
+    if not parts or n < ex.PAIR:
         return None
     grand = sum(v * r for v, _, r in parts) / n
     within = sum((r - 1) * r * u * u for _, u, r in parts)
@@ -284,7 +299,7 @@ def _static_statistics(results: Mapping[str, Any], entry: Mapping[str, Any], cha
         return [Input("noise", "static means (noise, repeatability)", 0.0, u, "normal", unit,
                       f"measured: s/√n over {n} repetitions × mountings ({dof:.0f} degrees of "
                       "freedom)", "A", dof=dof)]
-    stated = ex.as_float(entry.get(u_key))
+    stated = ex.as_float(entry.get(u_key)) or _mounting_u(entry, u_key)
     if stated is not None:
         return [Input("noise", "static means (noise, repeatability)", 0.0, stated, "normal",
                       unit, "measured: type A, from the analysis", "A")]
@@ -402,7 +417,7 @@ def _dithered_resolution(results: Mapping[str, Any], channel: str, c: RigConstan
     noise_v, source = ex.noise_rms_v(results, channel)
     samples = sum(ex.step_values(ex.steps_of_kind(results, "static"), "samples"))
     what = f"logger resolution q = {lg.step_v * 1e6:.0f} µV ({lg.bits} bit)"
-    if noise_v >= lg.step_v / 2 and samples >= 2:
+    if noise_v >= lg.step_v / 2 and samples >= ex.PAIR:
         u_v = lg.resolution_u_v * math.sqrt(2.0 / samples)
         note = (f"{c.source(what)}; dithered by {noise_v * 1e3:.2f} mV noise ({source}): "
                 f"q/√12 over {samples / 2:.0f} samples per sign")
@@ -414,8 +429,8 @@ def _dithered_resolution(results: Mapping[str, Any], channel: str, c: RigConstan
 
 def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigConstants,
                             scale_rel_u: float | None) -> Measurand | None:
-    """G = (Ĝ + e_noise + e_temp + e_rep + e_res) / ((1 + e_K)·(1 + e_gain)·(1 + e_tilt)·(1 + e_mnt))
-    [(°/s²)/g].
+    """G = (Ĝ + e_noise + e_dist + e_temp + e_rep + e_res) / Π(1 + e_K, e_gain, e_tilt, e_mnt)
+    in (°/s²)/g.
 
     Ĝ = (A+ − A−)/(2K): the half-difference carries the noise of both means and any bias
     drift between them (the logger offset cancels, its gain does not); dividing by K carries
@@ -481,7 +496,7 @@ def _slope_std(entry: Mapping[str, Any], key: str, point_key: str) -> tuple[floa
     if u is not None:
         return u, "from the analysis' ci95"
     points = ex.temperature_points(entry, point_key)
-    if len(points) >= 3:
+    if len(points) >= MIN_REGRESSION_POINTS:
         t = [float(p["temperature_c"]) for p in points]
         y = [float(p[point_key]) for p in points]
         if point_key == "scale_v_per_dps2":  # relative coefficient: normalise by the mean
@@ -496,7 +511,7 @@ def _temperature_span_c(entry: Mapping[str, Any], results: Mapping[str, Any],
     temps = [float(p["temperature_c"]) for key in ("bias_v", "scale_v_per_dps2")
              for p in ex.temperature_points(entry, key)]
     temps = temps or ex.step_values(results.get("steps") or [], "temperature_c")
-    return (max(temps) - min(temps)) if len(temps) >= 2 else c.temperature_span_c
+    return (max(temps) - min(temps)) if len(temps) >= ex.PAIR else c.temperature_span_c
 
 
 def temperature_measurand(results: Mapping[str, Any], channel: str, key: str,
