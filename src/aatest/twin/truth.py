@@ -56,14 +56,20 @@ def _rotation_axis(sensor: SensorModel) -> np.ndarray:
 
 
 def _ratio(model: RigModel, channel: str, frequency_hz: float, accel_dps2: float,
-           temperature_c: float) -> complex:
+           temperature_c: float, seed: int | None = None) -> complex:
     """Complex fundamental-bin ratio V/α (V per °/s²) of one channel, from the model.
 
     The motor band of the inner axis (a random set of tones, :func:`make_vibration`) is part
-    of the motion; the ratio is the mean over ``_REALISATIONS`` seeded draws of it.
+    of the motion: with the run's World ``seed`` the band that run had, else the mean over
+    ``_REALISATIONS`` seeded draws of it.
     """
-    draws = [make_vibration(model.table.inner.motor_vibration, np.random.default_rng(k))
-             for k in range(_REALISATIONS)]
+    if seed is not None:
+        from aatest.twin.world import World
+
+        draws = [World(model, seed).vibration["inner"]]
+    else:
+        draws = [make_vibration(model.table.inner.motor_vibration, np.random.default_rng(k))
+                 for k in range(_REALISATIONS)]
     ratios = [_ratio_once(model, channel, frequency_hz, accel_dps2, temperature_c, tones)
               for tones in draws]
     return complex(np.mean(ratios))
@@ -101,7 +107,8 @@ def _ratio_once(model: RigModel, channel: str, frequency_hz: float, accel_dps2: 
 
 
 def scale_factor_truth_v_per_dps2(model: RigModel, channel: str, frequency_hz: float,
-                                  accel_dps2: float, temperature_c: float) -> float:
+                                  accel_dps2: float, temperature_c: float,
+                                  seed: int | None = None) -> float:
     """True scale factor |V/α| at ``frequency_hz`` and peak ``accel_dps2`` (V/(°/s²)).
 
     Parameters
@@ -114,14 +121,18 @@ def scale_factor_truth_v_per_dps2(model: RigModel, channel: str, frequency_hz: f
         The sine's frequency (Hz) and peak angular acceleration (°/s²).
     temperature_c
         Sensor temperature during the record (°C).
+    seed
+        The run's World seed: its motor-band realisation dithers the sensor's hysteresis
+        (None: the mean over a few realisations).
     """
-    return abs(_ratio(model, channel, frequency_hz, accel_dps2, temperature_c))
+    return abs(_ratio(model, channel, frequency_hz, accel_dps2, temperature_c, seed))
 
 
 def frf_truth(model: RigModel, channel: str, frequency_hz: float, accel_dps2: float,
-              temperature_c: float) -> tuple[float, float]:
-    """True FRF point: (gain in dB re 1 V/(°/s²), phase in degrees) at f and peak α."""
-    ratio = _ratio(model, channel, frequency_hz, accel_dps2, temperature_c)
+              temperature_c: float, seed: int | None = None) -> tuple[float, float]:
+    """True FRF point: (gain in dB re 1 V/(°/s²), phase in degrees) at f (Hz) and peak α
+    (°/s²), temperature in °C; ``seed`` as for :func:`scale_factor_truth_v_per_dps2`."""
+    ratio = _ratio(model, channel, frequency_hz, accel_dps2, temperature_c, seed)
     return 20.0 * math.log10(abs(ratio)), math.degrees(math.atan2(ratio.imag, ratio.real))
 
 
