@@ -56,7 +56,7 @@ class EncoderSpec(Traceable):
 
     @property
     def resolution_arcsec(self) -> float:
-        """One count, in arcseconds."""
+        """One count, in arcseconds (″; 1″ = 1/3600 deg)."""
         return 360.0 * 3600.0 / self.resolution_counts_per_rev
 
 

@@ -41,7 +41,8 @@ def not_evaluated(name: str, label: str, reason: str, unit: str = "1") -> Input:
 # --- reference --------------------------------------------------------------------------------
 
 def encoder_accuracy(c: RigConstants, amplitude_arcsec: float) -> Input:
-    """Encoder accuracy a over the motion amplitude A (rectangular, relative half-width).
+    """Encoder accuracy a over the motion amplitude A (arcsec; a dimensionless, rectangular,
+    relative half-width).
 
     Over a motion of amplitude A the error can change by at most 2A times its slope, and its
     slope is bounded by a·2π·n (n: the error's highest spatial frequency, cycles/rev); and by
@@ -60,7 +61,7 @@ def encoder_accuracy(c: RigConstants, amplitude_arcsec: float) -> Input:
 
 
 def encoder_resolution(c: RigConstants, amplitude_arcsec: float) -> Input:
-    """One encoder count q over the amplitude: u = q/√12 / A (normal)."""
+    """One encoder count q over the amplitude A (arcsec): u = q/√12 / A, dimensionless."""
     enc = c.instruments.encoder
     q = enc.resolution_arcsec
     what = f"encoder resolution {enc.resolution_counts_per_rev} counts/rev (q = {q:.3g}″)"
@@ -226,7 +227,10 @@ def logger_resolution_v(c: RigConstants, scale: float = 1.0) -> Input:
 
 def temperature(c: RigConstants, steps: Sequence[str] | None, coefficient: float,
                 coefficient_note: str, unit: str) -> tuple[Input, str]:
-    """Temperature component and the temperature the measurand is stated at.
+    """Temperature component and the temperature (°C) the measurand is stated at.
+
+    ``coefficient`` is the temperature coefficient in the quantity's unit per °C (e.g. 1/°C
+    for a relative input, V/°C for the bias).
 
     Logged: the measurand is at the mean logged temperature, known to the thermometer's
     accuracy and the spread during the records; u = |TC|·√(u_T² + s_T²). Not logged: the

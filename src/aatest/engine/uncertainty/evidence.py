@@ -77,7 +77,7 @@ class Evidence:
     static_lines: dict[str, dict[str, StaticLine]] = field(default_factory=dict)
 
     def static_line_bound_v(self, channel: str, step_ids: list[str]) -> StaticLine | None:
-        """The largest residual bound of a line over the given static records of a channel."""
+        """The line with the largest residual bound (V) over the given static records."""
         lines = [self.static_lines[s][channel] for s in step_ids
                  if channel in self.static_lines.get(s, {})]
         return max(lines, key=lambda line: line.residual_bound_v) if lines else None
@@ -115,8 +115,8 @@ _NEAR_BINS = np.arange(3, 41)
 
 
 def local_noise_rel(x: np.ndarray, cycles: int) -> float | None:
-    """Relative standard uncertainty of the fundamental of ``x`` (``cycles`` periods in its
-    first ``n`` samples): √(mean |X_k|²/2)/|X_1| over the bins near the fundamental."""
+    """Relative (dimensionless) standard uncertainty of the fundamental of ``x`` (``cycles``
+    periods in its ``n`` samples): √(mean |X_k|²/2)/|X_1| over the bins near the fundamental."""
     n = x.size
     if cycles < 1 or n < 8 * cycles:
         return None

@@ -131,9 +131,10 @@ class Evaluation:
         return self.expanded_uncertainty / abs(self.value) if self.value else None
 
 
-def coverage_factor(u_c: float, contributions: list[tuple[float, float]],
+def coverage_factor(combined_u: float, contributions: list[tuple[float, float]],
                     k_infinite: float = K_COVERAGE) -> float:
-    """k for the coverage probability of ``k_infinite`` at the effective degrees of freedom.
+    """k (dimensionless) for the coverage probability of ``k_infinite`` at the effective
+    degrees of freedom; ``combined_u`` (u_c) and the u_i(y) are in the quantity's unit.
 
     Welch–Satterthwaite (JCGM 100 G.4): ν_eff = u_c⁴ / Σ u_i⁴/ν_i over the contributions
     (u_i(y), ν_i) with finite ν_i; k = t-quantile at ν_eff (G.6.4). Infinite ν_eff gives
@@ -142,9 +143,9 @@ def coverage_factor(u_c: float, contributions: list[tuple[float, float]],
     from scipy.stats import norm, t
 
     finite = sum(u**4 / dof for u, dof in contributions if math.isfinite(dof) and dof > 0)
-    if u_c <= 0 or finite <= 0:
+    if combined_u <= 0 or finite <= 0:
         return k_infinite
-    dof_eff = u_c**4 / finite
+    dof_eff = combined_u**4 / finite
     probability = 2.0 * norm.cdf(k_infinite) - 1.0
     return float(max(k_infinite, t.ppf(0.5 + probability / 2.0, dof_eff)))
 
