@@ -90,5 +90,5 @@ def test_results_verdicts_and_exit_decision() -> None:
 def test_missing_contract_key_is_an_error() -> None:
     raw = make_results()
     del raw["analysis"]["scale_factor"]["v_sz"]["scale_v_per_dps2"]
-    with pytest.raises(ResultsContractError, match="scale_factor.v_sz.*scale_v_per_dps2"):
+    with pytest.raises(ResultsContractError, match=r"scale_factor\.v_sz.*scale_v_per_dps2"):
         decided(raw)
