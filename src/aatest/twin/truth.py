@@ -60,8 +60,10 @@ def _ratio(model: RigModel, channel: str, frequency_hz: float, accel_dps2: float
     """Complex fundamental-bin ratio V/α (V per °/s²) of one channel, from the model.
 
     The motor band of the inner axis (a random set of tones, :func:`make_vibration`) is part
-    of the motion: with the run's World ``seed`` the band that run had, else the mean over
-    ``_REALISATIONS`` seeded draws of it.
+    of the motion: it dithers the sensor's hysteresis. By default the ratio is the mean over
+    ``_REALISATIONS`` seeded draws of the band; with a World ``seed`` that World's band is used
+    (its tones, not its timing: the run's own phase relation to the record is not reproduced,
+    so the mean is the better truth — a single draw differs by ≈0.01° in phase).
     """
     if seed is not None:
         from aatest.twin.world import World
