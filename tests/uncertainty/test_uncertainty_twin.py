@@ -1,8 +1,10 @@
 """Slow: the scale-factor uncertainty against repeated calibrations on the digital twin.
 
 Eight seeds of the shipped scale-factor procedure give eight independent estimates of K; their
-spread must be covered by the budget's combined standard uncertainty (8 samples estimate a
-standard deviation only to about ±25 %, hence the wide acceptance band).
+spread is the noise of the run, so it must match the budget's Type A part (the Type B rows —
+logger gain, encoder, temperature — are the same on every seed of one rig; 8 samples estimate a
+standard deviation only to about ±25 %, hence the wide acceptance band). The Type B rows are
+proven by ``tests/coverage`` on rigs whose instrument errors are drawn.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ def test_twin_spread_of_k_is_covered_by_u_c(tmp_path: Path) -> None:
         assert measurand is not None
         gum = evaluate(measurand)
         estimates.append(gum.value)
-        u_c.append(gum.standard_uncertainty)
+        u_c.append(float(np.sqrt(sum(r.contribution**2 for r in gum.rows if r.type == "A"))))
     spread = float(np.std(estimates, ddof=1))
     ratio = spread / float(np.mean(u_c))
     assert 0.4 < ratio < 1.5, f"twin spread {spread:.3g} vs u_c {np.mean(u_c):.3g}"
