@@ -76,7 +76,7 @@ def test_results_verdicts_and_exit_decision() -> None:
     assert (noise["value"], noise["limit"], noise["verdict"]) == (0.00101, 0.003, "pass")
     assert strict["overall"] == "fail" and failed(strict)
     u = sx["expanded_uncertainty"]
-    assert 0 < u < 0.1
+    assert 0 < u < 0.18  # the budget holds the logger's 0.1 % gain accuracy (issue 11)
     near = {"rule": "guarded", "limits": {"scale_factor_deviation_pct": 0.18 - u / 2}}
     guarded = decided(copy.deepcopy(raw), Acceptance.model_validate(near))
     sx = next(v for v in guarded["verdicts"] if v["quantity"] == "scale_factor_deviation_pct"

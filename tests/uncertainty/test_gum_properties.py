@@ -32,7 +32,7 @@ def test_linear_model_is_exact_and_matches_monte_carlo(terms: list[tuple[float, 
     measurand = Measurand("y", "1", model, inputs)
     gum = evaluate(measurand)
     expected = math.sqrt(sum((c * i.standard_uncertainty()) ** 2
-                             for c, i in zip(coefficients, inputs)))
+                             for c, i in zip(coefficients, inputs, strict=True)))
     assert_allclose(gum.standard_uncertainty, expected, rtol=1e-9)
     assert_allclose(monte_carlo(measurand, 60_000, 1).standard_uncertainty, expected, rtol=0.03)
 

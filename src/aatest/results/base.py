@@ -64,6 +64,12 @@ class BudgetRow(ResultModel):
     sensitivity: float | None = Field(None, description="c_i = ∂y/∂x_i")
     contribution: float = Field(ge=0, description="|c_i|·u(x_i), in the quantity's unit")
     basis: str = Field("", description="where the number comes from")
+    quantity: str = Field("", description="the input quantity, as the certificate names it")
+    type: Literal["A", "B"] = Field(
+        "B", description="GUM evaluation type: A statistical from this run's data, B otherwise")
+    evaluated: bool = Field(
+        True, description="False: the component exists but could not be quantified (shown "
+        "as 'not evaluated' with the reason in basis; its contribution is 0)")
 
 
 class Certified(ResultModel):
@@ -78,6 +84,7 @@ class Certified(ResultModel):
     coverage_factor: float | None = Field(None, gt=0, description="k")
     coverage_probability: float | None = Field(None, gt=0, lt=1, description="e.g. 0.95")
     budget: list[BudgetRow] = Field(default_factory=list, description="GUM budget rows")
+    measurand: str = Field("", description="the precise quantity the value and U are of")
 
 
 class Verdict(ResultModel):

@@ -47,6 +47,7 @@ class BiasChannel(Certified):
     g_sensitivity_expanded_uncertainty_dps2_per_g: Real | None = Field(
         None, ge=0, description="U of the g-sensitivity, (°/s²)/g")
     g_sensitivity_budget: list[BudgetRow] = Field(default_factory=list)
+    g_sensitivity_measurand: str = Field("", description="the precise g-sensitivity quantity")
 
 
 class BiasResult(PerChannel[BiasChannel]):

@@ -38,6 +38,8 @@ class FrfPoint(Certified):
     phase_expanded_uncertainty_deg: Real | None = Field(None, ge=0, description="U of phase, °")
     gain_budget: list[BudgetRow] = Field(default_factory=list)
     phase_budget: list[BudgetRow] = Field(default_factory=list)
+    gain_measurand: str = Field("", description="the precise gain quantity")
+    phase_measurand: str = Field("", description="the precise phase quantity")
 
 
 class FrfResult(PerChannel[list[FrfPoint]]):

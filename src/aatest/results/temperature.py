@@ -39,6 +39,7 @@ class TemperatureChannel(Certified):
     scale_coefficient_expanded_uncertainty_per_c: Real | None = Field(
         None, ge=0, description="U of the scale coefficient, 1/°C")
     scale_coefficient_budget: list[BudgetRow] = Field(default_factory=list)
+    scale_coefficient_measurand: str = Field("", description="the precise scale-TC quantity")
 
 
 class TemperatureResult(PerChannel[TemperatureChannel]):

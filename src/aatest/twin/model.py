@@ -8,8 +8,9 @@ when its field is present (not ``None``). Units: degrees, seconds, volts, °C.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from aatest.engine.datasheet import (
@@ -17,6 +18,9 @@ from aatest.engine.datasheet import (
     REFERENCE_RANGE_DPS2,
     REFERENCE_SCALE_V_PER_DPS2,
 )
+
+if TYPE_CHECKING:
+    from aatest.engine.procedure.rig_description import Instruments
 
 
 class _Model(BaseModel):
@@ -138,6 +142,34 @@ class BiasDrift(_Model):
     correlation_s: float = Field(100.0, gt=0)
 
 
+class EncoderError(_Model):
+    """The encoder's angle error (what its accuracy bounds): the logged angle is
+    θ + a1·sin(θ + φ1) + an·sin(n·θ + φn); the table itself moves to the true angle."""
+
+    once_per_rev_deg: float = 0.0
+    once_per_rev_phase_rad: float = 0.0
+    harmonic_deg: float = 0.0
+    harmonic_cycles_per_rev: int = Field(1, ge=1)
+    harmonic_phase_rad: float = 0.0
+
+    def error_deg(self, angle_deg: Any) -> Any:
+        """The error added to the logged angle at ``angle_deg`` (deg, array or float)."""
+        theta = np.radians(angle_deg)
+        return (self.once_per_rev_deg * np.sin(theta + self.once_per_rev_phase_rad)
+                + self.harmonic_deg * np.sin(self.harmonic_cycles_per_rev * theta
+                                             + self.harmonic_phase_rad))
+
+
+class LoggerError(_Model):
+    """The sensor logger's own error (what its calibration certificate bounds):
+    logged = (1 + gain_error)·V + offset_v."""
+
+    gain_error: float = 0.0
+    offset_v: float = 0.0
+    timing_offset_s: float = Field(0.0, description="the logger samples this much late "
+                                   "against the table's latch (not seen by the sync fit)")
+
+
 class ExcessNoise(_Model):
     """Extra white output noise (e.g. through a slip ring)."""
 
@@ -246,6 +278,7 @@ class AxisModel(_Model):
         "acceleration-estimate noise at 2 kHz")
     rate_ripple: list[RateRipple] = Field(default_factory=list)
     motor_vibration: MotorVibration | None = None
+    encoder_error: EncoderError | None = None
     motor_off_drift_dps: float = Field(0.002, description="slow drift while the motor is off")
 
 
@@ -290,6 +323,7 @@ class DaqModel(_Model):
         "table latches) against the DAQ's sample clock; ≈3 µs reproduces the measured "
         "2.4–3.5 µs clock-relation residual (docs/method.md §2)")
     slip_ring: ExcessNoise | None = None
+    logger_error: LoggerError | None = None
 
 
 class ChamberModel(_Model):
@@ -319,6 +353,52 @@ class RigModel(_Model):
     daq: DaqModel = DaqModel()
     chamber: ChamberModel = ChamberModel()
     unit: UnitModel = UnitModel()
+
+    def draw_imperfections(self, seed: int, instruments: Instruments | None = None) -> RigModel:
+        """This rig with the instrument errors a calibration budget must cover, drawn (seeded)
+        uniformly within the rig description's stated specifications.
+
+        Logger gain and offset error within its gain and offset accuracy; an encoder error at
+        the encoder's stated error period whose peak stays within its accuracy;
+        the lab temperature within the stated tolerance about the reference temperature; the
+        first mounting drawn with a spread that keeps the mounting misalignment within the
+        stated mounting accuracy (3σ per angle). The model itself is unchanged (defaults stay
+        deterministic); the returned copy is what a World is built from.
+
+        Parameters
+        ----------
+        seed
+            Seed of the draws (independent of the World's noise seed).
+        instruments
+            The stated specifications (default: the documented rig's).
+        """
+        from aatest.engine.procedure.rig_description import Instruments
+
+        spec = instruments if instruments is not None else Instruments()
+        rng = np.random.default_rng([int(seed), 0x1A7E])
+        logger = LoggerError(
+            gain_error=float(rng.uniform(-1, 1)) * spec.logger.gain_accuracy_pct / 100.0,
+            offset_v=float(rng.uniform(-1, 1)) * spec.logger.offset_accuracy_v,
+            timing_offset_s=float(rng.uniform(-1, 1)) * spec.logger.timing_accuracy_us * 1e-6)
+        encoder = EncoderError(
+            harmonic_deg=spec.encoder.accuracy_arcsec / 3600.0 * float(rng.uniform(0.0, 1.0)),
+            harmonic_cycles_per_rev=spec.encoder.error_cycles_per_rev,
+            harmonic_phase_rad=float(rng.uniform(0, 2 * np.pi)))
+        lab = spec.lab
+        ambient_c = lab.reference_temperature_c + float(rng.uniform(-1, 1)) * \
+            lab.temperature_tolerance_c
+        sigma_deg = spec.mounting_accuracy_deg / 3.0 / float(np.sqrt(2.0))  # block and seat
+        table = self.table.model_copy(update={
+            "inner": self.table.inner.model_copy(update={"encoder_error": encoder}),
+            "outer": self.table.outer.model_copy(update={"encoder_error": encoder})})
+        return self.model_copy(update={
+            "daq": self.daq.model_copy(update={"logger_error": logger}),
+            "table": table,
+            "chamber": self.chamber.model_copy(update={"ambient_c": ambient_c}),
+            "unit": self.unit.model_copy(update={
+                "initial_mount_errors": True, "sensor_remount_sigma_deg": sigma_deg,
+                "block_remount_sigma_deg": sigma_deg}),
+        })
 
     def sensor(self, channel: str) -> SensorModel:
         for s in self.sensors:

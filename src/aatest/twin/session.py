@@ -13,6 +13,7 @@ from __future__ import annotations
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.errors import PluginError
 from aatest.engine.interfaces import RigContext
+from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.steps import SensorRef
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.model import RigModel, load_rig_model
@@ -34,13 +35,23 @@ class TwinSession:
     model
         An explicit rig model (e.g. a vendor table that sets its own limits); a model file
         named by a plugin still takes precedence.
+    imperfections_seed
+        When given, the World is built from the model with its instrument errors drawn within
+        ``instruments`` (:meth:`aatest.twin.model.RigModel.draw_imperfections`); None (the
+        default) keeps the model exactly as stated, deterministic.
+    instruments
+        The stated specifications the imperfections are drawn within (default: the
+        documented rig's).
     """
 
     def __init__(self, datasheet: SensorDatasheet, seed: int = 0,
-                 model: RigModel | None = None) -> None:
+                 model: RigModel | None = None, imperfections_seed: int | None = None,
+                 instruments: Instruments | None = None) -> None:
         self.datasheet = datasheet
         self.seed = int(seed)
         self.model = model
+        self.imperfections_seed = imperfections_seed
+        self.instruments = instruments
         self.model_path: str | None = None
         self._world: World | None = None
 
@@ -70,6 +81,8 @@ class TwinSession:
             else:
                 model = self.model if self.model is not None else realistic_rig_model(
                     self.datasheet)
+            if self.imperfections_seed is not None:
+                model = model.draw_imperfections(self.imperfections_seed, self.instruments)
             self._world = World(model, self.seed)
         return self._world
 

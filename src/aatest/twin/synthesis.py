@@ -129,7 +129,9 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
     axes = (("inner", setup.inner, tm.inner), ("outer", setup.outer, tm.outer))
     for name, axis, axis_model in axes:
         angle, rate, accel = axis.evaluate(grid)
-        est = estimates(angle, axis_model, dt, tm.estimator, rng)
+        encoder = axis_model.encoder_error  # what the encoder reports, not where the table is
+        seen = angle + encoder.error_deg(angle) if encoder is not None else angle
+        est = estimates(seen, axis_model, dt, tm.estimator, rng)
         channels[f"{name}_position_deg"] = est["position_deg"]
         channels[f"{name}_rate_dps"] = est["rate_dps"]
         channels[f"{name}_accel_dps2"] = est["accel_dps2"]
@@ -308,6 +310,8 @@ def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generato
                                                 state.floor_zi)
     for sensor in model.sensors:
         delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
+        if model.daq.logger_error is not None:  # the logger's own timing error (drawn)
+            delay += model.daq.logger_error.timing_offset_s
         if delay not in motion:  # (the floor noise is not re-timed by the tiny delays)
             motion[delay] = _top_motion(setup, grid.shifted(-delay), floor)
         alpha, up = motion[delay]

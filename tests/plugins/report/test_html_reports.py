@@ -78,7 +78,7 @@ def test_certificate_has_every_section_and_plot(results: dict[str, Any], run_dir
     recording = hashlib.sha256((run_dir / "recording.mcap").read_bytes()).hexdigest()
     assert recording in text and "3f" * 32 in text
     assert "A. Tester &lt;script&gt;x&lt;/script&gt;" in html and "<script>" not in html
-    assert "0.00401400 ± 1.1e-06" in text  # K with U (k = 2)
+    assert "0.00401400 ± 5.6e-06" in text  # K with U (k = 2; logger gain 0.1 % dominates)
     assert "22.4 °C; chamber set-points 22.0, -21.0, 48.0 °C" in text
 
 
@@ -127,7 +127,7 @@ def test_certificate_names_reference_rule_and_budgets(results: dict[str, Any],
     text = _visible_text(FAST.render(results, run_dir, None).read_text())
     assert "Decision rule: simple" in text and f"Overall verdict: {results['overall']}" in text
     assert "smooth" in text  # the scale factor's acceleration reference
-    assert "table position accuracy rectangular" in text  # a budget row from the results
+    assert "reference: encoder accuracy rectangular" in text  # a budget row from the results
 
 
 def test_tampered_figure_is_withheld(results: dict[str, Any], run_dir: Path) -> None:

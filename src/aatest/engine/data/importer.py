@@ -39,6 +39,7 @@ from aatest.engine.data.csv_table import CsvColumns, read_csv
 from aatest.engine.dataset import Dataset, SensorInfo, StepData
 from aatest.engine.errors import ImportDataError, Problem, ProblemsError
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
+from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.procedure.yaml_loader import locate, parse_yaml, read_text, validate_tree
 from aatest.engine.steps import Mounting, PlannedStep
 
@@ -122,6 +123,8 @@ class DatasetManifest(_Strict):
     #: analysis names or ``{name: {options}}`` entries, as in a procedure
     analysis: list[str | dict[str, dict[str, Any]]] | None = None
     report_template: str | None = None
+    #: stated accuracies of the instruments (the logger's above all); absent: stated defaults
+    instruments: Instruments | None = None
 
     @model_validator(mode="after")
     def _unique(self) -> DatasetManifest:
@@ -251,7 +254,9 @@ def import_dataset(directory: str | Path) -> Dataset:
         procedure=manifest.procedure, sample_rate_hz=rate_hz, sensors=sensors,
         steps=tuple(steps), source=directory,
         metadata=_metadata(present, t_ref_c, model_file) | manifest.model_dump(
-            include={"analysis", "report_template"}, exclude_none=True),
+            include={"analysis", "report_template"}, exclude_none=True)
+        | ({"rig": {"instruments": manifest.instruments.model_dump(mode="json")}}
+           if manifest.instruments is not None else {}),
     )
 
 

@@ -28,6 +28,14 @@ from pydantic import BaseModel, ConfigDict, Field, StrictStr, ValidationError, m
 from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.procedure import models as _procedure_models
 from aatest.engine.procedure.models import STEP_KINDS, Procedure
+from aatest.engine.procedure.rig_description import (
+    EncoderSpec,
+    Instruments,
+    LabSpec,
+    LoggerSpec,
+    TableGeometry,
+    ThermometerSpec,
+)
 from aatest.engine.procedure.yaml_loader import (
     locate,
     parse_yaml,
@@ -65,12 +73,16 @@ class RigConfig(BaseModel):
     turntable: PluginSpec = PluginSpec(plugin="sim")
     daq: PluginSpec = PluginSpec(plugin="sim")
     chamber: PluginSpec = PluginSpec(plugin="none")
+    instruments: Instruments | None = Field(
+        None, description="stated accuracies and traceability of the instruments "
+        "(docs/interfaces.md §2); None: the documented defaults, named as such in every budget")
 
 
 def _vocabulary() -> frozenset[str]:
     """Every key the procedure and rig files know (for "did you mean" hints)."""
     models = [m for m in vars(_procedure_models).values()
-              if isinstance(m, type) and issubclass(m, BaseModel)] + [RigConfig]
+              if isinstance(m, type) and issubclass(m, BaseModel)] + [
+        RigConfig, Instruments, EncoderSpec, LoggerSpec, ThermometerSpec, TableGeometry, LabSpec]
     return frozenset(name for m in models for name in m.model_fields)
 
 

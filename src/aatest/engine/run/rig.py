@@ -83,6 +83,9 @@ def build_rig(rig_config: Any, sensor: SensorRef, seed: int) -> Rig:
             kind, spec.plugin, dict(spec.options), context
         )
         config[kind] = {"plugin": spec.plugin, **dict(spec.options)}
+    instruments = getattr(rig_config, "instruments", None)
+    if instruments is not None:  # the stated accuracies the uncertainty budgets read
+        config["instruments"] = instruments.model_dump(mode="json")
     return Rig(parts["turntable"], parts["daq"], parts["chamber"], datasheet, context, versions,
                config)
 

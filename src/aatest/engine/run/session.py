@@ -177,7 +177,7 @@ def decide(results: RunResults, data: Dataset) -> RunResults:
     from aatest.engine.uncertainty import apply_uncertainty
 
     document = results_json(results)
-    apply_uncertainty(document)
+    apply_uncertainty(document, data=data)
     apply_verdicts(document, datasheets(data.metadata, data.sensors),
                    acceptance_of(data.metadata))
     return RunResults.model_validate(document)

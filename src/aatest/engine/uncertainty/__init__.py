@@ -4,7 +4,7 @@ Runs after the analyses, before the verdicts and the report; writes each certifi
 expanded uncertainty, coverage factor and probability, and budget into the results
 (:class:`aatest.results.base.Certified`). Reports only render what is written here.
 
-- ``gum``         GUM (JCGM 100) propagation of a measurement model, and a JCGM 101 Monte Carlo check
+- ``gum``         GUM (JCGM 100) propagation of a measurement model; a JCGM 101 Monte Carlo check
 - ``measurands``  measurement models of the static results: scale factor, bias, g-sensitivity,
                   temperature coefficients; the rig's stated accuracies (``RigConstants``)
 - ``dynamic``     measurement models of FRF gain/phase points and pivoted misalignment angles

@@ -20,6 +20,8 @@ import numpy as np
 
 from aatest.engine.errors import InputError
 
+#: an interval is a pair of bounds; a mean needs at least two values
+PAIR = 2
 #: two-sided 95 % quantile of the normal distribution (ci95 half-width → standard uncertainty)
 Z95 = 1.959963984540054
 
@@ -49,7 +51,7 @@ def channel_entry(results: Mapping[str, Any], key: str, channel: str) -> Any:
 def frf_points(results: Mapping[str, Any], channel: str) -> list[dict[str, Any]]:
     """The FRF points of one channel (``analysis.frf[CH]``), empty without an FRF."""
     points = channel_entry(results, "frf", channel) or []
-    return [p for p in points if isinstance(p, Mapping)]
+    return [p for p in points if isinstance(p, dict)]
 
 
 def misalignment_scenarios(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
@@ -77,10 +79,12 @@ def certify(entry: dict[str, Any], evaluation: Any, prefix: str = "", unit_suffi
     if prefix:
         entry[f"{prefix}_expanded_uncertainty{unit_suffix}"] = evaluation.expanded_uncertainty
         entry[f"{prefix}_budget"] = budget
+        entry[f"{prefix}_measurand"] = evaluation.definition
         return
     entry.update(expanded_uncertainty=evaluation.expanded_uncertainty,
                  coverage_factor=evaluation.k,
-                 coverage_probability=evaluation.coverage_probability, budget=budget)
+                 coverage_probability=evaluation.coverage_probability, budget=budget,
+                 measurand=evaluation.definition)
 
 
 def as_float(value: Any) -> float | None:
@@ -96,6 +100,14 @@ def analysis(results: Mapping[str, Any], key: str) -> Any:
     """``results["analysis"][key]`` or None."""
     block = results.get("analysis") or {}
     return block.get(key) if isinstance(block, Mapping) else None
+
+
+def stated_instruments(results: Mapping[str, Any]) -> Mapping[str, Any] | None:
+    """The rig description's ``instruments`` block as recorded with the run, or None."""
+    for rig in ((results.get("metadata") or {}).get("rig"), results.get("rig")):
+        if isinstance(rig, Mapping) and isinstance(rig.get("instruments"), Mapping):
+            return rig["instruments"]  # type: ignore[no-any-return]
+    return None
 
 
 def sensors(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
@@ -129,7 +141,7 @@ def ci_std(ci: Any, index: int | str | None = None) -> float | None:
             ci = ci[index] if 0 <= index < len(ci) else None
         else:
             return None
-    if isinstance(ci, Sequence) and not isinstance(ci, str) and len(ci) == 2:
+    if isinstance(ci, Sequence) and not isinstance(ci, str) and len(ci) == PAIR:
         lo, hi = as_float(ci[0]), as_float(ci[1])
         return abs(hi - lo) / (2 * Z95) if lo is not None and hi is not None else None
     half = as_float(ci)
@@ -147,7 +159,7 @@ def repetition_values(entry: Mapping[str, Any], key: str) -> list[float]:
 
 def std_of_mean(values: Sequence[float]) -> float | None:
     """Type A standard uncertainty of the mean, s/√n (None below two values)."""
-    if len(values) < 2:
+    if len(values) < PAIR:
         return None
     return float(np.std(values, ddof=1) / math.sqrt(len(values)))
 
@@ -195,8 +207,9 @@ def temperature_points(entry: Mapping[str, Any], value_key: str = "bias_v"
                   isinstance(entry.get(k), Sequence) and len(entry[k]) == len(values or [])), None)
     if not isinstance(values, Sequence) or temps is None:
         return []
-    branches = entry.get("branch") if isinstance(entry.get("branch"), Sequence) else []
-    branches = list(branches) if len(branches) == len(values) else ["all"] * len(values)
+    stated = entry.get("branch")
+    named: list[Any] = list(stated) if isinstance(stated, Sequence) else []
+    branches: list[Any] = named if len(named) == len(values) else ["all"] * len(values)
     return [{"temperature_c": t, value_key: v, "branch": b}
-            for t, v, b in zip(temps, values, branches)
+            for t, v, b in zip(temps, values, branches, strict=True)
             if as_float(t) is not None and as_float(v) is not None]

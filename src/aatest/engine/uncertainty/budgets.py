@@ -69,17 +69,17 @@ def _certify_static(results: dict[str, Any], ch: str, c: RigConstants) -> None:
 def _certify_frf(results: dict[str, Any], ch: str, c: RigConstants) -> None:
     """Gain (the generic fields, and ``gain_*``) and phase (``phase_*``) of every FRF point."""
     for point in ex.frf_points(results, ch):
-        gain = _evaluated(frf_gain_measurand(point, results, c))
+        gain = _evaluated(frf_gain_measurand(point, results, c, ch))
         if gain is not None:
             ex.certify(point, gain)
             ex.certify(point, gain, "gain", "_db")
-        phase = _evaluated(frf_phase_measurand(point, results, c))
+        phase = _evaluated(frf_phase_measurand(point, results, c, ch))
         if phase is not None:
             ex.certify(point, phase, "phase", "_deg")
 
 
-def apply_uncertainty(results: dict[str, Any], constants: RigConstants | None = None
-                      ) -> dict[str, Any]:
+def apply_uncertainty(results: dict[str, Any], constants: RigConstants | None = None,
+                      data: Any = None) -> dict[str, Any]:
     """Evaluate and write the uncertainty of every certified result (GUM, k = 2), in place.
 
     Writes the fields of :class:`aatest.results.base.Certified` (``expanded_uncertainty``,
@@ -94,9 +94,20 @@ def apply_uncertainty(results: dict[str, Any], constants: RigConstants | None = 
     results
         The results document (today's ``results.json`` shape); changed in place and returned.
     constants
-        The rig's stated accuracies (default: the documented rig, docs/method.md §1.2).
+        The rig's stated accuracies (default: the run's rig description in its metadata,
+        else the documented rig, docs/method.md §1.2, named as defaults in every basis).
+    data
+        The dataset the analyses ran on; the components the logs show (motion distortion,
+        logged temperature) are measured from it (None: those rows say "not evaluated").
     """
-    c = constants if constants is not None else RigConstants()
+    c = constants if constants is not None else RigConstants.from_results(results, data)
+    metadata = results.setdefault("metadata", {})
+    if isinstance(metadata, dict):  # the certificate states the reference's traceability
+        metadata["traceability"] = {
+            "stated": c.instruments_stated,
+            "instruments": c.instruments.traceability(),
+            "reference_temperature_c": c.instruments.lab.reference_temperature_c,
+        }
     for ch in channels(results):
         _certify_static(results, ch, c)
         _certify_frf(results, ch, c)

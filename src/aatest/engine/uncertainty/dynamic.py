@@ -14,14 +14,17 @@ mountings and does not cancel, orthogonality is common to both and cancels in th
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.engine.uncertainty import access as ex
+from aatest.engine.uncertainty import components as comp
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
-from aatest.engine.uncertainty.measurands import ARCSEC_RAD, RigConstants
+from aatest.engine.uncertainty.measurands import RigConstants
 
+#: an offset u below this means the latch times aligned the loggers (else: one sample only)
+LATCHED_OFFSET_U_S = 1e-4
 #: misalignment scenario → (original, pivoted) set labels (docs/interfaces.md §5)
 SCENARIO_SETS: dict[str, tuple[str, str]] = {"1": ("A", "B"), "2": ("C", "D"), "3": ("E", "F"),
                                              "4": ("G", "H")}
@@ -36,13 +39,18 @@ def _record_samples(point: Mapping[str, Any], results: Mapping[str, Any], c: Rig
 
 
 def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
-               u_key: str, to_relative: float) -> tuple[float, str]:
+               u_key: str, to_relative: float, channel: str = "") -> tuple[float, str]:
     """Relative (gain) or radian (phase) standard uncertainty of the bin ratio Y/X, and its basis.
 
-    The FRF analysis' own ``u_gain_db``/``u_phase_deg`` are used when stated; otherwise white
-    noise at the bin of both the sensor output (``snr_db``) and the table reference
-    (``table_snr_db``), each 1/√(N·SNR).
+    Measured next to the bin in the recording when it is at hand (output and reference, each
+    √(mean |X_k|²/2)/|X_1| over nearby bins); else the FRF analysis' own ``u_gain_db`` /
+    ``u_phase_deg``; else white noise at the bin from the SNRs, 1/√(N·SNR) each.
     """
+    local = c.evidence.bin_noise.get(str(point.get("step")))
+    if local is not None and channel in local.channels_rel:
+        out, ref = local.channels_rel[channel], local.table_rel
+        return (math.hypot(out, ref), f"noise next to the bin in the recording: output "
+                f"{out * 100:.4f} %, reference {ref * 100:.4f} % of the fundamental")
     stated = ex.as_float(point.get(u_key))
     if stated is not None:
         return stated * to_relative, f"u from the FRF analysis ({u_key})"
@@ -53,55 +61,126 @@ def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConst
     return math.sqrt(rel2), f"1/√(N·SNR) of output and reference ({shown})"
 
 
+def _point_temperature(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
+                       channel: str) -> tuple[Input, str]:
+    info = ex.sensors(results).get(channel, {})
+    tc = ex.as_float(info.get("scale_temperature_limit_per_c"))
+    tc = tc if tc is not None else 0.0005
+    step = point.get("step")
+    return comp.temperature(c, [str(step)] if step else None, tc,
+                            f"datasheet scale TC ≤ {tc * 100:g} %/°C", "1")
+
+
+def _point_definition(kind: str, point: Mapping[str, Any], channel: str, at: str) -> str:
+    f_hz, accel = point.get("frequency_hz"), point.get("accel_dps2")
+    what = ("gain: 20·log10 of the magnitude (dB re 1 V/(°/s²))" if kind == "gain" else
+            "phase: argument (°, output lagging negative)")
+    return (f"FRF {what} of the complex fundamental-bin ratio of the logged output of {channel} "
+            f"(V, through the logger's pre-sample filter) to the angular acceleration about the "
+            f"sensor's mounting axis, at f = {f_hz:g} Hz, peak α = {accel:g} °/s², at {at}")
+
+
 def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
-                       c: RigConstants) -> Measurand | None:
-    """G = Ĝ + 20·log10((1 + e_out) / ((1 + e_pos)·(1 + e_tilt)))  [dB]."""
+                       c: RigConstants, channel: str = "") -> Measurand | None:
+    """G = Ĝ + 20·log10((1 + e_out)·Π(1 + e_ref) / ((1 + e_gain)·(1 + e_tilt)·(1 + e_mnt)))  [dB].
+
+    Reference inputs: encoder accuracy and resolution over the position amplitude (which
+    dominate at high f, where the amplitude is small), the estimator's method error at the
+    bin, the motion's distortion (THD of the table estimate); then the axis, the logger's gain
+    and temperature.
+    """
     gain = ex.require_float(point, "gain_db", "analysis.frf point")
     f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
     accel = ex.require_float(point, "accel_dps2", "analysis.frf point")
     if gain is None or not f_hz or not accel:
         return None
     amp_arcsec = abs(accel) / (2 * math.pi * f_hz) ** 2 * 3600.0
-    noise, basis = _bin_noise(point, results, c, "u_gain_db", math.log(10.0) / 20.0)
+    noise, basis = _bin_noise(point, results, c, "u_gain_db", math.log(10.0) / 20.0, channel)
+    fs = ex.as_float(point.get("sample_rate_hz")) or c.sample_rate_hz
+    method = (2 * math.pi * f_hz / fs) ** 2 / 12.0
+    thd = ex.as_float(point.get("table_thd"))
+    temp_input, at = _point_temperature(point, results, c, channel)
     inputs = (
         Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal", "1",
-              basis),
-        Input("position", "table position accuracy", 0.0, c.position_accuracy_arcsec / amp_arcsec,
-              "rectangular", "1",
-              f"{c.position_accuracy_arcsec:g}″ over A = {amp_arcsec:.1f}″"),
-        Input("tilt", "wobble / orthogonality (axis tilt)", 0.0,
-              math.hypot(c.wobble_arcsec, c.orthogonality_arcsec) * ARCSEC_RAD, "cosine_error",
-              "1", "cos ε − 1"),
+              "measured: " + basis, "A"),
+        comp.encoder_accuracy(c, amp_arcsec),
+        comp.encoder_resolution(c, amp_arcsec),
+        comp.rel("reference_method", "reference: method error (table estimate at the bin)",
+                 method, f"(ωT)²/12 = {method:.2e} of the second difference at f, T = 1/{fs:g} s",
+                 "rectangular"),
+        comp.rel("motion_distortion", "reference: motion distortion (THD)",
+                 (thd or 0.0) ** 2,
+                 f"measured: THD of the table acceleration {(thd or 0.0) * 100:.3f} % "
+                 "(FRF analysis); a coherent bin sees it only as THD²", "rectangular")
+        if thd is not None else comp.not_evaluated("motion_distortion",
+                                                   "reference: motion distortion (THD)",
+                                                   "the FRF analysis states no table THD"),
+        comp.wobble(c),
+        comp.transverse(c, results, channel),
+        comp.mounting(c, results, channel),
+        comp.logger_gain(c),
+        temp_input,
+        comp.not_evaluated("repeatability", "repeatability", "one record per frequency"),
     )
+    additive = ("encoder_accuracy", "encoder_resolution", "reference_method", "motion_distortion",
+                "transverse", "temperature", "repeatability")
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
-        reference = (1.0 + x["position"]) * (1.0 + x["tilt"])
-        return gain + 20.0 * ops.log10((1.0 + x["noise"]) / reference)
+        reference = (1.0 + x["wobble"]) * (1.0 + x["mounting"]) * (1.0 + x["logger_gain"])
+        terms = 1.0 + sum(x[k] for k in additive)
+        return gain + 20.0 * ops.log10((1.0 + x["noise"]) * terms / reference)
 
-    return Measurand(f"FRF gain at {f_hz:.4f} Hz", "dB", model, inputs)
+    return Measurand(f"FRF gain at {f_hz:.4f} Hz", "dB", model, inputs,
+                     _point_definition("gain", point, channel, at))
+
+
+def _sync_offset_s(results: Mapping[str, Any], point: Mapping[str, Any]) -> tuple[float, str]:
+    """Standard uncertainty of the logger alignment of the point's record and its basis."""
+    sync = ex.analysis(results, "sync") or {}
+    steps = sync.get("steps") if isinstance(sync, Mapping) else None
+    residual_us = ex.as_float(sync.get("residual_rms_us")) or 3.5
+    edges = ex.as_float(sync.get("edges_used")) or 6553.0
+    u = residual_us * 1e-6 * math.sqrt(4.0 / max(edges, 2.0))
+    note = (f"measured: {residual_us:g} µs RMS clock-relation residual over {edges:.0f} edges "
+            "(offset of the fitted relation at the record's centre)")
+    if isinstance(steps, Sequence):
+        for entry in steps:
+            if isinstance(entry, Mapping) and entry.get("step") == point.get("step"):
+                stated = ex.as_float(entry.get("offset_u_s"))
+                latched = stated is not None and stated < LATCHED_OFFSET_U_S
+                if latched:
+                    return stated or 0.0, "measured: sync analysis offset_u_s of this record"
+    return u, note
 
 
 def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
-                        c: RigConstants) -> Measurand | None:
-    """φ = φ̂ + e_out·180/π − 360·f·δt  [deg]."""
+                        c: RigConstants, channel: str = "") -> Measurand | None:
+    """φ = φ̂ + e_out·180/π − 360·f·δt + e_ref  [deg]."""
     phase = ex.require_float(point, "phase_deg", "analysis.frf point")
     f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
     if phase is None or not f_hz:
         return None
-    sync = ex.analysis(results, "sync") or {}
-    residual_us = ex.as_float(sync.get("residual_rms_us")) or 3.5
-    noise, basis = _bin_noise(point, results, c, "u_phase_deg", math.pi / 180.0)
+    noise, basis = _bin_noise(point, results, c, "u_phase_deg", math.pi / 180.0, channel)
+    u_sync, sync_note = _sync_offset_s(results, point)
+    _, at = _point_temperature(point, results, c, channel)
     inputs = (
         Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal", "rad",
-              basis),
-        Input("sync", "sync residual (logger alignment)", 0.0, residual_us * 1e-6, "normal", "s",
-              f"{residual_us:g} µs RMS clock-relation residual"),
+              "measured: " + basis, "A"),
+        Input("sync", "synchronisation: logger alignment", 0.0, u_sync, "normal", "s",
+              sync_note),
+        Input("timing", "synchronisation: logger timing against the latch", 0.0,
+              c.instruments.logger.timing_accuracy_us * 1e-6, "rectangular", "s",
+              c.source(f"logger timing accuracy ±{c.instruments.logger.timing_accuracy_us:g} µs",
+                       c.instruments.logger.cert_text()) + "; enters as 360·f·δt"),
+        comp.not_evaluated("repeatability", "repeatability", "one record per frequency", "deg"),
     )
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
-        return phase + x["noise"] * (180.0 / math.pi) - 360.0 * f_hz * x["sync"]
+        return (phase + x["noise"] * (180.0 / math.pi) - 360.0 * f_hz * (x["sync"] + x["timing"])
+                + x["repeatability"])
 
-    return Measurand(f"FRF phase at {f_hz:.4f} Hz", "deg", model, inputs)
+    return Measurand(f"FRF phase at {f_hz:.4f} Hz", "deg", model, inputs,
+                     _point_definition("phase", point, channel, at))
 
 
 def _channel_of(sensor: str, results: Mapping[str, Any]) -> str:

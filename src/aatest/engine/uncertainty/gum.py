@@ -44,6 +44,9 @@ class Ops:
 UMATH_OPS = Ops(umath.sin, umath.cos, umath.asin, umath.log10, umath.sqrt)
 NUMPY_OPS = Ops(np.sin, np.cos, np.arcsin, np.log10, np.sqrt)
 
+#: below this half-width the cosine-error moments are taken from their series
+_SERIES_BELOW_RAD = 1e-2
+
 Model = Callable[[Ops, Mapping[str, Any]], Any]
 
 
@@ -58,6 +61,9 @@ class Input:
     distribution: Distribution = "normal"
     unit: str = ""
     note: str = ""
+    kind: Literal["A", "B"] = "B"
+    evaluated: bool = True
+    dof: float = math.inf
 
     def mean(self) -> float:
         """Expectation of the input (for ``cosine_error``: E[cos ε] − 1 = sin a / a − 1)."""
@@ -72,7 +78,7 @@ class Input:
         if self.distribution == "rectangular":
             return a / math.sqrt(3.0)
         if self.distribution == "cosine_error":
-            if a < 1e-2:  # series: the closed form below cancels catastrophically
+            if a < _SERIES_BELOW_RAD:  # series: the closed form below cancels catastrophically
                 return a**2 / math.sqrt(45.0)
             second = 0.5 + math.sin(2 * a) / (4 * a)  # E[cos² ε]
             first = math.sin(a) / a
@@ -97,6 +103,7 @@ class Measurand:
     unit: str
     model: Model
     inputs: tuple[Input, ...]
+    definition: str = ""
 
 
 @dataclass(frozen=True)
@@ -111,6 +118,7 @@ class Evaluation:
     k: float
     rows: tuple[BudgetRow, ...]
     coverage_probability: float = P_COVERAGE
+    definition: str = ""
 
     def share_pct(self, row: BudgetRow) -> float:
         """A row's share of the combined variance, u_i(y)²/u_c(y)², in %."""
@@ -123,6 +131,25 @@ class Evaluation:
         return self.expanded_uncertainty / abs(self.value) if self.value else None
 
 
+def coverage_factor(combined_u: float, contributions: list[tuple[float, float]],
+                    k_infinite: float = K_COVERAGE) -> float:
+    """k (dimensionless) for the coverage probability of ``k_infinite`` at the effective
+    degrees of freedom; ``combined_u`` (u_c) and the u_i(y) are in the quantity's unit.
+
+    Welch–Satterthwaite (JCGM 100 G.4): ν_eff = u_c⁴ / Σ u_i⁴/ν_i over the contributions
+    (u_i(y), ν_i) with finite ν_i; k = t-quantile at ν_eff (G.6.4). Infinite ν_eff gives
+    ``k_infinite`` itself.
+    """
+    from scipy.stats import norm, t
+
+    finite = sum(u**4 / dof for u, dof in contributions if math.isfinite(dof) and dof > 0)
+    if combined_u <= 0 or finite <= 0:
+        return k_infinite
+    dof_eff = combined_u**4 / finite
+    probability = 2.0 * norm.cdf(k_infinite) - 1.0
+    return float(max(k_infinite, t.ppf(0.5 + probability / 2.0, dof_eff)))
+
+
 def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
     """Propagate the inputs through the model by the GUM law (first order, independent inputs)."""
     variables: dict[str, Any] = {
@@ -133,6 +160,8 @@ def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
     y = measurand.model(UMATH_OPS, variables)
     derivatives = {var.tag: d for var, d in getattr(y, "derivatives", {}).items()}
     u_c = float(getattr(y, "std_dev", 0.0))
+    k = coverage_factor(u_c, [(abs(float(derivatives.get(i.name, 0.0)))
+                               * i.standard_uncertainty(), i.dof) for i in measurand.inputs], k)
     rows = []
     for item in measurand.inputs:
         c = float(derivatives.get(item.name, 0.0))
@@ -140,11 +169,13 @@ def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
         rows.append(BudgetRow(
             name=item.name, label=item.label, value=item.mean(), standard_uncertainty=u_x,
             unit=item.unit, distribution=item.distribution, sensitivity=c,
-            contribution=abs(c) * u_x, basis=item.note,
+            contribution=abs(c) * u_x, basis=item.note, quantity=item.label, type=item.kind,
+            evaluated=item.evaluated,
         ))
     return Evaluation(
-        measurand.name, measurand.unit, float(getattr(y, "nominal_value", y)), u_c, k * u_c, k,
-        tuple(rows),
+        measurand.name, measurand.unit, float(getattr(y, "nominal_value", y) or 0.0), u_c,
+        k * u_c, k,
+        tuple(rows), definition=measurand.definition,
     )
 
 

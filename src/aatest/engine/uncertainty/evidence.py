@@ -1,0 +1,215 @@
+"""What the recorded data show about the budget's Type B components: motion and temperature.
+
+The uncertainty stage reads the results; a few components are measured from the logs
+themselves: the distortion of the table's motion (THD of the position log, harmonics 2–5 in
+acceleration) and the servo's non-commanded content at the fundamental, and the temperature
+logged beside the sensor during each record. One pass over the recording, vectorised (one
+FFT per sine record); without a recording (a results.json re-read alone) the components are
+reported as not evaluated.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+#: harmonics of the fundamental summed into the motion THD
+HARMONICS = 5
+
+
+@dataclass(frozen=True)
+class MotionEvidence:
+    """Distortion of one sine record's table motion, from the position log."""
+
+    thd_accel: float
+    """THD of the acceleration (harmonics 2..5 over the fundamental, k² weighted), ratio"""
+    tracking_rel: float
+    """|measured fundamental amplitude / commanded − 1| of the position, ratio"""
+
+
+@dataclass(frozen=True)
+class BinNoise:
+    """Noise next to the fundamental bin of one sine record, relative to the fundamental.
+
+    ``table_rel`` is for the table's acceleration estimate, ``channels_rel`` per sensor channel;
+    each is the standard uncertainty of the fundamental's amplitude (and phase, rad), from the
+    mean power of the bins 3–40 away from it (harmonic bins excluded) — the noise where the
+    bin is, not the record's average (differentiated encoder noise rises with f, the logger's
+    pre-sample filter shapes the sensor noise).
+    """
+
+    table_rel: float
+    channels_rel: dict[str, float]
+
+
+@dataclass(frozen=True)
+class StaticLine:
+    """The strongest spectral line of a static record's output and what it leaves in its mean.
+
+    A line of peak amplitude V at f (e.g. the motor band) does not average out of a mean over
+    T seconds: at most V/(π·f·T) of it stays, whatever its phase.
+    """
+
+    amplitude_v: float
+    frequency_hz: float
+    residual_bound_v: float
+
+
+@dataclass(frozen=True)
+class TemperatureEvidence:
+    """Temperature logged beside the sensor during one record."""
+
+    mean_c: float
+    std_c: float
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """Per step id: the motion and temperature measured from the recording."""
+
+    motion: dict[str, MotionEvidence] = field(default_factory=dict)
+    temperature: dict[str, TemperatureEvidence] = field(default_factory=dict)
+    recording: bool = False
+    bin_noise: dict[str, BinNoise] = field(default_factory=dict)
+    static_lines: dict[str, dict[str, StaticLine]] = field(default_factory=dict)
+
+    def static_line_bound_v(self, channel: str, step_ids: list[str]) -> StaticLine | None:
+        """The line with the largest residual bound (V) over the given static records."""
+        lines = [self.static_lines[s][channel] for s in step_ids
+                 if channel in self.static_lines.get(s, {})]
+        return max(lines, key=lambda line: line.residual_bound_v) if lines else None
+
+    def temperature_over(self, step_ids: list[str] | None = None) -> TemperatureEvidence | None:
+        """Mean and spread of the logged temperature over the given steps (all when None)."""
+        ids = list(self.temperature) if step_ids is None else \
+            [s for s in step_ids if s in self.temperature]
+        if not ids:
+            return None
+        means = np.array([self.temperature[s].mean_c for s in ids])
+        stds = np.array([self.temperature[s].std_c for s in ids])
+        spread = float(np.sqrt(np.mean(stds**2) + np.var(means)))
+        return TemperatureEvidence(float(np.mean(means)), spread)
+
+
+def _motion(position_deg: np.ndarray, cycles: int, amplitude_deg: float) -> MotionEvidence | None:
+    """THD and tracking of a coherent sine record (``cycles`` whole periods)."""
+    n = position_deg.size
+    if cycles < 1 or n < 4 * HARMONICS * cycles:
+        return None
+    spectrum = np.fft.rfft(position_deg - np.mean(position_deg))
+    fundamental = abs(spectrum[cycles]) * 2.0 / n
+    if fundamental <= 0:
+        return None
+    k = np.arange(2, HARMONICS + 1)
+    harmonics = np.abs(spectrum[k * cycles]) * 2.0 / n
+    thd = float(np.sqrt(np.sum((k**2 * harmonics) ** 2)) / fundamental)
+    tracking = abs(fundamental / amplitude_deg - 1.0) if amplitude_deg else math.nan
+    return MotionEvidence(thd, float(tracking))
+
+
+#: bins either side of the fundamental whose power estimates the noise at it
+_NEAR_BINS = np.arange(3, 41)
+
+
+def local_noise_rel(x: np.ndarray, cycles: int) -> float | None:
+    """Relative (dimensionless) standard uncertainty of the fundamental of ``x`` (``cycles``
+    periods in its ``n`` samples): √(mean |X_k|²/2)/|X_1| over the bins near the fundamental."""
+    n = x.size
+    if cycles < 1 or n < 8 * cycles:
+        return None
+    spec = np.fft.rfft(x - np.mean(x)) * 2.0 / n
+    near = np.concatenate([cycles - _NEAR_BINS, cycles + _NEAR_BINS])
+    near = near[(near > 0) & (near < spec.size) & (near % cycles != 0)]
+    fundamental = abs(spec[cycles])
+    if near.size == 0 or fundamental <= 0:
+        return None
+    return float(np.sqrt(np.mean(np.abs(spec[near]) ** 2) / 2.0) / fundamental)
+
+
+def _bin_noise(record: Any, cycles: int, channels: list[str]) -> BinNoise | None:
+    """Local noise of the table estimate and of each sensor channel of one sine record."""
+    step = record.step
+    accel = record.table.channels.get(f"{step.axis}_accel_dps2")
+    if accel is None:
+        return None
+    table = local_noise_rel(np.asarray(accel, dtype=float), cycles)
+    n = np.size(accel)
+    per_channel = {}
+    for channel in channels:
+        volts = record.daq.channels.get(channel)
+        if volts is None or np.size(volts) < n:
+            continue
+        start = (np.size(volts) - n) // 2  # the DAQ brackets the table record
+        rel = local_noise_rel(np.asarray(volts[start:start + n], dtype=float), cycles)
+        if rel is not None:
+            per_channel[channel] = rel
+    return BinNoise(table, per_channel) if table is not None else None
+
+
+#: a record shorter than this has no spectrum worth the name
+_MIN_STATIC_SAMPLES = 64
+#: lines below this frequency are drift, not a periodic disturbance
+_LINE_MIN_HZ = 2.0
+
+
+def static_line(volts: np.ndarray, sample_rate_hz: float) -> StaticLine | None:
+    """The strongest line above 2 Hz of a static record, as a peak amplitude, with the bound
+    of its residual in the record mean (Hann-windowed spectrum, amplitude-corrected)."""
+    n = volts.size
+    if n < _MIN_STATIC_SAMPLES:
+        return None
+    window = np.hanning(n)
+    spec = np.abs(np.fft.rfft((volts - np.mean(volts)) * window)) * 2.0 / np.sum(window)
+    freqs = np.fft.rfftfreq(n, 1.0 / sample_rate_hz)
+    band = freqs >= _LINE_MIN_HZ
+    if not np.any(band):
+        return None
+    k = int(np.argmax(np.where(band, spec, 0.0)))
+    amplitude, f_hz = float(spec[k]), float(freqs[k])
+    duration_s = n / sample_rate_hz
+    return StaticLine(amplitude, f_hz, amplitude / (math.pi * f_hz * duration_s))
+
+
+def gather(data: Any) -> Evidence:
+    """Measure the motion of every coherent sine record and the logged temperatures.
+
+    Parameters
+    ----------
+    data
+        The :class:`aatest.engine.dataset.Dataset` the analyses ran on (None: nothing measured).
+    """
+    if data is None:
+        return Evidence()
+    motion: dict[str, MotionEvidence] = {}
+    temperature: dict[str, TemperatureEvidence] = {}
+    bin_noise: dict[str, BinNoise] = {}
+    lines: dict[str, dict[str, StaticLine]] = {}
+    channels = [s.channel for s in data.sensors]
+    present = data.metadata.get("temperature_present", True)
+    for record in data.steps:
+        step = record.step
+        temps = record.daq.channels.get("temperature_c")
+        if present and temps is not None and np.size(temps):
+            temperature[step.id] = TemperatureEvidence(float(np.mean(temps)), float(np.std(temps)))
+        if step.kind == "static":
+            found = {ch: static_line(np.asarray(record.daq.channels[ch], dtype=float),
+                                     float(record.daq.sample_rate_hz))
+                     for ch in channels if ch in record.daq.channels}
+            lines[step.id] = {ch: line for ch, line in found.items() if line is not None}
+        if step.kind != "sine":
+            continue
+        position = record.table.channels.get(f"{step.axis}_position_deg")
+        cycles = getattr(step, "cycles", None)
+        amplitude = getattr(step, "amplitude_deg", None) or 0.0
+        if position is not None and cycles:
+            measured = _motion(np.asarray(position, dtype=float), int(cycles), float(amplitude))
+            if measured is not None:
+                motion[step.id] = measured
+            noise = _bin_noise(record, int(cycles), channels)
+            if noise is not None:
+                bin_noise[step.id] = noise
+    return Evidence(motion, temperature, recording=True, bin_noise=bin_noise,
+                    static_lines=lines)

@@ -1,0 +1,148 @@
+"""Each budget component against its defining formula, and its basis naming the source."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from aatest.engine.procedure.rig_description import Instruments
+from aatest.engine.uncertainty import components as comp
+from aatest.engine.uncertainty.evidence import (
+    Evidence,
+    TemperatureEvidence,
+    local_noise_rel,
+    static_line,
+)
+from aatest.engine.uncertainty.gum import Input, Measurand, coverage_factor, evaluate
+from aatest.engine.uncertainty.measurands import RigConstants, bias_measurand
+
+STATED = Instruments.model_validate({
+    "logger": {"offset_accuracy_v": 0.002, "gain_accuracy_pct": 0.05, "bits": 16,
+               "range_v": [-10, 10], "cert_id": "LOG-123", "cert_date": "2026-03-01"},
+    "encoder": {"accuracy_arcsec": 2.0, "error_cycles_per_rev": 36},
+})
+
+
+def _constants(instruments: Instruments = STATED, stated: bool = True,
+               evidence: Evidence | None = None) -> RigConstants:
+    return RigConstants(instruments=instruments, instruments_stated=stated,
+                        evidence=evidence or Evidence())
+
+
+def test_logger_offset_row_is_the_stated_accuracy_over_root_3() -> None:
+    row = comp.logger_offset(_constants())
+    assert row.standard_uncertainty() == pytest.approx(0.002 / math.sqrt(3))
+    assert "rig description: logger offset accuracy ±2 mV (cert LOG-123, 2026-03-01)" in row.note
+
+
+def test_logger_resolution_16_bit_10_v_is_305_uv_over_root_12() -> None:
+    row = comp.logger_resolution_v(_constants())
+    assert STATED.logger.step_v == pytest.approx(305.18e-6, rel=1e-4)
+    assert row.standard_uncertainty() == pytest.approx(20 / 2**16 / math.sqrt(12))
+    assert "305 µV" in row.note
+
+
+def test_logger_gain_row_is_relative_and_rectangular() -> None:
+    row = comp.logger_gain(_constants())
+    assert (row.unit, row.distribution) == ("1", "rectangular")
+    assert row.standard_uncertainty() == pytest.approx(0.0005 / math.sqrt(3))
+
+
+def test_defaults_are_named_as_such() -> None:
+    row = comp.logger_gain(_constants(Instruments(), stated=False))
+    assert row.note.startswith("stated default: logger gain accuracy 0.1 %")
+
+
+def test_encoder_accuracy_is_bounded_by_the_error_slope() -> None:
+    """a/A for a large motion; the slope bound a·2π·n/rev once A exceeds the error period."""
+    c = _constants()
+    small = comp.encoder_accuracy(c, amplitude_arcsec=100.0)
+    slope = math.radians(2 / 3600) * 36
+    assert small.spread == pytest.approx(min(2 / 100.0, slope))
+    large = comp.encoder_accuracy(c, amplitude_arcsec=1e6)
+    assert large.spread == pytest.approx(2e-6)
+
+
+def test_encoder_resolution_is_one_count_over_root_12() -> None:
+    c = _constants()
+    row = comp.encoder_resolution(c, amplitude_arcsec=3600.0)
+    q = 360 * 3600 / STATED.encoder.resolution_counts_per_rev
+    assert row.standard_uncertainty() == pytest.approx(q / math.sqrt(12) / 3600.0)
+
+
+def test_temperature_logged_vs_not_logged() -> None:
+    """Logged: TC × √(u_T² + s²) at the logged temperature; else TC × lab tolerance (rect)."""
+    logged = Evidence(temperature={"s1": TemperatureEvidence(22.0, 0.05)}, recording=True)
+    row, at = comp.temperature(_constants(evidence=logged), ["s1"], 0.0005, "TC", "1")
+    u_t = math.hypot(0.2 / math.sqrt(3), 0.05)
+    assert row.standard_uncertainty() == pytest.approx(0.0005 * u_t)
+    assert "22.0 °C (logged)" in at
+    row, at = comp.temperature(_constants(), ["s1"], 0.0005, "TC", "1")
+    assert row.distribution == "rectangular" and row.spread == pytest.approx(0.0005 * 3.0)
+    assert "not logged" in row.note and "reference temperature" in at
+
+
+def test_mounting_uses_a_misalignment_result_of_the_run() -> None:
+    stated = comp.mounting(_constants(), {}, "v_sz")
+    assert stated.spread == pytest.approx(math.radians(0.3)) and "mounting accuracy" in stated.note
+    results: dict[str, Any] = {"analysis": {"misalignment": {"scenarios": {
+        "1": {"SZ": {"misalignment_deg": 0.05, "expanded_uncertainty": 0.01}}}, "sets": {}}}}
+    measured = comp.mounting(_constants(), results, "v_sz")
+    assert measured.spread == pytest.approx(math.radians(0.06))
+    assert measured.note.startswith("measured: misalignment result")
+
+
+def test_not_evaluated_rows_show_as_such() -> None:
+    row = comp.not_evaluated("repeatability", "repeatability", "no repeated steps")
+    evaluation = evaluate(Measurand("q", "1", lambda ops, x: 1.0 + x["repeatability"], (row,)))
+    shown = evaluation.rows[0]
+    assert (shown.evaluated, shown.contribution) == (False, 0.0)
+    assert shown.basis == "not evaluated: no repeated steps"
+
+
+def test_reference_method_from_the_reference_analysis() -> None:
+    results = {"analysis": {"reference": {"s1": {
+        "smooth": {"gain": 1.0}, "savgol": {"gain": 1.0003}, "table": {"gain": 0.9999}}}}}
+    row = comp.reference_method(results, ["s1"], "smoothed")
+    assert row.spread == pytest.approx(3e-4) and "savgol vs smoothed" in row.note
+    missing = comp.reference_method({}, ["s1"], "smoothed")
+    assert not missing.evaluated
+
+
+def test_bias_budget_holds_the_logger_offset(results: dict[str, Any]) -> None:
+    """The bias U can never be smaller than the logger's offset accuracy contribution."""
+    c = _constants()
+    evaluation = evaluate(bias_measurand(results, "v_sz", c))  # type: ignore[arg-type]
+    rows = {r.name: r for r in evaluation.rows}
+    offset = rows["logger_offset"]
+    assert offset.contribution == pytest.approx(0.002 / math.sqrt(3))
+    assert evaluation.expanded_uncertainty >= 2 * offset.contribution
+    assert "logger_gain" in rows and "logger_resolution" in rows
+
+
+def test_welch_satterthwaite_widens_k_for_few_degrees_of_freedom() -> None:
+    assert coverage_factor(1.0, [(1.0, math.inf)]) == 2.0
+    k5 = coverage_factor(1.0, [(1.0, 5.0)])
+    assert 2.6 < k5 < 2.7  # t(95.45 %, 5) = 2.65
+    item = Input("a", "a", 0.0, 1.0, dof=5.0)
+    assert evaluate(Measurand("q", "1", lambda ops, x: x["a"], (item,))).k == pytest.approx(k5)
+
+
+def test_local_bin_noise_and_static_lines_are_measured() -> None:
+    """Noise next to a bin (white noise σ over N: √(2/N)·σ/A), and a line's residual bound."""
+    rng = np.random.default_rng(7)
+    n, cycles, amp, sigma = 16384, 64, 2.0, 0.01
+    t = np.arange(n)
+    x = amp * np.sin(2 * np.pi * cycles * t / n) + sigma * rng.standard_normal(n)
+    assert_allclose(local_noise_rel(x, cycles), sigma * math.sqrt(2.0 / n) / amp, rtol=0.2)
+    fs = 2000.0
+    tone = 2.5 + 0.024 * np.sin(2 * np.pi * 35.0 * np.arange(4000) / fs + 0.3)
+    line = static_line(tone, fs)
+    assert line is not None
+    assert line.frequency_hz == pytest.approx(35.0, abs=0.5)
+    assert line.amplitude_v == pytest.approx(0.024, rel=0.05)
+    assert line.residual_bound_v == pytest.approx(0.024 / (math.pi * 35.0 * 2.0), rel=0.05)
