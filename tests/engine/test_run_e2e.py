@@ -20,7 +20,9 @@ SWEEP = HERE / "data" / "resume-sweep.yaml"
 
 def aatest(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
     cmd = [sys.executable, "-m", "aatest.cli", *args]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL, check=False
+    )
 
 
 def _steps_on_disk(run_dir: Path) -> list[Path]:
@@ -45,7 +47,9 @@ def test_quick_run_produces_recording_results_and_report(tmp_path: Path) -> None
     done = aatest("run", str(QUICK), "--out", str(run_dir), "--no-progress", "--seed", "3")
     assert done.returncode == 0, done.stderr
     results = json.loads((run_dir / "results.json").read_text())
-    assert set(results) >= {"procedure", "rig", "steps", "analysis", "lab_duration_s", "wall_duration_s"}
+    assert set(results) >= {
+        "procedure", "rig", "steps", "analysis", "lab_duration_s", "wall_duration_s"
+    }
     assert len(results["steps"]) == 3 and results["analysis_errors"] == {}
     # the twin's sensor: ≈ −48 dB (°/s² → V) at low frequency, as measured (docs/method.md §1.3)
     gains = [p["gain_db"] for p in results["analysis"]["frf"]["v_sz"]]

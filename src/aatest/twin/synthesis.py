@@ -108,18 +108,6 @@ class SimulatedStep:
     truth: LazyTruth
 
 
-
-def _noiseless_truth(clean: np.ndarray, model: RigModel,
-                     lab_dt_s: float) -> Callable[[LazyTruth], Any]:
-    """The deferred truth of one channel's volts without noise (bound now, computed on use)."""
-    return lambda _truth: noiseless(clean, model.daq, lab_dt_s)
-
-
-def _axis_truth(axis_z: np.ndarray,
-                undelayed: Callable[[], np.ndarray]) -> Callable[[LazyTruth], Any]:
-    """The deferred truth of the acceleration along one sensitive axis (°/s²)."""
-    return lambda _truth: axis_z @ undelayed()
-
 def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, dict[str, Any]]:
     step, tm = setup.step, setup.model.table
     dt = 1.0 / step.sample_rate_hz

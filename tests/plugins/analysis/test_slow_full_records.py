@@ -28,7 +28,7 @@ def test_transfer_function_full_campaign_group(realistic_unit: Any) -> None:
     from test_tfest import F28
 
     model = realistic_unit.model_copy(update={"sensors": realistic_unit.sensors[:1]})
-    steps = [sine_step(f"c{int(round(f * N / 2000))}", int(round(f * N / 2000)), 100.0,
+    steps = [sine_step(f"c{round(f * N / 2000)}", round(f * N / 2000), 100.0,
                        samples=N, settle_s=5.0) for f in F28]
     data, _ = twin_dataset(model, steps)
     v = analyse("transfer_function", data, antialias_hz=model.daq.antialias_hz)["v_sz"]

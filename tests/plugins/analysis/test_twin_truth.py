@@ -29,7 +29,7 @@ def cal_run(realistic_unit):  # type: ignore[no-untyped-def]
 
 def test_sync_against_twin_clock(cal_run) -> None:  # type: ignore[no-untyped-def]
     _, _, truths, results = cal_run
-    for step, truth in zip(results["sync"]["steps"], truths):
+    for step, truth in zip(results["sync"]["steps"], truths, strict=True):
         assert abs(step["drift_ppm"] - truth["drift_ppm"]) < 1.0
         assert step["residual_rms_us"] < 10.0
         assert abs(step["offset_s"] - truth["offset_s"]) < 0.25e-3
@@ -97,13 +97,13 @@ def tf_run():  # type: ignore[no-untyped-def]
     model = realistic_rig_model([sensor])
     n = 16384
     steps = [sine_step(f"c{c}", c, 100.0, samples=n, settle_s=1.0)
-             for c in sorted({int(round(f * n / FS)) for f in F28})]
+             for c in sorted({round(f * n / FS) for f in F28})]
     data, _ = twin_dataset(model, steps)
     return model, run_analysis("transfer_function", data, {"antialias_hz": model.daq.antialias_hz})
 
 
 def test_transfer_function_against_twin(tf_run) -> None:  # type: ignore[no-untyped-def]
-    model, out = tf_run
+    _model, out = tf_run
     v = out.result.model_dump()["v_sz"]
     assert {"poles", "zeros", "delay_s", "fit_pct", "nAIC", "FPE", "num", "den", "dt"} <= set(v)
     assert v["fit_pct"] > 95.0 and v["zeros_outside_unit_circle"] == 0
