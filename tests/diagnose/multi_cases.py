@@ -72,7 +72,8 @@ def _s(rng: np.random.Generator, lo: float, hi: float) -> float:
 
 #: physics-writer draws (contract units), magnitudes well inside what the plan reveals
 PHYSICS: dict[str, Callable[[np.random.Generator], Effect]] = {
-    "bias_temperature": lambda r: effect("bias_temperature", coefficient_v_per_c=_s(r, 1.5e-4, 5e-4)),
+    "bias_temperature": lambda r: effect("bias_temperature",
+                                         coefficient_v_per_c=_s(r, 1.5e-4, 5e-4)),
     "scale_temperature": lambda r: effect("scale_temperature", coefficient_per_c=_s(r, 3e-4, 1e-3)),
     "nonlinearity_cubic": lambda r: effect("nonlinearity_cubic", c3=_s(r, 0.02, 0.05)),
     "saturation": lambda r: effect("saturation", limit_dps2=_u(r, 250.0, 350.0)),

@@ -18,6 +18,7 @@ temperatures cycled so that temperature, time and amplitude are not confounded.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -105,9 +106,10 @@ def play(x: np.ndarray, half_width: float) -> np.ndarray:
     starts = np.concatenate([[0], np.flatnonzero(rising[1:] != rising[:-1]) + 1, [x.size - 1]])
     y = np.empty_like(x)
     y0 = float(x[0])
-    for a, b in zip(starts[:-1], starts[1:], strict=True):
+    for a, b in itertools.pairwise(starts):
         seg = x[a:b + 1]
-        y[a:b + 1] = np.maximum(seg - half_width, y0) if rising[a] else np.minimum(seg + half_width, y0)
+        y[a:b + 1] = (np.maximum(seg - half_width, y0) if rising[a]
+                      else np.minimum(seg + half_width, y0))
         y0 = float(y[b])
     return y
 
@@ -174,9 +176,9 @@ def write_multi(out: Path, effects: tuple[Effect, ...] = (), samples: int = 8192
     out.mkdir(parents=True, exist_ok=True)
     drift = (fx["clock_drift"]["drift_ppm"] if "clock_drift" in fx else 5.0) * 1e-6
     entries, session_s = [], 0.0
-    for k, ((kind, f_hz, accel), temp_c) in enumerate(zip(PLAN, TEMPS_C, strict=True)):
+    for k, ((kind, f_nominal, accel), temp_c) in enumerate(zip(PLAN, TEMPS_C, strict=True)):
         sid = f"s{k + 1:02d}"
-        f_hz = round(f_hz * samples / FS_HZ) * FS_HZ / samples  # coherent: whole cycles
+        f_hz = round(f_nominal * samples / FS_HZ) * FS_HZ / samples  # coherent: whole cycles
         table, _, _ = _table_log(samples, kind, f_hz, accel, drift, rng)
         t_daq = np.arange(samples + int(0.5 * FS_HZ)) / FS_HZ
         t_tab = -DAQ_LEAD_S + t_daq * (1 + drift)
@@ -184,7 +186,8 @@ def write_multi(out: Path, effects: tuple[Effect, ...] = (), samples: int = 8192
         session_s += float(t_daq[-1])
         daq = np.column_stack([t_daq + 1000.0, _square_100hz(t_daq), (t_tab >= 0).astype(int),
                                _sensor_v(rec, fx, rng), np.full(t_daq.size, temp_c)])
-        cols = "time_s,position_deg,rate_dps,accel_dps2,sync_pulse" + (",fp_latch_s" if latch else "")
+        cols = ("time_s,position_deg,rate_dps,accel_dps2,sync_pulse"
+                + (",fp_latch_s" if latch else ""))
         np.savetxt(out / f"{sid}_table.csv", table if latch else table[:, :5], delimiter=",",
                    header=cols, comments="", fmt="%.12g")
         np.savetxt(out / f"{sid}_daq.csv", daq, delimiter=",", comments="", fmt="%.12g",

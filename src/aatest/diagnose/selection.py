@@ -28,6 +28,9 @@ BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.003
 MAX_FINDINGS_PER_CHANNEL = 6
 HOPELESS_BIC = 5.0
+#: Welch segment (samples) of the noise-correlation estimate, and the band's lower edge (Hz)
+_NPERSEG = 1024
+_LOW_BAND_HZ = 2.0
 #: nonlinear parameters each effect adds on top of its design columns
 SHAPE_PARAMS = {"time_delay": 1, "sensor_dynamics": 2, "hysteresis": 1, "saturation": 1,
                 "rate_ripple": 1, "motor_vibration": 1}
@@ -84,10 +87,11 @@ def correlation_factor(ctx: Context, fit: Fit) -> float:
     ratios = []
     for s in ctx.replay.steps:
         r = ctx.targets[s.index] - pred[s.index]
-        if r.size < 2048:
+        if r.size < 2 * _NPERSEG:
             continue
-        f, p = signal.welch(r, fs=fs, nperseg=1024, detrend="linear")
-        low = (f > 2.0) & (f < 0.05 * fs)
+        f, p = signal.welch(r, fs=fs, nperseg=_NPERSEG,
+                            detrend=lambda x: np.asarray(signal.detrend(x, type="linear")))
+        low = (f > _LOW_BAND_HZ) & (f < 0.05 * fs)
         ratios.append(float(np.median(p[low])) / (2.0 * r.var() / fs))
     return float(np.clip(np.median(ratios), 1.0, 50.0)) if ratios else 1.0
 

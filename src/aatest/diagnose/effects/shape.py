@@ -27,6 +27,13 @@ from aatest.diagnose.effects.base import (
 )
 
 MAX_DELAY_S = 0.08
+#: sine frequencies needed before second-order dynamics can be told from a delay
+MIN_FREQUENCIES = 2
+#: search bounds of the damping ratio and of the natural frequency (Hz)
+DAMPING_BOUNDS = (0.05, 3.0)
+MAX_NATURAL_HZ = 1000.0
+#: a magnitude within this share of 1 at the highest tested frequency is "flat"
+FLAT_MAGNITUDE = 0.005
 #: a coarse fit must lower the residual by this share before an expensive refinement
 REFINE_GAIN = 1e-3
 #: cost of a parameter outside its bounds (finite, so simplex arithmetic stays defined)
@@ -42,7 +49,7 @@ def testable_dynamic(ctx: Context) -> str | None:
 def testable_dynamics(ctx: Context) -> str | None:
     freqs = {round(s.inner.frequency_hz or s.outer.frequency_hz, 6)
              for s in ctx.replay.steps if s.dynamic}
-    if len(freqs) < 2:
+    if len(freqs) < MIN_FREQUENCIES:
         return "needs sine steps at two or more frequencies"
     return None
 
@@ -115,21 +122,22 @@ def _second_order(f_hz: np.ndarray, fn: float, zeta: float) -> np.ndarray:
 def _frf_seed(ctx: Context, base: Spec) -> np.ndarray:
     """(log fn, ζ) fitted to the measured FRF (fast: no time-domain replay)."""
     f, h, w = measured_frf(ctx, base)
-    if f.size < 2:
+    if f.size < MIN_FREQUENCIES:
         return np.array([np.log(100.0), 0.7])
 
     def resid(p: np.ndarray) -> np.ndarray:
         d = w * (_second_order(f, float(np.exp(p[0])), float(p[1])) - h)
         return np.concatenate([d.real, d.imag])
 
-    best = None
+    best_x, best_cost = np.array([np.log(100.0), 0.7]), np.inf
     for fn0 in (5.0, 20.0, 80.0, 300.0):
         for z0 in (0.3, 0.7, 1.2):
             res = optimize.least_squares(resid, [np.log(fn0), z0],
-                                         bounds=([0.0, 0.05], [np.log(1000.0), 3.0]))
-            if best is None or res.cost < best.cost:
-                best = res
-    return best.x
+                                         bounds=([0.0, DAMPING_BOUNDS[0]],
+                                                 [np.log(MAX_NATURAL_HZ), DAMPING_BOUNDS[1]]))
+            if res.cost < best_cost:
+                best_x, best_cost = np.asarray(res.x), float(res.cost)
+    return best_x
 
 
 def fit_dynamics(ctx: Context) -> CandidateFit:
@@ -140,19 +148,22 @@ def fit_dynamics(ctx: Context) -> CandidateFit:
         return replace_spec(base, dynamics=(round(float(np.exp(p[0])), 9), round(float(p[1]), 9)))
 
     def cost(p: np.ndarray) -> float:
-        if not (0.05 <= p[1] <= 3.0 and 0.0 <= p[0] <= np.log(1000.0)):
+        if not (DAMPING_BOUNDS[0] <= p[1] <= DAMPING_BOUNDS[1]
+                and 0.0 <= p[0] <= np.log(MAX_NATURAL_HZ)):
             return _OUTSIDE
         return ctx.fit(make(p)).sse_in
 
     start = _frf_seed(ctx, base)
     res = optimize.minimize(cost, start, method="Nelder-Mead",
                             options={"xatol": 1e-4, "fatol": 1e-10 * cost(start), "maxiter": 40,
-                                     "initial_simplex": [start, start + [0.02, 0.0],
-                                                         start + [0.0, 0.02]]})
+                                     "initial_simplex": [start, start + np.array([0.02, 0.0]),
+                                                         start + np.array([0.0, 0.02])]})
     fn, zeta = float(np.exp(res.x[0])), float(res.x[1])
     fit = ctx.fit(make(res.x))
-    ci_fn = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(v, zeta)), fn, 0.01 * fn, lo=0.5)
-    ci_z = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(fn, v)), zeta, 0.01 * zeta, lo=0.01)
+    ci_fn = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(v, zeta)), fn, 0.01 * fn,
+                         lo=0.5)
+    ci_z = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(fn, v)), zeta, 0.01 * zeta,
+                        lo=0.01)
     out = CandidateFit("sensor_dynamics", fit, {"natural_frequency_hz": fn, "damping": zeta},
                        {"natural_frequency_hz": ci_fn, "damping": ci_z},
                        extra={"equivalent_lag_s": 2 * zeta / (2 * np.pi * fn)})
@@ -168,7 +179,7 @@ def _droops(fn: float, zeta: float, ctx: Context) -> bool:
             if s.dynamic)
     r = f / fn
     mag = 1.0 / np.hypot(1 - r * r, 2 * zeta * r)
-    return abs(mag - 1.0) > 0.005
+    return abs(mag - 1.0) > FLAT_MAGNITUDE
 
 
 def fit_hysteresis(ctx: Context) -> CandidateFit:
@@ -178,14 +189,14 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
     amplitude; the two separate because only hysteresis grows as the amplitude falls.
     """
     base = ctx.current.spec
-    peak, dt = dynamic_peak_dps2(ctx), ctx.replay.dt_s
+    peak = dynamic_peak_dps2(ctx)
     hi = 0.1 * peak
 
     def make_on(spec: Spec):
         return lambda r: replace_spec(spec, hysteresis_dps2=r)
 
     make = make_on(base)
-    seeds = [0.0] + list(hi * np.geomspace(1e-3, 1.0, 10))
+    seeds = [0.0, *list(hi * np.geomspace(0.001, 1.0, 10))]
     r0, coarse = scalar_search(ctx, make, 0.0, hi, seeds)
     if coarse.sse_in > (1.0 - REFINE_GAIN) * ctx.current.sse_in:
         # no trace of a play operator: the joint refinement cannot change the verdict
