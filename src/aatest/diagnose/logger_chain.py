@@ -55,12 +55,19 @@ def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
 
 
 def residual_noise_psd(ctx: Context) -> tuple[np.ndarray, np.ndarray]:
-    """(f Hz, PSD V²/Hz) of the nominal replay's residual, averaged over steps."""
+    """(f Hz, PSD V²/Hz) of the nominal replay's residual, averaged over steps.
+
+    Steps at rest only, when there are any: there the residual is the recorded noise alone,
+    whereas an unexplained effect on a moving step (clipping, hysteresis) puts harmonics of
+    the excitation into the band the roll-off test reads, and would look like a filter.
+    """
     from aatest.diagnose.effects.logger import residual_psd
 
     fit = nominal_fit(ctx)
     pred = predict(ctx.replay, ctx.info, fit)
-    return residual_psd(ctx, {i: ctx.targets[i] - pred[i] for i in pred})
+    still = {s.index for s in ctx.replay.steps if not (s.inner.moving or s.outer.moving)}
+    return residual_psd(ctx, {i: ctx.targets[i] - pred[i] for i in pred
+                              if not still or i in still})
 
 
 def noise_rolloff(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:

@@ -54,9 +54,14 @@ def testable_dynamics(ctx: Context) -> str | None:
     return None
 
 
-def _synced(ctx: Context):
-    """The current spec with the alignment nuisance removed (trust the sync as recorded)."""
-    return replace_spec(ctx.current.spec, delay_s=0.0, step_shift_s=())
+def _synced(ctx: Context) -> Spec:
+    """The current spec with the alignment nuisance removed (trust the sync as recorded).
+
+    An accepted ``time_delay`` is not a nuisance: it stays, so a second timing effect (sensor
+    dynamics beside a transport delay) is fitted on top of it, not instead of it.
+    """
+    delay = ctx.current.spec.delay_s if "time_delay" in ctx.accepted else 0.0
+    return replace_spec(ctx.current.spec, delay_s=delay, step_shift_s=())
 
 
 def fit_delay(ctx: Context) -> CandidateFit:
@@ -119,22 +124,32 @@ def _second_order(f_hz: np.ndarray, fn: float, zeta: float) -> np.ndarray:
     return 1.0 / (1.0 - r * r + 2j * zeta * r)
 
 
-def _frf_seed(ctx: Context, base: Spec) -> np.ndarray:
-    """(log fn, ζ) fitted to the measured FRF (fast: no time-domain replay)."""
-    f, h, w = measured_frf(ctx, base)
-    if f.size < MIN_FREQUENCIES:
-        return np.array([np.log(100.0), 0.7])
+def _frf_seed(ctx: Context, base: Spec, with_delay: bool = False) -> np.ndarray:
+    """(log fn, ζ[, delay s]) fitted to the measured FRF (fast: no time-domain replay).
+
+    ``with_delay``: the FRF is measured without the base's delay and fitted as second-order
+    dynamics times a transport delay, so the two lags are separated by their signatures (a
+    delay's phase grows linearly with frequency at flat magnitude; dynamics bend both).
+    """
+    default = np.array([np.log(100.0), 0.7] + ([base.delay_s] if with_delay else []))
+    f, h, w = measured_frf(ctx, replace_spec(base, delay_s=0.0) if with_delay else base)
+    if f.size < MIN_FREQUENCIES + with_delay:
+        return default
 
     def resid(p: np.ndarray) -> np.ndarray:
-        d = w * (_second_order(f, float(np.exp(p[0])), float(p[1])) - h)
+        model = _second_order(f, float(np.exp(p[0])), float(p[1]))
+        if with_delay:
+            model = model * np.exp(-2j * np.pi * f * p[2])
+        d = w * (model - h)
         return np.concatenate([d.real, d.imag])
 
-    best_x, best_cost = np.array([np.log(100.0), 0.7]), np.inf
+    lo = [0.0, DAMPING_BOUNDS[0]] + ([0.0] if with_delay else [])
+    hi = [np.log(MAX_NATURAL_HZ), DAMPING_BOUNDS[1]] + ([MAX_DELAY_S] if with_delay else [])
+    best_x, best_cost = default, np.inf
     for fn0 in (5.0, 20.0, 80.0, 300.0):
         for z0 in (0.3, 0.7, 1.2):
-            res = optimize.least_squares(resid, [np.log(fn0), z0],
-                                         bounds=([0.0, DAMPING_BOUNDS[0]],
-                                                 [np.log(MAX_NATURAL_HZ), DAMPING_BOUNDS[1]]))
+            start = [np.log(fn0), z0] + ([0.5 * base.delay_s] if with_delay else [])
+            res = optimize.least_squares(resid, start, bounds=(lo, hi))
             if res.cost < best_cost:
                 best_x, best_cost = np.asarray(res.x), float(res.cost)
     return best_x
@@ -153,7 +168,10 @@ def fit_dynamics(ctx: Context) -> CandidateFit:
             return _OUTSIDE
         return ctx.fit(make(p)).sse_in
 
-    start = _frf_seed(ctx, base)
+    seed = _frf_seed(ctx, base, with_delay="time_delay" in ctx.accepted)
+    if seed.size > MIN_FREQUENCIES:  # the accepted delay re-seeded jointly with the dynamics
+        base = replace_spec(base, delay_s=round(float(seed[2]), 12))
+    start = seed[:2]
     res = optimize.minimize(cost, start, method="Nelder-Mead",
                             options={"xatol": 1e-4, "fatol": 1e-10 * cost(start), "maxiter": 40,
                                      "initial_simplex": [start, start + np.array([0.02, 0.0]),
