@@ -31,6 +31,8 @@ BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.003
 MAX_FINDINGS_PER_CHANNEL = 6
 HOPELESS_BIC = 5.0
+#: an acceptance that lowers the held-out RMS by this share re-tests the dormant candidates
+WAKE_REDUCTION = 0.1
 #: effects with nonlinear shape parameters that trade with each other
 SHAPE_EFFECTS = frozenset({"time_delay", "hysteresis", "saturation", "sensor_dynamics"})
 #: accepted shape effects from which on they are re-fitted jointly after an acceptance
@@ -151,6 +153,7 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] = CANDIDATES
     findings: list[Finding] = []
     accepted: dict[str, int] = {}
     remaining = list(candidates)
+    dormant: list[Candidate] = []  # no evidence yet: re-tested once the residual has shrunk
     while remaining and len(findings) < MAX_FINDINGS_PER_CHANNEL:
         scored = []
         for cand in remaining:
@@ -163,12 +166,18 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] = CANDIDATES
             dbic = delta_bic(ctx, cf.fit, ctx.current, cand.effect)
             rows[cand.effect] = _row(cf, dbic, ctx)
             scored.append((dbic, cand, cf))
+        dormant += [c for c in remaining if rows[c.effect]["testable"]
+                    and _hopeless(rows[c.effect])]
         remaining = [c for c in remaining if rows[c.effect]["testable"]
                      and not _hopeless(rows[c.effect])]
         passing = [item for item in scored if _passes(item[2], item[0], ctx)]
         if not passing:
             break
         dbic, cand, cf = min(passing, key=lambda item: item[0])
+        if rmse(cf.fit) < (1.0 - WAKE_REDUCTION) * rmse(ctx.current):
+            # a large effect hid the small ones: what had no evidence beside it is re-tested
+            remaining += [c for c in dormant if c.effect != cand.effect]
+            dormant = []
         findings.append(_finding(ctx, cf, dbic))
         accepted[cand.effect] = accepted.get(cand.effect, 0) + 1
         rows[f"{cand.effect}#{accepted[cand.effect]}"] = {**rows.pop(cand.effect), "accepted": True}
