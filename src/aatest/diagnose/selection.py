@@ -35,8 +35,6 @@ HOPELESS_BIC = 5.0
 WAKE_REDUCTION = 0.1
 #: effects with nonlinear shape parameters that trade with each other
 SHAPE_EFFECTS = frozenset({"time_delay", "hysteresis", "saturation", "sensor_dynamics"})
-#: accepted shape effects from which on they are re-fitted jointly after an acceptance
-MIN_JOINT_SHAPES = 2
 #: joint refinement: initial simplex step (share of each value) and iterations per parameter
 POLISH_STEP = 0.1
 POLISH_ITER_PER_AXIS = 30
@@ -182,7 +180,7 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] = CANDIDATES
         accepted[cand.effect] = accepted.get(cand.effect, 0) + 1
         rows[f"{cand.effect}#{accepted[cand.effect]}"] = {**rows.pop(cand.effect), "accepted": True}
         ctx.accepted.add(cand.effect)
-        ctx.current = polish_shapes(ctx, _adopt(ctx, cand, cf))
+        ctx.current = polish_shapes(ctx, _adopt(ctx, cand, cf), cand.effect)
         remaining = [c for c in remaining
                      if c.effect != cand.effect or accepted[c.effect] < c.repeatable]
     _sync_shape_parameters(ctx.current.spec, findings)
@@ -213,15 +211,18 @@ def _shape_axes(ctx: Context) -> list[tuple[Callable[[Spec], float],
     return axes
 
 
-def polish_shapes(ctx: Context, fit: Fit) -> Fit:
+def polish_shapes(ctx: Context, fit: Fit, added: str) -> Fit:
     """Re-fit the accepted shape parameters together (joint refinement after an acceptance).
 
     Each effect was fitted with the ones before it held fixed; look-alikes (a delay and the
     lag of sensor dynamics, hysteresis and a delay, clipping and a cubic) trade parameters,
-    so with two or more of them in the model all are re-optimised jointly (Nelder–Mead on
-    parameters scaled by their current values, bounded) on the in-sample SSE.
+    and a shape fitted before a later linear effect (a cubic, a temperature term) was in the
+    model is biased by its absence. So after every acceptance (``added``) the accepted shape
+    parameters are re-optimised jointly (Nelder–Mead on parameters scaled by their current
+    values, bounded) on the in-sample SSE — unless ``added`` is the only one, just fitted.
     """
-    if len(ctx.accepted & SHAPE_EFFECTS) < MIN_JOINT_SHAPES:
+    shapes = ctx.accepted & SHAPE_EFFECTS
+    if not shapes or shapes == {added}:
         return fit
     axes = _shape_axes(ctx)
     x0 = np.array([max(get(fit.spec), 1e-12) for get, _, _, _ in axes])
