@@ -24,6 +24,8 @@ RIPPLE_MIN_SHARE = 0.05
 _DECIMATE = 4
 #: a ripple line within this many cycles/° of one already found is that line again
 KNOWN_LINE_CPD = 0.05
+#: cycles/° grid on which the constant-rate spectra are compared
+_CPD_GRID = 0.001
 
 
 def _moving(ctx: Context) -> list[StepReplay]:
@@ -77,20 +79,25 @@ def _ripple_seed(steps: list[StepReplay], known: tuple[float, ...]) -> tuple[flo
     devs = _remaining(steps, known)
     ramps = [i for i, s in enumerate(steps) if s.inner.rate_dps and not s.inner.frequency_hz]
     if ramps:
-        best = (0.0, RIPPLE_CPD[0], 0.01)
+        # each ramp's spectrum on a cycles-per-degree axis, relative to its own median level;
+        # a position-periodic line sits at the same cycles/° at every rate, a motor line at the
+        # same Hz: the minimum over ramps of different rates keeps the first, drops the second
+        grid = np.arange(RIPPLE_CPD[0], RIPPLE_CPD[1], _CPD_GRID)
+        levels, widths = [], []
         for i in ramps:
             s, dev = steps[i], devs[i] - devs[i].mean()
             spec = np.abs(np.fft.rfft(dev * np.hanning(dev.size))) ** 2
-            freq = np.fft.rfftfreq(dev.size, s.dt_s)
             rate = abs(s.inner.rate_dps)
-            ok = (freq >= RIPPLE_CPD[0] * rate) & (freq <= RIPPLE_CPD[1] * rate)
-            for k in known:
-                ok &= np.abs(freq / rate - k) > KNOWN_LINE_CPD
-            if ok.any():
-                j = int(np.flatnonzero(ok)[np.argmax(spec[ok])])
-                if spec[j] > best[0]:
-                    best = (float(spec[j]), float(freq[j] / rate), 2.0 / (dev.size * s.dt_s * rate))
-        return best[1], best[2]
+            cpd = np.fft.rfftfreq(dev.size, s.dt_s) / rate
+            inside = (cpd >= RIPPLE_CPD[0]) & (cpd <= RIPPLE_CPD[1])
+            floor = max(float(np.median(spec[inside])), 1e-300) if inside.any() else 1.0
+            levels.append(np.interp(grid, cpd, spec / floor))
+            widths.append(2.0 / (dev.size * s.dt_s * rate))
+        rates = {round(abs(steps[i].inner.rate_dps), 6) for i in ramps}
+        combined = np.min(levels, axis=0) if len(rates) > 1 else np.max(levels, axis=0)
+        for k in known:
+            combined[np.abs(grid - k) <= KNOWN_LINE_CPD] = 0.0
+        return float(grid[int(np.argmax(combined))]), max(widths)
     theta = np.concatenate([s.inner.evaluate(s.time_s[::_DECIMATE])[0] for s in steps])
     dev = np.concatenate([d[::_DECIMATE] for d in devs])
     grid = np.arange(RIPPLE_CPD[0], RIPPLE_CPD[1], 0.01)
