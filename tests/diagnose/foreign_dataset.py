@@ -139,10 +139,10 @@ def write_dataset(out: Path, hidden: Hidden = Hidden(), samples: int = 16384, la
     entries = []
     temps = CYCLED_C if hidden.effect == "scale_ageing" else RAMP_C
     session_s = 0.0
-    for k, ((kind, f_hz, accel), temp_c) in enumerate(zip(PLAN, temps)):
+    for k, ((kind, f_nominal, accel), temp_c) in enumerate(zip(PLAN, temps, strict=True)):
         sid = f"s{k + 1:02d}"
-        f_hz = round(f_hz * samples / FS_HZ) * FS_HZ / samples
-        table, t, _ = _table_log(samples, kind, f_hz, accel, drift, rng)
+        f_hz = round(f_nominal * samples / FS_HZ) * FS_HZ / samples
+        table, _t, _ = _table_log(samples, kind, f_hz, accel, drift, rng)
         t_daq = np.arange(samples + int(0.5 * FS_HZ)) / FS_HZ
         t_tab = -DAQ_LEAD_S + t_daq * (1 + drift)
         alpha, jerk = _motion(kind, f_hz, accel, t_tab, delay)

@@ -76,7 +76,7 @@ def test_sub_sample_timing_is_evidence_with_latch_times(tmp_path: Path, case: st
 @pytest.mark.parametrize("case", list(SUB_SAMPLE), ids=list(SUB_SAMPLE))
 def test_sub_sample_timing_is_not_claimed_without_latch_times(tmp_path: Path, case: str) -> None:
     """Without ``fp_latch_s`` the same data only align to a sample: nothing may be claimed."""
-    code, doc = _diagnose(write_dataset(tmp_path / "data", SUB_SAMPLE[case], samples=8192,
+    _code, doc = _diagnose(write_dataset(tmp_path / "data", SUB_SAMPLE[case], samples=8192,
                                         seed=11))
     assert not {f["effect"] for f in doc["findings"]} & TIME_FAMILY, doc["findings"]
     assert doc["logger"]["fp_latch_s"] is False

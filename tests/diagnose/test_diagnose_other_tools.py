@@ -40,10 +40,10 @@ def write_other_tool_dir(root: Path, seed: int, delay_s: float = 0.0, drift_ppm:
         amp = accel / (2 * np.pi * f) ** 2 if kind == "sine" else 0.0
         phase = rng.uniform(0, 2 * np.pi)
 
-        def pos(t):
+        def pos(t, amp=amp, f=f, phase=phase, kind=kind):
             return amp * np.sin(2 * np.pi * f * t + phase) if kind == "sine" else 0.0 * t
 
-        def acc(t):
+        def acc(t, accel=accel, f=f, phase=phase, kind=kind):
             return -accel * np.sin(2 * np.pi * f * t + phase) if kind == "sine" else 0.0 * t
 
         lead = 0.3 + rng.uniform(0, 0.1)  # the DAQ starts earlier, by an arbitrary time

@@ -1,4 +1,4 @@
-"""Replay: the commanded motion aligned on the table log, and the nominal residual at noise level."""
+"""Replay: the commanded motion aligned on the table log; the nominal residual at noise level."""
 
 import numpy as np
 import pytest
@@ -19,7 +19,7 @@ def test_fit_axis_motion_recovers_sine_and_ramp() -> None:
     assert_allclose([m.offset_deg, m.sin_deg, m.cos_deg], [3.0, 2.0, -0.5], atol=1e-9)
     ramp = fit_axis_motion(t, 1.0 + 30.0 * t, True, None, True)
     assert_allclose([ramp.offset_deg, ramp.rate_dps], [1.0, 30.0], atol=1e-9)
-    angle, rate, accel = m.evaluate(t)
+    _angle, _rate, accel = m.evaluate(t)
     assert_allclose(accel, -(w**2) * (pos - 3.0), atol=1e-9)
 
 

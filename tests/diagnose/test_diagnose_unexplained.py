@@ -61,7 +61,7 @@ def judge_unexplained(code: int, doc: dict[str, Any], hidden: Hidden) -> list[st
         return problems + ([] if code == 0 else [f"exit {code}"])
     match = [u for u in doc["unexplained"] if u["kind"] == KIND[hidden.effect]]
     if not match:
-        return problems + [f"no {KIND[hidden.effect]} in {doc['unexplained']}"]
+        return [*problems, f"no {KIND[hidden.effect]} in {doc['unexplained']}"]
     ev = match[0]["evidence"]
     if not (ev["rmse_v_after"] < ev["rmse_v_before"] and ev["delta_bic"] < 0):
         problems.append(f"no gain: {ev}")

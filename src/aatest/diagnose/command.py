@@ -45,7 +45,8 @@ def summary(doc: dict[str, Any]) -> str:
         lines.append(f"unexplained {u['kind']} ({u.get('channel', '')}): {u['description']}; "
                      f"ΔBIC {u['evidence']['delta_bic']:.1f}")
     if doc.get("steps_skipped"):
-        lines.append("steps left out (no sync edges, no trigger): " + ", ".join(doc["steps_skipped"]))
+        lines.append("steps left out (no sync edges, no trigger): "
+                     + ", ".join(doc["steps_skipped"]))
     untestable = [c["effect"] for c in doc["candidates"] if c.get("testable") is False]
     if untestable:
         lines.append("not testable with these data: " + ", ".join(sorted(set(untestable))))

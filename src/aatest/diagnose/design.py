@@ -162,14 +162,16 @@ _SENSOR_COLUMNS = frozenset({"scale", "scale_temperature", "nonlinearity_cubic",
 def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
                     key: tuple, temp: np.ndarray, wanted: set[str]) -> dict[str, np.ndarray]:
     """The sensor chain: α → hysteresis → dynamics → saturation, and the ``wanted`` terms on it."""
-    if not wanted & _SENSOR_COLUMNS:
+    plugin_wanted = wanted.intersection(design_column_names(spec.linear))  # aatest.effects
+    if not wanted & _SENSOR_COLUMNS and not plugin_wanted:
         return {}
     alpha3 = sensor_acceleration(sr, info.axis, t_eval, key)
     sensed = alpha3[2]
     if spec.hysteresis_dps2 > 0.0 and sr.dynamic:
         sensed = play_operator(sensed, spec.hysteresis_dps2)
     cols: dict[str, np.ndarray] = {}
-    if wanted & {"scale", "scale_temperature", "nonlinearity_cubic"}:
+    shaped = sensed
+    if wanted & {"scale", "scale_temperature", "nonlinearity_cubic"} or plugin_wanted:
         shaped = _dynamics(sensed, spec, sr.dt_s)
         if spec.saturation_dps2 is not None:
             shaped = np.clip(shaped, -spec.saturation_dps2, spec.saturation_dps2)
@@ -184,8 +186,10 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
         cols["cross_x"] = _dynamics(alpha3[0], spec, sr.dt_s)
     if "cross_y" in wanted:
         cols["cross_y"] = _dynamics(alpha3[1], spec, sr.dt_s)
-    plugin_inputs = EffectInputs(shaped, sensed, temp, t_eval, sr.dt_s, info.range_dps2)
-    cols |= design_columns(lin, plugin_inputs, {e: dict(v) for e, v in spec.plugin_shape})
+    if plugin_wanted:
+        plugin_inputs = EffectInputs(shaped, sensed, temp, t_eval, sr.dt_s, info.range_dps2)
+        cols |= design_columns(spec.linear, plugin_inputs,
+                               {e: dict(v) for e, v in spec.plugin_shape})
     return cols
 
 

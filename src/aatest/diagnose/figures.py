@@ -77,7 +77,7 @@ def before_after_trace(ctx: Context, nominal: Fit, final: Fit) -> str:
     gains = {i: np.std(ctx.targets[i] - p0[i]) - np.std(ctx.targets[i] - p1[i]) for i in p0}
     k = max(gains, key=lambda i: gains[i])
     sr = ctx.replay.steps[k]
-    n = min(sr.n, int(round(1.0 / sr.dt_s)))
+    n = min(sr.n, round(1.0 / sr.dt_s))
     t = sr.time_s[:n]
     fig = Figure(figsize=(6.4, 2.6), layout="constrained")
     ax = fig.subplots()
@@ -90,7 +90,8 @@ def before_after_trace(ctx: Context, nominal: Fit, final: Fit) -> str:
     return _svg(fig)
 
 
-def residual_figures(ctx: Context, nominal: Fit, final: Fit, views: dict[str, Any]) -> dict[str, str]:
+def residual_figures(ctx: Context, nominal: Fit, final: Fit, views: dict[str, Any]
+                     ) -> dict[str, str]:
     """All figures of one channel, keyed by title."""
     ch = ctx.info.channel
     out = {f"{ch} residual per step": per_step_bars(views, ch),

@@ -143,13 +143,18 @@ def _step_change_proposal(steps: tuple[StepReplay, ...], residuals: dict[int, np
     return Proposal("step_change", f"step@{at.step.id}", columns, describe, shape_params=1)
 
 
+def _linear_detrend(x: np.ndarray) -> np.ndarray:
+    """Remove a straight line (what ``detrend="linear"`` does; scipy-stubs mistype that name)."""
+    return np.asarray(signal.detrend(x, type="linear"))
+
+
 def _line_power(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray], f_hz: float
                 ) -> float:
     """Σ over steps of the residual's power at ``f_hz`` (a periodogram at one frequency)."""
     total = 0.0
     for sr in steps:
         z = dft_at(residuals[sr.index], sr.time_s, f_hz)
-        total += abs(z) ** 2 / sr.n
+        total += float(abs(z) ** 2 / sr.n)
     return total
 
 
@@ -167,17 +172,15 @@ def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.nda
                       ) -> list[float]:
     """Frequencies (Hz) of lines common to the residual of the steps, strongest first."""
     fs = 1.0 / steps[0].dt_s
-    nper = int(min(4096, min(sr.n for sr in steps)))
-    acc = None
-    for sr in steps:
-        f, p = signal.welch(residuals[sr.index], fs=fs, nperseg=nper, detrend="linear")
-        p = p / max(float(np.median(p)), 1e-300)
-        acc = p if acc is None else acc + p
-    acc = acc / len(steps)
+    nper = int(min(4096, *(sr.n for sr in steps)))
+    spectra = [signal.welch(residuals[sr.index], fs=fs, nperseg=nper, detrend=_linear_detrend)
+               for sr in steps]
+    f = spectra[0][0]
+    acc = np.mean([p / max(float(np.median(p)), 1e-300) for _, p in spectra], axis=0)
     floor = float(np.median(acc))
-    idx, _ = signal.find_peaks(acc, height=LINE_SNR * floor, distance=4)
+    peaks, _ = signal.find_peaks(acc, height=LINE_SNR * floor, distance=4)
     df = fs / nper
-    idx = sorted((i for i in idx if f[i] > 2.0 * df), key=lambda i: -acc[i])
+    idx = sorted((int(i) for i in peaks if f[i] > 2.0 * df), key=lambda i: -acc[i])
     tol_hz = 2.0 / min(sr.n * sr.dt_s for sr in steps)  # two bins of the shortest record
     out = []
     for i in idx[:MAX_LINES]:
@@ -231,7 +234,7 @@ def _line_proposal(steps: tuple[StepReplay, ...], f_hz: float) -> Proposal:
 def proposals(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray],
               range_dps2: float) -> list[Proposal]:
     """Every generic extension the residual suggests (before any is fitted)."""
-    out = _alpha_proposals(range_dps2) + [_trend_proposal(steps)]
+    out = [*_alpha_proposals(range_dps2), _trend_proposal(steps)]
     change = _step_change_proposal(steps, residuals)
     out += [change] if change is not None else []
     out += [_line_proposal(steps, f) for f in _peak_frequencies(steps, residuals)]

@@ -57,13 +57,21 @@ def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
     return False, None
 
 
-def residual_noise_psd(ctx: Context) -> tuple[np.ndarray, np.ndarray]:
-    """(f Hz, PSD V²/Hz) of the nominal replay's residual, averaged over steps."""
+def residual_noise_psd(ctx: Context, at_rest: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(f Hz, PSD V²/Hz) of the nominal replay's residual, averaged over steps.
+
+    ``at_rest``: steps at rest only, when there are any. There the residual is the recorded
+    noise alone, whereas an unexplained effect on a moving step (clipping, hysteresis) puts
+    harmonics of the excitation into the band the roll-off test reads and looks like a filter.
+    """
     from aatest.diagnose.effects.logger import residual_psd
 
     fit = nominal_fit(ctx)
     pred = predict(ctx.replay, ctx.info, fit)
-    return residual_psd(ctx, {i: ctx.targets[i] - pred[i] for i in pred})
+    still = {s.index for s in ctx.replay.steps
+             if at_rest and not (s.inner.moving or s.outer.moving)}
+    return residual_psd(ctx, {i: ctx.targets[i] - pred[i] for i in pred
+                              if not still or i in still})
 
 
 def noise_rolloff(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:
@@ -124,11 +132,12 @@ def logger_options(dataset: Dataset, replay: Replay) -> list[tuple[float | None,
     contexts = {opt: Context(replay, channel_info(dataset, channel, opt, replay.t_ref_c), targets,
                              None)  # type: ignore[arg-type]
                 for opt in (DEFAULT_ANTIALIAS_HZ, None)}
-    freq, psd = residual_noise_psd(contexts[DEFAULT_ANTIALIAS_HZ])
+    # whether there is a roll-off: steps at rest; where its corner is: all steps (more data)
+    freq, psd = residual_noise_psd(contexts[DEFAULT_ANTIALIAS_HZ], at_rest=True)
     fs = 1.0 / replay.dt_s
     ratio = noise_rolloff(freq, psd, fs)
     if ratio < ROLLOFF_RATIO:
-        corner = estimate_corner_hz(freq, psd, fs)
+        corner = estimate_corner_hz(*residual_noise_psd(contexts[DEFAULT_ANTIALIAS_HZ]), fs)
         return [(corner, f"the residual noise rolls off like a 2nd-order filter at {corner:g} Hz "
                          f"(high/low band ratio {ratio:.3f})")]
     reason = (f"white residual noise (ratio {ratio:.2f}): no filter, or one drowned by excess "

@@ -89,7 +89,8 @@ def _estimate_drift(ctx: Context) -> _Drift | None:
     if trend is None or (trend[1][1] - trend[1][0]) / 2 > res:
         return edges
     extra, ci, fit = trend
-    return _Drift(d + extra, [d + ci[0], d + ci[1]], "sync edges (one-sample resolution) + phase trend",
+    return _Drift(d + extra, [d + ci[0], d + ci[1]],
+                  "sync edges (one-sample resolution) + phase trend",
                   one_clock_fit(ctx, d), fit, d, (-extra, False))
 
 
@@ -211,7 +212,7 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
         outcome = explain(ctx, result.final, result.findings)
         _apply_withdrawals(result, outcome)
         findings += result.findings + ([noise_f] if noise_f else [])
-        candidates += list(result.candidates.values()) + [noise_row]
+        candidates += [*list(result.candidates.values()), noise_row]
         unexplained += outcome.unexplained
         result.final = ctx.fit(outcome.joint.spec)
         sse += [baseline.sse_held_out, result.final.sse_held_out, outcome.joint.fit.sse_held_out]

@@ -67,8 +67,9 @@ def diagnostic_plan(samples: int = 2**14) -> list[PlannedStep]:
 
 def clean_rig(seed: int = 0) -> m.RigModel:
     """A rig with no effect switched on (1 mV noise, 100 Hz pre-sample filter, one clock)."""
-    return m.RigModel(sensors=[m.SensorModel(channel="v_sz", axis="I", bias_v=2.5 + 0.002 * (seed % 5),
-                                             noise_rms_v=0.001)])
+    sensor = m.SensorModel(channel="v_sz", axis="I", bias_v=2.5 + 0.002 * (seed % 5),
+                           noise_rms_v=0.001)
+    return m.RigModel(sensors=[sensor])
 
 
 @dataclass(frozen=True)
@@ -91,20 +92,44 @@ def _signed(rng: np.random.Generator, lo: float, hi: float) -> float:
 
 #: effect → draw(rng) of a magnitude well inside what the plan can reveal
 DRAWS: dict[str, Callable[[np.random.Generator], Hidden]] = {
-    "bias_temperature": lambda r: Hidden("bias_temperature", {"coefficient_v_per_c": _signed(r, 1e-4, 5e-4)}, ("coefficient_v_per_c",)),
-    "scale_temperature": lambda r: Hidden("scale_temperature", {"coefficient_per_c": _signed(r, 2e-4, 1e-3)}, ("coefficient_per_c",)),
-    "nonlinearity_cubic": lambda r: Hidden("nonlinearity_cubic", {"c3": _signed(r, 0.01, 0.05)}, ("c3",)),
-    "saturation": lambda r: Hidden("saturation", {"limit_dps2": _u(r, 250.0, 360.0)}, ("limit_dps2",)),
-    "hysteresis": lambda r: Hidden("hysteresis", {"half_width_dps2": _u(r, 1.0, 4.0)}, ("half_width_dps2",)),
-    "sensor_dynamics": lambda r: Hidden("sensor_dynamics", {"natural_frequency_hz": _u(r, 15.0, 40.0), "damping": _u(r, 0.4, 0.8)}, ("natural_frequency_hz", "damping")),
+    "bias_temperature": lambda r: Hidden(
+        "bias_temperature", {"coefficient_v_per_c": _signed(r, 1e-4, 5e-4)},
+        ("coefficient_v_per_c",)),
+    "scale_temperature": lambda r: Hidden(
+        "scale_temperature", {"coefficient_per_c": _signed(r, 2e-4, 1e-3)},
+        ("coefficient_per_c",)),
+    "nonlinearity_cubic": lambda r: Hidden(
+        "nonlinearity_cubic", {"c3": _signed(r, 0.01, 0.05)}, ("c3",)),
+    "saturation": lambda r: Hidden(
+        "saturation", {"limit_dps2": _u(r, 250.0, 360.0)}, ("limit_dps2",)),
+    "hysteresis": lambda r: Hidden(
+        "hysteresis", {"half_width_dps2": _u(r, 1.0, 4.0)}, ("half_width_dps2",)),
+    "sensor_dynamics": lambda r: Hidden(
+        "sensor_dynamics", {"natural_frequency_hz": _u(r, 15.0, 40.0), "damping": _u(r, 0.4, 0.8)},
+        ("natural_frequency_hz", "damping")),
     "time_delay": lambda r: Hidden("time_delay", {"delay_s": _u(r, 0.002, 0.015)}, ("delay_s",)),
-    "clock_drift": lambda r: Hidden("clock_drift", {"drift_ppm": _signed(r, 60.0, 200.0)}, ("drift_ppm",)),
-    "jerk_sensitivity": lambda r: Hidden("jerk_sensitivity", {"coefficient_v_per_dps3": _K_V * _u(r, 1.5e-3, 5e-3)}, ("coefficient_v_per_dps3",)),
-    "g_sensitivity": lambda r: Hidden("g_sensitivity", {"coefficient_dps2_per_g": _signed(r, 0.5, 2.0)}, ("coefficient_dps2_per_g",)),
-    "cross_axis": lambda r: Hidden("cross_axis", {"ratio_x": _signed(r, 0.004, 0.015), "ratio_y": _signed(r, 0.004, 0.015)}, ("ratio_x", "ratio_y")),
-    "misalignment": lambda r: Hidden("misalignment", {"angle_deg": _u(r, 0.3, 1.0)}, ("angle_deg",), {"azimuth_deg": _u(r, 0.0, 360.0)}),
-    "rate_ripple": lambda r: Hidden("rate_ripple", {"cycles_per_deg": float(r.choice([1.0, 2.0])), "amplitude_deg": _u(r, 0.5, 2.0) / 3600}, ("cycles_per_deg", "amplitude_deg")),
-    "motor_vibration": lambda r: Hidden("motor_vibration", {"frequency_hz": _u(r, 25.0, 45.0), "amplitude_dps2": _u(r, 2.0, 8.0)}, ("frequency_hz", "amplitude_dps2"), {"bandwidth_hz": float(r.choice([0.0, _u(r, 2.0, 6.0)]))}),
+    "clock_drift": lambda r: Hidden(
+        "clock_drift", {"drift_ppm": _signed(r, 60.0, 200.0)}, ("drift_ppm",)),
+    "jerk_sensitivity": lambda r: Hidden(
+        "jerk_sensitivity", {"coefficient_v_per_dps3": _K_V * _u(r, 1.5e-3, 5e-3)},
+        ("coefficient_v_per_dps3",)),
+    "g_sensitivity": lambda r: Hidden(
+        "g_sensitivity", {"coefficient_dps2_per_g": _signed(r, 0.5, 2.0)},
+        ("coefficient_dps2_per_g",)),
+    "cross_axis": lambda r: Hidden(
+        "cross_axis", {"ratio_x": _signed(r, 0.004, 0.015), "ratio_y": _signed(r, 0.004, 0.015)},
+        ("ratio_x", "ratio_y")),
+    "misalignment": lambda r: Hidden(
+        "misalignment", {"angle_deg": _u(r, 0.3, 1.0)}, ("angle_deg",),
+        {"azimuth_deg": _u(r, 0.0, 360.0)}),
+    "rate_ripple": lambda r: Hidden(
+        "rate_ripple", {"cycles_per_deg": float(r.choice([1.0, 2.0])),
+                        "amplitude_deg": _u(r, 0.5, 2.0) / 3600},
+        ("cycles_per_deg", "amplitude_deg")),
+    "motor_vibration": lambda r: Hidden(
+        "motor_vibration", {"frequency_hz": _u(r, 25.0, 45.0), "amplitude_dps2": _u(r, 2.0, 8.0)},
+        ("frequency_hz", "amplitude_dps2"),
+        {"bandwidth_hz": float(r.choice([0.0, _u(r, 2.0, 6.0)]))}),
     "excess_noise": lambda r: Hidden("excess_noise", {"rms_v": _u(r, 0.002, 0.012)}, ("rms_v",)),
 }
 
@@ -213,7 +238,8 @@ PAIRS: tuple[tuple[str, str], ...] = (
 )
 
 
-def suite_cases(seeds: tuple[int, ...] = (1, 2), clean: int = 5) -> list[tuple[str, list[Hidden], int]]:
+def suite_cases(seeds: tuple[int, ...] = (1, 2), clean: int = 5
+                ) -> list[tuple[str, list[Hidden], int]]:
     """The full hidden-effect suite: every effect per seed, clean rigs, and the pairs."""
     cases = [(f"{e}-s{s}", [draw_hidden(e, s)], s) for s in seeds for e in DRAWS]
     cases += [(f"clean-s{s}", [], 100 + s) for s in range(clean)]

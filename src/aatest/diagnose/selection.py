@@ -15,19 +15,34 @@ compete on the same held-out score, so the effect whose signature fits wins.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from scipy import optimize
 
-from aatest.diagnose.design import Fit, predict
+from aatest.diagnose.design import Fit, Spec, predict
 from aatest.diagnose.effects import Candidate, vocabulary
-from aatest.diagnose.effects.base import CandidateFit, Context
+from aatest.diagnose.effects.base import CandidateFit, Context, dynamic_peak_dps2
+from aatest.diagnose.effects.shape import DAMPING_BOUNDS, MAX_DELAY_S, MAX_NATURAL_HZ
 
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.003
 MAX_FINDINGS_PER_CHANNEL = 6
 HOPELESS_BIC = 5.0
+#: an acceptance that lowers the held-out RMS by this share re-tests the dormant candidates
+WAKE_REDUCTION = 0.1
+#: effects with nonlinear shape parameters that trade with each other
+SHAPE_EFFECTS = frozenset({"time_delay", "hysteresis", "saturation", "sensor_dynamics"})
+#: joint refinement: initial simplex step (share of each value) and iterations per parameter
+POLISH_STEP = 0.1
+POLISH_ITER_PER_AXIS = 30
+#: cost of a parameter outside its bounds (finite, so simplex arithmetic stays defined)
+_OUTSIDE = 1e200
+#: Welch segment (samples) of the noise-correlation estimate, and the band's lower edge (Hz)
+_NPERSEG = 1024
+_LOW_BAND_HZ = 2.0
 #: nonlinear parameters each effect adds on top of its design columns
 SHAPE_PARAMS = {"time_delay": 1, "sensor_dynamics": 2, "hysteresis": 1, "saturation": 1,
                 "rate_ripple": 1, "motor_vibration": 1}
@@ -84,10 +99,11 @@ def correlation_factor(ctx: Context, fit: Fit) -> float:
     ratios = []
     for s in ctx.replay.steps:
         r = ctx.targets[s.index] - pred[s.index]
-        if r.size < 2048:
+        if r.size < 2 * _NPERSEG:
             continue
-        f, p = signal.welch(r, fs=fs, nperseg=1024, detrend="linear")
-        low = (f > 2.0) & (f < 0.05 * fs)
+        f, p = signal.welch(r, fs=fs, nperseg=_NPERSEG,
+                            detrend=lambda x: np.asarray(signal.detrend(x, type="linear")))
+        low = (f > _LOW_BAND_HZ) & (f < 0.05 * fs)
         ratios.append(float(np.median(p[low])) / (2.0 * r.var() / fs))
     return float(np.clip(np.median(ratios), 1.0, 50.0)) if ratios else 1.0
 
@@ -140,6 +156,7 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
     findings: list[Finding] = []
     accepted: dict[str, int] = {}
     remaining = list(candidates)
+    dormant: list[Candidate] = []  # no evidence yet: re-tested once the residual has shrunk
     while remaining and len(findings) < MAX_FINDINGS_PER_CHANNEL:
         scored = []
         for cand in remaining:
@@ -152,20 +169,109 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
             dbic = delta_bic(ctx, cf.fit, ctx.current, cand.effect)
             rows[cand.effect] = _row(cf, dbic, ctx)
             scored.append((dbic, cand, cf))
+        dormant += [c for c in remaining if rows[c.effect]["testable"]
+                    and _hopeless(rows[c.effect])]
         remaining = [c for c in remaining if rows[c.effect]["testable"]
                      and not _hopeless(rows[c.effect])]
         passing = [item for item in scored if _passes(item[2], item[0], ctx)]
         if not passing:
             break
         dbic, cand, cf = min(passing, key=lambda item: item[0])
+        if rmse(cf.fit) < (1.0 - WAKE_REDUCTION) * rmse(ctx.current):
+            # a large effect hid the small ones: what had no evidence beside it is re-tested
+            remaining += [c for c in dormant if c.effect != cand.effect]
+            dormant = []
         findings.append(_finding(ctx, cf, dbic))
         accepted[cand.effect] = accepted.get(cand.effect, 0) + 1
         rows[f"{cand.effect}#{accepted[cand.effect]}"] = {**rows.pop(cand.effect), "accepted": True}
-        ctx.current = _adopt(ctx, cand, cf)
+        ctx.accepted.add(cand.effect)
+        ctx.current = polish_shapes(ctx, _adopt(ctx, cand, cf), cand.effect)
         remaining = [c for c in remaining
                      if c.effect != cand.effect or accepted[c.effect] < c.repeatable]
+    _sync_shape_parameters(ctx.current.spec, findings)
     _mirror_misalignment(ctx, rows, findings)
     return findings, rows
+
+
+def _shape_axes(ctx: Context) -> list[tuple[Callable[[Spec], float],
+                                            Callable[[Spec, float], Spec], float, float]]:
+    """(get, set, lower, upper bound) of every accepted shape parameter."""
+    peak = dynamic_peak_dps2(ctx) if ctx.dynamic_steps else 1.0
+    axes: list[tuple[Callable[[Spec], float], Callable[[Spec, float], Spec], float, float]] = []
+    if "time_delay" in ctx.accepted:
+        axes.append((lambda s: s.delay_s, lambda s, v: replace(s, delay_s=v), 0.0, MAX_DELAY_S))
+    if "hysteresis" in ctx.accepted:
+        axes.append((lambda s: s.hysteresis_dps2, lambda s, v: replace(s, hysteresis_dps2=v),
+                     0.0, 0.1 * peak))
+    if "saturation" in ctx.accepted:
+        axes.append((lambda s: s.saturation_dps2 or peak,
+                     lambda s, v: replace(s, saturation_dps2=v), 0.3 * peak, peak))
+    if "sensor_dynamics" in ctx.accepted:
+        axes.append((lambda s: s.dynamics[0] if s.dynamics else 100.0,
+                     lambda s, v: replace(s, dynamics=(v, s.dynamics[1] if s.dynamics else 0.7)),
+                     0.5, MAX_NATURAL_HZ))
+        axes.append((lambda s: s.dynamics[1] if s.dynamics else 0.7,
+                     lambda s, v: replace(s, dynamics=(s.dynamics[0] if s.dynamics else 100.0, v)),
+                     DAMPING_BOUNDS[0], DAMPING_BOUNDS[1]))
+    return axes
+
+
+def polish_shapes(ctx: Context, fit: Fit, added: str) -> Fit:
+    """Re-fit the accepted shape parameters together (joint refinement after an acceptance).
+
+    Each effect was fitted with the ones before it held fixed; look-alikes (a delay and the
+    lag of sensor dynamics, hysteresis and a delay, clipping and a cubic) trade parameters,
+    and a shape fitted before a later linear effect (a cubic, a temperature term) was in the
+    model is biased by its absence. So after every acceptance (``added``) the accepted shape
+    parameters are re-optimised jointly (Nelder–Mead on parameters scaled by their current
+    values, bounded) on the in-sample SSE — unless ``added`` is the only one, just fitted.
+    """
+    shapes = ctx.accepted & SHAPE_EFFECTS
+    if not shapes or shapes == {added}:
+        return fit
+    axes = _shape_axes(ctx)
+    x0 = np.array([max(get(fit.spec), 1e-12) for get, _, _, _ in axes])
+
+    def spec_of(u: np.ndarray) -> Spec | None:
+        spec = fit.spec
+        for (_, put, lo, hi), v in zip(axes, u * x0, strict=True):
+            if not lo <= v <= hi:
+                return None
+            spec = put(spec, round(float(v), 12))
+        return spec
+
+    def cost(u: np.ndarray) -> float:
+        spec = spec_of(u)
+        return _OUTSIDE if spec is None else ctx.fit(spec).sse_in
+
+    ones = np.ones(len(axes))
+    simplex = np.vstack([ones] + [ones + POLISH_STEP * np.eye(len(axes))[j]
+                                  for j in range(len(axes))])
+    res = optimize.minimize(cost, ones, method="Nelder-Mead",
+                            options={"initial_simplex": simplex, "xatol": 1e-4,
+                                     "fatol": 1e-9 * fit.sse_in,
+                                     "maxiter": POLISH_ITER_PER_AXIS * len(axes)})
+    spec = spec_of(np.asarray(res.x))
+    best = ctx.fit(spec) if spec is not None else fit
+    return best if best.sse_in < fit.sse_in else fit
+
+
+def _sync_shape_parameters(spec: Spec, findings: list[Finding]) -> None:
+    """Shape findings report the jointly re-fitted values (intervals moved with them)."""
+    values: dict[str, dict[str, float | None]] = {
+        "time_delay": {"delay_s": spec.delay_s},
+        "hysteresis": {"half_width_dps2": spec.hysteresis_dps2},
+        "saturation": {"limit_dps2": spec.saturation_dps2},
+        "sensor_dynamics": {"natural_frequency_hz": spec.dynamics[0] if spec.dynamics else None,
+                            "damping": spec.dynamics[1] if spec.dynamics else None}}
+    for f in findings:
+        for key, new in values.get(f.effect, {}).items():
+            old = f.parameters.get(key)
+            if new is None or old is None or new == old:
+                continue
+            f.parameters[key] = float(new)
+            if key in f.ci95:
+                f.ci95[key] = [v + float(new) - old for v in f.ci95[key]]
 
 
 def _adopt(ctx: Context, cand: Candidate, cf: CandidateFit) -> Fit:

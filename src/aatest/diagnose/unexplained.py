@@ -187,5 +187,6 @@ def explain(ctx: Context, named: Fit, findings: list[Finding]) -> Outcome:
         joint.generics.append(prop)
         joint.fit = fit
     withdrawn = backward_pass(ctx, joint, findings)
-    entries = [_entry(ctx, joint, p, e) for p, e in zip(joint.generics, joint.evidence)]
+    entries = [_entry(ctx, joint, p, e)
+               for p, e in zip(joint.generics, joint.evidence, strict=True)]
     return Outcome(joint, entries, withdrawn)

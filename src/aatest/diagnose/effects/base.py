@@ -35,6 +35,8 @@ class Context:
     correlation: float = 1.0
     cache: dict[Any, Fit] = field(default_factory=dict)
     step_cache: dict[Any, Any] = field(default_factory=dict)
+    #: effects accepted so far (their shape parameters are in ``current`` and stay there)
+    accepted: set[str] = field(default_factory=set)
 
     def fit(self, spec: Spec) -> Fit:
         """Fit (memoised) a spec on this channel."""

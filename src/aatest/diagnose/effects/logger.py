@@ -28,6 +28,13 @@ MAX_DRIFT_PPM = 2000.0
 MIN_EXCESS_RMS_V = 2e-4
 #: without a pre-sample filter, noise must exceed the stated sensor noise by this factor
 NOISE_MARGIN = 1.25
+#: Welch segment (samples) of the residual spectrum; shorter records are left out
+WELCH_SEGMENT = 1024
+
+
+def _linear_detrend(x: np.ndarray) -> np.ndarray:
+    """Remove a straight line (what ``detrend="linear"`` does; scipy-stubs mistype that name)."""
+    return np.asarray(signal.detrend(x, type="linear"))
 
 
 @dataclass(frozen=True)
@@ -84,16 +91,15 @@ def one_clock_fit(ctx: Context, drift_ppm: float):
 def residual_psd(ctx: Context, residuals: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Welch PSD (V²/Hz) of the residual averaged over steps."""
     fs = 1.0 / ctx.replay.dt_s
-    acc, count, freq = None, 0, None
+    freq, spectra = np.zeros(1), []
     for r in residuals.values():
-        if r.size < 1024:
+        if r.size < WELCH_SEGMENT:
             continue
-        freq, p = signal.welch(r, fs=fs, nperseg=1024, detrend="linear")
-        acc = p if acc is None else acc + p
-        count += 1
-    if acc is None:
+        freq, p = signal.welch(r, fs=fs, nperseg=WELCH_SEGMENT, detrend=_linear_detrend)
+        spectra.append(p)
+    if not spectra:
         return np.zeros(1), np.zeros(1)
-    return freq, acc / count
+    return freq, np.mean(spectra, axis=0)
 
 
 def white_floor_rms_v(ctx: Context, residuals: dict[int, np.ndarray]) -> tuple[float, float]:
@@ -125,15 +131,17 @@ def excess_noise(ctx: Context, residuals: dict[int, np.ndarray], stated_noise_v:
     """
     floor, _ = white_floor_rms_v(ctx, residuals)
     n = sum(r.size for r in residuals.values())
-    filtered = ctx.info.antialias_hz is not None
+    corner = ctx.info.antialias_hz
+    filtered = corner is not None
     sigma0 = 0.5 * MIN_EXCESS_RMS_V if filtered else max(stated_noise_v, 1e-9)
-    n_band = n * (0.45 - 4.0 * ctx.info.antialias_hz * ctx.replay.dt_s if filtered else 0.2) * 2
+    n_band = n * (0.45 - 4.0 * corner * ctx.replay.dt_s if corner is not None else 0.2) * 2
     ratio = max(floor**2 / sigma0**2, 1e-12)
     dbic = float(-max(n_band, 1.0) * (ratio - 1.0 - np.log(ratio)) * (1 if ratio > 1 else -1)
                  + np.log(max(n_band, 2.0)))
     if filtered:
         value = floor
-        veto = None if value >= MIN_EXCESS_RMS_V else "no white floor above the pre-sample filter band"
+        veto = (None if value >= MIN_EXCESS_RMS_V
+                else "no white floor above the pre-sample filter band")
     else:
         value = float(np.sqrt(max(floor**2 - stated_noise_v**2, 0.0)))
         veto = None if floor >= NOISE_MARGIN * stated_noise_v else (

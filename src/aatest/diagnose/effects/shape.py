@@ -27,6 +27,13 @@ from aatest.diagnose.effects.base import (
 )
 
 MAX_DELAY_S = 0.08
+#: sine frequencies needed before second-order dynamics can be told from a delay
+MIN_FREQUENCIES = 2
+#: search bounds of the damping ratio and of the natural frequency (Hz)
+DAMPING_BOUNDS = (0.05, 3.0)
+MAX_NATURAL_HZ = 1000.0
+#: a magnitude within this share of 1 at the highest tested frequency is "flat"
+FLAT_MAGNITUDE = 0.005
 #: a coarse fit must lower the residual by this share before an expensive refinement
 REFINE_GAIN = 1e-3
 #: cost of a parameter outside its bounds (finite, so simplex arithmetic stays defined)
@@ -42,14 +49,19 @@ def testable_dynamic(ctx: Context) -> str | None:
 def testable_dynamics(ctx: Context) -> str | None:
     freqs = {round(s.inner.frequency_hz or s.outer.frequency_hz, 6)
              for s in ctx.replay.steps if s.dynamic}
-    if len(freqs) < 2:
+    if len(freqs) < MIN_FREQUENCIES:
         return "needs sine steps at two or more frequencies"
     return None
 
 
-def _synced(ctx: Context):
-    """The current spec with the alignment nuisance removed (trust the sync as recorded)."""
-    return replace_spec(ctx.current.spec, delay_s=0.0, step_shift_s=())
+def _synced(ctx: Context) -> Spec:
+    """The current spec with the alignment nuisance removed (trust the sync as recorded).
+
+    An accepted ``time_delay`` is not a nuisance: it stays, so a second timing effect (sensor
+    dynamics beside a transport delay) is fitted on top of it, not instead of it.
+    """
+    delay = ctx.current.spec.delay_s if "time_delay" in ctx.accepted else 0.0
+    return replace_spec(ctx.current.spec, delay_s=delay, step_shift_s=())
 
 
 def fit_delay(ctx: Context) -> CandidateFit:
@@ -112,24 +124,35 @@ def _second_order(f_hz: np.ndarray, fn: float, zeta: float) -> np.ndarray:
     return 1.0 / (1.0 - r * r + 2j * zeta * r)
 
 
-def _frf_seed(ctx: Context, base: Spec) -> np.ndarray:
-    """(log fn, ζ) fitted to the measured FRF (fast: no time-domain replay)."""
-    f, h, w = measured_frf(ctx, base)
-    if f.size < 2:
-        return np.array([np.log(100.0), 0.7])
+def _frf_seed(ctx: Context, base: Spec, with_delay: bool = False) -> np.ndarray:
+    """(log fn, ζ[, delay s]) fitted to the measured FRF (fast: no time-domain replay).
+
+    ``with_delay``: the FRF is measured without the base's delay and fitted as second-order
+    dynamics times a transport delay, so the two lags are separated by their signatures (a
+    delay's phase grows linearly with frequency at flat magnitude; dynamics bend both).
+    """
+    default = np.array([np.log(100.0), 0.7] + ([base.delay_s] if with_delay else []))
+    f, h, w = measured_frf(ctx, replace_spec(base, delay_s=0.0) if with_delay else base)
+    if f.size < MIN_FREQUENCIES + with_delay:
+        return default
 
     def resid(p: np.ndarray) -> np.ndarray:
-        d = w * (_second_order(f, float(np.exp(p[0])), float(p[1])) - h)
+        model = _second_order(f, float(np.exp(p[0])), float(p[1]))
+        if with_delay:
+            model = model * np.exp(-2j * np.pi * f * p[2])
+        d = w * (model - h)
         return np.concatenate([d.real, d.imag])
 
-    best = None
+    lo = [0.0, DAMPING_BOUNDS[0]] + ([0.0] if with_delay else [])
+    hi = [np.log(MAX_NATURAL_HZ), DAMPING_BOUNDS[1]] + ([MAX_DELAY_S] if with_delay else [])
+    best_x, best_cost = default, np.inf
     for fn0 in (5.0, 20.0, 80.0, 300.0):
         for z0 in (0.3, 0.7, 1.2):
-            res = optimize.least_squares(resid, [np.log(fn0), z0],
-                                         bounds=([0.0, 0.05], [np.log(1000.0), 3.0]))
-            if best is None or res.cost < best.cost:
-                best = res
-    return best.x
+            start = [np.log(fn0), z0] + ([0.5 * base.delay_s] if with_delay else [])
+            res = optimize.least_squares(resid, start, bounds=(lo, hi))
+            if res.cost < best_cost:
+                best_x, best_cost = np.asarray(res.x), float(res.cost)
+    return best_x
 
 
 def fit_dynamics(ctx: Context) -> CandidateFit:
@@ -140,19 +163,25 @@ def fit_dynamics(ctx: Context) -> CandidateFit:
         return replace_spec(base, dynamics=(round(float(np.exp(p[0])), 9), round(float(p[1]), 9)))
 
     def cost(p: np.ndarray) -> float:
-        if not (0.05 <= p[1] <= 3.0 and 0.0 <= p[0] <= np.log(1000.0)):
+        if not (DAMPING_BOUNDS[0] <= p[1] <= DAMPING_BOUNDS[1]
+                and 0.0 <= p[0] <= np.log(MAX_NATURAL_HZ)):
             return _OUTSIDE
         return ctx.fit(make(p)).sse_in
 
-    start = _frf_seed(ctx, base)
+    seed = _frf_seed(ctx, base, with_delay="time_delay" in ctx.accepted)
+    if seed.size > MIN_FREQUENCIES:  # the accepted delay re-seeded jointly with the dynamics
+        base = replace_spec(base, delay_s=round(float(seed[2]), 12))
+    start = seed[:2]
     res = optimize.minimize(cost, start, method="Nelder-Mead",
                             options={"xatol": 1e-4, "fatol": 1e-10 * cost(start), "maxiter": 40,
-                                     "initial_simplex": [start, start + [0.02, 0.0],
-                                                         start + [0.0, 0.02]]})
+                                     "initial_simplex": [start, start + np.array([0.02, 0.0]),
+                                                         start + np.array([0.0, 0.02])]})
     fn, zeta = float(np.exp(res.x[0])), float(res.x[1])
     fit = ctx.fit(make(res.x))
-    ci_fn = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(v, zeta)), fn, 0.01 * fn, lo=0.5)
-    ci_z = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(fn, v)), zeta, 0.01 * zeta, lo=0.01)
+    ci_fn = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(v, zeta)), fn, 0.01 * fn,
+                         lo=0.5)
+    ci_z = curvature_ci(ctx, lambda v: replace_spec(base, dynamics=(fn, v)), zeta, 0.01 * zeta,
+                        lo=0.01)
     out = CandidateFit("sensor_dynamics", fit, {"natural_frequency_hz": fn, "damping": zeta},
                        {"natural_frequency_hz": ci_fn, "damping": ci_z},
                        extra={"equivalent_lag_s": 2 * zeta / (2 * np.pi * fn)})
@@ -168,7 +197,7 @@ def _droops(fn: float, zeta: float, ctx: Context) -> bool:
             if s.dynamic)
     r = f / fn
     mag = 1.0 / np.hypot(1 - r * r, 2 * zeta * r)
-    return abs(mag - 1.0) > 0.005
+    return abs(mag - 1.0) > FLAT_MAGNITUDE
 
 
 def fit_hysteresis(ctx: Context) -> CandidateFit:
@@ -178,14 +207,14 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
     amplitude; the two separate because only hysteresis grows as the amplitude falls.
     """
     base = ctx.current.spec
-    peak, dt = dynamic_peak_dps2(ctx), ctx.replay.dt_s
+    peak = dynamic_peak_dps2(ctx)
     hi = 0.1 * peak
 
     def make_on(spec: Spec):
         return lambda r: replace_spec(spec, hysteresis_dps2=r)
 
     make = make_on(base)
-    seeds = [0.0] + list(hi * np.geomspace(1e-3, 1.0, 10))
+    seeds = [0.0, *list(hi * np.geomspace(0.001, 1.0, 10))]
     r0, coarse = scalar_search(ctx, make, 0.0, hi, seeds)
     if coarse.sse_in > (1.0 - REFINE_GAIN) * ctx.current.sse_in:
         # no trace of a play operator: the joint refinement cannot change the verdict

@@ -23,6 +23,10 @@ LINE_SNR = 25.0
 #: a ripple must explain this share of the table-log deviation variance
 RIPPLE_MIN_SHARE = 0.05
 _DECIMATE = 4
+#: a ripple line within this many cycles/° of one already found is that line again
+KNOWN_LINE_CPD = 0.05
+#: cycles/° grid on which the constant-rate spectra are compared
+_CPD_GRID = 0.001
 
 
 def _moving(ctx: Context) -> list[StepReplay]:
@@ -55,7 +59,7 @@ def _fit_table(steps: list[StepReplay], ns: tuple[float, ...]
 
 
 def _ripple_sse(steps: list[StepReplay], n_cpd: float, known: tuple[float, ...]) -> float:
-    _, resid, _ = _fit_table(steps, known + (n_cpd,))
+    _, resid, _ = _fit_table(steps, (*known, n_cpd))
     return float(resid @ resid)
 
 
@@ -76,26 +80,31 @@ def _ripple_seed(steps: list[StepReplay], known: tuple[float, ...]) -> tuple[flo
     devs = _remaining(steps, known)
     ramps = [i for i, s in enumerate(steps) if s.inner.rate_dps and not s.inner.frequency_hz]
     if ramps:
-        best = (0.0, RIPPLE_CPD[0], 0.01)
+        # each ramp's spectrum on a cycles-per-degree axis, relative to its own median level;
+        # a position-periodic line sits at the same cycles/° at every rate, a motor line at the
+        # same Hz: the minimum over ramps of different rates keeps the first, drops the second
+        grid = np.arange(RIPPLE_CPD[0], RIPPLE_CPD[1], _CPD_GRID)
+        levels, widths = [], []
         for i in ramps:
             s, dev = steps[i], devs[i] - devs[i].mean()
             spec = np.abs(np.fft.rfft(dev * np.hanning(dev.size))) ** 2
-            freq = np.fft.rfftfreq(dev.size, s.dt_s)
             rate = abs(s.inner.rate_dps)
-            ok = (freq >= RIPPLE_CPD[0] * rate) & (freq <= RIPPLE_CPD[1] * rate)
-            for k in known:
-                ok &= np.abs(freq / rate - k) > 0.05
-            if ok.any():
-                j = int(np.flatnonzero(ok)[np.argmax(spec[ok])])
-                if spec[j] > best[0]:
-                    best = (float(spec[j]), float(freq[j] / rate), 2.0 / (dev.size * s.dt_s * rate))
-        return best[1], best[2]
+            cpd = np.fft.rfftfreq(dev.size, s.dt_s) / rate
+            inside = (cpd >= RIPPLE_CPD[0]) & (cpd <= RIPPLE_CPD[1])
+            floor = max(float(np.median(spec[inside])), 1e-300) if inside.any() else 1.0
+            levels.append(np.interp(grid, cpd, spec / floor))
+            widths.append(2.0 / (dev.size * s.dt_s * rate))
+        rates = {round(abs(steps[i].inner.rate_dps), 6) for i in ramps}
+        combined = np.min(levels, axis=0) if len(rates) > 1 else np.max(levels, axis=0)
+        for k in known:
+            combined[np.abs(grid - k) <= KNOWN_LINE_CPD] = 0.0
+        return float(grid[int(np.argmax(combined))]), max(widths)
     theta = np.concatenate([s.inner.evaluate(s.time_s[::_DECIMATE])[0] for s in steps])
     dev = np.concatenate([d[::_DECIMATE] for d in devs])
     grid = np.arange(RIPPLE_CPD[0], RIPPLE_CPD[1], 0.01)
     power = lomb_scargle_power(theta, dev - dev.mean(), 2 * np.pi * grid)
     for k in known:
-        power[np.abs(grid - k) <= 0.05] = 0.0
+        power[np.abs(grid - k) <= KNOWN_LINE_CPD] = 0.0
     return float(grid[int(np.argmax(power))]), 0.01
 
 
@@ -114,7 +123,7 @@ def ripple_from_table(steps: list[StepReplay], known: tuple[float, ...] = ()
                                    bounds=(max(n0 - width, RIPPLE_CPD[0]), n0 + width),
                                    method="bounded", options={"xatol": 1e-7})
     n = float(res.x)
-    coef, resid, _ = _fit_table(steps, known + (n,))
+    coef, resid, _ = _fit_table(steps, (*known, n))
     share = 1.0 - float(resid @ resid) / total
     a_sin, a_cos = coef[-2], coef[-1]
     sigma = float(np.sqrt(resid @ resid / max(resid.size - coef.size, 1)))
@@ -133,11 +142,11 @@ def fit_ripple(ctx: Context) -> CandidateFit:
         out.veto = "the table log shows no (further) position-periodic error"
         return out
     n_round = round(n, 4)
-    fit = ctx.fit(replace_spec(ctx.current.spec, ripple_cpd=known + (n_round,)))
+    fit = ctx.fit(replace_spec(ctx.current.spec, ripple_cpd=(*known, n_round)))
     params = {"cycles_per_deg": n_round, "amplitude_deg": amp}
     ci = {"cycles_per_deg": [n_round, n_round], "amplitude_deg": [amp - Z95 * u, amp + Z95 * u]}
-    sensor_amp = float(np.hypot(fit.value(f"ripple{n_round:g}_s"), fit.value(f"ripple{n_round:g}_c"))
-                       / ctx.scale_of(fit))
+    sine, cosine = fit.value(f"ripple{n_round:g}_s"), fit.value(f"ripple{n_round:g}_c")
+    sensor_amp = float(np.hypot(sine, cosine) / ctx.scale_of(fit))
     return CandidateFit("rate_ripple", fit, params, ci, attributed_to="table",
                         extra={"phase_rad": phase, "amplitude_deg_seen_by_sensor": sensor_amp,
                                "table_log_share": share})

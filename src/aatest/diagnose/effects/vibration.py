@@ -20,6 +20,15 @@ LINE_SNR = 25.0
 MAX_TONES = 6
 BAND_SEARCH_HZ = 10.0
 _NPERSEG = 4096
+#: lines below this (Hz) are motion, not vibration
+MIN_LINE_HZ = 5.0
+#: relative standard uncertainty of an amplitude seen in one step only
+DEFAULT_REL_U = 0.05
+
+
+def _linear_detrend(x: np.ndarray) -> np.ndarray:
+    """Remove a straight line (what ``detrend="linear"`` does; scipy-stubs mistype that name)."""
+    return np.asarray(signal.detrend(x, type="linear"))
 
 
 def testable_vibration(ctx: Context) -> str | None:
@@ -57,13 +66,13 @@ def _sse(steps: list[StepReplay], freqs: list[float]) -> float:
 def _peak(steps: list[StepReplay], freqs: list[float], fs: float,
           near: float | None) -> tuple[float, float] | None:
     """(f, SNR) of the strongest line left in the deviation (near ``near`` when given)."""
-    total, f = None, None
-    for s in steps:
-        f, p = signal.welch(_fit_step(s, freqs)[1], fs=fs, nperseg=min(_NPERSEG, s.n))
-        total = p if total is None else total + p
-    if total is None:
+    if not steps:
         return None
-    band = (f > 5.0) & (f < 0.4 * fs)
+    spectra = [signal.welch(_fit_step(s, freqs)[1], fs=fs, nperseg=min(_NPERSEG, s.n))
+               for s in steps]
+    f = spectra[0][0]
+    total = np.sum([p for _, p in spectra], axis=0)
+    band = (f > MIN_LINE_HZ) & (f < 0.4 * fs)
     floor = float(np.median(total[band])) if band.any() else 0.0
     if near is not None:
         band &= np.abs(f - near) <= BAND_SEARCH_HZ
@@ -85,7 +94,7 @@ def vibration_lines(steps: list[StepReplay], fs: float) -> list[float]:
         if peak is None or peak[1] < LINE_SNR:
             break
         df = fs / _NPERSEG
-        res = optimize.minimize_scalar(lambda f: _sse(steps, freqs + [f]),
+        res = optimize.minimize_scalar(lambda f: _sse(steps, [*freqs, f]),
                                        bounds=(peak[0] - df, peak[0] + df), method="bounded",
                                        options={"xatol": 1e-5})
         freqs.append(float(res.x))
@@ -99,7 +108,7 @@ def _refine(steps: list[StepReplay], freqs: list[float], fs: float, passes: int 
     for _ in range(passes):
         for j in range(len(freqs)):
             def cost(f: float, j: int = j) -> float:
-                return _sse(steps, freqs[:j] + [f] + freqs[j + 1:])
+                return _sse(steps, [*freqs[:j], f, *freqs[j + 1:]])
 
             freqs[j] = float(optimize.minimize_scalar(
                 cost, bounds=(freqs[j] - df, freqs[j] + df), method="bounded",
@@ -117,15 +126,18 @@ def band_amplitude(steps: list[StepReplay], lo_hz: float, hi_hz: float, fs: floa
     values = []
     for s in steps:
         f, p = signal.periodogram(s.table_deviation_deg["inner"], fs=fs, window="hann",
-                                  detrend="linear")
-        ok = (f > 5.0) & (f < 0.4 * fs)
+                                  detrend=_linear_detrend)
+        ok = (f > MIN_LINE_HZ) & (f < 0.4 * fs)
         floor = float(np.median(p[ok])) if ok.any() else 0.0
         band = (f >= lo_hz) & (f <= hi_hz)
         var = float(np.sum((p[band] - floor) * (2 * np.pi * f[band]) ** 4) * (f[1] - f[0]))
         values.append(max(var, 0.0))
     v = np.asarray(values)
     amp = float(np.sqrt(2.0 * v.mean()))
-    u = float(np.sqrt(2.0) * v.std(ddof=1) / np.sqrt(v.size) / (2 * amp)) if v.size > 1 and amp > 0 else 0.05 * amp
+    if v.size > 1 and amp > 0:
+        u = float(np.sqrt(2.0) * v.std(ddof=1) / np.sqrt(v.size) / (2 * amp))
+    else:
+        u = DEFAULT_REL_U * amp
     return amp, u
 
 
@@ -154,7 +166,8 @@ def fit_vibration(ctx: Context) -> CandidateFit:
     else:
         total = float(np.sqrt(power.sum()))
         per_step = np.sqrt(np.sum(amps**2, axis=1))
-        u = float(per_step.std(ddof=1) / np.sqrt(per_step.size)) if per_step.size > 1 else 0.05 * total
+        u = (float(per_step.std(ddof=1) / np.sqrt(per_step.size)) if per_step.size > 1
+             else DEFAULT_REL_U * total)
     f_mean = float(np.sum(power * np.asarray(freqs)) / power.sum())
     bandwidth = (max(freqs) - min(freqs)) * (k + 1) / (k - 1) if k > 1 else 0.0
     fit = ctx.fit(replace_spec(ctx.current.spec, vibration_hz=tuple(round(f, 5) for f in freqs)))
