@@ -97,7 +97,8 @@ class CandidateFit:
     veto: str | None = None
 
 
-def linear_ci(ctx: Context, fit: Fit, name: str, divide_by_scale: bool = True) -> tuple[float, list[float]]:
+def linear_ci(ctx: Context, fit: Fit, name: str,
+              divide_by_scale: bool = True) -> tuple[float, list[float]]:
     """Value and 95 % interval of one linear coefficient (optionally relative to K)."""
     j = fit.names.index(name)
     sigma2 = fit.sse_in / max(fit.n - fit.k, 1) * ctx.correlation
@@ -152,7 +153,8 @@ def dynamic_peak_dps2(ctx: Context) -> float:
     peak = 0.0
     for s in ctx.replay.steps:
         if s.dynamic:
-            peak = max(peak, float(np.max(np.abs(sensor_acceleration(s, ctx.info.axis, s.time_s)[2]))))
+            alpha = sensor_acceleration(s, ctx.info.axis, s.time_s)[2]
+            peak = max(peak, float(np.max(np.abs(alpha))))
     return peak
 
 
