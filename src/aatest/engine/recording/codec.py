@@ -20,28 +20,32 @@ included), else quantum 1 when every value is a whole number (0/1 pulses stored 
 from __future__ import annotations
 
 from collections.abc import Collection, Iterator, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording.proto import block_class
+from aatest.engine.recording import proto
 
 TIME_COLUMN = "time_s"
+#: field numbers (proto.py): Channel.values, Channel.codes, SampleBlock.time, .channels
+_VALUES_FIELD, _CODES_FIELD, _TIME_FIELD, _CHANNELS_FIELD = 4, 5, 7, 8
 #: largest |code| a float64 carries exactly (2^53)
 _MAX_EXACT_CODE = float(2**53)
 _ALLOWED_KINDS = "fiub"
 
 
-def _same_values(decoded: np.ndarray, logged: np.ndarray) -> bool:
-    """Bitwise equality of two float64 arrays, except that −0.0 may come back as +0.0.
+def _same_values(decoded: np.ndarray, logged: np.ndarray) -> np.ndarray:
+    """Elementwise bitwise equality of two float64 arrays, except that −0.0 may come back as +0.0.
 
     The one value an integer code cannot carry is the sign of a zero (a rounded encoder reading
     just below 0 is −0.0); it is the same physical value, equal under ``==`` and in every
     computation the analyses make, so it does not force the block to float64.
     """
-    return bool(np.array_equal(np.where(logged == 0.0, 0.0, logged).view(np.uint64),
-                               decoded.view(np.uint64)))
+    same: np.ndarray = np.where(logged == 0.0, 0.0, logged).view(np.uint64) == decoded.view(
+        np.uint64)
+    return same
 
 
 def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dtype) -> np.ndarray:
@@ -58,40 +62,74 @@ def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dty
     return values.astype(dtype, copy=False)
 
 
-def _codes(
-    values: np.ndarray, quantum: tuple[float, float] | None
-) -> tuple[np.ndarray, float, float] | None:
-    """(codes, quantum, offset) reproducing ``values`` exactly, or None if there are none."""
+@dataclass(frozen=True)
+class _Coded:
+    """One channel of a whole log as codes, and which of its blocks they reproduce exactly."""
+
+    codes: np.ndarray  # int64, one per sample (meaningless inside blocks that are not exact)
+    exact: np.ndarray  # bool, one per block
+    quantum: float
+    offset: float
+
+
+def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray) -> _Coded:
+    """Integer codes of a whole channel, with each block's verdict: do its codes give back every
+    value bit for bit? (The per-block choice of :func:`encode_blocks`, made for all at once.)"""
     if values.dtype.kind in "iub":
-        return values.astype(np.int64), 1.0, 0.0
-    exact = values.astype(np.float64)
+        return _Coded(values.astype(np.int64), np.ones(starts.size, dtype=bool), 1.0, 0.0)
+    exact = values.astype(np.float64, copy=False)
     step, offset = quantum if quantum is not None else (1.0, 0.0)
     if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
-        return None
-    with np.errstate(invalid="ignore", over="ignore"):
+        return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         scaled = np.round((exact - offset) / step)
-    if not bool(np.all(np.abs(scaled) < _MAX_EXACT_CODE)):  # also False for NaN/inf
-        return None
-    codes = scaled.astype(np.int64)
-    if not _same_values(codes.astype(np.float64) * step + offset, exact):
-        return None
-    return codes, step, offset
+    fits = np.abs(scaled) < _MAX_EXACT_CODE  # also False for NaN/inf
+    codes = np.where(fits, scaled, 0.0).astype(np.int64)
+    same = fits & _same_values(codes.astype(np.float64) * step + offset, exact)
+    return _Coded(codes, np.logical_and.reduceat(same, starts), step, offset)
 
 
-def _fill_channel(
-    message: Any, name: str, unit: str, values: np.ndarray, quantum: tuple[float, float] | None
-) -> None:
-    """Fill one ``Channel`` message with codes when exact, else float64 values."""
-    message.name, message.unit, message.dtype = name, unit, values.dtype.str
-    coded = _codes(values, quantum)
-    if coded is None:
-        message.values.extend(values.astype(np.float64).tolist())
-        return
-    codes, step, offset = coded
-    steps = np.diff(codes, prepend=np.int64(0))
-    message.delta = bool(np.abs(steps).sum() < np.abs(codes).sum())  # smooth signals, counters
-    message.codes.extend((steps if message.delta else codes).tolist())
-    message.quantum, message.offset = step, offset
+class _ChannelEncoder:
+    """Serialised ``Channel`` messages of one channel, block by block, built from whole arrays.
+
+    Codes where exact (delta-coded where that is smaller: smooth signals, counters), else
+    float64 values; the varints of every block are made in one vectorised pass. The scalar
+    fields (``name``, ``unit``, ``dtype``, ``quantum``, ``offset``, ``delta``) are serialised by
+    protobuf, so each message is byte for byte what ``SerializeToString`` gives.
+    """
+
+    def __init__(self, name: str, unit: str, values: np.ndarray,
+                 quantum: tuple[float, float] | None, starts: np.ndarray) -> None:
+        channel = proto.channel_class()
+        self._values = values
+        head = channel(name=name, unit=unit, dtype=values.dtype.str)
+        self._head: bytes = head.SerializeToString()
+        self._bounds = np.append(starts, values.size)
+        coded = _coded(values, quantum, starts)
+        self._exact = coded.exact.tolist()
+        self._tails: dict[bool, bytes] = {
+            delta: channel(quantum=coded.quantum, offset=coded.offset, delta=delta)
+            .SerializeToString() for delta in (False, True)}
+        self._delta: list[bool] = [False] * starts.size
+        if any(self._exact):
+            codes = coded.codes
+            steps = np.diff(codes, prepend=np.int64(0))
+            steps[starts] = codes[starts]  # each block's first difference is from 0
+            delta = np.add.reduceat(np.abs(steps), starts) < np.add.reduceat(np.abs(codes), starts)
+            self._delta = delta.tolist()
+            chosen = np.where(np.repeat(delta, np.diff(self._bounds)), steps, codes)
+            self._bytes, ends = proto.varints(proto.zigzag(chosen))
+            self._byte_bounds = np.append(0, ends)[self._bounds].tolist()
+
+    def message(self, block: int) -> bytes:
+        """The serialised ``Channel`` of block number ``block``."""
+        if self._exact[block]:
+            first, last = self._byte_bounds[block], self._byte_bounds[block + 1]
+            payload = proto.length_delimited(_CODES_FIELD, self._bytes[first:last].tobytes())
+            return b"".join((self._head, payload, self._tails[self._delta[block]]))
+        part = self._values[self._bounds[block]:self._bounds[block + 1]]
+        raw = part.astype("<f8").tobytes()
+        return b"".join((self._head, proto.length_delimited(_VALUES_FIELD, raw) if raw else b""))
 
 
 def check_dtypes(log: SampledLog) -> None:
@@ -103,28 +141,55 @@ def check_dtypes(log: SampledLog) -> None:
         raise ValueError(f"{log.source} log has a channel named {TIME_COLUMN!r}")
 
 
+def _header_parts(header: Mapping[str, object]) -> tuple[dict[str, object], dict[str, object]]:
+    """``header`` split into the block fields serialised before the channels and after them."""
+    numbers = {f.name: f.number for f in proto.block_class().DESCRIPTOR.fields}
+    unknown = set(header) - set(numbers)
+    if unknown:
+        raise ValueError(f"unknown SampleBlock fields {sorted(unknown)}")
+    before = {k: v for k, v in header.items() if numbers[k] < _TIME_FIELD}
+    return before, {k: v for k, v in header.items() if numbers[k] > _CHANNELS_FIELD}
+
+
 def encode_blocks(
-    log: SampledLog, header: Mapping[str, object], block_samples: int, log_times_ns: list[int]
+    log: SampledLog, header: Mapping[str, object], block_samples: int, log_times_ns: list[int],
+    first_sequence: int = 0, first_sample: int = 0,
 ) -> Iterator[bytes]:
     """Serialised ``SampleBlock`` messages of a log, ``block_samples`` samples each.
 
     ``header`` holds the block fields common to the log (``step_id``, ``step_index``, ``source``,
     ``sample_rate_hz``, ``step_record_sha256``); ``log_times_ns`` the MCAP log time of every
-    block's first sample, in integer ns.
+    block's first sample, in integer ns (one per block: ``ceil(len(log) / block_samples)``).
+    ``first_sequence`` and ``first_sample`` number the blocks when ``log`` continues a longer
+    one (a streamed record's chunk, :mod:`aatest.engine.recording.stream`); default 0.
+
+    Each message is what the protobuf API serialises for the same ``SampleBlock``; the codes of
+    all blocks are computed on whole channels at once (:class:`_ChannelEncoder`).
     """
     check_dtypes(log)
-    block_type = block_class()
+    blocks = -(-len(log) // block_samples)
+    if len(log_times_ns) != blocks:
+        raise ValueError(f"{len(log_times_ns)} block log times for {blocks} blocks of "
+                         f"{block_samples} samples")
+    if not blocks:
+        return
+    starts = np.arange(blocks, dtype=np.intp) * block_samples
     declared = dict(log.quantisation)
+    time = _ChannelEncoder(TIME_COLUMN, "s", log.time_s, declared.get(TIME_COLUMN), starts)
+    channels = [_ChannelEncoder(name, str(log.units.get(name, "")), values, declared.get(name),
+                                starts) for name, values in log.channels.items()]
+    before, after = _header_parts(header)
+    block_type = proto.block_class()
     for sequence, log_time_ns in enumerate(log_times_ns):
-        part = slice(sequence * block_samples, (sequence + 1) * block_samples)
-        block = block_type(sequence=sequence, first_sample=part.start, log_time_ns=log_time_ns,
-                           **header)
-        _fill_channel(block.time, TIME_COLUMN, "s", log.time_s[part],
-                      declared.get(TIME_COLUMN))
-        for name, values in log.channels.items():
-            _fill_channel(block.channels.add(), name, str(log.units.get(name, "")),
-                          values[part], declared.get(name))
-        yield block.SerializeToString()
+        head = block_type(sequence=first_sequence + sequence,
+                          first_sample=first_sample + int(starts[sequence]), **before)
+        tail = block_type(log_time_ns=log_time_ns, **after)
+        yield b"".join([
+            head.SerializeToString(),
+            proto.length_delimited(_TIME_FIELD, time.message(sequence)),
+            *(proto.length_delimited(_CHANNELS_FIELD, c.message(sequence)) for c in channels),
+            tail.SerializeToString(),
+        ])
 
 
 def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None]:

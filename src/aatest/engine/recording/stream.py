@@ -117,15 +117,13 @@ class DaqSpool:
         times_ns = fmt.block_log_times_ns(part.time_s, self._origin_ns, fmt.BLOCK_SAMPLES)
         header = {**self._header, "sample_rate_hz": float(part.sample_rate_hz),
                   "step_record_sha256": ""}
-        block_type = proto.block_class()
-        for t_ns, data in zip(times_ns, codec.encode_blocks(part, header, fmt.BLOCK_SAMPLES,
-                                                             times_ns), strict=True):
-            block = block_type.FromString(data)  # numbered within ``part``: renumber
-            block.sequence += self.blocks
-            block.first_sample += self.samples
+        blocks = codec.encode_blocks(part, header, fmt.BLOCK_SAMPLES, times_ns,
+                                     first_sequence=self.blocks, first_sample=self.samples)
+        for sequence, (t_ns, data) in enumerate(zip(times_ns, blocks, strict=True),
+                                                start=self.blocks):
             self._pending.append(Message(
                 channel_id=fmt.CHANNEL_IDS[DAQ], log_time=t_ns, publish_time=t_ns,
-                sequence=block.sequence, data=block.SerializeToString()))
+                sequence=sequence, data=data))
             self._pending_bytes += len(self._pending[-1].data)
             if self._pending_bytes >= _chunk_bytes():
                 self._flush()
