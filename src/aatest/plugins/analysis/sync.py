@@ -9,7 +9,7 @@ dataset) are synchronised once and kept, as before.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import ClassVar, overload
 
@@ -46,6 +46,8 @@ class SyncedSteps(Sequence[SyncedStep]):
         self._kept: dict[int, SyncedStep] | None = {} if keep else None
         #: clock relations already fitted (by the sync pass), reused when a step is read
         self.relations: dict[int, ClockRelation] = {}
+        #: decode (and resample) only these channels by source; None: all of them
+        self._channels: Mapping[str, tuple[str, ...]] | None = None
 
     @classmethod
     def of(cls, data: Dataset) -> SyncedSteps:
@@ -59,7 +61,22 @@ class SyncedSteps(Sequence[SyncedStep]):
         chosen = [k for k, p in enumerate(self.planned) if keep(p)]
         view = SyncedSteps(self._steps, [self._indices[k] for k in chosen],
                            [self.planned[k] for k in chosen], keep=False)
-        view._kept, view.relations = self._kept, self.relations
+        view._kept, view.relations, view._channels = self._kept, self.relations, self._channels
+        return view
+
+    def only(self, table: Collection[str], daq: Collection[str]) -> SyncedSteps:
+        """The same steps with only these table and DAQ channels (the time stamps always).
+
+        Why: an analysis reading one sensor and the table's acceleration of every step (the
+        transfer function's cross-correlation) then decodes and resamples those channels,
+        not the whole logs — the same values, a fraction of the work. A channel a step did not
+        log is simply absent. Steps already in memory are returned whole.
+        """
+        if self._kept is not None or not isinstance(self._steps, LazySteps):
+            return self
+        view = SyncedSteps(self._steps, self._indices, self.planned, keep=False)
+        view.relations = self.relations
+        view._channels = {"table": tuple(table), "daq": tuple(daq)}
         return view
 
     def __len__(self) -> int:
@@ -76,13 +93,24 @@ class SyncedSteps(Sequence[SyncedStep]):
             return [self[k] for k in range(*index.indices(len(self)))]
         i = self._indices[index]
         if self._kept is None:
-            return synchronise(self._steps[i], self.relations.get(i))
+            return synchronise(self._step(i), self.relations.get(i))
         if i not in self._kept:
             self._kept[i] = synchronise(self._steps[i], self.relations.get(i))
         return self._kept[i]
 
     def __iter__(self) -> Iterator[SyncedStep]:
         return (self[k] for k in range(len(self)))
+
+    def _step(self, i: int) -> StepData:
+        """Step ``i`` of the dataset, partly decoded when this view names its channels (with
+        the sync channels when its clock relation is still to be fitted)."""
+        if self._channels is None:
+            return self._steps[i]
+        steps = self._steps
+        assert isinstance(steps, LazySteps)  # what only() checked
+        wanted = {source: {*names, *(() if i in self.relations else _SYNC_CHANNELS[source])}
+                  for source, names in self._channels.items()}
+        return steps.partial(i, wanted)
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
+from scipy.fft import next_fast_len
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.errors import AnalysisError
@@ -35,6 +36,7 @@ from aatest.plugins.analysis._common import (
     steps_of,
     to_svg,
 )
+from aatest.plugins.analysis.sync import SyncedSteps
 from aatest.plugins.analysis.tfest import (
     DiscreteTf,
     fit_discrete_tf,
@@ -71,24 +73,45 @@ class TransferFunctionOptions(BaseModel):
     antialias_hz: float | Literal["auto", "none"] = Field("auto", description="Hz, auto, none")
 
 
+#: the table channels :func:`input_accel_dps2` reads
+_INPUT_CHANNELS = ("inner_accel_dps2", "outer_accel_dps2", "inner_position_deg")
+
+
 def xcorr_delay(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
-    """Delay (s, whole samples) maximising the summed normalised input–output correlation."""
-    fs = steps[0].sample_rate_hz
-    max_lag = int(_MAX_LAG_S * fs)
-    total = np.zeros(max_lag + 1)
+    """Delay (s, whole samples) maximising the summed normalised input–output correlation.
+
+    Reads only the table's acceleration and the sensor's channel of each step (a lazy view
+    decodes nothing else).
+    """
+    return _xcorr(steps, sensor)[0]
+
+
+def _xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[str, float], float]:
+    """:func:`xcorr_delay` and the steps' sample rate (Hz), each step synchronised once."""
+    if isinstance(steps, SyncedSteps):
+        steps = steps.only(table=_INPUT_CHANNELS, daq=(sensor.channel,))
+    total, fs, max_lag = np.zeros(0), 0.0, 0
     for s in steps:
+        if not fs:
+            fs = s.sample_rate_hz
+            max_lag = int(_MAX_LAG_S * fs)
+            total = np.zeros(max_lag + 1)
         x = input_accel_dps2(s, sensor.axis)
         y = np.asarray(s.daq[sensor.channel], dtype=np.float64)
         x, y = x - x.mean(), y - y.mean()
-        nfft = int(2 ** np.ceil(np.log2(2 * x.size)))
+        # lags 0..max_lag of the linear correlation need nfft ≥ n + max_lag (no wrap-around);
+        # a 5-smooth length is ~10x faster than the next power of two above 2n
+        nfft = next_fast_len(x.size + max_lag, real=True)
         cc = np.fft.irfft(np.conj(np.fft.rfft(x, nfft)) * np.fft.rfft(y, nfft), nfft)
         overlap = x.size - np.arange(max_lag + 1)
         total += cc[:max_lag + 1] / overlap / (np.std(x) * np.std(y))
+    if not fs:
+        raise IndexError("no steps to correlate")
     total /= len(steps)
     lag = int(np.argmax(np.abs(total)))
     strength = float(abs(total[lag]))
     return {"delay_samples": lag, "delay_s": lag / fs, "strength": strength,
-            "accepted": bool(strength >= XCORR_MIN_STRENGTH)}
+            "accepted": bool(strength >= XCORR_MIN_STRENGTH)}, fs
 
 
 def _split(n_points: int, every: int = 3) -> tuple[np.ndarray, np.ndarray]:
@@ -219,8 +242,8 @@ def group_model(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: Sen
     """
     f = np.array([p.frequency_hz for p in points])
     h = np.array([complex(p.re, p.im) for p in points])
-    dt = 1.0 / steps[0].sample_rate_hz
-    xc = xcorr_delay(steps, sensor)
+    xc, fs = _xcorr(steps, sensor)
+    dt = 1.0 / fs
     model, rows, k = estimate(f, h, dt, xc, options)
     best = rows[k]
     values = {
