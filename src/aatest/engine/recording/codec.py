@@ -36,18 +36,6 @@ _MAX_EXACT_CODE = float(2**53)
 _ALLOWED_KINDS = "fiub"
 
 
-def _same_values(decoded: np.ndarray, logged: np.ndarray) -> np.ndarray:
-    """Elementwise bitwise equality of two float64 arrays, except that −0.0 may come back as +0.0.
-
-    The one value an integer code cannot carry is the sign of a zero (a rounded encoder reading
-    just below 0 is −0.0); it is the same physical value, equal under ``==`` and in every
-    computation the analyses make, so it does not force the block to float64.
-    """
-    same: np.ndarray = np.where(logged == 0.0, 0.0, logged).view(np.uint64) == decoded.view(
-        np.uint64)
-    return same
-
-
 def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dtype) -> np.ndarray:
     """Physical values of ``codes``: integer dtypes as themselves, floats ``code·quantum + offset``.
 
@@ -84,8 +72,12 @@ def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.n
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         scaled = np.round((exact - offset) / step)
     fits = np.abs(scaled) < _MAX_EXACT_CODE  # also False for NaN/inf
-    codes = np.where(fits, scaled, 0.0).astype(np.int64)
-    same = fits & _same_values(codes.astype(np.float64) * step + offset, exact)
+    codes = (scaled if fits.all() else np.where(fits, scaled, 0.0)).astype(np.int64)
+    # bit for bit, except that −0.0 may come back as +0.0: the one value an integer code cannot
+    # carry is the sign of a zero (a rounded encoder reading just below 0), the same physical
+    # value in every computation the analyses make. For finite floats, == is exactly that
+    # (equal bits, or two zeros); a value that does not fit is never finite-and-equal.
+    same = fits & (codes.astype(np.float64) * step + offset == exact)
     return _Coded(codes, np.logical_and.reduceat(same, starts), step, offset)
 
 

@@ -18,6 +18,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, cast
 
+from threadpoolctl import threadpool_limits
+
 import aatest
 from aatest.engine.errors import AatestError, InputError, RigFault
 from aatest.engine.interfaces import (
@@ -35,6 +37,11 @@ from aatest.engine.run.run_state import RunState
 from aatest.engine.steps import Plan, PlannedStep
 
 DEFAULT_SOAK_S = 900.0
+#: _ONE_BLAS_THREAD: the step loop runs BLAS single-threaded. Its products are thin (the twin's
+#: tone sums are (rows × 4) @ (4 × 512), rotations 3 × 3 @ 3 × n): threads gain nothing on
+#: them and, on a busy 2-core machine, each call waits for its threads to wake — the twin's
+#: tone sum measured 4× the CPU time with OpenBLAS's threads (same results: no product is
+#: split along its inner dimension).
 
 
 def procedure_sha256(text: str) -> str:
@@ -193,7 +200,8 @@ def run_plan(
     chamber = _ChamberTracker()
     started = time.perf_counter()
     try:
-        with running(rig), StepProgress(plan, done, enabled=show_progress) as progress:
+        with running(rig), StepProgress(plan, done, enabled=show_progress) as progress, \
+                threadpool_limits(limits=1, user_api="blas"):  # see _ONE_BLAS_THREAD
             events.observer.run_started(plan, frozenset(done))
             for step in plan.steps:
                 if step.id in done:
