@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,8 @@ from aatest.engine.errors import InputError
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import Mounting, PlannedStep
 
+#: threads formatting CSV files (one per file of a step: table and DAQ)
+_WRITERS = 2
 #: PlannedStep fields written to dataset.yaml when set (extensions the importer accepts)
 _STEP_EXTENSIONS = (
     "rate_dps", "amplitude_deg", "cycles", "outer_rate_dps", "temperature_c", "group",
@@ -154,15 +157,21 @@ def manifest(dataset: Dataset, entries: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _export_step(
-    number: int, data: StepData, out_dir: Path, present: dict[str, Any] | None
-) -> dict[str, Any]:
+    number: int, data: StepData, out_dir: Path, present: dict[str, Any] | None,
+    pool: ThreadPoolExecutor,
+) -> tuple[dict[str, Any], list[Future[None]]]:
+    """Decode one step and hand its two CSV files to the writer threads; return its
+    dataset.yaml entry and the pending writes."""
     width = max(2, len(str(number)))
     table_name = f"s{number:0{width}d}_table.csv"
     daq_name = f"s{number:0{width}d}_daq.csv"
     present = present or {}
-    write_csv(out_dir / table_name, table_columns(data.step, data.table, present.get("table")))
-    write_csv(out_dir / daq_name, daq_columns(data.daq, present.get("daq")))
-    return step_entry(data.step, table_name, daq_name)
+    writes = [
+        pool.submit(write_csv, out_dir / table_name,
+                    table_columns(data.step, data.table, present.get("table"))),
+        pool.submit(write_csv, out_dir / daq_name, daq_columns(data.daq, present.get("daq"))),
+    ]
+    return step_entry(data.step, table_name, daq_name), writes
 
 
 def export_csv(dataset: Dataset, out_dir: str | Path) -> Path:
@@ -175,14 +184,24 @@ def export_csv(dataset: Dataset, out_dir: str | Path) -> Path:
     out_dir
         Target directory, created if needed; existing files of the same names are replaced.
         ``dataset.yaml`` is written last, so an interrupted export is never importable.
+
+    Two writer threads format a step's table and DAQ files (Arrow's C++ writer runs without
+    the GIL) while the next step is decoded; at most two steps are in memory at a time.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     present = dataset.metadata.get("columns_present") or {}
-    entries = [
-        _export_step(i, data, out, present.get(data.step.id))
-        for i, data in enumerate(dataset.steps, start=1)
-    ]
+    entries = []
+    with ThreadPoolExecutor(max_workers=_WRITERS, thread_name_prefix="csv") as pool:
+        previous: list[Future[None]] = []
+        for i, data in enumerate(dataset.steps, start=1):
+            entry, writes = _export_step(i, data, out, present.get(data.step.id), pool)
+            entries.append(entry)
+            for write in previous:  # bounded: the step before this one is written by now
+                write.result()
+            previous = writes
+        for write in previous:
+            write.result()
     yaml = YAML(typ="safe", pure=True)
     yaml.default_flow_style = False
     with open(out / MANIFEST, "w", encoding="utf-8") as stream:
