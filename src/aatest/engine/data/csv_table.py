@@ -11,7 +11,7 @@ than the header (a truncated last row), a cell that is not a finite number, and 
 that is not strictly increasing.
 
 Parsing. A plain file — ASCII, ``\n`` line ends, no quotes, no blank or comment line — is read
-by Arrow's multi-threaded C++ CSV reader (``pyarrow.csv``), its data rows then lying on
+by Arrow's C++ CSV reader (``pyarrow.csv``, one thread per file), its data rows then lying on
 consecutive lines. Anything else, and any file Arrow refuses, takes
 the tolerant path: one ``np.loadtxt`` call over the kept lines, and only when that fails a
 per-row scan (Python, error path only) finds the first offending line to report. Both paths
@@ -230,7 +230,10 @@ def _read_plain(path: Path, required: Sequence[str], optional: Sequence[str]) ->
         table = pa_csv.read_csv(
             # zero-copy: Arrow's threads never call back into Python; the stubs omit NativeFile
             pa.BufferReader(raw),  # type: ignore[arg-type]
-            read_options=pa_csv.ReadOptions(column_names=list(header), skip_rows=1),
+            # one thread per file: files are read two at a time (importer), and on a busy
+            # 2-core machine Arrow's block threads cost more CPU than they save wall time
+            read_options=pa_csv.ReadOptions(column_names=list(header), skip_rows=1,
+                                            use_threads=False),
             parse_options=pa_csv.ParseOptions(newlines_in_values=False),
             convert_options=pa_csv.ConvertOptions(
                 include_columns=wanted, column_types={n: pa.float64() for n in wanted},
