@@ -210,6 +210,25 @@ def test_missing_csv_file_is_located_in_manifest(tmp_path: Path, columns: tuple)
         import_dataset(directory)
 
 
+@pytest.mark.parametrize("daq_damage", ["missing", "malformed"])
+def test_a_bad_table_file_is_reported_before_its_daq_file(
+    tmp_path: Path, columns: tuple, daq_damage: str
+) -> None:
+    """The two files of a step are parsed side by side; the table file's error still comes
+    first, as when they were read one after the other."""
+    directory = make_import_dir(tmp_path, *columns)
+    table = directory / "s01_table.csv"
+    table.write_text(_damage(table.read_text(), "non_numeric")[0])
+    daq = directory / "s01_daq.csv"
+    if daq_damage == "missing":
+        daq.unlink()
+    else:
+        daq.write_text(_damage(daq.read_text(), "non_numeric")[0])
+    with pytest.raises(ImportDataError) as info:
+        import_dataset(directory)
+    assert info.value.path == str(table)
+
+
 def test_sine_step_without_frequency_is_rejected(tmp_path: Path, columns: tuple) -> None:
     directory = make_import_dir(tmp_path, *columns, MANIFEST.replace("    frequency_hz: 5.0\n", ""))
     with pytest.raises(DatasetFileError, match="needs frequency_hz and accel_dps2"):
