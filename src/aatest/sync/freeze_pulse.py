@@ -14,7 +14,7 @@ before the registering sample (the unbiased guess; resolution is then one sample
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -68,7 +68,8 @@ class SyncedStep:
     """One step with both loggers on the table's time vector.
 
     ``table`` holds the table channels (trimmed to the DAQ coverage), ``daq`` the DAQ channels
-    resampled onto ``time_s`` (analog channels by cubic spline, digital ones by nearest sample).
+    resampled onto ``time_s`` (analog channels by cubic spline, digital ones by nearest sample;
+    after :func:`synchronise`, each when first read).
     """
 
     step: PlannedStep
@@ -197,17 +198,39 @@ def fit_clock_relation(step_id: str, t_table: np.ndarray, t_daq: np.ndarray,
     )
 
 
-def _resample(daq_time_s: np.ndarray, channels: Mapping[str, np.ndarray],
-              at_daq_s: np.ndarray) -> dict[str, np.ndarray]:
-    """DAQ channels at the DAQ-clock instants ``at_daq_s``."""
-    out: dict[str, np.ndarray] = {}
-    for name, values in channels.items():
-        if name in _DIGITAL:
-            idx = np.clip(np.searchsorted(daq_time_s, at_daq_s), 0, daq_time_s.size - 1)
-            out[name] = np.asarray(values)[idx]
-        else:
-            out[name] = CubicSpline(daq_time_s, np.asarray(values, dtype=np.float64))(at_daq_s)
-    return out
+class _Resampled(Mapping[str, np.ndarray]):
+    """DAQ channels at the DAQ-clock instants ``at_daq_s``, each resampled when first read.
+
+    Why lazily: an analysis reads one or two of a step's DAQ channels (a sensor's volts), and
+    a cubic spline through a 2^17-sample record is the costliest part of synchronising it.
+    """
+
+    def __init__(self, daq_time_s: np.ndarray, channels: Mapping[str, np.ndarray],
+                 at_daq_s: np.ndarray) -> None:
+        self._time_s, self._channels, self._at_s = daq_time_s, channels, at_daq_s
+        self._done: dict[str, np.ndarray] = {}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._done:
+            self._done[name] = _resample(self._time_s, name, self._channels[name], self._at_s)
+        return self._done[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._channels)
+
+    def __len__(self) -> int:
+        return len(self._channels)
+
+
+def _resample(daq_time_s: np.ndarray, name: str, values: np.ndarray,
+              at_daq_s: np.ndarray) -> np.ndarray:
+    """One DAQ channel at the DAQ-clock instants ``at_daq_s`` (digital: nearest sample)."""
+    if name in _DIGITAL:
+        idx = np.clip(np.searchsorted(daq_time_s, at_daq_s), 0, daq_time_s.size - 1)
+        picked: np.ndarray = np.asarray(values)[idx]
+        return picked
+    spline: np.ndarray = CubicSpline(daq_time_s, np.asarray(values, dtype=np.float64))(at_daq_s)
+    return spline
 
 
 def refine_offset(relation: ClockRelation, table_t0_s: float, trigger_daq_s: float | None,
@@ -279,7 +302,7 @@ def synchronise(data: StepData, relation: ClockRelation | None = None) -> Synced
     relation, at_daq_s, keep = _relation(data, daq_time_s, relation)  # keep: contiguous
     table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
     table = {name: np.asarray(v)[keep] for name, v in data.table.channels.items()}
-    daq = _resample(daq_time_s, data.daq.channels, at_daq_s[keep])
+    daq = _Resampled(daq_time_s, data.daq.channels, at_daq_s[keep])
     return SyncedStep(
         step=data.step,
         time_s=table_time_s[keep],
