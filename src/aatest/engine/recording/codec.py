@@ -70,14 +70,21 @@ def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.n
     if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
         return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        scaled = np.round((exact - offset) / step)
+        # x − 0.0 is x bit for bit, so a zero offset is skipped (in place: no temporaries)
+        scaled = np.subtract(exact, offset) if offset else exact.copy()
+        np.divide(scaled, step, out=scaled)
+        np.round(scaled, out=scaled)
     fits = np.abs(scaled) < _MAX_EXACT_CODE  # also False for NaN/inf
     codes = (scaled if fits.all() else np.where(fits, scaled, 0.0)).astype(np.int64)
     # bit for bit, except that −0.0 may come back as +0.0: the one value an integer code cannot
     # carry is the sign of a zero (a rounded encoder reading just below 0), the same physical
     # value in every computation the analyses make. For finite floats, == is exactly that
     # (equal bits, or two zeros); a value that does not fit is never finite-and-equal.
-    same = fits & (codes.astype(np.float64) * step + offset == exact)
+    back = codes.astype(np.float64)
+    np.multiply(back, step, out=back)
+    if offset:  # (+ 0.0 only turns −0.0 into +0.0, which == does not see)
+        np.add(back, offset, out=back)
+    same = np.equal(back, exact, out=fits, where=fits)  # stays False where it does not fit
     return _Coded(codes, np.logical_and.reduceat(same, starts), step, offset)
 
 
@@ -105,11 +112,13 @@ class _ChannelEncoder:
         self._delta: list[bool] = [False] * starts.size
         if any(self._exact):
             codes = coded.codes
-            steps = np.diff(codes, prepend=np.int64(0))
+            steps = np.empty_like(codes)
+            np.subtract(codes[1:], codes[:-1], out=steps[1:])
             steps[starts] = codes[starts]  # each block's first difference is from 0
             delta = np.add.reduceat(np.abs(steps), starts) < np.add.reduceat(np.abs(codes), starts)
             self._delta = delta.tolist()
-            chosen = np.where(np.repeat(delta, np.diff(self._bounds)), steps, codes)
+            chosen = steps if delta.all() else codes if not delta.any() else np.where(
+                np.repeat(delta, np.diff(self._bounds)), steps, codes)
             self._bytes, ends = proto.varints(proto.zigzag(chosen))
             self._byte_bounds = np.append(0, ends)[self._bounds].tolist()
 

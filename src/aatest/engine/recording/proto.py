@@ -161,21 +161,24 @@ def varints(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     samples), instead of one Python call per value.
     """
     z = np.asarray(values, dtype=np.uint64)
+    top = int(z.max()) if z.size else 0
+    if top <= _LOW_BITS:  # every value fits one byte (0/1 pulses, small differences)
+        return z.astype(np.uint8), np.arange(1, z.size + 1, dtype=np.int64)
     lengths = np.ones(z.size, dtype=np.int64)
     for limit in _VARINT_LIMITS:
-        longer = z >= limit
-        if not longer.any():
+        if top < limit:
             break
-        lengths += longer
+        lengths += z >= limit
     ends = np.cumsum(lengths)
-    out = np.empty(int(ends[-1]) if z.size else 0, dtype=np.uint8)
+    out = np.empty(int(ends[-1]), dtype=np.uint8)
     where = ends - lengths  # offset of each value's next byte
     rest, more = z, lengths
-    for _ in range(int(lengths.max(initial=0))):
+    while True:
         continues = more > 1
-        out[where] = (rest & np.uint64(0x7F)).astype(np.uint8) | (continues.astype(np.uint8) << 7)
+        # the low 7 bits (a uint64 → uint8 cast keeps the low byte), the high bit if more follow
+        out[where] = (rest.astype(np.uint8) & np.uint8(_LOW_BITS)) | (
+            continues.view(np.uint8) << np.uint8(7))
         if not continues.any():
-            break
+            return out, ends
         rest, where, more = rest[continues] >> np.uint64(7), where[continues] + 1, \
             more[continues] - 1
-    return out, ends
