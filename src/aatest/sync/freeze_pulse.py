@@ -42,6 +42,9 @@ class ClockRelation:
     edges_used: int
     drift_u_ppm: float = 0.0
     offset_u_s: float = 0.0
+    #: (intercept s, slope s/sample) of the DAQ's time stamps against their index, when known:
+    #: re-synchronising the step then rebuilds its regular DAQ time base without refitting
+    daq_time_fit: tuple[float, float] | None = None
 
     def to_table_s(self, t_daq_s: np.ndarray) -> np.ndarray:
         """Map DAQ-clock times (s) to table-clock times (s)."""
@@ -93,15 +96,22 @@ def rising_edges(pulse: np.ndarray) -> np.ndarray:
     return np.flatnonzero(~high[:-1] & high[1:]) + 1
 
 
-def _regular_time(time_s: np.ndarray) -> np.ndarray:
+def _regular_fit(time_s: np.ndarray) -> tuple[float, float]:
+    """(intercept s, slope s/sample) of the time stamps' straight line against the index."""
+    index = np.arange(time_s.size, dtype=np.float64)
+    slope, intercept = np.polyfit(index, time_s - time_s[0], 1)
+    return float(intercept), float(slope)
+
+
+def _regular_time(time_s: np.ndarray, fit: tuple[float, float] | None = None) -> np.ndarray:
     """Replace jittered time stamps by their straight-line fit against the sample index.
 
     A crystal-clocked logger samples uniformly; its time-stamp jitter (≈6 µs on the DAQ) is
-    noise of the stamps, not of the sampling, so the fit is the better time base.
+    noise of the stamps, not of the sampling, so the fit is the better time base. ``fit``: the
+    line already fitted to these stamps (:func:`_regular_fit`), else fitted here.
     """
-    index = np.arange(time_s.size, dtype=np.float64)
-    slope, intercept = np.polyfit(index, time_s - time_s[0], 1)
-    return time_s[0] + intercept + slope * index
+    intercept, slope = fit if fit is not None else _regular_fit(time_s)
+    return time_s[0] + intercept + slope * np.arange(time_s.size, dtype=np.float64)
 
 
 def _table_edge_times(data: StepData) -> np.ndarray:
@@ -259,7 +269,9 @@ def refine_offset(relation: ClockRelation, table_t0_s: float, trigger_daq_s: flo
 def clock_relation(data: StepData) -> ClockRelation:
     """The DAQ-to-table clock relation of one step, checked like :func:`synchronise` checks it,
     without resampling anything (for summaries that need no samples)."""
-    return _relation(data, _regular_time(np.asarray(data.daq.time_s, dtype=np.float64)))[0]
+    time_s = np.asarray(data.daq.time_s, dtype=np.float64)
+    fit = _regular_fit(time_s)
+    return replace(_relation(data, _regular_time(time_s, fit))[0], daq_time_fit=fit)
 
 
 def _relation(data: StepData, daq_time_s: np.ndarray, known: ClockRelation | None = None
@@ -298,7 +310,8 @@ def synchronise(data: StepData, relation: ClockRelation | None = None) -> Synced
     SyncedStep
         Table samples covered by the DAQ record, with the DAQ channels on the same instants.
     """
-    daq_time_s = _regular_time(np.asarray(data.daq.time_s, dtype=np.float64))
+    daq_time_s = _regular_time(np.asarray(data.daq.time_s, dtype=np.float64),
+                               relation.daq_time_fit if relation is not None else None)
     relation, at_daq_s, keep = _relation(data, daq_time_s, relation)  # keep: contiguous
     table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
     table = {name: np.asarray(v)[keep] for name, v in data.table.channels.items()}
