@@ -24,6 +24,7 @@ RSS per phase uses Linux's resettable high-water mark (``/proc/self/clear_refs``
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import shutil
 import tempfile
@@ -153,6 +154,9 @@ def main() -> None:
     print(f"  {'total':<8} {wall:8.2f} {cpu:8.2f} {peak:12.0f}")
     print(f"lab ÷ wall {lab_s / wall:.0f}x, lab ÷ CPU {lab_s / cpu:.0f}x (target ≥ 500x); "
           f"peak RSS {peak:.0f} MB (target ≤ 800 MB); recording {recording_mb:.1f} MB")
+    # the machine is shared: wall time says as much about the other jobs as about this one
+    print("load average " + ", ".join(f"{x:.1f}" for x in os.getloadavg()) +
+          f" on {os.cpu_count()} CPUs")
 
 
 if __name__ == "__main__":
