@@ -49,13 +49,23 @@ class DiscreteTf:
     def response(self, f_hz: np.ndarray) -> np.ndarray:
         """Complex frequency response at ``f_hz``."""
         zinv = np.exp(-2j * np.pi * np.asarray(f_hz) * self.dt)
-        num = np.polynomial.polynomial.polyval(zinv, self.num)
-        den = np.polynomial.polynomial.polyval(zinv, self.den)
+        num = _polyval(zinv, self.num)
+        den = _polyval(zinv, self.den)
         return zinv**self.delay_samples * num / den
 
     def continuous_poles(self) -> np.ndarray:
         """Pole-matched continuous equivalents s = ln(z)/T, rad/s."""
         return np.log(self.poles().astype(complex)) / self.dt
+
+
+def _polyval(x: np.ndarray, coefs: np.ndarray) -> np.ndarray:
+    """Σ coefs[i]·xⁱ by Horner's rule: the very operations of NumPy's ``polyval``, without its
+    per-call argument checks (the output-error fit evaluates ~10⁵ of these tiny polynomials)."""
+    c = np.asarray(coefs, dtype=np.float64)
+    value = c[-1] + x * 0
+    for coef in c[-2::-1]:
+        value = coef + value * x
+    return np.asarray(value)
 
 
 def _w_of(f_hz: np.ndarray, dt: float, w0: float) -> np.ndarray:
@@ -74,7 +84,7 @@ def _sk_fit(w: np.ndarray, g: np.ndarray, n: int, m: int) -> tuple[np.ndarray, n
         a_real = np.vstack([design.real, design.imag])
         sol, *_ = np.linalg.lstsq(a_real, np.concatenate([rhs.real, rhs.imag]), rcond=None)
         pb, pa = sol[:m + 1], np.concatenate([[1.0], sol[m + 1:]])
-        weight = np.abs(np.polynomial.polynomial.polyval(w, pa))
+        weight = np.abs(_polyval(w, pa))
     return pb, pa
 
 
@@ -84,8 +94,8 @@ def _refine(w: np.ndarray, g: np.ndarray, pb: np.ndarray, pa: np.ndarray
     m1 = pb.size
 
     def residual(theta: np.ndarray) -> np.ndarray:
-        num = np.polynomial.polynomial.polyval(w, theta[:m1])
-        den = np.polynomial.polynomial.polyval(w, np.concatenate([[1.0], theta[m1:]]))
+        num = _polyval(w, theta[:m1])
+        den = _polyval(w, np.concatenate([[1.0], theta[m1:]]))
         e = (g - num / den) / np.abs(g)
         return np.concatenate([e.real, e.imag])
 
