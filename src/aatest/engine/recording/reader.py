@@ -248,6 +248,8 @@ def _step_log(
         if schema is not None and (schema.encoding, schema.name) == (fmt.ENCODING,
                                                                      proto.BLOCK_MESSAGE):
             return _decode_v2(reader, record, values, source, where, channels)
+    except RecordingError:
+        raise
     except ValueError as exc:
         raise RecordingError(f"{where}: {exc}") from exc
     raise RecordingError(f"{path}: topic {topic!r} uses no known aatest schema")
@@ -277,25 +279,36 @@ def _decode_v2(
     reader: Any, record: dict[str, Any], values: dict[str, str], source: str, where: str,
     channels: Collection[str] | None = None,
 ) -> SampledLog:
-    """A v2 log: the step's protobuf blocks on the stable topic, found by their log times."""
+    """A v2 log: the step's protobuf blocks on the stable topic, found by their log times.
+
+    The blocks are parsed one at a time as the codec places them (:func:`_step_blocks`), so
+    decoding an hours-long record holds its columns and one block, not every block.
+    """
+    quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
+    return codec.blocks_to_log(_step_blocks(reader, record, values, source, where), source,
+                               float(record[f"{source}_sample_rate_hz"]),
+                               int(record[f"{source}_samples"]), quanta, channels)
+
+
+def _step_blocks(reader: Any, record: dict[str, Any], values: dict[str, str], source: str,
+                 where: str) -> Iterator[Any]:
+    """The ``SampleBlock`` messages of one step's log, in file order, each checked against
+    the step record's digest (a generator: nothing is kept after it is yielded)."""
     digest = fmt.record_digest(values)
     span = record[f"{source}_log_time_ns"]
-    blocks = []
-    if span:
-        for _, _, message in reader.iter_messages(
-            topics=[record[f"{source}_topic"]], starting_at=span[0], ending_at=span[1],
-            log_time_order=False,
-        ):
-            block = proto.block_class().FromString(message.data)
-            if block.step_id != record["step"]["id"] or block.source != source:
-                continue  # a neighbouring step's block in the same time range
-            if block.step_record_sha256 != digest:
-                raise RecordingError(f"{where}: step record does not match its blocks "
-                                     "(corrupt metadata)")
-            blocks.append(block)
-    quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
-    return codec.blocks_to_log(blocks, source, float(record[f"{source}_sample_rate_hz"]),
-                               int(record[f"{source}_samples"]), quanta, channels)
+    if not span:
+        return
+    for _, _, message in reader.iter_messages(
+        topics=[record[f"{source}_topic"]], starting_at=span[0], ending_at=span[1],
+        log_time_order=False,
+    ):
+        block = proto.block_class().FromString(message.data)
+        if block.step_id != record["step"]["id"] or block.source != source:
+            continue  # a neighbouring step's block in the same time range
+        if block.step_record_sha256 != digest:
+            raise RecordingError(f"{where}: step record does not match its blocks "
+                                 "(corrupt metadata)")
+        yield block
 
 
 def _sensors(run_meta: dict[str, Any], steps: LazySteps) -> tuple[SensorInfo, ...]:

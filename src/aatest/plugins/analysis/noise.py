@@ -20,9 +20,10 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.dataset import Dataset, LazySteps, SensorInfo
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.engine.logs import SampledLog
 from aatest.plugins.analysis._common import new_figure, options_of, scale_in_use, steps_of, to_svg
 from aatest.results.noise import DriftResult, NoiseResult
 from aatest.sync.freeze_pulse import SyncedStep
@@ -125,11 +126,28 @@ _MIN_MEANS = 4
 _MIN_CLUSTERS = 2
 
 
-def block_means(values: np.ndarray, per_block: int) -> np.ndarray:
-    """Means of consecutive non-overlapping blocks of ``per_block`` samples (any unit); the
-    incomplete tail is dropped. Vectorised: a reshape view, no copy of the record."""
+#: samples reduced per pass of :func:`block_means` (8 MB of float64: a bounded temporary)
+_BLOCK_MEANS_CHUNK = 2**20
+
+
+def block_means(values: np.ndarray, per_block: int, origin: float = 0.0) -> np.ndarray:
+    """Means of consecutive non-overlapping blocks of ``per_block`` samples (any unit) of
+    ``values − origin``; the incomplete tail is dropped.
+
+    Vectorised over rows of a reshaped view, a bounded number of rows at a time: an hours-long
+    record (or its time stamps less their first, ``origin``) is never copied whole. Each row's
+    mean is computed exactly as on the whole array, so the result does not depend on the chunk.
+    """
     whole = values.size // per_block
-    return np.asarray(values[: whole * per_block], dtype=float).reshape(whole, per_block).mean(1)
+    out = np.empty(whole, dtype=float)
+    rows = max(1, _BLOCK_MEANS_CHUNK // per_block)
+    for first in range(0, whole, rows):
+        last = min(whole, first + rows)
+        part = np.asarray(values[first * per_block: last * per_block], dtype=float)
+        if origin:
+            part = part - origin
+        out[first:last] = part.reshape(last - first, per_block).mean(1)
+    return out
 
 
 def reduce_rate(values: np.ndarray, fs_hz: float, average_s: float) -> np.ndarray:
@@ -195,7 +213,7 @@ def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | 
     per = max(1, round(average_s * fs_hz))
     tau0_s = per / fs_hz
     means_v = reduce_rate(volts, fs_hz, average_s)
-    t_h = block_means(time_s - time_s[0], per)[: means_v.size] / 3600.0
+    t_h = block_means(time_s, per, origin=time_s[0])[: means_v.size] / 3600.0
     if means_v.size < _MIN_MEANS:
         raise AnalysisError(f"record of {volts.size} samples is too short for a drift fit "
                             f"at {average_s} s averaging")
@@ -283,27 +301,54 @@ class DriftAnalysis:
         return any(s.step.kind == "static" for s in data.steps)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[DriftResult]:
-        options = options_of(context, DriftOptions)
-        longest = max((s for s in data.steps if s.step.kind == "static"), key=lambda s: len(s.daq))
-        daq = longest.daq
-        record = _after_trigger(daq)
-        temperature = daq.channels.get("temperature_c")
-        values: dict[str, Any] = {}
-        figures: dict[str, str] = {}
-        for sensor in data.sensors:
-            volts = daq[sensor.channel][record]
-            found = drift_of(daq.time_s[record], volts,
-                             temperature[record] if temperature is not None else None,
-                             daq.sample_rate_hz, float(sensor.nominal_scale_v_per_dps2),
-                             options.average_s, options.temperature_every_s)
-            per = max(1, round(options.average_s * daq.sample_rate_hz))
-            means_v = reduce_rate(volts, daq.sample_rate_hz, options.average_s)
-            t_h = block_means(daq.time_s[record] - daq.time_s[record][0], per)[: means_v.size]
-            figures[f"drift_{sensor.channel}"] = drift_figure(
-                sensor.channel, found, t_h / 3600.0, means_v)
-            found.pop("_intercept_v")
-            values[sensor.channel] = {**found, "record_step": longest.step.id}
+        found = _drift_per_sensor(data, options_of(context, DriftOptions))
+        # drawn once the record is released: matplotlib's text parser keeps exceptions whose
+        # tracebacks reach the caller's frames, which would hold the record until a gc pass
+        figures = {f"drift_{channel}": drift_figure(channel, values, t_h, means_v)
+                   for channel, (values, t_h, means_v) in found.items()}
+        values = {channel: {k: v for k, v in entry.items() if k != "_intercept_v"}
+                  for channel, (entry, _, _) in found.items()}
         return AnalysisOutput(DriftResult.model_validate(values), figures)
+
+
+def _drift_per_sensor(data: Dataset, options: DriftOptions
+                      ) -> dict[str, tuple[dict[str, Any], np.ndarray, np.ndarray]]:
+    """Per sensor channel: the :func:`drift_of` values of the longest static record, its time
+    (h) and its 1 s means (V) for the figure. The decoded record lives only in this call."""
+    step_id, daq = longest_static_record(data)
+    record = _after_trigger(daq)
+    temperature = daq.channels.get("temperature_c")
+    time_s = daq.time_s[record]
+    per = max(1, round(options.average_s * daq.sample_rate_hz))
+    found = {}
+    for sensor in data.sensors:
+        volts = daq[sensor.channel][record]
+        values = drift_of(time_s, volts, temperature[record] if temperature is not None else None,
+                          daq.sample_rate_hz, float(sensor.nominal_scale_v_per_dps2),
+                          options.average_s, options.temperature_every_s)
+        means_v = reduce_rate(volts, daq.sample_rate_hz, options.average_s)
+        t_h = block_means(time_s, per, origin=time_s[0])[: means_v.size] / 3600.0
+        found[sensor.channel] = ({**values, "record_step": step_id}, t_h, means_v)
+    return found
+
+
+def longest_static_record(data: Dataset) -> tuple[str, SampledLog]:
+    """``(step id, DAQ log)`` of the longest static step: the sensor channels, the trigger and
+    ``temperature_c`` (and the time stamps) only.
+
+    Why: a 2 h record at 2 kHz is 115 MB per channel. The step is chosen by the sample count
+    its record gives (nothing decoded), and only the channels the drift reads are decoded (the
+    lazy dataset's partial decode); an in-memory dataset is read as it is.
+    """
+    static = [i for i, step in enumerate(data.planned) if step.kind == "static"]
+    if not static:
+        raise AnalysisError("no static step to read a drift record from")
+    steps = data.steps
+    index = max(static, key=lambda i: steps[i].samples("daq"))  # first of equal lengths
+    if not isinstance(steps, LazySteps):
+        return steps[index].step.id, steps[index].daq
+    wanted = [s.channel for s in data.sensors] + ["trigger", "temperature_c"]
+    return steps.planned[index].id, steps.partial(index, {"daq": wanted}).daq
 
 
 def _after_trigger(daq: Any) -> slice:
