@@ -9,7 +9,7 @@ where the data came from and can always be re-run offline. Its per-channel senso
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
+from collections.abc import Callable, Container, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -19,11 +19,25 @@ from aatest.engine.datasheet import SensorAxis, SensorInfo
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 
-__all__ = ["Dataset", "LazySteps", "SensorAxis", "SensorInfo", "StepData"]
+__all__ = ["Dataset", "LazySteps", "NamesStartingWith", "SensorAxis", "SensorInfo", "StepData"]
 
 #: ``load(index, source, channels)``: the ``"table"`` or ``"daq"`` log of the step at ``index``
-#: (only ``channels`` and the time stamps when not None)
-LogLoader = Callable[[int, str, Collection[str] | None], SampledLog]
+#: (only the channels named in ``channels`` and the time stamps when not None)
+LogLoader = Callable[[int, str, Container[str] | None], SampledLog]
+
+
+@dataclass(frozen=True)
+class NamesStartingWith(Container[str]):
+    """Every channel name that starts with ``prefix``: a selection for :meth:`LazySteps.partial`
+    when the names are not known before decoding (e.g. every ``temperature*`` channel).
+
+    Only membership is defined, which is all a partial decode asks of a selection.
+    """
+
+    prefix: str
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name.startswith(self.prefix)
 
 
 @dataclass(frozen=True)
@@ -114,11 +128,13 @@ class LazySteps(Sequence[StepData]):
     def __iter__(self) -> Iterator[StepData]:
         return (self[i] for i in range(len(self)))
 
-    def partial(self, index: int, channels: Mapping[str, Collection[str]]) -> StepData:
+    def partial(self, index: int, channels: Mapping[str, Container[str]]) -> StepData:
         """Step ``index`` with only some channels decoded (and the time stamps), by source.
 
         Why: a pass that reads a few channels of every step (the sync pulses) decodes a
-        fraction of the data. ``channels`` maps ``"table"``/``"daq"`` to channel names.
+        fraction of the data. ``channels`` maps ``"table"``/``"daq"`` to channel names (a
+        collection, or :class:`NamesStartingWith`); a source not named decodes no channel.
+        Names a log does not have are ignored.
         """
         i = range(len(self))[index]
         logs = {source: self._load(i, source, channels.get(source, ()))

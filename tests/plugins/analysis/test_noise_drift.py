@@ -14,11 +14,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aatest.engine.dataset import Dataset, SensorInfo, StepData
+from aatest.engine.dataset import Dataset, LazySteps, SensorInfo, StepData
 from aatest.engine.interfaces import AnalysisContext, TableEnvelope
 from aatest.engine.procedure.envelope import snapshot_step
+from aatest.engine.recording import RunRecorder, read_dataset
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.analysis.noise import DriftAnalysis, DriftOptions, block_means, fit_allan
+from aatest.plugins.analysis.noise import (
+    DriftAnalysis,
+    DriftOptions,
+    block_means,
+    fit_allan,
+    longest_static_record,
+)
 from aatest.results.noise import DriftResult
 from aatest.twin.daq import antialias_filter
 from aatest.twin.defaults import realistic_rig_model
@@ -32,13 +39,14 @@ RATE_V_PER_H = 2e-3
 WALK_V_PER_SQRT_S = 2e-7
 
 
-def _long_record(seed: int) -> tuple[Dataset, World]:
+def _long_record(seed: int, minutes: float = MINUTES, step_id: str = "s001-static-drift"
+                 ) -> tuple[Dataset, World]:
     model = realistic_rig_model()
     drift = BiasDrift(rate_v_per_h=RATE_V_PER_H, random_walk_v_per_sqrt_s=WALK_V_PER_SQRT_S)
     model = model.model_copy(update={"sensors": [model.sensors[0].model_copy(
         update={"bias_drift": drift})]})
-    step = PlannedStep(id="s001-static-drift", kind="static", samples=int(MINUTES * 60 * FS_HZ),
-                       duration_s=MINUTES * 60.0, motor_on=False)
+    step = PlannedStep(id=step_id, kind="static", samples=int(minutes * 60 * FS_HZ),
+                       duration_s=minutes * 60.0, motor_on=False)
     world = World(model, seed=seed)
     world.move_to(0.0, 0.0)
     world.begin_motion(step)
@@ -102,9 +110,46 @@ def test_allan_deviation_reaches_long_tau(drift_result: tuple[DriftResult, World
 
 def test_block_means_and_the_allan_fit_on_known_curves() -> None:
     assert np.array_equal(block_means(np.arange(10.0), 3), [1.0, 4.0, 7.0])
+    assert np.array_equal(block_means(np.arange(10.0), 3, origin=1.0), [0.0, 3.0, 6.0])
+    # reduced a bounded number of rows at a time, each row exactly as on the whole array
+    values = np.random.default_rng(4).normal(7200.0, 1.0, 3 * 2**20 + 5)
+    whole = (values[: values.size // 2000 * 2000] - values[0]).reshape(-1, 2000).mean(1)
+    assert block_means(values, 2000, origin=values[0]).tobytes() == whole.tobytes()
     taus = 2.0 ** np.arange(0, 12)
     n, k = 0.02, 1e-4
     fit = fit_allan(taus, np.sqrt(n**2 / taus + k**2 * taus / 3))
     assert fit["white_noise_dps2_sqrt_s"] == pytest.approx(n, rel=1e-6)
     assert fit["rate_random_walk_dps2_per_sqrt_s"] == pytest.approx(k, rel=1e-6)
     assert fit["bias_instability_dps2"] is None and fit["rate_ramp_dps2_per_s"] is None
+
+
+def test_a_recorded_drift_run_decodes_only_what_the_drift_reads(tmp_path: Path) -> None:
+    """From a recording, the longest static step is chosen by its sample count and only its
+    sensor, trigger and temperature channels are decoded; the result is the in-memory one's."""
+    short, _ = _long_record(seed=3, minutes=1.0, step_id="s001-static-short")
+    long, _ = _long_record(seed=4, minutes=3.0, step_id="s002-static-long")
+    recorder = RunRecorder(tmp_path)
+    recorder.write_run_metadata({"procedure": "drift-test", "sample_rate_hz": FS_HZ,
+                                 "sensors": [vars(long.sensors[0])]})
+    for data in (short, long):
+        recorder.write_step(data.steps[0].step, data.steps[0].table, data.steps[0].daq)
+    lazy = read_dataset(recorder.finalize())
+    assert isinstance(lazy.steps, LazySteps)
+    loads: list[tuple[int, str, object]] = []
+    load = lazy.steps._load
+
+    def counting(index: int, source: str, channels: object) -> object:
+        loads.append((index, source, channels))
+        return load(index, source, channels)  # type: ignore[arg-type]
+
+    object.__setattr__(lazy.steps, "_load", counting)
+    step_id, daq = longest_static_record(lazy)
+    assert step_id == "s002-static-long"
+    assert set(daq.channels) == {"v_sz", "trigger", "temperature_c"}
+    assert {(i, s) for i, s, _ in loads} == {(1, "daq"), (1, "table")}  # one step, partially
+    eager = Dataset(procedure="drift-test", sample_rate_hz=FS_HZ, sensors=lazy.sensors,
+                    steps=(long.steps[0],), source=Path("memory"))
+    from_file = DriftAnalysis().run(lazy, AnalysisContext(options=DriftOptions()))
+    in_memory = DriftAnalysis().run(eager, AnalysisContext(options=DriftOptions()))
+    assert from_file.result.model_dump() == in_memory.result.model_dump()
+    assert from_file.result["v_sz"].record_step == "s002-static-long"

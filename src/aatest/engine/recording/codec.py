@@ -19,7 +19,7 @@ included), else quantum 1 when every value is a whole number (0/1 pulses stored 
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterable, Iterator, Mapping
+from collections.abc import Container, Iterable, Iterator, Mapping
 from itertools import chain
 from typing import Any
 
@@ -148,7 +148,7 @@ def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None
     return np.array(message.values, dtype=np.float64).astype(dtype), None
 
 
-def _allocated(first: Any, samples: int, keep: Collection[str] | None
+def _allocated(first: Any, samples: int, keep: Container[str] | None
                ) -> dict[str, np.ndarray]:
     """One empty array per channel (``time_s`` first), ``samples`` long, in its logged dtype.
 
@@ -205,7 +205,7 @@ def _check_continuity(placed: Mapping[int, tuple[int, int]], samples: int) -> No
 
 def blocks_to_log(
     blocks: Iterable[Any], source: str, sample_rate_hz: float, samples: int,
-    quantisation: Mapping[str, tuple[float, float]], channels: Collection[str] | None = None,
+    quantisation: Mapping[str, tuple[float, float]], channels: Container[str] | None = None,
 ) -> SampledLog:
     """Rebuild one step's :class:`SampledLog` from its decoded ``SampleBlock`` messages.
 

@@ -10,7 +10,7 @@ the file and what is wrong. The layout is described in :mod:`aatest.engine.recor
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Collection, Iterator
+from collections.abc import Container, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -211,7 +211,7 @@ class _StepChunks:
 
 
 def _load_log(entry: _StepEntry, source: str, chunks: _StepChunks,
-              channels: Collection[str] | None = None) -> SampledLog:
+              channels: Container[str] | None = None) -> SampledLog:
     """Decode one log of one step (only ``channels`` when given, v2): only the chunks holding
     that step's blocks are read."""
     with _translated(entry.path):
@@ -232,7 +232,7 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
 
 def _step_log(
     reader: Any, summary: Any, record: dict[str, Any], values: dict[str, str], source: str,
-    path: Path, channels: Collection[str] | None = None,
+    path: Path, channels: Container[str] | None = None,
 ) -> SampledLog:
     """One logger's log of one step, decoded by the format its schema encoding names."""
     step_id = str(record["step"]["id"])
@@ -277,7 +277,7 @@ def _decode_v1(
 
 def _decode_v2(
     reader: Any, record: dict[str, Any], values: dict[str, str], source: str, where: str,
-    channels: Collection[str] | None = None,
+    channels: Container[str] | None = None,
 ) -> SampledLog:
     """A v2 log: the step's protobuf blocks on the stable topic, found by their log times.
 
@@ -329,7 +329,7 @@ def _build_dataset(
 ) -> Dataset:
     ordered = sorted(entries, key=lambda entry: entry.index)
 
-    def load(index: int, log_source: str, channels: Collection[str] | None) -> SampledLog:
+    def load(index: int, log_source: str, channels: Container[str] | None) -> SampledLog:
         entry = ordered[index]
         return _load_log(entry, log_source, entry.chunks, channels)
 

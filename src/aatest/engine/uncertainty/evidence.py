@@ -153,17 +153,28 @@ def _bin_noise(record: Any, cycles: int, channels: list[str]) -> BinNoise | None
 _MIN_STATIC_SAMPLES = 64
 #: lines below this frequency are drift, not a periodic disturbance
 _LINE_MIN_HZ = 2.0
+#: most samples of a static record whose spectrum is searched for its strongest line
+LINE_SAMPLES = 2**20
 
 
 def static_line(volts: np.ndarray, sample_rate_hz: float) -> StaticLine | None:
     """The strongest line above 2 Hz of a static record, as a peak amplitude, with the bound
-    of its residual in the record mean (Hann-windowed spectrum, amplitude-corrected)."""
+    of its residual in the record mean (Hann-windowed spectrum, amplitude-corrected).
+
+    The spectrum is taken over at most the first :data:`LINE_SAMPLES` samples (524 s at
+    2 kHz); the bound is over the whole record's duration, because the mean it bounds is the
+    whole record's. Why: a rig line is stationary, and 2**20 samples already resolve it to
+    0.002 Hz at 2 kHz, while the FFT of an hours-long record (14 M samples for 2 h) costs
+    about 1 GB in window, spectrum and frequency arrays for no better estimate of the line.
+    Records up to that length are analysed whole, as before.
+    """
     n = volts.size
     if n < _MIN_STATIC_SAMPLES:
         return None
-    window = np.hanning(n)
-    spec = np.abs(np.fft.rfft((volts - np.mean(volts)) * window)) * 2.0 / np.sum(window)
-    freqs = np.fft.rfftfreq(n, 1.0 / sample_rate_hz)
+    head = np.asarray(volts[:LINE_SAMPLES], dtype=float)
+    window = np.hanning(head.size)
+    spec = np.abs(np.fft.rfft((head - np.mean(head)) * window)) * 2.0 / np.sum(window)
+    freqs = np.fft.rfftfreq(head.size, 1.0 / sample_rate_hz)
     band = freqs >= _LINE_MIN_HZ
     if not np.any(band):
         return None
@@ -173,8 +184,34 @@ def static_line(volts: np.ndarray, sample_rate_hz: float) -> StaticLine | None:
     return StaticLine(amplitude, f_hz, amplitude / (math.pi * f_hz * duration_s))
 
 
+#: the DAQ's temperature channel, read beside every record
+_TEMPERATURE = "temperature_c"
+
+
+def _record(data: Any, index: int, channels: list[str]) -> Any:
+    """Step ``index`` with only the channels the evidence reads (a recording's lazy steps).
+
+    Why: the table log of a static step and the DAQ's sync and trigger channels are not
+    needed here; an hours-long static record decodes to 115 MB per channel. Sine steps keep
+    the moving axis' position and acceleration estimate; every step its DAQ sensor channels
+    and the temperature. An in-memory dataset is read as it is.
+    """
+    from aatest.engine.dataset import LazySteps
+
+    steps = data.steps
+    if not isinstance(steps, LazySteps):
+        return steps[index]
+    step = steps.planned[index]
+    daq = [*channels, _TEMPERATURE] if step.kind in ("static", "sine") else [_TEMPERATURE]
+    table = ([f"{step.axis}_position_deg", f"{step.axis}_accel_dps2"]
+             if step.kind == "sine" else [])
+    return steps.partial(index, {"daq": daq, "table": table})
+
+
 def gather(data: Any) -> Evidence:
     """Measure the motion of every coherent sine record and the logged temperatures.
+
+    One step decoded at a time, and of it only the channels read here (:func:`_record`).
 
     Parameters
     ----------
@@ -189,9 +226,10 @@ def gather(data: Any) -> Evidence:
     lines: dict[str, dict[str, StaticLine]] = {}
     channels = [s.channel for s in data.sensors]
     present = data.metadata.get("temperature_present", True)
-    for record in data.steps:
+    for index in range(len(data.steps)):
+        record = _record(data, index, channels)
         step = record.step
-        temps = record.daq.channels.get("temperature_c")
+        temps = record.daq.channels.get(_TEMPERATURE)
         if present and temps is not None and np.size(temps):
             temperature[step.id] = TemperatureEvidence(float(np.mean(temps)), float(np.std(temps)))
         if step.kind == "static":
