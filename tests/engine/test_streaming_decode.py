@@ -104,3 +104,35 @@ def test_certificate_temperature_summary_equals_the_whole_temperature_record() -
     assert got.samples == every.size > 0 and got.source == str(recording)
     assert (got.min_c, got.max_c) == (every.min(), every.max())
     assert got.mean_c == pytest.approx(every.mean(), rel=1e-12)
+
+
+def test_pieces_of_a_recorded_log_are_its_blocks_in_order_and_concatenate_to_it(
+        tmp_path: Path) -> None:
+    step = sine_step("s01", SAMPLES)
+    table, daq = step_logs(step, seed=6)
+    recorder = RunRecorder(tmp_path)
+    recorder.write_step(step, table, daq)
+    steps = read_dataset(recorder.finalize()).steps
+    assert isinstance(steps, LazySteps)
+    pieces = list(steps.pieces(0, "daq", ["v_sz"]))
+    assert [len(p) for p in pieces] == [BLOCK_SAMPLES] * (len(daq) // BLOCK_SAMPLES) + \
+        ([len(daq) % BLOCK_SAMPLES] if len(daq) % BLOCK_SAMPLES else [])
+    assert all(set(p.channels) == {"v_sz"} for p in pieces)
+    joined = np.concatenate([p["v_sz"] for p in pieces])
+    assert joined.tobytes() == daq["v_sz"].tobytes()
+    assert np.concatenate([p.time_s for p in pieces]).tobytes() == daq.time_s.tobytes()
+    whole = list(steps.pieces(0, "table"))
+    assert len(whole) == -(-len(table) // BLOCK_SAMPLES)
+    assert set(whole[0].channels) == set(table.channels)
+
+
+def test_pieces_refuse_a_missing_block_when_they_reach_it() -> None:
+    from aatest.engine.recording.codec import blocks_to_pieces
+
+    log = _daq()
+    blocks = _blocks(log)
+    pieces = blocks_to_pieces(iter(blocks[:2] + blocks[3:]), log.source, log.sample_rate_hz,
+                              len(log), dict(log.quantisation))
+    assert len(next(pieces)) == BLOCK_SAMPLES and len(next(pieces)) == BLOCK_SAMPLES
+    with pytest.raises(ValueError, match="have gaps"):
+        next(pieces)

@@ -24,6 +24,8 @@ __all__ = ["Dataset", "LazySteps", "NamesStartingWith", "SensorAxis", "SensorInf
 #: ``load(index, source, channels)``: the ``"table"`` or ``"daq"`` log of the step at ``index``
 #: (only the channels named in ``channels`` and the time stamps when not None)
 LogLoader = Callable[[int, str, Container[str] | None], SampledLog]
+#: ``pieces(index, source, channels)``: the same log as consecutive pieces, in sample order
+PieceLoader = Callable[[int, str, Container[str] | None], Iterator[SampledLog]]
 
 
 @dataclass(frozen=True)
@@ -103,11 +105,13 @@ class LazySteps(Sequence[StepData]):
     """
 
     def __init__(self, planned: Sequence[PlannedStep], load: LogLoader,
-                 samples: Sequence[Mapping[str, int]]) -> None:
+                 samples: Sequence[Mapping[str, int]], pieces: PieceLoader | None = None
+                 ) -> None:
         if len(samples) != len(planned):
             raise ValueError("one sample-count record per planned step is needed")
         self.planned = tuple(planned)
         self._load = load
+        self._pieces = pieces
         self._samples = tuple(samples)
 
     def __len__(self) -> int:
@@ -140,6 +144,22 @@ class LazySteps(Sequence[StepData]):
         logs = {source: self._load(i, source, channels.get(source, ()))
                 for source in ("table", "daq")}
         return StepData(self.planned[i], logs["table"], logs["daq"])
+
+    def pieces(self, index: int, source: str, channels: Container[str] | None = None
+               ) -> Iterator[SampledLog]:
+        """The ``"table"`` or ``"daq"`` log of step ``index`` as consecutive pieces in sample
+        order (the recorded blocks: 60 s each of a streamed DAQ record), with the time stamps
+        and only ``channels`` (all when None).
+
+        Why: a reduction of an hours-long record (block means, a sum, the first samples) holds
+        one piece at a time, not 115 MB per channel. Stop iterating early to decode no more.
+        A source without piecewise reading yields the whole log as one piece.
+        """
+        i = range(len(self))[index]
+        if self._pieces is None:
+            yield self._load(i, source, channels)
+            return
+        yield from self._pieces(i, source, channels)
 
 
 @dataclass(frozen=True)

@@ -219,6 +219,34 @@ def _load_log(entry: _StepEntry, source: str, chunks: _StepChunks,
                          channels)
 
 
+def _load_pieces(entry: _StepEntry, source: str, chunks: _StepChunks,
+                 channels: Container[str] | None = None) -> Iterator[SampledLog]:
+    """One log of one step as consecutive pieces, one per block (v2; a v1 log as one piece).
+
+    A generator: the step's chunks are read as the pieces are asked for, and a damaged block
+    is a :class:`RecordingError` naming the file and the step when it is reached.
+    """
+    record = entry.record
+    topic = record[f"{source}_topic"]
+    channel = chunks.channels_by_topic.get(topic)
+    schema = chunks.summary.schemas.get(channel.schema_id) if channel is not None else None
+    if schema is None or (schema.encoding, schema.name) != (fmt.ENCODING, proto.BLOCK_MESSAGE):
+        yield _load_log(entry, source, chunks, channels)  # v1, or the error it explains
+        return
+    where = f"{entry.path}: topic {topic!r} of step {record['step']['id']!r}"
+    quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
+    with _translated(entry.path):
+        try:
+            yield from codec.blocks_to_pieces(
+                _step_blocks(chunks, record, entry.values, source, where), source,
+                float(record[f"{source}_sample_rate_hz"]), int(record[f"{source}_samples"]),
+                quanta, channels)
+        except RecordingError:
+            raise
+        except ValueError as exc:
+            raise RecordingError(f"{where}: {exc}") from exc
+
+
 def _check_format(run_meta: dict[str, Any], path: Path) -> None:
     if not run_meta:
         raise RecordingError(f"{path}: not an aatest recording (no 'run' metadata record)")
@@ -333,7 +361,12 @@ def _build_dataset(
         entry = ordered[index]
         return _load_log(entry, log_source, entry.chunks, channels)
 
-    steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered])
+    def pieces(index: int, log_source: str, channels: Container[str] | None
+               ) -> Iterator[SampledLog]:
+        entry = ordered[index]
+        return _load_pieces(entry, log_source, entry.chunks, channels)
+
+    steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered], pieces)
     rate = run_meta.get("sample_rate_hz") or (
         ordered[0].step.sample_rate_hz if ordered else 2000.0
     )
