@@ -183,3 +183,42 @@ def test_evidence_from_partial_decodes_equals_the_whole_steps() -> None:
     partial, whole = gather(lazy), gather(eager)
     assert partial.motion and partial.bin_noise and partial.temperature
     assert partial == whole
+
+
+def test_a_recorded_static_step_is_summarised_piece_by_piece(tmp_path: Any) -> None:
+    """A recorded static step is read block by block: its line is the one of the whole
+    record, its temperature mean and spread agree with NumPy's on the whole to rounding."""
+    import sys
+    from pathlib import Path
+
+    from aatest.engine.dataset import Dataset
+    from aatest.engine.logs import SampledLog
+    from aatest.engine.recording import RunRecorder, read_dataset
+    from aatest.engine.steps import PlannedStep
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "engine"))
+    from recording_data import SENSOR, table_log
+
+    fs, n = 2000.0, 60_001
+    step = PlannedStep(id="s01-static", kind="static", samples=n, duration_s=n / fs,
+                       sample_rate_hz=fs)
+    rng = np.random.default_rng(12)
+    t = np.arange(n) / fs
+    daq = SampledLog("daq", fs, t, {
+        "v_sz": 2.5 + 0.02 * np.sin(2 * np.pi * 35.0 * t) + rng.normal(0, 1e-3, n),
+        "trigger": np.ones(n), "temperature_c": 23.0 + 0.5 * t / t[-1] + rng.normal(0, 0.01, n),
+    }, {"v_sz": "V", "temperature_c": "degC"})
+    recorder = RunRecorder(tmp_path)
+    recorder.write_run_metadata({"procedure": "static", "sensors": [vars(SENSOR)]})
+    recorder.write_step(step, table_log(step, rng), daq)
+    lazy = read_dataset(recorder.finalize())
+    streamed = gather(lazy)
+    whole = gather(Dataset(procedure="static", sample_rate_hz=fs, sensors=lazy.sensors,
+                           steps=tuple(lazy.steps), source=lazy.source))
+    assert streamed.static_lines == whole.static_lines
+    line = streamed.static_lines["s01-static"]["v_sz"]
+    assert line.frequency_hz == pytest.approx(35.0, abs=0.05)
+    got, expected = streamed.temperature["s01-static"], whole.temperature["s01-static"]
+    assert expected.mean_c == float(np.mean(daq["temperature_c"]))
+    assert got.mean_c == pytest.approx(expected.mean_c, rel=1e-14)
+    assert got.std_c == pytest.approx(expected.std_c, rel=1e-12)

@@ -12,7 +12,7 @@ engine's; what the run did not record is printed as "not recorded", never invent
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -130,18 +130,18 @@ def _lab(meta: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _temperature_columns(data: Any) -> Iterator[np.ndarray]:
-    """The finite samples (°C) of every ``temperature*`` channel of every step, one at a time.
-
-    Only those channels are decoded (a partial decode of a recording's lazy steps): the
-    temperature of a 2 h record is 115 MB, its whole DAQ log five times that.
-    """
+    """The finite samples (°C) of every ``temperature*`` channel of every step, a piece at a
+    time: a recording's steps are read block by block and only those channels decoded (the
+    temperature of a 2 h record is 115 MB, its whole DAQ log five times that)."""
     from aatest.engine.dataset import LazySteps, NamesStartingWith
 
     wanted = NamesStartingWith("temperature")
-    for index in range(len(data.steps)):
-        step = (data.steps.partial(index, {"daq": wanted, "table": wanted})
-                if isinstance(data.steps, LazySteps) else data.steps[index])
-        for log in (step.daq, step.table):
+    steps = data.steps
+    for index in range(len(steps)):
+        logs: Iterable[Any] = (
+            (piece for source in ("daq", "table") for piece in steps.pieces(index, source, wanted))
+            if isinstance(steps, LazySteps) else (steps[index].daq, steps[index].table))
+        for log in logs:
             for name in log.channels:
                 if name in wanted:
                     values = np.asarray(log[name], dtype=np.float64)
