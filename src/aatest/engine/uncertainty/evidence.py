@@ -173,7 +173,8 @@ def static_line(volts: np.ndarray, sample_rate_hz: float) -> StaticLine | None:
 
 def line_of_head(head: np.ndarray, samples: int, sample_rate_hz: float) -> StaticLine | None:
     """:func:`static_line` from the record's first ``LINE_SAMPLES`` (or fewer) samples
-    ``head`` (V) and its whole length ``samples``: all a streamed record needs to keep."""
+    ``head`` (V), its whole length ``samples`` and its ``sample_rate_hz`` (Hz): all a streamed
+    record needs to keep."""
     if samples < _MIN_STATIC_SAMPLES:
         return None
     head = np.asarray(head[:LINE_SAMPLES], dtype=float)
