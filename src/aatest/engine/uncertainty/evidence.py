@@ -225,7 +225,7 @@ class Moments:
 
     @property
     def std(self) -> float:
-        """Population standard deviation (0 before any value)."""
+        """Population standard deviation, in the unit of the values (e.g. °C; 0 before any)."""
         return math.sqrt(self.m2 / self.count) if self.count else 0.0
 
 
