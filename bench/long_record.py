@@ -2,11 +2,15 @@
 
 Prints, per record length, lab time ÷ wall time and peak resident memory of each phase in its
 own process (peak RSS is per process): *record* (``aatest run`` up to the merged
-recording: the DAQ streams 60 s chunks into the step file, the table logs 1 s snapshots) and
-*analyse* (``aatest analyze`` of the run: reading the recording and the drift analysis), plus
-the recording's size. The record phase must not grow with the record length.
+recording: the DAQ streams 60 s chunks into the step file, the table logs 1 s snapshots),
+*analyse* (``aatest analyze`` of the run: reading the recording, the drift analysis, the
+uncertainty stage and the certificate) and *run* (the whole ``aatest run`` in one process, as
+an operator runs it), plus the recording's size. Issue 14 asks ≤ 800 MB for the 2 h record;
+none of the phases should grow with the record length (the recording is read block by block).
+Then the drift figures of each record: the white-noise coefficient N of the Allan fit against
+the twin's truth (its white noise through the logger's pre-sample filter), and the longest τ.
 
-    python bench/long_record.py [--minutes 30 120] [--keep DIR]
+    python bench/long_record.py [--minutes 30 120] [--keep DIR] [--no-run]
 """
 
 from __future__ import annotations
@@ -44,6 +48,30 @@ def _record(procedure: Path, run_dir: Path) -> None:
     _report(time.perf_counter() - started)
 
 
+def _run(procedure: Path, run_dir: Path) -> None:
+    """Child process: the whole ``aatest run`` (record, analyse, report) in one process."""
+    from aatest.engine.run import session
+
+    started = time.perf_counter()
+    session.run(procedure, None, run_dir, False, 0, None, show_progress=False)
+    _report(time.perf_counter() - started)
+
+
+def _white_noise_truth() -> float:
+    """N of the shipped sensor on the twin, °/s²·√s: its white noise (V rms per sample) as it
+    leaves the logger's pre-sample filter, over √fs, in °/s² (tests/engine/test_long_record)."""
+    import numpy as np
+
+    from aatest.engine.datasheet import SensorDatasheet
+    from aatest.twin.daq import antialias_filter
+    from aatest.twin.defaults import realistic_rig_model
+
+    model = realistic_rig_model(SensorDatasheet(model="sr207"))
+    sensor, fs_hz = model.sensors[0], 2000.0
+    gain = antialias_filter(float(model.daq.antialias_hz), 1.0 / fs_hz)[2]
+    return float(sensor.noise_rms_v / gain / np.sqrt(fs_hz) / sensor.scale_v_per_dps2)
+
+
 def _analyse(run_dir: Path, out_dir: Path) -> None:
     """Child process: read the recording and run its analyses (``aatest analyze``)."""
     from aatest.engine.run import session
@@ -68,11 +96,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, nargs="+", default=[30.0, 120.0])
     parser.add_argument("--keep", type=Path, default=None, help="keep the runs under DIR")
+    parser.add_argument("--no-run", action="store_true", help="skip the whole-run phase")
     parser.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         if args.child[0] == "record":
             _record(Path(args.child[1]), Path(args.child[2]))
+        elif args.child[0] == "run":
+            _run(Path(args.child[1]), Path(args.child[2]))
         else:
             _analyse(Path(args.child[1]), Path(args.child[2]))
         return
@@ -80,20 +111,33 @@ def main() -> None:
     root.mkdir(parents=True, exist_ok=True)
     print(f"{'record':>8} {'lab s':>8} {'phase':>8} {'wall s':>8} {'lab/wall':>9} "
           f"{'peak RSS MB':>12} {'recording MB':>13}")
+    drifts = []
     for minutes in args.minutes:
         procedure = root / f"{PROCEDURE}-{minutes:g}min.yaml"
         procedure.write_text(_procedure_text(minutes))
         run_dir = root / f"run-{minutes:g}min"
-        recorded = _child("record", str(procedure), str(run_dir))
+        phases = {"record": _child("record", str(procedure), str(run_dir))}
         from aatest.engine.run.session import prepare
 
         lab_s = prepare(procedure, None).plan.lab_duration_s
         size_mb = (run_dir / "recording.mcap").stat().st_size / 1e6
-        analysed = _child("analyse", str(run_dir), str(run_dir / "analysis"))
-        for phase, numbers in (("record", recorded), ("analyse", analysed)):
+        phases["analyse"] = _child("analyse", str(run_dir), str(run_dir / "analysis"))
+        if not args.no_run:
+            phases["run"] = _child("run", str(procedure), str(root / f"whole-{minutes:g}min"))
+        for phase, numbers in phases.items():
             print(f"{minutes:>6g}min {lab_s:>8.0f} {phase:>8} {numbers['wall_s']:>8.1f} "
                   f"{lab_s / numbers['wall_s']:>9.0f} {numbers['peak_rss_mb']:>12.0f} "
                   f"{size_mb:>13.1f}")
+        results = json.loads((run_dir / "analysis" / "results.json").read_text())
+        drifts.append((minutes, results["analysis"]["drift"]))
+    truth = _white_noise_truth()
+    print(f"\n{'record':>8} {'channel':>8} {'N °/s²·√s':>10} {'truth':>8} {'max τ s':>8} "
+          f"{'drift V/h':>10}")
+    for minutes, drift in drifts:
+        for channel, values in drift.items():
+            n = values["allan_fit"]["white_noise_dps2_sqrt_s"]
+            print(f"{minutes:>6g}min {channel:>8} {n:>10.5f} {truth:>8.5f} "
+                  f"{values['max_tau_s']:>8.0f} {values['drift_v_per_h']:>10.2e}")
 
 
 if __name__ == "__main__":

@@ -12,8 +12,10 @@ from numpy.testing import assert_allclose
 from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.uncertainty import components as comp
 from aatest.engine.uncertainty.evidence import (
+    LINE_SAMPLES,
     Evidence,
     TemperatureEvidence,
+    gather,
     local_noise_rel,
     static_line,
 )
@@ -146,3 +148,77 @@ def test_local_bin_noise_and_static_lines_are_measured() -> None:
     assert line.frequency_hz == pytest.approx(35.0, abs=0.5)
     assert line.amplitude_v == pytest.approx(0.024, rel=0.05)
     assert line.residual_bound_v == pytest.approx(0.024 / (math.pi * 35.0 * 2.0), rel=0.05)
+
+
+def test_a_long_static_record_is_searched_on_its_head_but_bounded_over_its_length() -> None:
+    """Past LINE_SAMPLES the line is read off the first 2**20 samples (the same line as on
+    the head alone); its residual bound is over the whole record's duration."""
+    fs, n = 2000.0, LINE_SAMPLES + LINE_SAMPLES // 2
+    t = np.arange(n) / fs
+    rng = np.random.default_rng(9)
+    volts = 2.5 + 0.03 * np.sin(2 * np.pi * 35.0 * t) + 1e-4 * rng.standard_normal(n)
+    line, head = static_line(volts, fs), static_line(volts[:LINE_SAMPLES], fs)
+    assert line is not None and head is not None
+    assert (line.amplitude_v, line.frequency_hz) == (head.amplitude_v, head.frequency_hz)
+    assert line.frequency_hz == pytest.approx(35.0, abs=0.01)
+    assert line.amplitude_v == pytest.approx(0.03, rel=0.01)
+    assert line.residual_bound_v == pytest.approx(head.residual_bound_v * LINE_SAMPLES / n,
+                                                  rel=1e-12)
+
+
+def test_evidence_from_partial_decodes_equals_the_whole_steps() -> None:
+    """gather() decodes only the channels it reads from a recording; nothing it measures
+    changes against the same steps decoded whole."""
+    from pathlib import Path
+
+    from aatest.engine.dataset import Dataset, LazySteps
+    from aatest.engine.recording import read_dataset
+
+    lazy = read_dataset(Path(__file__).parents[1] / "engine" / "data" / "streaming"
+                        / "recording.mcap")
+    assert isinstance(lazy.steps, LazySteps)
+    eager = Dataset(procedure=lazy.procedure, sample_rate_hz=lazy.sample_rate_hz,
+                    sensors=lazy.sensors, steps=tuple(lazy.steps), source=lazy.source,
+                    metadata=lazy.metadata)
+    partial, whole = gather(lazy), gather(eager)
+    assert partial.motion and partial.bin_noise and partial.temperature
+    assert partial == whole
+
+
+def test_a_recorded_static_step_is_summarised_piece_by_piece(tmp_path: Any) -> None:
+    """A recorded static step is read block by block: its line is the one of the whole
+    record, its temperature mean and spread agree with NumPy's on the whole to rounding."""
+    import sys
+    from pathlib import Path
+
+    from aatest.engine.dataset import Dataset
+    from aatest.engine.logs import SampledLog
+    from aatest.engine.recording import RunRecorder, read_dataset
+    from aatest.engine.steps import PlannedStep
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "engine"))
+    from recording_data import SENSOR, table_log
+
+    fs, n = 2000.0, 60_001
+    step = PlannedStep(id="s01-static", kind="static", samples=n, duration_s=n / fs,
+                       sample_rate_hz=fs)
+    rng = np.random.default_rng(12)
+    t = np.arange(n) / fs
+    daq = SampledLog("daq", fs, t, {
+        "v_sz": 2.5 + 0.02 * np.sin(2 * np.pi * 35.0 * t) + rng.normal(0, 1e-3, n),
+        "trigger": np.ones(n), "temperature_c": 23.0 + 0.5 * t / t[-1] + rng.normal(0, 0.01, n),
+    }, {"v_sz": "V", "temperature_c": "degC"})
+    recorder = RunRecorder(tmp_path)
+    recorder.write_run_metadata({"procedure": "static", "sensors": [vars(SENSOR)]})
+    recorder.write_step(step, table_log(step, rng), daq)
+    lazy = read_dataset(recorder.finalize())
+    streamed = gather(lazy)
+    whole = gather(Dataset(procedure="static", sample_rate_hz=fs, sensors=lazy.sensors,
+                           steps=tuple(lazy.steps), source=lazy.source))
+    assert streamed.static_lines == whole.static_lines
+    line = streamed.static_lines["s01-static"]["v_sz"]
+    assert line.frequency_hz == pytest.approx(35.0, abs=0.05)
+    got, expected = streamed.temperature["s01-static"], whole.temperature["s01-static"]
+    assert expected.mean_c == float(np.mean(daq["temperature_c"]))
+    assert got.mean_c == pytest.approx(expected.mean_c, rel=1e-14)
+    assert got.std_c == pytest.approx(expected.std_c, rel=1e-12)

@@ -9,7 +9,7 @@ where the data came from and can always be re-run offline. Its per-channel senso
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
+from collections.abc import Callable, Container, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -19,11 +19,27 @@ from aatest.engine.datasheet import SensorAxis, SensorInfo
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 
-__all__ = ["Dataset", "LazySteps", "SensorAxis", "SensorInfo", "StepData"]
+__all__ = ["Dataset", "LazySteps", "NamesStartingWith", "SensorAxis", "SensorInfo", "StepData"]
 
 #: ``load(index, source, channels)``: the ``"table"`` or ``"daq"`` log of the step at ``index``
-#: (only ``channels`` and the time stamps when not None)
-LogLoader = Callable[[int, str, Collection[str] | None], SampledLog]
+#: (only the channels named in ``channels`` and the time stamps when not None)
+LogLoader = Callable[[int, str, Container[str] | None], SampledLog]
+#: ``pieces(index, source, channels)``: the same log as consecutive pieces, in sample order
+PieceLoader = Callable[[int, str, Container[str] | None], Iterator[SampledLog]]
+
+
+@dataclass(frozen=True)
+class NamesStartingWith(Container[str]):
+    """Every channel name that starts with ``prefix``: a selection for :meth:`LazySteps.partial`
+    when the names are not known before decoding (e.g. every ``temperature*`` channel).
+
+    Only membership is defined, which is all a partial decode asks of a selection.
+    """
+
+    prefix: str
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name.startswith(self.prefix)
 
 
 @dataclass(frozen=True)
@@ -89,11 +105,13 @@ class LazySteps(Sequence[StepData]):
     """
 
     def __init__(self, planned: Sequence[PlannedStep], load: LogLoader,
-                 samples: Sequence[Mapping[str, int]]) -> None:
+                 samples: Sequence[Mapping[str, int]], pieces: PieceLoader | None = None
+                 ) -> None:
         if len(samples) != len(planned):
             raise ValueError("one sample-count record per planned step is needed")
         self.planned = tuple(planned)
         self._load = load
+        self._pieces = pieces
         self._samples = tuple(samples)
 
     def __len__(self) -> int:
@@ -114,16 +132,34 @@ class LazySteps(Sequence[StepData]):
     def __iter__(self) -> Iterator[StepData]:
         return (self[i] for i in range(len(self)))
 
-    def partial(self, index: int, channels: Mapping[str, Collection[str]]) -> StepData:
+    def partial(self, index: int, channels: Mapping[str, Container[str]]) -> StepData:
         """Step ``index`` with only some channels decoded (and the time stamps), by source.
 
         Why: a pass that reads a few channels of every step (the sync pulses) decodes a
-        fraction of the data. ``channels`` maps ``"table"``/``"daq"`` to channel names.
+        fraction of the data. ``channels`` maps ``"table"``/``"daq"`` to channel names (a
+        collection, or :class:`NamesStartingWith`); a source not named decodes no channel.
+        Names a log does not have are ignored.
         """
         i = range(len(self))[index]
         logs = {source: self._load(i, source, channels.get(source, ()))
                 for source in ("table", "daq")}
         return StepData(self.planned[i], logs["table"], logs["daq"])
+
+    def pieces(self, index: int, source: str, channels: Container[str] | None = None
+               ) -> Iterator[SampledLog]:
+        """The ``"table"`` or ``"daq"`` log of step ``index`` as consecutive pieces in sample
+        order (the recorded blocks: 60 s each of a streamed DAQ record), with the time stamps
+        and only ``channels`` (all when None).
+
+        Why: a reduction of an hours-long record (block means, a sum, the first samples) holds
+        one piece at a time, not 115 MB per channel. Stop iterating early to decode no more.
+        A source without piecewise reading yields the whole log as one piece.
+        """
+        i = range(len(self))[index]
+        if self._pieces is None:
+            yield self._load(i, source, channels)
+            return
+        yield from self._pieces(i, source, channels)
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ the file and what is wrong. The layout is described in :mod:`aatest.engine.recor
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Collection, Iterator
+from collections.abc import Container, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -211,12 +211,40 @@ class _StepChunks:
 
 
 def _load_log(entry: _StepEntry, source: str, chunks: _StepChunks,
-              channels: Collection[str] | None = None) -> SampledLog:
+              channels: Container[str] | None = None) -> SampledLog:
     """Decode one log of one step (only ``channels`` when given, v2): only the chunks holding
     that step's blocks are read."""
     with _translated(entry.path):
         return _step_log(chunks, chunks.summary, entry.record, entry.values, source, entry.path,
                          channels)
+
+
+def _load_pieces(entry: _StepEntry, source: str, chunks: _StepChunks,
+                 channels: Container[str] | None = None) -> Iterator[SampledLog]:
+    """One log of one step as consecutive pieces, one per block (v2; a v1 log as one piece).
+
+    A generator: the step's chunks are read as the pieces are asked for, and a damaged block
+    is a :class:`RecordingError` naming the file and the step when it is reached.
+    """
+    record = entry.record
+    topic = record[f"{source}_topic"]
+    channel = chunks.channels_by_topic.get(topic)
+    schema = chunks.summary.schemas.get(channel.schema_id) if channel is not None else None
+    if schema is None or (schema.encoding, schema.name) != (fmt.ENCODING, proto.BLOCK_MESSAGE):
+        yield _load_log(entry, source, chunks, channels)  # v1, or the error it explains
+        return
+    where = f"{entry.path}: topic {topic!r} of step {record['step']['id']!r}"
+    quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
+    with _translated(entry.path):
+        try:
+            yield from codec.blocks_to_pieces(
+                _step_blocks(chunks, record, entry.values, source, where), source,
+                float(record[f"{source}_sample_rate_hz"]), int(record[f"{source}_samples"]),
+                quanta, channels)
+        except RecordingError:
+            raise
+        except ValueError as exc:
+            raise RecordingError(f"{where}: {exc}") from exc
 
 
 def _check_format(run_meta: dict[str, Any], path: Path) -> None:
@@ -232,7 +260,7 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
 
 def _step_log(
     reader: Any, summary: Any, record: dict[str, Any], values: dict[str, str], source: str,
-    path: Path, channels: Collection[str] | None = None,
+    path: Path, channels: Container[str] | None = None,
 ) -> SampledLog:
     """One logger's log of one step, decoded by the format its schema encoding names."""
     step_id = str(record["step"]["id"])
@@ -248,6 +276,8 @@ def _step_log(
         if schema is not None and (schema.encoding, schema.name) == (fmt.ENCODING,
                                                                      proto.BLOCK_MESSAGE):
             return _decode_v2(reader, record, values, source, where, channels)
+    except RecordingError:
+        raise
     except ValueError as exc:
         raise RecordingError(f"{where}: {exc}") from exc
     raise RecordingError(f"{path}: topic {topic!r} uses no known aatest schema")
@@ -275,27 +305,38 @@ def _decode_v1(
 
 def _decode_v2(
     reader: Any, record: dict[str, Any], values: dict[str, str], source: str, where: str,
-    channels: Collection[str] | None = None,
+    channels: Container[str] | None = None,
 ) -> SampledLog:
-    """A v2 log: the step's protobuf blocks on the stable topic, found by their log times."""
+    """A v2 log: the step's protobuf blocks on the stable topic, found by their log times.
+
+    The blocks are parsed one at a time as the codec places them (:func:`_step_blocks`), so
+    decoding an hours-long record holds its columns and one block, not every block.
+    """
+    quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
+    return codec.blocks_to_log(_step_blocks(reader, record, values, source, where), source,
+                               float(record[f"{source}_sample_rate_hz"]),
+                               int(record[f"{source}_samples"]), quanta, channels)
+
+
+def _step_blocks(reader: Any, record: dict[str, Any], values: dict[str, str], source: str,
+                 where: str) -> Iterator[Any]:
+    """The ``SampleBlock`` messages of one step's log, in file order, each checked against
+    the step record's digest (a generator: nothing is kept after it is yielded)."""
     digest = fmt.record_digest(values)
     span = record[f"{source}_log_time_ns"]
-    blocks = []
-    if span:
-        for _, _, message in reader.iter_messages(
-            topics=[record[f"{source}_topic"]], starting_at=span[0], ending_at=span[1],
-            log_time_order=False,
-        ):
-            block = proto.block_class().FromString(message.data)
-            if block.step_id != record["step"]["id"] or block.source != source:
-                continue  # a neighbouring step's block in the same time range
-            if block.step_record_sha256 != digest:
-                raise RecordingError(f"{where}: step record does not match its blocks "
-                                     "(corrupt metadata)")
-            blocks.append(block)
-    quanta = {k: (q, o) for k, (q, o) in record[f"{source}_quantisation"].items()}
-    return codec.blocks_to_log(blocks, source, float(record[f"{source}_sample_rate_hz"]),
-                               int(record[f"{source}_samples"]), quanta, channels)
+    if not span:
+        return
+    for _, _, message in reader.iter_messages(
+        topics=[record[f"{source}_topic"]], starting_at=span[0], ending_at=span[1],
+        log_time_order=False,
+    ):
+        block = proto.block_class().FromString(message.data)
+        if block.step_id != record["step"]["id"] or block.source != source:
+            continue  # a neighbouring step's block in the same time range
+        if block.step_record_sha256 != digest:
+            raise RecordingError(f"{where}: step record does not match its blocks "
+                                 "(corrupt metadata)")
+        yield block
 
 
 def _sensors(run_meta: dict[str, Any], steps: LazySteps) -> tuple[SensorInfo, ...]:
@@ -316,11 +357,16 @@ def _build_dataset(
 ) -> Dataset:
     ordered = sorted(entries, key=lambda entry: entry.index)
 
-    def load(index: int, log_source: str, channels: Collection[str] | None) -> SampledLog:
+    def load(index: int, log_source: str, channels: Container[str] | None) -> SampledLog:
         entry = ordered[index]
         return _load_log(entry, log_source, entry.chunks, channels)
 
-    steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered])
+    def pieces(index: int, log_source: str, channels: Container[str] | None
+               ) -> Iterator[SampledLog]:
+        entry = ordered[index]
+        return _load_pieces(entry, log_source, entry.chunks, channels)
+
+    steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered], pieces)
     rate = run_meta.get("sample_rate_hz") or (
         ordered[0].step.sample_rate_hz if ordered else 2000.0
     )

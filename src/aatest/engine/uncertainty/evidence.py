@@ -153,34 +153,155 @@ def _bin_noise(record: Any, cycles: int, channels: list[str]) -> BinNoise | None
 _MIN_STATIC_SAMPLES = 64
 #: lines below this frequency are drift, not a periodic disturbance
 _LINE_MIN_HZ = 2.0
+#: most samples of a static record whose spectrum is searched for its strongest line
+LINE_SAMPLES = 2**20
 
 
 def static_line(volts: np.ndarray, sample_rate_hz: float) -> StaticLine | None:
     """The strongest line above 2 Hz of a static record, as a peak amplitude, with the bound
-    of its residual in the record mean (Hann-windowed spectrum, amplitude-corrected)."""
-    n = volts.size
-    if n < _MIN_STATIC_SAMPLES:
+    of its residual in the record mean (Hann-windowed spectrum, amplitude-corrected).
+
+    The spectrum is taken over at most the first :data:`LINE_SAMPLES` samples (524 s at
+    2 kHz); the bound is over the whole record's duration, because the mean it bounds is the
+    whole record's. Why: a rig line is stationary, and 2**20 samples already resolve it to
+    0.002 Hz at 2 kHz, while the FFT of an hours-long record (14 M samples for 2 h) costs
+    about 1 GB in window, spectrum and frequency arrays for no better estimate of the line.
+    Records up to that length are analysed whole, as before.
+    """
+    return line_of_head(volts[:LINE_SAMPLES], volts.size, sample_rate_hz)
+
+
+def line_of_head(head: np.ndarray, samples: int, sample_rate_hz: float) -> StaticLine | None:
+    """:func:`static_line` from the record's first ``LINE_SAMPLES`` (or fewer) samples
+    ``head`` (V), its whole length ``samples`` and its ``sample_rate_hz`` (Hz): all a streamed
+    record needs to keep."""
+    if samples < _MIN_STATIC_SAMPLES:
         return None
-    window = np.hanning(n)
-    spec = np.abs(np.fft.rfft((volts - np.mean(volts)) * window)) * 2.0 / np.sum(window)
-    freqs = np.fft.rfftfreq(n, 1.0 / sample_rate_hz)
+    head = np.asarray(head[:LINE_SAMPLES], dtype=float)
+    window = np.hanning(head.size)
+    spec = np.abs(np.fft.rfft((head - np.mean(head)) * window)) * 2.0 / np.sum(window)
+    freqs = np.fft.rfftfreq(head.size, 1.0 / sample_rate_hz)
     band = freqs >= _LINE_MIN_HZ
     if not np.any(band):
         return None
     k = int(np.argmax(np.where(band, spec, 0.0)))
     amplitude, f_hz = float(spec[k]), float(freqs[k])
-    duration_s = n / sample_rate_hz
+    duration_s = samples / sample_rate_hz
     return StaticLine(amplitude, f_hz, amplitude / (math.pi * f_hz * duration_s))
+
+
+#: the DAQ's temperature channel, read beside every record
+_TEMPERATURE = "temperature_c"
+
+
+@dataclass
+class Moments:
+    """Mean and (population) standard deviation of values fed in pieces, in their unit.
+
+    Pieces are merged with the pairwise update of Chan, Golub and LeVeque: one piece gives
+    exactly ``np.mean`` and ``np.std``; several agree with them to rounding (≈1e-16 relative),
+    without keeping the values.
+    """
+
+    count: int = 0
+    mean: float = 0.0
+    m2: float = 0.0
+
+    def add(self, values: np.ndarray) -> None:
+        """Feed the next values."""
+        n = int(np.size(values))
+        if not n:
+            return
+        mean = float(np.mean(values))
+        m2 = float(np.sum((np.asarray(values, dtype=float) - mean) ** 2))
+        if not self.count:
+            self.count, self.mean, self.m2 = n, mean, m2
+            return
+        total = self.count + n
+        delta = mean - self.mean
+        self.mean += delta * n / total
+        self.m2 += m2 + delta**2 * self.count * n / total
+        self.count = total
+
+    @property
+    def std(self) -> float:
+        """Population standard deviation, in the unit of the values (e.g. °C; 0 before any)."""
+        return math.sqrt(self.m2 / self.count) if self.count else 0.0
+
+
+@dataclass
+class _Summary:
+    """What the evidence keeps of one step's DAQ log: the temperature's moments, the first
+    :data:`LINE_SAMPLES` samples of each sensor channel (V), the length and the rate (Hz)."""
+
+    temperature: Moments | None
+    heads: dict[str, np.ndarray]
+    samples: int
+    sample_rate_hz: float
+
+
+def _summary_of_log(daq: Any, channels: list[str]) -> _Summary:
+    """The summary of a whole DAQ log (an in-memory or sine step)."""
+    temps = daq.channels.get(_TEMPERATURE)
+    moments = None
+    if temps is not None:
+        moments = Moments()
+        moments.add(temps)
+    heads = {ch: daq.channels[ch][:LINE_SAMPLES] for ch in channels if ch in daq.channels}
+    return _Summary(moments, heads, len(daq), float(daq.sample_rate_hz))
+
+
+def _streamed_summary(steps: Any, index: int, channels: list[str]) -> _Summary:
+    """The summary of a recorded DAQ log read piece by piece (only the temperature and
+    ``channels``): an hours-long static record costs one block and the heads, not 115 MB
+    per channel."""
+    moments: Moments | None = None
+    parts: dict[str, list[np.ndarray]] = {}
+    samples, rate = 0, 0.0
+    for piece in steps.pieces(index, "daq", [*channels, _TEMPERATURE]):
+        rate = float(piece.sample_rate_hz)
+        if _TEMPERATURE in piece.channels:
+            moments = moments or Moments()
+            moments.add(piece[_TEMPERATURE])
+        take = min(len(piece), LINE_SAMPLES - samples)
+        for ch in channels:
+            if ch in piece.channels:
+                parts.setdefault(ch, [])
+                if take > 0:
+                    parts[ch].append(piece[ch][:take])
+        samples += len(piece)
+    heads = {ch: np.concatenate(p) if p else np.empty(0) for ch, p in parts.items()}
+    return _Summary(moments, heads, samples, rate)
+
+
+def _record(data: Any, index: int, channels: list[str]) -> Any:
+    """Sine step ``index`` with only the channels the evidence reads (a recording's lazy
+    steps): the moving axis' position and acceleration estimate, the DAQ's sensor channels
+    and temperature. An in-memory dataset's step is read as it is."""
+    from aatest.engine.dataset import LazySteps
+
+    steps = data.steps
+    if not isinstance(steps, LazySteps):
+        return steps[index]
+    step = steps.planned[index]
+    table = [f"{step.axis}_position_deg", f"{step.axis}_accel_dps2"]
+    return steps.partial(index, {"daq": [*channels, _TEMPERATURE], "table": table})
 
 
 def gather(data: Any) -> Evidence:
     """Measure the motion of every coherent sine record and the logged temperatures.
+
+    One step at a time, and of it only the channels read here: a recorded sine step decoded
+    partially (:func:`_record`), any other recorded step read piece by piece
+    (:func:`_streamed_summary`), so memory does not grow with the steps or the record length.
 
     Parameters
     ----------
     data
         The :class:`aatest.engine.dataset.Dataset` the analyses ran on (None: nothing measured).
     """
+    from aatest.engine.dataset import LazySteps
+
     if data is None:
         return Evidence()
     motion: dict[str, MotionEvidence] = {}
@@ -189,17 +310,22 @@ def gather(data: Any) -> Evidence:
     lines: dict[str, dict[str, StaticLine]] = {}
     channels = [s.channel for s in data.sensors]
     present = data.metadata.get("temperature_present", True)
-    for record in data.steps:
-        step = record.step
-        temps = record.daq.channels.get("temperature_c")
-        if present and temps is not None and np.size(temps):
-            temperature[step.id] = TemperatureEvidence(float(np.mean(temps)), float(np.std(temps)))
+    for index, step in enumerate(data.planned):
+        wanted = channels if step.kind == "static" else []
+        record = None
+        if step.kind != "sine" and isinstance(data.steps, LazySteps):
+            summary = _streamed_summary(data.steps, index, wanted)
+        else:
+            record = _record(data, index, channels)
+            summary = _summary_of_log(record.daq, wanted)
+        moments = summary.temperature
+        if present and moments is not None and moments.count:
+            temperature[step.id] = TemperatureEvidence(moments.mean, moments.std)
         if step.kind == "static":
-            found = {ch: static_line(np.asarray(record.daq.channels[ch], dtype=float),
-                                     float(record.daq.sample_rate_hz))
-                     for ch in channels if ch in record.daq.channels}
+            found = {ch: line_of_head(head, summary.samples, summary.sample_rate_hz)
+                     for ch, head in summary.heads.items()}
             lines[step.id] = {ch: line for ch, line in found.items() if line is not None}
-        if step.kind != "sine":
+        if step.kind != "sine" or record is None:
             continue
         position = record.table.channels.get(f"{step.axis}_position_deg")
         cycles = getattr(step, "cycles", None)

@@ -11,7 +11,8 @@ engine's; what the run did not record is printed as "not recorded", never invent
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import math
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -128,8 +129,28 @@ def _lab(meta: Mapping[str, Any]) -> dict[str, Any]:
             "default_profile": True}
 
 
-def _temperatures(run_dir: Path, meta: Mapping[str, Any]) -> tuple[np.ndarray, str]:
-    """Every finite temperature sample the loggers recorded (°C) and the file read."""
+def _temperature_columns(data: Any) -> Iterator[np.ndarray]:
+    """The finite samples (°C) of every ``temperature*`` channel of every step, a piece at a
+    time: a recording's steps are read block by block and only those channels decoded (the
+    temperature of a 2 h record is 115 MB, its whole DAQ log five times that)."""
+    from aatest.engine.dataset import LazySteps, NamesStartingWith
+
+    wanted = NamesStartingWith("temperature")
+    steps = data.steps
+    for index in range(len(steps)):
+        logs: Iterable[Any] = (
+            (piece for source in ("daq", "table") for piece in steps.pieces(index, source, wanted))
+            if isinstance(steps, LazySteps) else (steps[index].daq, steps[index].table))
+        for log in logs:
+            for name in log.channels:
+                if name in wanted:
+                    values = np.asarray(log[name], dtype=np.float64)
+                    yield values[np.isfinite(values)]
+
+
+def _temperatures(run_dir: Path, meta: Mapping[str, Any]) -> Environment:
+    """Min/mean/max (°C) of every temperature sample the loggers recorded, and the file read;
+    accumulated step by step, so no step's temperature is kept once summarised."""
     from aatest.engine.recording.reader import read_dataset
 
     candidates = [Path(run_dir)]
@@ -140,22 +161,22 @@ def _temperatures(run_dir: Path, meta: Mapping[str, Any]) -> tuple[np.ndarray, s
             data = read_dataset(path)
         except (AatestError, OSError, ValueError, LookupError):  # no readable recording here
             continue
-        parts = [np.asarray(log[name], dtype=np.float64)
-                 for s in data.steps for log in (s.daq, s.table)
-                 for name in log.channels if name.startswith("temperature")]
-        values = np.concatenate(parts) if parts else np.empty(0)
-        return values[np.isfinite(values)], str(path)
-    return np.empty(0), "no recording"
+        lows, highs, sums, count = [], [], [], 0
+        for values in _temperature_columns(data):
+            if values.size:
+                lows.append(float(values.min()))
+                highs.append(float(values.max()))
+                sums.append(float(np.sum(values)))
+                count += int(values.size)
+        if not count:
+            return Environment(None, None, None, 0, str(path))
+        return Environment(min(lows), math.fsum(sums) / count, max(highs), count, str(path))
+    return Environment(None, None, None, 0, "no recording")
 
 
 def environment(results: Mapping[str, Any], run_dir: Path) -> Environment:
     """Min/mean/max of the temperatures logged during the calibration (docs: §7.8.4.1 a)."""
-    meta = results.get("metadata") or {}
-    values, source = _temperatures(run_dir, meta)
-    if values.size == 0:
-        return Environment(None, None, None, 0, source)
-    return Environment(float(values.min()), float(values.mean()), float(values.max()),
-                       int(values.size), source)
+    return _temperatures(run_dir, results.get("metadata") or {})
 
 
 def _measurand(entry: Mapping[str, Any], label: str) -> str:
