@@ -1,11 +1,13 @@
 """The study's scale-factor results (docs/method.md §4.3) against the twin, as a table.
 
 Simulates the study's record (1 Hz, 400 °/s², 2 kHz, 140000 samples) on the realistic rig and
-fits it against each reference the study used, with the twin's position-periodic ripple at its
-default amplitude (1″ at 1 and 2 cycles/°) and scaled down. Prints, per case, the chosen order,
-the linear coefficient, RMSE and R² beside the study's values and the ratio to them.
+fits it against each reference the study used — cross-validated order, and the study's own order
+set through the analysis option ``orders`` — with the twin's position-periodic ripple at its
+default amplitude (0.1″ at 1 and 2 cycles/°, :data:`aatest.twin.defaults.RIPPLE_AMPLITUDE_DEG`)
+times each ``--ripple`` scale. Prints, per case, the order, the linear coefficient, RMSE and R²
+beside the study's values and the ratio to them.
 
-    python bench/study_scale_factor.py [--ripple 1.0 0.1 0.0] [--seed 3]
+    python bench/study_scale_factor.py [--ripple 1.0 10.0 0.0] [--seed 3]
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from pathlib import Path
 from aatest.engine.analysis.passes import run_analysis
 from aatest.engine.run.session import prepare
 from aatest.twin.api import realistic_rig_model, simulate_dataset
+from aatest.twin.defaults import RIPPLE_AMPLITUDE_DEG
 from aatest.twin.model import RigModel
 
 PROCEDURE = Path(__file__).resolve().parents[1] / "src" / "aatest" / "procedures" / \
@@ -36,7 +39,7 @@ def _with_ripple(model: RigModel, scale: float) -> RigModel:
 def main() -> None:
     """Print the comparison table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ripple", type=float, nargs="+", default=[1.0, 0.1])
+    parser.add_argument("--ripple", type=float, nargs="+", default=[1.0, 10.0])
     parser.add_argument("--seed", type=int, default=3)
     args = parser.parse_args()
     steps = list(prepare(PROCEDURE, None).plan.steps)
@@ -44,10 +47,14 @@ def main() -> None:
           f" | study: {'order':>5} {'a1':>6} {'RMSE':>5} {'R²':>6} | a1, RMSE, 1−R² ratio")
     for scale in args.ripple:
         data = simulate_dataset(_with_ripple(realistic_rig_model(), scale), steps, args.seed)
-        for reference, (order, slope, rmse, r2) in STUDY.items():
-            out = run_analysis("scale_factor", data, {"reference": reference}).result["v_sz"]
+        cases = [(reference, row, options) for reference, row in STUDY.items()
+                 for options in ({}, {"orders": (row[0], row[0])})]
+        for reference, (order, slope, rmse, r2), options in cases:
+            out = run_analysis("scale_factor", data,
+                               {"reference": reference, **options}).result["v_sz"]
             a1, fit_r2 = out.coefficients[1], out.fit.r2
-            print(f"{scale:>5.2f}″ {reference:<15} {out.order:>5} {a1:>8.2f} "
+            amplitude = scale * RIPPLE_AMPLITUDE_DEG * 3600.0
+            print(f"{amplitude:>5.2f}″ {reference:<15} {out.order:>5} {a1:>8.2f} "
                   f"{out.rmse_dps2:>7.2f} {fit_r2:>7.4f} | {order:>12} {slope:>6.1f} {rmse:>5.1f}"
                   f" {r2:>6.3f} | {a1 / slope:.3f}, {out.rmse_dps2 / rmse:.3f}, "
                   f"{(1 - fit_r2) / (1 - r2):.3f}")

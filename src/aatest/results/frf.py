@@ -30,6 +30,9 @@ class FrfPoint(Certified):
     u_gain_db: Real
     u_phase_deg: Real
     u_delay_s: Real
+    u_local_rel: Real | None = Field(
+        None, ge=0, description="u of the ratio at the bin from the ratio's noise in the bins "
+        "3–40 away, relative (= phase, rad); coherent records only")
     coherent: bool
     group: str
     step: str

@@ -367,6 +367,8 @@ def _record_block(clean_v: np.ndarray, sensor: SensorModel, daq: DaqModel, dt_s:
     extra = [n.rms_v for n in (sensor.excess_noise, daq.slip_ring) if n is not None and n.rms_v]
     if extra:
         filtered = filtered + float(np.hypot.reduce(extra)) * standard_normal(rng, clean_v.size)
+    if daq.logger_error is not None:  # the logger's own gain and offset error (drawn)
+        filtered = (1.0 + daq.logger_error.gain_error) * filtered + daq.logger_error.offset_v
     return quantise_adc(filtered, daq)
 
 

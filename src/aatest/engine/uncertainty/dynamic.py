@@ -42,10 +42,17 @@ def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConst
                u_key: str, to_relative: float, channel: str = "") -> tuple[float, str]:
     """Relative (gain) or radian (phase) standard uncertainty of the bin ratio Y/X, and its basis.
 
-    Measured next to the bin in the recording when it is at hand (output and reference, each
-    √(mean |X_k|²/2)/|X_1| over nearby bins); else the FRF analysis' own ``u_gain_db`` /
-    ``u_phase_deg``; else white noise at the bin from the SNRs, 1/√(N·SNR) each.
+    Measured next to the bin: by the FRF analysis on the ratio itself (``u_local_rel``: output
+    and reference together, so content common to both — motion the sensor follows — cancels as
+    at the bin, and a far line's leakage enters with the sensor's response at the line); else
+    from the recording, output and reference apart (each √(mean |X_k|²/2)/|X_1| over nearby
+    bins, in quadrature); else the FRF analysis' own ``u_gain_db`` / ``u_phase_deg``; else
+    white noise at the bin from the SNRs, 1/√(N·SNR) each.
     """
+    ratio = ex.as_float(point.get("u_local_rel"))
+    if ratio is not None:
+        return ratio, (f"noise of the output/reference ratio next to the bin (bins 3–40 away) "
+                       f"in the recording: {ratio * 100:.4f} % of the fundamental")
     local = c.evidence.bin_noise.get(str(point.get("step")))
     if local is not None and channel in local.channels_rel:
         out, ref = local.channels_rel[channel], local.table_rel
@@ -155,7 +162,7 @@ def _sync_offset_s(results: Mapping[str, Any], point: Mapping[str, Any]) -> tupl
 
 def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
                         c: RigConstants, channel: str = "") -> Measurand | None:
-    """φ = φ̂ + e_out·180/π − 360·f·δt + e_ref  [deg]."""
+    """φ = φ̂ + (e_noise + e_enc + e_thd)·180/π − 360·f·(δt_sync + δt_timing) + e_rep  [deg]."""
     phase = ex.require_float(point, "phase_deg", "analysis.frf point")
     f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
     if phase is None or not f_hz:
@@ -163,9 +170,21 @@ def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
     noise, basis = _bin_noise(point, results, c, "u_phase_deg", math.pi / 180.0, channel)
     u_sync, sync_note = _sync_offset_s(results, point)
     _, at = _point_temperature(point, results, c, channel)
+    thd = ex.as_float(point.get("table_thd"))
     inputs = (
         Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal", "rad",
               "measured: " + basis, "A"),
+        Input("encoder_accuracy", "reference: encoder accuracy", 0.0, 0.0, "normal", "rad",
+              "a position-periodic encoder error of a sine motion is a function of the "
+              "motion's phase: it adds harmonics and in-phase content at the fundamental, no "
+              "phase (its gain share is in the gain budget)"),
+        Input("motion_distortion", "reference: motion distortion (THD)", 0.0, (thd or 0.0) ** 2,
+              "rectangular", "rad",
+              f"measured: THD of the table acceleration {(thd or 0.0) * 100:.3f} % (FRF "
+              "analysis); a coherent bin sees it only as THD², in any direction")
+        if thd is not None else comp.not_evaluated("motion_distortion",
+                                                   "reference: motion distortion (THD)",
+                                                   "the FRF analysis states no table THD", "rad"),
         Input("sync", "synchronisation: logger alignment", 0.0, u_sync, "normal", "s",
               sync_note),
         Input("timing", "synchronisation: logger timing against the latch", 0.0,
@@ -176,8 +195,9 @@ def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
     )
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
-        return (phase + x["noise"] * (180.0 / math.pi) - 360.0 * f_hz * (x["sync"] + x["timing"])
-                + x["repeatability"])
+        reference = x["encoder_accuracy"] + x["motion_distortion"]
+        return (phase + (x["noise"] + reference) * (180.0 / math.pi)
+                - 360.0 * f_hz * (x["sync"] + x["timing"]) + x["repeatability"])
 
     return Measurand(f"FRF phase at {f_hz:.4f} Hz", "deg", model, inputs,
                      _point_definition("phase", point, channel, at))

@@ -36,6 +36,8 @@ from aatest.sync.freeze_pulse import SyncedStep
 
 HARMONICS = 6
 _COHERENCE_TOL_CYCLES = 1e-3
+#: bins either side of the fundamental whose ratio noise estimates the noise at it
+NEAR_BINS = np.arange(3, 41)
 
 
 @dataclass(frozen=True)
@@ -86,6 +88,32 @@ def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float,
                 noise_bin_power=float(np.mean(noise)) if noise.size else 0.0, coherent=coherent)
 
 
+def local_ratio_noise_rel(x: np.ndarray, y: np.ndarray, frequency_hz: float, fs_hz: float
+                          ) -> float | None:
+    """Standard uncertainty of the fundamental ratio Y₁/X₁, relative (= phase, rad), from the
+    bins next to it.
+
+    At a bin k near the fundamental, D_k = Y_k/Y₁ − X_k/X₁ is what the ratio would pick up if
+    that bin's content sat at the fundamental: independent noise of output and reference adds
+    in quadrature, content common to both (non-commanded motion the sensor follows) cancels as
+    it does at the fundamental, and the leakage of a far line (the motor band) enters with the
+    sensor's response at the line — added or cancelled as at the fundamental. u = √(mean
+    |D_k|²/2) over the bins 3–40 away (harmonic bins excluded): half the power is tangential.
+    Coherent records only (the fundamental's own leakage would dominate otherwise): None.
+    """
+    n, cycles = whole_cycles(x.size, frequency_hz, fs_hz)
+    if abs(frequency_hz * n / fs_hz - cycles) >= _COHERENCE_TOL_CYCLES:
+        return None
+    xs, ys = np.asarray(x[:n], dtype=np.float64), np.asarray(y[:n], dtype=np.float64)
+    spec_x, spec_y = np.fft.rfft(xs - xs.mean()), np.fft.rfft(ys - ys.mean())
+    near = np.concatenate([cycles - NEAR_BINS, cycles + NEAR_BINS])
+    near = near[(near > 0) & (near < spec_x.size) & (near % cycles != 0)]
+    if near.size == 0 or spec_x[cycles] == 0 or spec_y[cycles] == 0:
+        return None
+    d = spec_y[near] / spec_y[cycles] - spec_x[near] / spec_x[cycles]
+    return float(np.sqrt(np.mean(np.abs(d) ** 2) / 2.0))
+
+
 def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
               ) -> dict[str, Any]:
     """One FRF point of a sensor from one sine step (contract keys and more).
@@ -94,8 +122,10 @@ def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
     """
     step, fs = synced.step, synced.sample_rate_hz
     f0 = float(step.frequency_hz or 0.0)
-    table = analyse_tone(input_accel_dps2(synced, sensor.axis), f0, fs, harmonics)
+    accel = input_accel_dps2(synced, sensor.axis)
+    table = analyse_tone(accel, f0, fs, harmonics)
     sensor_tone = analyse_tone(synced.daq[sensor.channel], f0, fs, harmonics)
+    u_local = local_ratio_noise_rel(accel, synced.daq[sensor.channel], f0, fs)
     ratio = sensor_tone.fundamental / table.fundamental
     phase_rad = float(np.angle(ratio))
     u_rel = float(np.hypot(table.u_relative, sensor_tone.u_relative))
@@ -113,7 +143,7 @@ def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
         "u_gain_db": 20 / np.log(10) * u_rel, "u_phase_deg": float(np.degrees(u_rel)),
         "u_delay_s": u_rel / (2 * np.pi * f0),
         "coherent": table.coherent, "group": group_of(step), "step": step.id,
-        "sample_rate_hz": fs,
+        "sample_rate_hz": fs, "u_local_rel": u_local,
     }
 
 
