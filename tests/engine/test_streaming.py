@@ -136,6 +136,8 @@ def test_streamed_results_equal_the_eager_reference() -> None:
     want = _numbers({"steps": reference["steps"], "analysis": reference["analysis"]})
     got = _numbers({"steps": mine["steps"], "analysis": mine["analysis"]})
     got = {k: v for k, v in got.items() if not k.endswith("measurand")}  # uncertainty stage's
+    # added to each FRF point after the reference was written (the ratio's local noise)
+    got = {k: v for k, v in got.items() if not k.endswith(".u_local_rel")}
     assert got.keys() <= want.keys()
     floats = 0
     for key, value in ((k, want[k]) for k in got if got[k] is not None or want[k] is None):

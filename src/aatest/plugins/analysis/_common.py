@@ -48,6 +48,11 @@ def is_excited(step: PlannedStep, sensor: SensorInfo) -> bool:
     return abs(nominal_weight(step, sensor.axis)) >= _EXCITED_WEIGHT
 
 
+#: the table channels :func:`input_accel_dps2` reads (an analysis that needs nothing else of the
+#: table asks the lazy steps for only these: ``SyncedSteps.only``)
+INPUT_ACCEL_CHANNELS = ("inner_accel_dps2", "outer_accel_dps2", "inner_position_deg")
+
+
 def input_accel_dps2(synced: SyncedStep, sensor_axis: str,
                      accel: np.ndarray | None = None) -> np.ndarray:
     """Table-estimated acceleration along a sensor axis, °/s², on the synced time grid.

@@ -21,6 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.plugins.analysis._common import (
+    INPUT_ACCEL_CHANNELS,
     group_of,
     input_accel_dps2,
     is_excited,
@@ -31,6 +32,7 @@ from aatest.plugins.analysis._common import (
     to_svg,
     whole_cycles,
 )
+from aatest.plugins.analysis.sync import SyncedSteps
 from aatest.results.frf import FrfResult
 from aatest.sync.freeze_pulse import SyncedStep
 
@@ -182,7 +184,14 @@ class FrfOptions(BaseModel):
 
 def channel_points(steps: Sequence[SyncedStep], sensor: SensorInfo, harmonics: int = HARMONICS
                    ) -> list[dict[str, Any]]:
-    """The FRF points of one sensor, sorted by group and frequency, phases unwrapped."""
+    """The FRF points of one sensor, sorted by group and frequency, phases unwrapped.
+
+    On the lazy steps of ``sync`` only the table's acceleration channels and this sensor's are
+    decoded and synchronised (:data:`INPUT_ACCEL_CHANNELS`): the same values as whole steps, at
+    about half the decoding cost per step.
+    """
+    if isinstance(steps, SyncedSteps):
+        steps = steps.only(table=INPUT_ACCEL_CHANNELS, daq=(sensor.channel,))
     points = [frf_point(s, sensor, harmonics)
               for s in select(steps, lambda p: is_excited(p, sensor))]
     points.sort(key=lambda p: (p["group"], p["frequency_hz"]))

@@ -27,6 +27,7 @@ from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis._common import (
+    INPUT_ACCEL_CHANNELS,
     group_of,
     input_accel_dps2,
     is_excited,
@@ -73,10 +74,6 @@ class TransferFunctionOptions(BaseModel):
     antialias_hz: float | Literal["auto", "none"] = Field("auto", description="Hz, auto, none")
 
 
-#: the table channels :func:`input_accel_dps2` reads
-_INPUT_CHANNELS = ("inner_accel_dps2", "outer_accel_dps2", "inner_position_deg")
-
-
 def xcorr_delay(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
     """Delay (s, whole samples) maximising the summed normalised input–output correlation.
 
@@ -89,7 +86,7 @@ def xcorr_delay(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, fl
 def _xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[str, float], float]:
     """:func:`xcorr_delay` and the steps' sample rate (Hz), each step synchronised once."""
     if isinstance(steps, SyncedSteps):
-        steps = steps.only(table=_INPUT_CHANNELS, daq=(sensor.channel,))
+        steps = steps.only(table=INPUT_ACCEL_CHANNELS, daq=(sensor.channel,))
     total, fs, max_lag = np.zeros(0), 0.0, 0
     for s in steps:
         if not fs:
