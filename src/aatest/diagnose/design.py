@@ -95,6 +95,8 @@ def column_names(spec: Spec, replay: Replay) -> list[str]:
     names += design_column_names(spec.linear)  # plugin effects (aatest.effects)
     for n in spec.ripple_cpd:
         names += [f"ripple{n:g}_s", f"ripple{n:g}_c"]
+        if "jerk_sensitivity" in spec.linear:  # the pickup sees the ripple's jerk too
+            names += [f"ripple{n:g}_js", f"ripple{n:g}_jc"]
     for s in replay.steps:
         for j in range(len(spec.vibration_hz)):
             names += [f"vib{s.index}_{j}_s", f"vib{s.index}_{j}_c"]
@@ -199,12 +201,18 @@ def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
     z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
     cols: dict[str, np.ndarray] = {}
     for n in spec.ripple_cpd:
-        names = (f"ripple{n:g}_s", f"ripple{n:g}_c")
-        if wanted.isdisjoint(names):
+        rnames = (f"ripple{n:g}_s", f"ripple{n:g}_c", f"ripple{n:g}_js", f"ripple{n:g}_jc")
+        if wanted.isdisjoint(rnames):
             continue
         rs, rc = _ripple_columns(sr, t_eval, n)
-        cols[names[0]] = _dynamics(z_inner * rs, spec, sr.dt_s)
-        cols[names[1]] = _dynamics(z_inner * rc, spec, sr.dt_s)
+        cols[rnames[0]] = _dynamics(z_inner * rs, spec, sr.dt_s)
+        cols[rnames[1]] = _dynamics(z_inner * rc, spec, sr.dt_s)
+        if wanted.intersection(rnames[2:]):
+            # jerk pickup acts on the whole motion: c·d/dt of the ripple's acceleration, whose
+            # size grows with the rate (a ripple term common to all rates cannot hold it);
+            # c times the ripple amplitude is linear in these two columns
+            cols[rnames[2]] = np.gradient(z_inner * rs, sr.dt_s)
+            cols[rnames[3]] = np.gradient(z_inner * rc, sr.dt_s)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
         names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
         if wanted.isdisjoint(names):

@@ -185,9 +185,14 @@ def fit_dynamics(ctx: Context) -> CandidateFit:
     out = CandidateFit("sensor_dynamics", fit, {"natural_frequency_hz": fn, "damping": zeta},
                        {"natural_frequency_hz": ci_fn, "damping": ci_z},
                        extra={"equivalent_lag_s": 2 * zeta / (2 * np.pi * fn)})
-    if ctx.within_sync_resolution(2 * zeta / (2 * np.pi * fn)) and not _droops(fn, zeta, ctx):
-        out.veto = ("its lag is within the sync's resolution and its magnitude is flat over "
-                    "the tested band")
+    if not _droops(fn, zeta, ctx):
+        # flat magnitude over the tested band: only a lag is left, which fixes neither fn nor
+        # ζ (a resonance far above the band, e.g. at the search bound, is a timing or logger
+        # chain mismatch); a lag is time_delay's signature, or a logger offset without latch
+        out.veto = ("its magnitude is flat over the tested band: only a lag shows, which "
+                    "determines neither natural frequency nor damping"
+                    + (" and is within the sync's resolution"
+                       if ctx.within_sync_resolution(2 * zeta / (2 * np.pi * fn)) else ""))
     return out
 
 
