@@ -35,7 +35,8 @@ _LINEAR_PARAMS = {"bias_temperature": ("bias_temperature", "coefficient_v_per_c"
 _SHAPE_RESET: dict[str, dict[str, Any]] = {
     "saturation": {"saturation_dps2": None}, "hysteresis": {"hysteresis_dps2": 0.0},
     "sensor_dynamics": {"dynamics": None}, "time_delay": {"delay_s": 0.0},
-    "rate_ripple": {"ripple_cpd": ()}, "motor_vibration": {"vibration_hz": ()}}
+    "rate_ripple": {"ripple_cpd": (), "ripple_motion_deg": ()},
+    "motor_vibration": {"vibration_hz": ()}}
 
 
 def without(spec: Spec, effect: str) -> Spec | None:
