@@ -30,6 +30,8 @@ _CORNER_GRID = 61
 _WHITTLE_ITER = 6
 #: a PSD bin beyond this quantile of the averaged-periodogram spread is a line, not noise
 _LINE_QUANTILE = 0.999
+#: bins either side of a line bin dropped with it (Hann main lobe ±2 bins, first sidelobe)
+_LINE_SKIRT_BINS = 3
 #: passes of line trimming (each re-fits the corner on the bins left)
 _TRIM_PASSES = 5
 #: fewest PSD bins a corner is fitted on
@@ -169,9 +171,13 @@ def estimate_corner_hz(freq: np.ndarray, psd: np.ndarray, fs: float, segments: i
         fc = _ml_corner(f[noise], p[noise], fs)
         model = _noise_model(_filter_h2(fc, f, fs), p, noise)[0]
         lines = noise & (p / model > limit)
-        if not lines.any() or noise.sum() - lines.sum() < _MIN_BINS:
+        if not lines.any():
             break
-        noise &= ~lines
+        # a line leaks into its window's main lobe and first sidelobes: drop those bins too
+        near = np.convolve(lines, np.ones(2 * _LINE_SKIRT_BINS + 1), mode="same") > 0
+        if (noise & ~near).sum() < _MIN_BINS:
+            break
+        noise &= ~near
     # within the estimate's resolution of the documented rig's filter: take the documented value
     return (DEFAULT_ANTIALIAS_HZ if abs(np.log(fc / DEFAULT_ANTIALIAS_HZ)) < SAME_CORNER_LOG
             else round(fc, 1))
