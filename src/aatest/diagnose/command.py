@@ -35,8 +35,11 @@ def summary(doc: dict[str, Any]) -> str:
     """A few lines a person reads first."""
     gain = doc["gain"]
     lines = [f"baseline residual {1e3 * doc['baseline']['rmse_v']:.3f} mV RMS (held-out)"]
-    if not doc["findings"]:
+    if not doc["findings"] and not doc.get("unexplained"):
         lines.append("no effect supported by the evidence: the nominal model explains the data")
+    elif not doc["findings"]:
+        lines.append("no vocabulary effect supported by the evidence, but the residual holds "
+                     "structure the vocabulary cannot name (unexplained, below)")
     for f in doc["findings"]:
         params = ", ".join(f"{k}={v:.4g}" for k, v in f["parameters"].items())
         lines.append(f"finding {f['effect']} ({f.get('attributed_to', 'sensor')}, "

@@ -51,6 +51,10 @@ class Spec:
     hysteresis_dps2: float = 0.0
     saturation_dps2: float | None = None
     ripple_cpd: tuple[float, ...] = ()
+    #: the table log's ripple lines, (cycles/°, sin, cos coefficient °) on the ripple
+    #: regressors: real motion, so the sensing element feels it with the commanded motion
+    #: (a cubic, clipping or backlash acts on the sum, the jerk pickup on its derivative)
+    ripple_motion_deg: tuple[tuple[float, float, float], ...] = ()
     vibration_hz: tuple[float, ...] = ()
     warp_ppm: float = 0.0
     #: warp about the record start (trigger-aligned loggers) instead of its middle (edge fit)
@@ -166,7 +170,7 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
     if not wanted & _SENSOR_COLUMNS and not plugin_wanted:
         return {}
     alpha3 = sensor_acceleration(sr, info.axis, t_eval, key)
-    sensed = alpha3[2]
+    sensed = alpha3[2] + _ripple_motion(sr, info, spec, t_eval)
     if spec.hysteresis_dps2 > 0.0 and sr.dynamic:
         sensed = play_operator(sensed, spec.hysteresis_dps2)
     cols: dict[str, np.ndarray] = {}
@@ -193,18 +197,36 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
     return cols
 
 
+def _ripple_motion(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray
+                   ) -> np.ndarray | float:
+    """Acceleration along the sensor axis of the ripple the table log shows (°/s²; 0 if none).
+
+    Linear terms are unchanged by it (the ripple columns span it), nonlinear ones are not:
+    a 2 cycles/° ripple at 60 °/s is a 120 Hz acceleration of hundreds of °/s², and the
+    sensing element's cubic, clipping and backlash act on the sum of it and the command.
+    """
+    if not spec.ripple_motion_deg or not sr.inner.moving:
+        return 0.0
+    z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
+    total = np.zeros_like(t_eval)
+    for n_cpd, a_sin, a_cos in spec.ripple_motion_deg:
+        acc_s, acc_c = _ripple_columns(sr, t_eval, n_cpd)
+        total += a_sin * acc_s + a_cos * acc_c
+    return z_inner * total
+
+
 def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
                    t_eval: np.ndarray, wanted: set[str]) -> dict[str, np.ndarray]:
     """Inner-axis ripple and vibration as seen along the sensor axis, through its dynamics."""
     z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
     cols: dict[str, np.ndarray] = {}
     for n in spec.ripple_cpd:
-        names = (f"ripple{n:g}_s", f"ripple{n:g}_c")
-        if wanted.isdisjoint(names):
+        rnames = (f"ripple{n:g}_s", f"ripple{n:g}_c")
+        if wanted.isdisjoint(rnames):
             continue
         rs, rc = _ripple_columns(sr, t_eval, n)
-        cols[names[0]] = _dynamics(z_inner * rs, spec, sr.dt_s)
-        cols[names[1]] = _dynamics(z_inner * rc, spec, sr.dt_s)
+        cols[rnames[0]] = _dynamics(z_inner * rs, spec, sr.dt_s)
+        cols[rnames[1]] = _dynamics(z_inner * rc, spec, sr.dt_s)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
         names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
         if wanted.isdisjoint(names):

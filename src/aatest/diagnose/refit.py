@@ -6,7 +6,8 @@ backward pass re-tests every accepted effect against the joint model — all nam
 generic extensions fitted together on held-out blocks — weakest first, and withdraws those
 whose removal no longer costs ΔBIC < −``BIC_THRESHOLD``. Every effect kept gets its own
 marginal evidence (held-out ΔBIC and RMS when it alone is removed) and, for the linear ones,
-parameters with 95 % intervals from the joint fit.
+parameters with 95 % intervals from the joint fit (reported as the finding's parameters; the
+value at acceptance held later effects and the unnamed structure at zero).
 
 Removing a timing effect does not give the nominal model back its alignment nuisance, so its
 marginal ΔBIC is, if anything, overstated: timing effects are never withdrawn wrongly.
@@ -34,7 +35,8 @@ _LINEAR_PARAMS = {"bias_temperature": ("bias_temperature", "coefficient_v_per_c"
 _SHAPE_RESET: dict[str, dict[str, Any]] = {
     "saturation": {"saturation_dps2": None}, "hysteresis": {"hysteresis_dps2": 0.0},
     "sensor_dynamics": {"dynamics": None}, "time_delay": {"delay_s": 0.0},
-    "rate_ripple": {"ripple_cpd": ()}, "motor_vibration": {"vibration_hz": ()}}
+    "rate_ripple": {"ripple_cpd": (), "ripple_motion_deg": ()},
+    "motor_vibration": {"vibration_hz": ()}}
 
 
 def without(spec: Spec, effect: str) -> Spec | None:
@@ -104,3 +106,7 @@ def _annotate(ctx: Context, joint: Joint, finding: Finding) -> None:
         column, key, per_scale = spec
         value, ci = linear_ci(ctx, joint.fit, column, divide_by_scale=per_scale)
         finding.extra["joint_fit"] = {"parameters": {key: value}, "ci95": {key: ci}}
+        # the joint model (every accepted effect and generic extension) is the estimate: the
+        # value at acceptance held the effects accepted later, or the unnamed structure, at 0
+        finding.parameters = {**finding.parameters, key: value}
+        finding.ci95 = {**finding.ci95, key: ci}

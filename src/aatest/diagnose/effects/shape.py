@@ -32,6 +32,8 @@ MIN_FREQUENCIES = 2
 #: search bounds of the damping ratio and of the natural frequency (Hz)
 DAMPING_BOUNDS = (0.05, 3.0)
 MAX_NATURAL_HZ = 1000.0
+#: a natural frequency within this share of its upper bound is the bound, not an estimate
+BOUND_MARGIN = 0.01
 #: a magnitude within this share of 1 at the highest tested frequency is "flat"
 FLAT_MAGNITUDE = 0.005
 #: a coarse fit must lower the residual by this share before an expensive refinement
@@ -185,7 +187,12 @@ def fit_dynamics(ctx: Context) -> CandidateFit:
     out = CandidateFit("sensor_dynamics", fit, {"natural_frequency_hz": fn, "damping": zeta},
                        {"natural_frequency_hz": ci_fn, "damping": ci_z},
                        extra={"equivalent_lag_s": 2 * zeta / (2 * np.pi * fn)})
-    if ctx.within_sync_resolution(2 * zeta / (2 * np.pi * fn)) and not _droops(fn, zeta, ctx):
+    if fn >= (1.0 - BOUND_MARGIN) * MAX_NATURAL_HZ:
+        # the fit ran to the search bound: no resonance inside the sampled band, only a
+        # mismatch of the fast parts of the chain (a large ripple's harmonics) it bends to fit
+        out.veto = (f"the natural frequency ran to the search bound ({MAX_NATURAL_HZ:g} Hz): "
+                    "the data locate no resonance")
+    elif ctx.within_sync_resolution(2 * zeta / (2 * np.pi * fn)) and not _droops(fn, zeta, ctx):
         out.veto = ("its lag is within the sync's resolution and its magnitude is flat over "
                     "the tested band")
     return out

@@ -142,7 +142,10 @@ def fit_ripple(ctx: Context) -> CandidateFit:
         out.veto = "the table log shows no (further) position-periodic error"
         return out
     n_round = round(n, 4)
-    fit = ctx.fit(replace_spec(ctx.current.spec, ripple_cpd=(*known, n_round)))
+    # a·sin(kθ + φ) = a·cos φ·sin kθ + a·sin φ·cos kθ: the line as real motion of the table
+    motion = (n_round, round(amp * float(np.cos(phase)), 12), round(amp * float(np.sin(phase)), 12))
+    fit = ctx.fit(replace_spec(ctx.current.spec, ripple_cpd=(*known, n_round),
+                               ripple_motion_deg=(*ctx.current.spec.ripple_motion_deg, motion)))
     params = {"cycles_per_deg": n_round, "amplitude_deg": amp}
     ci = {"cycles_per_deg": [n_round, n_round], "amplitude_deg": [amp - Z95 * u, amp + Z95 * u]}
     sine, cosine = fit.value(f"ripple{n_round:g}_s"), fit.value(f"ripple{n_round:g}_c")

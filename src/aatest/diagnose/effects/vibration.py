@@ -19,6 +19,8 @@ from aatest.diagnose.replay import StepReplay
 LINE_SNR = 25.0
 MAX_TONES = 6
 BAND_SEARCH_HZ = 10.0
+#: spectral bins either side of a known tone masked in the search for the next one
+KNOWN_TONE_BINS = 1.5
 _NPERSEG = 4096
 #: lines below this (Hz) are motion, not vibration
 MIN_LINE_HZ = 5.0
@@ -77,7 +79,9 @@ def _peak(steps: list[StepReplay], freqs: list[float], fs: float,
     if near is not None:
         band &= np.abs(f - near) <= BAND_SEARCH_HZ
     for known in freqs:
-        band &= np.abs(f - known) > 2.5 * fs / _NPERSEG
+        # known tones are fitted out of the residual already; their 1.5 bins stay masked (a
+        # wider mask hid the neighbours of a band's strongest tone: its power went missing)
+        band &= np.abs(f - known) > KNOWN_TONE_BINS * (f[1] - f[0])
     if not band.any():
         return None
     i = int(np.flatnonzero(band)[np.argmax(total[band])])
