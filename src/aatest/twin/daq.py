@@ -13,8 +13,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
-from aatest.twin.fastmath import standard_normal
-from aatest.twin.model import DaqModel, SensorModel
+from aatest.twin.model import DaqModel
 from aatest.twin.sensor import lowpass
 
 #: order of the Butterworth pre-sample filter
@@ -38,24 +37,6 @@ def quantise_adc(volts: np.ndarray, daq: DaqModel) -> np.ndarray:
     lo, hi = daq.adc_range_v
     lsb = (hi - lo) / 2**daq.adc_bits
     return np.clip(np.round((volts - lo) / lsb) * lsb + lo, lo, hi - lsb)
-
-
-def record_channel(clean_v: np.ndarray, sensor: SensorModel, daq: DaqModel, dt_s: float,
-                   rng: np.random.Generator) -> np.ndarray:
-    """Logged volts of one channel: (clean + noise) through the pre-sample filter, extra
-    white noise (slip ring, ``excess_noise``), then the ADC."""
-    signal_v = clean_v
-    if sensor.noise_rms_v:
-        gain = antialias_filter(float(daq.antialias_hz), round(dt_s, 15))[2] \
-            if daq.antialias_hz is not None else 1.0
-        signal_v = clean_v + (sensor.noise_rms_v / gain) * standard_normal(rng, clean_v.size)
-    filtered = noiseless(signal_v, daq, dt_s)
-    extra = [n.rms_v for n in (sensor.excess_noise, daq.slip_ring) if n is not None and n.rms_v]
-    if extra:
-        filtered = filtered + float(np.hypot.reduce(extra)) * standard_normal(rng, clean_v.size)
-    if daq.logger_error is not None:  # the logger's own gain and offset error (drawn)
-        filtered = (1.0 + daq.logger_error.gain_error) * filtered + daq.logger_error.offset_v
-    return quantise_adc(filtered, daq)
 
 
 def noiseless(clean_v: np.ndarray, daq: DaqModel, dt_s: float) -> np.ndarray:

@@ -353,8 +353,9 @@ def floor_rocking_block(table: TableModel, n: int, dt_s: float, rng: np.random.G
 
 def _record_block(clean_v: np.ndarray, sensor: SensorModel, daq: DaqModel, dt_s: float,
                   rng: np.random.Generator, state: ChannelState) -> np.ndarray:
-    """Logged volts of one block of a channel, as :func:`aatest.twin.daq.record_channel`
-    with the pre-sample filter continued from the previous block."""
+    """Logged volts of one block of a channel: (clean + noise) through the pre-sample filter
+    (continued from the previous block), extra white noise (slip ring, ``excess_noise``), the
+    logger's own gain and offset error, then the ADC."""
     signal_v = clean_v
     gain = 1.0
     if daq.antialias_hz is not None:
