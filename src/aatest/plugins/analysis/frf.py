@@ -51,6 +51,10 @@ class Tone:
     noise_power: float  # mean-square of the non-harmonic, non-DC content
     noise_bin_power: float  # mean one-sided |X|² per noise bin (peak-amplitude² units)
     coherent: bool
+    #: one-sided spectrum of the whole cycles analysed (peak amplitudes), and the fundamental's
+    #: bin in it: what :func:`local_ratio_noise_rel` compares, without a second FFT
+    spectrum: np.ndarray
+    cycles: int
 
     @property
     def thd(self) -> float:
@@ -87,13 +91,13 @@ def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float,
     noise = np.abs(spec[mask]) ** 2
     return Tone(fundamental=complex(spec[cycles]), amplitudes=amps,
                 noise_power=float(np.sum(noise)) / 2.0,
-                noise_bin_power=float(np.mean(noise)) if noise.size else 0.0, coherent=coherent)
+                noise_bin_power=float(np.mean(noise)) if noise.size else 0.0, coherent=coherent,
+                spectrum=spec, cycles=cycles)
 
 
-def local_ratio_noise_rel(x: np.ndarray, y: np.ndarray, frequency_hz: float, fs_hz: float
-                          ) -> float | None:
+def local_ratio_noise_rel(reference: Tone, output: Tone) -> float | None:
     """Standard uncertainty of the fundamental ratio Y₁/X₁, relative (= phase, rad), from the
-    bins next to it.
+    bins next to it (``reference`` X and ``output`` Y: the tones of one record).
 
     At a bin k near the fundamental, D_k = Y_k/Y₁ − X_k/X₁ is what the ratio would pick up if
     that bin's content sat at the fundamental: independent noise of output and reference adds
@@ -103,11 +107,9 @@ def local_ratio_noise_rel(x: np.ndarray, y: np.ndarray, frequency_hz: float, fs_
     |D_k|²/2) over the bins 3–40 away (harmonic bins excluded): half the power is tangential.
     Coherent records only (the fundamental's own leakage would dominate otherwise): None.
     """
-    n, cycles = whole_cycles(x.size, frequency_hz, fs_hz)
-    if abs(frequency_hz * n / fs_hz - cycles) >= _COHERENCE_TOL_CYCLES:
+    if not (reference.coherent and output.coherent):
         return None
-    xs, ys = np.asarray(x[:n], dtype=np.float64), np.asarray(y[:n], dtype=np.float64)
-    spec_x, spec_y = np.fft.rfft(xs - xs.mean()), np.fft.rfft(ys - ys.mean())
+    spec_x, spec_y, cycles = reference.spectrum, output.spectrum, reference.cycles
     near = np.concatenate([cycles - NEAR_BINS, cycles + NEAR_BINS])
     near = near[(near > 0) & (near < spec_x.size) & (near % cycles != 0)]
     if near.size == 0 or spec_x[cycles] == 0 or spec_y[cycles] == 0:
@@ -124,10 +126,9 @@ def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
     """
     step, fs = synced.step, synced.sample_rate_hz
     f0 = float(step.frequency_hz or 0.0)
-    accel = input_accel_dps2(synced, sensor.axis)
-    table = analyse_tone(accel, f0, fs, harmonics)
+    table = analyse_tone(input_accel_dps2(synced, sensor.axis), f0, fs, harmonics)
     sensor_tone = analyse_tone(synced.daq[sensor.channel], f0, fs, harmonics)
-    u_local = local_ratio_noise_rel(accel, synced.daq[sensor.channel], f0, fs)
+    u_local = local_ratio_noise_rel(table, sensor_tone)
     ratio = sensor_tone.fundamental / table.fundamental
     phase_rad = float(np.angle(ratio))
     u_rel = float(np.hypot(table.u_relative, sensor_tone.u_relative))
