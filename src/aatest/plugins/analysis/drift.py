@@ -214,22 +214,6 @@ def fit_allan(taus_s: np.ndarray, adev: np.ndarray) -> dict[str, float | None]:
             for name, root, part in zip(names, roots, share, strict=True)}
 
 
-def drift_of(time_s: np.ndarray, volts: np.ndarray, temperature_c: np.ndarray | None,
-             fs_hz: float, scale_v_per_dps2: float, average_s: float,
-             interval_s: float) -> dict[str, Any]:
-    """Bias drift, interval table and Allan deviation of one channel at rest, from whole arrays.
-
-    The ``fs_hz`` record (``volts``, V; ``time_s``, s, the logger's clock; ``temperature_c``,
-    °C) is reduced as one piece (:func:`reduce_record`) and passed to :func:`drift_of_reduced`.
-    """
-    channels = {"volts": volts}
-    if temperature_c is not None:
-        channels["temperature_c"] = temperature_c
-    piece = SampledLog("daq", fs_hz, time_s, channels)
-    reduced = reduce_record([piece], ["volts"], 0, average_s)
-    return drift_of_reduced(reduced, "volts", scale_v_per_dps2, average_s, interval_s)
-
-
 def drift_of_reduced(reduced: ReducedRecord, channel: str, scale_v_per_dps2: float,
                      average_s: float, interval_s: float) -> dict[str, Any]:
     """Bias drift, interval table and Allan deviation of one channel of a reduced record.
