@@ -36,6 +36,12 @@ report: {template: calibration-certificate, sign: false}
 STEPS = 8
 
 
+def _run_args(procedure: Path, run_dir: Path, *extra: str) -> list[str]:
+    """``aatest run`` of ``procedure`` into ``run_dir``, unattended (prompts auto-confirmed)."""
+    return ["run", str(procedure), "--out", str(run_dir), *extra, "--no-progress",
+            "--confirm-prompts", "auto"]
+
+
 def _aatest(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
         [sys.executable, "-m", "aatest.cli", *args],
@@ -58,9 +64,7 @@ def _first_step_file(run_dir: Path, process: subprocess.Popen[str], timeout_s: f
 def test_signal_mid_run_exits_3_and_resumes(tmp_path: Path, signum: signal.Signals) -> None:
     procedure, run_dir = tmp_path / "procedure.yaml", tmp_path / "run"
     procedure.write_text(PROCEDURE)
-    process = _aatest(
-        "run", str(procedure), "--out", str(run_dir), "--no-progress", "--confirm-prompts", "auto"
-    )
+    process = _aatest(*_run_args(procedure, run_dir))
     _first_step_file(run_dir, process, timeout_s=60.0)
     process.send_signal(signum)
     _out, err = process.communicate(timeout=60)
@@ -73,16 +77,7 @@ def test_signal_mid_run_exits_3_and_resumes(tmp_path: Path, signum: signal.Signa
     kept = list((run_dir / "steps").glob("*.mcap"))
     assert 1 <= len(kept) < STEPS
     assert json.loads((run_dir / "run_state.json").read_text())["finished"] is False
-    resumed = _aatest(
-        "run",
-        str(procedure),
-        "--out",
-        str(run_dir),
-        "--resume",
-        "--no-progress",
-        "--confirm-prompts",
-        "auto",
-    )
+    resumed = _aatest(*_run_args(procedure, run_dir, "--resume"))
     out, err = resumed.communicate(timeout=120)
     assert resumed.returncode == 0, err
     assert f"{STEPS} steps" in out
@@ -92,34 +87,12 @@ def test_second_run_on_a_locked_directory_exits_2_naming_the_holder(tmp_path: Pa
     procedure, run_dir = tmp_path / "procedure.yaml", tmp_path / "run"
     procedure.write_text(PROCEDURE.replace("samples: 40000", "samples: 2000"))
     with run_lock(run_dir):  # another run (here: this process) holds the directory
-        result = CliRunner().invoke(
-            app,
-            [
-                "run",
-                str(procedure),
-                "--out",
-                str(run_dir),
-                "--no-progress",
-                "--confirm-prompts",
-                "auto",
-            ],
-        )
+        result = CliRunner().invoke(app, _run_args(procedure, run_dir))
         assert result.exit_code == EXIT_BAD_INPUT, result.output
         assert f"in use by another aatest run (PID {os.getpid()}" in result.output
         assert not (run_dir / "run_state.json").exists()  # nothing was started
     assert (run_dir / LOCK_FILE).read_text().strip() == str(os.getpid())
-    result = CliRunner().invoke(
-        app,
-        [
-            "run",
-            str(procedure),
-            "--out",
-            str(run_dir),
-            "--no-progress",
-            "--confirm-prompts",
-            "auto",
-        ],
-    )
+    result = CliRunner().invoke(app, _run_args(procedure, run_dir))
     assert result.exit_code == 0, result.output  # the lock is released with its holder
 
 
@@ -127,18 +100,7 @@ def test_concurrent_resume_exits_2(tmp_path: Path) -> None:
     """Two real processes: ``run --resume`` exits 2 while another process holds the run."""
     procedure, run_dir = tmp_path / "procedure.yaml", tmp_path / "run"
     procedure.write_text(PROCEDURE.replace("samples: 40000", "samples: 2000"))
-    first = CliRunner().invoke(
-        app,
-        [
-            "run",
-            str(procedure),
-            "--out",
-            str(run_dir),
-            "--no-progress",
-            "--confirm-prompts",
-            "auto",
-        ],
-    )
+    first = CliRunner().invoke(app, _run_args(procedure, run_dir))
     assert first.exit_code == 0, first.output
     holder = subprocess.Popen(
         [
@@ -155,16 +117,7 @@ def test_concurrent_resume_exits_2(tmp_path: Path) -> None:
     )
     try:
         assert holder.stdout is not None and holder.stdout.readline().strip() == "locked"
-        second = _aatest(
-            "run",
-            str(procedure),
-            "--out",
-            str(run_dir),
-            "--resume",
-            "--no-progress",
-            "--confirm-prompts",
-            "auto",
-        )
+        second = _aatest(*_run_args(procedure, run_dir, "--resume"))
         _out, err = second.communicate(timeout=60)
         assert second.returncode == EXIT_BAD_INPUT, err
         assert f"(PID {holder.pid}," in err
