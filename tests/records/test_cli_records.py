@@ -24,9 +24,10 @@ def aatest(*args: str) -> tuple[int, str, str]:
     return result.exit_code, result.stdout, result.stderr
 
 
-def _two_runs(url: str, root: Path) -> list[Path]:
+def _runs(url: str, root: Path, count: int = 2) -> list[Path]:
+    """``count`` registered runs of the shipped scale-factor procedure (seeds 1, 2, …)."""
     runs = []
-    for seed in (1, 2):
+    for seed in range(1, count + 1):
         out = root / f"run{seed}"
         code, stdout, stderr = aatest("run", PROCEDURE, "--out", out, "--seed", str(seed),
                                       "--no-progress", "--records", url)
@@ -37,7 +38,7 @@ def _two_runs(url: str, root: Path) -> list[Path]:
 
 @pytest.fixture
 def two_runs(store_url: str, tmp_path: Path) -> tuple[str, list[Path]]:
-    return store_url, _two_runs(store_url, tmp_path)
+    return store_url, _runs(store_url, tmp_path)
 
 
 def test_two_runs_appear_in_history_with_distinct_certificates(
@@ -64,13 +65,13 @@ def test_two_runs_appear_in_history_with_distinct_certificates(
 
 
 def test_unknown_serial_is_bad_input(sqlite_url: str, tmp_path: Path) -> None:
-    _two_runs(sqlite_url, tmp_path)
+    _runs(sqlite_url, tmp_path, count=1)  # a store that holds another unit
     code, _, stderr = aatest("history", "Z9999", "--records", sqlite_url)
     assert code == 2 and "no calibration records of unit 'Z9999'" in stderr
 
 
 def test_reanalysis_and_resigning_supersede(sqlite_url: str, tmp_path: Path) -> None:
-    (run, _) = _two_runs(sqlite_url, tmp_path)
+    (run, _) = _runs(sqlite_url, tmp_path)
     first = json.loads((run / "results.json").read_text())["certificate_number"]
     assert aatest("keygen", tmp_path / "key")[0] == 0
     code, _, stderr = aatest("report", run, "--sign-key", tmp_path / "key", "--records", sqlite_url)
@@ -136,7 +137,7 @@ def test_unreachable_database_exits_2_and_keeps_the_files(tmp_path: Path) -> Non
 
 
 def test_records_show_and_export(sqlite_url: str, tmp_path: Path) -> None:
-    runs = _two_runs(sqlite_url, tmp_path)
+    runs = _runs(sqlite_url, tmp_path)
     number = json.loads((runs[0] / "results.json").read_text())["certificate_number"]
     code, stdout, stderr = aatest("records", "show", number, "--records", sqlite_url)
     assert code == 0, stderr
@@ -168,7 +169,7 @@ def test_diagnosis_is_registered_but_not_a_calibration(sqlite_url: str, tmp_path
     from aatest.records.models import RecordFilter
     from aatest.records.store import RecordStore
 
-    (run, _) = _two_runs(sqlite_url, tmp_path)
+    (run,) = _runs(sqlite_url, tmp_path, count=1)
     (run / "diagnosis.html").write_text("<html>diagnosis</html>", encoding="utf-8")
     with registering(sqlite_url, LabProfile(), "diagnose") as registrar:
         record_id = register_diagnosis(registrar, run, None)
@@ -179,4 +180,4 @@ def test_diagnosis_is_registered_but_not_a_calibration(sqlite_url: str, tmp_path
     assert diagnosis.command == "diagnose" and diagnosis.certificate_number is None
     assert diagnosis.bundle == str((run / "diagnosis.html").resolve())
     assert "diagnosis.html" in diagnosis.files and "recording.mcap" in diagnosis.files
-    assert len(history) == 2 and all(r.command == "run" for r in history)
+    assert len(history) == 1 and history[0].command == "run"

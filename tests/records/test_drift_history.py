@@ -55,19 +55,22 @@ def _at(moment: datetime) -> type[datetime]:
     return _Clock
 
 
-@pytest.fixture
-def aged_unit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
-    """Five registered calibrations of A1234; returns the records URL."""
+@pytest.fixture(scope="module")
+def aged_unit(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """Five registered calibrations of A1234, made once for the module (five runs); returns the
+    records URL. The tests only read the store."""
     from aatest.engine.run import runner
 
-    url = f"sqlite:///{tmp_path / 'records.sqlite'}"
-    for index, start in enumerate(STARTS):
-        monkeypatch.setattr(runner, "datetime", _at(start))
-        rig = _rig_file(tmp_path, index, _scale_at(start))
-        result = CliRunner().invoke(app, [
-            "run", str(PROCEDURE), "--rig", str(rig), "--out", str(tmp_path / f"cal{index}"),
-            "--seed", str(index + 1), "--no-progress", "--records", url])
-        assert result.exit_code == 0, result.output
+    folder = tmp_path_factory.mktemp("aged")
+    url = f"sqlite:///{folder / 'records.sqlite'}"
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        for index, start in enumerate(STARTS):
+            monkeypatch.setattr(runner, "datetime", _at(start))
+            rig = _rig_file(folder, index, _scale_at(start))
+            result = CliRunner().invoke(app, [
+                "run", str(PROCEDURE), "--rig", str(rig), "--out", str(folder / f"cal{index}"),
+                "--seed", str(index + 1), "--no-progress", "--records", url])
+            assert result.exit_code == 0, result.output
     return url
 
 

@@ -42,9 +42,18 @@ def _run_args(procedure: Path, run_dir: Path, *extra: str) -> list[str]:
             "--confirm-prompts", "auto"]
 
 
+#: ``python -m aatest.cli`` with the SIGINT handler an operator's terminal gives: a shell starts
+#: background jobs with SIGINT ignored, children inherit that and Python then installs no
+#: KeyboardInterrupt handler, so a suite run from a background job (as CI may be) would send a
+#: Ctrl-C the run never sees
+AATEST_AS_AT_A_TERMINAL = (
+    "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "sys.argv[0] = 'aatest'; runpy.run_module('aatest.cli', run_name='__main__')")
+
+
 def _aatest(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "aatest.cli", *args],
+        [sys.executable, "-c", AATEST_AS_AT_A_TERMINAL, *args],
         text=True,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
