@@ -129,6 +129,18 @@ def _motion(kind: str, f_hz: float, accel: float, t_tab: np.ndarray, delay: floa
     return -accel * np.sin(w * (t_tab - delay)), -accel * w * np.cos(w * (t_tab - delay))
 
 
+def write_step_csvs(out: Path, sid: str, table: np.ndarray, latch: bool, daq: np.ndarray,
+                    daq_header: str) -> None:
+    """Write a step's table and DAQ logs as the foreign system's CSV files (``{sid}_table.csv``,
+    ``{sid}_daq.csv``); the table's freeze-pulse latch column only when ``latch``."""
+    table_header = ("time_s,position_deg,rate_dps,accel_dps2,sync_pulse"
+                    + (",fp_latch_s" if latch else ""))
+    np.savetxt(out / f"{sid}_table.csv", table if latch else table[:, :5], delimiter=",",
+               header=table_header, comments="", fmt="%.12g")
+    np.savetxt(out / f"{sid}_daq.csv", daq, delimiter=",", comments="", fmt="%.12g",
+               header=daq_header)
+
+
 def write_dataset(out: Path, hidden: Hidden = Hidden(), samples: int = 16384, latch: bool = False,
                   seed: int = 0) -> Path:
     """Write ``out/dataset.yaml`` and one table/DAQ CSV pair per step; return ``out``."""
@@ -151,12 +163,8 @@ def write_dataset(out: Path, hidden: Hidden = Hidden(), samples: int = 16384, la
         daq = np.column_stack([t_daq + 1000.0, _square_100hz(t_daq), (t_tab >= 0).astype(int),
                                _sensor_v(rec, hidden, rng), rec.temp_c,
                                rng.normal(size=t_daq.size)])
-        table_cols = ("time_s,position_deg,rate_dps,accel_dps2,sync_pulse"
-                      + (",fp_latch_s" if latch else ""))
-        np.savetxt(out / f"{sid}_table.csv", table if latch else table[:, :5], delimiter=",",
-                   header=table_cols, comments="", fmt="%.12g")
-        np.savetxt(out / f"{sid}_daq.csv", daq, delimiter=",", comments="", fmt="%.12g",
-                   header="time_s,sync_pulse,trigger,v_sz,temperature_c,spare_channel")
+        write_step_csvs(out, sid, table, latch, daq,
+                        "time_s,sync_pulse,trigger,v_sz,temperature_c,spare_channel")
         sine = f"frequency_hz: {f_hz!r}, accel_dps2: {accel}, " if kind == "sine" else ""
         entries.append(f"  - {{id: {sid}, kind: {kind}, axis: inner, {sine}inner_deg: 0, "
                        f"outer_deg: 0, table: {sid}_table.csv, daq: {sid}_daq.csv}}")

@@ -32,6 +32,7 @@ from foreign_dataset import (
     RANGE_DPS2,
     _square_100hz,
     _table_log,
+    write_step_csvs,
 )
 from scipy import signal
 
@@ -186,12 +187,7 @@ def write_multi(out: Path, effects: tuple[Effect, ...] = (), samples: int = 8192
         session_s += float(t_daq[-1])
         daq = np.column_stack([t_daq + 1000.0, _square_100hz(t_daq), (t_tab >= 0).astype(int),
                                _sensor_v(rec, fx, rng), np.full(t_daq.size, temp_c)])
-        cols = ("time_s,position_deg,rate_dps,accel_dps2,sync_pulse"
-                + (",fp_latch_s" if latch else ""))
-        np.savetxt(out / f"{sid}_table.csv", table if latch else table[:, :5], delimiter=",",
-                   header=cols, comments="", fmt="%.12g")
-        np.savetxt(out / f"{sid}_daq.csv", daq, delimiter=",", comments="", fmt="%.12g",
-                   header="time_s,sync_pulse,trigger,v_sz,temperature_c")
+        write_step_csvs(out, sid, table, latch, daq, "time_s,sync_pulse,trigger,v_sz,temperature_c")
         sine = f"frequency_hz: {f_hz!r}, accel_dps2: {accel}, " if kind == "sine" else ""
         entries.append(f"  - {{id: {sid}, kind: {kind}, axis: inner, {sine}inner_deg: 0, "
                        f"outer_deg: 0, temperature_c: {temp_c}, table: {sid}_table.csv, "
