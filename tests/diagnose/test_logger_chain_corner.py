@@ -8,12 +8,16 @@ rig's 100 Hz filter is a 0.25 ms lead — a spurious ``jerk_sensitivity``. Lines
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import signal
 
 from aatest.diagnose.effects.logger import WELCH_SEGMENT
-from aatest.diagnose.logger_chain import DEFAULT_ANTIALIAS_HZ, estimate_corner_hz
+from aatest.diagnose.logger_chain import DEFAULT_ANTIALIAS_HZ, estimate_corner_hz, stated_antialias
+from aatest.engine.dataset import Dataset
+from aatest.engine.errors import ProcedureError
 from aatest.twin.daq import antialias_filter
 
 FS_HZ = 2000.0
@@ -59,3 +63,24 @@ def test_another_corner_is_estimated_not_snapped() -> None:
     fc = estimate_corner_hz(f, p, FS_HZ, k)
     assert fc != DEFAULT_ANTIALIAS_HZ
     assert fc == pytest.approx(160.0, rel=0.05)
+
+
+def _dataset_with_model_file(folder: Path, text: str) -> Dataset:
+    (folder / "model.yaml").write_text(text)
+    return Dataset(procedure="imported", sample_rate_hz=FS_HZ, sensors=(), steps=(),
+                   source=folder, metadata={"model_file": "model.yaml"})
+
+
+def test_a_model_file_states_the_filter_only_when_it_describes_the_logger(tmp_path: Path) -> None:
+    sensor_only = _dataset_with_model_file(
+        tmp_path, "sensors:\n  - {channel: v_sz, axis: I, scale_v_per_dps2: 0.004}\n")
+    assert stated_antialias(sensor_only) == (False, None)  # estimated from the noise instead
+    with_logger = _dataset_with_model_file(tmp_path, "daq: {antialias_hz: 160.0}\n")
+    assert stated_antialias(with_logger) == (True, 160.0)
+
+
+def test_a_broken_model_file_is_bad_input_naming_it(tmp_path: Path) -> None:
+    broken = _dataset_with_model_file(tmp_path, "daq: {antialias_hz: [1,}\n")
+    with pytest.raises(ProcedureError) as raised:
+        stated_antialias(broken)
+    assert str(raised.value).startswith(f"{tmp_path / 'model.yaml'}:1:")

@@ -60,13 +60,13 @@ def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
         return True, DEFAULT_ANTIALIAS_HZ
     path = dataset.metadata.get("model_file")
     if isinstance(path, str):
-        try:
-            from aatest.twin.model import load_rig_model
+        from aatest.twin.model import load_rig_model
 
-            rig = load_rig_model(dataset.source / path)
+        # an unreadable or invalid model file is the dataset's error (ProcedureError naming its
+        # file, line and field), not a logger without a stated filter
+        rig = load_rig_model(dataset.source / path)
+        if "daq" in rig.model_fields_set:  # a sensor-only model file states no logger
             return True, rig.daq.antialias_hz
-        except Exception:  # noqa: BLE001 - a sensor-only model file states no logger
-            return False, None
     return False, None
 
 
