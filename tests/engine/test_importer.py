@@ -229,6 +229,46 @@ def test_a_bad_table_file_is_reported_before_its_daq_file(
     assert info.value.path == str(table)
 
 
+def two_step_dir(root: Path, columns: tuple) -> Path:
+    """An import directory of two identical steps, ``s01`` and ``s02``."""
+    step = MANIFEST[MANIFEST.index("  - id: s01"):]
+    manifest = MANIFEST + step.replace("s01", "s02")
+    directory = make_import_dir(root, *columns, manifest)
+    for kind in ("table", "daq"):
+        (directory / f"s02_{kind}.csv").write_bytes((directory / f"s01_{kind}.csv").read_bytes())
+    return directory
+
+
+@pytest.mark.parametrize("later_damage", ["malformed", "missing"])
+def test_errors_keep_manifest_order_across_steps(
+    tmp_path: Path, columns: tuple, later_damage: str
+) -> None:
+    """Files are parsed largest first, several at a time; the error reported is still the one
+    a sequential read meets first: step 1's (small) DAQ file before step 2's larger table."""
+    directory = two_step_dir(tmp_path, columns)
+    daq = directory / "s01_daq.csv"
+    daq.write_text(_damage(daq.read_text(), "non_numeric")[0])
+    later = directory / "s02_table.csv"
+    if later_damage == "missing":
+        later.unlink()
+    else:
+        text, _ = _damage(later.read_text(), "non_numeric")
+        later.write_text(text + text[text.index("\n") + 1:])  # twice the size, parsed first
+    with pytest.raises(ImportDataError) as info:
+        import_dataset(directory)
+    assert (info.value.path, info.value.line) == (str(daq), 8)
+
+
+def test_steps_keep_their_own_files(tmp_path: Path, columns: tuple) -> None:
+    """Parsed out of order, each step still gets its own two files."""
+    directory = two_step_dir(tmp_path, columns)
+    table = directory / "s02_table.csv"
+    table.write_text(table.read_text().replace("\n12.5,", "\n12.25,", 1))
+    first, second = import_dataset(directory).steps
+    assert (first.table.time_s[0], second.table.time_s[0]) == (12.5, 12.25)
+    assert first.step.id == "s01" and second.step.id == "s02"
+
+
 def test_sine_step_without_frequency_is_rejected(tmp_path: Path, columns: tuple) -> None:
     directory = make_import_dir(tmp_path, *columns, MANIFEST.replace("    frequency_hz: 5.0\n", ""))
     with pytest.raises(DatasetFileError, match="needs frequency_hz and accel_dps2"):
@@ -305,6 +345,7 @@ PARITY_CASES |= {
     "overflow": "time_s,a\n0,1e999\n",
     "extra_field": "time_s,a\n0,1\n1,2,3\n",
     "header_then_blank": "time_s,a\n\n0,1\n",
+    "finite_values_whose_sum_overflows": "time_s,a\n0,1.7e308\n1,1.7e308\n",
 }
 #: byte strings that are not UTF-8 (the tolerant path refuses them wherever they are)
 PARITY_BYTES = {

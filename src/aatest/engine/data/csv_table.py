@@ -75,7 +75,7 @@ class CsvColumns:
                 self.path, f"column {name!r} must be 0 or 1, found {values[bad[0]]!r}",
                 line=int(self.row_lines[bad[0]]),
             )
-        return values.astype(np.uint8)
+        return _read_only(values.astype(np.uint8))
 
 
 def _split_lines(path: Path) -> list[str]:
@@ -192,8 +192,11 @@ def _wanted(
 def _checked(table: CsvColumns) -> CsvColumns:
     """Every wanted cell finite and the time column strictly increasing, else a located error."""
     for name, values in table.columns.items():
-        if np.isfinite(values).all():  # one pass; the row is only looked for on failure
-            continue
+        # a NaN or ±inf makes the sum non-finite: one pass without a temporary array; the
+        # exact check (a finite sum can also overflow) runs only then
+        with np.errstate(over="ignore", invalid="ignore"):
+            if np.isfinite(np.add.reduce(values)):
+                continue
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             raise ImportDataError(table.path, f"column {name!r} is not a finite number",
