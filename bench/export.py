@@ -145,8 +145,11 @@ def main() -> None:
         return
     recorder = RunRecorder(base / "run")
     recorder.write_run_metadata({"procedure": "bench", "plan": []})
-    for data in _twin_steps(args.steps, args.samples)[: args.steps]:
-        recorder.write_step(data.step, data.table, data.daq)
+    simulated = _twin_steps(args.steps, args.samples)  # at most 4 distinct, reused cyclically
+    for i in range(args.steps):
+        data = simulated[i % len(simulated)]
+        recorder.write_step(data.step.model_copy(update={"id": f"s{i + 1:03d}"}), data.table,
+                            data.daq)
     dataset = read_dataset(recorder.finalize())
     load_before = _load()
     timings: dict[str, list[Timing]] = {k: [] for k in ("new export", "new import",
