@@ -424,3 +424,21 @@ def test_plain_csv_takes_the_arrow_path(tmp_path: Path, monkeypatch: pytest.Monk
     assert got.row_lines.tolist() == [2, 3, 4]
     assert got.columns["a"].view(np.uint64).tolist() == np.array([1.5, 2.0, -0.0]).view(
         np.uint64).tolist()
+
+
+def test_plain_numeric_csv_is_never_copied_into_python(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A file of wanted numeric columns only is parsed by Arrow from the file itself: no Python
+    copy of its text, no scan of it (the reason import is fast), yet located errors remain."""
+    from aatest.engine.data import csv_table
+
+    path = tmp_path / "x.csv"
+    path.write_text("time_s,a\n0,1.5\n0.5,2\n")
+    with monkeypatch.context() as patch:
+        patch.setattr(Path, "read_bytes", lambda self: pytest.fail(f"{self} read into Python"))
+        got = csv_table.read_csv(path, ["time_s", "a"])
+    assert got.columns["a"].tolist() == [1.5, 2.0]
+    path.write_text("time_s,a\n0,1.5\n0.5,2x\n")
+    with pytest.raises(ImportDataError, match=r"x\.csv:3: column 'a': '2x' is not a number"):
+        csv_table.read_csv(path, ["time_s", "a"])
