@@ -229,6 +229,46 @@ def test_a_bad_table_file_is_reported_before_its_daq_file(
     assert info.value.path == str(table)
 
 
+def two_step_dir(root: Path, columns: tuple) -> Path:
+    """An import directory of two identical steps, ``s01`` and ``s02``."""
+    step = MANIFEST[MANIFEST.index("  - id: s01"):]
+    manifest = MANIFEST + step.replace("s01", "s02")
+    directory = make_import_dir(root, *columns, manifest)
+    for kind in ("table", "daq"):
+        (directory / f"s02_{kind}.csv").write_bytes((directory / f"s01_{kind}.csv").read_bytes())
+    return directory
+
+
+@pytest.mark.parametrize("later_damage", ["malformed", "missing"])
+def test_errors_keep_manifest_order_across_steps(
+    tmp_path: Path, columns: tuple, later_damage: str
+) -> None:
+    """Files are parsed largest first, several at a time; the error reported is still the one
+    a sequential read meets first: step 1's (small) DAQ file before step 2's larger table."""
+    directory = two_step_dir(tmp_path, columns)
+    daq = directory / "s01_daq.csv"
+    daq.write_text(_damage(daq.read_text(), "non_numeric")[0])
+    later = directory / "s02_table.csv"
+    if later_damage == "missing":
+        later.unlink()
+    else:
+        text, _ = _damage(later.read_text(), "non_numeric")
+        later.write_text(text + text[text.index("\n") + 1:])  # twice the size, parsed first
+    with pytest.raises(ImportDataError) as info:
+        import_dataset(directory)
+    assert (info.value.path, info.value.line) == (str(daq), 8)
+
+
+def test_steps_keep_their_own_files(tmp_path: Path, columns: tuple) -> None:
+    """Parsed out of order, each step still gets its own two files."""
+    directory = two_step_dir(tmp_path, columns)
+    table = directory / "s02_table.csv"
+    table.write_text(table.read_text().replace("\n12.5,", "\n12.25,", 1))
+    first, second = import_dataset(directory).steps
+    assert (first.table.time_s[0], second.table.time_s[0]) == (12.5, 12.25)
+    assert first.step.id == "s01" and second.step.id == "s02"
+
+
 def test_sine_step_without_frequency_is_rejected(tmp_path: Path, columns: tuple) -> None:
     directory = make_import_dir(tmp_path, *columns, MANIFEST.replace("    frequency_hz: 5.0\n", ""))
     with pytest.raises(DatasetFileError, match="needs frequency_hz and accel_dps2"):
@@ -289,17 +329,50 @@ PARITY_CASES |= {
     "no_final_newline": "time_s,a\n0,1\n1,2",
 }
 
+# what the Arrow path must refuse (or read identically) although no Python pass looks at the
+# rows: Arrow alone decides that a file is plain
+PARITY_CASES |= {
+    "comment_in_unparsed_first_column": "note,time_s,a\nx,0,1\n# c,0.5,2\ny,1,3\n",
+    "whitespace_line": "time_s,a\n0,1\n   \n1,2\n",
+    "crlf_rows_after_lf_header": "time_s,a\n0,1\r\n1,2\r\n",
+    "cr_only": "time_s,a\r0,1\r1,2\r",
+    "quoted_number": 'time_s,a\n0,"1"\n1,2\n',
+    "quote_in_unparsed_text": 'time_s,a,note\n0,1,say "hi"\n1,2,r\n',
+    "nul_in_unparsed_text": "time_s,a,note\n0,1,x\x00\n1,2,y\n",
+    "nul_in_number": "time_s,a\n0,1\x00\n1,2\n",
+    "plus_sign": "time_s,a\n0,+1.5\n1,2\n",
+    "exponent_forms": "time_s,a\n0,1E3\n1,-2.5e-310\n2,1e+17\n",
+    "overflow": "time_s,a\n0,1e999\n",
+    "extra_field": "time_s,a\n0,1\n1,2,3\n",
+    "header_then_blank": "time_s,a\n\n0,1\n",
+    "finite_values_whose_sum_overflows": "time_s,a\n0,1.7e308\n1,1.7e308\n",
+}
+#: byte strings that are not UTF-8 (the tolerant path refuses them wherever they are)
+PARITY_BYTES = {
+    "latin1_in_unparsed_text": b"time_s,a,note\n0,1,caf\xe9\n1,2,y\n",
+    "utf8_in_unparsed_text": "time_s,a,note\n0,1,caf\u00e9\n1,2,y\n".encode(),
+}
 
-@pytest.mark.parametrize("name", list(PARITY_CASES), ids=list(PARITY_CASES))
+
+def _parity_bytes(name: str) -> bytes:
+    return PARITY_BYTES[name] if name in PARITY_BYTES else PARITY_CASES[name].encode()
+
+
+@pytest.mark.parametrize("name", [*PARITY_CASES, *PARITY_BYTES],
+                         ids=[*PARITY_CASES, *PARITY_BYTES])
 def test_arrow_and_tolerant_csv_paths_agree(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:
     """The Arrow fast path accepts and rejects exactly what the tolerant path does, with the
     same located messages and bit-identical values."""
+    assert_paths_agree(tmp_path / "x.csv", _parity_bytes(name), monkeypatch)
+
+
+def assert_paths_agree(path: Path, data: bytes, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Read ``data`` through both CSV paths; the outcomes must be identical."""
     from aatest.engine.data import csv_table
 
-    path = tmp_path / "x.csv"
-    path.write_bytes(PARITY_CASES[name].encode())
+    path.write_bytes(data)
 
     def outcome() -> object:
         try:
@@ -309,9 +382,36 @@ def test_arrow_and_tolerant_csv_paths_agree(
         return ({k: v.view(np.uint64).tolist() for k, v in got.columns.items()},
                 got.header, got.row_lines.tolist())
 
-    fast = outcome()
-    monkeypatch.setattr(csv_table, "_read_plain", lambda *args: None)
-    assert fast == outcome()
+    with monkeypatch.context() as patch:
+        fast = outcome()
+        patch.setattr(csv_table, "_read_plain", lambda *args: None)
+        assert fast == outcome()
+
+
+_CELLS = st.sampled_from(["0", "1", "-0.0", "1.5", "2e-3", " 1", "1 ", "+1", "x", "", "nan",
+                          '"1"', "# c", "1e999", "\x00", "caf\u00e9"])
+_LINE_ENDS = st.sampled_from(["\n", "\r\n", "\r"])
+
+
+@settings(max_examples=150, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    header=st.sampled_from(["time_s,a", "time_s,a,note", "note,time_s,a", "a,time_s"]),
+    rows=st.lists(st.lists(_CELLS, min_size=1, max_size=4), min_size=0, max_size=5),
+    ends=st.lists(_LINE_ENDS, min_size=6, max_size=6),
+    final_end=st.booleans(),
+)
+def test_paths_agree_on_generated_csv(
+    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch, header: str,
+    rows: list[list[str]], ends: list[str], final_end: bool,
+) -> None:
+    """Generated near-plain files (odd cells, field counts and line ends): the two paths agree."""
+    lines = [header, *(",".join(row) for row in rows)]
+    text = "".join(line + end for line, end in zip(lines, ends, strict=False))
+    if not final_end:
+        text = text.rstrip("\r\n")
+    path = tmp_path_factory.mktemp("parity") / "x.csv"
+    assert_paths_agree(path, text.encode(), monkeypatch)
 
 
 def test_plain_csv_takes_the_arrow_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -324,3 +424,21 @@ def test_plain_csv_takes_the_arrow_path(tmp_path: Path, monkeypatch: pytest.Monk
     assert got.row_lines.tolist() == [2, 3, 4]
     assert got.columns["a"].view(np.uint64).tolist() == np.array([1.5, 2.0, -0.0]).view(
         np.uint64).tolist()
+
+
+def test_plain_numeric_csv_is_never_copied_into_python(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A file of wanted numeric columns only is parsed by Arrow from the file itself: no Python
+    copy of its text, no scan of it (the reason import is fast), yet located errors remain."""
+    from aatest.engine.data import csv_table
+
+    path = tmp_path / "x.csv"
+    path.write_text("time_s,a\n0,1.5\n0.5,2\n")
+    with monkeypatch.context() as patch:
+        patch.setattr(Path, "read_bytes", lambda self: pytest.fail(f"{self} read into Python"))
+        got = csv_table.read_csv(path, ["time_s", "a"])
+    assert got.columns["a"].tolist() == [1.5, 2.0]
+    path.write_text("time_s,a\n0,1.5\n0.5,2x\n")
+    with pytest.raises(ImportDataError, match=r"x\.csv:3: column 'a': '2x' is not a number"):
+        csv_table.read_csv(path, ["time_s", "a"])

@@ -10,10 +10,12 @@ without data rows, a missing or duplicated column, a row with a different number
 than the header (a truncated last row), a cell that is not a finite number, and a time column
 that is not strictly increasing.
 
-Parsing. A plain file — ASCII, ``\n`` line ends, no quotes, no blank or comment line — is read
-by Arrow's C++ CSV reader (``pyarrow.csv``, one thread per file), its data rows then lying on
-consecutive lines. Anything else, and any file Arrow refuses, takes
-the tolerant path: one ``np.loadtxt`` call over the kept lines, and only when that fails a
+Parsing. A plain file — an ASCII header of unquoted names, then one row of numbers per line,
+no quotes, no blank or comment line — is read once, by Arrow's C++ CSV reader (``pyarrow.csv``,
+one thread per file, memory-mapped, known float64 column types), and Arrow alone decides that it
+is plain: it refuses anything else, and its data rows then lie on consecutive lines, so no Python
+pass over the text is needed (:func:`_read_plain`). Anything else, and any file Arrow refuses,
+takes the tolerant path: one ``np.loadtxt`` call over the kept lines, and only when that fails a
 per-row scan (Python, error path only) finds the first offending line to report. Both paths
 accept and reject the same files with the same messages.
 """
@@ -32,8 +34,12 @@ import pyarrow.csv as pa_csv
 from aatest.engine.errors import ImportDataError
 
 TIME_COLUMN = "time_s"
-#: bytes that send a file to the tolerant path (CR line ends, NUL, quotes)
+#: bytes in the header line that send a file to the tolerant path (CR line ends, NUL, quotes)
 _NOT_PLAIN = (b"\r", b"\x00", b'"')
+#: bytes read to find the header line (a longer header takes the tolerant path)
+_HEADER_PROBE_BYTES = 1 << 16
+#: Arrow's parse block, bytes (its default; each block becomes one chunk of every column)
+_BLOCK_BYTES = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -69,7 +75,7 @@ class CsvColumns:
                 self.path, f"column {name!r} must be 0 or 1, found {values[bad[0]]!r}",
                 line=int(self.row_lines[bad[0]]),
             )
-        return values.astype(np.uint8)
+        return _read_only(values.astype(np.uint8))
 
 
 def _split_lines(path: Path) -> list[str]:
@@ -186,6 +192,11 @@ def _wanted(
 def _checked(table: CsvColumns) -> CsvColumns:
     """Every wanted cell finite and the time column strictly increasing, else a located error."""
     for name, values in table.columns.items():
+        # a NaN or ±inf makes the sum non-finite: one pass without a temporary array; the
+        # exact check (a finite sum can also overflow) runs only then
+        with np.errstate(over="ignore", invalid="ignore"):
+            if np.isfinite(np.add.reduce(values)):
+                continue
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             raise ImportDataError(table.path, f"column {name!r} is not a finite number",
@@ -195,58 +206,87 @@ def _checked(table: CsvColumns) -> CsvColumns:
     return table
 
 
-def _plain_header(raw: bytes) -> tuple[int, tuple[str, ...]] | None:
-    """(header line index, names) when the file may take the Arrow path, else None.
+def _plain_header(path: Path) -> tuple[str, ...] | None:
+    """The header names when the file may take the Arrow path, else None.
 
-    Only single-byte searches (memchr speed, no copies); blank and comment lines are caught
-    after parsing, by the row count (:func:`_read_plain`).
+    Only the first line is read: an ASCII header of distinct, unpadded, unquoted names ended by
+    ``\n`` and followed by a data row. Everything after it is Arrow's to judge (see
+    :func:`_read_plain`), so a plain file is read once, by Arrow, and never scanned in Python.
     """
-    end = raw.find(b"\n")
-    if end <= 0 or raw[end + 1: end + 2] in (b"", b"\n") or raw.startswith(b"#"):
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(_HEADER_PROBE_BYTES)
+    except OSError:
+        return None  # the tolerant path reports it
+    end = head.find(b"\n")
+    if end <= 0 or head[end + 1: end + 2] in (b"", b"\n", b"\r") or head.startswith(b"#"):
         return None
-    if not raw.isascii():
+    line = head[:end]
+    if not line.isascii() or any(line.find(c) >= 0 for c in _NOT_PLAIN):
         return None
-    if any(raw.find(c) >= 0 for c in _NOT_PLAIN):
-        return None
-    names = tuple(raw[:end].decode("ascii").split(","))
+    names = tuple(line.decode("ascii").split(","))
     if len(set(names)) != len(names) or not all(n == n.strip() and n for n in names):
         return None
-    return 0, names
+    return names
+
+
+def _has_text_hazards(raw: bytes) -> bool:
+    """True when a file with unparsed (text) columns holds what the tolerant path treats
+    specially there: non-ASCII bytes (it checks UTF-8), NUL, or ``#`` (a comment line whose
+    first column is not parsed would otherwise be read as a row)."""
+    return not raw.isascii() or raw.find(b"\x00") >= 0 or raw.find(b"#") >= 0
 
 
 def _read_plain(path: Path, required: Sequence[str], optional: Sequence[str]) -> CsvColumns | None:
     """The Arrow path (see the module docstring); None when the file is not plain or Arrow
-    refuses it, so that the tolerant path reads it or reports the located error."""
-    try:
-        raw = path.read_bytes()
-    except OSError:
-        return None  # the tolerant path reports it
-    plain = _plain_header(raw)
-    if plain is None:
+    refuses it, so that the tolerant path reads it or reports the located error.
+
+    Why one Arrow pass is enough. With quoting off and empty lines not skipped, every line
+    after the header must be a row of exactly the header's field count whose parsed cells
+    are numbers; a blank line, a comment line, a quoted cell, a truncated row or text in a
+    number makes Arrow refuse the file. Rows therefore lie on consecutive lines (their line
+    numbers are arithmetic), and no line count or byte scan is needed. Only when the header
+    has columns that are not parsed (free text) is the file scanned first, for the bytes the
+    tolerant path would treat differently there (:func:`_has_text_hazards`).
+    """
+    header = _plain_header(path)
+    if header is None:
         return None
-    header_index, header = plain
-    wanted = _wanted(path, header, header_index, required, optional)
+    wanted = _wanted(path, header, 0, required, optional)
     try:
-        table = pa_csv.read_csv(
-            # zero-copy: Arrow's threads never call back into Python; the stubs omit NativeFile
-            pa.BufferReader(raw),  # type: ignore[arg-type]
-            # one thread per file: files are read two at a time (importer), and on a busy
-            # 2-core machine Arrow's block threads cost more CPU than they save wall time
-            read_options=pa_csv.ReadOptions(column_names=list(header), skip_rows=1,
-                                            use_threads=False),
-            parse_options=pa_csv.ParseOptions(newlines_in_values=False),
-            convert_options=pa_csv.ConvertOptions(
-                include_columns=wanted, column_types={n: pa.float64() for n in wanted},
-                strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[]),
-        )
-    except (pa.ArrowInvalid, pa.ArrowTypeError):
+        if len(wanted) < len(header):
+            raw = path.read_bytes()
+            if _has_text_hazards(raw):
+                return None
+            table = _arrow_table(pa.BufferReader(raw), header, wanted)  # zero-copy
+        else:
+            with pa.memory_map(str(path)) as source:  # no Python copy of the text at all
+                table = _arrow_table(source, header, wanted)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, OSError):
         return None
-    lines = raw.count(b"\n") + (not raw.endswith(b"\n"))
-    if table.num_rows == 0 or table.num_rows != lines - header_index - 1:
-        return None  # Arrow skipped blank lines: their numbers are the tolerant path's job
     columns = {n: _read_only(table.column(n).to_numpy()) for n in wanted}
-    rows = np.arange(table.num_rows, dtype=np.int64) + header_index + 2
+    rows = np.arange(table.num_rows, dtype=np.int64) + 2
     return CsvColumns(path, columns, header, rows)
+
+
+def _arrow_table(source: pa.NativeFile, header: tuple[str, ...], wanted: list[str]) -> pa.Table:
+    """Arrow's strict parse of the data rows: the ``wanted`` columns as float64.
+
+    ``column_types`` skips type inference; quoting off and ``ignore_empty_lines=False`` make
+    Arrow refuse anything that is not one row per line (see :func:`_read_plain`).
+    """
+    return pa_csv.read_csv(
+        source,  # type: ignore[arg-type]  # the stubs omit NativeFile
+        # one thread per file: files are read two at a time (importer), and on a busy
+        # 2-core machine Arrow's block threads cost more CPU than they save wall time
+        read_options=pa_csv.ReadOptions(column_names=list(header), skip_rows=1,
+                                        use_threads=False, block_size=_BLOCK_BYTES),
+        parse_options=pa_csv.ParseOptions(quote_char=False, newlines_in_values=False,
+                                          ignore_empty_lines=False),
+        convert_options=pa_csv.ConvertOptions(
+            include_columns=wanted, column_types={n: pa.float64() for n in wanted},
+            strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[]),
+    )
 
 
 def _read_only(values: np.ndarray) -> np.ndarray:

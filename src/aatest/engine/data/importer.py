@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -50,6 +51,8 @@ DEFAULT_T_REF_C = 25.0
 TABLE_REQUIRED = ("time_s", "position_deg", "rate_dps", "accel_dps2", "sync_pulse")
 DAQ_REQUIRED = ("time_s", "sync_pulse", "trigger")
 _MOTION = ("position_deg", "rate_dps", "accel_dps2")
+#: threads parsing CSV files (Arrow's single-threaded parser each; see ``_read_files``)
+_READERS = 2
 
 
 class DatasetFileError(ImportDataError, ProblemsError):
@@ -167,9 +170,10 @@ def _table_log(entry: StepEntry, csv: CsvColumns, rate_hz: float) -> tuple[Sampl
         if name in csv.columns and name not in channels and name != "sync_pulse":
             channels[name] = csv.columns[name]
             present.append(name)
-    channels.setdefault(f"{other}_position_deg", np.full(n, rest_deg))
-    channels.setdefault(f"{other}_rate_dps", np.zeros(n))
-    channels.setdefault(f"{other}_accel_dps2", np.zeros(n))
+    for name, value in ((f"{other}_position_deg", rest_deg), (f"{other}_rate_dps", 0.0),
+                        (f"{other}_accel_dps2", 0.0)):
+        if name not in channels:
+            channels[name] = _filled(n, value)
     for axis in ("inner", "outer"):
         channels.setdefault(f"{axis}_feedback_deg", channels[f"{axis}_position_deg"])
     channels["sync_pulse"] = csv.binary("sync_pulse")
@@ -192,10 +196,18 @@ def _daq_log(entry: StepEntry, csv: CsvColumns, rate_hz: float, sensors: list[st
         present.append("temperature_c")
     else:
         fill = entry.temperature_c if entry.temperature_c is not None else t_ref_c
-        channels["temperature_c"] = np.full(len(csv), fill)
+        channels["temperature_c"] = _filled(len(csv), fill)
     units = {ch: "V" for ch in sensors} | {"sync_pulse": "1", "trigger": "1",
                                             "temperature_c": "degC"}
     return SampledLog(DAQ, rate_hz, csv.columns["time_s"], channels, units), present
+
+
+def _filled(samples: int, value: float) -> np.ndarray:
+    """A channel the file lacks, filled with what the step states; read-only, so that
+    :class:`SampledLog` keeps it as it is instead of copying it."""
+    values = np.full(samples, value, dtype=np.float64)
+    values.flags.writeable = False
+    return values
 
 
 def _planned(entry: StepEntry, samples: int, rate_hz: float) -> PlannedStep:
@@ -240,24 +252,12 @@ def import_dataset(directory: str | Path) -> Dataset:
     t_ref_c, model_file = _t_ref_c(manifest, directory)
     rate_hz = manifest.sample_rate_hz
     sensor_channels = [s.channel for s in manifest.sensors]
+    parsed = _read_files(directory, manifest_path, tree, manifest)
     steps, present = [], {}
-    daq_columns = DAQ_REQUIRED + tuple(sensor_channels)
-    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="csv") as pool:
-        for i, entry in enumerate(manifest.steps):
-            # the step's two files are parsed side by side (Arrow, no GIL); errors keep the
-            # sequential order: the table file's problem before any of the DAQ file's
-            table_read = pool.submit(read_csv, _file_of(directory, manifest_path, tree, i,
-                                                        "table", entry.table),
-                                     TABLE_REQUIRED, list(TABLE_CHANNELS))
-            try:
-                daq_path = _file_of(directory, manifest_path, tree, i, "daq", entry.daq)
-            except ImportDataError:
-                table_read.result()
-                raise
-            daq_read = pool.submit(read_csv, daq_path, daq_columns, ["temperature_c"])
-            step, present[entry.id] = _step(entry, table_read.result(), daq_read.result(),
-                                            rate_hz, sensor_channels, t_ref_c)
-            steps.append(step)
+    for entry, (table_csv, daq_csv) in zip(manifest.steps, parsed, strict=True):
+        step, present[entry.id] = _step(entry, table_csv, daq_csv, rate_hz, sensor_channels,
+                                        t_ref_c)
+        steps.append(step)
     sensors = tuple(SensorInfo(**s.model_dump()) for s in manifest.sensors)  # the plain record
     return Dataset(
         procedure=manifest.procedure, sample_rate_hz=rate_hz, sensors=sensors,
@@ -267,6 +267,58 @@ def import_dataset(directory: str | Path) -> Dataset:
         | ({"rig": {"instruments": manifest.instruments.model_dump(mode="json")}}
            if manifest.instruments is not None else {}),
     )
+
+
+@dataclass(frozen=True)
+class _CsvRead:
+    """One CSV file to parse and the columns wanted from it."""
+
+    path: Path
+    required: tuple[str, ...]
+    optional: tuple[str, ...]
+
+    def __call__(self) -> CsvColumns:
+        return read_csv(self.path, self.required, self.optional)
+
+
+def _read_files(directory: Path, manifest_path: Path, tree: Any, manifest: DatasetManifest
+                ) -> list[tuple[CsvColumns, CsvColumns]]:
+    """Parse every step's table and DAQ file; return them in step order.
+
+    Why this shape: the files are parsed by :data:`_READERS` threads (Arrow's parser holds no
+    GIL), largest file first, so that the threads finish together instead of a step's small
+    DAQ file leaving one of them idle; the results are still taken in manifest order, so the
+    error reported is the one a sequential read meets first (a step's table file before its DAQ
+    file, a missing file in its place). On an error the reads not yet started are cancelled.
+    """
+    daq_columns = DAQ_REQUIRED + tuple(s.channel for s in manifest.sensors)
+    jobs: list[_CsvRead | ImportDataError] = []
+    for i, entry in enumerate(manifest.steps):
+        for key, name, required, optional in (
+            ("table", entry.table, TABLE_REQUIRED, tuple(TABLE_CHANNELS)),
+            ("daq", entry.daq, daq_columns, ("temperature_c",)),
+        ):
+            try:
+                path = _file_of(directory, manifest_path, tree, i, key, name)
+            except ImportDataError as exc:
+                jobs.append(exc)
+            else:
+                jobs.append(_CsvRead(path, required, optional))
+    reads = {k: job for k, job in enumerate(jobs) if isinstance(job, _CsvRead)}
+    largest_first = sorted(reads, key=lambda k: -reads[k].path.stat().st_size)
+    parsed: list[CsvColumns] = []
+    with ThreadPoolExecutor(max_workers=_READERS, thread_name_prefix="csv") as pool:
+        futures = {k: pool.submit(reads[k]) for k in largest_first}
+        try:
+            for k, job in enumerate(jobs):
+                if isinstance(job, ImportDataError):
+                    raise job
+                parsed.append(futures[k].result())
+        except BaseException:
+            for future in futures.values():
+                future.cancel()
+            raise
+    return list(zip(parsed[0::2], parsed[1::2], strict=True))
 
 
 def _step(entry: StepEntry, table_csv: CsvColumns, daq_csv: CsvColumns, rate_hz: float,
