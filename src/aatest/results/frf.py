@@ -33,6 +33,17 @@ class FrfPoint(Certified):
     u_local_rel: Real | None = Field(
         None, ge=0, description="u of the ratio at the bin from the ratio's noise in the bins "
         "3–40 away, relative (= phase, rad); coherent records only")
+    u_segments_gain_rel: Real | None = Field(
+        None, ge=0, description="Type A u of the gain from the spread of the Hann-weighted "
+        "segments' ratios, relative")
+    u_segments_phase_rad: Real | None = Field(
+        None, ge=0, description="Type A u of the phase from the spread of the Hann-weighted "
+        "segments' ratios, rad")
+    segments_dof: Real | None = Field(
+        None, ge=0, description="effective degrees of freedom of the segment Type A "
+        "(overlap-corrected)")
+    segments: int | None = Field(None, ge=1, description="segments the ratio is averaged over")
+    cycles_per_segment: int | None = Field(None, ge=1, description="whole cycles per segment")
     coherent: bool
     group: str
     step: str

@@ -40,9 +40,10 @@ MEASURANDS: dict[str, str] = {
                                 "sensor temperature over the chamber steps",
     "scale_coefficient_per_c": "scale-factor temperature coefficient: relative slope of the "
                                "scale factor against the sensor temperature",
-    "frf_gain": "FRF gain: magnitude of the complex fundamental-bin ratio of output volts to "
-                "angular acceleration about the sensitive axis at f",
-    "frf_phase": "FRF phase: argument of the same complex fundamental-bin ratio at f",
+    "frf_gain": "FRF gain: magnitude of the complex ratio of the fundamentals of output volts "
+                "and angular acceleration about the sensitive axis at f (steady state, mean of "
+                "Hann-weighted segments of whole cycles)",
+    "frf_phase": "FRF phase: argument of the same complex ratio of the fundamentals at f",
 }
 
 #: (label, analysis key, value key, U key, unit) of each certified static quantity
