@@ -69,8 +69,12 @@ def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConst
 
 
 #: why an FRF point has no between-record repeatability row (its within-record part is measured)
-_REPEAT_REASON = ("one record per frequency; the scatter within the record (noise, the motor "
-                  "band's dither of the hysteresis from cycle to cycle) is in the noise row")
+_REPEAT_REASON = ("one record per frequency. The scatter within the record (noise, the motor "
+                  "band's dither of the hysteresis from cycle to cycle) is in the noise row; "
+                  "a band line within a bin of a harmonic of f dithers every cycle alike, and "
+                  "its effect, constant over the record, shows only between records")
+#: the bins either side of the fundamental whose ratio noise is ``u_local_rel`` (the FRF analysis)
+_NEAR_BIN_FIRST, _NEAR_BIN_LAST = 3, 40
 #: the segment Type A keys of an FRF point per budget (``gain``: radial, ``phase``: tangential)
 _SEGMENT_KEYS = {"u_gain_db": "u_segments_gain_rel", "u_phase_deg": "u_segments_phase_rad"}
 
@@ -88,9 +92,9 @@ def _noise_input(point: Mapping[str, Any], results: Mapping[str, Any], c: RigCon
       record, which every segment sees alike;
     - the ratio's noise in the bins 3–40 away (:func:`_bin_noise`, ``u_local_rel``): the
       density of whatever lies near the fundamental (intermodulation of the motor band's
-      tones through the hysteresis included) taken as what sits at it; many bins, so
-      ν = ∞; the rectangular bins also carry the band's 1/Δ leakage, which the Hann
-      segments do not (there it errs high).
+      tones through the hysteresis included) taken as what sits at it, with one degree of
+      freedom per bin (:func:`_neighbour_bins`); the rectangular bins also carry the band's
+      1/Δ leakage, which the Hann segments do not (there it errs high).
 
     Results without segments (older analyses) use the second alone.
     """
@@ -100,6 +104,8 @@ def _noise_input(point: Mapping[str, Any], results: Mapping[str, Any], c: RigCon
     if segment is None or not dof:
         return Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal",
                      unit, "measured: " + basis, "A")
+    local_dof = (_neighbour_bins(point, results, c)
+                 if ex.as_float(point.get("u_local_rel")) is not None else math.inf)
     count, cycles = point.get("segments"), point.get("cycles_per_segment")
     what = "radial" if u_key == "u_gain_db" else "tangential"
     spread = (f"{what} spread of the ratio over {count} Hann-weighted segments of {cycles} "
@@ -110,7 +116,21 @@ def _noise_input(point: Mapping[str, Any], results: Mapping[str, Any], c: RigCon
         return Input("noise", label, 0.0, segment, "normal", unit,
                      f"measured, the larger of two: {spread}; {basis}", "A", dof=dof)
     return Input("noise", label, 0.0, noise, "normal", unit,
-                 f"measured, the larger of two: {basis}; {spread}", "A")
+                 f"measured, the larger of two: {basis} (ν = {local_dof:.0f}, one radial and "
+                 f"one tangential part per bin); {spread}", "A", dof=local_dof)
+
+
+def _neighbour_bins(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants
+                    ) -> float:
+    """How many bins ``u_local_rel`` averages (3–40 either side of the fundamental's bin,
+    harmonic bins and DC left out): its degrees of freedom, one per bin for each part."""
+    n = _record_samples(point, results, c)
+    fs = ex.as_float(point.get("sample_rate_hz")) or c.sample_rate_hz
+    f_hz = ex.as_float(point.get("frequency_hz")) or 0.0
+    cycles = max(round(f_hz * n / fs), 1)
+    offsets = range(_NEAR_BIN_FIRST, _NEAR_BIN_LAST + 1)
+    near = [cycles + s * k for k in offsets for s in (-1, 1)]
+    return float(sum(1 for b in near if 0 < b < n / 2 and b % cycles != 0))
 
 
 def _point_temperature(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
