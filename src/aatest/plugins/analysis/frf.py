@@ -125,13 +125,14 @@ def local_ratio_noise_rel(reference: Tone, output: Tone) -> float | None:
     return float(np.sqrt(np.mean(np.abs(d) ** 2) / 2.0))
 
 
-#: segments the record is cut into (50 % overlap): enough for a Type A spread with ≈13 degrees
-#: of freedom, few enough that each holds one cycle at the reduced bench's 8-cycle records
+#: segments the record is cut into (50 % overlap): a Type A spread with ≈13 degrees of freedom
+#: (records of fewer than 16 cycles get fewer: the bench's 8-cycle record 7, ν ≈ 5.7)
 TARGET_SEGMENTS = 15
-#: a spread needs two segments
-#: one-cycle segments were measured biased (+0.025° in phase at 1 Hz on the twin, where two
-#: and more cycles agree with the whole record to 0.003°): at least two cycles per segment
+#: one-cycle segments were measured biased (+0.025° in phase at 0.98 Hz on a twin rig, where
+#: segments of two, four and eight cycles and the whole record's bin agreed within 0.006°;
+#: the cause was not found): at least two cycles per segment
 MIN_CYCLES_PER_SEGMENT = 2
+#: a spread needs two segments
 _MIN_SEGMENTS = 2
 
 
