@@ -50,6 +50,9 @@ class FrfPoint(Certified):
     sample_rate_hz: Real
     gain_expanded_uncertainty_db: Real | None = Field(None, ge=0, description="U of gain, dB")
     phase_expanded_uncertainty_deg: Real | None = Field(None, ge=0, description="U of phase, °")
+    phase_coverage_factor: Real | None = Field(
+        None, ge=0, description="k of the phase's U (the point's coverage_factor is the gain's; "
+        "they differ when a Type A with few degrees of freedom governs one of them)")
     gain_budget: list[BudgetRow] = Field(default_factory=list)
     phase_budget: list[BudgetRow] = Field(default_factory=list)
     gain_measurand: str = Field("", description="the precise gain quantity")
