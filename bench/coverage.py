@@ -11,7 +11,7 @@ the same measurand from the twin's model (:mod:`aatest.twin.truth`). Printed per
 coverage (share of results whose true value lies within ±U) and median U / RMS(error).
 Targets: coverage ≥ 95 %, median U ≤ 3 × RMS error.
 
-    python bench/coverage.py [--rigs 40] [--first-seed 1000] [--out DIR]
+    python bench/coverage.py [--rigs 40] [--first-seed 1000] [--out DIR] [--only stepped-sine]
 """
 
 from __future__ import annotations
@@ -194,10 +194,13 @@ CHECKS = {"scale-factor": _scale_checks, "static": _static_checks, "stepped-sine
 SENSOR_OF = {"scale-factor": "sr207", "static": "sr207-aamu", "stepped-sine": "sr207"}
 
 
-def rig_checks(rig_seed: int, workdir: Path) -> list[Check]:
-    """Run the three procedures on one drawn rig; every certified value with its truth."""
+def rig_checks(rig_seed: int, workdir: Path, only: tuple[str, ...] = ()) -> list[Check]:
+    """Run the three procedures (or the ``only`` ones) on one drawn rig; every certified value
+    with its truth."""
     checks: list[Check] = []
     for name, text in PROCEDURES.items():
+        if only and name not in only:
+            continue
         directory = workdir / f"rig{rig_seed}-{name}"
         directory.mkdir(parents=True)
         model, rig_file = drawn_rig(SENSOR_OF[name], rig_seed, directory)
@@ -241,13 +244,15 @@ def main() -> None:
     parser.add_argument("--rigs", type=int, default=40)
     parser.add_argument("--first-seed", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=None, help="keep the runs here")
+    parser.add_argument("--only", action="append", choices=sorted(PROCEDURES), default=[],
+                        help="run only this procedure (repeatable; default: all three)")
     args = parser.parse_args()
     start = time.perf_counter()
     checks: list[Check] = []
     with tempfile.TemporaryDirectory() as tmp:
         workdir = args.out or Path(tmp)
         for seed in range(args.first_seed, args.first_seed + args.rigs):
-            checks += rig_checks(seed, workdir)
+            checks += rig_checks(seed, workdir, tuple(args.only))
     wall = time.perf_counter() - start
     print(f"{args.rigs} rigs, {len(checks)} certified values, wall {wall:.0f} s "
           f"({wall / args.rigs:.1f} s per rig)")

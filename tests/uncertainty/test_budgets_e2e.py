@@ -86,3 +86,7 @@ def test_frf_phase_u_is_realistic(tmp_path: Path) -> None:
         assert {"noise", "sync", "timing"} <= set(_rows(p, "phase_budget"))
         assert {"encoder_accuracy", "logger_gain"} <= set(_rows(p, "gain_budget"))
         assert p["phase_measurand"].startswith("FRF phase")
+        # the phase states its own k: Welch–Satterthwaite over its rows, ≥ 2
+        noise = _rows(p, "phase_budget")["noise"]
+        assert noise["type"] == "A" and "larger of two" in noise["basis"]
+        assert p["phase_coverage_factor"] >= 2.0

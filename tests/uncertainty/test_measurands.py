@@ -152,3 +152,32 @@ def test_columnar_temperature_results(results: dict[str, Any]) -> None:
     stated = evaluate(temperature_measurand(results, "v_sz", "bias_coefficient_v_per_c", C))
     assert stated.rows[0].standard_uncertainty == 9.3e-8
     assert figures.bias_vs_temperature(entry) is not None
+
+
+@pytest.mark.parametrize(("segments_rad", "local_rel", "governs"),
+                         [(4e-4, 1e-4, "segments"), (1e-4, 4e-4, "neighbour bins")],
+                         ids=["segments-larger", "neighbours-larger"])
+def test_frf_noise_row_is_the_larger_type_a_with_its_dof(
+        results: dict[str, Any], segments_rad: float, local_rel: float, governs: str) -> None:
+    """The segments' spread and the neighbour bins' noise estimate the same term, each blind
+    where the other sees: the larger one enters, with its own degrees of freedom (the
+    segments' few raise k above 2)."""
+    point = results["analysis"]["frf"]["v_sz"][1]
+    point.update(u_segments_phase_rad=segments_rad, u_segments_gain_rel=segments_rad,
+                 segments_dof=5.7, segments=7, cycles_per_segment=2, u_local_rel=local_rel,
+                 sample_rate_hz=2000.0, samples=16384)
+    measurand = frf_phase_measurand(point, results, C)
+    assert measurand is not None
+    noise = next(i for i in measurand.inputs if i.name == "noise")
+    assert noise.spread == max(segments_rad, local_rel) and noise.kind == "A"
+    evaluation = evaluate(measurand)
+    if governs == "segments":
+        assert noise.dof == pytest.approx(5.7)
+        assert "Hann-weighted segments" in noise.note.split(";")[0]
+        assert evaluation.k > 2.2
+    else:
+        # 0.99 Hz in 16384 samples: bin 8; below it bins 5…1, above 11…48 less 16, 24, 32,
+        # 40 and 48: 5 + 33 bins
+        assert noise.dof == 38.0
+        assert "bins 3–40" in noise.note.split(";")[0]
+        assert 2.0 < evaluation.k < 2.1

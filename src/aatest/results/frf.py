@@ -33,12 +33,26 @@ class FrfPoint(Certified):
     u_local_rel: Real | None = Field(
         None, ge=0, description="u of the ratio at the bin from the ratio's noise in the bins "
         "3–40 away, relative (= phase, rad); coherent records only")
+    u_segments_gain_rel: Real | None = Field(
+        None, ge=0, description="Type A u of the gain from the spread of the Hann-weighted "
+        "segments' ratios, relative")
+    u_segments_phase_rad: Real | None = Field(
+        None, ge=0, description="Type A u of the phase from the spread of the Hann-weighted "
+        "segments' ratios, rad")
+    segments_dof: Real | None = Field(
+        None, ge=0, description="effective degrees of freedom of the segment Type A "
+        "(overlap-corrected)")
+    segments: int | None = Field(None, ge=1, description="segments the ratio is averaged over")
+    cycles_per_segment: int | None = Field(None, ge=1, description="whole cycles per segment")
     coherent: bool
     group: str
     step: str
     sample_rate_hz: Real
     gain_expanded_uncertainty_db: Real | None = Field(None, ge=0, description="U of gain, dB")
     phase_expanded_uncertainty_deg: Real | None = Field(None, ge=0, description="U of phase, °")
+    phase_coverage_factor: Real | None = Field(
+        None, ge=0, description="k of the phase's U (the point's coverage_factor is the gain's; "
+        "they differ when a Type A with few degrees of freedom governs one of them)")
     gain_budget: list[BudgetRow] = Field(default_factory=list)
     phase_budget: list[BudgetRow] = Field(default_factory=list)
     gain_measurand: str = Field("", description="the precise gain quantity")

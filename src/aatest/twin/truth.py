@@ -10,7 +10,10 @@ a calibration's result can be compared with the truth it should have found:
   non-linearity at α, saturation, resolution, cross-axis and the sensor's *internal*
   misalignment included; the mounting (block and seat) errors, the table's errors and the
   logger's gain/offset error are not: those are errors of the measurement;
-- FRF gain (dB) and phase (°): the same complex ratio;
+- FRF gain (dB) and phase (°): the same complex ratio of the fundamentals, in the steady
+  state and in expectation over the motor band (the FRF analysis estimates it by the mean of
+  Hann-weighted segment ratios: window-independent for periodic content, so the fit below
+  over a few cycles states the same quantity);
 - bias: the output at zero rate and acceleration at the temperature (g-sensitivity cancels in
   the ±1 g mean);
 - g-sensitivity: the sensed acceleration per g along the sensor's axis, (°/s²)/g.
@@ -62,7 +65,7 @@ def _rotation_axis(sensor: SensorModel) -> np.ndarray:
 
 def _ratio(model: RigModel, channel: str, frequency_hz: float, accel_dps2: float,
            temperature_c: float, seed: int | None = None) -> complex:
-    """Complex fundamental-bin ratio V/α (V per °/s²) of one channel, from the model.
+    """Complex ratio V/α (V per °/s²) of the fundamentals of one channel, from the model.
 
     The motor band of the inner axis (a random set of tones, :func:`make_vibration`) is part
     of the motion: it dithers the sensor's hysteresis. By default the ratio is the mean over

@@ -76,6 +76,7 @@ def _certify_frf(results: dict[str, Any], ch: str, c: RigConstants) -> None:
         phase = _evaluated(frf_phase_measurand(point, results, c, ch))
         if phase is not None:
             ex.certify(point, phase, "phase", "_deg")
+            point["phase_coverage_factor"] = phase.k  # the generic k is the gain's
 
 
 def apply_uncertainty(results: dict[str, Any], constants: RigConstants | None = None,

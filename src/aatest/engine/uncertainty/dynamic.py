@@ -68,6 +68,71 @@ def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConst
     return math.sqrt(rel2), f"1/√(N·SNR) of output and reference ({shown})"
 
 
+#: why an FRF point has no between-record repeatability row (its within-record part is measured)
+_REPEAT_REASON = ("one record per frequency. The scatter within the record (noise, the motor "
+                  "band's dither of the hysteresis from cycle to cycle) is in the noise row; "
+                  "a band line within a bin of a harmonic of f dithers every cycle alike, and "
+                  "its effect, constant over the record, shows only between records")
+#: the bins either side of the fundamental whose ratio noise is ``u_local_rel`` (the FRF analysis)
+_NEAR_BIN_FIRST, _NEAR_BIN_LAST = 3, 40
+#: the segment Type A keys of an FRF point per budget (``gain``: radial, ``phase``: tangential)
+_SEGMENT_KEYS = {"u_gain_db": "u_segments_gain_rel", "u_phase_deg": "u_segments_phase_rad"}
+
+
+def _noise_input(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
+                 u_key: str, to_relative: float, channel: str, unit: str) -> Input:
+    """The ``noise`` input of a gain (relative) or phase (rad) budget: Type A of the ratio.
+
+    Two evaluations from the record, the larger governs (each blind where the other sees):
+
+    - the spread of the FRF analysis' Hann-weighted segment ratios (``u_segments_*``, with
+      their overlap-corrected degrees of freedom): everything that varies from segment to
+      segment — noise, and the cycle-to-cycle scatter of the sensor's hysteresis dithered by
+      the motor band — but not content closer to the fundamental than about a bin of the
+      record, which every segment sees alike;
+    - the ratio's noise in the bins 3–40 away (:func:`_bin_noise`, ``u_local_rel``): the
+      density of whatever lies near the fundamental (intermodulation of the motor band's
+      tones through the hysteresis included) taken as what sits at it, with one degree of
+      freedom per bin (:func:`_neighbour_bins`); the rectangular bins also carry the band's
+      1/Δ leakage, which the Hann segments do not (there it errs high).
+
+    Results without segments (older analyses) use the second alone.
+    """
+    noise, basis = _bin_noise(point, results, c, u_key, to_relative, channel)
+    segment = ex.as_float(point.get(_SEGMENT_KEYS[u_key]))
+    dof = ex.as_float(point.get("segments_dof"))
+    if segment is None or not dof:
+        return Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal",
+                     unit, "measured: " + basis, "A")
+    local_dof = (_neighbour_bins(point, results, c)
+                 if ex.as_float(point.get("u_local_rel")) is not None else math.inf)
+    count, cycles = point.get("segments"), point.get("cycles_per_segment")
+    what = "radial" if u_key == "u_gain_db" else "tangential"
+    spread = (f"{what} spread of the ratio over {count} Hann-weighted segments of {cycles} "
+              f"cycles, 50 % overlap: standard error of their mean {segment * 100:.4f} % "
+              f"(overlap-corrected, ν = {dof:.1f})")
+    label = "noise and within-record scatter (at the fundamental)"
+    if segment >= noise:
+        return Input("noise", label, 0.0, segment, "normal", unit,
+                     f"measured, the larger of two: {spread}; {basis}", "A", dof=dof)
+    return Input("noise", label, 0.0, noise, "normal", unit,
+                 f"measured, the larger of two: {basis} (ν = {local_dof:.0f}, one radial and "
+                 f"one tangential part per bin); {spread}", "A", dof=local_dof)
+
+
+def _neighbour_bins(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants
+                    ) -> float:
+    """How many bins ``u_local_rel`` averages (3–40 either side of the fundamental's bin,
+    harmonic bins and DC left out): its degrees of freedom, one per bin for each part."""
+    n = _record_samples(point, results, c)
+    fs = ex.as_float(point.get("sample_rate_hz")) or c.sample_rate_hz
+    f_hz = ex.as_float(point.get("frequency_hz")) or 0.0
+    cycles = max(round(f_hz * n / fs), 1)
+    offsets = range(_NEAR_BIN_FIRST, _NEAR_BIN_LAST + 1)
+    near = [cycles + s * k for k in offsets for s in (-1, 1)]
+    return float(sum(1 for b in near if 0 < b < n / 2 and b % cycles != 0))
+
+
 def _point_temperature(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
                        channel: str) -> tuple[Input, str]:
     info = ex.sensors(results).get(channel, {})
@@ -82,9 +147,12 @@ def _point_definition(kind: str, point: Mapping[str, Any], channel: str, at: str
     f_hz, accel = point.get("frequency_hz"), point.get("accel_dps2")
     what = ("gain: 20·log10 of the magnitude (dB re 1 V/(°/s²))" if kind == "gain" else
             "phase: argument (°, output lagging negative)")
-    return (f"FRF {what} of the complex fundamental-bin ratio of the logged output of {channel} "
-            f"(V, through the logger's pre-sample filter) to the angular acceleration about the "
-            f"sensor's mounting axis, at f = {f_hz:g} Hz, peak α = {accel:g} °/s², at {at}")
+    return (f"FRF {what} of the complex ratio of the fundamentals of the logged output of "
+            f"{channel} (V, through the logger's pre-sample filter) and of the angular "
+            f"acceleration about the sensor's mounting axis, in the steady state at "
+            f"f = {f_hz:g} Hz, peak α = {accel:g} °/s², at {at}; the expectation over the "
+            f"table's motor band, which dithers the sensor's hysteresis from cycle to cycle "
+            f"(estimated by the mean of the ratios of Hann-weighted segments of whole cycles)")
 
 
 def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
@@ -102,14 +170,13 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
     if gain is None or not f_hz or not accel:
         return None
     amp_arcsec = abs(accel) / (2 * math.pi * f_hz) ** 2 * 3600.0
-    noise, basis = _bin_noise(point, results, c, "u_gain_db", math.log(10.0) / 20.0, channel)
+    noise = _noise_input(point, results, c, "u_gain_db", math.log(10.0) / 20.0, channel, "1")
     fs = ex.as_float(point.get("sample_rate_hz")) or c.sample_rate_hz
     method = (2 * math.pi * f_hz / fs) ** 2 / 12.0
     thd = ex.as_float(point.get("table_thd"))
     temp_input, at = _point_temperature(point, results, c, channel)
     inputs = (
-        Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal", "1",
-              "measured: " + basis, "A"),
+        noise,
         comp.encoder_accuracy(c, amp_arcsec),
         comp.encoder_resolution(c, amp_arcsec),
         comp.rel("reference_method", "reference: method error (table estimate at the bin)",
@@ -127,7 +194,7 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
         comp.mounting(c, results, channel),
         comp.logger_gain(c),
         temp_input,
-        comp.not_evaluated("repeatability", "repeatability", "one record per frequency"),
+        comp.not_evaluated("repeatability", "repeatability between records", _REPEAT_REASON),
     )
     additive = ("encoder_accuracy", "encoder_resolution", "reference_method", "motion_distortion",
                 "transverse", "temperature", "repeatability")
@@ -167,13 +234,12 @@ def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
     f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
     if phase is None or not f_hz:
         return None
-    noise, basis = _bin_noise(point, results, c, "u_phase_deg", math.pi / 180.0, channel)
+    noise = _noise_input(point, results, c, "u_phase_deg", math.pi / 180.0, channel, "rad")
     u_sync, sync_note = _sync_offset_s(results, point)
     _, at = _point_temperature(point, results, c, channel)
     thd = ex.as_float(point.get("table_thd"))
     inputs = (
-        Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal", "rad",
-              "measured: " + basis, "A"),
+        noise,
         Input("encoder_accuracy", "reference: encoder accuracy", 0.0, 0.0, "normal", "rad",
               "a position-periodic encoder error of a sine motion is a function of the "
               "motion's phase: it adds harmonics and in-phase content at the fundamental, no "
@@ -191,7 +257,8 @@ def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
               c.instruments.logger.timing_accuracy_us * 1e-6, "rectangular", "s",
               c.source(f"logger timing accuracy ±{c.instruments.logger.timing_accuracy_us:g} µs",
                        c.instruments.logger.cert_text()) + "; enters as 360·f·δt"),
-        comp.not_evaluated("repeatability", "repeatability", "one record per frequency", "deg"),
+        comp.not_evaluated("repeatability", "repeatability between records", _REPEAT_REASON,
+                           "deg"),
     )
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:

@@ -40,9 +40,10 @@ MEASURANDS: dict[str, str] = {
                                 "sensor temperature over the chamber steps",
     "scale_coefficient_per_c": "scale-factor temperature coefficient: relative slope of the "
                                "scale factor against the sensor temperature",
-    "frf_gain": "FRF gain: magnitude of the complex fundamental-bin ratio of output volts to "
-                "angular acceleration about the sensitive axis at f",
-    "frf_phase": "FRF phase: argument of the same complex fundamental-bin ratio at f",
+    "frf_gain": "FRF gain: magnitude of the complex ratio of the fundamentals of output volts "
+                "and angular acceleration about the sensitive axis at f (steady state, mean of "
+                "Hann-weighted segments of whole cycles)",
+    "frf_phase": "FRF phase: argument of the same complex ratio of the fundamentals at f",
 }
 
 #: (label, analysis key, value key, U key, unit) of each certified static quantity
@@ -199,13 +200,17 @@ def result_rows(results: Mapping[str, Any], channels: Sequence[str]) -> list[Res
                                   _measurand(entry, label)))
         for p in ex.frf_points(results, ch):
             at = f"{float(p.get('frequency_hz') or 0.0):.4g} Hz"
-            for label, key, u_key, unit in (
-                    ("frf_gain", "gain_db", "gain_expanded_uncertainty_db", "dB"),
-                    ("frf_phase", "phase_deg", "phase_expanded_uncertainty_deg", "deg")):
+            for label, key, u_key, unit, k_key in (
+                    ("frf_gain", "gain_db", "gain_expanded_uncertainty_db", "dB",
+                     "coverage_factor"),
+                    ("frf_phase", "phase_deg", "phase_expanded_uncertainty_deg", "deg",
+                     "phase_coverage_factor")):
                 value = ex.as_float(p.get(key))
                 if value is not None:
-                    rows.append(ResultRow(ch, label, value, unit, ex.as_float(p.get(u_key)),
-                                          ex.as_float(p.get("coverage_factor")),
+                    # the phase has its own k (its Type A's degrees of freedom); older results
+                    # state one k per point
+                    k = ex.as_float(p.get(k_key)) or ex.as_float(p.get("coverage_factor"))
+                    rows.append(ResultRow(ch, label, value, unit, ex.as_float(p.get(u_key)), k,
                                           ex.as_float(p.get("coverage_probability")),
                                           _measurand(p, label), at))
     return rows

@@ -77,7 +77,8 @@ def _worst_frf(results: Mapping[str, Any], ch: str) -> list[dict[str, Any]]:
     return [_budget(f"FRF gain {at}", "dB", p["gain_db"], p["gain_expanded_uncertainty_db"],
                     p.get("coverage_factor"), p["gain_budget"]),
             _budget(f"FRF phase {at}", "deg", p["phase_deg"],
-                    p.get("phase_expanded_uncertainty_deg"), p.get("coverage_factor"),
+                    p.get("phase_expanded_uncertainty_deg"),
+                    p.get("phase_coverage_factor") or p.get("coverage_factor"),
                     p.get("phase_budget") or [])]
 
 
