@@ -8,10 +8,13 @@ three reduced procedures run in-process through the engine (plan → rig → run
 static multi-position test (six positions, three repetitions, original and pivoted) and a
 stepped sine at three frequencies. Each certified value is compared with the true value of
 the same measurand from the twin's model (:mod:`aatest.twin.truth`). Printed per quantity:
-coverage (share of results whose true value lies within ±U) and median U / RMS(error).
-Targets: coverage ≥ 95 %, median U ≤ 3 × RMS error.
+coverage (share of results whose true value lies within ±U) with its Clopper–Pearson 95 %
+interval, and median U / RMS(error). Targets: coverage ≥ 95 %, median U ≤ 3 × RMS error.
+The scale-factor and static procedures run on 40 rigs, the stepped sine on 120 (see
+:data:`FRF_RIGS`: its phase rows lie close to the target).
 
-    python bench/coverage.py [--rigs 40] [--first-seed 1000] [--out DIR] [--only stepped-sine]
+    python bench/coverage.py [--rigs 40] [--frf-rigs 120] [--first-seed 1000] [--out DIR]
+                             [--only stepped-sine]
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.analysis.results import build_results, results_json
@@ -46,6 +50,17 @@ from aatest.twin.truth import (
     g_sensitivity_truth_dps2_per_g,
     scale_factor_truth_v_per_dps2,
 )
+
+#: rigs each procedure runs on by default (the issue asks for ≥ 40)
+RIGS = 40
+#: rigs of the stepped sine: its phase coverage lies near the target, where 40 rigs measure it
+#: to ±3.4 points (binomial standard error at 95 %) — a budget with exactly 95 % true coverage
+#: shows < 95 % on 40 rigs one time in three; on 120 rigs the scatter is ±2.0 points
+FRF_RIGS = 120
+#: coverage target: the share of rigs whose true value lies within ±U
+TARGET_COVERAGE = 0.95
+#: honesty target: median U at most this many times the RMS of the actual errors
+TARGET_RATIO = 3.0
 
 #: reduced procedures: the shipped ones with shorter records (and three FRF frequencies)
 PROCEDURES: dict[str, str] = {
@@ -226,6 +241,19 @@ class Row:
         """median U / RMS(error)."""
         return self.median_u / self.rms_error if self.rms_error > 0 else math.inf
 
+    @property
+    def met(self) -> bool:
+        """The issue's targets: coverage ≥ 95 % and median U ≤ 3 × RMS error."""
+        return self.coverage >= TARGET_COVERAGE and self.ratio <= TARGET_RATIO
+
+    @property
+    def coverage_interval(self) -> tuple[float, float]:
+        """Clopper–Pearson 95 % interval of the coverage: how far the share of n rigs may lie
+        from the budgets' true coverage by the draw alone (±3.4 points at 95 % on 40 rigs)."""
+        covered = round(self.coverage * self.n)
+        ci = stats.binomtest(covered, self.n).proportion_ci(confidence_level=0.95)
+        return float(ci.low), float(ci.high)
+
 
 def table(checks: list[Check]) -> list[Row]:
     """Per quantity: coverage, median U and RMS error."""
@@ -241,7 +269,10 @@ def table(checks: list[Check]) -> list[Row]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rigs", type=int, default=40)
+    parser.add_argument("--rigs", type=int, default=RIGS,
+                        help="rigs for the scale-factor and static procedures")
+    parser.add_argument("--frf-rigs", type=int, default=FRF_RIGS,
+                        help="rigs for the stepped sine (its phase rows sit near the target)")
     parser.add_argument("--first-seed", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=None, help="keep the runs here")
     parser.add_argument("--only", action="append", choices=sorted(PROCEDURES), default=[],
@@ -249,19 +280,23 @@ def main() -> None:
     args = parser.parse_args()
     start = time.perf_counter()
     checks: list[Check] = []
+    rigs = {name: args.frf_rigs if name == "stepped-sine" else args.rigs for name in PROCEDURES
+            if not args.only or name in args.only}
     with tempfile.TemporaryDirectory() as tmp:
         workdir = args.out or Path(tmp)
-        for seed in range(args.first_seed, args.first_seed + args.rigs):
-            checks += rig_checks(seed, workdir, tuple(args.only))
+        for seed in range(args.first_seed, args.first_seed + max(rigs.values())):
+            names = tuple(n for n, count in rigs.items() if seed < args.first_seed + count)
+            checks += rig_checks(seed, workdir, names)
     wall = time.perf_counter() - start
-    print(f"{args.rigs} rigs, {len(checks)} certified values, wall {wall:.0f} s "
-          f"({wall / args.rigs:.1f} s per rig)")
-    print(f"{'quantity':22s} {'n':>4s} {'coverage':>9s} {'median U':>11s} {'RMS error':>11s} "
-          f"{'U/RMS':>6s}  target")
+    print(f"rigs per procedure {rigs} (seeds from {args.first_seed}), {len(checks)} certified "
+          f"values, wall {wall:.0f} s")
+    print(f"{'quantity':22s} {'n':>4s} {'coverage':>9s} {'95 % interval':>15s} {'median U':>11s} "
+          f"{'RMS error':>11s} {'U/RMS':>6s}  target")
     for row in table(checks):
-        ok = row.coverage >= 0.95 and row.ratio <= 3.0
-        print(f"{row.quantity:22s} {row.n:4d} {row.coverage * 100:8.1f}% {row.median_u:11.4g} "
-              f"{row.rms_error:11.4g} {row.ratio:6.2f}  {'met' if ok else 'MISSED'}")
+        low, high = row.coverage_interval
+        print(f"{row.quantity:22s} {row.n:4d} {row.coverage * 100:8.1f}% "
+              f"{f'{low * 100:.1f}–{high * 100:.1f} %':>15s} {row.median_u:11.4g} "
+              f"{row.rms_error:11.4g} {row.ratio:6.2f}  {'met' if row.met else 'MISSED'}")
 
 
 if __name__ == "__main__":
