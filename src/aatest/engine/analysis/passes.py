@@ -115,6 +115,11 @@ def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
     options
         Already validated options by plugin name, overriding those in ``requested``.
     """
+    from aatest.engine.uncertainty.evidence import watch
+
+    # the uncertainty stage reads every sine step after this pass: measured while the pass
+    # decodes them, it need not decode them again
+    watch(data)
     explicit = bool(requested)
     names = _requested_names(requested) if explicit else _plugins.installed_names()
     chosen = dict(_plugins.requested_options(requested)) | dict(options or {})
