@@ -101,6 +101,21 @@ def _run_one(plugin: AnalysisPlugin, data: Dataset, options: BaseModel,
     return out
 
 
+def _watch_steps(plugins: Sequence[AnalysisPlugin], data: Dataset,
+                 chosen: Mapping[str, BaseModel]) -> None:
+    """Let every plugin that applies register its per-step reductions before any plugin runs.
+
+    An analysis plugin may define ``watch_steps(data, options)`` (optional; ``options`` as its
+    ``run`` gets them): it registers reductions the first pass over the recording makes while
+    it decodes each step (:func:`aatest.plugins.analysis.sync.watch_synced`), so each step is
+    decoded once for all analyses instead of once per analysis. Results are the same either
+    way: a plugin without it, or run alone, reads the steps itself.
+    """
+    for plugin in plugins:
+        if callable(getattr(plugin.cls, "watch_steps", None)) and plugin.cls().applies_to(data):
+            plugin.cls().watch_steps(data, chosen.get(plugin.name) or plugin.options())
+
+
 def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
                  options: Mapping[str, BaseModel] | None = None) -> AnalysisResults:
     """Run each analysis; a data problem in one is recorded and the others still run.
@@ -125,7 +140,9 @@ def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
     chosen = dict(_plugins.requested_options(requested)) | dict(options or {})
     out = AnalysisResults()
     by_name: dict[str, AnalysisOutput[Any]] = {}
-    for plugin in order(names):
+    plugins = order(names)
+    _watch_steps(plugins, data, chosen)
+    for plugin in plugins:
         if not plugin.cls().applies_to(data):
             out.skipped.append(plugin.name)
             if explicit and plugin.name in names:

@@ -10,12 +10,13 @@ dataset) are synchronised once and kept, as before.
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
-from dataclasses import dataclass
-from typing import ClassVar, overload
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, overload
+from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, LazySteps, StepData
+from aatest.engine.dataset import Dataset, LazySteps, StepData, StepWatch
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.steps import PlannedStep
 from aatest.results.sync import SyncResult
@@ -23,6 +24,109 @@ from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, 
 
 #: the channels a clock relation reads (besides the time stamps)
 _SYNC_CHANNELS = {"table": ("sync_pulse", "fp_latch_s"), "daq": ("sync_pulse", "trigger")}
+
+
+#: a watched result not (or no longer) there
+_MISSING = object()
+
+
+@dataclass(frozen=True)
+class SyncedWatch:
+    """A small reduction of a synchronised step, made while the sync pass decodes the step.
+
+    Why: the sync pass decodes every recorded step to fit its clock relation; an analysis that
+    will read the same steps later (the FRF points, the transfer function's cross-correlation)
+    registers a watch with :func:`watch_synced` before the pass, and reads the result with
+    :meth:`SyncedSteps.reduced` instead of decoding and synchronising each step again. The
+    pass then decodes the union of the channels once, synchronises it once, and feeds every
+    watch the same synchronised step (each channel decoded and resampled exactly as a decode
+    of only that watch's channels would). Results must be small: one is kept per step.
+
+    Parameters
+    ----------
+    channels
+        The table and DAQ channels the reduction reads, by source (``"table"``/``"daq"``).
+    applies
+        Whether the reduction is wanted for a planned step.
+    reduce
+        The reduction of the synchronised step.
+    """
+
+    channels: Mapping[str, Collection[str]]
+    applies: Callable[[PlannedStep], bool]
+    reduce: Callable[[SyncedStep], Any]
+
+
+@dataclass(frozen=True)
+class _Synchronised:
+    """What the sync pass keeps of a watched step: its clock relation and the watches'
+    results by name (each taken once, by :meth:`SyncedSteps.reduced`)."""
+
+    relation: ClockRelation
+    results: dict[str, Any] = field(default_factory=dict)
+
+
+class _Watches:
+    """The synced watches of one recording: one :class:`StepWatch` on its lazy steps that
+    fits the clock relation, synchronises once and runs every watch due on the step."""
+
+    name: ClassVar[str] = "sync.synchronised"
+
+    def __init__(self) -> None:
+        self.watches: dict[str, SyncedWatch] = {}
+
+    def _due(self, step: PlannedStep) -> list[tuple[str, SyncedWatch]]:
+        return [(n, w) for n, w in self.watches.items() if step.recorded and w.applies(step)]
+
+    def channels(self, step: PlannedStep) -> dict[str, list[str]]:
+        due = [w for _, w in self._due(step)]
+        return {source: list(dict.fromkeys([*_SYNC_CHANNELS[source], *(
+            name for w in due for name in w.channels.get(source, ()))]))
+            for source in ("table", "daq")}
+
+    def applies(self, step: PlannedStep) -> bool:
+        return bool(self._due(step))
+
+    def reduce(self, raw: StepData) -> _Synchronised:
+        relation = clock_relation(raw)
+        synced = synchronise(raw, relation)
+        done = _Synchronised(relation)
+        for name, watch in self._due(raw.step):
+            try:
+                done.results[name] = watch.reduce(synced)
+            except Exception:  # noqa: BLE001 - its owner recomputes the step, meets the error
+                continue
+        return done
+
+
+#: the synced watches of each recording's lazy steps (gone with the steps)
+_REGISTERED: WeakKeyDictionary[LazySteps, _Watches] = WeakKeyDictionary()
+
+
+def watch_synced(data: Dataset, name: str, watch: SyncedWatch) -> None:
+    """Have the sync pass run ``watch`` on every step it applies to (see :class:`SyncedWatch`).
+
+    Only a recording's lazy steps are watched (steps in memory are synchronised once and kept
+    anyway); register before the sync pass runs, e.g. from an analysis' ``watch_steps``.
+    """
+    steps = data.steps
+    if not isinstance(steps, LazySteps):
+        return
+    if steps not in _REGISTERED:
+        watches = _REGISTERED[steps] = _Watches()
+        steps.watch(_Watches.name, StepWatch(watches.channels, watches.applies, watches.reduce))
+    _REGISTERED[steps].watches.setdefault(name, watch)
+
+
+def _synchronised(steps: Sequence[StepData], index: int) -> _Synchronised | None:
+    """What the sync pass kept of step ``index`` of a recording's lazy steps, if anything."""
+    if not isinstance(steps, LazySteps):
+        return None
+    try:
+        found: _Synchronised = steps.watched(_Watches.name, index)
+    except KeyError:
+        return None
+    return found
 
 
 class SyncedSteps(Sequence[SyncedStep]):
@@ -100,6 +204,20 @@ class SyncedSteps(Sequence[SyncedStep]):
 
     def __iter__(self) -> Iterator[SyncedStep]:
         return (self[k] for k in range(len(self)))
+
+    def reduced(self, name: str, reduce: Callable[[SyncedStep], Any]) -> list[Any]:
+        """``reduce`` of every held step, in order: the result of the synced watch ``name``
+        where the sync pass made it (taken: a second call computes it anew), else computed
+        now from the step (decoded and synchronised as it is read).
+
+        ``reduce`` must be the watch's reduction, so that both give the same values.
+        """
+        out: list[Any] = []
+        for k, i in enumerate(self._indices):
+            kept = _synchronised(self._steps, i)
+            found = _MISSING if kept is None else kept.results.pop(name, _MISSING)
+            out.append(reduce(self[k]) if found is _MISSING else found)
+        return out
 
     def _step(self, i: int) -> StepData:
         """Step ``i`` of the dataset, partly decoded when this view names its channels (with
@@ -185,8 +303,10 @@ class SyncAnalysis:
         else:  # one step at a time: only its clock relation stays
             steps = data.steps
             assert isinstance(steps, LazySteps)  # what keep=False means
-            synced.relations.update(
-                (i, clock_relation(steps.partial(i, _SYNC_CHANNELS))) for i in synced._indices)
+            for i in synced._indices:
+                part = steps.partial(i, _SYNC_CHANNELS)  # synced watches ride along
+                kept = _synchronised(steps, i)
+                synced.relations[i] = kept.relation if kept is not None else clock_relation(part)
             related = [_Related(p, synced.relations[i])
                        for i, p in zip(synced._indices, synced.planned, strict=True)]
         return SyncOutput(result=summarise(related), figures={"sync": sync_figure(related)},
