@@ -163,3 +163,33 @@ def test_partial_step_decodes_only_the_named_channels() -> None:
     assert (part.table.time_s == full.table.time_s).all()
     assert (part.daq["trigger"] == full.daq["trigger"]).all()
     assert clock_relation(part) == clock_relation(full)
+
+
+def test_every_step_is_decoded_once_for_all_analyses_and_the_evidence() -> None:
+    """The sync pass's decode of a step feeds the FRF points, the transfer function's
+    cross-correlations and the uncertainty evidence (watches); each log of each step is
+    decoded once, and every value equals that of the same steps held in memory."""
+    from aatest.engine.dataset import Dataset
+    from aatest.engine.uncertainty.evidence import gather
+
+    data = read_dataset(RECORDING)
+    steps = data.steps
+    assert isinstance(steps, LazySteps)
+    loads: list[tuple[int, str]] = []
+    load = steps._load
+    steps._load = lambda i, s, c: loads.append((i, s)) or load(i, s, c)  # type: ignore
+    requested = list(data.metadata["analysis"])
+    assert {"frf", "transfer_function"} <= set(requested)
+    analysis = run_analyses(data, requested)
+    evidence = gather(data)
+    assert analysis.errors == {}
+    recorded = [i for i, p in enumerate(data.planned) if p.recorded]
+    assert sorted(loads) == sorted((i, s) for i in recorded for s in ("table", "daq"))
+    eager = Dataset(procedure=data.procedure, sample_rate_hz=data.sample_rate_hz,
+                    sensors=data.sensors, steps=tuple(read_dataset(RECORDING).steps),
+                    source=data.source, metadata=data.metadata)
+    in_memory = run_analyses(eager, requested)
+    lazy_json = results_json(build_results(data, analysis, 24.4, 0.0))["analysis"]
+    eager_json = results_json(build_results(eager, in_memory, 24.4, 0.0))["analysis"]
+    assert json.dumps(lazy_json, sort_keys=True) == json.dumps(eager_json, sort_keys=True)
+    assert evidence == gather(eager)
