@@ -193,3 +193,33 @@ def test_every_step_is_decoded_once_for_all_analyses_and_the_evidence() -> None:
     eager_json = results_json(build_results(eager, in_memory, 24.4, 0.0))["analysis"]
     assert json.dumps(lazy_json, sort_keys=True) == json.dumps(eager_json, sort_keys=True)
     assert evidence == gather(eager)
+
+
+def test_the_sync_pass_on_two_workers_equals_one_step_at_a_time() -> None:
+    """Steps decoded side by side give the relations, in order, of a plain loop."""
+    from aatest.plugins.analysis.sync import relations
+
+    one, two = read_dataset(RECORDING).steps, read_dataset(RECORDING).steps
+    assert isinstance(one, LazySteps) and isinstance(two, LazySteps)
+    indices = list(range(len(one)))[::-1]  # any order is kept as given
+    single = relations(one, indices, workers=1)
+    assert [i for i, _ in single] == indices
+    assert relations(two, indices, workers=2) == single
+
+
+def test_the_sync_pass_on_two_workers_raises_the_first_failing_step() -> None:
+    from aatest.engine.errors import AnalysisError
+    from aatest.plugins.analysis.sync import relations
+
+    steps = read_dataset(RECORDING).steps
+    assert isinstance(steps, LazySteps)
+    load = steps._load
+
+    def broken(i: int, source: str, channels: Any) -> Any:
+        if i in (2, 5):
+            raise AnalysisError(f"step {i} is broken")
+        return load(i, source, channels)
+
+    steps._load = broken  # type: ignore[method-assign]
+    with pytest.raises(AnalysisError, match="step 2 is broken"):
+        relations(steps, list(range(len(steps))), workers=2)

@@ -10,6 +10,7 @@ dataset) are synchronised once and kept, as before.
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, overload
 from weakref import WeakKeyDictionary
@@ -231,6 +232,34 @@ class SyncedSteps(Sequence[SyncedStep]):
         return steps.partial(i, wanted)
 
 
+#: steps decoded at once by the sync pass (this machine's two cores)
+PASS_WORKERS = 2
+
+
+def _relation_of(steps: LazySteps, index: int) -> ClockRelation:
+    """The clock relation of recorded step ``index``, its synced watches fed on the way."""
+    part = steps.partial(index, _SYNC_CHANNELS)  # synced watches ride along
+    kept = _synchronised(steps, index)
+    return kept.relation if kept is not None else clock_relation(part)
+
+
+def relations(steps: LazySteps, indices: Sequence[int],
+              workers: int = PASS_WORKERS) -> list[tuple[int, ClockRelation]]:
+    """``(index, clock relation)`` of each of ``indices``, in their order, ``workers`` steps
+    at a time.
+
+    Why threads: decompressing, FFTs, splines and most array work release the GIL, so two
+    steps decoded and reduced side by side use both cores. Each step's relation and watched
+    results depend only on that step, so they are the same whatever the interleaving; the
+    error of the first failing step (in order) is the one raised, as in a loop.
+    """
+    if workers <= 1 or len(indices) <= 1:
+        return [(i, _relation_of(steps, i)) for i in indices]
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="aatest-sync") as pool:
+        return list(zip(indices, pool.map(lambda i: _relation_of(steps, i), indices),
+                        strict=True))
+
+
 @dataclass(frozen=True)
 class SyncOutput(AnalysisOutput[SyncResult]):
     """The sync result plus the synchronised steps themselves (not written to results.json);
@@ -303,10 +332,7 @@ class SyncAnalysis:
         else:  # one step at a time: only its clock relation stays
             steps = data.steps
             assert isinstance(steps, LazySteps)  # what keep=False means
-            for i in synced._indices:
-                part = steps.partial(i, _SYNC_CHANNELS)  # synced watches ride along
-                kept = _synchronised(steps, i)
-                synced.relations[i] = kept.relation if kept is not None else clock_relation(part)
+            synced.relations.update(relations(steps, synced._indices))
             related = [_Related(p, synced.relations[i])
                        for i, p in zip(synced._indices, synced.planned, strict=True)]
         return SyncOutput(result=summarise(related), figures={"sync": sync_figure(related)},
