@@ -6,6 +6,12 @@ a requested analysis pulls those in, and the pass runs them first (a topological
 broken by name), handing each plugin only the outputs of its own requirements. So the results
 never depend on the order names are listed in. Aliases let procedures name sub-results
 (``thd``, ``snr``) that one plugin (``frf``) produces.
+
+Decoding a recorded step costs more than most analyses of it, so before any plugin runs each
+may register small per-step reductions (its optional ``watch_steps``; the uncertainty
+evidence too): the sync pass, which decodes every step first, then decodes the union of the
+channels once and feeds them all (:mod:`aatest.plugins.analysis.sync`). Results are the same
+as when each analysis reads the steps itself.
 """
 
 from __future__ import annotations

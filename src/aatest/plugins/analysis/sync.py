@@ -5,6 +5,12 @@ so the synchronised steps handed to the other analyses are a :class:`SyncedSteps
 synchronises a step when it is read and keeps nothing: an analysis iterating them holds one
 step at a time, whatever the number of steps. Steps already in memory (a simulated or test
 dataset) are synchronised once and kept, as before.
+
+Time: the sync pass is the first to decode every recorded step, so it decodes each once for
+all: analyses that will read the steps register small per-step reductions before it runs
+(:func:`watch_synced`: the FRF points, the transfer function's cross-correlations; and on the
+raw steps the uncertainty evidence, :meth:`LazySteps.watch`), which it makes from the same
+decode and synchronisation, two steps at a time on worker threads (:func:`relations`).
 """
 
 from __future__ import annotations
