@@ -10,7 +10,7 @@ Time: the sync pass is the first to decode every recorded step, so it decodes ea
 all: analyses that will read the steps register small per-step reductions before it runs
 (:func:`watch_synced`: the FRF points, the transfer function's cross-correlations; and on the
 raw steps the uncertainty evidence, :meth:`LazySteps.watch`), which it makes from the same
-decode and synchronisation, two steps at a time on worker threads (:func:`relations`).
+decode and synchronisation (:func:`relations`; optionally several steps at a time).
 """
 
 from __future__ import annotations
@@ -238,8 +238,11 @@ class SyncedSteps(Sequence[SyncedStep]):
         return steps.partial(i, wanted)
 
 
-#: steps decoded at once by the sync pass (this machine's two cores)
-PASS_WORKERS = 2
+#: steps the sync pass decodes at once. Measured on the idle 2-core machine (stepped sine,
+#: 136 steps): two workers cut the analyse phase's wall time by ≤ 5 % (the protobuf parse and
+#: the Python around it hold the GIL) for ≈ 3 s more CPU (18.2/16.6 s against 13.5 s), so
+#: one; :func:`relations` takes more where cores are spare.
+PASS_WORKERS = 1
 
 
 def _relation_of(steps: LazySteps, index: int) -> ClockRelation:
