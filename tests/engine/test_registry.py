@@ -96,3 +96,45 @@ def test_unknown_options_are_refused() -> None:
     info = registry.load("sensor", "good")
     with pytest.raises(PluginError, match="bad options: colour"):
         registry.configure(info, {"colour": "red"})
+
+
+def _write_dist(site: Any, name: str, sensors: dict[str, str]) -> Any:
+    """A ``.dist-info`` declaring ``aatest.sensors`` entry points, as pip would write it."""
+    info = site / f"{name}-1.0.dist-info"
+    info.mkdir(exist_ok=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n")
+    points = info / "entry_points.txt"
+    points.write_text("[aatest.sensors]\n" + "".join(f"{k} = {v}\n" for k, v in sensors.items()))
+    return points
+
+
+def test_entry_points_are_read_once_while_nothing_is_installed(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    calls: list[str] = []
+    real = metadata.entry_points
+
+    def counting(group: str) -> Any:
+        calls.append(group)
+        return real(group=group)
+
+    monkeypatch.setattr(metadata, "entry_points", counting)
+    first = registry.entry_points("sensor")
+    first.clear()  # the caller's own list: the cache is not changed through it
+    assert [ep.name for ep in registry.entry_points("sensor")] == \
+        [ep.name for ep in sorted(real(group="aatest.sensors"), key=lambda ep: ep.name)]
+    assert calls == ["aatest.sensors"]
+
+
+def test_entry_points_follow_installs_and_edits(tmp_path: Any,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    site = tmp_path / "site"
+    site.mkdir()
+    monkeypatch.syspath_prepend(str(site))
+    before = {ep.name for ep in registry.entry_points("sensor")}
+    points = _write_dist(site, "lab_sensors", {"lab_one": "lab_sensors:One"})
+    assert {ep.name for ep in registry.entry_points("sensor")} == before | {"lab_one"}
+    points.write_text("[aatest.sensors]\nlab_two = lab_sensors:Two\nlab_three = x:Y\n")
+    assert {ep.name for ep in registry.entry_points("sensor")} == \
+        before | {"lab_two", "lab_three"}
+    points.write_text("")
+    assert {ep.name for ep in registry.entry_points("sensor")} == before

@@ -164,3 +164,57 @@ def test_a_second_fresh_run_in_the_same_directory_is_refused(tmp_path: Path) -> 
     _run(tmp_path, [], _Log(), resume=False)
     with pytest.raises(ValueError, match="--resume"):
         _run(tmp_path, [], _Log(), resume=False)
+
+
+class _SlowRecorder(_Recorder):
+    """Writes a step only once the rig has begun the next one (or the run ends): a write
+    made in the loop itself would wait forever (here: fail after 10 s)."""
+
+    def __init__(self, written: list[str], log: _Log, fail_id: str | None = None) -> None:
+        super().__init__(written)
+        self.log, self.fail_id = log, fail_id
+
+    def write_step(self, step: PlannedStep, table: SampledLog, daq: SampledLog) -> None:
+        import time
+
+        from aatest.engine.errors import StorageFault
+
+        deadline = time.monotonic() + 10.0
+        following = {"a": "begin b", "b": "chamber 20"}.get(step.id)
+        while following and following not in self.log.calls and time.monotonic() < deadline:
+            time.sleep(0.001)
+        if step.id == self.fail_id:
+            raise StorageFault(f"{step.id}: no space left on device")
+        assert following is None or following in self.log.calls, "the write held the loop"
+        super().write_step(step, table, daq)
+
+
+def _run_slow(tmp_path: Path, recorder: _SlowRecorder, log: _Log, fail_on: str | None = None
+              ) -> Any:
+    state = open_state(tmp_path, "t", "abc", 1, False)
+    return run_plan(_plan(), _rig(log, fail_on), recorder, state, tmp_path, show_progress=False)
+
+
+def test_a_step_is_written_while_the_next_one_records(tmp_path: Path) -> None:
+    log, written = _Log(), []
+    _run_slow(tmp_path, _SlowRecorder(written, log), log)
+    assert written == ["a", "b", "c"]
+    assert log.calls[-5:] == [
+        "table.safe_stop", "chamber.off", "table.close", "daq.close", "chamber.close"
+    ]
+
+
+def test_a_failed_write_stops_the_run_before_any_later_step_is_written(tmp_path: Path) -> None:
+    from aatest.engine.errors import StorageFault
+
+    log, written = _Log(), []
+    with pytest.raises(StorageFault, match="b: no space"):
+        _run_slow(tmp_path, _SlowRecorder(written, log, fail_id="b"), log)
+    assert written == ["a"] and "table.safe_stop" in log.calls
+
+
+def test_a_rig_fault_is_not_hidden_by_the_write_in_flight(tmp_path: Path) -> None:
+    log, written = _Log(), []
+    with pytest.raises(RigFault, match="stopped answering"):
+        _run_slow(tmp_path, _SlowRecorder(written, log, fail_id="b"), log, fail_on="c")
+    assert written == ["a"]

@@ -166,3 +166,63 @@ def test_partial_step_decodes_only_the_named_channels() -> None:
     assert (part.table.time_s == full.table.time_s).all()
     assert (part.daq["trigger"] == full.daq["trigger"]).all()
     assert clock_relation(part) == clock_relation(full)
+
+
+def test_every_step_is_decoded_once_for_all_analyses_and_the_evidence() -> None:
+    """The sync pass's decode of a step feeds the FRF points, the transfer function's
+    cross-correlations and the uncertainty evidence (watches); each log of each step is
+    decoded once, and every value equals that of the same steps held in memory."""
+    from aatest.engine.dataset import Dataset
+    from aatest.engine.uncertainty.evidence import gather
+
+    data = read_dataset(RECORDING)
+    steps = data.steps
+    assert isinstance(steps, LazySteps)
+    loads: list[tuple[int, str]] = []
+    load = steps._load
+    steps._load = lambda i, s, c: loads.append((i, s)) or load(i, s, c)  # type: ignore
+    requested = list(data.metadata["analysis"])
+    assert {"frf", "transfer_function"} <= set(requested)
+    analysis = run_analyses(data, requested)
+    evidence = gather(data)
+    assert analysis.errors == {}
+    recorded = [i for i, p in enumerate(data.planned) if p.recorded]
+    assert sorted(loads) == sorted((i, s) for i in recorded for s in ("table", "daq"))
+    eager = Dataset(procedure=data.procedure, sample_rate_hz=data.sample_rate_hz,
+                    sensors=data.sensors, steps=tuple(read_dataset(RECORDING).steps),
+                    source=data.source, metadata=data.metadata)
+    in_memory = run_analyses(eager, requested)
+    lazy_json = results_json(build_results(data, analysis, 24.4, 0.0))["analysis"]
+    eager_json = results_json(build_results(eager, in_memory, 24.4, 0.0))["analysis"]
+    assert json.dumps(lazy_json, sort_keys=True) == json.dumps(eager_json, sort_keys=True)
+    assert evidence == gather(eager)
+
+
+def test_the_sync_pass_on_two_workers_equals_one_step_at_a_time() -> None:
+    """Steps decoded side by side give the relations, in order, of a plain loop."""
+    from aatest.plugins.analysis.sync import relations
+
+    one, two = read_dataset(RECORDING).steps, read_dataset(RECORDING).steps
+    assert isinstance(one, LazySteps) and isinstance(two, LazySteps)
+    indices = list(range(len(one)))[::-1]  # any order is kept as given
+    single = relations(one, indices, workers=1)
+    assert [i for i, _ in single] == indices
+    assert relations(two, indices, workers=2) == single
+
+
+def test_the_sync_pass_on_two_workers_raises_the_first_failing_step() -> None:
+    from aatest.engine.errors import AnalysisError
+    from aatest.plugins.analysis.sync import relations
+
+    steps = read_dataset(RECORDING).steps
+    assert isinstance(steps, LazySteps)
+    load = steps._load
+
+    def broken(i: int, source: str, channels: Any) -> Any:
+        if i in (2, 5):
+            raise AnalysisError(f"step {i} is broken")
+        return load(i, source, channels)
+
+    steps._load = broken  # type: ignore[method-assign]
+    with pytest.raises(AnalysisError, match="step 2 is broken"):
+        relations(steps, list(range(len(steps))), workers=2)

@@ -136,3 +136,33 @@ def test_pieces_refuse_a_missing_block_when_they_reach_it() -> None:
     assert len(next(pieces)) == BLOCK_SAMPLES and len(next(pieces)) == BLOCK_SAMPLES
     with pytest.raises(ValueError, match="have gaps"):
         next(pieces)
+
+
+def test_a_watch_rides_along_the_first_partial_decode_only(tmp_path: Path) -> None:
+    """A registered watch is fed by the first partial decode of a step (the union of the
+    channels, decoded once); the caller still gets only its channels, bit for bit."""
+    from aatest.engine.dataset import StepWatch
+
+    step = sine_step("s01", SAMPLES)
+    table, daq = step_logs(step, seed=5)
+    recorder = RunRecorder(tmp_path)
+    recorder.write_step(step, table, daq)
+    steps = read_dataset(recorder.finalize()).steps
+    assert isinstance(steps, LazySteps)
+    loads: list[tuple[int, str]] = []
+    load = steps._load
+    steps._load = lambda i, s, c: loads.append((i, s)) or load(i, s, c)  # type: ignore
+    seen: list[set[str]] = []
+    steps.watch("temp", StepWatch(channels=lambda p: {"daq": ["temperature_c"]},
+                                  applies=lambda p: p.kind == "sine",
+                                  reduce=lambda s: seen.append(set(s.daq.channels)) or
+                                  float(s.daq["temperature_c"].sum())))
+    with pytest.raises(KeyError):
+        steps.watched("temp", 0)
+    part = steps.partial(0, {"daq": ["sync_pulse"]})
+    assert loads == [(0, "table"), (0, "daq")]
+    assert seen == [{"sync_pulse", "temperature_c"}] and set(part.daq.channels) == {"sync_pulse"}
+    assert part.daq["sync_pulse"].tobytes() == daq["sync_pulse"].tobytes()
+    assert steps.watched("temp", 0) == float(daq["temperature_c"].sum())
+    steps.partial(0, {"daq": ["sync_pulse"]})
+    assert seen == [{"sync_pulse", "temperature_c"}]  # done once

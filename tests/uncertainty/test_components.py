@@ -222,3 +222,30 @@ def test_a_recorded_static_step_is_summarised_piece_by_piece(tmp_path: Any) -> N
     assert expected.mean_c == float(np.mean(daq["temperature_c"]))
     assert got.mean_c == pytest.approx(expected.mean_c, rel=1e-14)
     assert got.std_c == pytest.approx(expected.std_c, rel=1e-12)
+
+
+def test_evidence_measured_while_the_analyses_decode_equals_its_own_decodes() -> None:
+    """watch(): the sync pass's partial decodes also measure the sine steps' evidence; gather()
+    then decodes no sine step again, and what it reports is what its own decodes give."""
+    from pathlib import Path
+
+    from aatest.engine.dataset import LazySteps
+    from aatest.engine.recording import read_dataset
+    from aatest.engine.uncertainty.evidence import watch
+    from aatest.plugins.analysis.sync import _SYNC_CHANNELS
+
+    path = Path(__file__).parents[1] / "engine" / "data" / "streaming" / "recording.mcap"
+    plain, watched = read_dataset(path), read_dataset(path)
+    assert isinstance(watched.steps, LazySteps)
+    watch(watched)
+    sine = [i for i, p in enumerate(watched.planned) if p.kind == "sine"]
+    for i in sine:
+        part = watched.steps.partial(i, _SYNC_CHANNELS)
+        assert set(part.table.channels) == set(_SYNC_CHANNELS["table"])  # the caller's only
+    decodes: list[int] = []
+    load = watched.steps._load
+    watched.steps._load = lambda i, s, c: decodes.append(i) or load(i, s, c)  # type: ignore
+    found = gather(watched)
+    assert not set(decodes) & set(sine)
+    assert found.motion and found.bin_noise
+    assert found == gather(plain)

@@ -9,7 +9,7 @@ where the data came from and can always be re-run offline. Its per-channel senso
 
 from __future__ import annotations
 
-from collections.abc import Callable, Container, Iterator, Mapping, Sequence
+from collections.abc import Callable, Collection, Container, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -19,7 +19,8 @@ from aatest.engine.datasheet import SensorAxis, SensorInfo
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 
-__all__ = ["Dataset", "LazySteps", "NamesStartingWith", "SensorAxis", "SensorInfo", "StepData"]
+__all__ = ["Dataset", "LazySteps", "NamesStartingWith", "SensorAxis", "SensorInfo", "StepData",
+           "StepWatch"]
 
 #: ``load(index, source, channels)``: the ``"table"`` or ``"daq"`` log of the step at ``index``
 #: (only the channels named in ``channels`` and the time stamps when not None)
@@ -96,6 +97,70 @@ class LazyStepData(StepData):
         return f"LazyStepData(step={self.step.id!r}, index={self.__dict__['_index']})"
 
 
+@dataclass(frozen=True)
+class StepWatch:
+    """A small per-step reduction that rides along the first partial decode of a step.
+
+    Why: several passes read the same recorded step (the sync pass, the analyses, the
+    uncertainty evidence), each decoding only its channels; every decode costs a fixed part
+    (reading, CRC, decompressing and parsing every block) whatever the channels. A pass that
+    will need a step later registers a watch (:meth:`LazySteps.watch`); the first
+    :meth:`LazySteps.partial` of that step decodes the union of the channels and runs the
+    reduction then, so the later pass reads its small result instead of decoding again.
+    Results must be small (a few numbers): memory holds one per watched step.
+
+    Parameters
+    ----------
+    channels
+        The channels the reduction reads of a planned step, by source (``"table"``/``"daq"``).
+    applies
+        Whether the reduction is wanted for a planned step (others decode nothing extra).
+    reduce
+        The reduction of the decoded step (the union of the channels, and the time stamps).
+    """
+
+    channels: Callable[[PlannedStep], Mapping[str, Collection[str]]]
+    applies: Callable[[PlannedStep], bool]
+    reduce: Callable[[StepData], Any]
+
+
+#: the result kept for a reduction that raised
+_FAILED = object()
+
+
+def _guarded(watch: StepWatch) -> StepWatch:
+    """``watch`` whose reduction, if it raises, leaves :data:`_FAILED` (never breaks the
+    decode it rides along)."""
+
+    def reduce(step: StepData) -> Any:
+        try:
+            return watch.reduce(step)
+        except Exception:  # noqa: BLE001 - the owner recomputes the step and meets the error
+            return _FAILED
+
+    return StepWatch(watch.channels, watch.applies, reduce)
+
+
+@dataclass(frozen=True)
+class _Union(Container[str]):
+    """Every name in any of ``parts`` (a selection for a decode serving several readers)."""
+
+    parts: tuple[Container[str], ...]
+
+    def __contains__(self, name: object) -> bool:
+        return any(name in part for part in self.parts)
+
+
+def _subset(log: SampledLog, channels: Container[str]) -> SampledLog:
+    """The log with only ``channels`` (views, in the logged order): what a decode of only
+    those channels gives."""
+    kept = {name: values for name, values in log.channels.items() if name in channels}
+    return SampledLog(log.source, log.sample_rate_hz, log.time_s, kept,
+                      {k: v for k, v in log.units.items() if k in kept},
+                      {k: v for k, v in log.quantisation.items()
+                       if k == "time_s" or k in kept})
+
+
 class LazySteps(Sequence[StepData]):
     """The steps of a recording, decoded one at a time when an element is read.
 
@@ -113,6 +178,8 @@ class LazySteps(Sequence[StepData]):
         self._load = load
         self._pieces = pieces
         self._samples = tuple(samples)
+        #: registered watches and their results by step index
+        self._watches: dict[str, tuple[StepWatch, dict[int, Any]]] = {}
 
     def __len__(self) -> int:
         return len(self.planned)
@@ -141,9 +208,46 @@ class LazySteps(Sequence[StepData]):
         Names a log does not have are ignored.
         """
         i = range(len(self))[index]
-        logs = {source: self._load(i, source, channels.get(source, ()))
-                for source in ("table", "daq")}
-        return StepData(self.planned[i], logs["table"], logs["daq"])
+        step = self.planned[i]
+        due = [(watch, done) for watch, done in self._watches.values()
+               if i not in done and watch.applies(step)]
+        if not due:
+            logs = {source: self._load(i, source, channels.get(source, ()))
+                    for source in ("table", "daq")}
+            return StepData(step, logs["table"], logs["daq"])
+        wanted = {source: _Union((channels.get(source, ()),
+                                  *(watch.channels(step).get(source, ()) for watch, _ in due)))
+                  for source in ("table", "daq")}
+        whole = StepData(step, *(self._load(i, source, wanted[source])
+                                 for source in ("table", "daq")))
+        for watch, done in due:
+            done[i] = watch.reduce(whole)
+        return StepData(step, *(_subset(whole.table if source == "table" else whole.daq,
+                                        channels.get(source, ()))
+                                for source in ("table", "daq")))
+
+    def watch(self, name: str, watch: StepWatch) -> None:
+        """Run ``watch`` on each step it applies to when that step is first decoded partly.
+
+        Registering a name again keeps the results already made under it. A reduction that
+        raises is not kept (its owner computes it again, and meets the error there).
+        """
+        if name not in self._watches:
+            self._watches[name] = (_guarded(watch), {})
+
+    def watched(self, name: str, index: int) -> Any:
+        """The result of watch ``name`` for step ``index``.
+
+        Raises
+        ------
+        KeyError
+            When that step has not been decoded since the watch was registered (or its
+            reduction failed): the owner then reads the step itself.
+        """
+        result = self._watches[name][1][index]
+        if result is _FAILED:
+            raise KeyError(index)
+        return result
 
     def pieces(self, index: int, source: str, channels: Container[str] | None = None
                ) -> Iterator[SampledLog]:

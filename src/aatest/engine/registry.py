@@ -7,6 +7,8 @@ installed it, so a user knows which package is at fault.
 
 from __future__ import annotations
 
+import os
+import sys
 from dataclasses import dataclass
 from importlib import metadata
 from typing import Any
@@ -118,11 +120,54 @@ def _validate_effect(name: str, target: Any, dist: str) -> None:
         raise PluginError(f"{who}: 'attributed_to' must be 'sensor' or 'table'")
 
 
+#: entry points by kind, with the installation signature they were read under
+_SCANNED: dict[str, tuple[tuple[Any, ...], list[metadata.EntryPoint]]] = {}
+
+
+def _installed_signature() -> tuple[Any, ...]:
+    """What the installed entry points depend on, cheaply: the metadata API in use, the import
+    path with each directory's modification time, and every distribution's ``entry_points.txt``
+    modification time and size (ns, bytes).
+
+    Why: reading every distribution's entry points takes ≈3.6 ms and a run asks ≈270 times
+    (≈1 s); stat calls take ≈0.6 ms. A distribution installed, removed or edited since (a test
+    writing a ``.dist-info`` on ``sys.path``, or monkeypatching ``importlib.metadata``) changes
+    the signature, so plugins still come only from what is installed now.
+    """
+    stamps: list[Any] = [metadata.entry_points, tuple(sys.path)]
+    for entry in sys.path:
+        try:
+            stamps.append(os.stat(entry or ".").st_mtime_ns)
+        except OSError:
+            stamps.append(None)
+    for dist in metadata.distributions():
+        where = getattr(dist, "_path", None)  # a PathDistribution's .dist-info directory
+        if where is None:
+            stamps.append(id(dist))  # unknown kind of distribution: never reuse the scan
+            continue
+        try:
+            found = os.stat(os.path.join(where, "entry_points.txt"))
+        except OSError:
+            stamps.append(str(where))
+            continue
+        stamps.append((str(where), found.st_mtime_ns, found.st_size))
+    return tuple(stamps)
+
+
 def entry_points(kind: str) -> list[metadata.EntryPoint]:
-    """Return the installed entry points of one plugin kind, sorted by name."""
+    """Return the installed entry points of one plugin kind, sorted by name.
+
+    Read once per process and re-read whenever the installation changes
+    (:func:`_installed_signature`); the list returned is the caller's own.
+    """
     if kind not in GROUPS:
         raise PluginError(f"unknown plugin kind {kind!r}; kinds: {', '.join(GROUPS)}")
-    return sorted(metadata.entry_points(group=GROUPS[kind]), key=lambda ep: ep.name)
+    signature = _installed_signature()
+    cached = _SCANNED.get(kind)
+    if cached is None or cached[0] != signature:
+        found = sorted(metadata.entry_points(group=GROUPS[kind]), key=lambda ep: ep.name)
+        _SCANNED[kind] = cached = (signature, found)
+    return list(cached[1])
 
 
 def load(kind: str, name: str) -> PluginInfo:

@@ -6,6 +6,12 @@ a requested analysis pulls those in, and the pass runs them first (a topological
 broken by name), handing each plugin only the outputs of its own requirements. So the results
 never depend on the order names are listed in. Aliases let procedures name sub-results
 (``thd``, ``snr``) that one plugin (``frf``) produces.
+
+Decoding a recorded step costs more than most analyses of it, so before any plugin runs each
+may register small per-step reductions (its optional ``watch_steps``; the uncertainty
+evidence too): the sync pass, which decodes every step first, then decodes the union of the
+channels once and feeds them all (:mod:`aatest.plugins.analysis.sync`). Results are the same
+as when each analysis reads the steps itself.
 """
 
 from __future__ import annotations
@@ -101,6 +107,21 @@ def _run_one(plugin: AnalysisPlugin, data: Dataset, options: BaseModel,
     return out
 
 
+def _watch_steps(plugins: Sequence[AnalysisPlugin], data: Dataset,
+                 chosen: Mapping[str, BaseModel]) -> None:
+    """Let every plugin that applies register its per-step reductions before any plugin runs.
+
+    An analysis plugin may define ``watch_steps(data, options)`` (optional; ``options`` as its
+    ``run`` gets them): it registers reductions the first pass over the recording makes while
+    it decodes each step (:func:`aatest.plugins.analysis.sync.watch_synced`), so each step is
+    decoded once for all analyses instead of once per analysis. Results are the same either
+    way: a plugin without it, or run alone, reads the steps itself.
+    """
+    for plugin in plugins:
+        if callable(getattr(plugin.cls, "watch_steps", None)) and plugin.cls().applies_to(data):
+            plugin.cls().watch_steps(data, chosen.get(plugin.name) or plugin.options())
+
+
 def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
                  options: Mapping[str, BaseModel] | None = None) -> AnalysisResults:
     """Run each analysis; a data problem in one is recorded and the others still run.
@@ -115,12 +136,19 @@ def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
     options
         Already validated options by plugin name, overriding those in ``requested``.
     """
+    from aatest.engine.uncertainty.evidence import watch
+
+    # the uncertainty stage reads every sine step after this pass: measured while the pass
+    # decodes them, it need not decode them again
+    watch(data)
     explicit = bool(requested)
     names = _requested_names(requested) if explicit else _plugins.installed_names()
     chosen = dict(_plugins.requested_options(requested)) | dict(options or {})
     out = AnalysisResults()
     by_name: dict[str, AnalysisOutput[Any]] = {}
-    for plugin in order(names):
+    plugins = order(names)
+    _watch_steps(plugins, data, chosen)
+    for plugin in plugins:
         if not plugin.cls().applies_to(data):
             out.skipped.append(plugin.name)
             if explicit and plugin.name in names:

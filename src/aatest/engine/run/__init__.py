@@ -2,6 +2,7 @@
 
 - ``rig``        builds the rig's plugins; safe stop (table stopped, motor off) on any fault
 - ``runner``     the step loop: record, persist, resume without repeating a step
+- ``writes``     step files written on a worker thread while the next step records
 - ``run_state``  ``run_state.json``: which steps are done, which prompts were shown
 - ``progress``   the operator's terminal progress line
 - ``signing``    Ed25519 keys and detached signatures of the report bundle

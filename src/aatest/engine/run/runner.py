@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import hashlib
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -34,6 +36,7 @@ from aatest.engine.run.events import RunEvents
 from aatest.engine.run.progress import StepProgress
 from aatest.engine.run.rig import Rig, running
 from aatest.engine.run.run_state import RunState
+from aatest.engine.run.writes import BackgroundWrites
 from aatest.engine.steps import Plan, PlannedStep
 
 DEFAULT_SOAK_S = 900.0
@@ -181,6 +184,18 @@ def _with_note(exc: AatestError, note: str) -> AatestError:
     return noted
 
 
+@contextmanager
+def _closing(writes: BackgroundWrites) -> Iterator[None]:
+    """Finish the write in flight before the rig's safe stop and close (an exit of the
+    ``with`` in any way)."""
+    try:
+        yield
+    except BaseException:
+        writes.close(raising=False)
+        raise
+    writes.close()
+
+
 def run_plan(
     plan: Plan,
     rig: Rig,
@@ -199,9 +214,10 @@ def run_plan(
     done = set(recorder.completed_step_ids()) | set(state.chamber_steps_done)
     chamber = _ChamberTracker()
     started = time.perf_counter()
+    writes = BackgroundWrites(recorder)  # a step's file is written while the next records
     try:
         with running(rig), StepProgress(plan, done, enabled=show_progress) as progress, \
-                threadpool_limits(limits=1, user_api="blas"):  # see _ONE_BLAS_THREAD
+                threadpool_limits(limits=1, user_api="blas"), _closing(writes):
             events.observer.run_started(plan, frozenset(done))
             for step in plan.steps:
                 if step.id in done:
@@ -217,16 +233,18 @@ def run_plan(
                 if step.kind == "chamber":
                     state.chamber_steps_done.append(step.id)
                 elif _streamed(rig, step):
+                    writes.wait()  # the recorder serves one writer at a time
                     table, last = execute_streamed_step(rig, step, recorder, events)
                     events.observer.step_samples(step, table, last)
                 else:
                     table, daq = execute_step(rig, step)
                     events.observer.step_samples(step, table, daq)
                     events.abort.check()  # aborted while recording: the step is not kept
-                    recorder.write_step(step, table, daq)
+                    writes.submit(step, table, daq)
                 state.save(run_dir)
                 progress.end(step)
                 events.observer.step_finished(step)
+            writes.wait()
         events.observer.run_finished()
     except AatestError as exc:
         events.observer.run_stopped(str(exc))

@@ -274,26 +274,98 @@ def _streamed_summary(steps: Any, index: int, channels: list[str]) -> _Summary:
     return _Summary(moments, heads, samples, rate)
 
 
+def _sine_channels(step: Any, channels: list[str]) -> dict[str, list[str]]:
+    """The channels the evidence reads of a sine step, by source: the moving axis' position and
+    acceleration estimate, the DAQ's sensor ``channels`` and temperature."""
+    return {"daq": [*channels, _TEMPERATURE],
+            "table": [f"{step.axis}_position_deg", f"{step.axis}_accel_dps2"]}
+
+
 def _record(data: Any, index: int, channels: list[str]) -> Any:
     """Sine step ``index`` with only the channels the evidence reads (a recording's lazy
-    steps): the moving axis' position and acceleration estimate, the DAQ's sensor channels
-    and temperature. An in-memory dataset's step is read as it is."""
+    steps, :func:`_sine_channels`). An in-memory dataset's step is read as it is."""
     from aatest.engine.dataset import LazySteps
 
     steps = data.steps
     if not isinstance(steps, LazySteps):
         return steps[index]
-    step = steps.planned[index]
-    table = [f"{step.axis}_position_deg", f"{step.axis}_accel_dps2"]
-    return steps.partial(index, {"daq": [*channels, _TEMPERATURE], "table": table})
+    return steps.partial(index, _sine_channels(steps.planned[index], channels))
+
+
+@dataclass(frozen=True)
+class _SineEvidence:
+    """What the evidence keeps of one sine step (a few numbers, no samples)."""
+
+    temperature: Moments | None
+    motion: MotionEvidence | None
+    bin_noise: BinNoise | None
+
+
+def _sine_evidence(record: Any, channels: list[str]) -> _SineEvidence:
+    """Temperature moments, motion and local noise of one decoded sine step."""
+    step = record.step
+    summary = _summary_of_log(record.daq, [])
+    position = record.table.channels.get(f"{step.axis}_position_deg")
+    cycles = getattr(step, "cycles", None)
+    amplitude = getattr(step, "amplitude_deg", None) or 0.0
+    if position is None or not cycles:
+        return _SineEvidence(summary.temperature, None, None)
+    return _SineEvidence(
+        summary.temperature,
+        _motion(np.asarray(position, dtype=float), int(cycles), float(amplitude)),
+        _bin_noise(record, int(cycles), channels))
+
+
+#: the name the evidence's per-step reduction is watched under (:func:`watch`)
+_WATCH = "uncertainty.evidence"
+
+
+def watch(data: Any) -> None:
+    """Measure each sine step's evidence when an analysis first decodes that step.
+
+    Why: the analyses (the sync pass first) already decode every sine step, and the fixed part
+    of a decode costs more than the few channels added here; :func:`gather` then reads the
+    results instead of decoding every sine step again (values identical: the same channels,
+    the same reductions). Only a recording's lazy steps are watched; nothing else changes.
+
+    Parameters
+    ----------
+    data
+        The :class:`aatest.engine.dataset.Dataset` the analyses are about to read.
+    """
+    from aatest.engine.dataset import LazySteps, StepWatch
+
+    steps = getattr(data, "steps", None)
+    if not isinstance(steps, LazySteps):
+        return
+    channels = [s.channel for s in data.sensors]
+    steps.watch(_WATCH, StepWatch(
+        channels=lambda step: _sine_channels(step, channels),
+        applies=lambda step: step.kind == "sine",
+        reduce=lambda record: _sine_evidence(record, channels)))
+
+
+def _sine_of(data: Any, index: int, channels: list[str]) -> _SineEvidence:
+    """The evidence of sine step ``index``: measured while an analysis decoded it, else now."""
+    from aatest.engine.dataset import LazySteps
+
+    if isinstance(data.steps, LazySteps):
+        try:
+            found: _SineEvidence = data.steps.watched(_WATCH, index)
+        except KeyError:
+            pass
+        else:
+            return found
+    return _sine_evidence(_record(data, index, channels), channels)
 
 
 def gather(data: Any) -> Evidence:
     """Measure the motion of every coherent sine record and the logged temperatures.
 
     One step at a time, and of it only the channels read here: a recorded sine step decoded
-    partially (:func:`_record`), any other recorded step read piece by piece
-    (:func:`_streamed_summary`), so memory does not grow with the steps or the record length.
+    partially (:func:`_record`; or already measured while an analysis decoded it,
+    :func:`watch`), any other recorded step read piece by piece (:func:`_streamed_summary`),
+    so memory does not grow with the steps or the record length.
 
     Parameters
     ----------
@@ -311,31 +383,26 @@ def gather(data: Any) -> Evidence:
     channels = [s.channel for s in data.sensors]
     present = data.metadata.get("temperature_present", True)
     for index, step in enumerate(data.planned):
-        wanted = channels if step.kind == "static" else []
-        record = None
-        if step.kind != "sine" and isinstance(data.steps, LazySteps):
-            summary = _streamed_summary(data.steps, index, wanted)
+        sine = _sine_of(data, index, channels) if step.kind == "sine" else None
+        if sine is not None:
+            moments = sine.temperature
+        elif isinstance(data.steps, LazySteps):
+            summary = _streamed_summary(data.steps, index, channels if step.kind == "static"
+                                        else [])
+            moments = summary.temperature
         else:
-            record = _record(data, index, channels)
-            summary = _summary_of_log(record.daq, wanted)
-        moments = summary.temperature
+            summary = _summary_of_log(data.steps[index].daq,
+                                      channels if step.kind == "static" else [])
+            moments = summary.temperature
         if present and moments is not None and moments.count:
             temperature[step.id] = TemperatureEvidence(moments.mean, moments.std)
         if step.kind == "static":
             found = {ch: line_of_head(head, summary.samples, summary.sample_rate_hz)
                      for ch, head in summary.heads.items()}
             lines[step.id] = {ch: line for ch, line in found.items() if line is not None}
-        if step.kind != "sine" or record is None:
-            continue
-        position = record.table.channels.get(f"{step.axis}_position_deg")
-        cycles = getattr(step, "cycles", None)
-        amplitude = getattr(step, "amplitude_deg", None) or 0.0
-        if position is not None and cycles:
-            measured = _motion(np.asarray(position, dtype=float), int(cycles), float(amplitude))
-            if measured is not None:
-                motion[step.id] = measured
-            noise = _bin_noise(record, int(cycles), channels)
-            if noise is not None:
-                bin_noise[step.id] = noise
+        if sine is not None and sine.motion is not None:
+            motion[step.id] = sine.motion
+        if sine is not None and sine.bin_noise is not None:
+            bin_noise[step.id] = sine.bin_noise
     return Evidence(motion, temperature, recording=True, bin_noise=bin_noise,
                     static_lines=lines)

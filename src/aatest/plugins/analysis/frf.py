@@ -39,7 +39,7 @@ from aatest.plugins.analysis._common import (
     to_svg,
     whole_cycles,
 )
-from aatest.plugins.analysis.sync import SyncedSteps
+from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
 from aatest.results.frf import FrfResult
 from aatest.sync.freeze_pulse import SyncedStep
 
@@ -320,13 +320,37 @@ def channel_points(steps: Sequence[SyncedStep], sensor: SensorInfo, harmonics: i
     decoded and synchronised (:data:`INPUT_ACCEL_CHANNELS`): the same values as whole steps, at
     about half the decoding cost per step.
     """
-    if isinstance(steps, SyncedSteps):
+    def point(synced: SyncedStep) -> dict[str, Any]:
+        return frf_point(synced, sensor, harmonics)
+
+    if isinstance(steps, SyncedSteps):  # the points the sync pass made, else from the steps
         steps = steps.only(table=INPUT_ACCEL_CHANNELS, daq=(sensor.channel,))
-    points = [frf_point(s, sensor, harmonics)
-              for s in select(steps, lambda p: is_excited(p, sensor))]
+        points = steps.where(lambda p: is_excited(p, sensor)).reduced(
+            _watch_name(sensor, harmonics), point)
+    else:
+        points = [point(s) for s in select(steps, lambda p: is_excited(p, sensor))]
     points.sort(key=lambda p: (p["group"], p["frequency_hz"]))
     unwrap_phases(points)
     return points
+
+
+def _watch_name(sensor: SensorInfo, harmonics: int) -> str:
+    return f"frf.point:{sensor.channel}:{harmonics}"
+
+
+def watch_points(data: Dataset, harmonics: int = HARMONICS) -> None:
+    """Have the sync pass make every sensor's FRF points as it decodes the sine steps (read
+    back by :func:`channel_points`): a recorded step is then decoded once, not once more here.
+    """
+    for sensor in data.sensors:
+        def excited(p: Any, sensor: SensorInfo = sensor) -> bool:
+            return bool(p.kind == "sine" and is_excited(p, sensor))
+
+        def point(synced: SyncedStep, sensor: SensorInfo = sensor) -> dict[str, Any]:
+            return frf_point(synced, sensor, harmonics)
+
+        watch_synced(data, _watch_name(sensor, harmonics), SyncedWatch(
+            {"table": INPUT_ACCEL_CHANNELS, "daq": (sensor.channel,)}, excited, point))
 
 
 class FrfAnalysis:
@@ -341,6 +365,13 @@ class FrfAnalysis:
 
     def applies_to(self, data: Dataset) -> bool:
         return any(p.kind == "sine" for p in data.planned)
+
+    def watch_steps(self, data: Dataset, options: BaseModel) -> None:
+        """Register the FRF points with the sync pass (:func:`watch_points`)."""
+        chosen = options if isinstance(options, FrfOptions) else \
+            FrfOptions.model_validate(options.model_dump())
+        harmonics = chosen.harmonics
+        watch_points(data, harmonics)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[FrfResult]:
         steps = steps_of(context, "sine")

@@ -37,7 +37,7 @@ from aatest.plugins.analysis._common import (
     steps_of,
     to_svg,
 )
-from aatest.plugins.analysis.sync import SyncedSteps
+from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
 from aatest.plugins.analysis.tfest import (
     DiscreteTf,
     fit_discrete_tf,
@@ -84,31 +84,73 @@ def xcorr_delay(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, fl
 
 
 def _xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[str, float], float]:
-    """:func:`xcorr_delay` and the steps' sample rate (Hz), each step synchronised once."""
+    """:func:`xcorr_delay` and the steps' sample rate (Hz), each step synchronised once (or
+    its correlation made by the sync pass, :func:`watch_xcorr`)."""
     if isinstance(steps, SyncedSteps):
         steps = steps.only(table=INPUT_ACCEL_CHANNELS, daq=(sensor.channel,))
-    total, fs, max_lag = np.zeros(0), 0.0, 0
-    for s in steps:
-        if not fs:
-            fs = s.sample_rate_hz
-            max_lag = int(_MAX_LAG_S * fs)
-            total = np.zeros(max_lag + 1)
-        x = input_accel_dps2(s, sensor.axis)
-        y = np.asarray(s.daq[sensor.channel], dtype=np.float64)
-        x, y = x - x.mean(), y - y.mean()
-        # lags 0..max_lag of the linear correlation need nfft ≥ n + max_lag (no wrap-around);
-        # a 5-smooth length is ~10x faster than the next power of two above 2n
-        nfft = next_fast_len(x.size + max_lag, real=True)
-        cc = np.fft.irfft(np.conj(np.fft.rfft(x, nfft)) * np.fft.rfft(y, nfft), nfft)
-        overlap = x.size - np.arange(max_lag + 1)
-        total += cc[:max_lag + 1] / overlap / (np.std(x) * np.std(y))
-    if not fs:
+        terms = steps.reduced(_watch_name(sensor), lambda s: _rated_term(s, sensor))
+    else:
+        terms = [_rated_term(s, sensor) for s in steps]
+    if not terms:
         raise IndexError("no steps to correlate")
-    total /= len(steps)
+    fs = terms[0][0]
+    max_lag = int(_MAX_LAG_S * fs)
+    if any(rate != fs for rate, _ in terms):  # every step's lags are those of the first
+        terms = [(fs, _xcorr_term(s, sensor, max_lag)) for s in steps]
+    total = np.zeros(max_lag + 1)
+    for _, term in terms:
+        total += term
+    total /= len(terms)
     lag = int(np.argmax(np.abs(total)))
     strength = float(abs(total[lag]))
     return {"delay_samples": lag, "delay_s": lag / fs, "strength": strength,
             "accepted": bool(strength >= XCORR_MIN_STRENGTH)}, fs
+
+
+def _xcorr_term(s: SyncedStep, sensor: SensorInfo, max_lag: int) -> np.ndarray:
+    """One step's normalised input–output correlation at lags 0..``max_lag`` (samples)."""
+    x = input_accel_dps2(s, sensor.axis)
+    y = np.asarray(s.daq[sensor.channel], dtype=np.float64)
+    x, y = x - x.mean(), y - y.mean()
+    # lags 0..max_lag of the linear correlation need nfft ≥ n + max_lag (no wrap-around);
+    # a 5-smooth length is ~10x faster than the next power of two above 2n
+    nfft = next_fast_len(x.size + max_lag, real=True)
+    cc = np.fft.irfft(np.conj(np.fft.rfft(x, nfft)) * np.fft.rfft(y, nfft), nfft)
+    overlap = x.size - np.arange(max_lag + 1)
+    term: np.ndarray = cc[:max_lag + 1] / overlap / (np.std(x) * np.std(y))
+    return term
+
+
+def _rated_term(s: SyncedStep, sensor: SensorInfo) -> tuple[float, np.ndarray]:
+    """The step's sample rate (Hz) and its correlation over the lags that rate gives."""
+    return s.sample_rate_hz, _xcorr_term(s, sensor, int(_MAX_LAG_S * s.sample_rate_hz))
+
+
+def _watch_name(sensor: SensorInfo) -> str:
+    return f"transfer_function.xcorr:{sensor.channel}"
+
+
+def watch_xcorr(data: Dataset, options: TransferFunctionOptions) -> None:
+    """Have the sync pass correlate input and output of every sine step a model will read
+    (groups with ``options.min_points`` steps along a sensor), as it decodes the step: each
+    recorded step is then decoded once, not once more here (values identical)."""
+    sine = [p for p in data.planned if p.kind == "sine"]
+    for sensor in data.sensors:
+        counts: dict[str, int] = {}
+        for p in sine:
+            if is_excited(p, sensor):
+                counts[group_of(p)] = counts.get(group_of(p), 0) + 1
+        modelled = {g for g, n in counts.items() if n >= options.min_points}
+
+        def wanted(p: PlannedStep, sensor: SensorInfo = sensor,
+                   modelled: set[str] = modelled) -> bool:
+            return p.kind == "sine" and group_of(p) in modelled and is_excited(p, sensor)
+
+        def term(s: SyncedStep, sensor: SensorInfo = sensor) -> tuple[float, np.ndarray]:
+            return _rated_term(s, sensor)
+
+        watch_synced(data, _watch_name(sensor), SyncedWatch(
+            {"table": INPUT_ACCEL_CHANNELS, "daq": (sensor.channel,)}, wanted, term))
 
 
 def _split(n_points: int, every: int = 3) -> tuple[np.ndarray, np.ndarray]:
@@ -301,6 +343,11 @@ class TransferFunctionAnalysis:
 
     def applies_to(self, data: Dataset) -> bool:
         return len([p for p in data.planned if p.kind == "sine"]) >= MIN_POINTS
+
+    def watch_steps(self, data: Dataset, options: BaseModel) -> None:
+        """Register the cross-correlations with the sync pass (:func:`watch_xcorr`)."""
+        watch_xcorr(data, options if isinstance(options, TransferFunctionOptions) else
+                    TransferFunctionOptions.model_validate(options.model_dump()))
 
     def run(self, data: Dataset, context: AnalysisContext
             ) -> AnalysisOutput[TransferFunctionResult]:
