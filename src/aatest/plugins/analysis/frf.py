@@ -17,6 +17,7 @@ listed in a procedure are aliases of this analysis.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -172,6 +173,27 @@ def _periodic_hann(length: int) -> np.ndarray:
     return 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(length) / length)
 
 
+@functools.lru_cache(maxsize=32)
+def _segment_projector(length: int, frequency_hz: float, fs_hz: float, harmonics: int
+                       ) -> tuple[np.ndarray, np.ndarray, int]:
+    """(pseudo-inverse of the Hann-weighted design, √weights, harmonic count) of a segment fit.
+
+    Why cached: it depends only on the segment layout, and a stepped sine repeats each
+    frequency in every acceleration group; the reference and the output of a step share it.
+    One SVD per layout instead of two per step (the arrays are read-only).
+    """
+    omega_tau = 2.0 * np.pi * frequency_hz / fs_hz * np.arange(length)
+    k = np.arange(1, harmonics + 1)
+    k = k[k * frequency_hz < fs_hz / 2.0]
+    angles = np.outer(omega_tau, k)
+    design = np.column_stack([np.ones(length), np.cos(angles), np.sin(angles)])
+    root_w = np.sqrt(_periodic_hann(length))
+    projector = np.linalg.pinv(design * root_w[:, None])
+    projector.flags.writeable = False
+    root_w.flags.writeable = False
+    return projector, root_w, int(k.size)
+
+
 def _fit_fundamentals(segments: np.ndarray, frequency_hz: float, fs_hz: float,
                       harmonics: int) -> np.ndarray:
     """Complex fundamental of every row of ``segments`` (rows: segments), x ≈ Re(c·e^{jωτ}),
@@ -181,16 +203,10 @@ def _fit_fundamentals(segments: np.ndarray, frequency_hz: float, fs_hz: float,
     The fit removes every periodic component exactly however many samples a period holds,
     and the Hann weights make non-harmonic content (the motor band) leak as 1/Δ³.
     """
-    length = segments.shape[1]
-    omega_tau = 2.0 * np.pi * frequency_hz / fs_hz * np.arange(length)
-    k = np.arange(1, harmonics + 1)
-    k = k[k * frequency_hz < fs_hz / 2.0]
-    angles = np.outer(omega_tau, k)
-    design = np.column_stack([np.ones(length), np.cos(angles), np.sin(angles)])
-    root_w = np.sqrt(_periodic_hann(length))
-    projector = np.linalg.pinv(design * root_w[:, None])
+    projector, root_w, count = _segment_projector(segments.shape[1], frequency_hz, fs_hz,
+                                                  harmonics)
     coef = (segments * root_w) @ projector.T
-    return np.asarray(coef[:, 1] - 1j * coef[:, 1 + k.size])
+    return np.asarray(coef[:, 1] - 1j * coef[:, 1 + count])
 
 
 def _overlap_correlation(length: int, hop: int) -> float:
