@@ -77,13 +77,20 @@ def test_blocks_that_do_not_tile_the_record_are_refused(damage: str, message: st
         _decode(iter(blocks), log)
 
 
-def test_partial_decode_by_prefix_keeps_only_those_channels(tmp_path: Path) -> None:
+def _recorded_step(directory: Path, seed: int) -> tuple[LazySteps, SampledLog, SampledLog]:
+    """One twin sine step written to a recording in ``directory`` and read back lazily; with
+    the table and DAQ logs it was written from."""
     step = sine_step("s01", SAMPLES)
-    table, daq = step_logs(step, seed=5)
-    recorder = RunRecorder(tmp_path)
+    table, daq = step_logs(step, seed=seed)
+    recorder = RunRecorder(directory)
     recorder.write_step(step, table, daq)
     steps = read_dataset(recorder.finalize()).steps
     assert isinstance(steps, LazySteps)
+    return steps, table, daq
+
+
+def test_partial_decode_by_prefix_keeps_only_those_channels(tmp_path: Path) -> None:
+    steps, _, daq = _recorded_step(tmp_path, seed=5)
     part = steps.partial(0, {"daq": NamesStartingWith("temp"), "table": NamesStartingWith("x")})
     assert set(part.daq.channels) == {"temperature_c"} and not part.table.channels
     assert part.daq["temperature_c"].tobytes() == daq["temperature_c"].tobytes()
@@ -108,12 +115,7 @@ def test_certificate_temperature_summary_equals_the_whole_temperature_record() -
 
 def test_pieces_of_a_recorded_log_are_its_blocks_in_order_and_concatenate_to_it(
         tmp_path: Path) -> None:
-    step = sine_step("s01", SAMPLES)
-    table, daq = step_logs(step, seed=6)
-    recorder = RunRecorder(tmp_path)
-    recorder.write_step(step, table, daq)
-    steps = read_dataset(recorder.finalize()).steps
-    assert isinstance(steps, LazySteps)
+    steps, table, daq = _recorded_step(tmp_path, seed=6)
     pieces = list(steps.pieces(0, "daq", ["v_sz"]))
     assert [len(p) for p in pieces] == [BLOCK_SAMPLES] * (len(daq) // BLOCK_SAMPLES) + \
         ([len(daq) % BLOCK_SAMPLES] if len(daq) % BLOCK_SAMPLES else [])
@@ -143,12 +145,7 @@ def test_a_watch_rides_along_the_first_partial_decode_only(tmp_path: Path) -> No
     channels, decoded once); the caller still gets only its channels, bit for bit."""
     from aatest.engine.dataset import StepWatch
 
-    step = sine_step("s01", SAMPLES)
-    table, daq = step_logs(step, seed=5)
-    recorder = RunRecorder(tmp_path)
-    recorder.write_step(step, table, daq)
-    steps = read_dataset(recorder.finalize()).steps
-    assert isinstance(steps, LazySteps)
+    steps, _, daq = _recorded_step(tmp_path, seed=5)
     loads: list[tuple[int, str]] = []
     load = steps._load
     steps._load = lambda i, s, c: loads.append((i, s)) or load(i, s, c)  # type: ignore
