@@ -226,6 +226,23 @@ def rig_checks(rig_seed: int, workdir: Path, only: tuple[str, ...] = ()) -> list
     return checks
 
 
+def rigs_per_procedure(rigs: int = RIGS, frf_rigs: int = FRF_RIGS, only: tuple[str, ...] = ()
+                       ) -> dict[str, int]:
+    """How many drawn rigs each procedure (or each of the ``only`` ones) runs on."""
+    return {name: frf_rigs if name == "stepped-sine" else rigs for name in PROCEDURES
+            if not only or name in only}
+
+
+def drawn_rig_checks(first_seed: int, rigs: dict[str, int], workdir: Path) -> list[Check]:
+    """Every certified value with its truth, each procedure on its number of rigs (seeds
+    ``first_seed``, ``first_seed + 1``, …: a procedure on fewer rigs runs on the first ones)."""
+    checks: list[Check] = []
+    for seed in range(first_seed, first_seed + max(rigs.values())):
+        names = tuple(n for n, count in rigs.items() if seed < first_seed + count)
+        checks += rig_checks(seed, workdir, names)
+    return checks
+
+
 @dataclass(frozen=True)
 class Row:
     """Coverage of one certified quantity over the rigs."""
@@ -279,14 +296,9 @@ def main() -> None:
                         help="run only this procedure (repeatable; default: all three)")
     args = parser.parse_args()
     start = time.perf_counter()
-    checks: list[Check] = []
-    rigs = {name: args.frf_rigs if name == "stepped-sine" else args.rigs for name in PROCEDURES
-            if not args.only or name in args.only}
+    rigs = rigs_per_procedure(args.rigs, args.frf_rigs, tuple(args.only))
     with tempfile.TemporaryDirectory() as tmp:
-        workdir = args.out or Path(tmp)
-        for seed in range(args.first_seed, args.first_seed + max(rigs.values())):
-            names = tuple(n for n, count in rigs.items() if seed < args.first_seed + count)
-            checks += rig_checks(seed, workdir, names)
+        checks = drawn_rig_checks(args.first_seed, rigs, args.out or Path(tmp))
     wall = time.perf_counter() - start
     print(f"rigs per procedure {rigs} (seeds from {args.first_seed}), {len(checks)} certified "
           f"values, wall {wall:.0f} s")

@@ -58,11 +58,7 @@ def test_every_quantity_truth_within_u_on_one_drawn_rig(tmp_path: Path) -> None:
 def test_coverage_targets_on_drawn_rigs(tmp_path: Path) -> None:
     """Per certified quantity: coverage ≥ 95 % and median U ≤ 3 × RMS error, on 40 rigs (the
     stepped sine on 120: ``bench.FRF_RIGS``), seeds from 1000."""
-    checks = []
-    for seed in range(1000, 1000 + bench.FRF_RIGS):
-        checks += bench.rig_checks(seed, tmp_path, ("stepped-sine",) if seed >= 1000 + bench.RIGS
-                                   else ())
-    rows = bench.table(checks)
+    rows = bench.table(bench.drawn_rig_checks(1000, bench.rigs_per_procedure(), tmp_path))
     assert len(rows) == 9  # scale factor, bias, g-sensitivity, 3 × FRF gain and phase
     assert all(r.n == bench.FRF_RIGS for r in rows if r.quantity.startswith("FRF"))
     assert next(r.n for r in rows if r.quantity == "scale factor") == bench.RIGS
