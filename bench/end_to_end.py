@@ -9,10 +9,13 @@ each phase timed on its own:
 - ``analyse`` the recording is read and the procedure's analyses run;
 - ``report``  uncertainty, verdicts, results.json, the HTML certificate (and its signature).
 
-It prints wall and CPU seconds per phase, lab ÷ wall (issue 14 asks ≥ 500× on this 2-core
+It prints wall and CPU seconds per phase (CPU counts the analysis pass's forked workers,
+:func:`aatest.plugins.analysis.sync.relations`), lab ÷ wall (issue 14 asks ≥ 500× on this 2-core
 machine) and lab ÷ CPU (meaningful when other jobs share the machine), the peak resident memory
 of each phase and of the whole process (issue 14: ≤ 800 MB, not growing with the number of
-steps — compare ``--steps 68`` with the full run) and the recording's size in MB.
+steps — compare ``--steps 68`` with the full run), the workers' peak (each; this process plus
+all workers is an upper bound, as a forked worker's RSS counts pages it shares) and the
+recording's size in MB. ``AATEST_WORKERS=1`` runs the analysis pass in this process alone.
 
     python bench/end_to_end.py [--steps N] [--dir DIR] [--seed 0] [--analyse-only RUN_DIR]
 
@@ -33,6 +36,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
+from aatest.engine.forked import cpu_workers
 from aatest.engine.recording import RECORDING_NAME, RunRecorder
 from aatest.engine.run import session
 from aatest.engine.run.rig import build_rig
@@ -69,6 +73,18 @@ def _maxrss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / MB
 
 
+def _children_peak_mb() -> float:
+    """The largest peak RSS of any finished child process (the analysis pass's workers)."""
+    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024 / MB
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its finished children (the forked workers)."""
+    own, children = (resource.getrusage(who)
+                     for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 class Phases:
     """Wall, CPU and peak RSS of each named phase."""
 
@@ -77,10 +93,9 @@ class Phases:
 
     def time(self, name: str, action: Callable[[], T]) -> T:
         _reset_peak()
-        wall, cpu = time.perf_counter(), time.process_time()
+        wall, cpu = time.perf_counter(), _cpu_s()
         result = action()
-        self.rows.append((name, time.perf_counter() - wall, time.process_time() - cpu,
-                          _peak_mb()))
+        self.rows.append((name, time.perf_counter() - wall, _cpu_s() - cpu, _peak_mb()))
         return result
 
 
@@ -152,8 +167,16 @@ def main() -> None:
     cpu = sum(r[2] for r in phases.rows)
     peak = max([r[3] for r in phases.rows] + [_maxrss_mb()])  # the reset lowers ru_maxrss too
     print(f"  {'total':<8} {wall:8.2f} {cpu:8.2f} {peak:12.0f}")
+    workers = cpu_workers()
+    child_mb = _children_peak_mb()
+    # a worker's RSS counts the pages it shares with this process (forked): the sum is an
+    # upper bound of the run's resident memory, not an estimate
+    bound = peak + workers * child_mb
+    print(f"analysis workers: {workers} forked, each ≤ {child_mb:.0f} MB resident; "
+          f"this process and its workers ≤ {bound:.0f} MB together")
     print(f"lab ÷ wall {lab_s / wall:.0f}x, lab ÷ CPU {lab_s / cpu:.0f}x (target ≥ 500x); "
-          f"peak RSS {peak:.0f} MB (target ≤ 800 MB); recording {recording_mb:.1f} MB")
+          f"peak RSS {peak:.0f} MB, with workers ≤ {bound:.0f} MB (target ≤ 800 MB); "
+          f"recording {recording_mb:.1f} MB")
     # the machine is shared: wall time says as much about the other jobs as about this one
     print("load average " + ", ".join(f"{x:.1f}" for x in os.getloadavg()) +
           f" on {os.cpu_count()} CPUs")

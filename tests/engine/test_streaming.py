@@ -168,26 +168,35 @@ def test_partial_step_decodes_only_the_named_channels() -> None:
     assert clock_relation(part) == clock_relation(full)
 
 
-def test_every_step_is_decoded_once_for_all_analyses_and_the_evidence() -> None:
+def test_every_step_is_decoded_once_for_all_analyses_and_the_evidence(tmp_path: Path) -> None:
     """The sync pass's decode of a step feeds the FRF points, the transfer function's
     cross-correlations and the uncertainty evidence (watches); each log of each step is
-    decoded once, and every value equals that of the same steps held in memory."""
+    decoded once — by this process or by one of the pass's forked workers: the decodes are
+    counted in a file all of them append to — and every value equals that of the same steps
+    held in memory."""
     from aatest.engine.dataset import Dataset
     from aatest.engine.uncertainty.evidence import gather
 
     data = read_dataset(RECORDING)
     steps = data.steps
     assert isinstance(steps, LazySteps)
-    loads: list[tuple[int, str]] = []
+    loads = tmp_path / "loads.txt"
     load = steps._load
-    steps._load = lambda i, s, c: loads.append((i, s)) or load(i, s, c)  # type: ignore
+
+    def counted(i: int, source: str, channels: Any) -> Any:
+        with loads.open("a") as out:  # one short append per decode: whole lines
+            out.write(f"{i} {source}\n")
+        return load(i, source, channels)
+
+    steps._load = counted  # type: ignore[method-assign]
     requested = list(data.metadata["analysis"])
     assert {"frf", "transfer_function"} <= set(requested)
     analysis = run_analyses(data, requested)
     evidence = gather(data)
     assert analysis.errors == {}
     recorded = [i for i, p in enumerate(data.planned) if p.recorded]
-    assert sorted(loads) == sorted((i, s) for i in recorded for s in ("table", "daq"))
+    decoded = [(int(i), s) for i, s in (line.split() for line in loads.read_text().splitlines())]
+    assert sorted(decoded) == sorted((i, s) for i in recorded for s in ("table", "daq"))
     eager = Dataset(procedure=data.procedure, sample_rate_hz=data.sample_rate_hz,
                     sensors=data.sensors, steps=tuple(read_dataset(RECORDING).steps),
                     source=data.source, metadata=data.metadata)

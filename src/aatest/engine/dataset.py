@@ -249,6 +249,19 @@ class LazySteps(Sequence[StepData]):
             raise KeyError(index)
         return result
 
+    def kept(self, index: int) -> dict[str, Any]:
+        """Every watch's result for step ``index`` by watch name (those made and not failed):
+        what a worker process that decoded the step hands back, see :meth:`keep`."""
+        return {name: done[index] for name, (_, done) in self._watches.items()
+                if done.get(index, _FAILED) is not _FAILED}
+
+    def keep(self, index: int, results: Mapping[str, Any]) -> None:
+        """Take watch results for step ``index`` made elsewhere (a forked worker's
+        :meth:`kept`), as if this object had decoded the step."""
+        for name, result in results.items():
+            if name in self._watches:
+                self._watches[name][1][index] = result
+
     def pieces(self, index: int, source: str, channels: Container[str] | None = None
                ) -> Iterator[SampledLog]:
         """The ``"table"`` or ``"daq"`` log of step ``index`` as consecutive pieces in sample

@@ -16,7 +16,6 @@ decode and synchronisation (:func:`relations`; optionally several steps at a tim
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, overload
 from weakref import WeakKeyDictionary
@@ -24,6 +23,7 @@ from weakref import WeakKeyDictionary
 import numpy as np
 
 from aatest.engine.dataset import Dataset, LazySteps, StepData, StepWatch
+from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.steps import PlannedStep
 from aatest.results.sync import SyncResult
@@ -238,13 +238,6 @@ class SyncedSteps(Sequence[SyncedStep]):
         return steps.partial(i, wanted)
 
 
-#: steps the sync pass decodes at once. Measured on the idle 2-core machine (stepped sine,
-#: 136 steps): two workers cut the analyse phase's wall time by ≤ 5 % (the protobuf parse and
-#: the Python around it hold the GIL) for ≈ 3 s more CPU (18.2/16.6 s against 13.5 s), so
-#: one; :func:`relations` takes more where cores are spare.
-PASS_WORKERS = 1
-
-
 def _relation_of(steps: LazySteps, index: int) -> ClockRelation:
     """The clock relation of recorded step ``index``, its synced watches fed on the way."""
     part = steps.partial(index, _SYNC_CHANNELS)  # synced watches ride along
@@ -253,20 +246,23 @@ def _relation_of(steps: LazySteps, index: int) -> ClockRelation:
 
 
 def relations(steps: LazySteps, indices: Sequence[int],
-              workers: int = PASS_WORKERS) -> list[tuple[int, ClockRelation]]:
-    """``(index, clock relation)`` of each of ``indices``, in their order, ``workers`` steps
-    at a time.
+              workers: int | None = None) -> list[tuple[int, ClockRelation]]:
+    """``(index, clock relation)`` of each of ``indices``, in their order, on ``workers``
+    forked processes (default: one per CPU; see :func:`aatest.engine.forked.fork_workers`
+    for when it is one, this process's own loop).
 
-    Why threads: decompressing, FFTs, splines and most array work release the GIL, so two
-    steps decoded and reduced side by side use both cores. Each step's relation and watched
-    results depend only on that step, so they are the same whatever the interleaving; the
-    error of the first failing step (in order) is the one raised, as in a loop.
+    Why processes: the pass is most of the analysis phase (stepped sine: decoding, clock fit,
+    resampling and the watched FRF and cross-correlation reductions of 136 steps) and holds
+    the GIL for much of it; measured on the 2-core machine, two threads gained ≤ 5 %, two
+    forked workers ≈ 45 % (``bench/end_to_end.py``). Each step's relation and watched results
+    depend only on that step, so they are the same whatever the worker; the workers hand the
+    watched results back (:meth:`LazySteps.kept`) and this process keeps them. The error of
+    the first failing step in order is the one raised (:func:`parallel_map`).
     """
-    if workers <= 1 or len(indices) <= 1:
-        return [(i, _relation_of(steps, i)) for i in indices]
-    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="aatest-sync") as pool:
-        return list(zip(indices, pool.map(lambda i: _relation_of(steps, i), indices),
-                        strict=True))
+    made = parallel_map(lambda i: (_relation_of(steps, i), steps.kept(i)), indices, workers)
+    for index, (_, kept) in zip(indices, made, strict=True):
+        steps.keep(index, kept)
+    return [(index, relation) for index, (relation, _) in zip(indices, made, strict=True)]
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ from scipy.fft import next_fast_len
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.errors import AnalysisError
+from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis._common import (
@@ -317,15 +318,22 @@ def _in_group(group: str, sensor: SensorInfo) -> Callable[[PlannedStep], bool]:
 def channel_models(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: SensorInfo,
                    antialias_hz: float | None, options: TransferFunctionOptions
                    ) -> tuple[dict[str, Any] | None, dict[str, str]]:
-    """The models of every group with enough points, the best group's first; and figures."""
-    groups: dict[str, Any] = {}
-    figures: dict[str, str] = {}
-    for g in sorted({p.group for p in points}):
-        gp = [p for p in points if p.group == g]
-        gs = select(steps, _in_group(g, sensor))
-        if len(gp) >= options.min_points:
-            groups[g], figures[f"tf_{sensor.channel}_{g}"] = group_model(
-                gp, gs, sensor, antialias_hz, options)
+    """The models of every group with enough points, the best group's first; and figures.
+
+    The groups are fitted side by side on forked workers (:func:`parallel_map`; each group's
+    candidate scan and Bode figure depend only on that group): the stepped sine's five groups
+    took ≈ 3.5 s of the analysis phase in one process.
+    """
+    fitted = [g for g in sorted({p.group for p in points})
+              if sum(p.group == g for p in points) >= options.min_points]
+
+    def fit(g: str) -> tuple[dict[str, Any], str]:
+        return group_model([p for p in points if p.group == g],
+                           select(steps, _in_group(g, sensor)), sensor, antialias_hz, options)
+
+    made = parallel_map(fit, fitted)
+    groups = {g: values for g, (values, _) in zip(fitted, made, strict=True)}
+    figures = {f"tf_{sensor.channel}_{g}": svg for g, (_, svg) in zip(fitted, made, strict=True)}
     if not groups:
         return None, figures
     snr = {g: np.median([p.snr_db for p in points if p.group == g]) for g in groups}

@@ -1,0 +1,93 @@
+"""Forked workers (:mod:`aatest.engine.forked`): the results of a plain loop, errors raised
+here in order, a dead worker's items computed here, and no fork where it is unsafe."""
+
+from __future__ import annotations
+
+import os
+import threading
+
+import pytest
+
+from aatest.engine import forked
+from aatest.engine.forked import WORKERS_ENV, cpu_workers, fork_workers, parallel_map
+
+PARENT = os.getpid()
+
+
+@pytest.fixture(autouse=True)
+def _two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two workers whatever the suite's setting (the machine may have one CPU: then none)."""
+    monkeypatch.setenv(WORKERS_ENV, "2")
+
+
+def _square_and_pid(x: int) -> tuple[int, int]:
+    return x * x, os.getpid()
+
+
+def test_results_are_those_of_a_loop_in_order_computed_by_children() -> None:
+    items = list(range(40))[::-1]
+    out = parallel_map(_square_and_pid, items)
+    assert [v for v, _ in out] == [x * x for x in items]
+    pids = {pid for _, pid in out}
+    if cpu_workers() >= 2:
+        assert PARENT not in pids and 1 <= len(pids) <= 2
+    else:
+        assert pids == {PARENT}
+
+
+def test_closures_over_unpicklable_state_run_in_the_children() -> None:
+    lock = threading.Lock()  # not picklable: the children inherit it, nothing is sent
+
+    def task(x: int) -> int:
+        with lock:
+            return x + 1
+
+    assert parallel_map(task, [1, 2, 3]) == [2, 3, 4]
+
+
+def test_the_first_failing_item_raises_here_with_its_own_error() -> None:
+    def task(x: int) -> int:
+        if x in (3, 5):
+            raise ValueError(f"item {x} failed in process {os.getpid()}")
+        return x
+
+    with pytest.raises(ValueError, match=f"item 3 failed in process {PARENT}$"):
+        parallel_map(task, list(range(8)))
+
+
+def test_a_dead_worker_leaves_its_items_to_this_process() -> None:
+    def task(x: int) -> tuple[int, int]:
+        if x == 2 and os.getpid() != PARENT:
+            os._exit(1)  # killed, out of memory: the worker vanishes mid-task
+        return _square_and_pid(x)
+
+    out = parallel_map(task, list(range(6)))
+    assert [v for v, _ in out] == [x * x for x in range(6)]
+    assert out[2][1] == PARENT
+
+
+def test_no_fork_while_another_thread_runs() -> None:
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait, name="other", daemon=True)
+    other.start()
+    try:
+        assert fork_workers(4) == 1
+        assert {pid for _, pid in parallel_map(_square_and_pid, [1, 2, 3])} == {PARENT}
+    finally:
+        stop.set()
+        other.join()
+
+
+def test_the_environment_caps_the_workers(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(WORKERS_ENV, "1")
+    assert fork_workers(8) == 1
+    assert {pid for _, pid in parallel_map(_square_and_pid, [1, 2, 3])} == {PARENT}
+
+
+def test_a_worker_forks_no_workers_of_its_own() -> None:
+    def nested(x: int) -> set[int]:
+        return {pid for _, pid in parallel_map(_square_and_pid, [x, x + 1, x + 2])}
+
+    for pids in parallel_map(nested, [0, 10]):
+        assert len(pids) == 1  # the worker's own loop
+    assert forked._STATE.task is None  # nothing left behind for a later map
