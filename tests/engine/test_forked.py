@@ -16,8 +16,16 @@ PARENT = os.getpid()
 
 @pytest.fixture(autouse=True)
 def _two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Two workers whatever the suite's setting (the machine may have one CPU: then none)."""
+    """Two workers whatever the suite's setting (the machine may have one CPU: then none).
+
+    Threads an earlier test of this pytest process left running (a server's daemon thread)
+    are not counted: the rule under test is that a thread running *here* prevents the fork.
+    """
     monkeypatch.setenv(WORKERS_ENV, "2")
+    stray = set(threading.enumerate())
+    monkeypatch.setattr(forked, "_other_threads", lambda: [
+        t.name for t in threading.enumerate()
+        if t not in stray and t is not threading.current_thread()])
 
 
 def _square_and_pid(x: int) -> tuple[int, int]:
@@ -30,7 +38,7 @@ def test_results_are_those_of_a_loop_in_order_computed_by_children() -> None:
     assert [v for v, _ in out] == [x * x for x in items]
     pids = {pid for _, pid in out}
     if cpu_workers() >= 2:
-        assert PARENT not in pids and 1 <= len(pids) <= 2
+        assert PARENT not in pids and 1 <= len(pids) <= 2, forked._other_threads()
     else:
         assert pids == {PARENT}
 
@@ -91,3 +99,29 @@ def test_a_worker_forks_no_workers_of_its_own() -> None:
     for pids in parallel_map(nested, [0, 10]):
         assert len(pids) == 1  # the worker's own loop
     assert forked._STATE.task is None  # nothing left behind for a later map
+
+
+def test_ctrl_c_stops_the_map_in_this_process_only() -> None:
+    """SIGINT to the whole process group (a terminal's Ctrl-C): this process raises
+    KeyboardInterrupt, the workers ignore it and are shut down, nothing is left running."""
+    import signal
+    import time
+
+    if cpu_workers() < 2:
+        pytest.skip("one CPU: the map runs in this process, no worker to interrupt")
+
+    def task(x: int) -> int:
+        if x == 0 and os.getpid() != PARENT:
+            for pid in (PARENT, os.getpid()):  # as a terminal signals the whole group
+                os.kill(pid, signal.SIGINT)
+        time.sleep(0.05)
+        return x
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            parallel_map(task, list(range(40)))
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert forked._STATE.task is None
+    assert forked._other_threads() == []  # the pool's manager thread is gone too

@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -130,19 +131,28 @@ def test_plain_mcap_reader_decodes_blocks_as_documented(tmp_path: Path) -> None:
     times = [m.log_time for _, _, m in messages]
     assert times == sorted(times)  # one run time line: step s02 after s01
 
+    def packed(ch: Any) -> np.ndarray:
+        """Little-endian integers of ``width`` bytes, stored as byte planes when shuffled."""
+        stored = np.frombuffer(ch.packed, dtype=np.uint8)
+        planes = stored.reshape(ch.width, -1).T.copy() if ch.shuffled else stored
+        return planes.view(f"<i{ch.width}").ravel().astype(np.int64)
+
     def column(name: str) -> np.ndarray:
         parts = []
         for block in mine:
             ch = block.time if name == "time_s" else next(c for c in block.channels
                                                           if c.name == name)
-            codes = np.cumsum(ch.codes) if ch.delta else np.array(ch.codes, dtype=np.int64)
-            parts.append(codes * ch.quantum + ch.offset if len(ch.codes) else np.array(ch.values))
+            if not ch.packed:
+                parts.append(np.array(ch.values))
+                continue
+            codes = np.cumsum(packed(ch)) if ch.delta else packed(ch)
+            parts.append(codes * ch.quantum + ch.offset)
         return np.concatenate(parts)
 
     np.testing.assert_array_equal(column("v_sz"), daq["v_sz"])
     np.testing.assert_array_equal(column("time_s"), daq.time_s)
     np.testing.assert_array_equal(column("sync_pulse"), daq["sync_pulse"])
-    assert all(len(next(c for c in b.channels if c.name == "sync_pulse").codes) for b in mine)
+    assert all(next(c for c in b.channels if c.name == "sync_pulse").packed for b in mine)
 
 
 @pytest.mark.parametrize("kind", ["step", "merged"])
@@ -335,6 +345,33 @@ def test_golden_v1_recording_still_reads_bit_exact() -> None:
     assert_dataset_matches(dataset, expected)
 
 
+#: a recording written by format v2 (codes as varints): the streaming tests' small stepped sine
+GOLDEN_V2 = HERE / "data" / "streaming" / "recording.mcap"
+
+
+def test_golden_v2_recording_still_reads_and_rewrites_as_v3_bit_exact(tmp_path: Path) -> None:
+    """A v2 recording (``codes`` as varints) reads; written again by this version (v3,
+    ``packed``), every log reads back bit for bit, in a smaller file."""
+    from aatest.engine.recording import FORMAT
+    from aatest.engine.recording.format import FORMAT_V2
+
+    old = read_dataset(GOLDEN_V2)
+    assert old.metadata["format"] == FORMAT_V2 and FORMAT != FORMAT_V2
+    recorder = RunRecorder(tmp_path)
+    recorder.write_run_metadata({k: v for k, v in old.metadata.items() if k != "format"})
+    steps = list(old.steps)
+    for step in steps:
+        recorder.write_step(step.step, step.table, step.daq)
+    path = recorder.finalize()
+    new = read_dataset(path)
+    assert new.metadata["format"] == FORMAT
+    for before, after in zip(steps, new.steps, strict=True):
+        assert after.step == before.step
+        assert_logs_equal(before.table, after.table)
+        assert_logs_equal(before.daq, after.daq)
+    assert path.stat().st_size < GOLDEN_V2.stat().st_size
+
+
 def _adc(volts: np.ndarray, lsb_v: float, lo_v: float) -> np.ndarray:
     """A 16-bit ±10 V ADC reading: code·LSB + low end, as the twin's DAQ computes it."""
     return np.round((volts - lo_v) / lsb_v) * lsb_v + lo_v
@@ -362,7 +399,7 @@ def test_quantised_channels_round_trip_bit_exact_as_codes_or_floats(
     header = {"step_id": "s01", "source": "daq"}
     blocks = [block_class().FromString(b) for b in encode_blocks(daq, header, BLOCK_SAMPLES,
                                                                  [0, 1, 2, 3])]
-    coded = [len(next(c for c in b.channels if c.name == "v_sz").codes) > 0 for b in blocks]
+    coded = [len(next(c for c in b.channels if c.name == "v_sz").packed) > 0 for b in blocks]
     assert coded == [on_grid] * 4
 
 
@@ -384,7 +421,7 @@ def test_one_sample_off_the_grid_keeps_only_its_block_as_floats(tmp_path: Path) 
 
 def test_encoder_counts_with_negative_zero_stay_codes() -> None:
     """A rounded encoder reading just below 0 is −0.0: equal to 0.0, so the block stays codes."""
-    from aatest.engine.recording.codec import channel_values, encode_blocks
+    from aatest.engine.recording.codec import channel_values, encode_blocks, samples_in
     from aatest.engine.recording.proto import block_class
 
     q_deg = 0.01 / 3600.0
@@ -394,7 +431,8 @@ def test_encoder_counts_with_negative_zero_stay_codes() -> None:
                      {"inner_position_deg": "deg"}, {"inner_position_deg": (q_deg, 0.0)})
     block = block_class().FromString(next(encode_blocks(log, {}, BLOCK_SAMPLES, [0])))
     values, quantum = channel_values(block.channels[0])
-    assert quantum == (q_deg, 0.0) and len(block.channels[0].codes) == 1000
+    assert quantum == (q_deg, 0.0) and samples_in(block.channels[0]) == 1000
+    assert block.channels[0].packed and not block.channels[0].values
     np.testing.assert_array_equal(values, angle)
     nonzero = angle != 0
     assert values[nonzero].view(np.uint64).tolist() == angle[nonzero].view(np.uint64).tolist()
@@ -518,6 +556,21 @@ def test_official_typescript_reader_decodes_a_recording(tmp_path: Path) -> None:
     summary = tmp_path / "summary.json"
     summary.write_text(json.dumps(_summary(recording)))
     done = subprocess.run([node, str(MCAP_TS / "read_recording.mjs"), str(recording),
+                           str(summary)], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    assert "CRCs valid" in done.stdout
+
+
+def test_official_typescript_reader_decodes_a_v2_recording(tmp_path: Path) -> None:
+    """The same check on a recording of format v2 (varint ``codes``): viewers keep decoding
+    older recordings with the schema embedded in them."""
+    node = shutil.which("node")
+    if node is None or not (MCAP_TS / "node_modules" / "@mcap" / "core").is_dir():
+        pytest.skip("needs node and `npm ci --prefix tests/mcap_ts` (done by .ci/run)")
+    summary = tmp_path / "summary.json"
+    summary.write_text(json.dumps(_summary(GOLDEN_V2)))
+    done = subprocess.run([node, str(MCAP_TS / "read_recording.mjs"), str(GOLDEN_V2),
                            str(summary)], capture_output=True, text=True, timeout=120,
                           check=False)
     assert done.returncode == 0, done.stderr

@@ -3,7 +3,9 @@
 The reference here fills every ``SampleBlock`` through the protobuf API, one block and one
 channel at a time, with the coding rules of :mod:`aatest.engine.recording.codec` (codes where
 they give back every value bit for bit, delta-coded when smaller, else float64 values); the
-encoder must produce the same bytes, so any protobuf reader decodes it the same way.
+encoder must produce the same bytes, so any protobuf reader decodes it the same way. Format
+v3 stores the codes as ``packed`` fixed-width integers; a v2 message (varint ``codes``) still
+decodes to the same values.
 """
 
 from __future__ import annotations
@@ -42,8 +44,20 @@ def _reference_channel(message: Any, name: str, unit: str, values: np.ndarray,
             return
     diffs = np.diff(codes, prepend=np.int64(0))
     message.delta = bool(np.abs(diffs).sum() < np.abs(codes).sum())
-    message.codes.extend((diffs if message.delta else codes).tolist())
+    message.packed, message.width, message.shuffled = _packed(
+        (diffs if message.delta else codes).tolist())
     message.quantum, message.offset = step, offset
+
+
+def _packed(codes: list[int]) -> tuple[bytes, int, bool]:
+    """Format v3's ``packed`` codes, one Python int at a time: little-endian two's complement
+    of the narrowest width that holds them all, as byte planes when wider than a byte."""
+    top = max(abs(c) for c in codes)
+    width = next(w for w in (1, 2, 4, 8) if top < 2 ** (8 * w - 1) or w == 8)
+    rows = [c.to_bytes(width, "little", signed=True) for c in codes]
+    if width == 1:
+        return b"".join(rows), width, False
+    return bytes(row[plane] for plane in range(width) for row in rows), width, True
 
 
 def _reference_blocks(log: SampledLog, header: dict[str, Any], times_ns: list[int]) -> list[bytes]:
@@ -117,11 +131,32 @@ def test_encoder_refuses_log_times_that_do_not_match_the_blocks() -> None:
         list(encode_blocks(_mixed_log(10, seed=1), {}, BLOCK, [0, 1]))
 
 
-@pytest.mark.parametrize("values", [[0, 1, -1, 63, -64, 64, 2**31, -2**31, 2**63 - 1, -2**63],
-                                    list(range(-300, 300))], ids=["edges", "small"])
-def test_packed_sint64_equals_protobuf(values: list[int]) -> None:
-    """zigzag + varints of int64 values are the packed ``codes`` field protobuf writes."""
-    expected = proto.channel_class()(codes=values).SerializeToString()
-    payload, ends = proto.varints(proto.zigzag(np.array(values, dtype=np.int64)))
-    assert proto.length_delimited(5, payload.tobytes()) == expected
-    assert ends[-1] == payload.size and ends.size == len(values)
+@pytest.mark.parametrize("codes", [[0, 1, -1, 127, -127], [128, -129, 5], [2**31 - 1, -2**31],
+                                   [2**31, -5], [2**53, -2**53, 0]],
+                         ids=["int8", "int16", "int32", "int64", "float64-limit"])
+def test_packed_codes_of_every_width_decode_as_v2_varints_do(codes: list[int]) -> None:
+    """A channel's codes as v3 ``packed`` (each width, byte planes) and as v2 varint
+    ``codes`` decode to the same values; the widths are the narrowest that hold the codes."""
+    from aatest.engine.recording.codec import channel_values
+
+    channel = proto.channel_class()
+    head = {"name": "x", "unit": "V", "dtype": "<f8", "quantum": LSB_V, "offset": -10.0}
+    packed, width, shuffled = _packed(codes)
+    assert width == {"int8": 1, "int16": 2, "int32": 4}.get(_width_name(codes), 8)
+    v3, _ = channel_values(channel(packed=packed, width=width, shuffled=shuffled, **head))
+    v2, _ = channel_values(channel(codes=codes, **head))
+    assert v3.tobytes() == v2.tobytes() == (np.array(codes) * LSB_V - 10.0).tobytes()
+
+
+def _width_name(codes: list[int]) -> str:
+    top = max(abs(c) for c in codes)
+    return "int8" if top < 2**7 else "int16" if top < 2**15 else "int32" if top < 2**31 else ""
+
+
+@pytest.mark.parametrize("width, size", [(3, 6), (2, 5)], ids=["bad-width", "ragged"])
+def test_packed_codes_of_a_bad_width_are_refused(width: int, size: int) -> None:
+    from aatest.engine.recording.codec import channel_values
+
+    message = proto.channel_class()(name="x", dtype="<f8", packed=bytes(size), width=width)
+    with pytest.raises(ValueError, match="packed bytes do not make codes of width"):
+        channel_values(message)

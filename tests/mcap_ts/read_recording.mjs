@@ -7,7 +7,7 @@
 // the file (a FileDescriptorSet) is loaded with protobufjs and every message decoded with it.
 // The per-topic message counts, per-step sample counts and the first and last physical value
 // of every channel (code * quantum + offset in float64, codes summed when stored as
-// differences, as the format says) must equal the
+// differences; v3 codes are packed fixed-width integers, v2 varints — as the format says) must equal the
 // JSON summary written by Python (tests/engine/test_recording.py). Exit 0 when they do, else
 // 1 with the first difference on stderr.
 import { readFileSync } from "node:fs";
@@ -35,11 +35,37 @@ const schemas = new Map();
 const channels = new Map();
 const got = { messages: {}, steps: {} };
 
+// The integer codes of a channel: v3 `packed` little-endian integers of `width` bytes (as byte
+// planes when `shuffled`), or v2 varint `codes`.
+function codesOf(channel) {
+  const packed = channel.packed;
+  if (!packed || packed.length === 0) return channel.codes.map(Number);
+  const width = channel.width;
+  const n = packed.length / width;
+  let bytes = packed;
+  if (channel.shuffled) {
+    bytes = new Uint8Array(packed.length);
+    for (let plane = 0; plane < width; plane++) {
+      for (let i = 0; i < n; i++) bytes[i * width + plane] = packed[plane * n + i];
+    }
+  }
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const read = {
+    1: (i) => view.getInt8(i),
+    2: (i) => view.getInt16(i * 2, true),
+    4: (i) => view.getInt32(i * 4, true),
+    8: (i) => Number(view.getBigInt64(i * 8, true)),
+  }[width];
+  if (!read) throw new Error(`channel ${channel.name}: packed width ${width}`);
+  return Array.from({ length: n }, (_, i) => read(i));
+}
+
 function physical(channel) {
-  if (channel.codes.length > 0) {
+  const codes = codesOf(channel);
+  if (codes.length > 0) {
     let code = 0;
-    return channel.codes.map((stored) => {
-      code = channel.delta ? code + Number(stored) : Number(stored);
+    return codes.map((stored) => {
+      code = channel.delta ? code + stored : stored;
       return code * channel.quantum + channel.offset;
     });
   }
@@ -52,7 +78,7 @@ function onMessage(record) {
   const block = type.toObject(type.decode(record.data), { longs: Number, defaults: true, arrays: true });
   got.messages[channel.topic] = (got.messages[channel.topic] ?? 0) + 1;
   const step = (got.steps[`${block.step_id}${channel.topic}`] ??= { samples: 0, first: {}, last: {} });
-  step.samples += block.time.values.length + block.time.codes.length;
+  step.samples += block.time.values.length + codesOf(block.time).length;
   for (const ch of [block.time, ...block.channels]) {
     const values = physical(ch);
     if (values.length === 0) continue;

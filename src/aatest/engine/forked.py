@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import signal
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -78,8 +79,12 @@ def fork_workers(wanted: int) -> int:
 
 
 def _mark_worker() -> None:
-    """In a child: fork no workers of its own (its task runs in this one process)."""
+    """In a child: fork no workers of its own (its task runs in this one process), and leave
+    Ctrl-C to the parent (it stops the map: no traceback per worker) while SIGTERM ends the
+    child at once (the parent's SIGTERM handler, inherited, would raise in the task)."""
     _STATE.in_worker = True
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _call(item: Any) -> tuple[bool, Any]:

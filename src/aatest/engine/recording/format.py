@@ -1,4 +1,4 @@
-"""The aatest recording format (MCAP), version 2: constants, topics and log times.
+"""The aatest recording format (MCAP), version 3: constants, topics and log times.
 
 A recording is a standard MCAP file (https://mcap.dev) with zstd-compressed chunks whose
 messages are protobuf with the schema embedded, so any MCAP reader or viewer (Python, C++, Go,
@@ -13,7 +13,7 @@ run. Everything needed to decode it is in the file itself:
   ``procedure_text``, ``procedure_sha256``, ``rig``, ``plugin_versions``, ``seed``,
   ``sensors`` (list of :class:`~aatest.engine.dataset.SensorInfo` dicts), ``plan`` (list of
   planned steps), ``aatest_version``, ``started_utc``; plus ``format`` =
-  ``"aatest.recording/v2"``.
+  ``"aatest.recording/v3"``.
 - ``"step"`` (one per recorded step, in plan order): ``step`` (the
   :class:`~aatest.engine.steps.PlannedStep` as JSON), ``index`` (1-based position in the plan),
   ``extra``, and per logger (``table_…``/``daq_…``): ``_topic``, ``_sample_rate_hz``,
@@ -32,8 +32,9 @@ data the serialised ``FileDescriptorSet`` (:mod:`aatest.engine.recording.proto` 
 consecutive samples of *all* channels of one logger in one step, with ``step_id``,
 ``step_index``, ``sequence`` (block number in the step's log), ``first_sample``, the time stamps
 (``time``) and one ``Channel`` per logged channel. A channel's samples are either packed float64
-``values`` or packed integer ``codes`` (their running sum when ``delta`` is set) with
-``value = code·quantum + offset`` (float64), used
+``values`` or integer codes (their running sum when ``delta`` is set) with
+``value = code·quantum + offset`` (float64); the codes are ``packed`` little-endian integers of
+``width`` bytes, as byte planes when ``shuffled``. Codes are used
 only where that reproduces every logged value bit for bit (ADC codes, encoder counts, 0/1
 pulses; a −0.0 returns as +0.0; :mod:`aatest.engine.recording.codec`); ``dtype`` restores the
 logged NumPy dtype.
@@ -48,8 +49,9 @@ is ``origin_k + STEP_MARGIN_S + time_s[first sample]`` (each logger's own clock,
 lead before the trigger stays positive), never below ``origin_k``. The exact times are always
 the ``time`` channel.
 
-Format v1 (``aatest.block/v1``, one topic per step) is still read:
-:mod:`aatest.engine.recording.legacy_v1`.
+Older recordings are still read: format v2 (the same layout, with the codes as protobuf
+varints in the ``codes`` field; :data:`FORMAT_V2`) and v1 (``aatest.block/v1``, one topic per
+step: :mod:`aatest.engine.recording.legacy_v1`).
 """
 
 from __future__ import annotations
@@ -65,7 +67,9 @@ import numpy as np
 import zstandard
 from mcap.exceptions import McapError
 
-FORMAT = "aatest.recording/v2"
+FORMAT = "aatest.recording/v3"
+#: the previous format (codes as varints): read by the same decoder
+FORMAT_V2 = "aatest.recording/v2"
 PROFILE = "aatest"
 ENCODING = "protobuf"
 BLOCK_SAMPLES = 4096

@@ -251,10 +251,10 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
     if not run_meta:
         raise RecordingError(f"{path}: not an aatest recording (no 'run' metadata record)")
     version = run_meta.get("format", fmt.FORMAT)
-    if version not in (fmt.FORMAT, legacy_v1.FORMAT_V1):
+    if version not in (fmt.FORMAT, fmt.FORMAT_V2, legacy_v1.FORMAT_V1):
         raise RecordingError(
             f"{path}: unsupported recording format {version!r} "
-            f"(need {fmt.FORMAT} or {legacy_v1.FORMAT_V1})"
+            f"(need {fmt.FORMAT}, {fmt.FORMAT_V2} or {legacy_v1.FORMAT_V1})"
         )
 
 
