@@ -174,7 +174,7 @@ def main() -> None:
     bound = peak + workers * child_mb
     print(f"analysis workers: {workers} forked, each ≤ {child_mb:.0f} MB resident; "
           f"this process and its workers ≤ {bound:.0f} MB together")
-    print(f"lab ÷ wall {lab_s / wall:.0f}x, lab ÷ CPU {lab_s / cpu:.0f}x (target ≥ 500x); "
+    print(f"lab ÷ wall {lab_s / wall:.0f}x (target ≥ 500x), lab ÷ CPU {lab_s / cpu:.0f}x; "
           f"peak RSS {peak:.0f} MB, with workers ≤ {bound:.0f} MB (target ≤ 800 MB); "
           f"recording {recording_mb:.1f} MB")
     # the machine is shared: wall time says as much about the other jobs as about this one
