@@ -2,8 +2,9 @@
 
 Prints, per record length, lab time ÷ wall time and peak resident memory of each phase in its
 own process (peak RSS is per process, with the analysis' forked workers added when it forks
-any: each worker's peak counted once per worker, an upper bound): *record* (``aatest run`` up to the merged
-recording: the DAQ streams 60 s chunks into the step file, the table logs 1 s snapshots),
+any: each worker's peak counted once per worker, an upper bound): *record* (``aatest run`` up
+to the merged recording: the DAQ streams 60 s chunks into the step file, the table logs 1 s
+snapshots),
 *analyse* (``aatest analyze`` of the run: reading the recording, the drift analysis, the
 uncertainty stage and the certificate) and *run* (the whole ``aatest run`` in one process, as
 an operator runs it), plus the recording's size. Issue 14 asks ≤ 800 MB for the 2 h record;
