@@ -125,3 +125,15 @@ def test_ctrl_c_stops_the_map_in_this_process_only() -> None:
         signal.signal(signal.SIGINT, previous)
     assert forked._STATE.task is None
     assert forked._other_threads() == []  # the pool's manager thread is gone too
+
+
+def test_a_result_that_does_not_pickle_is_computed_here() -> None:
+    """A reduction returning something a pipe cannot carry (a lock, a generator) is computed
+    by this process for that item; the other items still come from the workers."""
+
+    def task(x: int) -> object:
+        return threading.Lock() if x == 1 else (x, os.getpid())
+
+    out = parallel_map(task, [0, 1, 2])
+    assert isinstance(out[1], type(threading.Lock()))
+    assert [v for v, _ in (out[0], out[2])] == [0, 2]  # type: ignore[misc]

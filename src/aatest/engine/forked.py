@@ -21,10 +21,10 @@ import os
 import signal
 import threading
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -103,10 +103,11 @@ def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None
     one per CPU; :func:`fork_workers` decides, 1 being this process's own loop).
 
     The results are those of a plain loop: each item's task must depend only on the item
-    and on state the children inherit, and its result must pickle. Where the task raised in
-    a child, this process computes that item itself, so the first failing item in order
-    raises here with its own traceback and nothing after it is waited for. A child that dies
-    (killed, out of memory) leaves the items not yet returned to this process.
+    and on state the children inherit. This process computes an item itself where the child
+    could not hand it back — the task raised there (so the first failing item in order raises
+    here, with its own traceback, and no later item is started), or its result does not pickle
+    (a vendor plugin's reduction) — and every item not yet returned when a child dies (killed,
+    out of memory).
     """
     items = list(items)
     count = fork_workers(len(items) if workers is None else min(workers, len(items)))
@@ -119,8 +120,9 @@ def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None
     pool = ProcessPoolExecutor(max_workers=count, initializer=_mark_worker,
                                mp_context=multiprocessing.get_context("fork"))
     try:
-        for item, (ok, result) in zip(items, pool.map(_call, items), strict=True):
-            out.append(result if ok else task(item))
+        futures = [pool.submit(_call, item) for item in items]
+        for item, future in zip(items, futures, strict=True):
+            out.append(_taken(future, task, item))
     except BrokenProcessPool:
         log.warning("a worker process died; %d items computed in this process",
                     len(items) - len(out))
@@ -130,6 +132,24 @@ def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None
         pool.shutdown(wait=True, cancel_futures=True)  # an error: start nothing more
         _STATE.task = None
     return out
+
+
+def _taken(future: Future[tuple[bool, Any]], task: Callable[[T], R], item: T) -> R:
+    """A child's result for ``item``, else ``task(item)`` computed here (see parallel_map).
+
+    Raises
+    ------
+    BrokenProcessPool
+        A child died: the caller computes the rest.
+    """
+    try:
+        ok, result = future.result()
+    except BrokenProcessPool:
+        raise
+    except Exception as exc:  # noqa: BLE001 - e.g. the result did not pickle: compute it here
+        log.debug("item computed in this process: its worker's result failed: %r", exc)
+        return task(item)
+    return cast(R, result) if ok else task(item)
 
 
 __all__ = ["WORKERS_ENV", "cpu_workers", "fork_workers", "parallel_map"]
