@@ -7,6 +7,7 @@ sensor on O sees ``cos ψ`` and one on P ``sin ψ`` of the outer acceleration.
 
 from __future__ import annotations
 
+import hashlib
 import io
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar
@@ -97,13 +98,35 @@ def t95(dof: int) -> float:
 
 
 def to_svg(fig: Any) -> str:
-    """Render a figure to a compact SVG string (text kept as text, not paths)."""
+    """Render a figure to a compact SVG string (text kept as text, not paths).
+
+    Reproducible: the same figure gives the same bytes in every run, so analysing the same
+    recording again gives the same ``results.json`` and report (matplotlib would otherwise salt
+    its element ids at random and stamp the date). The ids are salted with the figure's own
+    content (:func:`_content_salt`), so two different figures inlined in one report still get
+    different ids.
+    """
     import matplotlib
 
     buf = io.StringIO()
-    with matplotlib.rc_context({"svg.fonttype": "none"}):
-        fig.savefig(buf, format="svg")
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": _content_salt(fig)}):
+        fig.savefig(buf, format="svg", metadata={"Date": None})
     return buf.getvalue()
+
+
+def _content_salt(fig: Any) -> str:
+    """A digest of what a figure shows: its axes' texts and the data of their lines and
+    collections."""
+    digest = hashlib.sha256()
+    for ax in fig.axes:
+        for text in (ax.get_title(), ax.get_xlabel(), ax.get_ylabel()):
+            digest.update(text.encode() + b"\0")
+        for line in ax.lines:
+            digest.update(np.ascontiguousarray(line.get_xydata(), dtype=np.float64).tobytes())
+        for collection in ax.collections:
+            digest.update(np.ascontiguousarray(collection.get_offsets(), dtype=np.float64)
+                          .tobytes())
+    return digest.hexdigest()[:16]
 
 
 def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0) -> tuple[Any, Any]:
