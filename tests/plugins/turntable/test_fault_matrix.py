@@ -5,7 +5,7 @@ the steps already recorded, and ``run --resume`` then completes the run.
 Faults come from a loopback proxy between the Modbus driver and the simulated controller
 (:mod:`tcp_proxy`: reset, black-hole, stall at the n-th matching request), from stopping the
 controller's server at a chosen request (what the OS does to its sockets on ``kill -9``), and
-from bursts of lost CAN frames. Slow (``-m slow``): a 112-case long matrix, and ``kill -9`` of a
+from bursts of lost CAN frames. Slow (``-m slow``): a 96-case long matrix, and ``kill -9`` of a
 real ``aatest sim-server modbus`` process (CAN on udp_multicast) that is then restarted.
 """
 
@@ -248,12 +248,16 @@ def test_can_frame_loss_burst_exits_3_and_resumes(lab: Lab, burst: str) -> None:
     assert kept == []  # the first record is the damaged one: nothing of it is kept
 
 
-#: the long matrix: every action at many more instants (window reads, status polls, requests)
+#: the long matrix: every action at many more instants (window reads, status polls, requests).
+#: Each instant must exist in every run: a clean run of PROCEDURE reads STATUS 9 or 10 times
+#: (measured five times: one poll per wait, a second when a wait is not yet done — how often
+#: depends on the machine's speed), so the status polls stop at the 7th; the 13th–29th, tried
+#: before, never came on a quiet machine, where the run then rightly ended with exit 0.
 LONG_INSTANTS = {
     f"{name}-{n}-{action}": (match, n, action)
     for name, match, counts in (
         ("request", any_request, range(1, 60, 7)),
-        ("status-poll", reads(Reg.STATUS), range(1, 30, 4)),
+        ("status-poll", reads(Reg.STATUS), range(1, 9, 2)),
         ("window", writes(Reg.WINDOW_CHANNEL), range(1, 400, 37)),
     )
     for n in counts
