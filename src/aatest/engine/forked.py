@@ -15,6 +15,7 @@ this process runs one thread and the platform forks.
 
 from __future__ import annotations
 
+import gc
 import logging
 import multiprocessing
 import os
@@ -119,6 +120,9 @@ def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None
     _STATE.task = task
     pool = ProcessPoolExecutor(max_workers=count, initializer=_mark_worker,
                                mp_context=multiprocessing.get_context("fork"))
+    # the children's collections then leave the inherited objects, and so their pages, alone
+    # (no copy-on-write of the parent's heap; measured: analyse 8.0–8.7 → 7.4–7.6 s wall)
+    gc.freeze()
     try:
         futures = [pool.submit(_call, item) for item in items]
         for item, future in zip(items, futures, strict=True):
@@ -130,6 +134,7 @@ def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None
         out += [task(item) for item in items[len(out):]]
     finally:
         pool.shutdown(wait=True, cancel_futures=True)  # an error: start nothing more
+        gc.unfreeze()
         _STATE.task = None
     return out
 
