@@ -106,7 +106,8 @@ def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None
     The results are those of a plain loop: each item's task must depend only on the item
     and on state the children inherit. This process computes an item itself where the child
     could not hand it back — the task raised there (so the first failing item in order raises
-    here, with its own traceback, and no later item is started), or its result does not pickle
+    here, with its own traceback; items not yet started are cancelled, those running finish and
+    are dropped), or its result does not pickle
     (a vendor plugin's reduction) — and every item not yet returned when a child dies (killed,
     out of memory).
     """
