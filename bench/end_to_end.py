@@ -179,8 +179,8 @@ def main() -> None:
     # upper bound of the run's resident memory, not an estimate
     bound = peak + workers * child_mb
     print(f"analysis workers: {workers} forked, each ≤ {child_mb:.0f} MB resident; "
-          f"this process and its workers ≤ {bound:.0f} MB together (RSS counts shared pages "
-          "once per process)")
+          f"this process and its workers ≤ {bound:.0f} MB together (an upper bound: each "
+          "worker's RSS counts again the pages it shares with this process)")
     tree_mb = "n/a" if tree.peak_mb is None else f"{tree.peak_mb:.0f} MB"
     print(f"lab ÷ wall {lab_s / wall:.0f}x (target ≥ 500x), lab ÷ CPU {lab_s / cpu:.0f}x; "
           f"peak memory of the process tree (PSS) {tree_mb} (target ≤ 800 MB; RSS of this "

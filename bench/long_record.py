@@ -1,10 +1,9 @@
 """Benchmark: the shipped ``long-static-drift`` procedure on the twin, 30 min against 2 h.
 
-Prints, per record length, lab time ÷ wall time and peak resident memory of each phase in its
-own process (peak RSS is per process, with the analysis' forked workers added when it forks
-any: each worker's peak counted once per worker, an upper bound): *record* (``aatest run`` up
-to the merged recording: the DAQ streams 60 s chunks into the step file, the table logs 1 s
-snapshots),
+Prints, per record length, lab time ÷ wall time and peak memory of each phase in its own
+process (the summed PSS of that process and the analysis' forked workers, :mod:`tree_memory`):
+*record* (``aatest run`` up to the merged recording: the DAQ streams 60 s chunks into the step
+file, the table logs 1 s snapshots),
 *analyse* (``aatest analyze`` of the run: reading the recording, the drift analysis, the
 uncertainty stage and the certificate) and *run* (the whole ``aatest run`` in one process, as
 an operator runs it), plus the recording's size. Issue 14 asks ≤ 800 MB for the 2 h record;
@@ -24,7 +23,10 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+
+from tree_memory import TreeMemory  # bench/ is the script's directory, hence on sys.path
 
 PROCEDURE = "long-static-drift"
 
@@ -45,18 +47,14 @@ def _record(procedure: Path, run_dir: Path) -> None:
         return {}
 
     session.analyse_and_report = skip_analysis  # type: ignore[assignment] # measure recording only
-    started = time.perf_counter()
     session.run(procedure, None, run_dir, False, 0, None, show_progress=False)
-    _report(time.perf_counter() - started)
 
 
 def _run(procedure: Path, run_dir: Path) -> None:
     """Child process: the whole ``aatest run`` (record, analyse, report) in one process."""
     from aatest.engine.run import session
 
-    started = time.perf_counter()
     session.run(procedure, None, run_dir, False, 0, None, show_progress=False)
-    _report(time.perf_counter() - started)
 
 
 def _white_noise_truth() -> float:
@@ -78,21 +76,20 @@ def _analyse(run_dir: Path, out_dir: Path) -> None:
     """Child process: read the recording and run its analyses (``aatest analyze``)."""
     from aatest.engine.run import session
 
-    started = time.perf_counter()
     session.analyse_and_report(run_dir, out_dir)
-    _report(time.perf_counter() - started)
 
 
-def _report(wall_s: float) -> None:
-    """The phase's wall time and peak RSS: this process's, plus — where the analysis forked
-    workers (:mod:`aatest.engine.forked`) — each worker's largest peak for every worker (an
-    upper bound: a forked worker's RSS counts the pages it shares with this process)."""
-    from aatest.engine.forked import cpu_workers
-
-    own_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    worker_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-    workers = cpu_workers() if worker_mb else 0
-    print(json.dumps({"wall_s": wall_s, "peak_rss_mb": own_mb + workers * worker_mb}))
+def _measured(phase: Callable[[Path, Path], None], first: Path, second: Path) -> None:
+    """Run one phase; print its wall time and the peak memory of its process tree (summed
+    PSS, :mod:`tree_memory`: this process and the analysis' forked workers, shared pages
+    counted once; without ``/proc``, this process's peak RSS)."""
+    with TreeMemory() as tree:
+        started = time.perf_counter()
+        phase(first, second)
+        wall_s = time.perf_counter() - started
+    peak_mb = tree.peak_mb if tree.peak_mb is not None else \
+        resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(json.dumps({"wall_s": wall_s, "peak_mb": peak_mb}))
 
 
 def _child(*args: str) -> dict[str, float]:
@@ -109,17 +106,13 @@ def main() -> None:
     parser.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        if args.child[0] == "record":
-            _record(Path(args.child[1]), Path(args.child[2]))
-        elif args.child[0] == "run":
-            _run(Path(args.child[1]), Path(args.child[2]))
-        else:
-            _analyse(Path(args.child[1]), Path(args.child[2]))
+        phases = {"record": _record, "run": _run, "analyse": _analyse}
+        _measured(phases[args.child[0]], Path(args.child[1]), Path(args.child[2]))
         return
     root = args.keep or Path(tempfile.mkdtemp(prefix="aatest-long-"))
     root.mkdir(parents=True, exist_ok=True)
     print(f"{'record':>8} {'lab s':>8} {'phase':>8} {'wall s':>8} {'lab/wall':>9} "
-          f"{'peak RSS MB':>12} {'recording MB':>13}")
+          f"{'peak MB':>12} {'recording MB':>13}")
     drifts = []
     for minutes in args.minutes:
         procedure = root / f"{PROCEDURE}-{minutes:g}min.yaml"
@@ -135,7 +128,7 @@ def main() -> None:
             phases["run"] = _child("run", str(procedure), str(root / f"whole-{minutes:g}min"))
         for phase, numbers in phases.items():
             print(f"{minutes:>6g}min {lab_s:>8.0f} {phase:>8} {numbers['wall_s']:>8.1f} "
-                  f"{lab_s / numbers['wall_s']:>9.0f} {numbers['peak_rss_mb']:>12.0f} "
+                  f"{lab_s / numbers['wall_s']:>9.0f} {numbers['peak_mb']:>12.0f} "
                   f"{size_mb:>13.1f}")
         results = json.loads((run_dir / "analysis" / "results.json").read_text())
         drifts.append((minutes, results["analysis"]["drift"]))
