@@ -98,6 +98,7 @@ def test_partial_decode_by_prefix_keeps_only_those_channels(tmp_path: Path) -> N
     assert "v_sz" not in NamesStartingWith("temp") and 3 not in NamesStartingWith("3")
 
 
+@pytest.mark.pinned
 def test_certificate_temperature_summary_equals_the_whole_temperature_record() -> None:
     """The certificate's min/mean/max, accumulated step by step from partial decodes, is the
     summary of every temperature sample of the recording decoded whole."""

@@ -72,6 +72,7 @@ def test_coordinated_two_axis_rates_give_omega_i_times_omega_o() -> None:
     assert abs(fundamental(aligned_daq(sim, "v_sz"), 8)) / K < 0.01 * expected
 
 
+@pytest.mark.pinned
 def test_kinematics_frames_follow_the_contract() -> None:
     """Outer motion seen by a sensor on I at inner ψ is along (sin ψ, cos ψ, 0)."""
     for psi in (0.0, 90.0, 33.0):
@@ -89,6 +90,7 @@ def test_kinematics_frames_follow_the_contract() -> None:
         assert_allclose(np.cross(frame[:, 0], frame[:, 1]), frame[:, 2])
 
 
+@pytest.mark.pinned
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.floats(-50, 50), min_size=1, max_size=300), st.floats(0.0, 5.0))
 def test_vectorised_play_operator_equals_its_recursive_definition(xs: list, r: float) -> None:

@@ -150,6 +150,7 @@ def test_local_bin_noise_and_static_lines_are_measured() -> None:
     assert line.residual_bound_v == pytest.approx(0.024 / (math.pi * 35.0 * 2.0), rel=0.05)
 
 
+@pytest.mark.pinned
 def test_a_long_static_record_is_searched_on_its_head_but_bounded_over_its_length() -> None:
     """Past LINE_SAMPLES the line is read off the first 2**20 samples (the same line as on
     the head alone); its residual bound is over the whole record's duration."""
@@ -162,6 +163,7 @@ def test_a_long_static_record_is_searched_on_its_head_but_bounded_over_its_lengt
     assert (line.amplitude_v, line.frequency_hz) == (head.amplitude_v, head.frequency_hz)
     assert line.frequency_hz == pytest.approx(35.0, abs=0.01)
     assert line.amplitude_v == pytest.approx(0.03, rel=0.01)
+    # the same line's bound scaled by a ratio of two integers: a few roundings, exact otherwise
     assert line.residual_bound_v == pytest.approx(head.residual_bound_v * LINE_SAMPLES / n,
                                                   rel=1e-12)
 
@@ -185,6 +187,7 @@ def test_evidence_from_partial_decodes_equals_the_whole_steps() -> None:
     assert partial == whole
 
 
+@pytest.mark.pinned
 def test_a_recorded_static_step_is_summarised_piece_by_piece(tmp_path: Any) -> None:
     """A recorded static step is read block by block: its line is the one of the whole
     record, its temperature mean and spread agree with NumPy's on the whole to rounding."""
@@ -220,8 +223,11 @@ def test_a_recorded_static_step_is_summarised_piece_by_piece(tmp_path: Any) -> N
     assert line.frequency_hz == pytest.approx(35.0, abs=0.05)
     got, expected = streamed.temperature["s01-static"], whole.temperature["s01-static"]
     assert expected.mean_c == float(np.mean(daq["temperature_c"]))
-    assert got.mean_c == pytest.approx(expected.mean_c, rel=1e-14)
-    assert got.std_c == pytest.approx(expected.std_c, rel=1e-12)
+    # block-by-block vs whole-array sums of same-sign samples: each rounds to ≲ ε·log2(n)
+    # ≈ 4e-15 of the sum, whatever the SIMD width; 1e-13 keeps a factor 25 above that
+    assert got.mean_c == pytest.approx(expected.mean_c, rel=1e-13)
+    # the spread subtracts the mean (condition x̄/s ≈ 23 °C / 0.3 °C ≈ 80 on the deviations)
+    assert got.std_c == pytest.approx(expected.std_c, rel=1e-11)
 
 
 def test_evidence_measured_while_the_analyses_decode_equals_its_own_decodes() -> None:

@@ -57,6 +57,7 @@ def test_gain_phase_delay_match_truth(frf_values) -> None:  # type: ignore[no-un
     assert "bode_v_sz" in out.figures
 
 
+@pytest.mark.pinned
 @settings(max_examples=30, deadline=None)
 @given(
     amp=st.floats(0.01, 100),

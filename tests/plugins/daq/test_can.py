@@ -156,6 +156,7 @@ def test_absent_logger_is_a_rig_fault() -> None:
     daq.close()
 
 
+@pytest.mark.pinned
 def test_dbc_decoding_matches_the_built_in_decoder(tmp_path: Path) -> None:
     pytest.importorskip("cantools")
     record = daq_log(n=40)

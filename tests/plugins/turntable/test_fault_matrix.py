@@ -33,7 +33,10 @@ from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 from aatest.twin.servers.modbus_server import SimModbusServer
 
 SEED = 11
-TIMEOUT_S = 0.5  # the driver's per-request timeout; a stall lasts 3× as long
+# the driver's per-request timeout; a stall lasts 3× as long. 1 s, not 0.5 s: on a loaded
+# 2-core machine (load average 17, measured) the first request of a connection took > 0.5 s,
+# so the run failed before the armed instant and the case reported the wrong fault
+TIMEOUT_S = 1.0
 PROCEDURE = """\
 procedure: fault-matrix
 sensor: {model: sr207, serial: "A1234"}
@@ -141,7 +144,7 @@ class Lab:
     def _virtual_daq(self) -> str:
         return (
             f"{{plugin: can, interface: virtual, channel: {self.channel}, "
-            "response_timeout_s: 1.0, frame_timeout_s: 1.0}"
+            "response_timeout_s: 2.0, frame_timeout_s: 2.0}"
         )
 
     def close(self) -> None:

@@ -1,0 +1,101 @@
+"""How closely results computed on another machine must agree with a committed reference.
+
+A committed reference (a ``results.json`` written by an earlier run, perhaps on another CPU) can
+only be matched to the precision the computation itself determines: another CPU selects another
+OpenBLAS kernel (``OPENBLAS_CORETYPE``) and other SIMD loops in numpy, so sums and products are
+rounded in another order, and every step that amplifies rounding (an ill-conditioned solve, an
+iterative optimiser's stopping point, a difference of nearly equal numbers) carries that into
+the result. Each rule below names a class of results, the tolerance that follows from how that
+class is computed, and why. Measured on one recording (``engine/data/streaming``) with
+``OPENBLAS_CORETYPE`` = SkylakeX, Haswell, Zen, Sandybridge and Nehalem and 1 or 2 BLAS
+threads, the largest deviations from the reference were: transfer-function candidates' ``V``
+8.9e-5 relative, their ``fit_pct`` 2e-4 percentage points, second-order-fit uncertainties 6.4e-7
+relative, the selected model's poles 7.1e-10 relative, the clock drift 1.4e-10 ppm, everything
+else ≤ 4e-13 relative.
+
+Shared by every test that compares numbers against a committed reference
+(``from tolerances import mismatches``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+#: sums and DFTs over ≤ 2**17 float64 samples round to ≲ ε·log2(N) ≈ 4e-15 of the sum of
+#: magnitudes; a mean of a near-zero-mean signal (a bias, an offset) has a condition number
+#: Σ|x| / |Σx| of up to 1e4, which leaves ≈ 4e-11; 1e-9 keeps a factor 25 above that.
+DEFAULT_REL = 1e-9
+
+
+@dataclass(frozen=True)
+class Rule:
+    """A class of result leaves (regex on the JSON path) and how close they must agree."""
+
+    pattern: str
+    rel: float
+    abs: float
+    reason: str
+
+
+RULES: tuple[Rule, ...] = (
+    Rule(r"transfer_function\..*(candidates\[\d+\]\.|\.)(V|FPE)$", 1e-3, 0.0,
+         "validation variance at the stopping point of a Levenberg–Marquardt refinement "
+         "(scipy least_squares, ftol = xtol = 1e-8): over-parameterised candidates lie in flat "
+         "valleys where the stopping point is set only to √ftol = 1e-4 of the parameters; "
+         "the held-out variance moves by up to that; 10× margin"),
+    Rule(r"transfer_function\..*(candidates\[\d+\]\.|\.)nAIC$", 0.0, 1e-3,
+         "nAIC = ln V + 2p/N: an absolute error equal to V's relative one (1e-3, above)"),
+    Rule(r"transfer_function\..*(candidates\[\d+\]\.|\.)fit_(id_)?pct$", 0.0, 0.1,
+         "fit % = 100·(1 − ‖r‖/‖y − ȳ‖) moves by (100 − fit)·ΔV/(2V) ≤ 200 × 5e-4 = 0.1 "
+         "percentage points for V's 1e-3 (above)"),
+    Rule(r"transfer_function\..*second_order_delay\.", 1e-5, 0.0,
+         "four well-determined parameters at the stopping point of a trust-region fit "
+         "(xtol = 1e-8), their uncertainties from pinv(JᵀJ) at that point (condition ≲ 1e3)"),
+    Rule(r"transfer_function\.", 1e-6, 0.0,
+         "the selected model's coefficients stop at the refinement's xtol = 1e-8; mapping the "
+         "scaled w-polynomials to z (w = (z − 1)/(ω₀T)) amplifies by its condition ≲ 1e2"),
+    Rule(r"drift(_spread)?_ppm$", 0.0, 1e-6,
+         "drift = (slope − 1)·1e6 of a straight-line fit to edge times (condition ≈ 10 after "
+         "centring): the slope is set to ≈ 1e-14, i.e. 1e-8 ppm absolute — a relative "
+         "comparison of this difference of nearly equal numbers would be meaningless"),
+)
+
+
+def tolerance(path: str) -> Rule:
+    """The first rule whose pattern matches ``path``, else the default relative tolerance."""
+    for rule in RULES:
+        if re.search(rule.pattern, path):
+            return rule
+    return Rule("", DEFAULT_REL, 0.0, "well-conditioned sums, means and DFT ratios")
+
+
+def leaves(value: Any, path: str = "") -> Iterator[tuple[str, Any]]:
+    """Every leaf of a JSON document with its path (``.analysis.sync.drift_ppm``, ``[3]``)."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield from leaves(item, f"{path}.{key}")
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            yield from leaves(item, f"{path}[{i}]")
+    else:
+        yield path, value
+
+
+def close(path: str, got: Any, want: Any) -> bool:
+    """Whether one leaf agrees: floats within their rule, NaN with NaN, anything else equal."""
+    if isinstance(got, float) and isinstance(want, float):
+        if math.isnan(got) or math.isnan(want):
+            return math.isnan(got) and math.isnan(want)
+        rule = tolerance(path)
+        return math.isclose(got, want, rel_tol=rule.rel, abs_tol=rule.abs)
+    return bool(got == want)
+
+
+def mismatches(got: dict[str, Any], want: dict[str, Any]) -> list[str]:
+    """Paths (with both values) where ``got`` differs from ``want`` beyond its tolerance."""
+    return [f"{path}: {got[path]!r} vs {want[path]!r} ({tolerance(path).reason})"
+            for path in got if path in want and not close(path, got[path], want[path])]
