@@ -462,12 +462,15 @@ def station(
     runs: Path = typer.Option(Path("runs"), "--runs", help="Runs directory (new runs, history)"),
     lab: Path | None = typer.Option(None, "--lab", help="Lab directory of procedure YAMLs"),
     rig: Path | None = typer.Option(None, "--rig", help="Rig YAML (default: each procedure's)"),
+    allow_host: list[str] = typer.Option(
+        [], "--allow-host", help="Another Host name it answers to (NAME or NAME:PORT; repeatable)"
+    ),
 ) -> None:
     """Serve the operator's station: run, watch and answer procedures from a browser."""
     from aatest.station.serve import StationOptions, serve
 
     serve(StationOptions(host=host, port=port, records=records, token_file=token_file,
-                         runs_dir=runs, lab_dir=lab, rig_file=rig))
+                         runs_dir=runs, lab_dir=lab, rig_file=rig, allow_hosts=tuple(allow_host)))
 
 
 @sim_server_app.command("modbus")

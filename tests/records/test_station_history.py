@@ -21,6 +21,10 @@ from aatest.records.models import QuantityRecord, Registration
 from aatest.records.store import RecordStore
 from aatest.station import StationOptions, build
 
+#: the station as a browser on this machine names it (its default port)
+STATION_URL = "http://127.0.0.1:8671"
+STATION_WS = "ws://127.0.0.1:8671/ws"
+
 QUICK = Path(__file__).parents[1] / "station" / "data" / "quick-scale-factor.yaml"
 LONG_AGO = datetime(2025, 1, 10, 8, 0, tzinfo=UTC)
 
@@ -37,7 +41,7 @@ def _elsewhere(store: RecordStore, serial: str, bundle: str, days: int,
 
 
 def _run_from_the_page(client: TestClient) -> dict[str, Any]:
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect(STATION_WS) as ws:
         assert [ws.receive_json()["type"] for _ in range(2)] == ["snapshot", "role"]
         ws.send_json({"type": "start", "procedure": "lab/quick-scale-factor.yaml",
                       "operator": "Rec Operator"})
@@ -57,7 +61,8 @@ def test_history_lists_the_stores_newest_calibrations(store_url: str, tmp_path: 
     lab.mkdir()
     (lab / "quick-scale-factor.yaml").write_text(QUICK.read_text())
     runs = tmp_path / "runs"
-    client = TestClient(build(StationOptions(runs_dir=runs, lab_dir=lab, records=store_url)))
+    client = TestClient(build(StationOptions(runs_dir=runs, lab_dir=lab, records=store_url)),
+                        base_url=STATION_URL)
     finished = _run_from_the_page(client)
 
     doc = client.get("/api/runs").json()
@@ -81,7 +86,7 @@ def test_history_lists_the_stores_newest_calibrations(store_url: str, tmp_path: 
 
 
 def test_without_records_the_runs_directory_is_listed(tmp_path: Path) -> None:
-    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs")))
+    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs")), base_url=STATION_URL)
     doc = client.get("/api/runs").json()
     assert doc == {"runs": [], "source": "runs", "where": "runs"}
 

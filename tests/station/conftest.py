@@ -80,7 +80,9 @@ def page(request: pytest.FixtureRequest) -> Iterator[Any]:
         pytest.skip("no Chromium installed (apt-get install chromium); browser test skipped")
     with sync_api.sync_playwright() as pw:
         browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True)
-        tab = browser.new_page(viewport={"width": 1100, "height": 1400})
+        # the page's Content-Security-Policy forbids eval, which Playwright's string
+        # predicates (wait_for_function) use; the test bypasses it, the page keeps it
+        tab = browser.new_page(viewport={"width": 1100, "height": 1400}, bypass_csp=True)
         tab.set_default_timeout(60_000)
         yield tab
         browser.close()

@@ -13,6 +13,10 @@ from aatest.engine.errors import InputError
 from aatest.station import StationOptions, build
 from aatest.station.security import COOKIE
 
+#: the station as a browser on this machine names it (its default port)
+STATION_URL = "http://127.0.0.1:8671"
+STATION_WS = "ws://127.0.0.1:8671/ws"
+
 TOKEN = "t" * 16 + "0123456789abcdef"  # 32 characters
 
 
@@ -21,7 +25,7 @@ def guarded(tmp_path: Path) -> TestClient:
     token_file = tmp_path / "token"
     token_file.write_text(TOKEN + "\n")
     app = build(StationOptions(host="0.0.0.0", token_file=token_file, runs_dir=tmp_path / "runs"))
-    return TestClient(app)
+    return TestClient(app, base_url=STATION_URL)
 
 
 def test_non_loopback_without_token_exits_2(tmp_path: Path) -> None:
@@ -65,30 +69,31 @@ def test_other_origin_is_refused(guarded: TestClient) -> None:
     bearer = {"Authorization": f"Bearer {TOKEN}"}
     foreign = guarded.get("/api/runs", headers={**bearer, "Origin": "http://evil.example"})
     assert foreign.status_code == 403
-    same = guarded.get("/api/runs", headers={**bearer, "Origin": "http://testserver"})
+    same = guarded.get("/api/runs", headers={**bearer, "Origin": STATION_URL})
     assert same.status_code == 200
 
 
 def test_websocket_needs_token_and_origin(guarded: TestClient) -> None:
     from starlette.websockets import WebSocketDisconnect
 
-    with pytest.raises(WebSocketDisconnect) as refused, guarded.websocket_connect("/ws"):
+    with pytest.raises(WebSocketDisconnect) as refused, guarded.websocket_connect(STATION_WS):
         pass
     assert refused.value.code == 4401
     bearer = {"Authorization": f"Bearer {TOKEN}"}
     with pytest.raises(WebSocketDisconnect) as foreign, guarded.websocket_connect(
-        "/ws", headers={**bearer, "Origin": "http://evil.example"}
+        STATION_WS, headers={**bearer, "Origin": "http://evil.example"}
     ):
         pass
     assert foreign.value.code == 4403
-    with guarded.websocket_connect("/ws", headers=bearer) as ws:
+    with guarded.websocket_connect(STATION_WS, headers=bearer) as ws:
         assert ws.receive_json()["type"] == "snapshot"
         assert ws.receive_json() == {"type": "role", "role": "control"}
 
 
 def test_second_browser_watches_and_cannot_control(tmp_path: Path) -> None:
-    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs")))
-    with client.websocket_connect("/ws") as first, client.websocket_connect("/ws") as second:
+    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs")), base_url=STATION_URL)
+    with client.websocket_connect(STATION_WS) as first, \
+            client.websocket_connect(STATION_WS) as second:
         assert [first.receive_json()["type"] for _ in range(2)] == ["snapshot", "role"]
         assert second.receive_json()["type"] == "snapshot"
         assert second.receive_json() == {"type": "role", "role": "watch"}
@@ -98,7 +103,7 @@ def test_second_browser_watches_and_cannot_control(tmp_path: Path) -> None:
 
 
 def test_no_path_from_the_browser(tmp_path: Path) -> None:
-    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs")))
+    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs")), base_url=STATION_URL)
     assert client.get("/api/validate", params={"id": "/etc/passwd"}).status_code == 404
     assert client.get("/api/validate", params={"id": "shipped/../../x.yaml"}).status_code == 404
     assert client.get("/runs/..%2F..%2Fetc/passwd").status_code == 404
@@ -111,7 +116,8 @@ def test_validation_shows_located_problems(tmp_path: Path) -> None:
     lab.mkdir()
     broken = Path(__file__).parents[1] / "data" / "procedures" / "broken-unknown-key.yaml"
     (lab / "broken.yaml").write_text(broken.read_text())
-    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs", lab_dir=lab)))
+    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs", lab_dir=lab)),
+                        base_url=STATION_URL)
     doc = client.get("/api/validate", params={"id": "lab/broken.yaml"}).json()
     assert not doc["ok"]
     assert all(p.startswith(str(lab / "broken.yaml") + ":") for p in doc["problems"])

@@ -12,6 +12,10 @@ from starlette.testclient import TestClient
 from aatest.station import StationOptions, build
 from aatest.station.uploads import MAX_UPLOAD_BYTES, UploadError, clean_name, stored_name
 
+#: the station as a browser on this machine names it (its default port)
+STATION_URL = "http://127.0.0.1:8671"
+STATION_WS = "ws://127.0.0.1:8671/ws"
+
 DATA = Path(__file__).parent / "data"
 BROKEN = Path(__file__).parents[1] / "data" / "procedures" / "broken-unknown-key.yaml"
 TOKEN = "u" * 16 + "0123456789abcdef"  # 32 characters
@@ -19,7 +23,7 @@ TOKEN = "u" * 16 + "0123456789abcdef"  # 32 characters
 
 @pytest.fixture
 def client(tmp_path: Path) -> TestClient:
-    return TestClient(build(StationOptions(runs_dir=tmp_path / "runs")))
+    return TestClient(build(StationOptions(runs_dir=tmp_path / "runs")), base_url=STATION_URL)
 
 
 def _upload(client: TestClient, name: str, body: bytes, **headers: str) -> tuple[int, dict]:
@@ -108,7 +112,7 @@ def test_upload_needs_the_token_and_the_same_origin(tmp_path: Path) -> None:
     token_file = tmp_path / "token"
     token_file.write_text(TOKEN)
     guarded = TestClient(build(StationOptions(host="0.0.0.0", token_file=token_file,
-                                              runs_dir=tmp_path / "runs")))
+                                              runs_dir=tmp_path / "runs")), base_url=STATION_URL)
     text = (DATA / "quick-scale-factor.yaml").read_bytes()
     refused = guarded.post("/api/upload", params={"name": "q.yaml"}, content=text)
     assert refused.status_code == 401
@@ -123,9 +127,9 @@ def test_upload_needs_the_token_and_the_same_origin(tmp_path: Path) -> None:
 
 def test_uploaded_procedure_starts_from_the_websocket(tmp_path: Path) -> None:
     """Startable by its id like any listed procedure; the run is exactly ``aatest run``'s."""
-    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs")))
+    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs")), base_url=STATION_URL)
     _, doc = _upload(client, "quick.yaml", (DATA / "quick-scale-factor.yaml").read_bytes())
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect(STATION_WS) as ws:
         assert [ws.receive_json()["type"] for _ in range(2)] == ["snapshot", "role"]
         ws.send_json({"type": "start", "procedure": doc["id"], "operator": "Upload Tester"})
         while (event := ws.receive_json())["type"] not in ("finished", "stopped"):

@@ -6,12 +6,15 @@
   disk (problems, or the planned steps and the new id ``upload/…``); kept only when valid
 - ``GET /api/runs`` recent runs; ``GET /runs/{name}/{file}`` a run's report, PDF or results
 - ``WS /ws`` live events to every browser; commands (start, resume, answer, abort) are taken
-  only from the controlling browser (the first connected; the next one when it leaves)
+  only from the controlling browser (the first connected; the next one when it leaves). A
+  message that is not a command object closes that browser's socket and so hands control on.
 """
 
 from __future__ import annotations
 
 import asyncio
+import json
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -24,15 +27,28 @@ from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from aatest.engine.errors import AatestError
+from aatest.engine.errors import AatestError, InputError
 from aatest.engine.run.session import default_operator
 from aatest.station.catalogue import RUN_FILES, History, Procedures, validation
 from aatest.station.control import RunController
-from aatest.station.security import Asgi, Guard
+from aatest.station.security import Asgi, Guard, HostRule
 from aatest.station.uploads import MAX_UPLOAD_BYTES, UploadError, Uploads
 
 STATIC = Path(str(resources.files("aatest.station") / "static"))
 HISTORY_ROWS = 20
+#: the page loads only its own scripts, styles and websocket, and may not be framed
+PAGE_POLICY = ("default-src 'self'; connect-src 'self'; img-src 'self' data: blob:; "
+               "style-src 'self' 'unsafe-inline'; object-src 'none'; base-uri 'none'; "
+               "form-action 'self'; frame-ancestors 'none'")
+#: a run's report is a document: no script runs in it (sandbox), nothing is fetched
+REPORT_POLICY = ("default-src 'none'; style-src 'unsafe-inline'; img-src data:; "
+                 "font-src data:; sandbox; frame-ancestors 'none'")
+#: the commands a browser may send over the websocket, with their string fields
+COMMANDS = {"start": ("procedure",), "resume": ("run",), "answer": ("step",), "abort": ()}
+#: the longest string field a command may carry (ids, names: a few dozen characters)
+MAX_FIELD_CHARS = 200
+#: websocket close code for a message that is not a command (RFC 6455 "policy violation")
+POLICY_VIOLATION = 1008
 
 
 @dataclass
@@ -70,19 +86,44 @@ class Hub:
             await self.announce_roles()
 
 
+def parse_command(message: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The command object in one websocket message, or None when it is anything else.
+
+    A command is a JSON object whose ``type`` is one of :data:`COMMANDS`, with that command's
+    fields and an optional ``operator`` as strings (at most :data:`MAX_FIELD_CHARS` each).
+    """
+    text = message.get("text")
+    if not isinstance(text, str) or len(text) > 64 * 1024:
+        return None
+    try:
+        msg = json.loads(text)
+    except (ValueError, RecursionError):  # deep nesting exhausts the decoder's recursion
+        return None
+    if not isinstance(msg, dict) or msg.get("type") not in COMMANDS:
+        return None
+    fields = (*COMMANDS[msg["type"]], "operator")
+    for name in fields:
+        value = msg.get(name)
+        if name != "operator" and not isinstance(value, str):
+            return None
+        if value is not None and (not isinstance(value, str) or len(value) > MAX_FIELD_CHARS):
+            return None
+    return msg
+
+
 async def _command(controller: RunController, hub: Hub, ws: WebSocket, msg: dict[str, Any]) -> None:
     """Run one command from a browser; only the controlling one may act."""
     if not hub.clients or hub.clients[0] is not ws:
         await ws.send_json({"type": "error", "message": "this page is watching; another controls"})
         return
-    who = str(msg.get("operator") or default_operator())
+    who = msg.get("operator") or default_operator()
     kind = msg.get("type")
     try:
         if kind == "start":
-            controller.start(str(msg.get("procedure")), who)
+            controller.start(msg["procedure"], who)
         elif kind == "resume":
-            controller.resume(str(msg.get("run")), who)
-        elif kind == "answer" and not controller.answer(str(msg.get("step")), who):
+            controller.resume(msg["run"], who)
+        elif kind == "answer" and not controller.answer(msg["step"], who):
             await ws.send_json({"type": "error", "message": "no such prompt is waiting"})
         elif kind == "abort":
             controller.abort(who)
@@ -104,15 +145,38 @@ async def _body(request: Request, limit_bytes: int) -> bytes:
     return b"".join(chunks)
 
 
+def served_file(history: History, name: str, file: str) -> Path:
+    """The run file to send: a listed name in a real run directory, no link on the way.
+
+    The file's resolved path must be exactly ``RUNS/NAME/FILE``: a symbolic link (the run
+    directory or the file) that leads anywhere, even inside the runs directory, is refused
+    with InputError, so nothing outside the runs the station wrote is ever sent.
+    """
+    if file not in RUN_FILES:
+        raise InputError(f"{file!r} is not a run file the station serves")
+    run_dir = history.run_dir(name)
+    target = run_dir / file
+    try:
+        resolved = target.resolve(strict=True)
+        expected = history.runs_dir.resolve(strict=True) / name / file
+    except (OSError, RuntimeError) as exc:
+        raise InputError(f"run {name!r}: no file {file!r}") from exc
+    if resolved != expected or not resolved.is_file():
+        raise InputError(f"run {name!r}: {file!r} is not a plain file of the run")
+    return resolved
+
+
 def create_app(procedures: Procedures, history: History, rig_file: Path | None,
-               token: str | None, replay_s: float = 2.0, records_url: str | None = None) -> Asgi:
-    """Build the station application (wrapped in the origin/token guard)."""
+               token: str | None, replay_s: float = 2.0, records_url: str | None = None,
+               hosts: HostRule | None = None) -> Asgi:
+    """Build the station application (wrapped in the host/origin/token guard)."""
     hub = Hub()
     controller = RunController(procedures, history, rig_file, hub.publish, replay_s,
                                records_url)
 
     async def page(request: Request) -> Response:
-        return FileResponse(STATIC / "index.html")
+        return FileResponse(STATIC / "index.html",
+                            headers={"content-security-policy": PAGE_POLICY})
 
     async def list_procedures(request: Request) -> Response:
         return JSONResponse({"procedures": list(procedures.listing())})
@@ -143,12 +207,12 @@ def create_app(procedures: Procedures, history: History, rig_file: Path | None,
     async def run_file(request: Request) -> Response:
         name, file = request.path_params["name"], request.path_params["file"]
         try:
-            target = history.run_dir(name) / file
+            target = served_file(history, name, file)
         except AatestError:
-            return Response("unknown run", status_code=404)
-        if file not in RUN_FILES or not target.is_file():
             return Response("no such file in this run", status_code=404)
-        return FileResponse(target, media_type=RUN_FILES[file])
+        policy = REPORT_POLICY if RUN_FILES[file] == "text/html" else "frame-ancestors 'none'"
+        return FileResponse(target, media_type=RUN_FILES[file],
+                            headers={"content-security-policy": policy})
 
     async def websocket(ws: WebSocket) -> None:
         hub.loop = asyncio.get_running_loop()
@@ -158,8 +222,17 @@ def create_app(procedures: Procedures, history: History, rig_file: Path | None,
         await hub.announce_roles()
         try:
             while True:
-                await _command(controller, hub, ws, await ws.receive_json())
+                message = await ws.receive()
+                if message["type"] == "websocket.disconnect":
+                    break
+                command = parse_command(message)
+                if command is None:
+                    await ws.close(POLICY_VIOLATION, "not a station command")
+                    break
+                await _command(controller, hub, ws, command)
         except WebSocketDisconnect:
+            pass
+        finally:
             await hub.leave(ws)
 
     app = Starlette(routes=[
@@ -169,4 +242,4 @@ def create_app(procedures: Procedures, history: History, rig_file: Path | None,
         Route("/runs/{name}/{file}", run_file), WebSocketRoute("/ws", websocket),
         Mount("/static", StaticFiles(directory=STATIC)),
     ])
-    return Guard(app, token)
+    return Guard(app, token, hosts)

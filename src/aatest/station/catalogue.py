@@ -103,12 +103,24 @@ class History(Protocol):
         ...
 
 
+def _is_run_dir(candidate: Path) -> bool:
+    """Whether ``candidate`` is a real run directory: no symbolic link, a readable state file."""
+    try:
+        return (not candidate.is_symlink() and candidate.is_dir()
+                and _plain_file(candidate / STATE_FILE))
+    except OSError:  # unreadable (permissions, I/O error): not a run the station can show
+        return False
+
+
 def _run_dir_named(runs_dir: Path, name: str) -> Path:
-    """The run directory ``name`` directly under ``runs_dir``; anything else is refused."""
+    """The run directory ``name`` directly under ``runs_dir``; anything else is refused.
+
+    Symbolic links are refused too: a link in the runs directory could lead anywhere.
+    """
     candidate = runs_dir / name
-    if "/" in name or "\\" in name or name in ("", ".", "..") or not (
-        candidate / STATE_FILE
-    ).is_file():
+    if "/" in name or "\\" in name or "\0" in name or name in ("", ".", "..") or not (
+        _is_run_dir(candidate)
+    ):
         raise InputError(f"unknown run {name!r}")
     return candidate
 
@@ -124,12 +136,31 @@ class RunsDirHistory:
         return _run_dir_named(self.runs_dir, name)
 
     def recent(self, limit: int) -> list[dict[str, Any]]:
-        """The ``limit`` most recently changed runs, newest first."""
-        if not self.runs_dir.is_dir():
+        """The ``limit`` most recently changed runs, newest first.
+
+        A directory that cannot be read or summarised (permissions, a broken state file, a
+        symbolic link) is left out of the list rather than failing it for every browser.
+        """
+        try:
+            entries = list(self.runs_dir.iterdir())
+        except OSError:
             return []
-        dirs = [d for d in self.runs_dir.iterdir() if (d / STATE_FILE).is_file()]
-        dirs.sort(key=lambda d: (d / STATE_FILE).stat().st_mtime, reverse=True)
-        return [run_summary(d) for d in dirs[:limit]]
+        dated = []
+        for d in entries:
+            try:
+                if _is_run_dir(d):
+                    dated.append(((d / STATE_FILE).stat().st_mtime, d))
+            except OSError:
+                continue
+        dated.sort(key=lambda pair: pair[0], reverse=True)
+        rows = []
+        for _mtime, d in dated:
+            row = _readable_summary(d)
+            if row is not None:
+                rows.append(row)
+            if len(rows) == limit:
+                break
+        return rows
 
     def source(self) -> dict[str, str]:
         """The runs directory (its name only: the page needs no local path)."""
@@ -176,7 +207,7 @@ class RecordsHistory:
             "name": local.name if local is not None else None,
             "procedure": record.procedure, "finished": True,
             "overall": record.overall_verdict,
-            "files": sorted(n for n in RUN_FILES if local is not None and (local / n).is_file()),
+            "files": sorted(n for n in RUN_FILES if local is not None and _plain_file(local / n)),
             "certificate_number": record.certificate_number,
             "unit": f"{record.model}/{record.serial}",
             "calibrated_utc": record.calibrated_utc.isoformat(timespec="seconds"),
@@ -197,13 +228,29 @@ def history_for(records: str | None, runs_dir: Path) -> History:
     return RecordsHistory(RecordStore.open(records), runs_dir)
 
 
+def _plain_file(path: Path) -> bool:
+    """Whether ``path`` is a regular file itself, not a symbolic link to one (never followed)."""
+    try:
+        return path.is_file() and not path.is_symlink()
+    except OSError:
+        return False
+
+
+def _readable_summary(run_dir: Path) -> dict[str, Any] | None:
+    """:func:`run_summary`, or None when the directory's files cannot be read or parsed."""
+    try:
+        return run_summary(run_dir)
+    except (AatestError, OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
 def run_summary(run_dir: Path) -> dict[str, Any]:
     """One history row: state, verdict and which report files exist."""
     state = RunState.load(run_dir)
     summary: dict[str, Any] = {
         "name": run_dir.name, "procedure": state.procedure, "finished": state.finished,
         "prompt_answers": state.prompt_answers, "overall": None,
-        "files": sorted(n for n in RUN_FILES if (run_dir / n).is_file()),
+        "files": sorted(n for n in RUN_FILES if _plain_file(run_dir / n)),
     }
     summary.update(results_summary(run_dir))
     return summary
@@ -212,7 +259,7 @@ def run_summary(run_dir: Path) -> dict[str, Any]:
 def results_summary(run_dir: Path) -> dict[str, Any]:
     """The verdict banner and the judged quantities with U, from ``results.json`` if present."""
     path = run_dir / "results.json"
-    if not path.is_file():
+    if not _plain_file(path):
         return {}
     doc = json.loads(path.read_text(encoding="utf-8"))
     return {**banner(doc), "analysis_errors": doc.get("analysis_errors", {}),

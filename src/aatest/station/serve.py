@@ -9,7 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from aatest.engine.errors import InputError
 from aatest.station.app import create_app
 from aatest.station.catalogue import Procedures, history_for
-from aatest.station.security import Asgi, load_token
+from aatest.station.security import Asgi, HostRule, load_token
 
 #: the station's own directory inside the runs directory (uploaded procedures live there)
 STATION_DIR = ".station"
@@ -29,18 +29,21 @@ class StationOptions(BaseModel):
     rig_file: Path | None = None
     #: wall seconds over which a recorded step's samples are replayed to the live plot
     replay_s: float = Field(2.0, ge=0.0, le=10.0)
+    #: further ``Host`` names the station answers to (``--allow-host``), NAME or NAME:PORT
+    allow_hosts: tuple[str, ...] = ()
 
 
 def build(options: StationOptions) -> Asgi:
     """The guarded application for ``options``; bad options raise InputError (exit 2)."""
     token = load_token(options.host, options.token_file)
+    hosts = HostRule.build(options.host, options.port, options.allow_hosts)
     if options.lab_dir is not None and not options.lab_dir.is_dir():
         raise InputError(f"--lab {options.lab_dir}: not a directory")
     options.runs_dir.mkdir(parents=True, exist_ok=True)
     history = history_for(options.records, options.runs_dir)
     uploads = options.runs_dir / STATION_DIR / "uploads"
     return create_app(Procedures(options.lab_dir, uploads), history, options.rig_file, token,
-                      options.replay_s, options.records)
+                      options.replay_s, options.records, hosts)
 
 
 def serve(options: StationOptions) -> None:
