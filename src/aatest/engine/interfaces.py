@@ -162,7 +162,11 @@ class Turntable(Protocol):
         """Stop motion and switch the motor off; must never raise and be idempotent."""
 
     def close(self) -> None:
-        """Release the connection; called once at the end of a run, after ``safe_stop``."""
+        """Release the connection; called once at the end of a run, after ``safe_stop``.
+
+        Only ever called after :meth:`start` (also when ``start`` raised); a turntable built
+        only to read its :meth:`envelope` (``validate``, ``plan``) is never closed.
+        """
 
 
 @runtime_checkable
@@ -186,7 +190,8 @@ class Daq(Protocol):
         """Stop logging (a little after the table log ends) and return the DAQ log."""
 
     def close(self) -> None:
-        """Release the logger's bus or connection; called once at the end of a run."""
+        """Release the logger's bus or connection; called once at the end of a run, and only
+        after :meth:`start` was called."""
 
 
 #: lab seconds of DAQ samples per chunk the runner asks a streaming DAQ for
@@ -234,7 +239,8 @@ class Chamber(Protocol):
         """Switch heating and cooling off (the safe state of a chamber); must never raise."""
 
     def close(self) -> None:
-        """Release the chamber's connection; called once at the end of a run."""
+        """Release the chamber's connection; called once at the end of a run (after
+        :meth:`off`), and only when the run got as far as starting the rig."""
 
 
 R = TypeVar("R")

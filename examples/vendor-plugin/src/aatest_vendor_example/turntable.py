@@ -107,6 +107,6 @@ class SingleAxisTable:
             log.error("ACME SR-1: safe stop failed: %s", exc)
 
     def close(self) -> None:
-        """Leave the table safe and release it."""
-        self.safe_stop()
+        """Release the table (the engine calls ``safe_stop`` first, and ``close`` only after
+        ``start``: a rig built to read the envelope is never closed)."""
         self._controller.close()

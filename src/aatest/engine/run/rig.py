@@ -1,8 +1,10 @@
 """Building the rig from plugin names and owning its life cycle.
 
 The engine, not the plugins, decides when a rig starts and stops: if one plugin fails to start,
-the ones already started are brought to a safe state and closed, and the error names the
-plugin that failed. Any fault while running ends in ``safe_stop`` (table stopped, motor off).
+the ones whose start was called (the failing one too) are brought to a safe state and closed,
+and the error names the plugin that failed. Any fault while running ends in ``safe_stop`` (table
+stopped, motor off). A rig that is only built (to read its envelope) is never started, stopped
+or closed.
 """
 
 from __future__ import annotations
@@ -71,7 +73,11 @@ def _construct(
 
 
 def build_rig(rig_config: Any, sensor: SensorRef, seed: int) -> Rig:
-    """Construct turntable, DAQ and chamber plugins; nothing is connected or moved yet."""
+    """Construct turntable, DAQ and chamber plugins; nothing is connected or moved yet.
+
+    Plugins connect in ``start`` (:func:`running`), never in their constructors, so building a
+    rig to read its envelope (``validate``, ``plan``) sends the hardware nothing.
+    """
     datasheet, sensor_version = sensor_datasheet(sensor)
     context = RigContext(sensor=sensor, datasheet=datasheet, seed=seed)
     parts: dict[str, Any] = {}
@@ -99,11 +105,19 @@ def _safely(action: str, fn: Any) -> None:
 
 @contextmanager
 def running(rig: Rig) -> Iterator[Rig]:
-    """Start the rig; on any exit (fault, Ctrl-C, success) leave it safe and closed."""
-    started: list[tuple[str, Any]] = []
+    """Start the rig; on any exit (fault, Ctrl-C, success) leave it safe and closed.
+
+    Only plugins whose ``start`` was called are touched afterwards: the turntable gets
+    ``safe_stop`` and the chamber ``off`` only once their ``start`` was called (even when it
+    raised: a half-done start may have switched a motor on), then every such plugin is closed,
+    in reverse order. A plugin never started gets no call at all, so a rig whose chamber fails
+    to start never talks to its turntable.
+    """
+    attempted: list[tuple[str, Any]] = []
     try:
         parts = (("chamber", rig.chamber), ("daq", rig.daq), ("turntable", rig.turntable))
         for name, part in parts:
+            attempted.append((name, part))
             start = getattr(part, "start", None)
             try:
                 if start is not None:
@@ -112,10 +126,12 @@ def running(rig: Rig) -> Iterator[Rig]:
                 raise
             except Exception as exc:
                 raise RigFault(f"{name} failed to start: {exc}") from exc
-            started.append((name, part))
         yield rig
     finally:
-        _safely("turntable.safe_stop", rig.turntable.safe_stop)
-        _safely("chamber.off", rig.chamber.off)
-        for _name, part in reversed(started):
-            _safely(f"{_name}.close", part.close)
+        touched = dict(attempted)
+        if "turntable" in touched:
+            _safely("turntable.safe_stop", rig.turntable.safe_stop)
+        if "chamber" in touched:
+            _safely("chamber.off", rig.chamber.off)
+        for name, part in reversed(attempted):
+            _safely(f"{name}.close", part.close)

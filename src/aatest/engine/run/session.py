@@ -80,18 +80,20 @@ def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
 
 
 def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any]:
-    """The turntable plugin's envelope and the sensor's datasheet (constructing moves nothing)."""
+    """The turntable plugin's envelope and the sensor's datasheet.
+
+    The rig is only constructed (no plugin connects in its constructor) and never started, so
+    nothing here reaches the hardware: no ``start``, no ``safe_stop`` and no ``close`` — a
+    ``close`` that stops the table would otherwise stop a table another run is using whenever
+    someone validates a procedure (docs/vendor-plugins.md, "Life cycle").
+    """
     from aatest.engine.interfaces import supports_streaming
 
     rig = build_rig(rig_config, sensor, seed=0)
-    try:  # long static records need a streaming DAQ (docs/interfaces.md §3)
-        envelope = rig.turntable.envelope().model_copy(
-            update={"streaming_daq": supports_streaming(rig.daq)})
-        return envelope, rig.datasheet
-    finally:
-        rig.turntable.close()
-        rig.daq.close()
-        rig.chamber.close()
+    # long static records need a streaming DAQ (docs/interfaces.md §3)
+    envelope = rig.turntable.envelope().model_copy(
+        update={"streaming_daq": supports_streaming(rig.daq)})
+    return envelope, rig.datasheet
 
 
 def default_operator() -> str:
