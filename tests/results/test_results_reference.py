@@ -87,27 +87,31 @@ def _tolerance(path: str) -> tuple[float, float]:
     return REL, 0.0
 
 
+def _number_differs(before: float, after: float, path: str) -> list[str]:
+    rel, abs_ = _tolerance(path)
+    if VOLATILE_LEAVES.match(path) or math.isclose(before, after, rel_tol=rel, abs_tol=abs_):
+        return []
+    return [f"{path}: {before!r} became {after!r} (rel {rel:g}, abs {abs_:g})"]
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def differences(before: Any, after: Any, path: str = "") -> list[str]:
     """Every place the two documents differ beyond the tolerances, as readable lines."""
     if isinstance(before, dict) and isinstance(after, dict):
         if before.keys() != after.keys():
             return [f"{path}: keys {sorted(before.keys() ^ after.keys())} differ"]
-        return [d for k in before for d in differences(before[k], after[k], f"{path}.{k}"
-                                                          .lstrip("."))]
+        return [d for k in before
+                for d in differences(before[k], after[k], f"{path}.{k}".lstrip("."))]
     if isinstance(before, list) and isinstance(after, list):
         if len(before) != len(after):
             return [f"{path}: {len(before)} items became {len(after)}"]
         return [d for i, (b, a) in enumerate(zip(before, after, strict=True))
                 for d in differences(b, a, f"{path}[{i}]")]
-    if VOLATILE_LEAVES.match(path):
-        return []
-    numbers = (int, float)
-    if (isinstance(before, numbers) and isinstance(after, numbers)
-            and not isinstance(before, bool) and not isinstance(after, bool)):
-        rel, abs_ = _tolerance(path)
-        if math.isclose(before, after, rel_tol=rel, abs_tol=abs_):
-            return []
-        return [f"{path}: {before!r} became {after!r} (rel {rel:g}, abs {abs_:g})"]
+    if _is_number(before) and _is_number(after):
+        return _number_differs(before, after, path)
     return [] if before == after else [f"{path}: {before!r} became {after!r}"]
 
 
