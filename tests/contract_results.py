@@ -1,6 +1,9 @@
-"""A hand-made, contract-shaped ``results.json`` with realistic numbers (docs/method.md §1.3, §4).
+"""A hand-made ``results.json`` with realistic numbers (docs/method.md §1.3, §4), valid for the
+typed record (:class:`aatest.results.RunResults`).
 
-Shared by the report and uncertainty tests (``from contract_results import make_results``).
+Shared by the report and uncertainty tests (``from contract_results import make_results``;
+``typed_results()`` is the same document as the typed record). Values an analysis would state
+but these tests want absent are ``None`` (read back as NaN, i.e. "not estimated").
 
 Three-sensor unit (v_sz on I, v_sy on O, v_sx on P); FRF points follow a 60 Hz, ζ = 0.7
 second-order sensor with a 13.5 ms transport delay at −47.9 dB (K = 4.014 mV/(°/s²)).
@@ -18,6 +21,7 @@ from aatest.engine.analysis.verdicts import apply_verdicts
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.uncertainty import apply_uncertainty
+from aatest.results import RunResults
 
 K_V_PER_DPS2 = 0.004014
 CHANNELS = {"v_sz": ("I", "SZ", "A1234-Z"), "v_sy": ("O", "SY", "A1234-Y"),
@@ -32,10 +36,16 @@ def _frf_points(delay_s: float = 0.0135) -> list[dict[str, Any]]:
         s = 2j * math.pi * f
         wn = 2 * math.pi * 60.0
         h = K_V_PER_DPS2 * wn**2 / (s**2 + 2 * 0.7 * wn * s + wn**2) * np.exp(-s * delay_s)
+        delay = float(-np.angle(h) / (2 * math.pi * f))
         points.append({
             "frequency_hz": f, "accel_dps2": 100.0, "gain_db": 20 * math.log10(abs(h)),
-            "phase_deg": math.degrees(np.angle(h)), "delay_s": -np.angle(h) / (2 * math.pi * f),
-            "thd": 0.002 + 0.0004 * f, "snr_db": 49.0 - 0.1 * f,
+            "phase_deg": math.degrees(np.angle(h)), "delay_s": delay,
+            "delay_samples": delay * 2000.0, "thd": 0.002 + 0.0004 * f, "snr_db": 49.0 - 0.1 * f,
+            "snr6_db": 48.0 - 0.1 * f, "table_thd": None, "table_snr_db": None,
+            "table_snr6_db": None, "measured_accel_dps2": 100.0, "gain_v_per_dps2": abs(h),
+            "re": h.real, "im": h.imag, "u_gain_db": None, "u_phase_deg": None,
+            "u_delay_s": None, "coherent": True, "group": "accel-100",
+            "step": f"sw-{f:.4f}Hz", "sample_rate_hz": 2000.0,
         })
     return points
 
@@ -45,10 +55,25 @@ def _transfer_function(delay_s: float = 0.0135, dt: float = 0.0005) -> dict[str,
     wn = 2 * math.pi * 60.0
     num, den, _ = signal.cont2discrete(([K_V_PER_DPS2 * wn**2], [1, 2 * 0.7 * wn, wn**2]), dt)
     num, den = np.ravel(num), np.ravel(den)
-    return {"poles": [[p.real, p.imag] for p in np.roots(den)],
-            "zeros": [[z.real, z.imag] for z in np.roots(np.trim_zeros(num, "f"))],
-            "delay_s": delay_s, "fit_pct": 98.4, "nAIC": -14.2, "FPE": 6.1e-7,
-            "num": num.tolist(), "den": den.tolist(), "dt": dt}
+    poles = [[p.real, p.imag] for p in np.roots(den)]
+    model = {"poles": poles,
+             "zeros": [[z.real, z.imag] for z in np.roots(np.trim_zeros(num, "f"))],
+             "delay_s": delay_s, "fit_pct": 98.4, "nAIC": -14.2, "FPE": 6.1e-7,
+             "num": num.tolist(), "den": den.tolist(), "dt": dt, "n": 2, "m": 1,
+             "delay_samples": 27, "delay_source": "xcorr", "fit_id_pct": 98.6,
+             "zeros_outside_unit_circle": 0,
+             "xcorr": {"delay_samples": 27, "delay_s": delay_s, "strength": 0.9,
+                       "accepted": True},
+             "continuous": {"num": [K_V_PER_DPS2 * wn**2], "den": [1, 2 * 0.7 * wn, wn**2],
+                            "poles_rad_s": [[-0.7 * wn, wn * 0.714], [-0.7 * wn, -wn * 0.714]],
+                            "natural_frequencies_hz": [60.0, 60.0], "damping": [0.7, 0.7],
+                            "delay_s": delay_s, "dc_gain": K_V_PER_DPS2},
+             "candidates": [],
+             "second_order_delay": {"gain_v_per_dps2": K_V_PER_DPS2, "natural_frequency_hz": 60.0,
+                                    "damping": 0.7, "delay_s": delay_s,
+                                    "u_natural_frequency_hz": 0.4, "u_damping": 0.01,
+                                    "u_delay_s": 1e-5, "fit_pct": 98.1}}
+    return {**model, "group": "accel-100", "groups": {"accel-100": model}}
 
 
 def _steps() -> list[dict[str, Any]]:
@@ -81,27 +106,63 @@ def _misalignment() -> dict[str, Any]:
                 "cross_ratio_y": abs(math.sin(math.radians(de))) * 0.6,
                 "delta_A": [0.4 * math.sin(math.radians(de)) * math.cos(phase),
                             0.4 * math.sin(math.radians(de)) * math.sin(phase)], "delta_e_deg": de,
+                "A_z": [0.4, 0.0],
             }
     scenarios = {
-        str(n): {s: {"delta_deg": (sets[o][s]["delta_e_deg"] - sets[p][s]["delta_e_deg"]) / 2}
+        str(n): {s: {"delta_deg": (sets[o][s]["delta_e_deg"] - sets[p][s]["delta_e_deg"]) / 2,
+                     "A_S": [0.4, 0.0]}
                  for s in ("SZ", "SY", "SX")}
         for n, (o, p) in zip("1234", ("AB", "CD", "EF", "GH"), strict=True)
     }
     return {"sets": sets, "scenarios": scenarios}
 
 
-def _temperature_points() -> list[dict[str, Any]]:
+def _temperature_columns() -> dict[str, list[Any]]:
     temps = (22, 7.5, -2, -11, -21, -14, -5, 4, 20, 29, 38, 48, 38, 29, 22)
     rng = np.random.default_rng(3)
-    points = []
+    columns: dict[str, list[Any]] = {"temperatures_c": [], "branch": [], "bias_v": [],
+                                     "scale_temperatures_c": [], "scale_v_per_dps2": []}
     for i, t in enumerate(temps):
         branch = "cooling" if i < 5 else "heating" if i < 12 else "return"
         bias = 2.4987 - 0.00031 * (t - 25) + (0.0002 if branch == "cooling" else 0.0)
         scale = K_V_PER_DPS2 * (1 + 0.00021 * (t - 25))
-        points.append({"temperature_c": t, "branch": branch,
-                       "bias_v": bias + 2e-5 * rng.standard_normal(),
-                       "scale_v_per_dps2": scale * (1 + 2e-5 * rng.standard_normal())})
-    return points
+        columns["temperatures_c"].append(float(t))
+        columns["scale_temperatures_c"].append(float(t))
+        columns["branch"].append(branch)
+        columns["bias_v"].append(bias + 2e-5 * rng.standard_normal())
+        columns["scale_v_per_dps2"].append(scale * (1 + 2e-5 * rng.standard_normal()))
+    return columns
+
+
+def _mounting(bias_v: float, g: float, u_v: float, u_g: float) -> dict[str, Any]:
+    return {"bias_v": bias_v, "bias_u_v": u_v, "g_sensitivity_dps2_per_g": g,
+            "g_sensitivity_u_dps2_per_g": u_g, "repetitions": 3,
+            "line": {"bias_v": bias_v, "g_slope_v_per_g": g * K_V_PER_DPS2,
+                     "residual_rms_v": 2e-5}}
+
+
+def _scale_factor(a1: float, b: float) -> dict[str, Any]:
+    ci95 = [[-0.40, -0.24], [a1 - 0.069, a1 + 0.069]]
+    return {"scale_v_per_dps2": 1 / a1, "scale_u_v_per_dps2": None, "scale_ci95": [None, None],
+            "offset_v": b, "offset_u_v": 1e-5, "order": 1, "rmse_dps2": 14.5,
+            "coefficients": [-0.32, a1], "ci95": ci95,
+            "fit": {"order": 1, "coefficients": [-0.32, a1], "std_uncertainty": [0.04, 0.035],
+                    "ci95": ci95, "covariance": [], "correlation": [], "sse": 1.0,
+                    "rmse": 14.5, "r2": 0.997, "n": 131072},
+            "volts_mean_v": b, "validation": {"rmse_dps2": [14.6, 14.5], "naic": [5.4, 5.3]},
+            "nonlinearity_dps2": 0.11,
+            "inverse": {"order": 1, "coefficients_v": [b, 1 / a1], "ci95": [], "rmse_v": 6e-5},
+            "reference": "smooth", "alignment_delay_s": 0.0, "steps": ["sf-1hz"],
+            "scale_deviation_pct": 100 * (1 / (a1 * K_V_PER_DPS2) - 1),
+            "nonlinearity_pct_fr": 0.011}
+
+
+def _noise(rms_v: float) -> dict[str, Any]:
+    return {"rms_v": rms_v, "rms_max_v": rms_v, "rms_per_step_v": [rms_v],
+            "rms_dps2": rms_v / K_V_PER_DPS2, "band_hz": 100.0,
+            "psd_floor_v_per_sqrt_hz": rms_v / 10.0,
+            "allan_dps2": {"tau_s": [0.1, 1.0], "adev": [0.08, 0.025]},
+            "record_step": "st-o0-r1"}
 
 
 def _analysis() -> dict[str, Any]:
@@ -109,19 +170,15 @@ def _analysis() -> dict[str, Any]:
     for n, ch in enumerate(CHANNELS):
         b = 2.4987 + 0.0011 * n
         g_sens = 0.21 - 0.05 * n
-        spread = ((-2.1e-5, 0.004), (0.4e-5, -0.002), (1.7e-5, 0.001))
         bias[ch] = {"bias_v": b, "g_sensitivity_dps2_per_g": g_sens,
-                    "repetitions": [{"bias_v": b + d, "g_sensitivity_dps2_per_g": g_sens + g}
-                                    for d, g in spread]}
+                    "mountings": {"original": _mounting(b - 1.2e-5, g_sens + 0.002, 7e-6, 1.1e-3),
+                                  "pivoted": _mounting(b + 1.2e-5, g_sens - 0.002, 7e-6, 1.1e-3)}}
         a1 = 1.0 / (K_V_PER_DPS2 * (1 - 0.0009 * n))
-        scale[ch] = {"scale_v_per_dps2": 1 / a1, "offset_v": b, "order": 1, "rmse_dps2": 14.5,
-                     "coefficients": [-0.32, a1],
-                     "ci95": [[-0.40, -0.24], [a1 - 0.069, a1 + 0.069]],
-                     "r2": 0.997, "nonlinearity_dps2": 0.11, "reference": "smooth"}
+        scale[ch] = _scale_factor(a1, b)
         temperature[ch] = {"bias_coefficient_v_per_c": -0.00031,
                            "scale_coefficient_per_c": 0.00021,
-                           "hysteresis_v": 0.0002, "points": _temperature_points()}
-        noise[ch] = {"rms_v": 0.00101}
+                           "hysteresis_v": 0.0002, **_temperature_columns()}
+        noise[ch] = _noise(0.00101)
         frf[ch] = _frf_points()
         tf[ch] = _transfer_function()
     return {"sync": {"drift_ppm": 12.3, "offset_s": 0.3521, "residual_rms_us": 2.9,
@@ -158,8 +215,15 @@ def make_results() -> dict[str, Any]:
     }
 
 
-def decided(results: dict[str, Any], acceptance: Acceptance | None = None) -> dict[str, Any]:
+def typed_results() -> RunResults:
+    """:func:`make_results` as the typed record (a fresh one on every call)."""
+    return RunResults.model_validate(make_results())
+
+
+def decided(results: dict[str, Any] | RunResults, acceptance: Acceptance | None = None
+            ) -> RunResults:
     """The results after the engine's uncertainty and verdict stages (datasheet defaults)."""
+    typed = results if isinstance(results, RunResults) else RunResults.model_validate(results)
     sheets = {ch: SensorDatasheet(model="sr207-aamu") for ch in CHANNELS}
-    apply_uncertainty(results)
-    return apply_verdicts(results, sheets, acceptance or Acceptance())
+    apply_uncertainty(typed)
+    return apply_verdicts(typed, sheets, acceptance or Acceptance())

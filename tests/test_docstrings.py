@@ -55,11 +55,8 @@ ALLOWED_UNDOCUMENTED: frozenset[str] = frozenset(
 )
 ALLOWED_WITHOUT_UNITS: frozenset[str] = frozenset(
     {
-        "aatest.engine.uncertainty.access:as_float",  # generic: the value keeps its caller's unit
-        "aatest.engine.uncertainty.access:repetition_values",  # generic: the caller's unit
-        "aatest.engine.uncertainty.access:require_float",  # generic: the caller's unit
-        "aatest.engine.uncertainty.access:step_values",  # generic: the caller's unit
         "aatest.engine.uncertainty.gum:Input.mean",  # generic: the caller's unit
+        "aatest.engine.uncertainty.statistics:finite_values",  # generic: the caller's unit
         "aatest.engine.uncertainty.gum:Input.standard_uncertainty",  # generic: the caller's unit
         "aatest.engine.uncertainty.gum:evaluate",  # generic: the caller's unit
     }

@@ -17,11 +17,14 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import wraps
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import typer
 
 from aatest.crash_report import write_crash_report
+
+if TYPE_CHECKING:
+    from aatest.results import RunResults
 from aatest.engine.errors import EXIT_FINDING, EXIT_INTERNAL, EXIT_RIG_FAULT, AatestError
 
 app = typer.Typer(
@@ -203,28 +206,30 @@ def run(
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
         )
     typer.echo(
-        f"run complete: {run_dir} — {len(results['steps'])} steps, "
-        f"lab {results['lab_duration_s']:.1f} s, "
-        f"wall {results['wall_duration_s']:.1f} s"
+        f"run complete: {run_dir} — {len(results.steps)} steps, "
+        f"lab {results.lab_duration_s:.1f} s, "
+        f"wall {results.wall_duration_s:.1f} s"
     )
     _exit_on_outcome(results)
 
 
-def _exit_on_outcome(results: dict[str, Any]) -> None:
+def _exit_on_outcome(results: RunResults) -> None:
     """After everything is written: exit 2 on failed analyses, 1 on a failed verdict."""
     from aatest.engine.analysis.verdicts import failed
 
-    errors = results.get("analysis_errors") or {}
-    for name, message in errors.items():
+    for name, message in results.analysis_errors.items():
         typer.echo(f"analysis {name}: {message}", err=True)
-    if errors:
+    if results.analysis_errors:
         raise typer.Exit(2)
-    typer.echo(f"overall verdict: {results['overall']}")
+    from aatest.results.quantities import quantity
+
+    typer.echo(f"overall verdict: {results.overall}")
     if failed(results):
-        for v in results["verdicts"]:
-            if v["verdict"] != "pass":
-                typer.echo(f"{v['verdict']}: {v['quantity']} {v['channel']}: {v['value']:.6g} "
-                           f"vs limit ±{v['limit']:.6g} {v['unit']} ({v['rule']})", err=True)
+        for v in results.verdicts:
+            if v.verdict != "pass":
+                q = quantity(v.quantity)
+                typer.echo(f"{v.verdict}: {q.name}, {v.channel}: {q.show(v.value)} vs limit "
+                           f"±{q.show(v.limit)} ({v.rule} decision rule)", err=True)
         raise typer.Exit(EXIT_FINDING)
 
 
@@ -248,8 +253,10 @@ def analyze(
             data, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
         )
     if json_out is not None:
-        json_out.write_text(json.dumps(results, indent=2), encoding="utf-8")
-    typer.echo(f"analysed {len(results['steps'])} steps → {target / 'results.json'}")
+        from aatest.engine.analysis.results import results_json
+
+        json_out.write_text(json.dumps(results_json(results), indent=2), encoding="utf-8")
+    typer.echo(f"analysed {len(results.steps)} steps → {target / 'results.json'}")
     _exit_on_outcome(results)
 
 

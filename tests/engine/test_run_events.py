@@ -78,6 +78,6 @@ def test_abort_mid_step_keeps_completed_steps_and_resumes(tmp_path: Path) -> Non
     state = json.loads((run / "run_state.json").read_text())
     assert not state["finished"]
     _, results = session.run(SINES, None, run, True, 1, None, show_progress=False)
-    assert [s["id"] for s in results["steps"]] == [
+    assert [s.id for s in results.steps] == [
         "s001-sine-inner-0.9766Hz-100dps2", "s002-sine-inner-1.9531Hz-100dps2",
         "s003-sine-inner-3.9062Hz-100dps2"]

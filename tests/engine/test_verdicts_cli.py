@@ -63,11 +63,13 @@ def test_tight_limit_fails_run_analyze_and_certificate(tmp_path: Path) -> None:
     assert code == 1 and results["overall"] == "fail"
     assert _scale_verdict(results)["verdict"] == "fail"
     html = (tmp_path / "run" / "report.html").read_text()
-    row = re.search(r"<td class=\"t\">scale_factor_deviation_pct</td>.*?</tr>", html, re.S)
+    row = re.search(r"<td class=\"t\">Scale-factor deviation from nominal</td>.*?</tr>", html,
+                    re.S)
     assert row and 'class="fail"' in row.group(0)
     assert (tmp_path / "run" / "results.json").is_file()  # written before the exit
     again = RUNNER.invoke(app, ["analyze", str(tmp_path / "run")])
-    assert again.exit_code == 1 and "scale_factor_deviation_pct" in again.output
+    assert again.exit_code == 1 and "Scale-factor deviation from nominal" in again.output
+    assert "scale_factor_deviation_pct" not in again.output  # the name, not the field
 
 
 def test_guarded_value_within_u_is_conditional(tmp_path: Path,

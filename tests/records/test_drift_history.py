@@ -90,7 +90,10 @@ def test_history_recovers_the_aging_rate(aged_unit: str) -> None:
     assert drift.per_year > 10 * drift.u_per_year, "the aging must be resolved, not noise"
     result = CliRunner().invoke(app, ["history", "A1234", "--records", aged_unit])
     assert result.exit_code == 0
-    match = re.search(r"drift scale_factor\.v_sz: \+([0-9.e-]+) V/\(°/s²\)/year", result.stdout)
+    match = re.search(r"drift of Scale factor v_sz: \+([0-9.e-]+) V/\(°/s²\) per year",
+                      result.stdout)
+    assert "scale_factor" not in result.stdout  # quantities by name, not by field
+    assert "Scale factor v_sz [V/(°/s²)] (± U)" in result.stdout
     assert match and float(match.group(1)) == pytest.approx(true_per_year, rel=0.01)
     assert f"next due: {add_months(STARTS[-1], 12).date().isoformat()}" in result.stdout
 

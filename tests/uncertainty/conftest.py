@@ -1,15 +1,14 @@
-"""Fixtures of the uncertainty tests: contract-shaped results."""
+"""Fixtures of the uncertainty tests: the hand-made results as the typed record."""
 
 from __future__ import annotations
 
-import copy
-from typing import Any
-
 import pytest
-from contract_results import make_results
+from contract_results import typed_results
+
+from aatest.results import RunResults
 
 
 @pytest.fixture
-def results() -> dict[str, Any]:
-    """Fresh contract-shaped results (tests may mutate their copy)."""
-    return copy.deepcopy(make_results())
+def results() -> RunResults:
+    """Fresh typed results (tests may change their copy)."""
+    return typed_results()

@@ -21,6 +21,7 @@ from aatest.engine.uncertainty.evidence import (
 )
 from aatest.engine.uncertainty.gum import Input, Measurand, coverage_factor, evaluate
 from aatest.engine.uncertainty.measurands import RigConstants, bias_measurand
+from aatest.results import RunResults
 
 STATED = Instruments.model_validate({
     "logger": {"offset_accuracy_v": 0.002, "gain_accuracy_pct": 0.05, "bits": 16,
@@ -89,10 +90,11 @@ def test_temperature_logged_vs_not_logged() -> None:
 
 
 def test_mounting_uses_a_misalignment_result_of_the_run() -> None:
-    stated = comp.mounting(_constants(), {}, "v_sz")
+    stated = comp.mounting(_constants(), RunResults(procedure="p"), "v_sz")
     assert stated.spread == pytest.approx(math.radians(0.3)) and "mounting accuracy" in stated.note
-    results: dict[str, Any] = {"analysis": {"misalignment": {"scenarios": {
-        "1": {"SZ": {"misalignment_deg": 0.05, "expanded_uncertainty": 0.01}}}, "sets": {}}}}
+    results = RunResults.model_validate({"procedure": "p", "analysis": {"misalignment": {
+        "scenarios": {"1": {"SZ": {"delta_deg": 0.05, "A_S": [0.4, 0.0],
+                                   "expanded_uncertainty": 0.01}}}, "sets": {}}}})
     measured = comp.mounting(_constants(), results, "v_sz")
     assert measured.spread == pytest.approx(math.radians(0.06))
     assert measured.note.startswith("measured: misalignment result")
@@ -107,18 +109,22 @@ def test_not_evaluated_rows_show_as_such() -> None:
 
 
 def test_reference_method_from_the_reference_analysis() -> None:
-    results = {"analysis": {"reference": {"s1": {
-        "smooth": {"gain": 1.0}, "savgol": {"gain": 1.0003}, "table": {"gain": 0.9999}}}}}
+    compared = {m: {"gain": g, "rms_diff_dps2": 0.1, "runtime_s": 0.01}
+                for m, g in (("smooth", 1.0), ("savgol", 1.0003), ("table", 0.9999))}
+    results = RunResults.model_validate({"procedure": "p",
+                                         "analysis": {"reference": {"s1": compared}}})
     row = comp.reference_method(results, ["s1"], "smoothed")
     assert row.spread == pytest.approx(3e-4) and "savgol vs smoothed" in row.note
-    missing = comp.reference_method({}, ["s1"], "smoothed")
+    missing = comp.reference_method(RunResults(procedure="p"), ["s1"], "smoothed")
     assert not missing.evaluated
 
 
-def test_bias_budget_holds_the_logger_offset(results: dict[str, Any]) -> None:
+def test_bias_budget_holds_the_logger_offset(results: RunResults) -> None:
     """The bias U can never be smaller than the logger's offset accuracy contribution."""
     c = _constants()
-    evaluation = evaluate(bias_measurand(results, "v_sz", c))  # type: ignore[arg-type]
+    measurand = bias_measurand(results, "v_sz", c)
+    assert measurand is not None
+    evaluation = evaluate(measurand)
     rows = {r.name: r for r in evaluation.rows}
     offset = rows["logger_offset"]
     assert offset.contribution == pytest.approx(0.002 / math.sqrt(3))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import pytest
 from numpy.testing import assert_allclose
@@ -21,15 +20,17 @@ from aatest.engine.uncertainty.measurands import (
     scale_factor_measurand,
     temperature_measurand,
 )
+from aatest.results import RunResults
+from aatest.results.root import StepSummary
 
 C = RigConstants()
 
 
-def _measurands(results: dict[str, Any]) -> dict[str, Measurand | None]:
+def _measurands(results: RunResults) -> dict[str, Measurand | None]:
     sf = scale_factor_measurand(results, "v_sz", C)
     assert sf is not None
     sf_eval = evaluate(sf)
-    points = results["analysis"]["frf"]["v_sz"]
+    points = results.analysis.frf["v_sz"]
     return {
         "scale": sf,
         "bias": bias_measurand(results, "v_sz", C),
@@ -51,7 +52,7 @@ NAMES = ["scale", "bias", "g", "g_nominal_k", "tc_bias", "tc_scale", "gain_low",
 
 
 @pytest.mark.parametrize("name", NAMES, ids=NAMES)
-def test_gum_matches_monte_carlo_within_10pct(results: dict[str, Any], name: str) -> None:
+def test_gum_matches_monte_carlo_within_10pct(results: RunResults, name: str) -> None:
     measurand = _measurands(results)[name]
     assert measurand is not None
     gum = evaluate(measurand)
@@ -65,7 +66,7 @@ def test_gum_matches_monte_carlo_within_10pct(results: dict[str, Any], name: str
     assert shares == pytest.approx(100.0, rel=1e-6)
 
 
-def test_scale_factor_budget_is_physical(results: dict[str, Any]) -> None:
+def test_scale_factor_budget_is_physical(results: RunResults) -> None:
     """The fit (±0.069 on 249 (°/s²)/V, ci95), encoder 1″ on 10° (~1.6e-5) and the logger's
     0.1 % gain accuracy (u = 0.058 %, dominating): U in the tenths of a percent."""
     gum = evaluate(_measurands(results)["scale"])
@@ -80,7 +81,7 @@ def test_scale_factor_budget_is_physical(results: dict[str, Any]) -> None:
     assert 1e-3 < gum.relative_expanded < 5e-3
 
 
-def test_high_frequency_gain_is_limited_by_the_encoder(results: dict[str, Any]) -> None:
+def test_high_frequency_gain_is_limited_by_the_encoder(results: RunResults) -> None:
     """At 10 Hz, 100 °/s², A = 91″: the encoder error (1″, period 1°) can change by its slope
     bound 1″·2π·360/rev = 0.175 % over the motion, rectangular: it dominates the budget."""
     gum = evaluate(_measurands(results)["gain_high"])
@@ -101,30 +102,32 @@ def test_cosine_error_input_moments() -> None:
     assert_allclose(item.standard_uncertainty(), a**2 / math.sqrt(45), rtol=1e-3)
 
 
-def test_missing_analysis_gives_no_measurand(results: dict[str, Any]) -> None:
-    del results["analysis"]["scale_factor"]
-    del results["analysis"]["misalignment"]
+def test_missing_analysis_gives_no_measurand(results: RunResults) -> None:
+    results.analysis.scale_factor = None
+    results.analysis.misalignment = None
     assert scale_factor_measurand(results, "v_sz", C) is None
     assert misalignment_measurand(results, "1", "SZ", C) is None
 
 
-def test_scale_factor_prefers_the_analysis_u_of_k(results: dict[str, Any]) -> None:
+def test_scale_factor_prefers_the_analysis_u_of_k(results: RunResults) -> None:
     """When the analysis states u(K) directly (best-line fit), the fit row uses it."""
-    entry = results["analysis"]["scale_factor"]["v_sz"]
-    entry.update(order=12, scale_u_v_per_dps2=4.25e-8)
+    entry = results.analysis.scale_factor["v_sz"]
+    entry.order, entry.scale_u_v_per_dps2 = 12, 4.25e-8
     gum = evaluate(scale_factor_measurand(results, "v_sz", C))
     fit = [r for r in gum.rows if r.name.startswith("fit_")]
     # (the cosine inputs shift the estimate by ~5e-6 relative: mounting 0.3°)
     assert_allclose(math.hypot(*(r.contribution for r in fit)), 4.25e-8, rtol=1e-4)
 
 
-def test_static_statistics_from_the_analysis(results: dict[str, Any]) -> None:
+def test_static_statistics_from_the_analysis(results: RunResults) -> None:
     """bias_u_v / per-mounting g u from the bias analysis replace the noise estimate, and an
-    uncalibrated K contributes its ±1 % datasheet tolerance (rectangular) to g."""
-    entry = results["analysis"]["bias"]["v_sz"]
-    entry["bias_u_v"] = 3.2e-6
-    entry["mountings"] = {"original": {"g_sensitivity_u_dps2_per_g": 0.0016},
-                          "pivoted": {"g_sensitivity_u_dps2_per_g": 0.0004}}
+    uncalibrated K contributes its ±1 % datasheet tolerance (rectangular) to g. (Without
+    per-mounting repetitions nothing can be pooled; the stated u are used.)"""
+    entry = results.analysis.bias["v_sz"]
+    entry.bias_u_v = 3.2e-6
+    for mounting, u in (("original", 0.0016), ("pivoted", 0.0004)):
+        entry.mountings[mounting].repetitions = None
+        entry.mountings[mounting].g_sensitivity_u_dps2_per_g = u
     bias = {r.label: r for r in evaluate(bias_measurand(results, "v_sz", C)).rows}
     assert bias["static means (noise, repeatability)"].standard_uncertainty == 3.2e-6
     g = {r.label: r for r in evaluate(g_sensitivity_measurand(results, "v_sz", C, None)).rows}
@@ -133,22 +136,28 @@ def test_static_statistics_from_the_analysis(results: dict[str, Any]) -> None:
     assert_allclose(g["scale factor"].contribution, 0.21 * 0.01 / math.sqrt(3), rtol=1e-3)
 
 
-def test_columnar_temperature_results(results: dict[str, Any]) -> None:
-    """Columns (temperatures_c, bias_v, branch) are read like points; a stated u wins."""
-    from aatest.engine.uncertainty.access import temperature_points
+def test_pooled_mountings_give_the_static_type_a(results: RunResults) -> None:
+    """Two mountings of three repetitions each: the Type A of the bias pools within- and
+    between-mounting scatter over n = 6 values, with 5 degrees of freedom."""
+    entry = results.analysis.bias["v_sz"]
+    rows = {r.name: r for r in evaluate(bias_measurand(results, "v_sz", C)).rows}
+    within = 2 * (3 - 1) * 3 * 7e-6**2
+    between = 2 * 3 * 1.2e-5**2
+    expected = math.sqrt((within + between) / 5 / 6)
+    # the same sums in another order: a few roundings of ~1e-16 each
+    assert_allclose(rows["noise"].standard_uncertainty, expected, rtol=1e-9)
+    assert "5 degrees of freedom" in rows["noise"].basis
+    assert entry.mountings["original"].repetitions == 3
+
+
+def test_temperature_coefficients_from_the_columns(results: RunResults) -> None:
+    """Columns (temperatures_c, bias_v, branch) give the regression; a stated u wins."""
     from aatest.plugins.report import figures
 
-    entry = results["analysis"]["temperature"]["v_sz"]
-    points = entry.pop("points")
-    entry.update(temperatures_c=[p["temperature_c"] for p in points],
-                 bias_v=[p["bias_v"] for p in points], branch=[p["branch"] for p in points],
-                 scale_temperatures_c=[p["temperature_c"] for p in points],
-                 scale_v_per_dps2=[p["scale_v_per_dps2"] for p in points])
-    assert len(temperature_points(entry, "bias_v")) == 15
-    assert len(temperature_points(entry, "scale_v_per_dps2")) == 15
+    entry = results.analysis.temperature["v_sz"]
     regression = evaluate(temperature_measurand(results, "v_sz", "scale_coefficient_per_c", C))
     assert regression.rows[0].basis.startswith("regression over 15")
-    entry["bias_coefficient_u_v_per_c"] = 9.3e-8
+    entry.bias_coefficient_u_v_per_c = 9.3e-8
     stated = evaluate(temperature_measurand(results, "v_sz", "bias_coefficient_v_per_c", C))
     assert stated.rows[0].standard_uncertainty == 9.3e-8
     assert figures.bias_vs_temperature(entry) is not None
@@ -158,14 +167,17 @@ def test_columnar_temperature_results(results: dict[str, Any]) -> None:
                          [(4e-4, 1e-4, "segments"), (1e-4, 4e-4, "neighbour bins")],
                          ids=["segments-larger", "neighbours-larger"])
 def test_frf_noise_row_is_the_larger_type_a_with_its_dof(
-        results: dict[str, Any], segments_rad: float, local_rel: float, governs: str) -> None:
+        results: RunResults, segments_rad: float, local_rel: float, governs: str) -> None:
     """The segments' spread and the neighbour bins' noise estimate the same term, each blind
     where the other sees: the larger one enters, with its own degrees of freedom (the
     segments' few raise k above 2)."""
-    point = results["analysis"]["frf"]["v_sz"][1]
-    point.update(u_segments_phase_rad=segments_rad, u_segments_gain_rel=segments_rad,
-                 segments_dof=5.7, segments=7, cycles_per_segment=2, u_local_rel=local_rel,
-                 sample_rate_hz=2000.0, samples=16384)
+    point = results.analysis.frf["v_sz"][1]
+    point.u_segments_phase_rad = point.u_segments_gain_rel = segments_rad
+    point.segments_dof, point.segments, point.cycles_per_segment = 5.7, 7, 2
+    point.u_local_rel, point.sample_rate_hz = local_rel, 2000.0
+    # the record of the point: 16384 samples (the FRF point states none of its own)
+    results.steps = [StepSummary(id=point.step, kind="sine", samples=16384,
+                                 frequency_hz=point.frequency_hz, accel_dps2=100.0)]
     measurand = frf_phase_measurand(point, results, C)
     assert measurand is not None
     noise = next(i for i in measurand.inputs if i.name == "noise")

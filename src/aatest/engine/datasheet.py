@@ -9,67 +9,29 @@ under ``sensors`` (docs/interfaces.md §3) and what every analysis reads from th
 
 The defaults describe the reference sensor class of docs/method.md §1.3 (the SR207-class servo
 force-balance fluid-rotor accelerometer): what aatest assumes about a sensor nobody described.
-This module is the only place in ``src/`` that states those datasheet numbers; everything else
-(the SR207 plugin, the twin, report fall-backs) takes them from here.
+The per-channel record and those numbers live in :mod:`aatest.results.sensor` (the typed
+results carry the sensors) and are re-exported here; everything else (the SR207 plugin, the
+twin, the uncertainty stage) takes them from there.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Literal
+from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
+
+from aatest.results.sensor import (
+    REFERENCE_BIAS_V,
+    REFERENCE_RANGE_DPS2,
+    REFERENCE_SCALE_V_PER_DPS2,
+    SensorAxis,
+    SensorInfo,
+    SensorNominals,
+)
 
 __all__ = ["REFERENCE_BIAS_V", "REFERENCE_RANGE_DPS2", "REFERENCE_SCALE_V_PER_DPS2",
            "SensorAxis", "SensorDatasheet", "SensorInfo", "SensorNominals"]
-
-SensorAxis = Literal["I", "O", "P"]
-
-#: range of the reference sensor, °/s² (±10 rad/s², docs/method.md §1.3)
-REFERENCE_RANGE_DPS2 = 572.958
-#: scale factor of the reference sensor, V/(°/s²) (0.23 V/(rad/s²) = 4.014 mV/(°/s²))
-REFERENCE_SCALE_V_PER_DPS2 = 0.004014
-#: zero-acceleration output of the reference sensor, V
-REFERENCE_BIAS_V = 2.5
-
-
-class SensorNominals(BaseModel):
-    """Datasheet values every channel of a sensor model carries (nominals and limits).
-
-    Units are in the names: volts, °/s², per cent, per °C.
-    """
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-    range_dps2: float = Field(REFERENCE_RANGE_DPS2, gt=0, description="±full scale, °/s²")
-    nominal_bias_v: float = Field(REFERENCE_BIAS_V, description="output at rest, V")
-    nominal_scale_v_per_dps2: float = Field(REFERENCE_SCALE_V_PER_DPS2, gt=0,
-                                            description="scale factor, V/(°/s²)")
-    noise_rms_v: float = Field(0.003, ge=0, description="output noise limit, V RMS")
-    bias_tolerance_v: float = Field(0.01, ge=0, description="bias band around the nominal, V")
-    scale_tolerance_pct: float = Field(1.0, ge=0, description="scale-factor band, %")
-    bias_temperature_limit_v_per_c: float = Field(0.0004, ge=0,
-                                                  description="null shift limit, V/°C")
-    scale_temperature_limit_per_c: float = Field(0.0005, ge=0,
-                                                 description="relative scale shift limit, 1/°C")
-
-
-class SensorInfo(SensorNominals):
-    """One sensor channel as the engine records it and the analyses read it."""
-
-    channel: str = Field(min_length=1)
-    axis: SensorAxis = "I"
-    model: str = "unknown"
-    serial: str = "unknown"
-
-    @classmethod
-    def from_metadata(cls, entry: Mapping[str, Any]) -> SensorInfo:
-        """Read a record stored in a recording's metadata, ignoring keys this version lacks.
-
-        Recordings written by other versions may carry more (or fewer) keys; the ones this
-        record knows are validated, missing ones take the datasheet defaults.
-        """
-        return cls(**{k: v for k, v in entry.items() if k in cls.model_fields})
-
 
 #: the channels of a single-axis sensor: one channel, sensitive about the inner axis
 _SINGLE_AXIS: Mapping[str, SensorAxis] = {"v_sz": "I"}

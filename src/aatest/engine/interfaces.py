@@ -25,6 +25,7 @@ from aatest.engine.dataset import Dataset
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep, SensorRef
+from aatest.results import RunResults
 
 # The public names; SensorDatasheet is re-exported (sensor plugins return it).
 __all__ = [
@@ -307,9 +308,11 @@ class Analysis(Protocol):
 class Reporter(Protocol):
     """Renders results into a report file in ``run_dir`` and returns its path."""
 
-    def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path:
-        """Render the results.json document into a file in ``run_dir``; return its path.
+    def render(self, results: RunResults, run_dir: Path, template_dir: Path | None) -> Path:
+        """Render the typed results into a file in ``run_dir``; return its path.
 
+        ``results`` is the record results.json is written from (read its fields as
+        attributes; :mod:`aatest.results.quantities` names each quantity for a person).
         ``template_dir`` is a lab's own template directory (None: the shipped templates). The
         report only presents: verdicts and uncertainties are already in ``results``.
         """

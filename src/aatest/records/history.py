@@ -1,4 +1,8 @@
-"""A unit's calibration history: the table, the JSON document, the drift and the due date."""
+"""A unit's calibration history: the table, the JSON document, the drift and the due date.
+
+The text table names each quantity as the quantity registry does (``Scale factor v_sz``, its
+unit symbol and significant digits); the JSON keeps the record's ``QUANTITY.CHANNEL`` keys.
+"""
 
 from __future__ import annotations
 
@@ -13,6 +17,7 @@ import numpy as np
 from scipy.optimize import curve_fit
 
 from aatest.records.models import CalibrationRecord
+from aatest.results.quantities import U_DIGITS, Quantity, quantity, significant
 
 SECONDS_PER_YEAR = 365.25 * 86400.0
 #: the quantities a history shows, in this order (``NAME.CHANNEL`` prefixes)
@@ -99,11 +104,24 @@ def _format(value: float | None) -> str:
     return "—" if value is None else f"{value:.6g}"
 
 
+def display_name(name: str) -> tuple[str, Quantity]:
+    """``Scale factor v_sz`` and the registry entry of a record's ``scale_factor.v_sz``."""
+    key, _, channel = name.partition(".")
+    q = quantity(key)
+    return f"{q.name} {channel}".strip(), q
+
+
 def _quantity_cell(record: CalibrationRecord, name: str) -> str:
-    q = record.quantities.get(name)
-    if q is None:
+    stated = record.quantities.get(name)
+    if stated is None:
         return "—"
-    return f"{_format(q.value)} ± {_format(q.expanded_uncertainty)}"
+    q = display_name(name)[1]
+    return f"{q.value_text(stated.value)} ± {significant(stated.expanded_uncertainty, U_DIGITS)}"
+
+
+def _heading(records: Sequence[CalibrationRecord], name: str) -> str:
+    label, q = display_name(name)
+    return f"{label} [{q.unit}] (± U)"
 
 
 def history_text(serial: str, records: Sequence[CalibrationRecord], interval_months: int) -> str:
@@ -111,9 +129,8 @@ def history_text(serial: str, records: Sequence[CalibrationRecord], interval_mon
     if not records:
         return f"{serial}: no calibration records"
     names = quantity_names(records)
-    header = ["calibrated (UTC)", "procedure", "certificate", *[
-        f"{n} [{records[-1].quantities[n].unit if n in records[-1].quantities else ''}] (± U)"
-        for n in names], "verdict"]
+    header = ["calibrated (UTC)", "procedure", "certificate",
+              *[_heading(records, n) for n in names], "verdict"]
     lines = ["  ".join(header)]
     for r in records:
         lines.append("  ".join([r.calibrated_utc.strftime("%Y-%m-%d %H:%M"), r.procedure,
@@ -122,7 +139,8 @@ def history_text(serial: str, records: Sequence[CalibrationRecord], interval_mon
     for name in names:
         drift = fit_drift(records, name)
         if drift is not None:
-            lines.append(f"drift {name}: {drift.per_year:+.4g} {drift.unit}/year"
+            label, q = display_name(name)
+            lines.append(f"drift of {label}: {drift.per_year:+.4g} {q.unit} per year"
                          f" (u = {_format(drift.u_per_year)}, {drift.points} calibrations)")
     due = next_due(records, interval_months)
     if due is not None:

@@ -14,47 +14,25 @@ number, and the :class:`RecordsUnavailable` error is raised when the scope close
 
 from __future__ import annotations
 
-import json
-from collections.abc import Iterator, Mapping, MutableMapping
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
 
-from pydantic import BaseModel
-
+from aatest.engine.analysis.results import results_json
 from aatest.engine.run import bundle_hooks
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
-from aatest.records.lab import METADATA_KEY as LAB_METADATA_KEY
 from aatest.records.lab import LabProfile
 from aatest.records.models import QuantityRecord, Registration
 from aatest.records.store import RecordStore, as_utc
+from aatest.results import RunResults
+from aatest.results.root import RunMetadata
 
 CERTIFICATE_KEY = "certificate_number"
 #: commands whose results earn a new certificate number (``report`` re-signs the same one)
 ISSUING_COMMANDS = frozenset({"run", "analyze"})
-#: the results as the session holds them: the ``results.json`` dict or a typed pydantic model
-Results = MutableMapping[str, Any] | BaseModel
-
-
-def as_document(results: Results) -> dict[str, Any]:
-    """The ``results.json`` document of ``results`` (a dict, or a typed model dumped as JSON)."""
-    if isinstance(results, BaseModel):
-        return dict(results.model_dump(mode="json"))
-    return dict(results)
-
-
-def _set_certificate(results: Results, number: str | None) -> None:
-    if isinstance(results, BaseModel):
-        setattr(results, CERTIFICATE_KEY, number)  # the typed root declares the field
-    elif number is None:
-        results.pop(CERTIFICATE_KEY, None)
-    else:
-        results[CERTIFICATE_KEY] = number
-
-
 @dataclass
 class Registrar:
     """The records side of one CLI command."""
@@ -74,37 +52,33 @@ class Registrar:
         if self._store is not None:
             self._store.close()
 
-    def assign_certificate(self, results: Results) -> None:
+    def assign_certificate(self, results: RunResults) -> None:
         """Issue a number into ``results`` (``run``/``analyze``); keep it on re-signing."""
-        if self.command not in ISSUING_COMMANDS and as_document(results).get(CERTIFICATE_KEY):
+        if self.command not in ISSUING_COMMANDS and results.certificate_number:
             return
-        _set_certificate(results, None)
+        results.certificate_number = None
         try:
             number = self.store().issue_certificate(self.lab.certificate_prefix)
         except RecordsUnavailable as exc:
             self.error = exc
             return
-        _set_certificate(results, number)
+        results.certificate_number = number
 
-    def before_signing(self, results: Results) -> None:
+    def before_signing(self, results: RunResults) -> None:
         """Bundle observer: the certificate number and the issuing lab's identity, before the
         results are written (so the signature covers what the certificate prints)."""
         self.assign_certificate(results)
-        # the typed root (RunResults) declares ``metadata`` as a dict, like the JSON document
-        metadata = getattr(results, "metadata", None) if isinstance(results, BaseModel) else \
-            results.setdefault("metadata", {})
-        if isinstance(metadata, MutableMapping):
-            metadata[LAB_METADATA_KEY] = self.lab.certificate_identity()
+        results.metadata.lab = self.lab.certificate_identity()
 
-    def after_signing(self, results: Results, report: Path) -> None:
+    def after_signing(self, results: RunResults, report: Path) -> None:
         """Bundle observer: register the finished bundle."""
         self.register(results, report)
 
-    def register(self, results: Results, bundle: Path) -> int | None:
+    def register(self, results: RunResults, bundle: Path) -> int | None:
         """Append the record of ``bundle``; ``None`` when the store is unreachable."""
         if self.error is not None:
             return None
-        registration = registration_for(as_document(results), bundle, self.command, self.lab)
+        registration = registration_for(results, bundle, self.command, self.lab)
         try:
             return self.store().register(registration)
         except RecordsUnavailable as exc:
@@ -132,31 +106,30 @@ def bundle_files(bundle: Path) -> dict[str, str]:
     return bundle_hashes(bundle)
 
 
-def _calibrated_utc(results: Mapping[str, Any]) -> datetime:
-    started = (results.get("metadata") or {}).get("started_utc")
+def _calibrated_utc(results: RunResults) -> datetime:
     try:
-        return as_utc(datetime.fromisoformat(str(started)))
+        return as_utc(datetime.fromisoformat(str(results.metadata.started_utc)))
     except ValueError:
         return datetime.now(UTC)  # imported data without a start time: registered now
 
 
 def registration_for(
-    results: Mapping[str, Any], bundle: Path, command: str, lab: LabProfile
+    results: RunResults, bundle: Path, command: str, lab: LabProfile
 ) -> Registration:
     """The record of ``bundle`` (its main file, e.g. ``report.html``) and its ``results``."""
-    meta = results.get("metadata") or {}
+    meta = results.metadata
     model, serial = extract.unit_of(results)
-    signature = results.get("signature") or {}
-    stored = {k: v for k, v in results.items() if k != "figures"}  # figures are in the bundle
+    stored = results_json(results)
+    stored.pop("figures", None)  # figures are in the bundle
     return Registration(
-        model=model, serial=serial, certificate_number=results.get(CERTIFICATE_KEY),
-        command=command, procedure=str(results.get("procedure") or meta.get("procedure") or "?"),
-        procedure_sha256=meta.get("procedure_sha256"), rig=dict(results.get("rig") or {}),
-        plugin_versions={str(k): str(v) for k, v in (meta.get("plugin_versions") or {}).items()},
-        operator=meta.get("operator"), lab=lab.name, calibrated_utc=_calibrated_utc(results),
-        overall_verdict=extract.overall_verdict(results), verdicts=extract.verdict_rows(results),
-        results=json.loads(json.dumps(stored)), bundle=str(Path(bundle).resolve()),
-        key_fingerprint=signature.get("fingerprint") if isinstance(signature, Mapping) else None,
+        model=model, serial=serial, certificate_number=results.certificate_number,
+        command=command, procedure=results.procedure or meta.procedure or "?",
+        procedure_sha256=meta.procedure_sha256, rig=dict(results.rig),
+        plugin_versions=dict(meta.plugin_versions),
+        operator=meta.operator, lab=lab.name, calibrated_utc=_calibrated_utc(results),
+        overall_verdict=results.overall, verdicts=extract.verdict_rows(results),
+        results=stored, bundle=str(Path(bundle).resolve()),
+        key_fingerprint=results.signature.fingerprint if results.signature else None,
         files=bundle_files(Path(bundle)),
         quantities={q.name: QuantityRecord(value=q.value, unit=q.unit,
                                            expanded_uncertainty=q.expanded_uncertainty)
@@ -164,17 +137,18 @@ def registration_for(
     )
 
 
-def _results_for(data: Path) -> dict[str, Any]:
+def _results_for(data: Path) -> RunResults:
     """The run's results next to ``data``, else the recording's own metadata."""
-    from aatest.engine.analysis.results import RESULTS_FILE
+    from aatest.engine.analysis.results import RESULTS_FILE, plain_metadata, read_results
 
     folder = data if data.is_dir() else data.parent
     if (folder / RESULTS_FILE).is_file():
-        return dict(json.loads((folder / RESULTS_FILE).read_text(encoding="utf-8")))
+        return read_results(folder)
     from aatest.engine.recording import read_dataset
 
     dataset = read_dataset(data)
-    return {"procedure": dataset.procedure, "metadata": dict(dataset.metadata)}
+    return RunResults(procedure=dataset.procedure,
+                      metadata=RunMetadata.model_validate(plain_metadata(dict(dataset.metadata))))
 
 
 def register_diagnosis(registrar: Registrar, data: Path, json_out: Path | None) -> int | None:
@@ -185,5 +159,5 @@ def register_diagnosis(registrar: Registrar, data: Path, json_out: Path | None) 
     if bundle is None or not bundle.is_file():
         return None
     results = _results_for(data)
-    results.pop(CERTIFICATE_KEY, None)  # a diagnosis is not a certificate
+    results.certificate_number = None  # a diagnosis is not a certificate
     return registrar.register(results, bundle)

@@ -23,6 +23,7 @@ from aatest.records.errors import RecordsError
 from aatest.records.models import CalibrationRecord, QuantityRecord, RecordFilter, Registration
 from aatest.records.tables import calibrations, quantities, signed_files, units
 from aatest.records.url import is_default_missing, redacted, resolve_url
+from aatest.results import RunResults
 
 
 def as_utc(moment: datetime) -> datetime:
@@ -131,11 +132,12 @@ class RecordStore:
                 calibrations.c.certificate_number == number).order_by(calibrations.c.id)).all()
             return _records(connection, rows)
 
-    def results_of(self, record_id: int) -> dict[str, Any]:
-        """The stored results document of a record (without figures)."""
+    def results_of(self, record_id: int) -> RunResults:
+        """The stored results of a record (without figures), as the typed record."""
         with self.engine.connect() as connection:
-            return dict(connection.execute(select(calibrations.c.results).where(
-                calibrations.c.id == record_id)).scalar_one())
+            stored = connection.execute(select(calibrations.c.results).where(
+                calibrations.c.id == record_id)).scalar_one()
+        return RunResults.model_validate(stored)
 
     def latest_for_bundle(self, bundle: str) -> CalibrationRecord | None:
         """The newest record registered for the bundle whose main file is ``bundle``."""

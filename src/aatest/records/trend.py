@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 from jinja2 import Environment, select_autoescape
 from markupsafe import Markup
 
-from aatest.records.history import fit_drift, next_due, quantity_names
+from aatest.records.history import display_name, fit_drift, next_due, quantity_names
 from aatest.records.models import CalibrationRecord
 
 _PAGE = """<!DOCTYPE html>
@@ -35,7 +35,7 @@ td,th{border:1px solid #ccc;padding:2px 8px;font-size:90%} figure{margin:1em 0}<
 <td>{{ r.procedure }}</td><td class="certificate">{{ r.certificate_number or "—" }}</td>
 <td>{{ r.overall_verdict }}</td><td>{{ r.bundle }}</td></tr>{% endfor %}</table>
 {% for plot in plots %}<figure class="trend" id="trend-{{ plot.name }}">{{ plot.svg }}
-<figcaption>{{ plot.name }} [{{ plot.unit }}] — {{ plot.caption }}</figcaption></figure>
+<figcaption>{{ plot.label }} [{{ plot.unit }}] — {{ plot.caption }}</figcaption></figure>
 {% endfor %}</body></html>
 """
 
@@ -74,7 +74,8 @@ def _plot(records: Sequence[CalibrationRecord], name: str,
         axes.axvline(float(mdates.date2num(due)), color="tab:green", linestyle=":",
                      label="next due")
     axes.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m-%d"))
-    axes.set_ylabel(f"{name} [{rows[0].quantities[name].unit}]")
+    label, q = display_name(name)
+    axes.set_ylabel(f"{label} [{q.unit}]")
     axes.legend(fontsize="small")
     figure.autofmt_xdate()
     return _svg(figure), caption
@@ -88,8 +89,9 @@ def write_trend_html(path: Path, serial: str, records: Sequence[CalibrationRecor
     plots = []
     for name in quantity_names(records):
         svg, caption = _plot(records, name, limits.get(name), due)
-        unit = next(r.quantities[name].unit for r in records if name in r.quantities)
-        plots.append({"name": name, "unit": unit, "svg": svg, "caption": caption})
+        label, q = display_name(name)
+        plots.append({"name": name, "label": label, "unit": q.unit, "svg": svg,
+                      "caption": caption})
     env = Environment(autoescape=select_autoescape(default=True))
     html = env.from_string(_PAGE).render(
         serial=serial, records=records, plots=plots, lab=lab, interval=interval_months,

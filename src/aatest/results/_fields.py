@@ -58,3 +58,8 @@ class PerChannel(RootModel[dict[str, T]], Generic[T]):
     def items(self) -> Any:
         """(channel, result) pairs."""
         return self.root.items()
+
+
+def finite(value: float | None) -> float | None:
+    """The value when it is a finite number; None for a missing, NaN or infinite one."""
+    return value if value is not None and math.isfinite(value) else None

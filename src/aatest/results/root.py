@@ -8,9 +8,9 @@ The engine assembles it after the analysis pass; the uncertainty and verdict sta
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import ConfigDict, Field, model_serializer, model_validator
+from pydantic import BeforeValidator, ConfigDict, Field, model_serializer, model_validator
 
 from aatest.results._fields import Real
 from aatest.results.base import Overall, ResultModel, Verdict
@@ -20,6 +20,7 @@ from aatest.results.misalignment import MisalignmentResult
 from aatest.results.noise import DriftResult, NoiseResult
 from aatest.results.reference import ReferenceResult
 from aatest.results.scale_factor import ScaleFactorResult
+from aatest.results.sensor import SensorInfo
 from aatest.results.sync import SyncResult
 from aatest.results.temperature import TemperatureResult
 from aatest.results.transfer_function import TransferFunctionResult
@@ -82,6 +83,138 @@ class AnalysisBlock(ResultModel):
         return {k: v for k, v in built_in.items() if v is not None} | dict(self.extra)
 
 
+class StepMounting(ResultModel):
+    """How the sensor was mounted for a step (misalignment sets name their scenario)."""
+
+    model_config = ConfigDict(extra="allow", validate_assignment=True)
+    pivoted: bool = False
+    remount: str = "none"
+    scenario: str | None = None
+    experiment: int | None = None
+
+    @model_serializer(mode="wrap")
+    def _without_unset(self, handler: Any) -> dict[str, Any]:
+        """A scenario and experiment only where the step has them."""
+        dumped: dict[str, Any] = handler(self)
+        return {k: v for k, v in dumped.items() if v is not None}
+
+
+class StepSummary(ResultModel):
+    """One recorded step: the planned step (docs/interfaces.md §1 ``steps``) and its samples.
+
+    Fields the plan did not set are absent from the JSON (not ``null``); keys a newer or older
+    planner wrote are kept as they are.
+    """
+
+    model_config = ConfigDict(extra="allow", validate_assignment=True)
+    id: str
+    kind: str
+    axis: str = "none"
+    duration_s: Real = 0.0
+    settle_s: Real = 0.0
+    sample_rate_hz: Real = 2000.0
+    samples: int = 0
+    frequency_hz: Real | None = None
+    cycles: int | None = None
+    amplitude_deg: Real | None = None
+    accel_dps2: Real | None = None
+    temperature_c: Real | None = None
+    group: str | None = None
+    repetition: int = 1
+    mounting: StepMounting = Field(default_factory=StepMounting)
+    table_samples: int | None = None
+    daq_samples: int | None = None
+    status: str | None = None
+
+    @model_serializer(mode="wrap")
+    def _without_unset(self, handler: Any) -> dict[str, Any]:
+        """Only what the step stated: a field the plan left empty is not written."""
+        dumped: dict[str, Any] = handler(self)
+        return {k: v for k, v in dumped.items() if v is not None}
+
+
+class InstrumentTrace(ResultModel):
+    """Calibration certificate of one rig instrument, as the rig description states it."""
+
+    cert_id: str
+    cert_date: str
+    lab: str
+    accuracy: str
+
+
+class ReferenceTraceability(ResultModel):
+    """The reference's traceability the uncertainty stage used (``metadata.traceability``)."""
+
+    stated: bool = Field(description="the rig description stated its instruments")
+    instruments: dict[str, InstrumentTrace] = Field(default_factory=dict)
+    reference_temperature_c: Real
+
+
+class UnitRef(ResultModel):
+    """The calibrated unit as the procedure names it (``metadata.sensor``)."""
+
+    model_config = ConfigDict(extra="allow", validate_assignment=True)
+    model: str | None = None
+    serial: str | None = None
+
+
+class PromptAnswer(ResultModel):
+    """Who confirmed an operator prompt, when and through which channel."""
+
+    model_config = ConfigDict(extra="allow", validate_assignment=True)
+    step_id: str | None = None
+    answered_by: str | None = None
+    answered_utc: str | None = None
+    via: str | None = None
+
+
+def _sensor_records(value: Any) -> Any:
+    """Sensor records of any version: keys this version does not know are ignored."""
+    if isinstance(value, list):
+        return [SensorInfo.from_metadata(v) if isinstance(v, dict) else v for v in value]
+    return value
+
+
+class RunMetadata(ResultModel):
+    """``results.metadata``: the run's metadata as recorded, with the parts the engine reads
+    typed (the sensors, the report template, the reference's traceability); every other key
+    of the recording's metadata is kept as it is."""
+
+    model_config = ConfigDict(extra="allow", validate_assignment=True)
+    sensors: Annotated[list[SensorInfo], BeforeValidator(_sensor_records)] = Field(
+        default_factory=list, description="one record per sensor channel")
+    sensor: UnitRef | None = Field(None, description="the unit: sensor model and serial")
+    procedure: str | None = None
+    standard: str | None = None
+    procedure_sha256: str | None = None
+    started_utc: str | None = Field(None, description="when the run started, ISO 8601")
+    operator: str | None = None
+    recording: str | None = Field(None, description="the recording the results are from")
+    table_serial: str | None = None
+    report_template: str | None = None
+    plugin_versions: dict[str, str] = Field(default_factory=dict)
+    prompt_answers: list[PromptAnswer] = Field(default_factory=list)
+    lab: dict[str, Any] | None = Field(None, description="the issuing lab's identity")
+    adjustment: dict[str, Any] | None = Field(None, description="as-found/as-left, if made")
+    traceability: ReferenceTraceability | None = None
+
+    @model_serializer(mode="wrap")
+    def _without_unset(self, handler: Any) -> dict[str, Any]:
+        """Keys the run did not record are not written (as before the metadata was typed)."""
+        dumped: dict[str, Any] = handler(self)
+        return {k: v for k, v in dumped.items()
+                if k in self.model_fields_set or k in (self.model_extra or {})}
+
+    def sensor_of(self, channel: str) -> SensorInfo:
+        """The channel's sensor record, else the reference sensor's datasheet nominals."""
+        return next((s for s in self.sensors if s.channel == channel),
+                    SensorInfo(channel=channel or "unnamed"))
+
+    def recorded(self, key: str) -> Any:
+        """A metadata key this model does not type (None when the run did not record it)."""
+        return (self.model_extra or {}).get(key)
+
+
 class Signature(ResultModel):
     """Which key signed the bundle (the signature itself is a file next to the report)."""
 
@@ -94,17 +227,25 @@ class RunResults(ResultModel):
     schema_version: int = Field(1, description="results.json layout version")
     procedure: str
     rig: dict[str, Any] = Field(default_factory=dict, description="rig plugins and options")
-    steps: list[dict[str, Any]] = Field(default_factory=list,
-                                        description="each planned step plus sample counts")
+    steps: list[StepSummary] = Field(default_factory=list,
+                                     description="each planned step plus sample counts")
     analysis: AnalysisBlock = Field(default_factory=AnalysisBlock)
     analysis_errors: dict[str, str] = Field(default_factory=dict)
     analysis_skipped: list[str] = Field(default_factory=list)
     lab_duration_s: Real = 0.0
     wall_duration_s: Real = 0.0
-    metadata: dict[str, Any] = Field(default_factory=dict)
+    metadata: RunMetadata = Field(default_factory=RunMetadata)
     figures: dict[str, dict[str, str]] = Field(default_factory=dict,
                                                description="analysis key → name → SVG")
     verdicts: list[Verdict] = Field(default_factory=list)
     overall: Overall = "none"
     certificate_number: str | None = None
     signature: Signature | None = None
+
+    def steps_of_kind(self, kind: str) -> list[StepSummary]:
+        """The recorded steps of one kind (``static``, ``sine``, ``constant_rate``, …)."""
+        return [s for s in self.steps if s.kind == kind]
+
+    def sensor(self, channel: str) -> SensorInfo:
+        """The channel's sensor record (the reference sensor's nominals when not recorded)."""
+        return self.metadata.sensor_of(channel)

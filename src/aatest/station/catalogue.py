@@ -9,7 +9,6 @@ the station is started with ``--records`` (:class:`RecordsHistory`).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -258,9 +257,14 @@ def run_summary(run_dir: Path) -> dict[str, Any]:
 
 def results_summary(run_dir: Path) -> dict[str, Any]:
     """The verdict banner and the judged quantities with U, from ``results.json`` if present."""
-    path = run_dir / "results.json"
-    if not _plain_file(path):
+    from aatest.engine.analysis.results import RESULTS_FILE, read_results
+    from aatest.engine.errors import InputError
+
+    if not _plain_file(run_dir / RESULTS_FILE):
         return {}
-    doc = json.loads(path.read_text(encoding="utf-8"))
-    return {**banner(doc), "analysis_errors": doc.get("analysis_errors", {}),
-            "signed": doc.get("signature") is not None}
+    try:
+        results = read_results(run_dir)
+    except InputError as exc:  # shown on the page, not hidden: the file is unreadable
+        return {"results_error": str(exc)}
+    return {**banner(results), "analysis_errors": dict(results.analysis_errors),
+            "signed": results.signature is not None}

@@ -1,18 +1,25 @@
-"""The verdict banner's rows: exactly the engine's verdicts from ``results.json``.
+"""The verdict banner's rows: exactly the engine's verdicts, as the typed results state them.
 
 The engine's verdict stage judges every certified quantity (docs/interfaces.md §1); the page
-shows what it decided and never judges anything itself.
+shows what it decided and never judges anything itself. Each quantity is shown by its name
+and unit symbol from the quantity registry (:mod:`aatest.results.quantities`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
-KEYS = ("quantity", "channel", "value", "expanded_uncertainty", "limit", "unit", "verdict")
+from aatest.results import RunResults
+from aatest.results.quantities import quantity
 
 
-def banner(doc: Mapping[str, Any]) -> dict[str, Any]:
-    """``overall`` and the verdict rows (value, U, limit, unit) of one results document."""
-    rows = [{k: v.get(k) for k in KEYS} for v in doc.get("verdicts") or []]
-    return {"overall": doc.get("overall", "none"), "verdicts": rows, "judged_by": "results"}
+def banner(results: RunResults) -> dict[str, Any]:
+    """``overall`` and the verdict rows (value, U, limit, unit) of one run's results."""
+    rows = []
+    for v in results.verdicts:
+        q = quantity(v.quantity)
+        rows.append({"quantity": q.name, "key": v.quantity, "channel": v.channel,
+                     "value": v.value, "expanded_uncertainty": v.expanded_uncertainty,
+                     "limit": v.limit, "unit": q.unit, "digits": q.digits,
+                     "verdict": v.verdict})
+    return {"overall": results.overall, "verdicts": rows, "judged_by": "results"}

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import copy
 from pathlib import Path
-from typing import Any
 
 import pytest
 from contract_results import decided, make_results
 
+from aatest.results import RunResults
+
 
 @pytest.fixture
-def results() -> dict[str, Any]:
-    """Fresh contract-shaped results with budgets and verdicts (tests may mutate their copy)."""
-    return decided(copy.deepcopy(make_results()))
+def results() -> RunResults:
+    """Fresh typed results with budgets and verdicts (tests may change their copy)."""
+    return decided(make_results())
 
 
 @pytest.fixture

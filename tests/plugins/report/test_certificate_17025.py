@@ -25,6 +25,8 @@ import aatest
 from aatest.cli import app
 from aatest.engine.recording.reader import read_dataset
 from aatest.plugins.report.html import CalibrationCertificate
+from aatest.results import RunResults
+from aatest.results.quantities import quantity
 from aatest.twin.model import ChamberModel
 
 PROCEDURE = Path(aatest.__file__).parent / "procedures" / "scale-factor.yaml"
@@ -120,12 +122,18 @@ def test_environment_is_the_logged_temperature(certified: tuple[Path, dict[str, 
     assert mean == pytest.approx(ChamberModel().ambient_c, abs=0.5)  # the twin's lab
 
 
+def _render(document: dict[str, Any], run_dir: Path) -> str:
+    """The certificate of an edited results.json document."""
+    report = CalibrationCertificate().render(RunResults.model_validate(document), run_dir, None)
+    return report.read_text(encoding="utf-8")
+
+
 def test_environment_not_recorded_without_a_recording(
         certified: tuple[Path, dict[str, Any], str], tmp_path: Path) -> None:
     _, results, _ = certified
     doc = copy.deepcopy(results)
     doc["metadata"].pop("recording", None)
-    page = CalibrationCertificate().render(doc, tmp_path, None).read_text(encoding="utf-8")
+    page = _render(doc, tmp_path)
     assert "Temperature: not recorded" in _section(page, "environment")
 
 
@@ -133,10 +141,12 @@ def test_results_with_unit_u_k_and_probability(certified: tuple[Path, dict[str, 
                                                 ) -> None:
     _, results, page = certified
     entry = results["analysis"]["scale_factor"]["v_sz"]
-    row = re.search(r"<tr><td class=\"t\">v_sz</td><td class=\"t\">scale_factor</td>.*?</tr>",
+    row = re.search(r"<tr><td class=\"t\">v_sz</td><td class=\"t\">Scale factor</td>.*?</tr>",
                     page, re.S)
     assert row, "no scale-factor row in the results table"
-    cells = _text(row.group(0)).split()
+    cells = _text(row.group(0)).replace("Scale factor", "Scale_factor").split()
+    assert cells[1] == "Scale_factor"  # the quantity by its name, not its results.json key
+    # printed to 6 significant digits (the quantity registry's rule): rel 5e-6 of rounding
     assert float(cells[2]) == pytest.approx(entry["scale_v_per_dps2"], rel=1e-5)
     assert cells[3] == "V/(°/s²)"
     assert float(cells[4]) == pytest.approx(entry["expanded_uncertainty"], rel=0.05)
@@ -152,7 +162,7 @@ def test_measurand_stated_by_the_results_is_printed(
     run_dir, results, _ = certified
     doc = copy.deepcopy(results)
     doc["analysis"]["scale_factor"]["v_sz"]["measurand"] = "the engine's own measurand text"
-    page = CalibrationCertificate().render(doc, run_dir, None).read_text(encoding="utf-8")
+    page = _render(doc, run_dir)
     assert "the engine's own measurand text" in _text(page)
 
 
@@ -161,10 +171,13 @@ def test_traceability_statement(certified: tuple[Path, dict[str, Any], str]) -> 
     if not results["metadata"].get("traceability"):
         assert "Not stated" in _section(page, "traceability")
     doc = copy.deepcopy(results)
-    doc["metadata"]["traceability"] = {
-        "encoder": {"certificate": "ENC-2026-17", "date": "2026-03-01", "by": "PTB"},
-        "logger": {"certificate": "DAQ-2026-04", "date": "2026-02-11"}}
-    page = CalibrationCertificate().render(doc, run_dir, None).read_text(encoding="utf-8")
+    doc["metadata"]["traceability"] = {"stated": True, "reference_temperature_c": 23.0,
+                                       "instruments": {
+        "encoder": {"cert_id": "ENC-2026-17", "cert_date": "2026-03-01", "lab": "PTB",
+                    "accuracy": "±1″"},
+        "logger": {"cert_id": "DAQ-2026-04", "cert_date": "2026-02-11", "lab": "not stated",
+                   "accuracy": "gain ±0.1 %"}}}
+    page = _render(doc, run_dir)
     trace = _section(page, "traceability")
     assert "ENC-2026-17" in trace and "DAQ-2026-04" in trace and "PTB" in trace
     assert "Not stated" not in trace
@@ -177,8 +190,9 @@ def test_conformity_statement_is_the_engines(certified: tuple[Path, dict[str, An
     rules = {v["rule"] for v in results["verdicts"]}
     assert all(f"'{r}'" in conformity for r in rules)
     assert f"overall {results['overall']}" in conformity
-    for v in results["verdicts"]:
-        assert v["quantity"] in conformity and v["verdict"] in conformity
+    for v in results["verdicts"]:  # each judged quantity by its name, with its verdict
+        assert quantity(v["quantity"]).name in conformity and v["verdict"] in conformity
+        assert v["quantity"] not in conformity
 
 
 def test_adjustment_as_found_as_left(certified: tuple[Path, dict[str, Any], str]) -> None:
@@ -187,7 +201,7 @@ def test_adjustment_as_found_as_left(certified: tuple[Path, dict[str, Any], str]
     doc = copy.deepcopy(results)
     doc["metadata"]["adjustment"] = {"made": True, "as_found": "0.004050 V/(°/s²)",
                                      "as_left": "0.004012 V/(°/s²)", "note": "gain trimmed"}
-    page = CalibrationCertificate().render(doc, run_dir, None).read_text(encoding="utf-8")
+    page = _render(doc, run_dir)
     adjustment = _section(page, "adjustment")
     assert "0.004050" in adjustment and "0.004012" in adjustment and "gain trimmed" in adjustment
 
@@ -207,7 +221,7 @@ def test_operator_prompts_and_unattended_mode(certified: tuple[Path, dict[str, A
     doc["metadata"]["prompt_answers"] = [{"step_id": step, "answered_by": "j.doe",
                                           "answered_utc": "2026-11-23T10:00:00+00:00",
                                           "via": "auto"}]
-    page = CalibrationCertificate().render(doc, run_dir, None).read_text(encoding="utf-8")
+    page = _render(doc, run_dir)
     prompts = _section(page, "prompts")
     assert "UNATTENDED" in prompts and "j.doe" in prompts and "2026-11-23T10:00:00" in prompts
     assert "original orientation" in prompts

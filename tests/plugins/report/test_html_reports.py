@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import hashlib
-import json
+import math
 import re
 from pathlib import Path
-from typing import Any
 
 import pytest
 from contract_results import decided, make_results
 
 from aatest.engine import registry
+from aatest.engine.analysis.results import write_results
 from aatest.engine.run.signing import (
     generate_keypair,
     key_fingerprint,
@@ -19,13 +19,16 @@ from aatest.engine.run.signing import (
     sign_bundle,
     verify_bundle,
 )
-from aatest.engine.uncertainty.access import ResultsContractError
 from aatest.plugins.report.html import (
     CalibrationCertificate,
     DiagnosisReport,
     FrequencyResponseReport,
     MisalignmentReport,
 )
+from aatest.results import RunResults
+from aatest.results.frf import FrfResult
+from aatest.results.root import Signature
+from aatest.results.transfer_function import TransferFunctionResult
 
 FAST = CalibrationCertificate(CalibrationCertificate.Config(plots=False))
 REPORTS = ["calibration-certificate", "frequency-response", "misalignment", "diagnosis"]
@@ -61,8 +64,8 @@ def test_entry_points_load_and_validate(name: str) -> None:
         registry.configure(info, {"colour": "red"})
 
 
-def test_certificate_has_every_section_and_plot(results: dict[str, Any], run_dir: Path) -> None:
-    results["signature"] = {"fingerprint": "ab" * 32}
+def test_certificate_has_every_section_and_plot(results: RunResults, run_dir: Path) -> None:
+    results.signature = Signature(fingerprint="ab" * 32)
     path = CalibrationCertificate(CalibrationCertificate.Config()).render(results, run_dir, None)
     assert path == run_dir / "report.html"
     html = path.read_text()
@@ -82,16 +85,16 @@ def test_certificate_has_every_section_and_plot(results: dict[str, Any], run_dir
     assert "22.4 °C; chamber set-points 22.0, -21.0, 48.0 °C" in text
 
 
-def test_sections_degrade_when_keys_are_absent(results: dict[str, Any], run_dir: Path) -> None:
-    for key in ("frf", "transfer_function", "misalignment", "temperature", "noise", "sync"):
-        del results["analysis"][key]
-    del results["figures"]
-    for key in ("r2", "nonlinearity_dps2", "ci95"):  # only some contract keys
-        del results["analysis"]["scale_factor"]["v_sz"][key]
+def test_sections_degrade_when_keys_are_absent(results: RunResults, run_dir: Path) -> None:
+    a = results.analysis
+    a.frf = a.transfer_function = a.misalignment = a.temperature = a.noise = a.sync = None
+    results.figures = {}
+    entry = results.analysis.scale_factor["v_sz"]  # some values not estimated
+    entry.nonlinearity_dps2, entry.ci95 = math.nan, []
     text = _visible_text(FAST.render(results, run_dir, None).read_text())
     assert "Scale factor" in text and "Frequency response" not in text
     assert "Misalignment (pivoted method)" not in text and "Unsigned report." in text
-    bare = {"procedure": "empty", "steps": [], "analysis": {}, "verdicts": [], "overall": "none"}
+    bare = RunResults(procedure="empty")
     for cls in (CalibrationCertificate, FrequencyResponseReport, MisalignmentReport):
         html = cls(cls.Config(plots=False)).render(bare, run_dir, None).read_text()
         assert "Traceability" in _visible_text(html)
@@ -103,35 +106,35 @@ def test_verdict_fails_outside_datasheet(run_dir: Path) -> None:
     raw["analysis"]["bias"]["v_sz"]["bias_v"] = 2.5123
     results = decided(raw)
     html = FAST.render(results, run_dir, None).read_text()
-    row = re.search(r"<tr><td class=\"t\">bias_deviation_v</td><td class=\"t\">v_sz</td>.*?</tr>",
-                    html, re.S)
+    row = re.search(r"<tr><td class=\"t\">Bias deviation from nominal</td>"
+                    r"<td class=\"t\">v_sz</td>.*?</tr>", html, re.S)
     assert row and 'class="fail"' in row.group(0) and "0.0123" in row.group(0)
-    assert results["overall"] == "fail" and 'class="fail">fail</strong>' in html
+    assert results.overall == "fail" and 'class="fail">fail</strong>' in html
 
 
-def test_report_never_decides(results: dict[str, Any], run_dir: Path) -> None:
+def test_report_never_decides(results: RunResults, run_dir: Path) -> None:
     """A value changed after the engine decided leaves the verdict as decided; results
-    without the engine's verdicts cannot be rendered."""
-    results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.6
+    without the engine's verdicts show no verdict (``aatest report`` refuses them)."""
+    results.analysis.bias["v_sz"].bias_v = 2.6
     html = FAST.render(results, run_dir, None).read_text()
-    row = re.search(r"<tr><td class=\"t\">bias_deviation_v</td><td class=\"t\">v_sz</td>.*?</tr>",
-                    html, re.S)
+    row = re.search(r"<tr><td class=\"t\">Bias deviation from nominal</td>"
+                    r"<td class=\"t\">v_sz</td>.*?</tr>", html, re.S)
     assert row and 'class="pass"' in row.group(0)
-    del results["verdicts"]
-    with pytest.raises(ResultsContractError, match="verdicts"):
-        FAST.render(results, run_dir, None)
+    results.verdicts, results.overall = [], "none"
+    text = _visible_text(FAST.render(results, run_dir, None).read_text())
+    assert "No conformity statement" in text and "Bias deviation" not in text
 
 
-def test_certificate_names_reference_rule_and_budgets(results: dict[str, Any],
+def test_certificate_names_reference_rule_and_budgets(results: RunResults,
                                                       run_dir: Path) -> None:
     text = _visible_text(FAST.render(results, run_dir, None).read_text())
-    assert "Decision rule: simple" in text and f"Overall verdict: {results['overall']}" in text
-    assert "smooth" in text  # the scale factor's acceleration reference
+    assert "Decision rule: simple" in text and f"Overall verdict: {results.overall}" in text
+    assert "smoothed position" in text  # the scale factor's acceleration reference
     assert "reference: encoder accuracy rectangular" in text  # a budget row from the results
 
 
-def test_tampered_figure_is_withheld(results: dict[str, Any], run_dir: Path) -> None:
-    results["figures"]["noise"]["psd"] = (
+def test_tampered_figure_is_withheld(results: RunResults, run_dir: Path) -> None:
+    results.figures["noise"]["psd"] = (
         '<svg xmlns="http://www.w3.org/2000/svg" onload="alert(1)"/>')
     html = FAST.render(results, run_dir, None).read_text()
     assert "alert(1)" not in html and "figure withheld: event attribute onload" in html
@@ -139,7 +142,7 @@ def test_tampered_figure_is_withheld(results: dict[str, Any], run_dir: Path) -> 
 
 @pytest.mark.parametrize("cls", [FrequencyResponseReport, MisalignmentReport],
                          ids=["frequency-response", "misalignment"])
-def test_focused_reports(cls: type, results: dict[str, Any], run_dir: Path) -> None:
+def test_focused_reports(cls: type, results: RunResults, run_dir: Path) -> None:
     text = _visible_text(cls(cls.Config(plots=False)).render(results, run_dir, None).read_text())
     assert ("Frequency response" in text) == (cls is FrequencyResponseReport)
     assert ("Misalignment (pivoted method)" in text) == (cls is MisalignmentReport)
@@ -159,30 +162,32 @@ def test_diagnosis_report(run_dir: Path) -> None:
     assert "91.7" in text and path.read_text().count("<svg") == 3
 
 
-def test_signed_certificate_round_trip(results: dict[str, Any], run_dir: Path,
+def test_signed_certificate_round_trip(results: RunResults, run_dir: Path,
                                        tmp_path: Path) -> None:
     """Runner flow: fingerprint into results, render, write results, sign; then tamper."""
     key = tmp_path / "lab.key"
     generate_keypair(key)
     private = load_private_key(key)
-    results["signature"] = {"fingerprint": key_fingerprint(private)}
-    (run_dir / "results.json").write_text(json.dumps(results))
+    results.signature = Signature(fingerprint=key_fingerprint(private))
+    write_results(results, run_dir)
     report = FAST.render(results, run_dir, None)
     sign_bundle(report, private)
     assert verify_bundle(report).ok
-    results["analysis"]["bias"]["v_sz"]["bias_v"] = 2.4
+    results.analysis.bias["v_sz"].bias_v = 2.4
     FAST.render(results, run_dir, None)
     assert verify_bundle(report).reasons == [
         "report.html: modified (sha256 differs from the signed value)"]
 
 
-def test_own_plot_only_where_the_analysis_gave_none(results: dict[str, Any], run_dir: Path) -> None:
-    for key in ("scale_factor", "bias", "temperature", "misalignment", "noise"):
-        results["analysis"].pop(key)
-    results["analysis"]["frf"] = {"v_sz": results["analysis"]["frf"]["v_sz"]}
-    results["figures"] = {"frf": {"bode_v_sz": '<svg xmlns="http://www.w3.org/2000/svg"/>'}}
+def test_own_plot_only_where_the_analysis_gave_none(results: RunResults, run_dir: Path) -> None:
+    a = results.analysis
+    a.scale_factor = a.bias = a.temperature = a.misalignment = a.noise = None
+    a.frf = FrfResult({"v_sz": a.frf["v_sz"]})
+    a.transfer_function = TransferFunctionResult({"v_sz": a.transfer_function["v_sz"]})
+    results.metadata.sensors = results.metadata.sensors[:1]
+    results.figures = {"frf": {"bode_v_sz": '<svg xmlns="http://www.w3.org/2000/svg"/>'}}
     html = FrequencyResponseReport().render(results, run_dir, None).read_text()
-    assert "frf: bode_v_sz" in html and "Bode v_sz" not in html
-    del results["figures"]
+    assert "Frequency response: bode v sz" in html and "Bode v_sz" not in html
+    results.figures = {}
     html = FrequencyResponseReport().render(results, run_dir, None).read_text()
     assert "Bode v_sz" in html

@@ -3,22 +3,22 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.engine.run.session import render_and_sign
+from aatest.results import RunResults
 
 RUNNER = CliRunner()
 
 
 @pytest.fixture
-def signed_run(results: dict[str, Any], run_dir: Path, tmp_path: Path) -> Path:
+def signed_run(results: RunResults, run_dir: Path, tmp_path: Path) -> Path:
     key = tmp_path / "lab.key"
     assert RUNNER.invoke(app, ["keygen", str(key)]).exit_code == 0
-    results["metadata"]["report_template"] = "misalignment"  # the fastest full report
+    results.metadata.report_template = "misalignment"  # the fastest full report
     return render_and_sign(results, run_dir, "misalignment", None, key)
 
 

@@ -39,7 +39,7 @@ def _scalar(value: Any) -> Any:
     return value.tolist() if hasattr(value, "tolist") else str(value)
 
 
-def _plain_metadata(meta: dict[str, Any]) -> dict[str, Any]:
+def plain_metadata(meta: dict[str, Any]) -> dict[str, Any]:
     """The run metadata (without the plan) as plain JSON values."""
     plain: dict[str, Any] = json.loads(json.dumps(
         {k: v for k, v in meta.items() if k != "plan"}, default=_scalar))
@@ -58,14 +58,14 @@ def build_results(
     return RunResults(
         schema_version=SCHEMA_VERSION,
         procedure=data.procedure,
-        rig=_plain_metadata({"rig": meta.get("rig") or {}})["rig"],
+        rig=plain_metadata({"rig": meta.get("rig") or {}})["rig"],
         steps=step_summaries(data),
         analysis=AnalysisBlock.model_validate(analysis.values),
         analysis_errors=analysis.errors,
         analysis_skipped=analysis.skipped,
         lab_duration_s=lab_duration_s,
         wall_duration_s=wall_duration_s,
-        metadata=_plain_metadata(meta),
+        metadata=plain_metadata(meta),
         figures=analysis.figures,
     )
 

@@ -1,7 +1,7 @@
 """The verdict stage: every certified quantity judged against its acceptance limit (ILAC-G8).
 
 Runs after the uncertainty stage (it reads the expanded uncertainties written there) and writes
-``results["verdicts"]`` (:class:`aatest.results.base.Verdict`) and ``results["overall"]``.
+``results.verdicts`` (:class:`aatest.results.base.Verdict`) and ``results.overall``.
 Reports only render these; ``aatest run``/``analyze`` exit 1 when :func:`failed` says so.
 
 Decision rules (ILAC-G8:2019, JCGM 106:2012), U the value's expanded uncertainty:
@@ -18,12 +18,12 @@ A quantity without an evaluated U is judged with U = 0 (no guard band, nothing c
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
-from typing import Any
 
 from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS, limits
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.uncertainty import access as ex
+from aatest.engine.uncertainty.statistics import finite
+from aatest.results import RunResults
 from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
 
 #: verdicts from best to worst; the overall verdict is the worst one
@@ -53,66 +53,63 @@ def decide(value: float, limit: float, u: float | None, rule: DecisionRule) -> V
     return "conditional-pass" if within else "conditional-fail"
 
 
-def _static(results: Mapping[str, Any], ch: str, sheet: SensorDatasheet) -> Iterator[Judged]:
+def _static(results: RunResults, ch: str, sheet: SensorDatasheet) -> Iterator[Judged]:
     """Scale factor, non-linearity, bias, g-sensitivity and temperature coefficients."""
-    scale = ex.channel_entry(results, "scale_factor", ch)
+    a = results.analysis
+    scale = a.scale_factor.get(ch) if a.scale_factor else None
     if scale is not None:
-        k = ex.require_float(scale, "scale_v_per_dps2", f"analysis.scale_factor.{ch}")
-        u_k = ex.as_float(scale.get("expanded_uncertainty"))
+        k, u_k = finite(scale.scale_v_per_dps2), finite(scale.expanded_uncertainty)
         nominal = sheet.scale_v_per_dps2
         if k is not None:
             yield ("scale_factor_deviation_pct", 100.0 * (k / nominal - 1.0),
                    None if u_k is None else 100.0 * u_k / nominal)
-        if (nl := ex.as_float(scale.get("nonlinearity_pct_fr"))) is not None:
+        if (nl := finite(scale.nonlinearity_pct_fr)) is not None:
             yield "nonlinearity_pct_fr", nl, None
-    bias = ex.channel_entry(results, "bias", ch)
+    bias = a.bias.get(ch) if a.bias else None
     if bias is not None:
-        where = f"analysis.bias.{ch}"
-        if (b := ex.require_float(bias, "bias_v", where)) is not None:
-            yield ("bias_deviation_v", b - sheet.nominal_bias_v,
-                   ex.as_float(bias.get("expanded_uncertainty")))
-        if (g := ex.require_float(bias, "g_sensitivity_dps2_per_g", where)) is not None:
+        if (b := finite(bias.bias_v)) is not None:
+            yield "bias_deviation_v", b - sheet.nominal_bias_v, finite(bias.expanded_uncertainty)
+        if (g := finite(bias.g_sensitivity_dps2_per_g)) is not None:
             yield ("g_sensitivity_dps2_per_g", g,
-                   ex.as_float(bias.get("g_sensitivity_expanded_uncertainty_dps2_per_g")))
+                   finite(bias.g_sensitivity_expanded_uncertainty_dps2_per_g))
     yield from _thermal(results, ch)
     yield from _noise(results, ch)
 
 
-def _thermal(results: Mapping[str, Any], ch: str) -> Iterator[Judged]:
-    temperature = ex.channel_entry(results, "temperature", ch)
+def _thermal(results: RunResults, ch: str) -> Iterator[Judged]:
+    block = results.analysis.temperature
+    temperature = block.get(ch) if block else None
     if temperature is None:
         return
-    where = f"analysis.temperature.{ch}"
-    if (c := ex.require_float(temperature, "bias_coefficient_v_per_c", where)) is not None:
-        yield ("bias_temperature_v_per_c", c,
-               ex.as_float(temperature.get("expanded_uncertainty")))
-    if (c := ex.require_float(temperature, "scale_coefficient_per_c", where)) is not None:
+    if (c := finite(temperature.bias_coefficient_v_per_c)) is not None:
+        yield "bias_temperature_v_per_c", c, finite(temperature.expanded_uncertainty)
+    if (c := finite(temperature.scale_coefficient_per_c)) is not None:
         yield ("scale_temperature_per_c", c,
-               ex.as_float(temperature.get("scale_coefficient_expanded_uncertainty_per_c")))
+               finite(temperature.scale_coefficient_expanded_uncertainty_per_c))
 
 
-def _noise(results: Mapping[str, Any], ch: str) -> Iterator[Judged]:
+def _noise(results: RunResults, ch: str) -> Iterator[Judged]:
     """Output noise: the worst step decides (the noise analysis' ``rms_max_v``)."""
-    noise = ex.channel_entry(results, "noise", ch)
-    if isinstance(noise, Mapping):
-        worst = ex.as_float(noise.get("rms_max_v", noise.get("rms_v")))
-        if worst is not None:
-            yield "noise_rms_v", worst, None
+    block = results.analysis.noise
+    noise = block.get(ch) if block else None
+    if noise is not None and (worst := finite(noise.rms_max_v)) is not None:
+        yield "noise_rms_v", worst, None
 
 
-def _misalignment(results: Mapping[str, Any]) -> Iterator[tuple[str, Judged]]:
+def _misalignment(results: RunResults) -> Iterator[tuple[str, Judged]]:
     """(sensor label, judged) per scenario angle, and the worst cross-axis ratio per sensor."""
-    for scenario, sensors in ex.misalignment_scenarios(results).items():
+    block = results.analysis.misalignment
+    if block is None:
+        return
+    for scenario, sensors in sorted(block.scenarios.items()):
         for sensor, entry in sorted(sensors.items()):
-            where = f"analysis.misalignment.scenarios.{scenario}.{sensor}"
-            if (d := ex.require_float(entry, "delta_deg", where)) is not None:
+            if (d := finite(entry.delta_deg)) is not None:
                 yield (f"{sensor} scenario {scenario}",
-                       ("misalignment_deg", d, ex.as_float(entry.get("expanded_uncertainty"))))
+                       ("misalignment_deg", d, finite(entry.expanded_uncertainty)))
     worst: dict[str, float] = {}
-    for label, sensors in sorted(ex.misalignment_sets(results).items()):
-        for sensor, entry in sorted((sensors or {}).items()):
-            for key in ("cross_ratio_x", "cross_ratio_y"):
-                ratio = ex.require_float(entry, key, f"analysis.misalignment.sets.{label}.{sensor}")
+    for _label, set_sensors in sorted(block.sets.items()):
+        for sensor, set_entry in sorted(set_sensors.items()):
+            for ratio in (finite(set_entry.cross_ratio_x), finite(set_entry.cross_ratio_y)):
                 if ratio is not None and abs(ratio) >= abs(worst.get(sensor, 0.0)):
                     worst[sensor] = ratio
     for sensor, ratio in sorted(worst.items()):  # the worst set decides
@@ -125,14 +122,14 @@ def _sheet_of_sensor(sensor: str, sheets: Mapping[str, SensorDatasheet]) -> Sens
     return sheets.get(channel) or next(iter(sheets.values()))
 
 
-def judge(results: Mapping[str, Any], sheets: Mapping[str, SensorDatasheet],
+def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
           acceptance: Acceptance) -> list[Verdict]:
     """Every judged quantity the results contain, in channel order.
 
     Parameters
     ----------
     results
-        The results document, after the uncertainty stage.
+        The typed results, after the uncertainty stage.
     sheets
         Each sensor channel's datasheet (:func:`~.verdicts_limits.datasheets`).
     acceptance
@@ -161,17 +158,16 @@ def overall(verdicts: Sequence[Verdict]) -> Overall:
     return max((v.verdict for v in verdicts), key=SEVERITY.index)
 
 
-def apply_verdicts(results: dict[str, Any], sheets: Mapping[str, SensorDatasheet],
-                   acceptance: Acceptance) -> dict[str, Any]:
+def apply_verdicts(results: RunResults, sheets: Mapping[str, SensorDatasheet],
+                   acceptance: Acceptance) -> RunResults:
     """Judge the results and write ``verdicts`` and ``overall`` into them (in place)."""
     verdicts = judge(results, sheets, acceptance)
-    results["verdicts"] = [v.model_dump(mode="json") for v in verdicts]
-    results["overall"] = overall(verdicts)
+    results.verdicts = verdicts
+    results.overall = overall(verdicts)
     return results
 
 
-def failed(results: Mapping[str, Any]) -> bool:
+def failed(results: RunResults) -> bool:
     """True when the run must exit 1: a ``fail``, or a ``conditional-fail`` under ``guarded``."""
-    return any(v["verdict"] == "fail"
-               or (v["verdict"] == "conditional-fail" and v["rule"] == "guarded")
-               for v in ex.require(results, "verdicts", "top level"))
+    return any(v.verdict == "fail" or (v.verdict == "conditional-fail" and v.rule == "guarded")
+               for v in results.verdicts)

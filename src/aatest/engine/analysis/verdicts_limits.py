@@ -17,24 +17,19 @@ from aatest.engine.dataset import SensorInfo
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.steps import SensorRef
+from aatest.results.quantities import QUANTITIES
 
 log = logging.getLogger("aatest.verdicts")
 
 #: 0.01 rad/s² in °/s²
 DPS2_PER_RAD_S2 = math.degrees(1.0)
 
-#: judged quantity → unit of its value, limit and expanded uncertainty
-QUANTITY_UNITS: dict[str, str] = {
-    "scale_factor_deviation_pct": "%",
-    "bias_deviation_v": "V",
-    "nonlinearity_pct_fr": "% FR",
-    "g_sensitivity_dps2_per_g": "(°/s²)/g",
-    "cross_axis_ratio": "1",
-    "misalignment_deg": "deg",
-    "bias_temperature_v_per_c": "V/°C",
-    "scale_temperature_per_c": "1/°C",
-    "noise_rms_v": "V",
-}
+#: the judged quantities (limit names of the procedure's ``acceptance.limits``)
+JUDGED = ("scale_factor_deviation_pct", "bias_deviation_v", "nonlinearity_pct_fr",
+          "g_sensitivity_dps2_per_g", "cross_axis_ratio", "misalignment_deg",
+          "bias_temperature_v_per_c", "scale_temperature_per_c", "noise_rms_v")
+#: judged quantity → unit of its value, limit and expanded uncertainty in results.json
+QUANTITY_UNITS: dict[str, str] = {k: QUANTITIES[k].json_unit for k in JUDGED}
 
 
 def g_sensitivity_limit_dps2_per_g(sheet: SensorDatasheet) -> float:

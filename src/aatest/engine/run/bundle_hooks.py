@@ -20,7 +20,8 @@ class BundleObserver(Protocol):
     def before_signing(self, results: Any) -> None:
         """Complete ``results`` (e.g. a certificate number) before they are written and signed.
 
-        ``results`` is what the session writes: the ``results.json`` dict or the typed model.
+        ``results`` is the typed record (:class:`aatest.results.RunResults`) the session
+        writes.
         """
 
     def after_signing(self, results: Any, report: Path) -> None:

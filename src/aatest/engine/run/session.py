@@ -20,7 +20,6 @@ from aatest.engine.analysis.results import (
     RESULTS_FILE,
     build_results,
     read_results,
-    results_json,
     write_results,
 )
 from aatest.engine.dataset import Dataset
@@ -128,9 +127,9 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     wall_duration_s: float | None = None,
     pdf: bool = False,
     extra_metadata: dict[str, Any] | None = None,
-) -> dict[str, Any]:
+) -> RunResults:
     """Read a recording/import, run its analyses, write results.json and the signed report;
-    return the results.json document (what report plugins read).
+    return the typed results (what report plugins read).
 
     ``lab_duration_s`` (s) defaults to the sum of the recorded steps' lab time, and
     ``wall_duration_s`` (s) to 0 for imported data that has no run behind it; both are
@@ -146,12 +145,13 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
         s.step.lab_duration_s for s in data.steps
     )
     results = build_results(data, analysis, lab, wall_duration_s or 0.0)
-    results.metadata.update(extra_metadata or {})
+    for key, value in (extra_metadata or {}).items():
+        setattr(results.metadata, key, value)
     results = decide(results, data)
     out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
     render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
-    return results_json(results)
+    return results
 
 
 def acceptance_of(metadata: Mapping[str, Any]) -> Acceptance:
@@ -171,22 +171,20 @@ def acceptance_of(metadata: Mapping[str, Any]) -> Acceptance:
 def decide(results: RunResults, data: Dataset) -> RunResults:
     """The engine's decisions, after the analyses: uncertainty budgets, then verdicts.
 
-    Both stages fill fields of the typed results; the document they return is validated
-    again, so a stage writing a key the models do not know is an error, not a silent extra.
+    Both stages fill fields of the typed results (validated on assignment, so a stage
+    writing a value the models do not allow is an error, not a silent extra).
     """
     from aatest.engine.analysis.verdicts import apply_verdicts
     from aatest.engine.analysis.verdicts_limits import datasheets
     from aatest.engine.uncertainty import apply_uncertainty
 
-    document = results_json(results)
-    apply_uncertainty(document, data=data)
-    apply_verdicts(document, datasheets(data.metadata, data.sensors),
-                   acceptance_of(data.metadata))
-    return RunResults.model_validate(document)
+    apply_uncertainty(results, data=data)
+    return apply_verdicts(results, datasheets(data.metadata, data.sensors),
+                          acceptance_of(data.metadata))
 
 
 def render_and_sign(
-    results: RunResults | dict[str, Any],
+    results: RunResults,
     run_dir: Path,
     template: str,
     template_dir: Path | None,
@@ -195,7 +193,8 @@ def render_and_sign(
 ) -> Path:
     """Write results.json, render the report (and its PDF), sign the bundle when a key is set.
 
-    ``results`` is the typed record; a plain results.json document is written as given.
+    ``results`` is the typed record: written once as results.json, handed to the report
+    plugin as it is.
     """
     from aatest.engine.run import signing
 
@@ -203,10 +202,7 @@ def render_and_sign(
     if key_path is not None:
         private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
         fingerprint = signing.key_fingerprint(private.public_key())
-        if isinstance(results, RunResults):
-            results.signature = Signature(fingerprint=fingerprint)
-        else:
-            results["signature"] = {"fingerprint": fingerprint}
+        results.signature = Signature(fingerprint=fingerprint)
     bundle_hooks.before_signing(results)  # e.g. a certificate number, before results are written
     write_results(results, run_dir)
     info = registry.load("report", template)
@@ -214,7 +210,7 @@ def render_and_sign(
     if pdf and not isinstance(reporter, PdfRenderer):
         raise InputError(f"report '{template}' cannot print a PDF (its plugin has no "
                          "render_pdf); run without --pdf or choose another report")
-    report: Path = reporter.render(results_json(results), run_dir, template_dir)
+    report: Path = reporter.render(results, run_dir, template_dir)
     if pdf and isinstance(reporter, PdfRenderer):
         reporter.render_pdf(report)
     if private is not None:
@@ -236,7 +232,7 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     pdf: bool = False,
     events: RunEvents | None = None,
     confirm_prompts: ConfirmPrompts = "ask",
-) -> tuple[Path, dict[str, Any]]:
+) -> tuple[Path, RunResults]:
     """``aatest run``: execute (or resume) a procedure and produce its results and report.
 
     ``events`` lets a caller (the station) observe, answer prompts and abort; without a
@@ -283,7 +279,7 @@ class _RunRequest:
     prompt_mode: PromptMode
 
 
-def _run_locked(request: _RunRequest) -> tuple[Path, dict[str, Any]]:
+def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
     """The body of :func:`run`, executed while holding the run directory's lock."""
     from aatest.engine.recording import RunRecorder
 
@@ -340,7 +336,7 @@ def report(
             f"`aatest analyze {run_dir}`, then run `aatest report` again"
         )
     results.signature = None
-    template = str(results.metadata.get("report_template") or "calibration-certificate")
+    template = results.metadata.report_template or "calibration-certificate"
     stale_pdf = run_dir / "report.pdf"
     if not pdf and stale_pdf.exists():
         stale_pdf.unlink()  # it shows the old report; a new signature must not cover it

@@ -8,10 +8,8 @@ measurement models of :mod:`.measurands` and :mod:`.dynamic`; what each writes i
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
-from aatest.engine.uncertainty import access as ex
 from aatest.engine.uncertainty.dynamic import (
     frf_gain_measurand,
     frf_phase_measurand,
@@ -25,18 +23,16 @@ from aatest.engine.uncertainty.measurands import (
     scale_factor_measurand,
     temperature_measurand,
 )
+from aatest.results import BudgetRow, Certified, RunResults
+from aatest.results.root import InstrumentTrace, ReferenceTraceability
 
-#: the analyses whose per-channel results name sensor channels
-_CHANNEL_BLOCKS = ("scale_factor", "bias", "frf", "temperature", "transfer_function", "noise")
 
-
-def channels(results: Mapping[str, Any]) -> list[str]:
+def channels(results: RunResults) -> list[str]:
     """Sensor channels: metadata order first, then any channel only the analyses name."""
-    names = list(ex.sensors(results))
-    for key in _CHANNEL_BLOCKS:
-        block = ex.analysis(results, key)
-        if isinstance(block, Mapping):
-            names += [str(ch) for ch in block if str(ch) not in names]
+    names = [s.channel for s in results.metadata.sensors]
+    a = results.analysis
+    for block in (a.scale_factor, a.bias, a.frf, a.temperature, a.transfer_function, a.noise):
+        names += [ch for ch in (block or ()) if ch not in names]
     return names
 
 
@@ -44,43 +40,67 @@ def _evaluated(measurand: Measurand | None) -> Evaluation | None:
     return evaluate(measurand) if measurand is not None else None
 
 
-def _certify_static(results: dict[str, Any], ch: str, c: RigConstants) -> None:
+def _rows(evaluation: Evaluation) -> list[BudgetRow]:
+    return list(evaluation.rows)
+
+
+def certify(entry: Certified, evaluation: Evaluation) -> None:
+    """Write an evaluation's U, k, coverage probability, budget and measurand into a result."""
+    entry.expanded_uncertainty = evaluation.expanded_uncertainty
+    entry.coverage_factor = evaluation.k
+    entry.coverage_probability = evaluation.coverage_probability
+    entry.budget = _rows(evaluation)
+    entry.measurand = evaluation.definition
+
+
+def _certify_static(results: RunResults, ch: str, c: RigConstants) -> None:
     """Scale factor, bias (with g-sensitivity) and temperature coefficients of one channel."""
+    a = results.analysis
     scale = _evaluated(scale_factor_measurand(results, ch, c))
     scale_rel = None
-    if scale is not None:
-        ex.certify(ex.channel_entry(results, "scale_factor", ch), scale)
+    if scale is not None and a.scale_factor is not None:
+        certify(a.scale_factor[ch], scale)
         scale_rel = scale.standard_uncertainty / abs(scale.value) if scale.value else None
     bias = _evaluated(bias_measurand(results, ch, c))
-    if bias is not None:
-        ex.certify(ex.channel_entry(results, "bias", ch), bias)
+    if bias is not None and a.bias is not None:
+        certify(a.bias[ch], bias)
     g_sens = _evaluated(g_sensitivity_measurand(results, ch, c, scale_rel))
-    if g_sens is not None:
-        ex.certify(ex.channel_entry(results, "bias", ch), g_sens, "g_sensitivity", "_dps2_per_g")
-    temperature = ex.channel_entry(results, "temperature", ch)
+    if g_sens is not None and a.bias is not None:
+        entry = a.bias[ch]
+        entry.g_sensitivity_expanded_uncertainty_dps2_per_g = g_sens.expanded_uncertainty
+        entry.g_sensitivity_budget = _rows(g_sens)
+        entry.g_sensitivity_measurand = g_sens.definition
     bias_tc = _evaluated(temperature_measurand(results, ch, "bias_coefficient_v_per_c", c))
-    if bias_tc is not None:
-        ex.certify(temperature, bias_tc)
+    if bias_tc is not None and a.temperature is not None:
+        certify(a.temperature[ch], bias_tc)
     scale_tc = _evaluated(temperature_measurand(results, ch, "scale_coefficient_per_c", c))
-    if scale_tc is not None:
-        ex.certify(temperature, scale_tc, "scale_coefficient", "_per_c")
+    if scale_tc is not None and a.temperature is not None:
+        temperature = a.temperature[ch]
+        temperature.scale_coefficient_expanded_uncertainty_per_c = scale_tc.expanded_uncertainty
+        temperature.scale_coefficient_budget = _rows(scale_tc)
+        temperature.scale_coefficient_measurand = scale_tc.definition
 
 
-def _certify_frf(results: dict[str, Any], ch: str, c: RigConstants) -> None:
+def _certify_frf(results: RunResults, ch: str, c: RigConstants) -> None:
     """Gain (the generic fields, and ``gain_*``) and phase (``phase_*``) of every FRF point."""
-    for point in ex.frf_points(results, ch):
+    frf = results.analysis.frf
+    for point in (frf.get(ch) or []) if frf else []:
         gain = _evaluated(frf_gain_measurand(point, results, c, ch))
         if gain is not None:
-            ex.certify(point, gain)
-            ex.certify(point, gain, "gain", "_db")
+            certify(point, gain)
+            point.gain_expanded_uncertainty_db = gain.expanded_uncertainty
+            point.gain_budget = _rows(gain)
+            point.gain_measurand = gain.definition
         phase = _evaluated(frf_phase_measurand(point, results, c, ch))
         if phase is not None:
-            ex.certify(point, phase, "phase", "_deg")
-            point["phase_coverage_factor"] = phase.k  # the generic k is the gain's
+            point.phase_expanded_uncertainty_deg = phase.expanded_uncertainty
+            point.phase_budget = _rows(phase)
+            point.phase_measurand = phase.definition
+            point.phase_coverage_factor = phase.k  # the generic k is the gain's
 
 
-def apply_uncertainty(results: dict[str, Any], constants: RigConstants | None = None,
-                      data: Any = None) -> dict[str, Any]:
+def apply_uncertainty(results: RunResults, constants: RigConstants | None = None,
+                      data: Any = None) -> RunResults:
     """Evaluate and write the uncertainty of every certified result (GUM, k = 2), in place.
 
     Writes the fields of :class:`aatest.results.base.Certified` (``expanded_uncertainty``,
@@ -88,12 +108,13 @@ def apply_uncertainty(results: dict[str, Any], constants: RigConstants | None = 
     ``analysis.bias[CH]`` (bias; g-sensitivity as ``g_sensitivity_expanded_uncertainty_dps2_per_g``
     and ``g_sensitivity_budget``), ``analysis.temperature[CH]`` (bias coefficient; scale
     coefficient as ``scale_coefficient_*``), every point of ``analysis.frf[CH]`` (gain, plus
-    ``gain_*``/``phase_*``) and ``analysis.misalignment.scenarios[S][SENSOR]``.
+    ``gain_*``/``phase_*``) and ``analysis.misalignment.scenarios[S][SENSOR]``; and the
+    reference's traceability the budgets rest on (``metadata.traceability``).
 
     Parameters
     ----------
     results
-        The results document (today's ``results.json`` shape); changed in place and returned.
+        The typed results of the analysis pass; changed in place and returned.
     constants
         The rig's stated accuracies (default: the run's rig description in its metadata,
         else the documented rig, docs/method.md §1.2, named as defaults in every basis).
@@ -102,19 +123,18 @@ def apply_uncertainty(results: dict[str, Any], constants: RigConstants | None = 
         logged temperature) are measured from it (None: those rows say "not evaluated").
     """
     c = constants if constants is not None else RigConstants.from_results(results, data)
-    metadata = results.setdefault("metadata", {})
-    if isinstance(metadata, dict):  # the certificate states the reference's traceability
-        metadata["traceability"] = {
-            "stated": c.instruments_stated,
-            "instruments": c.instruments.traceability(),
-            "reference_temperature_c": c.instruments.lab.reference_temperature_c,
-        }
+    results.metadata.traceability = ReferenceTraceability(
+        stated=c.instruments_stated,
+        instruments={k: InstrumentTrace(**v) for k, v in c.instruments.traceability().items()},
+        reference_temperature_c=c.instruments.lab.reference_temperature_c,
+    )
     for ch in channels(results):
         _certify_static(results, ch, c)
         _certify_frf(results, ch, c)
-    for scenario, sensors in ex.misalignment_scenarios(results).items():
+    block = results.analysis.misalignment
+    for scenario, sensors in sorted(block.scenarios.items()) if block else []:
         for sensor, entry in sorted(sensors.items()):
             evaluation = _evaluated(misalignment_measurand(results, scenario, sensor, c))
             if evaluation is not None:
-                ex.certify(entry, evaluation)
+                certify(entry, evaluation)
     return results

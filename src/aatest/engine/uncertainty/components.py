@@ -13,17 +13,21 @@ inputs are dimensionless (unit ``1``); the measurement models multiply the estim
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, Literal
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Literal
 
-from aatest.engine.uncertainty import access as ex
+from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.uncertainty.gum import Distribution, Input
+from aatest.engine.uncertainty.statistics import PAIR, finite
+from aatest.results import RunResults
 
 if TYPE_CHECKING:  # the constants module builds on these rows; only its type is needed here
     from aatest.engine.uncertainty.measurands import RigConstants
 
 #: one arcsecond in radians
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
+#: cross-axis sensitivity a sensor datasheet states when the sensor record carries none
+TYPICAL_CROSS_AXIS = SensorDatasheet.model_fields["cross_axis_limit"].default
 
 
 def rel(name: str, label: str, spread: float, note: str, dist: Distribution = "normal",
@@ -70,25 +74,21 @@ def encoder_resolution(c: RigConstants, amplitude_arcsec: float) -> Input:
                f"{c.source(what)}, u = q/√12 over A = {amplitude_arcsec:.1f}″")
 
 
-def reference_method(results: Mapping[str, Any], steps: Sequence[str], chosen: str) -> Input:
+def reference_method(results: RunResults, steps: Sequence[str], chosen: str) -> Input:
     """Error of the chosen reference method, estimated as the largest gain difference at the
     fundamental between it and the other reference methods on the same records (rectangular).
 
     Needs the ``reference`` analysis (its per-step gains of every method against the same
     baseline); without it the component is not evaluated.
     """
-    block = ex.analysis(results, "reference")
+    compared = results.analysis.reference.root if results.analysis.reference else {}
     gains: dict[str, list[float]] = {}
-    if isinstance(block, Mapping):
-        for step in steps:
-            methods = block.get(step)
-            if not isinstance(methods, Mapping):
-                continue
-            for method, entry in methods.items():
-                gain = ex.as_float(entry.get("gain")) if isinstance(entry, Mapping) else None
-                if gain is not None:
-                    gains.setdefault(str(method), []).append(gain)
-    if len(gains) < ex.PAIR:
+    for step in steps:
+        for method, row in compared.get(step, {}).items():
+            gain = finite(row.gain)
+            if gain is not None:
+                gains.setdefault(method, []).append(gain)
+    if len(gains) < PAIR:
         return not_evaluated("reference_method", "reference: method error",
                              "no reference analysis comparing methods in this run")
     mean = {m: sum(v) / len(v) for m, v in gains.items()}
@@ -149,37 +149,31 @@ def wobble(c: RigConstants) -> Input:
                  "cosine_error", "1", c.source(what) + ", cos ε − 1")
 
 
-def transverse(c: RigConstants, results: Mapping[str, Any], channel: str) -> Input:
-    """Transverse acceleration α·sin ε of a tilted axis times the cross-axis sensitivity."""
-    info = ex.sensors(results).get(channel, {})
-    ratio = ex.as_float(info.get("cross_axis_limit"))
-    source = "sensor datasheet"
-    if ratio is None:
-        ratio, source = 0.01, "typical datasheet limit 1 % (not stated)"
+def transverse(c: RigConstants, channel: str) -> Input:
+    """Transverse acceleration α·sin ε of a tilted axis times the cross-axis sensitivity
+    (the datasheet's typical limit: the sensor record states none)."""
+    ratio = TYPICAL_CROSS_AXIS
     tilt = axis_tilt_rad(c)
     return rel("transverse", "transverse motion × cross-axis sensitivity",
                ratio * math.sin(tilt),
                f"{c.source('wobble/orthogonality')} ε ≤ {tilt / ARCSEC_RAD:.2f}″ × cross-axis "
-               f"{ratio * 100:g} % ({source})", "rectangular")
+               f"{ratio * 100:g} % (typical datasheet limit 1 % (not stated))", "rectangular")
 
 
-def _misalignment_result_deg(results: Mapping[str, Any], channel: str) -> float | None:
-    """Largest |misalignment| measured for this sensor in this run, degrees, or None."""
+def _misalignment_result_deg(results: RunResults, channel: str) -> float | None:
+    """Largest |misalignment| + U measured for this sensor in this run, degrees, or None."""
     sensor = channel.removeprefix("v_").upper()
+    block = results.analysis.misalignment
     angles = []
-    for sensors in ex.misalignment_scenarios(results).values():
+    for sensors in (block.scenarios.values() if block else ()):
         entry = sensors.get(sensor)
-        if isinstance(entry, Mapping):
-            for key in ("misalignment_deg", "delta_deg", "angle_deg"):
-                value = ex.as_float(entry.get(key))
-                if value is not None:
-                    angles.append(abs(value) + (ex.as_float(entry.get("expanded_uncertainty"))
-                                                or 0.0))
-                    break
+        value = finite(entry.delta_deg) if entry is not None else None
+        if entry is not None and value is not None:
+            angles.append(abs(value) + (finite(entry.expanded_uncertainty) or 0.0))
     return max(angles) if angles else None
 
 
-def mounting(c: RigConstants, results: Mapping[str, Any], channel: str,
+def mounting(c: RigConstants, results: RunResults, channel: str,
              name: str = "mounting") -> Input:
     """Cosine error of the mounting misalignment: measured in this run, else the stated bound."""
     measured = _misalignment_result_deg(results, channel)
@@ -221,6 +215,19 @@ def logger_resolution_v(c: RigConstants, scale: float = 1.0) -> Input:
            f"(q = {lg.step_v * 1e6:.0f} µV), u = q/√12"
     return Input("logger_resolution", "logger resolution", 0.0, lg.resolution_u_v * scale,
                  "normal", "V", c.source(what))
+
+
+# --- the sensor ------------------------------------------------------------------------------
+
+def noise_rms_v(results: RunResults, channel: str) -> tuple[float, str]:
+    """Sensor output noise (V RMS) and where it came from: measured, else the sensor record."""
+    noise = results.analysis.noise.get(channel) if results.analysis.noise else None
+    measured = finite(noise.rms_v) if noise is not None else None
+    if measured is not None:
+        return measured, "measured (noise analysis)"
+    recorded = any(s.channel == channel for s in results.metadata.sensors)
+    return (results.sensor(channel).noise_rms_v,
+            "sensor datasheet" if recorded else "datasheet limit of the reference sensor")
 
 
 # --- temperature and repeatability ---------------------------------------------------------

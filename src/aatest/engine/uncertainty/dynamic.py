@@ -14,14 +14,19 @@ mountings and does not cancel, orthogonality is common to both and cancels in th
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, Literal
 
-from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
-from aatest.engine.uncertainty import access as ex
 from aatest.engine.uncertainty import components as comp
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
 from aatest.engine.uncertainty.measurands import RigConstants
+from aatest.engine.uncertainty.statistics import ResultsContractError, finite, finite_values
+from aatest.results import RunResults
+from aatest.results.frf import FrfPoint
+
+#: the two budgets of an FRF point: the gain (radial part of the ratio's noise) and the phase
+#: (tangential part)
+FrfPart = Literal["gain", "phase"]
 
 #: an offset u below this means the latch times aligned the loggers (else: one sample only)
 LATCHED_OFFSET_U_S = 1e-4
@@ -30,16 +35,14 @@ SCENARIO_SETS: dict[str, tuple[str, str]] = {"1": ("A", "B"), "2": ("C", "D"), "
                                              "4": ("G", "H")}
 
 
-def _record_samples(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants) -> float:
-    samples = ex.as_float(point.get("samples"))
-    if samples:
-        return samples
-    sine = ex.step_values(ex.steps_of_kind(results, "sine"), "samples")
+def _record_samples(results: RunResults, c: RigConstants) -> float:
+    """Samples of the longest sine record (an FRF point does not state its own)."""
+    sine = [s.samples for s in results.steps_of_kind("sine")]
     return float(max(sine)) if sine else float(c.record_samples)
 
 
-def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
-               u_key: str, to_relative: float, channel: str = "") -> tuple[float, str]:
+def _bin_noise(point: FrfPoint, results: RunResults, c: RigConstants,
+               part: FrfPart, channel: str = "") -> tuple[float, str]:
     """Relative (gain) or radian (phase) standard uncertainty of the bin ratio Y/X, and its basis.
 
     Measured next to the bin: by the FRF analysis on the ratio itself (``u_local_rel``: output
@@ -49,20 +52,22 @@ def _bin_noise(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConst
     bins, in quadrature); else the FRF analysis' own ``u_gain_db`` / ``u_phase_deg``; else
     white noise at the bin from the SNRs, 1/√(N·SNR) each.
     """
-    ratio = ex.as_float(point.get("u_local_rel"))
+    ratio = finite(point.u_local_rel)
     if ratio is not None:
         return ratio, (f"noise of the output/reference ratio next to the bin (bins 3–40 away) "
                        f"in the recording: {ratio * 100:.4f} % of the fundamental")
-    local = c.evidence.bin_noise.get(str(point.get("step")))
+    local = c.evidence.bin_noise.get(point.step)
     if local is not None and channel in local.channels_rel:
         out, ref = local.channels_rel[channel], local.table_rel
         return (math.hypot(out, ref), f"noise next to the bin in the recording: output "
                 f"{out * 100:.4f} %, reference {ref * 100:.4f} % of the fundamental")
-    stated = ex.as_float(point.get(u_key))
+    stated = finite(point.u_gain_db if part == "gain" else point.u_phase_deg)
     if stated is not None:
-        return stated * to_relative, f"u from the FRF analysis ({u_key})"
-    n = _record_samples(point, results, c)
-    parts = {k: ex.as_float(point.get(k)) for k in ("snr_db", "table_snr_db")}
+        if part == "gain":
+            return stated * math.log(10.0) / 20.0, "u from the FRF analysis (u_gain_db)"
+        return stated * math.pi / 180.0, "u from the FRF analysis (u_phase_deg)"
+    n = _record_samples(results, c)
+    parts = {"snr_db": finite(point.snr_db), "table_snr_db": finite(point.table_snr_db)}
     rel2 = sum(1.0 / (n * 10.0 ** (db / 10.0)) for db in parts.values() if db is not None)
     shown = ", ".join(f"{k} {v:.1f}" for k, v in parts.items() if v is not None) or "no SNR"
     return math.sqrt(rel2), f"1/√(N·SNR) of output and reference ({shown})"
@@ -75,12 +80,10 @@ _REPEAT_REASON = ("one record per frequency. The scatter within the record (nois
                   "its effect, constant over the record, shows only between records")
 #: the bins either side of the fundamental whose ratio noise is ``u_local_rel`` (the FRF analysis)
 _NEAR_BIN_FIRST, _NEAR_BIN_LAST = 3, 40
-#: the segment Type A keys of an FRF point per budget (``gain``: radial, ``phase``: tangential)
-_SEGMENT_KEYS = {"u_gain_db": "u_segments_gain_rel", "u_phase_deg": "u_segments_phase_rad"}
 
 
-def _noise_input(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
-                 u_key: str, to_relative: float, channel: str, unit: str) -> Input:
+def _noise_input(point: FrfPoint, results: RunResults, c: RigConstants,
+                 part: FrfPart, channel: str, unit: str) -> Input:
     """The ``noise`` input of a gain (relative) or phase (rad) budget: Type A of the ratio.
 
     Two evaluations from the record, the larger governs (each blind where the other sees):
@@ -98,16 +101,16 @@ def _noise_input(point: Mapping[str, Any], results: Mapping[str, Any], c: RigCon
 
     Results without segments (older analyses) use the second alone.
     """
-    noise, basis = _bin_noise(point, results, c, u_key, to_relative, channel)
-    segment = ex.as_float(point.get(_SEGMENT_KEYS[u_key]))
-    dof = ex.as_float(point.get("segments_dof"))
+    noise, basis = _bin_noise(point, results, c, part, channel)
+    segment = finite(point.u_segments_gain_rel if part == "gain" else point.u_segments_phase_rad)
+    dof = finite(point.segments_dof)
     if segment is None or not dof:
         return Input("noise", "sensor and reference noise (at the bin)", 0.0, noise, "normal",
                      unit, "measured: " + basis, "A")
     local_dof = (_neighbour_bins(point, results, c)
-                 if ex.as_float(point.get("u_local_rel")) is not None else math.inf)
-    count, cycles = point.get("segments"), point.get("cycles_per_segment")
-    what = "radial" if u_key == "u_gain_db" else "tangential"
+                 if finite(point.u_local_rel) is not None else math.inf)
+    count, cycles = point.segments, point.cycles_per_segment
+    what = "radial" if part == "gain" else "tangential"
     spread = (f"{what} spread of the ratio over {count} Hann-weighted segments of {cycles} "
               f"cycles, 50 % overlap: standard error of their mean {segment * 100:.4f} % "
               f"(overlap-corrected, ν = {dof:.1f})")
@@ -120,31 +123,27 @@ def _noise_input(point: Mapping[str, Any], results: Mapping[str, Any], c: RigCon
                  f"one tangential part per bin); {spread}", "A", dof=local_dof)
 
 
-def _neighbour_bins(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants
-                    ) -> float:
+def _neighbour_bins(point: FrfPoint, results: RunResults, c: RigConstants) -> float:
     """How many bins ``u_local_rel`` averages (3–40 either side of the fundamental's bin,
     harmonic bins and DC left out): its degrees of freedom, one per bin for each part."""
-    n = _record_samples(point, results, c)
-    fs = ex.as_float(point.get("sample_rate_hz")) or c.sample_rate_hz
-    f_hz = ex.as_float(point.get("frequency_hz")) or 0.0
+    n = _record_samples(results, c)
+    fs = finite(point.sample_rate_hz) or c.sample_rate_hz
+    f_hz = finite(point.frequency_hz) or 0.0
     cycles = max(round(f_hz * n / fs), 1)
     offsets = range(_NEAR_BIN_FIRST, _NEAR_BIN_LAST + 1)
     near = [cycles + s * k for k in offsets for s in (-1, 1)]
     return float(sum(1 for b in near if 0 < b < n / 2 and b % cycles != 0))
 
 
-def _point_temperature(point: Mapping[str, Any], results: Mapping[str, Any], c: RigConstants,
+def _point_temperature(point: FrfPoint, results: RunResults, c: RigConstants,
                        channel: str) -> tuple[Input, str]:
-    info = ex.sensors(results).get(channel, {})
-    tc = ex.as_float(info.get("scale_temperature_limit_per_c"))
-    tc = tc if tc is not None else 0.0005
-    step = point.get("step")
-    return comp.temperature(c, [str(step)] if step else None, tc,
+    tc = results.sensor(channel).scale_temperature_limit_per_c
+    return comp.temperature(c, [point.step] if point.step else None, tc,
                             f"datasheet scale TC ≤ {tc * 100:g} %/°C", "1")
 
 
-def _point_definition(kind: str, point: Mapping[str, Any], channel: str, at: str) -> str:
-    f_hz, accel = point.get("frequency_hz"), point.get("accel_dps2")
+def _point_definition(kind: FrfPart, point: FrfPoint, channel: str, at: str) -> str:
+    f_hz, accel = point.frequency_hz, point.accel_dps2
     what = ("gain: 20·log10 of the magnitude (dB re 1 V/(°/s²))" if kind == "gain" else
             "phase: argument (°, output lagging negative)")
     return (f"FRF {what} of the complex ratio of the fundamentals of the logged output of "
@@ -155,7 +154,7 @@ def _point_definition(kind: str, point: Mapping[str, Any], channel: str, at: str
             f"(estimated by the mean of the ratios of Hann-weighted segments of whole cycles)")
 
 
-def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
+def frf_gain_measurand(point: FrfPoint, results: RunResults,
                        c: RigConstants, channel: str = "") -> Measurand | None:
     """G = Ĝ + 20·log10((1 + e_out)·Π(1 + e_ref) / ((1 + e_gain)·(1 + e_tilt)·(1 + e_mnt)))  [dB].
 
@@ -164,16 +163,14 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
     bin, the motion's distortion (THD of the table estimate); then the axis, the logger's gain
     and temperature.
     """
-    gain = ex.require_float(point, "gain_db", "analysis.frf point")
-    f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
-    accel = ex.require_float(point, "accel_dps2", "analysis.frf point")
+    gain, f_hz, accel = finite(point.gain_db), finite(point.frequency_hz), finite(point.accel_dps2)
     if gain is None or not f_hz or not accel:
         return None
     amp_arcsec = abs(accel) / (2 * math.pi * f_hz) ** 2 * 3600.0
-    noise = _noise_input(point, results, c, "u_gain_db", math.log(10.0) / 20.0, channel, "1")
-    fs = ex.as_float(point.get("sample_rate_hz")) or c.sample_rate_hz
+    noise = _noise_input(point, results, c, "gain", channel, "1")
+    fs = finite(point.sample_rate_hz) or c.sample_rate_hz
     method = (2 * math.pi * f_hz / fs) ** 2 / 12.0
-    thd = ex.as_float(point.get("table_thd"))
+    thd = finite(point.table_thd)
     temp_input, at = _point_temperature(point, results, c, channel)
     inputs = (
         noise,
@@ -190,7 +187,7 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
                                                    "reference: motion distortion (THD)",
                                                    "the FRF analysis states no table THD"),
         comp.wobble(c),
-        comp.transverse(c, results, channel),
+        comp.transverse(c, channel),
         comp.mounting(c, results, channel),
         comp.logger_gain(c),
         temp_input,
@@ -208,36 +205,31 @@ def frf_gain_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
                      _point_definition("gain", point, channel, at))
 
 
-def _sync_offset_s(results: Mapping[str, Any], point: Mapping[str, Any]) -> tuple[float, str]:
+def _sync_offset_s(results: RunResults, point: FrfPoint) -> tuple[float, str]:
     """Standard uncertainty of the logger alignment of the point's record and its basis."""
-    sync = ex.analysis(results, "sync") or {}
-    steps = sync.get("steps") if isinstance(sync, Mapping) else None
-    residual_us = ex.as_float(sync.get("residual_rms_us")) or 3.5
-    edges = ex.as_float(sync.get("edges_used")) or 6553.0
+    sync = results.analysis.sync
+    residual_us = (finite(sync.residual_rms_us) if sync else None) or 3.5
+    edges = float((sync.edges_used if sync else 0) or 6553.0)
     u = residual_us * 1e-6 * math.sqrt(4.0 / max(edges, 2.0))
     note = (f"measured: {residual_us:g} µs RMS clock-relation residual over {edges:.0f} edges "
             "(offset of the fitted relation at the record's centre)")
-    if isinstance(steps, Sequence):
-        for entry in steps:
-            if isinstance(entry, Mapping) and entry.get("step") == point.get("step"):
-                stated = ex.as_float(entry.get("offset_u_s"))
-                latched = stated is not None and stated < LATCHED_OFFSET_U_S
-                if latched:
-                    return stated or 0.0, "measured: sync analysis offset_u_s of this record"
+    for entry in (sync.steps if sync else []):
+        stated = finite(entry.offset_u_s)
+        if entry.step == point.step and stated is not None and stated < LATCHED_OFFSET_U_S:
+            return stated, "measured: sync analysis offset_u_s of this record"
     return u, note
 
 
-def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
+def frf_phase_measurand(point: FrfPoint, results: RunResults,
                         c: RigConstants, channel: str = "") -> Measurand | None:
     """φ = φ̂ + (e_noise + e_enc + e_thd)·180/π − 360·f·(δt_sync + δt_timing) + e_rep  [deg]."""
-    phase = ex.require_float(point, "phase_deg", "analysis.frf point")
-    f_hz = ex.require_float(point, "frequency_hz", "analysis.frf point")
+    phase, f_hz = finite(point.phase_deg), finite(point.frequency_hz)
     if phase is None or not f_hz:
         return None
-    noise = _noise_input(point, results, c, "u_phase_deg", math.pi / 180.0, channel, "rad")
+    noise = _noise_input(point, results, c, "phase", channel, "rad")
     u_sync, sync_note = _sync_offset_s(results, point)
     _, at = _point_temperature(point, results, c, channel)
-    thd = ex.as_float(point.get("table_thd"))
+    thd = finite(point.table_thd)
     inputs = (
         noise,
         Input("encoder_accuracy", "reference: encoder accuracy", 0.0, 0.0, "normal", "rad",
@@ -270,38 +262,44 @@ def frf_phase_measurand(point: Mapping[str, Any], results: Mapping[str, Any],
                      _point_definition("phase", point, channel, at))
 
 
-def _channel_of(sensor: str, results: Mapping[str, Any]) -> str:
+def _channel_of(sensor: str, results: RunResults) -> str:
     """Map a misalignment sensor label (SZ) to its channel (v_sz) when that channel exists."""
     channel = f"v_{sensor.lower()}"
-    known = ex.sensors(results)
-    return channel if channel in known or not known else next(iter(known))
+    known = [s.channel for s in results.metadata.sensors]
+    return channel if channel in known or not known else known[0]
 
 
-def _misalignment_steps(results: Mapping[str, Any], c: RigConstants) -> tuple[float, float]:
+def _misalignment_steps(results: RunResults, c: RigConstants) -> tuple[float, float]:
     """Peak excitation (°/s², docs/method.md §4.5: 100) and record length of the scenario steps."""
-    sine = [s for s in ex.steps_of_kind(results, "sine")
-            if isinstance(s.get("mounting"), Mapping) and s["mounting"].get("scenario")]
-    accel = max(ex.step_values(sine, "accel_dps2") or [100.0])
-    return accel, min(ex.step_values(sine, "samples") or [float(c.record_samples)])
+    sine = [s for s in results.steps_of_kind("sine") if s.mounting.scenario]
+    accel = max(finite_values(s.accel_dps2 for s in sine) or [100.0])
+    return accel, float(min([s.samples for s in sine] or [c.record_samples]))
 
 
-def misalignment_measurand(results: Mapping[str, Any], scenario: str, sensor: str,
+def _delta_e_deg(results: RunResults, set_label: str, sensor: str) -> float | None:
+    """δ_e of one sensor in one set; a set or sensor the scenario needs and lacks is an error."""
+    block = results.analysis.misalignment
+    entry = block.sets.get(set_label, {}).get(sensor) if block else None
+    if entry is None:
+        raise ResultsContractError(f"results.json: analysis.misalignment.sets.{set_label}: "
+                                   f"no sensor {sensor!r} (scenario needs it)")
+    return finite(entry.delta_e_deg)
+
+
+def misalignment_measurand(results: RunResults, scenario: str, sensor: str,
                            c: RigConstants) -> Measurand | None:
     """δ = (arcsin(sin δ̂_e + n_o) − arcsin(sin δ̂_ep + n_p))·90/π + (w_o − w_p)/2  [deg]."""
-    sets = ex.misalignment_sets(results)
-    if not sets:
+    block = results.analysis.misalignment
+    if block is None or not block.sets:
         return None
     original, pivoted = SCENARIO_SETS[scenario]
-    de_o = ex.require_float(ex.require(sets, original, "analysis.misalignment.sets").get(sensor),
-                            "delta_e_deg", f"analysis.misalignment.sets.{original}.{sensor}")
-    de_p = ex.require_float(ex.require(sets, pivoted, "analysis.misalignment.sets").get(sensor),
-                            "delta_e_deg", f"analysis.misalignment.sets.{pivoted}.{sensor}")
+    de_o = _delta_e_deg(results, original, sensor)
+    de_p = _delta_e_deg(results, pivoted, sensor)
     if de_o is None or de_p is None:
         return None
     channel = _channel_of(sensor, results)
-    noise_v, source = ex.noise_rms_v(results, channel)
-    info = ex.sensors(results).get(channel, {})
-    k_v = ex.as_float(info.get("nominal_scale_v_per_dps2")) or REFERENCE_SCALE_V_PER_DPS2
+    noise_v, source = comp.noise_rms_v(results, channel)
+    k_v = results.sensor(channel).nominal_scale_v_per_dps2
     accel_dps2, samples = _misalignment_steps(results, c)
     rel = noise_v * math.sqrt(2.0 / samples) / (k_v * accel_dps2)
     wobble_deg = c.wobble_arcsec / 3600.0

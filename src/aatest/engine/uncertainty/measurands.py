@@ -12,18 +12,22 @@ stated accuracies (:class:`RigConstants`, docs/method.md §1.2). Quantities are 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.engine.procedure.rig_description import Instruments
-from aatest.engine.uncertainty import access as ex
 from aatest.engine.uncertainty import components as comp
 from aatest.engine.uncertainty.components import ARCSEC_RAD
 from aatest.engine.uncertainty.evidence import Evidence, gather
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
+from aatest.engine.uncertainty.statistics import PAIR, ci_std, finite, finite_values
+from aatest.results import RunResults
+from aatest.results.bias import BiasChannel, MountingBias
+from aatest.results.scale_factor import ScaleFactorChannel
+from aatest.results.temperature import TemperatureChannel
 
 #: a slope needs three points to have a statistical uncertainty
 MIN_REGRESSION_POINTS = 3
@@ -57,18 +61,18 @@ class RigConstants(BaseModel):
     evidence: Evidence = Field(default_factory=Evidence)
 
     @classmethod
-    def from_results(cls, results: Mapping[str, Any], data: Any = None) -> RigConstants:
+    def from_results(cls, results: RunResults, data: Any = None) -> RigConstants:
         """The constants of this run: its rig description's instruments and its recording.
 
         Parameters
         ----------
         results
-            The results document; ``metadata.rig.instruments`` (or ``rig.instruments``) is the
+            The typed results; ``metadata.rig.instruments`` (or ``rig.instruments``) is the
             stated description.
         data
             The dataset the analyses ran on, for the measured components (None: none).
         """
-        stated = ex.stated_instruments(results)
+        stated = _stated_instruments(results)
         instruments = Instruments.model_validate(stated) if stated is not None else Instruments()
         return cls(position_accuracy_arcsec=instruments.encoder.accuracy_arcsec,
                    wobble_arcsec=instruments.table.wobble_arcsec,
@@ -84,31 +88,43 @@ class RigConstants(BaseModel):
         return f"stated default: {what} (the rig description states none)"
 
 
+def _stated_instruments(results: RunResults) -> Mapping[str, Any] | None:
+    """The rig description's ``instruments`` block as recorded with the run, or None.
+
+    The rig description is the user's own YAML (``--rig``), recorded as written: a free-form
+    document, validated here by :class:`Instruments`.
+    """
+    for rig in (results.metadata.recorded("rig"), results.rig):
+        if isinstance(rig, Mapping) and isinstance(rig.get("instruments"), Mapping):
+            return rig["instruments"]  # type: ignore[no-any-return]
+    return None
+
+
 def _rel(name: str, label: str, u: float, note: str, dist: str = "normal") -> Input:
     return Input(name, label, 0.0, u, dist, "1", note)  # type: ignore[arg-type]
 
 
-def _scale_fit_inputs(entry: Mapping[str, Any], k_v: float, noise_v: float,
-                      results: Mapping[str, Any], c: RigConstants, where: str) -> list[Input]:
+def _scale_fit_inputs(entry: ScaleFactorChannel, k_v: float, noise_v: float,
+                      results: RunResults, c: RigConstants) -> list[Input]:
     """Split the fit's relative uncertainty into reference-noise and sensor-noise parts.
 
     The slope variance of a least-squares fit is proportional to the residual variance,
     which is the sum of reference-acceleration noise and sensor noise (in °/s²); each part
     of the budget gets its share of it.
     """
-    coeffs = ex.require(entry, "coefficients", where) or []
-    a1 = ex.as_float(coeffs[1]) if len(coeffs) > 1 else None
-    u_a1 = ex.ci_std(ex.require(entry, "ci95", where), 1) if a1 else None
-    u_k = ex.as_float(entry.get("scale_u_v_per_dps2")) or ex.ci_std(entry.get("scale_ci95"))
-    rmse = ex.require_float(entry, "rmse_dps2", where)
-    sine = ex.steps_of_kind(results, "sine")
+    coeffs = entry.coefficients
+    a1 = finite(coeffs[1]) if len(coeffs) > 1 else None
+    u_a1 = ci_std(entry.ci95[1] if len(entry.ci95) > 1 else None) if a1 else None
+    u_k = finite(entry.scale_u_v_per_dps2) or ci_std(entry.scale_ci95)
+    rmse = finite(entry.rmse_dps2)
+    sine = results.steps_of_kind("sine")
     if u_k is not None:
         rel_fit, source = u_k / k_v, "from the analysis' u(K)"
     elif u_a1 is not None and a1:
         rel_fit, source = u_a1 / abs(a1), "from the fit's ci95 of a1"
     elif rmse is not None:
-        peak = max(ex.step_values(sine, "accel_dps2") or [400.0])
-        n = sum(ex.step_values(sine, "samples")) or c.record_samples
+        peak = max(finite_values(s.accel_dps2 for s in sine) or [400.0])
+        n = sum(s.samples for s in sine) or c.record_samples
         rel_fit, source = rmse / (peak * math.sqrt(n / 2.0)), "from RMSE and record length"
     else:
         return []
@@ -123,57 +139,58 @@ def _scale_fit_inputs(entry: Mapping[str, Any], k_v: float, noise_v: float,
     ]
 
 
-def _reference_amplitude_deg(results: Mapping[str, Any]) -> float:
+def _reference_amplitude_deg(results: RunResults) -> float:
     """Typical sine position amplitude A = α/(2πf)² of the calibration records (deg)."""
-    amps = ex.step_values(ex.steps_of_kind(results, "sine"), "amplitude_deg")
+    amps = finite_values(s.amplitude_deg for s in results.steps_of_kind("sine"))
     if amps:
         return float(sorted(amps)[len(amps) // 2])
     return 400.0 / (2 * math.pi) ** 2
 
 
-def _sync_rate_rel(results: Mapping[str, Any]) -> float:
+def _sync_rate_rel(results: RunResults) -> float:
     """Relative clock-rate uncertainty left after the sync fit: σ_res·√(12/n) / T."""
-    sync = ex.analysis(results, "sync") or {}
-    residual_s = (ex.as_float(sync.get("residual_rms_us")) or 3.5) * 1e-6
-    edges = ex.as_float(sync.get("edges_used")) or 6553.0
+    sync = results.analysis.sync
+    residual_s = ((finite(sync.residual_rms_us) if sync else None) or 3.5) * 1e-6
+    edges = float((sync.edges_used if sync else 0) or 6553.0)
     span_s = max(edges, 2.0) / 100.0  # 100 Hz sync pulse
     return residual_s * math.sqrt(12.0 / max(edges, 2.0)) / span_s
 
 
-def _repeat_input(entry: Mapping[str, Any], key: str, scale: float, unit: str) -> list[Input]:
-    values = ex.repetition_values(entry, key)
-    u = ex.std_of_mean(values)
-    if u is None:
-        return [comp.not_evaluated("repeatability", "repeatability over repetitions",
-                                   "the procedure has no repeated steps for this quantity", unit)]
-    return [Input("repeatability", "repeatability over repetitions", 0.0, u / scale, "normal",
-                  unit, f"measured: s/√n over {len(values)} repetitions", "A")]
+def _repeatability_not_evaluated(unit: str) -> Input:
+    """The results state one value per channel, not one per repetition: no repeatability row
+    of its own (the Type A of a static quantity pools the repetitions, see
+    :func:`_static_statistics`)."""
+    return comp.not_evaluated("repeatability", "repeatability over repetitions",
+                              "the procedure has no repeated steps for this quantity", unit)
 
 
 def _inputs(inputs: Sequence[Input]) -> tuple[Input, ...]:
     return tuple(inputs)
 
 
-def _sine_steps(results: Mapping[str, Any], entry: Mapping[str, Any]) -> list[str]:
+def _sine_steps(results: RunResults, entry: ScaleFactorChannel) -> list[str]:
     """Step ids the scale factor was calibrated from (all sine steps when not stated)."""
-    listed = entry.get("steps")
-    if isinstance(listed, Sequence) and not isinstance(listed, str) and listed:
-        return [str(s) for s in listed]
-    return [str(s.get("id")) for s in ex.steps_of_kind(results, "sine")]
+    if entry.steps:
+        return list(entry.steps)
+    return [s.id for s in results.steps_of_kind("sine")]
 
 
-def _scale_tc_per_c(results: Mapping[str, Any], channel: str) -> tuple[float, str]:
+def _temperature_entry(results: RunResults, channel: str) -> TemperatureChannel | None:
+    block = results.analysis.temperature
+    return block.get(channel) if block else None
+
+
+def _scale_tc_per_c(results: RunResults, channel: str) -> tuple[float, str]:
     """Relative scale temperature coefficient: measured in this run, else the datasheet limit."""
-    temp = (ex.analysis(results, "temperature") or {}).get(channel) or {}
-    measured = ex.as_float(temp.get("scale_coefficient_per_c"))
+    temp = _temperature_entry(results, channel)
+    measured = finite(temp.scale_coefficient_per_c) if temp else None
     if measured is not None:
         return abs(measured), f"measured scale TC {measured * 100:.4f} %/°C"
-    limit = ex.as_float(ex.sensors(results).get(channel, {}).get("scale_temperature_limit_per_c"))
-    limit = limit if limit is not None else 0.0005
+    limit = results.sensor(channel).scale_temperature_limit_per_c
     return limit, f"datasheet scale TC ≤ {limit * 100:g} %/°C"
 
 
-def scale_factor_measurand(results: Mapping[str, Any], channel: str,
+def scale_factor_measurand(results: RunResults, channel: str,
                            c: RigConstants) -> Measurand | None:
     """K = K̂·Π(1 + e_i) / ((1 + e_gain)·(1 + e_clk)²)  [V/(°/s²)].
 
@@ -184,26 +201,26 @@ def scale_factor_measurand(results: Mapping[str, Any], channel: str,
     fit), the axis (wobble, transverse, mounting), the logger (gain, resolution), the clock,
     temperature and repeatability each enter as a relative input.
     """
-    entry = ex.channel_entry(results, "scale_factor", channel)
-    where = f"analysis.scale_factor.{channel}"
-    k_hat = ex.require_float(entry, "scale_v_per_dps2", where) if entry is not None else None
-    if k_hat is None:
+    block = results.analysis.scale_factor
+    entry = block.get(channel) if block else None
+    k_hat = finite(entry.scale_v_per_dps2) if entry is not None else None
+    if entry is None or k_hat is None:
         return None
-    noise_v, _ = ex.noise_rms_v(results, channel)
+    noise_v, _ = comp.noise_rms_v(results, channel)
     amp_arcsec = _reference_amplitude_deg(results) * 3600.0
     steps = _sine_steps(results, entry)
-    sine = [s for s in ex.steps_of_kind(results, "sine") if str(s.get("id")) in steps]
-    accel = max(ex.step_values(sine, "accel_dps2") or [400.0])
-    freqs = sorted(set(ex.step_values(sine, "frequency_hz")))
-    samples = sum(ex.step_values(sine, "samples")) or c.record_samples
-    chosen = str(entry.get("reference") or "fit")
+    sine = [s for s in results.steps_of_kind("sine") if s.id in steps]
+    accel = max(finite_values(s.accel_dps2 for s in sine) or [400.0])
+    freqs = sorted(set(finite_values(s.frequency_hz for s in sine)))
+    samples = sum(s.samples for s in sine) or c.record_samples
+    chosen = entry.reference or "fit"
     tc, tc_note = _scale_tc_per_c(results, channel)
     temp_input, at_temperature = comp.temperature(c, steps, tc, tc_note, "1")
     q_text = (f"logger {c.instruments.logger.bits} bit, q = "
               f"{c.instruments.logger.step_v * 1e6:.0f} µV")
     q_rel = c.instruments.logger.resolution_u_v * math.sqrt(2.0 / samples) / (abs(k_hat) * accel)
     inputs = [
-        *_scale_fit_inputs(entry, k_hat, noise_v, results, c, where),
+        *_scale_fit_inputs(entry, k_hat, noise_v, results, c),
         comp.reference_method(results, steps, chosen),
         *comp.motion_distortion(c, steps),
         comp.encoder_accuracy(c, amp_arcsec),
@@ -211,13 +228,13 @@ def scale_factor_measurand(results: Mapping[str, Any], channel: str,
         comp.rel("clock", "synchronisation: clock rate (sync residual)", _sync_rate_rel(results),
                  "measured: rate of the fitted clock relation (sync analysis)"),
         comp.wobble(c),
-        comp.transverse(c, results, channel),
+        comp.transverse(c, channel),
         comp.mounting(c, results, channel),
         comp.logger_gain(c),
         comp.rel("logger_resolution", "logger resolution", q_rel,
                  f"{c.source(q_text)}; q/√12 over {samples:.0f} samples of the fit"),
         temp_input,
-        *_repeat_input(entry, "scale_v_per_dps2", k_hat, "1"),
+        _repeatability_not_evaluated("1"),
     ]
     additive = [i.name for i in inputs if i.name not in ("clock", "logger_gain", "wobble",
                                                            "mounting")]
@@ -235,31 +252,40 @@ def scale_factor_measurand(results: Mapping[str, Any], channel: str,
     return Measurand(f"scale factor {channel}", "V/(°/s²)", model, _inputs(inputs), definition)
 
 
-def _static_mean_std_v(results: Mapping[str, Any], channel: str, c: RigConstants,
+def _static_mean_std_v(results: RunResults, channel: str, c: RigConstants,
                        records: int) -> tuple[float, str]:
     """Standard uncertainty of one static mean: σ / √(2·B·T) per record, over ``records``."""
-    noise_v, source = ex.noise_rms_v(results, channel)
-    static = ex.steps_of_kind(results, "static")
-    duration_s = min(ex.step_values(static, "duration_s") or [c.static_record_s])
+    noise_v, source = comp.noise_rms_v(results, channel)
+    static = results.steps_of_kind("static")
+    duration_s = min(finite_values(s.duration_s for s in static) or [c.static_record_s])
     independent = 2.0 * c.noise_bandwidth_hz * duration_s * max(records, 1)
     note = f"{noise_v * 1e3:.2f} mV RMS ({source}), {records}×{duration_s:g} s, B = " \
            f"{c.noise_bandwidth_hz:g} Hz"
     return noise_v / math.sqrt(independent), note
 
 
-def _mounting_u(entry: Mapping[str, Any], u_key: str) -> float | None:
+#: a static quantity of one mounting: its mean and that mean's standard uncertainty
+MountingStatistic = Callable[[MountingBias], tuple[float | None, float | None]]
+
+
+def _bias_of(m: MountingBias) -> tuple[float | None, float | None]:
+    return m.bias_v, m.bias_u_v
+
+
+def _g_sensitivity_of(m: MountingBias) -> tuple[float | None, float | None]:
+    return m.g_sensitivity_dps2_per_g, m.g_sensitivity_u_dps2_per_g
+
+
+def _mounting_u(entry: BiasChannel, statistic: MountingStatistic) -> float | None:
     """u of the mean over mountings (original/pivoted) when only their u are reported."""
-    mountings = entry.get("mountings")
-    if not isinstance(mountings, Mapping):
-        return None
-    us = [ex.as_float(m.get(u_key)) for m in mountings.values() if isinstance(m, Mapping)]
+    us = [finite(statistic(m)[1]) for m in entry.mountings.values()]
     known = [u for u in us if u is not None]
     if not known or len(known) != len(us):
         return None
     return math.sqrt(sum(u * u for u in known)) / len(known)
 
 
-def _pooled_mountings(entry: Mapping[str, Any], key: str, u_key: str
+def _pooled_mountings(entry: BiasChannel, statistic: MountingStatistic
                       ) -> tuple[float, float, int] | None:
     """Type A of the mean over every repetition of every mounting: (u, degrees of freedom, n).
 
@@ -267,19 +293,14 @@ def _pooled_mountings(entry: Mapping[str, Any], key: str, u_key: str
     between-mounting sums of squares are pooled over all n = Σr values (the pivot changes
     nothing the quantity depends on), s² = SS/(n − 1), u = s/√n with n − 1 degrees of freedom.
     """
-    mountings = entry.get("mountings")
-    if not isinstance(mountings, Mapping):
-        return None
     parts = []
-    for m in mountings.values():
-        if not isinstance(m, Mapping):
-            continue
-        value, u, reps = ex.as_float(m.get(key)), ex.as_float(m.get(u_key)), m.get("repetitions")
-        if value is None or u is None or not isinstance(reps, int) or reps < 1:
+    for m in entry.mountings.values():
+        value, u = (finite(x) for x in statistic(m))
+        if value is None or u is None or m.repetitions is None or m.repetitions < 1:
             return None
-        parts.append((value, u, reps))
+        parts.append((value, u, m.repetitions))
     n = sum(r for _, _, r in parts)
-    if not parts or n < ex.PAIR:
+    if not parts or n < PAIR:
         return None
     grand = sum(v * r for v, _, r in parts) / n
     within = sum((r - 1) * r * u * u for _, u, r in parts)
@@ -287,65 +308,68 @@ def _pooled_mountings(entry: Mapping[str, Any], key: str, u_key: str
     return math.sqrt((within + between) / (n - 1) / n), float(n - 1), n
 
 
-def _static_statistics(results: Mapping[str, Any], entry: Mapping[str, Any], channel: str,
-                       c: RigConstants, key: str, u_key: str, volts_per_unit: float,
-                       unit: str) -> list[Input]:
+@dataclass(frozen=True)
+class _StaticQuantity:
+    """A static quantity of a bias result: its per-mounting statistic, the Type A the
+    analysis states for the channel (if any), its unit and volts per unit."""
+
+    statistic: MountingStatistic
+    stated_u: float | None
+    volts_per_unit: float
+    unit: str
+
+
+def _static_statistics(results: RunResults, entry: BiasChannel, channel: str,
+                       c: RigConstants, quantity: _StaticQuantity) -> list[Input]:
     """Type A inputs of a static quantity: pooled over every repetition and mounting when the
     analysis reports them (noise, hysteresis and repeatability alike, with their degrees of
-    freedom), else the analysis' own u, else sensor noise over the records plus repeatability."""
-    pooled = _pooled_mountings(entry, key, u_key)
+    freedom), else the analysis' own u, else sensor noise over the records."""
+    unit = quantity.unit
+    pooled = _pooled_mountings(entry, quantity.statistic)
     if pooled is not None:
         u, dof, n = pooled
         return [Input("noise", "static means (noise, repeatability)", 0.0, u, "normal", unit,
                       f"measured: s/√n over {n} repetitions × mountings ({dof:.0f} degrees of "
                       "freedom)", "A", dof=dof)]
-    stated = ex.as_float(entry.get(u_key)) or _mounting_u(entry, u_key)
+    stated = finite(quantity.stated_u) or _mounting_u(entry, quantity.statistic)
     if stated is not None:
         return [Input("noise", "static means (noise, repeatability)", 0.0, stated, "normal",
                       unit, "measured: type A, from the analysis", "A")]
-    reps = max(len(ex.repetition_values(entry, key)), 1)
-    u_mean, note = _static_mean_std_v(results, channel, c, 2 * reps)
-    return [Input("noise", "sensor noise", 0.0, u_mean / volts_per_unit, "normal", unit,
+    u_mean, note = _static_mean_std_v(results, channel, c, 2)
+    return [Input("noise", "sensor noise", 0.0, u_mean / quantity.volts_per_unit, "normal", unit,
                   note, "A"),
-            *_repeat_input(entry, key, 1.0, unit)]
+            _repeatability_not_evaluated(unit)]
 
 
-def _bias_tc_v_per_c(results: Mapping[str, Any], channel: str) -> float:
-    temp = (ex.analysis(results, "temperature") or {}).get(channel) or {}
-    measured = ex.as_float(temp.get("bias_coefficient_v_per_c"))
+def _bias_tc_note(results: RunResults, channel: str) -> tuple[float, str]:
+    """|bias TC| (V/°C): measured in this run, else the sensor's datasheet limit."""
+    temp = _temperature_entry(results, channel)
+    measured = finite(temp.bias_coefficient_v_per_c) if temp else None
     if measured is not None:
-        return abs(measured)
-    limit = ex.as_float(ex.sensors(results).get(channel, {}).get("bias_temperature_limit_v_per_c"))
-    return limit or 0.0004
+        return abs(measured), f"measured bias TC {abs(measured) * 1e3:.2f} mV/°C"
+    tc = results.sensor(channel).bias_temperature_limit_v_per_c
+    return tc, f"datasheet limit bias TC {tc * 1e3:.2f} mV/°C"
 
 
-def _static_steps(results: Mapping[str, Any]) -> list[str]:
-    return [str(s.get("id")) for s in ex.steps_of_kind(results, "static")]
+def _static_steps(results: RunResults) -> list[str]:
+    return [s.id for s in results.steps_of_kind("static")]
 
 
-def _bias_tc_note(results: Mapping[str, Any], channel: str) -> tuple[float, str]:
-    tc = _bias_tc_v_per_c(results, channel)
-    temp = (ex.analysis(results, "temperature") or {}).get(channel) or {}
-    source = "measured" if ex.as_float(temp.get("bias_coefficient_v_per_c")) is not None \
-        else "datasheet limit"
-    return tc, f"{source} bias TC {tc * 1e3:.2f} mV/°C"
-
-
-def bias_measurand(results: Mapping[str, Any], channel: str, c: RigConstants) -> Measurand | None:
+def bias_measurand(results: RunResults, channel: str, c: RigConstants) -> Measurand | None:
     """b = (b̂ − e_off − e_res)/(1 + e_gain) + e_noise + e_temp + e_rep  [V].
 
     b̂ = (A+ + A−)/2 cancels the g-sensitivity and table tilt; the logger's offset and gain
     accuracy and its resolution enter in full (a gain error scales the whole ≈2.5 V reading).
     """
-    entry = ex.channel_entry(results, "bias", channel)
-    where = f"analysis.bias.{channel}"
-    b_hat = ex.require_float(entry, "bias_v", where) if entry is not None else None
-    if b_hat is None:
+    entry = _bias_entry(results, channel)
+    b_hat = finite(entry.bias_v) if entry is not None else None
+    if entry is None or b_hat is None:
         return None
     tc, tc_note = _bias_tc_note(results, channel)
     temp_input, at_temperature = comp.temperature(c, _static_steps(results), tc, tc_note, "V")
     inputs = [
-        *_static_statistics(results, entry, channel, c, "bias_v", "bias_u_v", 1.0, "V"),
+        *_static_statistics(results, entry, channel, c,
+                            _StaticQuantity(_bias_of, entry.bias_u_v, 1.0, "V")),
         _static_disturbance(c, channel, 1.0, "V"),
         comp.logger_offset(c),
         comp.logger_gain(c),
@@ -364,11 +388,16 @@ def bias_measurand(results: Mapping[str, Any], channel: str, c: RigConstants) ->
     return Measurand(f"bias {channel}", "V", model, _inputs(inputs), definition)
 
 
-def _scale_input(results: Mapping[str, Any], channel: str, scale_rel_u: float | None) -> Input:
+def _bias_entry(results: RunResults, channel: str) -> BiasChannel | None:
+    block = results.analysis.bias
+    return block.get(channel) if block else None
+
+
+def _scale_input(results: RunResults, channel: str, scale_rel_u: float | None) -> Input:
     """K's relative uncertainty: calibrated in this run, else its datasheet tolerance."""
     if scale_rel_u is not None:
         return _rel("scale", "scale factor", scale_rel_u, "relative u_c(K)/K of this calibration")
-    tol_pct = ex.as_float(ex.sensors(results).get(channel, {}).get("scale_tolerance_pct")) or 1.0
+    tol_pct = results.sensor(channel).scale_tolerance_pct
     return _rel("scale", "scale factor", tol_pct / 100.0,
                 f"nominal K, datasheet ±{tol_pct:g} % (not calibrated in this run)", "rectangular")
 
@@ -409,15 +438,15 @@ def _drift_between_records(c: RigConstants, steps: list[str], tc: float, tc_note
                  f"{spread_c:.3f} °C × {tc_note}, √2 over 2K")
 
 
-def _dithered_resolution(results: Mapping[str, Any], channel: str, c: RigConstants,
+def _dithered_resolution(results: RunResults, channel: str, c: RigConstants,
                          k_v: float, unit: str) -> Input:
     """Logger resolution in a half-difference of means: averaged over the samples when the
     output noise dithers the converter (σ ≥ q/2), else one step q/√12."""
     lg = c.instruments.logger
-    noise_v, source = ex.noise_rms_v(results, channel)
-    samples = sum(ex.step_values(ex.steps_of_kind(results, "static"), "samples"))
+    noise_v, source = comp.noise_rms_v(results, channel)
+    samples = sum(s.samples for s in results.steps_of_kind("static"))
     what = f"logger resolution q = {lg.step_v * 1e6:.0f} µV ({lg.bits} bit)"
-    if noise_v >= lg.step_v / 2 and samples >= ex.PAIR:
+    if noise_v >= lg.step_v / 2 and samples >= PAIR:
         u_v = lg.resolution_u_v * math.sqrt(2.0 / samples)
         note = (f"{c.source(what)}; dithered by {noise_v * 1e3:.2f} mV noise ({source}): "
                 f"q/√12 over {samples / 2:.0f} samples per sign")
@@ -427,7 +456,7 @@ def _dithered_resolution(results: Mapping[str, Any], channel: str, c: RigConstan
                  "normal", unit, note + ", of a half-difference over 2K")
 
 
-def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigConstants,
+def g_sensitivity_measurand(results: RunResults, channel: str, c: RigConstants,
                             scale_rel_u: float | None) -> Measurand | None:
     """G = (Ĝ + e_noise + e_dist + e_temp + e_rep + e_res) / Π(1 + e_K, e_gain, e_tilt, e_mnt)
     in (°/s²)/g.
@@ -438,22 +467,19 @@ def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigCons
     calibrate K, ``scale_rel_u=None``); a tilt of the table or of the mounting reduces the
     ±1 g projection by its cosine.
     """
-    entry = ex.channel_entry(results, "bias", channel)
-    where = f"analysis.bias.{channel}"
-    g_hat = (ex.require_float(entry, "g_sensitivity_dps2_per_g", where)
-             if entry is not None else None)
-    if g_hat is None:
+    entry = _bias_entry(results, channel)
+    g_hat = finite(entry.g_sensitivity_dps2_per_g) if entry is not None else None
+    if entry is None or g_hat is None:
         return None
-    nominal = ex.sensors(results).get(channel, {}).get("nominal_scale_v_per_dps2")
-    k_v = (ex.as_float(entry.get("scale_v_per_dps2_used")) or ex.as_float(nominal)
-           or REFERENCE_SCALE_V_PER_DPS2)
+    k_v = (finite(entry.scale_v_per_dps2_used)
+           or results.sensor(channel).nominal_scale_v_per_dps2)
     tc, tc_note = _bias_tc_note(results, channel)
     static_ids = _static_steps(results)
     tilt = math.hypot(c.position_accuracy_arcsec, c.wobble_arcsec) * ARCSEC_RAD
     unit = "(°/s²)/g"
     inputs = [
-        *_static_statistics(results, entry, channel, c, "g_sensitivity_dps2_per_g",
-                            "g_sensitivity_u_dps2_per_g", k_v, unit),
+        *_static_statistics(results, entry, channel, c,
+                            _StaticQuantity(_g_sensitivity_of, None, k_v, unit)),
         _static_disturbance(c, channel, 1.0 / k_v, unit),
         _drift_between_records(c, static_ids, tc, tc_note, k_v, unit),
         _dithered_resolution(results, channel, c, k_v, unit),
@@ -476,67 +502,102 @@ def g_sensitivity_measurand(results: Mapping[str, Any], channel: str, c: RigCons
     return Measurand(f"g-sensitivity {channel}", unit, model, _inputs(inputs), definition)
 
 
-#: temperature-analysis key → (per-point value key, unit) for the two coefficients
-TEMPERATURE_COEFFICIENTS: dict[str, tuple[str, str]] = {
-    "bias_coefficient_v_per_c": ("bias_v", "V/°C"),
-    "scale_coefficient_per_c": ("scale_v_per_dps2", "1/°C"),
+def _paired(temperatures_c: Sequence[float] | None, values: Sequence[float] | None
+            ) -> list[tuple[float, float]]:
+    """(temperature °C, value) pairs of two columns of equal length, finite ones only."""
+    if not temperatures_c or not values or len(temperatures_c) != len(values):
+        return []
+    return [(t, v) for t, v in zip(temperatures_c, values, strict=True)
+            if finite(t) is not None and finite(v) is not None]
+
+
+def _bias_points(entry: TemperatureChannel) -> list[tuple[float, float]]:
+    return _paired(entry.temperatures_c, entry.bias_v)
+
+
+def _scale_points(entry: TemperatureChannel) -> list[tuple[float, float]]:
+    values = entry.scale_v_per_dps2
+    temps = next((t for t in (entry.scale_temperatures_c, entry.temperatures_c)
+                  if t is not None and len(t) == len(values or [])), None)
+    return _paired(temps, values)
+
+
+@dataclass(frozen=True)
+class TemperatureCoefficient:
+    """One temperature coefficient of a temperature result: how to read it and its points."""
+
+    unit: str
+    value: Callable[[TemperatureChannel], float | None]
+    stated_u: Callable[[TemperatureChannel], float | None]
+    ci95: Callable[[TemperatureChannel], list[float] | None]
+    points: Callable[[TemperatureChannel], list[tuple[float, float]]]
+    #: the coefficient is relative (1/°C): the readings are normalised by their mean
+    relative: bool
+
+
+#: the two coefficients of a temperature result, by their results.json name
+TEMPERATURE_COEFFICIENTS: dict[str, TemperatureCoefficient] = {
+    "bias_coefficient_v_per_c": TemperatureCoefficient(
+        "V/°C", lambda e: e.bias_coefficient_v_per_c, lambda e: e.bias_coefficient_u_v_per_c,
+        lambda e: e.bias_coefficient_ci95_v_per_c, _bias_points, relative=False),
+    "scale_coefficient_per_c": TemperatureCoefficient(
+        "1/°C", lambda e: e.scale_coefficient_per_c, lambda e: e.scale_coefficient_u_per_c,
+        lambda e: e.scale_coefficient_ci95_per_c, _scale_points, relative=True),
 }
 
 
-def _slope_std(entry: Mapping[str, Any], key: str, point_key: str) -> tuple[float | None, str]:
+def _slope_std(entry: TemperatureChannel, coefficient: TemperatureCoefficient
+               ) -> tuple[float | None, str]:
     """Standard uncertainty of a temperature slope: ci95, else a regression over the points."""
     from scipy.stats import linregress
 
-    stated = ex.as_float(entry.get(key.replace("_coefficient_", "_coefficient_u_")))
+    stated = finite(coefficient.stated_u(entry))
     if stated is not None:
         return stated, "from the analysis' u"
-    u = ex.ci_std(entry.get(key.replace("_coefficient_", "_coefficient_ci95_")))
-    if u is None and isinstance(entry.get("ci95"), Mapping):
-        u = ex.ci_std(entry["ci95"], key)
+    u = ci_std(coefficient.ci95(entry))
     if u is not None:
         return u, "from the analysis' ci95"
-    points = ex.temperature_points(entry, point_key)
+    points = coefficient.points(entry)
     if len(points) >= MIN_REGRESSION_POINTS:
-        t = [float(p["temperature_c"]) for p in points]
-        y = [float(p[point_key]) for p in points]
-        if point_key == "scale_v_per_dps2":  # relative coefficient: normalise by the mean
+        t = [p[0] for p in points]
+        y = [p[1] for p in points]
+        if coefficient.relative:  # relative coefficient: normalise by the mean
             mean = sum(y) / len(y)
             y = [v / mean for v in y]
         return float(linregress(t, y).stderr), f"regression over {len(points)} temperature points"
     return None, ""
 
 
-def _temperature_span_c(entry: Mapping[str, Any], results: Mapping[str, Any],
+def _temperature_span_c(entry: TemperatureChannel, results: RunResults,
                         c: RigConstants) -> float:
-    temps = [float(p["temperature_c"]) for key in ("bias_v", "scale_v_per_dps2")
-             for p in ex.temperature_points(entry, key)]
-    temps = temps or ex.step_values(results.get("steps") or [], "temperature_c")
-    return (max(temps) - min(temps)) if len(temps) >= ex.PAIR else c.temperature_span_c
+    temps = [t for t, _ in [*_bias_points(entry), *_scale_points(entry)]]
+    temps = temps or finite_values(s.temperature_c for s in results.steps)
+    return (max(temps) - min(temps)) if len(temps) >= PAIR else c.temperature_span_c
 
 
-def temperature_measurand(results: Mapping[str, Any], channel: str, key: str,
+def temperature_measurand(results: RunResults, channel: str, key: str,
                           c: RigConstants) -> Measurand | None:
     """c_T = ĉ·(1 + e_therm) + e_reg  (V/°C or 1/°C).
 
-    ``e_reg`` is the regression's statistical uncertainty (or, when the analysis gives no
-    statistics, the branch hysteresis spread over the span, rectangular); ``e_therm`` is the
-    relative error of the temperature span from the thermometer (√2·u_T/ΔT).
+    ``key`` names the coefficient (:data:`TEMPERATURE_COEFFICIENTS`). ``e_reg`` is the
+    regression's statistical uncertainty (or, when the analysis gives no statistics, the
+    branch hysteresis spread over the span, rectangular); ``e_therm`` is the relative error of
+    the temperature span from the thermometer (√2·u_T/ΔT).
     """
-    entry = ex.channel_entry(results, "temperature", channel)
-    where = f"analysis.temperature.{channel}"
-    value = ex.require_float(entry, key, where) if entry is not None else None
-    if value is None:
+    entry = _temperature_entry(results, channel)
+    coefficient = TEMPERATURE_COEFFICIENTS[key]
+    value = finite(coefficient.value(entry)) if entry is not None else None
+    if entry is None or value is None:
         return None
-    point_key, unit = TEMPERATURE_COEFFICIENTS[key]
+    unit = coefficient.unit
     span = _temperature_span_c(entry, results, c)
-    u_reg, source = _slope_std(entry, key, point_key)
+    u_reg, source = _slope_std(entry, coefficient)
     if u_reg is not None:
         reg = Input("regression", "bias/scale readings (regression)", 0.0, u_reg, "normal", unit,
                     source)
     else:
-        hyst = ex.as_float(entry.get("hysteresis_v")) or 0.0
-        if point_key == "scale_v_per_dps2":
-            hyst = 0.0  # hysteresis is reported for the bias only
+        # hysteresis is reported for the bias only
+        hyst = 0.0 if coefficient.relative else (finite(entry.hysteresis_v) or 0.0)
         reg = Input("regression", "hysteresis between branches", 0.0, hyst / span, "rectangular",
                     unit, "no regression statistics: branch difference over the span")
     inputs = (

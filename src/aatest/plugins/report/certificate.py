@@ -1,6 +1,6 @@
 """The ISO/IEC 17025 §7.8 content of a calibration certificate, prepared for the template.
 
-Everything here is read from ``results.json`` (and, for the temperatures measured during the
+Everything here is read from the typed results (and, for the temperatures measured during the
 calibration, from the run's recording): the issuing lab (``metadata.lab``, written from the lab
 profile before signing), the item, the method and its hash, the dates, the results with U, k
 and coverage probability and their measurands, the reference's traceability, the conformity
@@ -20,14 +20,16 @@ from typing import Any
 import numpy as np
 
 from aatest.engine.errors import AatestError
-from aatest.engine.uncertainty import access as ex
+from aatest.plugins.report.stated import frf_points, static_values
+from aatest.results import RunResults
+from aatest.results.quantities import QUANTITIES, finite
 
 #: the ISO/IEC 17025 §7.8.2.1 items the certificate covers, in the order they are printed
 ITEMS = ("title", "lab", "identification", "item", "method", "dates", "environment",
          "results", "measurands", "traceability", "conformity", "adjustment", "signatory",
          "pages")
 
-#: measurand of each certified quantity when the results state none (docs/method.md §4)
+#: measurand of each certified quantity when the results state none
 MEASURANDS: dict[str, str] = {
     "scale_factor": "scale factor: linear coefficient of the best straight line of output "
                     "voltage against angular acceleration about the sensitive axis, over the "
@@ -45,18 +47,6 @@ MEASURANDS: dict[str, str] = {
                 "Hann-weighted segments of whole cycles)",
     "frf_phase": "FRF phase: argument of the same complex ratio of the fundamentals at f",
 }
-
-#: (label, analysis key, value key, U key, unit) of each certified static quantity
-_STATIC: tuple[tuple[str, str, str, str, str], ...] = (
-    ("scale_factor", "scale_factor", "scale_v_per_dps2", "expanded_uncertainty", "V/(°/s²)"),
-    ("bias", "bias", "bias_v", "expanded_uncertainty", "V"),
-    ("g_sensitivity", "bias", "g_sensitivity_dps2_per_g",
-     "g_sensitivity_expanded_uncertainty_dps2_per_g", "(°/s²)/g"),
-    ("bias_coefficient_v_per_c", "temperature", "bias_coefficient_v_per_c",
-     "expanded_uncertainty", "V/°C"),
-    ("scale_coefficient_per_c", "temperature", "scale_coefficient_per_c",
-     "scale_coefficient_expanded_uncertainty_per_c", "1/°C"),
-)
 
 #: how each confirmation channel is named on the certificate
 _VIA = {"tty": "ask (confirmed at the terminal)", "station": "station (confirmed in the "
@@ -88,6 +78,8 @@ class ResultRow:
     coverage_probability: float | None
     measurand: str
     at: str = ""
+    #: significant digits the value is printed with (the quantity registry's rule)
+    digits: int = 6
 
 
 @dataclass(frozen=True)
@@ -122,10 +114,9 @@ class Certificate:
         return list(seen.items())
 
 
-def _lab(meta: Mapping[str, Any]) -> dict[str, Any]:
-    lab = meta.get("lab")
-    if isinstance(lab, Mapping):
-        return dict(lab)
+def _lab(results: RunResults) -> dict[str, Any]:
+    if results.metadata.lab is not None:
+        return dict(results.metadata.lab)
     return {"name": "aatest lab", "address": "", "accreditation": None, "signatories": [],
             "default_profile": True}
 
@@ -149,14 +140,14 @@ def _temperature_columns(data: Any) -> Iterator[np.ndarray]:
                     yield values[np.isfinite(values)]
 
 
-def _temperatures(run_dir: Path, meta: Mapping[str, Any]) -> Environment:
+def _temperatures(run_dir: Path, recording: str | None) -> Environment:
     """Min/mean/max (°C) of every temperature sample the loggers recorded, and the file read;
     accumulated step by step, so no step's temperature is kept once summarised."""
     from aatest.engine.recording.reader import read_dataset
 
     candidates = [Path(run_dir)]
-    if meta.get("recording"):
-        candidates.append(Path(str(meta["recording"])))
+    if recording:
+        candidates.append(Path(recording))
     for path in candidates:
         try:
             data = read_dataset(path)
@@ -175,44 +166,41 @@ def _temperatures(run_dir: Path, meta: Mapping[str, Any]) -> Environment:
     return Environment(None, None, None, 0, "no recording")
 
 
-def environment(results: Mapping[str, Any], run_dir: Path) -> Environment:
+def environment(results: RunResults, run_dir: Path) -> Environment:
     """Min/mean/max of the temperatures logged during the calibration (docs: §7.8.4.1 a)."""
-    return _temperatures(run_dir, results.get("metadata") or {})
+    return _temperatures(run_dir, results.metadata.recording)
 
 
-def _measurand(entry: Mapping[str, Any], label: str) -> str:
-    stated = entry.get("measurand")  # the engine's own text when the results carry one
-    return str(stated) if isinstance(stated, str) and stated else MEASURANDS[label]
+def _measurand(stated: str, key: str) -> str:
+    return stated or MEASURANDS[key]  # the engine's own text when the results carry one
 
 
-def result_rows(results: Mapping[str, Any], channels: Sequence[str]) -> list[ResultRow]:
+def result_rows(results: RunResults, channels: Sequence[str]) -> list[ResultRow]:
     """Every certified value with its unit, U, k, coverage probability and measurand."""
     rows = []
+    gain, phase = QUANTITIES["frf_gain"], QUANTITIES["frf_phase"]
     for ch in channels:
-        for label, block, key, u_key, unit in _STATIC:
-            entry = ex.channel_entry(results, block, ch)
-            value = ex.as_float(entry.get(key)) if isinstance(entry, Mapping) else None
-            if entry is None or value is None:
-                continue
-            rows.append(ResultRow(ch, label, value, unit, ex.as_float(entry.get(u_key)),
-                                  ex.as_float(entry.get("coverage_factor")),
-                                  ex.as_float(entry.get("coverage_probability")),
-                                  _measurand(entry, label)))
-        for p in ex.frf_points(results, ch):
-            at = f"{float(p.get('frequency_hz') or 0.0):.4g} Hz"
-            for label, key, u_key, unit, k_key in (
-                    ("frf_gain", "gain_db", "gain_expanded_uncertainty_db", "dB",
-                     "coverage_factor"),
-                    ("frf_phase", "phase_deg", "phase_expanded_uncertainty_deg", "deg",
-                     "phase_coverage_factor")):
-                value = ex.as_float(p.get(key))
-                if value is not None:
-                    # the phase has its own k (its Type A's degrees of freedom); older results
-                    # state one k per point
-                    k = ex.as_float(p.get(k_key)) or ex.as_float(p.get("coverage_factor"))
-                    rows.append(ResultRow(ch, label, value, unit, ex.as_float(p.get(u_key)), k,
-                                          ex.as_float(p.get("coverage_probability")),
-                                          _measurand(p, label), at))
+        for q, entry, value in static_values(results, ch):
+            rows.append(ResultRow(ch, q.quantity.name, value, q.quantity.unit,
+                                  finite(q.u(entry)), entry.coverage_factor,
+                                  entry.coverage_probability,
+                                  _measurand(entry.measurand, q.quantity.key),
+                                  digits=q.quantity.digits))
+        for p in frf_points(results, ch):
+            at = f"{p.frequency_hz:.4g} Hz"
+            if finite(p.gain_db) is not None:
+                rows.append(ResultRow(ch, gain.name, p.gain_db, gain.unit,
+                                      p.gain_expanded_uncertainty_db, p.coverage_factor,
+                                      p.coverage_probability,
+                                      _measurand(p.gain_measurand or p.measurand, gain.key), at,
+                                      gain.digits))
+            if finite(p.phase_deg) is not None:
+                # the phase has its own k (its Type A's degrees of freedom)
+                rows.append(ResultRow(ch, phase.name, p.phase_deg, phase.unit,
+                                      p.phase_expanded_uncertainty_deg,
+                                      p.phase_coverage_factor or p.coverage_factor,
+                                      p.coverage_probability,
+                                      _measurand(p.phase_measurand, phase.key), at, phase.digits))
     return rows
 
 
@@ -224,98 +212,85 @@ def _flatten(value: Any) -> str:
     return str(value)
 
 
-def reference_traceability(results: Mapping[str, Any]) -> tuple[list[tuple[str, str]], str]:
+def reference_traceability(results: RunResults) -> tuple[list[tuple[str, str]], str]:
     """(item, statement) rows of the reference's traceability and where they were stated:
-    the results' ``metadata.traceability``, else the rig description's ``traceability``."""
-    meta = results.get("metadata") or {}
-    sources: list[tuple[str, Any]] = [("results metadata", meta.get("traceability"))]
-    for name, rig in (("rig description", meta.get("rig")), ("rig description",
-                                                               results.get("rig"))):
-        if isinstance(rig, Mapping):
-            sources.append((name, rig.get("traceability")))
-    for name, stated in sources:
+    the uncertainty stage's record of the rig description (``metadata.traceability``), else
+    the rig description's own ``traceability``."""
+    typed = results.metadata.traceability
+    if typed is not None and typed.instruments:
+        return [(name.capitalize(), f"certificate {i.cert_id} of {i.cert_date} by {i.lab}; "
+                 f"accuracy {i.accuracy}") for name, i in typed.instruments.items()], \
+            "rig description" if typed.stated else "stated defaults (no rig description)"
+    for rig in (results.metadata.recorded("rig"), results.rig):
+        stated = rig.get("traceability") if isinstance(rig, Mapping) else None
         if isinstance(stated, Mapping) and stated:
-            return [(str(k), _flatten(v)) for k, v in stated.items()], name
-        if isinstance(stated, list) and stated:
-            return [(str(i.get("instrument") or i.get("name") or f"#{n + 1}")
-                     if isinstance(i, Mapping) else f"#{n + 1}", _flatten(i))
-                    for n, i in enumerate(stated)], name
+            return [(str(k), _flatten(v)) for k, v in stated.items()], "rig description"
         if isinstance(stated, str) and stated:
-            return [("reference", stated)], name
+            return [("reference", stated)], "rig description"
     return [], "not stated"
 
 
-def _conformity(results: Mapping[str, Any], rule: str) -> str:
-    verdicts = ex.require(results, "verdicts", "top level")
-    overall = ex.require(results, "overall", "top level")
-    if not verdicts:
+def _conformity(results: RunResults, rule: str) -> str:
+    if not results.verdicts:
         return "No conformity statement: no quantity was judged against a specification."
     return (f"Conformity with the sensor's datasheet limits, decided by the engine under the "
-            f"decision rule '{rule}' (ILAC-G8): overall {overall}; each judged quantity with "
-            "its limit, U and verdict is listed below.")
+            f"decision rule '{rule}' (ILAC-G8): overall {results.overall}; each judged quantity "
+            "with its limit, U and verdict is listed below.")
 
 
-def _adjustment(results: Mapping[str, Any]) -> dict[str, Any]:
-    meta = results.get("metadata") or {}
-    stated = results.get("adjustment") or meta.get("adjustment")
-    if isinstance(stated, Mapping) and stated.get("made"):
+def _adjustment(results: RunResults) -> dict[str, Any]:
+    stated = results.metadata.adjustment
+    if stated is not None and stated.get("made"):
         return {"made": True, "as_found": stated.get("as_found"),
                 "as_left": stated.get("as_left"), "text": str(stated.get("note") or "")}
     return {"made": False, "text": "No adjustment was made: the results are both the "
                                    "as-found and the as-left values."}
 
 
-def _prompts(results: Mapping[str, Any]) -> tuple[list[dict[str, str]], str, bool]:
+def _prompts(results: RunResults) -> tuple[list[dict[str, str]], str, bool]:
     """Who confirmed which operator prompt, when and through which channel; the mode."""
-    meta = results.get("metadata") or {}
-    texts = {str(s.get("id")): str(s.get("prompt") or "") for s in results.get("steps") or []
-             if isinstance(s, Mapping)}
+    texts = {s.id: str(getattr(s, "prompt", None) or "") for s in results.steps}
     rows = []
-    for answer in meta.get("prompt_answers") or []:
-        if isinstance(answer, Mapping):
-            step = str(answer.get("step_id") or "—")
-            rows.append({"step_id": step, "prompt": texts.get(step, ""),
-                         "answered_by": str(answer.get("answered_by") or "—"),
-                         "answered_utc": str(answer.get("answered_utc") or "—"),
-                         "via": str(answer.get("via") or "—")})
+    for answer in results.metadata.prompt_answers:
+        step = answer.step_id or "—"
+        rows.append({"step_id": step, "prompt": texts.get(step, ""),
+                     "answered_by": answer.answered_by or "—",
+                     "answered_utc": answer.answered_utc or "—", "via": answer.via or "—"})
     modes = sorted({r["via"] for r in rows})
     if not rows:
         return rows, "no operator prompts in this run", False
     return rows, "; ".join(_VIA.get(m, m) for m in modes), "auto" in modes
 
 
-def _item(results: Mapping[str, Any]) -> dict[str, Any]:
-    meta = results.get("metadata") or {}
-    stated = meta.get("sensor")
-    sensor: Mapping[str, Any] = stated if isinstance(stated, Mapping) else {}
-    channels = list(ex.sensors(results).values())
-    first = channels[0] if channels else {}
+def _item(results: RunResults) -> dict[str, Any]:
+    unit = results.metadata.sensor
+    channels = results.metadata.sensors
+    first = channels[0] if channels else None
     return {"description": "angular accelerometer",
-            "model": str(sensor.get("model") or first.get("model") or "not recorded"),
-            "serial": str(sensor.get("serial") or first.get("serial") or "not recorded"),
+            "model": (unit.model if unit else None) or (first.model if first else None)
+            or "not recorded",
+            "serial": (unit.serial if unit else None) or (first.serial if first else None)
+            or "not recorded",
             "channels": channels}
 
 
-def _method(results: Mapping[str, Any], procedure_sha256: str) -> dict[str, str]:
-    meta = results.get("metadata") or {}
-    standard = str(meta.get("standard") or "not stated")
-    return {"procedure": str(results.get("procedure") or meta.get("procedure") or "—"),
-            "sha256": procedure_sha256, "standard": standard,
+def _method(results: RunResults, procedure_sha256: str) -> dict[str, str]:
+    meta = results.metadata
+    return {"procedure": results.procedure or meta.procedure or "—",
+            "sha256": procedure_sha256, "standard": meta.standard or "not stated",
             "description": "angular acceleration generated by a position turntable (sine "
-                           "profile, docs/method.md §3); reference from the table's logs; "
-                           "evaluation per IEEE Std 671 (test procedures) and in the manner "
-                           "of ISO 16063 (sensitivity as a complex ratio at the fundamental)"}
+                           "profile); reference from the table's logs; evaluation per IEEE "
+                           "Std 671 (test procedures) and in the manner of ISO 16063 "
+                           "(sensitivity as a complex ratio at the fundamental)"}
 
 
-def build_certificate(results: Mapping[str, Any], run_dir: Path, channels: Sequence[str],
+def build_certificate(results: RunResults, run_dir: Path, channels: Sequence[str],
                       rule: str, procedure_sha256: str, recording_sha256: str,
                       issued_utc: str) -> Certificate:
     """The §7.8 view of ``results`` (issued at ``issued_utc``, ISO 8601)."""
-    meta = results.get("metadata") or {}
-    lab = _lab(meta)
-    number = results.get("certificate_number")
-    identification = str(number) if number else \
-        f"{results.get('procedure') or 'run'}-{recording_sha256[:12]}"
+    lab = _lab(results)
+    number = results.certificate_number
+    identification = number or f"{results.procedure or 'run'}-{recording_sha256[:12]}"
     prompts, confirmation, unattended = _prompts(results)
     trace_rows, trace_source = reference_traceability(results)
     notes = []
@@ -328,7 +303,7 @@ def build_certificate(results: Mapping[str, Any], run_dir: Path, channels: Seque
     return Certificate(
         identification=identification, numbered=bool(number), lab=lab, item=_item(results),
         method=_method(results, procedure_sha256),
-        calibrated_utc=str(meta.get("started_utc") or "not recorded"), issued_utc=issued_utc,
+        calibrated_utc=results.metadata.started_utc or "not recorded", issued_utc=issued_utc,
         environment=environment(results, run_dir), results=result_rows(results, channels),
         traceability=trace_rows, traceability_source=trace_source,
         conformity=_conformity(results, rule), adjustment=_adjustment(results),

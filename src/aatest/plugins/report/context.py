@@ -1,10 +1,11 @@
 """The view model a template renders: plain mappings, dataclasses and vetted SVG only.
 
-Templates hold no logic (docs/style.md): everything they show — sections that exist, values with
-expanded uncertainties, verdicts, figures — is prepared here from ``results.json``, and a
-section is present only when its analysis key is. Uncertainties, budgets and verdicts are the
-engine's (:mod:`aatest.engine.uncertainty`, :mod:`aatest.engine.analysis.verdicts`): they are
-shown as the results state them, never recomputed, and results without them are an error.
+Templates hold no logic: everything they show — sections that exist, values with expanded
+uncertainties, verdicts, figures — is prepared here from the typed record
+(:class:`aatest.results.RunResults`), and a section is present only when its analysis is.
+Uncertainties, budgets and verdicts are the engine's (:mod:`aatest.engine.uncertainty`,
+:mod:`aatest.engine.analysis.verdicts`): shown as the results state them, never recomputed.
+Quantities are shown by their names and unit symbols (:mod:`aatest.results.quantities`).
 """
 
 from __future__ import annotations
@@ -15,93 +16,96 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.uncertainty import access as ex
 from aatest.engine.uncertainty.budgets import channels
 from aatest.plugins.report import figures as fig
 from aatest.plugins.report.sandbox import vet_svg
 from aatest.plugins.report.stated import budget_views, frf_rows, misalignment_rows, stated
 from aatest.plugins.report.traceability import traceability
+from aatest.results import RunResults, Verdict
+from aatest.results.quantities import analysis_name, finite, quantity
+from aatest.results.scale_factor import ScaleFactorChannel
 
 #: every section a report may show
 ALL_SECTIONS = frozenset({"sync", "scale_factor", "bias", "temperature", "noise", "frf",
                           "transfer_function", "misalignment", "drift"})
+#: the acceleration references by the name a person reads (results.json keeps the key)
+REFERENCE_NAMES = {"fit": "polynomial fit of the position", "table_estimate": "table estimate",
+                   "central": "central difference", "five_point": "five-point difference",
+                   "smoothed": "smoothed position", "sliding_mode": "sliding-mode differentiator"}
 
 
-def _coefficient_rows(entry: Mapping[str, Any]) -> list[dict[str, Any]]:
+def _coefficient_rows(entry: ScaleFactorChannel) -> list[dict[str, Any]]:
     rows = []
-    ci95 = entry.get("ci95")
-    for i, value in enumerate(entry.get("coefficients") or []):
-        u = ex.ci_std(ci95, i)
-        half = None if u is None else u * ex.Z95
+    for i, value in enumerate(entry.coefficients):
+        ci = entry.ci95[i] if i < len(entry.ci95) else []
+        lo, hi = (finite(ci[0]), finite(ci[1])) if len(ci) == 2 else (None, None)  # noqa: PLR2004
+        half = abs(hi - lo) / 2 if lo is not None and hi is not None else None
         rows.append({"power": i, "value": value, "half_width": half})
     return rows
 
 
-def _channel_view(results: Mapping[str, Any], ch: str) -> dict[str, Any]:
-    def block(key: str) -> Any:
-        value = (ex.analysis(results, key) or {})
-        return value.get(ch) if isinstance(value, Mapping) else None
-
-    scale = block("scale_factor")
-    fit = scale.get("fit") if isinstance(scale, Mapping) else None
-    r2 = (scale or {}).get("r2", (fit or {}).get("r2") if isinstance(fit, Mapping) else None)
+def _channel_view(results: RunResults, ch: str) -> dict[str, Any]:
+    a = results.analysis
+    scale = a.scale_factor.get(ch) if a.scale_factor else None
     return {
-        "r2": r2,
+        "r2": scale.fit.r2 if scale is not None else None,
         "name": ch,
-        "reference": (ex.require(scale, "reference", f"analysis.scale_factor.{ch}")
-                      if isinstance(scale, Mapping) else None),
-        "sensor": ex.sensors(results).get(ch, {}),
+        "reference": REFERENCE_NAMES.get(scale.reference, scale.reference) if scale else None,
+        "sensor": results.sensor(ch),
         "scale": scale,
-        "coefficients": _coefficient_rows(scale) if isinstance(scale, Mapping) else [],
-        "bias": block("bias"),
-        "temperature": block("temperature"),
-        "noise": block("noise"),
-        "drift": block("drift"),
-        "transfer_function": block("transfer_function"),
+        "coefficients": _coefficient_rows(scale) if scale is not None else [],
+        "bias": a.bias.get(ch) if a.bias else None,
+        "temperature": a.temperature.get(ch) if a.temperature else None,
+        "noise": a.noise.get(ch) if a.noise else None,
+        "drift": a.drift.get(ch) if a.drift else None,
+        "transfer_function": a.transfer_function.get(ch) if a.transfer_function else None,
         "frf": frf_rows(results, ch),
         "u": stated(results, ch),
     }
 
 
-def _analysis_figures(results: Mapping[str, Any], keys: Collection[str]) -> list[dict[str, Any]]:
-    figures = results.get("figures") or {}
+def _figure_title(section: str, name: str) -> str:
+    """``Scale factor: v_sz`` for the figure ``scale_factor_v_sz`` of the scale-factor analysis."""
+    what = name.removeprefix(section).strip("_") or analysis_name(section).lower()
+    return f"{analysis_name(section)}: {what.replace('_', ' ')}"
+
+
+def _analysis_figures(results: RunResults, keys: Collection[str]) -> list[dict[str, Any]]:
     out = []
-    for key in sorted(figures):
-        if key in keys and isinstance(figures[key], Mapping):
-            out += [{"section": key, "title": f"{key}: {name}", "svg": vet_svg(svg)}
-                    for name, svg in sorted(figures[key].items())]
+    for key in sorted(results.figures):
+        if key in keys:
+            out += [{"section": key, "title": _figure_title(key, name), "svg": vet_svg(svg)}
+                    for name, svg in sorted(results.figures[key].items())]
     return out
 
 
-def _own_figures(results: Mapping[str, Any], sections: Collection[str],
+def _own_figures(results: RunResults, sections: Collection[str],
                  views: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Plots made here from the contract keys, for each section and channel the analysis
+    """Plots made here from the typed results, for each section and channel the analysis
     plugins gave no figure of their own (a figure name containing the channel counts)."""
-    stated = results.get("figures")
-    given: Mapping[str, Any] = stated if isinstance(stated, Mapping) else {}
-
     def wanted(section: str, channel: str = "") -> bool:
-        listed = given.get(section)
-        names: Mapping[str, Any] = listed if isinstance(listed, Mapping) else {}
-        return section in sections and not any(channel in str(name) for name in names)
+        names = results.figures.get(section, {})
+        return section in sections and not any(channel in name for name in names)
 
     makers: list[tuple[str, str, Callable[[], str | None]]] = []
-    peak = max(ex.step_values(ex.steps_of_kind(results, "sine"), "accel_dps2") or [0.0]) or None
+    accels = [s.accel_dps2 for s in results.steps_of_kind("sine") if finite(s.accel_dps2)]
+    peak = max([a for a in accels if a is not None] or [0.0]) or None
     for v in views:
-        if wanted("scale_factor", v["name"]) and isinstance(v["scale"], Mapping):
+        if wanted("scale_factor", v["name"]) and v["scale"] is not None:
             makers.append(("scale_factor", f"calibration curve {v['name']}",
                            partial(fig.calibration_curve, v["scale"], v["sensor"], peak)))
         if wanted("frf", v["name"]) and v["frf"]:
             makers.append(("frf", f"Bode {v['name']}", partial(
                 fig.bode, [r["point"] for r in v["frf"]], v["transfer_function"],
-                [(r["gain"] or {}).get("expanded_uncertainty") or 0.0 for r in v["frf"]])))
-        if wanted("temperature", v["name"]) and isinstance(v["temperature"], Mapping):
+                [(r["gain"].expanded_uncertainty if r["gain"] else None) or 0.0
+                 for r in v["frf"]])))
+        if wanted("temperature", v["name"]) and v["temperature"] is not None:
             makers.append(("temperature", f"bias vs temperature {v['name']}",
                            partial(fig.bias_vs_temperature, v["temperature"])))
-    sets = (ex.analysis(results, "misalignment") or {}).get("sets")
-    if wanted("misalignment") and isinstance(sets, Mapping):
+    block = results.analysis.misalignment
+    if wanted("misalignment") and block is not None and block.sets:
         makers.append(("misalignment", "cross responses in the complex plane",
-                       lambda: fig.misalignment_plane(sets)))
+                       lambda: fig.misalignment_plane(block.sets)))
     out = []
     for section, title, make in makers:
         svg = make()
@@ -110,54 +114,72 @@ def _own_figures(results: Mapping[str, Any], sections: Collection[str],
     return out
 
 
-def _rule(results: Mapping[str, Any]) -> str:
+def _rule(results: RunResults) -> str:
     """The decision rule the verdicts were made under (one per run)."""
-    rules = sorted({str(v["rule"]) for v in ex.require(results, "verdicts", "top level")})
-    return ", ".join(rules) or "no quantity judged"
+    return ", ".join(sorted({v.rule for v in results.verdicts})) or "no quantity judged"
 
 
-def _header(results: Mapping[str, Any], run_dir: Path, kind: str, title: str) -> dict[str, Any]:
+def verdict_rows(verdicts: list[Verdict]) -> list[dict[str, Any]]:
+    """The engine's verdicts as a person reads them: the quantity's name and unit symbol, the
+    value, limit and U with its significant digits."""
+    rows = []
+    for v in verdicts:
+        q = quantity(v.quantity)
+        rows.append({"quantity": q.name, "key": v.quantity, "channel": v.channel,
+                     "value": v.value, "limit": v.limit, "digits": q.digits,
+                     "expanded_uncertainty": v.expanded_uncertainty,
+                     "unit": q.unit or "—", "rule": v.rule, "verdict": v.verdict})
+    return rows
+
+
+def _header(results: RunResults, run_dir: Path, kind: str, title: str) -> dict[str, Any]:
     """What every report shows at the top and bottom: title, signing key, traceability."""
-    signature = results.get("signature")
     return {
         "report": {"kind": kind, "title": title,
                    "generated_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")},
-        "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
-        "certificate_number": results.get("certificate_number"),  # issued by aatest.records
+        "fingerprint": results.signature.fingerprint if results.signature else None,
+        "certificate_number": results.certificate_number,  # issued by aatest.records
         "trace": traceability(results, run_dir),
     }
 
 
-def build_context(results: Mapping[str, Any], run_dir: Path, kind: str, title: str,
+def build_context(results: RunResults, run_dir: Path, kind: str, title: str,
                   sections: Collection[str], plots: bool = True) -> dict[str, Any]:
-    """Everything a measurement report template needs.
-
-    Raises
-    ------
-    ResultsContractError
-        When the results lack the engine's decisions (``verdicts``, ``overall``) or a
-        contract key a section shows.
-    """
-    views = [_channel_view(results, ch) for ch in channels(results)]
-    present = {s for s in sections if ex.analysis(results, s) is not None}
+    """Everything a measurement report template needs, from the typed record."""
+    names = channels(results)
+    views = [_channel_view(results, ch) for ch in names]
+    present = {s for s in sections if s in results.analysis.present()}
+    block = results.analysis.misalignment
     return {
         **_header(results, run_dir, kind, title),
-        "procedure": results.get("procedure"),
+        "procedure": results.procedure,
         "sections": sorted(present),
         "channels": views,
-        "sync": ex.analysis(results, "sync") if "sync" in present else None,
+        "sync": results.analysis.sync if "sync" in present else None,
         "misalignment": misalignment_rows(results) if "misalignment" in present else [],
-        "misalignment_sets": ex.misalignment_sets(results),
-        "verdicts": ex.require(results, "verdicts", "top level"),
-        "overall": ex.require(results, "overall", "top level"),
+        "misalignment_sets": block.sets if block else {},
+        "verdicts": verdict_rows(results.verdicts),
+        "overall": results.overall,
         "rule": _rule(results),
-        "budgets": budget_views(results, channels(results)),
+        "budgets": budget_views(results, names),
         "figures": _analysis_figures(results, present)
         + (_own_figures(results, present, views) if plots else []),
-        "steps": results.get("steps") or [],
-        "analysis_errors": results.get("analysis_errors") or {},
-        "analysis_skipped": results.get("analysis_skipped") or [],
+        "steps": results.steps,
+        "analysis_errors": {analysis_name(k): m for k, m in results.analysis_errors.items()},
+        "analysis_skipped": [analysis_name(k) for k in results.analysis_skipped],
     }
+
+
+def _unrecorded(document: Mapping[str, Any]) -> RunResults:
+    """A diagnosis has no run results: the header states what it names, the rest as not
+    recorded."""
+    named = document.get("procedure")
+    return RunResults(procedure=named if isinstance(named, str) else "—")
+
+
+def _number(value: Any) -> float | None:
+    """A finite float from a diagnosis document's value, else None."""
+    return finite(float(value)) if isinstance(value, int | float) else None
 
 
 def _diagnosis_block(results: Mapping[str, Any]) -> Mapping[str, Any]:
@@ -168,19 +190,23 @@ def _diagnosis_block(results: Mapping[str, Any]) -> Mapping[str, Any]:
 def _strongest_lines(lines: list[Any], count: int = 12) -> list[Mapping[str, Any]]:
     """The residual's strongest spectral lines, largest amplitude first."""
     rows = [x for x in lines if isinstance(x, Mapping)]
-    return sorted(rows, key=lambda x: -(ex.as_float(x.get("amplitude_v")) or 0.0))[:count]
+    return sorted(rows, key=lambda x: -(_number(x.get("amplitude_v")) or 0.0))[:count]
 
 
 def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
     """View model of the ``aatest diagnose`` report (docs/interfaces.md §4)."""
     diag = _diagnosis_block(results)
     def rank(c: Mapping[str, Any]) -> tuple[bool, float]:
-        bic = ex.as_float(c.get("delta_bic"))
+        bic = _number(c.get("delta_bic"))
         return bic is None, bic if bic is not None else 0.0  # untestable ones last
 
     candidates = sorted((c for c in diag.get("candidates") or [] if isinstance(c, Mapping)),
                         key=rank)
-    figures = _analysis_figures(results, {"diagnose"})
+    given = results.get("figures")
+    drawn = given.get("diagnose") if isinstance(given, Mapping) else None
+    figures = [{"section": "diagnose", "title": f"Diagnosis: {name.replace('_', ' ')}",
+                "svg": vet_svg(svg)}
+               for name, svg in sorted((drawn or {}).items()) if isinstance(svg, str)]
     stated = diag.get("residuals")
     residuals: Mapping[str, Any] = stated if isinstance(stated, Mapping) else {}
     own = [("candidates and gain", fig.diagnosis_bars(diag))]
@@ -189,7 +215,8 @@ def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[s
     figures += [{"section": "diagnose", "title": title, "svg": vet_svg(svg)}
                 for title, svg in own if svg is not None]
     return {
-        **_header(results, run_dir, "diagnosis", "Diagnosis: what the simulation gets wrong"),
+        **_header(_unrecorded(results), run_dir, "diagnosis",
+                  "Diagnosis: what the simulation gets wrong"),
         "baseline": diag.get("baseline") or {},
         "findings": [f for f in diag.get("findings") or [] if isinstance(f, Mapping)],
         "candidates": candidates,

@@ -1,9 +1,9 @@
 """The report plugins (entry points in ``aatest.reports``): self-contained HTML files.
 
-Each reporter builds a view model from ``results.json`` (:mod:`.context`), renders its Jinja2
+Each reporter builds a view model from the typed results (:mod:`.context`), renders its Jinja2
 template in the sandbox (:mod:`.sandbox`) — the shipped one from ``aatest/reports`` or a lab's
 own from ``template_dir`` — and writes the file atomically into the run directory. The signing
-key's fingerprint, when the runner put it in ``results["signature"]``, is printed on the page
+key's fingerprint, when the runner put it in ``results.signature``, is printed on the page
 and stated in a ``<meta name="aatest-key-fingerprint">`` tag that ``aatest verify`` checks.
 """
 
@@ -20,6 +20,7 @@ from aatest.plugins.report import pdf
 from aatest.plugins.report.certificate import build_certificate
 from aatest.plugins.report.context import ALL_SECTIONS, build_context, build_diagnosis_context
 from aatest.plugins.report.sandbox import load_template, render_loaded
+from aatest.results import RunResults
 
 
 class ReportConfig(BaseModel):
@@ -38,7 +39,11 @@ def _write(path: Path, html: str) -> Path:
 
 
 class _HtmlReport:
-    """Shared render path; subclasses name their template, title and sections."""
+    """Shared render path; subclasses name their template, title and sections.
+
+    ``render`` receives the typed record (:class:`aatest.results.RunResults`); the diagnosis
+    report receives the document of ``aatest diagnose`` instead.
+    """
 
     Config: ClassVar[type[ReportConfig]] = ReportConfig
     template: ClassVar[str]
@@ -49,11 +54,11 @@ class _HtmlReport:
     def __init__(self, config: ReportConfig | None = None) -> None:
         self.config = config if config is not None else self.Config()
 
-    def context(self, results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
+    def context(self, results: Any, run_dir: Path) -> dict[str, Any]:
         return build_context(results, run_dir, self.template, self.title, self.sections,
                              self.config.plots)
 
-    def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path:
+    def render(self, results: Any, run_dir: Path, template_dir: Path | None) -> Path:
         """Render ``results`` into ``run_dir/<output_name>`` and return that path."""
         run_dir = Path(run_dir)
         template = load_template(f"{self.template}.html.j2", template_dir)  # fail before work
@@ -74,7 +79,7 @@ class CalibrationCertificate(_HtmlReport):
     template = "calibration-certificate"
     title = "Calibration certificate"
 
-    def context(self, results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
+    def context(self, results: RunResults, run_dir: Path) -> dict[str, Any]:
         """The measurement view plus the ISO/IEC 17025 §7.8 content (:mod:`.certificate`)."""
         view = super().context(results, run_dir)
         trace = view["trace"]
@@ -117,4 +122,5 @@ class DiagnosisReport(_HtmlReport):
     output_name = "diagnosis.html"
 
     def context(self, results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
+        """The diagnosis document of ``aatest diagnose`` (not a run's results)."""
         return build_diagnosis_context(results, run_dir)

@@ -33,14 +33,13 @@ from jinja2.sandbox import ImmutableSandboxedEnvironment
 from markupsafe import Markup
 
 from aatest.engine.errors import InputError
+from aatest.results.quantities import significant
 
 #: the shipped templates and static assets (no logic lives there)
 BUILTIN_TEMPLATES = Path(__file__).resolve().parents[2] / "reports"
 _MAX_REPEAT = 100_000
 _MAX_EXPONENT = 1_000
 #: |values| at or above / below these print in scientific notation
-_SCIENTIFIC_ABOVE = 1e6
-_SCIENTIFIC_BELOW = 1e-3
 
 
 class TemplateError(InputError):
@@ -100,12 +99,7 @@ def _as_float(value: Any) -> float | None:
 
 def _num(value: Any, digits: int = 4) -> str:
     """``digits`` significant figures; '—' for missing values."""
-    f = _as_float(value)
-    if f is None:
-        return "—"
-    if f != 0 and (abs(f) >= _SCIENTIFIC_ABOVE or abs(f) < _SCIENTIFIC_BELOW):
-        return f"{f:.{max(digits - 1, 0)}e}"
-    return f"{f:.{digits}g}" if abs(f) >= 10 ** digits else f"{f:#.{digits}g}".rstrip(".")
+    return significant(_as_float(value), digits)
 
 
 def _fixed(value: Any, decimals: int = 3) -> str:

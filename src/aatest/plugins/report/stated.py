@@ -1,101 +1,156 @@
 """What the engine stated about each result: values with U, and budgets, ready for templates.
 
-Reads only what the uncertainty stage wrote (:class:`aatest.results.base.Certified` fields):
-nothing here evaluates an uncertainty. A value the engine did not certify shows without U.
+Reads only what the uncertainty stage wrote (:class:`aatest.results.base.Certified` fields) on
+the typed record: nothing here evaluates an uncertainty. A value the engine did not certify
+shows without U. Names and units come from the quantity registry
+(:mod:`aatest.results.quantities`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
 from typing import Any
 
-from aatest.engine.uncertainty import access as ex
+from aatest.results import BudgetRow, RunResults
+from aatest.results.base import Certified
+from aatest.results.frf import FrfPoint
+from aatest.results.quantities import QUANTITIES, Quantity, finite
 
-#: (label, analysis key, value key, U key, budget key, unit) of each certified static quantity
-_STATIC: tuple[tuple[str, str, str, str, str, str], ...] = (
-    ("scale_factor", "scale_factor", "scale_v_per_dps2", "expanded_uncertainty", "budget",
-     "V/(°/s²)"),
-    ("bias", "bias", "bias_v", "expanded_uncertainty", "budget", "V"),
-    ("g_sensitivity", "bias", "g_sensitivity_dps2_per_g",
-     "g_sensitivity_expanded_uncertainty_dps2_per_g", "g_sensitivity_budget", "(°/s²)/g"),
-    ("bias_coefficient_v_per_c", "temperature", "bias_coefficient_v_per_c",
-     "expanded_uncertainty", "budget", "V/°C"),
-    ("scale_coefficient_per_c", "temperature", "scale_coefficient_per_c",
-     "scale_coefficient_expanded_uncertainty_per_c", "scale_coefficient_budget", "1/°C"),
+
+@dataclass(frozen=True)
+class Stated:
+    """A value as the engine stated it, with its expanded uncertainty (None: not certified)."""
+
+    value: float
+    expanded_uncertainty: float | None
+
+
+@dataclass(frozen=True)
+class StaticQuantity:
+    """A certified static quantity of one channel's result: where its value, U, k and budget
+    are in the typed record."""
+
+    quantity: Quantity
+    entry: Callable[[RunResults, str], Certified | None]
+    value: Callable[[Any], float | None]
+    u: Callable[[Any], float | None]
+    budget: Callable[[Any], list[BudgetRow]]
+
+
+def _scale(results: RunResults, ch: str) -> Certified | None:
+    return results.analysis.scale_factor.get(ch) if results.analysis.scale_factor else None
+
+
+def _bias(results: RunResults, ch: str) -> Certified | None:
+    return results.analysis.bias.get(ch) if results.analysis.bias else None
+
+
+def _temperature(results: RunResults, ch: str) -> Certified | None:
+    return results.analysis.temperature.get(ch) if results.analysis.temperature else None
+
+
+#: every certified static quantity, in the order the report lists them
+STATIC: tuple[StaticQuantity, ...] = (
+    StaticQuantity(QUANTITIES["scale_factor"], _scale, lambda e: e.scale_v_per_dps2,
+                   lambda e: e.expanded_uncertainty, lambda e: e.budget),
+    StaticQuantity(QUANTITIES["bias"], _bias, lambda e: e.bias_v,
+                   lambda e: e.expanded_uncertainty, lambda e: e.budget),
+    StaticQuantity(QUANTITIES["g_sensitivity"], _bias, lambda e: e.g_sensitivity_dps2_per_g,
+                   lambda e: e.g_sensitivity_expanded_uncertainty_dps2_per_g,
+                   lambda e: e.g_sensitivity_budget),
+    StaticQuantity(QUANTITIES["bias_coefficient_v_per_c"], _temperature,
+                   lambda e: e.bias_coefficient_v_per_c, lambda e: e.expanded_uncertainty,
+                   lambda e: e.budget),
+    StaticQuantity(QUANTITIES["scale_coefficient_per_c"], _temperature,
+                   lambda e: e.scale_coefficient_per_c,
+                   lambda e: e.scale_coefficient_expanded_uncertainty_per_c,
+                   lambda e: e.scale_coefficient_budget),
 )
 
 
-def _value(entry: Mapping[str, Any], key: str, u_key: str) -> dict[str, Any] | None:
-    value = ex.as_float(entry.get(key))
-    if value is None:
-        return None
-    return {"value": value, "expanded_uncertainty": ex.as_float(entry.get(u_key))}
+def static_values(results: RunResults, ch: str
+                  ) -> Iterator[tuple[StaticQuantity, Certified, float]]:
+    """(quantity, result entry, value) of every static quantity the channel's results state."""
+    for q in STATIC:
+        entry = q.entry(results, ch)
+        value = finite(q.value(entry)) if entry is not None else None
+        if entry is not None and value is not None:
+            yield q, entry, value
 
 
-def stated(results: Mapping[str, Any], ch: str) -> dict[str, dict[str, Any]]:
-    """``label → {value, expanded_uncertainty}`` of one channel's static results."""
-    out = {}
-    for label, block, key, u_key, _, _ in _STATIC:
-        entry = ex.channel_entry(results, block, ch)
-        shown = _value(entry, key, u_key) if isinstance(entry, Mapping) else None
-        if shown is not None:
-            out[label] = shown
-    return out
+def stated(results: RunResults, ch: str) -> dict[str, Stated]:
+    """``quantity key → value with U`` of one channel's static results."""
+    return {q.quantity.key: Stated(value, finite(q.u(entry)))
+            for q, entry, value in static_values(results, ch)}
 
 
-def frf_rows(results: Mapping[str, Any], ch: str) -> list[dict[str, Any]]:
-    """FRF points with their gain and phase (each ``{value, expanded_uncertainty}``)."""
-    return [{"point": p, "gain": _value(p, "gain_db", "gain_expanded_uncertainty_db"),
-             "phase": _value(p, "phase_deg", "phase_expanded_uncertainty_deg")}
-            for p in ex.frf_points(results, ch)]
+def frf_points(results: RunResults, ch: str) -> list[FrfPoint]:
+    """The FRF points of one channel (empty without an FRF)."""
+    return list(results.analysis.frf.get(ch) or []) if results.analysis.frf else []
 
 
-def misalignment_rows(results: Mapping[str, Any]) -> list[dict[str, Any]]:
+def _value(value: float | None, u: float | None) -> Stated | None:
+    shown = finite(value)
+    return None if shown is None else Stated(shown, finite(u))
+
+
+def frf_rows(results: RunResults, ch: str) -> list[dict[str, Any]]:
+    """FRF points with their gain and phase (each value with U)."""
+    return [{"point": p, "gain": _value(p.gain_db, p.gain_expanded_uncertainty_db),
+             "phase": _value(p.phase_deg, p.phase_expanded_uncertainty_deg)}
+            for p in frf_points(results, ch)]
+
+
+def misalignment_rows(results: RunResults) -> list[dict[str, Any]]:
     """One row per scenario and sensor: δ and its U."""
-    return [{"scenario": s, "sensor": sensor, "delta_deg": entry.get("delta_deg"),
-             "u": _value(entry, "delta_deg", "expanded_uncertainty")}
-            for s, sensors in ex.misalignment_scenarios(results).items()
+    block = results.analysis.misalignment
+    scenarios = block.scenarios if block is not None else {}
+    return [{"scenario": s, "sensor": sensor, "delta_deg": entry.delta_deg,
+             "u": _value(entry.delta_deg, entry.expanded_uncertainty), "entry": entry}
+            for s, sensors in sorted(scenarios.items())
             for sensor, entry in sorted(sensors.items())]
 
 
-def _budget(name: str, unit: str, value: Any, u: Any, k: Any, rows: Sequence[Mapping[str, Any]]
-            ) -> dict[str, Any]:
+def _budget(name: str, unit: str, value: float, u: float | None, k: float | None,
+            rows: Sequence[BudgetRow]) -> dict[str, Any]:
     """A budget as printed: rows with their share of Σu_i² (the budget's own proportions)."""
-    total = sum(float(r["contribution"]) ** 2 for r in rows)
+    total = sum(r.contribution ** 2 for r in rows)
     return {"name": name, "unit": unit, "value": value, "expanded_uncertainty": u, "k": k,
-            "rows": [{**r, "share_pct": 100.0 * float(r["contribution"]) ** 2 / total
+            "rows": [{**r.model_dump(), "share_pct": 100.0 * r.contribution ** 2 / total
                       if total > 0 else 0.0} for r in rows]}
 
 
-def _worst_frf(results: Mapping[str, Any], ch: str) -> list[dict[str, Any]]:
+def _worst_frf(results: RunResults, ch: str) -> list[dict[str, Any]]:
     """The FRF point with the largest gain U: its gain and phase budgets (the table's worst)."""
-    rated = [p for p in ex.frf_points(results, ch) if p.get("gain_budget")]
+    rated = [p for p in frf_points(results, ch)
+             if p.gain_budget and p.gain_expanded_uncertainty_db is not None]
     if not rated:
         return []
-    p = max(rated, key=lambda q: q["gain_expanded_uncertainty_db"])
-    at = f"{ch} at {p['frequency_hz']:.4f} Hz"
-    return [_budget(f"FRF gain {at}", "dB", p["gain_db"], p["gain_expanded_uncertainty_db"],
-                    p.get("coverage_factor"), p["gain_budget"]),
-            _budget(f"FRF phase {at}", "deg", p["phase_deg"],
-                    p.get("phase_expanded_uncertainty_deg"),
-                    p.get("phase_coverage_factor") or p.get("coverage_factor"),
-                    p.get("phase_budget") or [])]
+    p = max(rated, key=lambda q: q.gain_expanded_uncertainty_db or 0.0)
+    at = f"{ch} at {p.frequency_hz:.4f} Hz"
+    gain, phase = QUANTITIES["frf_gain"], QUANTITIES["frf_phase"]
+    return [_budget(f"{gain.name} {at}", gain.unit, p.gain_db, p.gain_expanded_uncertainty_db,
+                    p.coverage_factor, p.gain_budget),
+            _budget(f"{phase.name} {at}", phase.unit, p.phase_deg,
+                    p.phase_expanded_uncertainty_deg,
+                    p.phase_coverage_factor or p.coverage_factor, p.phase_budget)]
 
 
-def budget_views(results: Mapping[str, Any], channels: Sequence[str]) -> list[dict[str, Any]]:
+def budget_views(results: RunResults, channels: Sequence[str]) -> list[dict[str, Any]]:
     """Every budget the engine wrote: static quantities, the worst FRF point, misalignment."""
     out = []
     for ch in channels:
-        for label, block, key, u_key, budget_key, unit in _STATIC:
-            entry = ex.channel_entry(results, block, ch)
-            if isinstance(entry, Mapping) and entry.get(budget_key):
-                out.append(_budget(f"{label.replace('_', ' ')} {ch}", unit, entry[key],
-                                   entry[u_key], entry.get("coverage_factor"), entry[budget_key]))
+        for q, entry, value in static_values(results, ch):
+            if q.budget(entry):
+                out.append(_budget(f"{q.quantity.name} {ch}", q.quantity.unit, value,
+                                   finite(q.u(entry)), entry.coverage_factor, q.budget(entry)))
         out += _worst_frf(results, ch)
+    angle = QUANTITIES["misalignment"]
     for row in misalignment_rows(results):
-        entry = ex.misalignment_scenarios(results)[row["scenario"]][row["sensor"]]
-        if entry.get("budget"):
-            out.append(_budget(f"misalignment {row['sensor']} scenario {row['scenario']}", "deg",
-                               entry["delta_deg"], entry["expanded_uncertainty"],
-                               entry.get("coverage_factor"), entry["budget"]))
+        entry = row["entry"]
+        if entry.budget:
+            out.append(_budget(f"{angle.name} {row['sensor']} scenario {row['scenario']}",
+                               angle.unit, entry.delta_deg, entry.expanded_uncertainty,
+                               entry.coverage_factor, entry.budget))
     return out

@@ -1,6 +1,6 @@
 """The traceability block: what was run, on what, by whom, with which software and data.
 
-Everything here is read from ``results.json`` (metadata written by the runner) except the
+Everything here is read from the typed results (metadata written by the runner) except the
 recording hash, which is computed from ``run_dir/recording.mcap`` at render time so the
 certificate names the exact raw data it was derived from.
 """
@@ -8,6 +8,7 @@ certificate names the exact raw data it was derived from.
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,7 +16,9 @@ from typing import Any
 
 import aatest
 from aatest.engine.run.signing import file_sha256
-from aatest.engine.uncertainty import access as ex
+from aatest.results import RunResults
+from aatest.results.root import RunMetadata
+from aatest.results.sensor import SensorInfo
 
 RECORDING_FILE = "recording.mcap"
 
@@ -27,9 +30,9 @@ class Traceability:
     procedure: str
     procedure_sha256: str
     procedure_text: str
-    rig: Mapping[str, Any]
+    rig: list[tuple[str, str]]
     plugins: list[tuple[str, str]]
-    sensors: list[Mapping[str, Any]]
+    sensors: list[SensorInfo]
     table_serial: str
     operator: str
     started_utc: str
@@ -42,41 +45,41 @@ class Traceability:
     chamber_setpoints_c: list[float] = field(default_factory=list)
 
 
-def _plugins(meta: Mapping[str, Any]) -> list[tuple[str, str]]:
-    """``(role, "name distribution version")`` pairs from whatever form the runner used."""
-    listed = meta.get("plugins") or meta.get("plugin_versions") or {}
+def _plugins(meta: RunMetadata) -> list[tuple[str, str]]:
+    """``(role, "name distribution version")`` pairs of the plugins the run used."""
+    return [(role, text) for role, text in sorted(meta.plugin_versions.items())]
+
+
+def _rig(results: RunResults) -> list[tuple[str, str]]:
+    """``(role, plugin and options)`` of the rig, as a person reads it (no Python repr)."""
     rows = []
-    if isinstance(listed, Mapping):
-        for role, info in sorted(listed.items()):
-            if isinstance(info, Mapping):
-                keys = ("name", "distribution", "version")
-                text = " ".join(str(info[k]) for k in keys if k in info)
-            else:
-                text = str(info)
-            rows.append((str(role), text))
+    for role, stated in sorted(results.rig.items()):
+        if isinstance(stated, Mapping):
+            plugin = stated.get("plugin")
+            options = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in sorted(stated.items())
+                                if k != "plugin" and not isinstance(v, Mapping | list))
+            text = " ".join(str(x) for x in (plugin, f"({options})" if options else "") if x)
+        else:
+            text = str(stated)
+        rows.append((role, text or "—"))
     return rows
 
 
-def _environment_c(results: Mapping[str, Any], meta: Mapping[str, Any]) -> float | None:
+def _environment_c(meta: RunMetadata) -> float | None:
+    """The ambient temperature the run recorded, °C (imports may state one)."""
     for key in ("ambient_c", "environment_c", "temperature_c"):
-        value = ex.as_float(meta.get(key))
-        if value is not None:
-            return value
-    env = meta.get("environment")
-    if isinstance(env, Mapping):
-        return ex.as_float(env.get("temperature_c"))
+        value = meta.recorded(key)
+        if isinstance(value, int | float) and math.isfinite(value):
+            return float(value)
     return None
 
 
-def _table_serial(results: Mapping[str, Any], meta: Mapping[str, Any]) -> str:
-    for source in (meta, meta.get("rig") or {}, results.get("rig") or {}):
-        if isinstance(source, Mapping):
-            for key in ("table_serial", "turntable_serial"):
-                if source.get(key):
-                    return str(source[key])
-            table = source.get("turntable")
-            if isinstance(table, Mapping) and table.get("serial"):
-                return str(table["serial"])
+def _table_serial(results: RunResults) -> str:
+    if results.metadata.table_serial:
+        return results.metadata.table_serial
+    table = results.rig.get("turntable")
+    if isinstance(table, Mapping) and table.get("serial"):
+        return str(table["serial"])
     return "—"
 
 
@@ -86,27 +89,28 @@ def recording_hash(run_dir: Path) -> str:
     return file_sha256(path) if path.is_file() else "no recording.mcap in the run directory"
 
 
-def traceability(results: Mapping[str, Any], run_dir: Path) -> Traceability:
+def traceability(results: RunResults, run_dir: Path) -> Traceability:
     """Collect the traceability block of a report."""
-    meta = results.get("metadata") or {}
-    text = str(meta.get("procedure_text") or "")
+    meta = results.metadata
+    text = str(meta.recorded("procedure_text") or "")
     computed = hashlib.sha256(text.encode()).hexdigest() if text else "—"
-    sha = str(meta.get("procedure_sha256") or computed)
+    seed = meta.recorded("seed")
     return Traceability(
-        procedure=str(results.get("procedure") or meta.get("procedure") or "—"),
-        procedure_sha256=sha,
+        procedure=results.procedure or meta.procedure or "—",
+        procedure_sha256=meta.procedure_sha256 or computed,
         procedure_text=text,
-        rig=results.get("rig") or meta.get("rig") or {},
+        rig=_rig(results),
         plugins=_plugins(meta),
-        sensors=list(ex.sensors(results).values()),
-        table_serial=_table_serial(results, meta),
-        operator=str(meta.get("operator") or "—"),
-        started_utc=str(meta.get("started_utc") or "—"),
-        environment_c=_environment_c(results, meta),
-        chamber_setpoints_c=ex.step_values(ex.steps_of_kind(results, "chamber"), "temperature_c"),
-        software_version=str(meta.get("aatest_version") or aatest.__version__),
+        sensors=list(meta.sensors),
+        table_serial=_table_serial(results),
+        operator=meta.operator or "—",
+        started_utc=meta.started_utc or "—",
+        environment_c=_environment_c(meta),
+        chamber_setpoints_c=[s.temperature_c for s in results.steps_of_kind("chamber")
+                             if s.temperature_c is not None],
+        software_version=str(meta.recorded("aatest_version") or aatest.__version__),
         recording_sha256=recording_hash(run_dir),
-        seed=meta.get("seed", "—"),
-        extra={"lab_duration_s": results.get("lab_duration_s"),
-               "wall_duration_s": results.get("wall_duration_s")},
+        seed=seed if seed is not None else "—",
+        extra={"lab_duration_s": results.lab_duration_s,
+               "wall_duration_s": results.wall_duration_s},
     )

@@ -1,0 +1,111 @@
+"""Display names, unit symbols and significant digits of every reported quantity, in one place.
+
+The certificate, the other reports, the station, ``aatest history`` and the terminal summary
+show a quantity by its :class:`Quantity` entry here — never by its results.json field name.
+``json_unit`` is the unit string results.json carries for the quantity (``Verdict.unit``,
+unchanged for compatibility); ``unit`` is the symbol a person reads.
+
+>>> QUANTITIES["nonlinearity_pct_fr"].name
+'Nonlinearity, % of full range'
+>>> QUANTITIES["scale_factor"].show(0.0040139, 1.2e-6)
+'4.01390e-03 ± 1.2e-06 V/(°/s²)'
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from aatest.results._fields import finite
+
+__all__ = ["ANALYSES", "QUANTITIES", "Quantity", "analysis_name", "finite", "quantity",
+           "significant"]
+
+#: significant digits of an expanded uncertainty (GUM 7.2.6: at most two)
+U_DIGITS = 2
+#: magnitudes written in scientific notation: at or above the first, below the second
+SCIENTIFIC_ABOVE, SCIENTIFIC_BELOW = 1e6, 1e-3
+
+
+def significant(value: float | None, digits: int) -> str:
+    """``value`` to ``digits`` significant figures, scientific outside 1e-3…1e6; ``—`` when
+    there is no finite value. The one number format of reports, station and terminal.
+
+    >>> significant(0.0040139, 5), significant(2.4987, 6), significant(None, 3)
+    ('4.0139e-03', '2.49870', '—')
+    """
+    f = finite(value)
+    if f is None:
+        return "—"
+    if f != 0 and (abs(f) >= SCIENTIFIC_ABOVE or abs(f) < SCIENTIFIC_BELOW):
+        return f"{f:.{max(digits - 1, 0)}e}"
+    return f"{f:.{digits}g}" if abs(f) >= 10 ** digits else f"{f:#.{digits}g}".rstrip(".")
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """How a person reads one quantity: its name, unit symbol and significant digits."""
+
+    key: str
+    name: str
+    unit: str
+    digits: int
+    json_unit: str = ""
+
+    def value_text(self, value: float | None) -> str:
+        """The value with the quantity's significant digits (``—`` when not finite)."""
+        return significant(value, self.digits)
+
+    def show(self, value: float | None, u: float | None = None) -> str:
+        """``value ± U unit`` (without ``± U`` when there is none), e.g. on a terminal."""
+        text = self.value_text(value)
+        if finite(u) is not None:
+            text += f" ± {significant(u, U_DIGITS)}"
+        return f"{text} {self.unit}".rstrip()
+
+
+def _q(key: str, name: str, unit: str, digits: int, json_unit: str | None = None) -> Quantity:
+    return Quantity(key, name, unit, digits, unit if json_unit is None else json_unit)
+
+
+#: every certified, judged or recorded quantity, by the key results.json and the records use
+QUANTITIES: dict[str, Quantity] = {q.key: q for q in (
+    # certified values (uncertainty budgets, certificate rows, records)
+    _q("scale_factor", "Scale factor", "V/(°/s²)", 6),
+    _q("bias", "Bias", "V", 6),
+    _q("g_sensitivity", "g-sensitivity", "(°/s²)/g", 4),
+    _q("bias_coefficient_v_per_c", "Bias temperature coefficient", "V/°C", 4),
+    _q("scale_coefficient_per_c", "Scale-factor temperature coefficient", "1/°C", 4),
+    _q("frf_gain", "FRF gain", "dB", 5),
+    _q("frf_phase", "FRF phase", "°", 4, "deg"),
+    _q("misalignment", "Misalignment angle", "°", 4, "deg"),
+    # judged quantities (verdicts)
+    _q("scale_factor_deviation_pct", "Scale-factor deviation from nominal", "%", 4),
+    _q("bias_deviation_v", "Bias deviation from nominal", "V", 4),
+    _q("nonlinearity_pct_fr", "Nonlinearity, % of full range", "% FR", 3),
+    _q("g_sensitivity_dps2_per_g", "g-sensitivity", "(°/s²)/g", 4),
+    _q("cross_axis_ratio", "Cross-axis ratio", "", 4, "1"),
+    _q("misalignment_deg", "Misalignment angle", "°", 4, "deg"),
+    _q("bias_temperature_v_per_c", "Bias temperature coefficient", "V/°C", 4),
+    _q("scale_temperature_per_c", "Scale-factor temperature coefficient", "1/°C", 4),
+    _q("noise_rms_v", "Output noise (RMS)", "V", 3),
+)}
+
+#: a person's name of each analysis (results.json ``analysis`` key)
+ANALYSES: dict[str, str] = {
+    "sync": "Logger synchronisation", "reference": "Acceleration references",
+    "bias": "Bias and g-sensitivity", "scale_factor": "Scale factor",
+    "frf": "Frequency response", "thd": "Harmonic distortion", "snr": "Signal-to-noise ratio",
+    "transfer_function": "Transfer function", "temperature": "Temperature coefficients",
+    "misalignment": "Misalignment", "noise": "Noise", "drift": "Bias drift and Allan deviation",
+    "diagnose": "Diagnosis",
+}
+
+
+def quantity(key: str) -> Quantity:
+    """The entry of ``key``; an unknown key (a third-party quantity) reads as its own words."""
+    return QUANTITIES.get(key) or Quantity(key, key.replace("_", " ").capitalize(), "", 6)
+
+
+def analysis_name(key: str) -> str:
+    """A person's name of an analysis; a third-party one reads as its own words."""
+    return ANALYSES.get(key) or key.replace("_", " ").capitalize()

@@ -1,0 +1,140 @@
+"""results.json of each shipped procedure against a reference written by the dict-based engine.
+
+The six files in ``data/reference/`` were produced by the engine before the typed record went
+end to end (results built as a dict and read by string keys): each procedure's short variant in
+``data/`` (same analyses, same report, fewer and shorter records) run on the digital twin with
+``--seed 7``. Rerunning it now must give the same document: the same keys everywhere, the same
+strings, numbers within the tolerances below. What legitimately differs run to run is left out
+(:data:`VOLATILE`); figures are compared by name (their SVG is the analyses', not this
+stage's).
+
+Regenerate (only when a change of results is intended, and say so in the commit)::
+
+    python tests/results/test_results_reference.py OUT_DIR   # after running the six variants
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import math
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from aatest.engine.run.session import run
+
+DATA = Path(__file__).parent / "data"
+REFERENCE = DATA / "reference"
+PROCEDURES = ("long-static-drift", "pivoted-misalignment", "scale-factor",
+              "static-multi-position", "stepped-sine-frequency-response", "temperature-steps")
+SEED = 7
+
+#: keys whose values differ from run to run by design (time, place, who, the record number)
+VOLATILE = {
+    ("wall_duration_s",), ("certificate_number",), ("metadata", "started_utc"),
+    ("metadata", "recording"), ("metadata", "operator"), ("metadata", "procedure_text"),
+    ("metadata", "lab"),
+}
+#: numbers that are measured times, not results (the reference analysis times each method)
+VOLATILE_LEAVES = re.compile(r".*\.runtime_s$")
+
+#: relative tolerance of a well-conditioned number: a sum, mean, product or ratio of measured
+#: values loses a few ulp per operation; 1e-9 leaves six orders of magnitude for a different
+#: BLAS kernel or summation order and still catches any change of the computation
+REL = 1e-9
+#: (path pattern, rel, abs, reason) for numbers that are ill-conditioned by construction
+WIDE: tuple[tuple[str, float, float, str], ...] = (
+    # polynomial fits up to order 15 on a Vandermonde matrix (condition number ~1e12 even after
+    # centring): their higher coefficients, covariances and the statistics derived from them
+    # carry ~1e-4 of relative noise from the last bit of the solve
+    (r"analysis\.scale_factor\..*\.(fit|inverse|validation|coefficients|ci95)", 1e-3, 1e-12,
+     "high-order polynomial least squares, condition ~1e12"),
+    # ARX candidate models of order up to 6: normal equations of lagged samples (condition
+    # ~1e8) and the metrics (nAIC, FPE, fit %) computed from their residuals
+    (r"analysis\.transfer_function\.", 1e-5, 1e-12,
+     "transfer-function least squares of lagged samples, condition ~1e8"),
+    # the Allan deviation fit solves for terms that are differences of nearly equal slopes
+    (r"analysis\.drift\..*\.allan_fit", 1e-6, 1e-15, "Allan-term least squares"),
+    # a correlation near ±1 or a residual near 0 is a small difference of large numbers: an
+    # absolute tolerance at the scale of its inputs' rounding
+    (r".*(correlation|residual|_rms_|rmse|sse)", 1e-7, 1e-14,
+     "residuals and correlations: differences of nearly equal numbers"),
+)
+
+
+def comparable(document: dict[str, Any]) -> dict[str, Any]:
+    """The document without its volatile keys, with each figure reduced to its name."""
+    out = json.loads(json.dumps(document))
+    for path in VOLATILE:
+        parent = out
+        for key in path[:-1]:
+            parent = parent.get(key, {})
+        parent.pop(path[-1], None)
+    for answer in out.get("metadata", {}).get("prompt_answers", []):
+        answer.pop("answered_utc", None)  # when the run happened
+    out["figures"] = {k: sorted(v) for k, v in out.get("figures", {}).items()}
+    return out
+
+
+def _tolerance(path: str) -> tuple[float, float]:
+    for pattern, rel, abs_, _reason in WIDE:
+        if re.match(pattern, path):
+            return rel, abs_
+    return REL, 0.0
+
+
+def _number_differs(before: float, after: float, path: str) -> list[str]:
+    rel, abs_ = _tolerance(path)
+    if VOLATILE_LEAVES.match(path) or math.isclose(before, after, rel_tol=rel, abs_tol=abs_):
+        return []
+    return [f"{path}: {before!r} became {after!r} (rel {rel:g}, abs {abs_:g})"]
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def differences(before: Any, after: Any, path: str = "") -> list[str]:
+    """Every place the two documents differ beyond the tolerances, as readable lines."""
+    if isinstance(before, dict) and isinstance(after, dict):
+        if before.keys() != after.keys():
+            return [f"{path}: keys {sorted(before.keys() ^ after.keys())} differ"]
+        return [d for k in before
+                for d in differences(before[k], after[k], f"{path}.{k}".lstrip("."))]
+    if isinstance(before, list) and isinstance(after, list):
+        if len(before) != len(after):
+            return [f"{path}: {len(before)} items became {len(after)}"]
+        return [d for i, (b, a) in enumerate(zip(before, after, strict=True))
+                for d in differences(b, a, f"{path}[{i}]")]
+    if _is_number(before) and _is_number(after):
+        return _number_differs(before, after, path)
+    return [] if before == after else [f"{path}: {before!r} became {after!r}"]
+
+
+@pytest.mark.parametrize("name", PROCEDURES, ids=PROCEDURES)
+def test_results_json_matches_the_reference(name: str, tmp_path: Path) -> None:
+    run_dir, _ = run(DATA / f"{name}.yaml", None, tmp_path / name, False, SEED, None,
+                     show_progress=False, operator="reference", confirm_prompts="auto")
+    after = comparable(json.loads((run_dir / "results.json").read_text()))
+    with gzip.open(REFERENCE / f"{name}.json.gz", "rt") as f:
+        before = json.load(f)
+    found = differences(before, after)
+    assert not found, "\n".join(found[:20])
+
+
+def _write_references(runs: Path) -> None:
+    """Write the reference of every procedure from ``runs/<name>/results.json``."""
+    REFERENCE.mkdir(exist_ok=True)
+    for name in PROCEDURES:
+        document = comparable(json.loads((runs / name / "results.json").read_text()))
+        text = json.dumps(document, separators=(",", ":"), sort_keys=False)
+        with gzip.GzipFile(REFERENCE / f"{name}.json.gz", "wb", mtime=0) as f:
+            f.write(text.encode())
+
+
+if __name__ == "__main__":
+    _write_references(Path(sys.argv[1]))
