@@ -228,7 +228,10 @@ def test_unreadable_or_broken_runs_are_left_out(
     monkeypatch.setattr(RunState, "load", staticmethod(load_or_deny))
     doc = _client(tmp_path).get("/api/runs")
     assert doc.status_code == 200
-    assert [row["name"] for row in doc.json()["runs"]] == ["good"]
+    rows = {row["name"]: row for row in doc.json()["runs"]}
+    # a run whose results.json is broken is still a run: listed, its error shown, not hidden
+    assert sorted(rows) == ["bad-results", "good"]
+    assert "results_error" in rows["bad-results"] and "results_error" not in rows["good"]
 
 
 def test_symlinked_runs_and_files_are_never_served(tmp_path: Path) -> None:
