@@ -95,11 +95,11 @@ def journal_table(tmp_path_factory: pytest.TempPathFactory,
     sys.modules.pop("acme_journal_table", None)
 
 
-def _files(tmp_path: Path, turntable: str) -> tuple[Path, Path]:
+def _files(tmp_path: Path, turntable: str, daq: str = "{plugin: sim}") -> tuple[Path, Path]:
     procedure = tmp_path / "procedure.yaml"
     procedure.write_text(PROCEDURE)
     rig = tmp_path / "rig.yaml"
-    rig.write_text(f"turntable: {turntable}\ndaq: {{plugin: sim}}\nchamber: {{plugin: none}}\n")
+    rig.write_text(f"turntable: {turntable}\ndaq: {daq}\nchamber: {{plugin: none}}\n")
     return procedure, rig
 
 
@@ -167,7 +167,8 @@ def test_validate_with_the_modbus_driver_opens_no_connection(tmp_path: Path) -> 
     port = _CountingPort()
     try:
         procedure, rig = _files(tmp_path, f"{{plugin: modbus, host: 127.0.0.1, port: "
-                                          f"{port.port}, timeout_s: 0.5, retries: 0}}")
+                                          f"{port.port}, timeout_s: 0.5, retries: 0}}",
+                                 "{plugin: can, interface: virtual, channel: life-cycle}")
         for command in ("validate", "plan"):
             result = CliRunner().invoke(app, [command, str(procedure), "--rig", str(rig)])
             assert result.exit_code == 0, result.output

@@ -22,6 +22,7 @@ from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.uncertainty import access as ex
 from aatest.engine.uncertainty import components as comp
 from aatest.engine.uncertainty.components import ARCSEC_RAD
+from aatest.engine.uncertainty.declared import Basis, declared_encoder
 from aatest.engine.uncertainty.evidence import Evidence, gather
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
 
@@ -55,6 +56,9 @@ class RigConstants(BaseModel):
     instruments: Instruments = Field(default_factory=Instruments)
     instruments_stated: bool = Field(False, description="the rig description stated them")
     evidence: Evidence = Field(default_factory=Evidence)
+    #: encoder numbers not from the rig description: declared by the table plugin, or a
+    #: default naming the missing declaration (:mod:`.declared`)
+    encoder_basis: Basis = Field(default_factory=dict)
 
     @classmethod
     def from_results(cls, results: Mapping[str, Any], data: Any = None) -> RigConstants:
@@ -70,7 +74,9 @@ class RigConstants(BaseModel):
         """
         stated = ex.stated_instruments(results)
         instruments = Instruments.model_validate(stated) if stated is not None else Instruments()
-        return cls(position_accuracy_arcsec=instruments.encoder.accuracy_arcsec,
+        instruments, encoder_basis = declared_encoder(results, instruments)
+        return cls(encoder_basis=encoder_basis,
+                   position_accuracy_arcsec=instruments.encoder.accuracy_arcsec,
                    wobble_arcsec=instruments.table.wobble_arcsec,
                    orthogonality_arcsec=instruments.table.orthogonality_arcsec,
                    thermometer_uncertainty_c=instruments.thermometer.accuracy_c / math.sqrt(3.0),
