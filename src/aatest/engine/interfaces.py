@@ -10,6 +10,13 @@ as ``PluginClass(config, context)``; an analysis plugin has ``Options`` instead 
 constructed without arguments. Simulated plugins share the digital twin through
 ``RigContext.resources`` (one object per type); real drivers ignore it. The sensor datasheet
 is defined in :mod:`aatest.engine.datasheet` and re-exported here.
+
+Constructing a rig plugin does no I/O: ``validate`` and ``plan`` build the rig only to read its
+declarations (``envelope``, the optional ``capabilities`` and ``cannot_follow``) and never
+start, stop or close it. Optional methods (absent on older plugins, found with ``getattr``):
+``Turntable.capabilities()`` (:func:`table_capabilities`), ``Daq.cannot_follow(turntable)``
+(:func:`daq_refusal`), ``Daq.stream_logging`` (:class:`StreamingDaq`). The whole contract:
+docs/vendor-plugins.md, "The plugin contract".
 """
 
 from __future__ import annotations
