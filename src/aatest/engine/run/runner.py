@@ -90,6 +90,10 @@ class _ChamberTracker:
         self.setpoint_c = target
 
 
+#: the table serial of a plugin that reports none
+UNREPORTED = "not reported by the plugin"
+
+
 def identity_metadata(rig: Rig) -> dict[str, Any]:
     """The table's serial and the rig's declared capabilities, as the plugins report them now.
 
@@ -103,7 +107,7 @@ def identity_metadata(rig: Rig) -> dict[str, Any]:
     plugin = rig.config.get("turntable", {}).get("plugin")
     turntable = {"plugin": plugin, "distribution": rig.versions.get(f"turntable:{plugin}"),
                  "declared": declared.model_dump(mode="json") if declared is not None else None}
-    return {"table_serial": str(serial or "not reported by the plugin"),
+    return {"table_serial": str(serial or UNREPORTED),
             "rig": {**rig.config, "capabilities": {"turntable": turntable}}}
 
 

@@ -32,6 +32,7 @@ from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_respond
 from aatest.engine.run.rig import Rig, build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock
 from aatest.engine.run.runner import (
+    UNREPORTED,
     default_run_dir,
     identity_metadata,
     procedure_sha256,
@@ -307,17 +308,12 @@ def _run_locked(request: _RunRequest) -> tuple[Path, dict[str, Any]]:
     recorder = RunRecorder(out_dir)
     if not state.finished:  # a finished run that is "resumed" is only analysed again
         rig = build_rig(prepared.rig_config, plan.sensor, seed)
-        identified = None
         if not resume:
             meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
             meta["report_template"] = plan.report_template
             recorder.write_run_metadata(meta)  # before start: a failed start can be resumed
-
-            def identified(started: Rig) -> None:  # the table's identity, as it reports it
-                recorder.write_run_metadata({**meta, **identity_metadata(started)})
-
         run_plan(plan, rig, recorder, state, out_dir, show_progress=request.show_progress,
-                 events=events, on_started=identified)
+                 events=events, on_started=lambda started: _identify(recorder, started))
         recorder.finalize()
         state.finished = True
         state.save(out_dir)
@@ -337,6 +333,26 @@ def _run_locked(request: _RunRequest) -> tuple[Path, dict[str, Any]]:
                         "confirm_prompts": request.prompt_mode},
     )
     return out_dir, results
+
+
+def _identify(recorder: Any, started: Rig) -> None:
+    """Record the table's identity once the rig has started (a driver identifies its
+    controller in ``start``): its serial and declared capabilities join the run metadata.
+
+    A resumed run must go on on the table it was recorded on: a table that identifies with
+    another serial is a :class:`RigFault` (exit 3, the rig is then stopped and closed).
+    """
+    from aatest.engine.errors import RigFault
+    from aatest.engine.recording.writer import load_run_metadata
+
+    recorded = load_run_metadata(recorder.steps_dir)
+    identity = identity_metadata(started)
+    before, now = recorded.get("table_serial"), identity["table_serial"]
+    if UNREPORTED not in (before, now) and before not in (None, now):
+        raise RigFault(f"the table identifies as serial {now!r}, but this run was recorded on "
+                       f"{before!r}: resume it on that table")
+    rig = {**(recorded.get("rig") or {}), "capabilities": identity["rig"]["capabilities"]}
+    recorder.write_run_metadata({**recorded, "table_serial": now, "rig": rig})
 
 
 def report(
