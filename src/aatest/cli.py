@@ -499,7 +499,20 @@ def sim_server_modbus(
 
 
 def main() -> None:
-    app()
+    """The ``aatest`` console script: a reader of stdout that goes away ends it quietly.
+
+    Every command's output goes through one stdout (:mod:`aatest.cli_stdout`): when the reader
+    closes the pipe (``aatest plugins | head -1``) the command unwinds through its ``finally``
+    blocks (a run's rig stopped and closed) and exits 141 (128 + SIGPIPE) without a message.
+    """
+    from aatest.cli_stdout import EXIT_READER_GONE, ReaderAwareStdout, ReaderGone, silence_stdout
+
+    sys.stdout = ReaderAwareStdout(sys.stdout)
+    try:
+        app()
+    except ReaderGone:
+        silence_stdout()
+        sys.exit(EXIT_READER_GONE)
 
 
 if __name__ == "__main__":

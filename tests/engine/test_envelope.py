@@ -209,3 +209,28 @@ def test_every_shipped_procedure_fits_with_the_plugin_datasheets() -> None:
 
 def test_unknown_sensor_model_falls_back_to_generic_values() -> None:
     assert default_datasheet("no-such-sensor") == SensorDatasheet(model="no-such-sensor")
+
+
+SINGLE_AXIS = TableEnvelope(axes=("inner",))
+
+
+@pytest.mark.parametrize(("step", "limits"), [
+    (_sine(1.0, 2.5, axis="outer"), {"outer.present"}),  # 98.7 °/s²: within any outer limit
+    (PlannedStep(id="s", kind="static", outer_deg=90.0, samples=1), {"outer.present"}),
+    (PlannedStep(id="s", kind="constant_rate", axis="both", rate_dps=100.0,
+                 outer_rate_dps=10.0, accel_dps2=17.5, samples=10), {"outer.present"}),
+    (_sine(1.0, 2.5), set()),
+    (PlannedStep(id="s", kind="static", inner_deg=90.0, samples=1), set()),
+], ids=["outer-sine", "outer-position", "coordinated", "inner-sine", "inner-position"])
+def test_an_absent_axis_is_refused_whatever_its_limits(step: PlannedStep,
+                                                       limits: set[str]) -> None:
+    assert _limits(step, SINGLE_AXIS) == limits
+    if limits:
+        [violation] = step_violations(step, SINGLE_AXIS, SHEET)
+        assert not violation.skippable and "(declared axes: inner)" in violation.message
+
+
+def test_axes_must_include_inner_once() -> None:
+    for axes in ((), ("outer",), ("inner", "inner")):
+        with pytest.raises(ValueError, match="axes must name 'inner'"):
+            TableEnvelope(axes=axes)  # type: ignore[arg-type]

@@ -11,12 +11,14 @@ connections are counted.
 from __future__ import annotations
 
 import importlib
+import json
 import socket
 import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import pytest
 from typer.testing import CliRunner
@@ -95,11 +97,11 @@ def journal_table(tmp_path_factory: pytest.TempPathFactory,
     sys.modules.pop("acme_journal_table", None)
 
 
-def _files(tmp_path: Path, turntable: str) -> tuple[Path, Path]:
+def _files(tmp_path: Path, turntable: str, daq: str = "{plugin: sim}") -> tuple[Path, Path]:
     procedure = tmp_path / "procedure.yaml"
     procedure.write_text(PROCEDURE)
     rig = tmp_path / "rig.yaml"
-    rig.write_text(f"turntable: {turntable}\ndaq: {{plugin: sim}}\nchamber: {{plugin: none}}\n")
+    rig.write_text(f"turntable: {turntable}\ndaq: {daq}\nchamber: {{plugin: none}}\n")
     return procedure, rig
 
 
@@ -167,7 +169,8 @@ def test_validate_with_the_modbus_driver_opens_no_connection(tmp_path: Path) -> 
     port = _CountingPort()
     try:
         procedure, rig = _files(tmp_path, f"{{plugin: modbus, host: 127.0.0.1, port: "
-                                          f"{port.port}, timeout_s: 0.5, retries: 0}}")
+                                          f"{port.port}, timeout_s: 0.5, retries: 0}}",
+                                 "{plugin: can, interface: virtual, channel: life-cycle}")
         for command in ("validate", "plan"):
             result = CliRunner().invoke(app, [command, str(procedure), "--rig", str(rig)])
             assert result.exit_code == 0, result.output
@@ -182,3 +185,37 @@ def test_validate_with_the_modbus_driver_opens_no_connection(tmp_path: Path) -> 
         assert port.accepted == 1
     finally:
         port.close()
+
+
+def test_a_resumed_run_must_continue_on_the_table_it_was_recorded_on(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from aatest.engine.errors import RigFault
+    from aatest.plugins.turntable.sim import SimTurntable
+
+    procedure = tmp_path / "procedure.yaml"
+    procedure.write_text(PROCEDURE.replace(
+        "  - sine:", "  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 100, snap: coherent}"
+                     "\n  - sine:"))
+    real_begin = SimTurntable.begin_motion
+
+    def stop_before_the_second(self: SimTurntable, step: Any) -> None:
+        if step.id.startswith("s002"):
+            raise RigFault("simulated table: controller stopped answering")
+        real_begin(self, step)
+
+    monkeypatch.setattr(SimTurntable, "begin_motion", stop_before_the_second)
+    out = tmp_path / "run"
+    args = ["run", str(procedure), "--out", str(out), "--no-progress", "--seed", "1"]
+    assert CliRunner().invoke(app, args).exit_code == 3
+    monkeypatch.setattr(SimTurntable, "begin_motion", real_begin)
+    other = tmp_path / "other-table.yaml"
+    other.write_text("turntable: {plugin: sim, serial: SIM-2}\n")
+    result = CliRunner().invoke(app, [*args, "--resume", "--rig", str(other)])
+    assert result.exit_code == 3, result.output
+    assert ("the table identifies as serial 'SIM-2', but this run was recorded on "
+            "'digital-twin': resume it on that table") in result.output
+    result = CliRunner().invoke(app, [*args, "--resume"])
+    assert result.exit_code == 0, result.output
+    meta = json.loads((out / "results.json").read_text())["metadata"]
+    assert meta["table_serial"] == "digital-twin"
+    assert meta["rig"]["capabilities"]["turntable"]["declared"]["serial"] == "digital-twin"

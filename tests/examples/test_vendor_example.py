@@ -65,7 +65,25 @@ def test_declares_its_own_envelope() -> None:
     envelope = _table().envelope()
     assert (envelope.inner.rate_dps, envelope.inner.accel_dps2) == (720.0, 1500.0)
     assert envelope.max_frequency_hz == 20.0
-    assert not envelope.outer.continuous and envelope.outer.max_deg == envelope.outer.min_deg == 0
+    assert envelope.axes == ("inner",)  # the outer axis declared absent, not as 1e-9 limits
+
+
+@pytest.mark.usefixtures("vendor_example")
+def test_declares_its_capabilities_and_identifies_itself_on_start() -> None:
+    table = _table()
+    before = table.capabilities()
+    assert before.encoder_resolution_counts_per_rev == 2**24
+    # one count of a 24-bit encoder: 360·3600″ / 2²⁴ = 0.0772″
+    assert 360 * 3600 / before.encoder_resolution_counts_per_rev == pytest.approx(0.0772,
+                                                                                   abs=5e-5)
+    assert (before.trigger_input, before.pulse_latch, before.model) == (True, True, "ACME SR-1")
+    assert before.serial is None  # not identified before start
+    table.start()
+    try:
+        assert table.capabilities().serial == "SR1-0042"
+    finally:
+        table.safe_stop()
+        table.close()
 
 
 @pytest.mark.usefixtures("vendor_example")

@@ -10,6 +10,13 @@ as ``PluginClass(config, context)``; an analysis plugin has ``Options`` instead 
 constructed without arguments. Simulated plugins share the digital twin through
 ``RigContext.resources`` (one object per type); real drivers ignore it. The sensor datasheet
 is defined in :mod:`aatest.engine.datasheet` and re-exported here.
+
+Constructing a rig plugin does no I/O: ``validate`` and ``plan`` build the rig only to read its
+declarations (``envelope``, the optional ``capabilities`` and ``cannot_follow``) and never
+start, stop or close it. Optional methods (absent on older plugins, found with ``getattr``):
+``Turntable.capabilities()`` (:func:`table_capabilities`), ``Daq.cannot_follow(turntable)``
+(:func:`daq_refusal`), ``Daq.stream_logging`` (:class:`StreamingDaq`). The whole contract:
+docs/vendor-plugins.md, "The plugin contract".
 """
 
 from __future__ import annotations
@@ -17,9 +24,9 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Generic, Protocol, TypeVar, runtime_checkable
+from typing import Any, ClassVar, Generic, Literal, Protocol, TypeVar, runtime_checkable
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from aatest.engine.dataset import Dataset
 from aatest.engine.datasheet import SensorDatasheet
@@ -29,9 +36,10 @@ from aatest.results import RunResults
 
 # The public names; SensorDatasheet is re-exported (sensor plugins return it).
 __all__ = [
-    "GROUPS", "Analysis", "AnalysisContext", "AnalysisOutput", "AxisLimits", "Chamber", "Daq",
-    "NoOptions", "PdfRenderer", "Reporter", "RigContext", "SensorDatasheet", "SensorPlugin",
-    "SharedResources", "TableEnvelope", "Turntable",
+    "GROUPS", "Analysis", "AnalysisContext", "AnalysisOutput", "AxisLimits", "AxisName",
+    "Chamber", "Daq", "NoOptions", "PdfRenderer", "Reporter", "RigContext", "SensorDatasheet",
+    "SensorPlugin", "SharedResources", "TableCapabilities", "TableEnvelope", "Turntable",
+    "daq_refusal", "table_capabilities",
 ]
 
 #: entry-point group per plugin kind
@@ -57,12 +65,22 @@ class AxisLimits(BaseModel):
     max_deg: float = 180.0
 
 
+#: a table axis as aatest names it (a single-axis table's one axis is ``inner``)
+AxisName = Literal["inner", "outer"]
+
+
 class TableEnvelope(BaseModel):
-    """What a turntable can do; the planner checks every step against it."""
+    """What a turntable can do; the planner checks every step against it.
+
+    ``axes`` lists the axes the table has: a single-axis table declares ``("inner",)`` and every
+    step that moves or positions the outer axis is refused at ``validate`` with that reason (the
+    limits of an absent axis are not read).
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
     inner: AxisLimits = AxisLimits(rate_dps=1200.0, accel_dps2=1000.0)
     outer: AxisLimits = AxisLimits(rate_dps=500.0, accel_dps2=200.0)
+    axes: tuple[AxisName, ...] = ("inner", "outer")
     max_log_rate_hz: float = 2000.0
     log_capacity_samples: int = 230_000
     #: usable terminal frequency with payload (docs/method.md §1.2: 10 Hz, not 11.25 Hz)
@@ -70,6 +88,38 @@ class TableEnvelope(BaseModel):
     #: the rig's DAQ streams long records (:class:`StreamingDaq`); set by the engine from the
     #: DAQ plugin, not by the turntable: a static step may then exceed ``log_capacity_samples``
     streaming_daq: bool = False
+
+    @field_validator("axes")
+    @classmethod
+    def _inner_present(cls, axes: tuple[AxisName, ...]) -> tuple[AxisName, ...]:
+        if "inner" not in axes or len(set(axes)) != len(axes):
+            raise ValueError("axes must name 'inner' (a single-axis table's axis) and each "
+                             "axis once, e.g. ['inner'] or ['inner', 'outer']")
+        return axes
+
+
+class TableCapabilities(BaseModel):
+    """What a turntable declares about its instruments (``Turntable.capabilities()``).
+
+    None means *not declared*; the engine then says so wherever the value matters (the
+    uncertainty budget names the missing declaration in the basis of the row that falls back
+    to a stated default). The envelope (:class:`TableEnvelope`) declares the limits, the axes
+    present, the log rate and the log length. ``model`` and ``serial`` may be None before
+    :meth:`Turntable.start` and are asked for again after it (identification).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    encoder_resolution_counts_per_rev: int | None = Field(
+        None, gt=0, description="encoder counts per revolution (2**24: 0.077″ per count)")
+    encoder_accuracy_arcsec: float | None = Field(
+        None, ge=0, description="position accuracy bound of the encoder, arcsec")
+    trigger_input: bool | None = Field(
+        None, description="the table log can be started by the DAQ's trigger line")
+    pulse_latch: bool | None = Field(
+        None, description="the table latches each freeze-pulse edge to its controller clock "
+        "(column fp_latch_s of its log); False: fp_latch_s is absent or NaN")
+    model: str | None = Field(None, description="table model, as identified")
+    serial: str | None = Field(None, description="table serial number, as identified")
 
 
 _T = TypeVar("_T")
@@ -160,7 +210,11 @@ class Turntable(Protocol):
         """Bring the table to rest at the step's start position."""
 
     def safe_stop(self) -> None:
-        """Stop motion and switch the motor off; must never raise and be idempotent."""
+        """Stop motion and switch the motor off; must never raise and be idempotent.
+
+        Called only after :meth:`start` was called (at the end of a run, on a fault, on
+        Ctrl-C), never while a procedure is only validated or planned.
+        """
 
     def close(self) -> None:
         """Release the connection; called once at the end of a run, after ``safe_stop``.
@@ -168,6 +222,35 @@ class Turntable(Protocol):
         Only ever called after :meth:`start` (also when ``start`` raised); a turntable built
         only to read its :meth:`envelope` (``validate``, ``plan``) is never closed.
         """
+
+
+def table_capabilities(turntable: object) -> TableCapabilities | None:
+    """The turntable's declared capabilities, None when the plugin declares none.
+
+    ``capabilities()`` is optional (older plugins lack it); it must not touch the rig before
+    ``start``. A plugin that returns something else is a :class:`PluginError`.
+    """
+    from aatest.engine.errors import PluginError
+
+    declare = getattr(turntable, "capabilities", None)
+    if not callable(declare):
+        return None
+    declared = declare()
+    if not isinstance(declared, TableCapabilities):
+        raise PluginError(f"turntable {type(turntable).__name__}.capabilities() returned "
+                          f"{type(declared).__name__}, expected TableCapabilities")
+    return declared
+
+
+def daq_refusal(daq: object, turntable: object) -> str | None:
+    """Why ``daq`` cannot record beside ``turntable`` (None: it can, or it does not say).
+
+    A DAQ plugin may define ``cannot_follow(turntable) -> str | None`` (optional): the
+    simulated DAQ records the digital twin's sensors and follows only a table that moves that
+    twin, so it refuses any other table at ``validate`` instead of failing at the first step.
+    """
+    check = getattr(daq, "cannot_follow", None)
+    return check(turntable) if callable(check) else None
 
 
 @runtime_checkable

@@ -53,6 +53,8 @@ class TwinSession:
         self.imperfections_seed = imperfections_seed
         self.instruments = instruments
         self.model_path: str | None = None
+        #: a simulated turntable moves this twin (the simulated DAQ can only follow such a one)
+        self.table_driven = False
         self._world: World | None = None
 
     def claim(self, model_path: str | None) -> None:

@@ -1,8 +1,11 @@
 """A single-axis rate table: a vendor turntable plugin with its own envelope.
 
 The ACME SR-1 has one continuous axis (aatest's *inner* axis) and no outer axis. Its envelope
-says so (outer travel pinned at 0°), so the planner refuses any procedure that tilts or excites
-the outer axis before anything moves, and the table refuses such commands itself as well.
+says so (``axes: [inner]``), so the planner refuses any procedure that tilts or excites the
+outer axis before anything moves, and the table refuses such commands itself as well. Its
+capabilities declare its 24-bit encoder (0.077″ per count), which the uncertainty budget then
+uses instead of a default, its trigger input and freeze-pulse latch, and — once ``start`` has
+identified the controller — its model and serial number.
 
 This example has no hardware to talk to: it moves by delegating every command to the turntable
 simulator that ships with aatest, loaded by name through the plugin registry (``"sim"``) and
@@ -19,7 +22,13 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine import registry
 from aatest.engine.errors import EnvelopeRefused
-from aatest.engine.interfaces import AxisLimits, RigContext, TableEnvelope, Turntable
+from aatest.engine.interfaces import (
+    AxisLimits,
+    RigContext,
+    TableCapabilities,
+    TableEnvelope,
+    Turntable,
+)
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 
@@ -28,8 +37,12 @@ log = logging.getLogger(__name__)
 #: the installed turntable plugin that simulates this table's motion
 SIMULATOR = "sim"
 
-#: the missing outer axis: no travel and (limits must be > 0) a vanishing rate/acceleration
-NO_AXIS = AxisLimits(rate_dps=1e-9, accel_dps2=1e-9, continuous=False, min_deg=0.0, max_deg=0.0)
+#: what the *simulator* is told of the missing outer axis (it has no notion of an absent
+#: axis): no travel, a vanishing rate and acceleration. The envelope declares the axis absent.
+SIMULATED_NO_AXIS = AxisLimits(rate_dps=1e-9, accel_dps2=1e-9, continuous=False, min_deg=0.0,
+                               max_deg=0.0)
+#: the SR-1's encoder: 24 bits per revolution, 0.077″ per count
+ENCODER_COUNTS_PER_REV = 2**24
 
 
 class SingleAxisTable:
@@ -52,32 +65,42 @@ class SingleAxisTable:
         accel_limit_dps2: float = Field(1500.0, gt=0, description="axis acceleration limit, °/s²")
         max_frequency_hz: float = Field(20.0, gt=0, description="usable terminal frequency, Hz")
         log_rate_hz: float = Field(2000.0, gt=0, description="table log sample rate, Hz")
-        serial: str = "SR1-0042"
+        encoder_accuracy_arcsec: float = Field(2.0, ge=0,
+                                               description="encoder accuracy bound, arcsec")
+        serial: str = Field("SR1-0042", description="what the simulated controller reports "
+                            "as its serial number when identified")
 
     def __init__(self, config: Config | None, context: RigContext) -> None:
+        # construction connects nothing: validate and plan build the table only to read its
+        # envelope and capabilities
         self.config = config if config is not None else self.Config()
-        envelope = self.envelope()
         simulator = registry.load("turntable", SIMULATOR)
-        options = {"serial": self.config.serial, "inner_limits": envelope.inner.model_dump(),
-                   "outer_limits": envelope.outer.model_dump()}
+        options = {"serial": self.config.serial,
+                   "inner_limits": self.envelope().inner.model_dump(),
+                   "outer_limits": SIMULATED_NO_AXIS.model_dump()}
         self._controller: Turntable = simulator.target(
             registry.configure(simulator, options), context)
-
-    @property
-    def serial(self) -> str:
-        """Identifies the table on certificates (traceability)."""
-        return self.config.serial
+        self._identified: str | None = None
 
     def envelope(self) -> TableEnvelope:
         """What the SR-1 can do: one axis with the configured limits, no outer axis."""
         cfg = self.config
         return TableEnvelope(
             inner=AxisLimits(rate_dps=cfg.rate_limit_dps, accel_dps2=cfg.accel_limit_dps2),
-            outer=NO_AXIS, max_log_rate_hz=cfg.log_rate_hz, max_frequency_hz=cfg.max_frequency_hz)
+            axes=("inner",), max_log_rate_hz=cfg.log_rate_hz,
+            max_frequency_hz=cfg.max_frequency_hz)
+
+    def capabilities(self) -> TableCapabilities:
+        """The SR-1's instruments; its serial only once :meth:`start` has identified it."""
+        return TableCapabilities(
+            encoder_resolution_counts_per_rev=ENCODER_COUNTS_PER_REV,
+            encoder_accuracy_arcsec=self.config.encoder_accuracy_arcsec,
+            trigger_input=True, pulse_latch=True, model="ACME SR-1", serial=self._identified)
 
     def start(self) -> None:
-        """Connect, clear faults and switch the motor on."""
+        """Connect, identify the controller, clear faults and switch the motor on."""
         self._controller.start()
+        self._identified = self.config.serial  # a real driver reads it from the controller
 
     def move_to(self, inner_deg: float, outer_deg: float) -> None:
         """Position the axis; any outer angle but 0° is refused."""

@@ -3,7 +3,9 @@ anything moves (docs/method.md §1.2, §4.4).
 
 Checked per step (peak values of θ = A·sin(ωt): rate A·ω, acceleration A·ω²):
 
-* table: per-axis peak rate and acceleration vs ``TableEnvelope.inner``/``outer``; constant
+* table: the axes a step moves or positions must be present (``TableEnvelope.axes``; a
+  single-axis table has no outer axis, and the limits of an absent axis are not read);
+  per-axis peak rate and acceleration vs ``TableEnvelope.inner``/``outer``; constant
   and coordinated rates vs the rate limits; travel for axes that are not continuous;
 * terminal frequency: f ≤ ``max_frequency_hz`` (payload-limited, 10 Hz) and, through the
   acceleration limit, f < sqrt(α_max/A)/(2π) (the message states this bound);
@@ -168,17 +170,49 @@ def _logger(step: PlannedStep, env: TableEnvelope) -> list[Violation]:
                           "record length", "samples", hint, False)
 
 
+def _moved_axes(step: PlannedStep) -> set[str]:
+    """The axes a step's motion drives (a static step drives none)."""
+    if step.kind == "sine":
+        return {step.axis if step.axis in ("inner", "outer") else "inner"}
+    if step.kind == "constant_rate":
+        if step.axis == "both" or step.outer_rate_dps:
+            return {"inner", "outer"}
+        return {"outer" if step.axis == "outer" else "inner"}
+    return set()
+
+
+def _absent_axes(step: PlannedStep, env: TableEnvelope) -> list[Violation]:
+    """A step that moves or positions an axis the table does not have (``envelope.axes``):
+    not skippable, whatever its limits would say."""
+    moved, out = _moved_axes(step), []
+    for axis in ("inner", "outer"):
+        position = step.inner_deg if axis == "inner" else step.outer_deg
+        if axis in env.axes or (axis not in moved and position == 0.0):
+            continue
+        action = (f"moves the {axis} axis" if axis in moved
+                  else f"puts the {axis} axis at {position:g}°")
+        out.append(Violation(f"{axis}.present", 0.0, 1.0,
+                             f"the step {action}, an axis this table does not have "
+                             f"(declared axes: {', '.join(env.axes)})", skippable=False))
+    return out
+
+
 def step_violations(step: PlannedStep, envelope: TableEnvelope,
                     datasheet: SensorDatasheet) -> list[Violation]:
     """Every limit ``step`` exceeds (empty when it fits); chamber steps never violate."""
     if not step.recorded:
         return []
     out = _logger(step, envelope)
+    absent = _absent_axes(step, envelope)
+    if absent:  # the limits of a missing axis mean nothing: the reason is the axis itself
+        return out + absent
     if step.kind == "sine":
         out += _sine(step, envelope, datasheet)
     elif step.kind == "constant_rate":
         out += _constant_rate(step, envelope, datasheet)
     out += _travel("inner", envelope.inner, step.inner_deg, 0.0)
+    if "outer" not in envelope.axes:  # held at 0° (checked above): no stops to check
+        return out
     return out + _travel("outer", envelope.outer, step.outer_deg, 0.0)
 
 

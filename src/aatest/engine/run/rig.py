@@ -91,7 +91,9 @@ def build_rig(rig_config: Any, sensor: SensorRef, seed: int) -> Rig:
         config[kind] = {"plugin": spec.plugin, **dict(spec.options)}
     instruments = getattr(rig_config, "instruments", None)
     if instruments is not None:  # the stated accuracies the uncertainty budgets read
-        config["instruments"] = instruments.model_dump(mode="json")
+        # only what the rig file states: a budget row tells a stated value from a declared or
+        # a default one (docs/vendor-plugins.md, "Capabilities")
+        config["instruments"] = instruments.model_dump(mode="json", exclude_unset=True)
     return Rig(parts["turntable"], parts["daq"], parts["chamber"], datasheet, context, versions,
                config)
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -29,6 +29,7 @@ from aatest.engine.interfaces import (
     StreamingDaq,
     TableEnvelope,
     supports_streaming,
+    table_capabilities,
 )
 from aatest.engine.logs import SampledLog
 from aatest.engine.procedure.envelope import snapshot_step, streams_record
@@ -89,18 +90,38 @@ class _ChamberTracker:
         self.setpoint_c = target
 
 
+#: the table serial of a plugin that reports none
+UNREPORTED = "not reported by the plugin"
+
+
+def identity_metadata(rig: Rig) -> dict[str, Any]:
+    """The table's serial and the rig's declared capabilities, as the plugins report them now.
+
+    Asked before ``start`` (what the plugins declare statically) and again once the rig is
+    started, when a driver has identified its controller (model and serial). The serial comes
+    from ``capabilities().serial``; a plugin without ``capabilities()`` may still offer the
+    older ``serial`` attribute.
+    """
+    declared = table_capabilities(rig.turntable)
+    serial = declared.serial if declared is not None else getattr(rig.turntable, "serial", None)
+    plugin = rig.config.get("turntable", {}).get("plugin")
+    turntable = {"plugin": plugin, "distribution": rig.versions.get(f"turntable:{plugin}"),
+                 "declared": declared.model_dump(mode="json") if declared is not None else None}
+    return {"table_serial": str(serial or UNREPORTED),
+            "rig": {**rig.config, "capabilities": {"turntable": turntable}}}
+
+
 def run_metadata(
     plan: Plan, rig: Rig, procedure_text: str, seed: int, operator: str
 ) -> dict[str, Any]:
     """Everything that makes a recording traceable, stored in the recording itself."""
     return {
         "operator": operator,
-        "table_serial": str(getattr(rig.turntable, "serial", None) or "not reported by the plugin"),
         "procedure": plan.procedure,
         "standard": plan.standard,
         "procedure_text": procedure_text,
         "procedure_sha256": procedure_sha256(procedure_text),
-        "rig": rig.config,
+        **identity_metadata(rig),
         "plugin_versions": rig.versions,
         "seed": seed,
         "sensor": plan.sensor.model_dump(),
@@ -204,11 +225,14 @@ def run_plan(
     run_dir: Path,
     show_progress: bool = True,
     events: RunEvents | None = None,
+    on_started: Callable[[Rig], None] | None = None,
 ) -> None:
     """Execute every step not yet recorded; persist progress after each one.
 
     ``events`` carries the observer, the prompt responder and the abort flag
     (:mod:`aatest.engine.run.events`); an abort ends like a fault, in the rig's safe stop.
+    ``on_started`` is called once the rig has started, before the first step (the session
+    records the table's identity then).
     """
     events = events or RunEvents()
     done = set(recorder.completed_step_ids()) | set(state.chamber_steps_done)
@@ -218,6 +242,8 @@ def run_plan(
     try:
         with running(rig), StepProgress(plan, done, enabled=show_progress) as progress, \
                 threadpool_limits(limits=1, user_api="blas"), _closing(writes):
+            if on_started is not None:
+                on_started(rig)
             events.observer.run_started(plan, frozenset(done))
             for step in plan.steps:
                 if step.id in done:

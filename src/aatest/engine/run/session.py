@@ -28,9 +28,16 @@ from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run import bundle_hooks
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
-from aatest.engine.run.rig import build_rig
+from aatest.engine.run.rig import Rig, build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock
-from aatest.engine.run.runner import default_run_dir, procedure_sha256, run_metadata, run_plan
+from aatest.engine.run.runner import (
+    UNREPORTED,
+    default_run_dir,
+    identity_metadata,
+    procedure_sha256,
+    run_metadata,
+    run_plan,
+)
 from aatest.engine.steps import Plan, SensorRef
 from aatest.results import RunResults
 from aatest.results.root import Signature
@@ -86,9 +93,14 @@ def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any]:
     ``close`` that stops the table would otherwise stop a table another run is using whenever
     someone validates a procedure (docs/vendor-plugins.md, "Life cycle").
     """
-    from aatest.engine.interfaces import supports_streaming
+    from aatest.engine.errors import PluginError
+    from aatest.engine.interfaces import daq_refusal, supports_streaming
 
     rig = build_rig(rig_config, sensor, seed=0)
+    refusal = daq_refusal(rig.daq, rig.turntable)
+    if refusal:  # e.g. the simulated DAQ beside a real table: refused before anything moves
+        raise PluginError(f"daq plugin {rig_config.daq.plugin!r} cannot record beside turntable "
+                          f"plugin {rig_config.turntable.plugin!r}: {refusal}")
     # long static records need a streaming DAQ (docs/interfaces.md §3)
     envelope = rig.turntable.envelope().model_copy(
         update={"streaming_daq": supports_streaming(rig.daq)})
@@ -295,9 +307,9 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
         if not resume:
             meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
             meta["report_template"] = plan.report_template
-            recorder.write_run_metadata(meta)
+            recorder.write_run_metadata(meta)  # before start: a failed start can be resumed
         run_plan(plan, rig, recorder, state, out_dir, show_progress=request.show_progress,
-                 events=events)
+                 events=events, on_started=lambda started: _identify(recorder, started))
         recorder.finalize()
         state.finished = True
         state.save(out_dir)
@@ -317,6 +329,26 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
                         "confirm_prompts": request.prompt_mode},
     )
     return out_dir, results
+
+
+def _identify(recorder: Any, started: Rig) -> None:
+    """Record the table's identity once the rig has started (a driver identifies its
+    controller in ``start``): its serial and declared capabilities join the run metadata.
+
+    A resumed run must go on on the table it was recorded on: a table that identifies with
+    another serial is a :class:`RigFault` (exit 3, the rig is then stopped and closed).
+    """
+    from aatest.engine.errors import RigFault
+    from aatest.engine.recording.writer import load_run_metadata
+
+    recorded = load_run_metadata(recorder.steps_dir)
+    identity = identity_metadata(started)
+    before, now = recorded.get("table_serial"), identity["table_serial"]
+    if UNREPORTED not in (before, now) and before not in (None, now):
+        raise RigFault(f"the table identifies as serial {now!r}, but this run was recorded on "
+                       f"{before!r}: resume it on that table")
+    rig = {**(recorded.get("rig") or {}), "capabilities": identity["rig"]["capabilities"]}
+    recorder.write_run_metadata({**recorded, "table_serial": now, "rig": rig})
 
 
 def report(

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Literal
 
 from aatest.engine.datasheet import SensorDatasheet
+from aatest.engine.uncertainty.declared import encoder_note
 from aatest.engine.uncertainty.gum import Distribution, Input
 from aatest.engine.uncertainty.statistics import PAIR, finite
 from aatest.results import RunResults
@@ -60,8 +61,9 @@ def encoder_accuracy(c: RigConstants, amplitude_arcsec: float) -> Input:
     how = (f"over A = {amplitude_arcsec:.1f}″" if over_amplitude <= slope else
            f"slope bound a·2π·{enc.error_cycles_per_rev}/rev (A = {amplitude_arcsec:.1f}″)")
     what = f"encoder accuracy ±{enc.accuracy_arcsec:g}″"
-    return rel("encoder_accuracy", "reference: encoder accuracy", bound,
-               f"{c.source(what, enc.cert_text())} {how}", "rectangular")
+    note = encoder_note(c, "accuracy_arcsec", what, enc.cert_text())
+    return rel("encoder_accuracy", "reference: encoder accuracy", bound, f"{note} {how}",
+               "rectangular")
 
 
 def encoder_resolution(c: RigConstants, amplitude_arcsec: float) -> Input:
@@ -71,7 +73,8 @@ def encoder_resolution(c: RigConstants, amplitude_arcsec: float) -> Input:
     what = f"encoder resolution {enc.resolution_counts_per_rev} counts/rev (q = {q:.3g}″)"
     return rel("encoder_resolution", "reference: encoder resolution",
                q / math.sqrt(12.0) / amplitude_arcsec,
-               f"{c.source(what)}, u = q/√12 over A = {amplitude_arcsec:.1f}″")
+               f"{encoder_note(c, 'resolution_counts_per_rev', what)}, u = q/√12 over "
+               f"A = {amplitude_arcsec:.1f}″")
 
 
 def reference_method(results: RunResults, steps: Sequence[str], chosen: str) -> Input:

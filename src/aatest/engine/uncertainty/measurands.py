@@ -21,6 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.uncertainty import components as comp
 from aatest.engine.uncertainty.components import ARCSEC_RAD
+from aatest.engine.uncertainty.declared import Basis, declared_encoder
 from aatest.engine.uncertainty.evidence import Evidence, gather
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
 from aatest.engine.uncertainty.statistics import PAIR, ci_std, finite, finite_values
@@ -59,6 +60,9 @@ class RigConstants(BaseModel):
     instruments: Instruments = Field(default_factory=Instruments)
     instruments_stated: bool = Field(False, description="the rig description stated them")
     evidence: Evidence = Field(default_factory=Evidence)
+    #: encoder numbers not from the rig description: declared by the table plugin, or a
+    #: default naming the missing declaration (:mod:`.declared`)
+    encoder_basis: Basis = Field(default_factory=dict)
 
     @classmethod
     def from_results(cls, results: RunResults, data: Any = None) -> RigConstants:
@@ -74,7 +78,9 @@ class RigConstants(BaseModel):
         """
         stated = _stated_instruments(results)
         instruments = Instruments.model_validate(stated) if stated is not None else Instruments()
-        return cls(position_accuracy_arcsec=instruments.encoder.accuracy_arcsec,
+        instruments, encoder_basis = declared_encoder(results, stated, instruments)
+        return cls(encoder_basis=encoder_basis,
+                   position_accuracy_arcsec=instruments.encoder.accuracy_arcsec,
                    wobble_arcsec=instruments.table.wobble_arcsec,
                    orthogonality_arcsec=instruments.table.orthogonality_arcsec,
                    thermometer_uncertainty_c=instruments.thermometer.accuracy_c / math.sqrt(3.0),

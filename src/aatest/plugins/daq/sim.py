@@ -48,6 +48,20 @@ class SimDaq:
     def channels(self) -> Sequence[str]:
         return [s.channel for s in self.world.model.sensors] + list(DAQ_AUX_CHANNELS)
 
+    def cannot_follow(self, turntable: object) -> str | None:
+        """Why this logger cannot record beside ``turntable`` (None: it can).
+
+        It records the sensors of the digital twin, which moves only when a simulated table
+        drives it (``sim``, or a vendor plugin wrapping it): beside any other table its
+        records would start without motion, so such a rig is refused at ``validate``.
+        """
+        if self._twin.table_driven:
+            return None
+        return (f"the simulated DAQ records the digital twin's sensors and follows only a "
+                f"table that moves the twin (turntable 'sim' or a plugin wrapping it); "
+                f"{type(turntable).__name__} does not — use the logger of that table "
+                "(e.g. daq 'can')")
+
     def start(self) -> None:
         """Nothing to connect: the simulated logger is always ready."""
 

@@ -28,7 +28,7 @@ from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
 from aatest.engine.errors import RigFault, rig_boundary
-from aatest.engine.interfaces import RigContext, TableEnvelope
+from aatest.engine.interfaces import RigContext, TableCapabilities, TableEnvelope
 from aatest.engine.logs import TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.protocols import modbus_map as mm
@@ -58,6 +58,13 @@ class ModbusTurntable:
         fp_input: int = Field(1, ge=1, le=8, description="digital input wired to the sync pulse")
         trigger_input: int = Field(2, ge=1, le=8, description="digital input wired to the trigger")
         envelope: TableEnvelope = TableEnvelope()
+        encoder_counts_per_rev: int | None = Field(
+            None, gt=0, description="the table's encoder counts per revolution (the register "
+            "map has none): declared to the uncertainty budget")
+        encoder_accuracy_arcsec: float | None = Field(
+            None, ge=0, description="the encoder's position accuracy bound, arcsec")
+        serial: str | None = Field(None, description="the table's serial number (the register "
+                                   "map does not report one)")
 
     def __init__(self, config: Config | None, context: RigContext | None) -> None:
         self.config = config if config is not None else self.Config()
@@ -139,6 +146,17 @@ class ModbusTurntable:
     def envelope(self) -> TableEnvelope:
         """The declared envelope (checked against the controller's limits in :meth:`start`)."""
         return self.config.envelope
+
+    def capabilities(self) -> TableCapabilities:
+        """What the rig file declares of this table (the register map reports no encoder or
+        serial), its trigger input when the log starts on it, and its freeze-pulse latch
+        (every log carries ``fp_latch_s``, the map's pulse latch)."""
+        cfg = self.config
+        return TableCapabilities(encoder_resolution_counts_per_rev=cfg.encoder_counts_per_rev,
+                                 encoder_accuracy_arcsec=cfg.encoder_accuracy_arcsec,
+                                 trigger_input=cfg.log_start == "trigger", pulse_latch=True,
+                                 model=f"Modbus controller, register map {mm.MAP_VERSION}",
+                                 serial=cfg.serial)
 
     @rig_boundary
     def start(self) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict
 
 from aatest.engine.errors import EnvelopeRefused, RigFault
-from aatest.engine.interfaces import AxisLimits, RigContext, TableEnvelope
+from aatest.engine.interfaces import AxisLimits, RigContext, TableCapabilities, TableEnvelope
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.twin.session import twin_session
@@ -38,11 +38,24 @@ class SimTurntable:
         self.config = config
         self.context = context
         self._twin = twin_session(context, config.model)
+        self._twin.table_driven = True
 
     @property
     def serial(self) -> str:
         """Identifies the table on certificates (traceability)."""
         return self.config.serial
+
+    def capabilities(self) -> TableCapabilities:
+        """What the twin's table has: its encoder's count, trigger input and pulse latch.
+
+        The encoder *accuracy* is not declared: the twin's encoder error is whatever its rig
+        model draws, which a budget must not take as a measured bound (the rig description's
+        ``instruments.encoder`` states it).
+        """
+        counts = round(360.0 / self.world.model.table.inner.encoder_resolution_deg)
+        return TableCapabilities(encoder_resolution_counts_per_rev=counts, trigger_input=True,
+                                 pulse_latch=True, model="aatest digital twin, two-axis",
+                                 serial=self.config.serial)
 
     @property
     def world(self) -> World:
