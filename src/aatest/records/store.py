@@ -21,7 +21,7 @@ from aatest.records import numbering, schema
 from aatest.records.engine import open_engine
 from aatest.records.errors import RecordsError
 from aatest.records.models import CalibrationRecord, QuantityRecord, RecordFilter, Registration
-from aatest.records.tables import calibrations, quantities, signed_files, units
+from aatest.records.tables import calibrations, certificates, quantities, signed_files, units
 from aatest.records.url import is_default_missing, redacted, resolve_url
 
 
@@ -130,6 +130,12 @@ class RecordStore:
             rows = connection.execute(_base().where(
                 calibrations.c.certificate_number == number).order_by(calibrations.c.id)).all()
             return _records(connection, rows)
+
+    def certificate_issued(self, number: str) -> bool:
+        """Whether this store ever issued certificate ``number``."""
+        with self.engine.connect() as connection:
+            return connection.execute(select(certificates.c.number).where(
+                certificates.c.number == number)).first() is not None
 
     def results_of(self, record_id: int) -> dict[str, Any]:
         """The stored results document of a record (without figures)."""
