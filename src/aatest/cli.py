@@ -461,6 +461,20 @@ def records_show(
     _print_json(commands.show_record(records, key))
 
 
+@records_app.command("check")
+@guarded
+def records_check(
+    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
+) -> None:
+    """Recompute the records' hash chain: exit 0 intact, 1 naming the first broken record."""
+    from aatest.records.commands import check_records
+
+    intact, message = check_records(records)
+    if not intact:
+        _fail(message, EXIT_FINDING)
+    typer.echo(message)
+
+
 @records_app.command("export")
 @guarded
 def records_export(

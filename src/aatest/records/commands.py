@@ -100,4 +100,16 @@ def verify_against_record(report: Path, records_url: str | None) -> tuple[list[s
         if record is None:
             return unregistered_reasons(report, store), f"no record of this bundle in {store.name}"
         label = record.certificate_number or f"record {record.id}"
-        return record_reasons(report, record), f"matches its record {label} in {store.name}"
+        problems = record_reasons(report, record) + store.chain_problems(record.id)
+        return problems, f"matches its record {label} in {store.name}"
+
+
+def check_records(records_url: str | None) -> tuple[bool, str]:
+    """``aatest records check``: recompute the chain; whether it holds, and what to print."""
+    with open_for_reading(records_url) as store:
+        report = store.check_chain()
+        name = store.name
+    if report.broken is not None:
+        return False, (f"{name}: records chain broken at {report.broken.describe()} "
+                       f"({report.count} record(s) before it hold)")
+    return True, f"{name}: records chain intact: {report.count} record(s), head {report.head}"
