@@ -37,10 +37,10 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey,
 
 from aatest.engine.errors import InputError
 from aatest.engine.run import manifest
-from aatest.engine.run.manifest import file_sha256
 from aatest.engine.run.trust import TrustedKey
 
-__all__ = ["file_sha256"]
+#: SHA-256 of one file, as the manifest hashes it (kept here for callers of format 1)
+file_sha256 = manifest.file_sha256
 
 SIGNATURE_FORMAT = "aatest-signature/2"
 LEGACY_FORMAT = "aatest-signature/1"
