@@ -323,19 +323,39 @@ def report(
         typer.echo(f"report: {session.report(run_dir, template, sign_key, pdf)}")
 
 
+def _keygen_passphrase() -> str:
+    """The new key's passphrase: ``AATEST_SIGNING_PASSPHRASE``, else asked at a terminal."""
+    import os
+    import sys
+
+    from aatest.engine.run.session import PASSPHRASE_ENV
+    from aatest.engine.run.signing import SigningError
+
+    secret = os.environ.get(PASSPHRASE_ENV) or (
+        typer.prompt("passphrase", hide_input=True, confirmation_prompt=True)
+        if sys.stdin.isatty() else "")
+    if not secret:
+        raise SigningError(f"keygen encrypts the private key: give a passphrase (in "
+                           f"{PASSPHRASE_ENV} or at a terminal), or pass --no-passphrase")
+    return str(secret)
+
+
 @app.command()
 @guarded
 def keygen(
     keyfile: Path = typer.Argument(..., help="Private key file to create (public: KEYFILE.pub)"),
-    passphrase: bool = typer.Option(False, "--passphrase", help="Ask for a passphrase"),
+    passphrase: bool = typer.Option(
+        True, "--passphrase/--no-passphrase",
+        help="Encrypt the private key (default; passphrase from AATEST_SIGNING_PASSPHRASE, else "
+             "asked); --no-passphrase writes it unencrypted"),
 ) -> None:
-    """Create an Ed25519 signing key pair."""
+    """Create an Ed25519 signing key pair; print its fingerprint (for the lab profile)."""
     from aatest.engine.run import signing
 
-    secret = (typer.prompt("passphrase", hide_input=True, confirmation_prompt=True)
-              if passphrase else None)
-    signing.generate_keypair(keyfile, secret)
-    typer.echo(f"private key: {keyfile} (mode 0600)\npublic key:  {keyfile}.pub")
+    fingerprint = signing.generate_keypair(keyfile, _keygen_passphrase() if passphrase else None)
+    typer.echo(f"private key: {keyfile} (mode 0600, "
+               f"{'encrypted' if passphrase else 'NOT encrypted'})\npublic key:  {keyfile}.pub"
+               f"\nfingerprint: {fingerprint}")
 
 
 @app.command()
@@ -344,15 +364,22 @@ def verify(
     report_file: Path = typer.Argument(..., help="Signed report"),
     public_key: Path | None = typer.Option(None, "--public-key", help="Trusted public key"),
     records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
+    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP + "; its signing_keys are "
+                                    "trusted"),
 ) -> None:
-    """Check a signed report bundle and its record: exit 0 untouched, 1 tampered or wrong key."""
+    """Check a signed bundle, its signing key and its record: exit 0 untouched, 1 tampered,
+    untrusted or wrong key."""
     from aatest.engine.run import signing
+    from aatest.records.attest import signer_lines, trusted_keys
     from aatest.records.commands import verify_against_record
 
-    result = signing.verify_bundle(report_file, public_key)
+    result = signing.verify_bundle(report_file, trusted_keys(lab, public_key))
     record_problems, note = verify_against_record(report_file, records)
     if result.ok and not record_problems:
-        typer.echo(f"{report_file}: signature valid; {note}")
+        when = f", signed {result.signed_utc:%Y-%m-%d %H:%M} UTC" if result.signed_utc else ""
+        typer.echo(f"{report_file}: signature valid ({result.format}{when}); {note}")
+        for line in signer_lines(result, report_file):
+            typer.echo(f"  {line}")
         return
     for reason in result.reasons + record_problems:
         typer.echo(f"{report_file}: {reason}", err=True)
@@ -439,6 +466,20 @@ def records_show(
     from aatest.records import commands
 
     _print_json(commands.show_record(records, key))
+
+
+@records_app.command("check")
+@guarded
+def records_check(
+    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
+) -> None:
+    """Recompute the records' hash chain: exit 0 intact, 1 naming the first broken record."""
+    from aatest.records.commands import check_records
+
+    intact, message = check_records(records)
+    if not intact:
+        _fail(message, EXIT_FINDING)
+    typer.echo(message)
 
 
 @records_app.command("export")

@@ -73,7 +73,7 @@ def test_unknown_serial_is_bad_input(sqlite_url: str, tmp_path: Path) -> None:
 def test_reanalysis_and_resigning_supersede(sqlite_url: str, tmp_path: Path) -> None:
     (run, _) = _runs(sqlite_url, tmp_path)
     first = json.loads((run / "results.json").read_text())["certificate_number"]
-    assert aatest("keygen", tmp_path / "key")[0] == 0
+    assert aatest("keygen", "--no-passphrase", tmp_path / "key")[0] == 0
     code, _, stderr = aatest("report", run, "--sign-key", tmp_path / "key", "--records", sqlite_url)
     assert code == 0, stderr
     assert json.loads((run / "results.json").read_text())["certificate_number"] == first
@@ -90,21 +90,22 @@ def test_reanalysis_and_resigning_supersede(sqlite_url: str, tmp_path: Path) -> 
 
 def test_verify_reports_a_recording_changed_after_registration(
         sqlite_url: str, tmp_path: Path) -> None:
-    assert aatest("keygen", tmp_path / "key")[0] == 0
+    assert aatest("keygen", "--no-passphrase", tmp_path / "key")[0] == 0
     out = tmp_path / "signed"
     code, stdout, stderr = aatest("run", PROCEDURE, "--out", out, "--no-progress",
                                   "--sign-key", tmp_path / "key", "--records", sqlite_url)
     assert code == 0, stdout + stderr
     report = out / "report.html"
-    code, stdout, _ = aatest("verify", report, "--records", sqlite_url)
+    trust = ("--public-key", tmp_path / "key.pub")
+    code, stdout, _ = aatest("verify", report, "--records", sqlite_url, *trust)
     assert code == 0 and "matches its record LAB-" in stdout
     with (out / "recording.mcap").open("ab") as handle:
         handle.write(b"\0")
-    code, _, stderr = aatest("verify", report, "--records", sqlite_url)
+    code, _, stderr = aatest("verify", report, "--records", sqlite_url, *trust)
     assert code == 1
     assert "recording.mcap changed since it was registered (record LAB-" in stderr
     (out / "recording.mcap").unlink()
-    code, _, stderr = aatest("verify", report, "--records", sqlite_url)
+    code, _, stderr = aatest("verify", report, "--records", sqlite_url, *trust)
     assert code == 1 and "recording.mcap removed since it was registered" in stderr
 
 
@@ -113,7 +114,7 @@ def test_verify_reports_a_certificate_number_edited_and_resigned(
     """Re-signing a doctored results.json passes the signature check, but not the record."""
     from aatest.engine.run import signing
 
-    assert aatest("keygen", tmp_path / "key")[0] == 0
+    assert aatest("keygen", "--no-passphrase", tmp_path / "key")[0] == 0
     out = tmp_path / "doctored"
     assert aatest("run", PROCEDURE, "--out", out, "--no-progress", "--sign-key",
                   tmp_path / "key", "--records", sqlite_url)[0] == 0
@@ -121,8 +122,19 @@ def test_verify_reports_a_certificate_number_edited_and_resigned(
     results["certificate_number"] = "LAB-2026-999999"
     (out / "results.json").write_text(json.dumps(results))
     signing.sign_bundle(out / "report.html", signing.load_private_key(tmp_path / "key"))
-    code, _, stderr = aatest("verify", out / "report.html", "--records", sqlite_url)
+    trust = ("--public-key", tmp_path / "key.pub")
+    code, _, stderr = aatest("verify", out / "report.html", "--records", sqlite_url, *trust)
     assert code == 1 and "certificate number 'LAB-2026-999999' in results.json" in stderr
+    moved = out.rename(tmp_path / "moved")  # elsewhere, the record is not found by location
+    code, _, stderr = aatest("verify", moved / "report.html", "--records", sqlite_url, *trust)
+    assert code == 1
+    assert "certificate number 'LAB-2026-999999' was never issued by sqlite:///" in stderr
+    del results["certificate_number"]
+    (moved / "results.json").write_text(json.dumps(results))
+    signing.sign_bundle(moved / "report.html", signing.load_private_key(tmp_path / "key"))
+    code, _, stderr = aatest("verify", moved / "report.html", "--records", sqlite_url, *trust)
+    assert code == 1
+    assert "results.json states no certificate number, and no record of this bundle" in stderr
 
 
 def test_unreachable_database_exits_2_and_keeps_the_files(tmp_path: Path) -> None:

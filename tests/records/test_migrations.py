@@ -53,7 +53,7 @@ def _write_version_1(url: str) -> None:
 def test_upgrade_from_version_1_keeps_and_backfills_records(store_url: str) -> None:
     _write_version_1(store_url)
     with RecordStore.open(store_url) as store:  # opening migrates to head
-        assert schema.current_revision(store.engine) == schema.head_revision() == "0002"
+        assert schema.current_revision(store.engine) == schema.head_revision() == "0003"
         (record,) = store.history("OLD1")
         next_number = store.issue_certificate("LAB", datetime(2025, 9, 1, tzinfo=UTC))
     assert record.certificate_number == "LAB-2025-000007"
@@ -69,3 +69,17 @@ def test_opening_a_current_store_twice_is_idempotent(store_url: str) -> None:
     RecordStore.open(store_url).close()
     with RecordStore.open(store_url) as store:
         assert schema.current_revision(store.engine) == schema.head_revision()
+
+
+def test_upgrade_computes_the_chain_of_existing_records(store_url: str) -> None:
+    """A store from before the chain gets it on upgrade; a later SQL edit is then caught."""
+    _write_version_1(store_url)
+    with RecordStore.open(store_url) as store:
+        report = store.check_chain()
+        assert report.broken is None and report.count == 1 and len(report.head) == 64
+        with store.engine.begin() as connection:
+            connection.execute(text("UPDATE quantities SET value = value * 1.05 "
+                                    "WHERE calibration_id = 1 AND name = 'scale_factor.v_sz'"))
+        broken = store.check_chain().broken
+    assert broken is not None and (broken.record_id, broken.certificate_number) == (
+        1, "LAB-2025-000007")

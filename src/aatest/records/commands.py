@@ -16,7 +16,7 @@ from aatest.records.models import CalibrationRecord, RecordFilter
 from aatest.records.store import RecordStore
 from aatest.records.trend import write_trend_html
 from aatest.records.url import is_default_missing, resolve_url
-from aatest.records.verify import find_record, record_reasons
+from aatest.records.verify import find_record, record_reasons, unregistered_reasons
 
 
 def _moment(text: str | None, option: str) -> datetime | None:
@@ -98,6 +98,18 @@ def verify_against_record(report: Path, records_url: str | None) -> tuple[list[s
     with open_for_reading(records_url) as store:
         record = find_record(report, store)
         if record is None:
-            return [], f"no record of this bundle in {store.name}"
+            return unregistered_reasons(report, store), f"no record of this bundle in {store.name}"
         label = record.certificate_number or f"record {record.id}"
-        return record_reasons(report, record), f"matches its record {label} in {store.name}"
+        problems = record_reasons(report, record) + store.chain_problems(record.id)
+        return problems, f"matches its record {label} in {store.name}"
+
+
+def check_records(records_url: str | None) -> tuple[bool, str]:
+    """``aatest records check``: recompute the chain; whether it holds, and what to print."""
+    with open_for_reading(records_url) as store:
+        report = store.check_chain()
+        name = store.name
+    if report.broken is not None:
+        return False, (f"{name}: records chain broken at {report.broken.describe()} "
+                       f"({report.count} record(s) before it hold)")
+    return True, f"{name}: records chain intact: {report.count} record(s), head {report.head}"

@@ -17,11 +17,11 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import URL, Connection, Engine, Row
 from sqlalchemy.orm import aliased
 
-from aatest.records import numbering, schema
+from aatest.records import chain, numbering, schema
 from aatest.records.engine import open_engine
 from aatest.records.errors import RecordsError
 from aatest.records.models import CalibrationRecord, QuantityRecord, RecordFilter, Registration
-from aatest.records.tables import calibrations, quantities, signed_files, units
+from aatest.records.tables import calibrations, certificates, quantities, signed_files, units
 from aatest.records.url import is_default_missing, redacted, resolve_url
 from aatest.results import RunResults
 
@@ -77,6 +77,7 @@ class RecordStore:
     def register(self, registration: Registration) -> int:
         """Append a record (superseding the previous record of the same bundle); its id."""
         with self.engine.begin() as connection:
+            chain.lock(connection)  # ids and links in one order, whoever registers at once
             unit_id = _unit_id(connection, registration.model, registration.serial)
             previous = connection.execute(
                 select(calibrations.c.id).where(calibrations.c.bundle == registration.bundle)
@@ -88,6 +89,7 @@ class RecordStore:
                 registered_utc=datetime.now(UTC),
             ).returning(calibrations.c.id)).scalar_one()
             _insert_children(connection, record_id, registration)
+            chain.append(connection, int(record_id))
         return int(record_id)
 
     def query(self, where: RecordFilter) -> list[CalibrationRecord]:
@@ -131,6 +133,22 @@ class RecordStore:
             rows = connection.execute(_base().where(
                 calibrations.c.certificate_number == number).order_by(calibrations.c.id)).all()
             return _records(connection, rows)
+
+    def certificate_issued(self, number: str) -> bool:
+        """Whether this store ever issued certificate ``number``."""
+        with self.engine.connect() as connection:
+            return connection.execute(select(certificates.c.number).where(
+                certificates.c.number == number)).first() is not None
+
+    def check_chain(self) -> chain.ChainReport:
+        """Recompute the whole records chain (``aatest records check``)."""
+        with self.engine.connect() as connection:
+            return chain.check(connection)
+
+    def chain_problems(self, record_id: int) -> list[str]:
+        """Breaks of the chain links that vouch for record ``record_id`` (``aatest verify``)."""
+        with self.engine.connect() as connection:
+            return chain.record_problems(connection, record_id)
 
     def results_of(self, record_id: int) -> RunResults:
         """The stored results of a record (without figures), as the typed record."""
@@ -212,7 +230,7 @@ def _records(connection: Connection, rows: Sequence[Row[Any]]) -> list[Calibrati
     out = []
     for row in rows:
         data = row._asdict()
-        for drop in ("unit_id", "results"):
+        for drop in ("unit_id", "results", "previous_hash", "row_hash"):
             data.pop(drop, None)
         data.update(calibrated_utc=as_utc(row.calibrated_utc),
                     registered_utc=as_utc(row.registered_utc),

@@ -7,7 +7,8 @@ the record it replaces. Every time is UTC.
 - ``units``               one row per sensor unit (model, serial)
 - ``certificate_counters`` the last number issued per (prefix, year), locked while allocating
 - ``certificates``        every number ever issued (so the sequence is provably gap-free)
-- ``calibrations``        one record per registered run/analysis/report/diagnosis
+- ``calibrations``        one record per registered run/analysis/report/diagnosis, each hashed
+                          onto a chain over all records (:mod:`aatest.records.chain`)
 - ``signed_files``        SHA-256 of every file of the bundle, per record
 - ``quantities``          the key results with their expanded uncertainty, per record
 """
@@ -75,6 +76,8 @@ calibrations = Table(
     Column("results", JSON, nullable=False),
     Column("bundle", Text, nullable=False),
     Column("key_fingerprint", String(64)),
+    Column("previous_hash", String(64)),
+    Column("row_hash", String(64)),
 )
 
 signed_files = Table(

@@ -11,7 +11,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.run.signing import file_sha256, signature_path
+from aatest.engine.run.manifest import UnsafeNameError, file_sha256, member_path
+from aatest.engine.run.signing import signature_path
 from aatest.records.models import CalibrationRecord
 from aatest.records.store import RecordStore
 
@@ -39,7 +40,11 @@ def find_record(report_path: Path, store: RecordStore) -> CalibrationRecord | No
 def _file_reasons(report_path: Path, record: CalibrationRecord, label: str) -> list[str]:
     reasons = []
     for name, digest in sorted(record.files.items()):
-        member = report_path.with_name(name)
+        try:
+            member = member_path(report_path.parent, name)
+        except UnsafeNameError as exc:
+            reasons.append(f"record {label} is malformed: {exc}")
+            continue
         if not member.is_file():
             reasons.append(f"{name} removed since it was registered ({label})")
         elif file_sha256(member) != digest:
@@ -62,3 +67,19 @@ def record_reasons(report_path: Path, record: CalibrationRecord) -> list[str]:
     if record.key_fingerprint and not signature_path(report_path).is_file():
         reasons.append(f"signature {signature_path(report_path).name} removed ({label})")
     return reasons
+
+
+def unregistered_reasons(report_path: Path, store: RecordStore) -> list[str]:
+    """Why a bundle without a record in ``store`` is not one the store's lab issued.
+
+    Called when :func:`find_record` found nothing: a certificate number the store never issued
+    (or none at all) means the bundle was not registered here, however valid its signature.
+    """
+    number = _json_field(report_path.with_name("results.json"), "certificate_number")
+    if not isinstance(number, str) or not number:
+        return [f"results.json states no certificate number, and no record of this bundle is "
+                f"in {store.name}"]
+    if not store.certificate_issued(number):
+        return [f"certificate number {number!r} was never issued by {store.name}"]
+    return [f"certificate number {number!r} was issued by {store.name}, but no record of "
+            "this bundle holds it"]

@@ -16,7 +16,9 @@ from aatest.engine.run.signing import (
     generate_keypair,
     key_fingerprint,
     load_private_key,
+    public_key_path,
     sign_bundle,
+    trusted_public_key,
     verify_bundle,
 )
 from aatest.plugins.report.html import (
@@ -172,10 +174,11 @@ def test_signed_certificate_round_trip(results: RunResults, run_dir: Path,
     write_results(results, run_dir)
     report = FAST.render(results, run_dir, None)
     sign_bundle(report, private)
-    assert verify_bundle(report).ok
+    trusted = [trusted_public_key(public_key_path(key))]
+    assert verify_bundle(report, trusted).ok
     results.analysis.bias["v_sz"].bias_v = 2.4
     FAST.render(results, run_dir, None)
-    assert verify_bundle(report).reasons == [
+    assert verify_bundle(report, trusted).reasons == [
         "report.html: modified (sha256 differs from the signed value)"]
 
 

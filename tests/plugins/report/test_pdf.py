@@ -19,14 +19,15 @@ def test_pdf_is_signed_and_tampering_it_is_detected(tmp_path: Path) -> None:
                              pdf=True)
     pdf = run_dir / "report.pdf"
     assert pdf.read_bytes()[:5] == b"%PDF-" and pdf.stat().st_size > 10_000
-    assert signing.verify_bundle(run_dir / "report.html").ok
+    trusted = [signing.trusted_public_key(signing.public_key_path(key))]
+    assert signing.verify_bundle(run_dir / "report.html", trusted).ok
 
     data = bytearray(pdf.read_bytes())
     data[len(data) // 2] ^= 0x01
     pdf.write_bytes(bytes(data))
-    result = signing.verify_bundle(run_dir / "report.html")
+    result = signing.verify_bundle(run_dir / "report.html", trusted)
     assert not result.ok and any(r.startswith("report.pdf: modified") for r in result.reasons)
 
     # re-rendering without --pdf drops the stale PDF rather than signing around it
     session.report(run_dir, None, key)
-    assert not pdf.exists() and signing.verify_bundle(run_dir / "report.html").ok
+    assert not pdf.exists() and signing.verify_bundle(run_dir / "report.html", trusted).ok

@@ -26,7 +26,7 @@ from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.run import bundle_hooks
+from aatest.engine.run import bundle_hooks, signing
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
 from aatest.engine.run.rig import Rig, build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock
@@ -208,8 +208,6 @@ def render_and_sign(
     ``results`` is the typed record: written once as results.json, handed to the report
     plugin as it is.
     """
-    from aatest.engine.run import signing
-
     private = None
     if key_path is not None:
         private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
@@ -256,6 +254,8 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     """
     prepared = prepare(procedure, rig_file)
     plan = prepared.plan
+    if (key := signing_key(key_path)) is not None:  # a bad or too open key fails before any motion
+        signing.load_private_key(key, os.environ.get(PASSPHRASE_ENV))
     if out_dir is None:
         if resume:
             raise InputError("--resume needs --out RUN_DIR (the run to continue)")
