@@ -10,19 +10,20 @@ import pytest
 
 from aatest.engine.uncertainty import components as comp
 from aatest.engine.uncertainty.measurands import RigConstants
+from aatest.results import RunResults
 
 A_ARCSEC = 3600.0
 
 
 def _results(declared: dict[str, Any] | None, instruments: dict[str, Any] | None = None,
-             plugin: str | None = "acme") -> dict[str, Any]:
+             plugin: str | None = "acme") -> RunResults:
     rig: dict[str, Any] = {}
     if plugin is not None:
         rig["capabilities"] = {"turntable": {"plugin": plugin, "distribution": "acme-kit 1.0",
                                              "declared": declared}}
     if instruments is not None:
         rig["instruments"] = instruments
-    return {"metadata": {"rig": rig}}
+    return RunResults.model_validate({"procedure": "declared", "metadata": {"rig": rig}})
 
 
 def test_a_declared_encoder_replaces_the_default() -> None:
