@@ -1,0 +1,250 @@
+"""Reading NI TDMS (npTDMS) and ASAM MDF4 (asammdf) files behind one small interface.
+
+The importer (:mod:`aatest.engine.data.logger_import`) asks a file for a group, a group for its
+channels (sample count, number type, the unit the file states) and for one channel's numbers or
+its time base; it never sees the libraries. Every failure of a library on a file — a damaged
+header, a truncated segment, a block pointing past the end — becomes an
+:class:`~aatest.engine.errors.ImportDataError` naming the file (exit 2).
+
+Truncation. npTDMS reads a TDMS file whose last segment is cut short and only *logs* a warning
+(it then returns fewer samples than were written). A calibration must not analyse part of a
+record as if it were whole, so those warnings are errors here: the reader's ``nptdms`` log
+records at WARNING or above while the file's metadata is read end the import. asammdf raises
+on a truncated MF4 file itself.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from aatest.engine.errors import AatestError, ImportDataError
+
+#: the bytes a TDMS file starts with (the lead-in tag of its first segment)
+_TDMS_TAG = b"TDSm"
+#: the bytes an MDF file starts with (its identification block)
+_MDF_TAG = b"MDF     "
+#: ... and those of one its writer never finished (a logger that crashed or lost power)
+_MDF_UNFINISHED = b"UnFinMF "
+
+
+@dataclass(frozen=True)
+class ChannelInfo:
+    """What a file says about one channel before its numbers are read."""
+
+    samples: int
+    dtype: np.dtype[Any]
+    #: the unit as the file states it ("" when it states none)
+    unit: str
+
+
+class LoggerGroup(Protocol):
+    """One group of a logger file (a TDMS group, an MF4 channel group)."""
+
+    def channels(self) -> dict[str, ChannelInfo]:
+        """Every channel of the group by name."""
+
+    def read(self, channel: str) -> np.ndarray:
+        """All numbers of ``channel`` as stored (after the file's own scaling, if any)."""
+
+    def has_time_base(self, channel: str) -> bool:
+        """Whether the file states the time of ``channel``'s samples itself."""
+
+    def time_base(self, channel: str) -> np.ndarray:
+        """The time of each sample of ``channel`` by the file's own time base, s."""
+
+
+class LoggerFile(Protocol):
+    """An open logger file."""
+
+    path: Path
+
+    def group(self, key: str | int) -> LoggerGroup | None:
+        """The group named ``key`` (or at index ``key``); None when there is none."""
+
+    def group_names(self) -> list[str]:
+        """The names of the groups, in file order (for messages)."""
+
+
+@contextmanager
+def open_logger_file(path: Path, kind: str) -> Iterator[LoggerFile]:
+    """Open a ``tdms`` or ``mf4`` file for reading; every library error names the file."""
+    what = "TDMS" if kind == "tdms" else "MF4"
+    try:
+        with _open(path, kind) as opened:
+            yield opened
+    except AatestError:
+        raise
+    except Exception as exc:  # the library boundary: anything a damaged file makes it throw
+        detail = " ".join(str(exc).split()) or "no detail"
+        raise ImportDataError(path, f"corrupt or unreadable {what} file "
+                              f"({type(exc).__name__}: {detail})") from None
+
+
+@contextmanager
+def _open(path: Path, kind: str) -> Iterator[LoggerFile]:
+    if not path.is_file():
+        raise ImportDataError(path, "file not found")
+    with open(path, "rb") as stream:
+        head = stream.read(8)
+    if kind == "tdms":
+        if not head.startswith(_TDMS_TAG):
+            raise ImportDataError(path, f"not a TDMS file (starts with {head[:4]!r})")
+        with _tdms(path) as tdms:
+            yield tdms
+    else:
+        if head == _MDF_UNFINISHED:
+            raise ImportDataError(path, "unfinalised MDF file: the logger never closed it, "
+                                  "so its record may be incomplete")
+        if head != _MDF_TAG:
+            raise ImportDataError(path, f"not an MDF file (starts with {head!r})")
+        with _mdf(path) as mdf:
+            yield mdf
+
+
+class _LogWarnings(logging.Handler):
+    """Collects the messages a library logs at WARNING or above."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@contextmanager
+def _tdms(path: Path) -> Iterator[LoggerFile]:
+    from nptdms import TdmsFile
+
+    warnings = _LogWarnings()
+    logger = logging.getLogger("nptdms")
+    logger.addHandler(warnings)
+    try:
+        tdms = TdmsFile.open(str(path))
+    finally:
+        logger.removeHandler(warnings)
+    try:
+        if warnings.messages:
+            raise ImportDataError(path, f"truncated or damaged TDMS file: {warnings.messages[0]}")
+        yield _TdmsFile(path, tdms)
+    finally:
+        tdms.close()
+
+
+class _TdmsFile:
+    def __init__(self, path: Path, tdms: Any) -> None:
+        self.path = path
+        self._tdms = tdms
+
+    def group(self, key: str | int) -> LoggerGroup | None:
+        if not isinstance(key, str):
+            return None  # TDMS groups are named
+        with suppress(KeyError):
+            return _TdmsGroup(self._tdms[key])
+        return None
+
+    def group_names(self) -> list[str]:
+        return [g.name for g in self._tdms.groups()]
+
+
+class _TdmsGroup:
+    def __init__(self, group: Any) -> None:
+        self._group = group
+
+    def channels(self) -> dict[str, ChannelInfo]:
+        return {c.name: ChannelInfo(len(c), np.dtype(c.dtype),
+                                    str(c.properties.get("unit_string", "")))
+                for c in self._group.channels()}
+
+    def read(self, channel: str) -> np.ndarray:
+        return np.asarray(self._group[channel].read_data())
+
+    def has_time_base(self, channel: str) -> bool:
+        return "wf_increment" in self._group[channel].properties
+
+    def time_base(self, channel: str) -> np.ndarray:
+        return np.asarray(self._group[channel].time_track(), dtype=np.float64)
+
+
+@contextmanager
+def _quiet_unraisable() -> Iterator[None]:
+    """asammdf's half-built reader complains from ``__del__`` when its constructor failed on a
+    damaged file; the failure itself is reported, so that echo is not printed."""
+    previous = sys.unraisablehook
+    sys.unraisablehook = lambda _: None
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous
+
+
+@contextmanager
+def _mdf(path: Path) -> Iterator[LoggerFile]:
+    from asammdf import MDF
+
+    message = None
+    with _quiet_unraisable():
+        try:
+            mdf = MDF(str(path))
+        except Exception as exc:  # the library boundary (see open_logger_file)
+            message = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    if message is not None:  # raised here, outside the handler, so the reader is collected
+        raise ImportDataError(path, f"corrupt or unreadable MF4 file ({message})")
+    try:
+        yield _MdfFile(path, mdf)
+    finally:
+        mdf.close()
+
+
+class _MdfFile:
+    def __init__(self, path: Path, mdf: Any) -> None:
+        self.path = path
+        self._mdf = mdf
+
+    def group(self, key: str | int) -> LoggerGroup | None:
+        groups = self._mdf.groups
+        if isinstance(key, int):
+            return _MdfGroup(self._mdf, key) if 0 <= key < len(groups) else None
+        found = [i for i, g in enumerate(groups) if g.channel_group.acq_name == key]
+        if len(found) > 1:
+            raise ImportDataError(self.path, f"{len(found)} channel groups are named {key!r}; "
+                                  "give the group's index instead")
+        return _MdfGroup(self._mdf, found[0]) if found else None
+
+    def group_names(self) -> list[str]:
+        return [f"{i}: {g.channel_group.acq_name or '(no name)'}"
+                for i, g in enumerate(self._mdf.groups)]
+
+
+class _MdfGroup:
+    def __init__(self, mdf: Any, index: int) -> None:
+        self._mdf = mdf
+        self._index = index
+
+    def channels(self) -> dict[str, ChannelInfo]:
+        group = self._mdf.groups[self._index]
+        samples = int(group.channel_group.cycles_nr)
+        infos = {}
+        for channel in group.channels:
+            first = self._mdf.get(channel.name, group=self._index, record_offset=0,
+                                  record_count=1)
+            infos[channel.name] = ChannelInfo(samples, np.dtype(first.samples.dtype),
+                                              str(channel.unit or ""))
+        return infos
+
+    def read(self, channel: str) -> np.ndarray:
+        return np.asarray(self._mdf.get(channel, group=self._index).samples)
+
+    def has_time_base(self, channel: str) -> bool:
+        return self._index in self._mdf.masters_db
+
+    def time_base(self, channel: str) -> np.ndarray:
+        return np.asarray(self._mdf.get_master(self._index), dtype=np.float64)
