@@ -15,7 +15,9 @@ on a truncated MF4 file itself.
 
 from __future__ import annotations
 
+import gc
 import logging
+import struct
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -82,10 +84,21 @@ def open_logger_file(path: Path, kind: str) -> Iterator[LoggerFile]:
             yield opened
     except AatestError:
         raise
-    except Exception as exc:  # the library boundary: anything a damaged file makes it throw
+    except _decode_errors(kind) as exc:  # what a damaged file makes the library throw
         detail = " ".join(str(exc).split()) or "no detail"
         raise ImportDataError(path, f"corrupt or unreadable {what} file "
                               f"({type(exc).__name__}: {detail})") from None
+
+
+def _decode_errors(kind: str) -> tuple[type[BaseException], ...]:
+    """The exceptions a library raises on a damaged file (anything else is a bug: exit 4)."""
+    errors: tuple[type[BaseException], ...] = (ValueError, KeyError, IndexError, EOFError,
+                                               OSError, struct.error)
+    if kind == "mf4":
+        from asammdf.blocks.utils import MdfException
+
+        errors += (MdfException,)
+    return errors
 
 
 @contextmanager
@@ -121,19 +134,35 @@ class _LogWarnings(logging.Handler):
 
 
 @contextmanager
+def _tdms_warnings() -> Iterator[list[str]]:
+    """npTDMS's warnings while a file's metadata is read, collected instead of printed (they
+    become the error that names the file)."""
+    from nptdms.log import log_manager
+
+    collected = _LogWarnings()
+    logger = logging.getLogger("nptdms")
+    console = log_manager.console_handler
+    level, propagate = console.level, logger.propagate
+    logger.addHandler(collected)
+    console.setLevel(logging.CRITICAL + 1)
+    logger.propagate = False
+    try:
+        yield collected.messages
+    finally:
+        logger.removeHandler(collected)
+        console.setLevel(level)
+        logger.propagate = propagate
+
+
+@contextmanager
 def _tdms(path: Path) -> Iterator[LoggerFile]:
     from nptdms import TdmsFile
 
-    warnings = _LogWarnings()
-    logger = logging.getLogger("nptdms")
-    logger.addHandler(warnings)
-    try:
+    with _tdms_warnings() as warnings:
         tdms = TdmsFile.open(str(path))
-    finally:
-        logger.removeHandler(warnings)
     try:
-        if warnings.messages:
-            raise ImportDataError(path, f"truncated or damaged TDMS file: {warnings.messages[0]}")
+        if warnings:
+            raise ImportDataError(path, f"truncated or damaged TDMS file: {warnings[0]}")
         yield _TdmsFile(path, tdms)
     finally:
         tdms.close()
@@ -194,8 +223,10 @@ def _mdf(path: Path) -> Iterator[LoggerFile]:
     with _quiet_unraisable():
         try:
             mdf = MDF(str(path))
-        except Exception as exc:  # the library boundary (see open_logger_file)
+        except _decode_errors("mf4") as exc:
             message = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+        if message is not None:
+            gc.collect()  # the half-built reader sits in a reference cycle: collect it here
     if message is not None:  # raised here, outside the handler, so the reader is collected
         raise ImportDataError(path, f"corrupt or unreadable MF4 file ({message})")
     try:

@@ -146,7 +146,7 @@ class DaqMap(_Strict):
     freeze_pulse: PulseChannel
     trigger: PulseChannel
     temperature: TemperatureChannel | None = None
-    sensors: dict[str, VoltChannel] = {}
+    sensors: dict[str, VoltChannel] = Field(default_factory=dict)
 
 
 class MappedStep(StepEntry):
