@@ -324,7 +324,7 @@ def _converted(group: LoggerGroup, side: _Side, name: str, spec: ChannelMap) -> 
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         raise ImportDataError(side.file, f"{where}: sample {int(bad[0])} is not a finite "
-                              f"number ({values[bad[0]]!r})")
+                              f"number ({float(values[bad[0]])!r})")
     values.flags.writeable = False
     return values
 
@@ -336,8 +336,9 @@ def _pulse(path: Path, where: str, raw: np.ndarray, threshold: float | None) -> 
     else:
         bad = np.flatnonzero((raw != 0) & (raw != 1))
         if bad.size:
-            raise ImportDataError(path, f"{where}: must be 0 or 1, found {raw[bad[0]]!r} at "
-                                  f"sample {int(bad[0])} (an analogue line needs 'threshold')")
+            found = float(raw[bad[0]])
+            raise ImportDataError(path, f"{where}: must be 0 or 1, found {found!r} at sample "
+                                  f"{int(bad[0])} (an analogue line needs 'threshold')")
         pulse = raw.astype(np.uint8)
     pulse.flags.writeable = False
     return pulse
