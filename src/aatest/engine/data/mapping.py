@@ -58,7 +58,14 @@ class ChannelMap(_Strict):
     required: bool = True
 
     def scaling(self) -> tuple[float, float]:
-        """(factor, shift) taking stored numbers to the canonical unit in one multiply-add."""
+        """(factor, shift) taking stored numbers to the canonical unit in one multiply-add.
+
+        Returns
+        -------
+        tuple of float
+            The factor (canonical unit per stored unit: dimensionless between like units,
+            e.g. 57.3 °/rad) and the shift (in the canonical unit, e.g. −273.15 °C).
+        """
         factor, shift = UNIT_CONVERSIONS[getattr(self, "unit", "1")]
         return self.gain * factor, self.offset * factor + shift
 
@@ -70,26 +77,38 @@ class ChannelMap(_Strict):
 
 
 class AngleChannel(ChannelMap):
+    """An angle (table position, encoder feedback); canonical unit °."""
+
     unit: Literal["deg", "rad", "arcsec"]
 
 
 class RateChannel(ChannelMap):
+    """An angular rate; canonical unit °/s."""
+
     unit: Literal["deg/s", "rad/s", "rpm"]
 
 
 class AccelChannel(ChannelMap):
+    """An angular acceleration; canonical unit °/s²."""
+
     unit: Literal["deg/s^2", "rad/s^2"]
 
 
 class VoltChannel(ChannelMap):
+    """A sensor output; canonical unit V."""
+
     unit: Literal["V", "mV"]
 
 
 class TemperatureChannel(ChannelMap):
+    """A temperature; canonical unit °C."""
+
     unit: Literal["degC", "K"]
 
 
 class TimeChannel(ChannelMap):
+    """Time stamps or latch times; canonical unit s."""
+
     unit: Literal["s", "ms", "us"]
 
 
