@@ -153,3 +153,27 @@ def write_mf4(dataset: Dataset, manifest: dict[str, Any], out: Path) -> Path:
     text = mapping_yaml(manifest, "mf4", table_map, daq_map, [(0, 1)] * len(files), files)
     (out / "mapping.yaml").write_text(text, encoding="utf-8")
     return out / "mapping.yaml"
+
+
+def _leaves(node: Any, path: str = "") -> Any:
+    if isinstance(node, dict):
+        for key, value in node.items():
+            yield from _leaves(value, f"{path}/{key}")
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            yield from _leaves(value, f"{path}/{i}")
+    else:
+        yield path, node
+
+
+def assert_close_tree(expected: Any, got: Any, rtol: float, atol: float) -> int:
+    """Same keys and strings, floats within ``rtol``/``atol``; returns the leaves compared."""
+    want, have = dict(_leaves(expected)), dict(_leaves(got))
+    assert set(have) == set(want)
+    for key, value in want.items():
+        if isinstance(value, float) and isinstance(have[key], (int, float)):
+            assert math.isclose(have[key], value, rel_tol=rtol, abs_tol=atol), (
+                f"{key}: {have[key]!r} != {value!r}")
+        else:
+            assert have[key] == value, key
+    return len(want)

@@ -4,11 +4,12 @@ value checks when a step is read; partial reads (docs/interfaces.md §3, "Logger
 from __future__ import annotations
 
 from collections.abc import Container, Iterator
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
 import pytest
-from logger_writers import mapping_yaml
+from logger_writers import assert_close_tree, mapping_yaml
 from nptdms import ChannelObject, GroupObject, TdmsWriter
 from recording_data import RATE_HZ, SENSOR, sine_step, step_logs
 from ruamel.yaml import YAML
@@ -30,7 +31,7 @@ def _piece(log: SampledLog, part: slice) -> SampledLog:
 
 def _pieced_dataset() -> tuple[Dataset, list[dict[str, SampledLog]]]:
     """Two synthetic steps (inner and outer axis) whose logs come in PIECES pieces."""
-    steps = [sine_step("s01", samples=4096), sine_step("s02", samples=2048, axis="outer")]
+    steps = [sine_step("s01", samples=4096), sine_step("s02", samples=4096, axis="outer")]
     logs = [dict(zip(("table", "daq"), step_logs(step, seed), strict=True))
             for seed, step in enumerate(steps)]
 
@@ -42,7 +43,7 @@ def _pieced_dataset() -> tuple[Dataset, list[dict[str, SampledLog]]]:
                ) -> Iterator[SampledLog]:
         whole = load(index, source, channels)
         edges = np.linspace(0, len(whole), PIECES + 1).astype(int)
-        for a, b in zip(edges[:-1], edges[1:], strict=True):
+        for a, b in pairwise(edges.tolist()):
             yield _piece(whole, slice(a, b))
 
     lazy = LazySteps(steps, load, [{s: len(v) for s, v in step.items()} for step in logs],
@@ -178,3 +179,28 @@ def test_the_export_mapping_is_a_valid_mapping(tmp_path: Path) -> None:
         ("s01_table", "s01_daq"), ("s02_table", "s02_daq")]
     assert doc["table"]["accel"] == {"channel": "accel_dps2", "unit": "deg/s^2"}
     assert doc["table"]["channels"]["inner_position_deg"]["required"] is False
+
+
+def test_diagnose_reads_a_tdms_export_like_the_csv_export(tmp_path: Path) -> None:
+    """``aatest diagnose`` on the TDMS export finds what it finds on the CSV export: the same
+    logs (bit for bit, see above) give the same diagnosis JSON and exit code."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from aatest.cli import app
+    from aatest.engine.data.exporter import export_csv
+
+    dataset, _ = _pieced_dataset()
+    runs = {}
+    for name, export in (("csv", export_csv), ("tdms", export_tdms)):
+        out = export(dataset, tmp_path / name)
+        done = CliRunner().invoke(app, ["diagnose", str(out), "--json",
+                                        str(tmp_path / f"{name}.json")])
+        assert done.exception is None or isinstance(done.exception, SystemExit), done.output
+        runs[name] = (done.exit_code, json.loads((tmp_path / f"{name}.json").read_text()))
+    assert runs["tdms"][0] == runs["csv"][0]
+    # the logs are bit-identical (test above): only summation order may differ; the
+    # tolerance and its reasoning are those of test_logger_files.RTOL
+    assert assert_close_tree(runs["csv"][1], runs["tdms"][1], rtol=1e-9, atol=1e-12) > 10
+    assert runs["csv"][0] in (0, 1) and runs["csv"][1]["baseline"]["rmse_v"] > 0

@@ -4,13 +4,11 @@
 from __future__ import annotations
 
 import json
-import math
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-from logger_writers import write_mf4, write_tdms
+from logger_writers import assert_close_tree, write_mf4, write_tdms
 from ruamel.yaml import YAML
 from typer.testing import CliRunner
 
@@ -52,28 +50,10 @@ def twin(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
             "results": json.loads((csv_dir / "results.json").read_text())}
 
 
-def _leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any]]:
-    if isinstance(node, dict):
-        for key, value in node.items():
-            yield from _leaves(value, f"{path}/{key}")
-    elif isinstance(node, list):
-        for i, value in enumerate(node):
-            yield from _leaves(value, f"{path}/{i}")
-    else:
-        yield path, node
-
-
 def assert_same_results(expected: dict[str, Any], got: dict[str, Any]) -> None:
     """Every analysis number and verdict agrees within RTOL/ATOL; everything else exactly."""
     for section in ("analysis", "analysis_errors", "verdicts", "overall"):
-        want, have = dict(_leaves(expected[section])), dict(_leaves(got[section]))
-        assert set(have) == set(want), section
-        for key, value in want.items():
-            if isinstance(value, float) and isinstance(have[key], (int, float)):
-                assert math.isclose(have[key], value, rel_tol=RTOL, abs_tol=ATOL), (
-                    f"{section}{key}: {have[key]!r} != {value!r}")
-            else:
-                assert have[key] == value, f"{section}{key}"
+        assert_close_tree(expected[section], got[section], RTOL, ATOL)
     assert len(expected["analysis"]["frf"]["v_sz"]) == 3  # the comparison saw the data
 
 
