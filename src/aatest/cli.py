@@ -231,7 +231,8 @@ def _exit_on_outcome(results: dict[str, Any]) -> None:
 @app.command()
 @guarded
 def analyze(
-    data: Path = typer.Argument(..., help="Run directory, recording.mcap or import directory"),
+    data: Path = typer.Argument(
+        ..., help="Run directory, recording.mcap, import directory or logger mapping.yaml"),
     json_out: Path | None = typer.Option(None, "--json", help="Also write results here"),
     out: Path | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
     sign_key: Path | None = typer.Option(None, "--sign-key"),
@@ -279,7 +280,8 @@ def export(
 @app.command()
 @guarded
 def diagnose(
-    data: Path = typer.Argument(..., help="Run directory, recording or import directory"),
+    data: Path = typer.Argument(
+        ..., help="Run directory, recording, import directory or logger mapping.yaml"),
     json_out: Path | None = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
     model_out: Path | None = typer.Option(
         None, "--model-out", help="Write the extended model YAML"),

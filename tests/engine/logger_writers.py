@@ -118,10 +118,12 @@ def write_tdms(dataset: Dataset, manifest: dict[str, Any], out: Path) -> Path:
     return out / "mapping.yaml"
 
 
-def write_mf4(dataset: Dataset, manifest: dict[str, Any], out: Path) -> Path:
+def write_mf4(dataset: Dataset, manifest: dict[str, Any], out: Path,
+              acq_name: str | None = None) -> Path:
     """One MF4 file per step by asammdf (``MDF.append``/``extend``/``save``): groups without
-    acquisition names (found by index), time as each group's master channel, the sensor as
-    millivolts around its 2.5 V bias (``offset`` in the mapping)."""
+    acquisition names (found by index; ``acq_name``: both groups named so), time as each
+    group's master channel, the sensor as millivolts around its 2.5 V bias (``offset`` in the
+    mapping)."""
     out.mkdir(parents=True, exist_ok=True)
     files = []
     names = {k: v for k, v in TDMS_TABLE.items() if k != "time_s"}
@@ -133,14 +135,15 @@ def write_mf4(dataset: Dataset, manifest: dict[str, Any], out: Path) -> Path:
                  for k, (name, unit, scale) in names.items()]
         first.append(Signal(table["sync_pulse"][:half].astype(np.uint8), table.time_s[:half],
                             name="FreezePulse"))
-        mdf.append(first)
+        mdf.append(first, acq_name=acq_name)
         mdf.extend(0, [(table.time_s[half:], None),
                        *((table[k][half:] * scale, None) for k, (_, _, scale) in names.items()),
                        (table["sync_pulse"][half:].astype(np.uint8), None)])
         mdf.append([Signal(daq["sync_pulse"].astype(np.uint8), daq.time_s, name="Sync"),
                     Signal(daq["trigger"].astype(np.uint8), daq.time_s, name="Trigger"),
                     Signal((daq["v_sz"] - 2.5) * 1000.0, daq.time_s, name="AI0", unit="mV"),
-                    Signal(daq["temperature_c"], daq.time_s, name="Temp", unit="°C")])
+                    Signal(daq["temperature_c"], daq.time_s, name="Temp", unit="°C")],
+                   acq_name=acq_name)
         name = f"step{i + 1}.mf4"
         mdf.save(str(out / name), overwrite=True)
         mdf.close()

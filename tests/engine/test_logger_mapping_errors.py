@@ -162,3 +162,16 @@ def test_a_missing_mf4_group_index_is_located(tmp_path: Path) -> None:
     code, output = _analyse(mapping)
     assert code == 2
     assert f"{mapping}:{line}:{column}: steps.0.daq: no group 7" in output
+
+
+def test_an_mf4_group_name_given_twice_is_located(tmp_path: Path) -> None:
+    """asammdf lets two channel groups share an acquisition name: the mapping must say which."""
+    dataset, manifest = _dataset()
+    mapping = write_mf4(dataset, manifest, tmp_path / "mf4", acq_name="Logger")
+    data_file = mapping.parent / "step1.mf4"
+    text = _edit(mapping, "daq: 1\n", "daq: Logger\n")
+    line, column = _position(text, "daq: Logger", "daq")
+    code, output = _analyse(mapping)
+    assert code == 2, output
+    assert f"{mapping}:{line}:{column}: steps.0.daq: 2 channel groups of {data_file} are " \
+        "named 'Logger' (indices [0, 1])" in output

@@ -27,7 +27,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from aatest.engine.errors import AatestError, ImportDataError
+from aatest.engine.errors import AatestError, ImportDataError, InputError
 
 #: the bytes a TDMS file starts with (the lead-in tag of its first segment)
 _TDMS_TAG = b"TDSm"
@@ -35,6 +35,10 @@ _TDMS_TAG = b"TDSm"
 _MDF_TAG = b"MDF     "
 #: ... and those of one its writer never finished (a logger that crashed or lost power)
 _MDF_UNFINISHED = b"UnFinMF "
+
+
+class AmbiguousGroupError(InputError):
+    """Several groups answer to the name a mapping gives (MF4 acquisition names repeat)."""
 
 
 @dataclass(frozen=True)
@@ -69,7 +73,13 @@ class LoggerFile(Protocol):
     path: Path
 
     def group(self, key: str | int) -> LoggerGroup | None:
-        """The group named ``key`` (or at index ``key``); None when there is none."""
+        """The group named ``key`` (or at index ``key``); None when there is none.
+
+        Raises
+        ------
+        AmbiguousGroupError
+            More than one group has that name.
+        """
 
     def group_names(self) -> list[str]:
         """The names of the groups, in file order (for messages)."""
@@ -246,8 +256,8 @@ class _MdfFile:
             return _MdfGroup(self._mdf, key) if 0 <= key < len(groups) else None
         found = [i for i, g in enumerate(groups) if g.channel_group.acq_name == key]
         if len(found) > 1:
-            raise ImportDataError(self.path, f"{len(found)} channel groups are named {key!r}; "
-                                  "give the group's index instead")
+            raise AmbiguousGroupError(f"{len(found)} channel groups of {self.path} are named "
+                                 f"{key!r} (indices {found}): give the group's index instead")
         return _MdfGroup(self._mdf, found[0]) if found else None
 
     def group_names(self) -> list[str]:

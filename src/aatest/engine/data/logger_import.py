@@ -30,7 +30,12 @@ from aatest.engine.data.importer import (
     _planned,
     _t_ref_c,
 )
-from aatest.engine.data.logger_files import LoggerFile, LoggerGroup, open_logger_file
+from aatest.engine.data.logger_files import (
+    AmbiguousGroupError,
+    LoggerFile,
+    LoggerGroup,
+    open_logger_file,
+)
 from aatest.engine.data.mapping import (
     ChannelMap,
     LoggerMapping,
@@ -190,7 +195,11 @@ def _check_files(mapping: LoggerMapping, directory: Path, checker: _Checker
 
 def _check_group(opened: LoggerFile, index: int, side: str, key: str | int, specs: Specs,
                  checker: _Checker) -> _Side | None:
-    group = opened.group(key)
+    try:
+        group = opened.group(key)
+    except AmbiguousGroupError as exc:
+        checker.add(("steps", index, side), str(exc))
+        return None
     if group is None:
         checker.add(("steps", index, side), f"no group {key!r} in {opened.path} "
                     f"(it has: {', '.join(opened.group_names()) or 'none'})")
