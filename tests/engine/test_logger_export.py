@@ -204,3 +204,29 @@ def test_diagnose_reads_a_tdms_export_like_the_csv_export(tmp_path: Path) -> Non
     # tolerance and its reasoning are those of test_logger_files.RTOL
     assert assert_close_tree(runs["csv"][1], runs["tdms"][1], rtol=1e-9, atol=1e-12) > 10
     assert runs["csv"][0] in (0, 1) and runs["csv"][1]["baseline"]["rmse_v"] > 0
+
+
+@pytest.mark.parametrize("export", [export_tdms, export_mf4, None])
+def test_pieces_join_to_the_whole_log(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                      export: object) -> None:
+    """A piecewise read (0.3 s = 600 samples a piece: 4096 = 6·600 + 496) joins to the whole
+    read exactly, for the exports and for a TDMS waveform time base (``export`` None)."""
+    from aatest.engine.data import logger_import
+
+    monkeypatch.setattr(logger_import, "PIECE_S", 0.3)
+    if export is None:
+        data = read_dataset(_waveform_tdms(tmp_path, daq_time=""))
+    else:
+        data = read_dataset(export(_pieced_dataset()[0], tmp_path / "out"))  # type: ignore[operator]
+    assert isinstance(data.steps, LazySteps)
+    for source in ("table", "daq"):
+        whole = getattr(data.steps[0], source)
+        pieces = list(data.steps.pieces(0, source))
+        assert [len(p) for p in pieces][:-1] == [600] * (len(pieces) - 1)
+        assert sum(len(p) for p in pieces) == len(whole)
+        np.testing.assert_array_equal(np.concatenate([p.time_s for p in pieces]), whole.time_s)
+        for name, values in whole.channels.items():
+            np.testing.assert_array_equal(np.concatenate([p[name] for p in pieces]), values,
+                                          err_msg=name)
+        one = list(data.steps.pieces(0, source, {"sync_pulse"}))
+        assert all(list(p.channels) == ["sync_pulse"] for p in one)

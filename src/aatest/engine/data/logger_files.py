@@ -57,14 +57,17 @@ class LoggerGroup(Protocol):
     def channels(self) -> dict[str, ChannelInfo]:
         """Every channel of the group by name."""
 
-    def read(self, channel: str) -> np.ndarray:
-        """All numbers of ``channel`` as stored (after the file's own scaling, if any)."""
+    def read(self, channel: str, start: int = 0, length: int | None = None) -> np.ndarray:
+        """The numbers of ``channel`` as stored (after the file's own scaling, if any), from
+        sample ``start`` on, ``length`` of them (all when None)."""
 
     def has_time_base(self, channel: str) -> bool:
         """Whether the file states the time of ``channel``'s samples itself."""
 
-    def time_base(self, channel: str) -> np.ndarray:
-        """The time of each sample of ``channel`` by the file's own time base, s."""
+    def time_base(self, channel: str, start: int = 0, length: int | None = None
+                  ) -> np.ndarray:
+        """The time of samples ``start`` … ``start + length`` of ``channel`` by the file's
+        own time base, s."""
 
 
 class LoggerFile(Protocol):
@@ -203,14 +206,22 @@ class _TdmsGroup:
                                     str(c.properties.get("unit_string", "")))
                 for c in self._group.channels()}
 
-    def read(self, channel: str) -> np.ndarray:
-        return np.asarray(self._group[channel].read_data())
+    def read(self, channel: str, start: int = 0, length: int | None = None) -> np.ndarray:
+        return np.asarray(self._group[channel].read_data(start, length))
 
     def has_time_base(self, channel: str) -> bool:
         return "wf_increment" in self._group[channel].properties
 
-    def time_base(self, channel: str) -> np.ndarray:
-        return np.asarray(self._group[channel].time_track(), dtype=np.float64)
+    def time_base(self, channel: str, start: int = 0, length: int | None = None
+                  ) -> np.ndarray:
+        """``wf_start_offset + k·wf_increment`` for the samples k asked for (computed here,
+        not by npTDMS's whole-channel ``time_track``, so a piece costs its own length and the
+        pieces of a log join to the whole read exactly)."""
+        found = self._group[channel]
+        stop = len(found) if length is None else start + length
+        k = np.arange(start, stop, dtype=np.float64)
+        return float(found.properties.get("wf_start_offset", 0.0)) + k * float(
+            found.properties["wf_increment"])
 
 
 @contextmanager
@@ -281,11 +292,14 @@ class _MdfGroup:
                                               str(channel.unit or ""))
         return infos
 
-    def read(self, channel: str) -> np.ndarray:
-        return np.asarray(self._mdf.get(channel, group=self._index).samples)
+    def read(self, channel: str, start: int = 0, length: int | None = None) -> np.ndarray:
+        return np.asarray(self._mdf.get(channel, group=self._index, record_offset=start,
+                                        record_count=length).samples)
 
     def has_time_base(self, channel: str) -> bool:
         return self._index in self._mdf.masters_db
 
-    def time_base(self, channel: str) -> np.ndarray:
-        return np.asarray(self._mdf.get_master(self._index), dtype=np.float64)
+    def time_base(self, channel: str, start: int = 0, length: int | None = None
+                  ) -> np.ndarray:
+        return np.asarray(self._mdf.get_master(self._index, record_offset=start,
+                                               record_count=length), dtype=np.float64)

@@ -5,9 +5,10 @@ analysed: every group a step names, every mapped channel, its number type and (w
 states one) its unit. All problems are reported at once, each at the ``FILE:LINE:COLUMN`` of the
 mapping entry that is wrong and naming the data file and group where it looked. The numbers
 themselves are read when an analysis reads a step (:class:`~aatest.engine.dataset.LazySteps`):
-one step's two groups at a time, and only the channels asked for, so a long record is never
-held whole. Each read opens the file anew: a forked analysis worker then never shares a file
-position with its parent.
+one step's two groups at a time, and only the channels asked for; a reduction over a long
+record (:meth:`~aatest.engine.dataset.LazySteps.pieces`) reads :data:`PIECE_S` seconds at a
+time, so such a record is never held whole. Each read opens the file anew: a forked analysis
+worker then never shares a file position with its parent.
 
 The resulting logs are those the CSV importer builds (:mod:`aatest.engine.data.importer`): the
 same canonical channel names, units and fill-ins (the resting axis at its stated angle, feedback
@@ -16,7 +17,7 @@ equal to position, the stated temperature), so an analysis cannot tell the forma
 
 from __future__ import annotations
 
-from collections.abc import Container
+from collections.abc import Container, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -49,6 +50,8 @@ from aatest.engine.errors import ImportDataError, Problem
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.procedure.yaml_loader import locate
 
+#: seconds of samples per piece of a piecewise read (as a streamed recording's blocks)
+PIECE_S = 60.0
 #: where each mapped channel's entry is in mapping.yaml, by canonical name
 Specs = dict[str, tuple[ChannelMap, tuple[str, ...]]]
 _MOTION = (("position", "position_deg"), ("rate", "rate_dps"), ("accel", "accel_dps2"))
@@ -135,7 +138,7 @@ def import_logger_files(mapping_path: str | Path) -> Dataset:
                for entry, (table, _) in zip(mapping.steps, sides, strict=True)]
     loader = _Loader(mapping, sides, t_ref_c)
     steps = LazySteps(planned, loader, [{"table": t.samples, "daq": d.samples}
-                                        for t, d in sides])
+                                        for t, d in sides], loader.pieces)
     present = {entry.id: {"table": _present_table(entry, table), "daq": list(daq.specs)}
                for entry, (table, daq) in zip(mapping.steps, sides, strict=True)}
     for names in present.values():
@@ -258,6 +261,24 @@ class _Loader:
         self._sensors = [s.channel for s in mapping.sensors]
 
     def __call__(self, index: int, source: str, channels: Container[str] | None) -> SampledLog:
+        return self._read(index, source, channels, 0, None)
+
+    def pieces(self, index: int, source: str, channels: Container[str] | None
+               ) -> Iterator[SampledLog]:
+        """The log in consecutive pieces of :data:`PIECE_S` seconds (one file read each)."""
+        side = self._sides[index][0 if source == TABLE else 1]
+        step = max(1, int(PIECE_S * self._rate_hz))
+        last_s = -np.inf
+        for start in range(0, max(side.samples, 1), step):
+            piece = self._read(index, source, channels, start, min(step, side.samples - start))
+            if len(piece) and not piece.time_s[0] > last_s:
+                raise ImportDataError(side.file, f"group {side.group!r}: time does not "
+                                      f"increase at sample {start}")
+            last_s = piece.time_s[-1] if len(piece) else last_s
+            yield piece
+
+    def _read(self, index: int, source: str, channels: Container[str] | None, start: int,
+              length: int | None) -> SampledLog:
         entry = self._steps[index]
         side = self._sides[index][0 if source == TABLE else 1]
         wanted = {n: s for n, (s, _) in side.specs.items()
@@ -266,11 +287,13 @@ class _Loader:
         with open_logger_file(side.file, self._format) as opened:
             group = opened.group(side.group)
             assert group is not None  # checked on import; the file may not change meanwhile
-            values = {name: _converted(group, side, name, spec) for name, spec in wanted.items()}
+            values = {name: _converted(group, side, name, spec, start, length)
+                      for name, spec in wanted.items()}
             if "time_s" not in values:
-                values["time_s"] = group.time_base(side.specs["sync_pulse"][0].channel)
+                values["time_s"] = group.time_base(side.specs["sync_pulse"][0].channel, start,
+                                                   length)
         time_s = values.pop("time_s")
-        _check_time(side, time_s)
+        _check_time(side, time_s, start)
         asked = _Everything() if channels is None else channels
         log = self._table(entry, time_s, values, asked) if source == TABLE else self._daq(
             entry, time_s, values, asked)
@@ -320,25 +343,27 @@ def fills_feedback(position: str, asked: Container[str]) -> bool:
                                                                     "feedback") in asked
 
 
-def _converted(group: LoggerGroup, side: _Side, name: str, spec: ChannelMap) -> np.ndarray:
+def _converted(group: LoggerGroup, side: _Side, name: str, spec: ChannelMap, start: int,
+               length: int | None) -> np.ndarray:
     """One channel in aatest's unit: a 0/1 pulse as uint8, anything else as float64."""
-    raw = group.read(spec.channel)
+    raw = group.read(spec.channel, start, length)
     where = f"group {side.group!r}, channel {spec.channel!r}"
     if isinstance(spec, PulseChannel):
-        return _pulse(side.file, where, raw, spec.threshold)
+        return _pulse(side.file, where, raw, spec.threshold, start)
     values = raw.astype(np.float64, copy=False)
     factor, shift = spec.scaling()
     if (factor, shift) != (1.0, 0.0):
         values = values * factor + shift
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
-        raise ImportDataError(side.file, f"{where}: sample {int(bad[0])} is not a finite "
+        raise ImportDataError(side.file, f"{where}: sample {start + int(bad[0])} is not a finite "
                               f"number ({float(values[bad[0]])!r})")
     values.flags.writeable = False
     return values
 
 
-def _pulse(path: Path, where: str, raw: np.ndarray, threshold: float | None) -> np.ndarray:
+def _pulse(path: Path, where: str, raw: np.ndarray, threshold: float | None, start: int
+           ) -> np.ndarray:
     """A 0/1 line: a logic channel as it is, or an analogue one cut at ``threshold``."""
     if threshold is not None:
         pulse = (raw > threshold).astype(np.uint8)
@@ -347,15 +372,15 @@ def _pulse(path: Path, where: str, raw: np.ndarray, threshold: float | None) -> 
         if bad.size:
             found = float(raw[bad[0]])
             raise ImportDataError(path, f"{where}: must be 0 or 1, found {found!r} at sample "
-                                  f"{int(bad[0])} (an analogue line needs 'threshold')")
+                                  f"{start + int(bad[0])} (an analogue line needs 'threshold')")
         pulse = raw.astype(np.uint8)
     pulse.flags.writeable = False
     return pulse
 
 
-def _check_time(side: _Side, time_s: np.ndarray) -> None:
+def _check_time(side: _Side, time_s: np.ndarray, start: int) -> None:
     bad = np.flatnonzero(~(np.diff(time_s) > 0))
     if bad.size or not np.all(np.isfinite(time_s[:1])):
-        k = int(bad[0]) + 1 if bad.size else 0
+        k = start + (int(bad[0]) + 1 if bad.size else 0)
         raise ImportDataError(side.file, f"group {side.group!r}: time does not increase at "
                               f"sample {k}")
