@@ -122,7 +122,7 @@ def _read_run_dir(run_dir: Path) -> Dataset:
     if not files:
         raise RecordingError(
             f"{run_dir}: no {RECORDING_NAME}, no completed step in {STEPS_DIR}/ and no "
-            f"{IMPORT_MANIFEST}: not a run or import directory"
+            f"{IMPORT_MANIFEST} or {LOGGER_MAPPING}: not a run or import directory"
         )
     run_meta = load_run_metadata(steps_dir)
     steps: list[_StepEntry] = []
