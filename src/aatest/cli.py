@@ -236,7 +236,8 @@ def _exit_on_outcome(results: RunResults) -> None:
 @app.command()
 @guarded
 def analyze(
-    data: Path = typer.Argument(..., help="Run directory, recording.mcap or import directory"),
+    data: Path = typer.Argument(
+        ..., help="Run directory, recording.mcap, import directory or logger mapping.yaml"),
     json_out: Path | None = typer.Option(None, "--json", help="Also write results here"),
     out: Path | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
     sign_key: Path | None = typer.Option(None, "--sign-key"),
@@ -264,20 +265,30 @@ def analyze(
 @guarded
 def export(
     run_dir: Path = typer.Argument(..., help="Run directory or recording"),
-    csv: Path = typer.Option(..., "--csv", help="Output directory (import format)"),
+    csv: Path | None = typer.Option(None, "--csv", help="Output directory (import format)"),
+    tdms: Path | None = typer.Option(None, "--tdms", help="Output directory (TDMS + mapping)"),
+    mf4: Path | None = typer.Option(None, "--mf4", help="Output directory (MF4 + mapping)"),
 ) -> None:
-    """Write a recording in the measured-data import format (CSV + dataset.yaml)."""
+    """Write a recording as CSV + dataset.yaml, or as a TDMS or MF4 file + mapping.yaml."""
     from aatest.engine.data.exporter import export_csv
+    from aatest.engine.data.logger_export import export_mf4, export_tdms
+    from aatest.engine.errors import InputError
     from aatest.engine.recording import read_dataset
 
-    path = export_csv(read_dataset(run_dir), csv)
+    chosen = [(w, d) for w, d in ((export_csv, csv), (export_tdms, tdms), (export_mf4, mf4))
+              if d is not None]
+    if len(chosen) != 1:
+        raise InputError("export: give exactly one of --csv, --tdms, --mf4")
+    writer, out_dir = chosen[0]
+    path = writer(read_dataset(run_dir), out_dir)
     typer.echo(f"exported to {path}")
 
 
 @app.command()
 @guarded
 def diagnose(
-    data: Path = typer.Argument(..., help="Run directory, recording or import directory"),
+    data: Path = typer.Argument(
+        ..., help="Run directory, recording, import directory or logger mapping.yaml"),
     json_out: Path | None = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
     model_out: Path | None = typer.Option(
         None, "--model-out", help="Write the extended model YAML"),

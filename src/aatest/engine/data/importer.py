@@ -216,7 +216,7 @@ def _planned(entry: StepEntry, samples: int, rate_hz: float) -> PlannedStep:
     if entry.kind == "sine" and amplitude is None:
         assert entry.accel_dps2 is not None and entry.frequency_hz is not None  # validated
         amplitude = entry.accel_dps2 / (2 * math.pi * entry.frequency_hz) ** 2
-    fields = entry.model_dump(exclude={"table", "daq", "amplitude_deg"})
+    fields = entry.model_dump(exclude={"table", "daq", "file", "amplitude_deg"})
     return PlannedStep(**fields, amplitude_deg=amplitude, samples=samples,
                        sample_rate_hz=rate_hz, duration_s=samples / rate_hz)
 

@@ -2,7 +2,8 @@
 
 :func:`read_dataset` accepts a run directory (its ``recording.mcap``; the completed step files
 of ``steps/`` when the run was interrupted or resumed after the last merge), a recording file,
-or a measured-data import directory (``dataset.yaml`` present, docs/interfaces.md §3). Anything that
+or a measured-data import directory (``dataset.yaml`` present, docs/interfaces.md §3; or
+``mapping.yaml`` and the TDMS/MF4 files it names, or that mapping file itself). Anything that
 is not a complete aatest recording raises :class:`~aatest.engine.errors.RecordingError` naming
 the file and what is wrong. The layout is described in :mod:`aatest.engine.recording.format`.
 """
@@ -36,6 +37,8 @@ from aatest.engine.recording.writer import (
 from aatest.engine.steps import PlannedStep
 
 IMPORT_MANIFEST = "dataset.yaml"
+#: the mapping file of a logger's TDMS/MF4 files (docs/interfaces.md §3)
+LOGGER_MAPPING = "mapping.yaml"
 _DECODE_ERRORS = fmt.DECODE_ERRORS
 
 
@@ -92,11 +95,21 @@ def read_dataset(path: str | Path) -> Dataset:
             from aatest.engine.data.importer import import_dataset
 
             return import_dataset(path)
+        if (path / LOGGER_MAPPING).exists():
+            return _import_logger_files(path / LOGGER_MAPPING)
         return _read_run_dir(path)
+    if path.is_file() and path.suffix in (".yaml", ".yml"):
+        return _import_logger_files(path)
     if path.is_file():
         contents = _read_file(path)
         return _build_dataset(contents.run_meta, contents.steps, path, complete=True)
     raise RecordingError(f"{path}: no such file or directory")
+
+
+def _import_logger_files(mapping: Path) -> Dataset:
+    from aatest.engine.data.logger_import import import_logger_files
+
+    return import_logger_files(mapping)
 
 
 def _read_run_dir(run_dir: Path) -> Dataset:
@@ -109,7 +122,7 @@ def _read_run_dir(run_dir: Path) -> Dataset:
     if not files:
         raise RecordingError(
             f"{run_dir}: no {RECORDING_NAME}, no completed step in {STEPS_DIR}/ and no "
-            f"{IMPORT_MANIFEST}: not a run or import directory"
+            f"{IMPORT_MANIFEST} or {LOGGER_MAPPING}: not a run or import directory"
         )
     run_meta = load_run_metadata(steps_dir)
     steps: list[_StepEntry] = []
