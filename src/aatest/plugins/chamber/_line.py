@@ -149,7 +149,7 @@ class LineChamber:
         while True:
             pv, sp = self._read_pv_sp()
             elapsed = self._clock_s() - self._setpoint_time_s
-            if elapsed >= soak_s and abs(pv - sp) <= cfg.stable_band_c:
+            if elapsed >= soak_s and abs(pv - sp) <= cfg.stable_band_c * (1 + 1e-9):
                 return pv
             if elapsed > max(cfg.max_wait_s, soak_s):
                 raise RigFault(f"{self._where}: not stable within {cfg.max_wait_s:g} s "

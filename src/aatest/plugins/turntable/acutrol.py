@@ -90,7 +90,8 @@ class AcutrolTurntable:
         cfg = self.config
         try:
             manager = pyvisa.ResourceManager(cfg.visa_library)
-            session: Any = manager.open_resource(self.resource, open_timeout=int(cfg.timeout_s * 1000))
+            session: Any = manager.open_resource(self.resource,
+                                                 open_timeout=int(cfg.timeout_s * 1000))
         except Exception as exc:
             raise RigFault(f"{self._where}: cannot connect ({type(exc).__name__}: "
                            f"{' '.join(str(exc).split())})") from exc

@@ -26,8 +26,8 @@ Wire formats (public sources, see docs/driver-espec.md and docs/driver-simserv.m
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from aatest.twin.model import RigModel
@@ -132,7 +132,7 @@ class EspecProtocol:
 
     def _temp_query(self, _args: str) -> str:
         core = self.core
-        return (f"{core.temperature_c():.1f},{core.setpoint_c:.1f},"
+        return (f"{core.temperature_c():.2f},{core.setpoint_c:.1f},"
                 f"{core.high_limit_c:.1f},{core.low_limit_c:.1f}")
 
     def _temp_set(self, args: str) -> str:
@@ -164,7 +164,7 @@ class EspecProtocol:
 
     def _mon(self, _args: str) -> str:
         core = self.core
-        return f"{core.temperature_c():.1f},,{core.mode},{core.alarms}"
+        return f"{core.temperature_c():.2f},,{core.mode},{core.alarms}"
 
     def _rom(self, _args: str) -> str:
         return f"P300 {SIMULATOR_ID} 1.0"
