@@ -92,12 +92,13 @@ class AcutrolController:
         return min(rate, user.get("rate", rate)), min(accel, user.get("accel", accel))
 
     def set_limit(self, command: Command, kind: str) -> None:
-        args = command.args
+        args = tuple(a.upper() if a.isalpha() else a for a in command.args)
         modes = [args[0]] if args and args[0] in ("P", "R", "S", "A") else ["P", "R", "S", "A"]
         start = 1 if len(modes) == 1 else 0
         if len(args) < start + 2:
             raise CommandError(-109, f"Missing parameter in {command.name}")
         axis = axis_of(Command(command.path, False, args[start:]))
+        command = Command(command.path, False, args)
         value = numbers(command, 1, start + 1)[0]
         if kind in ("rate", "accel") and not 0 < value <= self.factory(axis)[kind == "accel"]:
             raise CommandError(-222, f"{kind} limit {value:g} beyond the factory limit")
@@ -227,7 +228,7 @@ class AcutrolController:
         if not (samples == int(samples) and 0 < samples <= capacity) or settle_s < 0:
             raise CommandError(-222, f"Log of {samples:g} samples out of range (capacity "
                                      f"{capacity})")
-        label = command.args[3].strip('"').lower() if len(command.args) > LABEL_ARG else ""
+        label = command.args[LABEL_ARG].strip('"') if len(command.args) > LABEL_ARG else ""
         self.log = _Log(rate_hz, int(samples), settle_s, label, log_id=self.log.log_id)
 
     def arm(self) -> None:

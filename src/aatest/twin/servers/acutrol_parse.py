@@ -81,7 +81,8 @@ def parse_line(line: str) -> list[Command]:
     for raw in line.split(";"):
         if not raw.strip():
             continue
-        header, arguments = _split_header(raw.upper())
+        header, arguments = _split_header(raw)
+        header = header.upper()  # headers are case-insensitive; arguments keep their case
         args = tuple(a for a in arguments.replace(",", " ").split() if a)
         if header.startswith("*"):
             commands.append(Command((header.rstrip("?"),), header.endswith("?"), args))

@@ -124,7 +124,7 @@ class AcutrolProtocol:
         if command.query:
             if kind not in ("rate", "accel"):
                 raise CommandError(-113, f"Undefined header {command.name}")
-            args = command.args
+            args = tuple(a.upper() if a.isalpha() else a for a in command.args)
             mode = args[0] if args and args[0] in ("P", "R", "S", "A") else "P"
             rest = args[1:] if args and args[0] in ("P", "R", "S", "A") else args
             rate, accel = self.controller.limit(axis_of(Command(command.path, True, rest)), mode)
