@@ -69,7 +69,7 @@ class TranscriptServer:
             self._index += 1
             if reply is not None:
                 client.sendall(reply)
-        extra = client.recv(65536) if not buffer else buffer
+        extra = buffer or client.recv(65536)
         if extra:
             self.errors.append(f"after the transcript: unexpected {extra!r}")
 

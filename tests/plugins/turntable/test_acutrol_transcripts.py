@@ -84,7 +84,8 @@ def test_sine_step_uses_synthesis_mode_and_the_oscillation_demand() -> None:
 
     step = PlannedStep(id="s001-sine", kind="sine", axis="inner", frequency_hz=2.0,
                        amplitude_deg=1.5, samples=4000, sample_rate_hz=2000.0, settle_s=1.0)
-    transcript = START + [
+    transcript = [
+        *START,
         (b":XLOG:CONFIG 2000,4000,1,s001-sine\r\n", OK),  # [SIM] log rate, samples, settle
         (b":MODE:SYNTHESIS 1\r\n", OK),  # [WS] SelectMode ':M:S 1'
         (b":DEMAND:OSCILLATION 1,1.5,2,0\r\n", OK),  # [WS] ':D:O 1, magn, freq, phase'
@@ -116,7 +117,8 @@ def test_gpib_style_framing_is_a_setting() -> None:
 
 
 def test_error_reply_is_a_rig_fault_naming_the_controller() -> None:
-    transcript = START + [
+    transcript = [
+        *START,
         (b":MODE:POSITION 1;:MODE:POSITION 2\r\n", OK),  # [MIT]
         (b":DEMAND:POSITION 1,0.000000;:DEMAND:POSITION 2,90.000000\r\n",
          reply('ERR -221,"Settings conflict; interlock of axis 2 open"')),  # [SCPI] -221
