@@ -54,6 +54,9 @@ class SingleAxisTable:
         log_rate_hz: float = Field(2000.0, gt=0, description="table log sample rate, Hz")
         serial: str = "SR1-0042"
 
+    #: this example moves the twin, not hardware (the conformance kit checks it says so)
+    simulated = True
+
     def __init__(self, config: Config | None, context: RigContext) -> None:
         self.config = config if config is not None else self.Config()
         envelope = self.envelope()
