@@ -497,7 +497,8 @@ def sim_server_acutrol(
     seed: int = typer.Option(0, "--seed"),
     chamber: str = typer.Option("none", "--chamber",
                                 help="also serve a chamber on the same twin: espec|simserv|none"),
-    chamber_port: int = typer.Option(10001, "--chamber-port"),
+    chamber_port: int | None = typer.Option(
+        None, "--chamber-port", help="default the chamber's own port: espec 10001, simserv 2049"),
     can_interface: str | None = typer.Option(
         None, "--can-interface", help="python-can interface of the simulated CAN logger"),
     can_channel: str | None = typer.Option(None, "--can-channel"),
@@ -507,7 +508,8 @@ def sim_server_acutrol(
 
     if chamber not in ("espec", "simserv", "none"):
         raise typer.BadParameter("--chamber must be espec, simserv or none")
-    serve_acutrol(host, port, seed, chamber=chamber, chamber_port=chamber_port,
+    default_port = {"espec": 10001, "simserv": 2049}.get(chamber, 0)
+    serve_acutrol(host, port, seed, chamber=chamber, chamber_port=chamber_port or default_port,
                   can_interface=can_interface, can_channel=can_channel)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import socket
 import threading
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -73,8 +74,16 @@ class TranscriptServer:
         if extra:
             self.errors.append(f"after the transcript: unexpected {extra!r}")
 
-    def verify(self) -> None:
-        """Raise AssertionError unless every exchange happened exactly as listed."""
+    def verify(self, timeout_s: float = 5.0) -> None:
+        """Raise AssertionError unless every exchange happened exactly as listed.
+
+        Waits up to ``timeout_s`` for the server to take in what the driver already sent
+        (writes without a reply may still be in flight when the driver returns).
+        """
+        deadline = time.monotonic() + timeout_s
+        while (self._index < len(self.transcript) and not self.errors
+               and time.monotonic() < deadline):
+            time.sleep(0.01)
         self._closed = True
         self._listener.close()
         if self.errors:

@@ -191,6 +191,8 @@ def test_interlock_gates_motion_and_chained_reads(ask) -> None:
     (":D:P 3,1", "-222"),  # axis out of range [SCPI] data out of range
     (":D:P 1,abc", "-104"),  # [SCPI] data type error
     (":M 1", "-113"),  # incomplete header
+    (":XLOG:CONFIG 2000,300000,1,x", "-222"),  # beyond the log capacity (230000) [SIM]
+    (":XLOG:CONFIG 4000,2000,1,x", "-222"),  # beyond the log rate (2 kHz) [SIM]
 ])
 def test_malformed_commands_answer_scpi_errors(ask, line: str, code: str) -> None:
     assert ask(":I:C 1;:I:C 2") == "OK"

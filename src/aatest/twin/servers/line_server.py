@@ -73,7 +73,6 @@ class LineServer:
         self.host, self.port = host, int(port)
         self.lifetime_s = lifetime_s
         self.faults = LineFaults()
-        self.requests: list[str] = []
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: asyncio.Server | None = None
         self._stopped: asyncio.Event | None = None
@@ -140,7 +139,6 @@ class LineServer:
 
     async def _answer(self, line: str) -> str | None:
         faults = self.faults
-        self.requests.append(line)
         if faults.hang_on is not None and faults.hang_on.lower() in line.lower():
             faults.hanging = True
         if faults.hanging:
