@@ -218,3 +218,27 @@ def check_chamber_life_cycle(name: str, rig: ConformanceRig) -> None:
     chamber.off()
     chamber.close()
     chamber.off()  # after close: still must not raise
+
+
+def twin_rig(options: dict[str, Any] | None = None) -> ConformanceRig:
+    """The rig of a plugin whose "simulator" is aatest's twin (a table built on the ``sim``
+    turntable, like the example vendor package's): the twin is shared through the rig context,
+    the kit starts its DAQ, and its one fault is a servo trip (the motor switches off by itself
+    mid-run)."""
+    from aatest.engine.datasheet import SensorDatasheet
+    from aatest.engine.steps import SensorRef
+    from aatest.twin.session import twin_session
+
+    context = RigContext(sensor=SensorRef(model="reference"),
+                         datasheet=SensorDatasheet(model="reference"))
+
+    def world() -> Any:  # built on first use by the plugin itself
+        return twin_session(context).world
+
+    def servo_trip() -> None:
+        world().motor_on = False
+
+    return ConformanceRig(
+        options=options or {}, context=context, faults={"servo-trip": servo_trip},
+        recover=lambda: None, is_safe=lambda: not world().motor_on, close=lambda: None,
+        trigger=lambda: world().start_daq(), fault_timeout_s=5.0)
