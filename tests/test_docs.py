@@ -53,7 +53,7 @@ PROMISED_PATHS = frozenset({"src/aatest/schemas/results.schema.json"})
 #: entry-point group names look like module names but are not modules
 ENTRY_POINT_GROUPS = frozenset({"aatest.turntables", "aatest.daqs", "aatest.chambers",
                                 "aatest.sensors", "aatest.analyses", "aatest.reports",
-                                "aatest.effects"})
+                                "aatest.effects", "aatest.conformance"})
 
 SECTION = r"(?:§|\\u00a7)\s*(\d+(?:\.\d+)*)(?:\s*[–-]\s*(\d+(?:\.\d+)*))?"
 _SECTION_NC = r"(?:§|\\u00a7)\s*\d+(?:\.\d+)*(?:\s*[–-]\s*\d+(?:\.\d+)*)?"

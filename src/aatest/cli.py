@@ -550,6 +550,56 @@ def sim_server_modbus(
     serve_forever(host, port, seed, **can_options)
 
 
+
+@sim_server_app.command("acutrol")
+@guarded
+def sim_server_acutrol(
+    host: str = typer.Option("127.0.0.1", "--host"),
+    port: int = typer.Option(9888, "--port"),
+    seed: int = typer.Option(0, "--seed"),
+    chamber: str = typer.Option("none", "--chamber",
+                                help="also serve a chamber on the same twin: espec|simserv|none"),
+    chamber_port: int | None = typer.Option(
+        None, "--chamber-port", help="default the chamber's own port: espec 10001, simserv 2049"),
+    can_interface: str | None = typer.Option(
+        None, "--can-interface", help="python-can interface of the simulated CAN logger"),
+    can_channel: str | None = typer.Option(None, "--can-channel"),
+) -> None:
+    """Serve the simulated ACUTROL-class table (its sensor logger on CAN, optionally a chamber)."""
+    from aatest.twin.servers.acutrol_server import serve_forever as serve_acutrol
+
+    if chamber not in ("espec", "simserv", "none"):
+        raise typer.BadParameter("--chamber must be espec, simserv or none")
+    default_port = {"espec": 10001, "simserv": 2049}.get(chamber, 0)
+    serve_acutrol(host, port, seed, chamber=chamber, chamber_port=chamber_port or default_port,
+                  can_interface=can_interface, can_channel=can_channel)
+
+
+@sim_server_app.command("espec")
+@guarded
+def sim_server_espec(
+    host: str = typer.Option("127.0.0.1", "--host"),
+    port: int = typer.Option(10001, "--port"),
+    seed: int = typer.Option(0, "--seed"),
+) -> None:
+    """Serve a simulated ESPEC chamber (ASCII over TCP) with its own twin."""
+    from aatest.twin.servers.acutrol_server import serve_chamber_forever
+
+    serve_chamber_forever("espec", host, port, seed)
+
+
+@sim_server_app.command("simserv")
+@guarded
+def sim_server_simserv(
+    host: str = typer.Option("127.0.0.1", "--host"),
+    port: int = typer.Option(2049, "--port"),
+    seed: int = typer.Option(0, "--seed"),
+) -> None:
+    """Serve a simulated Weiss/Vötsch SIMSERV chamber with its own twin."""
+    from aatest.twin.servers.acutrol_server import serve_chamber_forever
+
+    serve_chamber_forever("simserv", host, port, seed)
+
 def main() -> None:
     """The ``aatest`` console script: a reader of stdout that goes away ends it quietly.
 

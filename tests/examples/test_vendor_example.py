@@ -21,7 +21,8 @@ from aatest.engine.steps import PlannedStep, SensorRef
 #: aatest's public plugin API: all a vendor package may import from aatest
 #: (``aatest.effects``: the effect-plugin API of group ``aatest.effects``)
 PUBLIC_API = {"aatest.engine.interfaces", "aatest.engine.errors", "aatest.engine.steps",
-              "aatest.engine.logs", "aatest.engine.registry", "aatest.effects"}
+              "aatest.engine.logs", "aatest.engine.registry", "aatest.effects",
+              "aatest.testing.conformance"}
 
 
 def _table(**options: Any) -> Any:
@@ -54,7 +55,7 @@ def _aatest_imports(source: str) -> set[str]:
 
 def test_imports_only_the_public_plugin_api(example_dir: Path) -> None:
     modules = sorted((example_dir / "src").rglob("*.py"))
-    assert len(modules) == 4  # package, turntable, sensor, effect
+    assert len(modules) == 5  # package, turntable, sensor, effect, conformance rig
     used = set().union(*(_aatest_imports(m.read_text()) for m in modules))
     assert used - PUBLIC_API == set()
     assert "aatest.engine.registry" in used  # the turntable loads the simulator by name

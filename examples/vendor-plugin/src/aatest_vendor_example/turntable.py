@@ -70,6 +70,9 @@ class SingleAxisTable:
         serial: str = Field("SR1-0042", description="what the simulated controller reports "
                             "as its serial number when identified")
 
+    #: this example moves the twin, not hardware (the conformance kit checks it says so)
+    simulated = True
+
     def __init__(self, config: Config | None, context: RigContext) -> None:
         # construction connects nothing: validate and plan build the table only to read its
         # envelope and capabilities

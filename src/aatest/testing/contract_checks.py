@@ -1,0 +1,69 @@
+"""The contract checks as pytest tests (collected by ``--aatest-plugin``; see
+:mod:`aatest.testing.plugin`). Each test gets a fresh simulator rig."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+
+from aatest.testing import conformance as c
+
+
+def _kind(kind: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    def mark(function: Callable[..., Any]) -> Callable[..., Any]:
+        function.kind = kind  # type: ignore[attr-defined]
+        return function
+
+    return mark
+
+
+@pytest.fixture
+def aatest_rig(aatest_spec: str) -> Iterator[tuple[str, str, c.ConformanceRig]]:
+    try:
+        kind, name, factory = c.load_rig(aatest_spec)
+    except ValueError as exc:
+        pytest.fail(str(exc), pytrace=False)
+    rig = factory()
+    yield kind, name, rig
+    rig.close()
+
+
+@_kind("turntable")
+def test_table_life_cycle(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+    _, name, rig = aatest_rig
+    c.check_table_life_cycle(name, rig)
+
+
+@_kind("turntable")
+def test_table_refuses_beyond_its_envelope(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+    _, name, rig = aatest_rig
+    c.check_table_envelope(name, rig)
+
+
+@_kind("chamber")
+def test_chamber_life_cycle(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+    _, name, rig = aatest_rig
+    c.check_chamber_life_cycle(name, rig)
+
+
+def test_reports_simulated(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+    kind, name, rig = aatest_rig
+    c.check_simulated_flag(kind, name, rig)
+
+
+def test_every_fault_ends_safe_and_resumes(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+    """Each declared fault in turn, on a fresh simulator (the rig's own faults list)."""
+    kind, name, rig = aatest_rig
+    assert rig.faults, f"{kind}:{name}: its conformance rig declares no faults to test"
+    spec = f"{kind}:{name}"
+    first = True
+    for fault in list(rig.faults):
+        current = rig if first else c.load_rig(spec)[2]()
+        first = False
+        try:
+            c.check_fault(kind, name, current, fault)
+        finally:
+            if current is not rig:
+                current.close()

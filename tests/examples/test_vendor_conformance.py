@@ -1,0 +1,20 @@
+"""The example vendor package passes aatest's conformance kit, run as a vendor would: pytest
+with ``--aatest-plugin turntable:acme-single-axis`` in a fresh venv where the package is
+installed by pip (the ``vendor_venv`` fixture)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from pathlib import Path
+
+
+def test_example_passes_the_conformance_kit(vendor_venv: Path, tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    result = subprocess.run(
+        [vendor_venv / "python", "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "0",
+         "--aatest-plugin", "turntable:acme-single-axis"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stdout + result.stderr
+    # life cycle, envelope, simulated flag, the declared fault: four checks ran and passed
+    assert "4 passed" in result.stdout, result.stdout
