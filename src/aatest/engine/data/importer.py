@@ -66,7 +66,7 @@ class DatasetFileError(ImportDataError, ProblemsError):
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class SensorEntry(SensorInfo):
@@ -149,6 +149,29 @@ def load_manifest(path: Path) -> tuple[DatasetManifest, Any]:
         raise DatasetFileError(exc.problems) from exc
 
 
+def _check_frequencies(manifest: DatasetManifest, tree: Any, manifest_path: Path) -> None:
+    """Every sine frequency below the Nyquist frequency of ``sample_rate_hz`` (located).
+
+    A frequency the samples cannot represent (``frequency_hz: 1e+308``) has no cycle to
+    analyse; it is an input error at its line, not a failure deep in the analysis.
+    """
+    nyquist_hz = manifest.sample_rate_hz / 2.0
+    problems = []
+    for i, entry in enumerate(manifest.steps):
+        if entry.frequency_hz is not None and entry.frequency_hz >= nyquist_hz:
+            line, column = locate(tree, ("steps", i, "frequency_hz"))
+            problems.append(Problem(
+                str(manifest_path), line, column, f"steps.{i}.frequency_hz",
+                f"{entry.frequency_hz:g} Hz is not below the Nyquist frequency {nyquist_hz:g} Hz "
+                f"of sample_rate_hz {manifest.sample_rate_hz:g}"))
+    if problems:
+        raise DatasetFileError(problems)
+
+
+#: data rows a CSV file needs: a time base is a line through at least two time stamps
+MIN_ROWS = 2
+
+
 def _file_of(directory: Path, manifest_path: Path, tree: Any, index: int, key: str,
              name: str) -> Path:
     path = directory / name
@@ -192,7 +215,7 @@ def _daq_log(entry: StepEntry, csv: CsvColumns, rate_hz: float, sensors: list[st
     channels.update({ch: csv.columns[ch] for ch in sensors})
     present = list(channels)
     if "temperature_c" in csv.columns:
-        channels["temperature_c"] = csv.columns["temperature_c"]
+        channels["temperature_c"] = _plausible_temperature(csv)
         present.append("temperature_c")
     else:
         fill = entry.temperature_c if entry.temperature_c is not None else t_ref_c
@@ -200,6 +223,21 @@ def _daq_log(entry: StepEntry, csv: CsvColumns, rate_hz: float, sensors: list[st
     units = {ch: "V" for ch in sensors} | {"sync_pulse": "1", "trigger": "1",
                                             "temperature_c": "degC"}
     return SampledLog(DAQ, rate_hz, csv.columns["time_s"], channels, units), present
+
+
+#: temperatures (°C) a logged sensor can have: above absolute zero, below any chamber's limit
+TEMPERATURE_RANGE_C = (-273.15, 1000.0)
+
+
+def _plausible_temperature(csv: CsvColumns) -> np.ndarray:
+    """The ``temperature_c`` column, refused at its first impossible value (file and line)."""
+    values = csv.columns["temperature_c"]
+    low, high = TEMPERATURE_RANGE_C
+    bad = np.flatnonzero(~((values >= low) & (values <= high)))
+    if bad.size:
+        raise ImportDataError(csv.path, f"temperature_c {values[bad[0]]:g} °C is outside "
+                                        f"{low:g}…{high:g} °C", line=int(csv.row_lines[bad[0]]))
+    return values
 
 
 def _filled(samples: int, value: float) -> np.ndarray:
@@ -249,6 +287,7 @@ def import_dataset(directory: str | Path) -> Dataset:
     directory = Path(directory)
     manifest_path = directory / MANIFEST
     manifest, tree = load_manifest(manifest_path)
+    _check_frequencies(manifest, tree, manifest_path)
     t_ref_c, model_file = _t_ref_c(manifest, directory)
     rate_hz = manifest.sample_rate_hz
     sensor_channels = [s.channel for s in manifest.sensors]
@@ -325,6 +364,11 @@ def _step(entry: StepEntry, table_csv: CsvColumns, daq_csv: CsvColumns, rate_hz:
           sensor_channels: list[str], t_ref_c: float
           ) -> tuple[StepData, dict[str, list[str]]]:
     """One step from its two parsed files, and the channels that really came from them."""
+    for csv in (table_csv, daq_csv):
+        if len(csv) < MIN_ROWS:
+            raise ImportDataError(csv.path, f"{len(csv)} data row(s); a step needs at least "
+                                            f"{MIN_ROWS} (its time base is fitted through them)",
+                                  line=int(csv.row_lines[0]) if len(csv) else None)
     table, table_present = _table_log(entry, table_csv, rate_hz)
     daq, daq_present = _daq_log(entry, daq_csv, rate_hz, sensor_channels, t_ref_c)
     return (StepData(_planned(entry, len(table), rate_hz), table, daq),

@@ -89,7 +89,7 @@ def generate_keypair(key_path: Path, passphrase: str | None = None) -> str:
     key_path = Path(key_path)
     pub_path = public_key_path(key_path)
     for existing in (key_path, pub_path):
-        if existing.exists():
+        if existing.exists() or existing.is_symlink():  # a dangling link would be followed
             raise SigningError(f"{existing}: already exists; refusing to overwrite a key file")
     key = Ed25519PrivateKey.generate()
     encryption: serialization.KeySerializationEncryption = (
@@ -100,7 +100,10 @@ def generate_keypair(key_path: Path, passphrase: str | None = None) -> str:
     pem = key.private_bytes(
         serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, encryption
     )
-    fd = os.open(key_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    try:
+        fd = os.open(key_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+    except OSError as exc:
+        raise SigningError(f"{key_path}: cannot create the key file: {exc.strerror}") from exc
     with os.fdopen(fd, "wb") as handle:
         handle.write(pem)
     os.chmod(key_path, 0o600)  # umask cannot widen it, but be explicit
@@ -206,7 +209,10 @@ def _compare_hashes(report_path: Path, signed: dict[str, str]) -> list[str]:
     reasons: list[str] = []
     names = [report_path.name, *BUNDLE_FILES]
     for name in sorted(set(names) | set(signed)):
-        member = report_path.with_name(name)
+        if Path(name).is_absolute() or ".." in Path(name).parts or name in ("", "."):
+            reasons.append(f"{name!r}: the signature names a file outside the bundle")
+            continue
+        member = report_path.parent / name
         if name not in signed:
             if member.is_file():
                 reasons.append(f"{name}: present but not covered by the signature")

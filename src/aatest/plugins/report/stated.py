@@ -6,6 +6,7 @@ nothing here evaluates an uncertainty. A value the engine did not certify shows 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -60,11 +61,17 @@ def misalignment_rows(results: Mapping[str, Any]) -> list[dict[str, Any]]:
 
 def _budget(name: str, unit: str, value: Any, u: Any, k: Any, rows: Sequence[Mapping[str, Any]]
             ) -> dict[str, Any]:
-    """A budget as printed: rows with their share of Σu_i² (the budget's own proportions)."""
-    total = sum(float(r["contribution"]) ** 2 for r in rows)
+    """A budget as printed: rows with their share of Σu_i² (the budget's own proportions).
+
+    A contribution that is missing or not finite (``null`` in ``results.json``: an overflow
+    upstream) leaves every share unstated (—) rather than wrong.
+    """
+    values = [ex.as_float(r.get("contribution")) for r in rows]
+    total = sum(v**2 for v in values if v is not None)
+    known = all(v is not None for v in values) and math.isfinite(total) and total > 0
     return {"name": name, "unit": unit, "value": value, "expanded_uncertainty": u, "k": k,
-            "rows": [{**r, "share_pct": 100.0 * float(r["contribution"]) ** 2 / total
-                      if total > 0 else 0.0} for r in rows]}
+            "rows": [{**r, "share_pct": 100.0 * v**2 / total if known and v is not None
+                      else None} for r, v in zip(rows, values, strict=True)]}
 
 
 def _worst_frf(results: Mapping[str, Any], ch: str) -> list[dict[str, Any]]:
@@ -72,8 +79,9 @@ def _worst_frf(results: Mapping[str, Any], ch: str) -> list[dict[str, Any]]:
     rated = [p for p in ex.frf_points(results, ch) if p.get("gain_budget")]
     if not rated:
         return []
-    p = max(rated, key=lambda q: q["gain_expanded_uncertainty_db"])
-    at = f"{ch} at {p['frequency_hz']:.4f} Hz"
+    p = max(rated, key=lambda q: ex.as_float(q.get("gain_expanded_uncertainty_db")) or 0.0)
+    frequency_hz = ex.as_float(p.get("frequency_hz"))
+    at = f"{ch} at {frequency_hz:.4f} Hz" if frequency_hz is not None else f"{ch}"
     return [_budget(f"FRF gain {at}", "dB", p["gain_db"], p["gain_expanded_uncertainty_db"],
                     p.get("coverage_factor"), p["gain_budget"]),
             _budget(f"FRF phase {at}", "deg", p["phase_deg"],
