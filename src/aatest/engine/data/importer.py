@@ -168,6 +168,31 @@ def _check_frequencies(manifest: DatasetManifest, tree: Any, manifest_path: Path
         raise DatasetFileError(problems)
 
 
+#: how far the declared sample rate may be from the files' own (median time step) rate
+RATE_TOLERANCE = 2.0
+
+
+def _check_rate(manifest: DatasetManifest, tree: Any, manifest_path: Path,
+                parsed: list[tuple[CsvColumns, CsvColumns]]) -> None:
+    """``sample_rate_hz`` within a factor :data:`RATE_TOLERANCE` of every file's time stamps.
+
+    The analyses work in samples at the declared rate; a rate the files do not have (a typo,
+    ``1e+308``) would make every frequency meaningless, so it is refused at its line.
+    """
+    declared = manifest.sample_rate_hz
+    for csv in (c for pair in parsed for c in pair):
+        steps_s = np.diff(csv.columns["time_s"])
+        if steps_s.size == 0:
+            continue
+        actual = 1.0 / float(np.median(steps_s))
+        if not 1.0 / RATE_TOLERANCE <= declared / actual <= RATE_TOLERANCE:
+            line, column = locate(tree, ("sample_rate_hz",))
+            raise DatasetFileError([Problem(
+                str(manifest_path), line, column, "sample_rate_hz",
+                f"{declared:g} Hz does not match {csv.path.name}, whose time stamps are "
+                f"{actual:g} Hz apart (median)")])
+
+
 #: data rows a CSV file needs: a time base is a line through at least two time stamps
 MIN_ROWS = 2
 
@@ -292,6 +317,7 @@ def import_dataset(directory: str | Path) -> Dataset:
     rate_hz = manifest.sample_rate_hz
     sensor_channels = [s.channel for s in manifest.sensors]
     parsed = _read_files(directory, manifest_path, tree, manifest)
+    _check_rate(manifest, tree, manifest_path, parsed)
     steps, present = [], {}
     for entry, (table_csv, daq_csv) in zip(manifest.steps, parsed, strict=True):
         step, present[entry.id] = _step(entry, table_csv, daq_csv, rate_hz, sensor_channels,

@@ -8,8 +8,8 @@ sensor on O sees ``cos ψ`` and one on P ``sin ψ`` of the outer acceleration.
 from __future__ import annotations
 
 import hashlib
-import math
 import io
+import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar
 
@@ -81,7 +81,7 @@ def whole_cycles(n_samples: int, frequency_hz: float, fs_hz: float) -> tuple[int
     cycles = int(np.floor(n_samples / per_cycle + 1e-6))
     if cycles < 1:
         raise AnalysisError(f"record of {n_samples} samples holds no full cycle at "
-                            f"{frequency_hz:g} Hz ({per_cycle:.1f} samples per cycle)")
+                            f"{frequency_hz:g} Hz ({per_cycle:.4g} samples per cycle)")
     return min(round(cycles * per_cycle), n_samples), cycles
 
 
