@@ -116,9 +116,11 @@ def _check_brace_format(text: str) -> None:
 def _capped_filter(name: str, function: Callable[..., Any]) -> Callable[..., Any]:
     """``function`` (a Jinja filter) refusing numeric arguments over :data:`_MAX_WIDTH`."""
 
+    skip = 2 if getattr(function, "jinja_pass_arg", None) is not None else 1  # (env,) value
+
     @functools.wraps(function)  # keeps jinja_pass_arg (environment/context filters)
     def capped(*args: Any, **kwargs: Any) -> Any:
-        for value in (*args[1:], *kwargs.values()):
+        for value in (*args[skip:], *kwargs.values()):
             _check_width(value, f"{name} argument")
         return function(*args, **kwargs)
 
