@@ -56,7 +56,8 @@ def test_capped_template_is_refused(tmp_path: Path, name: str) -> None:
 def test_modest_widths_still_render(tmp_path: Path) -> None:
     lab = _lab(tmp_path, "{{ 'x'|center(9) }}|{{ '%5.2f'|format(3.14159) }}|{{ 2 ** 10 }}|"
                          "{{ '{:>4}'.format(7) }}|{{ 'ab'.ljust(4, '.') }}|"
-                         "{{ 'abcdefghijklmnop'|truncate(8, true) }}|{{ 1234567|string|wordwrap(3) }}")
+                         "{{ 'abcdefghijklmnop'|truncate(8, true) }}|"
+                         "{{ 1234567|string|wordwrap(3) }}")
     assert render_template("evil.html.j2", {}, lab) == \
         "    x    | 3.14|1024|   7|ab..|abcde...|123\n456\n7"
 
