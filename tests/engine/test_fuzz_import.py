@@ -170,3 +170,23 @@ def test_null_budget_contribution_leaves_shares_unstated() -> None:
     view = _budget("x", "dB", 1.0, 0.1, 2.0, [{"contribution": 0.3}, {"contribution": 0.4}])
     # 0.09 / 0.25 and 0.16 / 0.25 of Σu², exact up to rounding of the float squares
     assert [r["share_pct"] for r in view["rows"]] == pytest.approx([36.0, 64.0], rel=1e-12)
+
+
+# -- found by the long run (``-m slow``) -------------------------------------------------------
+
+
+def test_frequency_too_low_for_a_finite_amplitude_is_located(tmp_path: Path) -> None:
+    directory = base_dir(tmp_path)
+    replace_manifest_value(directory, "frequency_hz", "1e-308")  # (2πf)² underflows to 0
+    with pytest.raises(ProblemsError) as info:
+        import_dataset(directory)
+    (problem,) = info.value.problems
+    assert problem.field == "steps.0.frequency_hz" and "no finite amplitude" in problem.message
+
+
+def test_uncertainty_that_overflows_is_not_evaluated_and_says_why(tmp_path: Path) -> None:
+    directory = base_dir(tmp_path)
+    replace_manifest_value(directory, "accel_dps2", "1e-308")  # sensitivities ~1e308 overflow
+    doc = analyse(directory, tmp_path / "out")
+    assert "not evaluable" in doc["analysis_errors"]["uncertainty"]
+    assert doc["overall"] != "pass"

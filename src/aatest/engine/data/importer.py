@@ -149,6 +149,21 @@ def load_manifest(path: Path) -> tuple[DatasetManifest, Any]:
         raise DatasetFileError(exc.problems) from exc
 
 
+def _frequency_problem(entry: StepEntry, nyquist_hz: float) -> str | None:
+    """Why a step's ``frequency_hz`` cannot be analysed (None when it can)."""
+    f_hz = entry.frequency_hz
+    if f_hz is None:
+        return None
+    if f_hz >= nyquist_hz:
+        return f"{f_hz:g} Hz is not below the Nyquist frequency {nyquist_hz:g} Hz"
+    if entry.kind == "sine" and entry.amplitude_deg is None and entry.accel_dps2 is not None:
+        amplitude_deg = entry.accel_dps2 / max((2 * math.pi * f_hz) ** 2, 1e-300)
+        if not math.isfinite(amplitude_deg) or (2 * math.pi * f_hz) ** 2 == 0:
+            return (f"{f_hz:g} Hz gives no finite amplitude accel_dps2/(2πf)² "
+                    f"for accel_dps2 {entry.accel_dps2:g}")
+    return None
+
+
 def _check_frequencies(manifest: DatasetManifest, tree: Any, manifest_path: Path) -> None:
     """Every sine frequency below the Nyquist frequency of ``sample_rate_hz`` (located).
 
@@ -158,12 +173,11 @@ def _check_frequencies(manifest: DatasetManifest, tree: Any, manifest_path: Path
     nyquist_hz = manifest.sample_rate_hz / 2.0
     problems = []
     for i, entry in enumerate(manifest.steps):
-        if entry.frequency_hz is not None and entry.frequency_hz >= nyquist_hz:
+        why = _frequency_problem(entry, nyquist_hz)
+        if why is not None:
             line, column = locate(tree, ("steps", i, "frequency_hz"))
-            problems.append(Problem(
-                str(manifest_path), line, column, f"steps.{i}.frequency_hz",
-                f"{entry.frequency_hz:g} Hz is not below the Nyquist frequency {nyquist_hz:g} Hz "
-                f"of sample_rate_hz {manifest.sample_rate_hz:g}"))
+            problems.append(Problem(str(manifest_path), line, column, f"steps.{i}.frequency_hz",
+                                    why))
     if problems:
         raise DatasetFileError(problems)
 

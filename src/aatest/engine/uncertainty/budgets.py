@@ -40,28 +40,39 @@ def channels(results: Mapping[str, Any]) -> list[str]:
     return names
 
 
-def _evaluated(measurand: Measurand | None) -> Evaluation | None:
-    return evaluate(measurand) if measurand is not None else None
+def _evaluated(measurand: Measurand | None, results: dict[str, Any]) -> Evaluation | None:
+    """The GUM evaluation of ``measurand``; None (with the reason in ``analysis_errors``) when
+    its model cannot be evaluated in floating point (inputs such as ``accel_dps2: 1e-308``
+    make the sensitivities overflow): the quantity then has no U and is not judged."""
+    if measurand is None:
+        return None
+    try:
+        return evaluate(measurand)
+    except (OverflowError, ZeroDivisionError, ValueError) as exc:
+        errors = results.setdefault("analysis_errors", {})
+        errors["uncertainty"] = "; ".join(filter(None, [
+            errors.get("uncertainty"), f"{measurand.name}: not evaluable ({exc})"]))
+        return None
 
 
 def _certify_static(results: dict[str, Any], ch: str, c: RigConstants) -> None:
     """Scale factor, bias (with g-sensitivity) and temperature coefficients of one channel."""
-    scale = _evaluated(scale_factor_measurand(results, ch, c))
+    scale = _evaluated(scale_factor_measurand(results, ch, c), results)
     scale_rel = None
     if scale is not None:
         ex.certify(ex.channel_entry(results, "scale_factor", ch), scale)
         scale_rel = scale.standard_uncertainty / abs(scale.value) if scale.value else None
-    bias = _evaluated(bias_measurand(results, ch, c))
+    bias = _evaluated(bias_measurand(results, ch, c), results)
     if bias is not None:
         ex.certify(ex.channel_entry(results, "bias", ch), bias)
-    g_sens = _evaluated(g_sensitivity_measurand(results, ch, c, scale_rel))
+    g_sens = _evaluated(g_sensitivity_measurand(results, ch, c, scale_rel), results)
     if g_sens is not None:
         ex.certify(ex.channel_entry(results, "bias", ch), g_sens, "g_sensitivity", "_dps2_per_g")
     temperature = ex.channel_entry(results, "temperature", ch)
-    bias_tc = _evaluated(temperature_measurand(results, ch, "bias_coefficient_v_per_c", c))
+    bias_tc = _evaluated(temperature_measurand(results, ch, "bias_coefficient_v_per_c", c), results)
     if bias_tc is not None:
         ex.certify(temperature, bias_tc)
-    scale_tc = _evaluated(temperature_measurand(results, ch, "scale_coefficient_per_c", c))
+    scale_tc = _evaluated(temperature_measurand(results, ch, "scale_coefficient_per_c", c), results)
     if scale_tc is not None:
         ex.certify(temperature, scale_tc, "scale_coefficient", "_per_c")
 
@@ -69,11 +80,11 @@ def _certify_static(results: dict[str, Any], ch: str, c: RigConstants) -> None:
 def _certify_frf(results: dict[str, Any], ch: str, c: RigConstants) -> None:
     """Gain (the generic fields, and ``gain_*``) and phase (``phase_*``) of every FRF point."""
     for point in ex.frf_points(results, ch):
-        gain = _evaluated(frf_gain_measurand(point, results, c, ch))
+        gain = _evaluated(frf_gain_measurand(point, results, c, ch), results)
         if gain is not None:
             ex.certify(point, gain)
             ex.certify(point, gain, "gain", "_db")
-        phase = _evaluated(frf_phase_measurand(point, results, c, ch))
+        phase = _evaluated(frf_phase_measurand(point, results, c, ch), results)
         if phase is not None:
             ex.certify(point, phase, "phase", "_deg")
             point["phase_coverage_factor"] = phase.k  # the generic k is the gain's
@@ -114,7 +125,7 @@ def apply_uncertainty(results: dict[str, Any], constants: RigConstants | None = 
         _certify_frf(results, ch, c)
     for scenario, sensors in ex.misalignment_scenarios(results).items():
         for sensor, entry in sorted(sensors.items()):
-            evaluation = _evaluated(misalignment_measurand(results, scenario, sensor, c))
+            evaluation = _evaluated(misalignment_measurand(results, scenario, sensor, c), results)
             if evaluation is not None:
                 ex.certify(entry, evaluation)
     return results
