@@ -10,7 +10,13 @@ import pytest
 from starlette.testclient import TestClient
 
 from aatest.station import StationOptions, build
-from aatest.station.uploads import MAX_UPLOAD_BYTES, UploadError, clean_name, stored_name
+from aatest.station.uploads import (
+    MAX_STORED_UPLOADS,
+    MAX_UPLOAD_BYTES,
+    UploadError,
+    clean_name,
+    stored_name,
+)
 
 #: the station as a browser on this machine names it (its default port)
 STATION_URL = "http://127.0.0.1:8671"
@@ -75,7 +81,8 @@ def test_good_upload_is_kept_listed_and_validates_by_id(client: TestClient, tmp_
 @pytest.mark.parametrize(
     ("name", "stored"),
     [("../../etc/cron.d/evil.yaml", "evil.yaml"), ("C:\\lab\\my proc.yml", "my-proc.yml"),
-     ("..yaml.yaml", "yaml.yaml"), ("ünïcode run.yaml", "n-code-run.yaml")],
+     ("..yaml.yaml", "yaml.yaml"), ("ünïcode run.yaml", "n-code-run.yaml"),
+     ("Shouting.YAML", "Shouting.yaml"), ("mixed.YmL", "mixed.yml")],
 )
 def test_names_lose_every_path_part(name: str, stored: str) -> None:
     assert clean_name(name) == stored
@@ -138,3 +145,17 @@ def test_uploaded_procedure_starts_from_the_websocket(tmp_path: Path) -> None:
     assert event["overall"] == "pass"
     run_dir = tmp_path / "runs" / event["name"]
     assert (run_dir / "report.html").is_file()
+
+
+def test_upload_cap_counts_files_whatever_their_case(client: TestClient, tmp_path: Path) -> None:
+    """``.YAML`` uploads were neither counted nor listed, so the cap of 500 could be bypassed."""
+    text = (DATA / "quick-scale-factor.yaml").read_bytes()
+    status, doc = _upload(client, "Upper.YAML", text)
+    assert status == 200 and doc["ok"] and doc["id"].endswith(".yaml")
+    listed = client.get("/api/procedures").json()["procedures"]
+    assert doc["id"] in listed
+    folder = tmp_path / "runs" / ".station" / "uploads"
+    for i in range(MAX_STORED_UPLOADS - 1):
+        (folder / f"filler-{i}.{'YAML' if i % 2 else 'Yml'}").write_text("x")
+    status, doc = _upload(client, "another.YAML", text.replace(b"20000", b"21000"))
+    assert status == 507 and "at most 500" in doc["problems"][0]

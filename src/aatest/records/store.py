@@ -25,6 +25,9 @@ from aatest.records.tables import calibrations, certificates, quantities, signed
 from aatest.records.url import is_default_missing, redacted, resolve_url
 from aatest.results import RunResults
 
+#: the largest record id (a 64-bit signed integer in both databases)
+_MAX_ID = 2**63 - 1
+
 
 def as_utc(moment: datetime) -> datetime:
     """An aware UTC datetime (SQLite hands back naive ones; they were stored as UTC)."""
@@ -117,10 +120,13 @@ class RecordStore:
 
     def get(self, key: str) -> CalibrationRecord:
         """The newest record with certificate number ``key`` (or record id ``key``)."""
-        column = calibrations.c.id if key.isdigit() else calibrations.c.certificate_number
+        by_id = key.isascii() and key.isdigit()
+        if by_id and int(key) > _MAX_ID:  # no such id; the database's integer cannot hold it
+            raise RecordsError(f"no record {key!r} in {self.name}")
+        column = calibrations.c.id if by_id else calibrations.c.certificate_number
         with self.engine.connect() as connection:
             rows = connection.execute(
-                _base().where(column == (int(key) if key.isdigit() else key))
+                _base().where(column == (int(key) if by_id else key))
                 .order_by(calibrations.c.id.desc()).limit(1)).all()
             found = _records(connection, rows)
         if not found:

@@ -45,8 +45,8 @@ class Procedures:
         for prefix, directory in (("lab/", self.lab_dir), (UPLOAD_PREFIX, self.upload_dir)):
             if directory is None or not directory.is_dir():
                 continue
-            for pattern in ("*.yaml", "*.yml"):
-                found.update({f"{prefix}{p.name}": p for p in sorted(directory.glob(pattern))})
+            found.update({f"{prefix}{p.name}": p for p in sorted(directory.iterdir())
+                          if p.suffix.lower() in (".yaml", ".yml") and p.is_file()})
         return found
 
     def path(self, procedure_id: str) -> Path:

@@ -51,7 +51,8 @@ def clean_name(name: str) -> str:
     safe = _UNSAFE.sub("-", base).strip(".-")[:_MAX_NAME_CHARS]
     if not safe.lower().endswith(_SUFFIXES) or len(safe) <= len(".yml"):
         raise UploadError(f"{name!r}: upload a procedure file named *.yaml or *.yml")
-    return safe
+    stem, dot, suffix = safe.rpartition(".")
+    return f"{stem}{dot}{suffix.lower()}"  # X.YAML is kept, listed and counted as X.yaml
 
 
 def decode(body: bytes, name: str) -> str:
@@ -75,6 +76,11 @@ def stored_name(name: str, text: str) -> str:
     return f"{stem}.{digest}{dot}{suffix}"
 
 
+def stored_count(directory: Path) -> int:
+    """Files kept in the upload directory, whatever their name or case (pending ones aside)."""
+    return sum(1 for p in directory.iterdir() if not p.name.startswith(".pending-"))
+
+
 @dataclass(frozen=True)
 class Uploads:
     """The station's upload directory and what it accepts."""
@@ -91,7 +97,7 @@ class Uploads:
         text = decode(body, clean)
         target = self.directory / stored_name(clean, text)
         self.directory.mkdir(parents=True, exist_ok=True)
-        if not target.is_file() and len(list(self.directory.glob("*.y*ml"))) >= MAX_STORED_UPLOADS:
+        if not target.is_file() and stored_count(self.directory) >= MAX_STORED_UPLOADS:
             raise UploadError(f"the station keeps at most {MAX_STORED_UPLOADS} uploads; "
                                  f"remove old ones from {self.directory}", status=507)
         with tempfile.TemporaryDirectory(dir=self.directory, prefix=".pending-") as pending:

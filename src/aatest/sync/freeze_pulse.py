@@ -96,8 +96,15 @@ def rising_edges(pulse: np.ndarray) -> np.ndarray:
     return np.flatnonzero(~high[:-1] & high[1:]) + 1
 
 
+#: time stamps a straight line needs
+_MIN_FIT_SAMPLES = 2
+
+
 def _regular_fit(time_s: np.ndarray) -> tuple[float, float]:
     """(intercept s, slope s/sample) of the time stamps' straight line against the index."""
+    if time_s.size < _MIN_FIT_SAMPLES or not np.all(np.isfinite(time_s)):
+        raise AnalysisError(f"a log of {time_s.size} sample(s) or with non-finite time stamps "
+                            "has no time base to fit")
     index = np.arange(time_s.size, dtype=np.float64)
     slope, intercept = np.polyfit(index, time_s - time_s[0], 1)
     return float(intercept), float(slope)

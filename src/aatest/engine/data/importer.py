@@ -66,7 +66,7 @@ class DatasetFileError(ImportDataError, ProblemsError):
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class SensorEntry(SensorInfo):
@@ -149,6 +149,68 @@ def load_manifest(path: Path) -> tuple[DatasetManifest, Any]:
         raise DatasetFileError(exc.problems) from exc
 
 
+def _frequency_problem(entry: StepEntry, nyquist_hz: float) -> str | None:
+    """Why a step's ``frequency_hz`` cannot be analysed (None when it can)."""
+    f_hz = entry.frequency_hz
+    if f_hz is None:
+        return None
+    if f_hz >= nyquist_hz:
+        return f"{f_hz:g} Hz is not below the Nyquist frequency {nyquist_hz:g} Hz"
+    if entry.kind == "sine" and entry.amplitude_deg is None and entry.accel_dps2 is not None:
+        amplitude_deg = entry.accel_dps2 / max((2 * math.pi * f_hz) ** 2, 1e-300)
+        if not math.isfinite(amplitude_deg) or (2 * math.pi * f_hz) ** 2 == 0:
+            return (f"{f_hz:g} Hz gives no finite amplitude accel_dps2/(2πf)² "
+                    f"for accel_dps2 {entry.accel_dps2:g}")
+    return None
+
+
+def _check_frequencies(manifest: DatasetManifest, tree: Any, manifest_path: Path) -> None:
+    """Every sine frequency below the Nyquist frequency of ``sample_rate_hz`` (located).
+
+    A frequency the samples cannot represent (``frequency_hz: 1e+308``) has no cycle to
+    analyse; it is an input error at its line, not a failure deep in the analysis.
+    """
+    nyquist_hz = manifest.sample_rate_hz / 2.0
+    problems = []
+    for i, entry in enumerate(manifest.steps):
+        why = _frequency_problem(entry, nyquist_hz)
+        if why is not None:
+            line, column = locate(tree, ("steps", i, "frequency_hz"))
+            problems.append(Problem(str(manifest_path), line, column, f"steps.{i}.frequency_hz",
+                                    why))
+    if problems:
+        raise DatasetFileError(problems)
+
+
+#: how far the declared sample rate may be from the files' own (median time step) rate
+RATE_TOLERANCE = 2.0
+
+
+def _check_rate(manifest: DatasetManifest, tree: Any, manifest_path: Path,
+                parsed: list[tuple[CsvColumns, CsvColumns]]) -> None:
+    """``sample_rate_hz`` within a factor :data:`RATE_TOLERANCE` of every file's time stamps.
+
+    The analyses work in samples at the declared rate; a rate the files do not have (a typo,
+    ``1e+308``) would make every frequency meaningless, so it is refused at its line.
+    """
+    declared = manifest.sample_rate_hz
+    for csv in (c for pair in parsed for c in pair):
+        steps_s = np.diff(csv.columns["time_s"])
+        if steps_s.size == 0:
+            continue
+        actual = 1.0 / float(np.median(steps_s))
+        if not 1.0 / RATE_TOLERANCE <= declared / actual <= RATE_TOLERANCE:
+            line, column = locate(tree, ("sample_rate_hz",))
+            raise DatasetFileError([Problem(
+                str(manifest_path), line, column, "sample_rate_hz",
+                f"{declared:g} Hz does not match {csv.path.name}, whose time stamps are "
+                f"{actual:g} Hz apart (median)")])
+
+
+#: data rows a CSV file needs: a time base is a line through at least two time stamps
+MIN_ROWS = 2
+
+
 def _file_of(directory: Path, manifest_path: Path, tree: Any, index: int, key: str,
              name: str) -> Path:
     path = directory / name
@@ -192,7 +254,7 @@ def _daq_log(entry: StepEntry, csv: CsvColumns, rate_hz: float, sensors: list[st
     channels.update({ch: csv.columns[ch] for ch in sensors})
     present = list(channels)
     if "temperature_c" in csv.columns:
-        channels["temperature_c"] = csv.columns["temperature_c"]
+        channels["temperature_c"] = _plausible_temperature(csv)
         present.append("temperature_c")
     else:
         fill = entry.temperature_c if entry.temperature_c is not None else t_ref_c
@@ -200,6 +262,21 @@ def _daq_log(entry: StepEntry, csv: CsvColumns, rate_hz: float, sensors: list[st
     units = {ch: "V" for ch in sensors} | {"sync_pulse": "1", "trigger": "1",
                                             "temperature_c": "degC"}
     return SampledLog(DAQ, rate_hz, csv.columns["time_s"], channels, units), present
+
+
+#: temperatures (°C) a logged sensor can have: above absolute zero, below any chamber's limit
+TEMPERATURE_RANGE_C = (-273.15, 1000.0)
+
+
+def _plausible_temperature(csv: CsvColumns) -> np.ndarray:
+    """The ``temperature_c`` column, refused at its first impossible value (file and line)."""
+    values = csv.columns["temperature_c"]
+    low, high = TEMPERATURE_RANGE_C
+    bad = np.flatnonzero(~((values >= low) & (values <= high)))
+    if bad.size:
+        raise ImportDataError(csv.path, f"temperature_c {values[bad[0]]:g} °C is outside "
+                                        f"{low:g}…{high:g} °C", line=int(csv.row_lines[bad[0]]))
+    return values
 
 
 def _filled(samples: int, value: float) -> np.ndarray:
@@ -249,10 +326,12 @@ def import_dataset(directory: str | Path) -> Dataset:
     directory = Path(directory)
     manifest_path = directory / MANIFEST
     manifest, tree = load_manifest(manifest_path)
+    _check_frequencies(manifest, tree, manifest_path)
     t_ref_c, model_file = _t_ref_c(manifest, directory)
     rate_hz = manifest.sample_rate_hz
     sensor_channels = [s.channel for s in manifest.sensors]
     parsed = _read_files(directory, manifest_path, tree, manifest)
+    _check_rate(manifest, tree, manifest_path, parsed)
     steps, present = [], {}
     for entry, (table_csv, daq_csv) in zip(manifest.steps, parsed, strict=True):
         step, present[entry.id] = _step(entry, table_csv, daq_csv, rate_hz, sensor_channels,
@@ -325,6 +404,11 @@ def _step(entry: StepEntry, table_csv: CsvColumns, daq_csv: CsvColumns, rate_hz:
           sensor_channels: list[str], t_ref_c: float
           ) -> tuple[StepData, dict[str, list[str]]]:
     """One step from its two parsed files, and the channels that really came from them."""
+    for csv in (table_csv, daq_csv):
+        if len(csv) < MIN_ROWS:
+            raise ImportDataError(csv.path, f"{len(csv)} data row(s); a step needs at least "
+                                            f"{MIN_ROWS} (its time base is fitted through them)",
+                                  line=int(csv.row_lines[0]) if len(csv) else None)
     table, table_present = _table_log(entry, table_csv, rate_hz)
     daq, daq_present = _daq_log(entry, daq_csv, rate_hz, sensor_channels, t_ref_c)
     return (StepData(_planned(entry, len(table), rate_hz), table, daq),

@@ -3,6 +3,12 @@
 pydantic reports errors by path (``steps.3.sine.frequency_hz``); this module maps each path
 back to the line and column in the file, so every problem prints as
 ``FILE:LINE:COLUMN: field: message`` and all problems are reported at once.
+
+Every YAML file the tool reads (procedures, rigs, lab profiles, ``dataset.yaml``, model files,
+station uploads) goes through :func:`parse_yaml`, which bounds what a small file can cost:
+aliases (``*name``) are refused, so a kilobyte "billion laughs" file cannot expand into
+gigabytes, and nesting deeper than :data:`MAX_DEPTH` is refused before Python's recursion
+limit is reached. Neither is used by any file the tool documents.
 """
 
 from __future__ import annotations
@@ -13,11 +19,38 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
+from ruamel.yaml.composer import Composer, ComposerError, MaxDepthExceededError
 from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.events import AliasEvent
 
 from aatest.engine.errors import Problem, ProcedureError
 
 M = TypeVar("M", bound=BaseModel)
+
+#: deepest nesting of mappings and sequences accepted (procedures nest about 6 levels)
+MAX_DEPTH = 64
+
+
+class NoAliasComposer(Composer):
+    """ruamel's composer refusing aliases where they appear (their expansion is unbounded)."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        """Compose one node; an alias is a located error instead of a shared node."""
+        if self.parser.check_event(AliasEvent):
+            event = self.parser.get_event()
+            raise ComposerError(None, None, f"alias *{event.anchor} is not accepted (anchors "
+                                "and aliases are refused: their expansion is unbounded)",
+                                event.start_mark)
+        return super().compose_node(parent, index)
+
+
+def safe_yaml() -> YAML:
+    """The one YAML loader of the tool: round-trip (positions), no aliases, bounded depth."""
+    yaml = YAML(typ="rt")
+    yaml.allow_duplicate_keys = False
+    yaml.Composer = NoAliasComposer
+    yaml.max_depth = MAX_DEPTH
+    return yaml
 
 
 def _plain(node: Any) -> Any:
@@ -41,18 +74,19 @@ def parse_yaml(text: str, filename: str) -> tuple[Any, Any]:
     """Parse YAML safely; return (round-trip tree with positions, plain data).
 
     The round-trip loader builds only plain mappings, sequences and scalars (no Python objects,
-    no tags executed), so this is as safe as ``yaml.safe_load``.
+    no tags executed), so this is as safe as ``yaml.safe_load``; aliases and nesting deeper
+    than :data:`MAX_DEPTH` are refused (:func:`safe_yaml`), so the cost is linear in the text.
     """
-    yaml = YAML(typ="rt")
-    yaml.allow_duplicate_keys = False
     try:
-        tree = yaml.load(text)
+        tree = safe_yaml().load(text)
     except MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
         msg = " ".join(str(p) for p in (exc.context, exc.problem) if p) or "invalid YAML"
+        if isinstance(exc, MaxDepthExceededError):
+            msg = f"nested deeper than {MAX_DEPTH} levels (refused)"
         raise ProcedureError([Problem(filename, line, col, "", f"YAML syntax: {msg}")]) from exc
-    except (YAMLError, ValueError, TypeError) as exc:
+    except (YAMLError, ValueError, TypeError, RecursionError) as exc:
         raise ProcedureError([Problem(filename, 1, 1, "", f"YAML: {exc}")]) from exc
     return tree, _plain(tree)
 

@@ -36,8 +36,19 @@ def channels(results: RunResults) -> list[str]:
     return names
 
 
-def _evaluated(measurand: Measurand | None) -> Evaluation | None:
-    return evaluate(measurand) if measurand is not None else None
+def _evaluated(measurand: Measurand | None, results: RunResults) -> Evaluation | None:
+    """The GUM evaluation of ``measurand``; None (with the reason in ``analysis_errors``) when
+    its model cannot be evaluated in floating point (inputs such as ``accel_dps2: 1e-308``
+    make the sensitivities overflow): the quantity then has no U and is not judged."""
+    if measurand is None:
+        return None
+    try:
+        return evaluate(measurand)
+    except (OverflowError, ZeroDivisionError, ValueError) as exc:
+        errors = results.analysis_errors
+        errors["uncertainty"] = "; ".join(filter(None, [
+            errors.get("uncertainty"), f"{measurand.name}: not evaluable ({exc})"]))
+        return None
 
 
 def _rows(evaluation: Evaluation) -> list[BudgetRow]:
@@ -56,24 +67,26 @@ def certify(entry: Certified, evaluation: Evaluation) -> None:
 def _certify_static(results: RunResults, ch: str, c: RigConstants) -> None:
     """Scale factor, bias (with g-sensitivity) and temperature coefficients of one channel."""
     a = results.analysis
-    scale = _evaluated(scale_factor_measurand(results, ch, c))
+    scale = _evaluated(scale_factor_measurand(results, ch, c), results)
     scale_rel = None
     if scale is not None and a.scale_factor is not None:
         certify(a.scale_factor[ch], scale)
         scale_rel = scale.standard_uncertainty / abs(scale.value) if scale.value else None
-    bias = _evaluated(bias_measurand(results, ch, c))
+    bias = _evaluated(bias_measurand(results, ch, c), results)
     if bias is not None and a.bias is not None:
         certify(a.bias[ch], bias)
-    g_sens = _evaluated(g_sensitivity_measurand(results, ch, c, scale_rel))
+    g_sens = _evaluated(g_sensitivity_measurand(results, ch, c, scale_rel), results)
     if g_sens is not None and a.bias is not None:
         entry = a.bias[ch]
         entry.g_sensitivity_expanded_uncertainty_dps2_per_g = g_sens.expanded_uncertainty
         entry.g_sensitivity_budget = _rows(g_sens)
         entry.g_sensitivity_measurand = g_sens.definition
-    bias_tc = _evaluated(temperature_measurand(results, ch, "bias_coefficient_v_per_c", c))
+    bias_tc = _evaluated(temperature_measurand(results, ch, "bias_coefficient_v_per_c", c),
+                        results)
     if bias_tc is not None and a.temperature is not None:
         certify(a.temperature[ch], bias_tc)
-    scale_tc = _evaluated(temperature_measurand(results, ch, "scale_coefficient_per_c", c))
+    scale_tc = _evaluated(temperature_measurand(results, ch, "scale_coefficient_per_c", c),
+                         results)
     if scale_tc is not None and a.temperature is not None:
         temperature = a.temperature[ch]
         temperature.scale_coefficient_expanded_uncertainty_per_c = scale_tc.expanded_uncertainty
@@ -85,13 +98,13 @@ def _certify_frf(results: RunResults, ch: str, c: RigConstants) -> None:
     """Gain (the generic fields, and ``gain_*``) and phase (``phase_*``) of every FRF point."""
     frf = results.analysis.frf
     for point in (frf.get(ch) or []) if frf else []:
-        gain = _evaluated(frf_gain_measurand(point, results, c, ch))
+        gain = _evaluated(frf_gain_measurand(point, results, c, ch), results)
         if gain is not None:
             certify(point, gain)
             point.gain_expanded_uncertainty_db = gain.expanded_uncertainty
             point.gain_budget = _rows(gain)
             point.gain_measurand = gain.definition
-        phase = _evaluated(frf_phase_measurand(point, results, c, ch))
+        phase = _evaluated(frf_phase_measurand(point, results, c, ch), results)
         if phase is not None:
             point.phase_expanded_uncertainty_deg = phase.expanded_uncertainty
             point.phase_budget = _rows(phase)
@@ -134,7 +147,7 @@ def apply_uncertainty(results: RunResults, constants: RigConstants | None = None
     block = results.analysis.misalignment
     for scenario, sensors in sorted(block.scenarios.items()) if block else []:
         for sensor, entry in sorted(sensors.items()):
-            evaluation = _evaluated(misalignment_measurand(results, scenario, sensor, c))
+            evaluation = _evaluated(misalignment_measurand(results, scenario, sensor, c), results)
             if evaluation is not None:
                 certify(entry, evaluation)
     return results

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar
 
@@ -73,10 +74,14 @@ def whole_cycles(n_samples: int, frequency_hz: float, fs_hz: float) -> tuple[int
 
     For a coherent record (docs/method.md §4.4) this is the whole record.
     """
+    if not (0 < frequency_hz < fs_hz / 2 and math.isfinite(fs_hz)):
+        raise AnalysisError(f"{frequency_hz:g} Hz cannot be analysed in samples at {fs_hz:g} Hz "
+                            "(it must be above 0 and below half the sample rate)")
     per_cycle = fs_hz / frequency_hz
     cycles = int(np.floor(n_samples / per_cycle + 1e-6))
     if cycles < 1:
-        raise ValueError(f"record of {n_samples} samples holds no full cycle at {frequency_hz} Hz")
+        raise AnalysisError(f"record of {n_samples} samples holds no full cycle at "
+                            f"{frequency_hz:g} Hz ({per_cycle:.4g} samples per cycle)")
     return min(round(cycles * per_cycle), n_samples), cycles
 
 

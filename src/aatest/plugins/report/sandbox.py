@@ -5,16 +5,23 @@ They run in an :class:`~jinja2.sandbox.ImmutableSandboxedEnvironment` with autoe
 cannot reach Python internals (``__class__``, ``__globals__``…), mutate the results, or call
 anything but the filters below; the loader only serves regular files inside the template
 directory (no absolute paths, no ``..``, no symlinks leading out), and arithmetic that would
-build huge strings or numbers is refused. The only way HTML enters unescaped is
-:func:`vet_svg`, for SVG figures, which are parsed and checked element by element.
+build huge strings or numbers is refused: repetitions over 100 000 items, integer powers over
+16 384 bits, and widths over 10 000 characters in filters (``center``, ``indent``,
+``wordwrap``, ``batch``, ``slice``, ``truncate``), string methods (``ljust``, ``zfill``…) and
+format strings (``'%2000000000d'|format``, ``'{:9999999}'.format``). Whatever else a template
+does runs under CPU and memory limits: :func:`render_loaded` renders in a child process
+(:mod:`.confined`). The only way HTML enters unescaped is :func:`vet_svg`, for SVG figures,
+which are parsed and checked element by element.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import re
+import string
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +46,15 @@ from aatest.results.quantities import significant
 BUILTIN_TEMPLATES = Path(__file__).resolve().parents[2] / "reports"
 _MAX_REPEAT = 100_000
 _MAX_EXPONENT = 1_000
+#: largest integer a power may produce (Python prints integers up to 4 300 digits ≈ 14 300 bits)
+_MAX_POWER_BITS = 16_384
+#: widest padding, wrapping or formatting a template may ask for (a report line is < 1 000)
+_MAX_WIDTH = 10_000
+#: filters whose numeric arguments are widths or counts (checked against _MAX_WIDTH)
+_WIDTH_FILTERS = ("center", "indent", "wordwrap", "batch", "slice", "truncate")
+#: string methods whose numeric arguments are widths
+_WIDTH_METHODS = frozenset({"center", "ljust", "rjust", "zfill", "expandtabs"})
+_PERCENT_FIELD = re.compile(r"%(?:\([^)]*\))?[#0\- +]*(\*|\d+)?(?:\.(\*|\d+))?")
 #: |values| at or above / below these print in scientific notation
 
 
@@ -65,10 +81,78 @@ class _ConfinedLoader(FileSystemLoader):
         return source, filename, uptodate
 
 
-class _ReportEnvironment(ImmutableSandboxedEnvironment):
-    """Immutable sandbox that also refuses string repetition and powers that exhaust memory."""
+def _check_width(value: Any, what: str) -> None:
+    """Refuse a numeric width or count over :data:`_MAX_WIDTH` (bools are not numbers here)."""
+    if isinstance(value, int | float) and not isinstance(value, bool) and (
+        not math.isfinite(value) or abs(value) > _MAX_WIDTH
+    ):
+        raise SecurityError(f"{what} of {value} exceeds {_MAX_WIDTH}")
 
-    intercepted_binops = frozenset({"*", "**"})
+
+def _check_percent_format(text: str) -> None:
+    """Refuse ``%`` conversions with huge or ``*`` widths/precisions."""
+    for width, precision in _PERCENT_FIELD.findall(text):
+        for part in (width, precision):
+            if part == "*":
+                raise SecurityError("'*' widths in % formats are refused")
+            if part:
+                _check_width(int(part), "format width")
+
+
+def _check_brace_format(text: str) -> None:
+    """Refuse ``str.format`` specs with nested fields or huge widths/precisions."""
+    try:
+        fields = list(string.Formatter().parse(text))
+    except ValueError:
+        return  # str.format raises the same error when called
+    for _literal, _field, spec, _conversion in fields:
+        if spec and "{" in spec:
+            raise SecurityError("nested fields in format specs are refused")
+        for number in re.findall(r"\d+", spec or ""):
+            _check_width(int(number), "format width")
+
+
+def _capped_filter(name: str, function: Callable[..., Any]) -> Callable[..., Any]:
+    """``function`` (a Jinja filter) refusing numeric arguments over :data:`_MAX_WIDTH`."""
+
+    skip = 2 if getattr(function, "jinja_pass_arg", None) is not None else 1  # (env,) value
+
+    @functools.wraps(function)  # keeps jinja_pass_arg (environment/context filters)
+    def capped(*args: Any, **kwargs: Any) -> Any:
+        for value in (*args[skip:], *kwargs.values()):
+            _check_width(value, f"{name} argument")
+        return function(*args, **kwargs)
+
+    return capped
+
+
+def _checked_format(value: Any, *args: Any, **kwargs: Any) -> str:
+    """Jinja's ``format`` filter (``value % args``) with the format's widths checked."""
+    from jinja2.filters import do_format
+
+    _check_percent_format(str(value))
+    return do_format(value, *args, **kwargs)
+
+
+class _ReportEnvironment(ImmutableSandboxedEnvironment):
+    """Immutable sandbox that also refuses repetitions, powers and widths that exhaust memory."""
+
+    intercepted_binops = frozenset({"*", "**", "%"})
+
+    def wrap_str_format(self, value: Any) -> Callable[..., str] | None:
+        """``str.format``/``format_map`` as Jinja sandboxes them, with their widths checked."""
+        wrapped = super().wrap_str_format(value)
+        if wrapped is not None:
+            _check_brace_format(value.__self__)
+        return wrapped
+
+    def call(__self, __context: Any, __obj: Any, *args: Any, **kwargs: Any) -> Any:  # noqa: N805
+        """Call from the template; string padding methods have their widths checked."""
+        if isinstance(getattr(__obj, "__self__", None), str) and \
+                getattr(__obj, "__name__", "") in _WIDTH_METHODS:
+            for value in (*args, *kwargs.values()):
+                _check_width(value, f"{__obj.__name__} width")
+        return super().call(__context, __obj, *args, **kwargs)
 
     def unsafe_undefined(self, obj: Any, attribute: str) -> Any:
         """Refuse at once (Jinja's default renders an empty string until the value is used)."""
@@ -76,8 +160,15 @@ class _ReportEnvironment(ImmutableSandboxedEnvironment):
         raise SecurityError(f"access to attribute {attribute!r} of a {kind} is unsafe")
 
     def call_binop(self, context: Any, operator: str, left: Any, right: Any) -> Any:
+        """Apply an intercepted operator after checking what it would build."""
         if operator == "**" and isinstance(right, (int, float)) and abs(right) > _MAX_EXPONENT:
             raise SecurityError(f"exponent {right} exceeds {_MAX_EXPONENT}")
+        if operator == "**" and isinstance(left, int) and isinstance(right, int) and right > 0 \
+                and left.bit_length() * right > _MAX_POWER_BITS:
+            raise SecurityError(f"a power of {left.bit_length() * right} bits exceeds "
+                                f"{_MAX_POWER_BITS}")
+        if operator == "%" and isinstance(left, str):
+            _check_percent_format(left)
         if operator == "*":
             for seq, count in ((left, right), (right, left)):
                 if isinstance(seq, (str, list, tuple)) and isinstance(count, int) \
@@ -119,7 +210,9 @@ def make_environment(template_dir: Path | None = None) -> ImmutableSandboxedEnvi
     env = _ReportEnvironment(
         loader=ChoiceLoader(loaders), autoescape=True, trim_blocks=True, lstrip_blocks=True,
     )
-    env.filters.update(num=_num, fixed=_fixed)
+    env.filters.update(num=_num, fixed=_fixed, format=_checked_format)
+    env.filters.update({name: _capped_filter(name, env.filters[name]) for name in _WIDTH_FILTERS})
+    env.template_dir = template_dir  # type: ignore[attr-defined]  # for render_loaded's child
     for name in ("lipsum", "joiner"):  # nothing a report needs
         env.globals.pop(name, None)
     return env
@@ -156,7 +249,16 @@ def load_template(name: str, template_dir: Path | None = None) -> Template:
 
 
 def render_loaded(template: Template, context: Mapping[str, Any]) -> str:
-    """Render a template from :func:`load_template`; sandbox refusals become aatest errors."""
+    """Render a template from :func:`load_template` in a child process with CPU and memory
+    limits (:func:`.confined.render_confined`); refusals and limits become aatest errors."""
+    from aatest.plugins.report.confined import render_confined
+
+    template_dir = getattr(template.environment, "template_dir", None)
+    return render_confined(str(template.name), template_dir, context)
+
+
+def render_in_process(template: Template, context: Mapping[str, Any]) -> str:
+    """Render in this process (the child of :func:`render_loaded`); errors become aatest's."""
     try:
         return template.render(dict(context))
     except (SecurityError, JinjaTemplateError, *_TEMPLATE_RUNTIME_ERRORS) as exc:

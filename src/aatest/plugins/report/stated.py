@@ -8,6 +8,7 @@ shows without U. Names and units come from the quantity registry
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -114,11 +115,18 @@ def misalignment_rows(results: RunResults) -> list[dict[str, Any]]:
 
 def _budget(name: str, unit: str, value: float, u: float | None, k: float | None,
             rows: Sequence[BudgetRow]) -> dict[str, Any]:
-    """A budget as printed: rows with their share of Σu_i² (the budget's own proportions)."""
-    total = sum(r.contribution ** 2 for r in rows)
+    """A budget as printed: rows with their share of Σu_i² (the budget's own proportions).
+
+    A contribution that is not finite (an overflow upstream) leaves every share unstated (—)
+    rather than wrong.
+    """
+    values = [r.contribution if math.isfinite(r.contribution) else None for r in rows]
+    total = sum(v**2 for v in values if v is not None)
+    known = all(v is not None for v in values) and math.isfinite(total) and total > 0
     return {"name": name, "unit": unit, "value": value, "expanded_uncertainty": u, "k": k,
-            "rows": [{**r.model_dump(), "share_pct": 100.0 * r.contribution ** 2 / total
-                      if total > 0 else 0.0} for r in rows]}
+            "rows": [{**r.model_dump(), "share_pct": 100.0 * v**2 / total
+                      if known and v is not None else None}
+                     for r, v in zip(rows, values, strict=True)]}
 
 
 def _worst_frf(results: RunResults, ch: str) -> list[dict[str, Any]]:
