@@ -15,7 +15,7 @@ from typing import Any
 from aatest.results import BudgetRow, RunResults
 from aatest.results.base import Certified
 from aatest.results.frf import FrfPoint
-from aatest.results.quantities import QUANTITIES, Quantity, finite
+from aatest.results.quantities import DISTRIBUTIONS, QUANTITIES, Quantity, finite
 
 
 @dataclass(frozen=True)
@@ -117,8 +117,10 @@ def _budget(name: str, unit: str, value: float, u: float | None, k: float | None
     """A budget as printed: rows with their share of Σu_i² (the budget's own proportions)."""
     total = sum(r.contribution ** 2 for r in rows)
     return {"name": name, "unit": unit, "value": value, "expanded_uncertainty": u, "k": k,
-            "rows": [{**r.model_dump(), "share_pct": 100.0 * r.contribution ** 2 / total
-                      if total > 0 else 0.0} for r in rows]}
+            "rows": [{**r.model_dump(), "distribution": DISTRIBUTIONS.get(r.distribution,
+                                                                          r.distribution),
+                      "share_pct": 100.0 * r.contribution ** 2 / total if total > 0 else 0.0}
+                     for r in rows]}
 
 
 def _worst_frf(results: RunResults, ch: str) -> list[dict[str, Any]]:
