@@ -28,7 +28,7 @@ if TYPE_CHECKING:  # the constants module builds on these rows; only its type is
 #: one arcsecond in radians
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 #: cross-axis sensitivity a sensor datasheet states when the sensor record carries none
-TYPICAL_CROSS_AXIS = SensorDatasheet.model_fields["cross_axis_limit"].default
+TYPICAL_CROSS_AXIS = SensorDatasheet(model="reference").cross_axis_limit
 
 
 def rel(name: str, label: str, spread: float, note: str, dist: Distribution = "normal",
