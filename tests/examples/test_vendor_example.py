@@ -19,10 +19,11 @@ from aatest.engine.interfaces import RigContext
 from aatest.engine.steps import PlannedStep, SensorRef
 
 #: aatest's public plugin API: all a vendor package may import from aatest
-#: (``aatest.effects``: the effect-plugin API of group ``aatest.effects``)
+#: (``aatest.effects``: the effect-plugin API of group ``aatest.effects``; ``aatest.results``:
+#: the typed record a report plugin receives, with its quantity names)
 PUBLIC_API = {"aatest.engine.interfaces", "aatest.engine.errors", "aatest.engine.steps",
               "aatest.engine.logs", "aatest.engine.registry", "aatest.effects",
-              "aatest.testing.conformance"}
+              "aatest.testing.conformance", "aatest.results", "aatest.results.quantities"}
 
 
 def _table(**options: Any) -> Any:
@@ -55,7 +56,7 @@ def _aatest_imports(source: str) -> set[str]:
 
 def test_imports_only_the_public_plugin_api(example_dir: Path) -> None:
     modules = sorted((example_dir / "src").rglob("*.py"))
-    assert len(modules) == 5  # package, turntable, sensor, effect, conformance rig
+    assert len(modules) == 6  # package, turntable, sensor, effect, conformance rig, report
     used = set().union(*(_aatest_imports(m.read_text()) for m in modules))
     assert used - PUBLIC_API == set()
     assert "aatest.engine.registry" in used  # the turntable loads the simulator by name
@@ -138,3 +139,18 @@ def test_broken_vendor_plugins_are_named(install: Callable[..., None]) -> None:
     with pytest.raises(PluginError, match="'no-module' from distribution 'acme-broken' "
                                           "failed to import"):
         registry.load("sensor", "no-module")
+
+
+@pytest.mark.usefixtures("vendor_example")
+def test_report_plugin_reads_the_typed_record(tmp_path: Path) -> None:
+    """The vendor's report gets the typed results and names quantities as aatest does."""
+    from contract_results import decided, make_results
+
+    results = decided(make_results())
+    info = registry.load("report", "acme-summary")
+    page = info.target(registry.configure(info, {"title": "SR-1 summary"})).render(
+        results, tmp_path, None).read_text(encoding="utf-8")
+    assert "<h1>SR-1 summary</h1>" in page and f"<b>{results.overall}</b>" in page
+    assert "Scale-factor deviation from nominal" in page and "V/(°/s²)" in page
+    assert "scale_factor_deviation_pct" not in page and "scale_v_per_dps2" not in page
+    assert page.count("<tr>") == len(results.verdicts) + 1  # a row per judged quantity

@@ -36,7 +36,9 @@ def test_scale_factor_from_the_page_shows_the_verdict(station: Station, page: An
     scale = results["analysis"]["scale_factor"]["v_sz"]["scale_v_per_dps2"]
     assert scale == pytest.approx(0.004014, rel=0.01)  # the twin's sensor: nominal within 1 %
     assert page.locator("#verdict").inner_text() == "Verdict: PASS"
-    assert "scale_factor_deviation_pct" in page.locator("#verdicts").inner_text()
+    verdicts = page.locator("#verdicts").inner_text()
+    assert "Scale-factor deviation from nominal" in verdicts  # the quantity's name and unit
+    assert "scale_factor_deviation_pct" not in verdicts and " %" in verdicts
     assert page.locator("#links a[href$='report.html']").count() == 1
     report = page.locator("#links a[href$='report.html']").get_attribute("href")
     assert page.request.get(station.url + report).ok

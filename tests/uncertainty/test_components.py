@@ -114,7 +114,8 @@ def test_reference_method_from_the_reference_analysis() -> None:
     results = RunResults.model_validate({"procedure": "p",
                                          "analysis": {"reference": {"s1": compared}}})
     row = comp.reference_method(results, ["s1"], "smoothed")
-    assert row.spread == pytest.approx(3e-4) and "savgol vs smoothed" in row.note
+    assert row.spread == pytest.approx(3e-4)
+    assert "(polynomial fit of the position vs smoothed position)" in row.note
     missing = comp.reference_method(RunResults(procedure="p"), ["s1"], "smoothed")
     assert not missing.evaluated
 

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 from aatest.results._fields import finite
 
-__all__ = ["ANALYSES", "QUANTITIES", "Quantity", "analysis_name", "finite", "quantity",
-           "significant"]
+__all__ = ["ANALYSES", "DISTRIBUTIONS", "QUANTITIES", "REFERENCE_METHODS", "Quantity",
+           "analysis_name", "finite", "quantity", "reference_name", "significant"]
 
 #: significant digits of an expanded uncertainty (GUM 7.2.6: at most two)
 U_DIGITS = 2
@@ -99,6 +99,29 @@ ANALYSES: dict[str, str] = {
     "misalignment": "Misalignment", "noise": "Noise", "drift": "Bias drift and Allan deviation",
     "diagnose": "Diagnosis",
 }
+
+
+#: acceleration references by the name a person reads: the public names a scale factor is
+#: calibrated against and the implementation names the reference analysis compares
+REFERENCE_METHODS: dict[str, str] = {
+    "fit": "polynomial fit of the position", "savgol": "polynomial fit of the position",
+    "table_estimate": "table estimate", "table": "table estimate",
+    "central": "central difference", "central_position": "central difference of the position",
+    "central_rate": "central difference of the rate",
+    "five_point": "five-point difference",
+    "five_point_position": "five-point difference of the position",
+    "five_point_rate": "five-point difference of the rate",
+    "smoothed": "smoothed position", "smooth": "smoothed position",
+    "sliding_mode": "sliding-mode differentiator", "levant": "sliding-mode differentiator",
+}
+#: probability distributions of budget rows by the name a person reads
+DISTRIBUTIONS: dict[str, str] = {"normal": "normal", "rectangular": "rectangular",
+                                 "cosine_error": "cosine error"}
+
+
+def reference_name(key: str) -> str:
+    """A person's name of an acceleration reference (its key when it is not a known one)."""
+    return REFERENCE_METHODS.get(key, key.replace("_", " "))
 
 
 def quantity(key: str) -> Quantity:

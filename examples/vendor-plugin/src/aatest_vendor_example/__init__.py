@@ -6,9 +6,12 @@
 * ``acme-mems-aa`` (group ``aatest.sensors``): a MEMS angular accelerometer datasheet.
 * ``asymmetric_scale`` (group ``aatest.effects``): an effect model for ``aatest diagnose`` and
   the twin — a scale factor that differs for α > 0 and α < 0.
+* ``acme-summary`` (group ``aatest.reports``): a one-page calibration summary written from the
+  typed results (``aatest.results.RunResults``), quantities named by ``aatest.results.quantities``.
 
 Only aatest's public plugin API is imported: ``aatest.engine.interfaces``, ``.errors``,
-``.steps``, ``.logs`` and ``.registry``, and ``aatest.effects``.
+``.steps``, ``.logs`` and ``.registry``, ``aatest.effects``, and the typed results
+(``aatest.results``, ``aatest.results.quantities``).
 """
 
 __version__ = "0.1.0"

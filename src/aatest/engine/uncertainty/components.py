@@ -21,6 +21,7 @@ from aatest.engine.uncertainty.declared import encoder_note
 from aatest.engine.uncertainty.gum import Distribution, Input
 from aatest.engine.uncertainty.statistics import PAIR, finite
 from aatest.results import RunResults
+from aatest.results.quantities import reference_name
 
 if TYPE_CHECKING:  # the constants module builds on these rows; only its type is needed here
     from aatest.engine.uncertainty.measurands import RigConstants
@@ -28,7 +29,7 @@ if TYPE_CHECKING:  # the constants module builds on these rows; only its type is
 #: one arcsecond in radians
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 #: cross-axis sensitivity a sensor datasheet states when the sensor record carries none
-TYPICAL_CROSS_AXIS = SensorDatasheet.model_fields["cross_axis_limit"].default
+TYPICAL_CROSS_AXIS = SensorDatasheet(model="reference").cross_axis_limit
 
 
 def rel(name: str, label: str, spread: float, note: str, dist: Distribution = "normal",
@@ -99,9 +100,10 @@ def reference_method(results: RunResults, steps: Sequence[str], chosen: str) -> 
                     sum(mean.values()) / len(mean))
     worst_method, worst = max(((m, abs(g / baseline - 1.0)) for m, g in mean.items()),
                               key=lambda item: item[1])
-    return rel("reference_method", f"reference: method error ({chosen})", worst,
-               f"measured: largest gain difference of the {len(mean)} reference methods at the "
-               f"fundamental, {worst * 100:.4f} % ({worst_method} vs {chosen})", "rectangular")
+    return rel("reference_method", f"reference: method error ({reference_name(chosen)})",
+               worst, f"measured: largest gain difference of the {len(mean)} reference methods "
+               f"at the fundamental, {worst * 100:.4f} % ({reference_name(worst_method)} vs "
+               f"{reference_name(chosen)})", "rectangular")
 
 
 #: public reference names → the names the reference analysis reports them under

@@ -22,16 +22,12 @@ from aatest.plugins.report.sandbox import vet_svg
 from aatest.plugins.report.stated import budget_views, frf_rows, misalignment_rows, stated
 from aatest.plugins.report.traceability import traceability
 from aatest.results import RunResults, Verdict
-from aatest.results.quantities import analysis_name, finite, quantity
+from aatest.results.quantities import analysis_name, finite, quantity, reference_name
 from aatest.results.scale_factor import ScaleFactorChannel
 
 #: every section a report may show
 ALL_SECTIONS = frozenset({"sync", "scale_factor", "bias", "temperature", "noise", "frf",
                           "transfer_function", "misalignment", "drift"})
-#: the acceleration references by the name a person reads (results.json keeps the key)
-REFERENCE_NAMES = {"fit": "polynomial fit of the position", "table_estimate": "table estimate",
-                   "central": "central difference", "five_point": "five-point difference",
-                   "smoothed": "smoothed position", "sliding_mode": "sliding-mode differentiator"}
 
 
 def _coefficient_rows(entry: ScaleFactorChannel) -> list[dict[str, Any]]:
@@ -50,7 +46,7 @@ def _channel_view(results: RunResults, ch: str) -> dict[str, Any]:
     return {
         "r2": scale.fit.r2 if scale is not None else None,
         "name": ch,
-        "reference": REFERENCE_NAMES.get(scale.reference, scale.reference) if scale else None,
+        "reference": reference_name(scale.reference) if scale else None,
         "sensor": results.sensor(ch),
         "scale": scale,
         "coefficients": _coefficient_rows(scale) if scale is not None else [],

@@ -16,7 +16,7 @@ from typing import Any
 from aatest.results import BudgetRow, RunResults
 from aatest.results.base import Certified
 from aatest.results.frf import FrfPoint
-from aatest.results.quantities import QUANTITIES, Quantity, finite
+from aatest.results.quantities import DISTRIBUTIONS, QUANTITIES, Quantity, finite
 
 
 @dataclass(frozen=True)
@@ -124,8 +124,9 @@ def _budget(name: str, unit: str, value: float, u: float | None, k: float | None
     total = sum(v**2 for v in values if v is not None)
     known = all(v is not None for v in values) and math.isfinite(total) and total > 0
     return {"name": name, "unit": unit, "value": value, "expanded_uncertainty": u, "k": k,
-            "rows": [{**r.model_dump(), "share_pct": 100.0 * v**2 / total
-                      if known and v is not None else None}
+            "rows": [{**r.model_dump(), "distribution": DISTRIBUTIONS.get(r.distribution,
+                                                                          r.distribution),
+                      "share_pct": 100.0 * v**2 / total if known and v is not None else None}
                      for r, v in zip(rows, values, strict=True)]}
 
 

@@ -11,7 +11,7 @@ function send(msg) {
 
 function cell(row, text) { const td = document.createElement("td"); td.textContent = text ?? "—"; row.appendChild(td); return td; }
 function fmtTime(s) { s = Math.max(0, Math.round(s)); const h = Math.floor(s / 3600), m = Math.floor(s % 3600 / 60); return `${h}:${String(m).padStart(2, "0")}:${String(s % 60).padStart(2, "0")}`; }
-function num(x) { return (x === null || x === undefined) ? "—" : Number(x).toPrecision(5); }
+function num(x, digits = 5) { return (x === null || x === undefined) ? "—" : Number(x).toPrecision(digits); }
 
 async function loadProcedures() {
   const doc = await (await fetch("/api/procedures")).json();
@@ -115,8 +115,9 @@ function showResult(msg) {
   v.title = msg.judged_by === "certificate" ? "judged as on the calibration certificate" : "from results.json";
   const body = $("verdicts").querySelector("tbody"); body.innerHTML = "";
   for (const r of msg.verdicts || []) {
-    const tr = body.insertRow(); cell(tr, r.quantity); cell(tr, r.channel); cell(tr, `${num(r.value)} ${r.unit}`);
-    cell(tr, `${num(r.expanded_uncertainty)} ${r.unit}`); cell(tr, `${num(r.limit)} ${r.unit}`); cell(tr, r.verdict);
+    // name, unit symbol and significant digits from the quantity registry (aatest.results.quantities)
+    const tr = body.insertRow(); cell(tr, r.quantity); cell(tr, r.channel); cell(tr, `${num(r.value, r.digits)} ${r.unit}`);
+    cell(tr, `${num(r.expanded_uncertainty, 2)} ${r.unit}`); cell(tr, `${num(r.limit, r.digits)} ${r.unit}`); cell(tr, r.verdict);
   }
   $("links").innerHTML = "";
   for (const f of ["report.html", "report.pdf", "results.json"]) {
