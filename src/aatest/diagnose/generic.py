@@ -158,36 +158,61 @@ def _line_power(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray],
     return total
 
 
-def _harmonic(f_hz: float, steps: tuple[StepReplay, ...], tol_hz: float) -> bool:
-    """Whether ``f_hz`` is a low harmonic of a step's excitation (then it is motion-related:
-    a static non-linearity or a timing error, not a line of its own)."""
-    for sr in steps:
-        f0 = sr.inner.frequency_hz or sr.outer.frequency_hz
-        if f0 > 0 and any(abs(f_hz - k * f0) <= tol_hz for k in range(1, MAX_HARMONIC + 1)):
-            return True
-    return False
+def harmonic_of(f_hz: float, sr: StepReplay, tol_hz: float) -> int | None:
+    """The order k when ``f_hz`` is within ``tol_hz`` of k·f0 of the step's excitation
+    (k ≤ :data:`MAX_HARMONIC`), else None."""
+    f0 = sr.inner.frequency_hz or sr.outer.frequency_hz
+    if f0 <= 0:
+        return None
+    k = round(f_hz / f0)
+    return k if 1 <= k <= MAX_HARMONIC and abs(f_hz - k * f0) <= tol_hz else None
+
+
+def _harmonic_only(f_hz: float, steps: tuple[StepReplay, ...], carriers: list[int],
+                   tol_hz: float) -> bool:
+    """Whether every step that carries the line has it at a harmonic of its own excitation.
+
+    Such a line is the motion distorted (a static non-linearity, a timing error), which the
+    named effects and the α-shaped extensions model; a line that also stands in a step where
+    it is no harmonic — a static step, another excitation frequency — has a source of its own,
+    whatever frequency it happens to share with some excitation's harmonic.
+    """
+    return bool(carriers) and all(harmonic_of(f_hz, steps[j], tol_hz) is not None
+                                  for j in carriers)
 
 
 def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray]
                       ) -> list[float]:
-    """Frequencies (Hz) of lines common to the residual of the steps, strongest first."""
+    """Frequencies (Hz) of residual lines over the whole band, strongest first.
+
+    A line is a peak of the step-averaged spectrum (each step normalised by its own median
+    level) or of one step's spectrum alone (a line present only in some steps); its frequency
+    is then estimated by maximising the summed periodogram (not snapped to a bin or a nominal
+    value). Lines that are only harmonics of the excitation are left to the motion models.
+    """
     fs = 1.0 / steps[0].dt_s
     nper = int(min(4096, *(sr.n for sr in steps)))
     spectra = [signal.welch(residuals[sr.index], fs=fs, nperseg=nper, detrend=_linear_detrend)
                for sr in steps]
     f = spectra[0][0]
-    acc = np.mean([p / max(float(np.median(p)), 1e-300) for _, p in spectra], axis=0)
+    norm = np.array([p / max(float(np.median(p)), 1e-300) for _, p in spectra])
+    acc = norm.mean(axis=0)
     floor = float(np.median(acc))
-    peaks, _ = signal.find_peaks(acc, height=LINE_SNR * floor, distance=4)
+    # one step alone must stand higher: its spectrum is not averaged over the others
+    score = np.maximum(acc / (LINE_SNR * floor), norm.max(axis=0) / (2.0 * LINE_SNR))
+    peaks, _ = signal.find_peaks(score, height=1.0, distance=4)
     df = fs / nper
-    idx = sorted((int(i) for i in peaks if f[i] > 2.0 * df), key=lambda i: -acc[i])
+    idx = sorted((int(i) for i in peaks if f[i] > 2.0 * df), key=lambda i: -score[i])
     tol_hz = 2.0 / min(sr.n * sr.dt_s for sr in steps)  # two bins of the shortest record
-    out = []
-    for i in idx[:MAX_LINES]:
+    out: list[float] = []
+    for i in idx:
+        if len(out) == MAX_LINES:
+            break
         res = optimize.minimize_scalar(lambda x: -_line_power(steps, residuals, x),
                                        bounds=(f[i] - df, f[i] + df), method="bounded",
                                        options={"xatol": 2e-3})
-        if not _harmonic(float(res.x), steps, tol_hz):
+        carriers = [j for j in range(len(steps)) if norm[j, i] >= LINE_SNR]
+        if not _harmonic_only(float(res.x), steps, carriers, tol_hz):
             out.append(float(res.x))
     return out
 
@@ -204,6 +229,8 @@ def table_line_dps2(sr: StepReplay, f_hz: float) -> float:
 def _line_proposal(steps: tuple[StepReplay, ...], f_hz: float) -> Proposal:
     index = {sr.index: j for j, sr in enumerate(steps)}
     table_dps2 = max(table_line_dps2(sr, f_hz) for sr in steps)
+    tol_hz = 2.0 / min(sr.n * sr.dt_s for sr in steps)
+    orders = [harmonic_of(f_hz, sr, tol_hz) for sr in steps]
 
     def columns(sr: StepReplay, a: np.ndarray) -> np.ndarray:
         w = 2 * np.pi * f_hz * sr.time_s
@@ -221,11 +248,20 @@ def _line_proposal(steps: tuple[StepReplay, ...], f_hz: float) -> Proposal:
         seen = table_dps2 >= SEEN_BY_TABLE * amp_v / abs(k)
         where = ("also in the table log (motion)" if seen
                  else "in the sensor only (not in the table log)")
-        return (f"{f_hz:.1f} Hz line, {1e3 * amp_v:.2g} mV, {where}",
+        # steps where the line coincides with a harmonic of that step's own excitation
+        strong = amps >= 0.5 * float(amps.max())
+        harmonic = [{"step": sr.step.id, "order": o} for sr, o, s in
+                    zip(steps, orders, strong, strict=True) if o is not None and s]
+        also = (f"; at harmonic {harmonic[0]['order']} of step {harmonic[0]['step']}'s "
+                f"excitation too ({len(harmonic)} of {int(strong.sum())} strong steps)"
+                if harmonic else "")
+        return (f"{f_hz:.3f} Hz line, {1e3 * amp_v:.2g} mV, {where}{also}",
                 {"model": "A_i·sin(2π·f·t + φ_i) per step", "frequency_hz": f_hz,
                  "amplitude_v": amp_v, "amplitude_v_per_step": amps.tolist(),
                  "phase_rad_per_step": phases.tolist(), "phase_coherence": coherence,
-                 "seen_by_table": bool(seen),
+                 "seen_by_table": bool(seen), "classification": (
+                     "also in the table log" if seen else "sensor only"),
+                 "harmonic_of_excitation": harmonic,
                  "table_accel_dps2": table_dps2})
 
     return Proposal("spectral_line", f"line@{f_hz:.2f}", columns, describe, shape_params=1)
