@@ -16,6 +16,7 @@ import numpy as np
 from scipy import signal
 
 from aatest.diagnose.effects.base import Context
+from aatest.diagnose.generic import SEEN_BY_TABLE, table_line_dps2
 from aatest.diagnose.noise_floor import NoiseFloor
 from aatest.diagnose.replay import StepReplay, sensor_acceleration
 
@@ -41,8 +42,15 @@ def _classify(f_hz: float, sr: StepReplay) -> str:
     return "unrelated to the excitation"
 
 
+def _source(f_hz: float, amplitude_v: float, sr: StepReplay, scale_v_per_dps2: float) -> str:
+    """Whether the table's position log shows the line too (motion) or only the sensor."""
+    seen = table_line_dps2(sr, f_hz) >= SEEN_BY_TABLE * amplitude_v / abs(scale_v_per_dps2)
+    return "in the table log too" if seen else "sensor only"
+
+
 def spectrum_lines(ctx: Context, residuals: dict[int, np.ndarray]) -> list[dict[str, Any]]:
-    """Strongest narrow lines of the residual spectrum per step, classified."""
+    """Strongest narrow lines of the residual spectrum per step, classified against the
+    excitation (harmonic, rate-scaled, unrelated) and the table log (motion, sensor only)."""
     fs = 1.0 / ctx.replay.dt_s
     lines: list[dict[str, Any]] = []
     for sr in ctx.replay.steps:
@@ -57,6 +65,12 @@ def spectrum_lines(ctx: Context, residuals: dict[int, np.ndarray]) -> list[dict[
                           "amplitude_v": amp, "snr": float(p[i] / floor),
                           "class": _classify(float(f[i]), sr)})
     lines.sort(key=lambda d: -d["amplitude_v"])
+    steps = {sr.step.id: sr for sr in ctx.replay.steps}
+    scale = ctx.info.nominal_scale_v_per_dps2
+    for line in lines[:20]:
+        line["source"] = _source(line["frequency_hz"], line["amplitude_v"], steps[line["step"]],
+                                 scale)
+        line["class"] += f", {line['source']}"
     return lines[:20]
 
 
