@@ -29,7 +29,8 @@ def per_step_bars(views: dict[str, Any], channel: str) -> str:
     ax = fig.subplots()
     x = np.arange(len(rows))
     ax.bar(x - 0.2, [1e3 * r["rms_v_nominal"] for r in rows], 0.4, color="0.6", label="nominal")
-    ax.bar(x + 0.2, [1e3 * r["rms_v_extended"] for r in rows], 0.4, color="C2", label="extended")
+    ax.bar(x + 0.2, [1e3 * r["rms_v_extended"] for r in rows], 0.4, color="C2",
+           label="extended (named + generic)")
     ax.set_xticks(x, [r["step"] for r in rows], rotation=60, fontsize=7)
     ax.set_ylabel("residual RMS (mV)")
     ax.set_yscale("log")
