@@ -229,15 +229,9 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
         sse += [baseline.sse_held_out, result.final.sse_held_out, outcome.joint.fit.sse_held_out]
         n_total += result.final.n
         channels.append(_calibration(result, ctx))
-        r0, r1 = _residuals(ctx, result.nominal), joint_residuals(ctx, outcome.joint)
-        floor = noise_floor({sr.step.id: r1[sr.index] for sr in ctx.replay.steps},
-                            ctx.replay.dt_s)
-        floors[channel] = _floor_view(floor, rmse(baseline), held_out_rmse(outcome.joint.fit))
-        rest = residual_entry(ctx, r1, floor, held_out_rmse(outcome.joint.fit))
-        unexplained += outcome.unexplained + ([rest] if rest else [])
-        views[channel] = residual_views(ctx, r0, r1, floor)
-        if figures is not None:
-            figures.update(residual_figures(ctx, r0, r1, views[channel]))
+        floors[channel], rest, views[channel] = _residual_story(ctx, result.nominal, baseline,
+                                                                outcome, figures)
+        unexplained += outcome.unexplained + rest
     findings = sorted(_dedupe_table_effects(findings), key=lambda f: f.delta_bic)
     explain_refusals(candidates)
     before, named, after = np.sqrt(sse / n_total)
@@ -257,6 +251,24 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
     }
     doc["verdict"] = verdict(doc)
     return doc
+
+
+def _residual_story(ctx: Context, nominal: Fit, baseline: Fit, outcome: Outcome,
+                    figures: dict[str, str] | None) -> tuple[dict[str, Any],
+                                                          list[dict[str, Any]], dict[str, Any]]:
+    """One channel's noise floor, the residual above it (an ``other`` entry) and its views.
+
+    Views and figures compare the nominal model with the model the JSON reports — named
+    effects and generic extensions together — so the report shows what was found.
+    """
+    r0, r1 = _residuals(ctx, nominal), joint_residuals(ctx, outcome.joint)
+    floor = noise_floor({sr.step.id: r1[sr.index] for sr in ctx.replay.steps}, ctx.replay.dt_s)
+    final_rms = held_out_rmse(outcome.joint.fit)
+    rest = residual_entry(ctx, r1, floor, final_rms)
+    views = residual_views(ctx, r0, r1, floor)
+    if figures is not None:
+        figures.update(residual_figures(ctx, r0, r1, views))
+    return _floor_view(floor, rmse(baseline), final_rms), [rest] if rest else [], views
 
 
 def _residuals(ctx: Context, fit: Fit) -> dict[int, np.ndarray]:
