@@ -233,8 +233,10 @@ def test_the_noise_floor_ignores_lines_and_slow_structure() -> None:
         residuals[f"s{k}"] = (rng.normal(0.0, NOISE_V, n) + 0.01 * np.sin(2 * np.pi * 77.7 * t)
                               + 0.002 * (walk - walk.mean()) / walk.std())
     floor = noise_floor(residuals, dt_s)
-    # ≈ 16 independent running-median windows of ~14-dof bins per step, 8 steps: ~0.5 % scatter
-    assert floor.rms_v == pytest.approx(NOISE_V, rel=0.03)
+    # white noise alone reads within 1 % (≈ 16 independent 64-bin median windows of ~14-dof
+    # bins per step, 8 steps); the walk's 1/f² tail, above the noise over the lowest ~17 bins,
+    # shifts the median windows there and adds 2–3 % (measured over seeds)
+    assert floor.rms_v == pytest.approx(NOISE_V, rel=0.05)
     assert floor.ratio(float(np.sqrt(np.mean(np.concatenate(list(residuals.values())) ** 2)))) > 5
 
 

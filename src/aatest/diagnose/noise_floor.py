@@ -64,8 +64,13 @@ def step_floor_variance(residual_v: np.ndarray, dt_s: float) -> float:
     f, p = signal.welch(r, fs=1.0 / dt_s, nperseg=nper,
                         detrend=lambda x: np.asarray(signal.detrend(x, type="linear")))
     p = p[1:]  # the DC bin holds the mean and the slowest trend, not noise
-    window = max(9, int(p.size * _MEDIAN_SHARE) | 1)
+    window = min(p.size, max(9, int(p.size * _MEDIAN_SHARE) | 1))
     smooth = ndimage.median_filter(p, size=window, mode="nearest")
+    # at the band edges the window slides inside instead of padding: padding would repeat the
+    # lowest bins, where slow structure lives, until they outvote the noise around them
+    half = window // 2
+    smooth[:half] = np.median(p[:window])
+    smooth[p.size - half:] = np.median(p[p.size - window:])
     segments = max(1, 1 + (r.size - nper) // (nper // 2))
     dof = _welch_dof(segments)
     bias = float(stats.chi2.median(dof) / dof)  # median / mean of a χ²_ν / ν variable
