@@ -273,6 +273,9 @@ def test_story_sweep(tmp_path_factory: pytest.TempPathFactory) -> None:
             problems += line_problems(run, hidden.frequency_hz, hidden.value)
         if problems:
             failures[name] = problems
+        nominal, final = _ratios(run.doc)
+        print(f"{name}: {run.doc['verdict']['kind']}, residual {nominal:.2f}× → {final:.2f}× "
+              f"the floor, {'; '.join(problems) or 'correct'}", flush=True)
     print(f"\nstory sweep: {len(_sweep()) - len(failures)}/{len(_sweep())} correct")
     for name, problems in failures.items():
         print(f"  {name}: {'; '.join(problems)}")
