@@ -30,6 +30,7 @@ QUICK = 8192
 #: "explains the data" is never said when the nominal residual is this far above the floor
 NEVER_EXPLAINED_ABOVE = 1.5
 NOISE_V = 0.001  # the generator's white sensor noise (RMS)
+FLAT_SPLINE_HZ = 400.0  # fs/5 of the generator's 2 kHz records
 
 
 @dataclass
@@ -181,8 +182,12 @@ def line_problems(run: Run, f_hz: float, amp_v: float) -> list[str]:
     # bins are 2000/8192 = 0.24 Hz wide; the estimate's own scatter is ~1e-4 Hz at 2× noise
     if abs(ext["frequency_hz"] - f_hz) > 0.02:
         problems.append(f"frequency {ext['frequency_hz']:.4f} Hz, truth {f_hz}")
-    # amplitude scatter ≈ σ·√(2/n) per step ≈ 0.3 % at 2× noise; the median over steps
-    if ext["amplitude_v"] != pytest.approx(amp_v, rel=0.05) or ext["seen_by_table"]:
+    # amplitude scatter ≈ σ·√(2/n) per step ≈ 0.3 % at 2× noise; the median over steps. The
+    # DAQ record reaches the table grid through a cubic spline, whose response is flat to ~1 %
+    # below fs/5 and falls towards Nyquist (0.71 at 777.7 Hz): above fs/5 only a lower bound
+    flat = f_hz < FLAT_SPLINE_HZ
+    low, high = (0.95, 1.05) if flat else (0.5, 1.05)
+    if not low * amp_v <= ext["amplitude_v"] <= high * amp_v or ext["seen_by_table"]:
         problems.append(f"amplitude {ext['amplitude_v']:.4g} V / table {ext['seen_by_table']}")
     ev = lines[0]["evidence"]
     if not ev["rmse_v_after"] < ev["rmse_v_before"]:

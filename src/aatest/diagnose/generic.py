@@ -42,6 +42,8 @@ MIN_SEGMENT_S = 0.25
 MAX_HARMONIC = 10
 #: a table log sees a line when its acceleration is at least this share of the sensor's
 SEEN_BY_TABLE = 0.3
+#: ... and stands this far above the log's own level at the neighbouring frequencies
+TABLE_LINE_SNR = 4.0
 
 ColumnFn = Callable[[StepReplay, np.ndarray], np.ndarray]
 
@@ -223,11 +225,21 @@ def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.nda
 
 
 def table_line_dps2(sr: StepReplay, f_hz: float) -> float:
-    """Acceleration amplitude (°/s²) of a line at ``f_hz`` in the table's position log."""
+    """Acceleration amplitude (°/s²) of a line at ``f_hz`` in the table's position log; 0 when
+    it does not stand :data:`TABLE_LINE_SNR` times above the log's own level around ``f_hz``.
+
+    The position log's noise, differentiated twice, grows as f²: at hundreds of hertz it is
+    tens of °/s² in every bin, which is not a line the table moved with.
+    """
     amp = 0.0
+    df = 1.0 / (sr.n * sr.dt_s)
+    around = f_hz + df * np.concatenate([-np.arange(3, 11), np.arange(3, 11)])
     for dev in sr.table_deviation_deg.values():
-        z = dft_at(dev - dev.mean(), sr.time_s, f_hz)
-        amp = max(amp, 2.0 * abs(z) / dev.size * (2 * np.pi * f_hz) ** 2)
+        d = dev - dev.mean()
+        line = abs(dft_at(d, sr.time_s, f_hz))
+        level = float(np.median([abs(dft_at(d, sr.time_s, g)) for g in around if g > 0]))
+        if line > TABLE_LINE_SNR * level:
+            amp = max(amp, 2.0 * line / dev.size * (2 * np.pi * f_hz) ** 2)
     return amp
 
 
