@@ -17,6 +17,11 @@ written from their physics so diagnose must report them as ``unexplained``:
 * ``bias_step`` — value V: the bias jumps by that much 60 % into the record of step 3.
 * ``scale_ageing`` — value per hour: K·(1 + value·elapsed_h), elapsed over the whole session
   (steps back to back), with the temperature cycled so that time and temperature differ.
+* ``sensor_line`` — value V: a line of that amplitude at ``frequency_hz`` in the sensor voltage
+  only (any frequency: between, at or far above the excitation's harmonics).
+* ``bias_drift`` — value V/h: the bias drifts linearly with elapsed session time.
+* ``bias_wander`` — value V: a random walk on the bias, its RMS over each record ``value``
+  (no line, no straight trend, no single step: structure no generic model captures whole).
 """
 
 from __future__ import annotations
@@ -50,6 +55,8 @@ class Hidden:
 
     effect: str | None = None
     value: float = 0.0
+    #: the line's frequency (``sensor_line``)
+    frequency_hz: float = MAINS_HZ
 
 
 def _square_100hz(t_daq_s: np.ndarray) -> np.ndarray:
@@ -117,6 +124,13 @@ def _sensor_v(rec: _Record, hidden: Hidden, rng: np.random.Generator) -> np.ndar
     elif hidden.effect == "bias_step" and rec.step == BIAS_STEP_AT[0]:
         t = rec.t_daq_s - DAQ_LEAD_S
         v += hidden.value * (t >= BIAS_STEP_AT[1] * t[-1])
+    elif hidden.effect == "sensor_line":
+        v += hidden.value * np.sin(2 * np.pi * hidden.frequency_hz * rec.t_daq_s + 1.1)
+    elif hidden.effect == "bias_drift":
+        v += hidden.value * rec.elapsed_s / 3600.0
+    elif hidden.effect == "bias_wander":
+        walk = np.cumsum(rng.normal(size=v.size))
+        v += hidden.value * (walk - walk.mean()) / walk.std()
     return v
 
 
@@ -149,7 +163,7 @@ def write_dataset(out: Path, hidden: Hidden = Hidden(), samples: int = 16384, la
     drift = (hidden.value if hidden.effect == "clock_drift" else 5.0) * 1e-6
     delay = hidden.value if hidden.effect == "time_delay" else 0.0
     entries = []
-    temps = CYCLED_C if hidden.effect == "scale_ageing" else RAMP_C
+    temps = CYCLED_C if hidden.effect in ("scale_ageing", "bias_drift") else RAMP_C
     session_s = 0.0
     for k, ((kind, f_nominal, accel), temp_c) in enumerate(zip(PLAN, temps, strict=True)):
         sid = f"s{k + 1:02d}"

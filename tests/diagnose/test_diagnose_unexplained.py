@@ -22,6 +22,8 @@ from aatest.cli import app
 
 KIND = {"even_order": "static_nonlinearity", "asymmetric_scale": "asymmetry",
         "mains_50hz": "spectral_line", "bias_step": "step_change", "scale_ageing": "trend"}
+#: the nominal residual over the noise floor above which "explains the data" is never said
+NEVER_EXPLAINED_ABOVE = 1.5
 #: (effect, value) of the default-suite cases: 5 mV-scale effects against 1 mV noise
 QUICK = {"even-order": ("even_order", 0.05), "asymmetric": ("asymmetric_scale", 0.02),
          "mains-50hz": ("mains_50hz", 0.004), "bias-step": ("bias_step", 0.005),
@@ -53,9 +55,21 @@ def _extension_problems(hidden: Hidden, ext: dict[str, Any]) -> list[str]:
     return [] if checks[hidden.effect]() else [f"extension {ext} does not match {hidden}"]
 
 
+def _explained_above_floor(doc: dict[str, Any]) -> list[str]:
+    """'Explains the data' said while the nominal residual stands above 1.5× its noise floor."""
+    ratio = max(c["ratio_nominal"] for c in doc["noise_floor"]["channels"].values())
+    if doc["verdict"]["kind"] == "explained" and ratio > NEVER_EXPLAINED_ABOVE:
+        return [f"called explained at {ratio:.2f}× the noise floor"]
+    return []
+
+
 def judge_unexplained(code: int, doc: dict[str, Any], hidden: Hidden) -> list[str]:
     """Problems with the diagnosis of one out-of-vocabulary case (empty list = correct)."""
     problems = [f"wrong vocabulary name: {f['effect']}" for f in doc["findings"]]
+    problems += _explained_above_floor(doc)
+    kind = doc["verdict"]["kind"]
+    if (kind == "explained") != (hidden.effect is None):
+        problems.append(f"verdict {kind}")
     if hidden.effect is None:
         problems += [f"unexplained on clean data: {u['description']}" for u in doc["unexplained"]]
         return problems + ([] if code == 0 else [f"exit {code}"])
@@ -101,14 +115,20 @@ def test_out_of_vocabulary_suite(tmp_path_factory: pytest.TempPathFactory) -> No
     cases = _slow_cases()
     assert sum(h.effect is not None for _, h, _, _ in cases) >= 10
     failures = {}
+    reported = explained_above = 0
     start = time.perf_counter()
     for name, hidden, latch, seed in cases:
         data = write_dataset(tmp_path_factory.mktemp(name) / "data", hidden, latch=latch, seed=seed)
-        problems = judge_unexplained(*_diagnose(data), hidden)
+        code, doc = _diagnose(data)
+        reported += hidden.effect is not None and doc["verdict"]["kind"] != "explained"
+        explained_above += bool(_explained_above_floor(doc))
+        problems = judge_unexplained(code, doc, hidden)
         if problems:
             failures[name] = problems
+    structured = sum(h.effect is not None for _, h, _, _ in cases)
     print(f"\nout-of-vocabulary suite: {len(cases) - len(failures)}/{len(cases)} correct in "
-          f"{time.perf_counter() - start:.0f} s")
+          f"{time.perf_counter() - start:.0f} s; structure reported {reported}/{structured}; "
+          f"'explains the data' above {NEVER_EXPLAINED_ABOVE}× the floor: {explained_above}")
     for name, problems in failures.items():
         print(f"  {name}: {'; '.join(problems)}")
     assert not failures

@@ -35,11 +35,12 @@ def summary(doc: dict[str, Any]) -> str:
     """A few lines a person reads first."""
     gain = doc["gain"]
     lines = [f"baseline residual {1e3 * doc['baseline']['rmse_v']:.3f} mV RMS (held-out)"]
-    if not doc["findings"] and not doc.get("unexplained"):
-        lines.append("no effect supported by the evidence: the nominal model explains the data")
-    elif not doc["findings"]:
-        lines.append("no vocabulary effect supported by the evidence, but the residual holds "
-                     "structure the vocabulary cannot name (unexplained, below)")
+    floor = doc.get("noise_floor")
+    if floor:
+        lines.append(f"noise floor {1e3 * floor['rms_v']:.3f} mV RMS, read from the data: "
+                     f"{floor['method']}; residual after the model {floor['ratio']:.2f}× it "
+                     f"(explained up to {floor['explained_ratio']:g}×)")
+    lines.append(doc["verdict"]["headline"])
     for f in doc["findings"]:
         params = ", ".join(f"{k}={v:.4g}" for k, v in f["parameters"].items())
         lines.append(f"finding {f['effect']} ({f.get('attributed_to', 'sensor')}, "
@@ -50,6 +51,10 @@ def summary(doc: dict[str, Any]) -> str:
     if doc.get("steps_skipped"):
         lines.append("steps left out (no sync edges, no trigger): "
                      + ", ".join(doc["steps_skipped"]))
+    for c in doc["candidates"]:
+        if not c.get("accepted") and c.get("delta_bic") is not None and c["delta_bic"] < 0:
+            lines.append(f"not accepted {c['effect']} ({c.get('channel', '')}): ΔBIC "
+                         f"{c['delta_bic']:.1f}; {c.get('reason', '')}")
     untestable = [c["effect"] for c in doc["candidates"] if c.get("testable") is False]
     if untestable:
         lines.append("not testable with these data: " + ", ".join(sorted(set(untestable))))

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from aatest.diagnose.design import Fit, predict
 from aatest.diagnose.effects.base import Context
 
 
@@ -30,7 +29,8 @@ def per_step_bars(views: dict[str, Any], channel: str) -> str:
     ax = fig.subplots()
     x = np.arange(len(rows))
     ax.bar(x - 0.2, [1e3 * r["rms_v_nominal"] for r in rows], 0.4, color="0.6", label="nominal")
-    ax.bar(x + 0.2, [1e3 * r["rms_v_extended"] for r in rows], 0.4, color="C2", label="extended")
+    ax.bar(x + 0.2, [1e3 * r["rms_v_extended"] for r in rows], 0.4, color="C2",
+           label="extended (named + generic)")
     ax.set_xticks(x, [r["step"] for r in rows], rotation=60, fontsize=7)
     ax.set_ylabel("residual RMS (mV)")
     ax.set_yscale("log")
@@ -71,18 +71,19 @@ def spectrum_lines(views: dict[str, Any], channel: str) -> str | None:
     return _svg(fig)
 
 
-def before_after_trace(ctx: Context, nominal: Fit, final: Fit) -> str:
-    """Residual of the step that improved most, nominal vs extended (first second shown)."""
-    p0, p1 = predict(ctx.replay, ctx.info, nominal), predict(ctx.replay, ctx.info, final)
-    gains = {i: np.std(ctx.targets[i] - p0[i]) - np.std(ctx.targets[i] - p1[i]) for i in p0}
+def before_after_trace(ctx: Context, r0: dict[int, np.ndarray], r1: dict[int, np.ndarray]
+                       ) -> str:
+    """Residual of the step that improved most, nominal (``r0``) vs the extended model the
+    JSON reports (``r1``: named and generic extensions), first second shown."""
+    gains = {i: np.std(r0[i]) - np.std(r1[i]) for i in r0}
     k = max(gains, key=lambda i: gains[i])
-    sr = ctx.replay.steps[k]
+    sr = next(s for s in ctx.replay.steps if s.index == k)
     n = min(sr.n, round(1.0 / sr.dt_s))
     t = sr.time_s[:n]
     fig = Figure(figsize=(6.4, 2.6), layout="constrained")
     ax = fig.subplots()
-    ax.plot(t, 1e3 * (ctx.targets[k] - p0[k])[:n], color="0.6", lw=0.6, label="nominal")
-    ax.plot(t, 1e3 * (ctx.targets[k] - p1[k])[:n], color="C2", lw=0.6, label="extended")
+    ax.plot(t, 1e3 * r0[k][:n], color="0.6", lw=0.6, label="nominal")
+    ax.plot(t, 1e3 * r1[k][:n], color="C2", lw=0.6, label="extended (named + generic)")
     ax.set_xlabel("time in record (s)")
     ax.set_ylabel("residual (mV)")
     ax.set_title(f"{ctx.info.channel}, step {sr.step.id}: before / after", fontsize=9)
@@ -90,13 +91,13 @@ def before_after_trace(ctx: Context, nominal: Fit, final: Fit) -> str:
     return _svg(fig)
 
 
-def residual_figures(ctx: Context, nominal: Fit, final: Fit, views: dict[str, Any]
-                     ) -> dict[str, str]:
-    """All figures of one channel, keyed by title."""
+def residual_figures(ctx: Context, r0: dict[int, np.ndarray], r1: dict[int, np.ndarray],
+                     views: dict[str, Any]) -> dict[str, str]:
+    """All figures of one channel, keyed by title (``r0``/``r1``: nominal/extended residuals)."""
     ch = ctx.info.channel
     out = {f"{ch} residual per step": per_step_bars(views, ch),
            f"{ch} residual against motion": against_panels(views, ch),
-           f"{ch} before and after": before_after_trace(ctx, nominal, final)}
+           f"{ch} before and after": before_after_trace(ctx, r0, r1)}
     lines = spectrum_lines(views, ch)
     if lines is not None:
         out[f"{ch} residual spectrum"] = lines

@@ -24,6 +24,7 @@ from aatest.diagnose.effects.logger import (
 )
 from aatest.diagnose.figures import residual_figures
 from aatest.diagnose.logger_chain import channel_info, logger_options, targets_of
+from aatest.diagnose.noise_floor import EXPLAINED_RATIO, METHOD, NoiseFloor, noise_floor
 from aatest.diagnose.replay import Replay, replay_dataset
 from aatest.diagnose.residuals import residual_views
 from aatest.diagnose.selection import (
@@ -31,10 +32,12 @@ from aatest.diagnose.selection import (
     ChannelResult,
     Finding,
     correlation_factor,
+    explain_refusals,
     forward_select,
     rmse,
 )
-from aatest.diagnose.unexplained import Outcome, explain
+from aatest.diagnose.story import residual_entry, verdict
+from aatest.diagnose.unexplained import Outcome, explain, held_out_rmse, joint_residuals
 from aatest.engine.dataset import Dataset
 
 
@@ -206,6 +209,7 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
     candidates: list[dict[str, Any]] = []
     unexplained: list[dict[str, Any]] = []
     channels, views = [], {}
+    floors: dict[str, dict[str, Any]] = {}
     sse = np.zeros(3)  # held-out SSE: baseline, named model, named + generic extensions
     n_total = 0
     drift_f: Finding | None = None
@@ -221,22 +225,23 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
         _apply_withdrawals(result, outcome)
         findings += result.findings + ([noise_f] if noise_f else [])
         candidates += [*list(result.candidates.values()), noise_row]
-        unexplained += outcome.unexplained
         result.final = ctx.fit(outcome.joint.spec)
         sse += [baseline.sse_held_out, result.final.sse_held_out, outcome.joint.fit.sse_held_out]
         n_total += result.final.n
         channels.append(_calibration(result, ctx))
-        views[channel] = residual_views(ctx, result.nominal, result.final)
-        if figures is not None:
-            figures.update(residual_figures(ctx, result.nominal, result.final, views[channel]))
+        floors[channel], rest, views[channel] = _residual_story(ctx, result.nominal, baseline,
+                                                                outcome, figures)
+        unexplained += outcome.unexplained + rest
     findings = sorted(_dedupe_table_effects(findings), key=lambda f: f.delta_bic)
+    explain_refusals(candidates)
     before, named, after = np.sqrt(sse / n_total)
-    return {
+    doc = {
         "baseline": {"rmse_v": float(before)},
         "findings": [f.as_dict() for f in findings],
         "unexplained": sorted(unexplained, key=lambda u: u["evidence"]["delta_bic"]),
         "gain": _gain(before, after),
         "gain_named": _gain(before, named),
+        "noise_floor": _floor_summary(floors),
         "candidates": candidates,
         "channels": channels,
         "logger": {"antialias_hz": corner, "source": source, "t_ref_c": replay.t_ref_c,
@@ -244,6 +249,47 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
         "residuals": views,
         "steps_skipped": list(replay.skipped),
     }
+    doc["verdict"] = verdict(doc)
+    return doc
+
+
+def _residual_story(ctx: Context, nominal: Fit, baseline: Fit, outcome: Outcome,
+                    figures: dict[str, str] | None) -> tuple[dict[str, Any],
+                                                          list[dict[str, Any]], dict[str, Any]]:
+    """One channel's noise floor, the residual above it (an ``other`` entry) and its views.
+
+    Views and figures compare the nominal model with the model the JSON reports — named
+    effects and generic extensions together — so the report shows what was found.
+    """
+    r0, r1 = _residuals(ctx, nominal), joint_residuals(ctx, outcome.joint)
+    floor = noise_floor({sr.step.id: r1[sr.index] for sr in ctx.replay.steps}, ctx.replay.dt_s)
+    final_rms = held_out_rmse(outcome.joint.fit)
+    rest = residual_entry(ctx, r1, floor, final_rms)
+    views = residual_views(ctx, r0, r1, floor)
+    if figures is not None:
+        figures.update(residual_figures(ctx, r0, r1, views))
+    return _floor_view(floor, rmse(baseline), final_rms), [rest] if rest else [], views
+
+
+def _residuals(ctx: Context, fit: Fit) -> dict[int, np.ndarray]:
+    """Measured − the prediction of ``fit``, per step index (V)."""
+    pred = predict(ctx.replay, ctx.info, fit)
+    return {i: ctx.targets[i] - pred[i] for i in pred}
+
+
+def _floor_view(floor: NoiseFloor, nominal_rms_v: float, final_rms_v: float) -> dict[str, Any]:
+    """One channel's noise floor against its held-out residual, nominal and final model."""
+    return {"rms_v": floor.rms_v, "residual_rms_v_nominal": nominal_rms_v,
+            "residual_rms_v": final_rms_v, "ratio_nominal": floor.ratio(nominal_rms_v),
+            "ratio": floor.ratio(final_rms_v), "per_step_v": floor.per_step_v}
+
+
+def _floor_summary(floors: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The worst channel's ratio (the verdict's), how the floor was read, every channel."""
+    worst = max(floors.values(), key=lambda v: v["ratio"])
+    return {"method": METHOD, "explained_ratio": EXPLAINED_RATIO, "rms_v": worst["rms_v"],
+            "residual_rms_v": worst["residual_rms_v"], "ratio": worst["ratio"],
+            "channels": floors}
 
 
 def _apply_withdrawals(result: ChannelResult, outcome: Outcome) -> None:

@@ -1,6 +1,7 @@
 """Where the nominal replay is wrong: residual views a person can read (numbers for the JSON).
 
-Residual = measured − simulated, for the nominal model and for the extended one:
+Residual = measured − simulated, for the nominal model and for the extended one (the named
+effects and the generic extensions the JSON reports):
 RMS per step; the residual spectrum's strongest lines, each classified as a harmonic of the
 step's excitation, rate-scaled (a fixed number of cycles per degree of table angle) or
 unrelated; and residual RMS binned against |acceleration|, |rate|, |jerk|, temperature, time
@@ -14,8 +15,9 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from aatest.diagnose.design import Fit, predict
 from aatest.diagnose.effects.base import Context
+from aatest.diagnose.generic import SEEN_BY_TABLE, table_line_dps2
+from aatest.diagnose.noise_floor import NoiseFloor
 from aatest.diagnose.replay import StepReplay, sensor_acceleration
 
 _BINS = 6
@@ -40,8 +42,15 @@ def _classify(f_hz: float, sr: StepReplay) -> str:
     return "unrelated to the excitation"
 
 
+def _source(f_hz: float, amplitude_v: float, sr: StepReplay, scale_v_per_dps2: float) -> str:
+    """Whether the table's position log shows the line too (motion) or only the sensor."""
+    seen = table_line_dps2(sr, f_hz) >= SEEN_BY_TABLE * amplitude_v / abs(scale_v_per_dps2)
+    return "in the table log too" if seen else "sensor only"
+
+
 def spectrum_lines(ctx: Context, residuals: dict[int, np.ndarray]) -> list[dict[str, Any]]:
-    """Strongest narrow lines of the residual spectrum per step, classified."""
+    """Strongest narrow lines of the residual spectrum per step, classified against the
+    excitation (harmonic, rate-scaled, unrelated) and the table log (motion, sensor only)."""
     fs = 1.0 / ctx.replay.dt_s
     lines: list[dict[str, Any]] = []
     for sr in ctx.replay.steps:
@@ -56,6 +65,12 @@ def spectrum_lines(ctx: Context, residuals: dict[int, np.ndarray]) -> list[dict[
                           "amplitude_v": amp, "snr": float(p[i] / floor),
                           "class": _classify(float(f[i]), sr)})
     lines.sort(key=lambda d: -d["amplitude_v"])
+    steps = {sr.step.id: sr for sr in ctx.replay.steps}
+    scale = ctx.info.nominal_scale_v_per_dps2
+    for line in lines[:20]:
+        line["source"] = _source(line["frequency_hz"], line["amplitude_v"], steps[line["step"]],
+                                 scale)
+        line["class"] += f", {line['source']}"
     return lines[:20]
 
 
@@ -103,18 +118,25 @@ def _by_group(ctx: Context, residuals: dict[int, np.ndarray], key) -> dict[str, 
     return {k: float(np.sqrt(np.mean(np.concatenate(v) ** 2))) for k, v in acc.items()}
 
 
-def residual_views(ctx: Context, nominal: Fit, final: Fit) -> dict[str, Any]:
-    """All residual views of one channel, before (nominal) and after (extended model)."""
-    pred0 = predict(ctx.replay, ctx.info, nominal)
-    pred1 = predict(ctx.replay, ctx.info, final)
-    r0 = {i: ctx.targets[i] - pred0[i] for i in pred0}
-    r1 = {i: ctx.targets[i] - pred1[i] for i in pred1}
+def residual_views(ctx: Context, r0: dict[int, np.ndarray], r1: dict[int, np.ndarray],
+                   floor: NoiseFloor | None = None) -> dict[str, Any]:
+    """All residual views of one channel, before (nominal: ``r0``) and after (``r1``, the
+    model the JSON reports: named effects and generic extensions together), per step index.
+
+    With ``floor``, each step's row also carries its own noise floor (V RMS).
+    """
+    per_step = []
+    for sr in ctx.replay.steps:
+        row = {"step": sr.step.id, "kind": sr.step.kind,
+               "rms_v_nominal": float(np.sqrt(np.mean(r0[sr.index] ** 2))),
+               "rms_v_extended": float(np.sqrt(np.mean(r1[sr.index] ** 2)))}
+        if floor is not None:
+            row["noise_floor_v"] = floor.per_step_v.get(sr.step.id, floor.rms_v)
+        per_step.append(row)
     return {
-        "per_step": [{"step": sr.step.id, "kind": sr.step.kind,
-                      "rms_v_nominal": float(np.sqrt(np.mean(r0[sr.index] ** 2))),
-                      "rms_v_extended": float(np.sqrt(np.mean(r1[sr.index] ** 2)))}
-                     for sr in ctx.replay.steps],
+        "per_step": per_step,
         "spectrum_lines": spectrum_lines(ctx, r0),
+        "spectrum_lines_extended": spectrum_lines(ctx, r1),
         "against": _against(ctx, r0),
         "by_orientation": _by_group(ctx, r0, lambda s: f"outer {s.outer.offset_deg:.0f}°, "
                                                         f"inner {s.inner.offset_deg:.0f}°"),

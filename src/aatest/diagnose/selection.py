@@ -157,6 +157,7 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
     accepted: dict[str, int] = {}
     remaining = list(candidates)
     dormant: list[Candidate] = []  # no evidence yet: re-tested once the residual has shrunk
+    first_dbic: dict[str, float] = {}  # each candidate's ΔBIC on the model it first met
     while remaining and len(findings) < MAX_FINDINGS_PER_CHANNEL:
         scored = []
         for cand in remaining:
@@ -168,6 +169,7 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
                 continue
             dbic = delta_bic(ctx, cf.fit, ctx.current, cand.effect)
             rows[cand.effect] = _row(cf, dbic, ctx)
+            first_dbic.setdefault(cand.effect, dbic)
             scored.append((dbic, cand, cf))
         dormant += [c for c in remaining if rows[c.effect]["testable"]
                     and _hopeless(rows[c.effect])]
@@ -190,7 +192,44 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
                      if c.effect != cand.effect or accepted[c.effect] < c.repeatable]
     _sync_shape_parameters(ctx.current.spec, findings)
     _mirror_misalignment(ctx, rows, findings)
+    _refusal_reasons(ctx, rows, first_dbic, findings)
     return findings, rows
+
+
+def _refusal_reasons(ctx: Context, rows: dict[str, dict[str, Any]],
+                     first_dbic: dict[str, float], findings: list[Finding]) -> None:
+    """Say why each candidate with favourable evidence (ΔBIC < 0) was not accepted."""
+    accepted = ", ".join(dict.fromkeys(f.effect for f in findings))
+    before = rmse(ctx.current)
+    for row in rows.values():
+        dbic = row.get("delta_bic")
+        if row.get("accepted") or row.get("reason") or dbic is None or dbic >= 0:
+            continue
+        first = first_dbic.get(row["effect"], dbic)
+        drop_pct = 100.0 * (1.0 - row.get("rmse_v_after", before) / before) if before else 0.0
+        if first < -BIC_THRESHOLD and dbic > -BIC_THRESHOLD and findings:
+            row["reason"] = (f"absorbed by {accepted} in the joint fit: ΔBIC {first:.1f} "
+                             f"before them, {dbic:.1f} beside them")
+        elif dbic > -BIC_THRESHOLD:
+            row["reason"] = (f"below its detectable size: ΔBIC {dbic:.1f} does not reach "
+                             f"−{BIC_THRESHOLD:g} (very strong evidence)")
+        elif drop_pct < 100.0 * MIN_REDUCTION:
+            row["reason"] = (f"below its detectable size: lowers the held-out RMS by only "
+                             f"{drop_pct:.2f} % (a material effect: ≥ {100 * MIN_REDUCTION:g} %)")
+        elif len(findings) >= MAX_FINDINGS_PER_CHANNEL:
+            row["reason"] = (f"not accepted: the channel already holds "
+                             f"{MAX_FINDINGS_PER_CHANNEL} findings")
+
+
+def explain_refusals(candidates: list[dict[str, Any]]) -> None:
+    """Last word for any favourable candidate row still without a reason (all channels)."""
+    for row in candidates:
+        dbic = row.get("delta_bic")
+        if row.get("accepted") or row.get("reason") or dbic is None or dbic >= 0:
+            continue
+        row["reason"] = (f"refused by the stopping rule: ΔBIC {dbic:.1f} with the model it was "
+                         f"last tested on (accepted: ΔBIC < −{BIC_THRESHOLD:g} and a "
+                         f"≥ {100 * MIN_REDUCTION:g} % lower held-out RMS)")
 
 
 def _shape_axes(ctx: Context) -> list[tuple[Callable[[Spec], float],

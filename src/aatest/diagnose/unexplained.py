@@ -135,7 +135,8 @@ def bic_change(ctx: Context, new: Fit, old: Fit, extra_params: int) -> float:
     return float(n_eff * np.log(ratio) + dk * np.log(n_eff))
 
 
-def _residuals(ctx: Context, joint: Joint) -> dict[int, np.ndarray]:
+def joint_residuals(ctx: Context, joint: Joint) -> dict[int, np.ndarray]:
+    """Measured − (named model + generic extensions), per step index (V)."""
     names = column_names(joint.spec, ctx.replay)
     out = {}
     for sr in ctx.replay.steps:
@@ -148,7 +149,7 @@ def _residuals(ctx: Context, joint: Joint) -> dict[int, np.ndarray]:
 def _best_addition(ctx: Context, joint: Joint) -> tuple[float, Proposal, Fit] | None:
     """The passing generic extension with the lowest held-out ΔBIC, if any."""
     taken = {p.key for p in joint.generics}
-    residuals = _residuals(ctx, joint)
+    residuals = joint_residuals(ctx, joint)
     best = None
     for prop in proposals(ctx.replay.steps, residuals, ctx.info.range_dps2):
         if prop.key in taken:

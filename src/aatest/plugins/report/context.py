@@ -189,6 +189,23 @@ def _strongest_lines(lines: list[Any], count: int = 12) -> list[Mapping[str, Any
     return sorted(rows, key=lambda x: -(_number(x.get("amplitude_v")) or 0.0))[:count]
 
 
+def _unexplained_rows(diag: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """``unexplained`` entries with their scalar extension parameters and their gain (%)."""
+    rows = []
+    for u in diag.get("unexplained") or []:
+        if not isinstance(u, Mapping):
+            continue
+        stated_ext, stated_ev = u.get("extension"), u.get("evidence")
+        ext: Mapping[str, Any] = stated_ext if isinstance(stated_ext, Mapping) else {}
+        ev: Mapping[str, Any] = stated_ev if isinstance(stated_ev, Mapping) else {}
+        params = [(str(k), v) for k, v in ext.items()
+                  if isinstance(v, (int, float, str)) and not isinstance(v, bool)]
+        before, after = ex.as_float(ev.get("rmse_v_before")), ex.as_float(ev.get("rmse_v_after"))
+        gain = 100.0 * (1.0 - after / before) if before and after is not None else None
+        rows.append({**u, "evidence": ev, "parameters": params, "gain_pct": gain})
+    return rows
+
+
 def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
     """View model of the ``aatest diagnose`` report (docs/interfaces.md §4)."""
     diag = _diagnosis_block(results)
@@ -217,6 +234,10 @@ def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[s
         "findings": [f for f in diag.get("findings") or [] if isinstance(f, Mapping)],
         "candidates": candidates,
         "gain": diag.get("gain") or {},
+        "gain_named": diag.get("gain_named") or {},
+        "unexplained": _unexplained_rows(diag),
+        "verdict": diag.get("verdict") or {},
+        "noise_floor": diag.get("noise_floor") or {},
         "residuals": {ch: {"per_step": list(v.get("per_step") or []),
                            "lines": _strongest_lines(v.get("spectrum_lines") or [])}
                       for ch, v in sorted(residuals.items()) if isinstance(v, Mapping)},

@@ -261,7 +261,7 @@ def residual_steps(view: Mapping[str, Any], max_steps: int = 40) -> str | None:
     ax = fig.subplots()
     y = np.arange(len(rows))
     ax.barh(y - 0.2, before, height=0.4, color="0.6", label="nominal simulation")
-    ax.barh(y + 0.2, after, height=0.4, color="C2", label="extended model")
+    ax.barh(y + 0.2, after, height=0.4, color="C2", label="extended model (named + generic)")
     ax.set_yticks(y, names, fontsize=6)
     ax.invert_yaxis()
     ax.set_xlabel("residual RMS (mV)")
