@@ -180,7 +180,8 @@ def _check_paired(step_id: str, paired: int, t_table: np.ndarray, t_daq: np.ndar
     """Refuse a relation that paired too few of the DAQ edges inside the table record."""
     t_pred = coef[0] + coef[1] * (t_daq - t_daq[0])
     inside = int(((t_pred >= t_table[0]) & (t_pred <= t_table[-1])).sum())
-    if paired < _MIN_PAIRED_FRACTION * inside or worst_s > tol_s:
+    offered = min(inside, t_table.size)  # edges without a latch time are not offered
+    if paired < _MIN_PAIRED_FRACTION * offered or worst_s > tol_s:
         raise AnalysisError(
             f"step {step_id}: sync edges inconsistent — {paired} of {inside} DAQ "
             f"edges paired, worst residual {worst_s * 1e6:.0f} µs"

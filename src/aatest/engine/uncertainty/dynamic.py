@@ -221,6 +221,14 @@ def _sync_offset_s(results: Mapping[str, Any], point: Mapping[str, Any]) -> tupl
         for entry in steps:
             if isinstance(entry, Mapping) and entry.get("step") == point.get("step"):
                 stated = ex.as_float(entry.get("offset_u_s"))
+                if entry.get("latched") is False and stated is not None:
+                    return stated, (
+                        f"measured without latch times: each edge known only to the table "
+                        f"sample that registered it; alignment at the record's centre "
+                        f"uniform over the lines through all {entry.get('edges_used')} edge "
+                        f"intervals and the trigger, u = {stated * 1e6:.0f} µs (not "
+                        f"T/√12/√N: both loggers sample on one grid, so the edges' "
+                        f"quantisation errors are not independent)")
                 latched = stated is not None and stated < LATCHED_OFFSET_U_S
                 if latched:
                     return stated or 0.0, "measured: sync analysis offset_u_s of this record"

@@ -281,10 +281,29 @@ class _Related:
     relation: ClockRelation
 
 
+def joint_drift(relations: Sequence[ClockRelation]) -> tuple[float, float] | None:
+    """(drift ppm, standard uncertainty ppm) common to steps fitted without latch times.
+
+    One crystal drives the DAQ through every step, so its rate lies in every step's range of
+    feasible slopes: the intersection is the joint estimate (a short step, or one whose edges
+    never cross a table sample, is bounded by the others), uniform over the intersection.
+    None when no step was fitted that way, or the ranges do not meet (the rate changed
+    between records: the weighted mean then stands, with the spread beside it).
+    """
+    ranges = [r.slope_range for r in relations if not r.latched and r.slope_range is not None]
+    if not ranges:
+        return None
+    lo, hi = max(r[0] for r in ranges), min(r[1] for r in ranges)
+    if lo > hi:
+        return None
+    return (0.5 * (lo + hi) - 1.0) * 1e6, (hi - lo) / float(np.sqrt(12.0)) * 1e6
+
+
 def summarise(steps: Sequence[SyncedStep | _Related]) -> SyncResult:
     """Overall contract keys over all steps plus a per-step list under ``steps``.
 
-    The overall drift is the edge-weighted mean of the per-step drifts (one crystal); the
+    The overall drift is the edge-weighted mean of the per-step drifts (one crystal), or
+    without latch times the centre of the slopes every step allows (:func:`joint_drift`); the
     residual is pooled over all edges; ``offset_s`` is that of the first step (each record
     has its own start, so offsets are only meaningful per step).
     """
@@ -294,12 +313,17 @@ def summarise(steps: Sequence[SyncedStep | _Related]) -> SyncResult:
     pooled_us = float(np.sqrt(np.sum(edges * np.array([r.residual_rms_us for r in rel]) ** 2)
                               / edges.sum()))
     u_drift = np.array([r.drift_u_ppm for r in rel])
+    overall = float(np.sum(edges * drift) / edges.sum())
+    overall_u = float(np.sqrt(np.sum((edges * u_drift) ** 2)) / edges.sum())
+    joint = joint_drift(rel) if not any(r.latched for r in rel) else None
+    if joint is not None:
+        overall, overall_u = joint
     return SyncResult.model_validate({
-        "drift_ppm": float(np.sum(edges * drift) / edges.sum()),
+        "drift_ppm": overall,
         "offset_s": rel[0].offset_s,
         "residual_rms_us": pooled_us,
         "edges_used": int(edges.sum()),
-        "drift_u_ppm": float(np.sqrt(np.sum((edges * u_drift) ** 2)) / edges.sum()),
+        "drift_u_ppm": overall_u,
         "drift_spread_ppm": float(np.std(drift, ddof=1)) if drift.size > 1 else 0.0,
         "steps": [{"step": s.step.id, **s.relation.as_dict()} for s in steps],
     })
