@@ -15,7 +15,7 @@ is then the centre of the lines through every edge's interval (:mod:`aatest.sync
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -233,7 +233,8 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
     times); a trigger the edges contradict (wired differently) is not used, and the DAQ
     sample's ambiguity stays in the offset. ``drift_u_ppm`` and ``offset_u_s`` are uniform
     over the set; ``offset_u_s`` is the alignment's at the record's centre (where an analysis
-    of the whole record feels it), not at DAQ time zero.
+    of the whole record feels it), not at DAQ time zero: with the trigger, the slope range
+    times the distance from it (the trigger itself is trusted as with latch times).
     """
     period_s = _check_counts(step_id, registered_s, t_daq)
     lag_s = 0.5 * sum(LAG_SAMPLES) * table_dt_s
@@ -252,23 +253,38 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
     coef = np.array([fit.intercept_s - fit.slope * (fit.x0_s - t_daq[0]), fit.slope])
     _check_paired(step_id, pairs.t_daq.size, registered_s - lag_s, t_daq, coef, 0.0, 1.0)
     slope, b_lo, b_hi = fit.slope, *fit.slope_range
-    mid_u2 = (fit.mid_range_s[1] - fit.mid_range_s[0]) ** 2 / 12.0
-    if pin is not None and trigger is not None:
+    mid_daq_s = fit.x0_s + fit.x_mid_s
+    if pin is not None and trigger is not None:  # the line passes the trigger: only b is open
         offset = trigger[0] - slope * trigger[1]
+        offset_u = (b_hi - b_lo) * abs(mid_daq_s - trigger[1]) / float(np.sqrt(12.0))
     else:  # the true edges lie up to one DAQ sample before the logged ones
         offset = fit.intercept_s - slope * fit.x0_s + 0.5 * slope * daq_dt_s
+        offset_u = float(np.sqrt((fit.mid_range_s[1] - fit.mid_range_s[0]) ** 2
+                                 + (slope * daq_dt_s) ** 2) / np.sqrt(12.0))
     return ClockRelation(
         offset_s=float(offset),
         drift_ppm=(slope - 1.0) * 1e6,
         residual_rms_us=fit.residual_rms_s * 1e6,
         edges_used=int(pairs.t_daq.size),
         drift_u_ppm=(b_hi - b_lo) / float(np.sqrt(12.0)) * 1e6,
-        offset_u_s=float(np.sqrt(mid_u2 + (slope * daq_dt_s) ** 2 / 12.0)),
+        offset_u_s=float(offset_u),
         latched=False,
         slips_corrected=slips,
         slope_range=(b_lo, b_hi),
-        record_mid_daq_s=fit.x0_s + fit.x_mid_s,
+        record_mid_daq_s=mid_daq_s,
     )
+
+
+def joint_slope_range(relations: Sequence[ClockRelation]) -> tuple[float, float] | None:
+    """Slopes (1 + drift) every step fitted without latch times allows: one crystal drives
+    the DAQ through every step, so its rate lies in each step's range (a short step, or one
+    whose edges never cross a table sample, is bounded by the others). None when no step was
+    fitted that way or the ranges do not meet (the rate changed between records)."""
+    ranges = [r.slope_range for r in relations if not r.latched and r.slope_range is not None]
+    if not ranges:
+        return None
+    lo, hi = max(r[0] for r in ranges), min(r[1] for r in ranges)
+    return (lo, hi) if lo <= hi else None
 
 
 class _Resampled(Mapping[str, np.ndarray]):

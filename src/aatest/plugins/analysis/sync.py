@@ -27,7 +27,13 @@ from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.steps import PlannedStep
 from aatest.results.sync import SyncResult
-from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
+from aatest.sync.freeze_pulse import (
+    ClockRelation,
+    SyncedStep,
+    clock_relation,
+    joint_slope_range,
+    synchronise,
+)
 
 #: the channels a clock relation reads (besides the time stamps)
 _SYNC_CHANNELS = {"table": ("sync_pulse", "fp_latch_s"), "daq": ("sync_pulse", "trigger")}
@@ -282,20 +288,13 @@ class _Related:
 
 
 def joint_drift(relations: Sequence[ClockRelation]) -> tuple[float, float] | None:
-    """(drift ppm, standard uncertainty ppm) common to steps fitted without latch times.
-
-    One crystal drives the DAQ through every step, so its rate lies in every step's range of
-    feasible slopes: the intersection is the joint estimate (a short step, or one whose edges
-    never cross a table sample, is bounded by the others), uniform over the intersection.
-    None when no step was fitted that way, or the ranges do not meet (the rate changed
-    between records: the weighted mean then stands, with the spread beside it).
-    """
-    ranges = [r.slope_range for r in relations if not r.latched and r.slope_range is not None]
-    if not ranges:
+    """(drift ppm, standard uncertainty ppm) common to the steps fitted without latch times:
+    the centre of :func:`~aatest.sync.freeze_pulse.joint_slope_range`, uniform over it. None
+    when there is none (the edge-weighted mean then stands, with the spread beside it)."""
+    joint = joint_slope_range(relations)
+    if joint is None:
         return None
-    lo, hi = max(r[0] for r in ranges), min(r[1] for r in ranges)
-    if lo > hi:
-        return None
+    lo, hi = joint
     return (0.5 * (lo + hi) - 1.0) * 1e6, (hi - lo) / float(np.sqrt(12.0)) * 1e6
 
 
