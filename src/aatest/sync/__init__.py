@@ -9,8 +9,11 @@ from aatest.sync.freeze_pulse import (
     ClockRelation,
     SyncedStep,
     fit_clock_relation,
+    fit_unlatched_relation,
+    joint_slope_range,
     synchronise,
     synchronise_all,
 )
 
-__all__ = ["ClockRelation", "SyncedStep", "fit_clock_relation", "synchronise", "synchronise_all"]
+__all__ = ["ClockRelation", "SyncedStep", "fit_clock_relation", "fit_unlatched_relation",
+           "joint_slope_range", "synchronise", "synchronise_all"]
