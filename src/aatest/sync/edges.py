@@ -24,13 +24,18 @@ cycle, a generator's slip) is detected against its neighbours and corrected befo
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.ndimage import median_filter
 from scipy.optimize import brentq, minimize_scalar
 
 from aatest.engine.errors import AnalysisError
+
+if TYPE_CHECKING:
+    from aatest.sync.freeze_pulse import ClockRelation
 
 #: the true edge lies between this many table samples before the registering row (docs/method.md
 #: §2: registered in the controller cycle after the one the edge falls in)
@@ -44,7 +49,9 @@ PAIR_TOLERANCE_PERIODS = 0.3
 SLIP_WINDOW = 9
 #: first pairing window, s (the coarse offset is good to about a sample there)
 FIRST_WINDOW_S = 1.0
-_MIN_EDGES = 3
+MIN_EDGES = 3
+#: at least this share of the DAQ edges inside the table record must find a table edge
+_MIN_PAIRED_FRACTION = 0.9
 
 
 @dataclass(frozen=True)
@@ -74,7 +81,7 @@ def _robust_line(tt: np.ndarray, td: np.ndarray, floor_s: float) -> tuple[np.nda
     coef, res = line_fit(tt, td)
     mad = 1.4826 * float(np.median(np.abs(res - np.median(res))))
     keep = np.abs(res) <= max(5.0 * mad, floor_s)
-    if keep.sum() >= _MIN_EDGES and not keep.all():
+    if keep.sum() >= MIN_EDGES and not keep.all():
         coef, _ = line_fit(tt[keep], td[keep])
         coef = np.array([coef[0] - coef[1] * (td[keep][0] - td[0]), coef[1]])
     return coef, keep
@@ -95,7 +102,7 @@ def pair_edges(step_id: str, t_table: np.ndarray, t_daq: np.ndarray, period_s: f
     while True:
         sel = t_table <= t_table[0] + window_s
         ok, k = _match(t_table[sel], coef[0] + coef[1] * (t_daq - t_daq[0]), tol_s)
-        if ok.sum() < _MIN_EDGES or np.unique(k[ok]).size != int(ok.sum()):
+        if ok.sum() < MIN_EDGES or np.unique(k[ok]).size != int(ok.sum()):
             raise AnalysisError(f"step {step_id}: sync edges inconsistent (cannot pair edges)")
         tt, td = t_table[sel][ok], t_daq[k[ok]]
         fit, keep = _robust_line(tt, td, 1.5 * table_dt_s)
@@ -211,3 +218,38 @@ def interval_fit(step_id: str, registered_s: np.ndarray, t_daq: np.ndarray, dt_s
     residual = centre - (c + b * x)
     return IntervalFit(x0, b, (b_lo, b_hi), c, (c_lo, c_hi), x_mid, (mid_lo, mid_hi),
                        float(np.sqrt(np.mean(residual**2))))
+
+
+def check_counts(step_id: str, t_table: np.ndarray, t_daq: np.ndarray) -> float:
+    """The DAQ's pulse period (s), once both logs have enough edges to fit a line."""
+    if t_table.size < MIN_EDGES or t_daq.size < MIN_EDGES:
+        raise AnalysisError(
+            f"step {step_id}: sync edges missing ({t_table.size} on the table, "
+            f"{t_daq.size} on the DAQ; need ≥ {MIN_EDGES}) — check the freeze-pulse wiring"
+        )
+    return float(np.median(np.diff(t_daq)))
+
+
+def check_paired(step_id: str, paired: int, t_table: np.ndarray, t_daq: np.ndarray,
+                  coef: np.ndarray, worst_s: float, tol_s: float) -> None:
+    """Refuse a relation that paired too few of the DAQ edges inside the table record."""
+    t_pred = coef[0] + coef[1] * (t_daq - t_daq[0])
+    inside = int(((t_pred >= t_table[0]) & (t_pred <= t_table[-1])).sum())
+    offered = min(inside, t_table.size)  # edges without a latch time are not offered
+    if paired < _MIN_PAIRED_FRACTION * offered or worst_s > tol_s:
+        raise AnalysisError(
+            f"step {step_id}: sync edges inconsistent — {paired} of {inside} DAQ "
+            f"edges paired, worst residual {worst_s * 1e6:.0f} µs"
+        )
+
+
+def joint_slope_range(relations: Sequence[ClockRelation]) -> tuple[float, float] | None:
+    """Slopes (1 + drift) every step fitted without latch times allows: one crystal drives
+    the DAQ through every step, so its rate lies in each step's range (a short step, or one
+    whose edges never cross a table sample, is bounded by the others). None when no step was
+    fitted that way or the ranges do not meet (the rate changed between records)."""
+    ranges = [r.slope_range for r in relations if not r.latched and r.slope_range is not None]
+    if not ranges:
+        return None
+    lo, hi = max(r[0] for r in ranges), min(r[1] for r in ranges)
+    return (lo, hi) if lo <= hi else None

@@ -15,7 +15,7 @@ is then the centre of the lines through every edge's interval (:mod:`aatest.sync
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -26,6 +26,9 @@ from aatest.engine.errors import AnalysisError
 from aatest.engine.steps import PlannedStep
 from aatest.sync.edges import (
     LAG_SAMPLES,
+    MIN_EDGES,
+    check_counts,
+    check_paired,
     correct_slips,
     interval_fit,
     line_fit,
@@ -34,9 +37,6 @@ from aatest.sync.edges import (
 
 #: a paired edge further than this fraction of the pulse period from the fit is inconsistent
 _PAIR_TOLERANCE_PERIODS = 0.25
-#: at least this share of the DAQ edges inside the table record must find a table edge
-_MIN_PAIRED_FRACTION = 0.9
-_MIN_EDGES = 3
 _DIGITAL = ("sync_pulse", "trigger")
 
 
@@ -166,28 +166,6 @@ def _daq_edges(data: StepData, daq_time_s: np.ndarray) -> tuple[np.ndarray, floa
     return daq_time_s[idx[idx >= first]], offset0
 
 
-def _check_counts(step_id: str, t_table: np.ndarray, t_daq: np.ndarray) -> float:
-    if t_table.size < _MIN_EDGES or t_daq.size < _MIN_EDGES:
-        raise AnalysisError(
-            f"step {step_id}: sync edges missing ({t_table.size} on the table, "
-            f"{t_daq.size} on the DAQ; need ≥ {_MIN_EDGES}) — check the freeze-pulse wiring"
-        )
-    return float(np.median(np.diff(t_daq)))
-
-
-def _check_paired(step_id: str, paired: int, t_table: np.ndarray, t_daq: np.ndarray,
-                  coef: np.ndarray, worst_s: float, tol_s: float) -> None:
-    """Refuse a relation that paired too few of the DAQ edges inside the table record."""
-    t_pred = coef[0] + coef[1] * (t_daq - t_daq[0])
-    inside = int(((t_pred >= t_table[0]) & (t_pred <= t_table[-1])).sum())
-    offered = min(inside, t_table.size)  # edges without a latch time are not offered
-    if paired < _MIN_PAIRED_FRACTION * offered or worst_s > tol_s:
-        raise AnalysisError(
-            f"step {step_id}: sync edges inconsistent — {paired} of {inside} DAQ "
-            f"edges paired, worst residual {worst_s * 1e6:.0f} µs"
-        )
-
-
 def fit_clock_relation(step_id: str, t_table: np.ndarray, t_daq: np.ndarray,
                        offset0: float | None = None, table_dt_s: float = 0.0) -> ClockRelation:
     """Fit ``t_table = offset + t_daq·(1 + drift)`` over all paired edges (docs/method.md §2 (4)).
@@ -201,13 +179,13 @@ def fit_clock_relation(step_id: str, t_table: np.ndarray, t_daq: np.ndarray,
     AnalysisError
         When edges are missing, cannot be paired, or do not lie on one straight line.
     """
-    period_s = _check_counts(step_id, t_table, t_daq)
+    period_s = check_counts(step_id, t_table, t_daq)
     tol_s = _PAIR_TOLERANCE_PERIODS * period_s
     pairs = pair_edges(step_id, t_table, t_daq, period_s, offset0, table_dt_s or 1e-6)
     tt, td = pairs.t_table, pairs.t_daq
     coef, residual = line_fit(tt, td)
     coef = np.array([coef[0] - coef[1] * (td[0] - t_daq[0]), coef[1]])
-    _check_paired(step_id, tt.size, t_table, t_daq, coef, float(np.max(np.abs(residual))), tol_s)
+    check_paired(step_id, tt.size, t_table, t_daq, coef, float(np.max(np.abs(residual))), tol_s)
     sigma = float(np.sqrt(residual @ residual / max(tt.size - 2, 1)))
     slope = float(coef[1])
     return ClockRelation(
@@ -236,7 +214,7 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
     of the whole record feels it), not at DAQ time zero: with the trigger, the slope range
     times the distance from it (the trigger itself is trusted as with latch times).
     """
-    period_s = _check_counts(step_id, registered_s, t_daq)
+    period_s = check_counts(step_id, registered_s, t_daq)
     lag_s = 0.5 * sum(LAG_SAMPLES) * table_dt_s
     offset0 = None if trigger is None else trigger[0] - trigger[1]
     pairs = pair_edges(step_id, registered_s - lag_s, t_daq, period_s, offset0, table_dt_s)
@@ -251,7 +229,7 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
     if fit is None:
         fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range)
     coef = np.array([fit.intercept_s - fit.slope * (fit.x0_s - t_daq[0]), fit.slope])
-    _check_paired(step_id, pairs.t_daq.size, registered_s - lag_s, t_daq, coef, 0.0, 1.0)
+    check_paired(step_id, pairs.t_daq.size, registered_s - lag_s, t_daq, coef, 0.0, 1.0)
     slope, b_lo, b_hi = fit.slope, *fit.slope_range
     mid_daq_s = fit.x0_s + fit.x_mid_s
     if pin is not None and trigger is not None:  # the line passes the trigger: only b is open
@@ -273,18 +251,6 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
         slope_range=(b_lo, b_hi),
         record_mid_daq_s=mid_daq_s,
     )
-
-
-def joint_slope_range(relations: Sequence[ClockRelation]) -> tuple[float, float] | None:
-    """Slopes (1 + drift) every step fitted without latch times allows: one crystal drives
-    the DAQ through every step, so its rate lies in each step's range (a short step, or one
-    whose edges never cross a table sample, is bounded by the others). None when no step was
-    fitted that way or the ranges do not meet (the rate changed between records)."""
-    ranges = [r.slope_range for r in relations if not r.latched and r.slope_range is not None]
-    if not ranges:
-        return None
-    lo, hi = max(r[0] for r in ranges), min(r[1] for r in ranges)
-    return (lo, hi) if lo <= hi else None
 
 
 class _Resampled(Mapping[str, np.ndarray]):
@@ -379,7 +345,7 @@ def _fitted_relation(data: StepData, daq_time_s: np.ndarray,
     trigger_daq_s = None if offset0 is None else table_t0 - offset0
     daq_dt = 1.0 / float(data.daq.sample_rate_hz)
     latched = np.isfinite(latch)
-    if latched.sum() >= max(_MIN_EDGES, _MIN_LATCHED_FRACTION * latch.size):
+    if latched.sum() >= max(MIN_EDGES, _MIN_LATCHED_FRACTION * latch.size):
         relation = fit_clock_relation(data.step.id, (registered - latch)[latched], t_daq,
                                       offset0, 1.0 / float(data.table.sample_rate_hz))
         return refine_offset(relation, table_t0, trigger_daq_s, daq_dt)

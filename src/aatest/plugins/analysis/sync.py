@@ -27,11 +27,11 @@ from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.steps import PlannedStep
 from aatest.results.sync import SyncResult
+from aatest.sync.edges import joint_slope_range
 from aatest.sync.freeze_pulse import (
     ClockRelation,
     SyncedStep,
     clock_relation,
-    joint_slope_range,
     synchronise,
 )
 
@@ -289,7 +289,7 @@ class _Related:
 
 def joint_drift(relations: Sequence[ClockRelation]) -> tuple[float, float] | None:
     """(drift ppm, standard uncertainty ppm) common to the steps fitted without latch times:
-    the centre of :func:`~aatest.sync.freeze_pulse.joint_slope_range`, uniform over it. None
+    the centre of :func:`~aatest.sync.edges.joint_slope_range`, uniform over it. None
     when there is none (the edge-weighted mean then stands, with the spread beside it)."""
     joint = joint_slope_range(relations)
     if joint is None:
