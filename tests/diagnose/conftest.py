@@ -10,15 +10,17 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.diagnose.scenarios import Hidden, scenario_dataset
+from aatest.diagnose.scenarios import Hidden, scenario_dataset, without_latch
 from aatest.engine.data.exporter import export_csv
 
 
-def diagnose_cli(tmp: Path, hidden: list[Hidden], seed: int, samples: int = 2**14
-                 ) -> tuple[int, dict[str, Any]]:
-    """Export a scenario as an import directory and diagnose it through the CLI."""
+def diagnose_cli(tmp: Path, hidden: list[Hidden], seed: int, samples: int = 2**14,
+                 latch: bool = True) -> tuple[int, dict[str, Any]]:
+    """Export a scenario as an import directory (without ``fp_latch_s`` unless ``latch``)
+    and diagnose it through the CLI."""
     data = tmp / "import"
-    export_csv(scenario_dataset(hidden, seed, samples), data)
+    dataset = scenario_dataset(hidden, seed, samples)
+    export_csv(dataset if latch else without_latch(dataset), data)
     out = tmp / "diagnosis.json"
     result = CliRunner().invoke(app, ["diagnose", str(data), "--json", str(out),
                                       "--model-out", str(tmp / "model.yaml")])

@@ -49,7 +49,10 @@ def test_jitter_and_missing_latch_still_within_a_sample() -> None:
     rel = synchronise(make_step(step, rig, seed=4)).relation
     # without the latch time the table edges are quantised to one sample over the record
     assert abs(rel.drift_ppm - rig.drift_ppm) < 1e6 / 2000 / step.duration_s
-    assert abs(rel.offset_s + rig.lead_s) < 0.5 / 2000
+    # the offset is pinned by the trigger, which this rig raises on the first DAQ sample after
+    # the table's start: up to one DAQ sample late
+    assert abs(rel.offset_s + rig.lead_s) < 1.0 / 2000
+    assert not rel.latched
 
 
 def _without_table_edges(data: StepData) -> StepData:

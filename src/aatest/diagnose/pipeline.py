@@ -83,17 +83,20 @@ def _estimate_drift(ctx: Context) -> _Drift | None:
         d, ci, fit = trend
         return _Drift(d, ci, "phase trend (no sync edges)", ctx.current, fit, None, (-d, True))
     d, u = est.drift_ppm, est.u_ppm
-    edges = _Drift(d, [d - 1.96 * u, d + 1.96 * u], "sync edges", one_clock_fit(ctx, d),
-                   ctx.current, d, None)
+    bound = est.range_ppm  # without latch times: the drifts the edges allow, a hard bound
+    ci = [d - 1.96 * u, d + 1.96 * u] if bound is None else [bound[0], bound[1]]
+    edges = _Drift(d, ci, "sync edges", one_clock_fit(ctx, d), ctx.current, d, None)
     if ctx.replay.fp_latch:
         return edges
     res = _edge_resolution_ppm(ctx)
-    trend = phase_trend_drift(ctx, from_start=False, limit_ppm=3.0 * res)
+    trend = phase_trend_drift(ctx, from_start=False, limit_ppm=3.0 * res,
+                              bounds_ppm=None if bound is None else (bound[0] - d, bound[1] - d))
     if trend is None or (trend[1][1] - trend[1][0]) / 2 > res:
         return edges
     extra, ci, fit = trend
-    return _Drift(d + extra, [d + ci[0], d + ci[1]],
-                  "sync edges (one-sample resolution) + phase trend",
+    lo, hi = (d + ci[0], d + ci[1]) if bound is None else (max(d + ci[0], bound[0]),
+                                                          min(d + ci[1], bound[1]))
+    return _Drift(d + extra, [lo, hi], "sync edges (one-sample resolution) + phase trend",
                   one_clock_fit(ctx, d), fit, d, (-extra, False))
 
 

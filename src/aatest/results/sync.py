@@ -22,7 +22,12 @@ class StepSync(ClockFields):
     """The clock relation of one recorded step."""
 
     step: str = Field(description="step id")
-    offset_u_s: Real = Field(0.0, description="standard uncertainty of the offset, s")
+    offset_u_s: Real = Field(0.0, description="standard uncertainty of the offset, s (without "
+                             "latch times: of the alignment at the record's centre)")
+    latched: bool = Field(True, description="edge times from latch times (else from the "
+                          "sample that registered each edge, known to one sample)")
+    slips_corrected: int = Field(0, ge=0, description="edge registrations one sample off "
+                                 "the pattern, undone before the fit (no latch times)")
 
 
 class SyncResult(ClockFields):

@@ -5,12 +5,15 @@ analysis plugin calls :func:`synchronise_all` once per analysis pass and hands t
 the analyses that require it.
 """
 
+from aatest.sync.edges import joint_slope_range
 from aatest.sync.freeze_pulse import (
     ClockRelation,
     SyncedStep,
     fit_clock_relation,
+    fit_unlatched_relation,
     synchronise,
     synchronise_all,
 )
 
-__all__ = ["ClockRelation", "SyncedStep", "fit_clock_relation", "synchronise", "synchronise_all"]
+__all__ = ["ClockRelation", "SyncedStep", "fit_clock_relation", "fit_unlatched_relation",
+           "joint_slope_range", "synchronise", "synchronise_all"]

@@ -8,8 +8,9 @@ DAQ's own pulse goes 0→1. All paired edges give the linear clock relation (doc
     t_table = offset_s + t_daq · (1 + drift_ppm · 1e-6),
 
 and the DAQ channels are resampled onto the table's uniform time vector, so every analysis
-reads both loggers on one time base. Without ``fp_latch_s`` the edge is assumed half a sample
-before the registering sample (the unbiased guess; resolution is then one sample).
+reads both loggers on one time base. Without ``fp_latch_s`` (or where it is NaN, "not
+latched") an edge is only known to lie in the sample before its registering row; the relation
+is then the centre of the lines through every edge's interval (:mod:`aatest.sync.edges`).
 """
 
 from __future__ import annotations
@@ -23,12 +24,19 @@ from scipy.interpolate import CubicSpline
 from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import AnalysisError
 from aatest.engine.steps import PlannedStep
+from aatest.sync.edges import (
+    LAG_SAMPLES,
+    MIN_EDGES,
+    check_counts,
+    check_paired,
+    correct_slips,
+    interval_fit,
+    line_fit,
+    pair_edges,
+)
 
 #: a paired edge further than this fraction of the pulse period from the fit is inconsistent
 _PAIR_TOLERANCE_PERIODS = 0.25
-#: at least this share of the DAQ edges inside the table record must find a table edge
-_MIN_PAIRED_FRACTION = 0.9
-_MIN_EDGES = 3
 _DIGITAL = ("sync_pulse", "trigger")
 
 
@@ -45,6 +53,15 @@ class ClockRelation:
     #: (intercept s, slope s/sample) of the DAQ's time stamps against their index, when known:
     #: re-synchronising the step then rebuilds its regular DAQ time base without refitting
     daq_time_fit: tuple[float, float] | None = None
+    #: whether the edge times came from latch times (else: from their registering samples)
+    latched: bool = True
+    #: registrations one sample off the pattern, undone before the fit (no latch times)
+    slips_corrected: int = 0
+    #: slopes (1 + drift) every line through the edge intervals has (no latch times): what a
+    #: fit of several records of one crystal intersects
+    slope_range: tuple[float, float] | None = None
+    #: DAQ time of the record's centre, where ``offset_u_s`` holds without latch times
+    record_mid_daq_s: float | None = None
 
     def to_table_s(self, t_daq_s: np.ndarray) -> np.ndarray:
         """Map DAQ-clock times (s) to table-clock times (s)."""
@@ -54,7 +71,7 @@ class ClockRelation:
         """Map table-clock times (s) to DAQ-clock times (s)."""
         return (np.asarray(t_table_s) - self.offset_s) / (1.0 + self.drift_ppm * 1e-6)
 
-    def as_dict(self) -> dict[str, float | int]:
+    def as_dict(self) -> dict[str, float | int | bool]:
         """The contract ``sync`` keys plus the drift's standard uncertainty."""
         return {
             "drift_ppm": self.drift_ppm,
@@ -63,6 +80,8 @@ class ClockRelation:
             "edges_used": self.edges_used,
             "drift_u_ppm": self.drift_u_ppm,
             "offset_u_s": self.offset_u_s,
+            "latched": self.latched,
+            "slips_corrected": self.slips_corrected,
         }
 
 
@@ -121,14 +140,18 @@ def _regular_time(time_s: np.ndarray, fit: tuple[float, float] | None = None) ->
     return time_s[0] + intercept + slope * np.arange(time_s.size, dtype=np.float64)
 
 
-def _table_edge_times(data: StepData) -> np.ndarray:
-    """True freeze-pulse edge times on the table clock (latch-corrected), s."""
+def _table_edges(data: StepData) -> tuple[np.ndarray, np.ndarray]:
+    """(registering rows' table times, latch times or NaN) of the freeze-pulse rising edges.
+
+    A latch value that is NaN (or a table without ``fp_latch_s``) means "not latched": that
+    edge is only known to lie in the sample before its registering row (docs/interfaces.md §4).
+    """
     table = data.table
     idx = rising_edges(table["sync_pulse"])
-    time_s = np.asarray(table.time_s)
-    if "fp_latch_s" in table.channels:
-        return time_s[idx] - np.asarray(table["fp_latch_s"])[idx]
-    return time_s[idx] - 0.5 / table.sample_rate_hz
+    registered = np.asarray(table.time_s, dtype=np.float64)[idx]
+    if "fp_latch_s" not in table.channels:
+        return registered, np.full(idx.size, np.nan)
+    return registered, np.asarray(table["fp_latch_s"], dtype=np.float64)[idx]
 
 
 def _daq_edges(data: StepData, daq_time_s: np.ndarray) -> tuple[np.ndarray, float | None]:
@@ -150,60 +173,26 @@ def _daq_edges(data: StepData, daq_time_s: np.ndarray) -> tuple[np.ndarray, floa
     return daq_time_s[idx[idx >= first]], offset0
 
 
-def _match(t_table: np.ndarray, t_pred: np.ndarray, tol_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Index of the nearest predicted DAQ edge for every table edge, and which are within tol."""
-    k = np.clip(np.searchsorted(t_pred, t_table), 1, t_pred.size - 1)
-    k = np.where(np.abs(t_pred[k - 1] - t_table) < np.abs(t_pred[k] - t_table), k - 1, k)
-    return np.abs(t_pred[k] - t_table) < tol_s, k
-
-
-def _line(t_table: np.ndarray, t_daq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares ``t_table = c0 + c1·(t_daq − t_daq[0])``: coefficients and residuals."""
-    design = np.column_stack([np.ones_like(t_daq), t_daq - t_daq[0]])
-    coef, *_ = np.linalg.lstsq(design, t_table, rcond=None)
-    return coef, t_table - design @ coef
-
-
-def _check_counts(step_id: str, t_table: np.ndarray, t_daq: np.ndarray) -> float:
-    if t_table.size < _MIN_EDGES or t_daq.size < _MIN_EDGES:
-        raise AnalysisError(
-            f"step {step_id}: sync edges missing ({t_table.size} on the table, "
-            f"{t_daq.size} on the DAQ; need ≥ {_MIN_EDGES}) — check the freeze-pulse wiring"
-        )
-    return float(np.median(np.diff(t_daq)))
-
-
 def fit_clock_relation(step_id: str, t_table: np.ndarray, t_daq: np.ndarray,
-                       offset0: float | None = None) -> ClockRelation:
+                       offset0: float | None = None, table_dt_s: float = 0.0) -> ClockRelation:
     """Fit ``t_table = offset + t_daq·(1 + drift)`` over all paired edges (docs/method.md §2 (4)).
 
-    Edges are paired in two passes: the first second of edges with the coarse offset (trigger
-    or first edge), then every edge with the relation fitted on those, so drifts of hundreds
-    of ppm still pair correctly.
+    ``t_table`` are true (latch-corrected) edge times. Edges are paired in windows that double
+    from the first second (:func:`aatest.sync.edges.pair_edges`), so drifts of hundreds of ppm
+    still pair correctly; the relation is the least-squares line through the pairs.
 
     Raises
     ------
     AnalysisError
         When edges are missing, cannot be paired, or do not lie on one straight line.
     """
-    period_s = _check_counts(step_id, t_table, t_daq)
+    period_s = check_counts(step_id, t_table, t_daq)
     tol_s = _PAIR_TOLERANCE_PERIODS * period_s
-    coef = np.array([t_daq[0] + (t_table[0] - t_daq[0] if offset0 is None else offset0), 1.0])
-    for window_s in (1.0, np.inf):
-        sel = t_table <= t_table[0] + window_s
-        ok, k = _match(t_table[sel], coef[0] + coef[1] * (t_daq - t_daq[0]), tol_s)
-        if ok.sum() < _MIN_EDGES or np.unique(k[ok]).size != int(ok.sum()):
-            raise AnalysisError(f"step {step_id}: sync edges inconsistent (cannot pair edges)")
-        tt, td = t_table[sel][ok], t_daq[k[ok]]
-        coef, residual = _line(tt, td)
-        coef = np.array([coef[0] - coef[1] * (td[0] - t_daq[0]), coef[1]])
-    t_pred = coef[0] + coef[1] * (t_daq - t_daq[0])
-    inside = (t_pred >= t_table[0]) & (t_pred <= t_table[-1])
-    if tt.size < _MIN_PAIRED_FRACTION * inside.sum() or np.max(np.abs(residual)) > tol_s:
-        raise AnalysisError(
-            f"step {step_id}: sync edges inconsistent — {tt.size} of {int(inside.sum())} DAQ "
-            f"edges paired, worst residual {np.max(np.abs(residual)) * 1e6:.0f} µs"
-        )
+    pairs = pair_edges(step_id, t_table, t_daq, period_s, offset0, table_dt_s or 1e-6)
+    tt, td = pairs.t_table, pairs.t_daq
+    coef, residual = line_fit(tt, td)
+    coef = np.array([coef[0] - coef[1] * (td[0] - t_daq[0]), coef[1]])
+    check_paired(step_id, tt.size, t_table, t_daq, coef, float(np.max(np.abs(residual))), tol_s)
     sigma = float(np.sqrt(residual @ residual / max(tt.size - 2, 1)))
     slope = float(coef[1])
     return ClockRelation(
@@ -212,6 +201,62 @@ def fit_clock_relation(step_id: str, t_table: np.ndarray, t_daq: np.ndarray,
         residual_rms_us=float(np.sqrt(np.mean(residual**2))) * 1e6,
         edges_used=int(tt.size),
         drift_u_ppm=sigma / float(np.sqrt(np.sum((td - td.mean()) ** 2))) * 1e6,
+    )
+
+
+def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.ndarray,
+                           table_dt_s: float, daq_dt_s: float,
+                           trigger: tuple[float, float] | None = None,
+                           slope_range: tuple[float, float] | None = None) -> ClockRelation:
+    """The clock relation from edges known only to their registering table sample.
+
+    Pairs the edges (their centre estimates), undoes one-sample slips and takes the centre of
+    the set of lines through every edge's interval (:mod:`aatest.sync.edges`). A DAQ edge is
+    logged on its first high sample, so the fitted line is that of the DAQ's edge samples; the
+    trigger (``(table time of the first row, DAQ time of the trigger)``), generated on one of
+    the DAQ's samples, pins it and the offset (:func:`refine_offset` does the same with latch
+    times); a trigger the edges contradict (wired differently) is not used, and the DAQ
+    sample's ambiguity stays in the offset. ``drift_u_ppm`` and ``offset_u_s`` are uniform
+    over the set; ``offset_u_s`` is the alignment's at the record's centre (where an analysis
+    of the whole record feels it), not at DAQ time zero: with the trigger, the slope range
+    times the distance from it (the trigger itself is trusted as with latch times).
+    """
+    period_s = check_counts(step_id, registered_s, t_daq)
+    lag_s = 0.5 * sum(LAG_SAMPLES) * table_dt_s
+    offset0 = None if trigger is None else trigger[0] - trigger[1]
+    pairs = pair_edges(step_id, registered_s - lag_s, t_daq, period_s, offset0, table_dt_s)
+    corrected, slips = correct_slips(pairs.t_table + lag_s, pairs.t_daq, table_dt_s)
+    fit, pin = None, None
+    if trigger is not None:
+        pin = (trigger[1], trigger[0] - daq_dt_s, trigger[0])
+        try:
+            fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range, pin)
+        except AnalysisError:
+            pin = None  # the trigger disagrees with the edges: not where the contract puts it
+    if fit is None:
+        fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range)
+    coef = np.array([fit.intercept_s - fit.slope * (fit.x0_s - t_daq[0]), fit.slope])
+    check_paired(step_id, pairs.t_daq.size, registered_s - lag_s, t_daq, coef, 0.0, 1.0)
+    slope, b_lo, b_hi = fit.slope, *fit.slope_range
+    mid_daq_s = fit.x0_s + fit.x_mid_s
+    if pin is not None and trigger is not None:  # the line passes the trigger: only b is open
+        offset = trigger[0] - slope * trigger[1]
+        offset_u = (b_hi - b_lo) * abs(mid_daq_s - trigger[1]) / float(np.sqrt(12.0))
+    else:  # the true edges lie up to one DAQ sample before the logged ones
+        offset = fit.intercept_s - slope * fit.x0_s + 0.5 * slope * daq_dt_s
+        offset_u = float(np.sqrt((fit.mid_range_s[1] - fit.mid_range_s[0]) ** 2
+                                 + (slope * daq_dt_s) ** 2) / np.sqrt(12.0))
+    return ClockRelation(
+        offset_s=float(offset),
+        drift_ppm=(slope - 1.0) * 1e6,
+        residual_rms_us=fit.residual_rms_s * 1e6,
+        edges_used=int(pairs.t_daq.size),
+        drift_u_ppm=(b_hi - b_lo) / float(np.sqrt(12.0)) * 1e6,
+        offset_u_s=float(offset_u),
+        latched=False,
+        slips_corrected=slips,
+        slope_range=(b_lo, b_hi),
+        record_mid_daq_s=mid_daq_s,
     )
 
 
@@ -293,12 +338,28 @@ def _relation(data: StepData, daq_time_s: np.ndarray, known: ClockRelation | Non
     return relation, at_daq_s, slice(int(inside[0]), int(inside[-1]) + 1)
 
 
-def _fitted_relation(data: StepData, daq_time_s: np.ndarray) -> ClockRelation:
+#: latch-corrected edges are used alone when at least this share of the edges has a latch time
+_MIN_LATCHED_FRACTION = 0.5
+
+
+def _fitted_relation(data: StepData, daq_time_s: np.ndarray,
+                     slope_range: tuple[float, float] | None = None) -> ClockRelation:
+    """The step's relation from its latched edges (NaN latch values left out) when most edges
+    have one, else from the registering samples of all (:func:`fit_unlatched_relation`)."""
     t_daq, offset0 = _daq_edges(data, daq_time_s)
-    relation = fit_clock_relation(data.step.id, _table_edge_times(data), t_daq, offset0)
+    registered, latch = _table_edges(data)
     table_t0 = float(data.table.time_s[0])
     trigger_daq_s = None if offset0 is None else table_t0 - offset0
-    return refine_offset(relation, table_t0, trigger_daq_s, 1.0 / float(data.daq.sample_rate_hz))
+    daq_dt = 1.0 / float(data.daq.sample_rate_hz)
+    latched = np.isfinite(latch)
+    if latched.sum() >= max(MIN_EDGES, _MIN_LATCHED_FRACTION * latch.size):
+        relation = fit_clock_relation(data.step.id, (registered - latch)[latched], t_daq,
+                                      offset0, 1.0 / float(data.table.sample_rate_hz))
+        return refine_offset(relation, table_t0, trigger_daq_s, daq_dt)
+    trigger = None if trigger_daq_s is None else (table_t0, trigger_daq_s)
+    return fit_unlatched_relation(data.step.id, registered, t_daq,
+                                  1.0 / float(data.table.sample_rate_hz), daq_dt, trigger,
+                                  slope_range)
 
 
 def synchronise(data: StepData, relation: ClockRelation | None = None) -> SyncedStep:

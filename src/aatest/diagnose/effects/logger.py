@@ -20,6 +20,7 @@ import numpy as np
 from scipy import signal
 
 from aatest.diagnose.effects.base import Z95, Context, replace_spec
+from aatest.sync.edges import joint_slope_range
 
 DEFAULT_CLOCK_TOLERANCE_PPM = 20.0
 #: search range of a drift fitted from the phase trend (ppm)
@@ -42,13 +43,22 @@ class DriftEstimate:
     drift_ppm: float
     u_ppm: float
     steps: int
+    #: drifts every step's edges allow when they have no latch times (ppm): a hard bound
+    range_ppm: tuple[float, float] | None = None
 
 
 def clock_drift(ctx: Context) -> DriftEstimate | None:
-    """Weighted mean DAQ clock drift over steps (ppm) from the sync relations."""
+    """DAQ clock drift over steps (ppm) from the sync relations: the weighted mean of the
+    latched steps' drifts, or without latch times the centre of the drifts every step's edge
+    intervals allow (:func:`~aatest.sync.edges.joint_slope_range`, one crystal)."""
     rel = [s.relation for s in ctx.replay.steps if s.relation is not None]
     if not rel:
         return None
+    joint = joint_slope_range(rel) if not any(r.latched for r in rel) else None
+    if joint is not None:
+        lo, hi = ((b - 1.0) * 1e6 for b in joint)
+        return DriftEstimate(0.5 * (lo + hi), (hi - lo) / float(np.sqrt(12.0)), len(rel),
+                             (lo, hi))
     d = np.array([r.drift_ppm for r in rel])
     u = np.array([max(getattr(r, "drift_u_ppm", 0.0), 1e-3) for r in rel])
     w = 1.0 / u**2
@@ -57,7 +67,8 @@ def clock_drift(ctx: Context) -> DriftEstimate | None:
     return DriftEstimate(mean, max(float(np.sqrt(1.0 / np.sum(w))), spread), d.size)
 
 
-def phase_trend_drift(ctx: Context, from_start: bool = True, limit_ppm: float = 2000.0
+def phase_trend_drift(ctx: Context, from_start: bool = True, limit_ppm: float = 2000.0,
+                      bounds_ppm: tuple[float, float] | None = None
                       ) -> tuple[float, list[float], Any] | None:
     """DAQ drift (ppm) beyond the data's alignment, its 95 % interval and the fit.
 
@@ -65,6 +76,8 @@ def phase_trend_drift(ctx: Context, from_start: bool = True, limit_ppm: float = 
     replay warped by −drift explains it. ``from_start``: the loggers are aligned at the
     trigger only (no edges), so the warp pivots on the record start and per-step offsets are
     dropped; otherwise the warp pivots on the record middle, on top of the edge alignment.
+    ``bounds_ppm``: the drift beyond the alignment is searched in this interval (what the edges
+    allow) instead of ±``limit_ppm``.
     """
     from aatest.diagnose.effects.base import curvature_ci, scalar_search
 
@@ -77,9 +90,9 @@ def phase_trend_drift(ctx: Context, from_start: bool = True, limit_ppm: float = 
     def make(w: float):
         return replace_spec(base, warp_ppm=w)
 
-    w, fit = scalar_search(ctx, make, -limit_ppm, limit_ppm,
-                           list(np.linspace(-limit_ppm, limit_ppm, 21)), xtol=0.01)
-    ci = curvature_ci(ctx, make, w, max(0.01 * limit_ppm, 0.1))
+    w_lo, w_hi = (-bounds_ppm[1], -bounds_ppm[0]) if bounds_ppm else (-limit_ppm, limit_ppm)
+    w, fit = scalar_search(ctx, make, w_lo, w_hi, list(np.linspace(w_lo, w_hi, 21)), xtol=0.01)
+    ci = curvature_ci(ctx, make, w, max(0.005 * (w_hi - w_lo), 0.1))
     return -w, [-ci[1], -ci[0]], fit
 
 

@@ -23,7 +23,8 @@ from typing import Any, cast
 from threadpoolctl import threadpool_limits
 
 import aatest
-from aatest.engine.errors import AatestError, InputError, RigFault
+from aatest.engine.dataset import StepData
+from aatest.engine.errors import AatestError, AnalysisError, InputError, RigFault
 from aatest.engine.interfaces import (
     STREAM_CHUNK_S,
     StreamingDaq,
@@ -39,6 +40,7 @@ from aatest.engine.run.rig import Rig, running
 from aatest.engine.run.run_state import RunState
 from aatest.engine.run.writes import BackgroundWrites
 from aatest.engine.steps import Plan, PlannedStep
+from aatest.sync.freeze_pulse import clock_relation
 
 DEFAULT_SOAK_S = 900.0
 #: _ONE_BLAS_THREAD: the step loop runs BLAS single-threaded. Its products are thin (the twin's
@@ -142,6 +144,32 @@ def execute_step(rig: Rig, step: PlannedStep) -> tuple[Any, Any]:
     daq = rig.daq.stop_logging()
     rig.turntable.end_motion()
     return table, daq
+
+
+def check_step_sync(step: PlannedStep, table: SampledLog, daq: SampledLog) -> None:
+    """Fail the run at a step whose loggers cannot be synchronised, not after the whole run.
+
+    Cheap: the clock relation reads the pulses, the trigger and the time stamps only (no
+    channel is resampled). The step is already handed to the recorder (data is never lost).
+
+    Raises
+    ------
+    RigFault
+        Naming the step and why its freeze-pulse edges do not synchronise (exit 3).
+    """
+    try:
+        clock_relation(StepData(step=step, table=table, daq=daq))
+    except AnalysisError as exc:
+        raise RigFault(f"{exc} — the loggers cannot be synchronised (checked as the step was "
+                       f"recorded; the step is kept in the recording)") from exc
+
+
+def _syncs(plan: Plan, table: SampledLog, daq: SampledLog) -> bool:
+    """Whether the plan's analysis will synchronise this step: ``sync`` is named, or some
+    analysis is and both loggers recorded the pulse (every analysis of both logs needs it)."""
+    names = {a if isinstance(a, str) else next(iter(a), "") for a in plan.analysis}
+    pulses = "sync_pulse" in table.channels and "sync_pulse" in daq.channels
+    return "sync" in names or (bool(names) and pulses)
 
 
 def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: RunEvents,
@@ -267,6 +295,8 @@ def run_plan(
                     events.observer.step_samples(step, table, daq)
                     events.abort.check()  # aborted while recording: the step is not kept
                     writes.submit(step, table, daq)
+                    if _syncs(plan, table, daq):
+                        check_step_sync(step, table, daq)
                 state.save(run_dir)
                 progress.end(step)
                 events.observer.step_finished(step)

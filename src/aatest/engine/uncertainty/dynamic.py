@@ -214,8 +214,18 @@ def _sync_offset_s(results: RunResults, point: FrfPoint) -> tuple[float, str]:
     note = (f"measured: {residual_us:g} µs RMS clock-relation residual over {edges:.0f} edges "
             "(offset of the fitted relation at the record's centre)")
     for entry in (sync.steps if sync else []):
+        if entry.step != point.step:
+            continue
         stated = finite(entry.offset_u_s)
-        if entry.step == point.step and stated is not None and stated < LATCHED_OFFSET_U_S:
+        if not entry.latched and stated is not None:
+            return stated, (
+                f"measured without latch times: each edge known only to the table "
+                f"sample that registered it; alignment at the record's centre "
+                f"uniform over the lines through all {entry.edges_used} edge "
+                f"intervals and the trigger, u = {stated * 1e6:.0f} µs (not "
+                f"T/√12/√N: both loggers sample on one grid, so the edges' "
+                f"quantisation errors are not independent)")
+        if stated is not None and stated < LATCHED_OFFSET_U_S:
             return stated, "measured: sync analysis offset_u_s of this record"
     return u, note
 

@@ -27,7 +27,13 @@ from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.steps import PlannedStep
 from aatest.results.sync import SyncResult
-from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
+from aatest.sync.edges import joint_slope_range
+from aatest.sync.freeze_pulse import (
+    ClockRelation,
+    SyncedStep,
+    clock_relation,
+    synchronise,
+)
 
 #: the channels a clock relation reads (besides the time stamps)
 _SYNC_CHANNELS = {"table": ("sync_pulse", "fp_latch_s"), "daq": ("sync_pulse", "trigger")}
@@ -281,10 +287,22 @@ class _Related:
     relation: ClockRelation
 
 
+def joint_drift(relations: Sequence[ClockRelation]) -> tuple[float, float] | None:
+    """(drift ppm, standard uncertainty ppm) common to the steps fitted without latch times:
+    the centre of :func:`~aatest.sync.edges.joint_slope_range`, uniform over it. None
+    when there is none (the edge-weighted mean then stands, with the spread beside it)."""
+    joint = joint_slope_range(relations)
+    if joint is None:
+        return None
+    lo, hi = joint
+    return (0.5 * (lo + hi) - 1.0) * 1e6, (hi - lo) / float(np.sqrt(12.0)) * 1e6
+
+
 def summarise(steps: Sequence[SyncedStep | _Related]) -> SyncResult:
     """Overall contract keys over all steps plus a per-step list under ``steps``.
 
-    The overall drift is the edge-weighted mean of the per-step drifts (one crystal); the
+    The overall drift is the edge-weighted mean of the per-step drifts (one crystal), or
+    without latch times the centre of the slopes every step allows (:func:`joint_drift`); the
     residual is pooled over all edges; ``offset_s`` is that of the first step (each record
     has its own start, so offsets are only meaningful per step).
     """
@@ -294,12 +312,17 @@ def summarise(steps: Sequence[SyncedStep | _Related]) -> SyncResult:
     pooled_us = float(np.sqrt(np.sum(edges * np.array([r.residual_rms_us for r in rel]) ** 2)
                               / edges.sum()))
     u_drift = np.array([r.drift_u_ppm for r in rel])
+    overall = float(np.sum(edges * drift) / edges.sum())
+    overall_u = float(np.sqrt(np.sum((edges * u_drift) ** 2)) / edges.sum())
+    joint = joint_drift(rel) if not any(r.latched for r in rel) else None
+    if joint is not None:
+        overall, overall_u = joint
     return SyncResult.model_validate({
-        "drift_ppm": float(np.sum(edges * drift) / edges.sum()),
+        "drift_ppm": overall,
         "offset_s": rel[0].offset_s,
         "residual_rms_us": pooled_us,
         "edges_used": int(edges.sum()),
-        "drift_u_ppm": float(np.sqrt(np.sum((edges * u_drift) ** 2)) / edges.sum()),
+        "drift_u_ppm": overall_u,
         "drift_spread_ppm": float(np.std(drift, ddof=1)) if drift.size > 1 else 0.0,
         "steps": [{"step": s.step.id, **s.relation.as_dict()} for s in steps],
     })

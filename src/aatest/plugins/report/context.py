@@ -200,7 +200,7 @@ def _unexplained_rows(diag: Mapping[str, Any]) -> list[dict[str, Any]]:
         ev: Mapping[str, Any] = stated_ev if isinstance(stated_ev, Mapping) else {}
         params = [(str(k), v) for k, v in ext.items()
                   if isinstance(v, (int, float, str)) and not isinstance(v, bool)]
-        before, after = ex.as_float(ev.get("rmse_v_before")), ex.as_float(ev.get("rmse_v_after"))
+        before, after = _number(ev.get("rmse_v_before")), _number(ev.get("rmse_v_after"))
         gain = 100.0 * (1.0 - after / before) if before and after is not None else None
         rows.append({**u, "evidence": ev, "parameters": params, "gain_pct": gain})
     return rows
