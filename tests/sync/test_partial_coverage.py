@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "engine"))
-from recording_data import sine_step, step_logs  # noqa: E402
+from recording_data import sine_step, step_logs
 
-from aatest.engine.dataset import StepData  # noqa: E402
-from aatest.engine.logs import SampledLog  # noqa: E402
-from aatest.sync.freeze_pulse import clock_relation  # noqa: E402
+from aatest.engine.dataset import StepData
+from aatest.engine.logs import SampledLog
+from aatest.sync.freeze_pulse import ClockRelation, clock_relation
 
 SAMPLES = 200_000  # 100 s at 2 kHz: 10 000 pulse edges
 
@@ -29,7 +29,8 @@ def _rows(log: SampledLog, keep: np.ndarray, latch: bool) -> SampledLog:
     return SampledLog(log.source, log.sample_rate_hz, log.time_s[keep], channels, dict(log.units))
 
 
-def _relations(pieces: list[tuple[float, float]], latch: bool):  # noqa: ANN202
+def _relations(pieces: list[tuple[float, float]], latch: bool
+               ) -> tuple[ClockRelation, ClockRelation, SampledLog]:
     step = sine_step("s01", SAMPLES)
     table, daq = step_logs(step, 4)
     every = np.ones(len(table), dtype=bool)
