@@ -46,7 +46,7 @@ keys and no spaces) — MCAP protects chunks with CRCs but not metadata.
 
 **Preview** (:mod:`aatest.engine.recording.preview`). Per logger a topic ``/preview/table`` and
 ``/preview/daq`` (channel ids from 16, schemas ``aatest.preview.v1.Table`` and ``.Daq``, one
-per channel list): one message per :data:`~aatest.engine.recording.preview.WINDOW_S` (100 ms)
+per channel list): one message per :data:`~aatest.engine.recording.preview.WINDOW_S` (200 ms)
 window of a step's samples, with ``step_index``, ``time_s`` (the logger's time of the window's
 first sample) and ``<channel>_min``, ``_max``, ``_mean`` as scalar ``double`` in physical units
 for the table's ``inner_``/``outer_`` ``position_deg``, ``rate_dps``, ``accel_dps2`` and the

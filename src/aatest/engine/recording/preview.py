@@ -1,4 +1,4 @@
-"""The plottable preview of a recording: named scalar ``double`` fields per 100 ms window.
+"""The plottable preview of a recording: named scalar ``double`` fields per 200 ms window.
 
 Why a second view of the same samples: the exact record is the packed ``SampleBlock`` stream
 (integer codes as byte planes, :mod:`aatest.engine.recording.codec`), which a generic MCAP viewer
@@ -9,8 +9,8 @@ the channel's physical unit (``inner_rate_dps_mean``, ``v_sx_min``, ``temperatur
 the units as JSON in the MCAP channel metadata ``units``. The preview is a view, never the
 record: the analyses read only the blocks.
 
-Why every message is built here as fixed-size bytes: a run has 10 windows per lab second per
-logger (190 000 messages for the shipped stepped-sine campaign); building them one by one
+Why every message is built here as fixed-size bytes: a run has 5 windows per lab second per
+logger (96 000 messages for the shipped stepped-sine campaign); building them one by one
 through the protobuf API would take longer than recording the run. Every field is a fixed-width
 protobuf scalar (``fixed32`` or ``double``, always written, also when 0), so a message and its
 MCAP ``Message`` record have one layout and a whole chunk is one NumPy structured array
@@ -47,10 +47,12 @@ from mcap.records import Channel, Schema
 from aatest.engine.logs import TABLE, SampledLog
 from aatest.engine.recording import proto
 
-#: length of one preview window, s (a 2 kHz logger: 200 samples per window). Why not 10 ms:
-#: the preview's doubles hardly compress, and 10 ms windows made the stepped-sine recording
-#: 84 % larger; 100 ms adds 8 % (``bench/recording.py`` prints the share)
-WINDOW_S = 0.1
+#: length of one preview window, s (a 2 kHz logger: 400 samples per window). Why not 10 ms:
+#: the preview's doubles hardly compress and MCAP indexes every message with 16 bytes
+#: uncompressed, so 10 ms windows made a stepped-sine recording 84 % larger; 100 ms added
+#: 8.3 % (stepped sine) and 11.2 % (a 10-min static record); 200 ms adds 4.1 % and 6.5 %
+#: (``bench/recording.py`` prints the share)
+WINDOW_S = 0.2
 PACKAGE = "aatest.preview.v1"
 #: the statistics of every previewed channel, in field order
 STATISTICS = ("min", "max", "mean")
