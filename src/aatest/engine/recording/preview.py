@@ -217,6 +217,11 @@ def log_times_ns(time_s: np.ndarray, start_ns: int, floor_ns: int) -> np.ndarray
 CHUNK_BYTES = 4 * 1024 * 1024
 
 
+def records_per_chunk(layout: Layout) -> int:
+    """Preview messages per MCAP chunk (about :data:`CHUNK_BYTES`)."""
+    return max(1, CHUNK_BYTES // layout.record_dtype().itemsize)
+
+
 class PreviewStream:
     """Windows one logger's log as it arrives (whole log or chunks) into preview records.
 
@@ -258,7 +263,7 @@ class PreviewStream:
         layout = self.layout
         if layout is None or not layout.channels:
             return
-        per_chunk = max(1, CHUNK_BYTES // layout.record_dtype().itemsize) * per_window
+        per_chunk = records_per_chunk(layout) * per_window
         for first in range(0, len(log), per_chunk):
             stats = windows(_part(log, first, min(len(log), first + per_chunk)), layout,
                             per_window)

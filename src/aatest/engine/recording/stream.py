@@ -31,8 +31,7 @@ from aatest.engine.logs import DAQ, SampledLog
 from aatest.engine.recording import codec, proto
 from aatest.engine.recording import format as fmt
 from aatest.engine.recording.mcap_io import ChunkedWriter
-from aatest.engine.recording.preview import CHUNK_BYTES as PREVIEW_CHUNK_BYTES
-from aatest.engine.recording.preview import Layout, PreviewStream
+from aatest.engine.recording.preview import Layout, PreviewStream, records_per_chunk
 
 #: suffix of the spool of a step being streamed
 PARTIAL_SUFFIX = ".partial"
@@ -184,23 +183,22 @@ class DaqSpool:
             self._preview_stream.close()
         self.preview_path.unlink(missing_ok=True)  # a view of the spool's samples, rebuilt anew
 
-    def _spool_preview(self, layout: Layout, records: bytes, times_ns: np.ndarray) -> None:
+    def _spool_preview(self, layout: Layout, records: bytes, _times_ns: np.ndarray) -> None:
         """Preview records go to a side file (they are a view, not samples; not in the spool)."""
         try:
             self._preview_stream.write(records)
         except OSError as exc:
             raise _storage(self.preview_path, exc) from exc
 
-    def preview_chunks(self) -> Iterator[tuple[Layout, bytes, np.ndarray]]:
-        """The DAQ preview records, about one chunk at a time, with their log times."""
+    def preview_chunks(self) -> Iterator[tuple[Layout, bytes]]:
+        """The DAQ preview records from the side file, about one chunk at a time."""
         layout = self._preview.layout
         if layout is None or not self.preview_path.exists():
             return
-        dtype = layout.record_dtype()
+        size = layout.record_dtype().itemsize * records_per_chunk(layout)
         with open(self.preview_path, "rb") as stream:
-            while data := stream.read(max(1, PREVIEW_CHUNK_BYTES // dtype.itemsize)
-                                      * dtype.itemsize):
-                yield layout, data, np.frombuffer(data, dtype=dtype)["log_time"].copy()
+            while data := stream.read(size):
+                yield layout, data
 
     def remove(self) -> None:
         """Delete the spool and its preview side file (after the step file is written)."""

@@ -22,6 +22,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import IO, Any
 
+import numpy as np
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 
@@ -133,24 +134,50 @@ def _write_log(
 PREVIEW_SCHEMA_IDS = {"table": 2, "daq": 3}
 
 
-def preview_sink(writer: ChunkedWriter) -> Callable[[preview.Layout, bytes, Any], None]:
-    """Where a :class:`~aatest.engine.recording.preview.PreviewStream` puts its records."""
+class PreviewChunks:
+    """Puts preview records into chunks of :func:`preview.records_per_chunk` records each,
+    however they arrive (whole log, streamed pieces, the spool's side file), so a streamed
+    step's file is byte for byte the one-shot file."""
 
-    def sink(layout: preview.Layout, records: bytes, times_ns: Any) -> None:
-        schema_id = PREVIEW_SCHEMA_IDS[layout.source]
-        writer.add_schema(layout.mcap_schema(schema_id))
-        writer.add_channel(layout.mcap_channel(schema_id))
-        writer.add_record_chunk(layout.channel_id, records, times_ns)
+    def __init__(self, writer: ChunkedWriter) -> None:
+        self._writer = writer
+        self._layout: preview.Layout | None = None
+        self._pending = bytearray()
 
-    return sink
+    def __call__(self, layout: preview.Layout, records: bytes, _times_ns: Any = None) -> None:
+        if self._layout is not None and layout != self._layout:
+            self.flush()
+        if self._layout != layout:
+            schema_id = PREVIEW_SCHEMA_IDS[layout.source]
+            self._writer.add_schema(layout.mcap_schema(schema_id))
+            self._writer.add_channel(layout.mcap_channel(schema_id))
+        self._layout = layout
+        self._pending += records
+        size = layout.record_dtype().itemsize * preview.records_per_chunk(layout)
+        while len(self._pending) >= size:
+            self._add(bytes(self._pending[:size]))
+            del self._pending[:size]
+
+    def _add(self, data: bytes) -> None:
+        assert self._layout is not None
+        times = np.frombuffer(data, dtype=self._layout.record_dtype())["log_time"]
+        self._writer.add_record_chunk(self._layout.channel_id, data, times)
+
+    def flush(self) -> None:
+        """Write the last, partly filled chunk."""
+        if self._pending:
+            self._add(bytes(self._pending))
+        self._pending = bytearray()
 
 
 def _write_preview(writer: ChunkedWriter, log: SampledLog, index: int, origin_ns: int) -> None:
     """The ``/preview/<source>`` windows of one logger's whole log."""
+    chunks = PreviewChunks(writer)
     stream = preview.PreviewStream(index, origin_ns + fmt.STEP_MARGIN_S * 1_000_000_000,
-                                   origin_ns, preview_sink(writer))
+                                   origin_ns, chunks)
     stream.add(log)
     stream.finish()
+    chunks.flush()
 
 
 def step_record(
@@ -244,9 +271,10 @@ def write_streamed_step(
             pending, size = [], 0
     writer.add_chunk(pending)
     _write_preview(writer, table, index, origin_ns)
-    sink = preview_sink(writer)
-    for layout, records, times_ns in spool.preview_chunks():
-        sink(layout, records, times_ns)
+    chunks = PreviewChunks(writer)
+    for layout, records in spool.preview_chunks():
+        chunks(layout, records)
+    chunks.flush()
     writer.finish()
 
 
