@@ -177,9 +177,9 @@ def windows(log: SampledLog, layout: Layout, per_window: int) -> Windows:
     n = len(log)
     starts = np.arange(0, n, per_window, dtype=np.intp)
     values: dict[str, np.ndarray] = {}
+    counts = np.diff(starts, append=n)
     for channel in layout.channels:
         data = np.asarray(log.channels[channel], dtype=np.float64)
-        counts = np.diff(np.append(starts, n))
         values[_field_name(channel, "min")] = np.minimum.reduceat(data, starts)
         values[_field_name(channel, "max")] = np.maximum.reduceat(data, starts)
         values[_field_name(channel, "mean")] = np.add.reduceat(data, starts) / counts
