@@ -23,6 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from mcap.reader import make_reader
+
 from aatest.engine.dataset import StepData
 from aatest.engine.logs import SampledLog
 from aatest.engine.recording import RunRecorder, read_dataset
@@ -67,6 +69,19 @@ def measure(run_dir: Path) -> None:
     print(f"vs format v1 of the stepped-sine run ({V1_STEPPED_SINE_MB:.0f} MB): "
           f"{V1_STEPPED_SINE_MB * MB / disk:.2f}x smaller; target <= {TARGET_MB:.0f} MB: "
           f"{'met' if disk <= TARGET_MB * MB else 'NOT met'}")
+    print(preview_share(recording))
+
+
+def preview_share(recording: Path) -> str:
+    """Bytes on disk of the ``/preview/*`` chunks and their share of the rest of the file."""
+    with open(recording, "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    preview_ids = {cid for cid, ch in summary.channels.items() if ch.topic.startswith("/preview/")}
+    view = sum(ix.chunk_length + ix.message_index_length for ix in summary.chunk_indexes
+               if set(ix.message_index_offsets) <= preview_ids)
+    rest = recording.stat().st_size - view
+    return (f"preview {view / MB:.2f} MB = +{100 * view / rest:.1f} % on the "
+            f"{rest / MB:.1f} MB without it (target <= +10 %)")
 
 
 def main() -> None:
@@ -109,6 +124,7 @@ def main() -> None:
           f"recording.mcap {merged.stat().st_size / MB:.1f} MB "
           f"(ratio {raw_total / merged.stat().st_size:.2f}), "
           f"lab/wall = {lab_s / finalize_s:.0f}x")
+    print(preview_share(merged))
     started = time.perf_counter()
     dataset = read_dataset(base / "run")
     read_s = time.perf_counter() - started

@@ -178,8 +178,10 @@ def test_files_are_valid_mcap_for_seeking_and_streaming_readers(tmp_path: Path, 
     assert times == sorted(times)
     assert (stats.message_start_time, stats.message_end_time) == (times[0], times[-1])
     if kind == "merged":
-        assert len(summary.schemas) == 1  # one protobuf schema for the whole run
-        assert {ch.topic for ch in summary.channels.values()} == {"/table", "/daq"}
+        # one block schema for the whole run, and one preview schema per logger
+        assert len(summary.schemas) == 3
+        assert {ch.topic for ch in summary.channels.values()} == {
+            "/table", "/daq", "/preview/table", "/preview/daq"}
 
 
 def test_finalize_keeps_plan_order_not_write_order(tmp_path: Path) -> None:

@@ -74,6 +74,7 @@ function physical(channel) {
 
 function onMessage(record) {
   const channel = channels.get(record.channelId);
+  if (channel.topic.startsWith("/preview/")) return; // plotted views: plot_preview.mjs
   const type = schemas.get(channel.schemaId);
   const block = type.toObject(type.decode(record.data), { longs: Number, defaults: true, arrays: true });
   got.messages[channel.topic] = (got.messages[channel.topic] ?? 0) + 1;

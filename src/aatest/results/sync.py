@@ -28,6 +28,12 @@ class StepSync(ClockFields):
                           "sample that registered each edge, known to one sample)")
     slips_corrected: int = Field(0, ge=0, description="edge registrations one sample off "
                                  "the pattern, undone before the fit (no latch times)")
+    fit_coverage: Real = Field(1.0, description="share of the DAQ record's span that the "
+                               "paired edges span (below 1: a table log covering part of the "
+                               "record; the fitted drift is carried over the rest)")
+    extrapolation_u_s: Real = Field(0.0, description="standard uncertainty the carried drift "
+                                    "adds to the time alignment at the record point farthest "
+                                    "from the paired edges, s (drift_u × distance)")
 
 
 class SyncResult(ClockFields):

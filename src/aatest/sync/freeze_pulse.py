@@ -62,6 +62,30 @@ class ClockRelation:
     slope_range: tuple[float, float] | None = None
     #: DAQ time of the record's centre, where ``offset_u_s`` holds without latch times
     record_mid_daq_s: float | None = None
+    #: DAQ-clock span (s) of the paired edges the relation is fitted on, and of the DAQ record:
+    #: a table log covering part of the record (a finite controller buffer) fits the clocks on
+    #: the edges both loggers hold and carries the fitted drift over the rest
+    fit_span_daq_s: tuple[float, float] | None = None
+    record_span_daq_s: tuple[float, float] | None = None
+
+    @property
+    def fit_coverage(self) -> float:
+        """Share of the DAQ record's span that the fitted edges span (1.0 when unknown)."""
+        if self.fit_span_daq_s is None or self.record_span_daq_s is None:
+            return 1.0
+        record = self.record_span_daq_s[1] - self.record_span_daq_s[0]
+        fitted = self.fit_span_daq_s[1] - self.fit_span_daq_s[0]
+        return float(min(1.0, fitted / record)) if record > 0 else 1.0
+
+    @property
+    def extrapolation_u_s(self) -> float:
+        """Standard uncertainty (s) the carried drift adds to the time alignment at the record
+        point farthest outside the fitted edges: ``u(drift)·distance`` (0 when they span it)."""
+        if self.fit_span_daq_s is None or self.record_span_daq_s is None:
+            return 0.0
+        beyond = max(self.fit_span_daq_s[0] - self.record_span_daq_s[0],
+                     self.record_span_daq_s[1] - self.fit_span_daq_s[1], 0.0)
+        return float(self.drift_u_ppm * 1e-6 * beyond)
 
     def to_table_s(self, t_daq_s: np.ndarray) -> np.ndarray:
         """Map DAQ-clock times (s) to table-clock times (s)."""
@@ -82,6 +106,8 @@ class ClockRelation:
             "offset_u_s": self.offset_u_s,
             "latched": self.latched,
             "slips_corrected": self.slips_corrected,
+            "fit_coverage": self.fit_coverage,
+            "extrapolation_u_s": self.extrapolation_u_s,
         }
 
 
@@ -201,6 +227,7 @@ def fit_clock_relation(step_id: str, t_table: np.ndarray, t_daq: np.ndarray,
         residual_rms_us=float(np.sqrt(np.mean(residual**2))) * 1e6,
         edges_used=int(tt.size),
         drift_u_ppm=sigma / float(np.sqrt(np.sum((td - td.mean()) ** 2))) * 1e6,
+        fit_span_daq_s=(float(td[0]), float(td[-1])),
     )
 
 
@@ -257,6 +284,7 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
         slips_corrected=slips,
         slope_range=(b_lo, b_hi),
         record_mid_daq_s=mid_daq_s,
+        fit_span_daq_s=(float(pairs.t_daq[0]), float(pairs.t_daq[-1])),
     )
 
 
@@ -347,6 +375,13 @@ def _fitted_relation(data: StepData, daq_time_s: np.ndarray,
     """The step's relation from its latched edges (NaN latch values left out) when most edges
     have one, else from the registering samples of all (:func:`fit_unlatched_relation`)."""
     t_daq, offset0 = _daq_edges(data, daq_time_s)
+    span = (float(daq_time_s[0]), float(daq_time_s[-1]))
+    return replace(_edge_relation(data, t_daq, offset0, slope_range), record_span_daq_s=span)
+
+
+def _edge_relation(data: StepData, t_daq: np.ndarray, offset0: float | None,
+                   slope_range: tuple[float, float] | None) -> ClockRelation:
+    """The relation fitted on the paired edges (latched or registering samples)."""
     registered, latch = _table_edges(data)
     table_t0 = float(data.table.time_s[0])
     trigger_daq_s = None if offset0 is None else table_t0 - offset0

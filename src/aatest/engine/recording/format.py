@@ -2,8 +2,10 @@
 
 A recording is a standard MCAP file (https://mcap.dev) with zstd-compressed chunks whose
 messages are protobuf with the schema embedded, so any MCAP reader or viewer (Python, C++, Go,
-TypeScript ``@mcap/core``, the ``mcap`` CLI, Foxglove) opens it, decodes it and can plot a whole
-run. Everything needed to decode it is in the file itself:
+TypeScript ``@mcap/core``, the ``mcap`` CLI, Foxglove) opens and decodes it. What a viewer
+*plots* is the preview topics (below): the sample blocks hold their values as packed integer
+codes, which a generic viewer decodes but cannot turn into physical values. Everything needed
+to decode it is in the file itself:
 
 **Header.** ``profile = "aatest"``.
 
@@ -42,8 +44,20 @@ Concatenating a step's blocks in ``sequence`` order gives its log; ``step_record
 every block is the SHA-256 of the step's metadata record (values as a JSON object with sorted
 keys and no spaces) — MCAP protects chunks with CRCs but not metadata.
 
-**Log times** (integer ns) lay the steps out on one run time line so a viewer plots the run:
-step *k* starts at ``origin_k = Σ_{j<k} ceil(duration_j + 2·STEP_MARGIN_S)`` s (durations from
+**Preview** (:mod:`aatest.engine.recording.preview`). Per logger a topic ``/preview/table`` and
+``/preview/daq`` (channel ids from 16, schemas ``aatest.preview.v1.Table`` and ``.Daq``, one
+per channel list): one message per :data:`~aatest.engine.recording.preview.WINDOW_S` (200 ms)
+window of a step's samples, with ``step_index``, ``time_s`` (the logger's time of the window's
+first sample) and ``<channel>_min``, ``_max``, ``_mean`` as scalar ``double`` in physical units
+for the table's ``inner_``/``outer_`` ``position_deg``, ``rate_dps``, ``accel_dps2`` and the
+DAQ's sensor volts (``v_*``) and ``temperature_c``; the channel metadata ``units`` (JSON) names
+each field's unit. Its log time is that of its first sample (as for blocks). The preview is a
+view of the blocks, never read by aatest's analyses.
+
+**Log times** (integer ns) lay the steps out on the run's UTC time line so a viewer shows the
+calendar time: the run starts at ``started_utc`` of the run record (whole seconds; 0 when the
+record has none, as in recordings written before the preview), and
+step *k* starts ``origin_k = Σ_{j<k} ceil(duration_j + 2·STEP_MARGIN_S)`` s later (durations from
 the run's ``plan``; :data:`UNPLANNED_STEP_S` for a step not in it), and a block's ``log_time``
 is ``origin_k + STEP_MARGIN_S + time_s[first sample]`` (each logger's own clock, so the DAQ's
 lead before the trigger stays positive), never below ``origin_k``. The exact times are always
@@ -61,6 +75,7 @@ import json
 import math
 import struct
 from collections.abc import Sequence
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -114,6 +129,27 @@ def step_origin_ns(plan: Sequence[Any] | None, index: int) -> int:
         span = float(duration) if isinstance(duration, (int, float)) else UNPLANNED_STEP_S
         total_s += math.ceil(span + 2 * STEP_MARGIN_S)
     return total_s * 1_000_000_000
+
+
+def run_epoch_ns(run_meta: dict[str, Any] | None) -> int:
+    """UTC start of the run (``started_utc`` of the run record) in ns since 1970, else 0.
+
+    Every log time is laid out from it, so a viewer shows the calendar time of the samples;
+    a run record without a readable ``started_utc`` keeps the relative time line (from 0).
+    """
+    text = (run_meta or {}).get("started_utc")
+    try:
+        started = datetime.fromisoformat(str(text))
+    except ValueError:
+        return 0
+    if started.tzinfo is None:
+        started = started.replace(tzinfo=UTC)
+    return max(0, round(started.timestamp())) * 1_000_000_000
+
+
+def step_start_ns(run_meta: dict[str, Any] | None, index: int) -> int:
+    """Origin of the step at plan position ``index`` on the run's UTC time line, ns."""
+    return run_epoch_ns(run_meta) + step_origin_ns((run_meta or {}).get("plan"), index)
 
 
 def block_log_times_ns(time_s: np.ndarray, origin_ns: int, block_samples: int) -> list[int]:

@@ -18,6 +18,7 @@ import zlib
 from collections.abc import Iterable, Sequence
 from typing import IO, Any
 
+import numpy as np
 import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
@@ -146,6 +147,38 @@ class ChunkedWriter:
             message_start_time=chunk.message_start_time, uncompressed_size=len(data)))
         counts = {cid: len(ix.records) for cid, ix in indexes.items()}
         self._count(counts, chunk.message_start_time, chunk.message_end_time, chunks=1)
+
+    def add_record_chunk(self, channel_id: int, data: bytes, log_times_ns: np.ndarray) -> None:
+        """Compress ready-made ``Message`` records of one channel, all of one size, into a chunk.
+
+        ``data`` is the records' bytes back to back (e.g. :mod:`.preview` builds them as one
+        NumPy array), ``log_times_ns`` their log times; the message index is built at once too.
+        """
+        count = len(log_times_ns)
+        if count == 0:
+            return
+        size = len(data) // count
+        times = np.asarray(log_times_ns, dtype="<u8")
+        compressed = self._compressor.compress(data)
+        start_ns, end_ns = int(times.min()), int(times.max())
+        chunk = Chunk(compression="zstd", data=compressed, message_end_time=end_ns,
+                      message_start_time=start_ns, uncompressed_crc=zlib.crc32(data),
+                      uncompressed_size=len(data))
+        start, length = self._write(chunk)
+        pairs = np.empty((count, 2), dtype="<u8")
+        pairs[:, 0] = times
+        pairs[:, 1] = np.arange(count, dtype=np.uint64) * size
+        entries = pairs.tobytes()
+        head = struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 2 + 4 + len(entries), channel_id,
+                           len(entries))
+        index_start = self._write_bytes(head + entries)
+        self._chunk_indexes.append(ChunkIndex(
+            chunk_length=length, chunk_start_offset=start, compression="zstd",
+            compressed_size=len(compressed), message_end_time=end_ns,
+            message_index_length=self._offset - index_start,
+            message_index_offsets={channel_id: index_start}, message_start_time=start_ns,
+            uncompressed_size=len(data)))
+        self._count({channel_id: count}, start_ns, end_ns, chunks=1)
 
     def _count(self, counts: dict[int, int], start_ns: int, end_ns: int, chunks: int) -> None:
         stats = self.stats

@@ -31,9 +31,12 @@ from aatest.engine.logs import DAQ, SampledLog
 from aatest.engine.recording import codec, proto
 from aatest.engine.recording import format as fmt
 from aatest.engine.recording.mcap_io import ChunkedWriter
+from aatest.engine.recording.preview import Layout, PreviewStream, records_per_chunk
 
 #: suffix of the spool of a step being streamed
 PARTIAL_SUFFIX = ".partial"
+#: suffix of the side file holding the streamed DAQ's preview records
+PREVIEW_SUFFIX = ".preview"
 
 
 def spool_path(step_file: Path) -> Path:
@@ -81,7 +84,11 @@ class DaqSpool:
         self._pending: list[Message] = []
         self._pending_bytes = 0
         self._closed = False
+        self.preview_path = path.with_name(path.name + PREVIEW_SUFFIX)
+        self._preview = PreviewStream(index, origin_ns + fmt.STEP_MARGIN_S * 1_000_000_000,
+                                      origin_ns, self._spool_preview)
         try:
+            self._preview_stream: IO[bytes] = open(self.preview_path, "wb")  # noqa: SIM115
             self._stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
             self._writer: ChunkedWriter = new_writer(self._stream)
             self._writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
@@ -127,6 +134,7 @@ class DaqSpool:
             self._pending_bytes += len(self._pending[-1].data)
             if self._pending_bytes >= _chunk_bytes():
                 self._flush()
+        self._preview.add(part)
         self.blocks += len(times_ns)
         self.samples += len(part)
         self.first_log_ns = times_ns[0] if self.first_log_ns is None else self.first_log_ns
@@ -156,6 +164,8 @@ class DaqSpool:
                 self._encode(self._carry)
                 self._carry = None
             self._flush()
+            self._preview.finish()
+            self._preview_stream.close()
             self._writer.finish()
             self._stream.flush()
             os.fsync(self._stream.fileno())
@@ -170,6 +180,30 @@ class DaqSpool:
             self.close()
         except Exception:  # noqa: BLE001 - best effort: what is already flushed stays on disk
             self._stream.close()
+            self._preview_stream.close()
+        self.preview_path.unlink(missing_ok=True)  # a view of the spool's samples, rebuilt anew
+
+    def _spool_preview(self, layout: Layout, records: bytes, _times_ns: np.ndarray) -> None:
+        """Preview records go to a side file (they are a view, not samples; not in the spool)."""
+        try:
+            self._preview_stream.write(records)
+        except OSError as exc:
+            raise _storage(self.preview_path, exc) from exc
+
+    def preview_chunks(self) -> Iterator[tuple[Layout, bytes]]:
+        """The DAQ preview records from the side file, about one chunk at a time."""
+        layout = self._preview.layout
+        if layout is None or not self.preview_path.exists():
+            return
+        size = layout.record_dtype().itemsize * records_per_chunk(layout)
+        with open(self.preview_path, "rb") as stream:
+            while data := stream.read(size):
+                yield layout, data
+
+    def remove(self) -> None:
+        """Delete the spool and its preview side file (after the step file is written)."""
+        self.path.unlink(missing_ok=True)
+        self.preview_path.unlink(missing_ok=True)
 
     def daq_record(self) -> dict[str, Any]:
         """The DAQ's part of the step record (as :func:`writer.step_record` makes it)."""

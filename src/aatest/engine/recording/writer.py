@@ -22,13 +22,14 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import IO, Any
 
+import numpy as np
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 
 import aatest
 from aatest.engine.errors import RecordingError, StorageFault
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import codec, proto
+from aatest.engine.recording import codec, preview, proto
 from aatest.engine.recording import format as fmt
 from aatest.engine.recording.mcap_io import ChunkedWriter
 from aatest.engine.recording.stream import DaqSpool, spool_path
@@ -129,6 +130,56 @@ def _write_log(
     writer.add_chunk(pending)
 
 
+#: schema ids of the preview messages in a step file (the merger renumbers schemas anyway)
+PREVIEW_SCHEMA_IDS = {"table": 2, "daq": 3}
+
+
+class PreviewChunks:
+    """Puts preview records into chunks of :func:`preview.records_per_chunk` records each,
+    however they arrive (whole log, streamed pieces, the spool's side file), so a streamed
+    step's file is byte for byte the one-shot file."""
+
+    def __init__(self, writer: ChunkedWriter) -> None:
+        self._writer = writer
+        self._layout: preview.Layout | None = None
+        self._pending = bytearray()
+
+    def __call__(self, layout: preview.Layout, records: bytes, _times_ns: Any = None) -> None:
+        if self._layout is not None and layout != self._layout:
+            self.flush()
+        if self._layout != layout:
+            schema_id = PREVIEW_SCHEMA_IDS[layout.source]
+            self._writer.add_schema(layout.mcap_schema(schema_id))
+            self._writer.add_channel(layout.mcap_channel(schema_id))
+        self._layout = layout
+        self._pending += records
+        size = layout.record_dtype().itemsize * preview.records_per_chunk(layout)
+        while len(self._pending) >= size:
+            self._add(bytes(self._pending[:size]))
+            del self._pending[:size]
+
+    def _add(self, data: bytes) -> None:
+        assert self._layout is not None
+        times = np.frombuffer(data, dtype=self._layout.record_dtype())["log_time"]
+        self._writer.add_record_chunk(self._layout.channel_id, data, times)
+
+    def flush(self) -> None:
+        """Write the last, partly filled chunk."""
+        if self._pending:
+            self._add(bytes(self._pending))
+        self._pending = bytearray()
+
+
+def _write_preview(writer: ChunkedWriter, log: SampledLog, index: int, origin_ns: int) -> None:
+    """The ``/preview/<source>`` windows of one logger's whole log."""
+    chunks = PreviewChunks(writer)
+    stream = preview.PreviewStream(index, origin_ns + fmt.STEP_MARGIN_S * 1_000_000_000,
+                                   origin_ns, chunks)
+    stream.add(log)
+    stream.finish()
+    chunks.flush()
+
+
 def step_record(
     step: PlannedStep, index: int, logs: dict[str, tuple[SampledLog, list[int]]],
     extra: dict[str, Any] | None,
@@ -164,7 +215,7 @@ def write_step_file(
         if log.source != source:
             raise ValueError(f"step {step.id!r}: expected a {source} log, got {log.source!r}")
         codec.check_dtypes(log)
-    origin_ns = fmt.step_origin_ns(run_meta.get("plan"), index)
+    origin_ns = fmt.step_start_ns(run_meta, index)
     timed = {log.source: (log, fmt.block_log_times_ns(log.time_s, origin_ns, fmt.BLOCK_SAMPLES))
              for log in logs}
     writer = new_writer(stream)
@@ -176,6 +227,8 @@ def write_step_file(
               "step_record_sha256": fmt.record_digest(record)}
     for log, times_ns in timed.values():
         _write_log(writer, header, log, times_ns)
+    for log in logs:
+        _write_preview(writer, log, index, origin_ns)
     writer.finish()
 
 
@@ -197,7 +250,7 @@ def write_streamed_step(
     if table.source != "table":
         raise ValueError(f"step {step.id!r}: expected a table log, got {table.source!r}")
     codec.check_dtypes(table)
-    origin_ns = fmt.step_origin_ns(run_meta.get("plan"), index)
+    origin_ns = fmt.step_start_ns(run_meta, index)
     table_times = fmt.block_log_times_ns(table.time_s, origin_ns, fmt.BLOCK_SAMPLES)
     record = step_record(step, index, {"table": (table, table_times)}, extra) | spool.daq_record()
     values = fmt.json_values(record)
@@ -217,6 +270,11 @@ def write_streamed_step(
             writer.add_chunk(pending)
             pending, size = [], 0
     writer.add_chunk(pending)
+    _write_preview(writer, table, index, origin_ns)
+    chunks = PreviewChunks(writer)
+    for layout, records in spool.preview_chunks():
+        chunks(layout, records)
+    chunks.flush()
     writer.finish()
 
 
@@ -232,7 +290,7 @@ class StreamedStep:
                  meta: dict[str, Any]) -> None:
         self._recorder, self.step, self.index, self.path = recorder, step, index, path
         self._meta = meta
-        origin_ns = fmt.step_origin_ns(meta.get("plan"), index)
+        origin_ns = fmt.step_start_ns(meta, index)
         self.spool = DaqSpool(spool_path(path), meta, step.id, index, origin_ns, new_writer)
 
     def add(self, chunk: SampledLog) -> None:
@@ -245,7 +303,7 @@ class StreamedStep:
         spool = self.spool
         atomic_write(self.path, lambda s: write_streamed_step(s, self._meta, self.step,
                                                               self.index, table, spool, extra))
-        spool.path.unlink(missing_ok=True)
+        spool.remove()
         self._recorder._completed(self.step.id, self.path, self.index)
         return self.path
 
