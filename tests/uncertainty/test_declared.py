@@ -43,8 +43,7 @@ def test_a_default_names_the_missing_declaration() -> None:
     note = comp.encoder_resolution(c, A_ARCSEC).note
     assert note.startswith("stated default: encoder resolution 129600000 counts/rev (q = 0.01″)")
     assert ("missing declaration: the turntable plugin 'acme' (acme-kit 1.0) declares no "
-            "encoder_resolution_counts_per_rev, and the rig description states no "
-            "instruments.encoder.resolution_counts_per_rev") in note
+            "encoder resolution, and the rig description states no encoder resolution") in note
     imported = RigConstants.from_results(_results(None, plugin=None))
     assert "no turntable plugin declared it" in comp.encoder_accuracy(imported, A_ARCSEC).note
 

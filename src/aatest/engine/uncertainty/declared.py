@@ -24,6 +24,11 @@ ENCODER_DECLARATIONS: dict[str, str] = {
     "resolution_counts_per_rev": "encoder_resolution_counts_per_rev",
     "accuracy_arcsec": "encoder_accuracy_arcsec",
 }
+#: the same declarations in words, as a certificate names them (no field names on a page)
+_DECLARATION_NAMES: dict[str, str] = {
+    "resolution_counts_per_rev": "encoder resolution",
+    "accuracy_arcsec": "encoder accuracy",
+}
 
 #: per encoder field: ("declared" | "default", the sentence that says by whom / what is missing)
 Basis = dict[str, tuple[Literal["declared", "default"], str]]
@@ -65,10 +70,11 @@ def declared_encoder(results: RunResults, stated: Mapping[str, Any] | None,
             updates[field] = value
             basis[field] = ("declared", f"declared by the {who}")
             continue
-        missing = (f"the {who} declares no {capability}" if plugin
+        label = _DECLARATION_NAMES[field]
+        missing = (f"the {who} declares no {label}" if plugin
                    else "no turntable plugin declared it (no run behind these data)")
         basis[field] = ("default", f"missing declaration: {missing}, and the rig description "
-                                   f"states no instruments.encoder.{field}")
+                                   f"states no {label}")
     if not updates:
         return instruments, basis
     encoder = instruments.encoder.model_copy(update=updates)
