@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import socket
+import sys
 from typing import Any
 
 import can
@@ -23,6 +24,9 @@ from aatest.protocols import can_frames as cf
 log = logging.getLogger("aatest.daq.can")
 #: socket receive buffer asked for on udp_multicast buses (the kernel caps it at rmem_max)
 UDP_RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
+#: Linux socket options (linux/in.h, linux/in6.h) absent from Python's socket module before 3.12
+IP_MULTICAST_ALL = getattr(socket, "IP_MULTICAST_ALL", 49)
+IPV6_MULTICAST_ALL = getattr(socket, "IPV6_MULTICAST_ALL", 29)
 
 
 def open_bus(interface: str, channel: str, fd: bool = True,
@@ -36,8 +40,37 @@ def open_bus(interface: str, channel: str, fd: bool = True,
     except (can.CanError, OSError, ImportError, ValueError) as exc:
         raise RigFault(f"CAN {interface} {channel}: cannot open the bus ({exc})") from exc
     if interface == "udp_multicast":
+        _only_own_group(bus, interface, channel)
         _enlarge_receive_buffer(bus)
     return bus
+
+
+def _udp_socket(bus: can.BusABC) -> socket.socket | None:
+    """The UDP socket under a python-can udp_multicast bus (python-can internals)."""
+    return getattr(getattr(bus, "_multicast", None), "_socket", None)
+
+
+def _only_own_group(bus: can.BusABC, interface: str, channel: str) -> None:
+    """Deliver to this bus only the datagrams of its own multicast group.
+
+    python-can binds the group's port on every address, and Linux then hands the socket every
+    multicast datagram to that port of any group some socket on the host joined
+    (``IP_MULTICAST_ALL`` defaults to 1): two runs on two groups would hear each other's
+    commands and samples. With the option off, the kernel delivers only the groups this socket
+    joined. Where the option does not exist (not Linux) the frames' session tag still keeps
+    a run to its own logger (:mod:`aatest.protocols.can_frames`).
+    """
+    sock = _udp_socket(bus)
+    if sock is None or sys.platform != "linux":
+        return
+    level, option = ((socket.IPPROTO_IPV6, IPV6_MULTICAST_ALL) if sock.family == socket.AF_INET6
+                     else (socket.IPPROTO_IP, IP_MULTICAST_ALL))
+    try:
+        sock.setsockopt(level, option, 0)
+    except OSError as exc:
+        bus.shutdown()
+        raise RigFault(f"CAN {interface} {channel}: cannot restrict the socket to its own "
+                       f"multicast group ({exc})") from exc
 
 
 def _enlarge_receive_buffer(bus: can.BusABC, size_bytes: int = UDP_RECEIVE_BUFFER_BYTES) -> None:
@@ -46,7 +79,7 @@ def _enlarge_receive_buffer(bus: can.BusABC, size_bytes: int = UDP_RECEIVE_BUFFE
     A UDP "bus" drops datagrams when the receiving thread is descheduled; the kernel buffer
     (capped by net.core.rmem_max) rides out such stalls. Loss is still detected, never silent.
     """
-    sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
+    sock = _udp_socket(bus)
     if sock is None:
         return
     try:

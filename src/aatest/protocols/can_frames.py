@@ -3,15 +3,20 @@
 Identifiers (11-bit, ``n`` = logger node id 1..15):
 
 * ``0x100 + n`` COMMAND to the logger, classic 8 bytes: ``u8 opcode`` (1 PING, 2 START,
-  3 STOP), 7 bytes zero.
+  3 STOP), ``u16 session`` (the host's session tag, 0 = none), 5 bytes zero.
 * ``0x180 + n`` SAMPLE, CAN FD, one frame per sample, little-endian (Intel) layout
   :data:`SAMPLE_HEADER` followed by ``n_channels`` float32 volts, padded to a valid FD length:
   ``u16 seq`` (sample counter, wraps at 65536), ``u8 flags`` (bit 0 sync pulse, bit 1
   trigger), ``u8 n_channels``, ``i64 time_ns`` (logger clock, ns), ``i16 temperature``
-  (0.01 °C), ``u16`` reserved.
+  (0.01 °C), ``u16 session``.
 * ``0x700 + n`` STATUS from the logger, classic 8 bytes: ``u8 state`` (0 idle, 1 logging,
-  2 end of record), ``u8`` error flags, ``u16`` reserved, ``u32`` sample frames sent in the
+  2 end of record), ``u8`` error flags, ``u16 session``, ``u32`` sample frames sent in the
   record (so a lost tail is detected too).
+
+Layout version 2 put the session tag into bytes that version 1 reserved as zero: a host picks a
+random non-zero tag, sends it in every command, and the logger echoes the tag of the session it
+serves in its STATUS and sample frames, so two hosts sharing one bus keep only their own frames
+(a version-1 logger answers with tag 0, which a host then accepts).
 
 Decoding is vectorised: payloads are joined and read as one numpy structured array. A gap in
 ``seq`` (or fewer frames than the logger says it sent) is never silent: :func:`find_gaps`
@@ -43,9 +48,17 @@ LOGIC_HIGH_ABOVE = 0.5
 CAN_ERR_BUSOFF = 0x040
 
 SAMPLE_HEADER = np.dtype([("seq", "<u2"), ("flags", "u1"), ("n_channels", "u1"),
-                          ("time_ns", "<i8"), ("temperature_cc", "<i2"), ("reserved", "<u2")])
-STATUS_FORMAT = np.dtype([("state", "u1"), ("errors", "u1"), ("reserved", "<u2"),
+                          ("time_ns", "<i8"), ("temperature_cc", "<i2"), ("session", "<u2")])
+STATUS_FORMAT = np.dtype([("state", "u1"), ("errors", "u1"), ("session", "<u2"),
                           ("frames_sent", "<u4")])
+#: version of the frame layout (2: session tag in the former reserved bytes)
+LAYOUT_VERSION = 2
+#: session tag of a host or logger that does not tag (layout version 1)
+NO_SESSION = 0
+SESSION_MODULO = 1 << 16
+#: bytes of the session tag in a sample frame (the header's last u16) and in a command
+SAMPLE_SESSION_BYTES = slice(14, 16)
+COMMAND_SESSION_BYTES = slice(1, 3)
 
 
 class Opcode(enum.IntEnum):
@@ -73,7 +86,8 @@ def sample_dtype(n_channels: int) -> np.dtype:
 
 
 def encode_samples(time_s: np.ndarray, volts: np.ndarray, sync: np.ndarray, trigger: np.ndarray,
-                   temperature_c: np.ndarray, first_seq: int = 0) -> list[bytes]:
+                   temperature_c: np.ndarray, first_seq: int = 0,
+                   session: int = NO_SESSION) -> list[bytes]:
     """Sample-frame payloads for a record (vectorised build, one ``bytes`` per frame).
 
     Parameters
@@ -88,6 +102,8 @@ def encode_samples(time_s: np.ndarray, volts: np.ndarray, sync: np.ndarray, trig
         Sensor temperature (°C), shape (n,).
     first_seq
         Sequence number of the first frame.
+    session
+        Session tag of the host the record is for (0: untagged).
     """
     volts = np.atleast_2d(np.asarray(volts, dtype=np.float64).T).T
     n, channels = volts.shape
@@ -99,6 +115,7 @@ def encode_samples(time_s: np.ndarray, volts: np.ndarray, sync: np.ndarray, trig
     frames["n_channels"] = channels
     frames["time_ns"] = np.round(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64)
     frames["temperature_cc"] = np.round(np.asarray(temperature_c) * 100.0).astype(np.int16)
+    frames["session"] = session
     frames["volts"] = volts
     raw = frames.tobytes()
     size = frames.dtype.itemsize
@@ -185,20 +202,43 @@ def fill_gaps(decoded: DecodedSamples, index: np.ndarray, total: int,
                           temperature_c=_spread(decoded.temperature_c))
 
 
-def command_payload(opcode: Opcode) -> bytes:
-    return bytes([int(opcode)]) + bytes(7)
+def command_payload(opcode: Opcode, session: int = NO_SESSION) -> bytes:
+    return bytes([int(opcode)]) + session.to_bytes(2, "little") + bytes(5)
 
 
-def status_payload(state: LoggerState, frames_sent: int, errors: int = 0) -> bytes:
+def command_session(payload: bytes | bytearray) -> int:
+    """Session tag of a COMMAND frame (0 from a version-1 host)."""
+    return int.from_bytes(bytes(payload[COMMAND_SESSION_BYTES]), "little")
+
+
+def sample_session(payload: bytes | bytearray) -> int:
+    """Session tag of a SAMPLE frame, read without decoding the frame."""
+    return int.from_bytes(bytes(payload[SAMPLE_SESSION_BYTES]), "little")
+
+
+def status_payload(state: LoggerState, frames_sent: int, errors: int = 0,
+                   session: int = NO_SESSION) -> bytes:
     record = np.zeros(1, dtype=STATUS_FORMAT)
     record["state"], record["errors"], record["frames_sent"] = int(state), errors, frames_sent
+    record["session"] = session
     return record.tobytes()
 
 
-def parse_status(payload: bytes | bytearray) -> tuple[LoggerState, int, int]:
-    """(state, error flags, frames sent) of a STATUS frame."""
+@dataclass(frozen=True)
+class Status:
+    """A decoded STATUS frame."""
+
+    state: LoggerState
+    errors: int
+    frames_sent: int
+    session: int
+
+
+def parse_status(payload: bytes | bytearray) -> Status:
+    """State, error flags, frames sent and session tag of a STATUS frame."""
     record = np.frombuffer(bytes(payload[:8]), dtype=STATUS_FORMAT)[0]
-    return LoggerState(int(record["state"])), int(record["errors"]), int(record["frames_sent"])
+    return Status(LoggerState(int(record["state"])), int(record["errors"]),
+                  int(record["frames_sent"]), int(record["session"]))
 
 
 def dbc_text(channels: Sequence[str], node_id: int = 1) -> str:
@@ -212,6 +252,7 @@ def dbc_text(channels: Sequence[str], node_id: int = 1) -> str:
         ' SG_ n_channels : 24|8@1+ (1,0) [0|12] "" Vector__XXX',
         ' SG_ time_ns : 32|64@1- (1,0) [0|0] "ns" Vector__XXX',
         ' SG_ temperature_c : 96|16@1- (0.01,0) [-327.68|327.67] "degC" Vector__XXX',
+        ' SG_ session : 112|16@1+ (1,0) [0|65535] "" Vector__XXX',
     ]
     signals += [f' SG_ {ch} : {128 + 32 * i}|32@1- (1,0) [0|5] "V" Vector__XXX'
                 for i, ch in enumerate(channels)]

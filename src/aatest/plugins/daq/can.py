@@ -11,12 +11,18 @@ or a logger that stops talking raises RigFault with a one-line reason; any other
 of python-can or the decoder is translated by :func:`~aatest.engine.errors.rig_boundary`.
 Optionally the sample frames are decoded with cantools from a DBC file
 (``can_frames.dbc_text`` writes one).
+
+Every command carries this run's random session tag and the plugin keeps only STATUS and
+sample frames echoing it, so two runs sharing one bus (or, off Linux, one udp_multicast port)
+never record each other's frames; a logger answering PING with tag 0 predates the tag and is
+accepted untagged.
 """
 
 from __future__ import annotations
 
 import logging
 import queue
+import secrets
 import threading
 import time
 from collections.abc import Sequence
@@ -39,10 +45,14 @@ log = logging.getLogger("aatest.daq.can")
 class _Collector(can.Listener):
     """Keeps sample payloads, STATUS answers and bus errors seen by the Notifier thread."""
 
-    def __init__(self, node_id: int) -> None:
+    def __init__(self, node_id: int, session: int) -> None:
         self.sample_id, self.status_id = cf.SAMPLE_BASE + node_id, cf.STATUS_BASE + node_id
+        #: session tags whose frames are this run's (own tag; 0 until the logger shows it tags)
+        self.sessions = frozenset({session, cf.NO_SESSION})
+        #: frames of this node carrying another session's tag, ignored
+        self.foreign = 0
         self.samples: list[bytes] = []
-        self.status: queue.Queue[tuple[cf.LoggerState, int, int]] = queue.Queue()
+        self.status: queue.Queue[cf.Status] = queue.Queue()
         self.bus_errors: list[str] = []
         self.last_rx = time.monotonic()
         self.active = False
@@ -52,12 +62,19 @@ class _Collector(can.Listener):
             if msg.arbitration_id & cf.CAN_ERR_BUSOFF:
                 self.bus_errors.append("bus-off")
             return
-        if msg.arbitration_id == self.sample_id and self.active:
-            self.samples.append(bytes(msg.data))
-            self.last_rx = time.monotonic()
+        if msg.arbitration_id == self.sample_id:
+            if cf.sample_session(msg.data) not in self.sessions:
+                self.foreign += 1
+            elif self.active:
+                self.samples.append(bytes(msg.data))
+                self.last_rx = time.monotonic()
         elif msg.arbitration_id == self.status_id:
+            status = cf.parse_status(msg.data)
+            if status.session not in self.sessions:
+                self.foreign += 1
+                return
             self.last_rx = time.monotonic()
-            self.status.put(cf.parse_status(msg.data))
+            self.status.put(status)
 
     def on_error(self, exc: Exception) -> None:
         self.bus_errors.append(f"receive error: {exc}")
@@ -92,7 +109,9 @@ class CanDaq:
         self._channels = list(names)
         self._bus: can.BusABC | None = None
         self._notifier: can.Notifier | None = None
-        self._rx = _Collector(self.config.node_id)
+        #: this run's session tag (random, non-zero) sent in every command
+        self.session = 1 + secrets.randbelow(cf.SESSION_MODULO - 1)
+        self._rx = _Collector(self.config.node_id, self.session)
         self._lock = threading.Lock()
         self.gaps: list[cf.Gap] = []
         self._where = f"CAN logger node {self.config.node_id} on {self.config.interface} " \
@@ -108,30 +127,39 @@ class CanDaq:
         self._bus = open_bus(cfg.interface, cfg.channel, cfg.fd, cfg.bitrate)
         self._notifier = can.Notifier(self._bus, [self._rx], timeout=0.05)
         self._command(cf.Opcode.PING)
-        self._expect(cf.LoggerState.IDLE, "answer to PING")
+        answer = self._expect(cf.LoggerState.IDLE, "answer to PING")
+        if answer.session == self.session:  # a tagging logger: untagged frames are foreign
+            self._rx.sessions = frozenset({self.session})
+        else:
+            log.info("%s: the logger does not tag its frames (layout version 1)", self._where)
+
+    @property
+    def foreign_frames(self) -> int:
+        """Frames of this node id ignored so far because another session's tag was on them."""
+        return self._rx.foreign
 
     def _command(self, opcode: cf.Opcode) -> None:
         if self._bus is None:
             raise RigFault(f"{self._where}: not started")
         self._check_bus()
-        send(self._bus, cf.COMMAND_BASE + self.config.node_id, cf.command_payload(opcode),
-             self.config.fd, self._where)
+        send(self._bus, cf.COMMAND_BASE + self.config.node_id,
+             cf.command_payload(opcode, self.session), self.config.fd, self._where)
 
     def _check_bus(self) -> None:
         if self._rx.bus_errors:
             raise RigFault(f"{self._where}: {self._rx.bus_errors[0]}; logging stopped")
 
-    def _expect(self, state: cf.LoggerState, what: str) -> int:
-        """Wait for a STATUS frame in ``state``; returns its frames-sent count."""
+    def _expect(self, state: cf.LoggerState, what: str) -> cf.Status:
+        """Wait for a STATUS frame of this session in ``state`` and return it."""
         deadline = time.monotonic() + self.config.response_timeout_s
         while True:
             self._check_bus()
             try:
-                got, _errors, frames = self._rx.status.get(timeout=0.05)
+                got: cf.Status | None = self._rx.status.get(timeout=0.05)
             except queue.Empty:
                 got = None
-            if got == state:
-                return frames
+            if got is not None and got.state == state:
+                return got
             quiet = time.monotonic() - self._rx.last_rx
             if time.monotonic() > deadline and (state != cf.LoggerState.END_OF_RECORD
                                                  or quiet > self.config.frame_timeout_s):
@@ -150,7 +178,7 @@ class CanDaq:
     def stop_logging(self) -> SampledLog:
         """Stop, wait for the end-of-record status, decode, and account for every frame."""
         self._command(cf.Opcode.STOP)
-        sent = self._expect(cf.LoggerState.END_OF_RECORD, "end of record")
+        sent = self._expect(cf.LoggerState.END_OF_RECORD, "end of record").frames_sent
         self._rx.active = False
         payloads = self._rx.samples
         decoded = self._decode(payloads)

@@ -7,6 +7,11 @@ number of frames sent. The table log and this stream come from the same World sy
 the real drivers see one consistent rig. On a lossy transport (``udp_multicast``) the stream
 is paced to ``frame_rate_hz`` as a real bus' bit rate would. :class:`CanFaultInjection` drops
 frames or raises bus-off on purpose for the fault tests.
+
+The logger serves one session at a time: a PING or START adopts the command's session tag,
+which its STATUS and sample frames then carry; while a record streams, commands of another
+session are ignored, so a second host on the same bus cannot restart or re-tag someone else's
+stream (outside a stream the last host to command wins, so a crashed host never locks it).
 """
 
 from __future__ import annotations
@@ -74,6 +79,11 @@ class SimCanLogger:
         self._sent = 0
         self._records = 0
         self._dead = False
+        self._streaming = threading.Event()
+        #: session tag of the host served (0: an untagged, version-1 host)
+        self.session = cf.NO_SESSION
+        #: commands ignored because another session's record was streaming
+        self.foreign_commands = 0
         self._where = f"simulated CAN logger node {node_id}"
 
     def start(self) -> SimCanLogger:
@@ -98,8 +108,8 @@ class SimCanLogger:
 
     def _status(self, state: cf.LoggerState, frames: int = 0) -> None:
         if self._bus is not None and not self._dead:
-            send(self._bus, cf.STATUS_BASE + self.node_id, cf.status_payload(state, frames),
-                 True, self._where)
+            send(self._bus, cf.STATUS_BASE + self.node_id,
+                 cf.status_payload(state, frames, session=self.session), True, self._where)
 
     def _listen(self) -> None:
         command_id = cf.COMMAND_BASE + self.node_id
@@ -107,30 +117,41 @@ class SimCanLogger:
             msg = self._bus.recv(0.05)
             if msg is None or msg.is_error_frame or msg.arbitration_id != command_id:
                 continue
-            opcode = msg.data[0]
-            if opcode == cf.Opcode.PING:  # the host re-initialised the bus: bus-off recovery
-                self._dead = False
-                self._status(cf.LoggerState.IDLE)
-            elif opcode == cf.Opcode.START:
-                self._sent, self._dead = 0, False
-                self._records += 1
-                self._status(cf.LoggerState.LOGGING)
-                self.controller.daq_start()
-            elif opcode == cf.Opcode.STOP:
-                self._jobs.put(("stop", None))
+            self._command(msg.data[0], cf.command_session(msg.data))
+
+    def _command(self, opcode: int, session: int) -> None:
+        if session != self.session and self._streaming.is_set():
+            self.foreign_commands += 1
+            log.warning("%s: ignored opcode %d of session %d during session %d's stream",
+                        self._where, opcode, session, self.session)
+            return
+        if opcode == cf.Opcode.PING:  # the host re-initialised the bus: bus-off recovery
+            self.session, self._dead = session, False
+            self._status(cf.LoggerState.IDLE)
+        elif opcode == cf.Opcode.START:
+            self.session, self._sent, self._dead = session, 0, False
+            self._records += 1
+            self._status(cf.LoggerState.LOGGING)
+            self.controller.daq_start()
+        elif opcode == cf.Opcode.STOP:
+            self._jobs.put(("stop", None))
 
     def _work(self) -> None:
         while not self._stop.is_set():
             kind, daq = self._jobs.get()
             if kind == "log" and daq is not None:
-                self._stream(daq)
+                self._streaming.set()
+                try:
+                    self._stream(daq)
+                finally:
+                    self._streaming.clear()
             elif kind == "stop":
                 self._status(cf.LoggerState.END_OF_RECORD, self._sent)
 
     def _stream(self, daq: SampledLog) -> None:
         """Send one record's sample frames (paced), honouring injected faults."""
         payloads = cf.encode_samples(daq.time_s, volts_matrix(daq), daq["sync_pulse"],
-                                     daq["trigger"], daq["temperature_c"])
+                                     daq["trigger"], daq["temperature_c"], session=self.session)
         sample_id, started = cf.SAMPLE_BASE + self.node_id, time.monotonic()
         faulty = self.faults.record_number in (None, self._records)
         bus_off_at = self.faults.bus_off_after_frames if faulty else None
