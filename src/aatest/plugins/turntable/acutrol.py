@@ -135,10 +135,16 @@ class AcutrolTurntable:
 
     # --- Turntable protocol ----------------------------------------------------------------
     @property
-    def serial(self) -> str:
-        """The controller's serial number (``*IDN?``), identifying the table on certificates."""
+    def serial(self) -> str | None:
+        """The controller's serial number (``*IDN?``), identifying the table on certificates.
+
+        None until :meth:`start` has identified the controller (the engine asks before and
+        after start; a made-up "unknown" recorded before start would make a resumed run look
+        like one on another table).
+        """
         fields = self.identity.split(",")
-        return fields[IDN_SERIAL_FIELD].strip() if len(fields) > IDN_SERIAL_FIELD else "unknown"
+        serial = fields[IDN_SERIAL_FIELD].strip() if len(fields) > IDN_SERIAL_FIELD else ""
+        return serial or None
 
     def envelope(self) -> TableEnvelope:
         return self.config.envelope
