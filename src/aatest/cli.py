@@ -190,6 +190,10 @@ def run(
         help="ask: a person confirms each operator prompt (refused without a terminal); "
         "auto: confirm them unattended (logged on the certificate)",
     ),
+    serial: str | None = typer.Option(
+        None, "--serial", envvar="AATEST_SERIAL",
+        help="Serial of the unit calibrated (else the procedure's sensor.serial)"),
+    model: str | None = typer.Option(None, "--model", help="Sensor model (else the procedure's)"),
 ) -> None:
     """Run a procedure: record both loggers, analyse, report (and sign), register the record."""
     from aatest.engine.errors import InputError
@@ -201,13 +205,25 @@ def run(
         run_dir, results = session.run(
             procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator,
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
+            unit=session.UnitName(serial or None, model or None),
         )
     typer.echo(
         f"run complete: {run_dir} — {len(results['steps'])} steps, "
         f"lab {results['lab_duration_s']:.1f} s, "
         f"wall {results['wall_duration_s']:.1f} s"
     )
+    _echo_kind(results)
     _exit_on_outcome(results)
+
+
+def _echo_kind(results: dict[str, Any]) -> None:
+    """Say plainly when a run was a simulation (its number is of the SIM- series)."""
+    from aatest.engine.simulation import SIMULATION_TITLE, is_simulation, simulated_parts
+
+    if is_simulation(results):
+        parts = ", ".join(simulated_parts(results.get("metadata") or {})) or "stated"
+        number = results.get("certificate_number") or "no number"
+        typer.echo(f"simulation ({parts}): {SIMULATION_TITLE}, {number}")
 
 
 def _exit_on_outcome(results: dict[str, Any]) -> None:
@@ -364,10 +380,12 @@ def verify(
     untrusted or wrong key."""
     from aatest.engine.run import signing
     from aatest.records.attest import signer_lines, trusted_keys
-    from aatest.records.commands import verify_against_record
+    from aatest.records.commands import simulation_note, verify_against_record
 
     result = signing.verify_bundle(report_file, trusted_keys(lab, public_key))
     record_problems, note = verify_against_record(report_file, records)
+    if (simulated := simulation_note(report_file)) is not None:
+        typer.echo(f"{report_file}: {simulated}")
     if result.ok and not record_problems:
         when = f", signed {result.signed_utc:%Y-%m-%d %H:%M} UTC" if result.signed_utc else ""
         typer.echo(f"{report_file}: signature valid ({result.format}{when}); {note}")
@@ -408,6 +426,11 @@ def plugins() -> None:
                 typer.echo(f"  {ep.name:24s} BROKEN: {exc}")
 
 
+_SIMULATIONS = typer.Option(
+    False, "--include-simulations",
+    help="Also list simulations (runs on a simulated rig; never calibrations)")
+
+
 @app.command()
 @guarded
 def history(
@@ -416,12 +439,14 @@ def history(
     as_json: bool = typer.Option(False, "--json", help="Print the history as JSON"),
     html: Path | None = typer.Option(None, "--html", help="Write trend plots to this HTML file"),
     lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
+    include_simulations: bool = _SIMULATIONS,
 ) -> None:
     """A unit's calibrations: dates, certificates, key results ± U, verdicts, drift, next due."""
     from aatest.records import commands
     from aatest.records.lab import load_lab
 
-    typer.echo(commands.history(serial, records, load_lab(lab), as_json, html))
+    typer.echo(commands.history(serial, records, load_lab(lab), as_json, html,
+                                include_simulations))
 
 
 _SERIAL = typer.Option(None, "--serial")
@@ -440,12 +465,13 @@ def records_list(
     serial: str | None = _SERIAL, model: str | None = _MODEL,
     procedure: str | None = _PROCEDURE, verdict: str | None = _VERDICT,
     since: str | None = _SINCE, until: str | None = _UNTIL, superseded: bool = _SUPERSEDED,
-    records: str | None = _RECORDS,
+    records: str | None = _RECORDS, include_simulations: bool = _SIMULATIONS,
 ) -> None:
     """List calibration records matching the filters, oldest first."""
     from aatest.records import commands
 
-    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
+    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded,
+                                   include_simulations)
     typer.echo(commands.list_records(records, where))
 
 
@@ -482,12 +508,13 @@ def records_export(
     serial: str | None = _SERIAL, model: str | None = _MODEL,
     procedure: str | None = _PROCEDURE, verdict: str | None = _VERDICT,
     since: str | None = _SINCE, until: str | None = _UNTIL, superseded: bool = _SUPERSEDED,
-    records: str | None = _RECORDS,
+    records: str | None = _RECORDS, include_simulations: bool = _SIMULATIONS,
 ) -> None:
     """Export matching records to CSV (one row per record, quantities as columns)."""
     from aatest.records import commands
 
-    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
+    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded,
+                                   include_simulations)
     typer.echo(f"exported {commands.export_records(records, where, csv)} records to {csv}")
 
 

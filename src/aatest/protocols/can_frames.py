@@ -10,7 +10,8 @@ Identifiers (11-bit, ``n`` = logger node id 1..15):
   trigger), ``u8 n_channels``, ``i64 time_ns`` (logger clock, ns), ``i16 temperature``
   (0.01 °C), ``u16`` reserved.
 * ``0x700 + n`` STATUS from the logger, classic 8 bytes: ``u8 state`` (0 idle, 1 logging,
-  2 end of record), ``u8`` error flags, ``u16`` reserved, ``u32`` sample frames sent in the
+  2 end of record), ``u8`` error flags, ``u8`` identity flags (bit 0: a simulated logger,
+  e.g. ``aatest sim-server``), ``u8`` reserved, ``u32`` sample frames sent in the
   record (so a lost tail is detected too).
 
 Decoding is vectorised: payloads are joined and read as one numpy structured array. A gap in
@@ -44,8 +45,10 @@ CAN_ERR_BUSOFF = 0x040
 
 SAMPLE_HEADER = np.dtype([("seq", "<u2"), ("flags", "u1"), ("n_channels", "u1"),
                           ("time_ns", "<i8"), ("temperature_cc", "<i2"), ("reserved", "<u2")])
-STATUS_FORMAT = np.dtype([("state", "u1"), ("errors", "u1"), ("reserved", "<u2"),
-                          ("frames_sent", "<u4")])
+STATUS_FORMAT = np.dtype([("state", "u1"), ("errors", "u1"), ("identity", "u1"),
+                          ("reserved", "u1"), ("frames_sent", "<u4")])
+#: STATUS identity bit: a simulator answers, no physical logger (a run on it is a simulation)
+IDENTITY_SIMULATED = 0x01
 
 
 class Opcode(enum.IntEnum):
@@ -189,10 +192,18 @@ def command_payload(opcode: Opcode) -> bytes:
     return bytes([int(opcode)]) + bytes(7)
 
 
-def status_payload(state: LoggerState, frames_sent: int, errors: int = 0) -> bytes:
+def status_payload(state: LoggerState, frames_sent: int, errors: int = 0,
+                   simulated: bool = False) -> bytes:
     record = np.zeros(1, dtype=STATUS_FORMAT)
     record["state"], record["errors"], record["frames_sent"] = int(state), errors, frames_sent
+    record["identity"] = IDENTITY_SIMULATED if simulated else 0
     return record.tobytes()
+
+
+def status_simulated(payload: bytes | bytearray) -> bool:
+    """Whether the logger sending this STATUS frame declares itself a simulator."""
+    record = np.frombuffer(bytes(payload[:8]), dtype=STATUS_FORMAT)[0]
+    return bool(int(record["identity"]) & IDENTITY_SIMULATED)
 
 
 def parse_status(payload: bytes | bytearray) -> tuple[LoggerState, int, int]:

@@ -76,6 +76,7 @@ calibrations = Table(
     Column("results", JSON, nullable=False),
     Column("bundle", Text, nullable=False),
     Column("key_fingerprint", String(64)),
+    Column("kind", String(16), nullable=False, server_default="calibration"),  # | simulation
     Column("previous_hash", String(64)),
     Column("row_hash", String(64)),
 )

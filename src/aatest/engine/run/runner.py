@@ -37,6 +37,7 @@ from aatest.engine.run.progress import StepProgress
 from aatest.engine.run.rig import Rig, running
 from aatest.engine.run.run_state import RunState
 from aatest.engine.run.writes import BackgroundWrites
+from aatest.engine.simulation import SIMULATED_PARTS_KEY
 from aatest.engine.steps import Plan, PlannedStep
 
 DEFAULT_SOAK_S = 900.0
@@ -196,6 +197,22 @@ def _closing(writes: BackgroundWrites) -> Iterator[None]:
     writes.close()
 
 
+def declare_simulation(plan: Plan, rig: Rig, recorder: Any) -> list[str]:
+    """Record which parts of the started rig are simulated (``metadata.simulated_parts``,
+    joined with those of earlier sessions of a resumed run: a run partly recorded on a
+    simulator stays a simulation) and refuse, before any motion, to calibrate an unnamed unit
+    on a real rig (InputError, exit 2). Returns the simulated parts."""
+    stored = recorder.run_metadata.get(SIMULATED_PARTS_KEY) or []
+    parts = sorted({*stored, *rig.simulated_parts()})
+    recorder.amend_run_metadata({SIMULATED_PARTS_KEY: parts})
+    if not parts and not plan.sensor.named:
+        raise InputError(
+            f"procedure {plan.procedure!r}: no unit serial for a calibration on a real rig; "
+            "name the unit with `aatest run --serial SN` (or AATEST_SERIAL) or in the "
+            "procedure's sensor.serial")
+    return parts
+
+
 def run_plan(
     plan: Plan,
     rig: Rig,
@@ -218,6 +235,7 @@ def run_plan(
     try:
         with running(rig), StepProgress(plan, done, enabled=show_progress) as progress, \
                 threadpool_limits(limits=1, user_api="blas"), _closing(writes):
+            declare_simulation(plan, rig, recorder)  # started, nothing moved yet
             events.observer.run_started(plan, frozenset(done))
             for step in plan.steps:
                 if step.id in done:

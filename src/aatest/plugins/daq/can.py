@@ -46,6 +46,8 @@ class _Collector(can.Listener):
         self.bus_errors: list[str] = []
         self.last_rx = time.monotonic()
         self.active = False
+        #: the identity bit of the last STATUS frame: a simulated logger answers
+        self.simulated = False
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.is_error_frame:
@@ -57,6 +59,7 @@ class _Collector(can.Listener):
             self.last_rx = time.monotonic()
         elif msg.arbitration_id == self.status_id:
             self.last_rx = time.monotonic()
+            self.simulated = cf.status_simulated(msg.data)
             self.status.put(cf.parse_status(msg.data))
 
     def on_error(self, exc: Exception) -> None:
@@ -97,18 +100,23 @@ class CanDaq:
         self.gaps: list[cf.Gap] = []
         self._where = f"CAN logger node {self.config.node_id} on {self.config.interface} " \
                       f"{self.config.channel}"
+        #: whether a simulated logger answers (its STATUS identity bit), known after start();
+        #: a run with any simulated part is a simulation, never a calibration
+        self.simulated = False
 
     def channels(self) -> Sequence[str]:
         return [*self._channels, *DAQ_AUX_CHANNELS]
 
     @rig_boundary
     def start(self) -> None:
-        """Open the bus and check that the logger answers a PING."""
+        """Open the bus, check that the logger answers a PING and read from the answer whether
+        it is a simulator."""
         cfg = self.config
         self._bus = open_bus(cfg.interface, cfg.channel, cfg.fd, cfg.bitrate)
         self._notifier = can.Notifier(self._bus, [self._rx], timeout=0.05)
         self._command(cf.Opcode.PING)
         self._expect(cf.LoggerState.IDLE, "answer to PING")
+        self.simulated = self._rx.simulated
 
     def _command(self, opcode: cf.Opcode) -> None:
         if self._bus is None:

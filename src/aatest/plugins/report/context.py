@@ -15,6 +15,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from aatest.engine.simulation import SIMULATION_TITLE, is_simulation
 from aatest.engine.uncertainty import access as ex
 from aatest.engine.uncertainty.budgets import channels
 from aatest.plugins.report import figures as fig
@@ -119,8 +120,10 @@ def _rule(results: Mapping[str, Any]) -> str:
 def _header(results: Mapping[str, Any], run_dir: Path, kind: str, title: str) -> dict[str, Any]:
     """What every report shows at the top and bottom: title, signing key, traceability."""
     signature = results.get("signature")
+    simulation = kind != "diagnosis" and is_simulation(results)  # never a calibration
     return {
-        "report": {"kind": kind, "title": title,
+        "report": {"kind": kind, "title": SIMULATION_TITLE if simulation else title,
+                   "simulation": simulation,
                    "generated_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")},
         "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
         "certificate_number": results.get("certificate_number"),  # issued by aatest.records
