@@ -41,7 +41,7 @@ TEMPLATE = "calibration-certificate"
 STATIONS, PER_STATION = 8, 10
 
 
-class StageFailed(RuntimeError):
+class InjectedError(RuntimeError):
     """The failure a test injects into one stage."""
 
 
@@ -82,7 +82,7 @@ def _assert_gapless(url: str, expected: int) -> None:
 
 
 def _fail(monkeypatch: pytest.MonkeyPatch, target: Any, name: str,
-          error: type[Exception] = StageFailed) -> None:
+          error: type[Exception] = InjectedError) -> None:
     def failing(*_args: Any, **_kwargs: Any) -> None:
         raise error(f"injected failure in {name}")
 
@@ -102,14 +102,14 @@ def test_a_failure_at_any_stage_leaves_no_trace(
         monkeypatch: pytest.MonkeyPatch) -> None:
     run_dir, results, key = recorded
     first = _register_complete(store_url, results, tmp_path / "ok-1", key)
-    with pytest.raises(StageFailed), monkeypatch.context() as patch:  # analysis: no number yet
+    with pytest.raises(InjectedError), monkeypatch.context() as patch:  # analysis: no number yet
         _fail(patch, session, "run_analyses")
         with registering(store_url, LAB, "analyze"):
             session.analyse_and_report(run_dir, tmp_path / "analysis", key_path=key)
     for stage, inject in STAGES.items():
         out = tmp_path / stage
         out.mkdir()
-        with pytest.raises((StageFailed, PluginError)), monkeypatch.context() as patch:
+        with pytest.raises((InjectedError, PluginError)), monkeypatch.context() as patch:
             inject(patch)
             with registering(store_url, LAB, "run"):
                 session.render_and_sign(copy.deepcopy(results), out, TEMPLATE, None, key,
@@ -151,7 +151,7 @@ def test_kill_between_signing_and_registration(
     out.mkdir()
     proc = subprocess.run([sys.executable, "-c", textwrap.dedent(KILLED), store_url,
                            str(run_dir), str(out), str(key)], capture_output=True, text=True,
-                          timeout=300, env={**os.environ, "AATEST_WORKERS": "1"})
+                          timeout=300, check=False, env={**os.environ, "AATEST_WORKERS": "1"})
     assert proc.returncode == -9, proc.stderr
     assert signing.signature_path(out / "report.html").is_file()  # the bundle was complete
     stated = json.loads((out / "results.json").read_text())["certificate_number"]

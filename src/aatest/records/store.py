@@ -184,7 +184,7 @@ def append_record(connection: Connection, registration: Registration) -> int:
     return int(record_id)
 
 
-def _same(connection: Connection, latest: Row[Any], registration: Registration) -> bool:
+def _same(connection: Connection, latest: Any, registration: Registration) -> bool:
     """Whether record ``latest`` is ``registration`` already: same number, command, results
     and bundle file hashes (what a repeated registration of an unchanged bundle brings)."""
     return bool(latest.certificate_number == registration.certificate_number
