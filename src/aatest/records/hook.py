@@ -68,6 +68,8 @@ class Registrar:
     error: RecordsUnavailable | None = None
     _store: RecordStore | None = field(default=None, repr=False)
     _issue: Issue | None = field(default=None, repr=False)
+    #: results-metadata keys from the checks before the run (references used, non-conformities)
+    preflight: dict[str, Any] = field(default_factory=dict)
 
     def store(self) -> RecordStore:
         if self._store is None:
@@ -117,6 +119,7 @@ class Registrar:
             results.setdefault("metadata", {})
         if isinstance(metadata, MutableMapping):
             metadata[LAB_METADATA_KEY] = self.lab.certificate_identity()
+            metadata.update(self.preflight)
 
     def after_signing(self, results: Results, report: Path) -> None:
         """Bundle observer: register the finished bundle."""

@@ -11,6 +11,8 @@ the record it replaces. Every time is UTC.
                           onto a chain over all records (:mod:`aatest.records.chain`)
 - ``signed_files``        SHA-256 of every file of the bundle, per record
 - ``quantities``          the key results with their expanded uncertainty, per record
+- ``reference_standards`` the lab's reference instruments with their calibration and due date
+                          (retiring one sets ``retired_utc``; nothing else is ever updated)
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 from sqlalchemy import (
     JSON,
     Column,
+    Date,
     DateTime,
     Float,
     ForeignKey,
@@ -95,4 +98,19 @@ quantities = Table(
     Column("value", Float, nullable=False),
     Column("expanded_uncertainty", Float),
     Column("unit", String(32), nullable=False),
+)
+
+reference_standards = Table(
+    "reference_standards", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("identifier", String(64), nullable=False, unique=True),
+    Column("kind", String(32), nullable=False),
+    Column("certificate_number", String(64), nullable=False),
+    Column("issuing_lab", String(128), nullable=False),
+    Column("calibrated_on", Date, nullable=False),
+    Column("due_on", Date, nullable=False),
+    Column("accuracy", Text, nullable=False),
+    Column("added_utc", DateTime(timezone=True), nullable=False),
+    Column("retired_utc", DateTime(timezone=True)),
+    Column("retired_reason", Text),
 )

@@ -127,6 +127,9 @@ def _header(results: Mapping[str, Any], run_dir: Path, kind: str, title: str) ->
                    "generated_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")},
         "fingerprint": signature.get("fingerprint") if isinstance(signature, Mapping) else None,
         "certificate_number": results.get("certificate_number"),  # issued by aatest.records
+        # the reference standards used and the non-conformities accepted (aatest.records)
+        "reference_standards": (results.get("metadata") or {}).get("reference_standards") or [],
+        "nonconformities": (results.get("metadata") or {}).get("nonconformities") or [],
         "trace": traceability(results, run_dir),
     }
 
