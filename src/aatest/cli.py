@@ -544,6 +544,33 @@ def records_export(
     typer.echo(f"exported {commands.export_records(records, where, csv)} records to {csv}")
 
 
+@records_app.command("supersede")
+@guarded
+def records_supersede(
+    number: str = typer.Argument(..., help="Certificate number"),
+    reason: str = typer.Option(..., "--reason", help="Why (printed by verify and in the audit)"),
+    by: str | None = typer.Option(None, "--by", help="The certificate that replaces it "
+                                  "(without: withdrawn)"),
+    records: str | None = _RECORDS,
+) -> None:
+    """Mark a certificate superseded by a newer one, or withdrawn; it is never changed."""
+    from aatest.records import commands
+
+    typer.echo(commands.supersede(records, number, reason, by))
+
+
+@records_app.command("audit")
+@guarded
+def records_audit(records: str | None = _RECORDS) -> None:
+    """Every change to the records store (who, when, what, why); exit 1 if its chain breaks."""
+    from aatest.records import commands
+
+    intact, text = commands.audit_trail(records)
+    typer.echo(text)
+    if not intact:
+        raise typer.Exit(EXIT_FINDING)
+
+
 @references_app.command("add")
 @guarded
 def references_add(

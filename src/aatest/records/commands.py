@@ -7,6 +7,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from aatest.records import audit
 from aatest.records.errors import RecordsError
 from aatest.records.export import write_csv
 from aatest.records.extract import datasheet_limits
@@ -128,7 +129,32 @@ def verify_against_record(report: Path, records_url: str | None) -> tuple[list[s
             return unregistered_reasons(report, store), f"no record of this bundle in {store.name}"
         label = record.certificate_number or f"record {record.id}"
         problems = record_reasons(report, record) + store.chain_problems(record.id)
-        return problems, f"matches its record {label} in {store.name}"
+        note = f"matches its record {label} in {store.name}"
+        if record.certificate_number:
+            with store.engine.connect() as connection:
+                status = audit.status_of(connection, record.certificate_number)
+                replaced = audit.supersedes(connection, record.certificate_number)
+            if status is not None:  # no longer a valid certificate
+                problems.append(f"certificate {record.certificate_number} was {status}")
+            if replaced:
+                note += f"; it supersedes {', '.join(replaced)}"
+        return problems, note
+
+
+def supersede(records_url: str | None, number: str, reason: str, by: str | None) -> str:
+    """``aatest records supersede``: mark ``number`` superseded (by ``by``) or withdrawn."""
+    with open_for_reading(records_url) as store:
+        return audit.supersede(store, number, reason, by)
+
+
+def audit_trail(records_url: str | None) -> tuple[bool, str]:
+    """``aatest records audit``: every change to the store; whether its chain holds."""
+    with open_for_reading(records_url) as store:
+        found = audit.report(store)
+    text = "\n".join(found.lines) or "no changes recorded"
+    if found.broken is not None:
+        return False, f"{text}\naudit trail broken at {found.broken}"
+    return True, f"{text}\naudit trail intact: {len(found.lines)} change(s)"
 
 
 def check_records(records_url: str | None) -> tuple[bool, str]:

@@ -21,6 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from sqlalchemy import select
 
 from aatest.engine.errors import InputError
+from aatest.records import audit
 from aatest.records.errors import RecordsError
 from aatest.records.store import RecordStore
 from aatest.records.tables import reference_standards
@@ -72,6 +73,8 @@ def add(store: RecordStore, reference: ReferenceStandard) -> None:
         connection.execute(reference_standards.insert().values(
             **reference.model_dump(exclude={"retired_utc", "retired_reason"}),
             added_utc=datetime.now(UTC)))
+        audit.append(connection, "reference-add", reference.identifier, "",
+                     reference.certificate_row())
 
 
 def listing(store: RecordStore, include_retired: bool = False) -> list[ReferenceStandard]:
@@ -94,6 +97,7 @@ def retire(store: RecordStore, identifier: str, reason: str) -> None:
             retired_utc=datetime.now(UTC), retired_reason=reason))
         if done.rowcount != 1:
             raise RecordsError(f"no reference {identifier!r} in use in {store.name}")
+        audit.append(connection, "reference-retire", identifier, reason)
 
 
 @dataclass

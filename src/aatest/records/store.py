@@ -17,7 +17,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import URL, Connection, Engine, Row
 from sqlalchemy.orm import aliased
 
-from aatest.records import chain, numbering, schema
+from aatest.records import audit, chain, numbering, schema
 from aatest.records.engine import open_engine
 from aatest.records.errors import RecordsError
 from aatest.records.models import CalibrationRecord, QuantityRecord, RecordFilter, Registration
@@ -181,6 +181,10 @@ def append_record(connection: Connection, registration: Registration) -> int:
     ).returning(calibrations.c.id)).scalar_one()
     _insert_children(connection, record_id, registration)
     chain.append(connection, int(record_id))
+    audit.append(connection, "register", registration.certificate_number or f"record {record_id}",
+                 f"{registration.command} ({registration.kind})",
+                 {"record_id": int(record_id), "bundle": registration.bundle,
+                  "supersedes_id": None if latest is None else int(latest.id)})
     return int(record_id)
 
 

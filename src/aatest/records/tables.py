@@ -13,6 +13,8 @@ the record it replaces. Every time is UTC.
 - ``quantities``          the key results with their expanded uncertainty, per record
 - ``reference_standards`` the lab's reference instruments with their calibration and due date
                           (retiring one sets ``retired_utc``; nothing else is ever updated)
+- ``audit_log``           append-only: who changed what in the store, when and why, hash-chained
+- ``certificate_status``  certificates superseded or withdrawn (one row each, never changed)
 """
 
 from __future__ import annotations
@@ -113,4 +115,27 @@ reference_standards = Table(
     Column("added_utc", DateTime(timezone=True), nullable=False),
     Column("retired_utc", DateTime(timezone=True)),
     Column("retired_reason", Text),
+)
+
+audit_log = Table(
+    "audit_log", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("at_utc", DateTime(timezone=True), nullable=False),
+    Column("who", String(128), nullable=False),
+    Column("action", String(32), nullable=False),
+    Column("subject", String(64), nullable=False),
+    Column("reason", Text, nullable=False),
+    Column("detail", JSON, nullable=False),
+    Column("previous_hash", String(64), nullable=False),
+    Column("row_hash", String(64), nullable=False),
+)
+
+certificate_status = Table(
+    "certificate_status", metadata,
+    Column("number", String(40), ForeignKey("certificates.number"), primary_key=True),
+    Column("status", String(16), nullable=False),  # superseded | withdrawn
+    Column("replaced_by", String(40), ForeignKey("certificates.number")),
+    Column("reason", Text, nullable=False),
+    Column("who", String(128), nullable=False),
+    Column("at_utc", DateTime(timezone=True), nullable=False),
 )
