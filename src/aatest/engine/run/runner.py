@@ -38,7 +38,7 @@ from aatest.engine.run.rig import Rig, running
 from aatest.engine.run.run_state import RunState
 from aatest.engine.run.writes import BackgroundWrites
 from aatest.engine.simulation import SIMULATED_PARTS_KEY
-from aatest.engine.steps import Plan, PlannedStep
+from aatest.engine.steps import UNNAMED_SERIAL, Plan, PlannedStep
 
 DEFAULT_SOAK_S = 900.0
 #: _ONE_BLAS_THREAD: the step loop runs BLAS single-threaded. Its products are thin (the twin's
@@ -202,10 +202,14 @@ def declare_simulation(plan: Plan, rig: Rig, recorder: Any) -> list[str]:
     joined with those of earlier sessions of a resumed run: a run partly recorded on a
     simulator stays a simulation) and refuse, before any motion, to calibrate an unnamed unit
     on a real rig (InputError, exit 2). Returns the simulated parts."""
-    stored = recorder.run_metadata.get(SIMULATED_PARTS_KEY) or []
-    parts = sorted({*stored, *rig.simulated_parts()})
+    meta = recorder.run_metadata
+    parts = sorted({*(meta.get(SIMULATED_PARTS_KEY) or []), *rig.simulated_parts()})
     recorder.amend_run_metadata({SIMULATED_PARTS_KEY: parts})
-    if not parts and not plan.sensor.named:
+    recorded = str((meta.get("sensor") or {}).get("serial") or UNNAMED_SERIAL)  # a resumed run
+    if UNNAMED_SERIAL not in (recorded, plan.sensor.serial) and recorded != plan.sensor.serial:
+        raise InputError(f"this run records unit {recorded!r}; it cannot be resumed as "
+                         f"{plan.sensor.serial!r}")
+    if not parts and UNNAMED_SERIAL == recorded == plan.sensor.serial:
         raise InputError(
             f"procedure {plan.procedure!r}: no unit serial for a calibration on a real rig; "
             "name the unit with `aatest run --serial SN` (or AATEST_SERIAL) or in the "
