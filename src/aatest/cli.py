@@ -38,6 +38,9 @@ sim_server_app = typer.Typer(no_args_is_help=True,
 app.add_typer(sim_server_app, name="sim-server")
 records_app = typer.Typer(no_args_is_help=True, help="Query the calibration records.")
 app.add_typer(records_app, name="records")
+references_app = typer.Typer(no_args_is_help=True,
+                             help="The lab's reference standards and their due dates.")
+app.add_typer(references_app, name="references")
 
 _state = {"debug": False}
 F = TypeVar("F", bound=Callable[..., Any])
@@ -193,6 +196,13 @@ def run(
         help="ask: a person confirms each operator prompt (refused without a terminal); "
         "auto: confirm them unattended (logged on the certificate)",
     ),
+    serial: str | None = typer.Option(
+        None, "--serial", envvar="AATEST_SERIAL",
+        help="Serial of the unit calibrated (else the procedure's sensor.serial)"),
+    model: str | None = typer.Option(None, "--model", help="Sensor model (else the procedure's)"),
+    allow_overdue: str | None = typer.Option(
+        None, "--allow-overdue", help="Run although a reference standard is overdue; the "
+        "reason is printed on the certificate as a non-conformity"),
 ) -> None:
     """Run a procedure: record both loggers, analyse, report (and sign), register the record."""
     from aatest.engine.errors import InputError
@@ -200,17 +210,54 @@ def run(
 
     if confirm_prompts not in ("ask", "auto"):
         raise InputError(f"--confirm-prompts: expected 'ask' or 'auto', got {confirm_prompts!r}")
-    with _registering(records, lab, "run"):
+    with _registering(records, lab, "run") as registrar:
+        registrar.preflight = _check_references(registrar, rig, allow_overdue)
         run_dir, results = session.run(
             procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator,
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
+            unit=session.UnitName(serial or None, model or None),
         )
     typer.echo(
         f"run complete: {run_dir} — {len(results.steps)} steps, "
         f"lab {results.lab_duration_s:.1f} s, "
         f"wall {results.wall_duration_s:.1f} s"
     )
+    _echo_kind(results)
     _exit_on_outcome(results)
+
+
+def _check_references(registrar: Any, rig: Path | None,
+                      allow_overdue: str | None) -> dict[str, Any]:
+    """The rig file's reference standards checked against the register, before anything
+    moves (exit 2 on an unknown, retired or — without ``--allow-overdue`` — overdue one)."""
+    from datetime import UTC, datetime
+
+    from aatest.engine.procedure.loader import load_rig
+    from aatest.records import references
+
+    names = load_rig(rig).references if rig is not None else ()
+    if not names:
+        return {}
+    preflight = references.check(registrar.store(), names, datetime.now(UTC).date(),
+                                 allow_overdue)
+    for text in preflight.nonconformities:
+        typer.echo(f"non-conformity: {text}", err=True)
+    return preflight.metadata()
+
+
+def _echo_kind(results: RunResults) -> None:
+    """Say plainly when a run was a simulation (its number is of the SIM- series)."""
+    from aatest.engine.simulation import (
+        SIMULATION_TITLE,
+        is_simulation,
+        metadata_of,
+        simulated_parts,
+    )
+
+    if is_simulation(results):
+        parts = ", ".join(simulated_parts(metadata_of(results))) or "stated"
+        number = results.certificate_number or "no number"
+        typer.echo(f"simulation ({parts}): {SIMULATION_TITLE}, {number}")
 
 
 def _exit_on_outcome(results: RunResults) -> None:
@@ -382,10 +429,12 @@ def verify(
     untrusted or wrong key."""
     from aatest.engine.run import signing
     from aatest.records.attest import signer_lines, trusted_keys
-    from aatest.records.commands import verify_against_record
+    from aatest.records.commands import simulation_note, verify_against_record
 
     result = signing.verify_bundle(report_file, trusted_keys(lab, public_key))
     record_problems, note = verify_against_record(report_file, records)
+    if (simulated := simulation_note(report_file)) is not None:
+        typer.echo(f"{report_file}: {simulated}")
     if result.ok and not record_problems:
         when = f", signed {result.signed_utc:%Y-%m-%d %H:%M} UTC" if result.signed_utc else ""
         typer.echo(f"{report_file}: signature valid ({result.format}{when}); {note}")
@@ -426,6 +475,11 @@ def plugins() -> None:
                 typer.echo(f"  {ep.name:24s} BROKEN: {exc}")
 
 
+_SIMULATIONS = typer.Option(
+    False, "--include-simulations",
+    help="Also list simulations (runs on a simulated rig; never calibrations)")
+
+
 @app.command()
 @guarded
 def history(
@@ -434,12 +488,14 @@ def history(
     as_json: bool = typer.Option(False, "--json", help="Print the history as JSON"),
     html: Path | None = typer.Option(None, "--html", help="Write trend plots to this HTML file"),
     lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
+    include_simulations: bool = _SIMULATIONS,
 ) -> None:
     """A unit's calibrations: dates, certificates, key results ± U, verdicts, drift, next due."""
     from aatest.records import commands
     from aatest.records.lab import load_lab
 
-    typer.echo(commands.history(serial, records, load_lab(lab), as_json, html))
+    typer.echo(commands.history(serial, records, load_lab(lab), as_json, html,
+                                include_simulations))
 
 
 _SERIAL = typer.Option(None, "--serial")
@@ -458,12 +514,13 @@ def records_list(
     serial: str | None = _SERIAL, model: str | None = _MODEL,
     procedure: str | None = _PROCEDURE, verdict: str | None = _VERDICT,
     since: str | None = _SINCE, until: str | None = _UNTIL, superseded: bool = _SUPERSEDED,
-    records: str | None = _RECORDS,
+    records: str | None = _RECORDS, include_simulations: bool = _SIMULATIONS,
 ) -> None:
     """List calibration records matching the filters, oldest first."""
     from aatest.records import commands
 
-    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
+    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded,
+                                   include_simulations)
     typer.echo(commands.list_records(records, where))
 
 
@@ -500,13 +557,114 @@ def records_export(
     serial: str | None = _SERIAL, model: str | None = _MODEL,
     procedure: str | None = _PROCEDURE, verdict: str | None = _VERDICT,
     since: str | None = _SINCE, until: str | None = _UNTIL, superseded: bool = _SUPERSEDED,
-    records: str | None = _RECORDS,
+    records: str | None = _RECORDS, include_simulations: bool = _SIMULATIONS,
 ) -> None:
     """Export matching records to CSV (one row per record, quantities as columns)."""
     from aatest.records import commands
 
-    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded)
+    where = commands.record_filter(serial, model, procedure, verdict, since, until, superseded,
+                                   include_simulations)
     typer.echo(f"exported {commands.export_records(records, where, csv)} records to {csv}")
+
+
+@records_app.command("supersede")
+@guarded
+def records_supersede(
+    number: str = typer.Argument(..., help="Certificate number"),
+    reason: str = typer.Option(..., "--reason", help="Why (printed by verify and in the audit)"),
+    by: str | None = typer.Option(None, "--by", help="The certificate that replaces it "
+                                  "(without: withdrawn)"),
+    records: str | None = _RECORDS,
+) -> None:
+    """Mark a certificate superseded by a newer one, or withdrawn; it is never changed."""
+    from aatest.records import commands
+
+    typer.echo(commands.supersede(records, number, reason, by))
+
+
+@records_app.command("audit")
+@guarded
+def records_audit(records: str | None = _RECORDS) -> None:
+    """Every change to the records store (who, when, what, why); exit 1 if its chain breaks."""
+    from aatest.records import commands
+
+    intact, text = commands.audit_trail(records)
+    typer.echo(text)
+    if not intact:
+        raise typer.Exit(EXIT_FINDING)
+
+
+@references_app.command("add")
+@guarded
+def references_add(
+    identifier: str = typer.Argument(..., help="Identifier the rig file names, e.g. ENC-1"),
+    kind: str = typer.Option(..., "--kind", help="encoder | rate-reference | data-logger | "
+                             "thermometer | chamber"),
+    certificate: str = typer.Option(..., "--certificate", help="Its calibration certificate"),
+    issuing_lab: str = typer.Option(..., "--issuing-lab", help="Lab that calibrated it"),
+    calibrated: str = typer.Option(..., "--calibrated", help="Calibration date (ISO)"),
+    due: str = typer.Option(..., "--due", help="Due date (ISO)"),
+    accuracy: str = typer.Option(..., "--accuracy", help="Stated accuracy, e.g. '±1 arcsec'"),
+    records: str | None = _RECORDS,
+) -> None:
+    """Register a reference standard with its calibration and due date."""
+    from pydantic import ValidationError
+
+    from aatest.engine.errors import InputError
+    from aatest.records import references
+    from aatest.records.store import RecordStore
+
+    try:
+        reference = references.ReferenceStandard(
+            identifier=identifier, kind=kind, certificate_number=certificate,
+            issuing_lab=issuing_lab, calibrated_on=calibrated, due_on=due,
+            accuracy=accuracy)
+    except ValidationError as exc:
+        problems = "; ".join(f"{'.'.join(map(str, e['loc'])) or 'reference'}: {e['msg']}"
+                             for e in exc.errors())
+        raise InputError(f"references add {identifier}: {problems}") from exc
+    with RecordStore.open(records) as store:
+        references.add(store, reference)
+    typer.echo(f"registered reference {identifier} ({kind}), due {reference.due_on}")
+
+
+@references_app.command("list")
+@guarded
+def references_list(
+    include_retired: bool = typer.Option(False, "--retired", help="Include retired ones"),
+    records: str | None = _RECORDS,
+) -> None:
+    """The registered reference standards, with OVERDUE marked."""
+    from datetime import UTC, datetime
+
+    from aatest.records import references
+    from aatest.records.commands import open_for_reading
+
+    today = datetime.now(UTC).date()
+    with open_for_reading(records) as store:
+        found = references.listing(store, include_retired)
+    for r in found:
+        state = "retired" if r.retired_utc else "OVERDUE" if r.overdue(today) else "in use"
+        typer.echo(f"{r.identifier:12s} {r.kind:15s} {r.certificate_number:16s} "
+                   f"{r.issuing_lab:20s} {r.calibrated_on} due {r.due_on}  {r.accuracy}  {state}")
+    if not found:
+        typer.echo("no reference standards registered")
+
+
+@references_app.command("retire")
+@guarded
+def references_retire(
+    identifier: str = typer.Argument(...),
+    reason: str = typer.Option(..., "--reason", help="Why it is no longer used"),
+    records: str | None = _RECORDS,
+) -> None:
+    """Take a reference standard out of use (it stays in the register)."""
+    from aatest.records import references
+    from aatest.records.commands import open_for_reading
+
+    with open_for_reading(records) as store:
+        references.retire(store, identifier, reason)
+    typer.echo(f"retired reference {identifier}: {reason}")
 
 
 @app.command()

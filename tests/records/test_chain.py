@@ -123,7 +123,7 @@ def test_verify_catches_a_sql_edit_of_its_record(store_url: str, tmp_path: Path,
     _sql(store_url, edits[what])
     result = RUNNER.invoke(app, verify)
     assert result.exit_code == 1
-    assert "records chain broken at record 1 (LAB-" in result.output
+    assert "records chain broken at record 1 (SIM-" in result.output
     assert "its content differs from what was hashed" in result.output
     assert _check(store_url)[0] == 1
 

@@ -44,12 +44,15 @@ def two_runs(store_url: str, tmp_path: Path) -> tuple[str, list[Path]]:
 def test_two_runs_appear_in_history_with_distinct_certificates(
         two_runs: tuple[str, list[Path]]) -> None:
     url, runs = two_runs
-    code, stdout, stderr = aatest("history", "A1234", "--records", url, "--json")
+    code, _, stderr = aatest("history", "A1234", "--records", url, "--json")
+    assert code == 2 and "2 simulation(s), never calibrations" in stderr  # twin runs
+    code, stdout, stderr = aatest("history", "A1234", "--records", url, "--json",
+                                  "--include-simulations")
     assert code == 0, stderr
     document = json.loads(stdout)
     assert document["serial"] == "A1234"
     numbers = [r["certificate_number"] for r in document["records"]]
-    assert len(set(numbers)) == 2 and all(n.startswith("LAB-") for n in numbers)
+    assert len(set(numbers)) == 2 and all(n.startswith("SIM-") for n in numbers)
     assert [r["bundle"] for r in document["records"]] == [
         str((run / "report.html").resolve()) for run in runs]
     for record, run in zip(document["records"], runs, strict=True):
@@ -59,9 +62,11 @@ def test_two_runs_appear_in_history_with_distinct_certificates(
         value = stated["analysis"]["scale_factor"]["v_sz"]["scale_v_per_dps2"]
         assert record["quantities"]["scale_factor.v_sz"]["value"] == pytest.approx(value, rel=1e-12)
         assert set(record) == {"certificate_number", "procedure", "calibrated_utc",
-                               "overall_verdict", "quantities", "bundle"}
-    code, text, _ = aatest("history", "A1234", "--records", url)
-    assert code == 0 and all(n in text for n in numbers) and "next due:" in text
+                               "overall_verdict", "quantities", "bundle", "kind"}
+        assert record["kind"] == "simulation"
+    code, text, _ = aatest("history", "A1234", "--records", url, "--include-simulations")
+    assert code == 0 and all(n in text for n in numbers) and "(simulation)" in text
+    assert "next due:" not in text  # a simulation calibrates nothing: no due date
 
 
 def test_unknown_serial_is_bad_input(sqlite_url: str, tmp_path: Path) -> None:
@@ -82,9 +87,10 @@ def test_reanalysis_and_resigning_supersede(sqlite_url: str, tmp_path: Path) -> 
     renumbered = json.loads((run / "results.json").read_text())["certificate_number"]
     assert renumbered not in (first, None)
     code, listing, _ = aatest("records", "list", "--serial", "A1234", "--superseded",
-                              "--records", sqlite_url)
+                              "--include-simulations", "--records", sqlite_url)
     assert code == 0 and len(listing.splitlines()) == 4
-    code, current, _ = aatest("records", "list", "--serial", "A1234", "--records", sqlite_url)
+    code, current, _ = aatest("records", "list", "--serial", "A1234", "--records", sqlite_url,
+                              "--include-simulations")
     assert len(current.splitlines()) == 2 and renumbered in current and first not in current
 
 
@@ -98,12 +104,12 @@ def test_verify_reports_a_recording_changed_after_registration(
     report = out / "report.html"
     trust = ("--public-key", tmp_path / "key.pub")
     code, stdout, _ = aatest("verify", report, "--records", sqlite_url, *trust)
-    assert code == 0 and "matches its record LAB-" in stdout
+    assert code == 0 and "matches its record SIM-" in stdout
     with (out / "recording.mcap").open("ab") as handle:
         handle.write(b"\0")
     code, _, stderr = aatest("verify", report, "--records", sqlite_url, *trust)
     assert code == 1
-    assert "recording.mcap changed since it was registered (record LAB-" in stderr
+    assert "recording.mcap changed since it was registered (record SIM-" in stderr
     (out / "recording.mcap").unlink()
     code, _, stderr = aatest("verify", report, "--records", sqlite_url, *trust)
     assert code == 1 and "recording.mcap removed since it was registered" in stderr
@@ -161,7 +167,7 @@ def test_records_show_and_export(sqlite_url: str, tmp_path: Path) -> None:
     assert any("results.json removed" in p for p in shown["bundle_problems"])
     target = tmp_path / "export.csv"
     code, _, stderr = aatest("records", "export", "--csv", target, "--procedure", "scale-factor",
-                             "--records", sqlite_url)
+                             "--records", sqlite_url, "--include-simulations")
     assert code == 0, stderr
     rows = list(csv.DictReader(target.open(encoding="utf-8")))
     assert rows[0]["certificate_number"] == number and len(rows) == 2
@@ -186,8 +192,8 @@ def test_diagnosis_is_registered_but_not_a_calibration(sqlite_url: str, tmp_path
     with registering(sqlite_url, LabProfile(), "diagnose") as registrar:
         record_id = register_diagnosis(registrar, run, None)
     with RecordStore.open(sqlite_url) as store:
-        everything = store.query(RecordFilter(serial="A1234"))
-        history = store.history("A1234")
+        everything = store.query(RecordFilter(serial="A1234", include_simulations=True))
+        history = store.history("A1234", include_simulations=True)
     diagnosis = next(r for r in everything if r.id == record_id)
     assert diagnosis.command == "diagnose" and diagnosis.certificate_number is None
     assert diagnosis.bundle == str((run / "diagnosis.html").resolve())

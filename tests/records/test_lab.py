@@ -10,6 +10,7 @@ from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.engine.errors import InputError
+from aatest.records.hook import registering
 from aatest.records.lab import LabProfile, load_lab
 
 PROCEDURE = Path(__file__).parents[2] / "src" / "aatest" / "procedures" / "scale-factor.yaml"
@@ -42,10 +43,27 @@ def test_run_numbers_certificates_with_the_lab_prefix(tmp_path: Path, sqlite_url
                                       "--records", sqlite_url, "--lab", str(lab)])
     assert result.exit_code == 0, result.output
     number = json.loads((out / "results.json").read_text())["certificate_number"]
-    assert number.startswith("RL-") and number.endswith("-000001")
+    # the twin is simulated: its own series, whatever the lab's prefix
+    assert number.startswith("SIM-") and number.endswith("-000001")
+    registrar_results: dict[str, object] = {"procedure": "imported", "metadata": {}}
+    with registering(sqlite_url, load_lab(lab), "analyze") as registrar:
+        registrar.before_signing(registrar_results)
+        bundle = tmp_path / "imported" / "report.html"
+        bundle.parent.mkdir()
+        bundle.write_text("<html></html>")
+        registrar.after_signing(registrar_results, bundle)
+    number = str(registrar_results["certificate_number"])
+    assert number.startswith("RL-") and number.endswith("-000001")  # a calibration: lab series
     listing = CliRunner().invoke(app, ["records", "list", "--since", "2000-01-01",
                                        "--until", "2000-12-31", "--records", sqlite_url])
     assert listing.exit_code == 0 and listing.stdout.strip() == "no matching records"
     bad = CliRunner().invoke(app, ["records", "list", "--since", "yesterday",
                                    "--records", sqlite_url])
     assert bad.exit_code == 2 and "--since 'yesterday'" in bad.stderr
+
+
+def test_no_lab_profile_takes_the_simulation_series(tmp_path: Path) -> None:
+    lab = tmp_path / "lab.yaml"
+    lab.write_text("name: Sneaky Lab\ncertificate_prefix: SIM\n")
+    with pytest.raises(InputError, match=r"lab\.yaml:2:\d+: certificate_prefix.*simulations"):
+        load_lab(lab)

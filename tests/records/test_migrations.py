@@ -53,7 +53,7 @@ def _write_version_1(url: str) -> None:
 def test_upgrade_from_version_1_keeps_and_backfills_records(store_url: str) -> None:
     _write_version_1(store_url)
     with RecordStore.open(store_url) as store:  # opening migrates to head
-        assert schema.current_revision(store.engine) == schema.head_revision() == "0003"
+        assert schema.current_revision(store.engine) == schema.head_revision() == "0006"
         (record,) = store.history("OLD1")
         next_number = store.issue_certificate("LAB", datetime(2025, 9, 1, tzinfo=UTC))
     assert record.certificate_number == "LAB-2025-000007"
@@ -83,3 +83,26 @@ def test_upgrade_computes_the_chain_of_existing_records(store_url: str) -> None:
         broken = store.check_chain().broken
     assert broken is not None and (broken.record_id, broken.certificate_number) == (
         1, "LAB-2025-000007")
+
+
+def test_upgrade_classifies_old_twin_records_as_simulations(store_url: str) -> None:
+    """Migration 0004: a record of the digital twin registered before `kind` existed becomes a
+    simulation (out of the history), with the chain recomputed and intact."""
+    engine = open_engine(resolve_url(store_url))
+    twin = {**RESULTS_V1, "metadata": {**RESULTS_V1["metadata"],  # type: ignore[dict-item]
+                                       "rig": {"turntable": {"plugin": "sim"},
+                                               "daq": {"plugin": "sim"},
+                                               "chamber": {"plugin": "none"}}}}
+    _write_version_1(store_url)
+    with engine.begin() as connection:
+        connection.execute(text("UPDATE calibrations SET results = :r"),
+                           {"r": json.dumps(twin)})
+    schema.upgrade(engine, "0003")
+    with engine.connect() as connection:
+        assert connection.execute(text("SELECT row_hash FROM calibrations")).scalar()
+    engine.dispose()
+    with RecordStore.open(store_url) as store:
+        assert store.history("OLD1") == []
+        (record,) = store.history("OLD1", include_simulations=True)
+        assert record.kind == "simulation"
+        assert store.check_chain().broken is None

@@ -66,11 +66,20 @@ class PlannedStep(_Frozen):
         return self.kind != "chamber"
 
 
+#: the serial of a unit nobody named (procedure without ``sensor.serial``, no ``--serial``)
+UNNAMED_SERIAL = "unknown"
+
+
 class SensorRef(_Frozen):
     """A device under test, resolved through the ``aatest.sensors`` plugins."""
 
     model: str
-    serial: str = "unknown"
+    serial: str = UNNAMED_SERIAL
+
+    @property
+    def named(self) -> bool:
+        """Whether the unit's serial was given (a calibration of a real unit needs it)."""
+        return self.serial != UNNAMED_SERIAL
 
 
 class Plan(_Frozen):

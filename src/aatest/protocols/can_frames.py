@@ -10,7 +10,8 @@ Identifiers (11-bit, ``n`` = logger node id 1..15):
   trigger), ``u8 n_channels``, ``i64 time_ns`` (logger clock, ns), ``i16 temperature``
   (0.01 °C), ``u16 session``.
 * ``0x700 + n`` STATUS from the logger, classic 8 bytes: ``u8 state`` (0 idle, 1 logging,
-  2 end of record), ``u8`` error flags, ``u16 session``, ``u32`` sample frames sent in the
+  2 end of record; bit 7 set by a simulated logger, e.g. ``aatest sim-server``), ``u8`` error
+  flags, ``u16 session``, ``u32`` sample frames sent in the
   record (so a lost tail is detected too).
 
 Layout version 2 put the session tag into bytes that version 1 reserved as zero: a host picks a
@@ -59,6 +60,10 @@ SESSION_MODULO = 1 << 16
 #: bytes of the session tag in a sample frame (the header's last u16) and in a command
 SAMPLE_SESSION_BYTES = slice(14, 16)
 COMMAND_SESSION_BYTES = slice(1, 3)
+#: STATUS state byte: bit 7 says a simulator answers, no physical logger (a run on it is a
+#: simulation); bits 0–3 carry the state (a version-1 logger leaves bit 7 clear)
+IDENTITY_SIMULATED = 0x80
+STATE_MASK = 0x0F
 
 
 class Opcode(enum.IntEnum):
@@ -217,9 +222,10 @@ def sample_session(payload: bytes | bytearray) -> int:
 
 
 def status_payload(state: LoggerState, frames_sent: int, errors: int = 0,
-                   session: int = NO_SESSION) -> bytes:
+                   session: int = NO_SESSION, simulated: bool = False) -> bytes:
     record = np.zeros(1, dtype=STATUS_FORMAT)
-    record["state"], record["errors"], record["frames_sent"] = int(state), errors, frames_sent
+    record["state"] = int(state) | (IDENTITY_SIMULATED if simulated else 0)
+    record["errors"], record["frames_sent"] = errors, frames_sent
     record["session"] = session
     return record.tobytes()
 
@@ -232,13 +238,21 @@ class Status:
     errors: int
     frames_sent: int
     session: int
+    simulated: bool = False
+
+
+def status_simulated(payload: bytes | bytearray) -> bool:
+    """Whether the logger sending this STATUS frame declares itself a simulator."""
+    return parse_status(payload).simulated
 
 
 def parse_status(payload: bytes | bytearray) -> Status:
-    """State, error flags, frames sent and session tag of a STATUS frame."""
+    """State, error flags, frames sent, session tag and identity of a STATUS frame."""
     record = np.frombuffer(bytes(payload[:8]), dtype=STATUS_FORMAT)[0]
-    return Status(LoggerState(int(record["state"])), int(record["errors"]),
-                  int(record["frames_sent"]), int(record["session"]))
+    state = int(record["state"])
+    return Status(LoggerState(state & STATE_MASK), int(record["errors"]),
+                  int(record["frames_sent"]), int(record["session"]),
+                  bool(state & IDENTITY_SIMULATED))
 
 
 def dbc_text(channels: Sequence[str], node_id: int = 1) -> str:

@@ -30,6 +30,8 @@ MAP_VERSION = 1
 WINDOW_REGISTERS = 120
 #: registers of the log label (32 ASCII characters), stored in the log header
 LABEL_REGISTERS = 16
+#: registers of the controller identification string (32 ASCII characters)
+IDENTITY_REGISTERS = 16
 
 
 class Reg(enum.IntEnum):
@@ -56,6 +58,8 @@ class Reg(enum.IntEnum):
     MAX_FREQUENCY_HZ = 36  # f32
     AXES = 38  # u16, number of axes (2)
     REFUSAL = 39  # u16, Refusal code of the last refused command
+    SIMULATED = 40  # u16, 1: a simulator answers (no physical table), 0: a real controller
+    IDENTITY = 41  # IDENTITY_REGISTERS registers, ASCII: maker and model of the controller
     # --- demands (read/write) ---
     MODE = 64  # u16, Mode applied by START_MOTION
     INNER_POSITION_DEMAND_DEG = 66  # f64, hold/start position
@@ -297,10 +301,11 @@ def decode_channel_window(registers: Sequence[int], channel: LogChannel, count: 
 
 
 
-def encode_label(text: str) -> list[int]:
-    """``Reg.LOG_LABEL`` registers for ``text`` (ASCII, first character in the high byte)."""
-    raw = text.encode("ascii", errors="replace")[: 2 * LABEL_REGISTERS]
-    raw = raw.ljust(2 * LABEL_REGISTERS, b"\0")
+def encode_label(text: str, registers: int = LABEL_REGISTERS) -> list[int]:
+    """``Reg.LOG_LABEL`` (or ``Reg.IDENTITY``) registers for ``text`` (ASCII, first character
+    in the high byte, NUL padded to ``registers``)."""
+    raw = text.encode("ascii", errors="replace")[: 2 * registers]
+    raw = raw.ljust(2 * registers, b"\0")
     return np.frombuffer(raw, dtype=">u2").astype(int).tolist()
 
 

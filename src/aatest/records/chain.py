@@ -34,6 +34,8 @@ GENESIS = "0" * 64
 #: advisory-lock key that serialises appends to the chain on PostgreSQL (unique to aatest)
 _LOCK_KEY = 0x6161_7465_7374_0001
 _BATCH = 500
+#: the ``kind`` every record had before migration 0004 (left out of the hashed content)
+CALIBRATION_KIND = "calibration"
 #: the record's own columns the hash covers (explicit: a later column changes no old hash)
 CONTENT_COLUMNS: tuple[str, ...] = (
     "id", "certificate_number", "supersedes_id", "command", "procedure", "procedure_sha256",
@@ -86,8 +88,11 @@ def _rows(connection: Connection, query: Select[Any]) -> list[Row[Any]]:
     return list(connection.execute(query).all())
 
 
-def _content_query() -> Select[Any]:
+def _content_query(with_kind: bool = True) -> Select[Any]:
+    """The hashed columns; ``with_kind=False`` for a schema before migration 0004."""
     columns = [calibrations.c[name] for name in CONTENT_COLUMNS]
+    if with_kind:
+        columns.append(calibrations.c.kind)
     return (select(*columns, calibrations.c.previous_hash, calibrations.c.row_hash,
                    units.c.model, units.c.serial)
             .join(units, units.c.id == calibrations.c.unit_id)
@@ -108,6 +113,9 @@ def _contents(connection: Connection, rows: Sequence[Row[Any]]) -> list[dict[str
     out = []
     for row in rows:
         content = {name: _canonical(getattr(row, name)) for name in CONTENT_COLUMNS}
+        kind = getattr(row, "kind", CALIBRATION_KIND)
+        if kind != CALIBRATION_KIND:  # hashed when not the default: no calibration's hash changes
+            content["kind"] = kind
         content.update(model=row.model, serial=row.serial, files=files.get(row.id, []),
                        quantities=values.get(row.id, []))
         out.append(content)
@@ -126,32 +134,34 @@ def _previous_hash(connection: Connection, record_id: int) -> str:
     return GENESIS if before is None or before.row_hash is None else str(before.row_hash)
 
 
-def digest_of(connection: Connection, record_id: int, previous: str) -> str:
+def digest_of(connection: Connection, record_id: int, previous: str,
+              with_kind: bool = True) -> str:
     """The row hash record ``record_id`` has, as stored now, when it follows ``previous``."""
-    rows = _rows(connection, _content_query().where(calibrations.c.id == record_id))
+    rows = _rows(connection, _content_query(with_kind).where(calibrations.c.id == record_id))
     return row_digest(previous, _contents(connection, rows)[0])
 
 
-def append(connection: Connection, record_id: int) -> str:
+def append(connection: Connection, record_id: int, with_kind: bool = True) -> str:
     """Hash the just-inserted record ``record_id`` onto the chain (inside its transaction).
 
     The content is read back from the database, so the hash is of exactly what is stored; the
     caller holds :func:`lock`. Returns the new row hash.
     """
     previous = _previous_hash(connection, record_id)
-    digest = digest_of(connection, record_id, previous)
+    digest = digest_of(connection, record_id, previous, with_kind)
     connection.execute(calibrations.update().where(calibrations.c.id == record_id)
                        .values(previous_hash=previous, row_hash=digest))
     return digest
 
 
-def _batches(connection: Connection, start_id: int | None,
-             limit: int | None) -> Iterator[list[Row[Any]]]:
+def _batches(connection: Connection, start_id: int | None, limit: int | None,
+             with_kind: bool = True) -> Iterator[list[Row[Any]]]:
     after = -1 if start_id is None else start_id - 1
     remaining = limit
     while remaining is None or remaining > 0:
         size = _BATCH if remaining is None else min(_BATCH, remaining)
-        rows = _rows(connection, _content_query().where(calibrations.c.id > after).limit(size))
+        rows = _rows(connection, _content_query(with_kind).where(calibrations.c.id > after)
+                     .limit(size))
         if not rows:
             return
         yield rows
@@ -208,11 +218,12 @@ def record_problems(connection: Connection, record_id: int) -> list[str]:
     return []
 
 
-def rehash_all(connection: Connection) -> int:
-    """Compute the chain over every existing row, oldest first (the migration that adds it)."""
+def rehash_all(connection: Connection, with_kind: bool = True) -> int:
+    """Compute the chain over every existing row, oldest first (the migrations that change
+    what is hashed; ``with_kind=False`` before the ``kind`` column exists)."""
     count = 0
-    for rows in _batches(connection, None, None):
+    for rows in _batches(connection, None, None, with_kind):
         for row in rows:
-            append(connection, int(row.id))
+            append(connection, int(row.id), with_kind)
             count += 1
     return count

@@ -7,6 +7,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from aatest.records import audit
 from aatest.records.errors import RecordsError
 from aatest.records.export import write_csv
 from aatest.records.extract import datasheet_limits
@@ -28,11 +29,11 @@ def _moment(text: str | None, option: str) -> datetime | None:
 
 def record_filter(serial: str | None, model: str | None, procedure: str | None,
                   verdict: str | None, since: str | None, until: str | None,
-                  superseded: bool) -> RecordFilter:
+                  superseded: bool, include_simulations: bool = False) -> RecordFilter:
     """The query of ``records list|export`` from its options (dates in ISO form, UTC)."""
     return RecordFilter(serial=serial, model=model, procedure=procedure, verdict=verdict,
                         since_utc=_moment(since, "--since"), until_utc=_moment(until, "--until"),
-                        include_superseded=superseded)
+                        include_superseded=superseded, include_simulations=include_simulations)
 
 
 def open_for_reading(records_url: str | None) -> RecordStore:
@@ -41,12 +42,16 @@ def open_for_reading(records_url: str | None) -> RecordStore:
 
 
 def history(serial: str, records_url: str | None, lab: LabProfile, as_json: bool,
-            html: Path | None) -> str:
-    """The text (or JSON) ``aatest history`` prints; writes the trend page when ``html``."""
+            html: Path | None, include_simulations: bool = False) -> str:
+    """The text (or JSON) ``aatest history`` prints; writes the trend page when ``html``.
+
+    Simulations are left out (also of the drift, trend and due date) unless
+    ``include_simulations``; a unit with only simulations says so.
+    """
     with open_for_reading(records_url) as store:
-        records = store.history(serial)
+        records = store.history(serial, include_simulations)
         if not records:
-            raise RecordsError(f"no calibration records of unit {serial!r} in {store.name}")
+            raise RecordsError(_no_history(store, serial, include_simulations))
         if html is not None:
             limits = datasheet_limits(store.results_of(records[-1].id))
             write_trend_html(html, serial, records, limits, lab.name,
@@ -57,11 +62,20 @@ def history(serial: str, records_url: str | None, lab: LabProfile, as_json: bool
     return text + (f"\ntrend plots: {html}" if html is not None else "")
 
 
+def _no_history(store: RecordStore, serial: str, include_simulations: bool) -> str:
+    message = f"no calibration records of unit {serial!r} in {store.name}"
+    simulations = [] if include_simulations else store.history(serial, True)
+    if simulations:
+        message += (f" ({len(simulations)} simulation(s), never calibrations: "
+                    "--include-simulations lists them)")
+    return message
+
+
 def _line(record: CalibrationRecord) -> str:
     return (f"{record.certificate_number or '—':18s} {record.calibrated_utc:%Y-%m-%d %H:%M}  "
             f"{record.model}/{record.serial:10s} {record.procedure:30s} "
             f"{record.overall_verdict:16s}"
-            f" {record.command:8s} {record.bundle}")
+            f" {record.command:8s} {record.kind:11s} {record.bundle}")
 
 
 def list_records(records_url: str | None, where: RecordFilter) -> str:
@@ -90,6 +104,20 @@ def export_records(records_url: str | None, where: RecordFilter, path: Path) -> 
     return len(records)
 
 
+def simulation_note(report: Path) -> str | None:
+    """``simulation: …`` when the bundle's results are of a simulation (``aatest verify``)."""
+    from aatest.engine.simulation import SIMULATION_TITLE, is_simulation, simulated_parts
+
+    try:
+        document = json.loads(report.with_name("results.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(document, dict) or not is_simulation(document):
+        return None
+    parts = ", ".join(simulated_parts(document.get("metadata") or {})) or "stated in results"
+    return f"simulation ({SIMULATION_TITLE}; simulated: {parts})"
+
+
 def verify_against_record(report: Path, records_url: str | None) -> tuple[list[str], str]:
     """Problems of ``report`` against its record, and a one-line note on what was checked."""
     url = resolve_url(records_url)
@@ -101,7 +129,32 @@ def verify_against_record(report: Path, records_url: str | None) -> tuple[list[s
             return unregistered_reasons(report, store), f"no record of this bundle in {store.name}"
         label = record.certificate_number or f"record {record.id}"
         problems = record_reasons(report, record) + store.chain_problems(record.id)
-        return problems, f"matches its record {label} in {store.name}"
+        note = f"matches its record {label} in {store.name}"
+        if record.certificate_number:
+            with store.engine.connect() as connection:
+                status = audit.status_of(connection, record.certificate_number)
+                replaced = audit.supersedes(connection, record.certificate_number)
+            if status is not None:  # no longer a valid certificate
+                problems.append(f"certificate {record.certificate_number} was {status}")
+            if replaced:
+                note += f"; it supersedes {', '.join(replaced)}"
+        return problems, note
+
+
+def supersede(records_url: str | None, number: str, reason: str, by: str | None) -> str:
+    """``aatest records supersede``: mark ``number`` superseded (by ``by``) or withdrawn."""
+    with open_for_reading(records_url) as store:
+        return audit.supersede(store, number, reason, by)
+
+
+def audit_trail(records_url: str | None) -> tuple[bool, str]:
+    """``aatest records audit``: every change to the store; whether its chain holds."""
+    with open_for_reading(records_url) as store:
+        found = audit.report(store)
+    text = "\n".join(found.lines) or "no changes recorded"
+    if found.broken is not None:
+        return False, f"{text}\naudit trail broken at {found.broken}"
+    return True, f"{text}\naudit trail intact: {len(found.lines)} change(s)"
 
 
 def check_records(records_url: str | None) -> tuple[bool, str]:

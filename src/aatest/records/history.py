@@ -94,10 +94,12 @@ def add_months(moment: datetime, months: int) -> datetime:
 
 
 def next_due(records: Sequence[CalibrationRecord], interval_months: int) -> datetime | None:
-    """The next calibration date: the latest calibration plus the lab's interval."""
-    if not records:
+    """The next calibration date: the latest calibration plus the lab's interval (a
+    simulation calibrates nothing, so it never sets a due date)."""
+    calibrations = [r for r in records if r.kind != "simulation"]
+    if not calibrations:
         return None
-    return add_months(max(r.calibrated_utc for r in records), interval_months)
+    return add_months(max(r.calibrated_utc for r in calibrations), interval_months)
 
 
 def _format(value: float | None) -> str:
@@ -135,7 +137,9 @@ def history_text(serial: str, records: Sequence[CalibrationRecord], interval_mon
     for r in records:
         lines.append("  ".join([r.calibrated_utc.strftime("%Y-%m-%d %H:%M"), r.procedure,
                                 r.certificate_number or "—",
-                                *[_quantity_cell(r, n) for n in names], r.overall_verdict]))
+                                *[_quantity_cell(r, n) for n in names],
+                                r.overall_verdict + (" (simulation)" if r.kind == "simulation"
+                                                     else "")]))
     for name in names:
         drift = fit_drift(records, name)
         if drift is not None:

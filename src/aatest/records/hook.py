@@ -2,11 +2,13 @@
 
 The CLI opens a :func:`registering` scope (records URL, lab profile, command), which installs
 a :class:`Registrar` as the engine's bundle observer; the session calls its ``before_signing``
-once results are complete — a certificate number is issued and
-written into the results, so it is in ``results.json`` and on the certificate before the
-signature covers them — and ``after_signing`` once the bundle is final, which appends the
-record with the SHA-256 of every bundle file. Outside a scope (library use, other tests) both
-are no-ops, so nothing is registered behind a caller's back.
+once results are complete — the next certificate number is allocated in a transaction that
+stays open and is written into the results, so it is in ``results.json`` and on the
+certificate before the signature covers them — and ``after_signing`` once the bundle is final
+(report, PDF, signature), which appends the record with the SHA-256 of every bundle file and
+commits it together with the number. A failure in between rolls both back (:class:`Issue`):
+numbers exist only for complete, registered certificates. Outside a scope (library use, other
+tests) both are no-ops, so nothing is registered behind a caller's back.
 
 An unreachable database must not cost the measurement: the files are written without a
 number, and the :class:`RecordsUnavailable` error is raised when the scope closes (exit 2).
@@ -19,14 +21,16 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 from aatest.engine.analysis.results import results_json
 from aatest.engine.run import bundle_hooks
+from aatest.engine.simulation import SIMULATION_PREFIX, is_simulation
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
 from aatest.records.lab import LabProfile
 from aatest.records.models import QuantityRecord, Registration
-from aatest.records.store import RecordStore, as_utc
+from aatest.records.store import Issue, RecordStore, as_utc
 from aatest.results import RunResults
 from aatest.results.root import RunMetadata
 
@@ -42,6 +46,9 @@ class Registrar:
     command: str
     error: RecordsUnavailable | None = None
     _store: RecordStore | None = field(default=None, repr=False)
+    _issue: Issue | None = field(default=None, repr=False)
+    #: results-metadata keys from the checks before the run (references used, non-conformities)
+    preflight: dict[str, Any] = field(default_factory=dict)
 
     def store(self) -> RecordStore:
         if self._store is None:
@@ -49,41 +56,70 @@ class Registrar:
         return self._store
 
     def close(self) -> None:
+        """Roll back a number whose bundle was never registered; close the store."""
+        self._abandon()
         if self._store is not None:
             self._store.close()
 
+    def _abandon(self) -> None:
+        issue, self._issue = self._issue, None
+        if issue is not None:
+            issue.abandon()
+
     def assign_certificate(self, results: RunResults) -> None:
-        """Issue a number into ``results`` (``run``/``analyze``); keep it on re-signing."""
-        if self.command not in ISSUING_COMMANDS and results.certificate_number:
+        """Hold the next number for ``results`` (``run``/``analyze``) in the transaction that
+        will register the bundle; ``report`` keeps a number that was issued (one that never
+        was — its bundle was not registered — is replaced by the next)."""
+        stated = results.certificate_number
+        if self.command not in ISSUING_COMMANDS and stated and self._issued(stated):
             return
+        self._abandon()  # a bundle begun in this scope and never registered
         results.certificate_number = None
         try:
-            number = self.store().issue_certificate(self.lab.certificate_prefix)
+            self._issue = self.store().begin_issue(certificate_prefix(results, self.lab))
         except RecordsUnavailable as exc:
             self.error = exc
             return
-        results.certificate_number = number
+        results.certificate_number = self._issue.number
+
+    def _issued(self, number: str) -> bool:
+        try:
+            return self.store().certificate_issued(number)
+        except RecordsUnavailable as exc:
+            self.error = exc
+            return True  # keep it: the store cannot say otherwise
 
     def before_signing(self, results: RunResults) -> None:
         """Bundle observer: the certificate number and the issuing lab's identity, before the
         results are written (so the signature covers what the certificate prints)."""
         self.assign_certificate(results)
         results.metadata.lab = self.lab.certificate_identity()
+        for key, value in self.preflight.items():
+            setattr(results.metadata, key, value)
 
     def after_signing(self, results: RunResults, report: Path) -> None:
         """Bundle observer: register the finished bundle."""
         self.register(results, report)
 
     def register(self, results: RunResults, bundle: Path) -> int | None:
-        """Append the record of ``bundle``; ``None`` when the store is unreachable."""
+        """Append the record of ``bundle`` — committing its held number with it; ``None``
+        when the store is unreachable."""
+        issue, self._issue = self._issue, None
         if self.error is not None:
             return None
-        registration = registration_for(results, bundle, self.command, self.lab)
         try:
+            registration = registration_for(results, bundle, self.command, self.lab)
+            if issue is not None and issue.number == registration.certificate_number:
+                return issue.register(registration)
+            if issue is not None:  # the results lost the number held for them
+                issue.abandon()
             return self.store().register(registration)
         except RecordsUnavailable as exc:
             self.error = exc
             return None
+        finally:
+            if issue is not None:
+                issue.abandon()  # no-op after a commit
 
 
 @contextmanager
@@ -97,6 +133,12 @@ def registering(records_url: str | None, lab: LabProfile, command: str) -> Itera
         registrar.close()
     if registrar.error is not None:
         raise RecordsUnavailable(f"{registrar.error} — the files were written, but not registered")
+
+
+def certificate_prefix(results: RunResults, lab: LabProfile) -> str:
+    """The number series: ``SIM`` for a simulation (whatever the lab profile says), else the
+    lab's prefix (which may not be ``SIM``)."""
+    return SIMULATION_PREFIX if is_simulation(results) else lab.certificate_prefix
 
 
 def bundle_files(bundle: Path) -> dict[str, str]:
@@ -123,7 +165,8 @@ def registration_for(
     stored.pop("figures", None)  # figures are in the bundle
     return Registration(
         model=model, serial=serial, certificate_number=results.certificate_number,
-        command=command, procedure=results.procedure or meta.procedure or "?",
+        command=command, kind="simulation" if is_simulation(results) else "calibration",
+        procedure=results.procedure or meta.procedure or "?",
         procedure_sha256=meta.procedure_sha256, rig=dict(results.rig),
         plugin_versions=dict(meta.plugin_versions),
         operator=meta.operator, lab=lab.name, calibrated_utc=_calibrated_utc(results),

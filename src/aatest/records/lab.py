@@ -30,9 +30,10 @@ from datetime import UTC, date, datetime, time
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from aatest.engine.run.trust import TrustedKey
+from aatest.engine.simulation import SIMULATION_PREFIX
 
 LAB_ENV = "AATEST_LAB"
 #: the key of the lab's identity in ``results.json`` ``metadata`` (written before signing)
@@ -105,6 +106,14 @@ class LabProfile(_Strict):
     calibration_interval_months: int = Field(12, ge=1, le=120, description="recall interval")
     frf_reference_frequency_hz: float = Field(
         1.0, gt=0, description="frequency whose FRF gain is tracked over time, Hz")
+
+    @field_validator("certificate_prefix")
+    @classmethod
+    def _not_the_simulation_series(cls, prefix: str) -> str:
+        if prefix == SIMULATION_PREFIX:
+            raise ValueError(f"{SIMULATION_PREFIX!r} is the series of simulations, which are "
+                             "never calibrations; choose another prefix")
+        return prefix
 
     @model_validator(mode="after")
     def _key_holders_sign(self) -> LabProfile:

@@ -7,6 +7,8 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from aatest.engine.simulation import Kind
+
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -27,6 +29,7 @@ class Registration(_Strict):
     serial: str = Field(description="sensor unit serial")
     certificate_number: str | None = None
     command: str = Field(description="run | analyze | report | diagnose")
+    kind: Kind = Field("calibration", description="simulation: a run with a simulated part")
     procedure: str
     procedure_sha256: str | None = None
     rig: dict[str, Any] = Field(default_factory=dict)
@@ -53,6 +56,7 @@ class CalibrationRecord(_Strict):
     supersedes_id: int | None
     superseded_by: int | None
     command: str
+    kind: Kind = "calibration"
     procedure: str
     procedure_sha256: str | None
     operator: str | None
@@ -75,6 +79,7 @@ class CalibrationRecord(_Strict):
             "procedure": self.procedure,
             "calibrated_utc": self.calibrated_utc.isoformat(timespec="seconds"),
             "overall_verdict": self.overall_verdict,
+            "kind": self.kind,
             "quantities": {k: q.model_dump() for k, q in self.quantities.items()},
             "bundle": self.bundle,
         }
@@ -90,3 +95,5 @@ class RecordFilter(_Strict):
     since_utc: datetime | None = None
     until_utc: datetime | None = None
     include_superseded: bool = False
+    #: simulations are kept apart: only listed when asked (``--include-simulations``)
+    include_simulations: bool = False

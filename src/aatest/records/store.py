@@ -17,7 +17,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import URL, Connection, Engine, Row
 from sqlalchemy.orm import aliased
 
-from aatest.records import chain, numbering, schema
+from aatest.records import audit, chain, numbering, schema
 from aatest.records.engine import open_engine
 from aatest.records.errors import RecordsError
 from aatest.records.models import CalibrationRecord, QuantityRecord, RecordFilter, Registration
@@ -78,22 +78,17 @@ class RecordStore:
             return numbering.allocate(connection, prefix, when)
 
     def register(self, registration: Registration) -> int:
-        """Append a record (superseding the previous record of the same bundle); its id."""
+        """Append a record (superseding the previous record of the same bundle); its id.
+
+        Idempotent: when the newest record of the bundle already holds this certificate
+        number and these file hashes, its id is returned and nothing is written.
+        """
         with self.engine.begin() as connection:
-            chain.lock(connection)  # ids and links in one order, whoever registers at once
-            unit_id = _unit_id(connection, registration.model, registration.serial)
-            previous = connection.execute(
-                select(calibrations.c.id).where(calibrations.c.bundle == registration.bundle)
-                .order_by(calibrations.c.id.desc()).limit(1)
-            ).scalar()
-            fields = registration.model_dump(exclude={"model", "serial", "files", "quantities"})
-            record_id = connection.execute(calibrations.insert().values(
-                **fields, unit_id=unit_id, supersedes_id=previous,
-                registered_utc=datetime.now(UTC),
-            ).returning(calibrations.c.id)).scalar_one()
-            _insert_children(connection, record_id, registration)
-            chain.append(connection, int(record_id))
-        return int(record_id)
+            return append_record(connection, registration)
+
+    def begin_issue(self, prefix: str, issued_utc: datetime | None = None) -> Issue:
+        """Open the transaction that issues a number and registers its bundle (:class:`Issue`)."""
+        return Issue(self, prefix, as_utc(issued_utc or datetime.now(UTC)))
 
     def query(self, where: RecordFilter) -> list[CalibrationRecord]:
         """Records matching ``where``, oldest calibration first."""
@@ -102,21 +97,25 @@ class RecordStore:
             return _records(connection, rows)
 
     def recent(self, limit: int) -> list[CalibrationRecord]:
-        """The ``limit`` newest current calibrations (not superseded, no diagnoses), newest first.
+        """The ``limit`` newest current runs (not superseded, no diagnoses), newest first, each
+        with its ``kind`` (a simulation is listed as such, never as a unit's calibration).
 
-        What a station's history list shows; a lab's store grows without bound, so the limit
-        is applied in the database rather than after loading every record.
+        What a station's list of recent runs shows; a lab's store grows without bound, so the
+        limit is applied in the database rather than after loading every record.
         """
-        query = (_filtered(RecordFilter()).where(calibrations.c.command != "diagnose")
+        query = (_filtered(RecordFilter(include_simulations=True))
+                 .where(calibrations.c.command != "diagnose")
                  .order_by(None)
                  .order_by(calibrations.c.calibrated_utc.desc(), calibrations.c.id.desc())
                  .limit(limit))
         with self.engine.connect() as connection:
             return _records(connection, connection.execute(query).all())
 
-    def history(self, serial: str) -> list[CalibrationRecord]:
-        """The current (not superseded) calibrations of a unit, oldest first (no diagnoses)."""
-        return [r for r in self.query(RecordFilter(serial=serial)) if r.command != "diagnose"]
+    def history(self, serial: str, include_simulations: bool = False) -> list[CalibrationRecord]:
+        """The current (not superseded) calibrations of a unit, oldest first (no diagnoses;
+        simulations only when ``include_simulations``)."""
+        where = RecordFilter(serial=serial, include_simulations=include_simulations)
+        return [r for r in self.query(where) if r.command != "diagnose"]
 
     def get(self, key: str) -> CalibrationRecord:
         """The newest record with certificate number ``key`` (or record id ``key``)."""
@@ -172,6 +171,93 @@ class RecordStore:
         return found[0] if found else None
 
 
+def append_record(connection: Connection, registration: Registration) -> int:
+    """Insert ``registration`` in the caller's transaction (see :meth:`RecordStore.register`)."""
+    chain.lock(connection)  # ids and links in one order, whoever registers at once
+    latest = connection.execute(
+        select(calibrations.c.id, calibrations.c.certificate_number, calibrations.c.command,
+               calibrations.c.results)
+        .where(calibrations.c.bundle == registration.bundle)
+        .order_by(calibrations.c.id.desc()).limit(1)).first()
+    if latest is not None and _same(connection, latest, registration):
+        return int(latest.id)  # registered already (a re-run after a crash): nothing new
+    unit_id = _unit_id(connection, registration.model, registration.serial)
+    fields = registration.model_dump(exclude={"model", "serial", "files", "quantities"})
+    record_id = connection.execute(calibrations.insert().values(
+        **fields, unit_id=unit_id, supersedes_id=None if latest is None else latest.id,
+        registered_utc=datetime.now(UTC),
+    ).returning(calibrations.c.id)).scalar_one()
+    _insert_children(connection, record_id, registration)
+    chain.append(connection, int(record_id))
+    audit.append(connection, "register", registration.certificate_number or f"record {record_id}",
+                 f"{registration.command} ({registration.kind})",
+                 {"record_id": int(record_id), "bundle": registration.bundle,
+                  "supersedes_id": None if latest is None else int(latest.id)})
+    return int(record_id)
+
+
+def _same(connection: Connection, latest: Any, registration: Registration) -> bool:
+    """Whether record ``latest`` is ``registration`` already: same number, command, results
+    and bundle file hashes (what a repeated registration of an unchanged bundle brings)."""
+    return bool(latest.certificate_number == registration.certificate_number
+                and latest.command == registration.command
+                and latest.results == registration.results
+                and _files_of(connection, int(latest.id)) == registration.files)
+
+
+def _files_of(connection: Connection, record_id: int) -> dict[str, str]:
+    rows = connection.execute(select(signed_files.c.name, signed_files.c.sha256).where(
+        signed_files.c.calibration_id == record_id))
+    return {row.name: row.sha256 for row in rows}
+
+
+class Issue:
+    """A certificate number held in an open transaction until its bundle is registered.
+
+    The number is allocated (the counter row locked, :mod:`.numbering`) when the transaction
+    opens, before the results are written, so the report, PDF and signature carry it; the
+    record of the complete, signed bundle is inserted and everything committed together in
+    :meth:`register`. A failure at any stage in between — or the process killed — rolls it
+    all back: the register shows neither the number nor a record, and the next bundle gets
+    the same number (no gap). Other stations wait on the counter meanwhile (SQLite: on the
+    database write lock, up to the busy timeout).
+    """
+
+    def __init__(self, store: RecordStore, prefix: str, issued_utc: datetime) -> None:
+        self._connection: Connection | None = store.engine.connect()
+        self._transaction = self._connection.begin()
+        try:
+            self.number = numbering.allocate(self._connection, prefix, issued_utc)
+        except BaseException:
+            self.abandon()
+            raise
+
+    def register(self, registration: Registration) -> int:
+        """Insert the bundle's record and commit it with the number; the record id."""
+        if self._connection is None:
+            raise RecordsError(f"certificate {self.number}: its transaction is already closed")
+        try:
+            record_id = append_record(self._connection, registration)
+            self._transaction.commit()
+        except BaseException:
+            self.abandon()
+            raise
+        self._close()
+        return record_id
+
+    def abandon(self) -> None:
+        """Roll the number back (the bundle was never completed); safe to call twice."""
+        if self._connection is not None:
+            if self._transaction.is_active:
+                self._transaction.rollback()
+            self._close()
+
+    def _close(self) -> None:
+        if self._connection is not None:
+            self._connection.close()
+            self._connection = None
+
+
 def _unit_id(connection: Connection, model: str, serial: str) -> int:
     dialect = postgresql if connection.dialect.name == "postgresql" else sqlite
     connection.execute(dialect.insert(units).values(model=model, serial=serial)
@@ -207,6 +293,8 @@ def _filtered(where: RecordFilter) -> Select[Any]:
                           (calibrations.c.overall_verdict, where.verdict)):
         if value is not None:
             query = query.where(column == value)
+    if not where.include_simulations:
+        query = query.where(calibrations.c.kind != "simulation")
     if where.since_utc is not None:
         query = query.where(calibrations.c.calibrated_utc >= as_utc(where.since_utc))
     if where.until_utc is not None:

@@ -11,6 +11,10 @@ the record it replaces. Every time is UTC.
                           onto a chain over all records (:mod:`aatest.records.chain`)
 - ``signed_files``        SHA-256 of every file of the bundle, per record
 - ``quantities``          the key results with their expanded uncertainty, per record
+- ``reference_standards`` the lab's reference instruments with their calibration and due date
+                          (retiring one sets ``retired_utc``; nothing else is ever updated)
+- ``audit_log``           append-only: who changed what in the store, when and why, hash-chained
+- ``certificate_status``  certificates superseded or withdrawn (one row each, never changed)
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 from sqlalchemy import (
     JSON,
     Column,
+    Date,
     DateTime,
     Float,
     ForeignKey,
@@ -76,6 +81,7 @@ calibrations = Table(
     Column("results", JSON, nullable=False),
     Column("bundle", Text, nullable=False),
     Column("key_fingerprint", String(64)),
+    Column("kind", String(16), nullable=False, server_default="calibration"),  # | simulation
     Column("previous_hash", String(64)),
     Column("row_hash", String(64)),
 )
@@ -94,4 +100,42 @@ quantities = Table(
     Column("value", Float, nullable=False),
     Column("expanded_uncertainty", Float),
     Column("unit", String(32), nullable=False),
+)
+
+reference_standards = Table(
+    "reference_standards", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("identifier", String(64), nullable=False, unique=True),
+    Column("kind", String(32), nullable=False),
+    Column("certificate_number", String(64), nullable=False),
+    Column("issuing_lab", String(128), nullable=False),
+    Column("calibrated_on", Date, nullable=False),
+    Column("due_on", Date, nullable=False),
+    Column("accuracy", Text, nullable=False),
+    Column("added_utc", DateTime(timezone=True), nullable=False),
+    Column("retired_utc", DateTime(timezone=True)),
+    Column("retired_reason", Text),
+)
+
+audit_log = Table(
+    "audit_log", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("at_utc", DateTime(timezone=True), nullable=False),
+    Column("who", String(128), nullable=False),
+    Column("action", String(32), nullable=False),
+    Column("subject", String(64), nullable=False),
+    Column("reason", Text, nullable=False),
+    Column("detail", JSON, nullable=False),
+    Column("previous_hash", String(64), nullable=False),
+    Column("row_hash", String(64), nullable=False),
+)
+
+certificate_status = Table(
+    "certificate_status", metadata,
+    Column("number", String(40), ForeignKey("certificates.number"), primary_key=True),
+    Column("status", String(16), nullable=False),  # superseded | withdrawn
+    Column("replaced_by", String(40), ForeignKey("certificates.number")),
+    Column("reason", Text, nullable=False),
+    Column("who", String(128), nullable=False),
+    Column("at_utc", DateTime(timezone=True), nullable=False),
 )

@@ -211,6 +211,7 @@ class RecordsHistory:
             "unit": f"{record.model}/{record.serial}",
             "calibrated_utc": record.calibrated_utc.isoformat(timespec="seconds"),
             "operator": record.operator, "command": record.command, "source": "records",
+            "kind": record.kind,
         }
 
 

@@ -75,7 +75,10 @@ def _section(page: str, anchor: str) -> str:
 
 def test_title_and_lab_identity(certified: tuple[Path, dict[str, Any], str]) -> None:
     _, results, page = certified
-    assert "<h1>Calibration certificate</h1>" in page
+    # the twin is simulated: the lab's layout, under the simulation's title and mark
+    assert "<h1>Simulation report — not a calibration certificate</h1>" in page
+    assert "Calibration certificate" not in _text(page)
+    assert 'id="simulation-mark"' in page
     lab = _section(page, "lab")
     assert "Example Calibration Lab" in lab and "Calibration Street 1" in lab
     assert "DAkkS" in lab and "D-K-12345-01-00" in lab and "0.1–10 Hz" in lab
@@ -86,7 +89,7 @@ def test_unique_identification_on_every_page(certified: tuple[Path, dict[str, An
                                              ) -> None:
     _, results, page = certified
     number = results["certificate_number"]
-    assert re.fullmatch(r"EXL-\d{4}-\d{6}", number)
+    assert re.fullmatch(r"SIM-\d{4}-\d{6}", number)  # the simulation series, not the lab's EXL
     running = re.search(r'<div class="running-header"[^>]*>(.*?)</div>', page, re.S)
     assert running and number in running.group(1)
     # the running header is fixed in print, so Chromium repeats it on each printed page
@@ -262,6 +265,8 @@ def test_pdf_pages_say_page_x_of_y_with_the_certificate_number(
     for i, text in enumerate(pages, start=1):
         assert f"page {i} of {len(pages)}" in text, text[-200:]
         assert number in text  # identification on every page (footer and running header)
+        plain = " ".join(text.replace("\ufb01", "fi").split())  # Chromium sets the fi ligature
+        assert "SIMULATION — not a calibration certificate" in plain  # the mark on every page
 
     shot = tmp_path / "certificate-page-1.png"
     with playwright.sync_playwright() as driver:

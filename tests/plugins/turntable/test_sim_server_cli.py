@@ -68,8 +68,14 @@ def test_run_against_a_separate_sim_server(tmp_path: Path) -> None:
                                           str(tmp_path / "rig.yaml"), "--out", str(tmp_path / "r")])
         assert result.exit_code == 0, result.output
         assert time.monotonic() - started < 60.0
-        sf = json.loads((tmp_path / "r" / "results.json").read_text())["analysis"]["scale_factor"]
+        results = json.loads((tmp_path / "r" / "results.json").read_text())
+        sf = results["analysis"]["scale_factor"]
         assert sf["v_sz"]["scale_v_per_dps2"] == pytest.approx(0.004014, rel=0.01)
+        # the drivers read the server's identification: a simulation, marked as such
+        assert results["metadata"]["simulated_parts"] == ["daq:can", "turntable:modbus"]
+        assert results["certificate_number"].startswith("SIM-")
+        assert "Simulation report — not a calibration certificate" in result.output
+        assert 'id="simulation-mark"' in (tmp_path / "r" / "report.html").read_text()
     finally:
         server.send_signal(signal.SIGINT)
         try:

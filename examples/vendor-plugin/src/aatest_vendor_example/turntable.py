@@ -57,6 +57,10 @@ class SingleAxisTable:
         shares the digital twin with the simulated DAQ through it.
     """
 
+    #: this example moves aatest's simulator, not a table: its runs are simulations (a real
+    #: driver declares ``simulated = False``, or sets it from the controller's identification)
+    simulated = True
+
     class Config(BaseModel):
         """Limits of this table (datasheet values by default) and its serial number."""
 

@@ -37,6 +37,7 @@ from aatest.engine.data.importer import DAQ_REQUIRED, MANIFEST, TABLE_REQUIRED
 from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import InputError
 from aatest.engine.logs import SampledLog
+from aatest.engine.simulation import SIMULATED_PARTS_KEY, simulated_parts
 from aatest.engine.steps import Mounting, PlannedStep
 
 #: threads formatting CSV files (one per file of a step: table and DAQ)
@@ -156,6 +157,8 @@ def manifest(dataset: Dataset, entries: list[dict[str, Any]]) -> dict[str, Any]:
     template = dataset.metadata.get("report_template")
     if isinstance(template, str):
         doc["report_template"] = template
+    if parts := simulated_parts(dataset.metadata):  # exported simulations stay simulations
+        doc[SIMULATED_PARTS_KEY] = parts
     doc["sensors"] = [s.model_dump(mode="json") for s in dataset.sensors]
     doc["steps"] = entries
     return doc

@@ -127,6 +127,9 @@ class DatasetManifest(_Strict):
     #: analysis names or ``{name: {options}}`` entries, as in a procedure
     analysis: list[str | dict[str, dict[str, Any]]] | None = None
     report_template: str | None = None
+    #: the simulated rig parts the data came from (``aatest export`` of a simulation writes
+    #: them): imported, the data stay a simulation, never a calibration
+    simulated_parts: list[str] | None = None
     #: stated accuracies of the instruments (the logger's above all); absent: stated defaults
     instruments: Instruments | None = None
 
@@ -342,7 +345,7 @@ def import_dataset(directory: str | Path) -> Dataset:
         procedure=manifest.procedure, sample_rate_hz=rate_hz, sensors=sensors,
         steps=tuple(steps), source=directory,
         metadata=_metadata(present, t_ref_c, model_file) | manifest.model_dump(
-            include={"analysis", "report_template"}, exclude_none=True)
+            include={"analysis", "report_template", "simulated_parts"}, exclude_none=True)
         | ({"rig": {"instruments": manifest.instruments.model_dump(mode="json")}}
            if manifest.instruments is not None else {}),
     )

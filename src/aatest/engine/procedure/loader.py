@@ -76,6 +76,9 @@ class RigConfig(BaseModel):
     instruments: Instruments | None = Field(
         None, description="stated accuracies and traceability of the instruments "
         "(docs/interfaces.md §2); None: the documented defaults, named as such in every budget")
+    references: tuple[str, ...] = Field(
+        (), description="identifiers of the reference standards this rig uses, registered with "
+        "`aatest references add`; an overdue one refuses a calibration before motion")
 
 
 def _vocabulary() -> frozenset[str]:

@@ -355,6 +355,15 @@ class RunRecorder:
         atomic_write(self.steps_dir / RUN_META_NAME, lambda stream: stream.write(text))
         self._run_meta = json.loads(text)
 
+    @property
+    def run_metadata(self) -> dict[str, Any]:
+        """The run metadata stored so far (a copy)."""
+        return dict(self._run_meta)
+
+    def amend_run_metadata(self, updates: dict[str, Any]) -> None:
+        """Add ``updates`` to the stored run metadata (what is known only once the rig runs)."""
+        self.write_run_metadata({**self._run_meta, **updates})
+
     def write_step(
         self,
         step: PlannedStep,

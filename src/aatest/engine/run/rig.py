@@ -44,6 +44,12 @@ class Rig:
         """
         return self.datasheet.sensor_infos(self.context.sensor.serial)
 
+    def simulated_parts(self) -> list[str]:
+        """``KIND:PLUGIN`` of every part declaring ``simulated = True`` (drivers of a simulator
+        server know it only once started). Any such part makes the run a simulation."""
+        return [f"{kind}:{self.config[kind]['plugin']}" for kind in ("turntable", "daq", "chamber")
+                if getattr(getattr(self, kind), "simulated", False) is True]
+
 
 def sensor_datasheet(sensor: SensorRef) -> tuple[SensorDatasheet, str]:
     """Resolve a procedure's sensor model through the ``aatest.sensors`` plugins."""

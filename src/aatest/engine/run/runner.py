@@ -39,7 +39,8 @@ from aatest.engine.run.progress import StepProgress
 from aatest.engine.run.rig import Rig, running
 from aatest.engine.run.run_state import RunState
 from aatest.engine.run.writes import BackgroundWrites
-from aatest.engine.steps import Plan, PlannedStep
+from aatest.engine.simulation import SIMULATED_PARTS_KEY
+from aatest.engine.steps import UNNAMED_SERIAL, Plan, PlannedStep
 from aatest.sync.freeze_pulse import clock_relation
 
 DEFAULT_SOAK_S = 900.0
@@ -245,6 +246,26 @@ def _closing(writes: BackgroundWrites) -> Iterator[None]:
     writes.close()
 
 
+def declare_simulation(plan: Plan, rig: Rig, recorder: Any) -> list[str]:
+    """Record which parts of the started rig are simulated (``metadata.simulated_parts``,
+    joined with those of earlier sessions of a resumed run: a run partly recorded on a
+    simulator stays a simulation) and refuse, before any motion, to calibrate an unnamed unit
+    on a real rig (InputError, exit 2). Returns the simulated parts."""
+    meta = recorder.run_metadata
+    parts = sorted({*(meta.get(SIMULATED_PARTS_KEY) or []), *rig.simulated_parts()})
+    recorder.amend_run_metadata({SIMULATED_PARTS_KEY: parts})
+    recorded = str((meta.get("sensor") or {}).get("serial") or UNNAMED_SERIAL)  # a resumed run
+    if UNNAMED_SERIAL not in (recorded, plan.sensor.serial) and recorded != plan.sensor.serial:
+        raise InputError(f"this run records unit {recorded!r}; it cannot be resumed as "
+                         f"{plan.sensor.serial!r}")
+    if not parts and UNNAMED_SERIAL == recorded == plan.sensor.serial:
+        raise InputError(
+            f"procedure {plan.procedure!r}: no unit serial for a calibration on a real rig; "
+            "name the unit with `aatest run --serial SN` (or AATEST_SERIAL) or in the "
+            "procedure's sensor.serial")
+    return parts
+
+
 def run_plan(
     plan: Plan,
     rig: Rig,
@@ -272,6 +293,7 @@ def run_plan(
                 threadpool_limits(limits=1, user_api="blas"), _closing(writes):
             if on_started is not None:
                 on_started(rig)
+            declare_simulation(plan, rig, recorder)  # started, nothing moved yet
             events.observer.run_started(plan, frozenset(done))
             for step in plan.steps:
                 if step.id in done:

@@ -38,6 +38,7 @@ from aatest.engine.run.runner import (
     run_metadata,
     run_plan,
 )
+from aatest.engine.simulation import KIND_KEY, kind_of, metadata_of
 from aatest.engine.steps import Plan, SensorRef
 from aatest.results import RunResults
 from aatest.results.root import Signature
@@ -50,6 +51,19 @@ PromptMode = Literal["ask", "auto", "station"]
 SIGNING_KEY_ENV = "AATEST_SIGNING_KEY"
 PASSPHRASE_ENV = "AATEST_SIGNING_PASSPHRASE"
 OPERATOR_ENV = "AATEST_OPERATOR"
+
+
+@dataclass(frozen=True)
+class UnitName:
+    """The unit named at run time (``aatest run --serial SN [--model M]``, ``AATEST_SERIAL``)."""
+
+    serial: str | None = None
+    model: str | None = None
+
+    def apply(self, sensor: Any) -> Any:
+        """The procedure's ``sensor`` with the serial (and model) given here."""
+        update = {k: v for k, v in (("serial", self.serial), ("model", self.model)) if v}
+        return sensor.model_copy(update=update)
 
 
 @dataclass
@@ -67,8 +81,12 @@ class Prepared:
         return dict(self.expansion.to_contract_json())
 
 
-def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
-    """Load, expand and envelope-check a procedure; nothing moves."""
+def prepare(procedure: Path, rig_file: Path | None, unit: UnitName | None = None) -> Prepared:
+    """Load, expand and envelope-check a procedure; nothing moves.
+
+    ``unit`` names the unit at run time (``run --serial/--model``): a procedure is a template
+    for every unit of its model, so its ``sensor.serial`` may be omitted.
+    """
     from aatest.engine.procedure.envelope import check_envelope
     from aatest.engine.procedure.loader import load_rig, parse_procedure, rig_from_procedure
     from aatest.engine.procedure.planner import expand_traced
@@ -76,6 +94,8 @@ def prepare(procedure: Path, rig_file: Path | None) -> Prepared:
 
     text = read_text(procedure)  # read once: the hash recorded is of exactly what was planned
     proc = parse_procedure(text, str(procedure))
+    if unit is not None:
+        proc = proc.model_copy(update={"sensor": unit.apply(proc.sensor)})
     rig_config = load_rig(rig_file) if rig_file else rig_from_procedure(proc)
     sensor = SensorRef(model=proc.sensor.model, serial=proc.sensor.serial)
     envelope, datasheet = _declared_limits(rig_config, sensor)
@@ -159,6 +179,7 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     results = build_results(data, analysis, lab, wall_duration_s or 0.0)
     for key, value in (extra_metadata or {}).items():
         setattr(results.metadata, key, value)
+    setattr(results.metadata, KIND_KEY, kind_of(metadata_of(results)))  # never a calibration
     results = decide(results, data)
     out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
@@ -242,6 +263,7 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     pdf: bool = False,
     events: RunEvents | None = None,
     confirm_prompts: ConfirmPrompts = "ask",
+    unit: UnitName | None = None,
 ) -> tuple[Path, RunResults]:
     """``aatest run``: execute (or resume) a procedure and produce its results and report.
 
@@ -251,8 +273,10 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     How prompts were confirmed is recorded in the results metadata as ``confirm_prompts``
     (``ask``: a person at the terminal, ``auto``: unattended, ``station``: the caller's
     responder, i.e. the operator's station), beside ``prompt_answers`` (who, when, how).
+    ``unit`` names the unit calibrated (else the procedure's ``sensor``); a calibration of an
+    unnamed unit on a real rig is refused once the rig started, before it moves (exit 2).
     """
-    prepared = prepare(procedure, rig_file)
+    prepared = prepare(procedure, rig_file, unit)
     plan = prepared.plan
     if (key := signing_key(key_path)) is not None:  # a bad or too open key fails before any motion
         signing.load_private_key(key, os.environ.get(PASSPHRASE_ENV))

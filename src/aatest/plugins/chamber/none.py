@@ -11,6 +11,9 @@ from aatest.engine.interfaces import RigContext
 class NoChamber:
     """The ambient "chamber" of a rig without one."""
 
+    #: no chamber at all: nothing simulated (the room is real)
+    simulated = False
+
     class Config(BaseModel):
         model_config = ConfigDict(extra="forbid")
         ambient_c: float = 22.0

@@ -12,6 +12,9 @@ from aatest.twin.world import World
 class SimChamber:
     """Chamber plugin backed by the shared World (virtual lab time, no sleeping)."""
 
+    #: the digital twin: a run on it is a simulation, never a calibration
+    simulated = True
+
     class Config(BaseModel):
         model_config = ConfigDict(extra="forbid")
         model: str | None = None

@@ -56,6 +56,8 @@ class _Collector(can.Listener):
         self.bus_errors: list[str] = []
         self.last_rx = time.monotonic()
         self.active = False
+        #: the identity bit of the last STATUS frame: a simulated logger answers
+        self.simulated = False
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.is_error_frame:
@@ -74,6 +76,7 @@ class _Collector(can.Listener):
                 self.foreign += 1
                 return
             self.last_rx = time.monotonic()
+            self.simulated = status.simulated
             self.status.put(status)
 
     def on_error(self, exc: Exception) -> None:
@@ -116,13 +119,17 @@ class CanDaq:
         self.gaps: list[cf.Gap] = []
         self._where = f"CAN logger node {self.config.node_id} on {self.config.interface} " \
                       f"{self.config.channel}"
+        #: whether a simulated logger answers (its STATUS identity bit), known after start();
+        #: a run with any simulated part is a simulation, never a calibration
+        self.simulated = False
 
     def channels(self) -> Sequence[str]:
         return [*self._channels, *DAQ_AUX_CHANNELS]
 
     @rig_boundary
     def start(self) -> None:
-        """Open the bus and check that the logger answers a PING."""
+        """Open the bus, check that the logger answers a PING and read from the answer whether
+        it is a simulator."""
         cfg = self.config
         self._bus = open_bus(cfg.interface, cfg.channel, cfg.fd, cfg.bitrate)
         self._notifier = can.Notifier(self._bus, [self._rx], timeout=0.05)
@@ -132,6 +139,7 @@ class CanDaq:
             self._rx.sessions = frozenset({self.session})
         else:
             log.info("%s: the logger does not tag its frames (layout version 1)", self._where)
+        self.simulated = self._rx.simulated
 
     @property
     def foreign_frames(self) -> int:

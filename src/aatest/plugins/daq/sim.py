@@ -20,6 +20,9 @@ from aatest.twin.world import World
 class SimDaq:
     """DAQ plugin backed by the shared World."""
 
+    #: the digital twin: a run on it is a simulation, never a calibration
+    simulated = True
+
     class Config(BaseModel):
         """``slip_ring``: route the sensors through the slip ring instead of the on-table logger."""
 

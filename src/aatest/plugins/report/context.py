@@ -16,6 +16,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from aatest.engine.simulation import SIMULATION_TITLE, is_simulation
 from aatest.engine.uncertainty.budgets import channels
 from aatest.plugins.report import figures as fig
 from aatest.plugins.report.sandbox import vet_svg
@@ -130,11 +131,16 @@ def verdict_rows(verdicts: list[Verdict]) -> list[dict[str, Any]]:
 
 def _header(results: RunResults, run_dir: Path, kind: str, title: str) -> dict[str, Any]:
     """What every report shows at the top and bottom: title, signing key, traceability."""
+    simulation = kind != "diagnosis" and is_simulation(results)  # never a calibration
     return {
-        "report": {"kind": kind, "title": title,
+        "report": {"kind": kind, "title": SIMULATION_TITLE if simulation else title,
+                   "simulation": simulation,
                    "generated_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")},
         "fingerprint": results.signature.fingerprint if results.signature else None,
         "certificate_number": results.certificate_number,  # issued by aatest.records
+        # the reference standards used and the non-conformities accepted (aatest.records)
+        "reference_standards": results.metadata.recorded("reference_standards") or [],
+        "nonconformities": results.metadata.recorded("nonconformities") or [],
         "trace": traceability(results, run_dir),
     }
 

@@ -72,6 +72,10 @@ class ModbusTurntable:
         self._client: ModbusTcpClient | None = None
         self._seq = 0
         self._where = f"Modbus controller {self.config.host}:{self.config.port}"
+        #: whether a simulator answers (``Reg.SIMULATED``), known once :meth:`start` connected;
+        #: a run with any simulated part is a simulation, never a calibration
+        self.simulated = False
+        self.identity = ""
 
     # --- protocol plumbing -----------------------------------------------------------------
     def _call(self, what: str, fn: Callable[[ModbusTcpClient], T]) -> T:
@@ -160,15 +164,18 @@ class ModbusTurntable:
 
     @rig_boundary
     def start(self) -> None:
-        """Connect, check the map version and limits, set the declared envelope as the
-        controller's user limits (it then refuses anything beyond it too), configure the
-        freeze-pulse and trigger inputs, clear faults, motor on."""
+        """Connect, check the map version, read the identification (``simulated``: a
+        simulator answers) and the limits, set the declared envelope as the controller's user
+        limits (it then refuses anything beyond it too), configure the freeze-pulse and
+        trigger inputs, clear faults, motor on."""
         cfg = self.config
         self._connect()
         version = int(self._value(Reg.MAP_VERSION))
         if version != mm.MAP_VERSION:
             raise RigFault(f"{self._where}: register map version {version}, driver speaks "
                            f"{mm.MAP_VERSION}")
+        self.simulated = int(self._value(Reg.SIMULATED)) == 1
+        self.identity = mm.decode_label(self._read(Reg.IDENTITY, mm.IDENTITY_REGISTERS))
         self._check_limits()
         env = cfg.envelope
         self._write({Reg.INNER_RATE_USER_LIMIT_DPS: env.inner.rate_dps,

@@ -20,6 +20,9 @@ from aatest.twin.world import World
 class SimTurntable:
     """Turntable plugin backed by the shared :class:`~aatest.twin.world.World`."""
 
+    #: the digital twin: a run on it is a simulation, never a calibration
+    simulated = True
+
     class Config(BaseModel):
         """Options: ``model`` = path of a rig-model YAML (default: the realistic SR207 rig).
 

@@ -72,6 +72,8 @@ class SimCanLogger:
             frame_rate_hz = 10_000.0
         self.frame_rate_hz = frame_rate_hz
         self.faults = faults or CanFaultInjection()
+        #: the STATUS identity bit; a test of the real-rig path may clear it
+        self.simulated = True
         self._bus: can.BusABC | None = None
         self._jobs: queue.Queue[tuple[str, SampledLog | None]] = queue.Queue()
         self._stop = threading.Event()
@@ -108,8 +110,9 @@ class SimCanLogger:
 
     def _status(self, state: cf.LoggerState, frames: int = 0) -> None:
         if self._bus is not None and not self._dead:
-            send(self._bus, cf.STATUS_BASE + self.node_id,
-                 cf.status_payload(state, frames, session=self.session), True, self._where)
+            payload = cf.status_payload(state, frames, session=self.session,
+                                        simulated=self.simulated)
+            send(self._bus, cf.STATUS_BASE + self.node_id, payload, True, self._where)
 
     def _listen(self) -> None:
         command_id = cf.COMMAND_BASE + self.node_id

@@ -40,6 +40,8 @@ DaqLogSink = Callable[[SampledLog], None]
 _LIVE_END = int(Reg.MODE)
 #: no fault bit set (an IntFlag value, immutable: safe as a dataclass default)
 NO_FAULT = Fault(0)
+#: what ``Reg.IDENTITY`` answers (``Reg.SIMULATED`` is 1): no physical table is behind it
+SIMULATOR_IDENTITY = "aatest sim-server (digital twin)"
 
 
 @dataclass
@@ -100,6 +102,14 @@ class SimController:
         self._records_started = 0
         self._init_registers(model)
 
+    def pose_as_hardware(self, identity: str) -> None:
+        """Answer ``Reg.SIMULATED`` = 0 and ``identity``, like a physical controller (tests of
+        the real-rig path only: the command line offers no way to do this)."""
+        with self._lock:
+            self._put(Reg.SIMULATED, 0)
+            self._regs[Reg.IDENTITY: Reg.IDENTITY + mm.IDENTITY_REGISTERS] = mm.encode_label(
+                identity, mm.IDENTITY_REGISTERS)
+
     def recover(self) -> None:
         """Remove injected faults and answer again (latched fault bits stay until cleared)."""
         with self._lock:
@@ -125,8 +135,11 @@ class SimController:
                            (Reg.OUTER_ACCEL_LIMIT_DPS2, table.outer.accel_limit_dps2),
                            (Reg.MAX_FREQUENCY_HZ, 10.0), (Reg.FP_INPUT, 1), (Reg.TRIGGER_INPUT, 2),
                            (Reg.LOG_START, mm.LogStart.TRIGGER),
-                           (Reg.LOG_RATE_HZ, table.log_rate_hz)):
+                           (Reg.LOG_RATE_HZ, table.log_rate_hz), (Reg.SIMULATED, 1)):
             self._put(reg, value)
+        # the identification a driver reads at start: a run on this server is a simulation
+        identity = mm.encode_label(SIMULATOR_IDENTITY, mm.IDENTITY_REGISTERS)
+        self._regs[Reg.IDENTITY: Reg.IDENTITY + mm.IDENTITY_REGISTERS] = identity
 
     def read(self, address: int, count: int) -> list[int] | None:
         """Register values, or ``None`` for an address outside the map."""

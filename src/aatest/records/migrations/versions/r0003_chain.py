@@ -28,7 +28,7 @@ def upgrade() -> None:
         batch.add_column(sa.Column("row_hash", sa.String(64)))
     bind = op.get_bind()
     lock(bind)
-    rehash_all(bind)
+    rehash_all(bind, with_kind=False)  # the kind column comes with 0004
 
 
 def downgrade() -> None:
