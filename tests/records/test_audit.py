@@ -13,6 +13,7 @@ from aatest.records.commands import verify_against_record
 from aatest.records.hook import registering
 from aatest.records.lab import LabProfile
 from aatest.records.url import resolve_url
+from aatest.results import RunResults
 
 LAB = LabProfile(name="Audit Lab", certificate_prefix="AUD")
 
@@ -23,15 +24,15 @@ def aatest(*args: object) -> tuple[int, str, str]:
 
 
 def _certificate(url: str, folder: Path) -> tuple[str, Path]:
-    results: dict[str, object] = {"procedure": "audit", "metadata": {
-        "sensor": {"model": "sr207", "serial": "U1"}}}
+    results = RunResults.model_validate({"procedure": "audit", "metadata": {
+        "sensor": {"model": "sr207", "serial": "U1"}}})
     folder.mkdir()
     bundle = folder / "report.html"
     with registering(url, LAB, "run"):
         bundle_hooks.before_signing(results)
-        bundle.write_text(f"<html>{results['certificate_number']}</html>")
+        bundle.write_text(f"<html>{results.certificate_number}</html>")
         bundle_hooks.after_signing(results, bundle)
-    return str(results["certificate_number"]), bundle
+    return str(results.certificate_number), bundle
 
 
 def test_supersede_links_both_ways_and_every_change_is_audited(

@@ -178,17 +178,18 @@ from pathlib import Path
 from aatest.engine.run import bundle_hooks
 from aatest.records.hook import registering
 from aatest.records.lab import LabProfile
+from aatest.results import RunResults
 
 url, folder, station, count = sys.argv[1], Path(sys.argv[2]), sys.argv[3], int(sys.argv[4])
 lab = LabProfile(name="Gap Lab", certificate_prefix="GAP")
 for i in range(count):
-    results = {"procedure": "concurrent", "metadata": {"sensor": {"model": "sr207",
-               "serial": f"S{station}-{i}"}}}
+    results = RunResults.model_validate({"procedure": "concurrent", "metadata": {
+        "sensor": {"model": "sr207", "serial": f"S{station}-{i}"}}})
     bundle = folder / f"s{station}-{i}" / "report.html"
     with registering(url, lab, "run"):
         bundle_hooks.before_signing(results)
         bundle.parent.mkdir(parents=True)
-        bundle.write_text(f"<html>{results['certificate_number']}</html>")
+        bundle.write_text(f"<html>{results.certificate_number}</html>")
         bundle_hooks.after_signing(results, bundle)
 """
 

@@ -12,6 +12,7 @@ from aatest.cli import app
 from aatest.engine.errors import InputError
 from aatest.records.hook import registering
 from aatest.records.lab import LabProfile, load_lab
+from aatest.results import RunResults
 
 PROCEDURE = Path(__file__).parents[2] / "src" / "aatest" / "procedures" / "scale-factor.yaml"
 
@@ -45,14 +46,14 @@ def test_run_numbers_certificates_with_the_lab_prefix(tmp_path: Path, sqlite_url
     number = json.loads((out / "results.json").read_text())["certificate_number"]
     # the twin is simulated: its own series, whatever the lab's prefix
     assert number.startswith("SIM-") and number.endswith("-000001")
-    registrar_results: dict[str, object] = {"procedure": "imported", "metadata": {}}
+    registrar_results = RunResults(procedure="imported")
     with registering(sqlite_url, load_lab(lab), "analyze") as registrar:
         registrar.before_signing(registrar_results)
         bundle = tmp_path / "imported" / "report.html"
         bundle.parent.mkdir()
         bundle.write_text("<html></html>")
         registrar.after_signing(registrar_results, bundle)
-    number = str(registrar_results["certificate_number"])
+    number = str(registrar_results.certificate_number)
     assert number.startswith("RL-") and number.endswith("-000001")  # a calibration: lab series
     listing = CliRunner().invoke(app, ["records", "list", "--since", "2000-01-01",
                                        "--until", "2000-12-31", "--records", sqlite_url])
