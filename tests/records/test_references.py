@@ -100,5 +100,5 @@ def test_allow_overdue_prints_the_reason_as_a_nonconformity(
     assert 'id="reference-standards"' in report and "C-ENC-1" in report
     with RecordStore.open(sqlite_url) as store:  # the record keeps what it relied on
         (record,) = store.query_certificate(results["certificate_number"])
-        stored = store.results_of(record.id)["metadata"]["reference_standards"]
+        stored = store.results_of(record.id).metadata.recorded("reference_standards")
     assert [r["certificate_number"] for r in stored] == ["C-ENC-1", "C-LOG-7"]
