@@ -6,11 +6,12 @@ tables are printed at a width that fits their content, so no line of a log is ev
 
 from __future__ import annotations
 
+import io
 import json
 import math
 
 from rich import box
-from rich.console import Console
+from rich.console import Console, RenderableType
 from rich.table import Table
 
 from aatest.presentation.summary import RunSummary
@@ -29,15 +30,6 @@ def duration_text(seconds: float) -> str:
     if minutes < 60:  # noqa: PLR2004 - minutes in an hour
         return f"{minutes} min {secs:02d} s"
     return f"{minutes // 60} h {minutes % 60:02d} min"
-
-
-def summary_console(stream: object = None) -> Console:
-    """A console on stdout: a terminal's own width, else :data:`LOG_WIDTH` (never cut)."""
-    console = Console(file=stream, highlight=False)  # type: ignore[arg-type]
-    if not console.is_terminal:
-        console = Console(file=stream, highlight=False, width=LOG_WIDTH,  # type: ignore[arg-type]
-                          no_color=True)
-    return console
 
 
 def _k(k: float | None) -> str:
@@ -87,16 +79,35 @@ def facts_table(summary: RunSummary) -> Table:
     return table
 
 
+def summary_tables(summary: RunSummary) -> list[Table]:
+    """Certified results and verdicts (when there are any), then the facts of the run."""
+    tables = [certified_table(summary)] if summary.certified else []
+    tables += [verdict_table(summary)] if summary.verdicts else []
+    return [*tables, facts_table(summary)]
+
+
 def print_summary(summary: RunSummary, console: Console | None = None) -> None:
-    """The tables a person reads when ``run``/``analyze`` ends."""
-    console = console or summary_console()
-    if summary.certified:
-        console.print(certified_table(summary))
-    if summary.verdicts:
-        console.print(verdict_table(summary))
-    console.print(facts_table(summary))
+    """The tables a person reads when ``run``/``analyze`` ends, on stdout (or ``console``)."""
+    if console is None:
+        print(render_text(*summary_tables(summary)), flush=True)
+        return
+    for table in summary_tables(summary):
+        console.print(table)
 
 
 def summary_json(summary: RunSummary) -> str:
     """``--json-summary``: the same summary as one JSON document."""
     return json.dumps(summary.as_json(), indent=2, allow_nan=False)
+
+
+def render_text(*renderables: RenderableType) -> str:
+    """``renderables`` as text for stdout: a terminal's width and colour when stdout is one,
+    else plain and as wide as the content (a table in a log is never folded or cut)."""
+    probe = Console()
+    width = probe.width if probe.is_terminal else LOG_WIDTH
+    buffer = io.StringIO()
+    console = Console(file=buffer, width=width, highlight=False,
+                      force_terminal=probe.is_terminal, no_color=not probe.is_terminal)
+    for renderable in renderables:
+        console.print(renderable)
+    return "\n".join(line.rstrip() for line in buffer.getvalue().splitlines()).strip("\n")
