@@ -74,7 +74,7 @@ def test_run_summary_states_results_certificate_report_and_times(runs: dict[str,
     assert wall, text
     # the command's wall time includes the step loop, analysis, report and records
     assert float(wall.group(1)) > float(wall.group(2))
-    assert all(len(line) <= 400 for line in text.splitlines())  # noqa: PLR2004
+    assert all(len(line) <= 400 for line in text.splitlines())
 
 
 def test_json_summary_matches_results_json(runs: dict[str, Any]) -> None:

@@ -187,20 +187,12 @@ _JSON_SUMMARY_HELP = "Print the closing summary as JSON on stdout instead of tab
 _RECORDS_ENV, _LAB_ENV, _SIGN_KEY_ENV = "AATEST_RECORDS", "AATEST_LAB", "AATEST_SIGNING_KEY"
 
 
-def _records_option(help_text: str = _RECORDS_HELP) -> Any:
-    return typer.Option(None, "--records", help=help_text, envvar=_RECORDS_ENV)
-
-
-def _lab_option(help_text: str = _LAB_HELP) -> Any:
-    return typer.Option(None, "--lab", help=help_text, envvar=_LAB_ENV)
-
-
-def _sign_key_option() -> Any:
-    return typer.Option(None, "--sign-key", help=_SIGN_KEY_HELP, envvar=_SIGN_KEY_ENV)
-
-
-def _rig_option() -> Any:
-    return typer.Option(None, "--rig", help=_RIG_HELP)
+_RECORDS_OPT = typer.Option(None, "--records", help=_RECORDS_HELP, envvar=_RECORDS_ENV)
+_LAB_OPT = typer.Option(None, "--lab", help=_LAB_HELP, envvar=_LAB_ENV)
+_LAB_TRUSTED_OPT = typer.Option(None, "--lab", help=_LAB_HELP + "; its signing_keys are trusted",
+                                envvar=_LAB_ENV)
+_SIGN_KEY_OPT = typer.Option(None, "--sign-key", help=_SIGN_KEY_HELP, envvar=_SIGN_KEY_ENV)
+_RIG_OPT = typer.Option(None, "--rig", help=_RIG_HELP)
 
 
 def _registering(records: str | None, lab: Path | None, command: str) -> Any:
@@ -221,7 +213,7 @@ def _print_json(doc: Any) -> None:
 @guarded
 def validate(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Path | None = _rig_option(),
+    rig: Path | None = _RIG_OPT,
 ) -> None:
     """Check a procedure against its schema and the rig envelope; nothing moves."""
     from aatest.engine.run.session import prepare
@@ -239,7 +231,7 @@ def validate(
 @guarded
 def plan(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Path | None = _rig_option(),
+    rig: Path | None = _RIG_OPT,
     as_json: bool = typer.Option(False, "--json/--no-json",
                                  help="Print the expanded plan as JSON"),
 ) -> None:
@@ -261,12 +253,12 @@ def plan(
 @guarded
 def run(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Path | None = _rig_option(),
+    rig: Path | None = _RIG_OPT,
     out: Path | None = typer.Option(None, "--out", help="Run directory"),
     resume: bool = typer.Option(False, "--resume/--no-resume",
                                 help="Continue an interrupted run in --out"),
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated rig"),
-    sign_key: Path | None = _sign_key_option(),
+    sign_key: Path | None = _SIGN_KEY_OPT,
     progress: bool = typer.Option(
         True, "--progress/--no-progress",
         help="Show progress: a bar on a terminal, one line per step otherwise (on stderr)"),
@@ -274,8 +266,8 @@ def run(
                                         envvar="AATEST_OPERATOR"),
     pdf: bool = typer.Option(False, "--pdf/--no-pdf",
                              help="Also print the report to PDF (needs Chromium)"),
-    records: str | None = _records_option(),
-    lab: Path | None = _lab_option(),
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
     confirm_prompts: str = typer.Option(
         "ask", "--confirm-prompts",
         help="ask: a person confirms each operator prompt (refused without a terminal); "
@@ -338,9 +330,9 @@ def analyze(
     data: Path = typer.Argument(..., help="Run directory, recording.mcap or import directory"),
     json_out: Path | None = typer.Option(None, "--json", help="Also write results here"),
     out: Path | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
-    sign_key: Path | None = _sign_key_option(),
-    records: str | None = _records_option(),
-    lab: Path | None = _lab_option(),
+    sign_key: Path | None = _SIGN_KEY_OPT,
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
     json_summary: bool = typer.Option(False, "--json-summary/--no-json-summary",
                                       help=_JSON_SUMMARY_HELP),
 ) -> None:
@@ -383,8 +375,8 @@ def diagnose(
     json_out: Path | None = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
     model_out: Path | None = typer.Option(
         None, "--model-out", help="Write the extended model YAML"),
-    records: str | None = _records_option(),
-    lab: Path | None = _lab_option(),
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
 ) -> None:
     """Show what the simulation gets wrong, name the cause, extend the model, measure the gain."""
     from aatest.diagnose.command import diagnose_command
@@ -414,11 +406,11 @@ def misalignment(
 def report(
     run_dir: Path = typer.Argument(..., help="Run directory with results.json"),
     template: Path | None = typer.Option(None, "--template", help="A lab's own template directory"),
-    sign_key: Path | None = _sign_key_option(),
+    sign_key: Path | None = _SIGN_KEY_OPT,
     pdf: bool = typer.Option(False, "--pdf/--no-pdf",
                              help="Also print the report to PDF (needs Chromium)"),
-    records: str | None = _records_option(),
-    lab: Path | None = _lab_option(),
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
 ) -> None:
     """Re-render (and sign) the report of a run; the new record supersedes the old one."""
     from aatest.engine.run import session
@@ -468,8 +460,8 @@ def verify(
     report_file: Path = typer.Argument(..., help="Signed report"),
     public_key: Path | None = typer.Option(None, "--public-key",
                                            help="Trusted public key (beside the lab's keys)"),
-    records: str | None = _records_option(),
-    lab: Path | None = _lab_option(_LAB_HELP + "; its signing_keys are trusted"),
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_TRUSTED_OPT,
 ) -> None:
     """Check a signed bundle, its signing key and its record: exit 0 untouched, 1 tampered,
     untrusted or wrong key."""
@@ -524,10 +516,10 @@ def plugins() -> None:
 @guarded
 def history(
     serial: str = typer.Argument(..., help="Unit serial number"),
-    records: str | None = _records_option(),
+    records: str | None = _RECORDS_OPT,
     as_json: bool = typer.Option(False, "--json/--no-json", help="Print the history as JSON"),
     html: Path | None = typer.Option(None, "--html", help="Write trend plots to this HTML file"),
-    lab: Path | None = _lab_option(),
+    lab: Path | None = _LAB_OPT,
 ) -> None:
     """A unit's calibrations: dates, certificates, key results ± U, verdicts, drift, next due."""
     from aatest.records import commands
@@ -544,7 +536,7 @@ _SINCE = typer.Option(None, "--since", help="Calibrated on/after (ISO date, UTC)
 _UNTIL = typer.Option(None, "--until", help="Calibrated on/before (ISO date, UTC)")
 _SUPERSEDED = typer.Option(False, "--superseded/--no-superseded",
                            help="Include superseded records")
-_RECORDS = _records_option()
+_RECORDS = _RECORDS_OPT
 
 
 @records_app.command("list")
@@ -577,7 +569,7 @@ def records_show(
 @records_app.command("check")
 @guarded
 def records_check(
-    records: str | None = _records_option(),
+    records: str | None = _RECORDS_OPT,
 ) -> None:
     """Recompute the records' hash chain: exit 0 intact, 1 naming the first broken record."""
     from aatest.records.commands import check_records
@@ -609,7 +601,9 @@ def records_export(
 def station(
     host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on (loopback default)"),
     port: int = typer.Option(8671, "--port", help="TCP port to listen on"),
-    records: str | None = _records_option("Records database URL for the units' history"),
+    records: str | None = typer.Option(
+        None, "--records", help="Records database URL for the units' history",
+        envvar=_RECORDS_ENV),
     token_file: Path | None = typer.Option(
         None, "--token-file", help="File holding the access token (≥ 32 characters); the "
         "token itself may come from AATEST_STATION_TOKEN instead"

@@ -14,10 +14,9 @@ from datetime import datetime
 from typing import Any
 
 import numpy as np
-from scipy.optimize import curve_fit
-
 from rich import box
 from rich.table import Table
+from scipy.optimize import curve_fit
 
 from aatest.presentation.terminal import render_text
 from aatest.records.models import CalibrationRecord
@@ -154,7 +153,8 @@ def history_text(serial: str, records: Sequence[CalibrationRecord], interval_mon
         if drift is not None:
             label, q = display_name(name)
             lines.append(f"drift of {label}: {drift.per_year:+.4g} {q.unit} per year"
-                         f" (u = {significant(drift.u_per_year, U_DIGITS)}, {drift.points} calibrations)")
+                         f" (u = {significant(drift.u_per_year, U_DIGITS)}, "
+                         f"{drift.points} calibrations)")
     due = next_due(records, interval_months)
     if due is not None:
         overdue = " — OVERDUE" if due < datetime.now(due.tzinfo) else ""
