@@ -72,3 +72,11 @@ def test_quantity_show_uses_the_rule() -> None:
     assert scale.show(0.0040139, 4.67599e-6) == "4.0139e-03 ± 4.7e-06 V/(°/s²)"
     nonlinearity = QUANTITIES["nonlinearity_pct_fr"]
     assert nonlinearity.show(4.92e-15, 0.0021) == "< 0.0001 ± 0.0021 % FR"
+
+
+def test_report_templates_have_the_rule_as_a_filter() -> None:
+    from aatest.plugins.report.sandbox import make_environment
+
+    template = make_environment().from_string(
+        "{{ r.v | measurement(r.u, 'V', 4) }}|{{ r.missing | measurement }}")
+    assert template.render(r={"v": 2.49872, "u": 0.0123}) == "2.499 ± 0.012 V|—"
