@@ -12,6 +12,7 @@ import logging
 import signal
 import sys
 import threading
+import time
 import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -27,11 +28,42 @@ if TYPE_CHECKING:
     from aatest.results import RunResults
 from aatest.engine.errors import EXIT_FINDING, EXIT_INTERNAL, EXIT_RIG_FAULT, AatestError
 
+#: environment variables aatest reads, listed in ``aatest --help``
+ENVIRONMENT_HELP = (
+    "Environment: AATEST_RECORDS (records database URL), AATEST_LAB (lab profile YAML), "
+    "AATEST_SIGNING_KEY (private key that signs reports), AATEST_SIGNING_PASSPHRASE (its "
+    "passphrase), AATEST_OPERATOR (name on the certificate), AATEST_STATION_TOKEN (the "
+    "station's access token), AATEST_WORKERS (analysis worker processes)."
+)
+#: the distributions ``aatest --version`` names beside aatest and Python
+VERSION_DEPENDENCIES = ("numpy", "scipy", "pydantic", "typer", "rich", "mcap", "sqlalchemy",
+                        "jinja2", "matplotlib", "cryptography")
+
+
+def _flag_types_hidden() -> None:
+    """Show no ``<bool>`` type beside a flag in help (``--pdf/--no-pdf`` says it all).
+
+    typer ≥ 0.24 prints every option's type in the rich help, flags (and ``--help``)
+    included; for a flag the type is noise. Flags keep their behaviour, only the help changes.
+    """
+    from typer.core import TyperOption
+
+    shown = TyperOption.display_type_rich
+
+    def display_type_rich(self: TyperOption, ctx: Any) -> str | None:
+        return None if self.is_flag else shown(self, ctx)
+
+    TyperOption.display_type_rich = display_type_rich  # type: ignore[method-assign]
+
+
+_flag_types_hidden()
+
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     help="Characterise and calibrate angular accelerometers on turntables.",
+    epilog=ENVIRONMENT_HELP,
 )
 sim_server_app = typer.Typer(no_args_is_help=True,
                              help="Serve the simulated rig over a real protocol.")
@@ -112,16 +144,58 @@ def _terminate_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+def version_text() -> str:
+    """aatest's version, Python's and those of the libraries results depend on."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    def of(name: str) -> str:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "not installed"
+
+    lines = [f"aatest {of('aatest')}",
+             f"Python {platform.python_version()} ({platform.python_implementation()}, "
+             f"{platform.platform(terse=True)})"]
+    lines += [f"{name} {of(name)}" for name in VERSION_DEPENDENCIES]
+    return "\n".join(lines)
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(version_text())
+        raise typer.Exit(0)
+
+
 @app.callback()
-def _main(debug: bool = typer.Option(False, "--debug", help="Show tracebacks.")) -> None:
+def _main(
+    debug: bool = typer.Option(False, "--debug/--no-debug",
+                               help="Show tracebacks and debug logging."),
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the versions of aatest, Python and key libraries."),
+) -> None:
     _state["debug"] = debug
     logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING,
                         format="%(levelname)s: %(message)s")
 
 
-_RECORDS_HELP = "Records database URL (else AATEST_RECORDS, else the default SQLite file)"
-_LAB_HELP = ("Lab profile YAML (else AATEST_LAB): name, address, accreditation, signatories, "
-             "certificate prefix, interval")
+_RECORDS_HELP = "Records database URL (default: the SQLite file in the user's data directory)"
+_LAB_HELP = ("Lab profile YAML: name, address, accreditation, signatories, certificate prefix, "
+             "interval")
+_RIG_HELP = "Rig YAML (default: the simulated rig)"
+_SIGN_KEY_HELP = ("Ed25519 private key that signs the report (passphrase from "
+                  "AATEST_SIGNING_PASSPHRASE)")
+_JSON_SUMMARY_HELP = "Print the closing summary as JSON on stdout instead of tables"
+_RECORDS_ENV, _LAB_ENV, _SIGN_KEY_ENV = "AATEST_RECORDS", "AATEST_LAB", "AATEST_SIGNING_KEY"
+
+
+_RECORDS_OPT = typer.Option(None, "--records", help=_RECORDS_HELP, envvar=_RECORDS_ENV)
+_LAB_OPT = typer.Option(None, "--lab", help=_LAB_HELP, envvar=_LAB_ENV)
+_LAB_TRUSTED_OPT = typer.Option(None, "--lab", help=_LAB_HELP + "; its signing_keys are trusted",
+                                envvar=_LAB_ENV)
+_SIGN_KEY_OPT = typer.Option(None, "--sign-key", help=_SIGN_KEY_HELP, envvar=_SIGN_KEY_ENV)
+_RIG_OPT = typer.Option(None, "--rig", help=_RIG_HELP)
 
 
 def _registering(records: str | None, lab: Path | None, command: str) -> Any:
@@ -142,7 +216,7 @@ def _print_json(doc: Any) -> None:
 @guarded
 def validate(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Path | None = typer.Option(None, "--rig", help="Rig YAML (default: simulated rig)"),
+    rig: Path | None = _RIG_OPT,
 ) -> None:
     """Check a procedure against its schema and the rig envelope; nothing moves."""
     from aatest.engine.run.session import prepare
@@ -160,8 +234,9 @@ def validate(
 @guarded
 def plan(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Path | None = typer.Option(None, "--rig"),
-    as_json: bool = typer.Option(False, "--json", help="Print the expanded plan as JSON"),
+    rig: Path | None = _RIG_OPT,
+    as_json: bool = typer.Option(False, "--json/--no-json",
+                                 help="Print the expanded plan as JSON"),
 ) -> None:
     """Expand the procedure's generators into the step list."""
     from aatest.engine.run.progress import describe
@@ -181,16 +256,21 @@ def plan(
 @guarded
 def run(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
-    rig: Path | None = typer.Option(None, "--rig"),
+    rig: Path | None = _RIG_OPT,
     out: Path | None = typer.Option(None, "--out", help="Run directory"),
-    resume: bool = typer.Option(False, "--resume", help="Continue an interrupted run in --out"),
+    resume: bool = typer.Option(False, "--resume/--no-resume",
+                                help="Continue an interrupted run in --out"),
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated rig"),
-    sign_key: Path | None = typer.Option(None, "--sign-key", help="Ed25519 private key"),
-    no_progress: bool = typer.Option(False, "--no-progress"),
-    operator: str | None = typer.Option(None, "--operator", help="Name on the certificate"),
-    pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
-    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
+    sign_key: Path | None = _SIGN_KEY_OPT,
+    progress: bool = typer.Option(
+        True, "--progress/--no-progress",
+        help="Show progress: a bar on a terminal, one line per step otherwise (on stderr)"),
+    operator: str | None = typer.Option(None, "--operator", help="Name on the certificate",
+                                        envvar="AATEST_OPERATOR"),
+    pdf: bool = typer.Option(False, "--pdf/--no-pdf",
+                             help="Also print the report to PDF (needs Chromium)"),
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
     confirm_prompts: str = typer.Option(
         "ask", "--confirm-prompts",
         help="ask: a person confirms each operator prompt (refused without a terminal); "
@@ -203,25 +283,24 @@ def run(
     allow_overdue: str | None = typer.Option(
         None, "--allow-overdue", help="Run although a reference standard is overdue; the "
         "reason is printed on the certificate as a non-conformity"),
+    json_summary: bool = typer.Option(False, "--json-summary/--no-json-summary",
+                                      help=_JSON_SUMMARY_HELP),
 ) -> None:
     """Run a procedure: record both loggers, analyse, report (and sign), register the record."""
     from aatest.engine.errors import InputError
     from aatest.engine.run import session
 
+    started = time.monotonic()
     if confirm_prompts not in ("ask", "auto"):
         raise InputError(f"--confirm-prompts: expected 'ask' or 'auto', got {confirm_prompts!r}")
     with _registering(records, lab, "run") as registrar:
         registrar.preflight = _check_references(registrar, rig, allow_overdue)
         run_dir, results = session.run(
-            procedure, rig, out, resume, seed, sign_key, not no_progress, operator=operator,
+            procedure, rig, out, resume, seed, sign_key, progress, operator=operator,
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
             unit=session.UnitName(serial or None, model or None),
         )
-    typer.echo(
-        f"run complete: {run_dir} — {len(results.steps)} steps, "
-        f"lab {results.lab_duration_s:.1f} s, "
-        f"wall {results.wall_duration_s:.1f} s"
-    )
+    _print_summary(results, run_dir, "run", started, json_summary)
     _echo_kind(results)
     _exit_on_outcome(results)
 
@@ -260,6 +339,19 @@ def _echo_kind(results: RunResults) -> None:
         typer.echo(f"simulation ({parts}): {SIMULATION_TITLE}, {number}")
 
 
+def _print_summary(results: RunResults, bundle: Path, command: str, started: float,
+                   as_json: bool) -> None:
+    """The closing summary: rich tables (plain without a terminal) or ``--json-summary``."""
+    from aatest.presentation.summary import summarise
+    from aatest.presentation.terminal import print_summary, summary_json
+
+    summary = summarise(results, bundle, command, time.monotonic() - started)
+    if as_json:
+        typer.echo(summary_json(summary))
+    else:
+        print_summary(summary)
+
+
 def _exit_on_outcome(results: RunResults) -> None:
     """After everything is written: exit 2 on failed analyses, 1 on a failed verdict."""
     from aatest.engine.analysis.verdicts import failed
@@ -270,7 +362,6 @@ def _exit_on_outcome(results: RunResults) -> None:
         raise typer.Exit(2)
     from aatest.results.quantities import quantity
 
-    typer.echo(f"overall verdict: {results.overall}")
     if failed(results):
         for v in results.verdicts:
             if v.verdict != "pass":
@@ -287,13 +378,16 @@ def analyze(
         ..., help="Run directory, recording.mcap, import directory or logger mapping.yaml"),
     json_out: Path | None = typer.Option(None, "--json", help="Also write results here"),
     out: Path | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
-    sign_key: Path | None = typer.Option(None, "--sign-key"),
-    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
+    sign_key: Path | None = _SIGN_KEY_OPT,
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
+    json_summary: bool = typer.Option(False, "--json-summary/--no-json-summary",
+                                      help=_JSON_SUMMARY_HELP),
 ) -> None:
     """Analyse recorded or imported data and write results.json and the report."""
     from aatest.engine.run import session
 
+    started = time.monotonic()
     target = out or (data if data.is_dir() else data.parent)
     wall = session.run_wall_duration(data) if data.is_dir() else None
     with _registering(records, lab, "analyze"):
@@ -304,7 +398,7 @@ def analyze(
         from aatest.engine.analysis.results import results_json
 
         json_out.write_text(json.dumps(results_json(results), indent=2), encoding="utf-8")
-    typer.echo(f"analysed {len(results.steps)} steps → {target / 'results.json'}")
+    _print_summary(results, target, "analyze", started, json_summary)
     _exit_on_outcome(results)
 
 
@@ -339,8 +433,8 @@ def diagnose(
     json_out: Path | None = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
     model_out: Path | None = typer.Option(
         None, "--model-out", help="Write the extended model YAML"),
-    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
 ) -> None:
     """Show what the simulation gets wrong, name the cause, extend the model, measure the gain."""
     from aatest.diagnose.command import diagnose_command
@@ -356,7 +450,8 @@ def diagnose(
 @guarded
 def misalignment(
     spectra: Path = typer.Argument(..., help="CSV: set, experiment, sensor, re, im"),
-    as_json: bool = typer.Option(True, "--json/--no-json"),
+    as_json: bool = typer.Option(True, "--json/--no-json",
+                                 help="Print the misalignment as JSON (the only format)"),
 ) -> None:
     """Misalignment of a three-sensor unit from fundamental spectral responses."""
     from aatest.plugins.analysis.misalignment import misalignment_from_spectra
@@ -369,10 +464,11 @@ def misalignment(
 def report(
     run_dir: Path = typer.Argument(..., help="Run directory with results.json"),
     template: Path | None = typer.Option(None, "--template", help="A lab's own template directory"),
-    sign_key: Path | None = typer.Option(None, "--sign-key"),
-    pdf: bool = typer.Option(False, "--pdf", help="Also print the report to PDF (needs Chromium)"),
-    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
+    sign_key: Path | None = _SIGN_KEY_OPT,
+    pdf: bool = typer.Option(False, "--pdf/--no-pdf",
+                             help="Also print the report to PDF (needs Chromium)"),
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
 ) -> None:
     """Re-render (and sign) the report of a run; the new record supersedes the old one."""
     from aatest.engine.run import session
@@ -420,10 +516,10 @@ def keygen(
 @guarded
 def verify(
     report_file: Path = typer.Argument(..., help="Signed report"),
-    public_key: Path | None = typer.Option(None, "--public-key", help="Trusted public key"),
-    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
-    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP + "; its signing_keys are "
-                                    "trusted"),
+    public_key: Path | None = typer.Option(None, "--public-key",
+                                           help="Trusted public key (beside the lab's keys)"),
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_TRUSTED_OPT,
 ) -> None:
     """Check a signed bundle, its signing key and its record: exit 0 untouched, 1 tampered,
     untrusted or wrong key."""
@@ -449,7 +545,8 @@ def verify(
 @app.command()
 @guarded
 def schema(
-    results: bool = typer.Option(False, "--results", help="The schema of results.json instead"),
+    results: bool = typer.Option(False, "--results/--no-results",
+                                 help="The schema of results.json instead"),
 ) -> None:
     """Print the procedure JSON Schema (for editors), or with --results that of results.json."""
     from aatest.engine.procedure.schema_export import render
@@ -484,10 +581,10 @@ _SIMULATIONS = typer.Option(
 @guarded
 def history(
     serial: str = typer.Argument(..., help="Unit serial number"),
-    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
-    as_json: bool = typer.Option(False, "--json", help="Print the history as JSON"),
+    records: str | None = _RECORDS_OPT,
+    as_json: bool = typer.Option(False, "--json/--no-json", help="Print the history as JSON"),
     html: Path | None = typer.Option(None, "--html", help="Write trend plots to this HTML file"),
-    lab: Path | None = typer.Option(None, "--lab", help=_LAB_HELP),
+    lab: Path | None = _LAB_OPT,
     include_simulations: bool = _SIMULATIONS,
 ) -> None:
     """A unit's calibrations: dates, certificates, key results ± U, verdicts, drift, next due."""
@@ -498,14 +595,15 @@ def history(
                                 include_simulations))
 
 
-_SERIAL = typer.Option(None, "--serial")
+_SERIAL = typer.Option(None, "--serial", help="Unit serial number")
 _MODEL = typer.Option(None, "--model", help="Sensor model")
-_PROCEDURE = typer.Option(None, "--procedure")
+_PROCEDURE = typer.Option(None, "--procedure", help="Procedure name")
 _VERDICT = typer.Option(None, "--verdict", help="pass | fail | conditional-pass | ... | none")
 _SINCE = typer.Option(None, "--since", help="Calibrated on/after (ISO date, UTC)")
 _UNTIL = typer.Option(None, "--until", help="Calibrated on/before (ISO date, UTC)")
-_SUPERSEDED = typer.Option(False, "--superseded", help="Include superseded records")
-_RECORDS = typer.Option(None, "--records", help=_RECORDS_HELP)
+_SUPERSEDED = typer.Option(False, "--superseded/--no-superseded",
+                           help="Include superseded records")
+_RECORDS = _RECORDS_OPT
 
 
 @records_app.command("list")
@@ -539,7 +637,7 @@ def records_show(
 @records_app.command("check")
 @guarded
 def records_check(
-    records: str | None = typer.Option(None, "--records", help=_RECORDS_HELP),
+    records: str | None = _RECORDS_OPT,
 ) -> None:
     """Recompute the records' hash chain: exit 0 intact, 1 naming the first broken record."""
     from aatest.records.commands import check_records
@@ -671,13 +769,19 @@ def references_retire(
 @guarded
 def station(
     host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on (loopback default)"),
-    port: int = typer.Option(8671, "--port"),
-    records: str | None = typer.Option(None, "--records", help="Records store URL for history"),
+    port: int = typer.Option(8671, "--port", help="TCP port to listen on"),
+    records: str | None = typer.Option(
+        None, "--records", help="Records database URL for the units' history",
+        envvar=_RECORDS_ENV),
     token_file: Path | None = typer.Option(
-        None, "--token-file", help="Access token (≥ 32 characters; or AATEST_STATION_TOKEN)"
+        None, "--token-file", help="File holding the access token (≥ 32 characters); the "
+        "token itself may come from AATEST_STATION_TOKEN instead"
     ),
     runs: Path = typer.Option(Path("runs"), "--runs", help="Runs directory (new runs, history)"),
-    lab: Path | None = typer.Option(None, "--lab", help="Lab directory of procedure YAMLs"),
+    procedures: Path | None = typer.Option(
+        None, "--procedures", help="Directory of the lab's procedure YAMLs (beside the shipped)"),
+    procedures_deprecated: Path | None = typer.Option(
+        None, "--lab", hidden=True, help="Deprecated name of --procedures"),
     rig: Path | None = typer.Option(None, "--rig", help="Rig YAML (default: each procedure's)"),
     allow_host: list[str] = typer.Option(
         [], "--allow-host", help="Another Host name it answers to (NAME or NAME:PORT; repeatable)"
@@ -686,19 +790,26 @@ def station(
     """Serve the operator's station: run, watch and answer procedures from a browser."""
     from aatest.station.serve import StationOptions, serve
 
+    if procedures_deprecated is not None:
+        typer.echo("warning: station --lab is deprecated (--lab names a lab profile elsewhere); "
+                   "use --procedures", err=True)
+        procedures = procedures or procedures_deprecated
     serve(StationOptions(host=host, port=port, records=records, token_file=token_file,
-                         runs_dir=runs, lab_dir=lab, rig_file=rig, allow_hosts=tuple(allow_host)))
+                         runs_dir=runs, lab_dir=procedures, rig_file=rig,
+                         allow_hosts=tuple(allow_host)))
 
 
 @sim_server_app.command("modbus")
 @guarded
 def sim_server_modbus(
-    host: str = typer.Option("127.0.0.1", "--host"),
-    port: int = typer.Option(5020, "--port"),
-    seed: int = typer.Option(0, "--seed"),
+    host: str = typer.Option("127.0.0.1", "--host",
+                             help="Address to listen on (loopback default)"),
+    port: int = typer.Option(5020, "--port", help="TCP port of the Modbus server"),
+    seed: int = typer.Option(0, "--seed", help="Seed of the simulated rig"),
     can_interface: str | None = typer.Option(
         None, "--can-interface", help="python-can interface of the simulated CAN logger"),
-    can_channel: str | None = typer.Option(None, "--can-channel"),
+    can_channel: str | None = typer.Option(
+        None, "--can-channel", help="python-can channel of the simulated CAN logger"),
 ) -> None:
     """Serve the simulated turntable over Modbus TCP (and its sensor logger on CAN)."""
     from aatest.twin.servers.modbus_server import serve_forever

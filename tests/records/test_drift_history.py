@@ -94,7 +94,14 @@ def test_history_recovers_the_aging_rate(aged_unit: str) -> None:
     match = re.search(r"drift of Scale factor v_sz: \+([0-9.e-]+) V/\(°/s²\) per year",
                       result.stdout)
     assert "scale_factor" not in result.stdout  # quantities by name, not by field
-    assert "Scale factor v_sz [V/(°/s²)] (± U)" in result.stdout
+    assert "Scale factor v_sz ± U [V/(°/s²)]" in result.stdout
+    header, rule, *rows = result.stdout.split("\n\n")[1].splitlines()
+    assert len(rows) == len(STARTS) and set(rule.strip()) == {"─"}
+    # every cell of the rows sits under its heading (rich aligns the columns)
+    column = header.index("Verdict")
+    assert all(row[column:].split()[0] in ("pass", "fail", "conditional-pass") for row in rows)
+    # U with two significant digits (GUM 7.2.6), never the raw float
+    assert all(re.search(r"± \d\.\de-\d\d", row) for row in rows)
     assert match and float(match.group(1)) == pytest.approx(true_per_year, rel=0.01)
     assert "next due:" not in result.stdout  # simulations never set a due date
 

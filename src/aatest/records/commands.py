@@ -7,6 +7,10 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from rich import box
+from rich.table import Table
+
+from aatest.presentation.terminal import render_text
 from aatest.records import audit
 from aatest.records.errors import RecordsError
 from aatest.records.export import write_csv
@@ -18,6 +22,8 @@ from aatest.records.store import RecordStore
 from aatest.records.trend import write_trend_html
 from aatest.records.url import is_default_missing, resolve_url
 from aatest.records.verify import find_record, record_reasons, unregistered_reasons
+from aatest.results.quantities import quantity
+from aatest.results.rounding import measurement_text
 
 
 def _moment(text: str | None, option: str) -> datetime | None:
@@ -71,18 +77,39 @@ def _no_history(store: RecordStore, serial: str, include_simulations: bool) -> s
     return message
 
 
-def _line(record: CalibrationRecord) -> str:
-    return (f"{record.certificate_number or '—':18s} {record.calibrated_utc:%Y-%m-%d %H:%M}  "
-            f"{record.model}/{record.serial:10s} {record.procedure:30s} "
-            f"{record.overall_verdict:16s}"
-            f" {record.command:8s} {record.kind:11s} {record.bundle}")
+#: the quantity ``records list`` shows per record (the first channel's), with its U
+LISTED_QUANTITY = "scale_factor"
+
+
+def _listed_cell(record: CalibrationRecord) -> str:
+    """The record's scale factor ± U, rounded per GUM 7.2.6, with its unit symbol."""
+    name = next((n for n in sorted(record.quantities) if n.startswith(f"{LISTED_QUANTITY}.")),
+                None)
+    if name is None:
+        return "—"
+    stated, q = record.quantities[name], quantity(LISTED_QUANTITY)
+    text = measurement_text(stated.value, stated.expanded_uncertainty, q.unit, digits=q.digits)
+    return f"{text} ({name.partition('.')[2]})"
+
+
+def records_table(records: list[CalibrationRecord]) -> Table:
+    """``aatest records list``: one aligned row per record, with headers."""
+    table = Table(box=box.SIMPLE_HEAD)
+    for heading in ("Certificate", "Calibrated (UTC)", "Model", "Serial", "Procedure",
+                    f"{quantity(LISTED_QUANTITY).name} ± U", "Verdict", "Command", "Kind", "Bundle"):
+        table.add_column(heading, no_wrap=True)
+    for r in records:
+        table.add_row(r.certificate_number or "—", f"{r.calibrated_utc:%Y-%m-%d %H:%M}",
+                      r.model, r.serial, r.procedure, _listed_cell(r), r.overall_verdict,
+                      r.command, r.kind, r.bundle)
+    return table
 
 
 def list_records(records_url: str | None, where: RecordFilter) -> str:
-    """One line per matching record (``aatest records list``)."""
+    """A table of the matching records (``aatest records list``)."""
     with open_for_reading(records_url) as store:
         records = store.query(where)
-    return "\n".join(_line(r) for r in records) if records else "no matching records"
+    return render_text(records_table(records)) if records else "no matching records"
 
 
 def show_record(records_url: str | None, key: str) -> dict[str, Any]:

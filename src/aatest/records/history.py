@@ -14,10 +14,14 @@ from datetime import datetime
 from typing import Any
 
 import numpy as np
+from rich import box
+from rich.table import Table
 from scipy.optimize import curve_fit
 
+from aatest.presentation.terminal import render_text
 from aatest.records.models import CalibrationRecord
 from aatest.results.quantities import U_DIGITS, Quantity, quantity, significant
+from aatest.results.rounding import measurement_text
 
 SECONDS_PER_YEAR = 365.25 * 86400.0
 #: the quantities a history shows, in this order (``NAME.CHANNEL`` prefixes)
@@ -102,10 +106,6 @@ def next_due(records: Sequence[CalibrationRecord], interval_months: int) -> date
     return add_months(max(r.calibrated_utc for r in calibrations), interval_months)
 
 
-def _format(value: float | None) -> str:
-    return "—" if value is None else f"{value:.6g}"
-
-
 def display_name(name: str) -> tuple[str, Quantity]:
     """``Scale factor v_sz`` and the registry entry of a record's ``scale_factor.v_sz``."""
     key, _, channel = name.partition(".")
@@ -114,38 +114,49 @@ def display_name(name: str) -> tuple[str, Quantity]:
 
 
 def _quantity_cell(record: CalibrationRecord, name: str) -> str:
+    """``value ± U`` rounded per GUM 7.2.6 (the unit is in the column heading)."""
     stated = record.quantities.get(name)
     if stated is None:
         return "—"
     q = display_name(name)[1]
-    return f"{q.value_text(stated.value)} ± {significant(stated.expanded_uncertainty, U_DIGITS)}"
+    return measurement_text(stated.value, stated.expanded_uncertainty, digits=q.digits)
 
 
 def _heading(records: Sequence[CalibrationRecord], name: str) -> str:
     label, q = display_name(name)
-    return f"{label} [{q.unit}] (± U)"
+    return f"{label} ± U [{q.unit}]" if q.unit else f"{label} ± U"
+
+
+def history_table(serial: str, records: Sequence[CalibrationRecord]) -> Table:
+    """One row per calibration: date, procedure, certificate, the key quantities, verdict."""
+    names = quantity_names(records)
+    table = Table(title=f"Calibrations of unit {serial}", title_justify="left",
+                  box=box.SIMPLE_HEAD)
+    for heading in ("Calibrated (UTC)", "Procedure", "Certificate"):
+        table.add_column(heading, no_wrap=True)
+    for name in names:
+        table.add_column(_heading(records, name), no_wrap=True, justify="right")
+    table.add_column("Verdict", no_wrap=True)
+    for r in records:
+        table.add_row(r.calibrated_utc.strftime("%Y-%m-%d %H:%M"), r.procedure,
+                      r.certificate_number or "—", *[_quantity_cell(r, n) for n in names],
+                      r.overall_verdict + (" (simulation)" if r.kind == "simulation" else ""))
+    return table
 
 
 def history_text(serial: str, records: Sequence[CalibrationRecord], interval_months: int) -> str:
-    """The table ``aatest history`` prints: one line per calibration, then drift and due date."""
+    """The table ``aatest history`` prints: one row per calibration, then drift and due date."""
     if not records:
         return f"{serial}: no calibration records"
     names = quantity_names(records)
-    header = ["calibrated (UTC)", "procedure", "certificate",
-              *[_heading(records, n) for n in names], "verdict"]
-    lines = ["  ".join(header)]
-    for r in records:
-        lines.append("  ".join([r.calibrated_utc.strftime("%Y-%m-%d %H:%M"), r.procedure,
-                                r.certificate_number or "—",
-                                *[_quantity_cell(r, n) for n in names],
-                                r.overall_verdict + (" (simulation)" if r.kind == "simulation"
-                                                     else "")]))
+    lines = [render_text(history_table(serial, records)), ""]
     for name in names:
         drift = fit_drift(records, name)
         if drift is not None:
             label, q = display_name(name)
             lines.append(f"drift of {label}: {drift.per_year:+.4g} {q.unit} per year"
-                         f" (u = {_format(drift.u_per_year)}, {drift.points} calibrations)")
+                         f" (u = {significant(drift.u_per_year, U_DIGITS)}, "
+                         f"{drift.points} calibrations)")
     due = next_due(records, interval_months)
     if due is not None:
         overdue = " — OVERDUE" if due < datetime.now(due.tzinfo) else ""

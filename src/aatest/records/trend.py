@@ -10,6 +10,7 @@ import io
 from collections.abc import Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -48,6 +49,22 @@ def _svg(figure: plt.Figure) -> Markup:
     return Markup(text[text.index("<svg"):])  # drop the XML prolog: inline SVG
 
 
+#: margin either side of the plotted dates, as a fraction of their span (at least a fortnight)
+_MARGIN_FRACTION, _MARGIN_MIN_DAYS = 0.05, 14.0
+
+
+def _date_axis(axes: Any, moments: Sequence[datetime]) -> None:
+    """A time axis that spans every calibration and the due date, with a margin, and dated
+    ticks a person reads (a single calibration no longer sits on the axis' edge)."""
+    days = mdates.date2num(moments)
+    margin = max(_MARGIN_FRACTION * float(days.max() - days.min()), _MARGIN_MIN_DAYS)
+    axes.set_xlim(float(days.min()) - margin, float(days.max()) + margin)
+    locator = mdates.AutoDateLocator(minticks=3, maxticks=8)
+    axes.xaxis.set_major_locator(locator)
+    axes.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
+    axes.grid(True, axis="both", linewidth=0.5, alpha=0.4)
+
+
 def _plot(records: Sequence[CalibrationRecord], name: str,
           limits: tuple[float, float] | None, due: datetime | None) -> tuple[Markup, str]:
     rows = [r for r in records if name in r.quantities]
@@ -73,11 +90,10 @@ def _plot(records: Sequence[CalibrationRecord], name: str,
     if due is not None:
         axes.axvline(float(mdates.date2num(due)), color="tab:green", linestyle=":",
                      label="next due")
-    axes.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m-%d"))
+    _date_axis(axes, [*when, *([due] if due is not None else [])])
     label, q = display_name(name)
     axes.set_ylabel(f"{label} [{q.unit}]")
     axes.legend(fontsize="small")
-    figure.autofmt_xdate()
     return _svg(figure), caption
 
 

@@ -8,7 +8,7 @@ unchanged for compatibility); ``unit`` is the symbol a person reads.
 >>> QUANTITIES["nonlinearity_pct_fr"].name
 'Nonlinearity, % of full range'
 >>> QUANTITIES["scale_factor"].show(0.0040139, 1.2e-6)
-'4.01390e-03 ± 1.2e-06 V/(°/s²)'
+'4.0139e-03 ± 1.2e-06 V/(°/s²)'
 """
 
 from __future__ import annotations
@@ -56,11 +56,11 @@ class Quantity:
         return significant(value, self.digits)
 
     def show(self, value: float | None, u: float | None = None) -> str:
-        """``value ± U unit`` (without ``± U`` when there is none), e.g. on a terminal."""
-        text = self.value_text(value)
-        if finite(u) is not None:
-            text += f" ± {significant(u, U_DIGITS)}"
-        return f"{text} {self.unit}".rstrip()
+        """``value ± U unit`` rounded per GUM 7.2.6 (:mod:`aatest.results.rounding`); without a
+        U the value keeps the quantity's significant digits."""
+        from aatest.results.rounding import measurement_text  # it builds on significant()
+
+        return measurement_text(value, u, self.unit, digits=self.digits)
 
 
 def _q(key: str, name: str, unit: str, digits: int, json_unit: str | None = None) -> Quantity:

@@ -41,6 +41,7 @@ from markupsafe import Markup
 
 from aatest.engine.errors import InputError
 from aatest.results.quantities import significant
+from aatest.results.rounding import measurement_text
 
 #: the shipped templates and static assets (no logic lives there)
 BUILTIN_TEMPLATES = Path(__file__).resolve().parents[2] / "reports"
@@ -199,6 +200,12 @@ def _fixed(value: Any, decimals: int = 3) -> str:
     return "—" if f is None else f"{f:.{decimals}f}"
 
 
+def _measurement(value: Any, u: Any = None, unit: str = "", digits: int = 6) -> str:
+    """``value ± U unit`` rounded per GUM 7.2.6 (:mod:`aatest.results.rounding`); '—' when
+    missing, ``< x`` when the value is below the resolution U allows."""
+    return measurement_text(_as_float(value), _as_float(u), str(unit), digits=int(digits))
+
+
 def make_environment(template_dir: Path | None = None) -> ImmutableSandboxedEnvironment:
     """The sandbox: a lab's ``template_dir`` first (may override), the shipped templates after."""
     loaders = [_ConfinedLoader(BUILTIN_TEMPLATES)]
@@ -210,7 +217,7 @@ def make_environment(template_dir: Path | None = None) -> ImmutableSandboxedEnvi
     env = _ReportEnvironment(
         loader=ChoiceLoader(loaders), autoescape=True, trim_blocks=True, lstrip_blocks=True,
     )
-    env.filters.update(num=_num, fixed=_fixed, format=_checked_format)
+    env.filters.update(num=_num, fixed=_fixed, format=_checked_format, measurement=_measurement)
     env.filters.update({name: _capped_filter(name, env.filters[name]) for name in _WIDTH_FILTERS})
     env.template_dir = template_dir  # type: ignore[attr-defined]  # for render_loaded's child
     for name in ("lipsum", "joiner"):  # nothing a report needs
