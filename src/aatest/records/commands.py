@@ -96,7 +96,8 @@ def records_table(records: list[CalibrationRecord]) -> Table:
     """``aatest records list``: one aligned row per record, with headers."""
     table = Table(box=box.SIMPLE_HEAD)
     for heading in ("Certificate", "Calibrated (UTC)", "Model", "Serial", "Procedure",
-                    f"{quantity(LISTED_QUANTITY).name} ± U", "Verdict", "Command", "Kind", "Bundle"):
+                    f"{quantity(LISTED_QUANTITY).name} ± U", "Verdict", "Command", "Kind",
+                    "Bundle"):
         table.add_column(heading, no_wrap=True)
     for r in records:
         table.add_row(r.certificate_number or "—", f"{r.calibrated_utc:%Y-%m-%d %H:%M}",
