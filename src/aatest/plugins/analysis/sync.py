@@ -348,6 +348,12 @@ class SyncAnalysis:
     key: ClassVar[str] = "sync"
     requires: ClassVar[tuple[str, ...]] = ()
     Options: ClassVar[type[NoOptions]] = NoOptions
+
+    @staticmethod
+    def check_step(step: StepData) -> None:
+        """The run's check of one step as it is recorded: its clock relation can be fitted
+        (pulses, trigger and time stamps only), else :class:`AnalysisError`."""
+        clock_relation(step)
     Result: ClassVar[type[SyncResult]] = SyncResult
 
     def applies_to(self, data: Dataset) -> bool:
