@@ -6,9 +6,6 @@ import re
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
-
-from aatest.cli import app
 from fleet_archive import (
     DRIFT_PER_YEAR,
     NOMINAL,
@@ -19,6 +16,9 @@ from fleet_archive import (
     UNIT_EFFECT,
     seed,
 )
+from typer.testing import CliRunner
+
+from aatest.cli import app
 
 RUNNER = CliRunner()
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from fleet_archive import OUTLIER, RIG_EFFECT, SIM_EFFECT, seed
 from starlette.testclient import TestClient
 
 from aatest.station import StationOptions, build
-from fleet_archive import OUTLIER, RIG_EFFECT, SIM_EFFECT, seed
 
 #: the station as a browser on this machine names it (its default port)
 STATION_URL = "http://127.0.0.1:8671"
