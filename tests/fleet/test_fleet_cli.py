@@ -118,3 +118,10 @@ def test_pages_are_reproducible(archive: tuple[str, Path], tmp_path: Path) -> No
         text = (tmp_path / name).read_text(encoding="utf-8")
         pages.append(re.sub(r"generated [^·]+·", "", text))
     assert pages[0] == pages[1]
+
+
+def test_bad_options_are_bad_input(archive: tuple[str, Path]) -> None:
+    url, _ = archive
+    assert _invoke("interval", "A1", "--records", url, "--reliability", "1.5")[0] == 2
+    code, out = _invoke("charts", "--records", url, "--since", "last week")
+    assert code == 2 and "--since 'last week'" in out

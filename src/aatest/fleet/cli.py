@@ -47,9 +47,11 @@ def build(guarded: Callable[[Command], Command]) -> typer.Typer:
     @guarded
     def interval(
         serial: str = typer.Argument(..., help="Unit serial number"),
-        reliability: float = typer.Option(DEFAULT_RELIABILITY, "--reliability",
-                                          help="End-of-period reliability target (0-1)"),
-        degree: int = typer.Option(1, "--degree", help="Degree of the drift polynomial"),
+        reliability: float = typer.Option(
+            DEFAULT_RELIABILITY, "--reliability", min=0.0, max=1.0,
+            help="End-of-period reliability target, strictly between 0 and 1"),
+        degree: int = typer.Option(1, "--degree", min=1,
+                                   help="Degree of the drift polynomial"),
         html: Path = typer.Option(None, "--html", help="Write the page here "
                                   "(default fleet-interval-SERIAL.html)"),
         records: str | None = _RECORDS, lab: Path | None = _LAB,
@@ -98,7 +100,9 @@ def build(guarded: Callable[[Command], Command]) -> typer.Typer:
         summaries = commands.diagnosis(
             commands.Selection(records, model, _since(since), include_simulations), run_diagnose)
         pages.write(html, pages.diagnose_context(summaries))
-        typer.echo(commands.diagnosis_text(summaries) + f"\npage: {html}")
+        hint = "" if summaries or include_simulations else (
+            " (simulations are left out: --include-simulations)")
+        typer.echo(commands.diagnosis_text(summaries) + hint + f"\npage: {html}")
         if commands.rig_effects(summaries):
             raise typer.Exit(EXIT_FINDING)
 
