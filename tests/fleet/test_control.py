@@ -73,3 +73,27 @@ def test_constant_values_are_in_control() -> None:
 
 def test_fewer_than_three_points_make_no_chart() -> None:
     assert control_chart("q", "m", None, [T0, T0], ["a", "b"], [1.0, 2.0]) is None
+
+
+def test_charts_per_rig_only_for_a_model_seen_on_several_rigs() -> None:
+    from aatest.fleet.analysis import fleet_charts
+    from aatest.fleet.archive import FleetRecord
+    from aatest.records.models import CalibrationRecord, QuantityRecord
+
+    def row(i: int, model: str, rig: str) -> FleetRecord:
+        when = T0 + timedelta(days=i)
+        return FleetRecord(CalibrationRecord(
+            id=i, model=model, serial=f"S{i}", certificate_number=None, supersedes_id=None,
+            superseded_by=None, command="run", procedure="p", procedure_sha256=None,
+            operator=None, lab="L", calibrated_utc=when, registered_utc=when,
+            overall_verdict="pass", verdicts=[], bundle=f"/b/{i}", key_fingerprint=None,
+            files={}, quantities={"bias.v_sz": QuantityRecord(value=2.5 + 0.001 * (i % 3),
+                                                               unit="V")},
+            rig={}, plugin_versions={}), rig)
+
+    rows = [row(i, "m1", "T1" if i % 2 else "T2") for i in range(8)]
+    rows += [row(10 + i, "m2", "T1") for i in range(3)] + [row(20, "m3", "T1")]
+    charts, short = fleet_charts(rows)
+    assert [(c.model, c.rig) for c in charts] == [("m1", None), ("m1", "T1"), ("m1", "T2"),
+                                                  ("m2", None)]
+    assert short == 1  # m3 has one calibration

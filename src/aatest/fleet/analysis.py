@@ -23,6 +23,8 @@ from aatest.fleet.recurrence import UnitDiagnosis
 from aatest.records.history import quantity_names
 
 ALL_RIGS = "all rigs"
+#: "all rigs" and one rig name: a model seen on a single rig
+_ONE_RIG = 2
 
 
 @dataclass(frozen=True)
@@ -73,15 +75,21 @@ def _chart(key: tuple[str, str, str], rows: list[FleetRecord]) -> ControlChart |
 
 
 def fleet_charts(rows: Sequence[FleetRecord]) -> tuple[list[ControlChart], int]:
-    """I-MR charts per model and quantity (all rigs), then per model, rig and quantity; and
-    how many groups had too few calibrations for a chart."""
+    """I-MR charts per model and quantity (all rigs), then per model, rig and quantity when
+    the model was calibrated on more than one rig; and how many groups had too few
+    calibrations for a chart."""
     groups: dict[tuple[str, str, str], list[FleetRecord]] = defaultdict(list)
     for f in calibrations_of(rows):
         for name in f.record.quantities:
             groups[(f.record.model, ALL_RIGS, name)].append(f)
             groups[(f.record.model, f.rig, name)].append(f)
+    rigs_of: dict[str, set[str]] = defaultdict(set)
+    for model, rig, _ in groups:
+        rigs_of[model].add(rig)
     charts, short = [], 0
-    order = sorted(groups, key=lambda k: (k[0], k[2], k[1] != ALL_RIGS, k[1]))
+    # a model calibrated on one rig only: its per-rig chart would repeat the all-rigs one
+    order = sorted((k for k in groups if k[1] == ALL_RIGS or len(rigs_of[k[0]]) > _ONE_RIG),
+                   key=lambda k: (k[0], k[2], k[1] != ALL_RIGS, k[1]))
     for key in order:
         chart = _chart(key, groups[key])
         if chart is None:
