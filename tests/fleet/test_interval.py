@@ -63,6 +63,23 @@ def test_one_sided_interval_solves_the_hand_quadratic() -> None:
     assert found.reliability(found.days)[0] == pytest.approx(target, abs=1e-6)
 
 
+def test_two_sided_reliability_is_the_student_t_probability_between_the_limits() -> None:
+    fit = fit_deviation(_unweighted())
+    x_left, u_left, limits, target = 0.2, 0.03, (-0.5, 0.9), 0.9
+    found = recommend_interval(fit, x_left, u_left, limits, target)
+    assert found.days is not None
+    # By hand at the interval T: μ = x₀ + bT, σ² = u₀² + s² + T² var b, ν = 2, and
+    # R = F₂((L₂ − μ)/σ) − F₂((L₁ − μ)/σ) must equal the target (Brent's xtol in days times
+    # R's slope, < 1e-3 per day here, bounds the difference far below 1e-5)
+    t = found.days
+    mu = x_left + fit.coefficients[0] * t
+    sigma = math.sqrt(u_left**2 + fit.s**2 + t * t * fit.covariance[0, 0])
+    by_hand = stats.t.cdf((0.9 - mu) / sigma, 2) - stats.t.cdf((-0.5 - mu) / sigma, 2)
+    assert by_hand == pytest.approx(target, abs=1e-5)
+    # and the first crossing: R is above the target everywhere before it
+    assert (found.reliability(np.linspace(0.0, t * 0.999, 200)) > target).all()
+
+
 def test_weighted_slope_is_the_inverse_variance_mean() -> None:
     samples = [DriftSample(100.0, 0.10, 0.01), DriftSample(200.0, 0.22, 0.02),
                DriftSample(300.0, 0.29, 0.01)]
@@ -118,3 +135,13 @@ def test_bad_target_and_limits_are_refused() -> None:
         recommend_interval(fit, 0.0, 0.0, (-1.0, 1.0), 1.0)
     with pytest.raises(AnalysisError, match="tolerance limits"):
         recommend_interval(fit, 0.0, 0.0, (1.0, -1.0), 0.9)
+
+
+def test_a_quadratic_drift_is_recovered_by_the_degree_two_fit() -> None:
+    # exact data on y = 1e-3·t + 2e-6·t²: the fit reproduces both terms, the scatter is zero
+    samples = [DriftSample(t, 1e-3 * t + 2e-6 * t * t, None) for t in (90.0, 180.0, 270.0, 400.0)]
+    fit = fit_deviation(samples, degree=2)
+    # a 2×2 normal equation with t up to 400: condition ~1e6, so ~1e-10 relative rounding
+    assert fit.coefficients == pytest.approx([1e-3, 2e-6], rel=1e-7)
+    assert fit.s == pytest.approx(0.0, abs=1e-12)
+    assert fit.dof == 2
