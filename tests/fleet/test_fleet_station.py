@@ -35,3 +35,16 @@ def test_without_a_records_store_there_is_no_fleet_page(tmp_path: Path) -> None:
     answer = client.get("/fleet")
     assert answer.status_code == 404
     assert "--records" in answer.text
+
+
+def test_the_fleet_page_needs_the_token_like_every_page(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'records.sqlite'}"
+    seed(url, tmp_path)
+    token = "t" * 40
+    (tmp_path / "token").write_text(token)
+    client = TestClient(build(StationOptions(runs_dir=tmp_path / "runs", records=url,
+                                             token_file=tmp_path / "token")),
+                        base_url=STATION_URL)
+    assert client.get("/fleet").status_code == 401
+    answer = client.get("/fleet", headers={"authorization": f"Bearer {token}"})
+    assert answer.status_code == 200 and "Fleet diagnosis" in answer.text
