@@ -125,3 +125,11 @@ def test_bad_options_are_bad_input(archive: tuple[str, Path]) -> None:
     assert _invoke("interval", "A1", "--records", url, "--reliability", "1.5")[0] == 2
     code, out = _invoke("charts", "--records", url, "--since", "last week")
     assert code == 2 and "--since 'last week'" in out
+
+
+def test_a_missing_store_is_bad_input_and_stays_missing(tmp_path: Path) -> None:
+    missing = tmp_path / "none.sqlite"
+    code, out = _invoke("diagnose", "--records", f"sqlite:///{missing}", "--html",
+                        str(tmp_path / "d.html"))
+    assert code == 2 and "no records store" in out
+    assert not missing.exists()  # a reader never leaves an empty database behind
