@@ -869,6 +869,12 @@ def sim_server_simserv(
 
     serve_chamber_forever("simserv", host, port, seed)
 
+
+from aatest.fleet.cli import build as _build_fleet  # noqa: E402 - needs guarded
+
+app.add_typer(_build_fleet(guarded), name="fleet")
+
+
 def main() -> None:
     """The ``aatest`` console script: a reader of stdout that goes away ends it quietly.
 

@@ -29,6 +29,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from aatest.engine.errors import AatestError, InputError
 from aatest.engine.run.session import default_operator
+from aatest.fleet.station import fleet_page
 from aatest.station.catalogue import RUN_FILES, History, Procedures, validation
 from aatest.station.control import RunController
 from aatest.station.security import Asgi, Guard, HostRule
@@ -214,6 +215,9 @@ def create_app(procedures: Procedures, history: History, rig_file: Path | None,
         return FileResponse(target, media_type=RUN_FILES[file],
                             headers={"content-security-policy": policy})
 
+    async def fleet(request: Request) -> Response:
+        return await fleet_page(request, records_url, REPORT_POLICY)
+
     async def websocket(ws: WebSocket) -> None:
         hub.loop = asyncio.get_running_loop()
         await ws.accept()
@@ -240,6 +244,7 @@ def create_app(procedures: Procedures, history: History, rig_file: Path | None,
         Route("/api/validate", validate), Route("/api/runs", runs),
         Route("/api/upload", upload, methods=["POST"]),
         Route("/runs/{name}/{file}", run_file), WebSocketRoute("/ws", websocket),
+        Route("/fleet", fleet),
         Mount("/static", StaticFiles(directory=STATIC)),
     ])
     return Guard(app, token, hosts)
