@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from aatest.testing import conformance as c
+from aatest.testing import daq_conformance as d
 
 
 def _kind(kind: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -46,6 +47,24 @@ def test_table_refuses_beyond_its_envelope(aatest_rig: tuple[str, str, c.Conform
 def test_chamber_life_cycle(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
     _, name, rig = aatest_rig
     c.check_chamber_life_cycle(name, rig)
+
+
+@_kind("daq")
+def test_daq_record_channels_clock_trigger_and_pulse(
+        aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+    _, name, rig = aatest_rig
+    d.check_daq_record(name, rig)
+
+
+@_kind("daq")
+def test_daq_life_cycle(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+    _, name, rig = aatest_rig
+    d.check_daq_life_cycle(name, rig)
+
+
+def test_refuses_bad_options(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+    kind, name, rig = aatest_rig
+    c.check_refuses_bad_options(kind, name, rig)
 
 
 def test_reports_simulated(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:

@@ -20,7 +20,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("aatest", "aatest plugin conformance kit")
     group.addoption("--aatest-plugin", action="append", default=[], metavar="KIND:NAME",
                     help="check the contract of an installed aatest plugin against its "
-                         "simulator (turntable:NAME or chamber:NAME; repeatable)")
+                         "simulator (turntable:NAME, daq:NAME or chamber:NAME; repeatable)")
 
 
 def pytest_configure(config: pytest.Config) -> None:
