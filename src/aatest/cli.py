@@ -799,6 +799,11 @@ def station(
                          allow_hosts=tuple(allow_host)))
 
 
+from aatest.testing.plugin_check import plugin_check  # noqa: E402 - a command of the kit's own
+
+app.command("plugin-check")(guarded(plugin_check))
+
+
 @sim_server_app.command("modbus")
 @guarded
 def sim_server_modbus(

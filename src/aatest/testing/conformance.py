@@ -31,7 +31,7 @@ from importlib import metadata
 from typing import Any
 
 from aatest.engine import registry
-from aatest.engine.errors import AatestError, PluginError, RigFault
+from aatest.engine.errors import EXIT_BAD_INPUT, AatestError, PluginError, RigFault
 from aatest.engine.interfaces import RigContext, TableEnvelope
 from aatest.engine.steps import PlannedStep
 
@@ -185,7 +185,8 @@ def check_refuses_bad_options(kind: str, name: str, rig: ConformanceRig) -> None
             registry.configure(info, options)
         except PluginError as exc:
             assert name in str(exc), f"the refusal does not name the plugin: {exc}"
-            assert exc.exit_code == 2, f"a bad option exits {exc.exit_code}, not 2"
+            assert exc.exit_code == EXIT_BAD_INPUT, \
+                f"a bad option exits {exc.exit_code}, not {EXIT_BAD_INPUT}"
         else:
             shown = {k: v for k, v in options.items() if k not in rig.options or
                      rig.options[k] != v}

@@ -14,7 +14,8 @@ the kit waits the step's duration between the two DAQ calls). On the log it retu
 - trigger: 0/1, low when logging starts, one rising edge, never falling again in the record;
 - freeze pulse: 0/1 with edges during the record; beside a table, the table logs the same
   pulse (its edge period within two samples of the DAQ's) and, when the table declares a
-  pulse latch, latches each edge (``fp_latch_s`` finite and increasing), else leaves it NaN.
+  pulse latch, latches each edge (``fp_latch_s`` on each rising-edge row: the time since the
+  true edge, finite, ≥ 0 and within half a pulse period), else leaves it all NaN.
 
 Life cycle: two records in a row on one instance; ``close`` after ``start`` releases the
 logger; a ``start`` that fails (the simulator is down) raises :class:`RigFault` in time and a
@@ -28,7 +29,6 @@ from typing import Any
 
 import numpy as np
 
-from aatest.engine.errors import RigFault
 from aatest.engine.logs import DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.testing.conformance import ConformanceRig, build, short_step, until_fault
@@ -36,6 +36,8 @@ from aatest.testing.conformance import ConformanceRig, build, short_step, until_
 #: the median sample interval may differ from the nominal one by this much (a logger's crystal
 #: is within 100 ppm; 1 % leaves room for a rate stated to three digits)
 RATE_TOLERANCE = 0.01
+#: a period needs this many rising edges (two intervals) to be a median, not one sample
+MIN_PULSE_EDGES = 3
 
 
 def started_partner(rig: ConformanceRig) -> Any:
@@ -97,7 +99,7 @@ def check_clock(log: SampledLog, table_log: SampledLog | None) -> None:
     rate_hz = log.sample_rate_hz
     assert np.isfinite(rate_hz) and rate_hz > 0, f"sample rate {rate_hz} Hz"
     time_s = np.asarray(log.time_s)
-    assert time_s.size >= 2, f"the DAQ log has {time_s.size} samples"
+    assert time_s.size > 1, f"the DAQ log has {time_s.size} samples"
     assert np.isfinite(time_s).all(), "the DAQ log has non-finite time stamps"
     steps = np.diff(time_s)
     assert (steps > 0).all(), \
@@ -128,7 +130,7 @@ def check_trigger(log: SampledLog) -> None:
 
 def _pulse_period_s(time_s: np.ndarray, pulse: np.ndarray) -> float | None:
     rising = np.flatnonzero(np.diff(pulse) > 0)
-    return float(np.median(np.diff(time_s[rising]))) if rising.size >= 3 else None
+    return float(np.median(np.diff(time_s[rising]))) if rising.size >= MIN_PULSE_EDGES else None
 
 
 def check_freeze_pulse(log: SampledLog, table_log: SampledLog | None, latch: bool | None) -> None:
@@ -141,15 +143,21 @@ def check_freeze_pulse(log: SampledLog, table_log: SampledLog | None, latch: boo
     seen = _pulse_period_s(np.asarray(table_log.time_s), np.asarray(table_log["sync_pulse"]))
     assert seen is not None, "the table logged no sync pulse from the DAQ"
     two_samples = 2.0 / min(log.sample_rate_hz, table_log.sample_rate_hz)
-    assert abs(seen - period) <= two_samples, \
-        f"the table sees a pulse period of {seen * 1e3:.4g} ms, the DAQ drives {period * 1e3:.4g} ms"
+    assert abs(seen - period) <= two_samples, (f"the table sees a pulse period of "
+                                               f"{seen * 1e3:.4g} ms, the DAQ drives "
+                                               f"{period * 1e3:.4g} ms")
     latches = np.asarray(table_log["fp_latch_s"], dtype=float)
-    finite = latches[np.isfinite(latches)]
-    if latch:
-        assert finite.size >= 2 and (np.diff(np.unique(finite)) > 0).all(), \
-            "the table declares a pulse latch but latched no increasing edge times"
-    else:
-        assert finite.size == 0, "a table without a pulse latch reports latch times"
+    if not latch:
+        assert np.isnan(latches).all(), "a table without a pulse latch reports latch times"
+        return
+    # on each row where the table registered a rising edge: the time since the true edge
+    on_edges = latches[np.flatnonzero(np.diff(np.asarray(table_log["sync_pulse"])) > 0) + 1]
+    assert np.isfinite(on_edges).all(), \
+        f"the table declares a pulse latch but {int(np.isnan(on_edges).sum())} of " \
+        f"{on_edges.size} edges are not latched"
+    assert ((on_edges >= 0) & (on_edges < period / 2)).all(), \
+        f"latch times {on_edges.min():.4g}…{on_edges.max():.4g} s are not within half a pulse " \
+        f"period after their edge"
 
 
 def table_latches(table: Any) -> bool | None:
@@ -190,7 +198,10 @@ def check_daq_life_cycle(name: str, rig: ConformanceRig) -> None:
     rig.faults["dies"]()
     try:
         failing = build("daq", name, rig)
-        until_fault(failing.start, rig.fault_timeout_s)
+        try:
+            until_fault(failing.start, rig.fault_timeout_s)
+        except AssertionError as exc:
+            raise AssertionError(f"start with the simulator down ('dies'): {exc}") from None
         failing.close()  # the engine closes a DAQ whose start raised: must not raise
     finally:
         rig.recover()
