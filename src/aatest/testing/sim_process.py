@@ -33,6 +33,18 @@ def multicast_group(seed: int) -> str:
     return f"239.75.{10 + os.getpid() % 200}.{20 + seed % 200}"
 
 
+def stop_process(process: subprocess.Popen[str]) -> None:
+    """Ctrl-C a process of ours (``aatest run``, a sim-server), kill it after 10 s."""
+    if process.poll() is not None:
+        return
+    process.send_signal(signal.SIGINT)
+    try:
+        process.wait(10.0)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(5.0)
+
+
 class SimServerProcess:
     """``aatest sim-server KIND --host 127.0.0.1 --port PORT ARGS…`` in its own process.
 
@@ -101,15 +113,9 @@ class SimServerProcess:
 
     def stop(self) -> None:
         """Ctrl-C (then kill after 10 s); idempotent."""
-        if self.process is None or self.process.poll() is not None:
-            return
-        self.thaw()
-        self.process.send_signal(signal.SIGINT)
-        try:
-            self.process.wait(10.0)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait(5.0)
+        if self.process is not None:
+            self.thaw()
+            stop_process(self.process)
 
     def __enter__(self) -> SimServerProcess:
         return self.start()
