@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import wraps
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
 import typer
 
@@ -799,75 +799,74 @@ def station(
                          allow_hosts=tuple(allow_host)))
 
 
+from aatest.testing.plugin_check import plugin_check  # noqa: E402 - a command of the kit's own
+
+app.command("plugin-check")(guarded(plugin_check))
+
+
+# the options every `aatest sim-server` command shares
+SimHost = Annotated[str, typer.Option("--host", help="Address to listen on (loopback default)")]
+SimPort = Annotated[int, typer.Option("--port", help="TCP port to listen on")]
+SimSeed = Annotated[int, typer.Option("--seed", help="Seed of the simulated rig")]
+SimCanInterface = Annotated[str | None, typer.Option(
+    "--can-interface", help="python-can interface of the simulated CAN logger")]
+SimCanChannel = Annotated[str | None, typer.Option(
+    "--can-channel", help="python-can channel of the simulated CAN logger")]
+
+
 @sim_server_app.command("modbus")
 @guarded
-def sim_server_modbus(
-    host: str = typer.Option("127.0.0.1", "--host",
-                             help="Address to listen on (loopback default)"),
-    port: int = typer.Option(5020, "--port", help="TCP port of the Modbus server"),
-    seed: int = typer.Option(0, "--seed", help="Seed of the simulated rig"),
-    can_interface: str | None = typer.Option(
-        None, "--can-interface", help="python-can interface of the simulated CAN logger"),
-    can_channel: str | None = typer.Option(
-        None, "--can-channel", help="python-can channel of the simulated CAN logger"),
-) -> None:
+def sim_server_modbus(host: SimHost = "127.0.0.1", port: SimPort = 5020, seed: SimSeed = 0,
+                      can_interface: SimCanInterface = None,
+                      can_channel: SimCanChannel = None) -> None:
     """Serve the simulated turntable over Modbus TCP (and its sensor logger on CAN)."""
     from aatest.twin.servers.modbus_server import serve_forever
 
-    can_options = {k: v for k, v in (("can_interface", can_interface),
-                                     ("can_channel", can_channel)) if v}
-    serve_forever(host, port, seed, **can_options)
-
+    serve_forever(host, port, seed, can_interface=can_interface, can_channel=can_channel)
 
 
 @sim_server_app.command("acutrol")
 @guarded
 def sim_server_acutrol(
-    host: str = typer.Option("127.0.0.1", "--host"),
-    port: int = typer.Option(9888, "--port"),
-    seed: int = typer.Option(0, "--seed"),
+    host: SimHost = "127.0.0.1", port: SimPort = 9888, seed: SimSeed = 0,
     chamber: str = typer.Option("none", "--chamber",
                                 help="also serve a chamber on the same twin: espec|simserv|none"),
     chamber_port: int | None = typer.Option(
         None, "--chamber-port", help="default the chamber's own port: espec 10001, simserv 2049"),
-    can_interface: str | None = typer.Option(
-        None, "--can-interface", help="python-can interface of the simulated CAN logger"),
-    can_channel: str | None = typer.Option(None, "--can-channel"),
+    can_interface: SimCanInterface = None, can_channel: SimCanChannel = None,
 ) -> None:
     """Serve the simulated ACUTROL-class table (its sensor logger on CAN, optionally a chamber)."""
     from aatest.twin.servers.acutrol_server import serve_forever as serve_acutrol
 
-    if chamber not in ("espec", "simserv", "none"):
+    if chamber not in _SIM_CHAMBER_PORTS and chamber != "none":
         raise typer.BadParameter("--chamber must be espec, simserv or none")
-    default_port = {"espec": 10001, "simserv": 2049}.get(chamber, 0)
-    serve_acutrol(host, port, seed, chamber=chamber, chamber_port=chamber_port or default_port,
+    serve_acutrol(host, port, seed, chamber=chamber,
+                  chamber_port=chamber_port or _SIM_CHAMBER_PORTS.get(chamber, 0),
                   can_interface=can_interface, can_channel=can_channel)
 
 
-@sim_server_app.command("espec")
-@guarded
-def sim_server_espec(
-    host: str = typer.Option("127.0.0.1", "--host"),
-    port: int = typer.Option(10001, "--port"),
-    seed: int = typer.Option(0, "--seed"),
-) -> None:
-    """Serve a simulated ESPEC chamber (ASCII over TCP) with its own twin."""
-    from aatest.twin.servers.acutrol_server import serve_chamber_forever
-
-    serve_chamber_forever("espec", host, port, seed)
+#: the simulated chambers: their default port and what they are
+_SIM_CHAMBER_PORTS = {"espec": 10001, "simserv": 2049}
+_SIM_CHAMBER_TITLES = {"espec": "an ESPEC chamber (ASCII over TCP)",
+                       "simserv": "a Weiss/Vötsch SIMSERV chamber"}
 
 
-@sim_server_app.command("simserv")
-@guarded
-def sim_server_simserv(
-    host: str = typer.Option("127.0.0.1", "--host"),
-    port: int = typer.Option(2049, "--port"),
-    seed: int = typer.Option(0, "--seed"),
-) -> None:
-    """Serve a simulated Weiss/Vötsch SIMSERV chamber with its own twin."""
-    from aatest.twin.servers.acutrol_server import serve_chamber_forever
+def _sim_chamber_command(kind: str) -> None:
+    """``aatest sim-server KIND`` for a chamber simulator with its own twin."""
 
-    serve_chamber_forever("simserv", host, port, seed)
+    def command(host: SimHost = "127.0.0.1", port: SimPort = _SIM_CHAMBER_PORTS[kind],
+                seed: SimSeed = 0) -> None:
+        from aatest.twin.servers.acutrol_server import serve_chamber_forever
+
+        serve_chamber_forever(kind, host, port, seed)
+
+    command.__doc__ = f"Serve {_SIM_CHAMBER_TITLES[kind]} simulated with its own twin."
+    sim_server_app.command(kind)(guarded(command))
+
+
+for _kind in _SIM_CHAMBER_PORTS:
+    _sim_chamber_command(_kind)
+
 
 
 from aatest.fleet.cli import build as _build_fleet  # noqa: E402 - needs guarded

@@ -20,8 +20,26 @@ def test_acutrol_espec_and_simserv_pass_the_kit(tmp_path: Path) -> None:
          "--aatest-plugin", "chamber:simserv"],
         cwd=tmp_path, capture_output=True, text=True, timeout=600, check=False)
     assert result.returncode == 0, result.stdout + result.stderr
-    # table: life cycle, envelope, simulated, faults; chambers: life cycle, simulated, faults
+    # table: life cycle, envelope, options, simulated, faults; chambers: life cycle, options,
+    # simulated, faults
+    assert "13 passed" in result.stdout, result.stdout
+
+
+def test_modbus_and_can_pass_the_kit_against_a_separate_sim_server(tmp_path: Path) -> None:
+    """Each check starts `aatest sim-server modbus` in a process of its own (the CAN logger on
+    a udp_multicast group of its own), as a lab's controller is another machine."""
+    pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")
+    if sys.platform != "linux":
+        pytest.skip("SIGSTOP/SIGKILL faults and IP_MULTICAST_ALL are Linux here")
+    result = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "0", "-rA",
+         "--aatest-plugin", "turntable:modbus", "--aatest-plugin", "daq:can"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600, check=False)
+    assert result.returncode == 0, result.stdout + result.stderr
+    # table: life cycle, envelope, options, simulated, faults; DAQ: record, life cycle,
+    # options, simulated, faults
     assert "10 passed" in result.stdout, result.stdout
+    assert "::test_daq_record_channels_clock_trigger_and_pulse[daq:can]" in result.stdout
 
 
 def test_unknown_plugin_is_a_clear_usage_error(tmp_path: Path) -> None:

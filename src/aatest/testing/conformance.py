@@ -1,4 +1,4 @@
-"""The contract every turntable and chamber plugin must meet, checked against its simulator.
+"""The contract every turntable, DAQ and chamber plugin must meet, checked against its simulator.
 
 A plugin package declares, in the entry-point group ``aatest.conformance``, a factory named
 ``"<kind>:<plugin name>"`` that returns a :class:`ConformanceRig`: the plugin's options pointing
@@ -14,7 +14,12 @@ safe state. The checks here (run by ``pytest --aatest-plugin turntable:NAME``, s
   the plugin) within the declared time, ``safe_stop``/``off`` do not raise and the simulator
   reports the safe state (table stopped, motor off; chamber in standby);
 - resume: once the fault is removed, a fresh plugin instance starts and works again;
-- ``simulated``: the plugin tells a simulator from hardware (attribute ``simulated`` True).
+- ``simulated``: the plugin tells a simulator from hardware (attribute ``simulated`` True);
+- options: an unknown option, and each bad option set the rig names, is refused with a
+  :class:`~aatest.engine.errors.PluginError` (exit 2) naming the plugin.
+
+The DAQ checks (declared channels, sample rate, time stamps, trigger and freeze pulse, close
+after a failed start) are in :mod:`aatest.testing.daq_conformance`.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from importlib import metadata
 from typing import Any
 
 from aatest.engine import registry
-from aatest.engine.errors import AatestError, RigFault
+from aatest.engine.errors import EXIT_BAD_INPUT, AatestError, PluginError, RigFault
 from aatest.engine.interfaces import RigContext, TableEnvelope
 from aatest.engine.steps import PlannedStep
 
@@ -56,6 +61,13 @@ class ConformanceRig:
         Starts the DAQ (the trigger line a table log waits for); turntables only.
     fault_timeout_s
         The longest a call may take to report an injected fault.
+    partner
+        DAQs only: builds the (unstarted) turntable plugin the DAQ records beside, pointed at
+        the same simulator; the kit starts it and records each step with it as the runner
+        does. ``None``: the DAQ logs on its own (the kit waits the step's duration).
+    bad_options
+        Option sets the plugin's ``Config`` must refuse (beside an unknown option, which the
+        kit always tries).
     """
 
     options: dict[str, Any]
@@ -66,14 +78,18 @@ class ConformanceRig:
     context: RigContext | None = None
     trigger: Callable[[], None] = field(default=lambda: None)
     fault_timeout_s: float = 10.0
+    partner: Callable[[], Any] | None = None
+    bad_options: tuple[dict[str, Any], ...] = ()
+
+KINDS = ("turntable", "daq", "chamber")
 
 
 def load_rig(spec: str) -> tuple[str, str, Callable[[], ConformanceRig]]:
     """``"kind:name"`` → (kind, name, the rig factory its package declares)."""
     kind, _, name = spec.partition(":")
-    if kind not in ("turntable", "chamber") or not name:
-        raise ValueError(f"--aatest-plugin {spec!r}: expected turntable:NAME or chamber:NAME "
-                         "(the DAQ contract is not in this kit yet)")
+    if kind not in KINDS or not name:
+        raise ValueError(f"--aatest-plugin {spec!r}: expected turntable:NAME, daq:NAME or "
+                         "chamber:NAME")
     for entry in metadata.entry_points(group=GROUP):
         if entry.name == spec:
             return kind, name, entry.load()
@@ -137,6 +153,15 @@ def check_table_envelope(name: str, rig: ConformanceRig) -> None:
         table.close()
 
 
+def make_safe(kind: str, plugin: Any) -> None:
+    """The engine's end-of-run call before ``close``: a table's safe stop, a chamber's off (a
+    DAQ has none)."""
+    if kind == "turntable":
+        plugin.safe_stop()
+    elif kind == "chamber":
+        plugin.off()
+
+
 def check_simulated_flag(kind: str, name: str, rig: ConformanceRig) -> None:
     plugin = build(kind, name, rig)
     start = getattr(plugin, "start", None)
@@ -146,11 +171,29 @@ def check_simulated_flag(kind: str, name: str, rig: ConformanceRig) -> None:
         assert getattr(plugin, "simulated", None) is True, \
             "the plugin does not report simulated=True against its simulator"
     finally:
-        (plugin.safe_stop if kind == "turntable" else plugin.off)()
+        make_safe(kind, plugin)
         plugin.close()
 
 
-def _until_fault(action: Callable[[], Any], timeout_s: float) -> RigFault:
+def check_refuses_bad_options(kind: str, name: str, rig: ConformanceRig) -> None:
+    """An unknown option and each of the rig's bad option sets are a PluginError (exit 2)
+    naming the plugin, never a library exception or a silently ignored key."""
+    info = registry.load(kind, name)
+    unknown = {**rig.options, "aatest_conformance_no_such_option": 1}
+    for options in (unknown, *({**rig.options, **bad} for bad in rig.bad_options)):
+        try:
+            registry.configure(info, options)
+        except PluginError as exc:
+            assert name in str(exc), f"the refusal does not name the plugin: {exc}"
+            assert exc.exit_code == EXIT_BAD_INPUT, \
+                f"a bad option exits {exc.exit_code}, not {EXIT_BAD_INPUT}"
+        else:
+            shown = {k: v for k, v in options.items() if k not in rig.options or
+                     rig.options[k] != v}
+            raise AssertionError(f"bad options {shown} were accepted")
+
+
+def until_fault(action: Callable[[], Any], timeout_s: float) -> RigFault:
     started = time.monotonic()
     try:
         action()
@@ -164,12 +207,17 @@ def _until_fault(action: Callable[[], Any], timeout_s: float) -> RigFault:
 
 def check_fault(kind: str, name: str, rig: ConformanceRig, fault: str) -> None:
     """Inject ``fault`` mid-use: RigFault in time, safe state, then a fresh instance works."""
+    if kind == "daq":
+        from aatest.testing.daq_conformance import check_daq_fault
+
+        check_daq_fault(name, rig, fault)
+        return
     plugin = build(kind, name, rig)
     if kind == "turntable":
         plugin.start()
         plugin.move_to(0.0, 0.0)
         rig.faults[fault]()
-        _until_fault(lambda: run_table_step(plugin, rig, short_step()), rig.fault_timeout_s)
+        until_fault(lambda: run_table_step(plugin, rig, short_step()), rig.fault_timeout_s)
         plugin.safe_stop()
     else:
         start = getattr(plugin, "start", None)
@@ -177,11 +225,11 @@ def check_fault(kind: str, name: str, rig: ConformanceRig, fault: str) -> None:
             start()
         plugin.set_temperature(30.0)
         rig.faults[fault]()
-        _until_fault(lambda: plugin.wait_stable(60.0), rig.fault_timeout_s)
+        until_fault(lambda: plugin.wait_stable(60.0), rig.fault_timeout_s)
         plugin.off()
     rig.recover()
     # reachable again: the safe stop (the engine's, or the operator's next run) now holds
-    (plugin.safe_stop if kind == "turntable" else plugin.off)()
+    make_safe(kind, plugin)
     assert rig.is_safe(), f"after {fault}: the simulator is not in the safe state"
     plugin.close()
     resumed = build(kind, name, rig)  # resume: a new run builds the plugin again
@@ -220,17 +268,23 @@ def check_chamber_life_cycle(name: str, rig: ConformanceRig) -> None:
     chamber.off()  # after close: still must not raise
 
 
+def _twin_context() -> RigContext:
+    """A rig context of its own: every plugin built with it shares one twin session."""
+    from aatest.engine.datasheet import SensorDatasheet
+    from aatest.engine.steps import SensorRef
+
+    return RigContext(sensor=SensorRef(model="reference"),
+                      datasheet=SensorDatasheet(model="reference"))
+
+
 def twin_rig(options: dict[str, Any] | None = None) -> ConformanceRig:
     """The rig of a plugin whose "simulator" is aatest's twin (a table built on the ``sim``
     turntable, like the example vendor package's): the twin is shared through the rig context,
     the kit starts its DAQ, and its one fault is a servo trip (the motor switches off by itself
     mid-run)."""
-    from aatest.engine.datasheet import SensorDatasheet
-    from aatest.engine.steps import SensorRef
     from aatest.twin.session import twin_session
 
-    context = RigContext(sensor=SensorRef(model="reference"),
-                         datasheet=SensorDatasheet(model="reference"))
+    context = _twin_context()
 
     def world() -> Any:  # built on first use by the plugin itself
         return twin_session(context).world
@@ -242,3 +296,21 @@ def twin_rig(options: dict[str, Any] | None = None) -> ConformanceRig:
         options=options or {}, context=context, faults={"servo-trip": servo_trip},
         recover=lambda: None, is_safe=lambda: not world().motor_on, close=lambda: None,
         trigger=lambda: world().start_daq(), fault_timeout_s=5.0)
+
+
+def twin_daq_rig(options: dict[str, Any] | None = None,
+                 faults: dict[str, Callable[[], None]] | None = None,
+                 recover: Callable[[], None] = lambda: None) -> ConformanceRig:
+    """The rig of a DAQ plugin that records aatest's twin (one wrapping the ``sim`` DAQ): its
+    partner is the ``sim`` turntable on the same twin. The twin's logger has no faults of its
+    own, so the plugin's package passes the faults its own layer can produce (and ``recover``,
+    which removes them)."""
+    context = _twin_context()
+
+    def partner() -> Any:
+        info = registry.load("turntable", "sim")
+        return info.target(registry.configure(info, {}), context)
+
+    return ConformanceRig(
+        options=options or {}, context=context, faults=dict(faults or {}), recover=recover,
+        is_safe=lambda: True, close=lambda: None, partner=partner, fault_timeout_s=5.0)

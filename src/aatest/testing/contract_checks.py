@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from aatest.testing import conformance as c
+from aatest.testing import daq_conformance as d
 
 
 def _kind(kind: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -30,30 +31,38 @@ def aatest_rig(aatest_spec: str) -> Iterator[tuple[str, str, c.ConformanceRig]]:
     rig.close()
 
 
-@_kind("turntable")
-def test_table_life_cycle(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
-    _, name, rig = aatest_rig
-    c.check_table_life_cycle(name, rig)
+Rig = tuple[str, str, c.ConformanceRig]
 
 
-@_kind("turntable")
-def test_table_refuses_beyond_its_envelope(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
-    _, name, rig = aatest_rig
-    c.check_table_envelope(name, rig)
+def _check_of(kind: str, check: Callable[[str, c.ConformanceRig], None],
+              ) -> Callable[[Rig], None]:
+    """A test running ``check(name, rig)`` for the plugins of one kind."""
+
+    def test(aatest_rig: Rig) -> None:
+        check(aatest_rig[1], aatest_rig[2])
+
+    test.__doc__ = check.__doc__
+    return _kind(kind)(test)
 
 
-@_kind("chamber")
-def test_chamber_life_cycle(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
-    _, name, rig = aatest_rig
-    c.check_chamber_life_cycle(name, rig)
+test_table_life_cycle = _check_of("turntable", c.check_table_life_cycle)
+test_table_refuses_beyond_its_envelope = _check_of("turntable", c.check_table_envelope)
+test_chamber_life_cycle = _check_of("chamber", c.check_chamber_life_cycle)
+test_daq_record_channels_clock_trigger_and_pulse = _check_of("daq", d.check_daq_record)
+test_daq_life_cycle = _check_of("daq", d.check_daq_life_cycle)
 
 
-def test_reports_simulated(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+def test_refuses_bad_options(aatest_rig: Rig) -> None:
+    kind, name, rig = aatest_rig
+    c.check_refuses_bad_options(kind, name, rig)
+
+
+def test_reports_simulated(aatest_rig: Rig) -> None:
     kind, name, rig = aatest_rig
     c.check_simulated_flag(kind, name, rig)
 
 
-def test_every_fault_ends_safe_and_resumes(aatest_rig: tuple[str, str, c.ConformanceRig]) -> None:
+def test_every_fault_ends_safe_and_resumes(aatest_rig: Rig) -> None:
     """Each declared fault in turn, on a fresh simulator (the rig's own faults list)."""
     kind, name, rig = aatest_rig
     assert rig.faults, f"{kind}:{name}: its conformance rig declares no faults to test"

@@ -6,90 +6,55 @@ from __future__ import annotations
 
 import json
 import os
-import select
-import signal
-import socket
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from aatest.testing.sim_process import SimServerProcess, multicast_group, stop_process
+
 pytestmark = pytest.mark.slow
-PROCEDURE = """\
-procedure: concurrent-can
-sensor: {model: sr207, serial: "A1234"}
-rig: {turntable: sim, daq: sim, chamber: none}
-sampling: {rate_hz: 2000, samples: 8000, settle_s: 1}
-steps:
-  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 400, snap: coherent}
-analysis: [sync, reference, scale_factor]
-report: {template: calibration-certificate, sign: false}
-"""
-#: the twin's reference sensor (test_sim_server_cli pins the same value over the same path)
+#: the twin's reference sensor (test_sim_server_cli pins the same value over the same path;
+#: the procedure of tests/plugins/conftest.py recovers it within 1 %)
 TRUE_SCALE_V_PER_DPS2 = 0.004014
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def _start_server(port: int, seed: int, group: str) -> subprocess.Popen[str]:
-    server = subprocess.Popen(
-        [sys.executable, "-m", "aatest.cli", "sim-server", "modbus", "--host", "127.0.0.1",
-         "--port", str(port), "--seed", str(seed), "--can-interface", "udp_multicast",
-         "--can-channel", group], stdout=subprocess.PIPE, text=True)
-    assert server.stdout is not None
-    ready, _, _ = select.select([server.stdout], [], [], 30.0)
-    if not ready:
-        pytest.fail("sim-server printed nothing")
-    assert group in server.stdout.readline()
-    return server
-
-
-def _start_run(work: Path, port: int, group: str) -> subprocess.Popen[str]:
-    work.mkdir()
-    (work / "p.yaml").write_text(PROCEDURE)
-    (work / "rig.yaml").write_text(
-        f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {port}}}\n"
-        f"daq: {{plugin: can, interface: udp_multicast, channel: '{group}'}}\n")
-    env = {**os.environ, "AATEST_RECORDS": f"sqlite:///{work / 'records.db'}"}
+def _start_run(files: tuple[Path, Path], records: Path) -> subprocess.Popen[str]:
+    procedure, rig = files
+    env = {**os.environ, "AATEST_RECORDS": f"sqlite:///{records}"}
     return subprocess.Popen(
-        [sys.executable, "-m", "aatest.cli", "run", str(work / "p.yaml"), "--rig",
-         str(work / "rig.yaml"), "--out", str(work / "r"), "--no-progress"],
+        [sys.executable, "-m", "aatest.cli", "run", str(procedure), "--rig", str(rig),
+         "--out", str(procedure.parent / "r"), "--no-progress"],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
 
 
-def _stop(proc: subprocess.Popen[str]) -> None:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(10.0)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5.0)
-
-
-def test_two_concurrent_runs_each_finish_with_their_own_data(tmp_path: Path) -> None:
+def test_two_concurrent_runs_each_finish_with_their_own_data(
+        tmp_path: Path, cross_process_run: Callable[[Path, int, str], tuple[Path, Path]]) -> None:
     pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")
     if sys.platform != "linux":
         pytest.skip("IP_MULTICAST_ALL is a Linux option")
-    octet = 10 + os.getpid() % 200
-    rigs = [(_free_port(), seed, f"239.75.{octet}.{20 + seed}") for seed in (5, 6)]
-    servers: list[subprocess.Popen[str]] = []
+    servers = {seed: SimServerProcess("modbus", args=(
+        "--seed", str(seed), "--can-interface", "udp_multicast", "--can-channel",
+        multicast_group(seed))) for seed in (5, 6)}
     runs: list[subprocess.Popen[str]] = []
     try:
-        servers = [_start_server(port, seed, group) for port, seed, group in rigs]
-        runs = [_start_run(tmp_path / f"run{seed}", port, group) for port, seed, group in rigs]
+        for seed, server in servers.items():
+            assert multicast_group(seed) in server.start().banner
+        runs = [_start_run(cross_process_run(tmp_path / f"run{seed}", server.port,
+                                             multicast_group(seed)),
+                           tmp_path / f"run{seed}" / "records.db")
+                for seed, server in servers.items()]
         outputs = [run.communicate(timeout=180.0)[0] for run in runs]
     finally:
-        for proc in (*runs, *servers):
-            _stop(proc)
+        for run in runs:
+            stop_process(run)
+        for server in servers.values():
+            server.stop()
     for run, output in zip(runs, outputs, strict=True):
         assert run.returncode == 0, output
-    for _port, seed, _group in rigs:
+    for seed in servers:
         results = json.loads((tmp_path / f"run{seed}" / "r" / "results.json").read_text())
         scale = results["analysis"]["scale_factor"]["v_sz"]["scale_v_per_dps2"]
         # one 8000-sample sine step recovers the twin's scale factor to well inside 1 %

@@ -17,7 +17,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 Action = Literal["reset", "blackhole", "stall", "kill"]
 _MBAP = struct.Struct(">HHHB")  # transaction id, protocol id, length (unit id + PDU), unit id
@@ -49,7 +49,7 @@ def parse_request(frame: bytes) -> Request:
 class Trigger:
     """Apply ``action`` at the ``occurrence``-th request (1 = first) for which ``match`` holds."""
 
-    match: Callable[[Request], bool]
+    match: Callable[[Any], bool]  # a Request (Modbus) or the request line (line protocols)
     occurrence: int
     action: Action
     stall_s: float = 1.5
@@ -57,12 +57,16 @@ class Trigger:
 
 
 class FaultProxy:
-    """Forward ``127.0.0.1:<port>`` to ``upstream_port``; fire ``trigger`` once."""
+    """Forward ``127.0.0.1:<port>`` to ``upstream_port``; fire ``trigger`` once.
+
+    Modbus TCP framing by default; a protocol of other framing overrides :meth:`_split` and
+    :meth:`_request` (:class:`line_proxy.LineFaultProxy`), the trigger and fault handling stay.
+    """
 
     def __init__(self, upstream_port: int, trigger: Trigger | None = None) -> None:
         self.upstream_port = upstream_port
         self.trigger = trigger
-        self.fired: Request | None = None
+        self.fired: Any = None
         self.blackholed = False
         self._seen = 0
         self._stall_s = 0.0
@@ -103,7 +107,7 @@ class FaultProxy:
             threading.Thread(target=self._downstream, args=(upstream, client), daemon=True).start()
             threading.Thread(target=self._upstream, args=(client, upstream), daemon=True).start()
 
-    def _decide(self, request: Request) -> Action | None:
+    def _decide(self, request: Any) -> Action | None:
         with self._lock:
             if self.blackholed:
                 return "blackhole"
@@ -121,21 +125,28 @@ class FaultProxy:
             self.blackholed = trigger.action == "blackhole"
             return trigger.action
 
+    def _split(self, buffer: bytes) -> tuple[list[bytes], bytes]:
+        """The whole Modbus TCP frames at the start of ``buffer``, and the rest."""
+        frames = []
+        while len(buffer) >= _MBAP.size:
+            end = 6 + _MBAP.unpack_from(buffer)[2]
+            if len(buffer) < end:
+                break
+            frames.append(buffer[:end])
+            buffer = buffer[end:]
+        return frames, buffer
+
+    def _request(self, frame: bytes) -> Any:
+        """What a trigger's ``match`` receives for ``frame``."""
+        return parse_request(frame)
+
     def _upstream(self, client: socket.socket, upstream: socket.socket) -> None:
         """Client → controller, one whole frame at a time, applying the trigger."""
         buffer = b""
         try:
-            while True:
-                chunk = client.recv(4096)
-                if not chunk:
-                    break
-                buffer += chunk
-                while len(buffer) >= _MBAP.size:
-                    length = _MBAP.unpack_from(buffer)[2]
-                    end = 6 + length
-                    if len(buffer) < end:
-                        break
-                    frame, buffer = buffer[:end], buffer[end:]
+            while chunk := client.recv(65536):
+                frames, buffer = self._split(buffer + chunk)
+                for frame in frames:
                     if not self._forward(frame, client, upstream):
                         return
         except OSError:
@@ -143,7 +154,7 @@ class FaultProxy:
         _close(client, upstream)
 
     def _forward(self, frame: bytes, client: socket.socket, upstream: socket.socket) -> bool:
-        action = self._decide(parse_request(frame))
+        action = self._decide(self._request(frame))
         if action == "reset":
             client.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
             _close(client, upstream)

@@ -7,11 +7,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import select
-import signal
-import socket
-import subprocess
-import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from importlib import resources
@@ -21,14 +16,9 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
+from aatest.testing.sim_process import SimServerProcess, free_port
 
 SEED = 7
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 @dataclass
@@ -37,36 +27,30 @@ class RigProcess:
 
     chamber: str
     group: str
-    table_port: int = 0
+    server: SimServerProcess | None = None
     chamber_port: int = 0
-    process: subprocess.Popen | None = None
 
     def start(self) -> RigProcess:
-        self.table_port, self.chamber_port = free_port(), free_port()
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "aatest.cli", "sim-server", "acutrol", "--port",
-             str(self.table_port), "--chamber", self.chamber, "--chamber-port",
-             str(self.chamber_port), "--seed", str(SEED), "--can-interface", "udp_multicast",
-             "--can-channel", self.group], stdout=subprocess.PIPE, text=True)
-        assert self.process.stdout is not None
-        ready, _, _ = select.select([self.process.stdout], [], [], 60.0)
-        banner = self.process.stdout.readline() if ready else ""
-        assert f"127.0.0.1:{self.table_port}" in banner, banner
+        self.chamber_port = free_port()
+        self.server = SimServerProcess("acutrol", args=(
+            "--chamber", self.chamber, "--chamber-port", str(self.chamber_port), "--seed",
+            str(SEED), "--can-interface", "udp_multicast", "--can-channel", self.group))
+        assert f"127.0.0.1:{self.server.start().port}" in self.server.banner
         return self
+
+    @property
+    def table_port(self) -> int:
+        assert self.server is not None
+        return self.server.port
 
     def kill(self) -> None:
         """``kill -9``: the OS closes the sockets, the controller's state is lost."""
-        assert self.process is not None
-        self.process.send_signal(signal.SIGKILL)
-        self.process.wait(10.0)
+        assert self.server is not None
+        self.server.kill()
 
     def stop(self) -> None:
-        if self.process is not None and self.process.poll() is None:
-            self.process.send_signal(signal.SIGINT)
-            try:
-                self.process.wait(10.0)
-            except subprocess.TimeoutExpired:
-                self.kill()
+        if self.server is not None:
+            self.server.stop()
 
     def rig_file(self, path: Path, table_port: int | None = None,
                  chamber_port: int | None = None, timeout_s: float = 5.0) -> Path:

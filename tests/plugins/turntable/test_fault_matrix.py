@@ -13,11 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import select
-import signal
-import socket
-import subprocess
-import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +24,7 @@ from typer.testing import CliRunner
 from aatest.cli import app
 from aatest.engine.errors import EXIT_RIG_FAULT
 from aatest.protocols.modbus_map import Command, Reg
+from aatest.testing.sim_process import SimServerProcess
 from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 from aatest.twin.servers.modbus_server import SimModbusServer
 
@@ -283,43 +279,13 @@ PROCESS_KILLS = {
 }
 
 
-class ServerProcess:
+def server_process(group: str) -> SimServerProcess:
     """``aatest sim-server modbus`` in its own process, its CAN logger on udp_multicast."""
-
-    def __init__(self, group: str) -> None:
-        with socket.socket() as sock:
-            sock.bind(("127.0.0.1", 0))
-            self.port = int(sock.getsockname()[1])
-        env = {
-            **os.environ,
-            "AATEST_SIM_CAN_CHANNEL": group,
-            "AATEST_SIM_CAN_INTERFACE": "udp_multicast",
-        }
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "aatest.cli",
-                "sim-server",
-                "modbus",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                str(self.port),
-                "--seed",
-                str(SEED),
-            ],
-            stdout=subprocess.PIPE,
-            text=True,
-            env=env,
-        )
-        assert self.process.stdout is not None
-        ready, _, _ = select.select([self.process.stdout], [], [], 30.0)
-        assert ready and f"127.0.0.1:{self.port}" in self.process.stdout.readline()
-
-    def kill(self) -> None:
-        self.process.send_signal(signal.SIGKILL)
-        self.process.wait(10.0)
+    env = {**os.environ, "AATEST_SIM_CAN_CHANNEL": group,
+           "AATEST_SIM_CAN_INTERFACE": "udp_multicast"}
+    server = SimServerProcess("modbus", args=("--seed", str(SEED)), env=env).start()
+    assert f"127.0.0.1:{server.port}" in server.banner
+    return server
 
 
 @pytest.mark.slow
@@ -329,7 +295,7 @@ def test_kill_9_of_the_server_process_exits_3_and_resumes(
 ) -> None:
     pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")
     group = f"239.74.164.{10 + os.getpid() % 240}"
-    servers = [ServerProcess(group)]
+    servers = [server_process(group)]
     match, occurrence = PROCESS_KILLS[instant]
     proxy = FaultProxy(servers[0].port, Trigger(match, occurrence, "kill", on_fire=servers[0].kill))
     lab = Lab(
@@ -339,7 +305,7 @@ def test_kill_9_of_the_server_process_exits_3_and_resumes(
     def heal() -> None:
         assert proxy.fired is not None
         proxy.heal()
-        servers.append(ServerProcess(group))  # the operator restarts the controller
+        servers.append(server_process(group))  # the operator restarts the controller
         proxy.upstream_port = servers[-1].port
 
     try:
@@ -348,6 +314,4 @@ def test_kill_9_of_the_server_process_exits_3_and_resumes(
     finally:
         proxy.close()
         for server in servers:
-            if server.process.poll() is None:
-                server.process.send_signal(signal.SIGINT)
-                server.process.wait(10.0)
+            server.stop()

@@ -24,7 +24,8 @@ import aatest
 from aatest.twin.model import RigModel
 from aatest.twin.servers.acutrol_controller import MODE_LETTERS, AcutrolController
 from aatest.twin.servers.acutrol_parse import Command, CommandError, axis_of, numbers, parse_line
-from aatest.twin.servers.line_server import LineServer, serve_until_interrupted
+from aatest.twin.servers.background import serve_until_interrupted
+from aatest.twin.servers.line_server import LineServer
 from aatest.twin.world import World
 
 ACUTROL_PORT = 9888  # the MIT driver's default

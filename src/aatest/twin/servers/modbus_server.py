@@ -18,16 +18,14 @@ import asyncio
 import contextlib
 import logging
 import os
-import threading
-import time
 from typing import Any, cast
 
 from pymodbus.constants import ExcCodes
 from pymodbus.datastore import ModbusServerContext
 from pymodbus.server import ModbusTcpServer
 
-from aatest.engine.errors import RigFault
 from aatest.twin.model import RigModel
+from aatest.twin.servers.background import BackgroundServer, serve_until_interrupted
 from aatest.twin.servers.modbus_controller import FaultInjection, SimController
 
 log = logging.getLogger("aatest.sim.modbus")
@@ -84,7 +82,7 @@ class _ControllerContext(ModbusServerContext):
         return None if ok else ExcCodes.ILLEGAL_ADDRESS
 
 
-class SimModbusServer:
+class SimModbusServer(BackgroundServer):
     """A simulated controller served on ``host:port`` from a background thread.
 
     Parameters
@@ -108,38 +106,18 @@ class SimModbusServer:
             from aatest.twin.defaults import realistic_rig_model
 
             model = realistic_rig_model()
+        super().__init__("Modbus", host, port, lifetime_s)
         self.controller = SimController(model, seed, faults)
-        self.host, self.port = host, int(port)
-        self.lifetime_s = lifetime_s
-        self._loop: asyncio.AbstractEventLoop | None = None
         self._server: ModbusTcpServer | None = None
         self._release: asyncio.Event | None = None
-        self._ready = threading.Event()
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, daemon=True, name="sim-modbus-server")
+        self._closing: asyncio.Future[None] | None = None
         self._extras: list[Any] = []
 
     def attach(self, part: Any) -> None:
         """Stop ``part`` (e.g. the simulated CAN logger) together with the server."""
         self._extras.append(part)
 
-    def start(self, timeout_s: float = 10.0) -> SimModbusServer:
-        """Start listening; returns once the port is bound (raises :class:`RigFault` if not)."""
-        self._thread.start()
-        if not self._ready.wait(timeout_s) or self._error is not None:
-            raise RigFault(f"simulated Modbus server failed to start on {self.host}:{self.port}: "
-                           f"{self._error or 'timeout'}") from self._error
-        return self
-
-    def _run(self) -> None:
-        try:
-            asyncio.run(self._serve())
-        except BaseException as exc:  # noqa: BLE001 - surfaced through start()
-            self._error = exc
-            self._ready.set()
-
     async def _serve(self) -> None:
-        self._loop = asyncio.get_running_loop()
         self._release = asyncio.Event()
         context = _ControllerContext(self.controller, self._release)
         self._server = ModbusTcpServer(context, address=(self.host, self.port))
@@ -150,12 +128,11 @@ class SimModbusServer:
             task.result()
         # pymodbus keeps the asyncio.Server of create_server() in `transport` (typed loosely)
         listening = cast("asyncio.Server", self._server.transport)
-        self.port = listening.sockets[0].getsockname()[1]
-        log.info("simulated Modbus controller on %s:%d", self.host, self.port)
-        self._ready.set()
-        if self.lifetime_s is not None:
-            self._loop.call_later(self.lifetime_s, lambda: asyncio.ensure_future(self._shutdown()))
+        self._listening(listening.sockets[0].getsockname()[1])
         await task
+
+    def _end(self) -> None:
+        self._closing = asyncio.ensure_future(self._shutdown())
 
     async def _shutdown(self) -> None:
         if self._release is not None:
@@ -167,23 +144,7 @@ class SimModbusServer:
         """Shut the server (and attached parts) down; idempotent."""
         for part in self._extras:
             part.stop()
-        if self._loop is not None and self._thread.is_alive():
-            try:
-                asyncio.run_coroutine_threadsafe(self._shutdown(), self._loop).result(timeout_s)
-            except Exception as exc:  # noqa: BLE001 - already stopping
-                log.debug("server shutdown: %s", exc)
-        self._thread.join(timeout_s)
-
-    @property
-    def running(self) -> bool:
-        """True while the server thread serves (it ends on :meth:`stop` or after lifetime_s)."""
-        return self._thread.is_alive()
-
-    def __enter__(self) -> SimModbusServer:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
+        super().stop(timeout_s)
 
 
 def serve_forever(host: str, port: int, seed: int, *, can_interface: str | None = None,
@@ -197,17 +158,11 @@ def serve_forever(host: str, port: int, seed: int, *, can_interface: str | None 
     interface = can_interface or os.environ.get(CAN_INTERFACE_ENV, DEFAULT_CAN_INTERFACE)
     channel = can_channel or os.environ.get(CAN_CHANNEL_ENV, DEFAULT_CAN_CHANNEL)
     server = SimModbusServer(host, port, seed)
+    extras = []
     if interface != "none":
         from aatest.twin.servers.can_sim import SimCanLogger
 
-        server.attach(SimCanLogger(server.controller, interface, channel).start())
-    server.start()
-    print(f"aatest simulated controller: Modbus TCP {server.host}:{server.port}, "
-          f"CAN {interface} {channel if interface != 'none' else ''} (Ctrl-C stops)", flush=True)
-    try:
-        while server.running:
-            time.sleep(0.5)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        server.stop()
+        extras.append(SimCanLogger(server.controller, interface, channel).start())
+    can = f"{interface} {channel if interface != 'none' else ''}"
+    serve_until_interrupted([server], f"aatest simulated controller: Modbus TCP {host}:{{0}}, "
+                                      f"CAN {can} (Ctrl-C stops)", extras)
