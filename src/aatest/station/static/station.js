@@ -195,7 +195,8 @@ function onEvent(msg) {
     case "run_dir":
       $("live").hidden = false; $("result").hidden = true; $("stopped").hidden = true;
       state.runName = msg.name; $("run-name").textContent = msg.name; setRunState("starting");
-      showUnit(msg.model, msg.serial); state.log = [];
+      showUnit(msg.model, msg.serial); state.log = []; state.steps = new Map(); renderSteps();
+      $("current").textContent = "—"; $("motion").textContent = "";
       state.startedMs = Date.now(); state.received = 0; $("sample-count").textContent = "0";
       break;
     case "run_started":
