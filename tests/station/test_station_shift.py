@@ -90,6 +90,9 @@ def _signed_scale_factor_with_pdf(station: Station, page: Any, key: Path, record
     page.keyboard.press("Enter")  # validates and moves to Start
     page.wait_for_selector("#plan[data-procedure='lab/quick-scale-factor.yaml'] tbody tr")
     assert _focused(page) == "start"
+    # the focus reached by keyboard is visible: the station's 3 px outline
+    outline = page.evaluate("getComputedStyle(document.activeElement).outlineWidth")
+    assert outline == "3px"
     page.keyboard.press("Enter")
     page.wait_for_selector("#run-state:has-text('running')")
     assert _controls(page) == {"start_enabled": False, "abort_visible": True}

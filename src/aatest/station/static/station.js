@@ -288,4 +288,7 @@ document.addEventListener("keydown", onKey);
 setInterval(() => { if (state.startedMs) $("elapsed").textContent = fmtTime((Date.now() - state.startedMs) / 1000); }, 500);
 setControls();
 $("serial").focus();
-loadProcedures().then(validate); loadHistory(); connect();
+// the first listing validates the chosen procedure, unless the operator acted meanwhile
+const firstValidation = validations;
+loadProcedures().then(() => { if (validations === firstValidation) validate(); });
+loadHistory(); connect();
