@@ -160,6 +160,8 @@ def _abort_by_keyboard(page: Any) -> None:
 
 
 def _unit_page(station: Station, page: Any) -> None:
+    page.wait_for_selector("#history a.unit-link")
+    assert page.locator("#history a.unit-link").first.get_attribute("href") == f"/units/{SERIAL}"
     # the unit's page: both finished runs, newest last, with their files
     page.click("#unit-link")
     page.wait_for_selector("#records tbody tr")

@@ -254,7 +254,7 @@ class RecordsHistory:
             "overall": record.overall_verdict,
             "files": present_files(local) if local is not None else [],
             "certificate_number": record.certificate_number,
-            "unit": f"{record.model}/{record.serial}",
+            "unit": f"{record.model}/{record.serial}", "serial": record.serial,
             "calibrated_utc": record.calibrated_utc.isoformat(timespec="seconds"),
             "operator": record.operator, "command": record.command, "source": "records",
             "kind": record.kind,
@@ -318,5 +318,8 @@ def results_summary(run_dir: Path) -> dict[str, Any]:
         results = read_results(run_dir)
     except InputError as exc:  # shown on the page, not hidden: the file is unreadable
         return {"results_error": str(exc)}
+    unit = results.metadata.sensor
     return {**banner(results), "analysis_errors": dict(results.analysis_errors),
-            "signed": results.signature is not None}
+            "signed": results.signature is not None,
+            "serial": unit.serial if unit is not None else None,
+            "model": unit.model if unit is not None else None}

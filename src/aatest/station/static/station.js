@@ -235,7 +235,13 @@ async function loadHistory() {
     const tr = body.insertRow(); tr.dataset.run = r.name || "";
     const label = r.source === "records"
       ? [r.certificate_number, r.unit, r.calibrated_utc, r.operator].filter(Boolean).join(" · ") : r.name;
-    cell(tr, label); cell(tr, r.procedure); cell(tr, r.finished ? "finished" : "stopped"); cell(tr, r.overall || "—");
+    const first = cell(tr, label);
+    if (r.serial) {  // the unit's page: its history and trend
+      const a = document.createElement("a"); a.href = "/units/" + encodeURIComponent(r.serial);
+      a.textContent = r.source === "records" ? "unit history" : `unit ${r.serial}`; a.className = "unit-link";
+      first.appendChild(document.createTextNode(" · ")); first.appendChild(a);
+    }
+    cell(tr, r.procedure); cell(tr, r.finished ? "finished" : "stopped"); cell(tr, r.overall || "—");
     const files = cell(tr, "");
     if (r.name) fileLinks(files, r.name, r.files);
     const act = cell(tr, "");
