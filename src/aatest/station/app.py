@@ -34,7 +34,7 @@ from aatest.engine.run.session import UnitName, default_operator
 from aatest.station.catalogue import RUN_FILES, History, Procedures, sensor_models, validation
 from aatest.station.control import RunController
 from aatest.station.security import Asgi, Guard, HostRule
-from aatest.station.units import unit_history
+from aatest.station.units import check_serial, unit_history
 from aatest.station.uploads import MAX_UPLOAD_BYTES, UploadError, Uploads
 
 STATIC = Path(str(resources.files("aatest.station") / "static"))
@@ -106,8 +106,8 @@ def parse_command(message: Mapping[str, Any]) -> dict[str, Any] | None:
 
     A command is a JSON object whose ``type`` is one of :data:`COMMANDS`, with that command's
     fields, its :data:`OPTIONAL` fields and an optional ``operator`` as strings (at most
-    :data:`MAX_FIELD_CHARS` each) and its :data:`FLAGS` as booleans. No command carries a key,
-    a passphrase or a path: signing is the station's configuration.
+    :data:`MAX_FIELD_CHARS` each) and its :data:`FLAGS` as booleans, nothing else. No command
+    carries a key, a passphrase or a path: signing is the station's configuration.
     """
     text = message.get("text")
     if not isinstance(text, str) or len(text) > 64 * 1024:
@@ -122,7 +122,10 @@ def parse_command(message: Mapping[str, Any]) -> dict[str, Any] | None:
 
 
 def _fields_ok(msg: dict[str, Any], kind: str) -> bool:
-    """Required strings present; every string field short; every flag a boolean."""
+    """Only the command's fields; required strings present, strings short, flags booleans."""
+    known = {"type", "operator", *COMMANDS[kind], *OPTIONAL.get(kind, ()), *FLAGS.get(kind, ())}
+    if not set(msg) <= known:  # e.g. a key or passphrase: never taken from the browser
+        return False
     if any(not isinstance(msg.get(name), str) for name in COMMANDS[kind]):
         return False
     for name in (*COMMANDS[kind], *OPTIONAL.get(kind, ()), "operator"):
@@ -141,7 +144,8 @@ async def _command(controller: RunController, hub: Hub, ws: WebSocket, msg: dict
     kind = msg.get("type")
     try:
         if kind == "start":
-            unit = UnitName((msg.get("serial") or "").strip() or None,
+            serial = (msg.get("serial") or "").strip()
+            unit = UnitName(check_serial(serial) if serial else None,
                             (msg.get("model") or "").strip() or None)
             controller.start(msg["procedure"], who, unit, pdf=bool(msg.get("pdf")))
         elif kind == "resume":
