@@ -208,6 +208,19 @@ def _registering(records: str | None, lab: Path | None, command: str) -> Any:
     return registering(records, load_lab(lab), command)
 
 
+#: ``--json`` is a flag (print JSON) everywhere; the file an option writes is ``--json-out``
+_JSON_PATH_DEPRECATED = typer.Option(None, "--json", hidden=True,
+                                     help="Deprecated name of --json-out")
+
+
+def _json_out(json_out: Path | None, deprecated: Path | None) -> Path | None:
+    """``--json-out``, or the deprecated ``--json PATH`` with a warning on stderr."""
+    if deprecated is not None:
+        typer.echo("warning: --json PATH is deprecated (--json is a flag elsewhere); "
+                   "use --json-out PATH", err=True)
+    return json_out or deprecated
+
+
 def _print_json(doc: Any) -> None:
     typer.echo(json.dumps(doc, indent=2, allow_nan=False))
 
@@ -376,7 +389,8 @@ def _exit_on_outcome(results: RunResults) -> None:
 def analyze(
     data: Path = typer.Argument(
         ..., help="Run directory, recording.mcap, import directory or logger mapping.yaml"),
-    json_out: Path | None = typer.Option(None, "--json", help="Also write results here"),
+    json_out: Path | None = typer.Option(None, "--json-out", help="Also write results here"),
+    json_old: Path | None = _JSON_PATH_DEPRECATED,
     out: Path | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
     sign_key: Path | None = _SIGN_KEY_OPT,
     records: str | None = _RECORDS_OPT,
@@ -388,6 +402,7 @@ def analyze(
     from aatest.engine.run import session
 
     started = time.monotonic()
+    json_out = _json_out(json_out, json_old)
     target = out or (data if data.is_dir() else data.parent)
     wall = session.run_wall_duration(data) if data.is_dir() else None
     with _registering(records, lab, "analyze"):
@@ -430,7 +445,9 @@ def export(
 def diagnose(
     data: Path = typer.Argument(
         ..., help="Run directory, recording, import directory or logger mapping.yaml"),
-    json_out: Path | None = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
+    json_out: Path | None = typer.Option(None, "--json-out",
+                                         help="Write the diagnosis JSON here"),
+    json_old: Path | None = _JSON_PATH_DEPRECATED,
     model_out: Path | None = typer.Option(
         None, "--model-out", help="Write the extended model YAML"),
     records: str | None = _RECORDS_OPT,
@@ -440,6 +457,7 @@ def diagnose(
     from aatest.diagnose.command import diagnose_command
     from aatest.records.hook import register_diagnosis
 
+    json_out = _json_out(json_out, json_old)
     with _registering(records, lab, "diagnose") as registrar:
         findings = diagnose_command(data, json_out, model_out)
         register_diagnosis(registrar, data, json_out)
@@ -786,6 +804,7 @@ def station(
     allow_host: list[str] = typer.Option(
         [], "--allow-host", help="Another Host name it answers to (NAME or NAME:PORT; repeatable)"
     ),
+    sign_key: Path | None = _SIGN_KEY_OPT,
 ) -> None:
     """Serve the operator's station: run, watch and answer procedures from a browser."""
     from aatest.station.serve import StationOptions, serve
@@ -796,7 +815,7 @@ def station(
         procedures = procedures or procedures_deprecated
     serve(StationOptions(host=host, port=port, records=records, token_file=token_file,
                          runs_dir=runs, lab_dir=procedures, rig_file=rig,
-                         allow_hosts=tuple(allow_host)))
+                         allow_hosts=tuple(allow_host), sign_key=sign_key))
 
 
 from aatest.testing.plugin_check import plugin_check  # noqa: E402 - a command of the kit's own

@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -52,24 +53,33 @@ def _wait_listening(port: int, proc: subprocess.Popen[bytes], timeout_s: float =
     raise RuntimeError("station did not start listening")
 
 
-@pytest.fixture
-def station(tmp_path: Path) -> Iterator[Station]:
-    """``aatest station`` on a free loopback port with the reduced test procedures as lab."""
+@contextmanager
+def running_station(tmp_path: Path, *args: str,
+                    env: dict[str, str] | None = None) -> Iterator[Station]:
+    """``aatest station`` on a free loopback port with the reduced test procedures as lab,
+    further command-line ``args`` and environment ``env``."""
     lab = tmp_path / "lab"
-    shutil.copytree(DATA, lab)
+    shutil.copytree(DATA, lab, dirs_exist_ok=True)
     runs = tmp_path / "runs"
     port = _free_port()
-    env = {**os.environ, "AATEST_OPERATOR": "station-test"}
-    env.pop("AATEST_STATION_TOKEN", None)
+    environ = {**os.environ, "AATEST_OPERATOR": "station-test", **(env or {})}
+    environ.pop("AATEST_STATION_TOKEN", None)
     cmd = [sys.executable, "-m", "aatest.cli", "station", "--port", str(port),
-           "--runs", str(runs), "--lab", str(lab)]
-    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env)
+           "--runs", str(runs), "--procedures", str(lab), *args]
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=environ)
     try:
         _wait_listening(port, proc)
         yield Station(f"http://127.0.0.1:{port}", runs, lab)
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+@pytest.fixture
+def station(tmp_path: Path) -> Iterator[Station]:
+    """``aatest station`` on a free loopback port with the reduced test procedures as lab."""
+    with running_station(tmp_path) as running:
+        yield running
 
 
 @pytest.fixture

@@ -56,7 +56,7 @@ def test_bad_upload_shows_the_validate_problems_under_its_own_name(
     assert doc["problems"] == expected
     assert doc["problems"][0].startswith("broken.yaml:8:7: steps.0.sine.amplitde_deg:")
     assert _uploads(tmp_path) == []  # an invalid upload is not kept (nor listed)
-    assert not any(i.startswith("upload/") for i in client.get("/api/procedures").json()[
+    assert not any(p["id"].startswith("upload/") for p in client.get("/api/procedures").json()[
         "procedures"])
 
 
@@ -68,7 +68,9 @@ def test_good_upload_is_kept_listed_and_validates_by_id(client: TestClient, tmp_
     assert doc["steps"][0]["kind"] == "sine" and doc["steps"][0]["lab_duration_s"] > 10
     assert doc["id"] == f"upload/{stored_name('quick.yaml', text.decode())}"
     assert _uploads(tmp_path) == [doc["id"].removeprefix("upload/")]
-    assert doc["id"] in client.get("/api/procedures").json()["procedures"]
+    listed = {p["id"]: p for p in client.get("/api/procedures").json()["procedures"]}
+    assert listed[doc["id"]]["title"] == "quick-scale-factor"  # by its name, not its file
+    assert listed[doc["id"]]["group"] == "Uploaded at this station"
     again = client.get("/api/validate", params={"id": doc["id"]}).json()
     assert again["ok"] and again["steps"] == doc["steps"]
     # the same text again is the same file; a changed text is a second one beside it
@@ -152,7 +154,7 @@ def test_upload_cap_counts_files_whatever_their_case(client: TestClient, tmp_pat
     text = (DATA / "quick-scale-factor.yaml").read_bytes()
     status, doc = _upload(client, "Upper.YAML", text)
     assert status == 200 and doc["ok"] and doc["id"].endswith(".yaml")
-    listed = client.get("/api/procedures").json()["procedures"]
+    listed = [p["id"] for p in client.get("/api/procedures").json()["procedures"]]
     assert doc["id"] in listed
     folder = tmp_path / "runs" / ".station" / "uploads"
     for i in range(MAX_STORED_UPLOADS - 1):

@@ -1,4 +1,4 @@
-"""``aatest diagnose DATA [--json FILE] [--model-out FILE]`` (docs/interfaces.md §4).
+"""``aatest diagnose DATA [--json-out FILE] [--model-out FILE]`` (docs/interfaces.md §4).
 
 Reads a run directory, a recording or an import directory, runs the diagnose pipeline, prints
 a short summary, writes the JSON and the extended model, and renders the diagnosis report

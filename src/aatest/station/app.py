@@ -1,10 +1,12 @@
 """The station's ASGI application: the page, a small JSON API and one websocket.
 
 - ``GET /`` the page; ``/static/…`` its script, style and the vendored uPlot
-- ``GET /api/procedures`` listed procedure ids; ``GET /api/validate?id=…`` problems or steps
+- ``GET /api/procedures`` listed procedures (id, group, title, description), the installed
+  sensor models and whether reports are signed; ``GET /api/validate?id=…`` problems or steps
 - ``POST /api/upload?name=FILE.yaml`` a procedure's text as the body: validated like a file on
   disk (problems, or the planned steps and the new id ``upload/…``); kept only when valid
 - ``GET /api/runs`` recent runs; ``GET /runs/{name}/{file}`` a run's report, PDF or results
+- ``GET /units/{serial}`` a unit's page; ``GET /api/units/{serial}`` its history and trend
 - ``WS /ws`` live events to every browser; commands (start, resume, answer, abort) are taken
   only from the controlling browser (the first connected; the next one when it leaves). A
   message that is not a command object closes that browser's socket and so hands control on.
@@ -28,11 +30,12 @@ from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from aatest.engine.errors import AatestError, InputError
-from aatest.engine.run.session import default_operator
+from aatest.engine.run.session import UnitName, default_operator
 from aatest.fleet.station import fleet_page
-from aatest.station.catalogue import RUN_FILES, History, Procedures, validation
+from aatest.station.catalogue import RUN_FILES, History, Procedures, sensor_models, validation
 from aatest.station.control import RunController
 from aatest.station.security import Asgi, Guard, HostRule
+from aatest.station.units import check_serial, unit_history
 from aatest.station.uploads import MAX_UPLOAD_BYTES, UploadError, Uploads
 
 STATIC = Path(str(resources.files("aatest.station") / "static"))
@@ -46,10 +49,22 @@ REPORT_POLICY = ("default-src 'none'; style-src 'unsafe-inline'; img-src data:; 
                  "font-src data:; sandbox; frame-ancestors 'none'")
 #: the commands a browser may send over the websocket, with their string fields
 COMMANDS = {"start": ("procedure",), "resume": ("run",), "answer": ("step",), "abort": ()}
+#: optional string fields of a command (the unit named on the page; empty: the procedure's)
+OPTIONAL = {"start": ("serial", "model")}
+#: optional boolean fields of a command
+FLAGS = {"start": ("pdf",)}
 #: the longest string field a command may carry (ids, names: a few dozen characters)
 MAX_FIELD_CHARS = 200
 #: websocket close code for a message that is not a command (RFC 6455 "policy violation")
 POLICY_VIOLATION = 1008
+
+
+@dataclass(frozen=True)
+class Signer:
+    """The station's signing key: its file (read at each signing) and its fingerprint."""
+
+    key_path: Path
+    fingerprint: str
 
 
 @dataclass
@@ -91,7 +106,9 @@ def parse_command(message: Mapping[str, Any]) -> dict[str, Any] | None:
     """The command object in one websocket message, or None when it is anything else.
 
     A command is a JSON object whose ``type`` is one of :data:`COMMANDS`, with that command's
-    fields and an optional ``operator`` as strings (at most :data:`MAX_FIELD_CHARS` each).
+    fields, its :data:`OPTIONAL` fields and an optional ``operator`` as strings (at most
+    :data:`MAX_FIELD_CHARS` each) and its :data:`FLAGS` as booleans, nothing else. No command
+    carries a key, a passphrase or a path: signing is the station's configuration.
     """
     text = message.get("text")
     if not isinstance(text, str) or len(text) > 64 * 1024:
@@ -102,14 +119,21 @@ def parse_command(message: Mapping[str, Any]) -> dict[str, Any] | None:
         return None
     if not isinstance(msg, dict) or msg.get("type") not in COMMANDS:
         return None
-    fields = (*COMMANDS[msg["type"]], "operator")
-    for name in fields:
+    return msg if _fields_ok(msg, msg["type"]) else None
+
+
+def _fields_ok(msg: dict[str, Any], kind: str) -> bool:
+    """Only the command's fields; required strings present, strings short, flags booleans."""
+    known = {"type", "operator", *COMMANDS[kind], *OPTIONAL.get(kind, ()), *FLAGS.get(kind, ())}
+    if not set(msg) <= known:  # e.g. a key or passphrase: never taken from the browser
+        return False
+    if any(not isinstance(msg.get(name), str) for name in COMMANDS[kind]):
+        return False
+    for name in (*COMMANDS[kind], *OPTIONAL.get(kind, ()), "operator"):
         value = msg.get(name)
-        if name != "operator" and not isinstance(value, str):
-            return None
         if value is not None and (not isinstance(value, str) or len(value) > MAX_FIELD_CHARS):
-            return None
-    return msg
+            return False
+    return all(isinstance(msg.get(name, False), bool) for name in FLAGS.get(kind, ()))
 
 
 async def _command(controller: RunController, hub: Hub, ws: WebSocket, msg: dict[str, Any]) -> None:
@@ -121,7 +145,10 @@ async def _command(controller: RunController, hub: Hub, ws: WebSocket, msg: dict
     kind = msg.get("type")
     try:
         if kind == "start":
-            controller.start(msg["procedure"], who)
+            serial = (msg.get("serial") or "").strip()
+            unit = UnitName(check_serial(serial) if serial else None,
+                            (msg.get("model") or "").strip() or None)
+            controller.start(msg["procedure"], who, unit, pdf=bool(msg.get("pdf")))
         elif kind == "resume":
             controller.resume(msg["run"], who)
         elif kind == "answer" and not controller.answer(msg["step"], who):
@@ -167,20 +194,46 @@ def served_file(history: History, name: str, file: str) -> Path:
     return resolved
 
 
+def unit_routes(records_url: str | None, history: History) -> list[Route]:
+    """``/units/{serial}`` (the page) and ``/api/units/{serial}`` (its history and trend)."""
+
+    async def unit_page(request: Request) -> Response:
+        return FileResponse(STATIC / "unit.html",
+                            headers={"content-security-policy": PAGE_POLICY})
+
+    async def unit_json(request: Request) -> Response:
+        try:
+            doc = await asyncio.to_thread(unit_history, records_url, history.runs_dir,
+                                          request.path_params["serial"])
+        except AatestError as exc:
+            return JSONResponse({"ok": False, "problems": [str(exc)]}, status_code=404)
+        return JSONResponse(doc)
+
+    return [Route("/units/{serial}", unit_page), Route("/api/units/{serial}", unit_json)]
+
+
 def create_app(procedures: Procedures, history: History, rig_file: Path | None,
                token: str | None, replay_s: float = 2.0, records_url: str | None = None,
-               hosts: HostRule | None = None) -> Asgi:
-    """Build the station application (wrapped in the host/origin/token guard)."""
+               hosts: HostRule | None = None, signer: Signer | None = None) -> Asgi:
+    """Build the station application (wrapped in the host/origin/token guard).
+
+    ``signer`` is the station's signing key (its fingerprint shown on the page); without one
+    the station's reports are unsigned and the page says so.
+    """
     hub = Hub()
     controller = RunController(procedures, history, rig_file, hub.publish, replay_s,
-                               records_url)
+                               records_url, signer.key_path if signer else None)
 
     async def page(request: Request) -> Response:
         return FileResponse(STATIC / "index.html",
                             headers={"content-security-policy": PAGE_POLICY})
 
     async def list_procedures(request: Request) -> Response:
-        return JSONResponse({"procedures": list(procedures.listing())})
+        entries = await asyncio.to_thread(procedures.entries)
+        signing = ({"signed": True, "fingerprint": signer.fingerprint} if signer
+                   else {"signed": False})
+        return JSONResponse({"procedures": entries, "models": sensor_models(),
+                             "signing": signing})
 
     async def validate(request: Request) -> Response:
         try:
@@ -241,6 +294,7 @@ def create_app(procedures: Procedures, history: History, rig_file: Path | None,
 
     app = Starlette(routes=[
         Route("/", page), Route("/api/procedures", list_procedures),
+        *unit_routes(records_url, history),
         Route("/api/validate", validate), Route("/api/runs", runs),
         Route("/api/upload", upload, methods=["POST"]),
         Route("/runs/{name}/{file}", run_file), WebSocketRoute("/ws", websocket),

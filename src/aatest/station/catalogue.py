@@ -9,6 +9,7 @@ the station is started with ``--records`` (:class:`RecordsHistory`).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -29,6 +30,9 @@ RUN_FILES = {"report.html": "text/html", "report.pdf": "application/pdf",
              "results.json": "application/json"}
 #: id prefix of procedures uploaded from the browser (kept in the station's upload directory)
 UPLOAD_PREFIX = "upload/"
+#: the page's group of each id prefix
+GROUPS = {"shipped": "Shipped with aatest", "lab": "The lab's procedures",
+          "upload": "Uploaded at this station"}
 
 
 @dataclass(frozen=True)
@@ -49,6 +53,14 @@ class Procedures:
                           if p.suffix.lower() in (".yaml", ".yml") and p.is_file()})
         return found
 
+    def entries(self) -> list[dict[str, Any]]:
+        """What the page lists: id, group, title (the procedure's name), description, sensor.
+
+        A file that does not load is still listed, by its file name and first problem, so
+        the operator sees why it cannot be started (Validate shows every problem).
+        """
+        return [_entry(procedure_id, path) for procedure_id, path in self.listing().items()]
+
     def path(self, procedure_id: str) -> Path:
         """The file of a listed id; an unknown id is an InputError (never a path from outside)."""
         listing = self.listing()
@@ -62,6 +74,40 @@ class Procedures:
             if procedure_sha256(path.read_text(encoding="utf-8")) == sha256:
                 return procedure_id
         return None
+
+
+def _entry(procedure_id: str, path: Path) -> dict[str, Any]:
+    """One listed procedure, read (not planned) from its file; cached while it is unchanged."""
+    try:
+        stat = path.stat()
+    except OSError as exc:
+        return {"id": procedure_id, "group": "", "title": path.name, "description": str(exc),
+                "ok": False}
+    return dict(_read_entry(procedure_id, path, stat.st_mtime_ns, stat.st_size))
+
+
+@functools.lru_cache(maxsize=1024)
+def _read_entry(procedure_id: str, path: Path, _mtime_ns: int, _size: int) -> dict[str, Any]:
+    from aatest.engine.procedure.loader import parse_procedure
+    from aatest.engine.procedure.yaml_loader import read_text
+
+    prefix = procedure_id.split("/", 1)[0]
+    entry: dict[str, Any] = {"id": procedure_id, "group": GROUPS.get(prefix, prefix)}
+    try:
+        procedure = parse_procedure(read_text(path), path.name)
+    except ProblemsError as exc:
+        return {**entry, "title": path.name, "description": str(exc.problems[0]), "ok": False}
+    except (AatestError, OSError) as exc:
+        return {**entry, "title": path.name, "description": str(exc), "ok": False}
+    return {**entry, "title": procedure.procedure, "description": procedure.description,
+            "model": procedure.sensor.model, "serial": procedure.sensor.serial, "ok": True}
+
+
+def sensor_models() -> list[str]:
+    """The sensor models installed (``aatest.sensors`` plugins), for the page's model list."""
+    from aatest.engine import registry
+
+    return [ep.name for ep in registry.entry_points("sensor")]
 
 
 def validation(path: Path, rig_file: Path | None) -> dict[str, Any]:
@@ -206,9 +252,9 @@ class RecordsHistory:
             "name": local.name if local is not None else None,
             "procedure": record.procedure, "finished": True,
             "overall": record.overall_verdict,
-            "files": sorted(n for n in RUN_FILES if local is not None and _plain_file(local / n)),
+            "files": present_files(local) if local is not None else [],
             "certificate_number": record.certificate_number,
-            "unit": f"{record.model}/{record.serial}",
+            "unit": f"{record.model}/{record.serial}", "serial": record.serial,
             "calibrated_utc": record.calibrated_utc.isoformat(timespec="seconds"),
             "operator": record.operator, "command": record.command, "source": "records",
             "kind": record.kind,
@@ -236,6 +282,11 @@ def _plain_file(path: Path) -> bool:
         return False
 
 
+def present_files(run_dir: Path) -> list[str]:
+    """The run files the page may link: only those on disk (no PDF link when none was printed)."""
+    return sorted(n for n in RUN_FILES if _plain_file(run_dir / n))
+
+
 def _readable_summary(run_dir: Path) -> dict[str, Any] | None:
     """:func:`run_summary`, or None when the directory's files cannot be read or parsed."""
     try:
@@ -250,7 +301,7 @@ def run_summary(run_dir: Path) -> dict[str, Any]:
     summary: dict[str, Any] = {
         "name": run_dir.name, "procedure": state.procedure, "finished": state.finished,
         "prompt_answers": state.prompt_answers, "overall": None,
-        "files": sorted(n for n in RUN_FILES if _plain_file(run_dir / n)),
+        "files": present_files(run_dir),
     }
     summary.update(results_summary(run_dir))
     return summary
@@ -267,5 +318,8 @@ def results_summary(run_dir: Path) -> dict[str, Any]:
         results = read_results(run_dir)
     except InputError as exc:  # shown on the page, not hidden: the file is unreadable
         return {"results_error": str(exc)}
+    unit = results.metadata.sensor
     return {**banner(results), "analysis_errors": dict(results.analysis_errors),
-            "signed": results.signature is not None}
+            "signed": results.signature is not None,
+            "serial": unit.serial if unit is not None else None,
+            "model": unit.model if unit is not None else None}

@@ -1,7 +1,10 @@
 """One run at a time, driven from the page: start, resume, answer prompts, abort.
 
 The run itself is exactly ``aatest run`` (:func:`aatest.engine.run.session.run`) in a worker
-thread, with the station's observer, responder and abort flag plugged into its events. The
+thread, with the station's observer, responder and abort flag plugged into its events: the unit
+named on the page is passed as ``--serial``/``--model`` would be (an unnamed unit on a real rig
+is refused by the engine before anything moves), and the report is signed with the station's
+key as ``--sign-key`` would (the key is the station's configuration, never the browser's). The
 latest state is kept as a snapshot so a browser that connects mid-run sees the same page.
 """
 
@@ -16,7 +19,8 @@ from aatest.engine.errors import AatestError, InputError
 from aatest.engine.run.events import AbortFlag, RunEvents
 from aatest.engine.run.rig import sensor_datasheet
 from aatest.engine.run.runner import default_run_dir
-from aatest.station.catalogue import History, Procedures, results_summary
+from aatest.engine.run.session import UnitName
+from aatest.station.catalogue import History, Procedures, present_files, results_summary
 from aatest.station.live import Publish, StationObserver, StationResponder
 
 
@@ -41,6 +45,8 @@ class Snapshot:
         elif kind == "prompt_answered":
             self.prompt = None
         elif kind in ("stopped", "finished", "analysing", "run_dir"):
+            if kind == "stopped" and "exit_code" not in event:
+                return  # the engine's notice; the controller's final one follows
             self.run.update({k: v for k, v in event.items() if k != "type"}, state=kind)
             if kind != "analysing":
                 self.prompt = None
@@ -63,6 +69,9 @@ class RunController:
     #: records store the runs are registered in, as by ``aatest run --records`` (None: the
     #: default store, ``AATEST_RECORDS`` or the user's file)
     records_url: str | None = None
+    #: the station's signing key (``--sign-key``/``AATEST_SIGNING_KEY``; passphrase from
+    #: ``AATEST_SIGNING_PASSPHRASE``), None for unsigned reports
+    sign_key: Path | None = None
     snapshot: Snapshot = field(default_factory=Snapshot)
     _thread: threading.Thread | None = None
     _abort: AbortFlag = field(default_factory=AbortFlag)
@@ -78,14 +87,17 @@ class RunController:
         """Whether a run is in progress."""
         return self._thread is not None and self._thread.is_alive()
 
-    def start(self, procedure_id: str, operator: str) -> str:
-        """Start a fresh run of a listed procedure; return the run's directory name."""
+    def start(self, procedure_id: str, operator: str, unit: UnitName | None = None,
+              pdf: bool = False) -> str:
+        """Start a fresh run of a listed procedure for ``unit`` (else the procedure's sensor);
+        ``pdf`` also prints the report to PDF. Returns the run's directory name."""
         path = self.procedures.path(procedure_id)
         from aatest.engine.run.session import prepare
 
-        procedure = prepare(path, self.rig_file).plan.procedure
+        procedure = prepare(path, self.rig_file, unit).plan.procedure
         run_dir = default_run_dir(procedure, self.history.runs_dir)
-        self._launch(path, run_dir, resume=False, operator=operator)
+        self._launch(path, run_dir, resume=False, operator=operator,
+                     options=_Options(unit or UnitName(), pdf))
         return run_dir.name
 
     def resume(self, run_name: str, operator: str) -> str:
@@ -96,7 +108,9 @@ class RunController:
         procedure_id = self.procedures.by_sha256(RunState.load(run_dir).procedure_sha256)
         if procedure_id is None:
             raise InputError(f"run {run_name}: its procedure file is no longer listed unchanged")
-        self._launch(self.procedures.path(procedure_id), run_dir, resume=True, operator=operator)
+        meta = _recorded_unit(run_dir)
+        self._launch(self.procedures.path(procedure_id), run_dir, resume=True, operator=operator,
+                     options=_Options(meta, (run_dir / "report.pdf").is_file()))
         return run_name
 
     def abort(self, who: str) -> None:
@@ -108,12 +122,13 @@ class RunController:
         """Confirm the pending prompt of ``step_id`` as ``who``."""
         return self._responder is not None and self._responder.confirm(step_id, who)
 
-    def _launch(self, path: Path, run_dir: Path, resume: bool, operator: str) -> None:
+    def _launch(self, path: Path, run_dir: Path, resume: bool, operator: str,
+                options: _Options) -> None:
         if self.busy:
             raise InputError("a run is in progress; wait for it or abort it first")
         from aatest.engine.run.session import prepare
 
-        plan = prepare(path, self.rig_file).plan
+        plan = prepare(path, self.rig_file, options.unit).plan
         sheet, _version = sensor_datasheet(plan.sensor)
         sensors = [{"channel": s.channel, "axis": s.axis} for s in
                    sheet.sensor_infos(plan.sensor.serial)]
@@ -122,14 +137,15 @@ class RunController:
         events = RunEvents(StationObserver(self.emit, self._abort, self.replay_s),
                            self._responder, self._abort)
         self.snapshot = Snapshot(run={"name": run_dir.name, "operator": operator})
-        self.emit({"type": "run_dir", "name": run_dir.name, "resume": resume})
+        self.emit({"type": "run_dir", "name": run_dir.name, "resume": resume,
+                   "serial": plan.sensor.serial, "model": plan.sensor.model})
         self._thread = threading.Thread(
-            target=self._work, args=(path, run_dir, resume, operator, events), daemon=True
-        )
+            target=self._work, args=(path, run_dir, resume, operator, events, options),
+            daemon=True)
         self._thread.start()
 
     def _work(self, path: Path, run_dir: Path, resume: bool, operator: str,
-              events: RunEvents) -> None:
+              events: RunEvents, options: _Options) -> None:
         from aatest.engine.run import session
         from aatest.records.errors import RecordsUnavailable
         from aatest.records.hook import registering
@@ -140,8 +156,9 @@ class RunController:
             try:
                 # registered like `aatest run`: a certificate number, then the signed bundle
                 with registering(self.records_url, load_lab(), "run"):
-                    session.run(path, self.rig_file, run_dir, resume, 0, None,
-                                show_progress=False, operator=operator, events=events)
+                    session.run(path, self.rig_file, run_dir, resume, 0, self.sign_key,
+                                show_progress=False, operator=operator, events=events,
+                                unit=options.unit, pdf=options.pdf)
             except RecordsUnavailable as exc:
                 if not (run_dir / "results.json").is_file():
                     raise
@@ -155,4 +172,23 @@ class RunController:
                        "resumable": (run_dir / "run_state.json").is_file()})
             return
         self.emit({"type": "finished", "name": run_dir.name, "notice": notice,
-                   **results_summary(run_dir)})
+                   "files": present_files(run_dir), **results_summary(run_dir)})
+
+
+@dataclass(frozen=True)
+class _Options:
+    """What a run was started with besides its procedure: the unit and the PDF."""
+
+    unit: UnitName
+    pdf: bool
+
+
+def _recorded_unit(run_dir: Path) -> UnitName:
+    """The unit a stopped run was recording (a resumed run goes on for the same unit)."""
+    from aatest.engine.recording.writer import STEPS_DIR, load_run_metadata
+
+    try:
+        sensor = load_run_metadata(run_dir / STEPS_DIR).get("sensor") or {}
+    except (AatestError, OSError, ValueError):
+        return UnitName()
+    return UnitName(sensor.get("serial"), sensor.get("model"))

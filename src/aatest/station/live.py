@@ -1,11 +1,19 @@
 """The run as the station sees it: events for the browsers, prompts they answer, abort.
 
 :class:`StationObserver` turns the step loop's events (:mod:`aatest.engine.run.events`) into
-JSON messages for every connected browser. A recording plugin hands a step over when it has
-been recorded (the twin synthesises it at once), so the live plot shows the *recorded* step,
-decimated to :data:`PLOT_POINTS` points per channel and replayed over at most ``replay_s``
-seconds of wall time; the page labels it as such. The abort flag is checked between replay
-chunks, so an abort during a step drops that step, as a fault during recording would.
+JSON messages for every connected browser. What the plots show depends on when the rig's
+loggers deliver samples, and the page says which it is:
+
+- a long static record on a streaming DAQ arrives in chunks while the step runs
+  (:meth:`StationObserver.step_chunk`): each chunk is plotted as it arrives, decimated to
+  :data:`CHUNK_POINTS` points per channel, so during a 2-hour rest the operator watches the
+  sensor channels grow; the table's snapshot log follows when the step ends;
+- a plugin that delivers its log only when the step ends (every recorded motion step: the
+  table's controller log, the DAQ's buffer) is shown then, decimated to :data:`PLOT_POINTS`
+  points per channel and replayed over at most ``replay_s`` seconds of wall time.
+
+The abort flag is checked between replay chunks, so an abort during a step drops that step, as
+a fault during recording would.
 """
 
 from __future__ import annotations
@@ -28,15 +36,24 @@ from aatest.engine.steps import Plan, PlannedStep
 PLOT_POINTS = 400
 #: messages one step's samples are split into while replaying
 REPLAY_CHUNKS = 20
+#: points per channel sent for one streamed chunk (60 s of a long rest: one point per second)
+CHUNK_POINTS = 60
+#: what the page says about samples shown when the step has ended
+AFTER_STEP = "recorded step, shown when the loggers delivered it at the step's end"
+#: what the page says about a streamed record
+LIVE = ("live: sensor channels as the logger delivers each chunk; the table's snapshot log "
+        "when the step ends")
 
 Publish = Callable[[dict[str, Any]], None]
 
 
-def decimated(log: SampledLog, channels: list[str], points: int) -> dict[str, list[float]]:
-    """Every n-th sample of ``channels`` (and ``t`` in s from the log's start), ≤ ``points``."""
+def decimated(log: SampledLog, channels: list[str], points: int,
+              t0_s: float | None = None) -> dict[str, list[float]]:
+    """Every n-th sample of ``channels`` (and ``t`` in s from ``t0_s``, else from the log's
+    start), at most ``points`` of them."""
     n = len(log)
     index = np.unique(np.linspace(0, max(n - 1, 0), num=min(points, n)).astype(int))
-    t0 = float(log.time_s[0]) if n else 0.0
+    t0 = t0_s if t0_s is not None else (float(log.time_s[0]) if n else 0.0)
     out = {"t": (log.time_s[index] - t0).round(6).tolist()}
     out.update({c: np.asarray(log.channels[c], dtype=float)[index].tolist() for c in channels})
     return out
@@ -47,6 +64,17 @@ def _step_json(step: PlannedStep) -> dict[str, Any]:
             "lab_duration_s": step.lab_duration_s}
 
 
+def _table_channels(step: PlannedStep, table: SampledLog) -> tuple[str, list[str]]:
+    """The plotted axis and its position and acceleration channels present in ``table``."""
+    axis = step.axis if step.axis in ("inner", "outer") else "inner"
+    wanted = [f"{axis}_position_deg", f"{axis}_accel_dps2"]
+    return axis, [c for c in wanted if c in table.channels]
+
+
+def _sensors(daq: SampledLog) -> list[str]:
+    return sorted(c for c in daq.channels if c.startswith("v_"))
+
+
 @dataclass
 class StationObserver:
     """A :class:`~aatest.engine.run.events.RunObserver` publishing JSON events to browsers."""
@@ -54,6 +82,8 @@ class StationObserver:
     publish: Publish
     abort: AbortFlag
     replay_s: float = 2.0
+    #: the streamed step being plotted live and the DAQ time (s) its plot starts at
+    _live: tuple[str, float] | None = None
 
     def run_started(self, plan: Plan, done: frozenset[str]) -> None:
         """Send the step list with each step's state."""
@@ -64,20 +94,37 @@ class StationObserver:
 
     def step_started(self, step: PlannedStep) -> None:
         """Mark the step running and show its commanded motion."""
+        self._live = None
         self.publish({"type": "step", "id": step.id, "state": "running", "motion": describe(step)})
 
     def prompt_raised(self, step: PlannedStep) -> None:
         """Nothing to add: the station responder publishes the prompt with the orientations."""
 
+    def step_chunk(self, step: PlannedStep, daq: SampledLog) -> None:
+        """Plot a streamed chunk now, while the step runs (the first one resets the plots)."""
+        if len(daq) == 0:
+            return
+        sensors = _sensors(daq)
+        if self._live is None or self._live[0] != step.id:
+            self._live = (step.id, float(daq.time_s[0]))
+            axis = step.axis if step.axis in ("inner", "outer") else "inner"
+            self.publish({"type": "plot_reset", "id": step.id, "axis": axis, "sensors": sensors,
+                          "label": LIVE, "live": True})
+        self.publish({"type": "samples", "id": step.id, "live": True,
+                      "daq": decimated(daq, sensors, CHUNK_POINTS, self._live[1])})
+
     def step_samples(self, step: PlannedStep, table: SampledLog, daq: SampledLog) -> None:
-        """Replay the step's decimated samples in chunks, stopping early on abort."""
-        axis = step.axis if step.axis in ("inner", "outer") else "inner"
-        table_channels = [f"{axis}_position_deg", f"{axis}_accel_dps2"]
-        sensors = sorted(c for c in daq.channels if c.startswith("v_"))
-        tab = decimated(table, [c for c in table_channels if c in table.channels], PLOT_POINTS)
+        """Show the step's samples: after a streamed record only the table's log (the DAQ was
+        plotted chunk by chunk); otherwise replay both logs, stopping early on abort."""
+        axis, table_channels = _table_channels(step, table)
+        tab = decimated(table, table_channels, PLOT_POINTS)
+        if self._live is not None and self._live[0] == step.id:
+            self.publish({"type": "samples", "id": step.id, "table": tab})
+            return
+        sensors = _sensors(daq)
         dq = decimated(daq, sensors, PLOT_POINTS)
         self.publish({"type": "plot_reset", "id": step.id, "axis": axis, "sensors": sensors,
-                      "label": "recorded step, replayed at UI pace"})
+                      "label": AFTER_STEP, "live": False})
         for k in range(REPLAY_CHUNKS):
             if self.abort.requested:
                 return

@@ -1,4 +1,14 @@
-"""``aatest station``: check the options (address, token, directories), then serve with uvicorn."""
+"""``aatest station``: check the options (address, token, directories, key), then serve.
+
+Signing at the station: the key is the station's configuration, exactly as for ``aatest run``
+— ``--sign-key KEY`` or ``AATEST_SIGNING_KEY``, its passphrase from
+``AATEST_SIGNING_PASSPHRASE`` in the station's environment. The key is loaded (and so the
+passphrase checked) before the station starts listening: a wrong passphrase or a key readable
+by others is exit 2 at start, not a failed signature after a two-hour run. Neither the key nor
+its passphrase ever crosses the wire: no command or request accepts them, with or without a
+token (a passphrase typed into a page would travel, and be kept, where a station's TLS and
+access control cannot be assumed); the page only shows the key's fingerprint.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +17,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.errors import InputError
-from aatest.station.app import create_app
+from aatest.station.app import Signer, create_app
 from aatest.station.catalogue import Procedures, history_for
 from aatest.station.security import Asgi, HostRule, load_token
 
@@ -31,19 +41,40 @@ class StationOptions(BaseModel):
     replay_s: float = Field(2.0, ge=0.0, le=10.0)
     #: further ``Host`` names the station answers to (``--allow-host``), NAME or NAME:PORT
     allow_hosts: tuple[str, ...] = ()
+    #: the key that signs the station's reports (else ``AATEST_SIGNING_KEY``; none: unsigned)
+    sign_key: Path | None = None
+
+
+def load_signer(explicit: Path | None) -> Signer | None:
+    """The station's signing key checked now (passphrase from the environment), or None.
+
+    Raises the engine's InputError (exit 2) for a key that cannot be read or decrypted, as
+    ``aatest run --sign-key`` does before anything moves.
+    """
+    import os
+
+    from aatest.engine.run import signing
+    from aatest.engine.run.session import PASSPHRASE_ENV, signing_key
+
+    key_path = signing_key(explicit)
+    if key_path is None:
+        return None
+    private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
+    return Signer(key_path, signing.key_fingerprint(private.public_key()))
 
 
 def build(options: StationOptions) -> Asgi:
     """The guarded application for ``options``; bad options raise InputError (exit 2)."""
     token = load_token(options.host, options.token_file)
     hosts = HostRule.build(options.host, options.port, options.allow_hosts)
+    signer = load_signer(options.sign_key)
     if options.lab_dir is not None and not options.lab_dir.is_dir():
         raise InputError(f"--lab {options.lab_dir}: not a directory")
     options.runs_dir.mkdir(parents=True, exist_ok=True)
     history = history_for(options.records, options.runs_dir)
     uploads = options.runs_dir / STATION_DIR / "uploads"
     return create_app(Procedures(options.lab_dir, uploads), history, options.rig_file, token,
-                      options.replay_s, options.records, hosts)
+                      options.replay_s, options.records, hosts, signer)
 
 
 def serve(options: StationOptions) -> None:
@@ -52,4 +83,7 @@ def serve(options: StationOptions) -> None:
 
     app = build(options)
     print(f"aatest station on http://{options.host}:{options.port}/", flush=True)
+    signer = load_signer(options.sign_key)
+    print(f"reports signed with key {signer.fingerprint}" if signer else
+          "reports unsigned (no --sign-key or AATEST_SIGNING_KEY)", flush=True)
     uvicorn.run(app, host=options.host, port=options.port, log_level="warning")

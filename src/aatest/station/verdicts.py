@@ -2,7 +2,8 @@
 
 The engine's verdict stage judges every certified quantity (docs/interfaces.md §1); the page
 shows what it decided and never judges anything itself. Each quantity is shown by its name
-and unit symbol from the quantity registry (:mod:`aatest.results.quantities`).
+and unit symbol from the quantity registry (:mod:`aatest.results.quantities`), its value and
+expanded uncertainty rounded as on the certificate (GUM 7.2.6).
 """
 
 from __future__ import annotations
@@ -21,5 +22,8 @@ def banner(results: RunResults) -> dict[str, Any]:
         rows.append({"quantity": q.name, "key": v.quantity, "channel": v.channel,
                      "value": v.value, "expanded_uncertainty": v.expanded_uncertainty,
                      "limit": v.limit, "unit": q.unit, "digits": q.digits,
-                     "verdict": v.verdict})
+                     "verdict": v.verdict,
+                     # as the certificate prints them: value ± U rounded per GUM 7.2.6
+                     "measured": q.show(v.value, v.expanded_uncertainty),
+                     "limit_text": "±" + q.show(v.limit), "rule": v.rule})
     return {"overall": results.overall, "verdicts": rows, "judged_by": "results"}

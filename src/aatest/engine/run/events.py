@@ -67,6 +67,10 @@ class RunObserver(Protocol):
         the step, as a fault during recording would.
         """
 
+    def step_chunk(self, step: PlannedStep, daq: SampledLog) -> None:
+        """A streaming DAQ delivered the next chunk of a long record, while the step runs
+        (the chunk is already in the step's spool); the station plots it live."""
+
     def step_finished(self, step: PlannedStep) -> None:
         """A step is on disk (or a chamber step is done)."""
 
@@ -90,6 +94,9 @@ class NullObserver:
         """Ignore."""
 
     def step_samples(self, step: PlannedStep, table: SampledLog, daq: SampledLog) -> None:
+        """Ignore."""
+
+    def step_chunk(self, step: PlannedStep, daq: SampledLog) -> None:
         """Ignore."""
 
     def step_finished(self, step: PlannedStep) -> None:

@@ -200,6 +200,7 @@ def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: Ru
         for chunk in daq.stream_logging(step, chunk_s):
             streamed.add(chunk)
             last = chunk
+            events.observer.step_chunk(step, chunk)
             events.abort.check()
         table = rig.turntable.record(snapshot_step(step, _envelope(rig)))
         rig.turntable.end_motion()

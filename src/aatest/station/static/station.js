@@ -1,7 +1,11 @@
 // aatest station page: one websocket for live events and commands, fetch() for lists.
 "use strict";
 const $ = (id) => document.getElementById(id);
-const state = { steps: new Map(), startedMs: null, plots: null, received: 0, runName: null };
+const state = { steps: new Map(), startedMs: null, plots: null, received: 0, runName: null,
+  procedures: new Map(), log: [], runState: "" };
+// run states in which a run holds the rig: Start is disabled, Abort offered
+const BUSY = new Set(["starting", "running", "waiting for the operator", "analysing"]);
+const ABORTABLE = new Set(["starting", "running", "waiting for the operator"]);
 let socket = null;
 
 function send(msg) {
@@ -11,13 +15,35 @@ function send(msg) {
 
 function cell(row, text) { const td = document.createElement("td"); td.textContent = text ?? "—"; row.appendChild(td); return td; }
 function fmtTime(s) { s = Math.max(0, Math.round(s)); const h = Math.floor(s / 3600), m = Math.floor(s % 3600 / 60); return `${h}:${String(m).padStart(2, "0")}:${String(s % 60).padStart(2, "0")}`; }
-function num(x, digits = 5) { return (x === null || x === undefined) ? "—" : Number(x).toPrecision(digits); }
 
+// Procedures by title and description, grouped (shipped, the lab's, uploaded); the value sent
+// is the station's id, never a path.
 async function loadProcedures() {
   const doc = await (await fetch("/api/procedures")).json();
-  const select = $("procedure");
-  select.innerHTML = "";
-  for (const id of doc.procedures) { const o = document.createElement("option"); o.value = o.textContent = id; select.appendChild(o); }
+  const select = $("procedure"), chosen = select.value;
+  select.innerHTML = ""; state.procedures.clear();
+  const groups = new Map();
+  for (const p of doc.procedures) {
+    state.procedures.set(p.id, p);
+    if (!groups.has(p.group)) { const g = document.createElement("optgroup"); g.label = p.group; groups.set(p.group, g); select.appendChild(g); }
+    const o = document.createElement("option"); o.value = p.id;
+    o.textContent = p.ok ? p.title : `${p.title} (does not load)`;
+    o.title = p.description || ""; groups.get(p.group).appendChild(o);
+  }
+  if (chosen && state.procedures.has(chosen)) select.value = chosen;
+  $("models").innerHTML = "";
+  for (const m of doc.models || []) { const o = document.createElement("option"); o.value = m; $("models").appendChild(o); }
+  $("signing").textContent = doc.signing && doc.signing.signed
+    ? `reports signed (key ${doc.signing.fingerprint.slice(0, 16)}…)` : "reports unsigned: no signing key configured";
+  describeProcedure();
+}
+
+function describeProcedure() {
+  const p = state.procedures.get($("procedure").value);
+  $("procedure-description").textContent = p ? (p.description || "(no description)") : "";
+  if (p && p.model) $("model").placeholder = p.model;
+  if (p && p.serial && p.serial !== "unknown") $("serial").placeholder = `${p.serial} (the procedure's)`;
+  else $("serial").placeholder = "scan or type, then Enter";
 }
 
 let validations = 0;
@@ -91,11 +117,13 @@ function makePlots(sensors, axis) {
 function addSamples(msg) {
   const p = state.plots; if (!p) return;
   const tk = [`${p.axis}_position_deg`, `${p.axis}_accel_dps2`];
-  p.tdata[0].push(...msg.table.t); tk.forEach((k, i) => p.tdata[i + 1].push(...(msg.table[k] || [])));
-  p.ddata[0].push(...msg.daq.t); p.sensors.forEach((c, i) => p.ddata[i + 1].push(...msg.daq[c]));
-  p.table.setData(p.tdata); p.daq.setData(p.ddata);
-  state.received += msg.daq.t.length;
+  if (msg.table && msg.table.t) { p.tdata[0].push(...msg.table.t); tk.forEach((k, i) => p.tdata[i + 1].push(...(msg.table[k] || msg.table.t.map(() => null)))); p.table.setData(p.tdata); }
+  if (msg.daq && msg.daq.t) {
+    p.ddata[0].push(...msg.daq.t); p.sensors.forEach((c, i) => p.ddata[i + 1].push(...msg.daq[c])); p.daq.setData(p.ddata);
+    state.received += msg.daq.t.length;
+  }
   $("sample-count").textContent = String(state.received);
+  state.log.push({ type: "samples", id: msg.id, live: !!msg.live, received: state.received });
 }
 
 function showPrompt(msg) {
@@ -108,26 +136,46 @@ function showPrompt(msg) {
   $("continue").dataset.step = msg.id;
 }
 
+function fileLinks(parent, name, files) {
+  parent.innerHTML = "";
+  for (const f of files || []) {  // only the files on disk: no PDF link when none was printed
+    const a = document.createElement("a"); a.href = `/runs/${encodeURIComponent(name)}/${f}`; a.textContent = f; a.target = "_blank";
+    parent.appendChild(a); parent.appendChild(document.createTextNode(" "));
+  }
+}
+
 function showResult(msg) {
   $("result").hidden = false;
   const v = $("verdict"); v.className = "verdict " + (msg.overall || "none");
   v.textContent = "Verdict: " + (msg.overall || "none").toUpperCase();
-  v.title = msg.judged_by === "certificate" ? "judged as on the calibration certificate" : "from results.json";
+  v.title = msg.signed ? "signed report" : "unsigned report";
   const body = $("verdicts").querySelector("tbody"); body.innerHTML = "";
   for (const r of msg.verdicts || []) {
-    // name, unit symbol and significant digits from the quantity registry (aatest.results.quantities)
-    const tr = body.insertRow(); cell(tr, r.quantity); cell(tr, r.channel); cell(tr, `${num(r.value, r.digits)} ${r.unit}`);
-    cell(tr, `${num(r.expanded_uncertainty, 2)} ${r.unit}`); cell(tr, `${num(r.limit, r.digits)} ${r.unit}`); cell(tr, r.verdict);
+    // the quantity's name and unit from the registry, value ± U rounded as on the certificate
+    const tr = body.insertRow(); cell(tr, r.quantity); cell(tr, r.channel); cell(tr, r.measured);
+    cell(tr, r.limit_text); cell(tr, r.rule); cell(tr, r.verdict);
   }
-  $("links").innerHTML = "";
-  for (const f of ["report.html", "report.pdf", "results.json"]) {
-    const a = document.createElement("a"); a.href = `/runs/${encodeURIComponent(msg.name)}/${f}`; a.textContent = f; a.target = "_blank";
-    $("links").appendChild(a); $("links").appendChild(document.createTextNode(" "));
-  }
+  fileLinks($("links"), msg.name, msg.files);
+  if (msg.notice) notify(msg.notice);
   loadHistory();
 }
 
-function setRunState(text) { $("run-state").textContent = text; }
+function notify(text) { $("notice").hidden = false; $("notice-text").textContent = text; }
+function dismiss() { $("notice").hidden = true; }
+
+function setControls() {
+  const busy = BUSY.has(state.runState), abortable = ABORTABLE.has(state.runState);
+  $("start").disabled = busy;
+  $("abort").hidden = !abortable; $("abort").disabled = !abortable;
+  for (const b of document.querySelectorAll("button.resume-run, #resume")) b.disabled = busy;
+}
+
+function setRunState(text) { state.runState = text; $("run-state").textContent = text; setControls(); }
+
+function showUnit(model, serial) {
+  $("run-unit").textContent = `${model || ""} ${serial || ""}`.trim();
+  $("unit-link").href = "/units/" + encodeURIComponent(serial || "");
+}
 
 function onEvent(msg) {
   switch (msg.type) {
@@ -136,12 +184,19 @@ function onEvent(msg) {
       $("role").textContent = msg.role === "control" ? "you control the rig" : "watching (another page controls)";
       break;
     case "snapshot":
-      if (msg.run && msg.run.name) { $("live").hidden = false; $("run-name").textContent = msg.run.name; setRunState(msg.run.state || ""); }
+      if (msg.run && msg.run.name) {
+        $("live").hidden = false; $("run-name").textContent = msg.run.name; state.runName = msg.run.name;
+        showUnit(msg.run.model, msg.run.serial);
+        setRunState({ run_dir: "starting", analysing: "analysing" }[msg.run.state] || msg.run.state || "");
+        if (msg.run.state === "finished") showResult(msg.run);
+      }
       state.steps = new Map(msg.steps.map((s) => [s.id, s])); renderSteps(); showPrompt(msg.prompt);
       break;
     case "run_dir":
       $("live").hidden = false; $("result").hidden = true; $("stopped").hidden = true;
       state.runName = msg.name; $("run-name").textContent = msg.name; setRunState("starting");
+      showUnit(msg.model, msg.serial); state.log = []; state.steps = new Map(); renderSteps();
+      $("current").textContent = "—"; $("motion").textContent = "";
       state.startedMs = Date.now(); state.received = 0; $("sample-count").textContent = "0";
       break;
     case "run_started":
@@ -150,9 +205,12 @@ function onEvent(msg) {
     case "step":
       if (state.steps.has(msg.id)) state.steps.get(msg.id).state = msg.state;
       if (msg.state === "running") { $("current").textContent = msg.id; $("motion").textContent = msg.motion; }
+      state.log.push({ type: "step", id: msg.id, state: msg.state, received: state.received });
       renderSteps();
       break;
-    case "plot_reset": makePlots(msg.sensors, msg.axis); $("plot-label").textContent = `Live plots of ${msg.id}: ${msg.label}.`; break;
+    case "plot_reset":
+      makePlots(msg.sensors, msg.axis); $("plot-label").textContent = `Plots of ${msg.id}: ${msg.label}.`;
+      $("plot-label").dataset.live = msg.live ? "yes" : "no"; break;
     case "samples": addSamples(msg); break;
     case "prompt": showPrompt(msg); setRunState("waiting for the operator"); break;
     case "prompt_answered": showPrompt(null); setRunState("running"); break;
@@ -161,10 +219,10 @@ function onEvent(msg) {
       if (msg.exit_code === undefined) break;  // the engine's notice; the final one carries the exit code
       setRunState("stopped"); showPrompt(null); state.startedMs = null;
       $("stopped").hidden = false; $("stopped-text").textContent = msg.reason;
-      $("resume").hidden = !msg.resumable; loadHistory();
+      $("resume").hidden = !msg.resumable; loadHistory(); $("start").focus();
       break;
-    case "finished": setRunState("finished"); state.startedMs = null; showResult(msg); break;
-    case "error": alert(msg.message); break;
+    case "finished": setRunState("finished"); state.startedMs = null; showResult(msg); $("verdict").focus(); break;
+    case "error": notify(msg.message); break;
   }
 }
 
@@ -177,11 +235,18 @@ async function loadHistory() {
     const tr = body.insertRow(); tr.dataset.run = r.name || "";
     const label = r.source === "records"
       ? [r.certificate_number, r.unit, r.calibrated_utc, r.operator].filter(Boolean).join(" · ") : r.name;
-    cell(tr, label); cell(tr, r.procedure); cell(tr, r.finished ? "finished" : "stopped"); cell(tr, r.overall || "—");
+    const first = cell(tr, label);
+    if (r.serial) {  // the unit's page: its history and trend
+      const a = document.createElement("a"); a.href = "/units/" + encodeURIComponent(r.serial);
+      a.textContent = r.source === "records" ? "unit history" : `unit ${r.serial}`; a.className = "unit-link";
+      first.appendChild(document.createTextNode(" · ")); first.appendChild(a);
+    }
+    cell(tr, r.procedure); cell(tr, r.finished ? "finished" : "stopped"); cell(tr, r.overall || "—");
     const files = cell(tr, "");
-    for (const f of r.files) { const a = document.createElement("a"); a.href = `/runs/${encodeURIComponent(r.name)}/${f}`; a.textContent = f; a.target = "_blank"; files.appendChild(a); files.appendChild(document.createTextNode(" ")); }
+    if (r.name) fileLinks(files, r.name, r.files);
     const act = cell(tr, "");
     if (!r.finished) { const b = document.createElement("button"); b.textContent = "Resume"; b.className = "control resume-run";
+      b.disabled = BUSY.has(state.runState);
       b.onclick = () => send({ type: "resume", run: r.name }); act.appendChild(b); }
   }
 }
@@ -192,12 +257,44 @@ function connect() {
   socket.onclose = () => { $("role").textContent = "disconnected"; setTimeout(connect, 1000); };
 }
 
+function start() {
+  if ($("start").disabled) return;
+  dismiss();
+  send({ type: "start", procedure: $("procedure").value, serial: $("serial").value.trim(),
+         model: $("model").value.trim(), pdf: $("pdf").checked });
+}
+
+// Keyboard: a barcode scanner types the serial and Enter, which moves on to the procedure;
+// Enter on the procedure validates it and moves to Start; Escape dismisses a notice, and
+// while a run holds the rig it brings the focus to Abort (Enter or Space then aborts).
+function onKey(e) {
+  if (e.key === "Escape") {
+    if (!$("notice").hidden) { dismiss(); e.preventDefault(); return; }
+    if (!$("abort").disabled) { $("abort").focus(); e.preventDefault(); }
+    return;
+  }
+  if (e.key !== "Enter") return;
+  if (e.target === $("serial") || e.target === $("model")) {
+    e.preventDefault(); $("procedure").focus();
+  } else if (e.target === $("procedure")) {
+    e.preventDefault(); validate().then(() => $("start").focus());
+  }
+}
+
 $("validate").onclick = validate;
+$("procedure").onchange = () => { describeProcedure(); validate(); };
 $("upload").onchange = upload;
-$("start").onclick = () => send({ type: "start", procedure: $("procedure").value });
+$("start").onclick = start;
 $("abort").onclick = () => send({ type: "abort" });
 $("continue").onclick = () => send({ type: "answer", step: $("continue").dataset.step });
 $("resume").onclick = () => send({ type: "resume", run: state.runName || $("run-name").textContent });
 $("refresh").onclick = loadHistory;
+$("notice-close").onclick = dismiss;
+document.addEventListener("keydown", onKey);
 setInterval(() => { if (state.startedMs) $("elapsed").textContent = fmtTime((Date.now() - state.startedMs) / 1000); }, 500);
-loadProcedures().then(validate); loadHistory(); connect();
+setControls();
+$("serial").focus();
+// the first listing validates the chosen procedure, unless the operator acted meanwhile
+const firstValidation = validations;
+loadProcedures().then(() => { if (validations === firstValidation) validate(); });
+loadHistory(); connect();

@@ -1,0 +1,126 @@
+"""The unit named at the station reaches the run as ``run --serial`` does; a real rig refuses
+an unnamed unit before it moves.
+
+The rig is the twin behind its Modbus and CAN simulator servers posing as hardware (the
+drivers then take the real-rig path); the station's run controller is driven directly, as the
+page's Start does, and its published events are collected.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from aatest.engine.run.session import UnitName
+from aatest.protocols.modbus_map import Command
+from aatest.station.catalogue import Procedures, RunsDirHistory
+from aatest.station.control import RunController
+from aatest.twin.servers.can_sim import SimCanLogger
+from aatest.twin.servers.modbus_server import SimModbusServer
+
+SEED = 5
+PROCEDURE = """\
+procedure: served
+description: One coherent 1 Hz sine through the served rig.
+sensor: {model: sr207}
+sampling: {rate_hz: 2000, samples: 8000, settle_s: 1}
+steps:
+  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 400, snap: coherent}
+analysis: [sync, reference, scale_factor]
+report: {template: calibration-certificate, sign: false}
+"""
+#: commands that move the table or record
+MOTION = {Command.START_MOTION, Command.ARM_LOG}
+
+
+@dataclass
+class Events:
+    """What the controller published, and a latch set by the run's last event."""
+
+    seen: list[dict[str, Any]] = field(default_factory=list)
+    ended: threading.Event = field(default_factory=threading.Event)
+
+    def __call__(self, event: dict[str, Any]) -> None:
+        self.seen.append(event)
+        if event["type"] == "finished" or (event["type"] == "stopped" and "exit_code" in event):
+            self.ended.set()
+
+
+@dataclass
+class Hardware:
+    rig: Path
+    lab: Path
+    commands: list[Command]
+
+
+@pytest.fixture
+def hardware(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Hardware]:
+    """The served twin posing as an ACME controller and a real CAN logger."""
+    server = SimModbusServer(seed=SEED, lifetime_s=120.0)
+    channel = f"station-{tmp_path.name}"
+    logger = SimCanLogger(server.controller, "virtual", channel).start()
+    server.attach(logger)
+    server.start()
+    server.controller.pose_as_hardware("ACME TC-2 controller")
+    logger.simulated = False
+    commands: list[Command] = []
+    execute = server.controller._execute
+
+    def counted(command: Command | None) -> None:
+        if command is not None:
+            commands.append(command)
+        execute(command)
+
+    monkeypatch.setattr(server.controller, "_execute", counted)
+    monkeypatch.setenv("AATEST_RECORDS", f"sqlite:///{tmp_path / 'records.sqlite'}")
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(
+        f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {server.port}, timeout_s: 2.0, "
+        f"retries: 0}}\ndaq: {{plugin: can, interface: virtual, channel: {channel}}}\n"
+        "chamber: {plugin: none}\n")
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    (lab / "served.yaml").write_text(PROCEDURE)
+    yield Hardware(rig, lab, commands)
+    server.stop()
+    logger.stop()
+
+
+def _start(hardware: Hardware, tmp_path: Path, unit: UnitName) -> tuple[Events, Path]:
+    events = Events()
+    runs = tmp_path / "runs"
+    runs.mkdir(exist_ok=True)
+    controller = RunController(Procedures(hardware.lab), RunsDirHistory(runs), hardware.rig,
+                               events, replay_s=0.0)
+    name = controller.start("lab/served.yaml", "Ada Operator", unit)
+    assert events.ended.wait(120), [e["type"] for e in events.seen]
+    return events, runs / name
+
+
+def test_an_unnamed_unit_is_refused_on_a_real_rig_before_motion(
+    hardware: Hardware, tmp_path: Path
+) -> None:
+    events, _run_dir = _start(hardware, tmp_path, UnitName())
+    final = events.seen[-1]
+    assert final["type"] == "stopped" and final["exit_code"] == 2
+    assert "no unit serial" in final["reason"]
+    assert not MOTION & set(hardware.commands), hardware.commands  # the table never moved
+
+
+def test_the_serial_named_at_the_station_is_the_unit_calibrated(
+    hardware: Hardware, tmp_path: Path
+) -> None:
+    events, run_dir = _start(hardware, tmp_path, UnitName("SN-STATION-7"))
+    final = events.seen[-1]
+    assert final["type"] == "finished", final
+    assert next(e for e in events.seen if e["type"] == "run_dir")["serial"] == "SN-STATION-7"
+    results = json.loads((run_dir / "results.json").read_text())
+    assert results["metadata"]["sensor"]["serial"] == "SN-STATION-7"
+    assert results["metadata"]["kind"] == "calibration"  # hardware, named: a calibration
+    assert final["files"] == ["report.html", "results.json"]  # no PDF asked: none linked
