@@ -869,6 +869,12 @@ def sim_server_simserv(
 
     serve_chamber_forever("simserv", host, port, seed)
 
+from aatest.batch import commands as _batch  # noqa: E402 - wrapped in the guard defined above
+
+app.add_typer(_batch.batch_app(guarded), name="batch")
+records_app.command("impact")(guarded(_batch.records_impact))
+
+
 def main() -> None:
     """The ``aatest`` console script: a reader of stdout that goes away ends it quietly.
 

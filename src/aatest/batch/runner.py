@@ -92,9 +92,10 @@ def client_for(scheduler: str | None, workers: int, processes: bool = True) -> I
         return
     if workers < 1:
         raise InputError(f"--workers {workers}: at least one worker is needed")
+    loopback = {"host": "127.0.0.1"} if processes else {}  # threads talk in-process
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                      host="127.0.0.1", dashboard_address=None,
-                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+                      dashboard_address=None, silence_logs=logging.ERROR,
+                      **loopback) as cluster, Client(cluster) as client:
         yield client
 
 
