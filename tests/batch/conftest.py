@@ -2,10 +2,45 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import pytest
+
+from aatest.batch.archive import TwinUnit, record_run, register_references
 
 
 @pytest.fixture(autouse=True)
 def _no_user_lab(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("AATEST_LAB", raising=False)
     monkeypatch.delenv("AATEST_SIGNING_KEY", raising=False)
+
+
+#: the shared archive: eight units on two rigs (the serials' digit is the seed)
+RIGS = {"rig-c": ("ENC-2", "LOG-9"), "rig-d": ("ENC-2", "LOG-10")}
+ARCHIVE_UNITS = tuple(
+    TwinUnit(f"B{i}", 0.2 * (i - 4), "rig-c" if i % 2 else "rig-d",
+             RIGS["rig-c" if i % 2 else "rig-d"], seed=i) for i in range(1, 9))
+
+
+@pytest.fixture(scope="session")
+def twin_archive(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(folder of the run directories, records store file) of :data:`ARCHIVE_UNITS`.
+
+    Tests that write re-analyses work on a copy of the store (:func:`store_copy`).
+    """
+    root = tmp_path_factory.mktemp("batch-archive")
+    database = root / "records.sqlite"
+    url = f"sqlite:///{database}"
+    register_references(url, ["ENC-2"], ["LOG-9", "LOG-10"])
+    for unit in ARCHIVE_UNITS:
+        record_run(unit, root, url)
+    return root, database
+
+
+@pytest.fixture
+def store_copy(twin_archive: tuple[Path, Path], tmp_path: Path) -> str:
+    """A records URL of this test's own copy of the archive's store (same bundles)."""
+    copy = tmp_path / "records.sqlite"
+    shutil.copyfile(twin_archive[1], copy)
+    return f"sqlite:///{copy}"
