@@ -1,4 +1,4 @@
-"""Batch fixtures: seeded twin archives with known truth (built once per module)."""
+"""Batch fixtures: a seeded twin archive with known truth (built once per session)."""
 
 from __future__ import annotations
 
@@ -7,20 +7,14 @@ from pathlib import Path
 
 import pytest
 
-from aatest.batch.archive import TwinUnit, record_run, register_references
+from aatest.batch.archive import record_run, register_references
+from batch_units import ARCHIVE_UNITS
 
 
 @pytest.fixture(autouse=True)
 def _no_user_lab(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("AATEST_LAB", raising=False)
     monkeypatch.delenv("AATEST_SIGNING_KEY", raising=False)
-
-
-#: the shared archive: eight units on two rigs (the serials' digit is the seed)
-RIGS = {"rig-c": ("ENC-2", "LOG-9"), "rig-d": ("ENC-2", "LOG-10")}
-ARCHIVE_UNITS = tuple(
-    TwinUnit(f"B{i}", 0.2 * (i - 4), "rig-c" if i % 2 else "rig-d",
-             RIGS["rig-c" if i % 2 else "rig-d"], seed=i) for i in range(1, 9))
 
 
 @pytest.fixture(scope="session")

@@ -135,7 +135,7 @@ def test_a_correction_that_does_not_fit_the_reference_is_refused(archive, tmp_pa
                           "encoder_scale_error_ppm: 50\n", encoding="utf-8")
     code, _, err = aatest("records", "impact", "--reference", "LOG-7", "--records", url,
                           "--correction", wrong_kind)
-    assert code == 2 and "encoder scale error is stated, but LOG-7 is a data-logger" in err
+    assert code == 2 and "encoder scale error is stated, but LOG-7 is of kind data-logger" in err
     bad = tmp_path / "bad.yaml"
     bad.write_text("reference: LOG-7\nfound_on: 2026-11-20\nreason: r\n"
                    "logger_gain_error_ppm: lots\n", encoding="utf-8")

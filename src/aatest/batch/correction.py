@@ -70,9 +70,9 @@ class ReferenceCorrection(BaseModel):
     def fits_kind(self, kind: str) -> str | None:
         """Why this correction cannot apply to a reference of ``kind`` (None: it can)."""
         if self.encoder_scale_error_ppm is not None and kind not in ENCODER_KINDS:
-            return f"an encoder scale error is stated, but {self.reference} is a {kind}"
+            return f"an encoder scale error is stated, but {self.reference} is of kind {kind}"
         if self.touches_logger() and kind not in LOGGER_KINDS:
-            return f"a logger gain/offset error is stated, but {self.reference} is a {kind}"
+            return f"a logger gain/offset error is stated, but {self.reference} is of kind {kind}"
         return None
 
 
