@@ -6,9 +6,9 @@ import shutil
 from pathlib import Path
 
 import pytest
+from batch_units import ARCHIVE_UNITS
 
 from aatest.batch.archive import record_run, register_references
-from batch_units import ARCHIVE_UNITS
 
 
 @pytest.fixture(autouse=True)

@@ -50,7 +50,8 @@ def test_the_schema_demands_an_error_and_fits_the_reference_kind(tmp_path) -> No
     with pytest.raises(ValidationError, match="state at least one"):
         _fix()
     assert _fix(encoder_scale_error_ppm=5).fits_kind("encoder") is None
-    assert "is of kind data-logger" in (_fix(encoder_scale_error_ppm=5).fits_kind("data-logger") or "")
+    encoder_fix = _fix(encoder_scale_error_ppm=5)
+    assert "is of kind data-logger" in (encoder_fix.fits_kind("data-logger") or "")
     assert "is of kind encoder" in (_fix(logger_gain_error_ppm=5).fits_kind("encoder") or "")
     path = tmp_path / "c.yaml"
     path.write_text("reference: R\nfound_on: 2026-11-20\nreason: r\nscale: 3\n",

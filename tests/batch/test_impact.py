@@ -75,7 +75,7 @@ def test_lists_exactly_the_certificates_that_used_the_reference(archive) -> None
 
 
 def test_correction_names_the_verdicts_that_change_and_recovers_the_truth(archive) -> None:
-    url, numbers, correction = archive
+    url, _, correction = archive
     with RecordStore.open(url) as store:
         issued = {u.serial: store.history(u.serial, True)[-1] for u in UNITS}
     code, out, err = aatest("records", "impact", "--reference", "LOG-7", "--records", url,

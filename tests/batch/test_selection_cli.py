@@ -6,13 +6,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from batch_units import ARCHIVE_UNITS
 from typer.testing import CliRunner
 
 from aatest.batch.selection import from_prefix, from_store
 from aatest.cli import app
 from aatest.records.models import RecordFilter
 from aatest.records.store import RecordStore
-from batch_units import ARCHIVE_UNITS
 
 
 def aatest(*args: object) -> tuple[int, str, str]:

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import psutil
+from batch_units import ARCHIVE_UNITS
 from sqlalchemy import create_engine, text
 
 from aatest.batch import ledger
@@ -24,7 +25,6 @@ from aatest.batch.runner import run_batch
 from aatest.batch.selection import from_store
 from aatest.records.models import RecordFilter
 from aatest.records.store import RecordStore
-from batch_units import ARCHIVE_UNITS
 
 TIMEOUT_S = 300.0
 

@@ -11,6 +11,8 @@ The runs are simulations (and registered as such): they test the machinery, neve
 
 from __future__ import annotations
 
+import logging
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import date, timedelta
@@ -78,6 +80,19 @@ def _rig_file(unit: TwinUnit, folder: Path) -> Path:
     return rig
 
 
+def _log_to_the_real_stderr() -> None:
+    """Give the root logger a handler on the process's stderr before the first CLI call.
+
+    Why: the CLI's ``logging.basicConfig`` would otherwise bind the root logger to the
+    runner's temporary stream, closed after the call, and every later log record (e.g. of a
+    Dask cluster in the same process) would fail to print.
+    """
+    root = logging.getLogger()
+    if not root.handlers:
+        root.addHandler(logging.StreamHandler(sys.__stderr__))
+        root.setLevel(logging.WARNING)
+
+
 def record_run(unit: TwinUnit, root: Path, records_url: str) -> Path:
     """Run ``unit`` on the twin into ``root/<rig>/<serial>-<seed>`` and register it; the run
     directory. Raises when the run does not complete (its exit code and output)."""
@@ -85,6 +100,7 @@ def record_run(unit: TwinUnit, root: Path, records_url: str) -> Path:
 
     from aatest.cli import app
 
+    _log_to_the_real_stderr()
     folder = root / unit.rig
     folder.mkdir(parents=True, exist_ok=True)
     procedure = root / "tiny-scale-factor.yaml"

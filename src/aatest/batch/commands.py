@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -45,30 +46,48 @@ def _say(text: str) -> None:
     typer.echo(text, err=True)
 
 
-def _batch(mode: str, prefix: str | None, serial: str | None, procedure: str | None,  # noqa: PLR0913
-           since: str | None, reference: str | None, include_simulations: bool,
-           records: str | None, scheduler: str | None, workers: int, as_json: bool) -> None:
-    from aatest.batch import ledger, selection
+@dataclass(frozen=True)
+class Selection:
+    """What ``aatest batch`` runs over: a prefix, or the records matching the options."""
+
+    prefix: str | None = None
+    serial: str | None = None
+    procedure: str | None = None
+    since: str | None = None
+    reference: str | None = None
+    include_simulations: bool = False
+
+    def chosen(self, store: Any) -> list[Any]:
+        """The selected recordings (:class:`~aatest.batch.selection.Selected`)."""
+        from aatest.batch import selection
+        from aatest.records.models import RecordFilter
+
+        filters = (self.serial, self.procedure, self.since, self.reference)
+        if self.prefix is not None and any(f is not None for f in filters):
+            raise InputError("give either a PREFIX or record options (--serial, --procedure, "
+                             "--since, --reference), not both")
+        if self.prefix is not None:
+            return selection.from_prefix(self.prefix, store)
+        where = RecordFilter(serial=self.serial, procedure=self.procedure,
+                             since_utc=_since(self.since),
+                             include_simulations=self.include_simulations)
+        found = selection.from_store(store, where, self.reference)
+        if not found:
+            raise InputError(f"no records in {store.name} match the selection")
+        return found
+
+
+def _batch(mode: str, chosen: Selection, records: str | None, scheduler: str | None,
+           workers: int, as_json: bool) -> None:
+    from aatest.batch import ledger
     from aatest.batch.runner import run_batch
-    from aatest.records.models import RecordFilter
     from aatest.records.store import RecordStore
 
-    filters = (serial, procedure, since, reference)
-    if prefix is not None and any(f is not None for f in filters):
-        raise InputError("give either a PREFIX or record options (--serial, --procedure, "
-                         "--since, --reference), not both")
     with RecordStore.open(records) as store:
-        if prefix is not None:
-            chosen = selection.from_prefix(prefix, store)
-        else:
-            where = RecordFilter(serial=serial, procedure=procedure, since_utc=_since(since),
-                                 include_simulations=include_simulations)
-            chosen = selection.from_store(store, where, reference)
-            if not chosen:
-                raise InputError(f"no records in {store.name} match the selection")
-        report = run_batch(store, chosen, "analyze" if mode == "analyze" else "diagnose",
+        selected = chosen.chosen(store)
+        report = run_batch(store, selected, "analyze" if mode == "analyze" else "diagnose",
                            scheduler=scheduler, workers=workers, progress=_say)
-        subjects = {s.subject for s in chosen}
+        subjects = {s.subject for s in selected}
         results = [r for r in ledger.stored(store, report.method_hash) if r.subject in subjects]
     failing = sorted(r.subject for r in results if r.overall_verdict in FAILING)
     if as_json:
@@ -103,7 +122,7 @@ def batch_app(guard: Callable[[Any], Any]) -> typer.Typer:
                       help="Re-analyse or diagnose many recordings on a Dask cluster.")
 
     def make(mode: str) -> Callable[..., None]:
-        def command(
+        def command(  # noqa: PLR0913, PLR0917 - the command's options one to one
             prefix: str | None = typer.Argument(
                 None, help="Directory or URL prefix holding recordings (else: records)"),
             serial: str | None = typer.Option(None, "--serial", help="Records of this unit"),
@@ -119,8 +138,9 @@ def batch_app(guard: Callable[[Any], Any]) -> typer.Typer:
             workers: int = _WORKERS_OPT,
             as_json: bool = typer.Option(False, "--json/--no-json", help="Print JSON"),
         ) -> None:
-            _batch(mode, prefix, serial, procedure, since, reference, include_simulations,
-                   records, scheduler, workers, as_json)
+            chosen = Selection(prefix, serial, procedure, since, reference,
+                               include_simulations)
+            _batch(mode, chosen, records, scheduler, workers, as_json)
 
         verb = "Re-analyse" if mode == "analyze" else "Diagnose"
         command.__doc__ = (f"{verb} every selected recording; results are stored as "

@@ -114,12 +114,12 @@ class _Undo:
     def log(self, log: SampledLog) -> SampledLog:
         fix = self.correction
         if log.source == "table" and fix.encoder_scale_error_ppm is not None:
-            names = [n for n in log.channels if n.endswith(ENCODER_SUFFIXES)]
-            log = _scaled(log, names, 1.0 + fix.encoder_scale_error_ppm * 1e-6, 0.0)
+            encoded = [n for n in log.channels if n.endswith(ENCODER_SUFFIXES)]
+            log = _scaled(log, encoded, 1.0 + fix.encoder_scale_error_ppm * 1e-6, 0.0)
         if log.source == "daq" and fix.touches_logger():
-            names = fix.channels if fix.channels is not None else log.sensor_channels()
+            logged = fix.channels if fix.channels is not None else log.sensor_channels()
             gain = 1.0 + (fix.logger_gain_error_ppm or 0.0) * 1e-6
-            log = _scaled(log, names, gain, fix.logger_offset_v)
+            log = _scaled(log, logged, gain, fix.logger_offset_v)
         return log
 
     def step(self, step: StepData) -> StepData:

@@ -117,7 +117,8 @@ def _judged(old_rows: Sequence[dict[str, Any]], new_rows: Sequence[dict[str, Any
     return out
 
 
-def assess(store: RecordStore, reference: str, correction: ReferenceCorrection | None,
+def assess(  # noqa: PLR0913 - the selection, then the batch's own options by keyword
+        store: RecordStore, reference: str, correction: ReferenceCorrection | None,
            since: datetime | None = None, include_simulations: bool = False, *,
            scheduler: str | None = None, workers: int = 2, processes: bool = True,
            progress: Progress | None = None) -> Impact:

@@ -106,7 +106,7 @@ def _stored_values(item: Selected, mode: Mode, mhash: str, method: dict[str, Any
             "aatest_version": method["aatest_version"], **result}
 
 
-def run_batch(store: RecordStore, selected: Sequence[Selected], mode: Mode,  # noqa: PLR0913
+def run_batch(store: RecordStore, selected: Sequence[Selected], mode: Mode,
               correction: ReferenceCorrection | None = None, *, scheduler: str | None = None,
               workers: int = 2, processes: bool = True,
               progress: Progress | None = None) -> BatchReport:

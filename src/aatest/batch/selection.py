@@ -87,7 +87,7 @@ def from_prefix(prefix: str, store: RecordStore | None) -> list[Selected]:
     InputError
         Nothing can be listed there, or no recording is found.
     """
-    from fsspec.core import url_to_fs
+    from fsspec.core import url_to_fs  # type: ignore[import-untyped]
 
     try:
         fs, root = url_to_fs(prefix)

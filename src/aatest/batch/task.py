@@ -34,7 +34,7 @@ def local_path(location: str) -> str | Path:
     (the recording reader opens them)."""
     if "://" not in location:
         return Path(location)
-    from fsspec.core import url_to_fs
+    from fsspec.core import url_to_fs  # type: ignore[import-untyped]
 
     fs, path = url_to_fs(location)
     protocol = fs.protocol if isinstance(fs.protocol, str) else fs.protocol[0]
