@@ -11,8 +11,6 @@ The runs are simulations (and registered as such): they test the machinery, neve
 
 from __future__ import annotations
 
-import logging
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import date, timedelta
@@ -80,38 +78,26 @@ def _rig_file(unit: TwinUnit, folder: Path) -> Path:
     return rig
 
 
-def _log_to_the_real_stderr() -> None:
-    """Give the root logger a handler on the process's stderr before the first CLI call.
-
-    Why: the CLI's ``logging.basicConfig`` would otherwise bind the root logger to the
-    runner's temporary stream, closed after the call, and every later log record (e.g. of a
-    Dask cluster in the same process) would fail to print.
-    """
-    root = logging.getLogger()
-    if not root.handlers:
-        root.addHandler(logging.StreamHandler(sys.__stderr__))
-        root.setLevel(logging.WARNING)
-
-
 def record_run(unit: TwinUnit, root: Path, records_url: str) -> Path:
-    """Run ``unit`` on the twin into ``root/<rig>/<serial>-<seed>`` and register it; the run
-    directory. Raises when the run does not complete (its exit code and output)."""
-    from typer.testing import CliRunner
+    """Run ``unit`` on the twin into ``root/<rig>/<serial>-<seed>`` and register it, as
+    ``aatest run --rig … --serial … --records …`` does (the rig's references checked against
+    the register first); the run directory."""
+    from aatest.engine.procedure.loader import load_rig
+    from aatest.engine.run import session
+    from aatest.records import references
+    from aatest.records.hook import registering
+    from aatest.records.lab import LabProfile
 
-    from aatest.cli import app
-
-    _log_to_the_real_stderr()
     folder = root / unit.rig
     folder.mkdir(parents=True, exist_ok=True)
     procedure = root / "tiny-scale-factor.yaml"
     if not procedure.exists():
         procedure.write_text(TINY_PROCEDURE, encoding="utf-8")
     out = folder / f"{unit.serial}-{unit.seed}"
-    result = CliRunner().invoke(app, [
-        "run", str(procedure), "--rig", str(_rig_file(unit, folder)), "--out", str(out),
-        "--seed", str(unit.seed), "--serial", unit.serial, "--no-progress",
-        "--records", records_url])
-    if result.exit_code not in (0, 1):  # 1: a failed verdict, which the archive may hold
-        raise RuntimeError(f"twin run of {unit.serial} exited {result.exit_code}: "
-                           f"{result.stdout}{result.stderr}")
+    rig = _rig_file(unit, folder)
+    with registering(records_url, LabProfile(), "run") as registrar:
+        registrar.preflight = references.check(
+            registrar.store(), load_rig(rig).references, date.today(), None).metadata()
+        session.run(procedure, rig, out, False, unit.seed, None, False,
+                    confirm_prompts="auto", unit=session.UnitName(unit.serial, None))
     return out

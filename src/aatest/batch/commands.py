@@ -29,7 +29,7 @@ _SCHEDULER_OPT = typer.Option(None, "--scheduler",
                               help="An existing Dask scheduler (tcp://HOST:PORT); default: a "
                               "local cluster")
 _WORKERS_OPT = typer.Option(2, "--workers", help="Worker processes of the local cluster")
-_SIMULATIONS_OPT = typer.Option(False, "--include-simulations/--no-include-simulations",
+_SIMULATIONS_OPT = typer.Option(False, "--include-simulations",
                                 help="Also select records of simulated runs")
 #: overall verdicts of a re-analysis that make the batch exit 1
 FAILING = frozenset({"fail", "finding"})
