@@ -6,14 +6,16 @@ worker processes (test_worker_killed.py)."""
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
+import psutil
 import pytest
 from sqlalchemy import func, select
 
 from aatest.batch import ledger
-from aatest.batch.runner import run_batch
+from aatest.batch.runner import client_for, run_batch
 from aatest.batch.selection import Selected, from_store
 from aatest.records.models import RecordFilter
 from aatest.records.store import RecordStore
@@ -81,3 +83,12 @@ def test_diagnose_and_analyze_are_different_methods(store_copy: str) -> None:
         (row,) = ledger.stored(store, diagnosed.method_hash)
         # the twin of the archive has no effect switched on: nothing beyond the noise
         assert row.overall_verdict == "explained" and row.outcome["findings"] == []
+
+
+@pytest.mark.parametrize("processes", [False, True])
+def test_the_local_cluster_listens_on_loopback_only(processes: bool) -> None:
+    with client_for(None, 1, processes):
+        this = psutil.Process(os.getpid())
+        listening = [c.laddr.ip for p in (this, *this.children(recursive=True))
+                     for c in p.net_connections() if c.status == psutil.CONN_LISTEN]
+    assert listening and set(listening) == {"127.0.0.1"}

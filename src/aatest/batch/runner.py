@@ -73,7 +73,8 @@ def _peak_rss_mib() -> float:
 @contextmanager
 def client_for(scheduler: str | None, workers: int, processes: bool = True) -> Iterator[Any]:
     """A Dask client: on ``scheduler`` when given, else on a local cluster of ``workers``
-    single-threaded worker processes (threads with ``processes=False``) bound to loopback.
+    single-threaded worker processes (threads with ``processes=False``) bound to loopback,
+    its HTTP server too.
 
     Raises
     ------
@@ -93,8 +94,11 @@ def client_for(scheduler: str | None, workers: int, processes: bool = True) -> I
     if workers < 1:
         raise InputError(f"--workers {workers}: at least one worker is needed")
     loopback = {"host": "127.0.0.1"} if processes else {}  # threads talk in-process
+    # the scheduler's and workers' HTTP servers always start: on loopback, on free ports
+    # (never 8787, which another cluster on the machine may hold)
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                      dashboard_address=None, silence_logs=logging.ERROR,
+                      dashboard_address="127.0.0.1:0", worker_dashboard_address="127.0.0.1:0",
+                      silence_logs=logging.ERROR,
                       **loopback) as cluster, Client(cluster) as client:
         yield client
 
