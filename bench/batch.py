@@ -61,13 +61,15 @@ def build(archive: Path, count: int) -> Path:
 
 
 def measure(database: Path, prefix: str | None, mode: str, workers: int,
-            scratch: Path) -> tuple[BatchReport, float]:
-    """One batch on a fresh copy of the store: its report and wall time, s."""
+            scratch: Path, count: int) -> tuple[BatchReport, float]:
+    """One batch over the first ``count`` recordings, on a fresh copy of the store: its
+    report and wall time, s."""
     copy = scratch / f"{mode}-{workers}.sqlite"
     shutil.copyfile(database, copy)
     with RecordStore.open(f"sqlite:///{copy}") as store:
         chosen: list[Selected] = (from_prefix(prefix, store) if prefix
                                   else from_store(store, RecordFilter(include_simulations=True)))
+        chosen = chosen[:count]
         started = time.perf_counter()
         report = run_batch(store, chosen, "analyze" if mode == "analyze" else "diagnose",
                            workers=workers)
@@ -91,7 +93,8 @@ def main() -> None:
         for mode in args.modes.split(","):
             rates = {}
             for workers in (1, 2):
-                report, wall_s = measure(database, args.prefix, mode, workers, Path(tmp))
+                report, wall_s = measure(database, args.prefix, mode, workers, Path(tmp),
+                                          args.count)
                 done = len(report.completed)
                 rates[workers] = 60.0 * done / wall_s
                 peak = max(report.worker_peak_mib.values(), default=float("nan"))

@@ -16,8 +16,8 @@ def _row(subject: str) -> dict[str, object]:
                                                  "unit": "V/(°/s²)"}}, "outcome": {}}
 
 
-def test_rows_are_unique_per_method_and_chained(tmp_path) -> None:
-    with RecordStore.open(f"sqlite:///{tmp_path / 'r.sqlite'}") as store:
+def test_rows_are_unique_per_method_and_chained(empty_store_url: str) -> None:
+    with RecordStore.open(empty_store_url) as store:
         first = ledger.append(store, _row("a"))
         assert ledger.append(store, _row("a")) is None  # (subject, method) stored once
         ledger.append(store, _row("b"))
