@@ -92,3 +92,16 @@ def test_the_local_cluster_listens_on_loopback_only(processes: bool) -> None:
         listening = [c.laddr.ip for p in (this, *this.children(recursive=True))
                      for c in p.net_connections() if c.status == psutil.CONN_LISTEN]
     assert listening and set(listening) == {"127.0.0.1"}
+
+
+def test_an_unreachable_scheduler_is_bad_input(store_copy: str,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    from aatest.batch import runner
+    from aatest.engine.errors import InputError
+
+    monkeypatch.setattr(runner, "CONNECT_TIMEOUT_S", 2.0)
+    with RecordStore.open(store_copy) as store:
+        chosen = from_store(store, RecordFilter(serial="B2", include_simulations=True))
+        with pytest.raises(InputError, match=r"--scheduler tcp://127.0.0.1:1: cannot connect"):
+            run_batch(store, chosen, "analyze", scheduler="tcp://127.0.0.1:1")
+        assert ledger.stored(store) == []
