@@ -893,6 +893,12 @@ from aatest.fleet.cli import build as _build_fleet  # noqa: E402 - needs guarded
 app.add_typer(_build_fleet(guarded), name="fleet")
 
 
+from aatest.batch import commands as _batch  # noqa: E402 - wrapped in the guard defined above
+
+app.add_typer(_batch.batch_app(guarded), name="batch")
+records_app.command("impact")(guarded(_batch.records_impact))
+
+
 def main() -> None:
     """The ``aatest`` console script: a reader of stdout that goes away ends it quietly.
 

@@ -53,7 +53,7 @@ def _write_version_1(url: str) -> None:
 def test_upgrade_from_version_1_keeps_and_backfills_records(store_url: str) -> None:
     _write_version_1(store_url)
     with RecordStore.open(store_url) as store:  # opening migrates to head
-        assert schema.current_revision(store.engine) == schema.head_revision() == "0006"
+        assert schema.current_revision(store.engine) == schema.head_revision() == "0007"
         (record,) = store.history("OLD1")
         next_number = store.issue_certificate("LAB", datetime(2025, 9, 1, tzinfo=UTC))
     assert record.certificate_number == "LAB-2025-000007"
