@@ -122,6 +122,7 @@ def _run_dir_of(kwargs: dict[str, Any]) -> Path | None:
     """The command's run directory (``--out`` or ``RUN_DIR``) when it names one."""
     for key in ("out", "run_dir"):
         value = kwargs.get(key)
+        value = Path(value) if isinstance(value, str) and "://" not in value else value
         if isinstance(value, Path) and value.is_dir():
             return value
     return None
@@ -208,6 +209,16 @@ def _registering(records: str | None, lab: Path | None, command: str) -> Any:
     return registering(records, load_lab(lab), command)
 
 
+def _where(target: str | None, exists: bool = True) -> Any:
+    """A local path, or a location on object storage (``s3://…``; exit 2 naming a URL that
+    does not exist when ``exists``); None stays None."""
+    from aatest.engine.storage import locate, require
+
+    if target is None:
+        return None
+    return require(locate(target)) if exists else locate(target)
+
+
 def _print_json(doc: Any) -> None:
     typer.echo(json.dumps(doc, indent=2, allow_nan=False))
 
@@ -257,7 +268,8 @@ def plan(
 def run(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
     rig: Path | None = _RIG_OPT,
-    out: Path | None = typer.Option(None, "--out", help="Run directory"),
+    out: str | None = typer.Option(None, "--out", help="Run directory: a path or an fsspec URL "
+                                   "(s3://bucket/runs/r1; docs/storage.md)"),
     resume: bool = typer.Option(False, "--resume/--no-resume",
                                 help="Continue an interrupted run in --out"),
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated rig"),
@@ -296,7 +308,8 @@ def run(
     with _registering(records, lab, "run") as registrar:
         registrar.preflight = _check_references(registrar, rig, allow_overdue)
         run_dir, results = session.run(
-            procedure, rig, out, resume, seed, sign_key, progress, operator=operator,
+            procedure, rig, _where(out, exists=False), resume, seed, sign_key, progress,
+            operator=operator,
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
             unit=session.UnitName(serial or None, model or None),
         )
@@ -339,7 +352,7 @@ def _echo_kind(results: RunResults) -> None:
         typer.echo(f"simulation ({parts}): {SIMULATION_TITLE}, {number}")
 
 
-def _print_summary(results: RunResults, bundle: Path, command: str, started: float,
+def _print_summary(results: RunResults, bundle: Any, command: str, started: float,
                    as_json: bool) -> None:
     """The closing summary: rich tables (plain without a terminal) or ``--json-summary``."""
     from aatest.presentation.summary import summarise
@@ -374,10 +387,11 @@ def _exit_on_outcome(results: RunResults) -> None:
 @app.command()
 @guarded
 def analyze(
-    data: Path = typer.Argument(
-        ..., help="Run directory, recording.mcap, import directory or logger mapping.yaml"),
+    data: str = typer.Argument(
+        ..., help="Run directory, recording.mcap, import directory or logger mapping.yaml (a "
+        "run or recording may be an fsspec URL, e.g. s3://…)"),
     json_out: Path | None = typer.Option(None, "--json", help="Also write results here"),
-    out: Path | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
+    out: str | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
     sign_key: Path | None = _SIGN_KEY_OPT,
     records: str | None = _RECORDS_OPT,
     lab: Path | None = _LAB_OPT,
@@ -388,11 +402,12 @@ def analyze(
     from aatest.engine.run import session
 
     started = time.monotonic()
-    target = out or (data if data.is_dir() else data.parent)
-    wall = session.run_wall_duration(data) if data.is_dir() else None
+    where = _where(data)
+    target = _where(out, exists=False) or (where if where.is_dir() else where.parent)
+    wall = session.run_wall_duration(where) if where.is_dir() else None
     with _registering(records, lab, "analyze"):
         results = session.analyse_and_report(
-            data, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
+            where, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
         )
     if json_out is not None:
         from aatest.engine.analysis.results import results_json
@@ -428,8 +443,9 @@ def export(
 @app.command()
 @guarded
 def diagnose(
-    data: Path = typer.Argument(
-        ..., help="Run directory, recording, import directory or logger mapping.yaml"),
+    data: str = typer.Argument(
+        ..., help="Run directory, recording, import directory or logger mapping.yaml (a run "
+        "or recording may be an fsspec URL)"),
     json_out: Path | None = typer.Option(None, "--json", help="Write the diagnosis JSON here"),
     model_out: Path | None = typer.Option(
         None, "--model-out", help="Write the extended model YAML"),
@@ -441,8 +457,8 @@ def diagnose(
     from aatest.records.hook import register_diagnosis
 
     with _registering(records, lab, "diagnose") as registrar:
-        findings = diagnose_command(data, json_out, model_out)
-        register_diagnosis(registrar, data, json_out)
+        findings = diagnose_command(_where(data), json_out, model_out)
+        register_diagnosis(registrar, _where(data), json_out)
     raise typer.Exit(EXIT_FINDING if findings else 0)
 
 
@@ -462,7 +478,7 @@ def misalignment(
 @app.command()
 @guarded
 def report(
-    run_dir: Path = typer.Argument(..., help="Run directory with results.json"),
+    run_dir: str = typer.Argument(..., help="Run directory with results.json (path or URL)"),
     template: Path | None = typer.Option(None, "--template", help="A lab's own template directory"),
     sign_key: Path | None = _SIGN_KEY_OPT,
     pdf: bool = typer.Option(False, "--pdf/--no-pdf",
@@ -474,7 +490,7 @@ def report(
     from aatest.engine.run import session
 
     with _registering(records, lab, "report"):
-        typer.echo(f"report: {session.report(run_dir, template, sign_key, pdf)}")
+        typer.echo(f"report: {session.report(_where(run_dir), template, sign_key, pdf)}")
 
 
 def _keygen_passphrase() -> str:
@@ -515,7 +531,7 @@ def keygen(
 @app.command()
 @guarded
 def verify(
-    report_file: Path = typer.Argument(..., help="Signed report"),
+    report_file: str = typer.Argument(..., help="Signed report (path or URL)"),
     public_key: Path | None = typer.Option(None, "--public-key",
                                            help="Trusted public key (beside the lab's keys)"),
     records: str | None = _RECORDS_OPT,
@@ -527,14 +543,15 @@ def verify(
     from aatest.records.attest import signer_lines, trusted_keys
     from aatest.records.commands import simulation_note, verify_against_record
 
-    result = signing.verify_bundle(report_file, trusted_keys(lab, public_key))
-    record_problems, note = verify_against_record(report_file, records)
-    if (simulated := simulation_note(report_file)) is not None:
+    report = _where(report_file)  # a missing local report is a finding (exit 1), a URL exit 2
+    result = signing.verify_bundle(report, trusted_keys(lab, public_key))
+    record_problems, note = verify_against_record(report, records)
+    if (simulated := simulation_note(report)) is not None:
         typer.echo(f"{report_file}: {simulated}")
     if result.ok and not record_problems:
         when = f", signed {result.signed_utc:%Y-%m-%d %H:%M} UTC" if result.signed_utc else ""
         typer.echo(f"{report_file}: signature valid ({result.format}{when}); {note}")
-        for line in signer_lines(result, report_file):
+        for line in signer_lines(result, report):
             typer.echo(f"  {line}")
         return
     for reason in result.reasons + record_problems:
