@@ -32,7 +32,7 @@ S3_ENDPOINT_ENV = "AATEST_S3_ENDPOINT"
 #: environment variable holding a JSON object of further fsspec filesystem options
 OPTIONS_ENV = "AATEST_STORAGE_OPTIONS"
 #: block (bytes) of ranged reads for random access: one MCAP chunk or index at a time
-RANDOM_BLOCK_BYTES = 1 << 20
+RANDOM_BLOCK_BYTES = 256 << 10
 #: block (bytes) of ranged reads when a whole object is read in order (hashing, copying)
 SEQUENTIAL_BLOCK_BYTES = 8 << 20
 _LOCAL_PROTOCOLS = ("file", "local")
