@@ -7,6 +7,7 @@ environment (``AATEST_S3_ENDPOINT``), so CLI subprocesses reach the same server.
 
 from __future__ import annotations
 
+import logging
 import socket
 import sys
 import uuid
@@ -32,6 +33,7 @@ def s3_endpoint() -> Iterator[str]:
     """The endpoint URL of a moto S3 server running for the whole session."""
     moto_server = pytest.importorskip("moto.server")
     port = _free_port()
+    logging.getLogger("werkzeug").setLevel(logging.ERROR)  # one line per request otherwise
     server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
     server.start()
     try:

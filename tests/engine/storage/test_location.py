@@ -26,7 +26,7 @@ def test_local_paths_and_file_urls_stay_paths(tmp_path: Path) -> None:
 
 
 def test_unknown_scheme_is_bad_input_naming_it() -> None:
-    with pytest.raises(StorageError, match="nosuchscheme://") as caught:
+    with pytest.raises(StorageError, match="nosuchscheme://x/y: unknown storage scheme") as caught:
         locate("nosuchscheme://x/y").exists()
     assert caught.value.exit_code == EXIT_BAD_INPUT
 

@@ -88,10 +88,10 @@ def filesystem(protocol: str) -> Any:
     try:
         return fsspec.filesystem(protocol, **options)
     except ImportError as exc:
-        raise StorageError(f"{protocol}://: its filesystem package is not installed ({exc}); "
-                           "install aatest[s3] for s3://") from exc
+        raise StorageError(f"the filesystem package of {protocol}:// is not installed "
+                           f"({exc}); install aatest[s3] for s3://") from exc
     except ValueError as exc:
-        raise StorageError(f"{protocol}://: unknown storage scheme ({exc})") from exc
+        raise StorageError(f"unknown storage scheme {protocol!r} ({exc})") from exc
 
 
 @contextmanager
@@ -124,7 +124,10 @@ class RemotePath:
     def fs(self) -> Any:
         """The filesystem, made on first use (so a bad URL fails where it is used)."""
         if self._fs is None:
-            self._fs = filesystem(self.protocol)
+            try:
+                self._fs = filesystem(self.protocol)
+            except StorageError as exc:
+                raise StorageError(f"{self}: {exc}") from exc
         return self._fs
 
     def __str__(self) -> str:
