@@ -124,7 +124,8 @@ def main() -> None:
         ):
             local_s, remote_s = timed(local_action), timed(remote_action)
             print(f"{label:20s} local {size_mb / local_s:8.1f} MB/s   s3 (moto) "
-                  f"{size_mb / remote_s:8.1f} MB/s   s3 takes {remote_s / local_s:5.2f}x the local time")
+                  f"{size_mb / remote_s:8.1f} MB/s   s3 time / local time "
+                  f"{remote_s / local_s:5.2f}")
         before = FETCHED["bytes"]
         decode_one(url)
         fetched = FETCHED["bytes"] - before
