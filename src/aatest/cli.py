@@ -33,7 +33,8 @@ ENVIRONMENT_HELP = (
     "Environment: AATEST_RECORDS (records database URL), AATEST_LAB (lab profile YAML), "
     "AATEST_SIGNING_KEY (private key that signs reports), AATEST_SIGNING_PASSPHRASE (its "
     "passphrase), AATEST_OPERATOR (name on the certificate), AATEST_STATION_TOKEN (the "
-    "station's access token), AATEST_WORKERS (analysis worker processes)."
+    "station's access token), AATEST_WORKERS (analysis worker processes); for s3:// run "
+    "directories AATEST_S3_ENDPOINT, AATEST_STORAGE_OPTIONS and AATEST_STAGING (docs/storage.md)."
 )
 #: the distributions ``aatest --version`` names beside aatest and Python
 VERSION_DEPENDENCIES = ("numpy", "scipy", "pydantic", "typer", "rich", "mcap", "sqlalchemy",

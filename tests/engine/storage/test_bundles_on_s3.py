@@ -158,6 +158,15 @@ def test_records_store_registers_and_shows_the_s3_bundle(archive: Archive) -> No
     assert set(record["files"]) == set(archive.remote.members()) - {"report.html.sig"}
 
 
+def test_station_history_lists_the_s3_record_without_file_links(archive: Archive) -> None:
+    from aatest.station.catalogue import history_for
+
+    rows = history_for(archive.records, archive.tmp / "station-runs").recent(10)
+    number = json.loads((archive.remote / "results.json").read_text())["certificate_number"]
+    s3_rows = [r for r in rows if r["certificate_number"] == number]
+    assert s3_rows and all(r["name"] is None and r["files"] == [] for r in s3_rows)
+
+
 @pytest.mark.parametrize(("command", "url", "named"), [
     (("analyze",), "s3://no-such-bucket-q/r1", "bucket 'no-such-bucket-q' does not exist"),
     (("analyze",), "s3://archive/runs/absent", "no such object or prefix"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,17 @@ def test_missing_bucket_and_object_are_bad_input_naming_the_url(bucket: str) -> 
         require(locate("s3://no-such-bucket-x/r1"))
     with pytest.raises(StorageError, match=rf"s3://{bucket}/absent: no such object"):
         require(locate(f"s3://{bucket}/absent"))
+
+
+def test_options_come_from_the_environment(bucket: str, monkeypatch: pytest.MonkeyPatch
+                                           ) -> None:
+    endpoint = os.environ["AATEST_S3_ENDPOINT"]
+    monkeypatch.delenv("AATEST_S3_ENDPOINT")
+    monkeypatch.setenv("AWS_ENDPOINT_URL", endpoint)  # the fallback reaches the same server
+    assert require(locate(f"s3://{bucket}")) == locate(f"s3://{bucket}")
+    monkeypatch.setenv("AATEST_STORAGE_OPTIONS", "{not json")
+    with pytest.raises(StorageError, match=rf"s3://{bucket}/x: AATEST_STORAGE_OPTIONS: not a JSON"):
+        locate(f"s3://{bucket}/x").exists()
 
 
 def test_objects_round_trip_and_list_below_a_prefix(bucket: str, tmp_path: Path) -> None:
