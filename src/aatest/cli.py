@@ -804,6 +804,9 @@ def station(
     allow_host: list[str] = typer.Option(
         [], "--allow-host", help="Another Host name it answers to (NAME or NAME:PORT; repeatable)"
     ),
+    archive: str | None = typer.Option(
+        None, "--archive", help="Also upload each finished run to URL/<run name> (s3://…; "
+        "docs/storage.md)"),
 ) -> None:
     """Serve the operator's station: run, watch and answer procedures from a browser."""
     from aatest.station.serve import StationOptions, serve
@@ -814,7 +817,7 @@ def station(
         procedures = procedures or procedures_deprecated
     serve(StationOptions(host=host, port=port, records=records, token_file=token_file,
                          runs_dir=runs, lab_dir=procedures, rig_file=rig,
-                         allow_hosts=tuple(allow_host)))
+                         allow_hosts=tuple(allow_host), archive=archive))
 
 
 @sim_server_app.command("modbus")

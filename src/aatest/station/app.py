@@ -29,6 +29,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from aatest.engine.errors import AatestError, InputError
 from aatest.engine.run.session import default_operator
+from aatest.engine.storage import RemotePath
 from aatest.station.catalogue import RUN_FILES, History, Procedures, validation
 from aatest.station.control import RunController
 from aatest.station.security import Asgi, Guard, HostRule
@@ -168,11 +169,11 @@ def served_file(history: History, name: str, file: str) -> Path:
 
 def create_app(procedures: Procedures, history: History, rig_file: Path | None,
                token: str | None, replay_s: float = 2.0, records_url: str | None = None,
-               hosts: HostRule | None = None) -> Asgi:
+               hosts: HostRule | None = None, archive: RemotePath | None = None) -> Asgi:
     """Build the station application (wrapped in the host/origin/token guard)."""
     hub = Hub()
     controller = RunController(procedures, history, rig_file, hub.publish, replay_s,
-                               records_url)
+                               records_url, archive=archive)
 
     async def page(request: Request) -> Response:
         return FileResponse(STATIC / "index.html",

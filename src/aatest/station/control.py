@@ -16,6 +16,7 @@ from aatest.engine.errors import AatestError, InputError
 from aatest.engine.run.events import AbortFlag, RunEvents
 from aatest.engine.run.rig import sensor_datasheet
 from aatest.engine.run.runner import default_run_dir
+from aatest.engine.storage import RemotePath
 from aatest.station.catalogue import History, Procedures, results_summary
 from aatest.station.live import Publish, StationObserver, StationResponder
 
@@ -63,6 +64,8 @@ class RunController:
     #: records store the runs are registered in, as by ``aatest run --records`` (None: the
     #: default store, ``AATEST_RECORDS`` or the user's file)
     records_url: str | None = None
+    #: where each finished run is also uploaded, as ``ARCHIVE/<run name>`` (``--archive``)
+    archive: RemotePath | None = None
     snapshot: Snapshot = field(default_factory=Snapshot)
     _thread: threading.Thread | None = None
     _abort: AbortFlag = field(default_factory=AbortFlag)
@@ -131,6 +134,7 @@ class RunController:
     def _work(self, path: Path, run_dir: Path, resume: bool, operator: str,
               events: RunEvents) -> None:
         from aatest.engine.run import session
+        from aatest.engine.storage import publishing
         from aatest.records.errors import RecordsUnavailable
         from aatest.records.hook import registering
         from aatest.records.lab import load_lab
@@ -139,7 +143,8 @@ class RunController:
         try:
             try:
                 # registered like `aatest run`: a certificate number, then the signed bundle
-                with registering(self.records_url, load_lab(), "run"):
+                with registering(self.records_url, load_lab(), "run"), publishing(
+                        run_dir, self.archive / run_dir.name if self.archive else None):
                     session.run(path, self.rig_file, run_dir, resume, 0, None,
                                 show_progress=False, operator=operator, events=events)
             except RecordsUnavailable as exc:

@@ -7,6 +7,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.errors import InputError
+from aatest.engine.storage import RemotePath, locate
 from aatest.station.app import create_app
 from aatest.station.catalogue import Procedures, history_for
 from aatest.station.security import Asgi, HostRule, load_token
@@ -31,6 +32,8 @@ class StationOptions(BaseModel):
     replay_s: float = Field(2.0, ge=0.0, le=10.0)
     #: further ``Host`` names the station answers to (``--allow-host``), NAME or NAME:PORT
     allow_hosts: tuple[str, ...] = ()
+    #: fsspec URL each finished run is also uploaded below (``--archive``, docs/storage.md)
+    archive: str | None = None
 
 
 def build(options: StationOptions) -> Asgi:
@@ -43,7 +46,19 @@ def build(options: StationOptions) -> Asgi:
     history = history_for(options.records, options.runs_dir)
     uploads = options.runs_dir / STATION_DIR / "uploads"
     return create_app(Procedures(options.lab_dir, uploads), history, options.rig_file, token,
-                      options.replay_s, options.records, hosts)
+                      options.replay_s, options.records, hosts, _archive(options.archive))
+
+
+def _archive(url: str | None) -> RemotePath | None:
+    """The ``--archive`` location, its bucket checked now (exit 2 naming it otherwise)."""
+    if url is None:
+        return None
+    where = locate(url)
+    if not isinstance(where, RemotePath):
+        raise InputError(f"--archive {url}: not an object-storage URL (s3://…); a local "
+                         "directory is --runs")
+    where.mkdir()
+    return where
 
 
 def serve(options: StationOptions) -> None:
