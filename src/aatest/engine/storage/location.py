@@ -154,17 +154,21 @@ class RemotePath:
 
     @property
     def name(self) -> str:
+        """The last part of the key, as :attr:`Path.name`."""
         return posixpath.basename(self.path)
 
     @property
     def suffix(self) -> str:
+        """The extension of :attr:`name` (``.mcap``), as :attr:`Path.suffix`."""
         return posixpath.splitext(self.name)[1]
 
     @property
     def parent(self) -> RemotePath:
+        """The prefix one level up (the bucket is its own parent)."""
         return self._at(posixpath.dirname(self.path) or self.path)
 
     def with_name(self, name: str) -> RemotePath:
+        """A sibling named ``name``, as :meth:`Path.with_name`."""
         return self.parent / name
 
     def resolve(self) -> RemotePath:
@@ -172,14 +176,17 @@ class RemotePath:
         return self
 
     def exists(self) -> bool:
+        """Whether an object or a prefix with objects below it exists here."""
         with translated(str(self)):
             return bool(self.fs.exists(self.path))
 
     def is_file(self) -> bool:
+        """Whether an object exists at exactly this key."""
         with translated(str(self)):
             return bool(self.fs.isfile(self.path))
 
     def is_dir(self) -> bool:
+        """Whether objects exist below this prefix (object stores have no empty directory)."""
         with translated(str(self)):
             return bool(self.fs.isdir(self.path))
 
@@ -188,6 +195,7 @@ class RemotePath:
         return False
 
     def size_bytes(self) -> int:
+        """The object's size (bytes), from its metadata: nothing is read."""
         with translated(str(self)):
             return int(self.fs.size(self.path))
 
@@ -201,21 +209,26 @@ class RemotePath:
         return cast("IO[Any]", _Counted(handle) if "r" in mode else handle)
 
     def read_bytes(self) -> bytes:
+        """The whole object (for small files: results, signatures, run state)."""
         with translated(str(self)):
             return bytes(self.fs.cat_file(self.path))
 
     def read_text(self, encoding: str = "utf-8") -> str:
+        """The whole object decoded as text."""
         return self.read_bytes().decode(encoding)
 
     def write_bytes(self, data: bytes) -> int:
+        """Replace the object with ``data`` in one PUT (atomic per object); its length."""
         with translated(str(self)):
             self.fs.pipe_file(self.path, data)
         return len(data)
 
     def write_text(self, text: str, encoding: str = "utf-8") -> int:
+        """Replace the object with ``text`` encoded; the number of bytes written."""
         return self.write_bytes(text.encode(encoding))
 
     def unlink(self, missing_ok: bool = False) -> None:
+        """Delete the object (a missing one is FileNotFoundError unless ``missing_ok``)."""
         if missing_ok and not self.exists():
             return
         with translated(str(self)):
