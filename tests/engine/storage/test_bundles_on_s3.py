@@ -158,6 +158,20 @@ def test_records_store_registers_and_shows_the_s3_bundle(archive: Archive) -> No
     assert set(record["files"]) == set(archive.remote.members()) - {"report.html.sig"}
 
 
+def test_diagnose_from_s3_says_what_it_says_of_the_local_run(archive: Archive) -> None:
+    """The same recorded samples diagnosed from the URL and from disk: the same printed
+    diagnosis (numbers rounded for print), and its report uploaded beside the recording."""
+    copy = _copy(archive, "diagnosed")
+    remote_code, remote_out, remote_err = aatest("diagnose", copy)
+    local_code, local_out, local_err = aatest("diagnose", archive.local)
+    assert remote_code in (0, 1) and remote_code == local_code, remote_err + local_err
+    assert remote_out == local_out and "gain" in remote_out
+    assert "diagnosis.html" in copy.members()
+    code, stdout, stderr = aatest("verify", copy / "report.html", "--public-key",
+                                  f"{archive.key}.pub")
+    assert code == 0, stdout + stderr  # diagnosis.* is outside what the signature covers
+
+
 def test_station_history_lists_the_s3_record_without_file_links(archive: Archive) -> None:
     from aatest.station.catalogue import history_for
 
