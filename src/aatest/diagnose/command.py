@@ -16,7 +16,7 @@ from typing import Any
 
 from aatest.diagnose.model_out import extended_model, write_model
 from aatest.diagnose.pipeline import diagnose_dataset
-from aatest.engine.storage import Where
+from aatest.engine.storage import Where, locate
 
 
 def _clean(value: Any) -> Any:
@@ -85,7 +85,8 @@ def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Where)
         return
 
 
-def diagnose_command(data: Where, json_out: Path | None, model_out: Path | None) -> list[dict]:
+def diagnose_command(data: Where | str, json_out: Path | None,
+                     model_out: Path | None) -> list[dict]:
     """Diagnose ``data``; write JSON / model / report.
 
     Returns
@@ -96,7 +97,8 @@ def diagnose_command(data: Where, json_out: Path | None, model_out: Path | None)
     """
     from aatest.engine.recording import read_dataset
 
-    dataset = read_dataset(data)  # a URL is streamed (docs/storage.md)
+    data = locate(data)  # a path, or a URL whose recording is streamed (docs/storage.md)
+    dataset = read_dataset(data)
     figures: dict[str, str] = {}
     doc = _clean(diagnose_dataset(dataset, figures=figures))
     print(summary(doc))
