@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from aatest.engine.storage import RemotePath, locate, staging_dir
 
 SWEEP = Path(__file__).parents[1] / "data" / "resume-sweep.yaml"
@@ -59,3 +61,45 @@ def test_a_killed_run_to_s3_stays_local_and_resumes_to_s3(bucket: str) -> None:
 
     ids = [s.step.id for s in read_dataset(url).steps]
     assert len(ids) == 8 and len(set(ids)) == 8, "every step recorded once, none lost"
+
+
+QUICK = Path(__file__).parents[2] / "data" / "procedures" / "quick-sine-3-steps.yaml"
+
+
+def test_a_failed_upload_keeps_the_run_and_resume_uploads_it(
+        bucket: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The connection drops while the finished bundle goes up (injected into aatest's upload
+    step, after the first object): exit 2, the run stays whole in staging, nothing is
+    registered; ``--resume`` uploads and registers it."""
+    from typer.testing import CliRunner
+
+    from aatest.cli import app
+    from aatest.engine.storage import StorageError, staging
+
+    url = f"s3://{bucket}/runs/quick"
+    remote = locate(url)
+    assert isinstance(remote, RemotePath)
+    real_upload = staging.upload_dir
+
+    def dropped(local: Path, target: RemotePath) -> list[str]:
+        first = next(p for p in sorted(local.iterdir()) if p.is_file())
+        target.fs.put_file(str(first), (target / first.name).path)
+        raise StorageError(f"{target / 'recording.mcap'}: connection reset (injected)")
+
+    monkeypatch.setattr(staging, "upload_dir", dropped)
+    runner = CliRunner()
+    failed = runner.invoke(app, ["run", str(QUICK), "--out", url, "--no-progress"])
+    assert failed.exit_code == 2 and "connection reset (injected)" in failed.stderr
+    local = staging_dir(remote)
+    assert (local / "recording.mcap").is_file() and (local / "results.json").is_file()
+    assert "report.html.sig" not in remote.members() and "report.html" not in remote.members()
+    listed = runner.invoke(app, ["records", "list", "--include-simulations"])
+    assert "quick" not in listed.stdout, "nothing registered for a bundle that did not go up"
+
+    monkeypatch.setattr(staging, "upload_dir", real_upload)
+    resumed = runner.invoke(app, ["run", str(QUICK), "--out", url, "--resume", "--no-progress"])
+    assert resumed.exit_code == 0, resumed.stderr
+    assert not local.exists()
+    assert {"recording.mcap", "results.json", "report.html"} <= set(remote.members())
+    listed = runner.invoke(app, ["records", "list", "--include-simulations"])
+    assert f"{remote}/report.html" in listed.stdout
