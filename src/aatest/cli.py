@@ -33,7 +33,8 @@ ENVIRONMENT_HELP = (
     "Environment: AATEST_RECORDS (records database URL), AATEST_LAB (lab profile YAML), "
     "AATEST_SIGNING_KEY (private key that signs reports), AATEST_SIGNING_PASSPHRASE (its "
     "passphrase), AATEST_OPERATOR (name on the certificate), AATEST_STATION_TOKEN (the "
-    "station's access token), AATEST_WORKERS (analysis worker processes)."
+    "station's access token), AATEST_WORKERS (analysis worker processes); for s3:// run "
+    "directories AATEST_S3_ENDPOINT, AATEST_STORAGE_OPTIONS and AATEST_STAGING (docs/storage.md)."
 )
 #: the distributions ``aatest --version`` names beside aatest and Python
 VERSION_DEPENDENCIES = ("numpy", "scipy", "pydantic", "typer", "rich", "mcap", "sqlalchemy",
@@ -122,6 +123,7 @@ def _run_dir_of(kwargs: dict[str, Any]) -> Path | None:
     """The command's run directory (``--out`` or ``RUN_DIR``) when it names one."""
     for key in ("out", "run_dir"):
         value = kwargs.get(key)
+        value = Path(value) if isinstance(value, str) and "://" not in value else value
         if isinstance(value, Path) and value.is_dir():
             return value
     return None
@@ -221,6 +223,16 @@ def _json_out(json_out: Path | None, deprecated: Path | None) -> Path | None:
     return json_out or deprecated
 
 
+def _where(target: str | None, exists: bool = True) -> Any:
+    """A local path, or a location on object storage (``s3://…``; exit 2 naming a URL that
+    does not exist when ``exists``); None stays None."""
+    from aatest.engine.storage import locate, require
+
+    if target is None:
+        return None
+    return require(locate(target)) if exists else locate(target)
+
+
 def _print_json(doc: Any) -> None:
     typer.echo(json.dumps(doc, indent=2, allow_nan=False))
 
@@ -270,7 +282,8 @@ def plan(
 def run(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
     rig: Path | None = _RIG_OPT,
-    out: Path | None = typer.Option(None, "--out", help="Run directory"),
+    out: str | None = typer.Option(None, "--out", help="Run directory: a path or an fsspec URL "
+                                   "(s3://bucket/runs/r1; docs/storage.md)"),
     resume: bool = typer.Option(False, "--resume/--no-resume",
                                 help="Continue an interrupted run in --out"),
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated rig"),
@@ -309,7 +322,8 @@ def run(
     with _registering(records, lab, "run") as registrar:
         registrar.preflight = _check_references(registrar, rig, allow_overdue)
         run_dir, results = session.run(
-            procedure, rig, out, resume, seed, sign_key, progress, operator=operator,
+            procedure, rig, _where(out, exists=False), resume, seed, sign_key, progress,
+            operator=operator,
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
             unit=session.UnitName(serial or None, model or None),
         )
@@ -352,7 +366,7 @@ def _echo_kind(results: RunResults) -> None:
         typer.echo(f"simulation ({parts}): {SIMULATION_TITLE}, {number}")
 
 
-def _print_summary(results: RunResults, bundle: Path, command: str, started: float,
+def _print_summary(results: RunResults, bundle: Any, command: str, started: float,
                    as_json: bool) -> None:
     """The closing summary: rich tables (plain without a terminal) or ``--json-summary``."""
     from aatest.presentation.summary import summarise
@@ -387,11 +401,12 @@ def _exit_on_outcome(results: RunResults) -> None:
 @app.command()
 @guarded
 def analyze(
-    data: Path = typer.Argument(
-        ..., help="Run directory, recording.mcap, import directory or logger mapping.yaml"),
+    data: str = typer.Argument(
+        ..., help="Run directory, recording.mcap, import directory or logger mapping.yaml (a "
+        "run or recording may be an fsspec URL, e.g. s3://…)"),
     json_out: Path | None = typer.Option(None, "--json-out", help="Also write results here"),
     json_old: Path | None = _JSON_PATH_DEPRECATED,
-    out: Path | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
+    out: str | None = typer.Option(None, "--out", help="Where results/report go (default: DATA)"),
     sign_key: Path | None = _SIGN_KEY_OPT,
     records: str | None = _RECORDS_OPT,
     lab: Path | None = _LAB_OPT,
@@ -403,11 +418,12 @@ def analyze(
 
     started = time.monotonic()
     json_out = _json_out(json_out, json_old)
-    target = out or (data if data.is_dir() else data.parent)
-    wall = session.run_wall_duration(data) if data.is_dir() else None
+    where = _where(data)
+    target = _where(out, exists=False) or (where if where.is_dir() else where.parent)
+    wall = session.run_wall_duration(where) if where.is_dir() else None
     with _registering(records, lab, "analyze"):
         results = session.analyse_and_report(
-            data, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
+            where, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
         )
     if json_out is not None:
         from aatest.engine.analysis.results import results_json
@@ -443,8 +459,9 @@ def export(
 @app.command()
 @guarded
 def diagnose(
-    data: Path = typer.Argument(
-        ..., help="Run directory, recording, import directory or logger mapping.yaml"),
+    data: str = typer.Argument(
+        ..., help="Run directory, recording, import directory or logger mapping.yaml (a run "
+        "or recording may be an fsspec URL)"),
     json_out: Path | None = typer.Option(None, "--json-out",
                                          help="Write the diagnosis JSON here"),
     json_old: Path | None = _JSON_PATH_DEPRECATED,
@@ -459,8 +476,8 @@ def diagnose(
 
     json_out = _json_out(json_out, json_old)
     with _registering(records, lab, "diagnose") as registrar:
-        findings = diagnose_command(data, json_out, model_out)
-        register_diagnosis(registrar, data, json_out)
+        findings = diagnose_command(_where(data), json_out, model_out)
+        register_diagnosis(registrar, _where(data), json_out)
     raise typer.Exit(EXIT_FINDING if findings else 0)
 
 
@@ -480,7 +497,7 @@ def misalignment(
 @app.command()
 @guarded
 def report(
-    run_dir: Path = typer.Argument(..., help="Run directory with results.json"),
+    run_dir: str = typer.Argument(..., help="Run directory with results.json (path or URL)"),
     template: Path | None = typer.Option(None, "--template", help="A lab's own template directory"),
     sign_key: Path | None = _SIGN_KEY_OPT,
     pdf: bool = typer.Option(False, "--pdf/--no-pdf",
@@ -492,7 +509,7 @@ def report(
     from aatest.engine.run import session
 
     with _registering(records, lab, "report"):
-        typer.echo(f"report: {session.report(run_dir, template, sign_key, pdf)}")
+        typer.echo(f"report: {session.report(_where(run_dir), template, sign_key, pdf)}")
 
 
 def _keygen_passphrase() -> str:
@@ -533,7 +550,7 @@ def keygen(
 @app.command()
 @guarded
 def verify(
-    report_file: Path = typer.Argument(..., help="Signed report"),
+    report_file: str = typer.Argument(..., help="Signed report (path or URL)"),
     public_key: Path | None = typer.Option(None, "--public-key",
                                            help="Trusted public key (beside the lab's keys)"),
     records: str | None = _RECORDS_OPT,
@@ -545,14 +562,15 @@ def verify(
     from aatest.records.attest import signer_lines, trusted_keys
     from aatest.records.commands import simulation_note, verify_against_record
 
-    result = signing.verify_bundle(report_file, trusted_keys(lab, public_key))
-    record_problems, note = verify_against_record(report_file, records)
-    if (simulated := simulation_note(report_file)) is not None:
+    report = _where(report_file)  # a missing local report is a finding (exit 1), a URL exit 2
+    result = signing.verify_bundle(report, trusted_keys(lab, public_key))
+    record_problems, note = verify_against_record(report, records)
+    if (simulated := simulation_note(report)) is not None:
         typer.echo(f"{report_file}: {simulated}")
     if result.ok and not record_problems:
         when = f", signed {result.signed_utc:%Y-%m-%d %H:%M} UTC" if result.signed_utc else ""
         typer.echo(f"{report_file}: signature valid ({result.format}{when}); {note}")
-        for line in signer_lines(result, report_file):
+        for line in signer_lines(result, report):
             typer.echo(f"  {line}")
         return
     for reason in result.reasons + record_problems:
@@ -805,6 +823,9 @@ def station(
         [], "--allow-host", help="Another Host name it answers to (NAME or NAME:PORT; repeatable)"
     ),
     sign_key: Path | None = _SIGN_KEY_OPT,
+    archive: str | None = typer.Option(
+        None, "--archive", help="Also upload each finished run to URL/<run name> (s3://…; "
+        "docs/storage.md)"),
 ) -> None:
     """Serve the operator's station: run, watch and answer procedures from a browser."""
     from aatest.station.serve import StationOptions, serve
@@ -815,7 +836,7 @@ def station(
         procedures = procedures or procedures_deprecated
     serve(StationOptions(host=host, port=port, records=records, token_file=token_file,
                          runs_dir=runs, lab_dir=procedures, rig_file=rig,
-                         allow_hosts=tuple(allow_host), sign_key=sign_key))
+                         allow_hosts=tuple(allow_host), sign_key=sign_key, archive=archive))
 
 
 from aatest.testing.plugin_check import plugin_check  # noqa: E402 - a command of the kit's own

@@ -16,6 +16,7 @@ from typing import Any
 
 from aatest.diagnose.model_out import extended_model, write_model
 from aatest.diagnose.pipeline import diagnose_dataset
+from aatest.engine.storage import Where, locate
 
 
 def _clean(value: Any) -> Any:
@@ -67,20 +68,25 @@ def summary(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Path) -> Path | None:
-    """Render the diagnosis report when the plugin exists; never fail diagnose over it."""
+def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Where) -> None:
+    """Render the diagnosis report when the plugin exists; never fail diagnose over it
+    (a run on object storage gets it rendered locally and uploaded beside the recording)."""
+    from aatest.engine.storage import staged
+
     try:
         from aatest.engine import registry
 
         info = registry.load("report", "diagnosis")
         cls = info.target
         results = {"diagnosis": doc, **doc, "figures": {"diagnose": figures}}
-        return cls(cls.Config()).render(results, out_dir, None)
+        with staged(out_dir) as local_dir:
+            cls(cls.Config()).render(results, local_dir, None)
     except Exception:  # noqa: BLE001 - the report is a by-product of diagnose
-        return None
+        return
 
 
-def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) -> list[dict]:
+def diagnose_command(data: Where | str, json_out: Path | None,
+                     model_out: Path | None) -> list[dict]:
     """Diagnose ``data``; write JSON / model / report.
 
     Returns
@@ -91,7 +97,8 @@ def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) 
     """
     from aatest.engine.recording import read_dataset
 
-    dataset = read_dataset(Path(data))
+    data = locate(data)  # a path, or a URL whose recording is streamed (docs/storage.md)
+    dataset = read_dataset(data)
     figures: dict[str, str] = {}
     doc = _clean(diagnose_dataset(dataset, figures=figures))
     print(summary(doc))
@@ -101,7 +108,7 @@ def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) 
         model = extended_model(doc["channels"], doc["findings"], doc["logger"]["antialias_hz"],
                                doc["logger"]["t_ref_c"])
         write_model(Path(model_out), model)
-    out_dir = Path(json_out).parent if json_out is not None else Path(data)
+    out_dir: Where = Path(json_out).parent if json_out is not None else data
     if out_dir.is_dir():
         _render_report(doc, figures, out_dir)
     return list(doc["findings"]) + list(doc["unexplained"])

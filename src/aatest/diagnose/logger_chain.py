@@ -7,6 +7,8 @@ the residual noise does, because the filter shapes the sensor noise it records.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from scipy import signal
 
@@ -64,7 +66,7 @@ def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
 
         # an unreadable or invalid model file is the dataset's error (ProcedureError naming its
         # file, line and field), not a logger without a stated filter
-        rig = load_rig_model(dataset.source / path)
+        rig = load_rig_model(Path(str(dataset.source)) / path)  # imports are local files
         if "daq" in rig.model_fields_set:  # a sensor-only model file states no logger
             return True, rig.daq.antialias_hz
     return False, None

@@ -13,11 +13,14 @@ from collections.abc import Callable, Collection, Container, Iterator, Mapping, 
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, overload
+from typing import TYPE_CHECKING, Any, overload
 
 from aatest.engine.datasheet import SensorAxis, SensorInfo
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
+
+if TYPE_CHECKING:
+    from aatest.engine.storage.location import RemotePath
 
 __all__ = ["Dataset", "LazySteps", "NamesStartingWith", "SensorAxis", "SensorInfo", "StepData",
            "StepWatch"]
@@ -288,7 +291,8 @@ class Dataset:
     sensors: tuple[SensorInfo, ...]
     #: a tuple, or :class:`LazySteps` (a recording: each step decoded when read)
     steps: Sequence[StepData]
-    source: Path
+    #: where it was read from: a local path, or a location on object storage
+    source: Path | RemotePath
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:

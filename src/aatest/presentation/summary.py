@@ -9,9 +9,9 @@ only the step loop's). :mod:`aatest.presentation.terminal` prints it as a table 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
+from aatest.engine.storage import Where
 from aatest.results import RunResults
 from aatest.results.quantities import finite, quantity
 from aatest.results.rounding import round_measurement
@@ -121,12 +121,12 @@ def verdict_rows(results: RunResults) -> list[VerdictRow]:
     return rows
 
 
-def report_path(bundle: Path) -> Path | None:
+def report_path(bundle: Where) -> Where | None:
     """The report the bundle holds (the PDF when one was printed)."""
     return next((bundle / n for n in REPORT_FILES if (bundle / n).is_file()), None)
 
 
-def summarise(results: RunResults, bundle: Path, command: str,
+def summarise(results: RunResults, bundle: Where, command: str,
               wall_duration_s: float) -> RunSummary:
     """The summary of ``results`` written to ``bundle`` by ``command``.
 

@@ -10,6 +10,7 @@ from typing import Any
 from rich import box
 from rich.table import Table
 
+from aatest.engine.storage import locate
 from aatest.presentation.terminal import render_text
 from aatest.records import audit
 from aatest.records.errors import RecordsError
@@ -118,7 +119,7 @@ def show_record(records_url: str | None, key: str) -> dict[str, Any]:
     with open_for_reading(records_url) as store:
         record = store.get(key)
     document = record.model_dump(mode="json")
-    report = Path(record.bundle)
+    report = locate(record.bundle)  # a path, or a URL on object storage
     document["bundle_problems"] = record_reasons(report, record) if report.parent.is_dir() else [
         f"bundle directory {report.parent} removed"]
     return document

@@ -26,6 +26,7 @@ from typing import Any
 from aatest.engine.analysis.results import results_json
 from aatest.engine.run import bundle_hooks
 from aatest.engine.simulation import SIMULATION_PREFIX, is_simulation
+from aatest.engine.storage import Where
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
 from aatest.records.lab import LabProfile
@@ -97,11 +98,11 @@ class Registrar:
         for key, value in self.preflight.items():
             setattr(results.metadata, key, value)
 
-    def after_signing(self, results: RunResults, report: Path) -> None:
+    def after_signing(self, results: RunResults, report: Where) -> None:
         """Bundle observer: register the finished bundle."""
         self.register(results, report)
 
-    def register(self, results: RunResults, bundle: Path) -> int | None:
+    def register(self, results: RunResults, bundle: Where) -> int | None:
         """Append the record of ``bundle`` — committing its held number with it; ``None``
         when the store is unreachable."""
         issue, self._issue = self._issue, None
@@ -141,7 +142,7 @@ def certificate_prefix(results: RunResults, lab: LabProfile) -> str:
     return SIMULATION_PREFIX if is_simulation(results) else lab.certificate_prefix
 
 
-def bundle_files(bundle: Path) -> dict[str, str]:
+def bundle_files(bundle: Where) -> dict[str, str]:
     """SHA-256 of the bundle's files: what the signature covers (also for unsigned bundles)."""
     from aatest.engine.run.signing import bundle_hashes
 
@@ -156,9 +157,10 @@ def _calibrated_utc(results: RunResults) -> datetime:
 
 
 def registration_for(
-    results: RunResults, bundle: Path, command: str, lab: LabProfile
+    results: RunResults, bundle: Where, command: str, lab: LabProfile
 ) -> Registration:
-    """The record of ``bundle`` (its main file, e.g. ``report.html``) and its ``results``."""
+    """The record of ``bundle`` (its main file, e.g. ``report.html``; a URL on object
+    storage is recorded as it is) and its ``results``."""
     meta = results.metadata
     model, serial = extract.unit_of(results)
     stored = results_json(results)
@@ -171,16 +173,16 @@ def registration_for(
         plugin_versions=dict(meta.plugin_versions),
         operator=meta.operator, lab=lab.name, calibrated_utc=_calibrated_utc(results),
         overall_verdict=results.overall, verdicts=extract.verdict_rows(results),
-        results=stored, bundle=str(Path(bundle).resolve()),
+        results=stored, bundle=str(bundle.resolve()),
         key_fingerprint=results.signature.fingerprint if results.signature else None,
-        files=bundle_files(Path(bundle)),
+        files=bundle_files(bundle),
         quantities={q.name: QuantityRecord(value=q.value, unit=q.unit,
                                            expanded_uncertainty=q.expanded_uncertainty)
                     for q in extract.key_quantities(results, lab.frf_reference_frequency_hz)},
     )
 
 
-def _results_for(data: Path) -> RunResults:
+def _results_for(data: Where) -> RunResults:
     """The run's results next to ``data``, else the recording's own metadata."""
     from aatest.engine.analysis.results import RESULTS_FILE, plain_metadata, read_results
 
@@ -194,9 +196,9 @@ def _results_for(data: Path) -> RunResults:
                       metadata=RunMetadata.model_validate(plain_metadata(dict(dataset.metadata))))
 
 
-def register_diagnosis(registrar: Registrar, data: Path, json_out: Path | None) -> int | None:
+def register_diagnosis(registrar: Registrar, data: Where, json_out: Path | None) -> int | None:
     """Register what ``aatest diagnose`` wrote (its report, else its JSON) for the run's unit."""
-    out_dir = json_out.parent if json_out is not None else data
+    out_dir: Where = json_out.parent if json_out is not None else data
     report = out_dir / "diagnosis.html"
     bundle = report if report.is_file() else json_out
     if bundle is None or not bundle.is_file():

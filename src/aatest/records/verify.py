@@ -13,11 +13,12 @@ from typing import Any
 
 from aatest.engine.run.manifest import UnsafeNameError, file_sha256, member_path
 from aatest.engine.run.signing import signature_path
+from aatest.engine.storage import RemotePath
 from aatest.records.models import CalibrationRecord
 from aatest.records.store import RecordStore
 
 
-def _json_field(path: Path, key: str) -> Any:
+def _json_field(path: Path | RemotePath, key: str) -> Any:
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -37,7 +38,8 @@ def find_record(report_path: Path, store: RecordStore) -> CalibrationRecord | No
     return None
 
 
-def _file_reasons(report_path: Path, record: CalibrationRecord, label: str) -> list[str]:
+def _file_reasons(report_path: Path | RemotePath, record: CalibrationRecord,
+                  label: str) -> list[str]:
     reasons = []
     for name, digest in sorted(record.files.items()):
         try:
@@ -52,7 +54,7 @@ def _file_reasons(report_path: Path, record: CalibrationRecord, label: str) -> l
     return reasons
 
 
-def record_reasons(report_path: Path, record: CalibrationRecord) -> list[str]:
+def record_reasons(report_path: Path | RemotePath, record: CalibrationRecord) -> list[str]:
     """Every difference between the bundle around ``report_path`` and its ``record``."""
     label = f"record {record.certificate_number or record.id} of {record.registered_utc:%Y-%m-%d}"
     reasons = _file_reasons(report_path, record, label)

@@ -31,6 +31,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from aatest.engine.errors import AatestError, InputError
 from aatest.engine.run.session import UnitName, default_operator
+from aatest.engine.storage import RemotePath
 from aatest.fleet.station import fleet_page
 from aatest.station.catalogue import RUN_FILES, History, Procedures, sensor_models, validation
 from aatest.station.control import RunController
@@ -212,9 +213,10 @@ def unit_routes(records_url: str | None, history: History) -> list[Route]:
     return [Route("/units/{serial}", unit_page), Route("/api/units/{serial}", unit_json)]
 
 
-def create_app(procedures: Procedures, history: History, rig_file: Path | None,
+def create_app(procedures: Procedures, history: History, rig_file: Path | None,  # noqa: PLR0913 - two of them keyword-only
                token: str | None, replay_s: float = 2.0, records_url: str | None = None,
-               hosts: HostRule | None = None, signer: Signer | None = None) -> Asgi:
+               hosts: HostRule | None = None, *, signer: Signer | None = None,
+               archive: RemotePath | None = None) -> Asgi:
     """Build the station application (wrapped in the host/origin/token guard).
 
     ``signer`` is the station's signing key (its fingerprint shown on the page); without one
@@ -222,7 +224,8 @@ def create_app(procedures: Procedures, history: History, rig_file: Path | None,
     """
     hub = Hub()
     controller = RunController(procedures, history, rig_file, hub.publish, replay_s,
-                               records_url, signer.key_path if signer else None)
+                               records_url, signer.key_path if signer else None,
+                               archive=archive)
 
     async def page(request: Request) -> Response:
         return FileResponse(STATIC / "index.html",

@@ -20,6 +20,7 @@ from aatest.engine.run.events import AbortFlag, RunEvents
 from aatest.engine.run.rig import sensor_datasheet
 from aatest.engine.run.runner import default_run_dir
 from aatest.engine.run.session import UnitName
+from aatest.engine.storage import RemotePath
 from aatest.station.catalogue import History, Procedures, present_files, results_summary
 from aatest.station.live import Publish, StationObserver, StationResponder
 
@@ -72,6 +73,8 @@ class RunController:
     #: the station's signing key (``--sign-key``/``AATEST_SIGNING_KEY``; passphrase from
     #: ``AATEST_SIGNING_PASSPHRASE``), None for unsigned reports
     sign_key: Path | None = None
+    #: where each finished run is also uploaded, as ``ARCHIVE/<run name>`` (``--archive``)
+    archive: RemotePath | None = None
     snapshot: Snapshot = field(default_factory=Snapshot)
     _thread: threading.Thread | None = None
     _abort: AbortFlag = field(default_factory=AbortFlag)
@@ -147,6 +150,7 @@ class RunController:
     def _work(self, path: Path, run_dir: Path, resume: bool, operator: str,
               events: RunEvents, options: _Options) -> None:
         from aatest.engine.run import session
+        from aatest.engine.storage import publishing
         from aatest.records.errors import RecordsUnavailable
         from aatest.records.hook import registering
         from aatest.records.lab import load_lab
@@ -155,7 +159,8 @@ class RunController:
         try:
             try:
                 # registered like `aatest run`: a certificate number, then the signed bundle
-                with registering(self.records_url, load_lab(), "run"):
+                with registering(self.records_url, load_lab(), "run"), publishing(
+                        run_dir, self.archive / run_dir.name if self.archive else None):
                     session.run(path, self.rig_file, run_dir, resume, 0, self.sign_key,
                                 show_progress=False, operator=operator, events=events,
                                 unit=options.unit, pdf=options.pdf)

@@ -17,6 +17,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.errors import InputError
+from aatest.engine.storage import RemotePath, locate
 from aatest.station.app import Signer, create_app
 from aatest.station.catalogue import Procedures, history_for
 from aatest.station.security import Asgi, HostRule, load_token
@@ -41,6 +42,8 @@ class StationOptions(BaseModel):
     replay_s: float = Field(2.0, ge=0.0, le=10.0)
     #: further ``Host`` names the station answers to (``--allow-host``), NAME or NAME:PORT
     allow_hosts: tuple[str, ...] = ()
+    #: fsspec URL each finished run is also uploaded below (``--archive``, docs/storage.md)
+    archive: str | None = None
     #: the key that signs the station's reports (else ``AATEST_SIGNING_KEY``; none: unsigned)
     sign_key: Path | None = None
 
@@ -74,7 +77,20 @@ def build(options: StationOptions) -> Asgi:
     history = history_for(options.records, options.runs_dir)
     uploads = options.runs_dir / STATION_DIR / "uploads"
     return create_app(Procedures(options.lab_dir, uploads), history, options.rig_file, token,
-                      options.replay_s, options.records, hosts, signer)
+                      options.replay_s, options.records, hosts, signer=signer,
+                      archive=_archive(options.archive))
+
+
+def _archive(url: str | None) -> RemotePath | None:
+    """The ``--archive`` location, its bucket checked now (exit 2 naming it otherwise)."""
+    if url is None:
+        return None
+    where = locate(url)
+    if not isinstance(where, RemotePath):
+        raise InputError(f"--archive {url}: not an object-storage URL (s3://…); a local "
+                         "directory is --runs")
+    where.mkdir()
+    return where
 
 
 def serve(options: StationOptions) -> None:

@@ -18,6 +18,7 @@ from pydantic import TypeAdapter, ValidationError
 from aatest.engine.analysis.passes import AnalysisResults
 from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
+from aatest.engine.storage import Where
 from aatest.results import SCHEMA_VERSION, AnalysisBlock, RunResults
 
 RESULTS_FILE = "results.json"
@@ -88,7 +89,7 @@ def write_results(results: RunResults | Mapping[str, Any], run_dir: Path) -> Pat
     return path
 
 
-def _typed_extra(results: RunResults, path: Path) -> RunResults:
+def _typed_extra(results: RunResults, path: Where) -> RunResults:
     """Results of third-party analyses validated by their installed plugin's ``Result`` type
     (kept as plain JSON values when the plugin is not installed here)."""
     from aatest.engine.analysis import plugins
@@ -109,7 +110,7 @@ def _typed_extra(results: RunResults, path: Path) -> RunResults:
     return results
 
 
-def read_results(run_dir: Path) -> RunResults:
+def read_results(run_dir: Where) -> RunResults:
     """Read ``run_dir/results.json`` into the typed model.
 
     Raises

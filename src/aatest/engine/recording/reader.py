@@ -35,6 +35,7 @@ from aatest.engine.recording.writer import (
     merged_step_ids,
 )
 from aatest.engine.steps import PlannedStep
+from aatest.engine.storage import RemotePath, Where, locate
 
 IMPORT_MANIFEST = "dataset.yaml"
 #: the mapping file of a logger's TDMS/MF4 files (docs/interfaces.md §3)
@@ -48,7 +49,7 @@ class _StepEntry:
 
     index: int
     step: PlannedStep
-    path: Path
+    path: Where
     record: dict[str, Any]
     values: dict[str, str]
     chunks: _StepChunks
@@ -69,7 +70,7 @@ class _FileContents:
     steps: list[_StepEntry] = field(default_factory=list)
 
 
-def read_dataset(path: str | Path) -> Dataset:
+def read_dataset(path: str | Where) -> Dataset:
     """Load a run directory, a recording file or an import directory as a :class:`Dataset`.
 
     A recording's steps are a :class:`~aatest.engine.dataset.LazySteps`: reading the file
@@ -80,7 +81,9 @@ def read_dataset(path: str | Path) -> Dataset:
     Parameters
     ----------
     path
-        Run directory, ``recording.mcap`` (or a single step file), or import directory.
+        Run directory, ``recording.mcap`` (or a single step file), or import directory; a
+        URL (``s3://…``) names a finished run or a recording on object storage, read in
+        ranged reads as the steps are asked for (docs/storage.md).
 
     Raises
     ------
@@ -89,7 +92,10 @@ def read_dataset(path: str | Path) -> Dataset:
     ImportDataError
         The import directory is malformed (see :mod:`aatest.engine.data.importer`).
     """
-    path = Path(path)
+    where = locate(path)
+    if isinstance(where, RemotePath):
+        return _read_remote(where)
+    path = where
     if path.is_dir():
         if (path / IMPORT_MANIFEST).exists():
             from aatest.engine.data.importer import import_dataset
@@ -104,6 +110,21 @@ def read_dataset(path: str | Path) -> Dataset:
         contents = _read_file(path)
         return _build_dataset(contents.run_meta, contents.steps, path, complete=True)
     raise RecordingError(f"{path}: no such file or directory")
+
+
+def _read_remote(where: RemotePath) -> Dataset:
+    """A finished run directory or a recording file on object storage.
+
+    Runs reach object storage finished (:mod:`aatest.engine.storage.staging`), so only their
+    merged ``recording.mcap`` is read; import directories are read from local disk.
+    """
+    recording = where / RECORDING_NAME if where.is_dir() else where
+    if not recording.is_file():
+        raise RecordingError(
+            f"{where}: no {RECORDING_NAME} here: on object storage aatest reads finished runs "
+            "and recording files (an import directory or an unfinished run is read locally)")
+    contents = _read_file(recording)
+    return _build_dataset(contents.run_meta, contents.steps, recording, complete=True)
 
 
 def _import_logger_files(mapping: Path) -> Dataset:
@@ -141,14 +162,14 @@ def _is_stale(recording: Path, step_ids: set[str]) -> bool:
     return not step_ids <= merged_step_ids(recording)
 
 
-def _read_file(path: Path) -> _FileContents:
+def _read_file(path: Where) -> _FileContents:
     """Read one aatest MCAP file's header, summary and records (no log is decoded)."""
-    with _translated(path), open(path, "rb") as stream:
+    with _translated(path), path.open("rb") as stream:
         return _contents(make_reader(stream, validate_crcs=True), path)
 
 
 @contextmanager
-def _translated(path: Path) -> Iterator[None]:
+def _translated(path: Where) -> Iterator[None]:
     """Every low-level decoding failure becomes a RecordingError naming the file."""
     try:
         yield
@@ -160,7 +181,7 @@ def _translated(path: Path) -> Iterator[None]:
         ) from exc
 
 
-def _checked_summary(reader: Any, path: Path) -> Any:
+def _checked_summary(reader: Any, path: Where) -> Any:
     header = reader.get_header()
     if header.profile != fmt.PROFILE:
         raise RecordingError(f"{path}: not an aatest recording (MCAP profile {header.profile!r})")
@@ -170,7 +191,7 @@ def _checked_summary(reader: Any, path: Path) -> Any:
     return summary
 
 
-def _contents(reader: Any, path: Path) -> _FileContents:
+def _contents(reader: Any, path: Where) -> _FileContents:
     contents = _FileContents(chunks=_StepChunks(path, _checked_summary(reader, path)))
     step_records = []
     for record in reader.iter_metadata():
@@ -194,7 +215,7 @@ class _StepChunks:
     a step costs only its own chunks (each CRC-checked), not the file's index again.
     """
 
-    def __init__(self, path: Path, summary: Any) -> None:
+    def __init__(self, path: Where, summary: Any) -> None:
         self.path, self.summary = path, summary
         self.channels_by_topic = {ch.topic: ch for ch in summary.channels.values()}
 
@@ -209,7 +230,7 @@ class _StepChunks:
         chosen = [ix for ix in self.summary.chunk_indexes
                   if ix.message_end_time >= low and ix.message_start_time <= high
                   and ids & set(ix.message_index_offsets)]
-        with open(self.path, "rb") as stream:
+        with self.path.open("rb") as stream:
             for index in sorted(chosen, key=lambda ix: ix.chunk_start_offset):
                 for record in self.read_chunk(stream, index):
                     if (isinstance(record, Message) and record.channel_id in ids
@@ -260,7 +281,7 @@ def _load_pieces(entry: _StepEntry, source: str, chunks: _StepChunks,
             raise RecordingError(f"{where}: {exc}") from exc
 
 
-def _check_format(run_meta: dict[str, Any], path: Path) -> None:
+def _check_format(run_meta: dict[str, Any], path: Where) -> None:
     if not run_meta:
         raise RecordingError(f"{path}: not an aatest recording (no 'run' metadata record)")
     version = run_meta.get("format", fmt.FORMAT)
@@ -273,7 +294,7 @@ def _check_format(run_meta: dict[str, Any], path: Path) -> None:
 
 def _step_log(
     reader: Any, summary: Any, record: dict[str, Any], values: dict[str, str], source: str,
-    path: Path, channels: Container[str] | None = None,
+    path: Where, channels: Container[str] | None = None,
 ) -> SampledLog:
     """One logger's log of one step, decoded by the format its schema encoding names."""
     step_id = str(record["step"]["id"])
@@ -366,7 +387,7 @@ def _sensors(run_meta: dict[str, Any], steps: LazySteps) -> tuple[SensorInfo, ..
 
 
 def _build_dataset(
-    run_meta: dict[str, Any], entries: list[_StepEntry], source: Path, complete: bool
+    run_meta: dict[str, Any], entries: list[_StepEntry], source: Where, complete: bool
 ) -> Dataset:
     ordered = sorted(entries, key=lambda entry: entry.index)
 

@@ -13,6 +13,8 @@ from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, Protocol
 
+from aatest.engine.storage import RemotePath
+
 
 class BundleObserver(Protocol):
     """Told about a bundle before its results are written and once it is signed."""
@@ -24,7 +26,7 @@ class BundleObserver(Protocol):
         writes.
         """
 
-    def after_signing(self, results: Any, report: Path) -> None:
+    def after_signing(self, results: Any, report: Path | RemotePath) -> None:
         """The bundle around ``report`` is final (written and, with a key, signed)."""
 
 
@@ -48,7 +50,7 @@ def before_signing(results: Any) -> None:
         observer.before_signing(results)
 
 
-def after_signing(results: Any, report: Path) -> None:
+def after_signing(results: Any, report: Path | RemotePath) -> None:
     """Tell the observer, if any, that the bundle around ``report`` is final."""
     observer = _OBSERVER.get()
     if observer is not None:

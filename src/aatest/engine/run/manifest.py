@@ -19,6 +19,8 @@ import os
 from pathlib import Path, PurePosixPath
 
 from aatest.engine.errors import InputError
+from aatest.engine.storage import RemotePath, Where
+from aatest.engine.storage.location import SEQUENTIAL_BLOCK_BYTES
 
 _CHUNK_BYTES = 1 << 20
 
@@ -35,16 +37,18 @@ class UnsafeNameError(InputError):
     """A file name in a signature that points outside the bundle directory."""
 
 
-def file_sha256(path: Path) -> str:
-    """SHA-256 hex digest of a file, read in 1 MiB chunks (recordings can be large)."""
+def file_sha256(path: Where) -> str:
+    """SHA-256 hex digest of a file, read in 1 MiB chunks (recordings can be large); an
+    object on object storage is streamed in ranged reads, never downloaded whole."""
     digest = hashlib.sha256()
-    with path.open("rb") as handle:
+    with (path.open("rb", SEQUENTIAL_BLOCK_BYTES) if isinstance(path, RemotePath)
+          else path.open("rb")) as handle:
         for chunk in iter(lambda: handle.read(_CHUNK_BYTES), b""):
             digest.update(chunk)
     return digest.hexdigest()
 
 
-def member_path(folder: Path, name: str) -> Path:
+def member_path(folder: Where, name: str) -> Where:
     """``folder / name`` for a relative POSIX ``name`` that stays inside ``folder``.
 
     Raises
@@ -68,12 +72,14 @@ def excluded_by(name: str, exclusions: dict[str, str]) -> str | None:
     return None
 
 
-def bundle_members(folder: Path) -> tuple[list[str], list[str]]:
+def bundle_members(folder: Where) -> tuple[list[str], list[str]]:
     """Relative names of the regular files below ``folder`` and of its symbolic links.
 
     Symbolic links are not followed (their target is outside the bundle's control); they are
-    returned separately so the caller can refuse or report them.
+    returned separately so the caller can refuse or report them. Object storage has none.
     """
+    if isinstance(folder, RemotePath):
+        return folder.members(), []
     files: list[str] = []
     links: list[str] = []
     for root, dirs, names in os.walk(folder, followlinks=False):
@@ -88,7 +94,7 @@ def bundle_members(folder: Path) -> tuple[list[str], list[str]]:
     return sorted(files), sorted(links)
 
 
-def manifest_hashes(folder: Path, exclusions: dict[str, str] | None = None) -> dict[str, str]:
+def manifest_hashes(folder: Where, exclusions: dict[str, str] | None = None) -> dict[str, str]:
     """SHA-256 of every file below ``folder`` that no ``exclusions`` pattern matches."""
     rules = EXCLUSIONS if exclusions is None else exclusions
     files, _links = bundle_members(folder)
@@ -96,7 +102,7 @@ def manifest_hashes(folder: Path, exclusions: dict[str, str] | None = None) -> d
             if excluded_by(name, rules) is None}
 
 
-def compare_members(folder: Path, signed: dict[str, str], exclusions: dict[str, str]) -> list[str]:
+def compare_members(folder: Where, signed: dict[str, str], exclusions: dict[str, str]) -> list[str]:
     """Every difference between the files below ``folder`` and the ``signed`` hashes."""
     reasons: list[str] = []
     for name, digest in sorted(signed.items()):

@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from aatest.engine.errors import InputError
+from aatest.engine.storage import RemotePath
 
 STATE_FILE = "run_state.json"
 LOCK_FILE = "run.lock"
@@ -51,7 +52,7 @@ class RunState:
         os.replace(tmp, run_dir / STATE_FILE)
 
     @classmethod
-    def load(cls, run_dir: Path) -> RunState:
+    def load(cls, run_dir: Path | RemotePath) -> RunState:
         """Read the state of ``run_dir``; a missing or damaged file is an InputError."""
         path = run_dir / STATE_FILE
         try:

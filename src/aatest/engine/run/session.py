@@ -40,6 +40,7 @@ from aatest.engine.run.runner import (
 )
 from aatest.engine.simulation import KIND_KEY, kind_of, metadata_of
 from aatest.engine.steps import Plan, SensorRef
+from aatest.engine.storage import RemotePath, Where
 from aatest.results import RunResults
 from aatest.results.root import Signature
 
@@ -149,8 +150,8 @@ def signing_key(explicit: Path | None) -> Path | None:
 
 
 def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run` one to one
-    data_path: Path,
-    out_dir: Path,
+    data_path: Where,
+    out_dir: Where,
     template: str | None = None,
     template_dir: Path | None = None,
     key_path: Path | None = None,
@@ -167,6 +168,8 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     ``wall_duration_s`` (s) to 0 for imported data that has no run behind it; both are
     reported so the lab-time-to-wall-time ratio of a run stays on record.
     ``extra_metadata`` is merged into the results metadata (e.g. who confirmed each prompt).
+    ``data_path`` and ``out_dir`` may be on object storage (docs/storage.md): the recording
+    is streamed, and the files written are uploaded there.
     """
     from aatest.engine.recording import read_dataset
 
@@ -218,23 +221,39 @@ def decide(results: RunResults, data: Dataset) -> RunResults:
 
 def render_and_sign(
     results: RunResults,
-    run_dir: Path,
+    run_dir: Where,
     template: str,
     template_dir: Path | None,
     key_path: Path | None,
     pdf: bool = False,
-) -> Path:
+) -> Where:
     """Write results.json, render the report (and its PDF), sign the bundle when a key is set.
 
     ``results`` is the typed record: written once as results.json, handed to the report
-    plugin as it is.
+    plugin as it is. A ``run_dir`` on object storage gets its files rendered locally and
+    uploaded (:func:`aatest.engine.storage.staged`), then is signed in place.
     """
+    from aatest.engine.storage import publish, published, staged
+
     private = None
     if key_path is not None:
         private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
         fingerprint = signing.key_fingerprint(private.public_key())
         results.signature = Signature(fingerprint=fingerprint)
     bundle_hooks.before_signing(results)  # e.g. a certificate number, before results are written
+    with staged(run_dir) as local_dir:
+        local_report = _render(results, local_dir, template, template_dir, pdf)
+    report = published(local_report, local_dir, run_dir)
+    if private is not None:
+        signing.sign_bundle(report, private)
+    report = publish(report)  # `run --out URL`: the finished bundle goes up, then is registered
+    bundle_hooks.after_signing(results, report)
+    return report
+
+
+def _render(results: RunResults, run_dir: Path, template: str, template_dir: Path | None,
+            pdf: bool) -> Path:
+    """results.json and the report plugin's files (and PDF) in the local ``run_dir``."""
     write_results(results, run_dir)
     info = registry.load("report", template)
     reporter = info.target(registry.configure(info, {}))
@@ -244,16 +263,13 @@ def render_and_sign(
     report: Path = reporter.render(results, run_dir, template_dir)
     if pdf and isinstance(reporter, PdfRenderer):
         reporter.render_pdf(report)
-    if private is not None:
-        signing.sign_bundle(report, private)
-    bundle_hooks.after_signing(results, report)
     return report
 
 
 def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later ones by keyword
     procedure: Path,
     rig_file: Path | None,
-    out_dir: Path | None,
+    out_dir: Where | None,
     resume: bool,
     seed: int,
     key_path: Path | None,
@@ -264,7 +280,7 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     events: RunEvents | None = None,
     confirm_prompts: ConfirmPrompts = "ask",
     unit: UnitName | None = None,
-) -> tuple[Path, RunResults]:
+) -> tuple[Where, RunResults]:
     """``aatest run``: execute (or resume) a procedure and produce its results and report.
 
     ``events`` lets a caller (the station) observe, answer prompts and abort; without a
@@ -275,7 +291,14 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     responder, i.e. the operator's station), beside ``prompt_answers`` (who, when, how).
     ``unit`` names the unit calibrated (else the procedure's ``sensor``); a calibration of an
     unnamed unit on a real rig is refused once the rig started, before it moves (exit 2).
+    An ``out_dir`` on object storage is recorded in a local staging directory and uploaded
+    once finished (:mod:`aatest.engine.storage.staging`); the URL is returned.
     """
+    if isinstance(out_dir, RemotePath):
+        return _run_to_url(out_dir, lambda local: run(
+            procedure, rig_file, local, resume, seed, key_path, show_progress,
+            operator=operator, pdf=pdf, events=events, confirm_prompts=confirm_prompts,
+            unit=unit))
     prepared = prepare(procedure, rig_file, unit)
     plan = prepared.plan
     if (key := signing_key(key_path)) is not None:  # a bad or too open key fails before any motion
@@ -297,6 +320,21 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     with run_lock(out_dir):  # a second run on this directory exits 2, naming this one
         return _run_locked(_RunRequest(prepared, out_dir, resume, seed, key_path, show_progress,
                                        operator, pdf, events, mode))
+
+
+def _run_to_url(url: RemotePath, run_local: Any) -> tuple[Where, RunResults]:
+    """Run into the URL's staging directory, upload the finished bundle, then drop the
+    staging copy; an interrupted run stays there for ``--resume --out URL``."""
+    import shutil
+
+    from aatest.engine.storage import publishing, staging_dir
+
+    url.mkdir()  # a missing bucket is refused before anything moves
+    local = staging_dir(url)
+    with publishing(local, url):
+        _, results = run_local(local)
+    shutil.rmtree(local, ignore_errors=True)  # every file is on the store now
+    return url, results
 
 
 @dataclass(frozen=True)
@@ -376,8 +414,8 @@ def _identify(recorder: Any, started: Rig) -> None:
 
 
 def report(
-    run_dir: Path, template_dir: Path | None, key_path: Path | None, pdf: bool = False
-) -> Path:
+    run_dir: Where, template_dir: Path | None, key_path: Path | None, pdf: bool = False
+) -> Where:
     """``aatest report``: re-render (and re-sign) from an existing results.json.
 
     A results.json written before the engine decided verdicts (schema version 1, no
@@ -399,7 +437,7 @@ def report(
     return render_and_sign(results, run_dir, template, template_dir, signing_key(key_path), pdf)
 
 
-def run_wall_duration(run_dir: Path) -> float | None:
+def run_wall_duration(run_dir: Where) -> float | None:
     """Wall-clock time (s) the run in ``run_dir`` has taken so far, None without a run state.
 
     ``aatest analyze`` of a run directory reports it beside the lab time, so the ratio of lab

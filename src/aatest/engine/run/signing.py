@@ -38,6 +38,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey,
 from aatest.engine.errors import InputError
 from aatest.engine.run import manifest
 from aatest.engine.run.trust import TrustedKey
+from aatest.engine.storage import Where, locate
 
 #: SHA-256 of one file, as the manifest hashes it (kept here for callers of format 1)
 file_sha256 = manifest.file_sha256
@@ -70,7 +71,7 @@ class VerifyResult:
     format: str | None = None
 
 
-def signature_path(report_path: Path) -> Path:
+def signature_path(report_path: Where) -> Where:
     """Where the detached signature of ``report_path`` lives (``report.html.sig``)."""
     return report_path.with_name(report_path.name + ".sig")
 
@@ -187,10 +188,10 @@ def trusted_public_key(path: Path) -> TrustedKey:
     return TrustedKey(key_fingerprint(load_public_key(path)), source=f"--public-key {path}")
 
 
-def bundle_hashes(report_path: Path) -> dict[str, str]:
+def bundle_hashes(report_path: Where) -> dict[str, str]:
     """SHA-256 of every file of the bundle around ``report_path`` that a signature covers
     (the report itself always, even where an exclusion names its kind: a diagnosis)."""
-    report_path = Path(report_path)
+    report_path = locate(report_path)
     hashes = manifest.manifest_hashes(report_path.parent)
     hashes[report_path.name] = manifest.file_sha256(report_path)
     return hashes
@@ -210,13 +211,14 @@ def signed_payload(document: dict[str, object]) -> bytes:
     return canonical_bytes(files if isinstance(files, dict) else {})
 
 
-def sign_bundle(report_path: Path, private_key: Ed25519PrivateKey) -> Path:
+def sign_bundle(report_path: Where, private_key: Ed25519PrivateKey) -> Where:
     """Sign the bundle around ``report_path``; write and return ``<report>.sig``.
 
     ``results.json`` must exist next to the report; every other file below the report's
     directory is signed too, except those :data:`manifest.EXCLUSIONS` names (with the reason).
+    A bundle on object storage is signed in place: its objects are hashed as streamed.
     """
-    report_path = Path(report_path)
+    report_path = locate(report_path)
     if not report_path.is_file():
         raise SigningError(f"{report_path}: report to sign does not exist")
     if not report_path.with_name("results.json").is_file():
@@ -240,7 +242,7 @@ def sign_bundle(report_path: Path, private_key: Ed25519PrivateKey) -> Path:
     return sig_path
 
 
-def verify_bundle(report_path: Path, trusted: Sequence[TrustedKey] = ()) -> VerifyResult:
+def verify_bundle(report_path: Where, trusted: Sequence[TrustedKey] = ()) -> VerifyResult:
     """Check the bundle around ``report_path``: see :func:`.verification.verify`."""
     from aatest.engine.run.verification import verify
 

@@ -13,7 +13,6 @@ import binascii
 import json
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from pathlib import Path
 from typing import Any
 
 from cryptography.exceptions import InvalidSignature
@@ -32,6 +31,7 @@ from aatest.engine.run.signing import (
     signed_payload,
 )
 from aatest.engine.run.trust import TrustedKey, decide
+from aatest.engine.storage import Where, locate
 
 _NEEDED = ("algorithm", "public_key", "files", "signature")
 
@@ -57,7 +57,7 @@ def _shape_problem(document: Any, name: str) -> str | None:
     return None
 
 
-def _read_signature(sig_path: Path) -> tuple[dict[str, Any] | None, str | None]:
+def _read_signature(sig_path: Where) -> tuple[dict[str, Any] | None, str | None]:
     if not sig_path.is_file():
         return None, f"signature missing: {sig_path.name} not found next to the report"
     try:
@@ -95,7 +95,7 @@ def _check_signature(document: dict[str, Any]) -> tuple[Ed25519PublicKey | None,
     return public, reasons
 
 
-def _legacy_compare(report_path: Path, signed: dict[str, str]) -> list[str]:
+def _legacy_compare(report_path: Where, signed: dict[str, str]) -> list[str]:
     """Format 1: the report and :data:`BUNDLE_FILES`, named next to the report."""
     reasons: list[str] = []
     for name in sorted({report_path.name, *BUNDLE_FILES} | set(signed)):
@@ -114,7 +114,7 @@ def _legacy_compare(report_path: Path, signed: dict[str, str]) -> list[str]:
     return reasons
 
 
-def _claimed_fingerprints(report_path: Path) -> dict[str, str]:
+def _claimed_fingerprints(report_path: Where) -> dict[str, str]:
     """Fingerprints the bundle itself claims: printed in the report and stored in results."""
     claims: dict[str, str] = {}
     match = FINGERPRINT_META.search(report_path.read_bytes())
@@ -130,20 +130,20 @@ def _claimed_fingerprints(report_path: Path) -> dict[str, str]:
     return claims
 
 
-def _file_reasons(report_path: Path, document: dict[str, Any]) -> list[str]:
+def _file_reasons(report_path: Where, document: dict[str, Any]) -> list[str]:
     files = {str(k): str(v) for k, v in document["files"].items()}
     if document.get("format") == SIGNATURE_FORMAT:
         return manifest.compare_members(report_path.parent, files, dict(document["excluded"]))
     return _legacy_compare(report_path, files)
 
 
-def verify(report_path: Path, trusted: Sequence[TrustedKey] = ()) -> VerifyResult:
+def verify(report_path: Where, trusted: Sequence[TrustedKey] = ()) -> VerifyResult:
     """Check the bundle around ``report_path`` against its ``.sig``; name every difference.
 
     The signature must verify over its manifest, every file must match it, the key must be
     one of ``trusted`` (valid at the signing time) and the one the certificate prints.
     """
-    report_path = Path(report_path)
+    report_path = locate(report_path)
     if not report_path.is_file():
         return VerifyResult(False, [f"report missing: {report_path} not found"])
     document, problem = _read_signature(signature_path(report_path))
