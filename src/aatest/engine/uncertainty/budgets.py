@@ -109,8 +109,8 @@ def apply_uncertainty(results: RunResults, constants: RigConstants | None = None
     ``analysis.bias[CH]`` (bias; g-sensitivity as ``g_sensitivity_expanded_uncertainty_dps2_per_g``
     and ``g_sensitivity_budget``), ``analysis.temperature[CH]`` (bias coefficient; scale
     coefficient as ``scale_coefficient_*``), every point of ``analysis.frf[CH]`` (gain, plus
-    ``gain_*``/``phase_*``) and ``analysis.misalignment.scenarios[S][SENSOR]`` (and the sensor's own axis tilt,
-    ``analysis.misalignment.matrix.scenarios[S][CH]``); and the
+    ``gain_*``/``phase_*``), ``analysis.misalignment.scenarios[S][SENSOR]`` and the sensor's
+    own axis tilt ``analysis.misalignment.matrix.scenarios[S][CH]``; and the
     reference's traceability the budgets rest on (``metadata.traceability``).
 
     Parameters
