@@ -73,7 +73,8 @@ def _construct(
 def build_rig(rig_config: Any, sensor: SensorRef, seed: int) -> Rig:
     """Construct turntable, DAQ and chamber plugins; nothing is connected or moved yet."""
     datasheet, sensor_version = sensor_datasheet(sensor)
-    context = RigContext(sensor=sensor, datasheet=datasheet, seed=seed)
+    context = RigContext(sensor=sensor, datasheet=datasheet, seed=seed,
+                         instruments=getattr(rig_config, "instruments", None))
     parts: dict[str, Any] = {}
     versions = {f"sensor:{sensor.model}": sensor_version}
     config: dict[str, Any] = {}
