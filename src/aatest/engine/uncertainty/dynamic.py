@@ -346,11 +346,16 @@ def sensor_tilt_measurand(results: RunResults, scenario: str, channel: str,
     dof = max(entry.repetitions - 1, 1)
     wobble_deg = c.wobble_arcsec / 3600.0
     scatter = f"scatter of {entry.repetitions} repetitions (standard error of the mean)"
+    labels = ("repeatability, tilt towards the sensor's x",
+              "repeatability, tilt towards the sensor's y")
+    repeat = (
+        Input("repeat_x", labels[0], 0.0, u_x, "normal", "deg", scatter, kind="A", dof=dof),
+        Input("repeat_y", labels[1], 0.0, u_y, "normal", "deg", scatter, kind="A", dof=dof),
+    ) if entry.repetitions > 1 else tuple(
+        comp.not_evaluated(name, label, "one repetition: no scatter to evaluate", "deg")
+        for name, label in zip(("repeat_x", "repeat_y"), labels, strict=True))
     inputs = (
-        Input("repeat_x", "repeatability, tilt towards the sensor's x", 0.0, u_x, "normal",
-              "deg", scatter, kind="A", dof=dof),
-        Input("repeat_y", "repeatability, tilt towards the sensor's y", 0.0, u_y, "normal",
-              "deg", scatter, kind="A", dof=dof),
+        *repeat,
         Input("wobble_o", "wobble, original mounting", 0.0, wobble_deg, "rectangular", "deg",
               f"≤ {c.wobble_arcsec:g}″"),
         Input("wobble_p", "wobble, pivoted mounting", 0.0, wobble_deg, "rectangular", "deg",
