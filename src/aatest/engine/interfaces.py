@@ -24,7 +24,16 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Generic, Literal, Protocol, TypeVar, runtime_checkable
+from typing import (
+    TYPE_CHECKING,
+    Any,
+    ClassVar,
+    Generic,
+    Literal,
+    Protocol,
+    TypeVar,
+    runtime_checkable,
+)
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -33,6 +42,9 @@ from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep, SensorRef
 from aatest.results import RunResults
+
+if TYPE_CHECKING:
+    from aatest.engine.procedure.rig_description import Instruments
 
 # The public names; SensorDatasheet is re-exported (sensor plugins return it).
 __all__ = [
@@ -165,6 +177,9 @@ class RigContext:
     datasheet: SensorDatasheet
     seed: int = 0
     resources: SharedResources = field(default_factory=SharedResources)
+    #: the rig description's stated instruments, when the rig YAML states them (a simulated
+    #: logger then converts as the stated one does)
+    instruments: Instruments | None = None
 
 
 @runtime_checkable

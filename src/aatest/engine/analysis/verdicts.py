@@ -17,6 +17,7 @@ A quantity without an evaluated U is judged with U = 0 (no guard band, nothing c
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Mapping, Sequence
 
 from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS, limits
@@ -28,6 +29,9 @@ from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
 
 #: verdicts from best to worst; the overall verdict is the worst one
 SEVERITY: tuple[VerdictValue, ...] = ("pass", "conditional-pass", "conditional-fail", "fail")
+
+#: table axis → the published method's label of the unit's sensor on it (docs/method.md §4.5)
+AXIS_SENSOR = {"I": "SZ", "O": "SY", "P": "SX"}
 
 #: (quantity, value, U or None) of one channel or sensor, before it is judged
 Judged = tuple[str, float, float | None]
@@ -97,23 +101,43 @@ def _noise(results: RunResults, ch: str) -> Iterator[Judged]:
 
 
 def _misalignment(results: RunResults) -> Iterator[tuple[str, Judged]]:
-    """(sensor label, judged) per scenario angle, and the worst cross-axis ratio per sensor."""
+    """(sensor label, judged): the sensor's own cross-axis sensitivity and axis misalignment.
+
+    Judged per scenario on the pivot-separated sensor part of the sensitivity-matrix estimate
+    (``matrix.scenarios``): half the difference of the original and pivoted mountings' direction
+    ratios, which flips with the pivot and so belongs to the sensor, while the mounting block's
+    and seat's tilts (which do not flip) cancel. Internal misalignment and cross-axis sensitivity
+    tilt the effective input axis alike and this test cannot tell them apart, so one estimate
+    gives both: the cross-axis ratio tan θ and the input-axis misalignment θ, each with the
+    expanded uncertainty of θ. The per-set ratios |A_x|/|A_z| and the published δ carry the
+    mounting's tilt too: they stay in the results as information about the fixture, not judged.
+    """
     block = results.analysis.misalignment
-    if block is None:
+    matrix = block.matrix if block is not None else None
+    if matrix is None:
         return
-    for scenario, sensors in sorted(block.scenarios.items()):
-        for sensor, entry in sorted(sensors.items()):
-            if (d := finite(entry.delta_deg)) is not None:
-                yield (f"{sensor} scenario {scenario}",
-                       ("misalignment_deg", d, finite(entry.expanded_uncertainty)))
-    worst: dict[str, float] = {}
-    for _label, set_sensors in sorted(block.sets.items()):
-        for sensor, set_entry in sorted(set_sensors.items()):
-            for ratio in (finite(set_entry.cross_ratio_x), finite(set_entry.cross_ratio_y)):
-                if ratio is not None and abs(ratio) >= abs(worst.get(sensor, 0.0)):
-                    worst[sensor] = ratio
-    for sensor, ratio in sorted(worst.items()):  # the worst set decides
-        yield sensor, ("cross_axis_ratio", ratio, None)
+    for scenario, by_channel in sorted(matrix.scenarios.items()):
+        for channel, tilt in sorted(by_channel.items()):
+            angle = finite(tilt.sensor_angle_deg)
+            if angle is None:
+                continue
+            u_deg = finite(tilt.expanded_uncertainty)
+            rad = math.radians(angle)
+            u_ratio = None if u_deg is None else math.radians(u_deg) / math.cos(rad) ** 2
+            label = f"{_sensor_label(matrix.rows, matrix.columns, channel)} scenario {scenario}"
+            yield label, ("cross_axis_ratio", math.tan(rad), u_ratio)
+            yield label, ("misalignment_deg", angle, u_deg)
+
+
+def _sensor_label(rows: Sequence[str], columns: Sequence[str], channel: str) -> str:
+    """A unit channel (``v_sx``) → the published method's sensor label (``SX``).
+
+    The matrix's rows are the unit's channels in the order of its columns (table axes P, O, I):
+    row i is the sensor on axis ``columns[i]``.
+    """
+    if channel in rows and rows.index(channel) < len(columns):
+        return AXIS_SENSOR.get(columns[rows.index(channel)], channel)
+    return channel
 
 
 def _sheet_of_sensor(sensor: str, sheets: Mapping[str, SensorDatasheet]) -> SensorDatasheet:

@@ -14,6 +14,7 @@ from aatest.engine.uncertainty.dynamic import (
     frf_gain_measurand,
     frf_phase_measurand,
     misalignment_measurand,
+    sensor_tilt_measurand,
 )
 from aatest.engine.uncertainty.gum import Evaluation, Measurand, evaluate
 from aatest.engine.uncertainty.measurands import (
@@ -121,7 +122,8 @@ def apply_uncertainty(results: RunResults, constants: RigConstants | None = None
     ``analysis.bias[CH]`` (bias; g-sensitivity as ``g_sensitivity_expanded_uncertainty_dps2_per_g``
     and ``g_sensitivity_budget``), ``analysis.temperature[CH]`` (bias coefficient; scale
     coefficient as ``scale_coefficient_*``), every point of ``analysis.frf[CH]`` (gain, plus
-    ``gain_*``/``phase_*``) and ``analysis.misalignment.scenarios[S][SENSOR]``; and the
+    ``gain_*``/``phase_*``), ``analysis.misalignment.scenarios[S][SENSOR]`` and the sensor's
+    own axis tilt ``analysis.misalignment.matrix.scenarios[S][CH]``; and the
     reference's traceability the budgets rest on (``metadata.traceability``).
 
     Parameters
@@ -150,4 +152,10 @@ def apply_uncertainty(results: RunResults, constants: RigConstants | None = None
             evaluation = _evaluated(misalignment_measurand(results, scenario, sensor, c), results)
             if evaluation is not None:
                 certify(entry, evaluation)
+    matrix = block.matrix if block else None
+    for scenario, by_channel in sorted(matrix.scenarios.items()) if matrix else []:
+        for channel, tilt in sorted(by_channel.items()):
+            evaluation = _evaluated(sensor_tilt_measurand(results, scenario, channel, c), results)
+            if evaluation is not None:
+                certify(tilt, evaluation)
     return results

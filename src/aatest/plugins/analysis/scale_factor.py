@@ -2,8 +2,9 @@
 
 Per sensor: the sine steps along its axis at ≤ 2 Hz with the largest acceleration (the 1 Hz,
 70 %-of-range test) are synchronised; the sensor volts pass a zero-phase low-pass, the reference
-is the chosen method's output as that method makes it (default ``smoothed``: the table estimate
-through the same zero-phase low-pass; ``table_estimate`` is the controller's raw estimate, so
+is the chosen method's output as that method makes it (default ``smoothed``: the position
+estimate's second difference through a zero-phase low-pass at its own 25 Hz corner;
+``table_estimate`` is the controller's raw estimate, so
 its noise shows in the RMSE as in the study, docs/method.md §4.3), the reference is delayed by
 the sensor's phase delay at the fundamental (so the fit sees no phase loop), and polynomials of
 order 0–15 are cross-validated. The chosen forward model (°/s² from volts) is reported with its
@@ -36,6 +37,7 @@ from aatest.plugins.analysis._common import (
 )
 from aatest.plugins.analysis.reference import (
     PUBLIC_METHODS,
+    SMOOTHED_CORNER_HZ,
     default_cutoff_hz,
     reference_accel,
     zero_phase_lowpass,
@@ -56,7 +58,8 @@ _MIN_RESIDUALS = 3
 class ScaleFactorOptions(BaseModel):
     """The reference calibrated against and the order selection (docs/method.md §4.3).
 
-    ``reference``: ``smoothed`` (default; zero-phase low-pass of the table's estimate),
+    ``reference``: ``smoothed`` (default; smoothed second difference of the position estimate,
+    zero-phase low-pass at its own corner, ``reference.SMOOTHED_CORNER_HZ``),
     ``table_estimate`` (the controller's own estimate), ``central``/``five_point`` (first
     difference of the rate estimate), ``fit`` (Savitzky–Golay local polynomial fit of the
     position) or ``sliding_mode`` (Levant's differentiator of the rate). The old
@@ -106,7 +109,7 @@ def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: ReferenceCho
 
     The sensor volts pass a zero-phase low-pass (they are the fit's regressor, so their noise
     would bias the slope); the reference is the named method's output as it is (the
-    ``smoothed`` one is low-passed at the same corner), delayed by the phase delay of the
+    ``smoothed`` one low-passed at its own corner), delayed by the phase delay of the
     sensor at the excitation frequency; filter and shift edges are trimmed.
     """
     fs, f0 = synced.sample_rate_hz, float(synced.step.frequency_hz or 1.0)
@@ -226,8 +229,8 @@ def sensor_scale_factor(steps: Sequence[SyncedStep], sensor: SensorInfo,
     parts = [aligned_pair(s, sensor, reference) for s in chosen]
     volts = np.concatenate([p[0] for p in parts])
     ref = np.concatenate([p[1] for p in parts])
-    if reference == "smoothed":  # residuals band-limited by the known low-pass corner
-        inflation = chosen[0].sample_rate_hz / (2.0 * parts[0][3])
+    if reference == "smoothed":  # residuals band-limited by the reference's known corner
+        inflation = chosen[0].sample_rate_hz / (2.0 * max(SMOOTHED_CORNER_HZ, parts[0][3]))
     else:
         inflation = correlation_inflation(ref - _line(volts, ref))
     result = calibrate(volts, ref, inflation, options, RESOLUTION_FR * sensor.range_dps2)
