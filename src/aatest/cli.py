@@ -142,14 +142,21 @@ def validate(
     rig: Path | None = typer.Option(None, "--rig", help="Rig YAML (default: simulated rig)"),
 ) -> None:
     """Check a procedure against its schema and the rig envelope; nothing moves."""
+    from aatest.engine.analysis.coverage import usage_lines
     from aatest.engine.run.session import prepare
 
     prepared = prepare(procedure, rig)
+    steps = prepared.plan.steps
+    recorded = sum(1 for s in steps if s.recorded)
     typer.echo(
-        f"{procedure}: OK — {len(prepared.plan.steps)} steps, "
-        f"lab duration {prepared.plan.lab_duration_s:.1f} s"
+        f"{procedure}: OK — {recorded} recorded step{'s' * (recorded != 1)}"
+        + (f" (+ {len(steps) - recorded} chamber set-point changes)" if recorded < len(steps)
+           else "")
+        + f", lab duration {prepared.plan.lab_duration_s:.1f} s"
     )
     for line in prepared.expansion.skipped_lines():  # nothing disappears silently
+        typer.echo(line)
+    for line in usage_lines(prepared.coverage):
         typer.echo(line)
 
 
@@ -206,7 +213,8 @@ def run(
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
         )
     typer.echo(
-        f"run complete: {run_dir} — {len(results.steps)} steps, "
+        f"run complete: {run_dir} — {len(results.steps)} recorded "
+        f"step{'s' * (len(results.steps) != 1)}, "
         f"lab {results.lab_duration_s:.1f} s, "
         f"wall {results.wall_duration_s:.1f} s"
     )
@@ -226,8 +234,10 @@ def _exit_on_outcome(results: RunResults) -> None:
     typer.echo(f"overall verdict: {results.overall}")
     if failed(results):
         for v in results.verdicts:
-            if v.verdict != "pass":
-                q = quantity(v.quantity)
+            q = quantity(v.quantity)
+            if v.verdict == "not judged":
+                typer.echo(f"not judged: {q.name}, {v.channel}: {v.reason}", err=True)
+            elif v.verdict != "pass":
                 typer.echo(f"{v.verdict}: {q.name}, {v.channel}: {q.show(v.value)} vs limit "
                            f"±{q.show(v.limit)} ({v.rule} decision rule)", err=True)
         raise typer.Exit(EXIT_FINDING)

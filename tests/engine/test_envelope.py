@@ -185,11 +185,11 @@ def test_validate_and_plan_list_the_skipped_points_with_their_limit() -> None:
     result = CliRunner().invoke(app, ["validate", str(STEPPED_SINE)])
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
-    assert lines[0].endswith("OK — 136 steps, lab duration 9592.9 s")
+    assert lines[0].endswith("OK — 136 recorded steps, lab duration 9592.9 s")
     assert lines[1] == "skipped 4 point(s) outside the envelope (skip_outside_envelope: true):"
-    assert len(lines) == 6
+    assert lines[6] == "analyses and the steps each will use:"
     assert all(line.startswith("  sine-inner-") and line.endswith("[sensor.test_ceiling_dps2]")
-               for line in lines[2:])
+               for line in lines[2:6])
     result = CliRunner().invoke(app, ["plan", "--json", str(STEPPED_SINE)])
     skipped = json.loads(result.output)["skipped"]
     assert [s["limits"] for s in skipped] == [["sensor.test_ceiling_dps2"]] * 4

@@ -13,13 +13,19 @@ Decision rules (ILAC-G8:2019, JCGM 106:2012), U the value's expanded uncertainty
   ``conditional-pass``/``conditional-fail`` (the risk is shared and stated).
 
 A quantity without an evaluated U is judged with U = 0 (no guard band, nothing conditional).
+
+Not measured is never passed (:mod:`.verdicts_missing`): a quantity the procedure asks for and
+did not get, and a listed analysis that did not apply, are ``not judged`` with the reason; the
+overall verdict is then ``incomplete`` (unless something failed) and the run exits 1.
+``acceptance.judge`` chooses which quantities are judged.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 
-from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS, limits
+from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS
+from aatest.engine.analysis.verdicts_missing import Listed, limit_of, missing
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.uncertainty.statistics import finite
@@ -123,8 +129,8 @@ def _sheet_of_sensor(sensor: str, sheets: Mapping[str, SensorDatasheet]) -> Sens
 
 
 def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
-          acceptance: Acceptance) -> list[Verdict]:
-    """Every judged quantity the results contain, in channel order.
+          acceptance: Acceptance, listed: Sequence[Listed] = ()) -> list[Verdict]:
+    """Every judged quantity the results contain, in channel order, then the ones not judged.
 
     Parameters
     ----------
@@ -133,41 +139,52 @@ def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
     sheets
         Each sensor channel's datasheet (:func:`~.verdicts_limits.datasheets`).
     acceptance
-        The procedure's decision rule and limit overrides (defaults: simple, datasheet).
+        The procedure's decision rule, limit overrides and ``judge`` list (defaults: simple,
+        datasheet limits, every quantity asked).
+    listed
+        The analyses the procedure lists (:func:`.verdicts_missing.listed_analyses`).
     """
+    chosen = None if acceptance.judge is None else set(acceptance.judge)
+
     def verdict(channel: str, item: Judged, sheet: SensorDatasheet) -> Verdict:
         quantity, value, u = item
-        limit = limits(sheet, acceptance)[quantity]
+        limit, source = limit_of(quantity, sheet, acceptance)
         return Verdict(quantity=quantity, channel=channel, value=value, limit=limit,
                        expanded_uncertainty=u, rule=acceptance.rule,
                        verdict=decide(value, limit, u, acceptance.rule),
-                       unit=QUANTITY_UNITS[quantity])
+                       unit=QUANTITY_UNITS[quantity], limit_source=source)
 
     out = [verdict(ch, item, sheet) for ch, sheet in sheets.items()
            for item in _static(results, ch, sheet)]
     if sheets:
         out += [verdict(sensor, item, _sheet_of_sensor(sensor, sheets))
                 for sensor, item in _misalignment(results)]
-    return out
+    out = [v for v in out if chosen is None or v.quantity in chosen]
+    return out + missing(results, out, sheets, acceptance, listed)
 
 
 def overall(verdicts: Sequence[Verdict]) -> Overall:
-    """The worst verdict, ``none`` when nothing was judged."""
-    if not verdicts:
-        return "none"
-    return max((v.verdict for v in verdicts), key=SEVERITY.index)
+    """The worst verdict; ``incomplete`` when something asked was not judged and nothing is
+    worse than a conditional pass; ``none`` when nothing was judged or asked."""
+    judged = [v.verdict for v in verdicts if v.verdict != "not judged"]
+    worst: Overall = max(judged, key=SEVERITY.index) if judged else "none"
+    if len(judged) < len(verdicts) and worst in ("pass", "conditional-pass", "none"):
+        return "incomplete"
+    return worst
 
 
 def apply_verdicts(results: RunResults, sheets: Mapping[str, SensorDatasheet],
-                   acceptance: Acceptance) -> RunResults:
+                   acceptance: Acceptance, listed: Sequence[Listed] = ()) -> RunResults:
     """Judge the results and write ``verdicts`` and ``overall`` into them (in place)."""
-    verdicts = judge(results, sheets, acceptance)
+    verdicts = judge(results, sheets, acceptance, listed)
     results.verdicts = verdicts
     results.overall = overall(verdicts)
     return results
 
 
 def failed(results: RunResults) -> bool:
-    """True when the run must exit 1: a ``fail``, or a ``conditional-fail`` under ``guarded``."""
-    return any(v.verdict == "fail" or (v.verdict == "conditional-fail" and v.rule == "guarded")
+    """True when the run must exit 1: a ``fail``, a ``conditional-fail`` under ``guarded``, or
+    a quantity asked and ``not judged`` (the overall verdict ``incomplete``)."""
+    return any(v.verdict in ("fail", "not judged")
+               or (v.verdict == "conditional-fail" and v.rule == "guarded")
                for v in results.verdicts)

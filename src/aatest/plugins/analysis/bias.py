@@ -19,6 +19,8 @@ import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import scale_in_use, steps_of, t95
 from aatest.results.bias import BiasResult
 from aatest.sync.freeze_pulse import SyncedStep
@@ -115,6 +117,10 @@ class BiasAnalysis:
 
     key: ClassVar[str] = "bias"
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.BIAS
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ("bias_deviation_v", "g_sensitivity_dps2_per_g")
     Options: ClassVar[type[NoOptions]] = NoOptions
     Result: ClassVar[type[BiasResult]] = BiasResult
 

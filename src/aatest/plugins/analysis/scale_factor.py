@@ -24,7 +24,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis import polyfit
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs, polyfit
 from aatest.plugins.analysis._common import (
     fundamental,
     input_accel_dps2,
@@ -245,6 +246,10 @@ class ScaleFactorAnalysis:
 
     key: ClassVar[str] = "scale_factor"
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.SCALE_FACTOR
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ("scale_factor_deviation_pct", "nonlinearity_pct_fr")
     Options: ClassVar[type[ScaleFactorOptions]] = ScaleFactorOptions
     Result: ClassVar[type[ScaleFactorResult]] = ScaleFactorResult
 

@@ -233,9 +233,18 @@ def reference_traceability(results: RunResults) -> tuple[list[tuple[str, str]], 
 def _conformity(results: RunResults, rule: str) -> str:
     if not results.verdicts:
         return "No conformity statement: no quantity was judged against a specification."
-    return (f"Conformity with the sensor's datasheet limits, decided by the engine under the "
-            f"decision rule '{rule}' (ILAC-G8): overall {results.overall}; each judged quantity "
-            "with its limit, U and verdict is listed below.")
+    sources = {v.limit_source for v in results.verdicts if v.limit_source}
+    origin = {frozenset({"procedure"}): "the procedure's acceptance limits",
+              frozenset({"datasheet"}): "the sensor's datasheet limits"}.get(
+        frozenset(sources), "the procedure's acceptance limits and, where it sets none, the "
+        "sensor's datasheet limits")
+    text = (f"Conformity with {origin}, decided by the engine under the decision rule "
+            f"'{rule}' (ILAC-G8): overall {results.overall}; each judged quantity with its "
+            "limit (and where the limit came from), U and verdict is listed below.")
+    if results.overall == "incomplete":
+        text += (" The calibration is incomplete: quantities the procedure asked for were not "
+                 "measured (marked 'not judged', with the reason).")
+    return text
 
 
 def _adjustment(results: RunResults) -> dict[str, Any]:
