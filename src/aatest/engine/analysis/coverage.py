@@ -72,3 +72,23 @@ def usage_lines(coverage: Coverage) -> list[str]:
                                            else "")
         lines.append(f"  {name}: {shown or 'no recorded step'}")
     return (["analyses and the steps each will use:", *lines]) if lines else []
+
+
+def requirements_markdown() -> str:
+    """The requirements table of docs/interfaces.md, from the built-in analyses' declarations
+    (a test checks the document holds exactly this)."""
+    from aatest.engine.requirements import judges_of, requirements_of
+
+    rows = ["| analysis | needs (checked by `validate`) | judges |", "|---|---|---|"]
+    for name in sorted(plugins.installed_names()):
+        try:
+            plugin = plugins.load(name)
+        except PluginError:
+            continue
+        if plugin.distribution != "aatest":
+            continue
+        declared = requirements_of(plugin.cls)
+        needs = "; ".join(r.need for r in declared) if declared is not None else "not declared"
+        judged = ", ".join(f"`{q}`" for q in judges_of(plugin.cls)) or "—"
+        rows.append(f"| `{name}` | {needs} | {judged} |")
+    return "\n".join(rows) + "\n"

@@ -42,8 +42,8 @@ def _bias_pairs(view: PlanView) -> Check:
     return _per_axis(BIAS_NEED, picks, view)
 
 
-BIAS_NEED = ("static positions with each sensor's axis up and down (a ±1 g pair, "
-             f"|g component| ≥ {UP_G})")
+BIAS_NEED = ("static positions with each sensor's axis up and down (a ±1 g pair: a g "
+             f"component ≥ +{UP_G} and one ≤ −{UP_G})")
 
 
 def _scale_steps(view: PlanView) -> Check:
