@@ -31,6 +31,10 @@ from aatest.engine.procedure.models import Acceptance
 from aatest.engine.uncertainty.statistics import finite
 from aatest.results import RunResults
 from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
+from aatest.results.scale_factor import ScaleFactorHeadline
+
+#: the lowest polynomial order with a curvature (a non-linearity to judge)
+CURVED_ORDER = 2
 
 #: verdicts from best to worst; the overall verdict is the worst one
 SEVERITY: tuple[VerdictValue, ...] = ("pass", "conditional-pass", "conditional-fail", "fail")
@@ -69,7 +73,7 @@ def _static(results: RunResults, ch: str, sheet: SensorDatasheet) -> Iterator[Ju
         if k is not None:
             yield ("scale_factor_deviation_pct", 100.0 * (k / nominal - 1.0),
                    None if u_k is None else 100.0 * u_k / nominal)
-        if (nl := finite(scale.nonlinearity_pct_fr)) is not None:
+        if (nl := _nonlinearity(scale)) is not None:
             yield "nonlinearity_pct_fr", nl, None
     bias = a.bias.get(ch) if a.bias else None
     if bias is not None:
@@ -80,6 +84,41 @@ def _static(results: RunResults, ch: str, sheet: SensorDatasheet) -> Iterator[Ju
                    finite(bias.g_sensitivity_expanded_uncertainty_dps2_per_g))
     yield from _thermal(results, ch)
     yield from _noise(results, ch)
+
+
+def _nonlinearity(scale: ScaleFactorHeadline) -> float | None:
+    """The linearity across the levels; else the polynomial's curvature when the data chose a
+    curved model (order ≥ 2). One level with a straight line resolves no non-linearity: None
+    (``not judged``), never the 0 a straight line has by construction."""
+    if scale.linearity is not None:
+        return finite(scale.linearity.nonlinearity_pct_fr)
+    return finite(scale.nonlinearity_pct_fr) if scale.order >= CURVED_ORDER else None
+
+
+def _levels(results: RunResults, ch: str, sheet: SensorDatasheet
+            ) -> Iterator[tuple[str, Judged]]:
+    """(label, scale-factor deviation) of every level but the headline, e.g. ``v_sz at
+    100 °/s², 25 °C``."""
+    block = results.analysis.scale_factor
+    scale = block.get(ch) if block else None
+    if scale is None:
+        return
+    for level in scale.levels:
+        if (level.accel_dps2, level.temperature_c) == (scale.accel_dps2, scale.temperature_c):
+            continue
+        k, u_k = finite(level.scale_v_per_dps2), finite(level.expanded_uncertainty)
+        if k is None:
+            continue
+        nominal = sheet.scale_v_per_dps2
+        yield level_label(ch, level.accel_dps2, level.temperature_c), (
+            "scale_factor_deviation_pct", 100.0 * (k / nominal - 1.0),
+            None if u_k is None else 100.0 * u_k / nominal)
+
+
+def level_label(channel: str, accel_dps2: float | None, temperature_c: float | None) -> str:
+    """How a verdict names one level: ``v_sz at 100 °/s²`` (``, -20 °C`` with a set-point)."""
+    text = f"{channel} at {accel_dps2:g} °/s²" if accel_dps2 is not None else channel
+    return text + (f", {temperature_c:g} °C" if temperature_c is not None else "")
 
 
 def _thermal(results: RunResults, ch: str) -> Iterator[Judged]:
@@ -156,6 +195,8 @@ def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
 
     out = [verdict(ch, item, sheet) for ch, sheet in sheets.items()
            for item in _static(results, ch, sheet)]
+    out += [verdict(label, item, sheet) for ch, sheet in sheets.items()
+            for label, item in _levels(results, ch, sheet)]
     if sheets:
         out += [verdict(sensor, item, _sheet_of_sensor(sensor, sheets))
                 for sensor, item in _misalignment(results)]

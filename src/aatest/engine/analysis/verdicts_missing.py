@@ -28,6 +28,12 @@ log = logging.getLogger("aatest.verdicts")
 
 #: quantities judged per sensor of a misalignment unit (labels, not channels)
 PER_SENSOR = frozenset({"misalignment_deg", "cross_axis_ratio"})
+#: why a quantity can be absent although its analysis ran
+NOT_RESOLVED = {
+    "nonlinearity_pct_fr": "one acceleration level, and cross-validation chose a straight line: "
+    "no non-linearity is resolved (its 0 is by construction); record two or more levels "
+    "(e.g. accelerations_dps2: [100, 250, 400]) to measure the linearity across them",
+}
 #: the channel a verdict names when it is about the whole unit
 ALL = "all"
 
@@ -95,7 +101,8 @@ def _reason(quantity: str, channel: str, results: RunResults, listed: Sequence[L
     if producer.name in results.analysis_skipped:
         return f"analysis '{producer.name}' does not apply to this data; it needs {needs}"
     where = "" if channel == ALL else f" for {channel}"
-    return f"analysis '{producer.name}' produced no value{where}; it needs {needs}"
+    return (f"analysis '{producer.name}' produced no value{where}; "
+            f"{NOT_RESOLVED.get(quantity, f'it needs {needs}')}")
 
 
 def missing(results: RunResults, judged: Sequence[Verdict],

@@ -61,6 +61,9 @@ def _certify_static(results: RunResults, ch: str, c: RigConstants) -> None:
     if scale is not None and a.scale_factor is not None:
         certify(a.scale_factor[ch], scale)
         scale_rel = scale.standard_uncertainty / abs(scale.value) if scale.value else None
+        for level in a.scale_factor[ch].levels:  # each level certified like the headline
+            if (evaluated := _evaluated(scale_factor_measurand(results, ch, c, level))):
+                certify(level, evaluated)
     bias = _evaluated(bias_measurand(results, ch, c))
     if bias is not None and a.bias is not None:
         certify(a.bias[ch], bias)

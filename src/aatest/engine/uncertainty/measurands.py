@@ -190,8 +190,8 @@ def _scale_tc_per_c(results: RunResults, channel: str) -> tuple[float, str]:
     return limit, f"datasheet scale TC ≤ {limit * 100:g} %/°C"
 
 
-def scale_factor_measurand(results: RunResults, channel: str,
-                           c: RigConstants) -> Measurand | None:
+def scale_factor_measurand(results: RunResults, channel: str, c: RigConstants,
+                           level: ScaleFactorChannel | None = None) -> Measurand | None:
     """K = K̂·Π(1 + e_i) / ((1 + e_gain)·(1 + e_clk)²)  [V/(°/s²)].
 
     The measurand is the slope of the best straight line of logged output volts on the
@@ -199,10 +199,11 @@ def scale_factor_measurand(results: RunResults, channel: str,
     the in-phase fundamental-bin ratio — at the records' frequency, amplitude and temperature.
     Reference inputs (encoder accuracy and resolution, reference method, motion distortion, the
     fit), the axis (wobble, transverse, mounting), the logger (gain, resolution), the clock,
-    temperature and repeatability each enter as a relative input.
+    temperature and repeatability each enter as a relative input. ``level`` is one of the
+    channel's acceleration levels (default: the headline).
     """
     block = results.analysis.scale_factor
-    entry = block.get(channel) if block else None
+    entry = level if level is not None else (block.get(channel) if block else None)
     k_hat = finite(entry.scale_v_per_dps2) if entry is not None else None
     if entry is None or k_hat is None:
         return None
