@@ -373,10 +373,18 @@ def verify(
 @guarded
 def schema(
     results: bool = typer.Option(False, "--results", help="The schema of results.json instead"),
+    install: Path | None = typer.Option(
+        None, "--install", help="Write both schemas into this directory (for editors) and "
+        "print the modeline a procedure's first line takes"),
 ) -> None:
     """Print the procedure JSON Schema (for editors), or with --results that of results.json."""
-    from aatest.engine.procedure.schema_export import render
+    from aatest.engine.procedure.schema_export import install_schemas, render
 
+    if install is not None:
+        procedure_schema = install_schemas(install)
+        typer.echo(f"wrote {procedure_schema} and results.schema.json; first line of a "
+                   f"procedure:\n# yaml-language-server: $schema={procedure_schema}")
+        return
     typer.echo(render(results), nl=False)
 
 

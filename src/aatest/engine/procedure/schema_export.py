@@ -89,6 +89,15 @@ def render(results: bool = False) -> str:
     return json.dumps(schema, indent=2) + "\n"  # as `aatest schema [--results]` prints it
 
 
+def install_schemas(directory: Path) -> Path:
+    """Write both schemas into ``directory`` (created) for an editor; return the procedure
+    schema's absolute path (what a ``# yaml-language-server: $schema=`` modeline names)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    for name, results in ((SCHEMA_PATH.name, False), (RESULTS_SCHEMA_PATH.name, True)):
+        (directory / name).write_text(render(results), encoding="utf-8")
+    return (directory / SCHEMA_PATH.name).resolve()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Write both committed copies; ``-`` prints the procedure schema (``- --results``: the
     results schema) to stdout instead."""
