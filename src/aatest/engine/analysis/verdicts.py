@@ -115,10 +115,25 @@ def _levels(results: RunResults, ch: str, sheet: SensorDatasheet
             None if u_k is None else 100.0 * u_k / nominal)
 
 
+def _setpoints(results: RunResults, ch: str, sheet: SensorDatasheet
+               ) -> Iterator[tuple[str, Judged]]:
+    """(label, bias deviation) at every chamber set-point but the headline's."""
+    block = results.analysis.bias
+    bias = block.get(ch) if block else None
+    if bias is None:
+        return
+    for point in bias.setpoints:
+        if point.temperature_c == bias.temperature_c or (b := finite(point.bias_v)) is None:
+            continue
+        yield level_label(ch, None, point.temperature_c), (
+            "bias_deviation_v", b - sheet.nominal_bias_v, finite(point.expanded_uncertainty))
+
+
 def level_label(channel: str, accel_dps2: float | None, temperature_c: float | None) -> str:
     """How a verdict names one level: ``v_sz at 100 °/s²`` (``, -20 °C`` with a set-point)."""
-    text = f"{channel} at {accel_dps2:g} °/s²" if accel_dps2 is not None else channel
-    return text + (f", {temperature_c:g} °C" if temperature_c is not None else "")
+    parts = [f"{accel_dps2:g} °/s²"] if accel_dps2 is not None else []
+    parts += [f"{temperature_c:g} °C"] if temperature_c is not None else []
+    return f"{channel} at {', '.join(parts)}" if parts else channel
 
 
 def _thermal(results: RunResults, ch: str) -> Iterator[Judged]:
@@ -196,7 +211,7 @@ def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
     out = [verdict(ch, item, sheet) for ch, sheet in sheets.items()
            for item in _static(results, ch, sheet)]
     out += [verdict(label, item, sheet) for ch, sheet in sheets.items()
-            for label, item in _levels(results, ch, sheet)]
+            for label, item in (*_levels(results, ch, sheet), *_setpoints(results, ch, sheet))]
     if sheets:
         out += [verdict(sensor, item, _sheet_of_sensor(sensor, sheets))
                 for sensor, item in _misalignment(results)]

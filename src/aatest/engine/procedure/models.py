@@ -225,6 +225,9 @@ class TemperatureSteps(Overrides):
     soak_s: NonNegFloat = 900.0
     off_wait_s: NonNegFloat = 60.0
     static: StrictBool = True
+    bias_pair: StrictBool = Field(
+        False, description="also record the static position with the outer axis turned 180° "
+        "(the sensitive axis down): a ±1 g pair, so the bias is measured at every set-point")
     inner_deg: Float = 0.0
     outer_deg: Float = 0.0
     dynamic: DynamicSine | None = None

@@ -67,6 +67,9 @@ def _certify_static(results: RunResults, ch: str, c: RigConstants) -> None:
     bias = _evaluated(bias_measurand(results, ch, c))
     if bias is not None and a.bias is not None:
         certify(a.bias[ch], bias)
+        for setpoint in a.bias[ch].setpoints:  # each set-point certified like the headline
+            if (evaluated := _evaluated(bias_measurand(results, ch, c, setpoint))):
+                certify(setpoint, evaluated)
     g_sens = _evaluated(g_sensitivity_measurand(results, ch, c, scale_rel))
     if g_sens is not None and a.bias is not None:
         entry = a.bias[ch]

@@ -25,7 +25,7 @@ from aatest.engine.uncertainty.evidence import Evidence, gather
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
 from aatest.engine.uncertainty.statistics import PAIR, ci_std, finite, finite_values
 from aatest.results import RunResults
-from aatest.results.bias import BiasChannel, MountingBias
+from aatest.results.bias import BiasChannel, BiasSetpoint, MountingBias
 from aatest.results.scale_factor import ScaleFactorChannel
 from aatest.results.temperature import TemperatureChannel
 
@@ -352,22 +352,27 @@ def _bias_tc_note(results: RunResults, channel: str) -> tuple[float, str]:
     return tc, f"datasheet limit bias TC {tc * 1e3:.2f} mV/°C"
 
 
-def _static_steps(results: RunResults) -> list[str]:
-    return [s.id for s in results.steps_of_kind("static")]
+def _static_steps(results: RunResults, temperature_c: float | None = None) -> list[str]:
+    """The static steps (at one chamber set-point when ``temperature_c`` is given)."""
+    return [s.id for s in results.steps_of_kind("static")
+            if temperature_c is None or s.temperature_c == temperature_c]
 
 
-def bias_measurand(results: RunResults, channel: str, c: RigConstants) -> Measurand | None:
+def bias_measurand(results: RunResults, channel: str, c: RigConstants,
+                   setpoint: BiasSetpoint | None = None) -> Measurand | None:
     """b = (b̂ − e_off − e_res)/(1 + e_gain) + e_noise + e_temp + e_rep  [V].
 
     b̂ = (A+ + A−)/2 cancels the g-sensitivity and table tilt; the logger's offset and gain
     accuracy and its resolution enter in full (a gain error scales the whole ≈2.5 V reading).
+    ``setpoint`` is the bias at one chamber set-point (default: the headline).
     """
-    entry = _bias_entry(results, channel)
+    entry = setpoint if setpoint is not None else _bias_entry(results, channel)
     b_hat = finite(entry.bias_v) if entry is not None else None
     if entry is None or b_hat is None:
         return None
     tc, tc_note = _bias_tc_note(results, channel)
-    temp_input, at_temperature = comp.temperature(c, _static_steps(results), tc, tc_note, "V")
+    steps = _static_steps(results, getattr(entry, "temperature_c", None))  # its set-point's
+    temp_input, at_temperature = comp.temperature(c, steps, tc, tc_note, "V")
     inputs = [
         *_static_statistics(results, entry, channel, c,
                             _StaticQuantity(_bias_of, entry.bias_u_v, 1.0, "V")),
