@@ -149,7 +149,7 @@ def validate(
     steps = prepared.plan.steps
     recorded = sum(1 for s in steps if s.recorded)
     typer.echo(
-        f"{procedure}: OK — {recorded} recorded step{'s' * (recorded != 1)}"
+        f"{procedure}: OK — {recorded} step{'s' * (recorded != 1)}"
         + (f" (+ {len(steps) - recorded} chamber set-point changes)" if recorded < len(steps)
            else "")
         + f", lab duration {prepared.plan.lab_duration_s:.1f} s"
@@ -213,8 +213,7 @@ def run(
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
         )
     typer.echo(
-        f"run complete: {run_dir} — {len(results.steps)} recorded "
-        f"step{'s' * (len(results.steps) != 1)}, "
+        f"run complete: {run_dir} — {len(results.steps)} step{'s' * (len(results.steps) != 1)}, "
         f"lab {results.lab_duration_s:.1f} s, "
         f"wall {results.wall_duration_s:.1f} s"
     )

@@ -105,7 +105,7 @@ def test_set_points_without_a_chamber_are_refused_at_the_step(tmp_path: Path) ->
     ok = RUNNER.invoke(app, ["validate", str(_write(tmp_path, NO_CHAMBER.replace(
         "chamber: none", "chamber: sim")))])
     assert ok.exit_code == 0, ok.output
-    assert "3 recorded steps (+ 3 chamber set-point changes)" in ok.output
+    assert "3 steps (+ 3 chamber set-point changes)" in ok.output
 
 
 def test_validate_prints_the_steps_each_analysis_uses(tmp_path: Path) -> None:

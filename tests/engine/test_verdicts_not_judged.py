@@ -95,3 +95,18 @@ def test_the_default_run_keeps_its_verdicts() -> None:
     judged = decided(copy.deepcopy(raw))
     assert judged.verdicts and all(v.verdict != "not judged" for v in judged.verdicts)
     assert {v.limit_source for v in judged.verdicts} == {"datasheet"}
+
+
+def test_one_level_with_a_straight_line_does_not_pass_a_nonlinearity_limit() -> None:
+    """Issue 32: a straight line chosen on one level has a non-linearity of 0 by construction
+    (4.8e-15 % passed a 0.1 % limit); asked for by the procedure, it is not judged."""
+    raw = make_results()
+    del raw["analysis"]["misalignment"]
+    for entry in raw["analysis"]["scale_factor"].values():
+        entry["order"], entry["nonlinearity_pct_fr"] = 1, 4.8e-15
+    acceptance = Acceptance.model_validate({"limits": {"nonlinearity_pct_fr": 0.1}})
+    judged = _judged(RunResults.model_validate(raw), acceptance, ["sync", "scale_factor"])
+    rows = [v for v in judged.verdicts if v.quantity == "nonlinearity_pct_fr"]
+    assert rows and all(v.verdict == "not judged" and v.value is None for v in rows)
+    assert "one acceleration level" in rows[0].reason and judged.overall == "incomplete"
+    assert failed(judged)

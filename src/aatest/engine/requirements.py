@@ -93,8 +93,14 @@ def requirements_of(cls: object) -> tuple[Requirement, ...] | None:
 
 
 def judges_of(cls: object) -> tuple[str, ...]:
-    """The acceptance quantities an analysis class declares it produces."""
+    """The acceptance quantities an analysis class declares it produces (judged when listed)."""
     return tuple(getattr(cls, "judges", ()))
+
+
+def measures_of(cls: object) -> tuple[str, ...]:
+    """Everything it can produce: ``judges`` and ``also_measures`` (measured when the data
+    allow, judged when produced or asked for)."""
+    return judges_of(cls) + tuple(getattr(cls, "also_measures", ()))
 
 
 def check_plan(analyses: Mapping[str, object], view: PlanView) -> Coverage:

@@ -77,7 +77,7 @@ def usage_lines(coverage: Coverage) -> list[str]:
 def requirements_markdown() -> str:
     """The requirements table of docs/interfaces.md, from the built-in analyses' declarations
     (a test checks the document holds exactly this)."""
-    from aatest.engine.requirements import judges_of, requirements_of
+    from aatest.engine.requirements import judges_of, measures_of, requirements_of
 
     rows = ["| analysis | needs (checked by `validate`) | judges |", "|---|---|---|"]
     for name in sorted(plugins.installed_names()):
@@ -90,5 +90,7 @@ def requirements_markdown() -> str:
         declared = requirements_of(plugin.cls)
         needs = "; ".join(r.need for r in declared) if declared is not None else "not declared"
         judged = ", ".join(f"`{q}`" for q in judges_of(plugin.cls)) or "—"
+        extra = [q for q in measures_of(plugin.cls) if q not in judges_of(plugin.cls)]
+        judged += "".join(f"; `{q}` where measured" for q in extra)
         rows.append(f"| `{name}` | {needs} | {judged} |")
     return "\n".join(rows) + "\n"

@@ -20,7 +20,7 @@ from aatest.engine.analysis.verdicts_limits import JUDGED, QUANTITY_UNITS, limit
 from aatest.engine.errors import InputError, PluginError
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.requirements import judges_of, needs_text
+from aatest.engine.requirements import judges_of, measures_of, needs_text
 from aatest.results import RunResults
 from aatest.results.base import Verdict
 
@@ -89,11 +89,11 @@ def _installed() -> list[tuple[str, Any]]:
 
 def _reason(quantity: str, channel: str, results: RunResults, listed: Sequence[Listed]) -> str:
     """Why ``quantity`` has no value: the producing analysis' state and what it needs."""
-    producer = next((item for item in listed if quantity in judges_of(item.cls)), None)
+    producer = next((item for item in listed if quantity in measures_of(item.cls)), None)
     if producer is None:
         names = ", ".join(item.name for item in listed) or "none"
         hint = next((f"; the analysis '{name}' does" for name, cls in _installed()
-                     if quantity in judges_of(cls)), "")
+                     if quantity in measures_of(cls)), "")
         return f"no listed analysis produces it (listed: {names}){hint}"
     needs = needs_text(producer.cls)
     if producer.name in results.analysis_errors:

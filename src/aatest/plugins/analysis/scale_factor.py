@@ -248,7 +248,11 @@ class ScaleFactorAnalysis:
     #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
     requirements: ClassVar[tuple[Requirement, ...]] = needs.SCALE_FACTOR
     #: the acceptance quantities it produces (judged when it is listed)
-    judges: ClassVar[tuple[str, ...]] = ("scale_factor_deviation_pct", "nonlinearity_pct_fr")
+    #: (the non-linearity is judged where it is measured — two or more levels, or a curved
+    #: model — and asked for by a procedure limit or ``judge``; one level resolves none)
+    judges: ClassVar[tuple[str, ...]] = ("scale_factor_deviation_pct",)
+    #: what it measures when the data allow, judged only when produced or asked for
+    also_measures: ClassVar[tuple[str, ...]] = ("nonlinearity_pct_fr",)
     Options: ClassVar[type[ScaleFactorOptions]] = ScaleFactorOptions
     Result: ClassVar[type[ScaleFactorResult]] = ScaleFactorResult
 
