@@ -68,7 +68,8 @@ WIDE: tuple[tuple[str, float, float, str], ...] = (
 
 #: keys added to results.json since the references were written (additions are allowed by the
 #: interface, docs/interfaces.md §1): present now, absent in the reference, not a difference
-ADDED = re.compile(r"^verdicts\[\d+\]\.(limit_source|reason)$")
+ADDED = re.compile(r"^(verdicts\[\d+\]\.(limit_source|reason)"
+                   r"|analysis\.bias\.[^.]+\.(setpoints|temperature_c))$")
 
 
 def comparable(document: dict[str, Any]) -> dict[str, Any]:
