@@ -40,6 +40,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from aatest.engine.dataset import Dataset
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
+from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep, SensorRef
 from aatest.results import RunResults
 
@@ -49,9 +50,9 @@ if TYPE_CHECKING:
 # The public names; SensorDatasheet is re-exported (sensor plugins return it).
 __all__ = [
     "GROUPS", "Analysis", "AnalysisContext", "AnalysisOutput", "AxisLimits", "AxisName",
-    "Chamber", "Daq", "NoOptions", "PdfRenderer", "Reporter", "RigContext", "SensorDatasheet",
-    "SensorPlugin", "SharedResources", "TableCapabilities", "TableEnvelope", "Turntable",
-    "daq_refusal", "table_capabilities",
+    "Chamber", "Daq", "DeclaresNeeds", "NoOptions", "PdfRenderer", "Reporter", "RigContext",
+    "SensorDatasheet", "SensorPlugin", "SharedResources", "TableCapabilities", "TableEnvelope",
+    "Turntable", "daq_refusal", "table_capabilities",
 ]
 
 #: entry-point group per plugin kind
@@ -383,6 +384,9 @@ class Analysis(Protocol):
     (the engine runs them first); ``Options`` is a frozen pydantic model with a default for every
     field (extra="forbid"), filled from the procedure's ``analysis: [{name: {options}}]``;
     ``Result`` is the type of ``AnalysisOutput.result`` (a pydantic model).
+
+    An analysis should also declare what it needs and what it judges (:class:`DeclaresNeeds`);
+    one without a declaration is not checked by ``validate``.
     """
 
     key: ClassVar[str]
@@ -400,6 +404,21 @@ class Analysis(Protocol):
         and any SVG figures; it must not read anything but ``data`` and ``context``, so the
         result of a recording is the same whichever other analyses ran.
         """
+
+
+class DeclaresNeeds(Protocol):
+    """The optional part of the analysis contract: what the plan must hold, and what is judged.
+
+    ``requirements`` (:class:`aatest.engine.requirements.Requirement`) are checked against the
+    expanded plan by ``aatest validate`` and before ``aatest run`` moves anything: an unmet one
+    is refused at the analysis entry's (or the step's) FILE:LINE:COLUMN, exit 2.
+    ``judges`` names the acceptance quantities the analysis produces: listed in a procedure,
+    each is judged (datasheet limit unless the procedure sets one) or ``not judged``.
+    docs/interfaces.md lists every built-in analysis' requirements from these declarations.
+    """
+
+    requirements: ClassVar[tuple[Requirement, ...]]
+    judges: ClassVar[tuple[str, ...]]
 
 
 @runtime_checkable

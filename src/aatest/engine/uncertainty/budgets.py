@@ -73,9 +73,15 @@ def _certify_static(results: RunResults, ch: str, c: RigConstants) -> None:
     if scale is not None and a.scale_factor is not None:
         certify(a.scale_factor[ch], scale)
         scale_rel = scale.standard_uncertainty / abs(scale.value) if scale.value else None
+        for level in a.scale_factor[ch].levels:  # each level certified like the headline
+            if (evaluated := _evaluated(scale_factor_measurand(results, ch, c, level), results)):
+                certify(level, evaluated)
     bias = _evaluated(bias_measurand(results, ch, c), results)
     if bias is not None and a.bias is not None:
         certify(a.bias[ch], bias)
+        for setpoint in a.bias[ch].setpoints:  # each set-point certified like the headline
+            if (evaluated := _evaluated(bias_measurand(results, ch, c, setpoint), results)):
+                certify(setpoint, evaluated)
     g_sens = _evaluated(g_sensitivity_measurand(results, ch, c, scale_rel), results)
     if g_sens is not None and a.bias is not None:
         entry = a.bias[ch]

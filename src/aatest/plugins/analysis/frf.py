@@ -28,6 +28,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
     INPUT_ACCEL_CHANNELS,
     group_of,
@@ -394,6 +396,10 @@ class FrfAnalysis:
     #: procedure names of sub-results this plugin computes (``analysis: [thd, snr]``)
     aliases: ClassVar[tuple[str, ...]] = ("thd", "snr")
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.SINE
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ()
     Options: ClassVar[type[FrfOptions]] = FrfOptions
     Result: ClassVar[type[FrfResult]] = FrfResult
 

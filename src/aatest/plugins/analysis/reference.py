@@ -34,6 +34,8 @@ from scipy import signal
 
 from aatest.engine.dataset import Dataset
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import fundamental, options_of, steps_of
 from aatest.results.reference import ReferenceResult
 from aatest.results.scale_factor import ReferenceChoice
@@ -212,6 +214,10 @@ class ReferenceAnalysis:
 
     key: ClassVar[str] = "reference"
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.SINE
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ()
     Options: ClassVar[type[ReferenceOptions]] = ReferenceOptions
     Result: ClassVar[type[ReferenceResult]] = ReferenceResult
 
