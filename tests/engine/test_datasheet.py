@@ -22,7 +22,9 @@ from aatest.engine.steps import SensorRef
 
 ROOT = Path(__file__).parents[2]
 SRC = ROOT / "src" / "aatest"
-DATASHEET_MODULE = SRC / "engine" / "datasheet.py"
+# the reference sensor's numbers live with the per-channel sensor record (aatest.results.sensor;
+# engine.datasheet re-exports them), so the typed results need not import the engine
+DATASHEET_MODULE = SRC / "results" / "sensor.py"
 #: the reference sensor's datasheet numbers, as literals (range ±10 rad/s², 0.23 V/(rad/s²))
 REFERENCE_LITERALS = re.compile(r"(?<![\d.])(572\.958|0\.004014|4\.014e-3)(?!\d)")
 

@@ -7,7 +7,6 @@ a report that cannot print one instead of leaving the PDF out silently.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -28,9 +27,9 @@ class _HtmlOnly:
     def __init__(self, config: Any = None) -> None:
         self.config = config
 
-    def render(self, results: Mapping[str, Any], run_dir: Path, template_dir: Path | None) -> Path:
+    def render(self, results: RunResults, run_dir: Path, template_dir: Path | None) -> Path:
         path = run_dir / "report.html"
-        path.write_text(f"<p>{results['procedure']}</p>", encoding="utf-8")
+        path.write_text(f"<p>{results.procedure}</p>", encoding="utf-8")
         return path
 
 

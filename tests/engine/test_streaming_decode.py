@@ -103,12 +103,13 @@ def test_certificate_temperature_summary_equals_the_whole_temperature_record() -
     """The certificate's min/mean/max, accumulated step by step from partial decodes, is the
     summary of every temperature sample of the recording decoded whole."""
     from aatest.plugins.report.certificate import environment
+    from aatest.results import RunResults
 
     recording = Path(__file__).parent / "data" / "streaming" / "recording.mcap"
     every = np.concatenate([log[name] for s in read_dataset(recording).steps
                             for log in (s.daq, s.table) for name in log.channels
                             if name.startswith("temperature")])
-    got = environment({"metadata": {}}, recording)
+    got = environment(RunResults(procedure="streaming"), recording)
     assert got.samples == every.size > 0 and got.source == str(recording)
     assert (got.min_c, got.max_c) == (every.min(), every.max())
     assert got.mean_c == pytest.approx(every.mean(), rel=1e-12)
