@@ -9,6 +9,7 @@ when the import accepts them, analysed and summarised for the certificate exactl
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -47,7 +48,7 @@ def analyse(directory: Path, out: Path) -> dict[str, Any]:
     results = decide(build_results(data, analysis, 0.0, 0.0), data)
     doc = results_json(results)
     out.mkdir(parents=True, exist_ok=True)
-    CERTIFICATE.context(doc, out)
+    CERTIFICATE.context(results, out)
     return doc
 
 
@@ -164,10 +165,15 @@ def test_impossible_temperature_is_located(tmp_path: Path) -> None:
 
 def test_null_budget_contribution_leaves_shares_unstated() -> None:
     from aatest.plugins.report.stated import _budget
+    from aatest.results import BudgetRow
 
-    view = _budget("x", "dB", 1.0, 0.1, 2.0, [{"contribution": None}, {"contribution": 0.1}])
+    def row(contribution: float) -> BudgetRow:
+        return BudgetRow(name="x", label="x", value=0.0, standard_uncertainty=contribution,
+                         contribution=contribution)
+
+    view = _budget("x", "dB", 1.0, 0.1, 2.0, [row(math.inf), row(0.1)])  # an overflow upstream
     assert [r["share_pct"] for r in view["rows"]] == [None, None]
-    view = _budget("x", "dB", 1.0, 0.1, 2.0, [{"contribution": 0.3}, {"contribution": 0.4}])
+    view = _budget("x", "dB", 1.0, 0.1, 2.0, [row(0.3), row(0.4)])
     # 0.09 / 0.25 and 0.16 / 0.25 of Σu², exact up to rounding of the float squares
     assert [r["share_pct"] for r in view["rows"]] == pytest.approx([36.0, 64.0], rel=1e-12)
 

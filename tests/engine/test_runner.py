@@ -97,6 +97,12 @@ class _Recorder:
     def write_step(self, step: PlannedStep, table: SampledLog, daq: SampledLog) -> None:
         self.written.append(step.id)
 
+    #: the run metadata the runner reads and amends (the simulated parts of the rig)
+    run_metadata: dict[str, object] = {}  # noqa: RUF012 - read only; amend returns a copy
+
+    def amend_run_metadata(self, extra: dict[str, object]) -> None:
+        self.run_metadata = {**self.run_metadata, **extra}
+
 
 def _plan() -> Plan:
     steps = (
@@ -106,7 +112,7 @@ def _plan() -> Plan:
         PlannedStep(id="c2", kind="chamber", temperature_c=20.0, soak_s=300.0),
         PlannedStep(id="c", kind="static", temperature_c=20.0, duration_s=1.0),
     )
-    return Plan(procedure="t", sensor=SensorRef(model="m"), steps=steps)
+    return Plan(procedure="t", sensor=SensorRef(model="m", serial="T1"), steps=steps)
 
 
 def _rig(log: _Log, fail_on: str | None = None) -> Rig:

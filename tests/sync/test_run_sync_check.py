@@ -77,10 +77,17 @@ class _Recorder:
     def write_step(self, step: PlannedStep, table: SampledLog, daq: SampledLog) -> None:
         self.written.append(step.id)
 
+    #: the run metadata the runner reads and amends (the simulated parts of the rig)
+    run_metadata: dict[str, object] = {}  # noqa: RUF012 - read only; amend returns a copy
+
+    def amend_run_metadata(self, extra: dict[str, object]) -> None:
+        self.run_metadata = {**self.run_metadata, **extra}
+
 
 def test_a_step_that_cannot_be_synchronised_stops_the_run_there(tmp_path: Path) -> None:
     steps = tuple(sine_step(f"s{i}", 4, 100.0) for i in range(1, 4))
-    plan = Plan(procedure="t", sensor=SensorRef(model="m"), steps=steps, analysis=["sync"])
+    plan = Plan(procedure="t", sensor=SensorRef(model="m", serial="T1"), steps=steps,
+                analysis=["sync"])
     calls: list[str] = []
     fake = _Rig(calls, bad="s2")
     sheet = SensorDatasheet(model="m")

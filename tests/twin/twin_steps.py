@@ -59,6 +59,7 @@ def model_from_yaml(tmp_path: Path, base: RigModel, *, sensor: dict | None = Non
     doc["daq"].update(daq or {})
     path = tmp_path / "model.yaml"
     yaml = YAML(typ="safe", pure=True)
+    yaml.representer.ignore_aliases = lambda *_args: True  # aatest refuses YAML aliases
     with path.open("w", encoding="utf-8") as fh:
         yaml.dump(doc, fh)
     return load_rig_model(path)

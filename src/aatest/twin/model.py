@@ -437,6 +437,9 @@ def dump_rig_model(model: RigModel, path: str | Path) -> None:
 
     yaml = YAML(typ="safe", pure=True)
     yaml.default_flow_style = False
+    # an object shared by two places (the same effect on both axes) is written out twice, not
+    # as an anchor and alias: every YAML aatest reads refuses aliases (unbounded expansion)
+    yaml.representer.ignore_aliases = lambda *_args: True
     with Path(path).open("w", encoding="utf-8") as fh:
         yaml.dump(model_document(model), fh)
 

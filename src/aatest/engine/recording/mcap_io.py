@@ -152,7 +152,8 @@ class ChunkedWriter:
         """Compress ready-made ``Message`` records of one channel, all of one size, into a chunk.
 
         ``data`` is the records' bytes back to back (e.g. :mod:`.preview` builds them as one
-        NumPy array), ``log_times_ns`` their log times; the message index is built at once too.
+        NumPy array), ``log_times_ns`` their log times in ns; the message index is built at
+        once too.
         """
         count = len(log_times_ns)
         if count == 0:

@@ -82,7 +82,10 @@ def previewed_channels(log: SampledLog) -> list[str]:
 
 
 def window_samples(sample_rate_hz: float) -> int:
-    """Samples per window: ``round(WINDOW_S · rate)``, at least 1 (slow loggers: every sample)."""
+    """Samples per window: ``round(WINDOW_S · rate)``, at least 1 (slow loggers: every sample).
+
+    ``sample_rate_hz`` is the logger's rate in Hz.
+    """
     return max(1, round(WINDOW_S * float(sample_rate_hz)))
 
 
@@ -100,6 +103,7 @@ class Layout:
 
     @property
     def message_name(self) -> str:
+        """Full protobuf name of the logger's preview message (``aatest.preview.v1.Table``)."""
         return f"{PACKAGE}.{self.source.capitalize()}"
 
     @property
@@ -109,6 +113,8 @@ class Layout:
 
     @property
     def channel_id(self) -> int:
+        """MCAP channel id: a stable slot from the logger and its channel list, odd for the
+        DAQ and even for the table, above the exact blocks' channel ids."""
         key = json.dumps([self.source, self.channels]).encode("utf-8")
         slot = zlib.crc32(key) % _ID_SLOTS
         return FIRST_CHANNEL_ID + 2 * slot + (0 if self.source == TABLE else 1)
@@ -130,6 +136,7 @@ class Layout:
         return descriptor_set.SerializeToString(deterministic=True)
 
     def mcap_channel(self, schema_id: int) -> Channel:
+        """The MCAP channel record: topic, protobuf encoding, and units in its metadata."""
         units = {"time_s": "s"} | {
             _field_name(c, s): unit for c, unit in zip(self.channels, self.units, strict=True)
             for s in STATISTICS}
@@ -141,6 +148,7 @@ class Layout:
                        })
 
     def mcap_schema(self, schema_id: int) -> Schema:
+        """The MCAP schema record: the message's ``FileDescriptorSet`` (encoding protobuf)."""
         return Schema(id=schema_id, name=self.message_name, encoding="protobuf",
                       data=self.schema_data())
 
@@ -188,7 +196,10 @@ def windows(log: SampledLog, layout: Layout, per_window: int) -> Windows:
 
 def message_records(layout: Layout, step_index: int, stats: Windows, log_times_ns: np.ndarray,
                     first_sequence: int) -> bytes:
-    """The MCAP ``Message`` records of a run of windows, as one byte string (a chunk's data)."""
+    """The MCAP ``Message`` records of a run of windows, as one byte string (a chunk's data).
+
+    ``log_times_ns`` are the windows' log times in ns on the run's UTC time line.
+    """
     dtype = layout.record_dtype()
     records = np.zeros(len(stats.time_s), dtype=dtype)
     records["opcode"] = _OPCODE_MESSAGE
@@ -208,7 +219,11 @@ def message_records(layout: Layout, step_index: int, stats: Windows, log_times_n
 
 
 def log_times_ns(time_s: np.ndarray, start_ns: int, floor_ns: int) -> np.ndarray:
-    """Log time of each window: ``start_ns`` + its first sample's time, never below ``floor_ns``."""
+    """Log time of each window: ``start_ns`` + its first sample's time, never below ``floor_ns``.
+
+    ``time_s`` are the windows' first-sample times in s on the logger's clock; ``start_ns``
+    (the run's start) and ``floor_ns`` are in ns; the log times returned are in ns.
+    """
     times = start_ns + np.round(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64)
     return np.maximum(times, floor_ns).astype(np.uint64)
 

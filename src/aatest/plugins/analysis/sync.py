@@ -354,6 +354,12 @@ class SyncAnalysis:
     #: the acceptance quantities it produces (judged when it is listed)
     judges: ClassVar[tuple[str, ...]] = ()
     Options: ClassVar[type[NoOptions]] = NoOptions
+
+    @staticmethod
+    def check_step(step: StepData) -> None:
+        """The run's check of one step as it is recorded: its clock relation can be fitted
+        (pulses, trigger and time stamps only), else :class:`AnalysisError`."""
+        clock_relation(step)
     Result: ClassVar[type[SyncResult]] = SyncResult
 
     def applies_to(self, data: Dataset) -> bool:
