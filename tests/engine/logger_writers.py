@@ -15,6 +15,7 @@ import numpy as np
 from asammdf import MDF, Signal
 from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
 from ruamel.yaml import YAML
+from tolerances import leaves
 
 from aatest.engine.dataset import Dataset
 
@@ -158,20 +159,9 @@ def write_mf4(dataset: Dataset, manifest: dict[str, Any], out: Path,
     return out / "mapping.yaml"
 
 
-def _leaves(node: Any, path: str = "") -> Any:
-    if isinstance(node, dict):
-        for key, value in node.items():
-            yield from _leaves(value, f"{path}/{key}")
-    elif isinstance(node, list):
-        for i, value in enumerate(node):
-            yield from _leaves(value, f"{path}/{i}")
-    else:
-        yield path, node
-
-
 def assert_close_tree(expected: Any, got: Any, rtol: float, atol: float) -> int:
     """Same keys and strings, floats within ``rtol``/``atol``; returns the leaves compared."""
-    want, have = dict(_leaves(expected)), dict(_leaves(got))
+    want, have = dict(leaves(expected)), dict(leaves(got))
     assert set(have) == set(want)
     for key, value in want.items():
         if isinstance(value, float) and isinstance(have[key], (int, float)):
