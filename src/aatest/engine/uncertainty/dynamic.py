@@ -226,7 +226,8 @@ def _sync_offset_s(results: RunResults, point: FrfPoint) -> tuple[float, str]:
                 f"T/√12/√N: both loggers sample on one grid, so the edges' "
                 f"quantisation errors are not independent)")
         if stated is not None and stated < LATCHED_OFFSET_U_S:
-            return stated, "measured: sync analysis offset_u_s of this record"
+            return stated, ("measured: the clock alignment's own standard uncertainty, from the "
+                            "freeze-pulse latch times of this record")
     return u, note
 
 
