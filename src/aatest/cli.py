@@ -244,14 +244,21 @@ def validate(
     rig: Path | None = _RIG_OPT,
 ) -> None:
     """Check a procedure against its schema and the rig envelope; nothing moves."""
+    from aatest.engine.analysis.coverage import usage_lines
     from aatest.engine.run.session import prepare
 
     prepared = prepare(procedure, rig)
+    steps = prepared.plan.steps
+    recorded = sum(1 for s in steps if s.recorded)
     typer.echo(
-        f"{procedure}: OK — {len(prepared.plan.steps)} steps, "
-        f"lab duration {prepared.plan.lab_duration_s:.1f} s"
+        f"{procedure}: OK — {recorded} step{'s' * (recorded != 1)}"
+        + (f" (+ {len(steps) - recorded} chamber set-point changes)" if recorded < len(steps)
+           else "")
+        + f", lab duration {prepared.plan.lab_duration_s:.1f} s"
     )
     for line in prepared.expansion.skipped_lines():  # nothing disappears silently
+        typer.echo(line)
+    for line in usage_lines(prepared.coverage):
         typer.echo(line)
 
 
@@ -391,8 +398,10 @@ def _exit_on_outcome(results: RunResults) -> None:
 
     if failed(results):
         for v in results.verdicts:
-            if v.verdict != "pass":
-                q = quantity(v.quantity)
+            q = quantity(v.quantity)
+            if v.verdict == "not judged":
+                typer.echo(f"not judged: {q.name}, {v.channel}: {v.reason}", err=True)
+            elif v.verdict != "pass":
                 typer.echo(f"{v.verdict}: {q.name}, {v.channel}: {q.show(v.value)} vs limit "
                            f"±{q.show(v.limit)} ({v.rule} decision rule)", err=True)
         raise typer.Exit(EXIT_FINDING)
@@ -583,10 +592,18 @@ def verify(
 def schema(
     results: bool = typer.Option(False, "--results/--no-results",
                                  help="The schema of results.json instead"),
+    install: Path | None = typer.Option(
+        None, "--install", help="Write both schemas into this directory (for editors) and "
+        "print the modeline a procedure's first line takes"),
 ) -> None:
     """Print the procedure JSON Schema (for editors), or with --results that of results.json."""
-    from aatest.engine.procedure.schema_export import render
+    from aatest.engine.procedure.schema_export import install_schemas, render
 
+    if install is not None:
+        procedure_schema = install_schemas(install)
+        typer.echo(f"wrote {procedure_schema} and results.schema.json; first line of a "
+                   f"procedure:\n# yaml-language-server: $schema={procedure_schema}")
+        return
     typer.echo(render(results), nl=False)
 
 

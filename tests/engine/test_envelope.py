@@ -163,7 +163,7 @@ def test_measured_case_with_skip_names_the_group_that_is_entirely_outside(
     result = CliRunner().invoke(app, ["validate", str(path)])
     assert result.exit_code == EXIT_BAD_INPUT
     assert result.output.startswith(
-        f"error: {path}:27:40: steps.0.sine_sweep.accelerations_dps2.3: every one of the 28 "
+        f"error: {path}:28:40: steps.0.sine_sweep.accelerations_dps2.3: every one of the 28 "
         "points of this group lies outside the envelope"), result.output
 
 
@@ -174,8 +174,8 @@ def test_measured_case_without_skip_gives_one_problem_per_offending_element(
     assert result.exit_code == EXIT_BAD_INPUT
     lines = result.output.splitlines()
     assert [line.split(": ")[0:2] for line in lines] == [
-        [f"{path}:26:24", "steps.0.sine_sweep.amplitudes_deg.0"],
-        [f"{path}:27:40", "steps.0.sine_sweep.accelerations_dps2.3"]]
+        [f"{path}:27:24", "steps.0.sine_sweep.amplitudes_deg.0"],
+        [f"{path}:28:40", "steps.0.sine_sweep.accelerations_dps2.3"]]
     assert "4 steps from this entry" in lines[0] and "4 × [sensor.test_ceiling_dps2]" in lines[0]
     assert "28 steps from this entry" in lines[1] and "28 × [inner.accel_dps2]" in lines[1]
     assert "28 × [sensor.test_ceiling_dps2]" in lines[1]
@@ -187,9 +187,9 @@ def test_validate_and_plan_list_the_skipped_points_with_their_limit() -> None:
     lines = result.output.splitlines()
     assert lines[0].endswith("OK — 136 steps, lab duration 9592.9 s")
     assert lines[1] == "skipped 4 point(s) outside the envelope (skip_outside_envelope: true):"
-    assert len(lines) == 6
+    assert lines[6] == "analyses and the steps each will use:"
     assert all(line.startswith("  sine-inner-") and line.endswith("[sensor.test_ceiling_dps2]")
-               for line in lines[2:])
+               for line in lines[2:6])
     result = CliRunner().invoke(app, ["plan", "--json", str(STEPPED_SINE)])
     skipped = json.loads(result.output)["skipped"]
     assert [s["limits"] for s in skipped] == [["sensor.test_ceiling_dps2"]] * 4

@@ -36,8 +36,10 @@ def test_wrong_types_are_all_reported_with_positions() -> None:
     path = DATA / "broken-wrong-type.yaml"
     problems = _problems(path)
     assert problems == [
-        f"{path}:3:12: sampling.rate_hz: Input should be a valid number",
-        f"{path}:5:44: steps.0.sine.accel_dps2: Input should be a valid number",
+        f"{path}:3:12: sampling.rate_hz: Input should be a valid number (got 'fast'; expected "
+        "a number in Hz, e.g. 1000)",
+        f"{path}:5:44: steps.0.sine.accel_dps2: Input should be a valid number (got '400'; "
+        "expected a number in °/s², e.g. 400)",
     ]
 
 

@@ -18,9 +18,16 @@ SHIPPED = Path(__file__).resolve().parents[2] / "src/aatest/procedures/scale-fac
 RUNNER = CliRunner()
 
 
+def _base() -> str:
+    """The shipped procedure without its ``acceptance`` (and the comment above it)."""
+    text = SHIPPED.read_text(encoding="utf-8")
+    head, _sep, tail = text.partition("# one acceleration level")
+    return head + tail[tail.index("acceptance:"):].split("\n", 1)[1]
+
+
 def _procedure(tmp_path: Path, acceptance: str) -> Path:
     path = tmp_path / "scale-factor.yaml"
-    path.write_text(SHIPPED.read_text(encoding="utf-8") + acceptance, encoding="utf-8")
+    path.write_text(_base() + acceptance, encoding="utf-8")
     return path
 
 
@@ -78,6 +85,7 @@ def test_guarded_value_within_u_is_conditional(tmp_path: Path,
     verdict = _scale_verdict(default_run[2])
     limit = abs(verdict["value"]) + verdict["expanded_uncertainty"] / 2
     procedure = _procedure(tmp_path, "acceptance:\n  rule: guarded\n"
+                                     "  judge: [scale_factor_deviation_pct]\n"
                                      f"  limits: {{scale_factor_deviation_pct: {limit!r}}}\n")
     code, results = _run(procedure, tmp_path / "run")
     guarded = _scale_verdict(results)
@@ -90,7 +98,7 @@ def test_unknown_limit_is_a_located_error(tmp_path: Path) -> None:
     procedure = _procedure(tmp_path, "acceptance:\n  limits: {scale_factor_deviaton_pct: 1}\n")
     done = RUNNER.invoke(app, ["run", str(procedure), "--out", str(tmp_path / "run")])
     assert done.exit_code == 2
-    lines = len(SHIPPED.read_text(encoding="utf-8").splitlines())
+    lines = len(_base().splitlines())
     where = f"{procedure}:{lines + 2}:12: acceptance.limits.scale_factor_deviaton_pct:"
     assert where in done.output
 

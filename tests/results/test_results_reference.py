@@ -11,7 +11,7 @@ stage's).
 
 Regenerate (only when a change of results is intended, and say so in the commit)::
 
-    python tests/results/test_results_reference.py OUT_DIR   # after running the six variants
+    python tests/results/test_results_reference.py OUT_DIR [NAME ...]   # after running them
 """
 
 from __future__ import annotations
@@ -76,6 +76,8 @@ ADDITIONS: tuple[tuple[str, str], ...] = (
     (r"metadata\.rig\.capabilities$", "declared capabilities, as recorded with the run"),
     (r"analysis\.sync\.steps\[\d+\]\.(latched|slips_corrected|fit_coverage|"
      r"extrapolation_u_s)$", "sync without latch times and on a partial table log"),
+    (r"^verdicts\[\d+\]\.(limit_source|reason)$", "where a limit came from; why not judged"),
+    (r"^analysis\.bias\.[^.]+\.(setpoints|temperature_c)$", "bias per chamber set-point"),
 )
 
 
@@ -184,10 +186,10 @@ def test_results_json_matches_the_reference(name: str, tmp_path: Path) -> None:
     assert not found, "\n".join(found[:20])
 
 
-def _write_references(runs: Path) -> None:
-    """Write the reference of every procedure from ``runs/<name>/results.json``."""
+def _write_references(runs: Path, names: tuple[str, ...] = PROCEDURES) -> None:
+    """Write the reference of each procedure named from ``runs/<name>/results.json``."""
     REFERENCE.mkdir(exist_ok=True)
-    for name in PROCEDURES:
+    for name in names:
         document = comparable(json.loads((runs / name / "results.json").read_text()))
         text = json.dumps(document, separators=(",", ":"), sort_keys=False)
         with gzip.GzipFile(REFERENCE / f"{name}.json.gz", "wb", mtime=0) as f:
@@ -195,4 +197,4 @@ def _write_references(runs: Path) -> None:
 
 
 if __name__ == "__main__":
-    _write_references(Path(sys.argv[1]))
+    _write_references(Path(sys.argv[1]), tuple(sys.argv[2:]) or PROCEDURES)

@@ -129,7 +129,10 @@ def test_pivot_flips_the_equivalent_misalignment() -> None:
              for ax in ("inner", "outer")}
     perfect_mount = real.unit.model_copy(update={"sensor_remount_sigma_deg": 0.0,
                                                  "block_remount_sigma_deg": 0.0})
-    model = real.model_copy(update={"sensors": sensors, "unit": perfect_mount,
+    # without noise to dither it, the logger's 305 µV step (16 bit over ±10 V) would swallow the
+    # 1.2e-4 V cross response: a 32-bit converter checks the geometry, not the quantiser
+    fine_adc = real.daq.model_copy(update={"adc_bits": 32})
+    model = real.model_copy(update={"sensors": sensors, "unit": perfect_mount, "daq": fine_adc,
                                     "table": real.table.model_copy(update=quiet)})
     world = World(model, seed=49)
     base = sine_step(1.0, 100.0, samples=8192, axis="outer")

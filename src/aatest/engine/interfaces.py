@@ -24,22 +24,35 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Generic, Literal, Protocol, TypeVar, runtime_checkable
+from typing import (
+    TYPE_CHECKING,
+    Any,
+    ClassVar,
+    Generic,
+    Literal,
+    Protocol,
+    TypeVar,
+    runtime_checkable,
+)
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from aatest.engine.dataset import Dataset
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
+from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep, SensorRef
 from aatest.results import RunResults
+
+if TYPE_CHECKING:
+    from aatest.engine.procedure.rig_description import Instruments
 
 # The public names; SensorDatasheet is re-exported (sensor plugins return it).
 __all__ = [
     "GROUPS", "Analysis", "AnalysisContext", "AnalysisOutput", "AxisLimits", "AxisName",
-    "Chamber", "Daq", "NoOptions", "PdfRenderer", "Reporter", "RigContext", "SensorDatasheet",
-    "SensorPlugin", "SharedResources", "TableCapabilities", "TableEnvelope", "Turntable",
-    "daq_refusal", "table_capabilities",
+    "Chamber", "Daq", "DeclaresNeeds", "NoOptions", "PdfRenderer", "Reporter", "RigContext",
+    "SensorDatasheet", "SensorPlugin", "SharedResources", "TableCapabilities", "TableEnvelope",
+    "Turntable", "daq_refusal", "table_capabilities",
 ]
 
 #: entry-point group per plugin kind
@@ -165,6 +178,9 @@ class RigContext:
     datasheet: SensorDatasheet
     seed: int = 0
     resources: SharedResources = field(default_factory=SharedResources)
+    #: the rig description's stated instruments, when the rig YAML states them (a simulated
+    #: logger then converts as the stated one does)
+    instruments: Instruments | None = None
 
 
 @runtime_checkable
@@ -368,6 +384,9 @@ class Analysis(Protocol):
     (the engine runs them first); ``Options`` is a frozen pydantic model with a default for every
     field (extra="forbid"), filled from the procedure's ``analysis: [{name: {options}}]``;
     ``Result`` is the type of ``AnalysisOutput.result`` (a pydantic model).
+
+    An analysis should also declare what it needs and what it judges (:class:`DeclaresNeeds`);
+    one without a declaration is not checked by ``validate``.
     """
 
     key: ClassVar[str]
@@ -385,6 +404,21 @@ class Analysis(Protocol):
         and any SVG figures; it must not read anything but ``data`` and ``context``, so the
         result of a recording is the same whichever other analyses ran.
         """
+
+
+class DeclaresNeeds(Protocol):
+    """The optional part of the analysis contract: what the plan must hold, and what is judged.
+
+    ``requirements`` (:class:`aatest.engine.requirements.Requirement`) are checked against the
+    expanded plan by ``aatest validate`` and before ``aatest run`` moves anything: an unmet one
+    is refused at the analysis entry's (or the step's) FILE:LINE:COLUMN, exit 2.
+    ``judges`` names the acceptance quantities the analysis produces: listed in a procedure,
+    each is judged (datasheet limit unless the procedure sets one) or ``not judged``.
+    docs/interfaces.md lists every built-in analysis' requirements from these declarations.
+    """
+
+    requirements: ClassVar[tuple[Requirement, ...]]
+    judges: ClassVar[tuple[str, ...]]
 
 
 @runtime_checkable

@@ -52,9 +52,9 @@ class VerdictRow:
     quantity: str
     name: str
     channel: str
-    value: float
+    value: float | None
     expanded_uncertainty: float | None
-    limit: float
+    limit: float | None
     unit: str
     rule: str
     verdict: str
@@ -113,11 +113,13 @@ def verdict_rows(results: RunResults) -> list[VerdictRow]:
     rows = []
     for v in results.verdicts:
         q = quantity(v.quantity)
+        text = ("not measured" + (f" ({v.reason})" if v.reason else "") if v.value is None
+                else round_measurement(v.value, v.expanded_uncertainty,
+                                       digits=q.digits).text(q.unit))
+        limit_text = "—" if v.limit is None else f"±{q.value_text(v.limit)} {q.unit}".rstrip()
         rows.append(VerdictRow(
             v.quantity, q.name, v.channel, v.value, v.expanded_uncertainty, v.limit, q.unit,
-            v.rule, v.verdict,
-            round_measurement(v.value, v.expanded_uncertainty, digits=q.digits).text(q.unit),
-            f"±{q.value_text(v.limit)} {q.unit}".rstrip()))
+            v.rule, v.verdict, text, limit_text))
     return rows
 
 

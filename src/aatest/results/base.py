@@ -13,10 +13,14 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 #: ILAC-G8 decision rules: plain comparison, guard band = U, or shared risk (U reported only)
 DecisionRule = Literal["simple", "guarded", "shared-risk"]
-#: one verdict; the ``conditional-*`` forms mean the value lies within U of its limit
-VerdictValue = Literal["pass", "fail", "conditional-pass", "conditional-fail"]
-#: the overall verdict of a run: ``none`` when nothing was judged
-Overall = Literal["pass", "fail", "conditional-pass", "conditional-fail", "none"]
+#: one verdict; the ``conditional-*`` forms mean the value lies within U of its limit;
+#: ``not judged``: the procedure asked for the quantity but it was not measured (see ``reason``)
+VerdictValue = Literal["pass", "fail", "conditional-pass", "conditional-fail", "not judged"]
+#: the overall verdict of a run: ``none`` when nothing was judged, ``incomplete`` when something
+#: asked was not judged and nothing failed (never ``pass``: not measured is never passed)
+Overall = Literal["pass", "fail", "conditional-pass", "conditional-fail", "incomplete", "none"]
+#: where a limit came from: the procedure's ``acceptance.limits`` or the sensor's datasheet
+LimitSource = Literal["procedure", "datasheet"]
 
 
 #: the analyses' own pass/fail flags, written before verdicts moved into the engine (schema 1)
@@ -90,11 +94,16 @@ class Certified(ResultModel):
 class Verdict(ResultModel):
     """One judged quantity (docs/interfaces.md §1 ``verdicts``), decided by the engine only."""
 
-    quantity: str = Field(description="e.g. scale_factor_deviation_pct, bias_deviation_v")
+    quantity: str = Field(description="e.g. scale_factor_deviation_pct, bias_deviation_v; an "
+                          "analysis key when a listed analysis did not apply")
     channel: str = Field(description="sensor channel (or sensor name for misalignment)")
-    value: float = Field(description="the judged value, in the limit's unit")
-    limit: float = Field(ge=0, description="acceptance limit on |value|")
+    value: float | None = Field(description="the judged value, in the limit's unit; null when "
+                                "not judged")
+    limit: float | None = Field(ge=0, description="acceptance limit on |value|")
     expanded_uncertainty: float | None = Field(None, ge=0, description="U of value, same unit")
     rule: DecisionRule
     verdict: VerdictValue
     unit: str = Field("", description="unit of value, limit and U")
+    limit_source: LimitSource | None = Field(
+        None, description="procedure: acceptance.limits; datasheet: the sensor's datasheet")
+    reason: str = Field("", description="why a quantity was not judged (empty when judged)")

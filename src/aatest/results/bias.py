@@ -50,5 +50,20 @@ class BiasChannel(Certified):
     g_sensitivity_measurand: str = Field("", description="the precise g-sensitivity quantity")
 
 
-class BiasResult(PerChannel[BiasChannel]):
+class BiasSetpoint(BiasChannel):
+    """The bias at one chamber set-point (its ±1 g pair), certified like the headline."""
+
+    temperature_c: Real = Field(description="the chamber set-point, °C")
+
+
+class BiasHeadline(BiasChannel):
+    """The channel's bias; with several set-points, the one nearest 25 °C (``temperature_c``)
+    and every set-point's bias in ``setpoints``."""
+
+    temperature_c: Real | None = Field(None, description="set-point of the headline, °C")
+    setpoints: list[BiasSetpoint] = Field(default_factory=list,
+                                          description="the bias at every chamber set-point")
+
+
+class BiasResult(PerChannel[BiasHeadline]):
     """Channel → bias."""

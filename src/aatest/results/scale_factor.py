@@ -82,8 +82,44 @@ class ScaleFactorChannel(Certified):
     alignment_delay_s: Real
     steps: list[str]
     scale_deviation_pct: Real
-    nonlinearity_pct_fr: Real
+    nonlinearity_pct_fr: Real = Field(description="curvature of the chosen polynomial within "
+                                      "the record, % FR (0 by construction at order ≤ 1)")
+    accel_dps2: Real | None = Field(None, description="the peak acceleration level, °/s²")
+    frequency_hz: Real | None = Field(None, description="the frequency of the records, Hz")
+    temperature_c: Real | None = Field(None, description="the chamber set-point, °C (None: "
+                                       "no chamber)")
 
 
-class ScaleFactorResult(PerChannel[ScaleFactorChannel]):
+class ScaleFactorLevel(ScaleFactorChannel):
+    """The calibration at one acceleration level (and set-point), certified like the headline."""
+
+
+class LevelLinearity(ResultModel):
+    """Linearity across the acceleration levels (docs/method.md §4.3, the study's way).
+
+    Each level's response y_i = K_i·a_i (V at its peak acceleration a_i) against the best
+    straight line through the origin, y = K̂·a: the largest deviation, in °/s², as % of the
+    full range (2 × the ±range). A line through the origin has one parameter, so two levels
+    already test it; no polynomial order is chosen.
+    """
+
+    accel_dps2: list[Real] = Field(description="the levels, °/s²")
+    scale_v_per_dps2: list[Real] = Field(description="K_i of each level, V/(°/s²)")
+    scale_v_per_dps2_line: Real = Field(description="K̂ of the line through the origin")
+    deviation_dps2: list[Real] = Field(description="(y_i − K̂·a_i)/K̂ per level, °/s²")
+    nonlinearity_pct_fr: Real = Field(description="max |deviation| / (2·range) · 100")
+    temperature_c: Real | None = None
+
+
+class ScaleFactorHeadline(ScaleFactorChannel):
+    """The channel's scale factor: the largest level at the set-point nearest 25 °C (named by
+    ``accel_dps2``, ``frequency_hz``, ``temperature_c``), every level, and the linearity."""
+
+    levels: list[ScaleFactorLevel] = Field(
+        default_factory=list, description="every acceleration level (and set-point) analysed")
+    linearity: LevelLinearity | None = Field(
+        None, description="across the levels at the headline set-point (≥ 2 levels)")
+
+
+class ScaleFactorResult(PerChannel[ScaleFactorHeadline]):
     """Channel → scale-factor calibration."""

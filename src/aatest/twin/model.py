@@ -20,7 +20,7 @@ from aatest.engine.datasheet import (
 )
 
 if TYPE_CHECKING:
-    from aatest.engine.procedure.rig_description import Instruments
+    from aatest.engine.procedure.rig_description import Instruments, LoggerSpec
 
 
 class _Model(BaseModel):
@@ -306,6 +306,13 @@ class TableModel(_Model):
     floor_vibration_band_hz: tuple[float, float] = (5.0, 30.0)
 
 
+def _stated_logger() -> LoggerSpec:
+    """The documented rig's logger as its rig description states it (the one source)."""
+    from aatest.engine.procedure.rig_description import LoggerSpec
+
+    return LoggerSpec()
+
+
 class DaqModel(_Model):
     """The on-table sensor logger with its own crystal clock."""
 
@@ -315,8 +322,12 @@ class DaqModel(_Model):
     stop_lag_s: float = Field(0.4, ge=0, description="and stops this much later (by hand)")
     timestamp_jitter_s: float = Field(6e-6, ge=0)
     antialias_hz: float | None = Field(100.0, description="pre-sample filter corner; None = off")
-    adc_bits: int = Field(16, ge=8, le=32)
-    adc_range_v: tuple[float, float] = (0.0, 5.0)
+    adc_bits: int = Field(default_factory=lambda: _stated_logger().bits, ge=8, le=32,
+                          description="converter resolution (default: the rig description's "
+                          "stated logger, 16 bit)")
+    adc_range_v: tuple[float, float] = Field(
+        default_factory=lambda: _stated_logger().range_v,
+        description="converter input range, V (default: the stated logger's, ±10 V)")
     sync_pulse_hz: float = 100.0
     sync_edge_jitter_s: float = Field(
         0.0, ge=0, description="RMS timing jitter of the generated pulse edges (what the "
@@ -324,6 +335,11 @@ class DaqModel(_Model):
         "2.4–3.5 µs clock-relation residual (docs/method.md §2)")
     slip_ring: ExcessNoise | None = None
     logger_error: LoggerError | None = None
+
+    def with_logger(self, stated: LoggerSpec) -> DaqModel:
+        """This logger with the converter the rig description states (bits and range)."""
+        return self.model_copy(update={"adc_bits": stated.bits,
+                                       "adc_range_v": tuple(stated.range_v)})
 
 
 class ChamberModel(_Model):
@@ -392,7 +408,8 @@ class RigModel(_Model):
             "inner": self.table.inner.model_copy(update={"encoder_error": encoder}),
             "outer": self.table.outer.model_copy(update={"encoder_error": encoder})})
         return self.model_copy(update={
-            "daq": self.daq.model_copy(update={"logger_error": logger}),
+            "daq": self.daq.with_logger(spec.logger).model_copy(
+                update={"logger_error": logger}),
             "table": table,
             "chamber": self.chamber.model_copy(update={"ambient_c": ambient_c}),
             "unit": self.unit.model_copy(update={

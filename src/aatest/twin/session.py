@@ -83,6 +83,10 @@ class TwinSession:
             else:
                 model = self.model if self.model is not None else realistic_rig_model(
                     self.datasheet)
+            if self.instruments is not None and not self.model_path:
+                # a stated logger is the twin's logger (the rig description is the one source)
+                model = model.model_copy(update={
+                    "daq": model.daq.with_logger(self.instruments.logger)})
             if self.imperfections_seed is not None:
                 model = model.draw_imperfections(self.imperfections_seed, self.instruments)
             self._world = World(model, self.seed)
@@ -109,7 +113,7 @@ def twin_session(context: RigContext | None, model_path: str | None = None) -> T
         context = RigContext(sensor=SensorRef(model="reference"),
                              datasheet=SensorDatasheet(model="reference"))
     rig = context
-    session = rig.resources.setdefault(TwinSession,
-                                       lambda: TwinSession(rig.datasheet, rig.seed))
+    session = rig.resources.setdefault(TwinSession, lambda: TwinSession(
+        rig.datasheet, rig.seed, instruments=rig.instruments))
     session.claim(model_path)
     return session

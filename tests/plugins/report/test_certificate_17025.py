@@ -147,7 +147,9 @@ def test_results_with_unit_u_k_and_probability(certified: tuple[Path, dict[str, 
     row = re.search(r"<tr><td class=\"t\">v_sz</td><td class=\"t\">Scale factor</td>.*?</tr>",
                     page, re.S)
     assert row, "no scale-factor row in the results table"
-    cells = _text(row.group(0)).replace("Scale factor", "Scale_factor").split()
+    at = f"{entry['accel_dps2']:g} °/s², {entry['frequency_hz']:.4g} Hz"  # the level it is of
+    assert at in row.group(0)
+    cells = _text(row.group(0)).replace("Scale factor", "Scale_factor").replace(at, "").split()
     assert cells[1] == "Scale_factor"  # the quantity by its name, not its results.json key
     # printed to 6 significant digits (the quantity registry's rule): rel 5e-6 of rounding
     assert float(cells[2]) == pytest.approx(entry["scale_v_per_dps2"], rel=1e-5)

@@ -13,21 +13,35 @@ Decision rules (ILAC-G8:2019, JCGM 106:2012), U the value's expanded uncertainty
   ``conditional-pass``/``conditional-fail`` (the risk is shared and stated).
 
 A quantity without an evaluated U is judged with U = 0 (no guard band, nothing conditional).
+
+Not measured is never passed (:mod:`.verdicts_missing`): a quantity the procedure asks for and
+did not get, and a listed analysis that did not apply, are ``not judged`` with the reason; the
+overall verdict is then ``incomplete`` (unless something failed) and the run exits 1.
+``acceptance.judge`` chooses which quantities are judged.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Mapping, Sequence
 
-from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS, limits
+from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS
+from aatest.engine.analysis.verdicts_missing import Listed, limit_of, missing
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.uncertainty.statistics import finite
 from aatest.results import RunResults
 from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
+from aatest.results.scale_factor import ScaleFactorHeadline
+
+#: the lowest polynomial order with a curvature (a non-linearity to judge)
+CURVED_ORDER = 2
 
 #: verdicts from best to worst; the overall verdict is the worst one
 SEVERITY: tuple[VerdictValue, ...] = ("pass", "conditional-pass", "conditional-fail", "fail")
+
+#: table axis → the published method's label of the unit's sensor on it (docs/method.md §4.5)
+AXIS_SENSOR = {"I": "SZ", "O": "SY", "P": "SX"}
 
 #: (quantity, value, U or None) of one channel or sensor, before it is judged
 Judged = tuple[str, float, float | None]
@@ -63,7 +77,7 @@ def _static(results: RunResults, ch: str, sheet: SensorDatasheet) -> Iterator[Ju
         if k is not None:
             yield ("scale_factor_deviation_pct", 100.0 * (k / nominal - 1.0),
                    None if u_k is None else 100.0 * u_k / nominal)
-        if (nl := finite(scale.nonlinearity_pct_fr)) is not None:
+        if (nl := _nonlinearity(scale)) is not None:
             yield "nonlinearity_pct_fr", nl, None
     bias = a.bias.get(ch) if a.bias else None
     if bias is not None:
@@ -74,6 +88,56 @@ def _static(results: RunResults, ch: str, sheet: SensorDatasheet) -> Iterator[Ju
                    finite(bias.g_sensitivity_expanded_uncertainty_dps2_per_g))
     yield from _thermal(results, ch)
     yield from _noise(results, ch)
+
+
+def _nonlinearity(scale: ScaleFactorHeadline) -> float | None:
+    """The linearity across the levels; else the polynomial's curvature when the data chose a
+    curved model (order ≥ 2). One level with a straight line resolves no non-linearity: None
+    (``not judged``), never the 0 a straight line has by construction."""
+    if scale.linearity is not None:
+        return finite(scale.linearity.nonlinearity_pct_fr)
+    return finite(scale.nonlinearity_pct_fr) if scale.order >= CURVED_ORDER else None
+
+
+def _levels(results: RunResults, ch: str, sheet: SensorDatasheet
+            ) -> Iterator[tuple[str, Judged]]:
+    """(label, scale-factor deviation) of every level but the headline, e.g. ``v_sz at
+    100 °/s², 25 °C``."""
+    block = results.analysis.scale_factor
+    scale = block.get(ch) if block else None
+    if scale is None:
+        return
+    for level in scale.levels:
+        if (level.accel_dps2, level.temperature_c) == (scale.accel_dps2, scale.temperature_c):
+            continue
+        k, u_k = finite(level.scale_v_per_dps2), finite(level.expanded_uncertainty)
+        if k is None:
+            continue
+        nominal = sheet.scale_v_per_dps2
+        yield level_label(ch, level.accel_dps2, level.temperature_c), (
+            "scale_factor_deviation_pct", 100.0 * (k / nominal - 1.0),
+            None if u_k is None else 100.0 * u_k / nominal)
+
+
+def _setpoints(results: RunResults, ch: str, sheet: SensorDatasheet
+               ) -> Iterator[tuple[str, Judged]]:
+    """(label, bias deviation) at every chamber set-point but the headline's."""
+    block = results.analysis.bias
+    bias = block.get(ch) if block else None
+    if bias is None:
+        return
+    for point in bias.setpoints:
+        if point.temperature_c == bias.temperature_c or (b := finite(point.bias_v)) is None:
+            continue
+        yield level_label(ch, None, point.temperature_c), (
+            "bias_deviation_v", b - sheet.nominal_bias_v, finite(point.expanded_uncertainty))
+
+
+def level_label(channel: str, accel_dps2: float | None, temperature_c: float | None) -> str:
+    """How a verdict names one level: ``v_sz at 100 °/s²`` (``, -20 °C`` with a set-point)."""
+    parts = [f"{accel_dps2:g} °/s²"] if accel_dps2 is not None else []
+    parts += [f"{temperature_c:g} °C"] if temperature_c is not None else []
+    return f"{channel} at {', '.join(parts)}" if parts else channel
 
 
 def _thermal(results: RunResults, ch: str) -> Iterator[Judged]:
@@ -97,23 +161,43 @@ def _noise(results: RunResults, ch: str) -> Iterator[Judged]:
 
 
 def _misalignment(results: RunResults) -> Iterator[tuple[str, Judged]]:
-    """(sensor label, judged) per scenario angle, and the worst cross-axis ratio per sensor."""
+    """(sensor label, judged): the sensor's own cross-axis sensitivity and axis misalignment.
+
+    Judged per scenario on the pivot-separated sensor part of the sensitivity-matrix estimate
+    (``matrix.scenarios``): half the difference of the original and pivoted mountings' direction
+    ratios, which flips with the pivot and so belongs to the sensor, while the mounting block's
+    and seat's tilts (which do not flip) cancel. Internal misalignment and cross-axis sensitivity
+    tilt the effective input axis alike and this test cannot tell them apart, so one estimate
+    gives both: the cross-axis ratio tan θ and the input-axis misalignment θ, each with the
+    expanded uncertainty of θ. The per-set ratios |A_x|/|A_z| and the published δ carry the
+    mounting's tilt too: they stay in the results as information about the fixture, not judged.
+    """
     block = results.analysis.misalignment
-    if block is None:
+    matrix = block.matrix if block is not None else None
+    if matrix is None:
         return
-    for scenario, sensors in sorted(block.scenarios.items()):
-        for sensor, entry in sorted(sensors.items()):
-            if (d := finite(entry.delta_deg)) is not None:
-                yield (f"{sensor} scenario {scenario}",
-                       ("misalignment_deg", d, finite(entry.expanded_uncertainty)))
-    worst: dict[str, float] = {}
-    for _label, set_sensors in sorted(block.sets.items()):
-        for sensor, set_entry in sorted(set_sensors.items()):
-            for ratio in (finite(set_entry.cross_ratio_x), finite(set_entry.cross_ratio_y)):
-                if ratio is not None and abs(ratio) >= abs(worst.get(sensor, 0.0)):
-                    worst[sensor] = ratio
-    for sensor, ratio in sorted(worst.items()):  # the worst set decides
-        yield sensor, ("cross_axis_ratio", ratio, None)
+    for scenario, by_channel in sorted(matrix.scenarios.items()):
+        for channel, tilt in sorted(by_channel.items()):
+            angle = finite(tilt.sensor_angle_deg)
+            if angle is None:
+                continue
+            u_deg = finite(tilt.expanded_uncertainty)
+            rad = math.radians(angle)
+            u_ratio = None if u_deg is None else math.radians(u_deg) / math.cos(rad) ** 2
+            label = f"{_sensor_label(matrix.rows, matrix.columns, channel)} scenario {scenario}"
+            yield label, ("cross_axis_ratio", math.tan(rad), u_ratio)
+            yield label, ("misalignment_deg", angle, u_deg)
+
+
+def _sensor_label(rows: Sequence[str], columns: Sequence[str], channel: str) -> str:
+    """A unit channel (``v_sx``) → the published method's sensor label (``SX``).
+
+    The matrix's rows are the unit's channels in the order of its columns (table axes P, O, I):
+    row i is the sensor on axis ``columns[i]``.
+    """
+    if channel in rows and rows.index(channel) < len(columns):
+        return AXIS_SENSOR.get(columns[rows.index(channel)], channel)
+    return channel
 
 
 def _sheet_of_sensor(sensor: str, sheets: Mapping[str, SensorDatasheet]) -> SensorDatasheet:
@@ -123,8 +207,8 @@ def _sheet_of_sensor(sensor: str, sheets: Mapping[str, SensorDatasheet]) -> Sens
 
 
 def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
-          acceptance: Acceptance) -> list[Verdict]:
-    """Every judged quantity the results contain, in channel order.
+          acceptance: Acceptance, listed: Sequence[Listed] = ()) -> list[Verdict]:
+    """Every judged quantity the results contain, in channel order, then the ones not judged.
 
     Parameters
     ----------
@@ -133,41 +217,54 @@ def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
     sheets
         Each sensor channel's datasheet (:func:`~.verdicts_limits.datasheets`).
     acceptance
-        The procedure's decision rule and limit overrides (defaults: simple, datasheet).
+        The procedure's decision rule, limit overrides and ``judge`` list (defaults: simple,
+        datasheet limits, every quantity asked).
+    listed
+        The analyses the procedure lists (:func:`.verdicts_missing.listed_analyses`).
     """
+    chosen = None if acceptance.judge is None else set(acceptance.judge)
+
     def verdict(channel: str, item: Judged, sheet: SensorDatasheet) -> Verdict:
         quantity, value, u = item
-        limit = limits(sheet, acceptance)[quantity]
+        limit, source = limit_of(quantity, sheet, acceptance)
         return Verdict(quantity=quantity, channel=channel, value=value, limit=limit,
                        expanded_uncertainty=u, rule=acceptance.rule,
                        verdict=decide(value, limit, u, acceptance.rule),
-                       unit=QUANTITY_UNITS[quantity])
+                       unit=QUANTITY_UNITS[quantity], limit_source=source)
 
     out = [verdict(ch, item, sheet) for ch, sheet in sheets.items()
            for item in _static(results, ch, sheet)]
+    out += [verdict(label, item, sheet) for ch, sheet in sheets.items()
+            for label, item in (*_levels(results, ch, sheet), *_setpoints(results, ch, sheet))]
     if sheets:
         out += [verdict(sensor, item, _sheet_of_sensor(sensor, sheets))
                 for sensor, item in _misalignment(results)]
-    return out
+    out = [v for v in out if chosen is None or v.quantity in chosen]
+    return out + missing(results, out, sheets, acceptance, listed)
 
 
 def overall(verdicts: Sequence[Verdict]) -> Overall:
-    """The worst verdict, ``none`` when nothing was judged."""
-    if not verdicts:
-        return "none"
-    return max((v.verdict for v in verdicts), key=SEVERITY.index)
+    """The worst verdict; ``incomplete`` when something asked was not judged and nothing is
+    worse than a conditional pass; ``none`` when nothing was judged or asked."""
+    judged = [v.verdict for v in verdicts if v.verdict != "not judged"]
+    worst: Overall = max(judged, key=SEVERITY.index) if judged else "none"
+    if len(judged) < len(verdicts) and worst in ("pass", "conditional-pass", "none"):
+        return "incomplete"
+    return worst
 
 
 def apply_verdicts(results: RunResults, sheets: Mapping[str, SensorDatasheet],
-                   acceptance: Acceptance) -> RunResults:
+                   acceptance: Acceptance, listed: Sequence[Listed] = ()) -> RunResults:
     """Judge the results and write ``verdicts`` and ``overall`` into them (in place)."""
-    verdicts = judge(results, sheets, acceptance)
+    verdicts = judge(results, sheets, acceptance, listed)
     results.verdicts = verdicts
     results.overall = overall(verdicts)
     return results
 
 
 def failed(results: RunResults) -> bool:
-    """True when the run must exit 1: a ``fail``, or a ``conditional-fail`` under ``guarded``."""
-    return any(v.verdict == "fail" or (v.verdict == "conditional-fail" and v.rule == "guarded")
+    """True when the run must exit 1: a ``fail``, a ``conditional-fail`` under ``guarded``, or
+    a quantity asked and ``not judged`` (the overall verdict ``incomplete``)."""
+    return any(v.verdict in ("fail", "not judged")
+               or (v.verdict == "conditional-fail" and v.rule == "guarded")
                for v in results.verdicts)

@@ -208,6 +208,11 @@ def temperature_steps(w: Walker, body: TemperatureSteps, path: YamlPath) -> None
             w.emit(f"static-{num(setpoint_c)}C", path, kind="static", inner_deg=body.inner_deg,
                    outer_deg=body.outer_deg, group="temperature",
                    **w.record(body, settle_s=body.off_wait_s))
+        if body.static and body.bias_pair:  # the same position with the sensitive axis down
+            w.emit(f"static-o{num((body.outer_deg + 180.0) % 360.0)}-{num(setpoint_c)}C", path,
+                   kind="static", inner_deg=body.inner_deg,
+                   outer_deg=(body.outer_deg + 180.0) % 360.0, group="temperature",
+                   **w.record(body, settle_s=body.off_wait_s))
         if body.dynamic is not None:
             _temperature_sine(w, body, path, setpoint_c)
 

@@ -225,6 +225,9 @@ class TemperatureSteps(Overrides):
     soak_s: NonNegFloat = 900.0
     off_wait_s: NonNegFloat = 60.0
     static: StrictBool = True
+    bias_pair: StrictBool = Field(
+        False, description="also record the static position with the outer axis turned 180° "
+        "(the sensitive axis down): a ±1 g pair, so the bias is measured at every set-point")
     inner_deg: Float = 0.0
     outer_deg: Float = 0.0
     dynamic: DynamicSine | None = None
@@ -376,6 +379,12 @@ class AcceptanceLimits(_Strict):
     noise_rms_v: PositiveFloat | None = Field(None, description="worst step's output noise, V RMS")
 
 
+#: the acceptance quantities (the limit names of :class:`AcceptanceLimits`)
+JudgedQuantity = Literal["scale_factor_deviation_pct", "bias_deviation_v", "nonlinearity_pct_fr",
+                         "g_sensitivity_dps2_per_g", "cross_axis_ratio", "misalignment_deg",
+                         "bias_temperature_v_per_c", "scale_temperature_per_c", "noise_rms_v"]
+
+
 class Acceptance(_Strict):
     """How results are judged: the ILAC-G8 decision rule and limits overriding the datasheet.
 
@@ -386,6 +395,10 @@ class Acceptance(_Strict):
 
     rule: DecisionRule = "simple"
     limits: AcceptanceLimits = AcceptanceLimits()
+    judge: tuple[JudgedQuantity, ...] | None = Field(
+        None, description="the quantities judged (default: every limit the procedure sets and "
+        "every quantity its listed analyses produce); a quantity listed here and not measured "
+        "is 'not judged' and the overall verdict 'incomplete'")
 
 
 class Procedure(_Strict):

@@ -11,7 +11,7 @@ Example
 -------
 Regenerate the committed copies after changing the models::
 
-    python -m aatest.engine.procedure.schema_export          # writes both committed copies
+    python -m aatest.engine.procedure.schema_export          # writes the committed copies
     aatest schema > procedure.schema.json                    # the same documents on stdout
     aatest schema --results > results.schema.json
 
@@ -37,6 +37,8 @@ from aatest.results import RunResults
 SCHEMA_DIR = Path(__file__).resolve().parents[2] / "schemas"
 SCHEMA_PATH = SCHEMA_DIR / "procedure.schema.json"
 RESULTS_SCHEMA_PATH = SCHEMA_DIR / "results.schema.json"
+#: a copy beside the shipped procedures, so their modeline names it without leaving the folder
+PROCEDURES_SCHEMA_PATH = SCHEMA_DIR.parent / "procedures" / "procedure.schema.json"
 SCHEMA_ID = "https://aatest.invalid/schemas/procedure.schema.json"
 RESULTS_SCHEMA_ID = "https://aatest.invalid/schemas/results.schema.json"
 
@@ -89,6 +91,15 @@ def render(results: bool = False) -> str:
     return json.dumps(schema, indent=2) + "\n"  # as `aatest schema [--results]` prints it
 
 
+def install_schemas(directory: Path) -> Path:
+    """Write both schemas into ``directory`` (created) for an editor; return the procedure
+    schema's absolute path (what a ``# yaml-language-server: $schema=`` modeline names)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    for name, results in ((SCHEMA_PATH.name, False), (RESULTS_SCHEMA_PATH.name, True)):
+        (directory / name).write_text(render(results), encoding="utf-8")
+    return (directory / SCHEMA_PATH.name).resolve()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Write both committed copies; ``-`` prints the procedure schema (``- --results``: the
     results schema) to stdout instead."""
@@ -96,7 +107,8 @@ def main(argv: list[str] | None = None) -> int:
     if args and args[0] == "-":
         sys.stdout.write(render("--results" in args))
         return 0
-    for path, results in ((SCHEMA_PATH, False), (RESULTS_SCHEMA_PATH, True)):
+    for path, results in ((SCHEMA_PATH, False), (RESULTS_SCHEMA_PATH, True),
+                          (PROCEDURES_SCHEMA_PATH, False)):
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(render(results), encoding="utf-8")
     return 0

@@ -124,8 +124,31 @@ def problems_from_validation(exc: ValidationError, tree: Any, filename: str) -> 
         path = tuple(p for p in loc if isinstance(p, int) or "[" not in str(p))
         line, col = locate(tree, path)
         field = ".".join(str(p) for p in path)
-        problems.append(Problem(filename, line, col, field, err.get("msg", "invalid")))
+        message = err.get("msg", "invalid")
+        problems.append(Problem(filename, line, col, field, message + _unit_hint(path, err)))
     return problems
+
+
+#: field-name suffix → (unit, example) for errors on a number written with its unit
+UNIT_HINTS: tuple[tuple[str, str, str], ...] = (
+    ("_hz", "Hz", "1000"), ("_dps2", "°/s²", "400"), ("_dps", "°/s", "100"),
+    ("_deg", "degrees", "90"), ("_s", "seconds", "60"), ("_c", "°C", "25"),
+    ("_pct_fr", "% of full range", "0.05"), ("_pct", "%", "1.0"), ("_v", "volts", "0.01"),
+    ("_per_c", "1/°C", "0.0005"),
+)
+
+
+def _unit_hint(path: tuple[Any, ...], err: Any) -> str:
+    """For a number field given text (``1 kHz``): say the unit and give an example."""
+    if not err.get("type", "").startswith(("float", "int")) or not isinstance(err.get("input"),
+                                                                             str):
+        return ""
+    keys = [p for p in path if isinstance(p, str)]
+    name = keys[-1] if keys else ""
+    for suffix, unit, example in sorted(UNIT_HINTS, key=lambda h: -len(h[0])):
+        if name.endswith(suffix):
+            return f" (got {err['input']!r}; expected a number in {unit}, e.g. {example})"
+    return f" (got {err['input']!r}; expected a plain number)"
 
 
 def validate_tree(model: type[M], tree: Any, data: Any, filename: str) -> M:

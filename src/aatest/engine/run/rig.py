@@ -85,7 +85,8 @@ def build_rig(rig_config: Any, sensor: SensorRef, seed: int) -> Rig:
     rig to read its envelope (``validate``, ``plan``) sends the hardware nothing.
     """
     datasheet, sensor_version = sensor_datasheet(sensor)
-    context = RigContext(sensor=sensor, datasheet=datasheet, seed=seed)
+    context = RigContext(sensor=sensor, datasheet=datasheet, seed=seed,
+                         instruments=getattr(rig_config, "instruments", None))
     parts: dict[str, Any] = {}
     versions = {f"sensor:{sensor.model}": sensor_version}
     config: dict[str, Any] = {}

@@ -76,6 +76,8 @@ class Prepared:
     plan: Plan
     rig_config: Any
     expansion: Any
+    #: per listed analysis, the steps it will use (its requirements are met)
+    coverage: Any = None
 
     def plan_json(self) -> dict[str, Any]:
         """``aatest plan --json``: the steps, lab duration and the points out of envelope."""
@@ -88,6 +90,7 @@ def prepare(procedure: Path, rig_file: Path | None, unit: UnitName | None = None
     ``unit`` names the unit at run time (``run --serial/--model``): a procedure is a template
     for every unit of its model, so its ``sensor.serial`` may be omitted.
     """
+    from aatest.engine.analysis.coverage import check_coverage
     from aatest.engine.procedure.envelope import check_envelope
     from aatest.engine.procedure.loader import load_rig, parse_procedure, rig_from_procedure
     from aatest.engine.procedure.planner import expand_traced
@@ -103,7 +106,9 @@ def prepare(procedure: Path, rig_file: Path | None, unit: UnitName | None = None
     expansion = expand_traced(proc, envelope=envelope, datasheet=datasheet)
     check_envelope(expansion.plan, envelope, datasheet, procedure_file=str(procedure),
                    sources=expansion.sources)
-    return Prepared(procedure, text, expansion.plan, rig_config, expansion)
+    coverage = check_coverage(proc, expansion.plan, dict(expansion.sources),
+                              rig_config.chamber.plugin, datasheet)
+    return Prepared(procedure, text, expansion.plan, rig_config, expansion, coverage)
 
 
 def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any]:
@@ -212,11 +217,13 @@ def decide(results: RunResults, data: Dataset) -> RunResults:
     """
     from aatest.engine.analysis.verdicts import apply_verdicts
     from aatest.engine.analysis.verdicts_limits import datasheets
+    from aatest.engine.analysis.verdicts_missing import listed_analyses
     from aatest.engine.uncertainty import apply_uncertainty
 
     apply_uncertainty(results, data=data)
     return apply_verdicts(results, datasheets(data.metadata, data.sensors),
-                          acceptance_of(data.metadata))
+                          acceptance_of(data.metadata),
+                          listed_analyses(list(data.metadata.get("analysis", []))))
 
 
 def render_and_sign(

@@ -14,6 +14,7 @@ from aatest.engine.uncertainty.dynamic import (
     frf_gain_measurand,
     frf_phase_measurand,
     misalignment_measurand,
+    sensor_tilt_measurand,
 )
 from aatest.engine.uncertainty.gum import Evaluation, Measurand, evaluate
 from aatest.engine.uncertainty.measurands import (
@@ -72,9 +73,15 @@ def _certify_static(results: RunResults, ch: str, c: RigConstants) -> None:
     if scale is not None and a.scale_factor is not None:
         certify(a.scale_factor[ch], scale)
         scale_rel = scale.standard_uncertainty / abs(scale.value) if scale.value else None
+        for level in a.scale_factor[ch].levels:  # each level certified like the headline
+            if (evaluated := _evaluated(scale_factor_measurand(results, ch, c, level), results)):
+                certify(level, evaluated)
     bias = _evaluated(bias_measurand(results, ch, c), results)
     if bias is not None and a.bias is not None:
         certify(a.bias[ch], bias)
+        for setpoint in a.bias[ch].setpoints:  # each set-point certified like the headline
+            if (evaluated := _evaluated(bias_measurand(results, ch, c, setpoint), results)):
+                certify(setpoint, evaluated)
     g_sens = _evaluated(g_sensitivity_measurand(results, ch, c, scale_rel), results)
     if g_sens is not None and a.bias is not None:
         entry = a.bias[ch]
@@ -121,7 +128,8 @@ def apply_uncertainty(results: RunResults, constants: RigConstants | None = None
     ``analysis.bias[CH]`` (bias; g-sensitivity as ``g_sensitivity_expanded_uncertainty_dps2_per_g``
     and ``g_sensitivity_budget``), ``analysis.temperature[CH]`` (bias coefficient; scale
     coefficient as ``scale_coefficient_*``), every point of ``analysis.frf[CH]`` (gain, plus
-    ``gain_*``/``phase_*``) and ``analysis.misalignment.scenarios[S][SENSOR]``; and the
+    ``gain_*``/``phase_*``), ``analysis.misalignment.scenarios[S][SENSOR]`` and the sensor's
+    own axis tilt ``analysis.misalignment.matrix.scenarios[S][CH]``; and the
     reference's traceability the budgets rest on (``metadata.traceability``).
 
     Parameters
@@ -150,4 +158,10 @@ def apply_uncertainty(results: RunResults, constants: RigConstants | None = None
             evaluation = _evaluated(misalignment_measurand(results, scenario, sensor, c), results)
             if evaluation is not None:
                 certify(entry, evaluation)
+    matrix = block.matrix if block else None
+    for scenario, by_channel in sorted(matrix.scenarios.items()) if matrix else []:
+        for channel, tilt in sorted(by_channel.items()):
+            evaluation = _evaluated(sensor_tilt_measurand(results, scenario, channel, c), results)
+            if evaluation is not None:
+                certify(tilt, evaluation)
     return results

@@ -226,7 +226,8 @@ def _sync_offset_s(results: RunResults, point: FrfPoint) -> tuple[float, str]:
                 f"T/√12/√N: both loggers sample on one grid, so the edges' "
                 f"quantisation errors are not independent)")
         if stated is not None and stated < LATCHED_OFFSET_U_S:
-            return stated, "measured: sync analysis offset_u_s of this record"
+            return stated, ("measured: the clock alignment's own standard uncertainty, from the "
+                            "freeze-pulse latch times of this record")
     return u, note
 
 
@@ -332,3 +333,48 @@ def misalignment_measurand(results: RunResults, scenario: str, sensor: str,
         return (d_o - d_p) / 2.0 + 0.0 * x["orthogonality"]
 
     return Measurand(f"misalignment {sensor} scenario {scenario}", "deg", model, inputs)
+
+
+def sensor_tilt_measurand(results: RunResults, scenario: str, channel: str,
+                          c: RigConstants) -> Measurand | None:
+    """θ = √((t_x + r_x)² + (t_y + r_y)²) + (w_o − w_p)/2  [deg]: the sensor's own axis tilt.
+
+    The pivot-separated part of the sensitivity-matrix estimate (half the original − pivoted
+    difference of the row's direction ratios): what flips with the pivot is the sensor's, the
+    mounting's part cancels. ``r_x``/``r_y`` are the repetitions' scatter of the two tilts
+    (type A, the repetitions re-mount what the scenario re-mounts); wobble differs between
+    the two mountings and enters the half-difference by halves; orthogonality is common to both.
+    """
+    block = results.analysis.misalignment
+    matrix = block.matrix if block is not None else None
+    entry = matrix.scenarios.get(scenario, {}).get(channel) if matrix is not None else None
+    if entry is None:
+        return None
+    t_x, t_y = finite(entry.sensor_tilt_x_deg), finite(entry.sensor_tilt_y_deg)
+    if t_x is None or t_y is None:
+        return None
+    u_x, u_y = (finite(u) or 0.0 for u in entry.u_sensor_tilt_deg)
+    dof = max(entry.repetitions - 1, 1)
+    wobble_deg = c.wobble_arcsec / 3600.0
+    scatter = f"scatter of {entry.repetitions} repetitions (standard error of the mean)"
+    labels = ("repeatability, tilt towards the sensor's x",
+              "repeatability, tilt towards the sensor's y")
+    repeat = (
+        Input("repeat_x", labels[0], 0.0, u_x, "normal", "deg", scatter, kind="A", dof=dof),
+        Input("repeat_y", labels[1], 0.0, u_y, "normal", "deg", scatter, kind="A", dof=dof),
+    ) if entry.repetitions > 1 else tuple(
+        comp.not_evaluated(name, label, "one repetition: no scatter to evaluate", "deg")
+        for name, label in zip(("repeat_x", "repeat_y"), labels, strict=True))
+    inputs = (
+        *repeat,
+        Input("wobble_o", "wobble, original mounting", 0.0, wobble_deg, "rectangular", "deg",
+              f"≤ {c.wobble_arcsec:g}″"),
+        Input("wobble_p", "wobble, pivoted mounting", 0.0, wobble_deg, "rectangular", "deg",
+              f"≤ {c.wobble_arcsec:g}″"),
+    )
+
+    def model(ops: Ops, x: Mapping[str, Any]) -> Any:
+        tilt = ops.sqrt((t_x + x["repeat_x"]) ** 2 + (t_y + x["repeat_y"]) ** 2)
+        return tilt + (x["wobble_o"] - x["wobble_p"]) / 2.0
+
+    return Measurand(f"sensor axis tilt {channel} scenario {scenario}", "deg", model, inputs)

@@ -129,6 +129,28 @@ def local_noise_rel(x: np.ndarray, cycles: int) -> float | None:
     return float(np.sqrt(np.mean(np.abs(spec[near]) ** 2) / 2.0) / fundamental)
 
 
+#: a 0/1 logic channel (the DAQ's trigger) is high above half its swing
+_LOGIC_HIGH = 0.5
+
+
+def _table_start_on_daq(record: Any, spare: int) -> int:
+    """DAQ sample of the table record's first sample, by the clock relation's anchor.
+
+    The DAQ raises its trigger on one of its own samples and that starts the table log, so the
+    table's first sample *is* the trigger's first high DAQ sample: the sync analysis pins the
+    fitted relation's offset to it (``aatest.sync.freeze_pulse.refine_offset``). The clock
+    drift stretches the rest by ≤ 1e-4 of the record (≤ 13 samples at 2^17 and 100 ppm), which
+    leaves the bins near a coherent fundamental as they are. Without a trigger channel (data
+    imported without one) the DAQ record is taken as bracketing the table one evenly.
+    """
+    trigger = record.daq.channels.get("trigger")
+    if trigger is not None:
+        high = np.flatnonzero(np.asarray(trigger, dtype=float) > _LOGIC_HIGH)
+        if high.size and 0 <= high[0] <= spare:
+            return int(high[0])
+    return spare // 2
+
+
 def _bin_noise(record: Any, cycles: int, channels: list[str]) -> BinNoise | None:
     """Local noise of the table estimate and of each sensor channel of one sine record."""
     step = record.step
@@ -142,7 +164,7 @@ def _bin_noise(record: Any, cycles: int, channels: list[str]) -> BinNoise | None
         volts = record.daq.channels.get(channel)
         if volts is None or np.size(volts) < n:
             continue
-        start = (np.size(volts) - n) // 2  # the DAQ brackets the table record
+        start = _table_start_on_daq(record, np.size(volts) - n)
         rel = local_noise_rel(np.asarray(volts[start:start + n], dtype=float), cycles)
         if rel is not None:
             per_channel[channel] = rel
@@ -277,7 +299,7 @@ def _streamed_summary(steps: Any, index: int, channels: list[str]) -> _Summary:
 def _sine_channels(step: Any, channels: list[str]) -> dict[str, list[str]]:
     """The channels the evidence reads of a sine step, by source: the moving axis' position and
     acceleration estimate, the DAQ's sensor ``channels`` and temperature."""
-    return {"daq": [*channels, _TEMPERATURE],
+    return {"daq": [*channels, _TEMPERATURE, "trigger"],
             "table": [f"{step.axis}_position_deg", f"{step.axis}_accel_dps2"]}
 
 

@@ -26,7 +26,7 @@ from aatest.engine.uncertainty.evidence import Evidence, gather
 from aatest.engine.uncertainty.gum import Input, Measurand, Ops
 from aatest.engine.uncertainty.statistics import PAIR, ci_std, finite, finite_values
 from aatest.results import RunResults
-from aatest.results.bias import BiasChannel, MountingBias
+from aatest.results.bias import BiasChannel, BiasSetpoint, MountingBias
 from aatest.results.scale_factor import ScaleFactorChannel
 from aatest.results.temperature import TemperatureChannel
 
@@ -196,8 +196,8 @@ def _scale_tc_per_c(results: RunResults, channel: str) -> tuple[float, str]:
     return limit, f"datasheet scale TC ≤ {limit * 100:g} %/°C"
 
 
-def scale_factor_measurand(results: RunResults, channel: str,
-                           c: RigConstants) -> Measurand | None:
+def scale_factor_measurand(results: RunResults, channel: str, c: RigConstants,
+                           level: ScaleFactorChannel | None = None) -> Measurand | None:
     """K = K̂·Π(1 + e_i) / ((1 + e_gain)·(1 + e_clk)²)  [V/(°/s²)].
 
     The measurand is the slope of the best straight line of logged output volts on the
@@ -205,10 +205,11 @@ def scale_factor_measurand(results: RunResults, channel: str,
     the in-phase fundamental-bin ratio — at the records' frequency, amplitude and temperature.
     Reference inputs (encoder accuracy and resolution, reference method, motion distortion, the
     fit), the axis (wobble, transverse, mounting), the logger (gain, resolution), the clock,
-    temperature and repeatability each enter as a relative input.
+    temperature and repeatability each enter as a relative input. ``level`` is one of the
+    channel's acceleration levels (default: the headline).
     """
     block = results.analysis.scale_factor
-    entry = block.get(channel) if block else None
+    entry = level if level is not None else (block.get(channel) if block else None)
     k_hat = finite(entry.scale_v_per_dps2) if entry is not None else None
     if entry is None or k_hat is None:
         return None
@@ -357,22 +358,27 @@ def _bias_tc_note(results: RunResults, channel: str) -> tuple[float, str]:
     return tc, f"datasheet limit bias TC {tc * 1e3:.2f} mV/°C"
 
 
-def _static_steps(results: RunResults) -> list[str]:
-    return [s.id for s in results.steps_of_kind("static")]
+def _static_steps(results: RunResults, temperature_c: float | None = None) -> list[str]:
+    """The static steps (at one chamber set-point when ``temperature_c`` is given)."""
+    return [s.id for s in results.steps_of_kind("static")
+            if temperature_c is None or s.temperature_c == temperature_c]
 
 
-def bias_measurand(results: RunResults, channel: str, c: RigConstants) -> Measurand | None:
+def bias_measurand(results: RunResults, channel: str, c: RigConstants,
+                   setpoint: BiasSetpoint | None = None) -> Measurand | None:
     """b = (b̂ − e_off − e_res)/(1 + e_gain) + e_noise + e_temp + e_rep  [V].
 
     b̂ = (A+ + A−)/2 cancels the g-sensitivity and table tilt; the logger's offset and gain
     accuracy and its resolution enter in full (a gain error scales the whole ≈2.5 V reading).
+    ``setpoint`` is the bias at one chamber set-point (default: the headline).
     """
-    entry = _bias_entry(results, channel)
+    entry = setpoint if setpoint is not None else _bias_entry(results, channel)
     b_hat = finite(entry.bias_v) if entry is not None else None
     if entry is None or b_hat is None:
         return None
     tc, tc_note = _bias_tc_note(results, channel)
-    temp_input, at_temperature = comp.temperature(c, _static_steps(results), tc, tc_note, "V")
+    steps = _static_steps(results, getattr(entry, "temperature_c", None))  # its set-point's
+    temp_input, at_temperature = comp.temperature(c, steps, tc, tc_note, "V")
     inputs = [
         *_static_statistics(results, entry, channel, c,
                             _StaticQuantity(_bias_of, entry.bias_u_v, 1.0, "V")),

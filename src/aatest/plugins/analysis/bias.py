@@ -19,6 +19,8 @@ import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import scale_in_use, steps_of, t95
 from aatest.results.bias import BiasResult
 from aatest.sync.freeze_pulse import SyncedStep
@@ -26,8 +28,11 @@ from aatest.sync.freeze_pulse import SyncedStep
 _UP_G = 0.9  # |g component| above which a position counts as "axis up/down"
 _RAD_DPS2 = float(np.degrees(1.0))
 
-#: positions a bias line (bias against gravity component) needs
+#: positions a bias line (bias against gravity component) needs; also the set-points that make
+#: the bias a per-set-point result
 _MIN_LINE_POINTS = 2
+#: the reference temperature the headline bias is stated at, °C
+T_REF_C = 25.0
 
 
 def gravity_along_g(sensor_axis: str, inner_deg: float, outer_deg: float) -> float:
@@ -115,6 +120,10 @@ class BiasAnalysis:
 
     key: ClassVar[str] = "bias"
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.BIAS
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ("bias_deviation_v", "g_sensitivity_dps2_per_g")
     Options: ClassVar[type[NoOptions]] = NoOptions
     Result: ClassVar[type[BiasResult]] = BiasResult
 
@@ -123,6 +132,20 @@ class BiasAnalysis:
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[BiasResult]:
         static = steps_of(context, "static")
-        values = {sensor.channel: sensor_bias(static, sensor, scale_in_use(context, sensor))
+        values = {sensor.channel: bias_by_setpoint(static, sensor, scale_in_use(context, sensor))
                   for sensor in data.sensors}
         return AnalysisOutput(BiasResult.model_validate(values))
+
+
+def bias_by_setpoint(steps: Sequence[SyncedStep], sensor: SensorInfo, scale: float
+                     ) -> dict[str, Any]:
+    """The bias of one sensor; with static records at several chamber set-points, per
+    set-point (never mixing temperatures), the headline at the one nearest 25 °C."""
+    temps = sorted({s.step.temperature_c for s in steps if s.step.temperature_c is not None})
+    if len(temps) < _MIN_LINE_POINTS:
+        return sensor_bias(steps, sensor, scale)
+    per = {t: sensor_bias([s for s in steps if s.step.temperature_c == t], sensor, scale)
+           | {"temperature_c": t} for t in temps}
+    measured = [t for t in temps if per[t].get("bias_v") is not None] or temps
+    head = min(measured, key=lambda t: abs(t - T_REF_C))
+    return per[head] | {"setpoints": [per[t] for t in temps if per[t].get("bias_v") is not None]}

@@ -24,6 +24,8 @@ from aatest.engine.dataset import Dataset, LazySteps
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.logs import SampledLog
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import new_figure, options_of, to_svg
 from aatest.results.noise import DriftResult
 
@@ -310,6 +312,10 @@ class DriftAnalysis:
 
     key: ClassVar[str] = "drift"
     requires: ClassVar[tuple[str, ...]] = ()
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.STATIC
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ()
     Options: ClassVar[type[DriftOptions]] = DriftOptions
     Result: ClassVar[type[DriftResult]] = DriftResult
 

@@ -28,6 +28,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
     INPUT_ACCEL_CHANNELS,
     group_of,
@@ -256,6 +258,24 @@ def segmented_ratio(reference: np.ndarray, output: np.ndarray, frequency_hz: flo
                           cycles)
 
 
+def stated_ratio_u(table: Tone, output: Tone, u_local: float | None,
+                   segmented: SegmentedRatio) -> tuple[float, float]:
+    """(relative gain, phase rad) standard uncertainty the FRF point states for its ratio.
+
+    What sits at the fundamental: the larger of the neighbour-bin noise of the ratio
+    (:func:`local_ratio_noise_rel`) and the segments' spread (Type A, gain and phase apart),
+    as the uncertainty stage takes them. Only when neither exists (a non-coherent record of
+    fewer than three cycles) the white-noise form 1/√(N·SNR) of each tone: it spreads all
+    non-harmonic power over every bin, so the 30–40 Hz motor band, which does not reach a
+    coherent fundamental, inflates it (on the twin at 1 Hz: 0.13° against 0.007° at the bin).
+    """
+    local = [] if u_local is None else [u_local]
+    gain = local + [u for u in (segmented.u_gain_rel,) if u is not None and math.isfinite(u)]
+    phase = local + [u for u in (segmented.u_phase_rad,) if u is not None and math.isfinite(u)]
+    white = float(np.hypot(table.u_relative, output.u_relative))
+    return (max(gain) if gain else white), (max(phase) if phase else white)
+
+
 def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
               ) -> dict[str, Any]:
     """One FRF point of a sensor from one sine step (contract keys and more).
@@ -273,7 +293,7 @@ def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
     ratio = (segmented.ratio if segmented.segments >= _MIN_SEGMENTS
              else sensor_tone.fundamental / table.fundamental)
     phase_rad = float(np.angle(ratio))
-    u_rel = float(np.hypot(table.u_relative, sensor_tone.u_relative))
+    u_gain_rel, u_phase_rad = stated_ratio_u(table, sensor_tone, u_local, segmented)
     delay_s = -phase_rad / (2 * np.pi * f0)
     return {
         "frequency_hz": f0, "accel_dps2": float(step.accel_dps2 or abs(table.fundamental)),
@@ -285,8 +305,8 @@ def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
         "table_snr6_db": table.snr_db(harmonics),
         "measured_accel_dps2": abs(table.fundamental),
         "gain_v_per_dps2": abs(ratio), "re": ratio.real, "im": ratio.imag,
-        "u_gain_db": 20 / np.log(10) * u_rel, "u_phase_deg": float(np.degrees(u_rel)),
-        "u_delay_s": u_rel / (2 * np.pi * f0),
+        "u_gain_db": 20 / np.log(10) * u_gain_rel, "u_phase_deg": float(np.degrees(u_phase_rad)),
+        "u_delay_s": u_phase_rad / (2 * np.pi * f0),
         "coherent": table.coherent, "group": group_of(step), "step": step.id,
         "sample_rate_hz": fs, "u_local_rel": u_local,
         "u_segments_gain_rel": segmented.u_gain_rel,
@@ -376,6 +396,10 @@ class FrfAnalysis:
     #: procedure names of sub-results this plugin computes (``analysis: [thd, snr]``)
     aliases: ClassVar[tuple[str, ...]] = ("thd", "snr")
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.SINE
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ()
     Options: ClassVar[type[FrfOptions]] = FrfOptions
     Result: ClassVar[type[FrfResult]] = FrfResult
 

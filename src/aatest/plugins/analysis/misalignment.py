@@ -24,6 +24,8 @@ import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import fundamental, select, steps_of
 from aatest.plugins.analysis.misalignment_method import (
     AXIS_SENSOR,
@@ -142,6 +144,10 @@ class MisalignmentAnalysis:
 
     key: ClassVar[str] = "misalignment"
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.MISALIGNMENT
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ("misalignment_deg", "cross_axis_ratio")
     Options: ClassVar[type[NoOptions]] = NoOptions
     Result: ClassVar[type[MisalignmentResult]] = MisalignmentResult
 

@@ -21,6 +21,8 @@ from scipy import signal
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import new_figure, options_of, scale_in_use, steps_of, to_svg
 from aatest.plugins.analysis.drift import DriftAnalysis, DriftOptions, allan_terms_of
 from aatest.results.noise import NoiseResult
@@ -92,6 +94,10 @@ class NoiseAnalysis:
 
     key: ClassVar[str] = "noise"
     requires: ClassVar[tuple[str, ...]] = ("sync", "scale_factor")
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.STATIC
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ("noise_rms_v",)
     Options: ClassVar[type[NoiseOptions]] = NoiseOptions
     Result: ClassVar[type[NoiseResult]] = NoiseResult
 

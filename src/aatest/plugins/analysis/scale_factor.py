@@ -1,9 +1,13 @@
 """Scale-factor calibration from a single-frequency sine (docs/method.md §4.3).
 
-Per sensor: the sine steps along its axis at ≤ 2 Hz with the largest acceleration (the 1 Hz,
-70 %-of-range test) are synchronised; the sensor volts pass a zero-phase low-pass, the reference
-is the chosen method's output as that method makes it (default ``smoothed``: the table estimate
-through the same zero-phase low-pass; ``table_estimate`` is the controller's raw estimate, so
+Per sensor: the sine steps along its axis at ≤ 2 Hz at the frequency nearest 1 Hz are grouped
+by acceleration level and chamber set-point, and each group is calibrated
+(:mod:`.scale_levels`: the headline is the largest level at the set-point nearest 25 °C, the
+1 Hz, 70 %-of-range test, and it names that level; the levels give the linearity). Per group,
+the records are synchronised; the sensor volts pass a zero-phase low-pass, the reference
+is the chosen method's output as that method makes it (default ``smoothed``: the position
+estimate's second difference through a zero-phase low-pass at its own 25 Hz corner;
+``table_estimate`` is the controller's raw estimate, so
 its noise shows in the RMSE as in the study, docs/method.md §4.3), the reference is delayed by
 the sensor's phase delay at the fundamental (so the fit sees no phase loop), and polynomials of
 order 0–15 are cross-validated. The chosen forward model (°/s² from volts) is reported with its
@@ -24,7 +28,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.plugins.analysis import polyfit
+from aatest.engine.requirements import Requirement
+from aatest.plugins.analysis import needs, polyfit
 from aatest.plugins.analysis._common import (
     fundamental,
     input_accel_dps2,
@@ -36,6 +41,7 @@ from aatest.plugins.analysis._common import (
 )
 from aatest.plugins.analysis.reference import (
     PUBLIC_METHODS,
+    SMOOTHED_CORNER_HZ,
     default_cutoff_hz,
     reference_accel,
     zero_phase_lowpass,
@@ -56,7 +62,8 @@ _MIN_RESIDUALS = 3
 class ScaleFactorOptions(BaseModel):
     """The reference calibrated against and the order selection (docs/method.md §4.3).
 
-    ``reference``: ``smoothed`` (default; zero-phase low-pass of the table's estimate),
+    ``reference``: ``smoothed`` (default; smoothed second difference of the position estimate,
+    zero-phase low-pass at its own corner, ``reference.SMOOTHED_CORNER_HZ``),
     ``table_estimate`` (the controller's own estimate), ``central``/``five_point`` (first
     difference of the rate estimate), ``fit`` (Savitzky–Golay local polynomial fit of the
     position) or ``sliding_mode`` (Levant's differentiator of the rate). The old
@@ -80,15 +87,13 @@ class ScaleFactorOptions(BaseModel):
         return self
 
 
-def calibration_steps(steps: Sequence[SyncedStep], sensor: SensorInfo) -> list[SyncedStep]:
-    """The scale-factor steps of a sensor: sine, along its axis, ≤ 2 Hz, largest acceleration,
-    frequency closest to 1 Hz (all repetitions of that point)."""
+def calibration_candidates(steps: Sequence[SyncedStep], sensor: SensorInfo) -> list[SyncedStep]:
+    """The scale-factor candidates of a sensor: sine, along its axis, ≤ 2 Hz, at the frequency
+    closest to 1 Hz (every acceleration level, set-point and repetition of it)."""
     cands = [s for s in steps if s.step.kind == "sine" and is_excited(s.step, sensor)
              and (s.step.frequency_hz or 0.0) <= _MAX_CAL_FREQUENCY_HZ]
     if not cands:
         return []
-    top = max(s.step.accel_dps2 or 0.0 for s in cands)
-    cands = [s for s in cands if (s.step.accel_dps2 or 0.0) >= 0.999 * top]
     best_f = min({float(s.step.frequency_hz or 0.0) for s in cands}, key=lambda f: abs(f - 1.0))
     return [s for s in cands
             if abs(float(s.step.frequency_hz or 0.0) - best_f) < _SAME_FREQUENCY_HZ]
@@ -106,7 +111,7 @@ def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: ReferenceCho
 
     The sensor volts pass a zero-phase low-pass (they are the fit's regressor, so their noise
     would bias the slope); the reference is the named method's output as it is (the
-    ``smoothed`` one is low-passed at the same corner), delayed by the phase delay of the
+    ``smoothed`` one low-passed at its own corner), delayed by the phase delay of the
     sensor at the excitation frequency; filter and shift edges are trimmed.
     """
     fs, f0 = synced.sample_rate_hz, float(synced.step.frequency_hz or 1.0)
@@ -216,18 +221,15 @@ def _figure(volts: np.ndarray, ref: np.ndarray, result: dict[str, Any]) -> str:
     return to_svg(fig)
 
 
-def sensor_scale_factor(steps: Sequence[SyncedStep], sensor: SensorInfo,
-                        options: ScaleFactorOptions) -> tuple[dict[str, Any], str] | None:
-    """Calibration values and figure of one sensor, or None without suitable steps."""
-    chosen = calibration_steps(steps, sensor)
-    if not chosen:
-        return None
+def calibrate_steps(chosen: Sequence[SyncedStep], sensor: SensorInfo,
+                    options: ScaleFactorOptions) -> tuple[dict[str, Any], str]:
+    """Calibration values and figure of one sensor from the records of one level."""
     reference = options.reference
     parts = [aligned_pair(s, sensor, reference) for s in chosen]
     volts = np.concatenate([p[0] for p in parts])
     ref = np.concatenate([p[1] for p in parts])
-    if reference == "smoothed":  # residuals band-limited by the known low-pass corner
-        inflation = chosen[0].sample_rate_hz / (2.0 * parts[0][3])
+    if reference == "smoothed":  # residuals band-limited by the reference's known corner
+        inflation = chosen[0].sample_rate_hz / (2.0 * max(SMOOTHED_CORNER_HZ, parts[0][3]))
     else:
         inflation = correlation_inflation(ref - _line(volts, ref))
     result = calibrate(volts, ref, inflation, options, RESOLUTION_FR * sensor.range_dps2)
@@ -241,10 +243,19 @@ def sensor_scale_factor(steps: Sequence[SyncedStep], sensor: SensorInfo,
 
 
 class ScaleFactorAnalysis:
-    """Polynomial scale-factor calibration of every sensor with a suitable sine step."""
+    """Polynomial scale-factor calibration of every sensor with a suitable sine step, at every
+    acceleration level (and set-point), with the linearity across the levels."""
 
     key: ClassVar[str] = "scale_factor"
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.SCALE_FACTOR
+    #: the acceptance quantities it produces (judged when it is listed)
+    #: (the non-linearity is judged where it is measured — two or more levels, or a curved
+    #: model — and asked for by a procedure limit or ``judge``; one level resolves none)
+    judges: ClassVar[tuple[str, ...]] = ("scale_factor_deviation_pct",)
+    #: what it measures when the data allow, judged only when produced or asked for
+    also_measures: ClassVar[tuple[str, ...]] = ("nonlinearity_pct_fr",)
     Options: ClassVar[type[ScaleFactorOptions]] = ScaleFactorOptions
     Result: ClassVar[type[ScaleFactorResult]] = ScaleFactorResult
 
@@ -252,12 +263,14 @@ class ScaleFactorAnalysis:
         return any(s.step.kind == "sine" for s in data.steps)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[ScaleFactorResult]:
+        from aatest.plugins.analysis.scale_levels import sensor_levels  # it calibrates with ours
+
         steps = steps_of(context)
         options = options_of(context, ScaleFactorOptions)
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
         for sensor in data.sensors:
-            out = sensor_scale_factor(steps, sensor, options)
+            out = sensor_levels(steps, sensor, options)
             if out is not None:
                 values[sensor.channel], figures[f"scale_factor_{sensor.channel}"] = out
         return AnalysisOutput(ScaleFactorResult.model_validate(values), figures)

@@ -25,7 +25,9 @@ import numpy as np
 from aatest.engine.dataset import Dataset, LazySteps, StepData, StepWatch
 from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis import needs
 from aatest.results.sync import SyncResult
 from aatest.sync.edges import joint_slope_range
 from aatest.sync.freeze_pulse import (
@@ -347,6 +349,10 @@ class SyncAnalysis:
 
     key: ClassVar[str] = "sync"
     requires: ClassVar[tuple[str, ...]] = ()
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.SYNC
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ()
     Options: ClassVar[type[NoOptions]] = NoOptions
 
     @staticmethod

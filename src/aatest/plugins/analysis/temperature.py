@@ -18,7 +18,9 @@ import numpy as np
 
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
     fundamental,
     input_accel_dps2,
@@ -193,6 +195,10 @@ class TemperatureAnalysis:
 
     key: ClassVar[str] = "temperature"
     requires: ClassVar[tuple[str, ...]] = ("sync",)
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.TEMPERATURE
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ("bias_temperature_v_per_c", "scale_temperature_per_c")
     Options: ClassVar[type[NoOptions]] = NoOptions
     Result: ClassVar[type[TemperatureResult]] = TemperatureResult
 

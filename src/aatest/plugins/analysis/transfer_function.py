@@ -26,7 +26,9 @@ from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.errors import AnalysisError
 from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
     INPUT_ACCEL_CHANNELS,
     group_of,
@@ -346,6 +348,10 @@ class TransferFunctionAnalysis:
 
     key: ClassVar[str] = "transfer_function"
     requires: ClassVar[tuple[str, ...]] = ("sync", "frf")
+    #: what the plan must hold (checked by ``validate``; aatest.engine.requirements)
+    requirements: ClassVar[tuple[Requirement, ...]] = needs.sine_points(MIN_POINTS)
+    #: the acceptance quantities it produces (judged when it is listed)
+    judges: ClassVar[tuple[str, ...]] = ()
     Options: ClassVar[type[TransferFunctionOptions]] = TransferFunctionOptions
     Result: ClassVar[type[TransferFunctionResult]] = TransferFunctionResult
 

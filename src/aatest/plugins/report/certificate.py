@@ -175,6 +175,30 @@ def _measurand(stated: str, key: str) -> str:
     return stated or MEASURANDS[key]  # the engine's own text when the results carry one
 
 
+def _level_at(entry: Any) -> str:
+    """Where a scale factor belongs: its level, frequency and set-point (empty for others)."""
+    accel = getattr(entry, "accel_dps2", None)
+    if accel is None:
+        return ""
+    temperature = entry.temperature_c
+    return (f"{accel:g} °/s², {entry.frequency_hz:.4g} Hz"
+            + (f", {temperature:g} °C" if temperature is not None else ""))
+
+
+def _level_rows(results: RunResults, ch: str) -> list[ResultRow]:
+    """The scale factor at every other acceleration level and set-point."""
+    block = results.analysis.scale_factor
+    head = block.get(ch) if block else None
+    if head is None:
+        return []
+    q = QUANTITIES["scale_factor"]
+    return [ResultRow(ch, q.name, lv.scale_v_per_dps2, q.unit, lv.expanded_uncertainty,
+                      lv.coverage_factor, lv.coverage_probability,
+                      _measurand(lv.measurand, q.key), _level_at(lv), q.digits)
+            for lv in head.levels
+            if (lv.accel_dps2, lv.temperature_c) != (head.accel_dps2, head.temperature_c)]
+
+
 def result_rows(results: RunResults, channels: Sequence[str]) -> list[ResultRow]:
     """Every certified value with its unit, U, k, coverage probability and measurand."""
     rows = []
@@ -185,7 +209,8 @@ def result_rows(results: RunResults, channels: Sequence[str]) -> list[ResultRow]
                                   finite(q.u(entry)), entry.coverage_factor,
                                   entry.coverage_probability,
                                   _measurand(entry.measurand, q.quantity.key),
-                                  digits=q.quantity.digits))
+                                  _level_at(entry), digits=q.quantity.digits))
+        rows += _level_rows(results, ch)
         for p in frf_points(results, ch):
             at = f"{p.frequency_hz:.4g} Hz"
             if finite(p.gain_db) is not None:
@@ -233,9 +258,18 @@ def reference_traceability(results: RunResults) -> tuple[list[tuple[str, str]], 
 def _conformity(results: RunResults, rule: str) -> str:
     if not results.verdicts:
         return "No conformity statement: no quantity was judged against a specification."
-    return (f"Conformity with the sensor's datasheet limits, decided by the engine under the "
-            f"decision rule '{rule}' (ILAC-G8): overall {results.overall}; each judged quantity "
-            "with its limit, U and verdict is listed below.")
+    sources = {v.limit_source for v in results.verdicts if v.limit_source}
+    origin = {frozenset({"procedure"}): "the procedure's acceptance limits",
+              frozenset({"datasheet"}): "the sensor's datasheet limits"}.get(
+        frozenset(sources), "the procedure's acceptance limits and, where it sets none, the "
+        "sensor's datasheet limits")
+    text = (f"Conformity with {origin}, decided by the engine under the decision rule "
+            f"'{rule}' (ILAC-G8): overall {results.overall}; each judged quantity with its "
+            "limit (and where the limit came from), U and verdict is listed below.")
+    if results.overall == "incomplete":
+        text += (" The calibration is incomplete: quantities the procedure asked for were not "
+                 "measured (marked 'not judged', with the reason).")
+    return text
 
 
 def _adjustment(results: RunResults) -> dict[str, Any]:

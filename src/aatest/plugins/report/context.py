@@ -125,7 +125,8 @@ def verdict_rows(verdicts: list[Verdict]) -> list[dict[str, Any]]:
         rows.append({"quantity": q.name, "key": v.quantity, "channel": v.channel,
                      "value": v.value, "limit": v.limit, "digits": q.digits,
                      "expanded_uncertainty": v.expanded_uncertainty,
-                     "unit": q.unit or "—", "rule": v.rule, "verdict": v.verdict})
+                     "unit": q.unit or "—", "rule": v.rule, "verdict": v.verdict,
+                     "limit_source": v.limit_source or "", "reason": v.reason})
     return rows
 
 

@@ -1,0 +1,110 @@
+"""The data requirements of the built-in analyses (:mod:`aatest.engine.requirements`).
+
+Each analysis class names its tuple here as ``requirements``; ``aatest validate`` checks them
+against the plan before anything moves, and docs/interfaces.md lists them (generated from
+these declarations, checked by a test).
+"""
+
+from __future__ import annotations
+
+from aatest.engine.requirements import Check, PlanView, Requirement, steps_where
+from aatest.engine.steps import PlannedStep
+
+#: the highest frequency a scale-factor step may have, Hz (docs/method.md §4.3)
+MAX_CAL_FREQUENCY_HZ = 2.0
+#: set-points a temperature coefficient needs, and the span they must cover (°C)
+MIN_SETPOINTS, MIN_SPAN_C = 3, 5.0
+#: |nominal weight| above which a step excites a sensor axis (as the analyses use it)
+EXCITED = 0.5
+#: a static position counts as "axis up/down" above this |g| component (as the bias)
+UP_G = 0.9
+
+
+def _per_axis(need: str, picks: dict[str, list[PlannedStep]], view: PlanView) -> Check:
+    """Met when every sensor channel has at least one step in ``picks``."""
+    used = tuple(dict.fromkeys(s.id for steps in picks.values() for s in steps))
+    missing = [ch for ch in view.sensor_axes if not picks.get(ch)]
+    if missing:
+        return Check(used, f"needs {need}; none for channel(s) {', '.join(missing)}")
+    return Check(used)
+
+
+def _bias_pairs(view: PlanView) -> Check:
+    from aatest.plugins.analysis.bias import gravity_along_g  # bias declares these needs
+
+    static = view.recorded("static")
+    picks: dict[str, list[PlannedStep]] = {}
+    for channel, axis in view.sensor_axes.items():
+        g = [(s, gravity_along_g(axis, s.inner_deg, s.outer_deg)) for s in static]
+        up = [s for s, x in g if x >= UP_G]
+        down = [s for s, x in g if x <= -UP_G]
+        picks[channel] = up + down if up and down else []
+    return _per_axis(BIAS_NEED, picks, view)
+
+
+BIAS_NEED = ("static positions with each sensor's axis up and down (a ±1 g pair: a g "
+             f"component ≥ +{UP_G} and one ≤ −{UP_G})")
+
+
+def _scale_steps(view: PlanView) -> Check:
+    from aatest.plugins.analysis._common import nominal_weight  # imports the sync plugin
+
+    picks = {ch: [s for s in view.recorded("sine")
+                  if abs(nominal_weight(s, axis)) >= EXCITED
+                  and (s.frequency_hz or 0.0) <= MAX_CAL_FREQUENCY_HZ]
+             for ch, axis in view.sensor_axes.items()}
+    return _per_axis(SCALE_NEED, picks, view)
+
+
+SCALE_NEED = (f"sine steps along each sensor's axis at ≤ {MAX_CAL_FREQUENCY_HZ:g} Hz (every "
+              "acceleration level at the frequency nearest 1 Hz is analysed)")
+
+
+def _setpoints(view: PlanView) -> Check:
+    steps = [s for s in view.recorded() if s.temperature_c is not None]
+    temps = sorted({float(s.temperature_c) for s in steps if s.temperature_c is not None})
+    used = tuple(s.id for s in steps)
+    if len(temps) < MIN_SETPOINTS or temps[-1] - temps[0] < MIN_SPAN_C:
+        return Check(used, f"needs {SETPOINT_NEED}; the plan has "
+                     f"{', '.join(f'{t:g} °C' for t in temps) or 'none'}")
+    return Check(used)
+
+
+SETPOINT_NEED = (f"records at ≥ {MIN_SETPOINTS} chamber set-points spanning ≥ {MIN_SPAN_C:g} °C "
+                 "(static steps for the bias coefficient, sine steps for the scale coefficient)")
+
+
+def _chamber(view: PlanView) -> Check:
+    first = next((s for s in view.steps if s.temperature_c is not None), None)
+    if first is not None and view.chamber == "none":
+        return Check((), "needs a chamber plugin in the rig (rig.chamber) for its set-points; "
+                     "the rig has none", first.id)
+    return Check()
+
+
+def _three_sensors(view: PlanView) -> Check:
+    axes = set(view.sensor_axes.values())
+    if not axes >= {"I", "O", "P"}:
+        return Check((), f"needs {THREE_NEED}; the sensor has axes "
+                     f"{', '.join(sorted(axes)) or 'none'} (a single-axis sensor's cross-axis "
+                     "sensitivity is not measured by this analysis)")
+    return Check()
+
+
+THREE_NEED = "a three-sensor unit (sensors on the I, O and P axes)"
+
+SYNC = (steps_where("a recorded step", lambda s: True),)
+BIAS = (Requirement(BIAS_NEED, _bias_pairs),)
+SCALE_FACTOR = (Requirement(SCALE_NEED, _scale_steps),)
+TEMPERATURE = (Requirement(SETPOINT_NEED, _setpoints),
+               Requirement("a chamber plugin in the rig (rig.chamber)", _chamber))
+MISALIGNMENT = (Requirement(THREE_NEED, _three_sensors),
+                steps_where("sine steps of a misalignment scenario (the misalignment generator)",
+                            lambda s: bool(s.mounting.scenario), kind="sine"))
+STATIC = (steps_where("a static step", lambda s: True, kind="static"),)
+SINE = (steps_where("a sine step", lambda s: True, kind="sine"),)
+
+
+def sine_points(minimum: int) -> tuple[Requirement, ...]:
+    """At least ``minimum`` sine steps (a transfer-function fit's frequency points)."""
+    return (steps_where(f"at least {minimum} sine steps", lambda s: True, minimum, "sine"),)

@@ -1,0 +1,94 @@
+"""Scale factor per acceleration level and set-point, and the linearity across the levels.
+
+The candidates of a sensor (:func:`.scale_factor.calibration_candidates`: sine along its axis
+at the frequency nearest 1 Hz) are grouped by peak acceleration and chamber set-point; each
+group is calibrated on its own (:func:`.scale_factor.calibrate_steps`), so a procedure with
+100, 250 and 400 °/s² gets three scale factors, none silently dropped. The headline — the
+channel's ``scale_v_per_dps2`` — is the largest level at the set-point nearest 25 °C (the
+1 Hz, 70 %-of-range test of docs/method.md §4.3) and names its level and set-point. With two
+or more levels at that set-point the linearity across them is measured
+(:class:`aatest.results.scale_factor.LevelLinearity`).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from aatest.engine.dataset import SensorInfo
+from aatest.plugins.analysis.scale_factor import (
+    ScaleFactorOptions,
+    calibrate_steps,
+    calibration_candidates,
+)
+from aatest.sync.freeze_pulse import SyncedStep
+
+#: the reference temperature the headline scale factor is stated at, °C
+T_REF_C = 25.0
+#: two levels closer than this relative difference are the same level
+_SAME_LEVEL = 1e-3
+#: levels a linearity needs
+MIN_LEVELS = 2
+
+Level = tuple[float, float | None]
+
+
+def level_groups(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[Level, list[SyncedStep]]:
+    """(peak acceleration °/s², set-point °C or None) → its records, in ascending order."""
+    groups: dict[Level, list[SyncedStep]] = defaultdict(list)
+    for s in calibration_candidates(steps, sensor):
+        accel = float(s.step.accel_dps2 or 0.0)
+        same = next((a for a, t in groups if t == s.step.temperature_c
+                     and abs(a - accel) <= _SAME_LEVEL * max(a, accel)), accel)
+        groups[(same, s.step.temperature_c)].append(s)
+    return dict(sorted(groups.items(), key=lambda kv: (kv[0][1] or 0.0, kv[0][0])))
+
+
+def headline_level(levels: Sequence[Level]) -> Level:
+    """The largest level at the set-point nearest 25 °C (no set-point counts as 25 °C)."""
+    def distance(t: float | None) -> float:
+        return 0.0 if t is None else abs(t - T_REF_C)
+
+    nearest = min(distance(t) for _a, t in levels)
+    return max((lv for lv in levels if distance(lv[1]) == nearest), key=lambda lv: lv[0])
+
+
+def linearity(levels: dict[Level, dict[str, Any]], temperature_c: float | None,
+              range_dps2: float) -> dict[str, Any] | None:
+    """The levels' responses against the best line through the origin (≥ 2 levels)."""
+    at = sorted((a, r["scale_v_per_dps2"]) for (a, t), r in levels.items() if t == temperature_c)
+    if len(at) < MIN_LEVELS:
+        return None
+    accel = np.array([a for a, _k in at])
+    scale = np.array([k for _a, k in at])
+    response = scale * accel  # V at each level's peak acceleration
+    k_line = float(response @ accel / (accel @ accel))
+    deviation = (response - k_line * accel) / k_line
+    return {"accel_dps2": accel.tolist(), "scale_v_per_dps2": scale.tolist(),
+            "scale_v_per_dps2_line": k_line, "deviation_dps2": deviation.tolist(),
+            "nonlinearity_pct_fr": float(100.0 * np.max(np.abs(deviation)) / (2 * range_dps2)),
+            "temperature_c": temperature_c}
+
+
+def sensor_levels(steps: Sequence[SyncedStep], sensor: SensorInfo, options: ScaleFactorOptions
+                  ) -> tuple[dict[str, Any], str] | None:
+    """The channel's headline calibration with every level and the linearity, and the
+    headline's figure; None without a candidate step."""
+    groups = level_groups(steps, sensor)
+    if not groups:
+        return None
+    done: dict[Level, dict[str, Any]] = {}
+    figures: dict[Level, str] = {}
+    for (accel, temp), chosen in groups.items():
+        result, figures[(accel, temp)] = calibrate_steps(chosen, sensor, options)
+        done[(accel, temp)] = result | {
+            "accel_dps2": accel, "temperature_c": temp,
+            "frequency_hz": float(chosen[0].step.frequency_hz or 0.0)}
+    top = headline_level(list(done))
+    headline = dict(done[top])
+    headline["levels"] = [dict(r) for r in done.values()]
+    headline["linearity"] = linearity(done, top[1], sensor.range_dps2)
+    return headline, figures[top]
