@@ -38,7 +38,8 @@ def _problems(analysis_yaml: str) -> list[str]:
      "p.yaml:6:5: analysis.0.scale_factor: Value error, orders must be [low, high] with "
      "0 ≤ low ≤ high ≤ 20, high ≥ 1"),
     ("  - frf: {harmonics: \"6\"}\n",
-     "p.yaml:6:11: analysis.0.frf.harmonics: Input should be a valid integer"),
+     "p.yaml:6:11: analysis.0.frf.harmonics: Input should be a valid integer (got '6'; "
+         "expected a plain number)"),
     ("  - scale_factor: {random_splits: true}\n",
      "p.yaml:6:20: analysis.0.scale_factor.random_splits: Input should be a valid integer"),
     ("  - sync\n  - frf\n  - nonesuch\n",
