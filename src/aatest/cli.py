@@ -245,6 +245,8 @@ def validate(
     )
     for line in prepared.expansion.skipped_lines():  # nothing disappears silently
         typer.echo(line)
+    for line in prepared.expansion.snapped_lines():  # nor moves silently
+        typer.echo(line)
     for line in usage_lines(prepared.coverage):
         typer.echo(line)
     typer.echo("preflight:")
