@@ -182,10 +182,10 @@ def _plan(report: Preflight, path: Path, rig: Path | None, site: Site) -> None:
             report.skip(name, "plan")
         return
     prepared = report.prepared
-    problems = plan_checks.analysable_problems(prepared)
+    problems = plan_checks.analysable_problems(prepared) + plan_checks.soak_problems(prepared)
     report.add("analysable steps", problems,
-               "every listed analysis can use the planned steps" if not problems
-               else "a planned step cannot be analysed")
+               "every listed analysis can use the planned steps, the chamber can soak as asked"
+               if not problems else "a planned step cannot be analysed or soaked as asked")
     report.add("disk space", *plan_checks.disk_problems(prepared, site.out_dir or Path("runs")))
 
 

@@ -127,6 +127,22 @@ def analysable_problems(prepared: Any) -> list[Problem]:
     return problems
 
 
+def soak_problems(prepared: Any) -> list[Problem]:
+    """A soak until stable needs a chamber plugin that offers ``wait_until_stable``."""
+    from aatest.engine.interfaces import soaks_until_stable
+
+    proc = prepared.procedure
+    steps = [s for s in prepared.plan.steps if s.kind == "chamber" and s.soak_max_s is not None]
+    name = prepared.rig_config.chamber.plugin
+    if not steps or soaks_until_stable(registry.load("chamber", name).target):
+        return []
+    filename = proc.source_file or f"<{proc.procedure}>"
+    path = (*prepared.expansion.sources.get(steps[0].id, ("steps",)), "soak")
+    return [_problem(filename, proc.source_tree, path,
+                     f"chamber plugin {name!r} cannot soak until stable (it has no "
+                     "wait_until_stable); give a fixed soak_s instead")]
+
+
 def _needed_by(users: list[str]) -> str:
     return f" (which {', '.join(users)} require{'s' * (len(users) == 1)})" if users else ""
 
@@ -137,7 +153,7 @@ def refuse_unrunnable(prepared: Any, out_dir: Path) -> None:
     from aatest.engine.errors import ProcedureError
 
     problems = (template_problems(prepared.procedure) + analysable_problems(prepared)
-                + disk_problems(prepared, out_dir)[0])
+                + soak_problems(prepared) + disk_problems(prepared, out_dir)[0])
     if problems:
         raise ProcedureError(problems)
 

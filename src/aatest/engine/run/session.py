@@ -373,7 +373,9 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
         lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s,
         pdf=request.pdf,
         extra_metadata={"prompt_answers": state.prompt_answers,
-                        "confirm_prompts": request.prompt_mode},
+                        "confirm_prompts": request.prompt_mode,
+                        **({"soak_stability": state.soak_stability} if state.soak_stability
+                           else {})},
     )
     return out_dir, results
 
