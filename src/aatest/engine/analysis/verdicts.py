@@ -88,6 +88,15 @@ def _static(results: RunResults, ch: str, sheet: SensorDatasheet) -> Iterator[Ju
                    finite(bias.g_sensitivity_expanded_uncertainty_dps2_per_g))
     yield from _thermal(results, ch)
     yield from _noise(results, ch)
+    yield from _cross_axis(results, ch)
+
+
+def _cross_axis(results: RunResults, ch: str) -> Iterator[Judged]:
+    """A single-axis sensor's cross-axis ratio from outer-axis excitation, with its U."""
+    block = results.analysis.cross_axis
+    cross = block.get(ch) if block else None
+    if cross is not None and (r := finite(cross.cross_axis_ratio)) is not None:
+        yield "cross_axis_ratio", r, finite(cross.expanded_uncertainty)
 
 
 def _nonlinearity(scale: ScaleFactorHeadline) -> float | None:
