@@ -227,7 +227,7 @@ def validate(
 ) -> None:
     """Check, before anything moves, all a run needs (docs/interfaces.md "Preflight")."""
     from aatest.engine.analysis.coverage import usage_lines
-    from aatest.engine.preflight import Site, preflight
+    from aatest.preflight import Site, preflight
 
     report = preflight(procedure, rig, Site(lab, sign_key, records, out))
     if as_json:
@@ -317,7 +317,7 @@ def run(
     started = time.monotonic()
     if confirm_prompts not in ("ask", "auto"):
         raise InputError(f"--confirm-prompts: expected 'ask' or 'auto', got {confirm_prompts!r}")
-    from aatest.engine.preflight import Site, preflight
+    from aatest.preflight import Site, preflight
 
     unit = session.UnitName(serial or None, model or None)
     checked = preflight(procedure, rig, Site(lab, sign_key, records, out, True, unit))

@@ -14,7 +14,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.engine.preflight import plan_checks
+from aatest.engine import plan_checks
 from aatest.plugins.turntable.sim import SimTurntable
 
 GOOD = """\

@@ -372,7 +372,7 @@ class StableChamber(Chamber, Protocol):
 
     def wait_until_stable(self, tolerance_c: float, window_s: float, max_s: float) -> Stability:
         """Block until the sensor temperature's spread over the last ``window_s`` s (since the
-        set-point command) is at most ``tolerance_c``; raise :class:`RigFault` (exit 3) when it
+        set-point command) is at most ``tolerance_c`` °C; raise :class:`RigFault` (exit 3) when it
         is not by ``max_s`` s after the set-point command."""
 
 

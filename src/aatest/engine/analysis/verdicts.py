@@ -50,6 +50,9 @@ Judged = tuple[str, float, float | None]
 def decide(value: float, limit: float, u: float | None, rule: DecisionRule) -> VerdictValue:
     """One verdict under a decision rule (see the module docstring).
 
+    ``value``, ``limit`` and ``u`` (the expanded uncertainty) share the judged quantity's unit
+    (V, %, (°/s²)/g, … — or dimensionless for a ratio).
+
     >>> decide(0.9, 1.0, 0.2, "simple"), decide(0.9, 1.0, 0.2, "guarded")
     ('pass', 'conditional-pass')
     >>> decide(1.05, 1.0, 0.2, "shared-risk"), decide(1.5, 1.0, 0.2, "guarded")

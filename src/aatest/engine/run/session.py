@@ -281,7 +281,7 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
 ) -> tuple[Path, RunResults]:
     """``aatest run``: execute (or resume) a procedure and produce its results and report.
 
-    ``prepared`` is the procedure as the preflight (:mod:`aatest.engine.preflight`) checked it;
+    ``prepared`` is the procedure as the preflight (:mod:`aatest.preflight`) checked it;
     without it the procedure is prepared here and its plan-level preflight (report template,
     analysable steps, disk space) runs before anything moves.
 
@@ -304,7 +304,7 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
             raise InputError("--resume needs --out RUN_DIR (the run to continue)")
         out_dir = default_run_dir(plan.procedure)
     if not checked:
-        from aatest.engine.preflight.plan_checks import refuse_unrunnable
+        from aatest.engine.plan_checks import refuse_unrunnable
 
         refuse_unrunnable(prepared, out_dir)
     if resume:

@@ -13,7 +13,7 @@ Example
 -------
 >>> from pathlib import Path
 >>> import aatest
->>> from aatest.engine.preflight import Site, preflight
+>>> from aatest.preflight import Site, preflight
 >>> shipped = Path(aatest.__file__).parent / "procedures" / "scale-factor.yaml"
 >>> report = preflight(shipped, None, Site(records="sqlite:///:memory:"))
 >>> report.ok, [c.name for c in report.checks][:3]
@@ -27,8 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from aatest.engine import plan_checks
 from aatest.engine.errors import AatestError, InputError, Problem, ProblemsError
-from aatest.engine.preflight import plan_checks, site_checks
+from aatest.preflight import site_checks
 
 Status = Literal["ok", "failed", "skipped"]
 

@@ -1,4 +1,5 @@
-"""Preflight checks of a procedure and its plan: what would otherwise fail after the recording.
+"""Preflight checks of a procedure and its plan: what would otherwise fail after the recording
+(:mod:`aatest.preflight` runs them with the site's checks).
 
 Each check returns located :class:`~aatest.engine.errors.Problem` s (empty when it passes):
 an unknown plugin name at the line of the name, a report template that does not load in the
@@ -61,9 +62,9 @@ def plugin_problems(proc: Any, rig_file: Path | None, rig_config: Any) -> list[P
 
 
 def template_problems(proc: Any, template_dir: Path | None = None) -> list[Problem]:
-    """The report plugin exists and its template loads (parses) in the report sandbox."""
-    from aatest.plugins.report.sandbox import load_template
-
+    """The report plugin exists and its template loads (parses) in the report sandbox: the
+    plugin's optional ``check_template(template_dir)`` (the built-in HTML reports load their
+    Jinja template in the sandbox) raises what ``render`` would."""
     filename = proc.source_file or f"<{proc.procedure}>"
     name = proc.report.template
     where = ("report", "template")
@@ -71,11 +72,11 @@ def template_problems(proc: Any, template_dir: Path | None = None) -> list[Probl
         info = registry.load("report", name)
     except PluginError as exc:
         return [_problem(filename, proc.source_tree, where, str(exc))]
-    template = getattr(info.target, "template", None)
-    if not isinstance(template, str):  # a vendor's reporter without a Jinja template
+    check = getattr(info.target, "check_template", None)
+    if not callable(check):  # a vendor's reporter that states no check
         return []
     try:
-        load_template(f"{template}.html.j2", template_dir)
+        check(template_dir)
     except AatestError as exc:
         return [_problem(filename, proc.source_tree, where,
                          f"report {name!r}: its template does not load: {exc}")]
