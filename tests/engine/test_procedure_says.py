@@ -72,3 +72,15 @@ def _verdict(source: str) -> Verdict:
 def test_the_certificate_says_where_the_limits_came_from(sources: list[str], said: str) -> None:
     results = RunResults(procedure="p", verdicts=[_verdict(s) for s in sources])
     assert _conformity(results, "simple").startswith(said)
+
+
+def test_schema_install_writes_what_the_modeline_names(tmp_path: Path) -> None:
+    from aatest.engine.procedure.schema_export import render
+
+    result = CliRunner().invoke(app, ["schema", "--install", str(tmp_path / "schemas")])
+    assert result.exit_code == 0, result.output
+    installed = tmp_path / "schemas" / "procedure.schema.json"
+    assert installed.read_text(encoding="utf-8") == render()
+    assert (tmp_path / "schemas" / "results.schema.json").read_text(encoding="utf-8") == \
+        render(results=True)
+    assert f"# yaml-language-server: $schema={installed}" in result.output
