@@ -20,6 +20,8 @@ def _explode(*_args: object, **_kwargs: object) -> None:
 @pytest.fixture
 def broken(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
     monkeypatch.setattr(session, "prepare", _explode)
+    # a valid procedure: the preflight reads it before the plan is prepared (and explodes)
+    (tmp_path / "p.yaml").write_text("procedure: p\nsensor: {model: sr207}\nsteps: [static: {}]\n")
     cache = tmp_path / "cache"
     monkeypatch.setenv("XDG_CACHE_HOME", str(cache))
     return cache

@@ -242,12 +242,24 @@ def _print_json(doc: Any) -> None:
 def validate(
     procedure: Path = typer.Argument(..., help="Procedure YAML"),
     rig: Path | None = _RIG_OPT,
+    as_json: bool = typer.Option(False, "--json/--no-json",
+                                 help="Print every preflight check with its status as JSON"),
+    sign_key: Path | None = _SIGN_KEY_OPT,
+    records: str | None = _RECORDS_OPT,
+    lab: Path | None = _LAB_OPT,
+    out: Path | None = typer.Option(None, "--out", help="Run directory (free space is "
+                                    "checked there; default runs/)"),
 ) -> None:
-    """Check a procedure against its schema and the rig envelope; nothing moves."""
+    """Check, before anything moves, all a run needs (docs/interfaces.md "Preflight")."""
     from aatest.engine.analysis.coverage import usage_lines
-    from aatest.engine.run.session import prepare
+    from aatest.preflight import Site, preflight
 
-    prepared = prepare(procedure, rig)
+    report = preflight(procedure, rig, Site(lab, sign_key, records, out))
+    if as_json:
+        _print_json({"procedure": str(procedure), **report.to_json()})
+        raise typer.Exit(0 if report.ok else 2)
+    report.raise_if_failed()
+    prepared = report.prepared
     steps = prepared.plan.steps
     recorded = sum(1 for s in steps if s.recorded)
     typer.echo(
@@ -258,8 +270,13 @@ def validate(
     )
     for line in prepared.expansion.skipped_lines():  # nothing disappears silently
         typer.echo(line)
+    for line in prepared.expansion.snapped_lines():  # nor moves silently
+        typer.echo(line)
     for line in usage_lines(prepared.coverage):
         typer.echo(line)
+    typer.echo("preflight:")
+    for check in report.checks:
+        typer.echo(f"  {check.name}: {check.status}: {check.message}")
 
 
 @app.command()
@@ -326,13 +343,18 @@ def run(
     started = time.monotonic()
     if confirm_prompts not in ("ask", "auto"):
         raise InputError(f"--confirm-prompts: expected 'ask' or 'auto', got {confirm_prompts!r}")
+    from aatest.preflight import Site, preflight
+
+    unit = session.UnitName(serial or None, model or None)
+    checked = preflight(procedure, rig, Site(lab, sign_key, records, out, True, unit))
+    checked.raise_if_failed()  # everything that would fail later fails before motion (exit 2)
     with _registering(records, lab, "run") as registrar:
         registrar.preflight = _check_references(registrar, rig, allow_overdue)
         run_dir, results = session.run(
             procedure, rig, _where(out, exists=False), resume, seed, sign_key, progress,
             operator=operator,
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
-            unit=session.UnitName(serial or None, model or None),
+            unit=unit, prepared=checked.prepared,
         )
     _print_summary(results, run_dir, "run", started, json_summary)
     _echo_kind(results)

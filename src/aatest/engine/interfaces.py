@@ -346,6 +346,41 @@ class Chamber(Protocol):
 R = TypeVar("R")
 
 
+@dataclass(frozen=True)
+class Stability:
+    """What a soak until stable achieved: the sensor temperature (°C) when it ended, the
+    spread (max − min, °C) of the sensor temperature over the stability window, the window and
+    the tolerance asked (s, °C), and the soak time from the set-point command (s)."""
+
+    temperature_c: float
+    spread_c: float
+    window_s: float
+    tolerance_c: float
+    waited_s: float
+
+    def as_json(self) -> dict[str, float]:
+        """The record kept in the run state and in ``results.metadata.soak_stability``."""
+        return {"temperature_c": self.temperature_c, "spread_c": self.spread_c,
+                "window_s": self.window_s, "tolerance_c": self.tolerance_c,
+                "waited_s": self.waited_s}
+
+
+@runtime_checkable
+class StableChamber(Chamber, Protocol):
+    """Optional chamber capability (contract §6): soak until the sensor temperature is stable
+    (``soak: {until_stable: {tolerance_c, window_s}, max_s}`` in a procedure)."""
+
+    def wait_until_stable(self, tolerance_c: float, window_s: float, max_s: float) -> Stability:
+        """Block until the sensor temperature's spread over the last ``window_s`` s (since the
+        set-point command) is at most ``tolerance_c`` °C; raise :class:`RigFault` (exit 3) when it
+        is not by ``max_s`` s after the set-point command."""
+
+
+def soaks_until_stable(chamber: object) -> bool:
+    """True when a chamber plugin offers :class:`StableChamber`'s ``wait_until_stable``."""
+    return callable(getattr(chamber, "wait_until_stable", None))
+
+
 class NoOptions(BaseModel):
     """Options of an analysis that takes none."""
 

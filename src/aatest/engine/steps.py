@@ -49,6 +49,11 @@ class PlannedStep(_Frozen):
     outer_deg: float = 0.0
     temperature_c: float | None = Field(None, description="chamber set-point in force")
     soak_s: float | None = Field(None, description="chamber stabilisation time (chamber steps)")
+    stable_tolerance_c: float | None = Field(
+        None, description="soak until the sensor temperature's spread over stable_window_s is "
+        "at most this, °C (chamber steps; soak_s is then the window)")
+    stable_window_s: float | None = Field(None, description="window of the stability test, s")
+    soak_max_s: float | None = Field(None, description="longest soak until stable, s")
     motor_on: bool = True
     group: str | None = Field(None, description="test group label, e.g. 'accel-400'")
     repetition: int = 1
@@ -58,7 +63,8 @@ class PlannedStep(_Frozen):
     @property
     def lab_duration_s(self) -> float:
         """Lab time the step occupies in s: soak, settling and the record itself."""
-        return (self.soak_s or 0.0) + self.settle_s + self.duration_s
+        soak = self.soak_max_s if self.soak_max_s is not None else (self.soak_s or 0.0)
+        return soak + self.settle_s + self.duration_s
 
     @property
     def recorded(self) -> bool:

@@ -29,6 +29,19 @@ def head_revision() -> str:
     return head
 
 
+def known_revision(revision: str | None) -> bool:
+    """True when ``revision`` is one of the shipped migrations (or ``None``: an empty store);
+    a store at an unknown revision was written by a newer aatest."""
+    from alembic.util import CommandError
+
+    if revision is None:
+        return True
+    try:
+        return ScriptDirectory.from_config(_config()).get_revision(revision) is not None
+    except CommandError:
+        return False
+
+
 def current_revision(engine: Engine) -> str | None:
     """The schema version of the database (``None`` for an empty database)."""
     with engine.connect() as connection:

@@ -15,6 +15,7 @@ from pydantic import BeforeValidator, ConfigDict, Field, model_serializer, model
 from aatest.results._fields import Real
 from aatest.results.base import Overall, ResultModel, Verdict
 from aatest.results.bias import BiasResult
+from aatest.results.cross_axis import CrossAxisResult
 from aatest.results.frf import FrfResult
 from aatest.results.misalignment import MisalignmentResult
 from aatest.results.noise import DriftResult, NoiseResult
@@ -56,6 +57,7 @@ class AnalysisBlock(ResultModel):
     misalignment: MisalignmentResult | None = None
     noise: NoiseResult | None = None
     drift: DriftResult | None = None
+    cross_axis: CrossAxisResult | None = None
     extra: dict[str, Any] = Field(default_factory=dict,
                                   description="key → result of a third-party analysis")
 

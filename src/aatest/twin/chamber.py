@@ -47,3 +47,15 @@ class ThermalState:
         band = self.model.stable_band_c
         needed = 0.0 if gap <= band else self.model.sensor_time_constant_s * np.log(gap / band)
         return max(float(soak_s), needed)
+
+    def time_to_spread_s(self, tolerance_c: float, window_s: float) -> tuple[float, float]:
+        """Seconds after the set-point step at which the sensor temperature's spread over the
+        trailing ``window_s`` is first ≤ ``tolerance_c``, and that spread (°C).
+
+        The sensor follows one exponential since the step, so the spread over [t − w, t] is
+        |T(t − w) − T(t)| = |ΔT₀|·e^(−(t − w)/τ)·(1 − e^(−w/τ)), solved here for t ≥ w.
+        """
+        tau = self.model.sensor_time_constant_s
+        first = abs(self.from_c - self.setpoint_c) * -np.expm1(-window_s / tau)  # spread at t = w
+        extra = 0.0 if first <= tolerance_c else tau * float(np.log(first / tolerance_c))
+        return window_s + extra, first * float(np.exp(-extra / tau))

@@ -248,5 +248,20 @@ class World:
         self.lab_time_s += self.thermal.time_to_stable_s(self.lab_time_s, soak_s)
         return float(self.thermal.temperature_at(self.lab_time_s))
 
+    def wait_until_stable(self, tolerance_c: float, window_s: float,
+                          max_s: float) -> tuple[float, float, float]:
+        """Advance lab time until the sensor temperature is stable (see
+        :meth:`ThermalState.time_to_spread_s`); return (°C, spread °C, soak s since the step).
+        Not stable by ``max_s``: lab time advances to ``max_s`` and the soak is returned as is."""
+        needed_s, spread_c = self.thermal.time_to_spread_s(tolerance_c, window_s)
+        since_s = self.lab_time_s - self.thermal.step_time_s
+        end_s = min(needed_s, max_s) if needed_s > since_s else since_s
+        self.lab_time_s += max(0.0, end_s - since_s)
+        if needed_s > max_s:  # the spread the window holds at max_s
+            at = self.thermal.step_time_s + max_s
+            spread_c = abs(float(self.thermal.temperature_at(at - window_s))
+                           - float(self.thermal.temperature_at(at)))
+        return float(self.thermal.temperature_at(self.lab_time_s)), spread_c, end_s
+
     def sensor_temperature_c(self) -> float:
         return float(self.thermal.temperature_at(self.lab_time_s))

@@ -50,6 +50,9 @@ Judged = tuple[str, float, float | None]
 def decide(value: float, limit: float, u: float | None, rule: DecisionRule) -> VerdictValue:
     """One verdict under a decision rule (see the module docstring).
 
+    ``value``, ``limit`` and ``u`` (the expanded uncertainty) share the judged quantity's unit
+    (V, %, (°/s²)/g, … — or dimensionless for a ratio).
+
     >>> decide(0.9, 1.0, 0.2, "simple"), decide(0.9, 1.0, 0.2, "guarded")
     ('pass', 'conditional-pass')
     >>> decide(1.05, 1.0, 0.2, "shared-risk"), decide(1.5, 1.0, 0.2, "guarded")
@@ -88,6 +91,15 @@ def _static(results: RunResults, ch: str, sheet: SensorDatasheet) -> Iterator[Ju
                    finite(bias.g_sensitivity_expanded_uncertainty_dps2_per_g))
     yield from _thermal(results, ch)
     yield from _noise(results, ch)
+    yield from _cross_axis(results, ch)
+
+
+def _cross_axis(results: RunResults, ch: str) -> Iterator[Judged]:
+    """A single-axis sensor's cross-axis ratio from outer-axis excitation, with its U."""
+    block = results.analysis.cross_axis
+    cross = block.get(ch) if block else None
+    if cross is not None and (r := finite(cross.cross_axis_ratio)) is not None:
+        yield "cross_axis_ratio", r, finite(cross.expanded_uncertainty)
 
 
 def _nonlinearity(scale: ScaleFactorHeadline) -> float | None:

@@ -202,8 +202,8 @@ def temperature_steps(w: Walker, body: TemperatureSteps, path: YamlPath) -> None
     """Per set-point: chamber soak, then (chamber off, wait) static and/or sine records."""
     for setpoint_c in body.setpoints_c:
         w.temperature_c = setpoint_c
-        w.emit(f"chamber-{num(setpoint_c)}C", path, kind="chamber", soak_s=body.soak_s,
-               sample_rate_hz=w.proc.sampling.rate_hz, group="temperature")
+        w.emit(f"chamber-{num(setpoint_c)}C", path, kind="chamber",
+               sample_rate_hz=w.proc.sampling.rate_hz, group="temperature", **_soak(body))
         if body.static:
             w.emit(f"static-{num(setpoint_c)}C", path, kind="static", inner_deg=body.inner_deg,
                    outer_deg=body.outer_deg, group="temperature",
@@ -215,6 +215,16 @@ def temperature_steps(w: Walker, body: TemperatureSteps, path: YamlPath) -> None
                    **w.record(body, settle_s=body.off_wait_s))
         if body.dynamic is not None:
             _temperature_sine(w, body, path, setpoint_c)
+
+
+def _soak(body: TemperatureSteps) -> dict[str, Any]:
+    """The chamber step's soak: a fixed ``soak_s``, or until stable (the window is then the
+    least soak, ``soak_max_s`` the most)."""
+    if body.soak is None:
+        return {"soak_s": body.soak_s}
+    stable = body.soak.until_stable
+    return {"soak_s": stable.window_s, "stable_tolerance_c": stable.tolerance_c,
+            "stable_window_s": stable.window_s, "soak_max_s": body.soak.max_s}
 
 
 def _temperature_sine(w: Walker, body: TemperatureSteps, path: YamlPath, setpoint_c: float) -> None:

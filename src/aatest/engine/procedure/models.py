@@ -214,6 +214,29 @@ class DynamicSine(_Strict):
     settle_s: NonNegFloat | None = None
 
 
+class UntilStable(_Strict):
+    """Stable: the sensor temperature's spread (max − min) over the last ``window_s`` seconds
+    is at most ``tolerance_c`` °C."""
+
+    tolerance_c: PositiveFloat = Field(description="largest spread over the window, °C")
+    window_s: PositiveFloat = Field(description="the trailing window the spread is taken over, s")
+
+
+class Soak(_Strict):
+    """Soak until the sensor temperature is stable, at most ``max_s`` seconds (a chamber that
+    is not stable by then is a rig fault, exit 3; the run can be resumed)."""
+
+    until_stable: UntilStable
+    max_s: PositiveFloat = Field(description="longest soak, s (the plan's lab time counts it)")
+
+    @model_validator(mode="after")
+    def _window_fits(self) -> Soak:
+        if self.max_s < self.until_stable.window_s:
+            raise ValueError(f"max_s ({self.max_s:g} s) is shorter than the stability window "
+                             f"until_stable.window_s ({self.until_stable.window_s:g} s)")
+        return self
+
+
 class TemperatureSteps(Overrides):
     """Chamber set-points (docs/method.md §4.2): soak, switch off, wait, record.
 
@@ -223,6 +246,8 @@ class TemperatureSteps(Overrides):
 
     setpoints_c: Annotated[tuple[Annotated[float, Strict(), Field(ge=-80, le=200)], ...], *NonEmpty]
     soak_s: NonNegFloat = 900.0
+    soak: Soak | None = Field(None, description="soak until stable instead of a fixed soak_s: "
+                              "{until_stable: {tolerance_c, window_s}, max_s}")
     off_wait_s: NonNegFloat = 60.0
     static: StrictBool = True
     bias_pair: StrictBool = Field(
@@ -236,6 +261,8 @@ class TemperatureSteps(Overrides):
     def _records(self) -> TemperatureSteps:
         if not self.static and self.dynamic is None:
             raise ValueError("a temperature step needs a static and/or a dynamic record")
+        if self.soak is not None and "soak_s" in self.model_fields_set:
+            raise ValueError("give soak_s (a fixed soak) or soak (until stable), not both")
         return self
 
 

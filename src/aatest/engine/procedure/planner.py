@@ -76,10 +76,17 @@ class Expansion:
     plan: Plan
     sources: Mapping[str, YamlPath]
     skipped: tuple[SkippedPoint, ...] = ()
+    #: (step id, requested Hz, planned Hz) of every frequency moved to whole cycles
+    snapped: tuple[tuple[str, float, float], ...] = ()
 
     def to_contract_json(self) -> dict[str, Any]:
         """The ``plan --json`` document with the extra key ``skipped``."""
         return {**self.plan.to_contract_json(), "skipped": [s.to_json() for s in self.skipped]}
+
+    def snapped_lines(self) -> list[str]:
+        """What ``validate`` prints about frequencies moved to whole cycles (snap: coherent)."""
+        return [f"snapped: {step}: {asked:g} Hz → {planned:.6g} Hz (whole cycles in the record; "
+                "snap: none keeps the frequency asked)" for step, asked, planned in self.snapped]
 
     def skipped_lines(self) -> list[str]:
         """What ``validate`` prints about dropped points: a count, then one line per point."""
@@ -119,6 +126,9 @@ class _Walker:
     temperature_c: float | None = None
     repetition: int = 1
     rep_suffix: str = ""
+    #: the last snap that moved a frequency (requested, planned), claimed by the next step
+    moved: tuple[float, float] | None = None
+    snapped: list[tuple[str, float, float]] = field(default_factory=list)
 
     # --- helpers ------------------------------------------------------------------------------
     def fail(self, path: YamlPath, message: str) -> ProcedureError:
@@ -139,7 +149,10 @@ class _Walker:
     def snap(self, freq_hz: float, mode: str, rec: dict[str, Any]) -> tuple[float, int | None]:
         if mode == "none":
             return freq_hz, None
-        return snap_frequency(freq_hz, rec["sample_rate_hz"], rec["samples"])
+        snapped, cycles = snap_frequency(freq_hz, rec["sample_rate_hz"], rec["samples"])
+        # moved by more than rounding (a frequency already coherent is not reported)
+        self.moved = (freq_hz, snapped) if abs(snapped - freq_hz) > 1e-9 * freq_hz else None
+        return snapped, cycles
 
     def emit(self, label: str, source: YamlPath, prompt: str | None = None, **fields: Any) -> None:
         if len(self.drafts) >= MAX_STEPS:
@@ -152,6 +165,10 @@ class _Walker:
             fields["prompt"] = text
         self.prompt = None
         self.drafts.append(_Draft(label + self.rep_suffix, source, fields))
+        if self.moved is not None:  # the step's id is its draft's number and label (_plan)
+            number = len(self.drafts)
+            self.snapped.append((f"s{number:03d}-{label}{self.rep_suffix}", *self.moved))
+            self.moved = None
 
     def emit_or_skip(self, label: str, source: YamlPath, skip: bool, **fields: Any) -> bool:
         """Emit a sweep point, or drop it when allowed and it leaves the envelope.
@@ -228,7 +245,7 @@ def expand_traced(procedure: Procedure, *, envelope: TableEnvelope | None = None
     if not walker.drafts:
         raise walker.fail(("steps",), "the procedure plans no steps (every point was skipped)")
     plan, sources = _plan(procedure, walker.drafts)
-    expansion = Expansion(plan, sources, tuple(walker.skipped))
+    expansion = Expansion(plan, sources, tuple(walker.skipped), tuple(walker.snapped))
     _TRACES[plan] = expansion
     while len(_TRACES) > _TRACE_KEEP:
         _TRACES.popitem(last=False)

@@ -40,6 +40,8 @@ class RunState:
     prompts_shown: list[str] = field(default_factory=list)
     #: who confirmed each prompt and when (``PromptAnswer.as_json()``), for traceability
     prompt_answers: list[dict[str, str]] = field(default_factory=list)
+    #: what each soak until stable achieved (set-point, sensor °C, spread, window, soak time)
+    soak_stability: list[dict[str, float]] = field(default_factory=list)
     finished: bool = False
 
     def save(self, run_dir: Path) -> None:

@@ -12,10 +12,11 @@ completed so far; ``--resume`` continues with the first step not on disk.
 from __future__ import annotations
 
 import hashlib
+import logging
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, cast
@@ -24,11 +25,13 @@ from threadpoolctl import threadpool_limits
 
 import aatest
 from aatest.engine.dataset import StepData
-from aatest.engine.errors import AatestError, AnalysisError, InputError, RigFault
+from aatest.engine.errors import AatestError, AnalysisError, InputError, PluginError, RigFault
 from aatest.engine.interfaces import (
     STREAM_CHUNK_S,
+    StableChamber,
     StreamingDaq,
     TableEnvelope,
+    soaks_until_stable,
     supports_streaming,
     table_capabilities,
 )
@@ -41,6 +44,8 @@ from aatest.engine.run.run_state import RunState
 from aatest.engine.run.writes import BackgroundWrites
 from aatest.engine.simulation import SIMULATED_PARTS_KEY
 from aatest.engine.steps import UNNAMED_SERIAL, Plan, PlannedStep
+
+log = logging.getLogger("aatest.run")
 
 DEFAULT_SOAK_S = 900.0
 #: _ONE_BLAS_THREAD: the step loop runs BLAS single-threaded. Its products are thin (the twin's
@@ -77,19 +82,43 @@ class _ChamberTracker:
 
     setpoint_c: float | None = None
     soak_s: float = DEFAULT_SOAK_S
+    #: the chamber step in force (its soak-until-stable criterion, if any)
+    step: PlannedStep | None = None
+    #: what each soak until stable achieved (``Stability.as_json`` with the set-point)
+    stability: list[dict[str, float]] = field(default_factory=list)
 
     def ensure(self, rig: Rig, step: PlannedStep) -> None:
         target = step.temperature_c
         if step.kind == "chamber":
             self.soak_s = step.soak_s if step.soak_s is not None else DEFAULT_SOAK_S
+            self.step = step
         if target is None or target == self.setpoint_c:
             return
+        until = self.step if self.step is not None and self.step.soak_max_s is not None else None
+        if until is not None and not soaks_until_stable(rig.chamber):  # refused by validate
+            raise PluginError(f"chamber plugin {type(rig.chamber).__name__} cannot soak until "
+                              "stable (no wait_until_stable); give soak_s instead")
         rig.chamber.set_temperature(target)
-        rig.chamber.wait_stable(self.soak_s)
+        if until is not None:
+            self._until_stable(rig, until, target)
+        else:
+            rig.chamber.wait_stable(self.soak_s)
         # docs/method.md §4.2: switch the chamber off before recording (its fans and compressor
         # vibrate the table); the sensor then drifts slowly with its own thermal lag
         rig.chamber.off()
         self.setpoint_c = target
+
+
+    def _until_stable(self, rig: Rig, step: PlannedStep, target: float) -> None:
+        assert step.stable_tolerance_c is not None and step.stable_window_s is not None
+        assert step.soak_max_s is not None
+        chamber = cast(StableChamber, rig.chamber)  # checked by soaks_until_stable
+        achieved = chamber.wait_until_stable(step.stable_tolerance_c, step.stable_window_s,
+                                             step.soak_max_s)
+        log.info("soak at %g °C: stable after %.0f s, sensor %.3f °C, spread %.3g °C over %g s "
+                 "(tolerance %g °C)", target, achieved.waited_s, achieved.temperature_c,
+                 achieved.spread_c, achieved.window_s, achieved.tolerance_c)
+        self.stability.append({"setpoint_c": target, **achieved.as_json()})
 
 
 #: the table serial of a plugin that reports none
@@ -292,7 +321,7 @@ def run_plan(
     """
     events = events or RunEvents()
     done = set(recorder.completed_step_ids()) | set(state.chamber_steps_done)
-    chamber = _ChamberTracker()
+    chamber = _ChamberTracker(stability=state.soak_stability)
     started = time.perf_counter()
     writes = BackgroundWrites(recorder)  # a step's file is written while the next records
     try:

@@ -78,6 +78,11 @@ class Prepared:
     expansion: Any
     #: per listed analysis, the steps it will use (its requirements are met)
     coverage: Any = None
+    #: the turntable's envelope (``streaming_daq`` set) and the DAQ's channels, for preflight
+    envelope: Any = None
+    daq_channels: tuple[str, ...] = ()
+    #: the parsed procedure (with its source tree, for located preflight problems)
+    procedure: Any = None
 
     def plan_json(self) -> dict[str, Any]:
         """``aatest plan --json``: the steps, lab duration and the points out of envelope."""
@@ -102,17 +107,18 @@ def prepare(procedure: Path, rig_file: Path | None, unit: UnitName | None = None
         proc = proc.model_copy(update={"sensor": unit.apply(proc.sensor)})
     rig_config = load_rig(rig_file) if rig_file else rig_from_procedure(proc)
     sensor = SensorRef(model=proc.sensor.model, serial=proc.sensor.serial)
-    envelope, datasheet = _declared_limits(rig_config, sensor)
+    envelope, datasheet, channels = _declared_limits(rig_config, sensor)
     expansion = expand_traced(proc, envelope=envelope, datasheet=datasheet)
     check_envelope(expansion.plan, envelope, datasheet, procedure_file=str(procedure),
                    sources=expansion.sources)
     coverage = check_coverage(proc, expansion.plan, dict(expansion.sources),
                               rig_config.chamber.plugin, datasheet)
-    return Prepared(procedure, text, expansion.plan, rig_config, expansion, coverage)
+    return Prepared(procedure, text, expansion.plan, rig_config, expansion, coverage, envelope,
+                    channels, proc)
 
 
-def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any]:
-    """The turntable plugin's envelope and the sensor's datasheet.
+def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any, tuple[str, ...]]:
+    """The turntable plugin's envelope, the sensor's datasheet and the DAQ's channels.
 
     The rig is only constructed (no plugin connects in its constructor) and never started, so
     nothing here reaches the hardware: no ``start``, no ``safe_stop`` and no ``close`` — a
@@ -130,7 +136,7 @@ def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any]:
     # long static records need a streaming DAQ (docs/interfaces.md §3)
     envelope = rig.turntable.envelope().model_copy(
         update={"streaming_daq": supports_streaming(rig.daq)})
-    return envelope, rig.datasheet
+    return envelope, rig.datasheet, tuple(rig.daq.channels())
 
 
 def default_operator() -> str:
@@ -287,8 +293,13 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     events: RunEvents | None = None,
     confirm_prompts: ConfirmPrompts = "ask",
     unit: UnitName | None = None,
+    prepared: Prepared | None = None,
 ) -> tuple[Where, RunResults]:
     """``aatest run``: execute (or resume) a procedure and produce its results and report.
+
+    ``prepared`` is the procedure as the preflight (:mod:`aatest.preflight`) checked it;
+    without it the procedure is prepared here and its plan-level preflight (report template,
+    analysable steps, disk space) runs before anything moves.
 
     ``events`` lets a caller (the station) observe, answer prompts and abort; without a
     responder the terminal answers, and without a terminal the run is refused before the rig
@@ -305,8 +316,9 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
         return _run_to_url(out_dir, lambda local: run(
             procedure, rig_file, local, resume, seed, key_path, show_progress,
             operator=operator, pdf=pdf, events=events, confirm_prompts=confirm_prompts,
-            unit=unit))
-    prepared = prepare(procedure, rig_file, unit)
+            unit=unit, prepared=prepared))
+    checked = prepared is not None
+    prepared = prepared or prepare(procedure, rig_file, unit)
     plan = prepared.plan
     if (key := signing_key(key_path)) is not None:  # a bad or too open key fails before any motion
         signing.load_private_key(key, os.environ.get(PASSPHRASE_ENV))
@@ -314,6 +326,10 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
         if resume:
             raise InputError("--resume needs --out RUN_DIR (the run to continue)")
         out_dir = default_run_dir(plan.procedure)
+    if not checked:
+        from aatest.engine.plan_checks import refuse_unrunnable
+
+        refuse_unrunnable(prepared, out_dir)
     if resume:
         seed = RunState.load(out_dir).seed
     events = events or RunEvents()
@@ -395,7 +411,9 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
         lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s,
         pdf=request.pdf,
         extra_metadata={"prompt_answers": state.prompt_answers,
-                        "confirm_prompts": request.prompt_mode},
+                        "confirm_prompts": request.prompt_mode,
+                        **({"soak_stability": state.soak_stability} if state.soak_stability
+                           else {})},
     )
     return out_dir, results
 

@@ -7,6 +7,8 @@ these declarations, checked by a test).
 
 from __future__ import annotations
 
+import numpy as np
+
 from aatest.engine.requirements import Check, PlanView, Requirement, steps_where
 from aatest.engine.steps import PlannedStep
 
@@ -87,11 +89,42 @@ def _three_sensors(view: PlanView) -> Check:
     if not axes >= {"I", "O", "P"}:
         return Check((), f"needs {THREE_NEED}; the sensor has axes "
                      f"{', '.join(sorted(axes)) or 'none'} (a single-axis sensor's cross-axis "
-                     "sensitivity is not measured by this analysis)")
+                     "sensitivity is measured by the analysis 'cross_axis')")
     return Check()
 
 
 THREE_NEED = "a three-sensor unit (sensors on the I, O and P axes)"
+
+#: least angle between two inner-axis positions of the cross-axis steps (their transverse
+#: directions), ° — 45° keeps the 2×2 solve's condition number ≤ 2.4 (90° gives 1)
+CROSS_MIN_SEPARATION_DEG = 45.0
+
+
+def cross_axis_positions(steps: list[PlannedStep]) -> list[float]:
+    """Distinct inner-axis positions (mod 180°) of outer-axis sine steps."""
+    return sorted({round(s.inner_deg % 180.0, 6) for s in steps})
+
+
+def _cross_steps(view: PlanView) -> Check:
+    on_inner = [ch for ch, axis in view.sensor_axes.items() if axis == "I"]
+    steps = [s for s in view.recorded("sine") if s.axis == "outer"]
+    used = tuple(s.id for s in steps)
+    if view.sensor_axes and not on_inner:
+        return Check(used, f"needs {CROSS_NEED}; the sensor has no channel on the inner axis")
+    positions = cross_axis_positions(steps)
+    separated = any(
+        abs(np.sin(np.deg2rad(b - a))) >= np.sin(np.deg2rad(CROSS_MIN_SEPARATION_DEG)) - 1e-12
+        for i, a in enumerate(positions) for b in positions[i + 1:])
+    if not separated:
+        found = ", ".join(f"{p:g}°" for p in positions) or "none"
+        return Check(used, f"needs {CROSS_NEED}; the plan's outer-axis sine steps are at inner "
+                     f"{found}")
+    return Check(used)
+
+
+CROSS_NEED = ("outer-axis sine steps at two or more inner-axis positions at least "
+              f"{CROSS_MIN_SEPARATION_DEG:g}° apart (e.g. 0° and 90°), for a sensor on the inner "
+              "axis")
 
 SYNC = (steps_where("a recorded step", lambda s: True),)
 BIAS = (Requirement(BIAS_NEED, _bias_pairs),)
@@ -103,6 +136,7 @@ MISALIGNMENT = (Requirement(THREE_NEED, _three_sensors),
                             lambda s: bool(s.mounting.scenario), kind="sine"))
 STATIC = (steps_where("a static step", lambda s: True, kind="static"),)
 SINE = (steps_where("a sine step", lambda s: True, kind="sine"),)
+CROSS_AXIS = (Requirement(CROSS_NEED, _cross_steps),)
 
 
 def sine_points(minimum: int) -> tuple[Requirement, ...]:

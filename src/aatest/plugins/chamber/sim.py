@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict
 
-from aatest.engine.interfaces import RigContext
+from aatest.engine.errors import RigFault
+from aatest.engine.interfaces import RigContext, Stability
 from aatest.twin.session import twin_session
 from aatest.twin.world import World
 
@@ -34,6 +35,17 @@ class SimChamber:
     def wait_stable(self, soak_s: float) -> float:
         """Advance lab time until soaked and within the stable band; return the sensor °C."""
         return self.world.wait_stable(soak_s)
+
+    def wait_until_stable(self, tolerance_c: float, window_s: float, max_s: float) -> Stability:
+        """Advance lab time until the sensor temperature's spread over ``window_s`` is within
+        ``tolerance_c`` (:class:`~aatest.engine.interfaces.StableChamber`)."""
+        temperature_c, spread_c, waited_s = self.world.wait_until_stable(tolerance_c, window_s,
+                                                                         max_s)
+        if spread_c > tolerance_c * (1 + 1e-9):  # solved to the tolerance, so not to bits
+            raise RigFault(f"chamber sim: not stable within {max_s:g} s: the sensor temperature "
+                           f"spread {spread_c:.3g} °C over {window_s:g} s (tolerance "
+                           f"{tolerance_c:g} °C)")
+        return Stability(temperature_c, spread_c, window_s, tolerance_c, waited_s)
 
     def off(self) -> None:
         """Switch the chamber off: the sensor keeps its temperature for the short record."""

@@ -58,6 +58,12 @@ class _HtmlReport:
         return build_context(results, run_dir, self.template, self.title, self.sections,
                              self.config.plots)
 
+    @classmethod
+    def check_template(cls, template_dir: Path | None = None) -> None:
+        """Load the template in the sandbox, as :meth:`render` will (the preflight of a run:
+        a template that does not load fails before anything moves)."""
+        load_template(f"{cls.template}.html.j2", template_dir)
+
     def render(self, results: RunResults, run_dir: Path, template_dir: Path | None) -> Path:
         """Render ``results`` into ``run_dir/<output_name>`` and return that path."""
         run_dir = Path(run_dir)

@@ -1,0 +1,226 @@
+"""Preflight (issue 23 item 3): every mistake that would fail after the recording fails
+``validate`` at its FILE:LINE:COLUMN with exit 2, and fails ``run`` before the twin's table
+gets a single command (the table's methods are wrapped and counted)."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from typer.testing import CliRunner
+
+from aatest.cli import app
+from aatest.engine import plan_checks
+from aatest.plugins.turntable.sim import SimTurntable
+
+GOOD = """\
+procedure: pf
+sensor: {model: sr207, serial: "P1"}
+rig: {turntable: sim, daq: sim}
+sampling: {rate_hz: 2000, samples: 4000, settle_s: 0.5}
+steps:
+  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 400}
+analysis: [sync, scale_factor]
+report: {template: calibration-certificate}
+"""
+
+#: the table's methods that talk to a controller: none may be called before the preflight passed
+COMMANDS = ("start", "move_to", "begin_motion", "record", "end_motion", "safe_stop", "close")
+
+
+@pytest.fixture
+def sent(monkeypatch: pytest.MonkeyPatch) -> Iterator[Counter[str]]:
+    """Every command the twin's table receives, counted by name."""
+    counts: Counter[str] = Counter()
+    for name in COMMANDS:
+        original = getattr(SimTurntable, name)
+
+        def counted(self: Any, *args: Any, _name: str = name, _original: Any = original,
+                    **kwargs: Any) -> Any:
+            counts[_name] += 1
+            return _original(self, *args, **kwargs)
+
+        monkeypatch.setattr(SimTurntable, name, counted)
+    yield counts
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "p.yaml"
+    path.write_text(text)
+    return path
+
+
+def _records(tmp_path: Path) -> list[str]:
+    return ["--records", f"sqlite:///{tmp_path / 'records.sqlite'}"]
+
+
+MISTAKES = {
+    # name: (replace this, with this, the located line expected in the output)
+    "unknown-turntable": ("turntable: sim", "turntable: nope",
+                          "p.yaml:3:7: rig.turntable: no turntable plugin named 'nope'"),
+    "unknown-daq": ("daq: sim", "daq: nidaq", "p.yaml:3:23: rig.daq: no daq plugin named 'nidaq'"),
+    "unknown-sensor": ("model: sr207", "model: sr999",
+                       "p.yaml:2:10: sensor.model: no sensor plugin named 'sr999'"),
+    "unknown-template": ("template: calibration-certificate", "template: nope",
+                         "p.yaml:8:10: report.template: no report plugin named 'nope'"),
+    "unknown-analysis": ("[sync, scale_factor]", "[sync, scale_factr]",
+                         "p.yaml:7:18: analysis.1: no analysis plugin named 'scale_factr'"),
+    "bad-analysis-option": ("[sync, scale_factor]", "[sync, scale_factor: {orders: 3}]",
+                            "p.yaml:7:33: analysis.1.scale_factor.orders:"),
+    "long-static-with-sync": (
+        "  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 400}\n",
+        "  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 400}\n"
+        "  - static: {duration_s: 3600}\n",
+        "p.yaml:7:5: steps.1.static: step s002-static-i0-o0 records 7,200,000 samples (3600 s), "
+        "more than the table's log capacity (230,000 samples)"),
+}
+
+
+@pytest.mark.parametrize("mistake", sorted(MISTAKES))
+def test_each_mistake_fails_validate_located_and_run_before_motion(
+        mistake: str, tmp_path: Path, sent: Counter[str]) -> None:
+    old, new, located = MISTAKES[mistake]
+    assert old in GOOD
+    path = _write(tmp_path, GOOD.replace(old, new, 1))
+    checked = CliRunner().invoke(app, ["validate", str(path), *_records(tmp_path)])
+    assert checked.exit_code == 2, checked.output
+    assert f"{tmp_path}/{located}" in checked.output, checked.output
+    ran = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "run"),
+                                   "--confirm-prompts", "auto", "--no-progress",
+                                   *_records(tmp_path)])
+    assert ran.exit_code == 2, ran.output
+    assert f"{tmp_path}/{located}" in ran.output, ran.output
+    assert sum(sent.values()) == 0, sent  # nothing reached the table
+    assert not (tmp_path / "run").exists()  # nothing recorded, no number burned
+
+
+def test_the_good_procedure_passes_and_its_run_commands_the_table(
+        tmp_path: Path, sent: Counter[str]) -> None:
+    """The control: without a mistake the counter sees the run's commands, and the recording
+    fits the preflight's estimate of its size (the estimate bounds one copy of it)."""
+    path = _write(tmp_path, GOOD)
+    checked = CliRunner().invoke(app, ["validate", str(path), *_records(tmp_path)])
+    assert checked.exit_code == 0, checked.output
+    ran = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "run"),
+                                   "--confirm-prompts", "auto", "--no-progress",
+                                   *_records(tmp_path)])
+    assert ran.exit_code in (0, 1), ran.output
+    assert sent["start"] == 1 and sent["begin_motion"] == 1 and sent["record"] == 1
+    estimate = plan_checks.recording_bytes(_prepared(path).plan.steps, None, 7)
+    one_copy = (estimate - plan_checks.REPORT_BYTES) / (plan_checks.COPIES
+                                                         * (1 + plan_checks.MARGIN))
+    assert (tmp_path / "run" / "recording.mcap").stat().st_size <= one_copy
+
+
+def _prepared(path: Path) -> Any:
+    from aatest.engine.run.session import prepare
+
+    return prepare(path, None)
+
+
+def test_validate_json_lists_every_check_with_status_and_message(tmp_path: Path) -> None:
+    path = _write(tmp_path, GOOD.replace("template: calibration-certificate", "template: nope"))
+    result = CliRunner().invoke(app, ["validate", str(path), "--json", *_records(tmp_path)])
+    assert result.exit_code == 2, result.output
+    doc = json.loads(result.output)
+    status = {c["name"]: c["status"] for c in doc["checks"]}
+    assert status == {"procedure": "ok", "plugins": "ok", "report template": "failed",
+                      "plan": "ok", "analysable steps": "ok", "disk space": "ok",
+                      "lab profile": "ok", "signing key": "ok", "records store": "ok"}
+    assert doc["ok"] is False and all(c["message"] for c in doc["checks"])
+    (failed,) = [c for c in doc["checks"] if c["status"] == "failed"]
+    assert failed["problems"][0]["line"] == 8 and failed["problems"][0]["field"] == \
+        "report.template"
+
+
+def test_a_key_that_does_not_open_fails_before_motion(
+        tmp_path: Path, sent: Counter[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    from aatest.engine.run.signing import generate_keypair
+
+    key = tmp_path / "key.pem"
+    generate_keypair(key, "right passphrase")
+    monkeypatch.setenv("AATEST_SIGNING_PASSPHRASE", "wrong passphrase")
+    path = _write(tmp_path, GOOD)
+    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
+                                   "--confirm-prompts", "auto"]):
+        result = CliRunner().invoke(app, [*command, str(path), "--sign-key", str(key),
+                                          *_records(tmp_path)])
+        assert result.exit_code == 2, result.output
+        assert f"{key}: not a usable private key or wrong passphrase" in result.output
+    assert sum(sent.values()) == 0, sent
+
+
+def test_a_lab_profile_that_does_not_load_is_located(tmp_path: Path, sent: Counter[str]) -> None:
+    lab = tmp_path / "lab.yaml"
+    lab.write_text("name: Lab\ncertificate_prefx: X\n")
+    path = _write(tmp_path, GOOD)
+    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
+                                   "--confirm-prompts", "auto"]):
+        result = CliRunner().invoke(app, [*command, str(path), "--lab", str(lab),
+                                          *_records(tmp_path)])
+        assert result.exit_code == 2, result.output
+        assert f"{lab}:2:1: certificate_prefx:" in result.output
+    assert sum(sent.values()) == 0, sent
+
+
+def test_an_unreachable_records_store_fails_before_motion(tmp_path: Path,
+                                                          sent: Counter[str]) -> None:
+    path = _write(tmp_path, GOOD)
+    unreachable = ["--records", "postgresql://nobody@127.0.0.1:9/none"]  # port 9: discard
+    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
+                                   "--confirm-prompts", "auto"]):
+        result = CliRunner().invoke(app, [*command, str(path), *unreachable])
+        assert result.exit_code == 2, result.output
+        assert "cannot be reached" in result.output
+    assert sum(sent.values()) == 0, sent
+
+
+def test_a_store_of_a_newer_schema_is_refused(tmp_path: Path, sent: Counter[str]) -> None:
+    import sqlite3
+
+    from aatest.records.store import RecordStore
+
+    store = tmp_path / "records.sqlite"
+    RecordStore.open(f"sqlite:///{store}").close()
+    with sqlite3.connect(store) as db:
+        db.execute("UPDATE alembic_version SET version_num = 'from_the_future'")
+    result = CliRunner().invoke(app, ["validate", str(_write(tmp_path, GOOD)),
+                                      "--records", f"sqlite:///{store}"])
+    assert result.exit_code == 2, result.output
+    assert "schema revision 'from_the_future' is unknown to this aatest" in result.output
+
+
+def test_too_little_disk_fails_before_motion(tmp_path: Path, sent: Counter[str],
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+
+    real = shutil.disk_usage
+
+    def nearly_full(path: Any) -> Any:
+        usage = real(path)
+        return usage._replace(free=plan_checks.REPORT_BYTES)  # less than any recording needs
+
+    monkeypatch.setattr(plan_checks.shutil, "disk_usage", nearly_full)
+    path = _write(tmp_path, GOOD)
+    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
+                                   "--confirm-prompts", "auto"]):
+        result = CliRunner().invoke(app, [*command, str(path), *_records(tmp_path)])
+        assert result.exit_code == 2, result.output
+        assert f"{path}:5:1: steps: not enough disk space: the recording needs up to" in \
+            result.output
+    assert sum(sent.values()) == 0, sent
+
+
+def test_the_long_static_step_alone_with_drift_is_analysable(tmp_path: Path) -> None:
+    """The refusal names its way out: the same record analysed by 'drift' alone passes."""
+    text = GOOD.replace("  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 400}\n",
+                        "  - static: {duration_s: 3600}\n").replace("[sync, scale_factor]",
+                                                                    "[drift]")
+    result = CliRunner().invoke(app, ["validate", str(_write(tmp_path, text)),
+                                      *_records(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert "analysable steps: ok" in result.output
