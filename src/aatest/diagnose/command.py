@@ -16,6 +16,7 @@ from typing import Any
 
 from aatest.diagnose.model_out import extended_model, write_model
 from aatest.diagnose.pipeline import diagnose_dataset
+from aatest.engine import registry
 
 
 def _clean(value: Any) -> Any:
@@ -80,6 +81,7 @@ def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Path) 
         return None
 
 
+@registry.pinned()  # the installed plugins (effects) are read once per diagnosis
 def diagnose_command(data: Path, json_out: Path | None, model_out: Path | None) -> list[dict]:
     """Diagnose ``data``; write JSON / model / report.
 

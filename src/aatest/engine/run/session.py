@@ -153,6 +153,7 @@ def signing_key(explicit: Path | None) -> Path | None:
     return Path(env) if env else None
 
 
+@registry.pinned()  # the installed plugins are read once for the analysis
 def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run` one to one
     data_path: Path,
     out_dir: Path,
@@ -257,6 +258,7 @@ def render_and_sign(
     return report
 
 
+@registry.pinned()  # the installed plugins are read once per run
 def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later ones by keyword
     procedure: Path,
     rig_file: Path | None,
