@@ -159,8 +159,8 @@ def _installed_signature() -> tuple[Any, ...]:
 
 #: the installation signature pinned by :func:`pinned` (per thread: a context variable)
 _PINNED: ContextVar[tuple[Any, ...] | None] = ContextVar("aatest_registry_pinned", default=None)
-#: plugins loaded and validated while pinned, by (kind, name), with the signature they were
-#: loaded under
+#: plugins loaded and validated while pinned, by (kind, name), with the pinned signature object
+#: they were loaded under (reused only inside that same block: each run loads afresh)
 _LOADED: dict[tuple[str, str], tuple[tuple[Any, ...], PluginInfo]] = {}
 
 
@@ -211,7 +211,7 @@ def load(kind: str, name: str) -> PluginInfo:
     pin = _PINNED.get()
     if pin is not None:
         known = _LOADED.get((kind, name))
-        if known is not None and known[0] == pin:
+        if known is not None and known[0] is pin:  # loaded in this very block
             return known[1]
     info = _load(kind, name)
     if pin is not None:
