@@ -187,7 +187,7 @@ def compare(base_src: Path, rounds: int, argv: list[str]) -> None:
     names = [r[0] for r in runs["this"][0]] + ["total"]
 
     def median(label: str, name: str, col: int) -> float:
-        return statistics.median(sum(r[col] for r in rows if name in (r[0], "total"))
+        return statistics.median(sum(float(r[col]) for r in rows if name in (r[0], "total"))
                                  for rows in runs[label])
 
     print(f"median of {rounds} rounds: base {base_src} vs this {this_src}")
