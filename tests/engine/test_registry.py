@@ -138,3 +138,33 @@ def test_entry_points_follow_installs_and_edits(tmp_path: Any,
         before | {"lab_two", "lab_three"}
     points.write_text("")
     assert {ep.name for ep in registry.entry_points("sensor")} == before
+
+
+def test_a_pinned_block_reads_the_installation_once_and_loads_each_plugin_once(
+        tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Inside ``pinned()`` the installation is read on entry only (an install during the
+    block is not seen) and a plugin is loaded once; after it, installs are seen again."""
+    site = tmp_path / "site"
+    site.mkdir()
+    monkeypatch.syspath_prepend(str(site))
+    reads: list[int] = []
+    real = registry._installed_signature
+
+    def counting() -> Any:
+        reads.append(1)
+        return real()
+
+    monkeypatch.setattr(registry, "_installed_signature", counting)
+    before = {ep.name for ep in registry.entry_points("sensor")}
+    with registry.pinned():
+        reads.clear()
+        first = registry.load("analysis", "sync")
+        assert registry.load("analysis", "sync") is first  # loaded and validated once
+        _write_dist(site, "lab_sensors", {"lab_one": "lab_sensors:One"})
+        assert {ep.name for ep in registry.entry_points("sensor")} == before
+        with registry.pinned():  # nested: the outer block's reading
+            assert registry.load("analysis", "sync") is first
+        assert reads == []
+    assert {ep.name for ep in registry.entry_points("sensor")} == before | {"lab_one"}
+    with registry.pinned():  # a new block loads afresh
+        assert registry.load("analysis", "sync") is not first

@@ -16,6 +16,7 @@ from typing import Any
 
 from aatest.diagnose.model_out import extended_model, write_model
 from aatest.diagnose.pipeline import diagnose_dataset
+from aatest.engine import registry
 from aatest.engine.storage import Where, locate
 
 
@@ -85,6 +86,7 @@ def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Where)
         return
 
 
+@registry.pinned()  # the installed plugins (effects) are read once per diagnosis
 def diagnose_command(data: Where | str, json_out: Path | None,
                      model_out: Path | None) -> list[dict]:
     """Diagnose ``data``; write JSON / model / report.

@@ -160,6 +160,7 @@ def signing_key(explicit: Path | None) -> Path | None:
     return Path(env) if env else None
 
 
+@registry.pinned()  # the installed plugins are read once for the analysis
 def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run` one to one
     data_path: Where,
     out_dir: Where,
@@ -279,6 +280,7 @@ def _render(results: RunResults, run_dir: Path, template: str, template_dir: Pat
     return report
 
 
+@registry.pinned()  # the installed plugins are read once per run
 def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later ones by keyword
     procedure: Path,
     rig_file: Path | None,

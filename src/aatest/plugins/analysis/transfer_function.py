@@ -14,7 +14,7 @@ natural frequency and damping; the Bode plot extrapolates to 500 Hz.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -317,23 +317,16 @@ def _in_group(group: str, sensor: SensorInfo) -> Callable[[PlannedStep], bool]:
     return lambda p: group_of(p) == group and is_excited(p, sensor)
 
 
-def channel_models(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: SensorInfo,
-                   antialias_hz: float | None, options: TransferFunctionOptions
-                   ) -> tuple[dict[str, Any] | None, dict[str, str]]:
-    """The models of every group with enough points, the best group's first; and figures.
+def _fitted_groups(points: list[FrfPoint], options: TransferFunctionOptions) -> list[str]:
+    """The groups of a sensor's FRF points with enough points to fit."""
+    return [g for g in sorted({p.group for p in points})
+            if sum(p.group == g for p in points) >= options.min_points]
 
-    The groups are fitted side by side on forked workers (:func:`parallel_map`; each group's
-    candidate scan and Bode figure depend only on that group): the stepped sine's five groups
-    took ≈ 3.5 s of the analysis phase in one process.
-    """
-    fitted = [g for g in sorted({p.group for p in points})
-              if sum(p.group == g for p in points) >= options.min_points]
 
-    def fit(g: str) -> tuple[dict[str, Any], str]:
-        return group_model([p for p in points if p.group == g],
-                           select(steps, _in_group(g, sensor)), sensor, antialias_hz, options)
-
-    made = parallel_map(fit, fitted)
+def _channel_row(points: list[FrfPoint], sensor: SensorInfo, fitted: list[str],
+                 made: list[tuple[dict[str, Any], str]]
+                 ) -> tuple[dict[str, Any] | None, dict[str, str]]:
+    """A sensor's models (the best group's first) and figures from its fitted groups."""
     groups = {g: values for g, (values, _) in zip(fitted, made, strict=True)}
     figures = {f"tf_{sensor.channel}_{g}": svg for g, (_, svg) in zip(fitted, made, strict=True)}
     if not groups:
@@ -341,6 +334,42 @@ def channel_models(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: 
     snr = {g: np.median([p.snr_db for p in points if p.group == g]) for g in groups}
     main = max(groups, key=lambda g: snr[g])
     return {**groups[main], "group": main, "groups": groups}, figures
+
+
+def channel_models(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: SensorInfo,
+                   antialias_hz: float | None, options: TransferFunctionOptions
+                   ) -> tuple[dict[str, Any] | None, dict[str, str]]:
+    """The models of every group with enough points, the best group's first; and figures."""
+    return sensor_models({sensor.channel: points}, steps, [sensor], antialias_hz,
+                         options)[sensor.channel]
+
+
+def sensor_models(points: Mapping[str, list[FrfPoint]], steps: Sequence[SyncedStep],
+                  sensors: Sequence[SensorInfo], antialias_hz: float | None,
+                  options: TransferFunctionOptions
+                  ) -> dict[str, tuple[dict[str, Any] | None, dict[str, str]]]:
+    """:func:`channel_models` of every sensor, by channel.
+
+    The groups of all sensors are fitted side by side on forked workers in one
+    :func:`parallel_map` (each group's candidate scan and Bode figure depend only on that
+    group): the stepped sine's five groups took ≈ 3.5 s of the analysis phase in one
+    process, and one map over both sensors' groups keeps both workers busy to the end
+    (a map per sensor left one idle on each sensor's odd group).
+    """
+    fitted = {s.channel: _fitted_groups(points.get(s.channel, []), options) for s in sensors}
+    items = [(i, g) for i, s in enumerate(sensors) for g in fitted[s.channel]]
+
+    def fit(item: tuple[int, str]) -> tuple[dict[str, Any], str]:
+        sensor, g = sensors[item[0]], item[1]
+        return group_model([p for p in points.get(sensor.channel, []) if p.group == g],
+                           select(steps, _in_group(g, sensor)), sensor, antialias_hz, options)
+
+    made = parallel_map(fit, items)
+    out = {}
+    for i, s in enumerate(sensors):
+        mine = [m for (k, _), m in zip(items, made, strict=True) if k == i]
+        out[s.channel] = _channel_row(points.get(s.channel, []), s, fitted[s.channel], mine)
+    return out
 
 
 class TransferFunctionAnalysis:
@@ -371,9 +400,9 @@ class TransferFunctionAnalysis:
         points = _frf_points(context)
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
+        models = sensor_models(points, steps, list(data.sensors), antialias_hz, options)
         for sensor in data.sensors:
-            row, figs = channel_models(points.get(sensor.channel, []), steps, sensor,
-                                       antialias_hz, options)
+            row, figs = models[sensor.channel]
             figures |= figs
             if row is not None:
                 values[sensor.channel] = row
