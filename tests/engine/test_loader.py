@@ -105,7 +105,8 @@ def test_every_shipped_procedure_validates() -> None:
     names = sorted(p.stem for p in SHIPPED.glob("*.yaml"))
     assert names == ["long-static-drift", "pivoted-misalignment", "scale-factor",
                      "static-multi-position",
-                     "stepped-sine-frequency-response", "temperature-steps"]
+                     "stepped-sine-frequency-response", "study-transfer-function",
+                     "temperature-steps"]
     for path in SHIPPED.glob("*.yaml"):
         proc = load_procedure(path)
         assert proc.procedure == path.stem and proc.source_file == str(path)

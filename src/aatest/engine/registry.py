@@ -39,7 +39,8 @@ _NO_CONFIG = frozenset({"analysis", "effect"})
 BUILTIN_EFFECTS: frozenset[str] = frozenset({
     "bias_temperature", "scale_temperature", "nonlinearity_cubic", "saturation", "hysteresis",
     "sensor_dynamics", "time_delay", "clock_drift", "jerk_sensitivity", "g_sensitivity",
-    "cross_axis", "misalignment", "rate_ripple", "motor_vibration", "excess_noise"})
+    "cross_axis", "misalignment", "rate_ripple", "motor_vibration", "excess_noise",
+    "amplitude_damping"})
 #: where an effect's contribution may enter the sensor model (aatest.effects.Effect.enters)
 EFFECT_DOMAINS = ("acceleration", "voltage")
 

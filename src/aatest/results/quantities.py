@@ -78,6 +78,7 @@ QUANTITIES: dict[str, Quantity] = {q.key: q for q in (
     _q("frf_gain", "FRF gain", "dB", 5),
     _q("frf_phase", "FRF phase", "°", 4, "deg"),
     _q("misalignment", "Misalignment angle", "°", 4, "deg"),
+    _q("linearity_l_dps2", "(Non)linearity L (RMS from the ideal line)", "°/s²", 3),
     # judged quantities (verdicts)
     _q("scale_factor_deviation_pct", "Scale-factor deviation from nominal", "%", 4),
     _q("bias_deviation_v", "Bias deviation from nominal", "V", 4),

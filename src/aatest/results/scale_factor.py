@@ -76,7 +76,11 @@ class ScaleFactorChannel(Certified):
     fit: PolyFitSummary
     volts_mean_v: Real
     validation: Validation
-    nonlinearity_dps2: Real
+    nonlinearity_dps2: Real = Field(description="curvature of the chosen polynomial against "
+                                    "its own best line, °/s² (0 at order ≤ 1; not the study's L)")
+    linearity_l_dps2: Real | None = Field(
+        None, description="the study's (non)linearity L (Eq. 3.36): RMS over the record of the "
+        "model from the ideal line (the straight line against the table's own estimate), °/s²")
     inverse: InverseModel
     reference: ReferenceName = Field(description="the acceleration reference calibrated against")
     alignment_delay_s: Real

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 
 from aatest.engine.datasheet import SensorAxis, SensorDatasheet
 from aatest.twin.model import (
+    AmplitudeDamping,
     BiasDrift,
     BiasTemperature,
     ClockDrift,
@@ -94,7 +95,13 @@ def realistic_sensor_model(sheet: SensorDatasheet, channel: str, axis: SensorAxi
         saturation=Saturation(limit_dps2=_SATURATION_FR * range_dps2),
         hysteresis=Hysteresis(half_width_dps2=0.2),
         sensor_dynamics=SensorDynamics(natural_frequency_hz=30.0, damping=0.9),
-        time_delay=TimeDelay(delay_s=0.0015),
+        # the fluid rotor damps small motions more: ζ = 0.9 at 10 °/s², −0.105 per decade
+        # (1.0 at 1 °/s², 0.73 at 400), so the 10 Hz gain falls ≈0.9 dB at 1 °/s² and
+        # ≈0.1 dB at 400 (measured 1.0, 0.5, 0.4, 0.2 dB at 1, 10, 100, 400 °/s²)
+        amplitude_damping=AmplitudeDamping(damping_per_decade=-0.105, reference_dps2=10.0),
+        # 2.1 ms with the dynamics and the 100 Hz logger filter: ≈24.5 samples at 2 kHz at
+        # 400 °/s², more at lower accelerations (measured 24–31 samples)
+        time_delay=TimeDelay(delay_s=0.0021),
         jerk_sensitivity=JerkSensitivity(coefficient_v_per_dps3=2e-8),
         g_sensitivity=GSensitivity(coefficient_dps2_per_g=0.573),  # 0.01 rad/s²/g
         cross_axis=CrossAxis(ratio_x=0.003, ratio_y=-0.002),

@@ -67,6 +67,21 @@ class SensorDynamics(_Model):
     damping: float = Field(gt=0)
 
 
+class AmplitudeDamping(_Model):
+    """The fluid rotor's damping ratio depends on the acceleration amplitude A:
+    ζ(A) = ζ + ``damping_per_decade``·log10(A/``reference_dps2``), ζ the ``sensor_dynamics``
+    damping (reached at ``reference_dps2``), A = √2·RMS over the trailing ``window_s`` of the
+    sensed acceleration within the excitation band (4th-order low-pass at ``band_hz``: the
+    35 Hz motor band is not the rotor's excitation). Negative per-decade values (the measured
+    case, docs/method.md §1.3) damp small motions more: the gain at 10 Hz falls 1.0 dB at
+    1 °/s² but 0.2 dB at 400 °/s², and the phase delay grows at low acceleration."""
+
+    damping_per_decade: float
+    reference_dps2: float = Field(gt=0)
+    window_s: float = Field(2.5, gt=0, description="≥ one period of the slowest sine")
+    band_hz: float = Field(15.0, gt=0, description="the amplitude's band (low-pass corner)")
+
+
 class TimeDelay(_Model):
     """Pure transport delay; the output lags the motion."""
 
@@ -184,6 +199,7 @@ EFFECTS: dict[str, type[_Model]] = {
     "saturation": Saturation,
     "hysteresis": Hysteresis,
     "sensor_dynamics": SensorDynamics,
+    "amplitude_damping": AmplitudeDamping,
     "time_delay": TimeDelay,
     "clock_drift": ClockDrift,
     "jerk_sensitivity": JerkSensitivity,
@@ -252,6 +268,8 @@ class SensorModel(_Model):
     saturation: Saturation | None = None
     hysteresis: Hysteresis | None = None
     sensor_dynamics: SensorDynamics | None = None
+    amplitude_damping: AmplitudeDamping | None = Field(
+        None, description="needs sensor_dynamics (its natural frequency and reference damping)")
     time_delay: TimeDelay | None = None
     jerk_sensitivity: JerkSensitivity | None = None
     g_sensitivity: GSensitivity | None = None
@@ -262,6 +280,13 @@ class SensorModel(_Model):
         None, description="effects from installed plugins (aatest.effects), applied after the "
         "built-in chain: in °/s² before the scale factor or in volts, as each plugin declares")
     bias_drift: BiasDrift | None = None
+
+    @model_validator(mode="after")
+    def _damping_has_dynamics(self) -> SensorModel:
+        if self.amplitude_damping is not None and self.sensor_dynamics is None:
+            raise ValueError("amplitude_damping needs sensor_dynamics (the natural frequency "
+                             "and the damping at reference_dps2)")
+        return self
 
 
 class AxisModel(_Model):

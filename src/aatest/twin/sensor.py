@@ -3,7 +3,8 @@
 Signal path of one sensor channel (docs/interfaces.md §4 vocabulary, same parameter names):
 
     α_top (table-top frame) ─ axis projection (misalignment, pivot, re-mount) ─ cross_axis
-    ─ g_sensitivity ─ hysteresis (play) ─ sensor_dynamics ─ saturation ─ resolution
+    ─ g_sensitivity ─ hysteresis (play) ─ sensor_dynamics (amplitude_damping) ─ saturation
+    ─ resolution
     ─ nonlinearity_cubic ─ plugin effects in °/s² ─ scale (scale_temperature)
     ─ bias (bias_temperature) ─ jerk ─ plugin effects in V → volts
 
@@ -22,7 +23,12 @@ from scipy import signal
 
 from aatest.effects import EffectInputs, forward, load_effect
 from aatest.twin.fastmath import standard_normal
-from aatest.twin.model import BiasDrift, SensorModel
+from aatest.twin.model import AmplitudeDamping, BiasDrift, SensorModel
+
+#: damping-ratio grid of the amplitude-dependent dynamics: the output blends the two grid
+#: filters around ζ(t) (a 0.02 step moves the 10 Hz gain of a 30 Hz sensor by < 0.01 dB)
+_ZETA_STEP = 0.02
+_ZETA_BOUNDS = (0.05, 5.0)
 
 
 def play_operator(x: np.ndarray, half_width: float, y0: float | None = None) -> np.ndarray:
@@ -71,6 +77,13 @@ def dynamics_filter(natural_frequency_hz: float, damping: float, dt_s: float) ->
     return signal.bilinear([wn * wn], [1.0, 2 * damping * wn, wn * wn], fs=1.0 / dt_s)
 
 
+@lru_cache(maxsize=16)
+def band_filter(corner_hz: float, dt_s: float) -> tuple:
+    """(b, a) of the 4th-order Butterworth low-pass that bounds the amplitude's band."""
+    nyquist = 0.5 / dt_s
+    return signal.butter(4, min(corner_hz, 0.9 * nyquist), fs=1.0 / dt_s)
+
+
 def lowpass(x: np.ndarray, b: np.ndarray, a: np.ndarray) -> np.ndarray:
     """Filter starting in steady state at the first sample (no start-up transient)."""
     zi = signal.lfilter_zi(b, a) * x[0]
@@ -89,6 +102,59 @@ def lowpass_carry(x: np.ndarray, b: np.ndarray, a: np.ndarray, key: str,
         zi = signal.lfilter_zi(b, a) * x[0]
     y, state.filters[key] = signal.lfilter(b, a, x, zi=zi)
     return np.asarray(y)
+
+
+def trailing_amplitude(x: np.ndarray, window: int, state: ChannelState | None) -> np.ndarray:
+    """√2·RMS of ``x`` over the trailing ``window`` samples (fewer at the record's start),
+    continuing the previous block's tail kept in ``state`` (cumulative sums, no loop)."""
+    sq = np.asarray(x, dtype=np.float64) ** 2
+    tail = state.filters.get("amplitude_tail") if state is not None else None
+    full = sq if tail is None else np.concatenate([tail, sq])
+    csum = np.concatenate([[0.0], np.cumsum(full)])
+    end = np.arange(full.size - sq.size, full.size) + 1
+    start = np.maximum(end - window, 0)
+    if state is not None:
+        state.filters["amplitude_tail"] = full[-max(window - 1, 1):]
+    return np.sqrt(2.0 * (csum[end] - csum[start]) / (end - start))
+
+
+def damping_of(effect: AmplitudeDamping, damping: float, amplitude_dps2: np.ndarray
+               ) -> np.ndarray:
+    """ζ(A) of :class:`AmplitudeDamping` around the sensor's ``damping``, within bounds."""
+    ratio = np.maximum(amplitude_dps2, 1e-9) / effect.reference_dps2
+    return np.clip(damping + effect.damping_per_decade * np.log10(ratio), *_ZETA_BOUNDS)
+
+
+def amplitude_dynamics(model: SensorModel, alpha: np.ndarray, dt_s: float,
+                       state: ChannelState | None) -> np.ndarray:
+    """``sensor_dynamics`` with the amplitude-dependent damping ``amplitude_damping``.
+
+    ζ(t) follows the sensed amplitude; the output blends, sample by sample, the outputs of
+    the fixed-ζ filters on a 0.02 grid either side of ζ(t) (each carrying its own state), so
+    a steady sine sees the linear filter of its amplitude's damping.
+    """
+    dyn, eff = model.sensor_dynamics, model.amplitude_damping
+    assert dyn is not None and eff is not None
+    b, a = band_filter(eff.band_hz, round(dt_s, 15))
+    band = lowpass_carry(alpha, b, a, "amplitude_band", state)
+    amplitude = trailing_amplitude(band, max(round(eff.window_s / dt_s), 1), state)
+    grid = damping_of(eff, dyn.damping, amplitude) / _ZETA_STEP
+    low = np.floor(grid).astype(np.int64)
+    frac = grid - low
+    out = np.zeros_like(alpha, dtype=np.float64)
+    used = set()
+    for k in range(int(low.min()), int(low.max()) + 2):
+        weight = np.where(low == k, 1.0 - frac, 0.0) + np.where(low == k - 1, frac, 0.0)
+        if not weight.any():
+            continue
+        b, a = dynamics_filter(dyn.natural_frequency_hz, round(k * _ZETA_STEP, 6),
+                               round(dt_s, 15))
+        used.add(f"dynamics:{k}")
+        out += weight * lowpass_carry(alpha, b, a, f"dynamics:{k}", state)
+    if state is not None:  # a filter idle for a block would resume from a stale state
+        for key in [k for k in state.filters if k.startswith("dynamics:") and k not in used]:
+            del state.filters[key]
+    return out
 
 
 @dataclass
@@ -188,7 +254,9 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
     """
     sensed = sensed_acceleration(model, inp, state)
     alpha = sensed
-    if model.sensor_dynamics is not None:
+    if model.sensor_dynamics is not None and model.amplitude_damping is not None:
+        alpha = amplitude_dynamics(model, alpha, inp.dt_s, state)
+    elif model.sensor_dynamics is not None:
         b, a = dynamics_filter(model.sensor_dynamics.natural_frequency_hz,
                                model.sensor_dynamics.damping, round(inp.dt_s, 15))
         alpha = lowpass_carry(alpha, b, a, "dynamics", state)

@@ -92,6 +92,8 @@ def _ratio_once(model: RigModel, channel: str, frequency_hz: float, accel_dps2: 
     # the logger's own sample spacing: its filters are discretised at it
     dt_s = 1.0 / model.daq.sample_rate_hz
     settle = math.ceil(_SETTLE_CYCLES / frequency_hz / dt_s)
+    if sensor.amplitude_damping is not None:  # the amplitude's trailing window fills first
+        settle += math.ceil(sensor.amplitude_damping.window_s / dt_s)
     n = settle + math.ceil(_CYCLES / frequency_hz / dt_s)
     t = np.arange(n) * dt_s
     delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0

@@ -49,3 +49,18 @@ def test_nonlinearity_of_a_line_is_zero() -> None:
     u = np.linspace(-1, 1, 100)
     fit = polyfit.fit_polynomial(u, 2 * u + 1, 1)
     assert polyfit.nonlinearity(fit, -1, 1) < 1e-9
+
+
+def test_linearity_l_is_the_rms_distance_from_the_ideal_line() -> None:
+    """Eq. 3.36 on exact curves: a line offset by 0.5 from the ideal line is 0.5 away; u³ on
+    uniform [−1, 1] against its best line 0.6·u is sqrt(1/7 − 0.24 + 0.12) away
+    (E[u⁶] − 1.2·E[u⁴] + 0.36·E[u²]); the mean over 20000 midpoints is that integral to
+    ≈ 1e-8 (midpoint rule, error ∝ 1/N²)."""
+    u = (np.arange(20000) + 0.5) / 10000.0 - 1.0
+    line = polyfit.fit_polynomial(u, 2.0 * u + 0.5, 1)
+    assert polyfit.linearity_l(line, u, np.array([0.0, 2.0])) == pytest.approx(0.5, rel=1e-9)
+    assert polyfit.linearity_l(line, u, line.coefficients) < 1e-9
+    cubic = polyfit.fit_polynomial(u, u**3, 3)
+    expected = np.sqrt(1 / 7 - 0.24 + 0.12)
+    assert polyfit.linearity_l(cubic, u, np.array([0.0, 0.6])) == pytest.approx(expected,
+                                                                                 rel=1e-4)

@@ -48,14 +48,17 @@ def test_scale_factor_against_twin(cal_run) -> None:  # type: ignore[no-untyped-
     assert v["order"] in (1, 3)
 
 
-def _truth_response(model: Any, f_hz: float) -> complex:
-    """K·H_sensor·H_antialias·e^{−jωτ} of the twin's v_sz chain."""
+def _truth_response(model: Any, f_hz: float, accel_dps2: float) -> complex:
+    """K·H_sensor·H_antialias·e^{−jωτ} of the twin's v_sz chain at a sine of peak
+    ``accel_dps2`` (the amplitude sets the damping when ``amplitude_damping`` is on)."""
     from aatest.twin.daq import antialias_filter
-    from aatest.twin.sensor import dynamics_filter
+    from aatest.twin.sensor import damping_of, dynamics_filter
 
     s = model.sensor("v_sz")
-    b, a = dynamics_filter(s.sensor_dynamics.natural_frequency_hz, s.sensor_dynamics.damping,
-                           1 / FS)
+    zeta = s.sensor_dynamics.damping
+    if s.amplitude_damping is not None:
+        zeta = float(damping_of(s.amplitude_damping, zeta, np.array([accel_dps2]))[0])
+    b, a = dynamics_filter(s.sensor_dynamics.natural_frequency_hz, zeta, 1 / FS)
     b2, a2, _ = antialias_filter(float(model.daq.antialias_hz), 1 / FS)
     h = (signal.freqz(b, a, worN=[f_hz], fs=FS)[1][0]
          * signal.freqz(b2, a2, worN=[f_hz], fs=FS)[1][0])
@@ -65,7 +68,7 @@ def _truth_response(model: Any, f_hz: float) -> complex:
 def test_frf_delay_against_twin(cal_run) -> None:  # type: ignore[no-untyped-def]
     model, _, _, results = cal_run
     for p in results["frf"]["v_sz"]:
-        h = _truth_response(model, p["frequency_hz"])
+        h = _truth_response(model, p["frequency_hz"], p["accel_dps2"])
         truth_delay = -np.angle(h) / (2 * np.pi * p["frequency_hz"])
         assert p["delay_s"] == pytest.approx(truth_delay, abs=0.25e-3)
         assert p["gain_db"] == pytest.approx(20 * np.log10(abs(h)), abs=0.05)

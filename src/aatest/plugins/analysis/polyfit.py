@@ -170,9 +170,19 @@ def choose_order(table: dict[str, np.ndarray], rel_tol: float = 0.05, min_order:
 
 
 def nonlinearity(fit: PolyFit, u_min: float, u_max: float, points: int = 512) -> float:
-    """L = sqrt(mean((f − g)²)) of the fitted curve f against its best straight line g over
-    the input range (output units)."""
+    """Curvature of the fitted curve f against its own best straight line over the input range,
+    sqrt(mean((f − ĝ)²)) (output units): 0 by construction at order ≤ 1. Not the study's L
+    (:func:`linearity_l`), which compares the model with the record's ideal line."""
     grid = np.linspace(u_min, u_max, points)
     f = fit(grid)
     g = np.polynomial.polynomial.polyval(grid, np.polynomial.polynomial.polyfit(grid, f, 1))
     return float(np.sqrt(np.mean((f - g) ** 2)))
+
+
+def linearity_l(fit: PolyFit, u: np.ndarray, ideal: np.ndarray) -> float:
+    """The study's (non)linearity L (Eq. 3.36): sqrt(mean((f(u_k) − g(u_k))²)) over the
+    record's inputs u_k (output units), f the fitted model and g the ideal line
+    ``ideal`` = (intercept, slope) — in the study g = 250.02·u − 0.319 (°/s²)/V, the straight
+    line against the table's own acceleration estimate."""
+    g = np.polynomial.polynomial.polyval(u, ideal)
+    return float(np.sqrt(np.mean((fit(u) - g) ** 2)))

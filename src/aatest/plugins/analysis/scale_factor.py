@@ -12,7 +12,9 @@ its noise shows in the RMSE as in the study, docs/method.md §4.3), the referenc
 the sensor's phase delay at the fundamental (so the fit sees no phase loop), and polynomials of
 order 0–15 are cross-validated. The chosen forward model (°/s² from volts) is reported with its
 statistics; the contract's ``scale_v_per_dps2``/``offset_v`` come from the best straight line
-(the lab's scale factor; the curvature is reported as the non-linearity L), and an inverse form
+(the lab's scale factor); the study's (non)linearity L of Eq. 3.36 — the chosen model's RMS
+deviation over the record from the ideal line, the straight line against the table's own
+acceleration estimate (g = 250.02·u − 0.319 in the study) — is ``linearity_l_dps2``; an inverse form
 (volts from °/s²) is given too. Noise in the reference does not bias the forward fit (it is the
 dependent variable), which is why the scale factor is 1/slope of that fit.
 """
@@ -167,12 +169,14 @@ def _select_order(u: np.ndarray, ref_dps2: np.ndarray, options: ScaleFactorOptio
 
 
 def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0,
-              options: ScaleFactorOptions | None = None, resolution_dps2: float = 0.0
-              ) -> dict[str, Any]:
+              options: ScaleFactorOptions | None = None, resolution_dps2: float = 0.0,
+              ideal_line: Sequence[float] | np.ndarray | None = None) -> dict[str, Any]:
     """Cross-validated polynomial calibration of volts against a reference acceleration.
 
     ``options`` sets the orders scanned and the splits; ``resolution_dps2`` is the smallest
-    RMSE gain that counts when choosing the order.
+    RMSE gain that counts when choosing the order; ``ideal_line`` (intercept °/s², slope
+    (°/s²)/V in u = volts − their mean) is the line L is measured from (default: this fit's
+    own best straight line).
     """
     opts = options or ScaleFactorOptions()
     if np.std(ref_dps2) <= 0 or np.std(volts) <= 0:
@@ -191,6 +195,8 @@ def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0,
     u_offset = float(np.sqrt(grad @ cov[:2, :2] @ grad))
     inverse = polyfit.fit_polynomial(ref_dps2, volts, order, inflation)
     lin = float(polyfit.nonlinearity(fit, float(u.min()), float(u.max())))
+    ideal = line.coefficients if ideal_line is None else np.asarray(ideal_line)
+    linearity_l = polyfit.linearity_l(fit, u, ideal)
     return {
         "scale_v_per_dps2": scale, "scale_u_v_per_dps2": u_scale,
         "scale_ci95": [scale - 1.96 * u_scale, scale + 1.96 * u_scale],
@@ -199,7 +205,7 @@ def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0,
         "ci95": fit.ci95.tolist(), "fit": fit.summary(), "volts_mean_v": v_mean,
         "validation": {"rmse_dps2": table["rmse_validation"].mean(axis=1).tolist(),
                        "naic": table["naic"].mean(axis=1).tolist()},
-        "nonlinearity_dps2": lin,
+        "nonlinearity_dps2": lin, "linearity_l_dps2": linearity_l,
         "inverse": {"order": order, "coefficients_v": inverse.coefficients.tolist(),
                     "ci95": inverse.ci95.tolist(), "rmse_v": inverse.rmse,
                     "note": "volts = Σ c_i·α^i, α in °/s²"},
@@ -221,6 +227,16 @@ def _figure(volts: np.ndarray, ref: np.ndarray, result: dict[str, Any]) -> str:
     return to_svg(fig)
 
 
+def _ideal_line(chosen: Sequence[SyncedStep], sensor: SensorInfo, v_mean: float
+                ) -> np.ndarray:
+    """The study's ideal line g (Eq. 3.36): the least-squares line of the table's own
+    acceleration estimate on the volts, (intercept, slope) in u = volts − ``v_mean``."""
+    parts = [aligned_pair(s, sensor, "table_estimate") for s in chosen]
+    volts = np.concatenate([p[0] for p in parts])
+    ref = np.concatenate([p[1] for p in parts])
+    return np.asarray(np.polynomial.polynomial.polyfit(volts - v_mean, ref, 1))
+
+
 def calibrate_steps(chosen: Sequence[SyncedStep], sensor: SensorInfo,
                     options: ScaleFactorOptions) -> tuple[dict[str, Any], str]:
     """Calibration values and figure of one sensor from the records of one level."""
@@ -232,7 +248,8 @@ def calibrate_steps(chosen: Sequence[SyncedStep], sensor: SensorInfo,
         inflation = chosen[0].sample_rate_hz / (2.0 * max(SMOOTHED_CORNER_HZ, parts[0][3]))
     else:
         inflation = correlation_inflation(ref - _line(volts, ref))
-    result = calibrate(volts, ref, inflation, options, RESOLUTION_FR * sensor.range_dps2)
+    result = calibrate(volts, ref, inflation, options, RESOLUTION_FR * sensor.range_dps2,
+                       _ideal_line(chosen, sensor, float(np.mean(volts))))
     dev_pct = 100.0 * (result["scale_v_per_dps2"] / sensor.nominal_scale_v_per_dps2 - 1.0)
     result |= {
         "reference": reference, "alignment_delay_s": float(np.mean([p[2] for p in parts])),

@@ -191,3 +191,30 @@ def second_order_delay_fit(f_hz: np.ndarray, h: np.ndarray, delay0_s: float) -> 
             "damping": float(zeta), "delay_s": float(tau),
             "u_natural_frequency_hz": float(u[1] / (2 * np.pi)), "u_damping": float(u[2]),
             "u_delay_s": float(u[3]), "fit_pct": fit_percent(h, model(best.x))}
+
+
+def time_domain_fit(model: DiscreteTf, records: list[tuple[np.ndarray, np.ndarray]],
+                    settle_samples: int = 0) -> float:
+    """Fit % (NRMSE, MATLAB's ``compare``) of ``model`` simulated in the time domain.
+
+    Each record is (input, output) on one time grid — the table's acceleration estimate in
+    °/s² and the sensor's volts, as the study's time-domain estimation used them, so the
+    estimate's noise passes through the model like any input. Means are removed; the first
+    ``settle_samples`` of each simulated record (the model's start-up) are left out; the fit
+    is over every record's remaining samples together: 100·(1 − ‖y − ŷ‖/‖y − ȳ‖).
+    """
+    from scipy import signal
+
+    err = den = 0.0
+    for u_in, y_out in records:
+        u = np.asarray(u_in, dtype=np.float64) - float(np.mean(u_in))
+        y = np.asarray(y_out, dtype=np.float64) - float(np.mean(y_out))
+        # second-order sections: poles within 0.03 rad of z = 1 defeat a direct-form filter
+        y_hat = (signal.sosfilt(signal.tf2sos(model.num, model.den), u) if model.n_poles
+                 else float(model.num[0]) * u)
+        d = model.delay_samples
+        y_hat = np.concatenate([np.zeros(d), y_hat[:y_hat.size - d]]) if d else y_hat
+        keep = slice(settle_samples + d, None)
+        err += float(np.sum((y[keep] - y_hat[keep]) ** 2))
+        den += float(np.sum(y[keep] ** 2))
+    return float(100.0 * (1.0 - np.sqrt(err / den))) if den > 0 else float("nan")

@@ -18,7 +18,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
 from scipy import signal
 from scipy.fft import next_fast_len
 
@@ -57,6 +57,8 @@ XCORR_MIN_STRENGTH = 0.9
 _MAX_LAG_S = 0.05
 _FIT_TIE_PCT = 0.5
 _SCAN_MAX_POLES = 2
+#: a listed identification split needs this many points (a gain and a phase trend)
+_MIN_IDENTIFICATION_POINTS = 2
 
 
 class TransferFunctionOptions(BaseModel):
@@ -67,6 +69,9 @@ class TransferFunctionOptions(BaseModel):
     ``validation_every``-th FRF point (in frequency order) is kept for validation.
     ``antialias_hz``: the logger's pre-sample filter corner to de-embed from the physical
     model; ``auto`` finds it in the run metadata, ``none`` de-embeds nothing.
+    ``identification_hz``: when given, the FRF points nearest these frequencies identify and
+    all the others validate (the study's design: 7, 11, …, 27 Hz identify, the other whole
+    frequencies 1–28 Hz validate); it replaces ``validation_every``.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -75,6 +80,8 @@ class TransferFunctionOptions(BaseModel):
     delay: Literal["estimate", "none"] = "estimate"
     validation_every: int = Field(3, ge=2, description="every k-th point validates")
     antialias_hz: float | Literal["auto", "none"] = Field("auto", description="Hz, auto, none")
+    identification_hz: tuple[PositiveFloat, ...] = Field(
+        (), description="frequencies (Hz) whose nearest points identify; the rest validate")
 
 
 def xcorr_delay(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
@@ -156,14 +163,33 @@ def watch_xcorr(data: Dataset, options: TransferFunctionOptions) -> None:
             {"table": INPUT_ACCEL_CHANNELS, "daq": (sensor.channel,)}, wanted, term))
 
 
-def _split(n_points: int, every: int = 3) -> tuple[np.ndarray, np.ndarray]:
+#: identification and validation points (indices into the frequency-sorted FRF)
+Split = tuple[np.ndarray, np.ndarray]
+
+
+def _split(n_points: int, every: int = 3) -> Split:
     idx = np.arange(n_points)
     return idx[idx % every != every - 1], idx[idx % every == every - 1]
 
 
+def split_points(f_hz: np.ndarray, options: TransferFunctionOptions) -> Split:
+    """The identification/validation split of the (sorted) FRF frequencies ``f_hz``: the
+    points nearest ``options.identification_hz`` identify when given, else every
+    ``validation_every``-th point validates."""
+    if not options.identification_hz:
+        return _split(f_hz.size, options.validation_every)
+    ident = np.unique([int(np.argmin(np.abs(f_hz - f))) for f in options.identification_hz])
+    valid = np.setdiff1d(np.arange(f_hz.size), ident)
+    if ident.size < _MIN_IDENTIFICATION_POINTS or valid.size < 1:
+        raise AnalysisError(f"transfer function: identification_hz "
+                            f"{list(options.identification_hz)} leaves {ident.size} "
+                            f"identification and {valid.size} validation points")
+    return ident, valid
+
+
 def _candidate(f: np.ndarray, h: np.ndarray, n: int, m: int, d: int, source: str, dt: float,
-               every: int = 3) -> tuple[DiscreteTf, dict[str, Any]]:
-    ident, valid = _split(f.size, every)
+               split: Split) -> tuple[DiscreteTf, dict[str, Any]]:
+    ident, valid = split
     model = fit_discrete_tf(f[ident], h[ident], n, m, dt, d)
     metrics = model_metrics(model, f[ident], h[ident], f[valid], h[valid], source != "none")
     return model, {"n": n, "m": m, "delay_samples": d, "delay_source": source, **metrics}
@@ -190,13 +216,13 @@ def estimate(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],
     with_delay = opts.delay == "estimate"
     delays = [(0, "none")] + ([(int(xcorr["delay_samples"]), "xcorr")]
                               if xcorr["accepted"] and with_delay else [])
-    every = opts.validation_every
-    fitted = [_candidate(f, h, n, m, d, src, dt, every) for n in range(opts.max_poles + 1)
+    split = split_points(f, opts)
+    fitted = [_candidate(f, h, n, m, d, src, dt, split) for n in range(opts.max_poles + 1)
               for m in range(n + 1) for d, src in delays]
     plain = [r for _, r in fitted if r["delay_source"] == "none" and r["n"] <= _SCAN_MAX_POLES]
     top = int(xcorr["delay_samples"]) if with_delay else -1
     for r in plain:
-        fitted += [_candidate(f, h, r["n"], r["m"], d, "scan", dt, every)
+        fitted += [_candidate(f, h, r["n"], r["m"], d, "scan", dt, split)
                    for d in range(1, top + 2)]
     rows = [r for _, r in fitted]
     k = _choose(rows)

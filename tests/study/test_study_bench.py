@@ -1,0 +1,94 @@
+"""The twin against the study's measured results (``bench/study.py``, docs/method.md).
+
+The cheapest rows run by default: the FRF roll-off at 9.99 Hz at two accelerations (the
+study: 0.5 dB at 10 °/s², 0.2 dB at 400 °/s², tolerance ± 0.15 dB) and the (non)linearity L
+of Eq. 3.36 against the twin's own truth. Every row of the bench runs under ``-m slow``: the
+rows within tolerance must stay within, the rows the twin misses are listed with their cause.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from aatest.engine.analysis.passes import run_analysis
+from aatest.twin.api import realistic_rig_model, simulate_dataset
+
+_BENCH = Path(__file__).resolve().parents[2] / "bench" / "study.py"
+#: FRF roll-off tolerance of the comparison (issue 28), dB
+ROLL_OFF_TOL_DB = 0.15
+
+
+def _bench() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("study_bench", _BENCH)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses resolve their module by name
+    spec.loader.exec_module(module)
+    return module
+
+
+bench = _bench()
+
+
+@pytest.mark.parametrize("accel", [10.0, 400.0])
+def test_frf_roll_off_at_the_highest_frequency(accel: float) -> None:
+    """The flat level from the 0.99 Hz point (the bench averages every point ≤ 1 Hz; at
+    10 and 400 °/s² they agree within 0.01 dB) against the 9.99 Hz point, seed 7."""
+    steps = [s for s in bench._accel_steps() if s.accel_dps2 == accel
+             and (abs(s.frequency_hz - 0.9918) < 1e-3 or abs(s.frequency_hz - 9.9945) < 1e-3)]
+    assert len(steps) == 2
+    points = bench.frf_points(realistic_rig_model(), 7, steps)[accel]
+    assert bench.roll_off_db(points) == pytest.approx(bench.ROLL_OFF_DB[accel],
+                                                      abs=ROLL_OFF_TOL_DB)
+
+
+def test_linearity_l_of_both_models_against_the_twin_truth() -> None:
+    """L (Eq. 3.36) on the study's scale-factor record (1 Hz, 400 °/s², 70 s, seed 7).
+
+    Against the table's own estimate the 1st-order model *is* the ideal line: L = 0 to the
+    arithmetic's rounding. Against the sliding-mode reference the cubic model carries the
+    twin's cubic non-linearity (c3 = 0.002): f − g = c3·A³/(4·R²)·sin 3θ over the sine, RMS
+    c3·A³/(4√2·R²) = 0.0689 °/s² (A = 400 °/s², R = 572.958 °/s²); 30 % (the comparison's
+    tolerance) covers the reference noise the cubic term picks up (measured 0.073). The study
+    measured 0.464 and 1.261 °/s²: the twin does not reproduce them (see the slow test).
+    """
+    data = simulate_dataset(realistic_rig_model(), bench._plan("scale-factor.yaml"), 7)
+    table = run_analysis("scale_factor", data, {"reference": "table_estimate",
+                                                "orders": (1, 1)}).result["v_sz"]
+    assert table.linearity_l_dps2 is not None and abs(table.linearity_l_dps2) < 1e-9
+    sliding = run_analysis("scale_factor", data, {"reference": "sliding_mode",
+                                                  "orders": (3, 3)}).result["v_sz"]
+    truth = 0.002 * 400.0**3 / (4 * 2**0.5 * 572.958**2)
+    assert sliding.linearity_l_dps2 == pytest.approx(truth, rel=0.3)
+
+
+#: rows the twin misses, by name prefix, with the cause found (issue 28's closing note)
+KNOWN_MISSES = {
+    "table_estimate: L": "a straight-line model is its own ideal line (L = 0); the study's "
+                         "0.464 needs its Eq. 3.36 construction, not in the method brief",
+    "sliding_mode: linear term": "the study's cubic curvature at the sine peaks (reference)",
+    "sliding_mode: L": "same: the study's sliding-mode reference under-reads the peaks",
+    "gain starts to fall": "a linear roll-off of ≤ 1 dB at 10 Hz is ≤ 0.05 dB at 2 Hz",
+    "phase delay spread, 1 °/s²": "the damping that gives 1 dB adds ≈ 4 samples of lag and "
+                                  "the dithered hysteresis ±2.5 at 0.4–0.5 Hz",
+    "TF00": "a gain-only model's fit is set by the phase lag the FRF rows reproduce",
+    "best model fit, 28-sample delay": "28 samples exceed the twin's ≈24.5-sample lag at "
+                                       "400 °/s²: models with poles go unstable, TF00 ≈ 88 %",
+    "cross-axis ratio range": "the unit's drawn mounting errors reach 1.19 %",
+}
+
+
+@pytest.mark.slow
+def test_every_study_row() -> None:
+    """Every bench row (≈ 10 min on one core): within tolerance, or a known miss."""
+    model = realistic_rig_model()
+    rows = [row for section in bench.SECTIONS.values() for row in section(model, 7)]
+    unexpected = [f"{r.name}: twin {r.twin}, study {r.study}" for r in rows
+                  if not r.ok and not any(r.name.startswith(k) for k in KNOWN_MISSES)]
+    assert not unexpected, "\n".join(unexpected)
+    assert sum(r.ok for r in rows) >= 13
