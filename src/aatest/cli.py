@@ -346,12 +346,17 @@ def run(
     from aatest.preflight import Site, preflight
 
     unit = session.UnitName(serial or None, model or None)
-    checked = preflight(procedure, rig, Site(lab, sign_key, records, out, True, unit))
+    target = _where(out, exists=False)
+    from aatest.engine.storage import RemotePath, staging_dir
+
+    # free space is measured where the recording is written: a URL's local staging directory
+    local = staging_dir(target) if isinstance(target, RemotePath) else target
+    checked = preflight(procedure, rig, Site(lab, sign_key, records, local, True, unit))
     checked.raise_if_failed()  # everything that would fail later fails before motion (exit 2)
     with _registering(records, lab, "run") as registrar:
         registrar.preflight = _check_references(registrar, rig, allow_overdue)
         run_dir, results = session.run(
-            procedure, rig, _where(out, exists=False), resume, seed, sign_key, progress,
+            procedure, rig, target, resume, seed, sign_key, progress,
             operator=operator,
             pdf=pdf, confirm_prompts="auto" if confirm_prompts == "auto" else "ask",
             unit=unit, prepared=checked.prepared,

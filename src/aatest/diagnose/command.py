@@ -75,7 +75,6 @@ def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Where)
     from aatest.engine.storage import staged
 
     try:
-        from aatest.engine import registry
 
         info = registry.load("report", "diagnosis")
         cls = info.target
