@@ -139,6 +139,12 @@ def test_streamed_results_equal_the_eager_reference() -> None:
     # and after it, how much of the record the clock fit covers (partial table logs)
     got = {k: v for k, v in got.items()
            if not k.endswith((".fit_coverage", ".extrapolation_u_s"))}
+    # redefined after it (issue 31 item 5): offset_u_s is now the clock alignment's own
+    # standard uncertainty (0.2 µs with latch times, checked against the twin's truth in
+    # tests/sync), no longer the 144 µs edge spread; the FRF points' stated u_gain/u_phase/
+    # u_delay are the local noise of the ratio, no longer an average over the motor band
+    got = {k: v for k, v in got.items()
+           if not k.endswith((".offset_u_s", ".u_gain_db", ".u_phase_deg", ".u_delay_s"))}
     assert got.keys() <= want.keys()
     compared = {k: v for k, v in got.items() if v is not None or want[k] is None}
     assert mismatches(compared, want) == []

@@ -65,6 +65,12 @@ WIDE: tuple[tuple[str, float, float, str], ...] = (
     # absolute tolerance at the scale of its inputs' rounding
     (r".*(correlation|residual|_rms_|rmse|sse)", 1e-7, 1e-14,
      "residuals and correlations: differences of nearly equal numbers"),
+    # a model's deviation from its own fit is zero up to the rounding of the fit (~1e-13 °/s²)
+    (r"analysis\.scale_factor\..*\.nonlinearity_(dps2|pct_fr)$", 1e-9, 1e-9,
+     "deviation of a fit from itself: rounding noise around zero"),
+    # the spread of per-step drifts: a difference of nearly equal fitted drifts (ppm)
+    (r"analysis\.sync\.drift_spread_ppm$", 1e-9, 1e-6,
+     "difference of nearly equal drifts, as the drift class of tests/tolerances.py"),
 )
 
 
@@ -114,6 +120,9 @@ def documented_changes(document: Any) -> Any:
     out = {k: documented_changes(v) for k, v in document.items()}
     if out.get("name") in ENCODER_ROWS:
         out.pop("basis", None)
+    if out.get("basis") == "measured: sync analysis offset_u_s of this record":
+        out["basis"] = ("measured: the clock alignment's own standard uncertainty, from the "
+                        "freeze-pulse latch times of this record")  # no field name for a person
     if out.get("name") == "reference_method" and "basis" in out:
         out["label"] = re.sub(r"\((\w+)\)$", lambda m: f"({reference_name(m.group(1))})",
                               out["label"])

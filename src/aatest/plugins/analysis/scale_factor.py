@@ -91,12 +91,19 @@ class ScaleFactorOptions(BaseModel):
 
 def calibration_candidates(steps: Sequence[SyncedStep], sensor: SensorInfo) -> list[SyncedStep]:
     """The scale-factor candidates of a sensor: sine, along its axis, ≤ 2 Hz, at the frequency
-    closest to 1 Hz (every acceleration level, set-point and repetition of it)."""
+    closest to 1 Hz in octaves, the larger acceleration on a tie (every acceleration level,
+    set-point and repetition of it)."""
     cands = [s for s in steps if s.step.kind == "sine" and is_excited(s.step, sensor)
              and (s.step.frequency_hz or 0.0) <= _MAX_CAL_FREQUENCY_HZ]
     if not cands:
         return []
-    best_f = min({float(s.step.frequency_hz or 0.0) for s in cands}, key=lambda f: abs(f - 1.0))
+    def departure(s: SyncedStep) -> tuple[float, float]:
+        # octaves from 1 Hz (0.5 and 2 Hz are equally far), then the larger acceleration:
+        # the 1 Hz, 70 %-of-range test of docs/method.md §4.3 as near as the steps allow
+        f = float(s.step.frequency_hz or 0.0)
+        return abs(np.log2(f)) if f > 0 else np.inf, -float(s.step.accel_dps2 or 0.0)
+
+    best_f = float(min(cands, key=departure).step.frequency_hz or 0.0)
     return [s for s in cands
             if abs(float(s.step.frequency_hz or 0.0) - best_f) < _SAME_FREQUENCY_HZ]
 
