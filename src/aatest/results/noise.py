@@ -37,6 +37,8 @@ class NoiseChannel(ResultModel):
     psd_floor_v_per_sqrt_hz: Real
     allan_dps2: AllanTerms
     record_step: str
+    record_s: Real | None = Field(None, description="length of that record (the PSD and "
+                                  "Allan deviation are of it), s")
 
 
 class NoiseResult(PerChannel[NoiseChannel]):

@@ -158,6 +158,18 @@ def snapshot_step(step: PlannedStep, env: TableEnvelope) -> PlannedStep:
     return step.model_copy(update={"sample_rate_hz": 1.0 / period_s, "samples": samples})
 
 
+def head_step(step: PlannedStep, env: TableEnvelope) -> PlannedStep:
+    """What the table logs during a streamed record: its full-rate log from the trigger on,
+    as long as its log buffer holds (``log_capacity_samples``; the same rate as the DAQ).
+
+    Why full rate, not snapshots: the freeze-pulse edges (100 Hz) are only in a log sampled
+    faster than the pulse; the clocks are fitted on the edges both loggers hold and the fitted
+    drift is carried over the rest of the record (docs/method.md §2, "partial table log").
+    """
+    samples = min(step.samples, env.log_capacity_samples)
+    return step.model_copy(update={"samples": samples})
+
+
 def _logger(step: PlannedStep, env: TableEnvelope) -> list[Violation]:
     out = _exceeds("max_log_rate_hz", env.max_log_rate_hz, step.sample_rate_hz, "sample rate",
                    "Hz", skippable=False)
