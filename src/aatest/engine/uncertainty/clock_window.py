@@ -87,7 +87,8 @@ def noise_measurand(results: RunResults, channel: str, c: Any) -> Measurand | No
     records (the judged ``rms_max_v``).
 
     e_noise: the statistical uncertainty of an RMS over the band B and record T, σ/√(4·B·T)
-    (ν ≈ 2·B·T independent values, u(σ̂)/σ = 1/√(2ν)); e_gain: the logger's gain accuracy;
+    (ν ≈ 2·B·T independent values, u(σ̂)/σ = 1/√(2ν); B the band or, when narrower, the
+    pre-sample filter's noise bandwidth); e_gain: the logger's gain accuracy;
     e_clock: the record window's alignment when the clock fit covers part of the record.
     """
     block = results.analysis.noise
@@ -100,10 +101,12 @@ def noise_measurand(results: RunResults, channel: str, c: Any) -> Measurand | No
     record_s = min((float(s.duration_s) for s in static if s.duration_s), default=0.0)
     if record_s <= 0:
         return None
+    noise_hz = min(band_hz, float(c.noise_bandwidth_hz))  # the pre-sample filter's corner
     inputs = [
         Input("noise", "statistics of the RMS (band × record)", 0.0,
-              worst / math.sqrt(4.0 * band_hz * record_s), "normal", "V",
-              f"measured: σ/√(4·B·T), B = {band_hz:g} Hz, T = {record_s:g} s", "A"),
+              worst / math.sqrt(4.0 * noise_hz * record_s), "normal", "V",
+              f"measured: σ/√(4·B·T), B = {noise_hz:g} Hz (the band up to {band_hz:g} Hz "
+              f"behind the pre-sample filter), T = {record_s:g} s", "A"),
         comp.logger_gain(c),
     ]
     ids = _static_ids(results)
