@@ -30,8 +30,8 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 from tree_memory import TreeMemory  # bench/ is the script's directory, hence on sys.path
 

@@ -308,7 +308,7 @@ def synchronise_streamed(step: PlannedStep, table: SampledLog, pieces: Pieces,
     keep = slice(int(inside[0]), int(inside[-1]) + 1)
     span_s = step.samples / step.sample_rate_hz
     first, stop = record_span(scan, float(table_t[0]), span_s,
-                              lambda t: float(relation.to_daq_s(t)))
+                              lambda t: float(relation.to_daq_s(np.asarray(t))))
     everything = _all_channels(pieces)
     return SyncedStep(
         step=step, time_s=table_t[keep], sample_rate_hz=float(table.sample_rate_hz),

@@ -75,8 +75,9 @@ def sensor_noise(steps: Sequence[SyncedStep], sensor: SensorInfo, scale_v_per_dp
         rms.append(band_rms_of(f, psd, band_hz))
         if longest is None or len(s) > len(longest[0]):
             longest = (s, red)
-    assert longest is not None and longest[1].welch is not None and longest[1].allan is not None
+    assert longest is not None
     step, red = longest
+    assert red.welch is not None and red.allan is not None  # asked for
     f, psd = red.welch.result()
     per = red.allan.per_block
     means = red.allan.means()
