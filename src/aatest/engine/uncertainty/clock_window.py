@@ -28,17 +28,15 @@ from aatest.engine.uncertainty.statistics import finite
 from aatest.results import RunResults
 from aatest.results.sync import StepSync
 
-#: a record whose fitted edges span less than this share of it is partly covered
-FULL_COVERAGE = 0.999
-
-
 def _partial_steps(results: RunResults, step_ids: Sequence[str]) -> list[tuple[StepSync, float]]:
-    """(sync entry, record length s) of the listed steps whose clock fit covers part only."""
+    """(sync entry, record length s) of the listed steps whose table log covers part of the
+    record only (fewer table samples than planned: the clock fit is carried over the rest)."""
     sync = results.analysis.sync
-    durations = {s.id: float(s.duration_s) for s in results.steps}
-    return [(entry, durations[entry.step]) for entry in (sync.steps if sync else [])
-            if entry.step in step_ids and entry.step in durations
-            and durations[entry.step] > 0 and float(entry.fit_coverage) < FULL_COVERAGE]
+    partial = {s.id: float(s.duration_s) for s in results.steps
+               if s.table_samples is not None and s.table_samples < s.samples
+               and s.duration_s > 0}
+    return [(entry, partial[entry.step]) for entry in (sync.steps if sync else [])
+            if entry.step in step_ids and entry.step in partial]
 
 
 def _window_u_s(entry: StepSync) -> float:
