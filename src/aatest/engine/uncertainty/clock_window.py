@@ -28,6 +28,7 @@ from aatest.engine.uncertainty.statistics import finite
 from aatest.results import RunResults
 from aatest.results.sync import StepSync
 
+
 def _partial_steps(results: RunResults, step_ids: Sequence[str]) -> list[tuple[StepSync, float]]:
     """(sync entry, record length s) of the listed steps whose table log covers part of the
     record only (fewer table samples than planned: the clock fit is carried over the rest)."""
