@@ -18,10 +18,12 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scipy import signal
 from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.engine.datasheet import SensorDatasheet
+from aatest.twin.daq import antialias_filter
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.truth import bias_truth_v
 
@@ -69,6 +71,20 @@ def _u_from_rows(entry: dict[str, Any]) -> float:
     return float(entry["coverage_factor"]) * total
 
 
+def _noise_truth_v(model: Any, band_hz: float, fs_hz: float = 2000.0) -> float:
+    """The recorded output's RMS between DC and ``band_hz`` on the twin: the sensor's white
+    noise (``noise_rms_v`` is its RMS behind the pre-sample filter) times the share of the
+    filter's noise power in the band, and the converter's white quantisation noise q²/12 in
+    the band's share of the Nyquist band."""
+    b, a, _ = antialias_filter(float(model.daq.antialias_hz), 1.0 / fs_hz)
+    f, h = signal.freqz(b, a, worN=2**16, fs=fs_hz)
+    power, inband = np.abs(h) ** 2, f <= band_hz
+    share = np.trapezoid(power[inband], f[inband]) / np.trapezoid(power, f)
+    q_v = (model.daq.adc_range_v[1] - model.daq.adc_range_v[0]) / 2**model.daq.adc_bits
+    sensor_v = model.sensors[0].noise_rms_v
+    return math.sqrt(sensor_v**2 * share + q_v**2 / 12.0 * band_hz / (fs_hz / 2.0))
+
+
 def _check(analysis: dict[str, Any], seconds: float) -> None:
     steps = analysis["sync"]["steps"]
     assert len(steps) == 2
@@ -77,15 +93,10 @@ def _check(analysis: dict[str, Any], seconds: float) -> None:
         assert entry["fit_coverage"] == pytest.approx(HEAD_S / seconds, rel=0.02)
         assert entry["extrapolation_u_s"] > 0.0
     model = realistic_rig_model(SensorDatasheet(model="sr207"))
-    sensor = model.sensors[0]
     noise = analysis["noise"]["v_sz"]
     # the PSD and RMS are of the whole record, not of the head both loggers cover
     assert noise["record_s"] == pytest.approx(seconds, rel=1e-3)
-    # the recorded output's noise: the sensor's (behind the 100 Hz pre-sample filter, all of
-    # it below 400 Hz) and the converter's quantisation noise q/√12
-    q_v = (model.daq.adc_range_v[1] - model.daq.adc_range_v[0]) / 2**model.daq.adc_bits
-    truth_rms = math.hypot(sensor.noise_rms_v, q_v / math.sqrt(12.0))
-    _within_u(noise, noise["rms_max_v"], truth_rms)
+    _within_u(noise, noise["rms_max_v"], _noise_truth_v(model, noise["band_hz"]))
     bias = analysis["bias"]["v_sz"]
     _within_u(bias, bias["bias_v"], bias_truth_v(model, "v_sz", 22.0))
     # the partial clock fit's row, as clock_window defines it, and U built from it
