@@ -5,6 +5,9 @@ records of the given length, the sensitive axis up and down (motor off), analyse
 ``[sync, bias, noise, drift]``: the table logs its full-rate head only (its log buffer), sync
 fits the clocks on it and carries the drift over the rest, bias and noise read each record
 block by block. Issue 26 asks ≤ 300 MB for the whole process tree, flat in record length.
+With the motor off the twin's axes creep over hours and the floor's rocking (5–15 Hz) enters
+the record: the noise of an 8-h record is above the sensor's own (twin physics, not the
+reduction; the shipped drift procedure keeps the motor on for this reason).
 
 Prints, per record length, lab time ÷ wall time and peak memory of each phase in its own
 process (the summed PSS of that process and the analysis' forked workers, :mod:`tree_memory`):
