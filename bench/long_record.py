@@ -143,7 +143,8 @@ def main() -> None:
           f"{'peak MB':>12} {'recording MB':>13}")
     drifts = []
     for minutes in args.minutes:
-        procedure = root / f"{PROCEDURE}-{minutes:g}min.yaml"
+        name = PROCEDURE if args.drift_only else "long-static-all"
+        procedure = root / f"{name}-{minutes:g}min.yaml"
         procedure.write_text(_procedure_text(minutes, args.drift_only))
         run_dir = root / f"run-{minutes:g}min"
         phases = {"record": _child("record", str(procedure), str(run_dir))}
