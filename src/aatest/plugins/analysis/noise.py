@@ -62,7 +62,7 @@ def sensor_noise(steps: Sequence[SyncedStep], sensor: SensorInfo, scale_v_per_dp
     One pass over each record, block by block (:mod:`.streaming`): its band RMS from the
     Welch PSD and, of the longest, the PSD and the Allan deviation (of means of
     :func:`~aatest.plugins.analysis.streaming.allan_block` samples: the samples themselves up
-    to 2^20, so an hours-long record costs what a 9-minute one does).
+    to 2^18, so an hours-long record costs what a 2-minute one does).
     """
     rms: list[float] = []
     longest: tuple[SyncedStep, StaticReduction] | None = None

@@ -17,8 +17,9 @@ from scipy import signal
 
 from aatest.plugins.analysis.drift import BlockMeans
 
-#: most averaged values an Allan deviation is computed from (8 MB of float64)
-MAX_ALLAN_POINTS = 2**20
+#: most averaged values an Allan deviation is computed from (2 MB of float64; allantools
+#: holds several arrays of this length while it computes)
+MAX_ALLAN_POINTS = 2**18
 #: Welch segment length, samples (the record's, when shorter)
 WELCH_SEGMENT = 2**13
 
