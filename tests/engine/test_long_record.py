@@ -1,4 +1,5 @@
-"""Long static records: the DAQ streams in chunks, the table logs snapshots (issue 14 item 3).
+"""Long static records: the DAQ streams in chunks, the table logs its full-rate head (its
+log buffer; issues 14 item 3, 26 item 1).
 
 Physical truths checked against the twin: a streamed record is the one-shot record sample for
 sample (and the step file byte for byte); the envelope lets a long *static* record through only
@@ -25,7 +26,7 @@ from aatest.engine.interfaces import (
     supports_streaming,
 )
 from aatest.engine.logs import SampledLog
-from aatest.engine.procedure.envelope import snapshot_step, step_violations, streams_record
+from aatest.engine.procedure.envelope import head_step, step_violations, streams_record
 from aatest.engine.recording import read_dataset
 from aatest.engine.recording.writer import RunRecorder
 from aatest.engine.steps import PlannedStep
@@ -48,7 +49,7 @@ def _world(seed: int = 7) -> World:
 
 
 def _table(world: World) -> SampledLog:
-    return world.snapshot_log(snapshot_step(TEN_MIN, TableEnvelope()))
+    return world.snapshot_log(head_step(TEN_MIN, TableEnvelope()))
 
 
 def test_streamed_record_equals_the_one_shot_record() -> None:
@@ -87,7 +88,8 @@ def test_streamed_step_file_is_byte_identical_to_the_one_shot_file(tmp_path: Pat
     assert not list(streamed_file.parent.glob("*.partial*"))  # the spool is gone
     back = read_dataset(streamed_file).steps[0]
     assert np.array_equal(back.daq["v_sz"], daq["v_sz"])
-    assert len(back.table) == 600 and back.table.sample_rate_hz == 1.0  # 1 s snapshots
+    # the table's full-rate head: its log buffer (230 000 samples), the freeze-pulse edges in it
+    assert len(back.table) == 230_000 and back.table.sample_rate_hz == FS_HZ
 
 
 def test_sim_daq_streams_chunks_of_about_the_asked_length() -> None:
@@ -114,9 +116,8 @@ def test_long_static_record_needs_a_streaming_daq() -> None:
     streaming = plain.model_copy(update={"streaming_daq": True})
     assert step_violations(TWO_HOURS, streaming, SHEET) == []
     assert streams_record(TWO_HOURS, streaming) and not streams_record(TWO_HOURS, plain)
-    table = snapshot_step(TWO_HOURS, streaming)
-    assert table.sample_rate_hz == 1.0 and table.samples == 7200
-    assert table.samples <= streaming.log_capacity_samples
+    table = head_step(TWO_HOURS, streaming)
+    assert table.sample_rate_hz == FS_HZ and table.samples == streaming.log_capacity_samples
 
 
 def test_dynamic_steps_keep_the_log_capacity_rule_with_a_streaming_daq() -> None:
@@ -128,10 +129,10 @@ def test_dynamic_steps_keep_the_log_capacity_rule_with_a_streaming_daq() -> None
     assert not streams_record(short, streaming)  # fits the table log: recorded as always
 
 
-def test_snapshots_slow_down_when_even_1_s_would_overflow_the_log() -> None:
+def test_the_head_is_as_long_as_the_log_buffer_holds() -> None:
     env = TableEnvelope(streaming_daq=True, log_capacity_samples=3600)
-    table = snapshot_step(TWO_HOURS, env)
-    assert table.samples <= 3600 and table.sample_rate_hz == pytest.approx(0.5)
+    table = head_step(TWO_HOURS, env)
+    assert table.samples == 3600 and table.sample_rate_hz == FS_HZ
 
 
 # --- fault mid-record and resume ----------------------------------------------------------------
@@ -201,7 +202,7 @@ def test_fault_mid_record_keeps_the_chunks_and_resume_records_the_step(
     assert long.step.id == "s002-static-long"
     trigger = int(np.flatnonzero(long.daq["trigger"] > 0.5)[0])
     assert (len(long.daq) - trigger) / FS_HZ == pytest.approx(600.4, abs=0.01)  # + stop lag
-    assert len(long.table) == 600
+    assert len(long.table) == 230_000  # the table's head (its log buffer)
 
 
 # --- the shipped 2-hour procedure, end to end (slow) --------------------------------------------

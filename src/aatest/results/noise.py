@@ -8,7 +8,7 @@ from typing import ClassVar
 from pydantic import Field
 
 from aatest.results._fields import PerChannel, Real
-from aatest.results.base import DATASHEET_FLAGS, ResultModel
+from aatest.results.base import DATASHEET_FLAGS, Certified, ResultModel
 
 
 class AllanTerms(ResultModel):
@@ -21,8 +21,9 @@ class AllanTerms(ResultModel):
     random_walk: Real | None = None
 
 
-class NoiseChannel(ResultModel):
-    """Noise figures of one channel over its static steps."""
+class NoiseChannel(Certified):
+    """Noise figures of one channel over its static steps; the certified value (U, budget)
+    is ``rms_max_v``, the largest record's RMS (the judged one)."""
 
     #: the analysis' own pass/fail flags of schema 1; verdicts are the engine's
     retired_keys: ClassVar[frozenset[str]] = DATASHEET_FLAGS
@@ -37,6 +38,8 @@ class NoiseChannel(ResultModel):
     psd_floor_v_per_sqrt_hz: Real
     allan_dps2: AllanTerms
     record_step: str
+    record_s: Real | None = Field(None, description="length of that record (the PSD and "
+                                  "Allan deviation are of it), s")
 
 
 class NoiseResult(PerChannel[NoiseChannel]):

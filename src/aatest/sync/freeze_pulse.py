@@ -15,14 +15,16 @@ is then the centre of the lines through every edge's interval (:mod:`aatest.sync
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import AnalysisError
+from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.sync.edges import (
     LAG_SAMPLES,
@@ -34,6 +36,9 @@ from aatest.sync.edges import (
     line_fit,
     pair_edges,
 )
+
+if TYPE_CHECKING:  # the streamed record builds on this module; only its type is needed here
+    from aatest.sync.streamed import StreamedRecord
 
 #: a paired edge further than this fraction of the pulse period from the fit is inconsistent
 _PAIR_TOLERANCE_PERIODS = 0.25
@@ -126,9 +131,21 @@ class SyncedStep:
     table: Mapping[str, np.ndarray]
     daq: Mapping[str, np.ndarray]
     relation: ClockRelation
+    #: a long record whose table log covers its head only (:mod:`aatest.sync.streamed`):
+    #: the whole DAQ record, read block by block; ``time_s``/``table``/``daq`` are the head
+    record: StreamedRecord | None = None
 
     def __len__(self) -> int:
-        return int(self.time_s.shape[0])
+        """Samples of the record (the whole DAQ record of a streamed one)."""
+        return self.record.samples if self.record is not None else int(self.time_s.shape[0])
+
+    def daq_blocks(self, channels: Sequence[str]) -> Iterator[dict[str, np.ndarray]]:
+        """The record's DAQ ``channels`` (those it has) in consecutive blocks: one block of
+        the arrays above, or a streamed record piece by piece (nothing held whole)."""
+        if self.record is not None:
+            yield from self.record.blocks(channels)
+            return
+        yield {ch: np.asarray(self.daq[ch]) for ch in channels if ch in self.daq}
 
 
 #: a 0/1 logic level is high above half its swing
@@ -177,13 +194,12 @@ def _regular_time(time_s: np.ndarray, fit: tuple[float, float] | None = None) ->
     return time_s[0] + intercept + slope * np.arange(time_s.size, dtype=np.float64)
 
 
-def _table_edges(data: StepData) -> tuple[np.ndarray, np.ndarray]:
+def _table_edges(table: SampledLog) -> tuple[np.ndarray, np.ndarray]:
     """(registering rows' table times, latch times or NaN) of the freeze-pulse rising edges.
 
     A latch value that is NaN (or a table without ``fp_latch_s``) means "not latched": that
     edge is only known to lie in the sample before its registering row (docs/interfaces.md §4).
     """
-    table = data.table
     idx = rising_edges(table["sync_pulse"])
     registered = np.asarray(table.time_s, dtype=np.float64)[idx]
     if "fp_latch_s" not in table.channels:
@@ -367,9 +383,20 @@ def refine_offset(relation: ClockRelation, table_t0_s: float, trigger_daq_s: flo
 def clock_relation(data: StepData) -> ClockRelation:
     """The DAQ-to-table clock relation of one step, checked like :func:`synchronise` checks it,
     without resampling anything (for summaries that need no samples)."""
+    if _partial(data):  # a long record the table logged the head of
+        from aatest.sync.streamed import log_pieces, streamed_relation
+
+        return streamed_relation(data.step, data.table, log_pieces(data.daq))
     time_s = np.asarray(data.daq.time_s, dtype=np.float64)
     fit = _regular_fit(time_s)
     return replace(_relation(data, _regular_time(time_s, fit))[0], daq_time_fit=fit)
+
+
+def _partial(data: StepData) -> bool:
+    """Whether the step's table log covers only the head of its record (a finite buffer)."""
+    from aatest.sync.streamed import is_partial
+
+    return is_partial(data.step, data.samples("table"), data.samples("daq"))
 
 
 def _relation(data: StepData, daq_time_s: np.ndarray, known: ClockRelation | None = None
@@ -400,18 +427,28 @@ def _fitted_relation(data: StepData, daq_time_s: np.ndarray,
 def _edge_relation(data: StepData, t_daq: np.ndarray, offset0: float | None,
                    slope_range: tuple[float, float] | None) -> ClockRelation:
     """The relation fitted on the paired edges (latched or registering samples)."""
-    registered, latch = _table_edges(data)
-    table_t0 = float(data.table.time_s[0])
+    return edge_relation(data.step.id, data.table, float(data.daq.sample_rate_hz), t_daq,
+                         offset0, slope_range)
+
+
+def edge_relation(step_id: str, table: SampledLog, daq_rate_hz: float, t_daq: np.ndarray,
+                  offset0: float | None, slope_range: tuple[float, float] | None = None
+                  ) -> ClockRelation:
+    """The relation of a table log and the DAQ's edge times ``t_daq`` (s, DAQ clock), fitted
+    on the paired edges (latched, else their registering samples); ``offset0`` the coarse
+    offset from the trigger."""
+    registered, latch = _table_edges(table)
+    table_t0 = float(table.time_s[0])
     trigger_daq_s = None if offset0 is None else table_t0 - offset0
-    daq_dt = 1.0 / float(data.daq.sample_rate_hz)
+    daq_dt = 1.0 / daq_rate_hz
     latched = np.isfinite(latch)
     if latched.sum() >= max(MIN_EDGES, _MIN_LATCHED_FRACTION * latch.size):
-        relation = fit_clock_relation(data.step.id, (registered - latch)[latched], t_daq,
-                                      offset0, 1.0 / float(data.table.sample_rate_hz))
+        relation = fit_clock_relation(step_id, (registered - latch)[latched], t_daq,
+                                      offset0, 1.0 / float(table.sample_rate_hz))
         return refine_offset(relation, table_t0, trigger_daq_s, daq_dt)
     trigger = None if trigger_daq_s is None else (table_t0, trigger_daq_s)
-    return fit_unlatched_relation(data.step.id, registered, t_daq,
-                                  1.0 / float(data.table.sample_rate_hz), daq_dt, trigger,
+    return fit_unlatched_relation(step_id, registered, t_daq,
+                                  1.0 / float(table.sample_rate_hz), daq_dt, trigger,
                                   slope_range)
 
 
@@ -431,6 +468,10 @@ def synchronise(data: StepData, relation: ClockRelation | None = None) -> Synced
     SyncedStep
         Table samples covered by the DAQ record, with the DAQ channels on the same instants.
     """
+    if _partial(data):  # a long record the table logged the head of: read piece by piece
+        from aatest.sync.streamed import log_pieces, synchronise_streamed
+
+        return synchronise_streamed(data.step, data.table, log_pieces(data.daq), relation)
     daq_time_s = _regular_time(np.asarray(data.daq.time_s, dtype=np.float64),
                                relation.daq_time_fit if relation is not None else None)
     relation, at_daq_s, keep = _relation(data, daq_time_s, relation)  # keep: contiguous

@@ -17,7 +17,7 @@ import pytest
 from aatest.engine.dataset import Dataset, LazySteps, SensorInfo, StepData
 from aatest.engine.interfaces import AnalysisContext, TableEnvelope
 from aatest.engine.logs import SampledLog
-from aatest.engine.procedure.envelope import snapshot_step
+from aatest.engine.procedure.envelope import head_step
 from aatest.engine.recording import RunRecorder, read_dataset
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.drift import (
@@ -55,7 +55,7 @@ def _long_record(seed: int, minutes: float = MINUTES, step_id: str = "s001-stati
     world.begin_motion(step)
     world.start_daq()
     daq = concatenate_logs(list(world.stream_daq(4)))
-    table = world.snapshot_log(snapshot_step(step, TableEnvelope(streaming_daq=True)))
+    table = world.snapshot_log(head_step(step, TableEnvelope(streaming_daq=True)))
     sensor = model.sensors[0]
     info = SensorInfo(channel=sensor.channel, axis="I",
                       nominal_scale_v_per_dps2=sensor.scale_v_per_dps2)

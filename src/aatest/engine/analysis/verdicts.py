@@ -169,7 +169,7 @@ def _noise(results: RunResults, ch: str) -> Iterator[Judged]:
     block = results.analysis.noise
     noise = block.get(ch) if block else None
     if noise is not None and (worst := finite(noise.rms_max_v)) is not None:
-        yield "noise_rms_v", worst, None
+        yield "noise_rms_v", worst, finite(noise.expanded_uncertainty)
 
 
 def _misalignment(results: RunResults) -> Iterator[tuple[str, Judged]]:

@@ -15,8 +15,8 @@ Checked per step (peak values of θ = A·sin(ωt): rate A·ω, acceleration A·�
   whose sensors lie along every table axis);
 * logger: ``sample_rate_hz`` ≤ ``max_log_rate_hz``, ``samples`` ≤ ``log_capacity_samples``,
   except a static step on a rig whose DAQ streams (``TableEnvelope.streaming_daq``): the DAQ
-  then records it in chunks and the table logs snapshots (:func:`snapshot_step`), so it may
-  last hours; dynamic steps keep the capacity rule.
+  then records it in chunks and the table logs its full-rate head (:func:`head_step`), so
+  it may last hours; dynamic steps keep the capacity rule.
 
 Violations of the motion and sensor limits are *skippable*: a ``sine_sweep`` with
 ``skip_outside_envelope: true`` drops such points at planning time (they are listed as
@@ -55,8 +55,6 @@ from aatest.engine.steps import Plan, PlannedStep
 YamlPath = tuple[str | int, ...]
 #: relative slack so a value exactly at a limit passes despite rounding
 _RTOL = 1e-9
-#: the table's snapshot period during a streamed long record, s
-SNAPSHOT_PERIOD_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -142,26 +140,28 @@ def _constant_rate(step: PlannedStep, env: TableEnvelope,
 
 
 def streams_record(step: PlannedStep, env: TableEnvelope) -> bool:
-    """True when ``step`` is recorded by the streaming DAQ with table snapshots: a static
+    """True when ``step`` is recorded by the streaming DAQ with the table's head: a static
     record longer than the table's log capacity on a rig whose DAQ streams."""
     return (step.kind == "static" and env.streaming_daq
             and step.samples > env.log_capacity_samples)
 
 
-def snapshot_step(step: PlannedStep, env: TableEnvelope) -> PlannedStep:
-    """What the table logs during a streamed record: periodic snapshots (position, rate,
-    acceleration, pulse) every :data:`SNAPSHOT_PERIOD_S` s over the same span, or slower
-    if the capacity demands it (a table at rest needs no 2 kHz log)."""
-    span_s = step.samples / step.sample_rate_hz
-    period_s = max(SNAPSHOT_PERIOD_S, span_s / env.log_capacity_samples)
-    samples = max(1, math.ceil(span_s / period_s))
-    return step.model_copy(update={"sample_rate_hz": 1.0 / period_s, "samples": samples})
+def head_step(step: PlannedStep, env: TableEnvelope) -> PlannedStep:
+    """What the table logs during a streamed record: its full-rate log from the trigger on,
+    as long as its log buffer holds (``log_capacity_samples``; the same rate as the DAQ).
+
+    Why full rate, not snapshots: the freeze-pulse edges (100 Hz) are only in a log sampled
+    faster than the pulse; the clocks are fitted on the edges both loggers hold and the fitted
+    drift is carried over the rest of the record (docs/method.md §2, "partial table log").
+    """
+    samples = min(step.samples, env.log_capacity_samples)
+    return step.model_copy(update={"samples": samples})
 
 
 def _logger(step: PlannedStep, env: TableEnvelope) -> list[Violation]:
     out = _exceeds("max_log_rate_hz", env.max_log_rate_hz, step.sample_rate_hz, "sample rate",
                    "Hz", skippable=False)
-    if streams_record(step, env):  # the DAQ streams; the table only logs snapshots
+    if streams_record(step, env):  # the DAQ streams; the table logs its head only
         return out
     hint = (" (controller log capacity; a static record this long needs a DAQ plugin that "
             "streams, docs/vendor-plugins.md)" if step.kind == "static"

@@ -4,7 +4,8 @@ Per recorded step: (re)establish the chamber set-point if needed, move to the st
 start the motion and let it settle, start the DAQ (its trigger starts the table log), record,
 stop the DAQ, bring the table to rest, then write the step's recording file atomically. A
 static step longer than the table's log capacity is streamed instead (the DAQ delivers chunks
-that are written as they arrive; the table logs snapshots: :func:`execute_streamed_step`). A
+that are written as they arrive; the table logs its full-rate head:
+:func:`execute_streamed_step`). A
 fault at any point leaves the rig safe (see :mod:`aatest.engine.run.rig`) and keeps every step
 completed so far; ``--resume`` continues with the first step not on disk.
 """
@@ -36,7 +37,7 @@ from aatest.engine.interfaces import (
     table_capabilities,
 )
 from aatest.engine.logs import SampledLog
-from aatest.engine.procedure.envelope import snapshot_step, streams_record
+from aatest.engine.procedure.envelope import head_step, streams_record
 from aatest.engine.run.events import RunEvents
 from aatest.engine.run.progress import StepProgress
 from aatest.engine.run.rig import Rig, running
@@ -211,10 +212,10 @@ def _syncs(plan: Plan, table: SampledLog, daq: SampledLog) -> bool:
 def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: RunEvents,
                           chunk_s: float = STREAM_CHUNK_S) -> tuple[SampledLog, SampledLog]:
     """Record one long static step with the DAQ streaming: each chunk goes to the recording as
-    it arrives (memory: one chunk of ``chunk_s`` lab seconds), the table logs snapshots
-    (:func:`snapshot_step`).
+    it arrives (memory: one chunk of ``chunk_s`` lab seconds), the table logs at full rate
+    as long as its buffer holds (:func:`head_step`: the freeze-pulse edges sync is fitted on).
 
-    Order: position, settle, then the DAQ streams (its trigger starts the table's snapshot
+    Order: position, settle, then the DAQ streams (its trigger starts the table's
     log), then the table's log is collected and the step file written atomically. A fault or
     an abort mid-record leaves the chunks received in the step's ``.partial`` spool (named in
     the message); the step itself is not complete, so ``--resume`` records it again.
@@ -231,7 +232,7 @@ def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: Ru
             last = chunk
             events.observer.step_chunk(step, chunk)
             events.abort.check()
-        table = rig.turntable.record(snapshot_step(step, _envelope(rig)))
+        table = rig.turntable.record(head_step(step, _envelope(rig)))
         rig.turntable.end_motion()
         if last is None:
             raise RigFault(f"step {step.id}: the DAQ streamed no samples")

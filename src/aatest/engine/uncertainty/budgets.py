@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from aatest.engine.uncertainty.clock_window import noise_measurand
 from aatest.engine.uncertainty.dynamic import (
     frf_gain_measurand,
     frf_phase_measurand,
@@ -88,6 +89,9 @@ def _certify_static(results: RunResults, ch: str, c: RigConstants) -> None:
         entry.g_sensitivity_expanded_uncertainty_dps2_per_g = g_sens.expanded_uncertainty
         entry.g_sensitivity_budget = _rows(g_sens)
         entry.g_sensitivity_measurand = g_sens.definition
+    noise = _evaluated(noise_measurand(results, ch, c), results)
+    if noise is not None and a.noise is not None:
+        certify(a.noise[ch], noise)
     bias_tc = _evaluated(temperature_measurand(results, ch, "bias_coefficient_v_per_c", c),
                         results)
     if bias_tc is not None and a.temperature is not None:
@@ -125,6 +129,7 @@ def apply_uncertainty(results: RunResults, constants: RigConstants | None = None
 
     Writes the fields of :class:`aatest.results.base.Certified` (``expanded_uncertainty``,
     ``coverage_factor``, ``coverage_probability``, ``budget``) into ``analysis.scale_factor[CH]``,
+    ``analysis.noise[CH]`` (the largest static record's band RMS),
     ``analysis.bias[CH]`` (bias; g-sensitivity as ``g_sensitivity_expanded_uncertainty_dps2_per_g``
     and ``g_sensitivity_budget``), ``analysis.temperature[CH]`` (bias coefficient; scale
     coefficient as ``scale_coefficient_*``), every point of ``analysis.frf[CH]`` (gain, plus

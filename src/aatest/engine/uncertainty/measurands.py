@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.uncertainty import components as comp
+from aatest.engine.uncertainty.clock_window import clock_coverage_input
 from aatest.engine.uncertainty.components import ARCSEC_RAD
 from aatest.engine.uncertainty.declared import Basis, declared_encoder
 from aatest.engine.uncertainty.evidence import Evidence, gather
@@ -388,11 +389,14 @@ def bias_measurand(results: RunResults, channel: str, c: RigConstants,
         comp.logger_resolution_v(c),
         temp_input,
     ]
+    clock = clock_coverage_input(results, channel, steps, "mean")
+    if clock is not None:  # a record whose clock fit covers part of it (a finite table log)
+        inputs.append(clock)
 
     def model(ops: Ops, x: Mapping[str, Any]) -> Any:
         logged = (b_hat - x["logger_offset"] - x["logger_resolution"]) / (1.0 + x["logger_gain"])
         return (logged + x["noise"] + x["disturbance"] + x["temperature"]
-                + x.get("repeatability", 0.0))
+                + x.get("repeatability", 0.0) + x.get("clock_coverage", 0.0))
 
     definition = (f"bias K0 of {channel}: output (V) at zero angular rate and acceleration, the "
                   f"mean of the +1 g and −1 g positions of the sensitive axis (g-sensitivity "

@@ -22,6 +22,7 @@ from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import scale_in_use, steps_of, t95
+from aatest.plugins.analysis.streaming import reduce_static
 from aatest.results.bias import BiasResult
 from aatest.sync.freeze_pulse import SyncedStep
 
@@ -88,7 +89,8 @@ def sensor_bias(steps: Sequence[SyncedStep], sensor: SensorInfo, scale: float) -
     lines: dict[str, tuple[list[float], list[float]]] = defaultdict(lambda: ([], []))
     for s in steps:
         g = gravity_along_g(sensor.axis, s.step.inner_deg, s.step.outer_deg)
-        mean_v = float(np.mean(s.daq[sensor.channel]))
+        mean_v = reduce_static(s.daq_blocks([sensor.channel]), [sensor.channel],
+                               s.sample_rate_hz, len(s))[sensor.channel].moments.mean
         mount = "pivoted" if s.step.mounting.pivoted else "original"
         lines[mount][0].append(g)
         lines[mount][1].append(mean_v)

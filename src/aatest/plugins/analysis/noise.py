@@ -25,6 +25,7 @@ from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import new_figure, options_of, scale_in_use, steps_of, to_svg
 from aatest.plugins.analysis.drift import DriftAnalysis, DriftOptions, allan_terms_of
+from aatest.plugins.analysis.streaming import StaticReduction, band_rms_of, reduce_static
 from aatest.results.noise import NoiseResult
 from aatest.sync.freeze_pulse import SyncedStep
 
@@ -56,19 +57,38 @@ def allan_terms(rate: np.ndarray, fs_hz: float) -> dict[str, Any]:
 
 def sensor_noise(steps: Sequence[SyncedStep], sensor: SensorInfo, scale_v_per_dps2: float,
                  band_hz: float = BAND_HZ) -> tuple[dict[str, Any], str]:
-    """Noise figures of one sensor over its static steps, and the PSD/Allan figure."""
-    fs = steps[0].sample_rate_hz
-    rms = [band_rms(s.daq[sensor.channel], fs, band_hz)[0] for s in steps]
-    longest = max(steps, key=len)
-    volts = np.asarray(longest.daq[sensor.channel], dtype=float)
-    _, f, psd = band_rms(volts, fs, band_hz)
-    allan = allan_terms((volts - volts.mean()) / scale_v_per_dps2, fs)
+    """Noise figures of one sensor over its static steps, and the PSD/Allan figure.
+
+    One pass over each record, block by block (:mod:`.streaming`): its band RMS from the
+    Welch PSD and, of the longest, the PSD and the Allan deviation (of means of
+    :func:`~aatest.plugins.analysis.streaming.allan_block` samples: the samples themselves up
+    to 2^18, so an hours-long record costs what a 2-minute one does).
+    """
+    rms: list[float] = []
+    longest: tuple[SyncedStep, StaticReduction] | None = None
+    for s in steps:
+        found = reduce_static(s.daq_blocks([sensor.channel]), [sensor.channel],
+                              s.sample_rate_hz, len(s), spectra=True, allan=True)
+        red = found[sensor.channel]
+        assert red.welch is not None  # asked for
+        f, psd = red.welch.result()
+        rms.append(band_rms_of(f, psd, band_hz))
+        if longest is None or len(s) > len(longest[0]):
+            longest = (s, red)
+    assert longest is not None
+    step, red = longest
+    assert red.welch is not None and red.allan is not None  # asked for
+    f, psd = red.welch.result()
+    per = red.allan.per_block
+    means = red.allan.means()
+    allan = allan_terms((means - red.moments.mean) / scale_v_per_dps2, step.sample_rate_hz / per)
     worst = float(max(rms))
     values = {"rms_v": float(np.mean(rms)), "rms_max_v": worst, "rms_per_step_v": rms,
               "rms_dps2": float(np.mean(rms)) / scale_v_per_dps2, "band_hz": band_hz,
               "scale_v_per_dps2_used": scale_v_per_dps2,
               "psd_floor_v_per_sqrt_hz": float(np.sqrt(np.median(psd[(f > 1) & (f < band_hz)]))),
-              "allan_dps2": allan, "record_step": longest.step.id}
+              "allan_dps2": allan, "record_step": step.step.id,
+              "record_s": len(step) / step.sample_rate_hz}
     fig, ax = new_figure(2, height_in=2.4)
     ax[0, 0].loglog(f[1:], np.sqrt(psd[1:]), lw=0.6, rasterized=True)
     ax[0, 0].set(xlabel="frequency / Hz", ylabel="V/√Hz", title=f"noise {sensor.channel}")

@@ -36,6 +36,7 @@ from aatest.sync.freeze_pulse import (
     clock_relation,
     synchronise,
 )
+from aatest.sync.streamed import is_partial, streamed_relation, synchronise_streamed
 
 #: the channels a clock relation reads (besides the time stamps)
 _SYNC_CHANNELS = {"table": ("sync_pulse", "fp_latch_s"), "daq": ("sync_pulse", "trigger")}
@@ -211,6 +212,8 @@ class SyncedSteps(Sequence[SyncedStep]):
         if isinstance(index, slice):
             return [self[k] for k in range(*index.indices(len(self)))]
         i = self._indices[index]
+        if self._kept is None and _is_long(self._steps, i):
+            return _long_synced(self._steps, i, self.relations.get(i))
         if self._kept is None:
             return synchronise(self._step(i), self.relations.get(i))
         if i not in self._kept:
@@ -246,8 +249,30 @@ class SyncedSteps(Sequence[SyncedStep]):
         return steps.partial(i, wanted)
 
 
+def _is_long(steps: Sequence[StepData], index: int) -> bool:
+    """Whether recorded step ``index`` of a recording is a long record whose table logged
+    only its head (:func:`~aatest.sync.streamed.is_partial`; nothing is decoded)."""
+    if not isinstance(steps, LazySteps):
+        return False
+    counts = steps[index]
+    return is_partial(counts.step, counts.samples("table"), counts.samples("daq"))
+
+
+def _long_synced(steps: Sequence[StepData], index: int,
+                 relation: ClockRelation | None) -> SyncedStep:
+    """A long record synchronised: its table log whole (the head), its DAQ log piece by piece."""
+    assert isinstance(steps, LazySteps)  # what _is_long checked
+    step = steps[index]
+    return synchronise_streamed(step.step, step.table,
+                                lambda channels: steps.pieces(index, "daq", channels), relation)
+
+
 def _relation_of(steps: LazySteps, index: int) -> ClockRelation:
     """The clock relation of recorded step ``index``, its synced watches fed on the way."""
+    if _is_long(steps, index):  # the DAQ record read piece by piece, never whole
+        step = steps[index]
+        return streamed_relation(step.step, step.table,
+                                 lambda channels: steps.pieces(index, "daq", channels))
     part = steps.partial(index, _SYNC_CHANNELS)  # synced watches ride along
     kept = _synchronised(steps, index)
     return kept.relation if kept is not None else clock_relation(part)

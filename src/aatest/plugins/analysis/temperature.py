@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.engine.dataset import Dataset, LazySteps, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
@@ -33,11 +33,13 @@ from aatest.plugins.analysis._common import (
 )
 from aatest.plugins.analysis.bias import gravity_along_g
 from aatest.plugins.analysis.polyfit import fit_polynomial
+from aatest.plugins.analysis.streaming import Moments, reduce_static
 from aatest.plugins.analysis.sync import SyncedSteps
 from aatest.results.temperature import TemperatureResult
 from aatest.sync.freeze_pulse import SyncedStep
 
 T_REF_C = 25.0
+_TEMPERATURE = "temperature_c"
 _MIN_SPAN_C = 5.0
 #: temperatures a coefficient needs (a slope and a check of it)
 _MIN_SETPOINTS = 3
@@ -48,11 +50,24 @@ _MIN_G_SPREAD = 0.5
 
 
 def step_temperature_c(step: SyncedStep) -> float | None:
-    """Mean sensor temperature of a step, °C (None when neither log nor plan has one)."""
-    temp = step.daq.get("temperature_c")
-    if temp is not None and np.all(np.isfinite(temp)):
-        return float(np.mean(temp))
+    """Mean sensor temperature of a step, °C (None when neither log nor plan has one), read
+    block by block."""
+    found = reduce_static(step.daq_blocks([_TEMPERATURE]), [_TEMPERATURE],
+                          step.sample_rate_hz, len(step))
+    mean = found[_TEMPERATURE].moments.mean if _TEMPERATURE in found else None
+    if mean is not None and np.isfinite(mean):
+        return float(mean)
     return step.step.temperature_c
+
+
+def _static_row(step: SyncedStep, sensor: SensorInfo) -> tuple[float | None, float, float]:
+    """(mean temperature °C, mean V, standard deviation V) of a static record, one pass."""
+    found = reduce_static(step.daq_blocks([_TEMPERATURE, sensor.channel]),
+                          [_TEMPERATURE, sensor.channel], step.sample_rate_hz, len(step))
+    volts = found[sensor.channel].moments
+    temp = found[_TEMPERATURE].moments.mean if _TEMPERATURE in found else None
+    temp_c = float(temp) if temp is not None and np.isfinite(temp) else step.step.temperature_c
+    return temp_c, volts.mean, volts.std
 
 
 def _slope(x: np.ndarray, y: np.ndarray, extra: np.ndarray | None = None
@@ -98,8 +113,7 @@ def hysteresis_v(temps: np.ndarray, values: np.ndarray) -> float | None:
 
 def bias_vs_temperature(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, Any]:
     """Bias slope, hysteresis and noise of one sensor over the static steps."""
-    rows = [(step_temperature_c(s), float(np.mean(s.daq[sensor.channel])),
-             float(np.std(s.daq[sensor.channel])),
+    rows = [(*_static_row(s, sensor),
              gravity_along_g(sensor.axis, s.step.inner_deg, s.step.outer_deg))
             for s in steps]  # one pass: each step is read (synchronised) once
     temps = np.array([r[0] for r in rows], dtype=float)
@@ -190,6 +204,20 @@ def _spans(steps: Sequence[SyncedStep]) -> bool:
     return len(temps) >= _MIN_SETPOINTS and (max(temps) - min(temps)) >= _MIN_SPAN_C
 
 
+def _logged_mean_c(data: Dataset, index: int) -> float | None:
+    """Mean logged temperature of recorded step ``index`` (°C), read piece by piece from a
+    recording; None when not logged."""
+    steps = data.steps
+    pieces = (steps.pieces(index, "daq", [_TEMPERATURE]) if isinstance(steps, LazySteps)
+              else [steps[index].daq])
+    moments = Moments()
+    for piece in pieces:
+        if _TEMPERATURE not in piece.channels:
+            return None
+        moments.add(piece[_TEMPERATURE])
+    return moments.mean if moments.n else None
+
+
 class TemperatureAnalysis:
     """Bias, scale factor and noise of every sensor against its temperature."""
 
@@ -207,8 +235,8 @@ class TemperatureAnalysis:
         temps = {s.step.temperature_c for s in data.steps if s.step.temperature_c is not None}
         if len(temps) >= _MIN_SETPOINTS:
             return True
-        logged = [float(np.mean(s.daq["temperature_c"])) for s in data.steps
-                  if s.step.recorded and "temperature_c" in s.daq.channels]
+        logged = [t for i, p in enumerate(data.planned) if p.recorded
+                  and (t := _logged_mean_c(data, i)) is not None]
         return len(logged) >= _MIN_SETPOINTS and max(logged) - min(logged) >= _MIN_SPAN_C
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[TemperatureResult]:
