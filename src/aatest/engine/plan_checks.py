@@ -97,11 +97,18 @@ def _needs_table_log(proc: Any) -> list[str]:
     return [p.name for p in ordered if p.name != "sync"]
 
 
+#: the shortest full-rate table head a streamed record's clock fit accepts, s: the 100 Hz
+#: freeze pulse then gives the fit ≥ 100 edges spread over a second (docs/method.md §2)
+MIN_HEAD_S = 1.0
+
+
 def analysable_problems(prepared: Any) -> list[Problem]:
     """A static record longer than the table's log capacity is streamed by the DAQ while the
-    table logs only snapshots, without the freeze pulse: ``sync`` (and every analysis that
-    requires it) cannot align it, so with those analyses it is refused here, at the step."""
-    from aatest.engine.procedure.envelope import snapshot_step, streams_record
+    table logs its full-rate head (:func:`~aatest.engine.procedure.envelope.head_step`): the
+    clocks are fitted on the head's freeze-pulse edges and the drift carried over the rest.
+    A controller whose log holds less than :data:`MIN_HEAD_S` gives too few edges for that
+    fit, so ``sync`` (and every analysis that requires it) is refused here, at the step."""
+    from aatest.engine.procedure.envelope import head_step, streams_record
 
     proc, env = prepared.procedure, prepared.envelope
     users = _needs_table_log(proc)
@@ -113,16 +120,15 @@ def analysable_problems(prepared: Any) -> list[Problem]:
     for step in prepared.plan.steps:
         if not (step.recorded and streams_record(step, env)):
             continue
-        snap = snapshot_step(step, env)
-        longest_s = env.log_capacity_samples / step.sample_rate_hz
-        span_s, period_s = step.samples / step.sample_rate_hz, 1 / snap.sample_rate_hz
+        head_s = head_step(step, env).samples / step.sample_rate_hz
+        if head_s >= MIN_HEAD_S:
+            continue
         message = (
-            f"step {step.id} records {step.samples:,} samples ({span_s:g} s), more than the "
-            f"table's log capacity ({env.log_capacity_samples:,} samples): the DAQ streams it "
-            f"and the table logs only snapshots every {period_s:g} s, "
-            f"without the freeze pulse, so analysis 'sync'{_needed_by(users)} cannot align it; "
-            f"record at most {longest_s:g} s at {step.sample_rate_hz:g} Hz, or analyse "
-            "this record with 'drift' alone (it reads the DAQ stream)")
+            f"step {step.id} records {step.samples:,} samples, more than the table's log "
+            f"capacity ({env.log_capacity_samples:,} samples): the table logs only its first "
+            f"{head_s:g} s, too few freeze-pulse edges for analysis 'sync'{_needed_by(users)} "
+            f"to fit the clocks (needs {MIN_HEAD_S:g} s); analyse this record with 'drift' "
+            "alone (it reads the DAQ stream)")
         path = tuple(sources.get(step.id, ("steps",)))
         problems.append(_problem(filename, proc.source_tree, path, message))
     return problems
@@ -162,7 +168,7 @@ def refuse_unrunnable(prepared: Any, out_dir: Path) -> None:
 def recording_bytes(steps: Sequence[PlannedStep], envelope: Any, daq_channels: int) -> int:
     """Bytes the recording of ``steps`` may need on disk, uncompressed (noise does not compress
     much), both loggers, time stamps included, times :data:`COPIES` plus :data:`MARGIN`."""
-    from aatest.engine.procedure.envelope import snapshot_step, streams_record
+    from aatest.engine.procedure.envelope import head_step, streams_record
 
     table_row = (1 + len(TABLE_CHANNELS)) * VALUE_BYTES
     daq_row = (1 + max(daq_channels, 1)) * VALUE_BYTES
@@ -172,7 +178,7 @@ def recording_bytes(steps: Sequence[PlannedStep], envelope: Any, daq_channels: i
             continue
         table_samples = step.samples
         if envelope is not None and streams_record(step, envelope):
-            table_samples = snapshot_step(step, envelope).samples
+            table_samples = head_step(step, envelope).samples
         total += table_samples * table_row + step.samples * daq_row
     return math.ceil(total * COPIES * (1 + MARGIN)) + REPORT_BYTES
 
