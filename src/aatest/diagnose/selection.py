@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
+from aatest.diagnose.alignment import realigned
 from aatest.diagnose.design import Fit, Spec, predict
 from aatest.diagnose.effects import Candidate, vocabulary
 from aatest.diagnose.effects.base import CandidateFit, Context, dynamic_peak_dps2
@@ -314,7 +315,10 @@ def _sync_shape_parameters(spec: Spec, findings: list[Finding]) -> None:
 
 
 def _adopt(ctx: Context, cand: Candidate, cf: CandidateFit) -> Fit:
-    """The accepted fit becomes the current model (time-family fits drop the nuisance)."""
+    """The accepted fit becomes the current model (time-family fits drop the nuisance; an
+    accepted delay takes the per-step offsets back around it)."""
+    if cand.effect == "time_delay":
+        return realigned(ctx, cf.fit)
     return cf.fit
 
 
