@@ -108,14 +108,26 @@ def refine_step_shifts(ctx: Context, fit: Fit) -> Spec:
     return replace(spec, delay_s=centre, step_shift_s=tuple(round(v, 10) for v in offsets))
 
 
-def realigned(ctx: Context, fit: Fit) -> Fit:
-    """``fit`` with every step's offset re-fitted around its accepted delay (no latch times).
+#: effects that move the output's timing: the nominal's nuisances were fitted without them
+TIMING_EFFECTS = frozenset({"time_delay", "sensor_dynamics", "jerk_sensitivity", "hysteresis"})
 
-    A transport delay is fitted as one lag common to all steps, without the per-step offsets
-    (it must beat the nominal that has them); once accepted, the offsets the sync leaves open
-    are nuisance around it again, or each step keeps its own sub-sample misalignment as
-    residual structure (3.4x the noise floor on a 4 Hz step, measured).
+
+def realigned(ctx: Context, fit: Fit, effect: str) -> Fit:
+    """``fit`` (``effect`` just accepted) with the alignment nuisances re-fitted for it.
+
+    The nominal's warp and offsets were fitted while a timing effect was missing from the
+    model, and they absorbed what they could of its phase (a 38 Hz sensor resonance left
+    sidebands of 0.05 mV at ±0.08 Hz of the 8 Hz step). Once a timing effect is accepted the
+    warp is re-fitted on it, and a transport delay takes the per-step offsets back around it:
+    it is fitted as one lag common to all steps, without them (it must beat the nominal that
+    has them), and each step would otherwise keep its own sub-sample misalignment as residual
+    structure (3.4x the noise floor on a 4 Hz step, measured).
     """
-    if ctx.alignment_resolved or not ctx.dynamic_steps:
+    if effect not in TIMING_EFFECTS or ctx.alignment_resolved or not ctx.dynamic_steps:
         return fit
-    return ctx.fit(refine_step_shifts(ctx, fit))
+    bounds = warp_freedom_ppm(ctx)
+    if bounds is not None:
+        held = fit.spec
+        _, fit = scalar_search(ctx, lambda w: replace(held, warp_ppm=w), *bounds,
+                               list(np.linspace(*bounds, 9)), xtol=0.01)
+    return ctx.fit(refine_step_shifts(ctx, fit)) if effect == "time_delay" else fit

@@ -316,10 +316,8 @@ def _sync_shape_parameters(spec: Spec, findings: list[Finding]) -> None:
 
 def _adopt(ctx: Context, cand: Candidate, cf: CandidateFit) -> Fit:
     """The accepted fit becomes the current model (time-family fits drop the nuisance; an
-    accepted delay takes the per-step offsets back around it)."""
-    if cand.effect == "time_delay":
-        return realigned(ctx, cf.fit)
-    return cf.fit
+    accepted timing effect gets them re-fitted on it, :func:`realigned`)."""
+    return realigned(ctx, cf.fit, cand.effect)
 
 
 def _finding(ctx: Context, cf: CandidateFit, dbic: float) -> Finding:
