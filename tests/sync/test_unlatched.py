@@ -18,6 +18,7 @@ from aatest.engine.dataset import StepData
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.sync import joint_drift
+from aatest.sync.edges import joint_slope_range
 from aatest.sync.freeze_pulse import clock_relation, rising_edges
 from aatest.twin import model as m
 from aatest.twin.api import simulate_dataset
@@ -136,3 +137,20 @@ def test_one_sample_slips_are_corrected() -> None:
     assert slipped.slips_corrected >= 4
     assert slipped.drift_ppm == pytest.approx(clean.drift_ppm, abs=1e-6)
     assert slipped.offset_s == pytest.approx(clean.offset_s, abs=1e-9)
+
+
+def test_a_short_step_refitted_inside_the_joint_range_takes_its_rate() -> None:
+    """``clock_relation(..., slope_range=)``: the short step's relation is refitted inside the
+    slopes all steps allow, so its drift is the joint one, not the centre of its own ±60 ppm."""
+    drift = 37.0
+    steps = [_without_latch(s) for s in _twin_steps(drift, seed=7, samples=(4096, 65536))]
+    relations = [clock_relation(s) for s in steps]
+    joint_range = joint_slope_range(relations)
+    assert joint_range is not None
+    short = clock_relation(steps[0], slope_range=joint_range)
+    lo, hi = ((b - 1.0) * 1e6 for b in joint_range)
+    assert lo <= short.drift_ppm <= hi
+    # the joint range is under 2 ppm wide here (test above); the short step alone is > 40 ppm
+    assert abs(short.drift_ppm - drift) < 2.0
+    assert short.drift_u_ppm < 1.0
+    assert relations[0].drift_u_ppm > 40.0

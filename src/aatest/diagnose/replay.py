@@ -19,7 +19,8 @@ import numpy as np
 from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import AnalysisError
 from aatest.engine.steps import PlannedStep
-from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, synchronise
+from aatest.sync.edges import joint_slope_range
+from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
 from aatest.twin import kinematics as kin
 
 #: samples of analytic motion computed beyond each end of a record, so that delays and
@@ -296,10 +297,8 @@ def replay_dataset(dataset: Dataset) -> Replay:
     channels = [s.channel for s in dataset.sensors]
     steps: list[StepReplay] = []
     skipped: list[str] = []
-    for data in dataset.steps:
-        if not data.step.recorded:
-            continue
-        synced = _synchronised(data)
+    for data, relation in _relations(dataset):
+        synced = _synchronised(data, relation)
         if synced is None:
             skipped.append(data.step.id)
             continue
@@ -318,11 +317,43 @@ def replay_dataset(dataset: Dataset) -> Replay:
                   float(t_ref) if isinstance(t_ref, (int, float)) else 25.0, tuple(skipped))
 
 
-def _synchronised(data: StepData) -> SyncedStep | None:
-    """Freeze-pulse sync, else trigger alignment (one clock; drift then from the phase trend)."""
+def _relation_or_none(data: StepData, slope_range: tuple[float, float] | None = None
+                      ) -> ClockRelation | None:
+    """The step's clock relation from its sync edges, None when they cannot give one."""
     try:
-        return synchronise(data)
+        return clock_relation(data, slope_range)
     except AnalysisError:
-        from aatest.diagnose.trigger_sync import trigger_aligned
+        return None
 
-        return trigger_aligned(data)
+
+def _relations(dataset: Dataset) -> list[tuple[StepData, ClockRelation | None]]:
+    """Every recorded step with its clock relation, one DAQ crystal across the steps.
+
+    Without latch times a step's edges bound the drift only to about one sample over its record
+    (≈ 120 ppm on a 4 s record at 2 kHz); the centre of that range can sit tens of ppm off, and
+    on a fast sine the phase then slides by a visible fraction of a sample through the record —
+    structure no sensor has. One crystal drives the DAQ through every step, so each step's
+    relation is refitted inside the rates all steps allow together
+    (:func:`~aatest.sync.edges.joint_slope_range`); the offsets left open stay a nuisance of
+    the nominal fit (:mod:`aatest.diagnose.alignment`).
+    """
+    recorded = [d for d in dataset.steps if d.step.recorded]
+    first = [_relation_or_none(d) for d in recorded]
+    found = [r for r in first if r is not None]
+    joint = None if any(r.latched for r in found) else joint_slope_range(found)
+    if joint is None:
+        return list(zip(recorded, first, strict=True))
+    return [(d, r if r is None else _relation_or_none(d, joint) or r)
+            for d, r in zip(recorded, first, strict=True)]
+
+
+def _synchronised(data: StepData, relation: ClockRelation | None) -> SyncedStep | None:
+    """Freeze-pulse sync, else trigger alignment (one clock; drift then from the phase trend)."""
+    if relation is not None:
+        try:
+            return synchronise(data, relation)
+        except AnalysisError:
+            pass
+    from aatest.diagnose.trigger_sync import trigger_aligned
+
+    return trigger_aligned(data)

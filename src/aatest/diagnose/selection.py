@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
+from aatest.diagnose.alignment import realigned
 from aatest.diagnose.design import Fit, Spec, predict
 from aatest.diagnose.effects import Candidate, vocabulary
 from aatest.diagnose.effects.base import CandidateFit, Context, dynamic_peak_dps2
@@ -314,8 +315,9 @@ def _sync_shape_parameters(spec: Spec, findings: list[Finding]) -> None:
 
 
 def _adopt(ctx: Context, cand: Candidate, cf: CandidateFit) -> Fit:
-    """The accepted fit becomes the current model (time-family fits drop the nuisance)."""
-    return cf.fit
+    """The accepted fit becomes the current model (time-family fits drop the nuisance; an
+    accepted timing effect gets them re-fitted on it, :func:`realigned`)."""
+    return realigned(ctx, cf.fit, cand.effect)
 
 
 def _finding(ctx: Context, cf: CandidateFit, dbic: float) -> Finding:

@@ -380,16 +380,24 @@ def refine_offset(relation: ClockRelation, table_t0_s: float, trigger_daq_s: flo
     return replace(relation, offset_u_s=float(width / np.sqrt(12.0)))
 
 
-def clock_relation(data: StepData) -> ClockRelation:
+def clock_relation(data: StepData,
+                   slope_range: tuple[float, float] | None = None) -> ClockRelation:
     """The DAQ-to-table clock relation of one step, checked like :func:`synchronise` checks it,
-    without resampling anything (for summaries that need no samples)."""
+    without resampling anything (for summaries that need no samples).
+
+    ``slope_range``: the slopes (1 + drift) other records of the same DAQ crystal allow
+    (:func:`~aatest.sync.edges.joint_slope_range`); without latch times the step's own range
+    is intersected with it, so a short record takes the rate its neighbours pin down.
+    """
     if _partial(data):  # a long record the table logged the head of
         from aatest.sync.streamed import log_pieces, streamed_relation
 
         return streamed_relation(data.step, data.table, log_pieces(data.daq))
     time_s = np.asarray(data.daq.time_s, dtype=np.float64)
     fit = _regular_fit(time_s)
-    return replace(_relation(data, _regular_time(time_s, fit))[0], daq_time_fit=fit)
+    daq_time_s = _regular_time(time_s, fit)
+    known = None if slope_range is None else _fitted_relation(data, daq_time_s, slope_range)
+    return replace(_relation(data, daq_time_s, known)[0], daq_time_fit=fit)
 
 
 def _partial(data: StepData) -> bool:
