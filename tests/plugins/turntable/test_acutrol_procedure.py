@@ -138,3 +138,24 @@ def test_scale_factor_matches_the_in_process_twin(tmp_path: Path) -> None:
     # measured the Modbus path at 2e-9 relative (f32 volts on CAN); its 95 % interval is ±4e-5
     assert k_wire["scale_v_per_dps2"] == pytest.approx(k_twin["scale_v_per_dps2"], rel=1e-6)
     assert wire["sync"]["drift_ppm"] == pytest.approx(twin["sync"]["drift_ppm"], abs=1e-3)
+
+
+def test_stepped_sine_matches_the_in_process_twin(tmp_path: Path) -> None:
+    """A shortened sweep (1–8 Hz, 100 °/s²) through the ACUTROL oscillation demand: gain and
+    phase of each point match the in-process twin within the points' stated uncertainty."""
+    rig = RigProcess("espec", multicast_group()).start()
+    try:
+        text = shipped("stepped-sine-frequency-response", **{
+            r"samples: 131072": "samples: 16384", r"settle_s: 5": "settle_s: 1",
+            r"(?s)      frequencies:.*?skip_outside_envelope: true\n": (
+                "      frequencies: {start_hz: 1, ratio: 2, stop_hz: 8, snap: coherent}\n"
+                "      accelerations_dps2: [100]\n"),
+            r"analysis: \[[^\]]*\]": "analysis: [sync, frf]"})
+        wire, twin = analyses(tmp_path, rig, text)
+    finally:
+        rig.stop()
+    points_wire, points_twin = wire["frf"]["v_sz"], twin["frf"]["v_sz"]
+    assert len(points_wire) == len(points_twin) == 4
+    for p_wire, p_twin in zip(points_wire, points_twin, strict=True):
+        assert p_wire["gain_db"] == pytest.approx(p_twin["gain_db"], abs=0.05)
+        assert p_wire["phase_deg"] == pytest.approx(p_twin["phase_deg"], abs=0.5)
