@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-import os
 import shutil
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from batch_units import ARCHIVE_UNITS
-from sqlalchemy import create_engine, text
-from sqlalchemy.engine import make_url
+from postgres_db import throwaway_database
 
 from aatest.batch.archive import record_run, register_references
-from aatest.records.url import resolve_url
 
 
 @pytest.fixture(autouse=True)
@@ -52,16 +48,5 @@ def empty_store_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[
     if request.param == "sqlite":
         yield f"sqlite:///{tmp_path / 'empty.sqlite'}"
         return
-    server = os.environ.get("AATEST_TEST_POSTGRES_URL")
-    if not server:
-        pytest.skip("PostgreSQL test skipped: AATEST_TEST_POSTGRES_URL is not set")
-    name = f"aatest_{uuid.uuid4().hex[:12]}"
-    admin = create_engine(resolve_url(server), isolation_level="AUTOCOMMIT")
-    with admin.connect() as connection:
-        connection.execute(text(f'CREATE DATABASE "{name}"'))
-    try:
-        yield make_url(server).set(database=name).render_as_string(hide_password=False)
-    finally:
-        with admin.connect() as connection:
-            connection.execute(text(f'DROP DATABASE "{name}" WITH (FORCE)'))
-        admin.dispose()
+    with throwaway_database("batch") as url:
+        yield url

@@ -6,18 +6,11 @@ each test gets its own database, dropped afterwards.
 
 from __future__ import annotations
 
-import os
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from sqlalchemy import create_engine, text
-from sqlalchemy.engine import make_url
-
-from aatest.records.url import resolve_url
-
-POSTGRES_ENV = "AATEST_TEST_POSTGRES_URL"
+from postgres_db import throwaway_database
 
 
 @pytest.fixture(autouse=True)
@@ -36,21 +29,8 @@ def sqlite_url(tmp_path: Path) -> str:
 @pytest.fixture
 def postgres_url() -> Iterator[str]:
     """A new, empty PostgreSQL database on the test cluster (skips without a cluster)."""
-    server = os.environ.get(POSTGRES_ENV)
-    if not server:
-        pytest.skip(f"PostgreSQL records test skipped: {POSTGRES_ENV} is not set "
-                    "(.ci/run starts a throwaway cluster with .ci/postgres)")
-    name = f"aatest_{uuid.uuid4().hex[:12]}"
-    admin = create_engine(resolve_url(server), isolation_level="AUTOCOMMIT")
-    with admin.connect() as connection:
-        connection.execute(text(f'CREATE DATABASE "{name}"'))
-    url = make_url(server).set(database=name)
-    try:
-        yield url.render_as_string(hide_password=False)
-    finally:
-        with admin.connect() as connection:
-            connection.execute(text(f'DROP DATABASE "{name}" WITH (FORCE)'))
-        admin.dispose()
+    with throwaway_database("records") as url:
+        yield url
 
 
 @pytest.fixture(params=["sqlite", "postgres"])
