@@ -147,7 +147,8 @@ function fileLinks(parent, name, files) {
 function showResult(msg) {
   $("result").hidden = false;
   const v = $("verdict"); v.className = "verdict " + (msg.overall || "none");
-  v.textContent = "Verdict: " + (msg.overall || "none").toUpperCase();
+  v.textContent = "Verdict: " + (msg.overall || "none").toUpperCase()
+    + (msg.simulation ? " — " + msg.simulation : "");
   v.title = msg.signed ? "signed report" : "unsigned report";
   const body = $("verdicts").querySelector("tbody"); body.innerHTML = "";
   for (const r of msg.verdicts || []) {
