@@ -34,9 +34,6 @@ from aatest.results import RunResults
 from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
 from aatest.results.scale_factor import ScaleFactorHeadline
 
-#: the lowest polynomial order with a curvature (a non-linearity to judge)
-CURVED_ORDER = 2
-
 #: verdicts from best to worst; the overall verdict is the worst one
 SEVERITY: tuple[VerdictValue, ...] = ("pass", "conditional-pass", "conditional-fail", "fail")
 
@@ -103,12 +100,15 @@ def _cross_axis(results: RunResults, ch: str) -> Iterator[Judged]:
 
 
 def _nonlinearity(scale: ScaleFactorHeadline) -> float | None:
-    """The linearity across the levels; else the polynomial's curvature when the data chose a
-    curved model (order ≥ 2). One level with a straight line resolves no non-linearity: None
-    (``not judged``), never the 0 a straight line has by construction."""
+    """The linearity across the acceleration levels; None (``not judged``) with one level.
+
+    One level resolves no non-linearity whatever order the fit chose: the polynomial's
+    ``nonlinearity_pct_fr`` is its deviation from its own fit (1e-14 % FR, rounding), which
+    would pass any limit by construction; the study's L of one level is reported, not judged.
+    """
     if scale.linearity is not None:
         return finite(scale.linearity.nonlinearity_pct_fr)
-    return finite(scale.nonlinearity_pct_fr) if scale.order >= CURVED_ORDER else None
+    return None
 
 
 def _levels(results: RunResults, ch: str, sheet: SensorDatasheet

@@ -30,8 +30,8 @@ log = logging.getLogger("aatest.verdicts")
 PER_SENSOR = frozenset({"misalignment_deg", "cross_axis_ratio"})
 #: why a quantity can be absent although its analysis ran
 NOT_RESOLVED = {
-    "nonlinearity_pct_fr": "one acceleration level, and cross-validation chose a straight line: "
-    "no non-linearity is resolved (its 0 is by construction); record two or more levels "
+    "nonlinearity_pct_fr": "one acceleration level: no non-linearity is resolved (a fit's "
+    "deviation from itself is 0 by construction, whatever its order); record two or more levels "
     "(e.g. accelerations_dps2: [100, 250, 400]) to measure the linearity across them",
 }
 #: the channel a verdict names when it is about the whole unit
