@@ -16,13 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from served_rig import served_rig
 
 from aatest.engine.run.session import UnitName
 from aatest.protocols.modbus_map import Command
 from aatest.station.catalogue import Procedures, RunsDirHistory
 from aatest.station.control import RunController
-from aatest.twin.servers.can_sim import SimCanLogger
-from aatest.twin.servers.modbus_server import SimModbusServer
 
 SEED = 5
 PROCEDURE = """\
@@ -62,34 +61,13 @@ class Hardware:
 @pytest.fixture
 def hardware(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Hardware]:
     """The served twin posing as an ACME controller and a real CAN logger."""
-    server = SimModbusServer(seed=SEED, lifetime_s=120.0)
-    channel = f"station-{tmp_path.name}"
-    logger = SimCanLogger(server.controller, "virtual", channel).start()
-    server.attach(logger)
-    server.start()
-    server.controller.pose_as_hardware("ACME TC-2 controller")
-    logger.simulated = False
-    commands: list[Command] = []
-    execute = server.controller._execute
-
-    def counted(command: Command | None) -> None:
-        if command is not None:
-            commands.append(command)
-        execute(command)
-
-    monkeypatch.setattr(server.controller, "_execute", counted)
     monkeypatch.setenv("AATEST_RECORDS", f"sqlite:///{tmp_path / 'records.sqlite'}")
-    rig = tmp_path / "rig.yaml"
-    rig.write_text(
-        f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {server.port}, timeout_s: 2.0, "
-        f"retries: 0}}\ndaq: {{plugin: can, interface: virtual, channel: {channel}}}\n"
-        "chamber: {plugin: none}\n")
-    lab = tmp_path / "lab"
-    lab.mkdir()
-    (lab / "served.yaml").write_text(PROCEDURE)
-    yield Hardware(rig, lab, commands)
-    server.stop()
-    logger.stop()
+    with served_rig(tmp_path, monkeypatch, SEED, f"station-{tmp_path.name}",
+                    hardware_name="ACME TC-2 controller") as served:
+        lab = tmp_path / "lab"
+        lab.mkdir()
+        (lab / "served.yaml").write_text(PROCEDURE)
+        yield Hardware(served.rig, lab, served.commands)
 
 
 def _start(hardware: Hardware, tmp_path: Path, unit: UnitName) -> tuple[Events, Path]:

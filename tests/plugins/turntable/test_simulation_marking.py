@@ -7,17 +7,15 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from served_rig import ServedRig, served_rig
 from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.engine.simulation import SIMULATION_TITLE
 from aatest.protocols.modbus_map import Command
-from aatest.twin.servers.can_sim import SimCanLogger
-from aatest.twin.servers.modbus_server import SimModbusServer
 
 SEED = 5
 PROCEDURE = """\
@@ -34,50 +32,23 @@ report: {template: calibration-certificate, sign: false}
 MOTION = {Command.START_MOTION, Command.ARM_LOG}
 
 
-@dataclass
-class Served:
-    server: SimModbusServer
-    logger: SimCanLogger
-    rig: Path
-    commands: list[Command]
-
-
 @pytest.fixture
 def served(rig_entry_points: None, tmp_path: Path,
-           monkeypatch: pytest.MonkeyPatch) -> Iterator[Served]:
+           monkeypatch: pytest.MonkeyPatch) -> Iterator[ServedRig]:
     """The twin behind Modbus and CAN on loopback, counting every command the table executes."""
-    server = SimModbusServer(seed=SEED, lifetime_s=120.0)
-    logger = SimCanLogger(server.controller, "virtual", f"mark-{tmp_path.name}").start()
-    server.attach(logger)
-    server.start()
-    commands: list[Command] = []
-    execute = server.controller._execute
-
-    def counted(command: Command | None) -> None:
-        if command is not None:
-            commands.append(command)
-        execute(command)
-
-    monkeypatch.setattr(server.controller, "_execute", counted)
-    rig = tmp_path / "rig.yaml"
-    rig.write_text(
-        f"turntable: {{plugin: modbus, host: 127.0.0.1, port: {server.port}, timeout_s: 2.0, "
-        f"retries: 0}}\ndaq: {{plugin: can, interface: virtual, channel: mark-{tmp_path.name}}}\n"
-        "chamber: {plugin: none}\n")
-    (tmp_path / "p.yaml").write_text(PROCEDURE)
-    yield Served(server, logger, rig, commands)
-    server.stop()
-    logger.stop()
+    with served_rig(tmp_path, monkeypatch, SEED, f"mark-{tmp_path.name}") as rig:
+        (tmp_path / "p.yaml").write_text(PROCEDURE)
+        yield rig
 
 
-def _run(tmp_path: Path, served: Served, url: str, *extra: str) -> tuple[int, str]:
+def _run(tmp_path: Path, served: ServedRig, url: str, *extra: str) -> tuple[int, str]:
     result = CliRunner().invoke(app, [
         "run", str(tmp_path / "p.yaml"), "--rig", str(served.rig), "--out", str(tmp_path / "r"),
         "--seed", str(SEED), "--no-progress", "--records", url, *extra])
     return result.exit_code, result.output
 
 
-def test_a_run_on_the_simulator_servers_is_a_simulation(served: Served, tmp_path: Path) -> None:
+def test_a_run_on_the_simulator_servers_is_a_simulation(served: ServedRig, tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'records.sqlite'}"
     code, output = _run(tmp_path, served, url, "--serial", "SN-77")
     assert code == 0, output
@@ -95,7 +66,7 @@ def test_a_run_on_the_simulator_servers_is_a_simulation(served: Served, tmp_path
 
 
 def test_an_unnamed_unit_on_a_real_rig_is_refused_before_motion(
-        served: Served, tmp_path: Path) -> None:
+        served: ServedRig, tmp_path: Path) -> None:
     served.server.controller.pose_as_hardware("ACME TC-2 controller")
     served.logger.simulated = False
     url = f"sqlite:///{tmp_path / 'records.sqlite'}"
@@ -107,7 +78,7 @@ def test_an_unnamed_unit_on_a_real_rig_is_refused_before_motion(
 
 
 def test_a_named_unit_on_a_real_rig_is_calibrated(
-        served: Served, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        served: ServedRig, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     served.server.controller.pose_as_hardware("ACME TC-2 controller")
     served.logger.simulated = False
     monkeypatch.setenv("AATEST_SERIAL", "SN-1001")
