@@ -8,10 +8,13 @@ prints recordings per minute (wall time including the cluster's start), the spee
 workers over 1 (target ≥ 1.8× on 2 free cores) and the peak resident memory per worker.
 
     python bench/batch.py [--count 200] [--archive DIR] [--modes analyze,diagnose]
-                          [--prefix URL]
+                          [--prefix URL | --s3]
 
 ``--prefix`` selects the recordings under a URL (e.g. a copy of the archive on object
-storage) instead of from the store. Runs are simulations and are registered as such.
+storage) instead of from the store. ``--s3`` starts moto's S3 server on loopback, uploads the
+archive's runs to it and selects them there (so the workers read every recording over HTTP;
+moto's own overhead included, not a real network). Runs are simulations and are registered as
+such.
 """
 
 from __future__ import annotations
@@ -21,11 +24,15 @@ import shutil
 import sys
 import tempfile
 import time
+from contextlib import ExitStack
 from pathlib import Path
+
+from s3_server import moto_s3
 
 from aatest.batch.archive import TwinUnit, record_run, register_references
 from aatest.batch.runner import BatchReport, run_batch
 from aatest.batch.selection import Selected, from_prefix, from_store
+from aatest.engine.storage import RemotePath, locate, upload_dir
 from aatest.records.models import RecordFilter
 from aatest.records.store import RecordStore
 
@@ -60,6 +67,17 @@ def build(archive: Path, count: int) -> Path:
     return database
 
 
+def upload(archive: Path, count: int) -> str:
+    """Put the first ``count`` runs of the archive on the S3 server; their URL prefix."""
+    remote = locate("s3://bench-batch/archive")
+    assert isinstance(remote, RemotePath)
+    remote.fs.mkdir("bench-batch")
+    for unit in units(count):
+        run = Path(unit.rig) / f"{unit.serial}-{unit.seed}"
+        upload_dir(archive / run, remote.joinpath(*run.parts))
+    return str(remote)
+
+
 def measure(database: Path, prefix: str | None, mode: str, workers: int,
             scratch: Path, count: int) -> tuple[BatchReport, float]:
     """One batch over the first ``count`` recordings, on a fresh copy of the store: its
@@ -83,13 +101,19 @@ def main() -> None:
                         help="archive folder (kept and reused; default: a temporary one)")
     parser.add_argument("--modes", default="analyze,diagnose")
     parser.add_argument("--prefix", default=None, help="select recordings under this URL")
+    parser.add_argument("--s3", action="store_true",
+                        help="upload the archive to moto's S3 server on loopback; read it there")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory(prefix="aatest-bench-batch-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="aatest-bench-batch-") as tmp, ExitStack() as stack:
         archive = args.archive or Path(tmp) / "archive"
         started = time.perf_counter()
         database = build(archive, args.count)
         print(f"archive: {args.count} twin recordings, {SERIALS} serials, {len(RIGS)} rigs "
               f"({time.perf_counter() - started:.0f} s to build or reuse)")
+        if args.s3:
+            stack.enter_context(moto_s3())
+            args.prefix = upload(archive, args.count)
+            print(f"archive uploaded to {args.prefix} (moto on loopback)")
         for mode in args.modes.split(","):
             rates = {}
             for workers in (1, 2):

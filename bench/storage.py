@@ -13,14 +13,13 @@ moto measure the client path and the server's own overhead, not a real network o
 from __future__ import annotations
 
 import argparse
-import os
-import socket
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from s3_server import moto_s3
 
 from aatest.engine.logs import DAQ, TABLE, SampledLog
 from aatest.engine.recording import RunRecorder, read_dataset
@@ -85,30 +84,13 @@ def timed(action: Callable[[], object], repeats: int = 3) -> float:
     return best
 
 
-def start_server() -> tuple[object, str]:
-    from moto.server import ThreadedMotoServer
-
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = int(probe.getsockname()[1])
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
-    server.start()
-    return server, f"http://127.0.0.1:{port}"
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=8)
     parser.add_argument("--samples", type=int, default=131072)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
-    import logging
-
-    logging.getLogger("werkzeug").setLevel(logging.ERROR)
-    server, endpoint = start_server()
-    os.environ.update(AWS_ACCESS_KEY_ID="bench", AWS_SECRET_ACCESS_KEY="bench",
-                      AWS_DEFAULT_REGION="us-east-1", AATEST_S3_ENDPOINT=endpoint)
-    with tempfile.TemporaryDirectory() as tmp:
+    with moto_s3(), tempfile.TemporaryDirectory() as tmp:
         recording = write_recording(Path(tmp), args.steps, args.samples, args.seed)
         remote = locate("s3://bench/runs/r1")
         assert isinstance(remote, RemotePath)
@@ -131,7 +113,6 @@ def main() -> None:
         fetched = FETCHED["bytes"] - before
         print(f"one step of {args.steps} from s3: fetched {fetched / 1e6:.2f} MB of "
               f"{size_mb:.1f} MB ({fetched / 1e6 / size_mb:.1%} of the object)")
-    server.stop()  # type: ignore[attr-defined]
 
 
 if __name__ == "__main__":

@@ -82,25 +82,31 @@ def from_store(store: RecordStore, where: RecordFilter,
 def from_prefix(prefix: str, store: RecordStore | None) -> list[Selected]:
     """Every ``recording.mcap`` under ``prefix`` (a directory or fsspec URL), sorted.
 
+    A URL is opened with aatest's storage options (:mod:`aatest.engine.storage`: the
+    ``AATEST_S3_ENDPOINT`` and credentials the rest of aatest uses), so a prefix on a lab's
+    S3-compatible server lists the same objects ``aatest analyze`` would read.
+
     Raises
     ------
     InputError
         Nothing can be listed there, or no recording is found.
     """
-    from fsspec.core import url_to_fs  # type: ignore[import-untyped]
+    from aatest.engine.storage import locate
+    from aatest.engine.storage.location import RemotePath, StorageError
 
+    where = locate(prefix)
     try:
-        fs, root = url_to_fs(prefix)
-        found = sorted(p for p in fs.find(root) if posixpath.basename(p) == RECORDING_NAME)
-    except (OSError, ValueError, ImportError) as exc:
+        if isinstance(where, RemotePath):
+            found = [str(where / name) for name in where.members()
+                     if posixpath.basename(name) == RECORDING_NAME]
+        else:
+            found = [str(p) for p in sorted(where.resolve().rglob(RECORDING_NAME)) if p.is_file()]
+    except (OSError, StorageError) as exc:
         raise InputError(f"{prefix}: cannot list recordings there: {exc}") from exc
     if not found:
         raise InputError(f"{prefix}: no {RECORDING_NAME} found under it")
-    protocol = fs.protocol if isinstance(fs.protocol, str) else fs.protocol[0]
-    local = protocol in ("file", "local")
     out = []
-    for path in found:
-        location = path if local else fs.unstrip_protocol(path)
+    for location in found:
         record = None
         if store is not None:
             report = posixpath.join(posixpath.dirname(location), REPORT_NAME)

@@ -31,14 +31,11 @@ class Task:
 
 def local_path(location: str) -> str | Path:
     """A local path for ``file://`` URLs and plain paths; other URLs are handed on as they are
-    (the recording reader opens them)."""
-    if "://" not in location:
-        return Path(location)
-    from fsspec.core import url_to_fs  # type: ignore[import-untyped]
+    (the recording reader opens them with aatest's storage options)."""
+    from aatest.engine.storage import locate
 
-    fs, path = url_to_fs(location)
-    protocol = fs.protocol if isinstance(fs.protocol, str) else fs.protocol[0]
-    return Path(path) if protocol in ("file", "local") else location
+    where = locate(location)
+    return where if isinstance(where, Path) else location
 
 
 def open_dataset(task: Task) -> Dataset:
