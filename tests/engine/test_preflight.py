@@ -110,6 +110,18 @@ def test_the_good_procedure_passes_and_its_run_commands_the_table(
     assert (tmp_path / "run" / "recording.mcap").stat().st_size <= one_copy
 
 
+def _refused_before_motion(tmp_path: Path, sent: Counter[str], arguments: list[str],
+                           message: str) -> None:
+    """``validate`` and ``run`` with ``arguments`` both exit 2 saying ``message``, and the
+    table was sent nothing."""
+    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
+                                   "--confirm-prompts", "auto"]):
+        result = CliRunner().invoke(app, [*command, *arguments])
+        assert result.exit_code == 2, result.output
+        assert message in result.output
+    assert sum(sent.values()) == 0, sent
+
+
 def _prepared(path: Path) -> Any:
     from aatest.engine.run.session import prepare
 
@@ -139,38 +151,24 @@ def test_a_key_that_does_not_open_fails_before_motion(
     generate_keypair(key, "right passphrase")
     monkeypatch.setenv("AATEST_SIGNING_PASSPHRASE", "wrong passphrase")
     path = _write(tmp_path, GOOD)
-    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
-                                   "--confirm-prompts", "auto"]):
-        result = CliRunner().invoke(app, [*command, str(path), "--sign-key", str(key),
-                                          *_records(tmp_path)])
-        assert result.exit_code == 2, result.output
-        assert f"{key}: not a usable private key or wrong passphrase" in result.output
-    assert sum(sent.values()) == 0, sent
+    _refused_before_motion(tmp_path, sent, [str(path), "--sign-key", str(key),
+                                            *_records(tmp_path)],
+                           f"{key}: not a usable private key or wrong passphrase")
 
 
 def test_a_lab_profile_that_does_not_load_is_located(tmp_path: Path, sent: Counter[str]) -> None:
     lab = tmp_path / "lab.yaml"
     lab.write_text("name: Lab\ncertificate_prefx: X\n")
     path = _write(tmp_path, GOOD)
-    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
-                                   "--confirm-prompts", "auto"]):
-        result = CliRunner().invoke(app, [*command, str(path), "--lab", str(lab),
-                                          *_records(tmp_path)])
-        assert result.exit_code == 2, result.output
-        assert f"{lab}:2:1: certificate_prefx:" in result.output
-    assert sum(sent.values()) == 0, sent
+    _refused_before_motion(tmp_path, sent, [str(path), "--lab", str(lab), *_records(tmp_path)],
+                           f"{lab}:2:1: certificate_prefx:")
 
 
 def test_an_unreachable_records_store_fails_before_motion(tmp_path: Path,
                                                           sent: Counter[str]) -> None:
     path = _write(tmp_path, GOOD)
     unreachable = ["--records", "postgresql://nobody@127.0.0.1:9/none"]  # port 9: discard
-    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
-                                   "--confirm-prompts", "auto"]):
-        result = CliRunner().invoke(app, [*command, str(path), *unreachable])
-        assert result.exit_code == 2, result.output
-        assert "cannot be reached" in result.output
-    assert sum(sent.values()) == 0, sent
+    _refused_before_motion(tmp_path, sent, [str(path), *unreachable], "cannot be reached")
 
 
 def test_a_store_of_a_newer_schema_is_refused(tmp_path: Path, sent: Counter[str]) -> None:
@@ -200,13 +198,8 @@ def test_too_little_disk_fails_before_motion(tmp_path: Path, sent: Counter[str],
 
     monkeypatch.setattr(plan_checks.shutil, "disk_usage", nearly_full)
     path = _write(tmp_path, GOOD)
-    for command in (["validate"], ["run", "--out", str(tmp_path / "run"), "--no-progress",
-                                   "--confirm-prompts", "auto"]):
-        result = CliRunner().invoke(app, [*command, str(path), *_records(tmp_path)])
-        assert result.exit_code == 2, result.output
-        assert f"{path}:5:1: steps: not enough disk space: the recording needs up to" in \
-            result.output
-    assert sum(sent.values()) == 0, sent
+    _refused_before_motion(tmp_path, sent, [str(path), *_records(tmp_path)],
+                           f"{path}:5:1: steps: not enough disk space: the recording needs up to")
 
 
 def test_a_long_static_step_with_sync_is_analysable(tmp_path: Path) -> None:

@@ -31,6 +31,8 @@ _SCHEDULER_OPT = typer.Option(None, "--scheduler",
 _WORKERS_OPT = typer.Option(2, "--workers", help="Worker processes of the local cluster")
 _SIMULATIONS_OPT = typer.Option(False, "--include-simulations",
                                 help="Also select records of simulated runs")
+_SINCE_OPT = typer.Option(None, "--since", help="Calibrated on/after this ISO date")
+_JSON_OPT = typer.Option(False, "--json/--no-json", help="Print JSON")
 #: overall verdicts of a re-analysis that make the batch exit 1
 FAILING = frozenset({"fail", "finding"})
 
@@ -128,15 +130,14 @@ def batch_app(guard: Callable[[Any], Any]) -> typer.Typer:
             serial: str | None = typer.Option(None, "--serial", help="Records of this unit"),
             procedure: str | None = typer.Option(None, "--procedure",
                                                  help="Records of this procedure"),
-            since: str | None = typer.Option(None, "--since",
-                                             help="Records calibrated on/after (ISO date)"),
+            since: str | None = _SINCE_OPT,
             reference: str | None = typer.Option(
                 None, "--reference", help="Records that used this reference standard"),
             include_simulations: bool = _SIMULATIONS_OPT,
             records: str | None = _RECORDS_OPT,
             scheduler: str | None = _SCHEDULER_OPT,
             workers: int = _WORKERS_OPT,
-            as_json: bool = typer.Option(False, "--json/--no-json", help="Print JSON"),
+            as_json: bool = _JSON_OPT,
         ) -> None:
             chosen = Selection(prefix, serial, procedure, since, reference,
                                include_simulations)
@@ -154,15 +155,14 @@ def batch_app(guard: Callable[[Any], Any]) -> typer.Typer:
 
 def records_impact(
     reference: str = typer.Option(..., "--reference", help="Identifier of the reference"),
-    since: str | None = typer.Option(None, "--since",
-                                     help="Certificates calibrated on/after (ISO date)"),
+    since: str | None = _SINCE_OPT,
     correction: Path | None = typer.Option(
         None, "--correction", help="Correction YAML: re-analyse with the corrected reference"),
     include_simulations: bool = _SIMULATIONS_OPT,
     records: str | None = _RECORDS_OPT,
     scheduler: str | None = _SCHEDULER_OPT,
     workers: int = _WORKERS_OPT,
-    as_json: bool = typer.Option(False, "--json/--no-json", help="Print JSON"),
+    as_json: bool = _JSON_OPT,
 ) -> None:
     """Every certificate that used a reference; with --correction, old and new value ± U and
     whether each verdict changes (exit 1 when any does)."""
