@@ -179,7 +179,21 @@ def _main(
 ) -> None:
     _state["debug"] = debug
     logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING,
-                        format="%(levelname)s: %(message)s")
+                        format="%(levelname)s: %(message)s", handlers=[_CurrentStderr()])
+
+
+class _CurrentStderr(logging.StreamHandler):
+    """Log to whatever ``sys.stderr`` is when a record is emitted, not the stream of the first
+    call: the CLI run in-process (tests, the station) swaps ``sys.stderr`` per invocation, and
+    a handler bound to the first one would write into a closed buffer afterwards."""
+
+    @property
+    def stream(self) -> Any:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _value: Any) -> None:
+        """The stream is always the current ``sys.stderr``."""
 
 
 _RECORDS_HELP = "Records database URL (default: the SQLite file in the user's data directory)"
