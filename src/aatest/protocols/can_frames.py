@@ -61,7 +61,7 @@ SESSION_MODULO = 1 << 16
 SAMPLE_SESSION_BYTES = slice(14, 16)
 COMMAND_SESSION_BYTES = slice(1, 3)
 #: the byte of a sample frame saying how many voltage channels it carries
-N_CHANNELS_BYTE: int = SAMPLE_HEADER.fields["n_channels"][1]
+N_CHANNELS_BYTE = 3  # after the u16 seq and the u8 flags of SAMPLE_HEADER
 #: STATUS state byte: bit 7 says a simulator answers, no physical logger (a run on it is a
 #: simulation); bits 0–3 carry the state (a version-1 logger leaves bit 7 clear)
 IDENTITY_SIMULATED = 0x80

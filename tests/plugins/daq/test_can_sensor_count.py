@@ -78,6 +78,8 @@ def test_three_sensor_record_crosses_the_bus_channel_by_channel(logger_of: Calla
 
 
 def test_frames_of_one_sensor_read_as_three_are_a_named_error() -> None:
+    assert cf.SAMPLE_HEADER.fields is not None
+    assert cf.SAMPLE_HEADER.fields["n_channels"][1] == cf.N_CHANNELS_BYTE  # the byte checked
     record = unit_record(100)
     one = cf.encode_samples(record.time_s, record["v_sz"], record["sync_pulse"],
                             record["trigger"], record["temperature_c"])
