@@ -275,3 +275,29 @@ def test_simulator_pivots_and_remounts_its_twin_for_one_log() -> None:
         assert ask(":XLOG:CONFIG 2000,100,0,p2;:XLOG:ARM") == "OK"
         assert not world.pivoted
         assert (world.block_error == remounted).all()
+
+
+# --- the sensors the simulator serves (--sensor) -------------------------------------------
+def test_simulator_serves_the_sensors_of_the_named_model() -> None:
+    """``--sensor sr207-aamu``: one twin sensor per datasheet channel, on its seat axis, as the
+    in-process twin builds from the same datasheet; none named: the reference sensor."""
+    from aatest.plugins.sensors.sr207 import SR207Unit
+    from aatest.twin.defaults import realistic_rig_model
+    from aatest.twin.servers.acutrol_server import sensor_rig_model
+
+    unit = sensor_rig_model("sr207-aamu")
+    assert [(s.channel, s.axis) for s in unit.sensors] == [("v_sz", "I"), ("v_sy", "O"),
+                                                           ("v_sx", "P")]
+    assert unit == realistic_rig_model(SR207Unit().datasheet())
+    assert [s.channel for s in sensor_rig_model(None).sensors] == ["v_sz"]
+
+
+def test_unknown_sensor_model_is_bad_input() -> None:
+    from typer.testing import CliRunner
+
+    from aatest.cli import app
+
+    result = CliRunner().invoke(app, ["sim-server", "acutrol", "--port", "0", "--sensor",
+                                      "sr999", "--can-interface", "none"])
+    assert result.exit_code == 2
+    assert "no sensor plugin named 'sr999' (installed: " in result.output
