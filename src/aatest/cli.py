@@ -932,6 +932,9 @@ def sim_server_acutrol(
     chamber_port: int | None = typer.Option(
         None, "--chamber-port", help="default the chamber's own port: espec 10001, simserv 2049"),
     can_interface: SimCanInterface = None, can_channel: SimCanChannel = None,
+    sensor: str | None = typer.Option(
+        None, "--sensor", help="sensor model on the table (the procedure's sensor.model, e.g. "
+        "sr207-aamu); its channels are the CAN logger's; default one reference sensor"),
 ) -> None:
     """Serve the simulated ACUTROL-class table (its sensor logger on CAN, optionally a chamber)."""
     from aatest.twin.servers.acutrol_server import serve_forever as serve_acutrol
@@ -940,7 +943,7 @@ def sim_server_acutrol(
         raise typer.BadParameter("--chamber must be espec, simserv or none")
     serve_acutrol(host, port, seed, chamber=chamber,
                   chamber_port=chamber_port or _SIM_CHAMBER_PORTS.get(chamber, 0),
-                  can_interface=can_interface, can_channel=can_channel)
+                  can_interface=can_interface, can_channel=can_channel, sensor=sensor)
 
 
 #: the simulated chambers: their default port and what they are

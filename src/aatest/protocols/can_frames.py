@@ -60,6 +60,8 @@ SESSION_MODULO = 1 << 16
 #: bytes of the session tag in a sample frame (the header's last u16) and in a command
 SAMPLE_SESSION_BYTES = slice(14, 16)
 COMMAND_SESSION_BYTES = slice(1, 3)
+#: the byte of a sample frame saying how many voltage channels it carries
+N_CHANNELS_BYTE = 3  # after the u16 seq and the u8 flags of SAMPLE_HEADER
 #: STATUS state byte: bit 7 says a simulator answers, no physical logger (a run on it is a
 #: simulation); bits 0–3 carry the state (a version-1 logger leaves bit 7 clear)
 IDENTITY_SIMULATED = 0x80
@@ -140,8 +142,23 @@ class DecodedSamples:
 
 
 def decode_samples(payloads: Sequence[bytes], n_channels: int) -> DecodedSamples:
-    """Inverse of :func:`encode_samples` for a list of received payloads."""
+    """Inverse of :func:`encode_samples` for a list of received payloads.
+
+    Raises
+    ------
+    ValueError
+        The frames carry another number of channels than ``n_channels`` (a logger wired for
+        another sensor), or a frame's length does not fit its channel count.
+    """
     dtype = sample_dtype(n_channels)
+    first = payloads[0] if payloads else b""
+    if len(first) > N_CHANNELS_BYTE and first[N_CHANNELS_BYTE] != n_channels:
+        # checked before the buffer is cut into frames of the expected size
+        raise ValueError(f"sample frames carry {first[N_CHANNELS_BYTE]} voltage channels, "
+                         f"expected {n_channels}")
+    if sum(map(len, payloads)) != len(payloads) * dtype.itemsize:
+        raise ValueError(f"sample frames of {n_channels} channels must be {dtype.itemsize} "
+                         f"bytes long; received lengths {sorted(set(map(len, payloads)))}")
     frames = np.frombuffer(b"".join(payloads), dtype=dtype) if payloads else np.zeros(0, dtype)
     if frames.size and np.any(frames["n_channels"] != n_channels):
         raise ValueError(f"sample frames carry {int(frames['n_channels'][0])} channels, "

@@ -19,6 +19,8 @@ from aatest.cli import app
 from aatest.testing.sim_process import SimServerProcess, free_port
 
 SEED = 7
+#: one f32 ulp of a CAN logger's volts between 2 and 4 V: twice the largest rounding of a sample
+F32_VOLTS_V = 2.4e-7
 
 
 @dataclass
@@ -27,14 +29,17 @@ class RigProcess:
 
     chamber: str
     group: str
+    #: the sensor model the simulator serves (``--sensor``; None: the reference sensor)
+    sensor: str | None = None
     server: SimServerProcess | None = None
     chamber_port: int = 0
 
     def start(self) -> RigProcess:
         self.chamber_port = free_port()
+        sensor = ("--sensor", self.sensor) if self.sensor else ()
         self.server = SimServerProcess("acutrol", args=(
             "--chamber", self.chamber, "--chamber-port", str(self.chamber_port), "--seed",
-            str(SEED), "--can-interface", "udp_multicast", "--can-channel", self.group))
+            str(SEED), "--can-interface", "udp_multicast", "--can-channel", self.group, *sensor))
         assert f"127.0.0.1:{self.server.start().port}" in self.server.banner
         return self
 
@@ -159,3 +164,70 @@ def test_stepped_sine_matches_the_in_process_twin(tmp_path: Path) -> None:
     for p_wire, p_twin in zip(points_wire, points_twin, strict=True):
         assert p_wire["gain_db"] == pytest.approx(p_twin["gain_db"], abs=0.05)
         assert p_wire["phase_deg"] == pytest.approx(p_twin["phase_deg"], abs=0.5)
+
+
+def three_sensor_run(tmp_path: Path, text: str) -> tuple[dict, dict]:
+    """``text`` on ``sim-server acutrol --sensor sr207-aamu`` (espec) and in-process."""
+    rig = RigProcess("espec", multicast_group(), sensor="sr207-aamu").start()
+    try:
+        return analyses(tmp_path, rig, text)
+    finally:
+        rig.stop()
+
+
+@pytest.mark.slow
+def test_static_multi_position_matches_the_in_process_twin(tmp_path: Path) -> None:
+    """The six ±1 g positions, original and pivoted, two repetitions of 2 s (shortened from
+    three of 67.5 s): every sensor of the unit crosses the CAN logger, the pivot reaches the
+    simulated unit through ``:XLOG:MOUNTING``, and bias and g-sensitivity of each sensor match
+    the in-process twin."""
+    text = shipped("static-multi-position", **{
+        r"samples: 135000": "samples: 4000", r"settle_s: 5": "settle_s: 1",
+        r"repetitions: 3": "repetitions: 2"})
+    wire, twin = three_sensor_run(tmp_path, text)
+    assert set(wire["bias"]) == set(twin["bias"]) == {"v_sz", "v_sy", "v_sx"}
+    for channel, b_twin in twin["bias"].items():
+        b_wire = wire["bias"][channel]
+        # "within the noise": the noise gives K0 a Type A u of 20–55 µV and g-sensitivity a U of
+        # 0.016–0.034 (°/s²)/g. The seeded twin draws the same samples in both runs, so they
+        # differ only by the CAN logger's f32 volts: ≤ half an ulp (0.12 µV at 2–4 V) per sample,
+        # so ≤ 0.24 µV on K0 and on (A+ − A−)/2 ≤ 0.24 µV / 0.004 V/(°/s²) = 6e-5 (°/s²)/g —
+        # ≥ 80× inside the noise, and the pivoted mounting's shift (≥ 8 µV, 0.006 (°/s²)/g on
+        # v_sz) would show
+        assert b_twin["bias_u_v"] > 0
+        assert abs(b_wire["bias_v"] - b_twin["bias_v"]) <= F32_VOLTS_V
+        for mount in ("original", "pivoted"):
+            m_wire, m_twin = b_wire["mountings"][mount], b_twin["mountings"][mount]
+            assert abs(m_wire["bias_v"] - m_twin["bias_v"]) <= F32_VOLTS_V, mount
+        assert b_twin["g_sensitivity_expanded_uncertainty_dps2_per_g"] > 1e-2
+        assert b_wire["g_sensitivity_dps2_per_g"] == pytest.approx(
+            b_twin["g_sensitivity_dps2_per_g"], abs=F32_VOLTS_V / 0.004)
+
+
+@pytest.mark.slow
+def test_pivoted_misalignment_matches_the_in_process_twin(tmp_path: Path) -> None:
+    """Sets A/B (sequential) and C/D (sensors re-mounted) with one repetition of 4 s at the
+    snapped ≈1 Hz (shortened from A–H, three of 65.5 s): the pivot and the re-mount reach the
+    simulated unit, and each sensor's misalignment δ and cross ratios match the twin."""
+    text = shipped("pivoted-misalignment", **{
+        r"samples: 131072": "samples: 8192", r"settle_s: 5": "settle_s: 1",
+        r"scenarios: \[[^\]]*\]": "scenarios: [A, B, C, D]",
+        r"repetitions: 3": "repetitions: 1"})
+    wire, twin = three_sensor_run(tmp_path, text)
+    # "within the noise": each scenario's δ has a stated U ≈ 0.0095°. Both runs draw the same
+    # seeded samples and differ only by f32 volts (relative 6e-8 on each fundamental): ≤ 1e-6°
+    # on an angle, ≤ 1e-6 on a ratio — while sets A and B (pivot) differ by 0.2° in δ_e
+    m_wire, m_twin = wire["misalignment"], twin["misalignment"]
+    assert set(m_wire["sets"]) == set(m_twin["sets"]) == {"A", "B", "C", "D"}
+    for set_name, sensors in m_twin["sets"].items():
+        assert set(sensors) == {"SZ", "SY", "SX"}
+        for sensor, s_twin in sensors.items():
+            s_wire = m_wire["sets"][set_name][sensor]
+            for key in ("delta_e_deg", "cross_ratio_x", "cross_ratio_y"):
+                assert s_wire[key] == pytest.approx(s_twin[key], abs=1e-6), (set_name, key)
+    assert set(m_wire["scenarios"]) == set(m_twin["scenarios"])
+    for scenario, sensors in m_twin["scenarios"].items():
+        for sensor, s_twin in sensors.items():
+            s_wire = m_wire["scenarios"][scenario][sensor]
+            assert s_twin["expanded_uncertainty"] > 1e-3
+            assert abs(s_wire["delta_deg"] - s_twin["delta_deg"]) <= 1e-6

@@ -211,3 +211,93 @@ def test_limits_refuse_demands_beyond_them(ask) -> None:
     assert ask(":M:R 1;:D:R 1,150").startswith("ERR -222,")  # 150 °/s > 100 °/s
     assert ask(":MODE? 1") == "R"  # the mode before the refused demand was carried out
     assert ask(":READ:RATE? 1") == "0.000000"  # the refused demand was not
+
+
+# --- the operator's mounting on the simulator ([SIM] :XLOG:MOUNTING) ----------------------
+PIVOTED = {"kind": "static", "samples": 4000, "sample_rate_hz": 2000.0, "settle_s": 1.0,
+           "mounting": {"pivoted": True, "remount": "both"}}
+SIM_IDN = reply("ACUTRONIC,ACUTROL SIMULATOR,SIM-0001,aatest 0")  # [SIM] *IDN? of the simulator
+STATIC_TAIL = [
+    (b":XLOG:ARM\r\n", OK),  # [SIM] a static step starts holding here
+    (b":XLOG:STATE?\r\n", reply("ARMED")),  # [SIM]
+]
+
+
+@pytest.mark.parametrize("simulator", [True, False])
+def test_a_pivoted_step_tells_only_the_simulator_its_mounting(simulator: bool) -> None:
+    """On a real table the operator pivots and re-mounts at the prompt and the controller hears
+    nothing of it; the simulator, which has no operator, gets the step's mounting."""
+    from aatest.engine.steps import PlannedStep
+
+    step = PlannedStep(id="static-i0-o0-pivoted-r1", **PIVOTED)
+    mounting = [(b":XLOG:MOUNTING 1,both\r\n", OK)] if simulator else []  # [SIM]
+    transcript = [
+        (START[0][0], SIM_IDN if simulator else START[0][1]), *START[1:],
+        (b":XLOG:CONFIG 2000,4000,1,static-i0-o0-pivoted-r1\r\n", OK),  # [SIM]
+        *mounting, *STATIC_TAIL,
+    ]
+    with TranscriptServer(transcript) as server:
+        table = _table(server.port)
+        table.start()
+        table.begin_motion(step)
+        table.close()
+    assert table.simulated is simulator
+
+
+@pytest.mark.parametrize(("line", "code"), [
+    (":XLOG:MOUNTING 1", "-109"),  # [SCPI] missing parameter
+    (":XLOG:MOUNTING 2,none", "-224"),  # [SCPI] illegal parameter value: pivoted is 0 or 1
+    (":XLOG:MOUNTING 0,glued", "-224"),  # no such re-mount
+])
+def test_malformed_mounting_answers_scpi_errors(ask, line: str, code: str) -> None:
+    assert ask(line).startswith(f"ERR {code},")
+
+
+def test_simulator_pivots_and_remounts_its_twin_for_one_log() -> None:
+    """``:XLOG:MOUNTING 1,both`` pivots the twin's unit and draws a new block and seat error
+    for the next log, as the in-process twin's step would; a new ``:XLOG:CONFIG`` is the
+    original mounting again (pivot undone, the re-mount kept: the unit stays where it sits)."""
+    with acutrol_server(model=RigModel()) as server, \
+            socket.create_connection(("127.0.0.1", server.port), timeout=10) as sock:
+        world = server.protocol.controller.world  # type: ignore[attr-defined]
+        replies = sock.makefile("rb")
+
+        def ask(line: str) -> str:
+            sock.sendall(line.encode() + b"\r\n")
+            return replies.readline()[8:-2].decode()
+
+        before = world.block_error.copy()
+        assert ask(":I:C 1;:I:C 2;:XLOG:CONFIG 2000,100,0,p1;:XLOG:M 1,Both;:XLOG:ARM") == "OK"
+        assert world.pivoted
+        assert not (world.block_error == before).all()
+        remounted = world.block_error.copy()
+        assert ask(":D:P 1,0") == "OK"  # the next step's move ends the hold
+        assert ask(":XLOG:CONFIG 2000,100,0,p2;:XLOG:ARM") == "OK"
+        assert not world.pivoted
+        assert (world.block_error == remounted).all()
+
+
+# --- the sensors the simulator serves (--sensor) -------------------------------------------
+def test_simulator_serves_the_sensors_of_the_named_model() -> None:
+    """``--sensor sr207-aamu``: one twin sensor per datasheet channel, on its seat axis, as the
+    in-process twin builds from the same datasheet; none named: the reference sensor."""
+    from aatest.plugins.sensors.sr207 import SR207Unit
+    from aatest.twin.defaults import realistic_rig_model
+    from aatest.twin.servers.acutrol_server import sensor_rig_model
+
+    unit = sensor_rig_model("sr207-aamu")
+    assert [(s.channel, s.axis) for s in unit.sensors] == [("v_sz", "I"), ("v_sy", "O"),
+                                                           ("v_sx", "P")]
+    assert unit == realistic_rig_model(SR207Unit().datasheet())
+    assert [s.channel for s in sensor_rig_model(None).sensors] == ["v_sz"]
+
+
+def test_unknown_sensor_model_is_bad_input() -> None:
+    from typer.testing import CliRunner
+
+    from aatest.cli import app
+
+    result = CliRunner().invoke(app, ["sim-server", "acutrol", "--port", "0", "--sensor",
+                                      "sr999", "--can-interface", "none"])
+    assert result.exit_code == 2
+    assert "no sensor plugin named 'sr999' (installed: " in result.output

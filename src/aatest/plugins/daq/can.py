@@ -208,7 +208,9 @@ class CanDaq:
             try:
                 return cf.decode_samples(payloads, len(self._channels))
             except ValueError as exc:
-                raise RigFault(f"{self._where}: {exc}; check 'channels'") from exc
+                raise RigFault(f"{self._where}: {exc} ({', '.join(self._channels)}); check "
+                               "'channels' and the sensors the logger serves (a simulator's "
+                               "--sensor)") from exc
         return cf.decode_with_dbc(self.config.dbc_file, payloads, self._channels,
                                cf.SAMPLE_BASE + self.config.node_id)
 

@@ -13,7 +13,9 @@ setting (:class:`AcutrolTurntable.Config`).
 The reference log (2 kHz position/rate/acceleration and the freeze pulse) has no command in
 the public set; the plugin reads it through the simulator-side ``:XLOG`` convention
 (reference path ``controller-log``) and refuses to start on a controller that does not answer
-it, naming the gap. Every VISA error, timeout or ``ERR`` reply is a one-line
+it, naming the gap. On the simulator (``*IDN?`` names a SIMULATOR) a step's pivot or re-mount
+is passed on with ``:XLOG:MOUNTING``, the operator's act the simulator carries out. Every VISA
+error, timeout or ``ERR`` reply is a one-line
 :class:`~aatest.engine.errors.RigFault`; :meth:`AcutrolTurntable.safe_stop` switches the modes
 off and opens the interlocks (motion stopped, motor off), reconnecting once, and never raises.
 """
@@ -185,6 +187,11 @@ class AcutrolTurntable:
         label = step.id.replace(",", "_").replace(";", "_").replace(" ", "_")
         self.write(f":XLOG:CONFIG {step.sample_rate_hz:.17g},{step.samples},"
                    f"{step.settle_s:.17g},{label}")
+        mounting = step.mounting
+        if self.simulated and (mounting.pivoted or mounting.remount != "none"):
+            # the simulator's stand-in for the operator who pivots/re-mounts the unit at the
+            # step's prompt; on a real table the operator does it and nothing is sent
+            self.write(f":XLOG:MOUNTING {int(mounting.pivoted)},{mounting.remount}")
         modes, demands = _profile(step)
         if modes:
             self.write(modes)

@@ -15,7 +15,11 @@ samples,settle,label`` sets it up, ``:XLOG:ARM`` arms it (starting a static hold
 runs), the DAQ trigger (the simulated CAN logger's ``daq_start``) starts it, ``:XLOG:STATE?``
 tells IDLE/ARMED/RECORDING/DONE/ERROR, ``:XLOG:HEADER?`` gives ``id,samples,rate,t0`` and
 ``:XLOG:DATA? channel,start,count`` returns values of one channel as comma-separated decimals
-with 17 significant digits (float64 round trip).
+with 17 significant digits (float64 round trip). ``:XLOG:MOUNTING pivoted,remount`` (after
+``:XLOG:CONFIG``, before the demands) stands in for the operator: it pivots and re-mounts the
+twin's sensor unit for that log as a step's operator prompt says (``pivoted`` 0|1, ``remount``
+none|sensors|block|both), so a pivoted procedure exercises the twin as the in-process ``sim``
+table does; a new ``:XLOG:CONFIG`` is back to the original mounting, not re-mounted.
 """
 
 from __future__ import annotations
@@ -25,12 +29,13 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import get_args
 
 import numpy as np
 
 from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.logs import TABLE_CHANNELS, SampledLog
-from aatest.engine.steps import PlannedStep
+from aatest.engine.steps import Mounting, PlannedStep, Remount
 from aatest.twin.servers.acutrol_parse import Command, CommandError, axis_of, numbers
 from aatest.twin.world import World
 
@@ -42,6 +47,9 @@ LOG_CHANNELS = ("time_s", *TABLE_CHANNELS)
 DATA_MAX_COUNT = 20_000
 #: ``:XLOG:CONFIG rate,samples,settle,label``: the label's position
 LABEL_ARG = 3
+#: ``:XLOG:MOUNTING`` arguments, and the re-mounts the operator may do
+MOUNTING_ARGS = ("pivoted", "remount")
+REMOUNTS = get_args(Remount)
 
 
 @dataclass
@@ -59,6 +67,7 @@ class _Log:
     samples: int = 2000
     settle_s: float = 0.0
     label: str = ""
+    mounting: Mounting = field(default_factory=Mounting)
     state: str = "IDLE"
     table: SampledLog | None = None
     log_id: int = 0
@@ -169,7 +178,8 @@ class AcutrolController:
         cfg = self.log
         common = {"id": cfg.label or f"log{self._logs + 1:05d}", "samples": cfg.samples,
                   "sample_rate_hz": cfg.rate_hz, "settle_s": cfg.settle_s,
-                  "inner_deg": self.world.inner_deg, "outer_deg": self.world.outer_deg}
+                  "inner_deg": self.world.inner_deg, "outer_deg": self.world.outer_deg,
+                  "mounting": cfg.mounting}
         for axis, name in AXES.items():
             amplitude, frequency = self.axes[axis].sine
             if self.axes[axis].mode == "S" and amplitude and frequency:
@@ -230,6 +240,16 @@ class AcutrolController:
                                      f"{capacity})")
         label = command.args[LABEL_ARG].strip('"') if len(command.args) > LABEL_ARG else ""
         self.log = _Log(rate_hz, int(samples), settle_s, label, log_id=self.log.log_id)
+
+    def set_mounting(self, command: Command) -> None:
+        """``:XLOG:MOUNTING pivoted,remount``: the simulated operator's mounting for this log."""
+        if len(command.args) != len(MOUNTING_ARGS):
+            raise CommandError(-109, f"{command.name} needs {','.join(MOUNTING_ARGS)}")
+        pivoted, remount = command.args[0], command.args[1].lower()
+        if pivoted not in ("0", "1") or remount not in REMOUNTS:
+            raise CommandError(-224, f"Illegal parameter value in {command.name}: pivoted 0|1, "
+                                     f"remount {'|'.join(REMOUNTS)}")
+        self.log.mounting = Mounting(pivoted=pivoted == "1", remount=remount)
 
     def arm(self) -> None:
         if self.log.state not in ("SETTLED", "IDLE", "DONE"):

@@ -26,7 +26,7 @@ TREE: dict[str, dict] = {
     "UTILITY": {"LOCKOUT": {}, "FORMAT": {}},
     "SYSTEM": {"ERROR": {}},
     # simulator-side convention (not in the public command set): the table log
-    "XLOG": {"CONFIG": {}, "ARM": {}, "STATE": {}, "HEADER": {}, "DATA": {}},
+    "XLOG": {"CONFIG": {}, "ARM": {}, "STATE": {}, "HEADER": {}, "DATA": {}, "MOUNTING": {}},
 }
 
 

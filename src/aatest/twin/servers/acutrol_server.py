@@ -10,7 +10,8 @@ preceded by an 8-byte header (that driver skips 8 bytes of every reply; what a r
 puts there is not public, the simulator sends ``#`` and the payload length in 7 digits) and
 ends with ``\\r\\n``. ``*IDN?`` contains ``SIMULATOR``.
 
-:func:`serve_forever` serves the controller with the simulated CAN logger (the sensors) and,
+:func:`serve_forever` serves the controller with the simulated CAN logger (the sensors of the
+sensor model it is told, one channel each: :func:`sensor_rig_model`) and,
 if asked, a simulated ESPEC or SIMSERV chamber on the *same* twin, so one process is a whole
 simulated rig whose chamber heats the sensor that the table turns.
 """
@@ -168,6 +169,8 @@ class AcutrolProtocol:
             ctl.configure_log(command)
         elif leaf == "ARM":
             ctl.arm()
+        elif leaf == "MOUNTING":
+            ctl.set_mounting(command)
         elif leaf == "STATE":
             return ctl.log.state
         elif leaf == "HEADER":
@@ -192,10 +195,35 @@ def acutrol_server(host: str = "127.0.0.1", port: int = 0, seed: int = 0,
     return LineServer(AcutrolProtocol(controller), host, port, lifetime_s)
 
 
+def sensor_rig_model(sensor: str | None) -> RigModel:
+    """The twin's realistic rig carrying the sensors of the sensor plugin ``sensor``.
+
+    The in-process twin builds its rig from the datasheet of the procedure's ``sensor.model``
+    (:class:`~aatest.twin.session.TwinSession`); a simulator in its own process is told the
+    model by its operator (``--sensor``) and builds the same one realistic sensor per datasheet
+    channel, so its CAN logger serves every channel of the unit. None: the reference sensor
+    (one channel ``v_sz``).
+
+    Raises
+    ------
+    PluginError
+        No installed sensor plugin has that name.
+    """
+    from aatest.twin.defaults import realistic_rig_model
+
+    if sensor is None:
+        return realistic_rig_model()
+    from aatest.engine.run.rig import sensor_datasheet
+    from aatest.engine.steps import SensorRef
+
+    return realistic_rig_model(sensor_datasheet(SensorRef(model=sensor))[0])
+
+
 def serve_forever(host: str, port: int, seed: int, *, chamber: str = "none",
                   chamber_port: int = 0, can_interface: str | None = None,
-                  can_channel: str | None = None) -> None:
-    """Serve the table, the simulated CAN logger and optionally a chamber until Ctrl-C."""
+                  can_channel: str | None = None, sensor: str | None = None) -> None:
+    """Serve the table, the simulated CAN logger and optionally a chamber until Ctrl-C; the
+    twin carries the sensors of the sensor plugin ``sensor`` (:func:`sensor_rig_model`)."""
     from aatest.twin.servers.chamber_sim import SimChamberCore
     from aatest.twin.servers.modbus_server import (
         CAN_CHANNEL_ENV,
@@ -206,9 +234,10 @@ def serve_forever(host: str, port: int, seed: int, *, chamber: str = "none",
 
     interface = can_interface or os.environ.get(CAN_INTERFACE_ENV, DEFAULT_CAN_INTERFACE)
     channel = can_channel or os.environ.get(CAN_CHANNEL_ENV, DEFAULT_CAN_CHANNEL)
-    table = acutrol_server(host, port, seed)
+    table = acutrol_server(host, port, seed, model=sensor_rig_model(sensor))
     controller = table.protocol.controller  # type: ignore[attr-defined]
     servers, extras = [table], []
+    channels = ",".join(s.channel for s in controller.world.model.sensors)
     banner = "aatest simulated ACUTROL controller: TCP {0}".replace("{0}", f"{host}:{{0}}")
     if chamber != "none":
         core = SimChamberCore(controller.world, controller.lock,
@@ -219,7 +248,7 @@ def serve_forever(host: str, port: int, seed: int, *, chamber: str = "none",
         from aatest.twin.servers.can_sim import SimCanLogger
 
         extras.append(SimCanLogger(controller, interface, channel).start())
-        banner += f", CAN {interface} {channel}"
+        banner += f", CAN {interface} {channel} (sensors {channels})"
     serve_until_interrupted(servers, banner + " (Ctrl-C stops)", extras)
 
 
