@@ -226,7 +226,7 @@ def _json_out(json_out: Path | None, deprecated: Path | None) -> Path | None:
 def _where(target: str | None, exists: bool = True) -> Any:
     """A local path, or a location on object storage (``s3://…``; exit 2 naming a URL that
     does not exist when ``exists``); None stays None."""
-    from aatest.engine.storage import locate, require
+    from aatest.storage import locate, require
 
     if target is None:
         return None
@@ -347,7 +347,7 @@ def run(
 
     unit = session.UnitName(serial or None, model or None)
     target = _where(out, exists=False)
-    from aatest.engine.storage import RemotePath, staging_dir
+    from aatest.storage import RemotePath, staging_dir
 
     # free space is measured where the recording is written: a URL's local staging directory
     local = staging_dir(target) if isinstance(target, RemotePath) else target

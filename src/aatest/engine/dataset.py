@@ -20,7 +20,7 @@ from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 
 if TYPE_CHECKING:
-    from aatest.engine.storage.location import RemotePath
+    from aatest.storage.location import RemotePath
 
 __all__ = ["Dataset", "LazySteps", "NamesStartingWith", "SensorAxis", "SensorInfo", "StepData",
            "StepWatch"]

@@ -26,7 +26,6 @@ from typing import Any
 from aatest.engine.analysis.results import results_json
 from aatest.engine.run import bundle_hooks
 from aatest.engine.simulation import SIMULATION_PREFIX, is_simulation
-from aatest.engine.storage import Where
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
 from aatest.records.lab import LabProfile
@@ -34,6 +33,7 @@ from aatest.records.models import QuantityRecord, Registration
 from aatest.records.store import Issue, RecordStore, as_utc
 from aatest.results import RunResults
 from aatest.results.root import RunMetadata
+from aatest.storage import Where
 
 CERTIFICATE_KEY = "certificate_number"
 #: commands whose results earn a new certificate number (``report`` re-signs the same one)

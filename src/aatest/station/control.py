@@ -20,9 +20,9 @@ from aatest.engine.run.events import AbortFlag, RunEvents
 from aatest.engine.run.rig import sensor_datasheet
 from aatest.engine.run.runner import default_run_dir
 from aatest.engine.run.session import UnitName
-from aatest.engine.storage import RemotePath
 from aatest.station.catalogue import History, Procedures, present_files, results_summary
 from aatest.station.live import Publish, StationObserver, StationResponder
+from aatest.storage import RemotePath
 
 
 @dataclass
@@ -150,10 +150,10 @@ class RunController:
     def _work(self, path: Path, run_dir: Path, resume: bool, operator: str,
               events: RunEvents, options: _Options) -> None:
         from aatest.engine.run import session
-        from aatest.engine.storage import publishing
         from aatest.records.errors import RecordsUnavailable
         from aatest.records.hook import registering
         from aatest.records.lab import load_lab
+        from aatest.storage import publishing
 
         notice = None
         try:

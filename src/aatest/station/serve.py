@@ -17,10 +17,10 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.errors import InputError
-from aatest.engine.storage import RemotePath, locate
 from aatest.station.app import Signer, create_app
 from aatest.station.catalogue import Procedures, history_for
 from aatest.station.security import Asgi, HostRule, load_token
+from aatest.storage import RemotePath, locate
 
 #: the station's own directory inside the runs directory (uploaded procedures live there)
 STATION_DIR = ".station"

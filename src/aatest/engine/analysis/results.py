@@ -18,8 +18,8 @@ from pydantic import TypeAdapter, ValidationError
 from aatest.engine.analysis.passes import AnalysisResults
 from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
-from aatest.engine.storage import Where
 from aatest.results import SCHEMA_VERSION, AnalysisBlock, RunResults
+from aatest.storage import Where
 
 RESULTS_FILE = "results.json"
 

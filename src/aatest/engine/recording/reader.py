@@ -35,7 +35,7 @@ from aatest.engine.recording.writer import (
     merged_step_ids,
 )
 from aatest.engine.steps import PlannedStep
-from aatest.engine.storage import RemotePath, Where, locate
+from aatest.storage import RemotePath, Where, locate
 
 IMPORT_MANIFEST = "dataset.yaml"
 #: the mapping file of a logger's TDMS/MF4 files (docs/interfaces.md §3)
@@ -115,7 +115,7 @@ def read_dataset(path: str | Where) -> Dataset:
 def _read_remote(where: RemotePath) -> Dataset:
     """A finished run directory or a recording file on object storage.
 
-    Runs reach object storage finished (:mod:`aatest.engine.storage.staging`), so only their
+    Runs reach object storage finished (:mod:`aatest.storage.staging`), so only their
     merged ``recording.mcap`` is read; import directories are read from local disk.
     """
     recording = where / RECORDING_NAME if where.is_dir() else where

@@ -19,8 +19,8 @@ import os
 from pathlib import Path, PurePosixPath
 
 from aatest.engine.errors import InputError
-from aatest.engine.storage import RemotePath, Where
-from aatest.engine.storage.location import SEQUENTIAL_BLOCK_BYTES
+from aatest.storage import RemotePath, Where
+from aatest.storage.location import SEQUENTIAL_BLOCK_BYTES
 
 _CHUNK_BYTES = 1 << 20
 

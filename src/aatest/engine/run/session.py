@@ -40,9 +40,9 @@ from aatest.engine.run.runner import (
 )
 from aatest.engine.simulation import KIND_KEY, kind_of, metadata_of
 from aatest.engine.steps import Plan, SensorRef
-from aatest.engine.storage import RemotePath, Where
 from aatest.results import RunResults
 from aatest.results.root import Signature
+from aatest.storage import RemotePath, Where
 
 log = logging.getLogger("aatest")
 
@@ -245,9 +245,9 @@ def render_and_sign(
 
     ``results`` is the typed record: written once as results.json, handed to the report
     plugin as it is. A ``run_dir`` on object storage gets its files rendered locally and
-    uploaded (:func:`aatest.engine.storage.staged`), then is signed in place.
+    uploaded (:func:`aatest.storage.staged`), then is signed in place.
     """
-    from aatest.engine.storage import publish, published, staged
+    from aatest.storage import publish, published, staged
 
     private = None
     if key_path is not None:
@@ -312,7 +312,7 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     ``unit`` names the unit calibrated (else the procedure's ``sensor``); a calibration of an
     unnamed unit on a real rig is refused once the rig started, before it moves (exit 2).
     An ``out_dir`` on object storage is recorded in a local staging directory and uploaded
-    once finished (:mod:`aatest.engine.storage.staging`); the URL is returned.
+    once finished (:mod:`aatest.storage.staging`); the URL is returned.
     """
     if isinstance(out_dir, RemotePath):
         return _run_to_url(out_dir, lambda local: run(
@@ -352,7 +352,7 @@ def _run_to_url(url: RemotePath, run_local: Any) -> tuple[Where, RunResults]:
     staging copy; an interrupted run stays there for ``--resume --out URL``."""
     import shutil
 
-    from aatest.engine.storage import publishing, staging_dir
+    from aatest.storage import publishing, staging_dir
 
     url.mkdir()  # a missing bucket is refused before anything moves
     local = staging_dir(url)

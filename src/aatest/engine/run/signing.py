@@ -38,7 +38,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey,
 from aatest.engine.errors import InputError
 from aatest.engine.run import manifest
 from aatest.engine.run.trust import TrustedKey
-from aatest.engine.storage import Where, locate
+from aatest.storage import Where, locate
 
 #: SHA-256 of one file, as the manifest hashes it (kept here for callers of format 1)
 file_sha256 = manifest.file_sha256

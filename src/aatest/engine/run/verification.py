@@ -31,7 +31,7 @@ from aatest.engine.run.signing import (
     signed_payload,
 )
 from aatest.engine.run.trust import TrustedKey, decide
-from aatest.engine.storage import Where, locate
+from aatest.storage import Where, locate
 
 _NEEDED = ("algorithm", "public_key", "files", "signature")
 

@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
 
-from aatest.engine.storage.location import SEQUENTIAL_BLOCK_BYTES, RemotePath, translated
+from aatest.storage.location import SEQUENTIAL_BLOCK_BYTES, RemotePath, translated
 
 #: environment variable naming the local directory that stages runs bound for a URL
 STAGING_ENV = "AATEST_STAGING"

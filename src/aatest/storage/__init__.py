@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from aatest.engine.storage.location import (
+from aatest.storage.location import (
     FETCHED,
     RemotePath,
     StorageError,
@@ -19,7 +19,7 @@ from aatest.engine.storage.location import (
     locate,
     require,
 )
-from aatest.engine.storage.staging import (
+from aatest.storage.staging import (
     publish,
     published,
     publishing,

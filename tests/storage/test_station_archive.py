@@ -10,8 +10,8 @@ from starlette.testclient import TestClient
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.engine.storage import RemotePath, StorageError, locate
 from aatest.station import StationOptions, build
+from aatest.storage import RemotePath, StorageError, locate
 
 STATION_URL = "http://127.0.0.1:8671"
 STATION_WS = "ws://127.0.0.1:8671/ws"

@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.engine.run import signing
-from aatest.engine.storage import RemotePath, locate
+from aatest.storage import RemotePath, locate
 
 RUNNER = CliRunner()
 PROCEDURE = Path(__file__).parents[3] / "src" / "aatest" / "procedures" / "scale-factor.yaml"
@@ -58,7 +58,7 @@ def archive(s3_endpoint: str, tmp_path_factory: pytest.TempPathFactory) -> Itera
             env.setenv(name, value)
         for name in ("AATEST_LAB", "AATEST_SIGNING_KEY", "AWS_ENDPOINT_URL", "AWS_PROFILE"):
             env.delenv(name, raising=False)
-        from aatest.engine.storage.location import filesystem
+        from aatest.storage.location import filesystem
 
         filesystem("s3").mkdir("archive")
         key = tmp / "lab.key"

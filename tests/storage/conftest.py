@@ -59,7 +59,7 @@ def s3_env(s3_endpoint: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) ->
 @pytest.fixture
 def bucket(s3_env: str) -> str:
     """A new, empty bucket on the test server; its name."""
-    from aatest.engine.storage.location import filesystem
+    from aatest.storage.location import filesystem
 
     name = f"lab-{uuid.uuid4().hex[:10]}"
     filesystem("s3").mkdir(name)

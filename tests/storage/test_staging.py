@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from aatest.engine.storage import RemotePath, locate, staging_dir
+from aatest.storage import RemotePath, locate, staging_dir
 
 SWEEP = Path(__file__).parents[1] / "data" / "resume-sweep.yaml"
 
@@ -74,7 +74,7 @@ def test_a_failed_upload_keeps_the_run_and_resume_uploads_it(
     from typer.testing import CliRunner
 
     from aatest.cli import app
-    from aatest.engine.storage import StorageError, staging
+    from aatest.storage import StorageError, staging
 
     url = f"s3://{bucket}/runs/quick"
     remote = locate(url)

@@ -11,8 +11,8 @@ from recording_data import run_meta, sine_step, step_logs
 
 from aatest.engine.errors import EXIT_BAD_INPUT
 from aatest.engine.recording import RunRecorder, read_dataset
-from aatest.engine.storage import FETCHED, RemotePath, StorageError, locate, require, upload_dir
-from aatest.engine.storage.location import RANDOM_BLOCK_BYTES
+from aatest.storage import FETCHED, RemotePath, StorageError, locate, require, upload_dir
+from aatest.storage.location import RANDOM_BLOCK_BYTES
 
 
 def test_local_paths_and_file_urls_stay_paths(tmp_path: Path) -> None:
