@@ -478,10 +478,10 @@ def export(
     mf4: Path | None = typer.Option(None, "--mf4", help="Output directory (MF4 + mapping)"),
 ) -> None:
     """Write a recording as CSV + dataset.yaml, or as a TDMS or MF4 file + mapping.yaml."""
-    from aatest.engine.data.exporter import export_csv
-    from aatest.engine.data.logger_export import export_mf4, export_tdms
     from aatest.engine.errors import InputError
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
+    from aatest.recording.data.exporter import export_csv
+    from aatest.recording.data.logger_export import export_mf4, export_tdms
 
     chosen = [(w, d) for w, d in ((export_csv, csv), (export_tdms, tdms), (export_mf4, mf4))
               if d is not None]

@@ -1,11 +1,11 @@
 """Bounded memory: a recording is read one step at a time, and the results do not change.
 
-``data/streaming/recording.mcap`` is a small stepped-sine run (``stepped-sine-small.yaml`` on
-the twin, seed 3); ``reference.json`` holds the steps and analysis of its ``results.json`` as
-the eager reader (every step decoded up front, commit a7a1300) computed them — except the FRF
-points' ratio and the transfer function fitted to it, re-written by this reader when the FRF
-ratio became the mean of Hann-weighted segments (its own values, so the equality of those
-blocks is pinned from then on, not against the eager reader).
+``tests/recording/data/streaming/recording.mcap`` is a small stepped-sine run
+(``stepped-sine-small.yaml`` on the twin, seed 3); ``reference.json`` holds the steps and
+analysis of its ``results.json`` as the eager reader (every step decoded up front, commit
+a7a1300) computed them — except the FRF points' ratio and the transfer function fitted to it,
+re-written by this reader when the FRF ratio became the mean of Hann-weighted segments (its own
+values, so the equality of those blocks is pinned from then on, not against the eager reader).
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ from tolerances import leaves, mismatches
 
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.analysis.results import build_results, results_json
-from aatest.engine.dataset import LazySteps
-from aatest.engine.recording import read_dataset, reader
 from aatest.plugins.analysis.sync import SyncedSteps
+from aatest.recording import read_dataset, reader
+from aatest.recording.dataset import LazySteps
 
-DATA = Path(__file__).parent / "data" / "streaming"
+DATA = Path(__file__).parents[1] / "recording" / "data" / "streaming"
 RECORDING = DATA / "recording.mcap"
 
 
@@ -64,7 +64,7 @@ def _summary() -> Any:
 def _step_record(k: int) -> dict[str, Any]:
     from mcap.reader import make_reader
 
-    from aatest.engine.recording import format as fmt
+    from aatest.recording import format as fmt
 
     with open(RECORDING, "rb") as stream:
         records = [fmt.from_json_values(dict(r.metadata))
@@ -173,8 +173,8 @@ def test_every_step_is_decoded_once_for_all_analyses_and_the_evidence(tmp_path: 
     decoded once — by this process or by one of the pass's forked workers: the decodes are
     counted in a file all of them append to — and every value equals that of the same steps
     held in memory."""
-    from aatest.engine.dataset import Dataset
     from aatest.engine.uncertainty.evidence import gather
+    from aatest.recording.dataset import Dataset
 
     data = read_dataset(RECORDING)
     steps = data.steps

@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 from starlette.testclient import TestClient
 
-from aatest.engine.data.importer import import_dataset
 from aatest.engine.errors import ProblemsError
 from aatest.engine.procedure.loader import load_procedure, load_rig
 from aatest.engine.procedure.yaml_loader import MAX_DEPTH, parse_yaml
+from aatest.recording.data.importer import import_dataset
 from aatest.records.lab import load_lab
 from aatest.station import StationOptions, build
 from aatest.twin.model import load_rig_model

@@ -9,15 +9,11 @@ from __future__ import annotations
 
 import logging
 import socket
-import sys
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-
-# recording_data (beside the recording tests) builds synthetic, seeded recordings
-sys.path.append(str(Path(__file__).parents[1]))
 
 ENDPOINT_ENV = "AATEST_S3_ENDPOINT"
 

@@ -10,7 +10,7 @@ import pytest
 from recording_data import run_meta, sine_step, step_logs
 
 from aatest.engine.errors import EXIT_BAD_INPUT
-from aatest.engine.recording import RunRecorder, read_dataset
+from aatest.recording import RunRecorder, read_dataset
 from aatest.storage import FETCHED, RemotePath, StorageError, locate, require, upload_dir
 from aatest.storage.location import RANDOM_BLOCK_BYTES
 

@@ -57,7 +57,7 @@ def test_a_killed_run_to_s3_stays_local_and_resumes_to_s3(bucket: str) -> None:
     assert resumed.returncode == 0, resumed.stderr
     assert not local.exists(), "the staging copy goes once the bundle is uploaded"
     assert {"recording.mcap", "results.json", "report.html"} <= set(remote.members())
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     ids = [s.step.id for s in read_dataset(url).steps]
     assert len(ids) == 8 and len(set(ids)) == 8, "every step recorded once, none lost"

@@ -12,10 +12,10 @@ from numpy.testing import assert_allclose
 from synthetic_rig import SynthRig, make_dataset, make_step, sine_step
 
 from aatest.engine.analysis.passes import run_analysis
-from aatest.engine.dataset import StepData
 from aatest.engine.errors import AnalysisError
 from aatest.engine.logs import SampledLog
 from aatest.plugins.analysis.sync import SyncOutput
+from aatest.recording.dataset import StepData
 from aatest.sync import fit_clock_relation, synchronise, synchronise_all
 
 

@@ -8,17 +8,12 @@ the relation fitted on the whole table log of the same record (same seed, same c
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "engine"))
 from recording_data import sine_step, step_logs
 
-from aatest.engine.dataset import StepData
 from aatest.engine.logs import SampledLog
+from aatest.recording.dataset import StepData
 from aatest.sync.freeze_pulse import ClockRelation, clock_relation
 
 SAMPLES = 200_000  # 100 s at 2 kHz: 10 000 pulse edges

@@ -180,10 +180,10 @@ def test_evidence_from_partial_decodes_equals_the_whole_steps() -> None:
     changes against the same steps decoded whole."""
     from pathlib import Path
 
-    from aatest.engine.dataset import Dataset, LazySteps
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
+    from aatest.recording.dataset import Dataset, LazySteps
 
-    lazy = read_dataset(Path(__file__).parents[1] / "engine" / "data" / "streaming"
+    lazy = read_dataset(Path(__file__).parents[1] / "recording" / "data" / "streaming"
                         / "recording.mcap")
     assert isinstance(lazy.steps, LazySteps)
     eager = Dataset(procedure=lazy.procedure, sample_rate_hz=lazy.sample_rate_hz,
@@ -198,16 +198,13 @@ def test_evidence_from_partial_decodes_equals_the_whole_steps() -> None:
 def test_a_recorded_static_step_is_summarised_piece_by_piece(tmp_path: Any) -> None:
     """A recorded static step is read block by block: its line is the one of the whole
     record, its temperature mean and spread agree with NumPy's on the whole to rounding."""
-    import sys
-    from pathlib import Path
 
-    from aatest.engine.dataset import Dataset
-    from aatest.engine.logs import SampledLog
-    from aatest.engine.recording import RunRecorder, read_dataset
-    from aatest.engine.steps import PlannedStep
-
-    sys.path.insert(0, str(Path(__file__).parents[1] / "engine"))
     from recording_data import SENSOR, table_log
+
+    from aatest.engine.logs import SampledLog
+    from aatest.engine.steps import PlannedStep
+    from aatest.recording import RunRecorder, read_dataset
+    from aatest.recording.dataset import Dataset
 
     fs, n = 2000.0, 60_001
     step = PlannedStep(id="s01-static", kind="static", samples=n, duration_s=n / fs,
@@ -242,12 +239,12 @@ def test_evidence_measured_while_the_analyses_decode_equals_its_own_decodes() ->
     then decodes no sine step again, and what it reports is what its own decodes give."""
     from pathlib import Path
 
-    from aatest.engine.dataset import LazySteps
-    from aatest.engine.recording import read_dataset
     from aatest.engine.uncertainty.evidence import watch
     from aatest.plugins.analysis.sync import _SYNC_CHANNELS
+    from aatest.recording import read_dataset
+    from aatest.recording.dataset import LazySteps
 
-    path = Path(__file__).parents[1] / "engine" / "data" / "streaming" / "recording.mcap"
+    path = Path(__file__).parents[1] / "recording" / "data" / "streaming" / "recording.mcap"
     plain, watched = read_dataset(path), read_dataset(path)
     assert isinstance(watched.steps, LazySteps)
     watch(watched)

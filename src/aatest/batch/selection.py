@@ -19,7 +19,7 @@ from typing import Any
 from sqlalchemy import Text, cast, select
 
 from aatest.engine.errors import InputError
-from aatest.engine.recording.writer import RECORDING_NAME
+from aatest.recording.writer import RECORDING_NAME
 from aatest.records.models import CalibrationRecord, RecordFilter
 from aatest.records.references import REFERENCES_KEY
 from aatest.records.store import RecordStore

@@ -15,7 +15,7 @@ from typing import Any
 
 from aatest.batch.correction import ReferenceCorrection, corrected
 from aatest.batch.method import Mode
-from aatest.engine.dataset import Dataset
+from aatest.recording.dataset import Dataset
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,7 @@ def local_path(location: str) -> str | Path:
 
 def open_dataset(task: Task) -> Dataset:
     """The task's recording as a dataset, as a correct reference would have recorded it."""
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     fix = None if task.correction is None else ReferenceCorrection.model_validate(
         task.correction)

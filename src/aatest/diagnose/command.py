@@ -96,7 +96,7 @@ def diagnose_command(data: Where | str, json_out: Path | None,
         The findings, then the ``unexplained`` entries (contract dicts): empty when the
         nominal model explains the data.
     """
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     data = locate(data)  # a path, or a URL whose recording is streamed (docs/storage.md)
     dataset = read_dataset(data)

@@ -16,7 +16,7 @@ from aatest.diagnose.alignment import nominal_fit
 from aatest.diagnose.design import ChannelInfo, predict
 from aatest.diagnose.effects.base import Context
 from aatest.diagnose.replay import Replay
-from aatest.engine.dataset import Dataset
+from aatest.recording.dataset import Dataset
 from aatest.twin.daq import antialias_filter
 
 #: the logger pre-sample filter of the documented rig (docs/method.md §1.3), tried when unstated

@@ -38,7 +38,7 @@ from aatest.diagnose.selection import (
 )
 from aatest.diagnose.story import residual_entry, verdict
 from aatest.diagnose.unexplained import Outcome, explain, held_out_rmse, joint_residuals
-from aatest.engine.dataset import Dataset
+from aatest.recording.dataset import Dataset
 
 
 def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import AnalysisError
 from aatest.engine.steps import PlannedStep
+from aatest.recording.dataset import Dataset, StepData
 from aatest.sync.edges import joint_slope_range
 from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
 from aatest.twin import kinematics as kin

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from aatest.engine.dataset import StepData
+from aatest.recording.dataset import StepData
 from aatest.sync.freeze_pulse import ClockRelation, SyncedStep
 
 _DIGITAL = ("sync_pulse", "trigger")

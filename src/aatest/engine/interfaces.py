@@ -37,11 +37,11 @@ from typing import (
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from aatest.engine.dataset import Dataset
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
 from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep, SensorRef
+from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
 
 if TYPE_CHECKING:

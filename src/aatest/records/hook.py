@@ -189,7 +189,7 @@ def _results_for(data: Where) -> RunResults:
     folder = data if data.is_dir() else data.parent
     if (folder / RESULTS_FILE).is_file():
         return read_results(folder)
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     dataset = read_dataset(data)
     return RunResults(procedure=dataset.procedure,

@@ -190,7 +190,7 @@ class _Options:
 
 def _recorded_unit(run_dir: Path) -> UnitName:
     """The unit a stopped run was recording (a resumed run goes on for the same unit)."""
-    from aatest.engine.recording.writer import STEPS_DIR, load_run_metadata
+    from aatest.recording.writer import STEPS_DIR, load_run_metadata
 
     try:
         sensor = load_run_metadata(run_dir / STEPS_DIR).get("sensor") or {}

@@ -22,10 +22,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import AnalysisError
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.recording.dataset import Dataset, StepData
 from aatest.sync.edges import (
     LAG_SAMPLES,
     MIN_EDGES,

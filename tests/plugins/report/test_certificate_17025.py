@@ -23,8 +23,8 @@ from typer.testing import CliRunner
 
 import aatest
 from aatest.cli import app
-from aatest.engine.recording.reader import read_dataset
 from aatest.plugins.report.html import CalibrationCertificate
+from aatest.recording.reader import read_dataset
 from aatest.results import RunResults
 from aatest.results.quantities import quantity
 from aatest.twin.model import ChamberModel

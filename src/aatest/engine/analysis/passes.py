@@ -29,9 +29,9 @@ from threadpoolctl import threadpool_limits
 
 from aatest.engine.analysis import plugins as _plugins
 from aatest.engine.analysis.plugins import AnalysisEntry, AnalysisPlugin
-from aatest.engine.dataset import Dataset
 from aatest.engine.errors import AnalysisError, PluginError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.recording.dataset import Dataset
 
 log = logging.getLogger("aatest.analysis")
 

@@ -16,8 +16,8 @@ from typing import Any
 from pydantic import TypeAdapter, ValidationError
 
 from aatest.engine.analysis.passes import AnalysisResults
-from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
+from aatest.recording.dataset import Dataset
 from aatest.results import SCHEMA_VERSION, AnalysisBlock, RunResults
 from aatest.storage import Where
 

@@ -13,10 +13,10 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from aatest.engine.dataset import SensorInfo
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.steps import SensorRef
+from aatest.recording.dataset import SensorInfo
 from aatest.results.quantities import QUANTITIES
 
 log = logging.getLogger("aatest.verdicts")

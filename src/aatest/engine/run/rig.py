@@ -16,10 +16,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from aatest.engine import registry
-from aatest.engine.dataset import SensorInfo
 from aatest.engine.errors import AatestError, PluginError, RigFault
 from aatest.engine.interfaces import Chamber, Daq, RigContext, SensorDatasheet, Turntable
 from aatest.engine.steps import SensorRef
+from aatest.recording.dataset import SensorInfo
 
 log = logging.getLogger("aatest.rig")
 

@@ -22,7 +22,6 @@ from aatest.engine.analysis.results import (
     read_results,
     write_results,
 )
-from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
@@ -40,6 +39,7 @@ from aatest.engine.run.runner import (
 )
 from aatest.engine.simulation import KIND_KEY, kind_of, metadata_of
 from aatest.engine.steps import Plan, SensorRef
+from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
 from aatest.results.root import Signature
 from aatest.storage import RemotePath, Where
@@ -183,7 +183,7 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     ``data_path`` and ``out_dir`` may be on object storage (docs/storage.md): the recording
     is streamed, and the files written are uploaded there.
     """
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     data = read_dataset(data_path)
     requested = list(data.metadata.get("analysis", []))
@@ -380,7 +380,7 @@ class _RunRequest:
 
 def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
     """The body of :func:`run`, executed while holding the run directory's lock."""
-    from aatest.engine.recording import RunRecorder
+    from aatest.recording import RunRecorder
 
     prepared, out_dir, resume, seed = (request.prepared, request.out_dir, request.resume,
                                        request.seed)
@@ -428,7 +428,7 @@ def _identify(recorder: Any, started: Rig) -> None:
     another serial is a :class:`RigFault` (exit 3, the rig is then stopped and closed).
     """
     from aatest.engine.errors import RigFault
-    from aatest.engine.recording.writer import load_run_metadata
+    from aatest.recording.writer import load_run_metadata
 
     recorded = load_run_metadata(recorder.steps_dir)
     identity = identity_metadata(started)

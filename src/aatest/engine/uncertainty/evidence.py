@@ -306,7 +306,7 @@ def _sine_channels(step: Any, channels: list[str]) -> dict[str, list[str]]:
 def _record(data: Any, index: int, channels: list[str]) -> Any:
     """Sine step ``index`` with only the channels the evidence reads (a recording's lazy
     steps, :func:`_sine_channels`). An in-memory dataset's step is read as it is."""
-    from aatest.engine.dataset import LazySteps
+    from aatest.recording.dataset import LazySteps
 
     steps = data.steps
     if not isinstance(steps, LazySteps):
@@ -353,9 +353,9 @@ def watch(data: Any) -> None:
     Parameters
     ----------
     data
-        The :class:`aatest.engine.dataset.Dataset` the analyses are about to read.
+        The :class:`aatest.recording.dataset.Dataset` the analyses are about to read.
     """
-    from aatest.engine.dataset import LazySteps, StepWatch
+    from aatest.recording.dataset import LazySteps, StepWatch
 
     steps = getattr(data, "steps", None)
     if not isinstance(steps, LazySteps):
@@ -369,7 +369,7 @@ def watch(data: Any) -> None:
 
 def _sine_of(data: Any, index: int, channels: list[str]) -> _SineEvidence:
     """The evidence of sine step ``index``: measured while an analysis decoded it, else now."""
-    from aatest.engine.dataset import LazySteps
+    from aatest.recording.dataset import LazySteps
 
     if isinstance(data.steps, LazySteps):
         try:
@@ -392,9 +392,9 @@ def gather(data: Any) -> Evidence:
     Parameters
     ----------
     data
-        The :class:`aatest.engine.dataset.Dataset` the analyses ran on (None: nothing measured).
+        The :class:`aatest.recording.dataset.Dataset` the analyses ran on (None: nothing measured).
     """
-    from aatest.engine.dataset import LazySteps
+    from aatest.recording.dataset import LazySteps
 
     if data is None:
         return Evidence()

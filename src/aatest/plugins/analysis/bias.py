@@ -17,12 +17,12 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import scale_in_use, steps_of, t95
 from aatest.plugins.analysis.streaming import reduce_static
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.bias import BiasResult
 from aatest.sync.freeze_pulse import SyncedStep
 

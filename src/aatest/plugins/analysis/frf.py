@@ -26,7 +26,6 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
@@ -43,6 +42,7 @@ from aatest.plugins.analysis._common import (
     whole_cycles,
 )
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfResult
 from aatest.sync.freeze_pulse import SyncedStep
 

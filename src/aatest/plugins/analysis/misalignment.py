@@ -22,7 +22,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
@@ -35,6 +34,7 @@ from aatest.plugins.analysis.misalignment_method import (
     evaluate,
     misalignment_from_spectra,
 )
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.misalignment import MisalignmentResult
 from aatest.sync.freeze_pulse import SyncedStep
 

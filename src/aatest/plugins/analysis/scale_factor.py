@@ -27,7 +27,6 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
@@ -48,6 +47,7 @@ from aatest.plugins.analysis.reference import (
     reference_accel,
     zero_phase_lowpass,
 )
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.scale_factor import ReferenceChoice, ReferenceName, ScaleFactorResult
 from aatest.sync.freeze_pulse import SyncedStep
 

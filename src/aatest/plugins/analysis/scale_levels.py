@@ -18,12 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from aatest.engine.dataset import SensorInfo
 from aatest.plugins.analysis.scale_factor import (
     ScaleFactorOptions,
     calibrate_steps,
     calibration_candidates,
 )
+from aatest.recording.dataset import SensorInfo
 from aatest.sync.freeze_pulse import SyncedStep
 
 #: the reference temperature the headline scale factor is stated at, °C

@@ -1,6 +1,6 @@
 """The ``sync`` analysis: the clock relation of every step, summarised for results.json.
 
-Memory: a recording's steps are decoded when read (:class:`~aatest.engine.dataset.LazySteps`),
+Memory: a recording's steps are decoded when read (:class:`~aatest.recording.dataset.LazySteps`),
 so the synchronised steps handed to the other analyses are a :class:`SyncedSteps` view that
 synchronises a step when it is read and keeps nothing: an analysis iterating them holds one
 step at a time, whatever the number of steps. Steps already in memory (a simulated or test
@@ -22,12 +22,12 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, LazySteps, StepData, StepWatch
 from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis import needs
+from aatest.recording.dataset import Dataset, LazySteps, StepData, StepWatch
 from aatest.results.sync import SyncResult
 from aatest.sync.edges import joint_slope_range
 from aatest.sync.freeze_pulse import (

@@ -125,7 +125,7 @@ def _temperature_columns(data: Any) -> Iterator[np.ndarray]:
     """The finite samples (°C) of every ``temperature*`` channel of every step, a piece at a
     time: a recording's steps are read block by block and only those channels decoded (the
     temperature of a 2 h record is 115 MB, its whole DAQ log five times that)."""
-    from aatest.engine.dataset import LazySteps, NamesStartingWith
+    from aatest.recording.dataset import LazySteps, NamesStartingWith
 
     wanted = NamesStartingWith("temperature")
     steps = data.steps
@@ -143,7 +143,7 @@ def _temperature_columns(data: Any) -> Iterator[np.ndarray]:
 def _temperatures(run_dir: Path, recording: str | None) -> Environment:
     """Min/mean/max (°C) of every temperature sample the loggers recorded, and the file read;
     accumulated step by step, so no step's temperature is kept once summarised."""
-    from aatest.engine.recording.reader import read_dataset
+    from aatest.recording.reader import read_dataset
 
     candidates = [Path(run_dir)]
     if recording:

@@ -23,10 +23,10 @@ from test_importer import MANIFEST, contract_columns, make_import_dir
 
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.analysis.results import build_results, results_json
-from aatest.engine.data.importer import import_dataset
 from aatest.engine.errors import AatestError, ImportDataError, ProblemsError
 from aatest.engine.run.session import decide
 from aatest.plugins.report.html import CalibrationCertificate
+from aatest.recording.data.importer import import_dataset
 
 #: 400 samples at 2 kHz hold two cycles at 10 Hz (the contract's 5 Hz holds 399/400 of one)
 BASE_MANIFEST = MANIFEST.replace("frequency_hz: 5.0", "frequency_hz: 10.0")

@@ -4,13 +4,13 @@ Why a spool: a step file is atomic (it exists complete or not at all, docs/inter
 every block of it carries the SHA-256 of the step's metadata record, which names the sample
 counts and log times of *both* loggers — known only when the record has ended and the table
 log has been collected. So the DAQ chunks are encoded as they arrive into ``SampleBlock``
-messages (:data:`~aatest.engine.recording.format.BLOCK_SAMPLES` samples each, the same blocks a
+messages (:data:`~aatest.recording.format.BLOCK_SAMPLES` samples each, the same blocks a
 one-shot write makes) and written, compressed, to a spool file ``<step file>.partial``: a
 complete MCAP file of its own (run metadata, the ``/daq`` blocks; no step record), so data
 recorded before a fault is on disk, readable by any MCAP reader, and never silently dropped.
 When the record completes, :func:`write_streamed_step` writes the final step file from the
 spool one block at a time (setting the digest in each block), exactly as
-:func:`~aatest.engine.recording.writer.write_step_file` writes the same log at once, and the
+:func:`~aatest.recording.writer.write_step_file` writes the same log at once, and the
 spool is deleted. A fault leaves the spool in place; the message names it, ``--resume``
 records the step anew (steps stay atomic) and keeps the old spool under a numbered name.
 """
@@ -28,10 +28,10 @@ from mcap.stream_reader import StreamReader
 
 from aatest.engine.errors import StorageFault
 from aatest.engine.logs import DAQ, SampledLog
-from aatest.engine.recording import codec, proto
-from aatest.engine.recording import format as fmt
-from aatest.engine.recording.mcap_io import ChunkedWriter
-from aatest.engine.recording.preview import Layout, PreviewStream, records_per_chunk
+from aatest.recording import codec, proto
+from aatest.recording import format as fmt
+from aatest.recording.mcap_io import ChunkedWriter
+from aatest.recording.preview import Layout, PreviewStream, records_per_chunk
 
 #: suffix of the spool of a step being streamed
 PARTIAL_SUFFIX = ".partial"
@@ -92,7 +92,7 @@ class DaqSpool:
             self._stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
             self._writer: ChunkedWriter = new_writer(self._stream)
             self._writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
-            from aatest.engine.recording.writer import register_channels
+            from aatest.recording.writer import register_channels
 
             register_channels(self._writer)
         except OSError as exc:
@@ -233,7 +233,7 @@ class DaqSpool:
 
 
 def _chunk_bytes() -> int:
-    from aatest.engine.recording.writer import CHUNK_BYTES
+    from aatest.recording.writer import CHUNK_BYTES
 
     return CHUNK_BYTES
 

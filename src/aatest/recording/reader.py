@@ -5,7 +5,7 @@ of ``steps/`` when the run was interrupted or resumed after the last merge), a r
 or a measured-data import directory (``dataset.yaml`` present, docs/interfaces.md §3; or
 ``mapping.yaml`` and the TDMS/MF4 files it names, or that mapping file itself). Anything that
 is not a complete aatest recording raises :class:`~aatest.engine.errors.RecordingError` naming
-the file and what is wrong. The layout is described in :mod:`aatest.engine.recording.format`.
+the file and what is wrong. The layout is described in :mod:`aatest.recording.format`.
 """
 
 from __future__ import annotations
@@ -22,19 +22,19 @@ from mcap.reader import make_reader
 from mcap.records import Chunk, Message
 from mcap.stream_reader import breakup_chunk
 
-from aatest.engine.dataset import Dataset, LazySteps, SensorInfo
 from aatest.engine.errors import RecordingError
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import codec, legacy_v1, proto
-from aatest.engine.recording import format as fmt
-from aatest.engine.recording.writer import (
+from aatest.engine.steps import PlannedStep
+from aatest.recording import codec, legacy_v1, proto
+from aatest.recording import format as fmt
+from aatest.recording.dataset import Dataset, LazySteps, SensorInfo
+from aatest.recording.writer import (
     RECORDING_NAME,
     STEPS_DIR,
     complete_step_files,
     load_run_metadata,
     merged_step_ids,
 )
-from aatest.engine.steps import PlannedStep
 from aatest.storage import RemotePath, Where, locate
 
 IMPORT_MANIFEST = "dataset.yaml"
@@ -73,7 +73,7 @@ class _FileContents:
 def read_dataset(path: str | Where) -> Dataset:
     """Load a run directory, a recording file or an import directory as a :class:`Dataset`.
 
-    A recording's steps are a :class:`~aatest.engine.dataset.LazySteps`: reading the file
+    A recording's steps are a :class:`~aatest.recording.dataset.LazySteps`: reading the file
     checks its header, summary and step records; each step's logs are decoded (and their
     chunk CRCs checked) when that step is read, so memory holds one step, not the run. A
     corrupt chunk is then a :class:`RecordingError` naming the file and the step.
@@ -90,7 +90,7 @@ def read_dataset(path: str | Where) -> Dataset:
     RecordingError
         The recording is missing, truncated, corrupt or not an aatest recording.
     ImportDataError
-        The import directory is malformed (see :mod:`aatest.engine.data.importer`).
+        The import directory is malformed (see :mod:`aatest.recording.data.importer`).
     """
     where = locate(path)
     if isinstance(where, RemotePath):
@@ -98,7 +98,7 @@ def read_dataset(path: str | Where) -> Dataset:
     path = where
     if path.is_dir():
         if (path / IMPORT_MANIFEST).exists():
-            from aatest.engine.data.importer import import_dataset
+            from aatest.recording.data.importer import import_dataset
 
             return import_dataset(path)
         if (path / LOGGER_MAPPING).exists():
@@ -128,7 +128,7 @@ def _read_remote(where: RemotePath) -> Dataset:
 
 
 def _import_logger_files(mapping: Path) -> Dataset:
-    from aatest.engine.data.logger_import import import_logger_files
+    from aatest.recording.data.logger_import import import_logger_files
 
     return import_logger_files(mapping)
 

@@ -23,9 +23,9 @@ from typing import Any, Literal, get_args
 
 from pydantic import Field, model_validator
 
-from aatest.engine.data.importer import DatasetFileError, DatasetManifest, StepEntry, _Strict
 from aatest.engine.errors import ProblemsError
 from aatest.engine.procedure.yaml_loader import parse_yaml, read_text, validate_tree
+from aatest.recording.data.importer import DatasetFileError, DatasetManifest, StepEntry, _Strict
 
 MAPPING = "mapping.yaml"
 FORMATS = ("tdms", "mf4")

@@ -10,9 +10,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from aatest.engine.data.importer import DatasetFileError, import_dataset
 from aatest.engine.errors import ImportDataError, ProblemsError
-from aatest.engine.recording import read_dataset
+from aatest.recording import read_dataset
+from aatest.recording.data.importer import DatasetFileError, import_dataset
 
 RATE_HZ = 2000.0
 N = 400
@@ -370,7 +370,7 @@ def test_arrow_and_tolerant_csv_paths_agree(
 
 def assert_paths_agree(path: Path, data: bytes, monkeypatch: pytest.MonkeyPatch) -> None:
     """Read ``data`` through both CSV paths; the outcomes must be identical."""
-    from aatest.engine.data import csv_table
+    from aatest.recording.data import csv_table
 
     path.write_bytes(data)
 
@@ -415,7 +415,7 @@ def test_paths_agree_on_generated_csv(
 
 
 def test_plain_csv_takes_the_arrow_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from aatest.engine.data import csv_table
+    from aatest.recording.data import csv_table
 
     path = tmp_path / "x.csv"
     path.write_text(PARITY_CASES["plain"])
@@ -431,7 +431,7 @@ def test_plain_numeric_csv_is_never_copied_into_python(
 ) -> None:
     """A file of wanted numeric columns only is parsed by Arrow from the file itself: no Python
     copy of its text, no scan of it (the reason import is fast), yet located errors remain."""
-    from aatest.engine.data import csv_table
+    from aatest.recording.data import csv_table
 
     path = tmp_path / "x.csv"
     path.write_text("time_s,a\n0,1.5\n0.5,2\n")

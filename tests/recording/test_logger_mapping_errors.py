@@ -13,7 +13,7 @@ from recording_data import RATE_HZ, SENSOR, sine_step, step_logs
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.engine.dataset import Dataset, StepData
+from aatest.recording.dataset import Dataset, StepData
 
 RUNNER = CliRunner()
 

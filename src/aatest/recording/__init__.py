@@ -5,10 +5,10 @@ This is the one entry point the engine and the CLI use:
 - :class:`RunRecorder` writes a run crash-safely (atomic per-step files under ``steps/``,
   merged into ``recording.mcap`` by :meth:`RunRecorder.finalize`);
 - :func:`read_dataset` turns a run directory, a recording file or a measured-data import
-  directory into a :class:`~aatest.engine.dataset.Dataset`.
+  directory into a :class:`~aatest.recording.dataset.Dataset`.
 
 The file format — topics, schemas, block layout, timestamps, metadata records — is documented
-in :mod:`aatest.engine.recording.format` so that anyone with an MCAP reader and protobuf can
+in :mod:`aatest.recording.format` so that anyone with an MCAP reader and protobuf can
 decode a recording without aatest. Modules, in the order data flows through them when writing:
 
 - ``codec``     a SampledLog ↔ protobuf ``SampleBlock`` messages (exact integer codes or floats);
@@ -23,9 +23,9 @@ decode a recording without aatest. Modules, in the order data flows through them
 
 from __future__ import annotations
 
-from aatest.engine.recording.format import BLOCK_SAMPLES, ENCODING, FORMAT
-from aatest.engine.recording.reader import read_dataset
-from aatest.engine.recording.writer import RECORDING_NAME, STEPS_DIR, RunRecorder
+from aatest.recording.format import BLOCK_SAMPLES, ENCODING, FORMAT
+from aatest.recording.reader import read_dataset
+from aatest.recording.writer import RECORDING_NAME, STEPS_DIR, RunRecorder
 
 __all__ = [
     "BLOCK_SAMPLES",

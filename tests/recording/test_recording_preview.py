@@ -21,7 +21,7 @@ from mcap.reader import make_reader
 from recording_data import run_meta, sine_step, step_logs
 
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import RunRecorder, read_dataset
+from aatest.recording import RunRecorder, read_dataset
 
 HERE = Path(__file__).parent
 MCAP_TS = HERE.parent / "mcap_ts"

@@ -33,12 +33,12 @@ import pyarrow as pa
 import pyarrow.csv as pa_csv
 from ruamel.yaml import YAML
 
-from aatest.engine.data.importer import DAQ_REQUIRED, MANIFEST, TABLE_REQUIRED
-from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.errors import InputError
 from aatest.engine.logs import SampledLog
 from aatest.engine.simulation import SIMULATED_PARTS_KEY, simulated_parts
 from aatest.engine.steps import Mounting, PlannedStep
+from aatest.recording.data.importer import DAQ_REQUIRED, MANIFEST, TABLE_REQUIRED
+from aatest.recording.dataset import Dataset, StepData
 
 #: threads formatting CSV files (one per file of a step: table and DAQ)
 _WRITERS = 2
@@ -188,7 +188,7 @@ def export_csv(dataset: Dataset, out_dir: str | Path) -> Path:
     Parameters
     ----------
     dataset
-        A recording (or an import) read with :func:`aatest.engine.recording.read_dataset`.
+        A recording (or an import) read with :func:`aatest.recording.read_dataset`.
     out_dir
         Target directory, created if needed; existing files of the same names are replaced.
         ``dataset.yaml`` is written last, so an interrupted export is never importable.

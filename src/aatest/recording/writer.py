@@ -5,11 +5,11 @@ Each step is written to a temporary file, flushed, ``fsync``-ed and atomically r
 ``steps/<NNN>-<step_id>.mcap``, so a step file either exists complete or not at all; completed
 steps can never be corrupted by a later crash. :meth:`RunRecorder.finalize` then merges the run
 metadata and every step file, in plan order and in one streaming pass that copies the
-compressed chunks verbatim (:mod:`aatest.engine.recording.mcap_io`), into ``recording.mcap``
+compressed chunks verbatim (:mod:`aatest.recording.mcap_io`), into ``recording.mcap``
 (again via a temporary file and an atomic rename). The step files are kept: they are what
-``--resume`` counts as done, and what :func:`~aatest.engine.recording.read_dataset` reads if
+``--resume`` counts as done, and what :func:`~aatest.recording.read_dataset` reads if
 steps were completed after the last merge. The file layout is described in
-:mod:`aatest.engine.recording.format`.
+:mod:`aatest.recording.format`.
 """
 
 from __future__ import annotations
@@ -29,11 +29,11 @@ from mcap.records import Channel, Message, Schema
 import aatest
 from aatest.engine.errors import RecordingError, StorageFault
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import codec, preview, proto
-from aatest.engine.recording import format as fmt
-from aatest.engine.recording.mcap_io import ChunkedWriter
-from aatest.engine.recording.stream import DaqSpool, spool_path
 from aatest.engine.steps import PlannedStep
+from aatest.recording import codec, preview, proto
+from aatest.recording import format as fmt
+from aatest.recording.mcap_io import ChunkedWriter
+from aatest.recording.stream import DaqSpool, spool_path
 
 RECORDING_NAME = "recording.mcap"
 STEPS_DIR = "steps"

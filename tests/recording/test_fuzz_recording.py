@@ -16,7 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from aatest.engine.errors import AatestError
-from aatest.engine.recording import read_dataset
+from aatest.recording import read_dataset
 
 GOLDEN = Path(__file__).parent / "data" / "golden_v1" / "recording.mcap"
 DATA = GOLDEN.read_bytes()

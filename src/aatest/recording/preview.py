@@ -1,7 +1,7 @@
 """The plottable preview of a recording: named scalar ``double`` fields per 200 ms window.
 
 Why a second view of the same samples: the exact record is the packed ``SampleBlock`` stream
-(integer codes as byte planes, :mod:`aatest.engine.recording.codec`), which a generic MCAP viewer
+(integer codes as byte planes, :mod:`aatest.recording.codec`), which a generic MCAP viewer
 decodes but cannot plot — no field of it is a physical value. So every recording also carries,
 per logger, a topic ``/preview/table`` and ``/preview/daq`` whose protobuf messages are one
 :data:`WINDOW_S` window each, with one ``double`` field per previewed channel and statistic in
@@ -45,7 +45,7 @@ from google.protobuf import descriptor_pb2
 from mcap.records import Channel, Schema
 
 from aatest.engine.logs import TABLE, SampledLog
-from aatest.engine.recording import proto
+from aatest.recording import proto
 
 #: length of one preview window, s (a 2 kHz logger: 400 samples per window). Why not 10 ms:
 #: the preview's doubles hardly compress and MCAP indexes every message with 16 bytes

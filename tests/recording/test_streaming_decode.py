@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from recording_data import sine_step, step_logs
 
-from aatest.engine.dataset import LazySteps, NamesStartingWith
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import BLOCK_SAMPLES, RunRecorder, read_dataset
-from aatest.engine.recording.codec import blocks_to_log, encode_blocks
-from aatest.engine.recording.proto import block_class
+from aatest.recording import BLOCK_SAMPLES, RunRecorder, read_dataset
+from aatest.recording.codec import blocks_to_log, encode_blocks
+from aatest.recording.dataset import LazySteps, NamesStartingWith
+from aatest.recording.proto import block_class
 
 SAMPLES = 3 * BLOCK_SAMPLES + 17
 
@@ -131,7 +131,7 @@ def test_pieces_of_a_recorded_log_are_its_blocks_in_order_and_concatenate_to_it(
 
 
 def test_pieces_refuse_a_missing_block_when_they_reach_it() -> None:
-    from aatest.engine.recording.codec import blocks_to_pieces
+    from aatest.recording.codec import blocks_to_pieces
 
     log = _daq()
     blocks = _blocks(log)
@@ -145,7 +145,7 @@ def test_pieces_refuse_a_missing_block_when_they_reach_it() -> None:
 def test_a_watch_rides_along_the_first_partial_decode_only(tmp_path: Path) -> None:
     """A registered watch is fed by the first partial decode of a step (the union of the
     channels, decoded once); the caller still gets only its channels, bit for bit."""
-    from aatest.engine.dataset import StepWatch
+    from aatest.recording.dataset import StepWatch
 
     steps, _, daq = _recorded_step(tmp_path, seed=5)
     loads: list[tuple[int, str]] = []

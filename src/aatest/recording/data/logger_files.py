@@ -1,6 +1,6 @@
 """Reading NI TDMS (npTDMS) and ASAM MDF4 (asammdf) files behind one small interface.
 
-The importer (:mod:`aatest.engine.data.logger_import`) asks a file for a group, a group for its
+The importer (:mod:`aatest.recording.data.logger_import`) asks a file for a group, a group for its
 channels (sample count, number type, the unit the file states) and for one channel's numbers or
 its time base; it never sees the libraries. Every failure of a library on a file — a damaged
 header, a truncated segment, a block pointing past the end — becomes an

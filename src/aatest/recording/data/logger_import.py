@@ -1,16 +1,16 @@
 """Measured data from a lab's logger: TDMS or MF4 files plus ``mapping.yaml`` → a Dataset.
 
-The mapping (:mod:`aatest.engine.data.mapping`) is checked against the files before anything is
+The mapping (:mod:`aatest.recording.data.mapping`) is checked against the files before anything is
 analysed: every group a step names, every mapped channel, its number type and (where the file
 states one) its unit. All problems are reported at once, each at the ``FILE:LINE:COLUMN`` of the
 mapping entry that is wrong and naming the data file and group where it looked. The numbers
-themselves are read when an analysis reads a step (:class:`~aatest.engine.dataset.LazySteps`):
+themselves are read when an analysis reads a step (:class:`~aatest.recording.dataset.LazySteps`):
 one step's two groups at a time, and only the channels asked for; a reduction over a long
-record (:meth:`~aatest.engine.dataset.LazySteps.pieces`) reads :data:`PIECE_S` seconds at a
+record (:meth:`~aatest.recording.dataset.LazySteps.pieces`) reads :data:`PIECE_S` seconds at a
 time, so such a record is never held whole. Each read opens the file anew: a forked analysis
 worker then never shares a file position with its parent.
 
-The resulting logs are those the CSV importer builds (:mod:`aatest.engine.data.importer`): the
+The resulting logs are those the CSV importer builds (:mod:`aatest.recording.data.importer`): the
 same canonical channel names, units and fill-ins (the resting axis at its stated angle, feedback
 equal to position, the stated temperature), so an analysis cannot tell the formats apart.
 """
@@ -24,20 +24,23 @@ from typing import Any
 
 import numpy as np
 
-from aatest.engine.data.importer import (
+from aatest.engine.errors import ImportDataError, Problem
+from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
+from aatest.engine.procedure.yaml_loader import locate
+from aatest.recording.data.importer import (
     DatasetFileError,
     _filled,
     _metadata,
     _planned,
     _t_ref_c,
 )
-from aatest.engine.data.logger_files import (
+from aatest.recording.data.logger_files import (
     AmbiguousGroupError,
     LoggerFile,
     LoggerGroup,
     open_logger_file,
 )
-from aatest.engine.data.mapping import (
+from aatest.recording.data.mapping import (
     ChannelMap,
     LoggerMapping,
     MappedStep,
@@ -45,10 +48,7 @@ from aatest.engine.data.mapping import (
     canonical_unit,
     load_mapping,
 )
-from aatest.engine.dataset import Dataset, LazySteps, SensorInfo, _subset
-from aatest.engine.errors import ImportDataError, Problem
-from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
-from aatest.engine.procedure.yaml_loader import locate
+from aatest.recording.dataset import Dataset, LazySteps, SensorInfo, _subset
 
 #: seconds of samples per piece of a piecewise read (as a streamed recording's blocks)
 PIECE_S = 60.0

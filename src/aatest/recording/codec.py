@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import proto
+from aatest.recording import proto
 
 TIME_COLUMN = "time_s"
 #: field numbers (proto.py): Channel.values, Channel.packed, SampleBlock.time, .channels
@@ -199,7 +199,7 @@ def encode_blocks(
     ``sample_rate_hz``, ``step_record_sha256``); ``log_times_ns`` the MCAP log time of every
     block's first sample, in integer ns (one per block: ``ceil(len(log) / block_samples)``).
     ``first_sequence`` and ``first_sample`` number the blocks when ``log`` continues a longer
-    one (a streamed record's chunk, :mod:`aatest.engine.recording.stream`); default 0.
+    one (a streamed record's chunk, :mod:`aatest.recording.stream`); default 0.
 
     Each message is what the protobuf API serialises for the same ``SampleBlock``; the codes of
     all blocks are computed on whole channels at once (:class:`_ChannelEncoder`).

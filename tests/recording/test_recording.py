@@ -21,10 +21,10 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import Writer
 from recording_data import SENSOR, run_meta, sine_step, step_logs
 
-from aatest.engine.dataset import Dataset
 from aatest.engine.errors import RecordingError
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import BLOCK_SAMPLES, ENCODING, RunRecorder, read_dataset
+from aatest.recording import BLOCK_SAMPLES, ENCODING, RunRecorder, read_dataset
+from aatest.recording.dataset import Dataset
 
 HERE = Path(__file__).parent
 
@@ -198,17 +198,18 @@ def test_finalize_keeps_plan_order_not_write_order(tmp_path: Path) -> None:
 def test_sigkill_mid_step_keeps_completed_steps(tmp_path: Path) -> None:
     """Kill the writer while a step's temporary file is being written; nothing is lost."""
     script = f"""
-import sys
-sys.path.insert(0, {str(HERE)!r})
 from recording_data import run_meta, sine_step, step_logs
-from aatest.engine.recording import RunRecorder
+from aatest.recording import RunRecorder
 steps = [sine_step(f"s{{i:02d}}", 2**15) for i in range(1, 200)]
 rec = RunRecorder({str(tmp_path)!r})
 rec.write_run_metadata(run_meta(steps))
 for i, step in enumerate(steps):
     rec.write_step(step, *step_logs(step, i))
 """
-    proc = subprocess.Popen([sys.executable, "-c", script])
+    # the child imports recording_data from this directory, as pytest does for the tests
+    path = os.pathsep.join(filter(None, [str(HERE), os.environ.get("PYTHONPATH")]))
+    env = {**os.environ, "PYTHONPATH": path}
+    proc = subprocess.Popen([sys.executable, "-c", script], env=env)
     steps_dir = tmp_path / "steps"
     deadline = time.monotonic() + 60
     try:
@@ -354,8 +355,8 @@ GOLDEN_V2 = HERE / "data" / "streaming" / "recording.mcap"
 def test_golden_v2_recording_still_reads_and_rewrites_as_v3_bit_exact(tmp_path: Path) -> None:
     """A v2 recording (``codes`` as varints) reads; written again by this version (v3,
     ``packed``), every log reads back bit for bit, in a smaller file."""
-    from aatest.engine.recording import FORMAT
-    from aatest.engine.recording.format import FORMAT_V2
+    from aatest.recording import FORMAT
+    from aatest.recording.format import FORMAT_V2
 
     old = read_dataset(GOLDEN_V2)
     assert old.metadata["format"] == FORMAT_V2 and FORMAT != FORMAT_V2
@@ -384,8 +385,8 @@ def test_quantised_channels_round_trip_bit_exact_as_codes_or_floats(
     tmp_path: Path, on_grid: bool
 ) -> None:
     """decode(encode(x)) == x bit for bit: as codes on the declared grid, as float64 off it."""
-    from aatest.engine.recording.codec import encode_blocks
-    from aatest.engine.recording.proto import block_class
+    from aatest.recording.codec import encode_blocks
+    from aatest.recording.proto import block_class
 
     step = sine_step("s01", 3 * BLOCK_SAMPLES + 5)
     table, daq = step_logs(step, seed=3)
@@ -423,8 +424,8 @@ def test_one_sample_off_the_grid_keeps_only_its_block_as_floats(tmp_path: Path) 
 
 def test_encoder_counts_with_negative_zero_stay_codes() -> None:
     """A rounded encoder reading just below 0 is −0.0: equal to 0.0, so the block stays codes."""
-    from aatest.engine.recording.codec import channel_values, encode_blocks, samples_in
-    from aatest.engine.recording.proto import block_class
+    from aatest.recording.codec import channel_values, encode_blocks, samples_in
+    from aatest.recording.proto import block_class
 
     q_deg = 0.01 / 3600.0
     angle = np.round(np.random.default_rng(5).normal(0, 3 * q_deg, 1000) / q_deg) * q_deg
@@ -445,7 +446,7 @@ QUICK = HERE.parents[1] / "tests" / "data" / "procedures" / "quick-sine-3-steps.
 #: contains FAIL_IN has received FAIL_AFTER bytes (a disk that fills up mid-write)
 _FULL_DISK_CLI = """
 import builtins, errno, os, sys
-from aatest.engine.recording import writer
+from aatest.recording import writer
 
 class _FullDisk:
     def __init__(self, stream):

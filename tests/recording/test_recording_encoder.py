@@ -1,7 +1,7 @@
 """The vectorised block encoder writes exactly what the protobuf API serialises.
 
 The reference here fills every ``SampleBlock`` through the protobuf API, one block and one
-channel at a time, with the coding rules of :mod:`aatest.engine.recording.codec` (codes where
+channel at a time, with the coding rules of :mod:`aatest.recording.codec` (codes where
 they give back every value bit for bit, delta-coded when smaller, else float64 values); the
 encoder must produce the same bytes, so any protobuf reader decodes it the same way. Format
 v3 stores the codes as ``packed`` fixed-width integers; a v2 message (varint ``codes``) still
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import proto
-from aatest.engine.recording.codec import blocks_to_log, encode_blocks
+from aatest.recording import proto
+from aatest.recording.codec import blocks_to_log, encode_blocks
 
 BLOCK = 4096
 LSB_V = 20.0 / 2**16
@@ -137,7 +137,7 @@ def test_encoder_refuses_log_times_that_do_not_match_the_blocks() -> None:
 def test_packed_codes_of_every_width_decode_as_v2_varints_do(codes: list[int]) -> None:
     """A channel's codes as v3 ``packed`` (each width, byte planes) and as v2 varint
     ``codes`` decode to the same values; the widths are the narrowest that hold the codes."""
-    from aatest.engine.recording.codec import channel_values
+    from aatest.recording.codec import channel_values
 
     channel = proto.channel_class()
     head = {"name": "x", "unit": "V", "dtype": "<f8", "quantum": LSB_V, "offset": -10.0}
@@ -155,7 +155,7 @@ def _width_name(codes: list[int]) -> str:
 
 @pytest.mark.parametrize("width, size", [(3, 6), (2, 5)], ids=["bad-width", "ragged"])
 def test_packed_codes_of_a_bad_width_are_refused(width: int, size: int) -> None:
-    from aatest.engine.recording.codec import channel_values
+    from aatest.recording.codec import channel_values
 
     message = proto.channel_class()(name="x", dtype="<f8", packed=bytes(size), width=width)
     with pytest.raises(ValueError, match="packed bytes do not make codes of width"):

@@ -17,7 +17,7 @@ from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
 from ruamel.yaml import YAML
 from tolerances import leaves
 
-from aatest.engine.dataset import Dataset
+from aatest.recording.dataset import Dataset
 
 #: how the lab's TDMS logger names and scales the table channels: canonical → (name, unit, k)
 TDMS_TABLE = {

@@ -1,12 +1,12 @@
 """Measured-data import (docs/interfaces.md §3): a directory with ``dataset.yaml`` and CSV pairs.
 
-Data recorded by other systems becomes the same :class:`~aatest.engine.dataset.Dataset` an
+Data recorded by other systems becomes the same :class:`~aatest.recording.dataset.Dataset` an
 aatest recording gives, so every analysis and ``diagnose`` runs on it unchanged.
 
 ``dataset.yaml`` is strict (unknown keys are errors, reported as ``FILE:LINE:COLUMN``); the
 CSV files are tolerant (extra columns, any order, whitespace, CRLF) but malformed content is an
 :class:`~aatest.engine.errors.ImportDataError` with file and line (see
-:mod:`aatest.engine.data.csv_table`). Besides the contract keys, the manifest accepts a few
+:mod:`aatest.recording.data.csv_table`). Besides the contract keys, the manifest accepts a few
 *extensions*: top-level ``procedure`` (name), ``t_ref_c`` and ``model`` (a sensor-model YAML
 whose ``t_ref_c`` sets the temperature reference, default 25 °C), ``analysis`` (the analyses
 ``aatest analyze`` runs, as in a procedure) and ``report_template``; per step ``amplitude_deg``,
@@ -37,13 +37,13 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from aatest.engine.data.csv_table import CsvColumns, read_csv
-from aatest.engine.dataset import Dataset, SensorInfo, StepData
 from aatest.engine.errors import ImportDataError, Problem, ProblemsError
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.procedure.yaml_loader import locate, parse_yaml, read_text, validate_tree
 from aatest.engine.steps import Mounting, PlannedStep
+from aatest.recording.data.csv_table import CsvColumns, read_csv
+from aatest.recording.dataset import Dataset, SensorInfo, StepData
 
 MANIFEST = "dataset.yaml"
 IMPORT_FORMAT = "aatest.import/v1"

@@ -13,7 +13,7 @@ to decode it is in the file itself:
 
 - ``"run"`` (once): keys as given by the runner, e.g. ``procedure`` (name),
   ``procedure_text``, ``procedure_sha256``, ``rig``, ``plugin_versions``, ``seed``,
-  ``sensors`` (list of :class:`~aatest.engine.dataset.SensorInfo` dicts), ``plan`` (list of
+  ``sensors`` (list of :class:`~aatest.recording.dataset.SensorInfo` dicts), ``plan`` (list of
   planned steps), ``aatest_version``, ``started_utc``; plus ``format`` =
   ``"aatest.recording/v3"``.
 - ``"step"`` (one per recorded step, in plan order): ``step`` (the
@@ -27,7 +27,7 @@ to decode it is in the file itself:
 messages of one step and one topic, so per-step files merge without re-encoding.
 
 **Schema.** One schema, id 1, name ``aatest.recording.v2.SampleBlock``, encoding ``protobuf``,
-data the serialised ``FileDescriptorSet`` (:mod:`aatest.engine.recording.proto` prints the
+data the serialised ``FileDescriptorSet`` (:mod:`aatest.recording.proto` prints the
 ``.proto``).
 
 **Messages.** Each message is one ``SampleBlock``: up to :data:`BLOCK_SAMPLES` (4096)
@@ -38,15 +38,15 @@ consecutive samples of *all* channels of one logger in one step, with ``step_id`
 ``value = code·quantum + offset`` (float64); the codes are ``packed`` little-endian integers of
 ``width`` bytes, as byte planes when ``shuffled``. Codes are used
 only where that reproduces every logged value bit for bit (ADC codes, encoder counts, 0/1
-pulses; a −0.0 returns as +0.0; :mod:`aatest.engine.recording.codec`); ``dtype`` restores the
+pulses; a −0.0 returns as +0.0; :mod:`aatest.recording.codec`); ``dtype`` restores the
 logged NumPy dtype.
 Concatenating a step's blocks in ``sequence`` order gives its log; ``step_record_sha256`` in
 every block is the SHA-256 of the step's metadata record (values as a JSON object with sorted
 keys and no spaces) — MCAP protects chunks with CRCs but not metadata.
 
-**Preview** (:mod:`aatest.engine.recording.preview`). Per logger a topic ``/preview/table`` and
+**Preview** (:mod:`aatest.recording.preview`). Per logger a topic ``/preview/table`` and
 ``/preview/daq`` (channel ids from 16, schemas ``aatest.preview.v1.Table`` and ``.Daq``, one
-per channel list): one message per :data:`~aatest.engine.recording.preview.WINDOW_S` (200 ms)
+per channel list): one message per :data:`~aatest.recording.preview.WINDOW_S` (200 ms)
 window of a step's samples, with ``step_index``, ``time_s`` (the logger's time of the window's
 first sample) and ``<channel>_min``, ``_max``, ``_mean`` as scalar ``double`` in physical units
 for the table's ``inner_``/``outer_`` ``position_deg``, ``rate_dps``, ``accel_dps2`` and the
@@ -65,7 +65,7 @@ the ``time`` channel.
 
 Older recordings are still read: format v2 (the same layout, with the codes as protobuf
 varints in the ``codes`` field; :data:`FORMAT_V2`) and v1 (``aatest.block/v1``, one topic per
-step: :mod:`aatest.engine.recording.legacy_v1`).
+step: :mod:`aatest.recording.legacy_v1`).
 """
 
 from __future__ import annotations

@@ -14,11 +14,11 @@ from nptdms import ChannelObject, GroupObject, TdmsWriter
 from recording_data import RATE_HZ, SENSOR, sine_step, step_logs
 from ruamel.yaml import YAML
 
-from aatest.engine.data.logger_export import export_mf4, export_tdms
-from aatest.engine.dataset import Dataset, LazySteps, _subset
 from aatest.engine.errors import ImportDataError
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import read_dataset
+from aatest.recording import read_dataset
+from aatest.recording.data.logger_export import export_mf4, export_tdms
+from aatest.recording.dataset import Dataset, LazySteps, _subset
 
 #: pieces each log is cut into (as a streamed recording hands a long record over)
 PIECES = 3
@@ -189,7 +189,7 @@ def test_diagnose_reads_a_tdms_export_like_the_csv_export(tmp_path: Path) -> Non
     from typer.testing import CliRunner
 
     from aatest.cli import app
-    from aatest.engine.data.exporter import export_csv
+    from aatest.recording.data.exporter import export_csv
 
     dataset, _ = _pieced_dataset()
     runs = {}
@@ -211,7 +211,7 @@ def test_pieces_join_to_the_whole_log(tmp_path: Path, monkeypatch: pytest.Monkey
                                       export: object) -> None:
     """A piecewise read (0.3 s = 600 samples a piece: 4096 = 6·600 + 496) joins to the whole
     read exactly, for the exports and for a TDMS waveform time base (``export`` None)."""
-    from aatest.engine.data import logger_import
+    from aatest.recording.data import logger_import
 
     monkeypatch.setattr(logger_import, "PIECE_S", 0.3)
     if export is None:

@@ -10,11 +10,11 @@ import pytest
 from recording_data import run_meta, sine_step, step_logs
 from ruamel.yaml import YAML
 
-from aatest.engine.data.exporter import export_csv
-from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import RunRecorder, read_dataset
 from aatest.engine.steps import PlannedStep
+from aatest.recording import RunRecorder, read_dataset
+from aatest.recording.data.exporter import export_csv
+from aatest.recording.dataset import Dataset, StepData
 
 
 def recorded_dataset(run_dir: Path, steps: list[PlannedStep], latch: bool = True) -> Dataset:

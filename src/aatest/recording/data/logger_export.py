@@ -2,13 +2,13 @@
 
 ``aatest export RUN_DIR --tdms DIR`` (or ``--mf4 DIR``) writes ``DIR/recording.tdms`` (or
 ``recording.mf4``) and ``DIR/mapping.yaml``; ``aatest analyze DIR`` reads them back through
-:mod:`aatest.engine.data.logger_import`. Each step becomes two groups, ``s<NN>_table`` and
+:mod:`aatest.recording.data.logger_import`. Each step becomes two groups, ``s<NN>_table`` and
 ``s<NN>_daq``, whose channels carry the CSV export's column names
-(:func:`aatest.engine.data.exporter.table_columns`, ``daq_columns``) and their units as the
+(:func:`aatest.recording.data.exporter.table_columns`, ``daq_columns``) and their units as the
 file's own unit property, so the files also read naturally in NI's and ASAM tools.
 
 Streaming. A step is written piece by piece as the recording decodes it
-(:meth:`~aatest.engine.dataset.LazySteps.pieces`: 60 s blocks of a streamed DAQ record): a TDMS
+(:meth:`~aatest.recording.dataset.LazySteps.pieces`: 60 s blocks of a streamed DAQ record): a TDMS
 segment per piece, an MF4 group extended per piece (asammdf keeps the samples in its temporary
 file until ``save``), so memory holds one piece, never a step or the run.
 
@@ -27,10 +27,10 @@ from typing import Any
 import numpy as np
 from ruamel.yaml import YAML
 
-from aatest.engine.data.exporter import daq_columns, manifest, step_entry, table_columns
-from aatest.engine.data.mapping import MAPPING
-from aatest.engine.dataset import Dataset, LazySteps
 from aatest.engine.logs import DAQ_AUX_CHANNELS, TABLE, TABLE_CHANNELS, SampledLog
+from aatest.recording.data.exporter import daq_columns, manifest, step_entry, table_columns
+from aatest.recording.data.mapping import MAPPING
+from aatest.recording.dataset import Dataset, LazySteps
 
 #: the canonical units' spelling in the mapping (``TABLE_CHANNELS`` writes ``deg/s^2``)
 _PULSES = ("sync_pulse", "trigger")

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from aatest.engine.dataset import SensorInfo
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.recording.dataset import SensorInfo
 
 RATE_HZ = 2000.0
 SENSOR = SensorInfo(channel="v_sz", axis="I", nominal_bias_v=2.5, nominal_scale_v_per_dps2=0.004014)

@@ -13,7 +13,7 @@ from ruamel.yaml import YAML
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.engine.recording import read_dataset
+from aatest.recording import read_dataset
 
 QUICK = Path(__file__).resolve().parents[1] / "data" / "procedures" / "quick-sine-3-steps.yaml"
 RUNNER = CliRunner()
