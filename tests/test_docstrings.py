@@ -55,10 +55,10 @@ ALLOWED_UNDOCUMENTED: frozenset[str] = frozenset(
 )
 ALLOWED_WITHOUT_UNITS: frozenset[str] = frozenset(
     {
-        "aatest.engine.uncertainty.gum:Input.mean",  # generic: the caller's unit
-        "aatest.engine.uncertainty.statistics:finite_values",  # generic: the caller's unit
-        "aatest.engine.uncertainty.gum:Input.standard_uncertainty",  # generic: the caller's unit
-        "aatest.engine.uncertainty.gum:evaluate",  # generic: the caller's unit
+        "aatest.metrology.uncertainty.gum:Input.mean",  # generic: the caller's unit
+        "aatest.metrology.uncertainty.statistics:finite_values",  # generic: the caller's unit
+        "aatest.metrology.uncertainty.gum:Input.standard_uncertainty",  # generic: the caller's unit
+        "aatest.metrology.uncertainty.gum:evaluate",  # generic: the caller's unit
     }
 )
 

@@ -415,7 +415,7 @@ def _print_summary(results: RunResults, bundle: Any, command: str, started: floa
 
 def _exit_on_outcome(results: RunResults) -> None:
     """After everything is written: exit 2 on failed analyses, 1 on a failed verdict."""
-    from aatest.engine.analysis.verdicts import failed
+    from aatest.metrology.verdicts import failed
 
     for name, message in results.analysis_errors.items():
         typer.echo(f"analysis {name}: {message}", err=True)

@@ -173,7 +173,7 @@ def test_every_step_is_decoded_once_for_all_analyses_and_the_evidence(tmp_path: 
     decoded once — by this process or by one of the pass's forked workers: the decodes are
     counted in a file all of them append to — and every value equals that of the same steps
     held in memory."""
-    from aatest.engine.uncertainty.evidence import gather
+    from aatest.metrology.uncertainty.evidence import gather
     from aatest.recording.dataset import Dataset
 
     data = read_dataset(RECORDING)

@@ -27,7 +27,7 @@ from aatest.batch.correction import ReferenceCorrection
 Mode = Literal["analyze", "diagnose"]
 
 #: packages (relative to the aatest package) whose source decides a re-analysis' result
-_RESULT_CODE = ("engine/analysis", "engine/uncertainty", "recording",
+_RESULT_CODE = ("engine/analysis", "metrology", "recording",
                 "plugins/analysis", "diagnose", "results", "sync", "batch/correction.py",
                 "batch/task.py")
 

@@ -148,7 +148,7 @@ def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
 
 def _run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
                   options: Mapping[str, BaseModel] | None) -> AnalysisResults:
-    from aatest.engine.uncertainty.evidence import watch
+    from aatest.metrology.uncertainty.evidence import watch
 
     # the uncertainty stage reads every sine step after this pass: measured while the pass
     # decodes them, it need not decode them again

@@ -1,6 +1,6 @@
 """The rig's instruments: their stated accuracies and calibration traceability (``--rig`` YAML).
 
-The uncertainty budgets (:mod:`aatest.engine.uncertainty`) take every Type B component they
+The uncertainty budgets (:mod:`aatest.metrology.uncertainty`) take every Type B component they
 cannot measure from here: the encoder's accuracy and resolution, the sensor logger's offset
 and gain accuracy and resolution, the thermometer, the table's wobble and orthogonality, the
 mounting accuracy and the reference temperature. Each instrument may name the calibration

@@ -222,10 +222,10 @@ def decide(results: RunResults, data: Dataset) -> RunResults:
     Both stages fill fields of the typed results (validated on assignment, so a stage
     writing a value the models do not allow is an error, not a silent extra).
     """
-    from aatest.engine.analysis.verdicts import apply_verdicts
-    from aatest.engine.analysis.verdicts_limits import datasheets
-    from aatest.engine.analysis.verdicts_missing import listed_analyses
-    from aatest.engine.uncertainty import apply_uncertainty
+    from aatest.engine.run.rig import datasheets
+    from aatest.metrology.uncertainty import apply_uncertainty
+    from aatest.metrology.verdicts import apply_verdicts
+    from aatest.metrology.verdicts_missing import listed_analyses
 
     apply_uncertainty(results, data=data)
     return apply_verdicts(results, datasheets(data.metadata, data.sensors),

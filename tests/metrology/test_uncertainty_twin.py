@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from aatest.engine.run.session import run
-from aatest.engine.uncertainty.gum import evaluate
-from aatest.engine.uncertainty.measurands import RigConstants, scale_factor_measurand
+from aatest.metrology.uncertainty.gum import evaluate
+from aatest.metrology.uncertainty.measurands import RigConstants, scale_factor_measurand
 
 PROCEDURE = Path(__file__).resolve().parents[2] / "src/aatest/procedures/scale-factor.yaml"
 

@@ -7,13 +7,13 @@ import math
 import pytest
 from numpy.testing import assert_allclose
 
-from aatest.engine.uncertainty.dynamic import (
+from aatest.metrology.uncertainty.dynamic import (
     frf_gain_measurand,
     frf_phase_measurand,
     misalignment_measurand,
 )
-from aatest.engine.uncertainty.gum import Input, Measurand, evaluate, monte_carlo
-from aatest.engine.uncertainty.measurands import (
+from aatest.metrology.uncertainty.gum import Input, Measurand, evaluate, monte_carlo
+from aatest.metrology.uncertainty.measurands import (
     RigConstants,
     bias_measurand,
     g_sensitivity_measurand,

@@ -25,11 +25,11 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping, Sequence
 
-from aatest.engine.analysis.verdicts_limits import QUANTITY_UNITS
-from aatest.engine.analysis.verdicts_missing import Listed, limit_of, missing
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.uncertainty.statistics import finite
+from aatest.metrology.uncertainty.statistics import finite
+from aatest.metrology.verdicts_limits import QUANTITY_UNITS
+from aatest.metrology.verdicts_missing import Listed, limit_of, missing
 from aatest.results import RunResults
 from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
 from aatest.results.scale_factor import ScaleFactorHeadline
@@ -227,7 +227,7 @@ def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
     results
         The typed results, after the uncertainty stage.
     sheets
-        Each sensor channel's datasheet (:func:`~.verdicts_limits.datasheets`).
+        Each sensor channel's datasheet (:func:`aatest.engine.run.rig.datasheets`).
     acceptance
         The procedure's decision rule, limit overrides and ``judge`` list (defaults: simple,
         datasheet limits, every quantity asked).

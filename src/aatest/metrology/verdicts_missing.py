@@ -16,11 +16,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from aatest.engine.analysis.verdicts_limits import JUDGED, QUANTITY_UNITS, limits
 from aatest.engine.errors import InputError, PluginError
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.requirements import judges_of, measures_of, needs_text
+from aatest.metrology.verdicts_limits import JUDGED, QUANTITY_UNITS, limits
 from aatest.results import RunResults
 from aatest.results.base import Verdict
 

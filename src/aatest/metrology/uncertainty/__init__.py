@@ -13,7 +13,7 @@ expanded uncertainty, coverage factor and probability, and budget into them
 - ``budgets``     the stage itself: :func:`apply_uncertainty`
 """
 
-from aatest.engine.uncertainty.budgets import apply_uncertainty
-from aatest.engine.uncertainty.measurands import RigConstants
+from aatest.metrology.uncertainty.budgets import apply_uncertainty
+from aatest.metrology.uncertainty.measurands import RigConstants
 
 __all__ = ["RigConstants", "apply_uncertainty"]

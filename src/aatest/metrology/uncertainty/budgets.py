@@ -10,15 +10,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from aatest.engine.uncertainty.clock_window import noise_measurand
-from aatest.engine.uncertainty.dynamic import (
+from aatest.metrology.uncertainty.clock_window import noise_measurand
+from aatest.metrology.uncertainty.dynamic import (
     frf_gain_measurand,
     frf_phase_measurand,
     misalignment_measurand,
     sensor_tilt_measurand,
 )
-from aatest.engine.uncertainty.gum import Evaluation, Measurand, evaluate
-from aatest.engine.uncertainty.measurands import (
+from aatest.metrology.uncertainty.gum import Evaluation, Measurand, evaluate
+from aatest.metrology.uncertainty.measurands import (
     RigConstants,
     bias_measurand,
     g_sensitivity_measurand,

@@ -9,10 +9,10 @@ import pytest
 from contract_results import decided, make_results
 from pydantic import ValidationError
 
-from aatest.engine.analysis.verdicts import decide, failed, overall
-from aatest.engine.analysis.verdicts_limits import g_sensitivity_limit_dps2_per_g, limits
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance, AcceptanceLimits
+from aatest.metrology.verdicts import decide, failed, overall
+from aatest.metrology.verdicts_limits import g_sensitivity_limit_dps2_per_g, limits
 from aatest.results.base import Verdict
 
 CASES = [  # value, limit, U, rule, verdict

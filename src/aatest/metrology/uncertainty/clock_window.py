@@ -22,9 +22,9 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from aatest.engine.uncertainty import components as comp
-from aatest.engine.uncertainty.gum import Input, Measurand, Ops
-from aatest.engine.uncertainty.statistics import finite
+from aatest.metrology.uncertainty import components as comp
+from aatest.metrology.uncertainty.gum import Input, Measurand, Ops
+from aatest.metrology.uncertainty.statistics import finite
 from aatest.results import RunResults
 from aatest.results.sync import StepSync
 

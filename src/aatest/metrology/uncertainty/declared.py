@@ -17,7 +17,7 @@ from aatest.engine.procedure.rig_description import Instruments
 from aatest.results import RunResults
 
 if TYPE_CHECKING:
-    from aatest.engine.uncertainty.measurands import RigConstants
+    from aatest.metrology.uncertainty.measurands import RigConstants
 
 #: encoder field of the rig description → the capability a turntable plugin declares
 ENCODER_DECLARATIONS: dict[str, str] = {

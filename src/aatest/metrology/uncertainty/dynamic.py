@@ -17,10 +17,10 @@ import math
 from collections.abc import Mapping
 from typing import Any, Literal
 
-from aatest.engine.uncertainty import components as comp
-from aatest.engine.uncertainty.gum import Input, Measurand, Ops
-from aatest.engine.uncertainty.measurands import RigConstants
-from aatest.engine.uncertainty.statistics import ResultsContractError, finite, finite_values
+from aatest.metrology.uncertainty import components as comp
+from aatest.metrology.uncertainty.gum import Input, Measurand, Ops
+from aatest.metrology.uncertainty.measurands import RigConstants
+from aatest.metrology.uncertainty.statistics import ResultsContractError, finite, finite_values
 from aatest.results import RunResults
 from aatest.results.frf import FrfPoint
 

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from aatest.engine.uncertainty.gum import Input, Measurand, evaluate, monte_carlo
-from aatest.engine.uncertainty.statistics import ci_std
+from aatest.metrology.uncertainty.gum import Input, Measurand, evaluate, monte_carlo
+from aatest.metrology.uncertainty.statistics import ci_std
 
 finite = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False).filter(lambda v: abs(v) > 1e-3)
 spread = st.floats(min_value=1e-6, max_value=10.0)

@@ -1,7 +1,7 @@
 """Measurement models and uncertainty budgets (GUM, k = 2) for the calibration certificate.
 
 Each ``*_measurand`` function turns an analysis result plus rig constants into a
-:class:`~aatest.engine.uncertainty.gum.Measurand`: the final quantity's model with one input per
+:class:`~aatest.metrology.uncertainty.gum.Measurand`: the final quantity's model with one input per
 budget row (fit/reference noise, sensor noise, table position accuracy, wobble/orthogonality,
 sync residual, environment temperature, repeatability over repetitions). Statistical inputs
 come from the analysis (ci95, per-repetition values, measured noise); the rest are the rig's
@@ -19,13 +19,13 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.procedure.rig_description import Instruments
-from aatest.engine.uncertainty import components as comp
-from aatest.engine.uncertainty.clock_window import clock_coverage_input
-from aatest.engine.uncertainty.components import ARCSEC_RAD
-from aatest.engine.uncertainty.declared import Basis, declared_encoder
-from aatest.engine.uncertainty.evidence import Evidence, gather
-from aatest.engine.uncertainty.gum import Input, Measurand, Ops
-from aatest.engine.uncertainty.statistics import PAIR, ci_std, finite, finite_values
+from aatest.metrology.uncertainty import components as comp
+from aatest.metrology.uncertainty.clock_window import clock_coverage_input
+from aatest.metrology.uncertainty.components import ARCSEC_RAD
+from aatest.metrology.uncertainty.declared import Basis, declared_encoder
+from aatest.metrology.uncertainty.evidence import Evidence, gather
+from aatest.metrology.uncertainty.gum import Input, Measurand, Ops
+from aatest.metrology.uncertainty.statistics import PAIR, ci_std, finite, finite_values
 from aatest.results import RunResults
 from aatest.results.bias import BiasChannel, BiasSetpoint, MountingBias
 from aatest.results.scale_factor import ScaleFactorChannel

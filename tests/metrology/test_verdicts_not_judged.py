@@ -8,11 +8,11 @@ import copy
 import pytest
 from contract_results import CHANNELS, decided, make_results
 
-from aatest.engine.analysis.verdicts import apply_verdicts, failed, overall
-from aatest.engine.analysis.verdicts_missing import listed_analyses
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.uncertainty import apply_uncertainty
+from aatest.metrology.uncertainty import apply_uncertainty
+from aatest.metrology.verdicts import apply_verdicts, failed, overall
+from aatest.metrology.verdicts_missing import listed_analyses
 from aatest.results import RunResults
 from aatest.results.base import Verdict
 

@@ -10,8 +10,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from aatest.engine.procedure.rig_description import Instruments
-from aatest.engine.uncertainty import components as comp
-from aatest.engine.uncertainty.evidence import (
+from aatest.metrology.uncertainty import components as comp
+from aatest.metrology.uncertainty.evidence import (
     LINE_SAMPLES,
     Evidence,
     TemperatureEvidence,
@@ -19,8 +19,8 @@ from aatest.engine.uncertainty.evidence import (
     local_noise_rel,
     static_line,
 )
-from aatest.engine.uncertainty.gum import Input, Measurand, coverage_factor, evaluate
-from aatest.engine.uncertainty.measurands import RigConstants, bias_measurand
+from aatest.metrology.uncertainty.gum import Input, Measurand, coverage_factor, evaluate
+from aatest.metrology.uncertainty.measurands import RigConstants, bias_measurand
 from aatest.results import RunResults
 
 STATED = Instruments.model_validate({
@@ -239,7 +239,7 @@ def test_evidence_measured_while_the_analyses_decode_equals_its_own_decodes() ->
     then decodes no sine step again, and what it reports is what its own decodes give."""
     from pathlib import Path
 
-    from aatest.engine.uncertainty.evidence import watch
+    from aatest.metrology.uncertainty.evidence import watch
     from aatest.plugins.analysis.sync import _SYNC_CHANNELS
     from aatest.recording import read_dataset
     from aatest.recording.dataset import LazySteps

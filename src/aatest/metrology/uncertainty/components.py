@@ -1,6 +1,6 @@
 """Budget rows every calibration shares (ISO 16063-15/-21 component lists), each with its basis.
 
-Each function returns the :class:`~aatest.engine.uncertainty.gum.Input` of one component —
+Each function returns the :class:`~aatest.metrology.uncertainty.gum.Input` of one component —
 reference (encoder accuracy and resolution, reference method, motion distortion), transverse
 motion, mounting misalignment, the logger (offset, gain, resolution), temperature,
 repeatability — quantified from the recording when it shows it (:mod:`.evidence`), else from
@@ -17,14 +17,14 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Literal
 
 from aatest.engine.datasheet import SensorDatasheet
-from aatest.engine.uncertainty.declared import encoder_note
-from aatest.engine.uncertainty.gum import Distribution, Input
-from aatest.engine.uncertainty.statistics import PAIR, finite
+from aatest.metrology.uncertainty.declared import encoder_note
+from aatest.metrology.uncertainty.gum import Distribution, Input
+from aatest.metrology.uncertainty.statistics import PAIR, finite
 from aatest.results import RunResults
 from aatest.results.quantities import reference_name
 
 if TYPE_CHECKING:  # the constants module builds on these rows; only its type is needed here
-    from aatest.engine.uncertainty.measurands import RigConstants
+    from aatest.metrology.uncertainty.measurands import RigConstants
 
 #: one arcsecond in radians
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)

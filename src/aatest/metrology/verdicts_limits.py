@@ -8,18 +8,12 @@ The quantity names are the limit names of :class:`~aatest.engine.procedure.model
 
 from __future__ import annotations
 
-import logging
 import math
-from collections.abc import Mapping, Sequence
-from typing import Any
 
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.steps import SensorRef
 from aatest.recording.dataset import SensorInfo
 from aatest.results.quantities import QUANTITIES
-
-log = logging.getLogger("aatest.verdicts")
 
 #: 0.01 rad/s² in °/s²
 DPS2_PER_RAD_S2 = math.degrees(1.0)
@@ -74,7 +68,7 @@ def limits(sheet: SensorDatasheet, acceptance: Acceptance) -> dict[str, float]:
     return datasheet_limits(sheet) | overrides
 
 
-def _from_info(info: SensorInfo) -> SensorDatasheet:
+def datasheet_from_info(info: SensorInfo) -> SensorDatasheet:
     """A datasheet from one channel's stated values (imported data); other limits default."""
     return SensorDatasheet(
         model=info.model, range_dps2=info.range_dps2, nominal_bias_v=info.nominal_bias_v,
@@ -85,21 +79,3 @@ def _from_info(info: SensorInfo) -> SensorDatasheet:
         scale_temperature_limit_per_c=info.scale_temperature_limit_per_c,
         channels={info.channel: info.axis},
     )
-
-
-def datasheets(metadata: Mapping[str, Any], sensors: Sequence[SensorInfo]
-               ) -> dict[str, SensorDatasheet]:
-    """Each channel's datasheet: the recorded sensor model's plugin, else the channel's values.
-
-    A recording names its sensor model (``metadata["sensor"]``), whose plugin states every
-    limit; imported data states its datasheet values per channel in ``dataset.yaml``.
-    """
-    from aatest.engine.run.rig import sensor_datasheet
-
-    sensor = metadata.get("sensor")
-    if isinstance(sensor, Mapping) and sensor.get("model"):
-        sheet, source = sensor_datasheet(SensorRef.model_validate(dict(sensor)))
-        log.debug("limits from the datasheet of %s (%s)", sensor["model"], source)
-        # the recorded nominals are the datasheet's; the channel list is the recording's
-        return {info.channel: sheet for info in sensors} or dict.fromkeys(sheet.channels, sheet)
-    return {info.channel: _from_info(info) for info in sensors}

@@ -8,8 +8,8 @@ from typing import Any
 
 import pytest
 
-from aatest.engine.uncertainty import components as comp
-from aatest.engine.uncertainty.measurands import RigConstants
+from aatest.metrology.uncertainty import components as comp
+from aatest.metrology.uncertainty.measurands import RigConstants
 from aatest.results import RunResults
 
 A_ARCSEC = 3600.0
