@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from aatest.bundle.manifest import file_sha256
 from aatest.engine.logs import DAQ, TABLE, SampledLog
-from aatest.engine.run.manifest import file_sha256
 from aatest.engine.steps import PlannedStep
 from aatest.recording import RunRecorder, read_dataset
 from aatest.storage import FETCHED, RemotePath, locate, upload_dir

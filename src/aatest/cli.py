@@ -553,8 +553,8 @@ def _keygen_passphrase() -> str:
     import os
     import sys
 
+    from aatest.bundle.signing import SigningError
     from aatest.engine.run.session import PASSPHRASE_ENV
-    from aatest.engine.run.signing import SigningError
 
     secret = os.environ.get(PASSPHRASE_ENV) or (
         typer.prompt("passphrase", hide_input=True, confirmation_prompt=True)
@@ -575,7 +575,7 @@ def keygen(
              "asked); --no-passphrase writes it unencrypted"),
 ) -> None:
     """Create an Ed25519 signing key pair; print its fingerprint (for the lab profile)."""
-    from aatest.engine.run import signing
+    from aatest.bundle import signing
 
     fingerprint = signing.generate_keypair(keyfile, _keygen_passphrase() if passphrase else None)
     typer.echo(f"private key: {keyfile} (mode 0600, "
@@ -594,7 +594,7 @@ def verify(
 ) -> None:
     """Check a signed bundle, its signing key and its record: exit 0 untouched, 1 tampered,
     untrusted or wrong key."""
-    from aatest.engine.run import signing
+    from aatest.bundle import signing
     from aatest.records.attest import signer_lines, trusted_keys
     from aatest.records.commands import simulation_note, verify_against_record
 

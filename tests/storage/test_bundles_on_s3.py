@@ -17,8 +17,8 @@ import pytest
 from tolerances import leaves, mismatches
 from typer.testing import CliRunner
 
+from aatest.bundle import signing
 from aatest.cli import app
-from aatest.engine.run import signing
 from aatest.storage import RemotePath, locate
 
 RUNNER = CliRunner()

@@ -144,7 +144,7 @@ def certificate_prefix(results: RunResults, lab: LabProfile) -> str:
 
 def bundle_files(bundle: Where) -> dict[str, str]:
     """SHA-256 of the bundle's files: what the signature covers (also for unsigned bundles)."""
-    from aatest.engine.run.signing import bundle_hashes
+    from aatest.bundle.signing import bundle_hashes
 
     return bundle_hashes(bundle)
 

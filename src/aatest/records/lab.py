@@ -32,7 +32,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from aatest.engine.run.trust import TrustedKey
+from aatest.bundle.trust import TrustedKey
 from aatest.engine.simulation import SIMULATION_PREFIX
 
 LAB_ENV = "AATEST_LAB"

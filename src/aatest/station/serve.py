@@ -56,7 +56,7 @@ def load_signer(explicit: Path | None) -> Signer | None:
     """
     import os
 
-    from aatest.engine.run import signing
+    from aatest.bundle import signing
     from aatest.engine.run.session import PASSPHRASE_ENV, signing_key
 
     key_path = signing_key(explicit)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from aatest.bundle import signing
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.analysis.results import (
@@ -25,7 +26,7 @@ from aatest.engine.analysis.results import (
 from aatest.engine.errors import InputError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.run import bundle_hooks, signing
+from aatest.engine.run import bundle_hooks
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
 from aatest.engine.run.rig import Rig, build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock

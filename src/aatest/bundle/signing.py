@@ -35,9 +35,9 @@ from pathlib import Path
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
+from aatest.bundle import manifest
+from aatest.bundle.trust import TrustedKey
 from aatest.engine.errors import InputError
-from aatest.engine.run import manifest
-from aatest.engine.run.trust import TrustedKey
 from aatest.storage import Where, locate
 
 #: SHA-256 of one file, as the manifest hashes it (kept here for callers of format 1)
@@ -244,6 +244,6 @@ def sign_bundle(report_path: Where, private_key: Ed25519PrivateKey) -> Where:
 
 def verify_bundle(report_path: Where, trusted: Sequence[TrustedKey] = ()) -> VerifyResult:
     """Check the bundle around ``report_path``: see :func:`.verification.verify`."""
-    from aatest.engine.run.verification import verify
+    from aatest.bundle.verification import verify
 
     return verify(report_path, trusted)

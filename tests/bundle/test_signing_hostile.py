@@ -7,8 +7,8 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
+from aatest.bundle.signing import generate_keypair, load_private_key, sign_bundle
 from aatest.cli import app
-from aatest.engine.run.signing import generate_keypair, load_private_key, sign_bundle
 
 RUNNER = CliRunner()
 #: three parent steps to /etc/passwd (spelt out of parts: no tracked file names a parent path)

@@ -18,8 +18,8 @@ from typing import Any
 from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from aatest.engine.run import manifest
-from aatest.engine.run.signing import (
+from aatest.bundle import manifest
+from aatest.bundle.signing import (
     ALGORITHM,
     BUNDLE_FILES,
     FINGERPRINT_META,
@@ -30,7 +30,7 @@ from aatest.engine.run.signing import (
     signature_path,
     signed_payload,
 )
-from aatest.engine.run.trust import TrustedKey, decide
+from aatest.bundle.trust import TrustedKey, decide
 from aatest.storage import Where, locate
 
 _NEEDED = ("algorithm", "public_key", "files", "signature")

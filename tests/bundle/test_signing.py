@@ -11,8 +11,7 @@ from pathlib import Path
 import pytest
 from cryptography.hazmat.primitives import serialization
 
-from aatest.engine.errors import InputError
-from aatest.engine.run.signing import (
+from aatest.bundle.signing import (
     canonical_bytes,
     file_sha256,
     generate_keypair,
@@ -25,7 +24,8 @@ from aatest.engine.run.signing import (
     trusted_public_key,
     verify_bundle,
 )
-from aatest.engine.run.trust import TrustedKey
+from aatest.bundle.trust import TrustedKey
+from aatest.engine.errors import InputError
 
 
 def _trust(key_path: Path) -> list[TrustedKey]:

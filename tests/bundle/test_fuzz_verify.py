@@ -20,7 +20,7 @@ from fuzzing import SLOW_FACTOR, budget
 from hypothesis import given
 from hypothesis import strategies as st
 
-from aatest.engine.run.signing import (
+from aatest.bundle.signing import (
     generate_keypair,
     load_private_key,
     public_key_path,
