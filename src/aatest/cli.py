@@ -647,6 +647,10 @@ def plugins() -> None:
         for ep in registry.entry_points(kind):
             try:
                 info = registry.load(kind, ep.name)
+                if kind == "effect":  # an effect's declaration is checked by aatest.effects
+                    from aatest.effects import validate_declaration
+
+                    validate_declaration(info.name, info.target, info.distribution)
                 typer.echo(f"  {info.name:24s} {info.distribution} {info.version}")
             except PluginError as exc:
                 typer.echo(f"  {ep.name:24s} BROKEN: {exc}")

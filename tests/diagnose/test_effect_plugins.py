@@ -150,7 +150,7 @@ def test_broken_plugins_are_refused_naming_the_distribution(
     with pytest.raises(PluginError, match=message) as info:
         fx.installed_effects()
     assert "'acme-broken'" in str(info.value)
-    if cls is not NotAnEffect:  # the registry checks declarations, the class is checked on use
+    if cls is not NotAnEffect:  # aatest.effects checks declarations, the class is checked on use
         listing = CliRunner().invoke(app, ["plugins"]).output
         head = message.split("'", maxsplit=1)[0]
         assert name in listing and "BROKEN" in listing and head in listing
