@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 
 from aatest import effects as fx
 from aatest.cli import app
-from aatest.diagnose.effects import CANDIDATES, vocabulary
+from aatest.diagnose.candidates import CANDIDATES, vocabulary
 from aatest.diagnose.model_out import extended_model
 from aatest.effects import Effect, EffectInputs, EffectParameter, Excitation
 from aatest.engine.errors import EXIT_BAD_INPUT, PluginError

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from aatest.diagnose.effects.logger import WELCH_SEGMENT
+from aatest.diagnose.candidates.logger import WELCH_SEGMENT
 from aatest.diagnose.logger_chain import DEFAULT_ANTIALIAS_HZ, estimate_corner_hz, stated_antialias
 from aatest.engine.errors import ProcedureError
 from aatest.recording.dataset import Dataset

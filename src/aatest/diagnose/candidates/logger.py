@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from aatest.diagnose.effects.base import Z95, Context, replace_spec
+from aatest.diagnose.candidates.base import Z95, Context, replace_spec
 from aatest.sync.edges import joint_slope_range
 
 DEFAULT_CLOCK_TOLERANCE_PPM = 20.0
@@ -79,7 +79,7 @@ def phase_trend_drift(ctx: Context, from_start: bool = True, limit_ppm: float = 
     ``bounds_ppm``: the drift beyond the alignment is searched in this interval (what the edges
     allow) instead of ±``limit_ppm``.
     """
-    from aatest.diagnose.effects.base import curvature_ci, scalar_search
+    from aatest.diagnose.candidates.base import curvature_ci, scalar_search
 
     if not ctx.dynamic_steps:
         return None

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import optimize, signal
 
-from aatest.diagnose.effects.base import Z95, CandidateFit, Context, replace_spec
+from aatest.diagnose.candidates.base import Z95, CandidateFit, Context, replace_spec
 from aatest.diagnose.replay import StepReplay
 
 #: a line must stand this far above the median spectral level of the table log

@@ -16,8 +16,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import optimize
 
-from aatest.diagnose.design import Fit, Spec
-from aatest.diagnose.effects.base import (
+from aatest.diagnose.candidates.base import (
     CandidateFit,
     Context,
     curvature_ci,
@@ -26,6 +25,7 @@ from aatest.diagnose.effects.base import (
     replace_spec,
     scalar_search,
 )
+from aatest.diagnose.design import Fit, Spec
 from aatest.effects import (
     Effect,
     Excitation,

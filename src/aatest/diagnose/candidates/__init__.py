@@ -1,14 +1,14 @@
-"""The effect library: one candidate per contract effect (docs/interfaces.md §4 vocabulary).
+"""The candidate effects of diagnose: one per contract effect (docs/interfaces.md §4 vocabulary).
 
 ``CANDIDATES`` maps each built-in effect to (testability check, fit, attribution). Effects
 handled outside the residual fit — ``clock_drift`` (from the sync edges), ``excess_noise``
 (from the residual spectrum), ``misalignment`` (the cross-axis fit read as a tilt) — live in
-:mod:`aatest.diagnose.effects.logger` and the selection.
+:mod:`aatest.diagnose.candidates.logger` and the selection.
 
 The vocabulary is open: :func:`vocabulary` adds every installed effect plugin (entry-point
 group ``aatest.effects``, :mod:`aatest.effects`) as a candidate of the same kind, replacing a
 built-in only when the plugin declares ``shadows = True``
-(:mod:`aatest.diagnose.effects.plugins`).
+(:mod:`aatest.diagnose.candidates.plugins`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from aatest.diagnose.effects import linear, plugins, shape, table, vibration
-from aatest.diagnose.effects.base import CandidateFit, Context
+from aatest.diagnose.candidates import linear, plugins, shape, table, vibration
+from aatest.diagnose.candidates.base import CandidateFit, Context
 from aatest.effects import installed_effects
 
 

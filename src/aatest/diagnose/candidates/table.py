@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import optimize
 
-from aatest.diagnose.effects.base import Z95, CandidateFit, Context, replace_spec
+from aatest.diagnose.candidates.base import Z95, CandidateFit, Context, replace_spec
 from aatest.diagnose.periodogram import lomb_scargle_power
 from aatest.diagnose.replay import StepReplay, ripple_regressors
 

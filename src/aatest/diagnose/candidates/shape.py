@@ -15,8 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import optimize
 
-from aatest.diagnose.design import Spec, step_columns
-from aatest.diagnose.effects.base import (
+from aatest.diagnose.candidates.base import (
     CandidateFit,
     Context,
     curvature_ci,
@@ -25,6 +24,7 @@ from aatest.diagnose.effects.base import (
     replace_spec,
     scalar_search,
 )
+from aatest.diagnose.design import Spec, step_columns
 
 MAX_DELAY_S = 0.08
 #: sine frequencies needed before second-order dynamics can be told from a delay

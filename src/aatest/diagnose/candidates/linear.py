@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aatest.diagnose.effects.base import CandidateFit, Context, linear_ci
+from aatest.diagnose.candidates.base import CandidateFit, Context, linear_ci
 from aatest.diagnose.replay import gravity_along, sensor_acceleration
 
 #: smallest temperature span that can reveal a temperature coefficient (°C)
@@ -41,7 +41,7 @@ def testable_scale_temperature(ctx: Context) -> str | None:
 
 
 def testable_cubic(ctx: Context) -> str | None:
-    from aatest.diagnose.effects.base import dynamic_peak_dps2
+    from aatest.diagnose.candidates.base import dynamic_peak_dps2
 
     frac = dynamic_peak_dps2(ctx) / ctx.info.range_dps2
     return None if frac >= MIN_RANGE_FRACTION else (
