@@ -135,7 +135,7 @@ def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> None:
 
 def _analyse_and_report(prepared: Any, out: Path, phases: Phases) -> None:
     from aatest.engine.analysis.passes import run_analyses
-    from aatest.engine.analysis.results import build_results
+    from aatest.engine.analysis.results_file import build_results
     from aatest.recording import read_dataset
 
     def analyse() -> tuple[Any, Any]:

@@ -462,7 +462,7 @@ def analyze(
             where, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
         )
     if json_out is not None:
-        from aatest.engine.analysis.results import results_json
+        from aatest.engine.analysis.results_file import results_json
 
         json_out.write_text(json.dumps(results_json(results), indent=2), encoding="utf-8")
     _print_summary(results, target, "analyze", started, json_summary)

@@ -20,7 +20,7 @@ import pytest
 from tolerances import leaves, mismatches
 
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import build_results, results_json
+from aatest.engine.analysis.results_file import build_results, results_json
 from aatest.plugins.analysis.sync import SyncedSteps
 from aatest.recording import read_dataset, reader
 from aatest.recording.dataset import LazySteps

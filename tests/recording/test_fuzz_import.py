@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from test_importer import MANIFEST, contract_columns, make_import_dir
 
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import build_results, results_json
+from aatest.engine.analysis.results_file import build_results, results_json
 from aatest.engine.errors import AatestError, ImportDataError, ProblemsError
 from aatest.engine.run.session import decide
 from aatest.plugins.report.html import CalibrationCertificate

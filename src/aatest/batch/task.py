@@ -53,7 +53,7 @@ def open_dataset(task: Task) -> Dataset:
 def analyse(data: Dataset) -> dict[str, Any]:
     """``aatest analyze`` without writing: results, key quantities and verdicts as JSON."""
     from aatest.engine.analysis.passes import run_analyses
-    from aatest.engine.analysis.results import build_results, results_json
+    from aatest.engine.analysis.results_file import build_results, results_json
     from aatest.engine.run.session import decide
     from aatest.engine.simulation import KIND_KEY, kind_of, metadata_of
     from aatest.records import extract

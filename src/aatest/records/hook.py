@@ -23,7 +23,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.analysis.results import results_json
+from aatest.engine.analysis.results_file import results_json
 from aatest.engine.run import bundle_hooks
 from aatest.engine.simulation import SIMULATION_PREFIX, is_simulation
 from aatest.records import extract
@@ -184,7 +184,7 @@ def registration_for(
 
 def _results_for(data: Where) -> RunResults:
     """The run's results next to ``data``, else the recording's own metadata."""
-    from aatest.engine.analysis.results import RESULTS_FILE, plain_metadata, read_results
+    from aatest.engine.analysis.results_file import RESULTS_FILE, plain_metadata, read_results
 
     folder = data if data.is_dir() else data.parent
     if (folder / RESULTS_FILE).is_file():

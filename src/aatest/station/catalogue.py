@@ -309,7 +309,7 @@ def run_summary(run_dir: Path) -> dict[str, Any]:
 
 def results_summary(run_dir: Path) -> dict[str, Any]:
     """The verdict banner and the judged quantities with U, from ``results.json`` if present."""
-    from aatest.engine.analysis.results import RESULTS_FILE, read_results
+    from aatest.engine.analysis.results_file import RESULTS_FILE, read_results
     from aatest.engine.errors import InputError
 
     if not _plain_file(run_dir / RESULTS_FILE):

@@ -20,7 +20,7 @@ from aatest.bundle.signing import (
     verify_bundle,
 )
 from aatest.engine import registry
-from aatest.engine.analysis.results import write_results
+from aatest.engine.analysis.results_file import write_results
 from aatest.plugins.report.html import (
     CalibrationCertificate,
     DiagnosisReport,

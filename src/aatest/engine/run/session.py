@@ -17,7 +17,7 @@ from typing import Any, Literal
 from aatest.bundle import signing
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import (
+from aatest.engine.analysis.results_file import (
     RESULTS_FILE,
     build_results,
     read_results,

@@ -13,7 +13,7 @@ from results_schema import assert_valid_results
 
 from aatest.engine import registry
 from aatest.engine.analysis import plugins
-from aatest.engine.analysis.results import read_results, results_json, write_results
+from aatest.engine.analysis.results_file import read_results, results_json, write_results
 from aatest.engine.errors import InputError
 from aatest.engine.interfaces import AnalysisOutput, NoOptions
 from aatest.results import SCHEMA_VERSION, ResultModel, RunResults
