@@ -141,7 +141,7 @@ def test_streamed_results_equal_the_eager_reference() -> None:
            if not k.endswith((".fit_coverage", ".extrapolation_u_s"))}
     # redefined after it (issue 31 item 5): offset_u_s is now the clock alignment's own
     # standard uncertainty (0.2 µs with latch times, checked against the twin's truth in
-    # tests/sync), no longer the 144 µs edge spread; the FRF points' stated u_gain/u_phase/
+    # tests/clocksync), no longer the 144 µs edge spread; the FRF points' stated u_gain/u_phase/
     # u_delay are the local noise of the ratio, no longer an average over the motor band
     got = {k: v for k, v in got.items()
            if not k.endswith((".offset_u_s", ".u_gain_db", ".u_phase_deg", ".u_delay_s"))}
@@ -154,8 +154,8 @@ def test_streamed_results_equal_the_eager_reference() -> None:
 
 def test_partial_step_decodes_only_the_named_channels() -> None:
     """The sync pass reads only the pulses; its clock relation is the full step's."""
+    from aatest.clocksync.freeze_pulse import clock_relation
     from aatest.plugins.analysis.sync import _SYNC_CHANNELS
-    from aatest.sync.freeze_pulse import clock_relation
 
     steps = read_dataset(RECORDING).steps
     assert isinstance(steps, LazySteps)

@@ -28,7 +28,7 @@ Mode = Literal["analyze", "diagnose"]
 
 #: packages (relative to the aatest package) whose source decides a re-analysis' result
 _RESULT_CODE = ("engine/analysis", "metrology", "recording",
-                "plugins/analysis", "diagnose", "results", "sync", "batch/correction.py",
+                "plugins/analysis", "diagnose", "results", "clocksync", "batch/correction.py",
                 "batch/task.py")
 
 

@@ -56,7 +56,7 @@ def warp_freedom_ppm(ctx: Context) -> tuple[float, float] | None:
     """Warps (ppm) of the replay the sync edges leave open: None when they resolve the rate.
 
     The replay is synchronised at the centre of the drifts every step's edge intervals allow
-    (:func:`~aatest.sync.edges.joint_slope_range`); a warp ``w`` of the prediction stands for a
+    (:func:`~aatest.clocksync.edges.joint_slope_range`); a warp ``w`` of the prediction stands for a
     drift ``centre − w`` (:func:`~aatest.diagnose.candidates.logger.phase_trend_drift`), so the
     open warps are the range mirrored about the centre.
     """

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from aatest.clocksync.edges import joint_slope_range
 from aatest.diagnose.candidates.base import Z95, Context, replace_spec
-from aatest.sync.edges import joint_slope_range
 
 DEFAULT_CLOCK_TOLERANCE_PPM = 20.0
 #: search range of a drift fitted from the phase trend (ppm)
@@ -50,7 +50,7 @@ class DriftEstimate:
 def clock_drift(ctx: Context) -> DriftEstimate | None:
     """DAQ clock drift over steps (ppm) from the sync relations: the weighted mean of the
     latched steps' drifts, or without latch times the centre of the drifts every step's edge
-    intervals allow (:func:`~aatest.sync.edges.joint_slope_range`, one crystal)."""
+    intervals allow (:func:`~aatest.clocksync.edges.joint_slope_range`, one crystal)."""
     rel = [s.relation for s in ctx.replay.steps if s.relation is not None]
     if not rel:
         return None

@@ -138,7 +138,7 @@ def _table_start_on_daq(record: Any, spare: int) -> int:
 
     The DAQ raises its trigger on one of its own samples and that starts the table log, so the
     table's first sample *is* the trigger's first high DAQ sample: the sync analysis pins the
-    fitted relation's offset to it (``aatest.sync.freeze_pulse.refine_offset``). The clock
+    fitted relation's offset to it (``aatest.clocksync.freeze_pulse.refine_offset``). The clock
     drift stretches the rest by ≤ 1e-4 of the record (≤ 13 samples at 2^17 and 100 ppm), which
     leaves the bins near a coherent fundamental as they are. Without a trigger channel (data
     imported without one) the DAQ record is taken as bracketing the table one evenly.

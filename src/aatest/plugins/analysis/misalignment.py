@@ -22,6 +22,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
@@ -36,7 +37,6 @@ from aatest.plugins.analysis.misalignment_method import (
 )
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.misalignment import MisalignmentResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 __all__ = ["MisalignmentAnalysis", "misalignment_from_spectra"]
 

@@ -19,6 +19,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
 
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
@@ -27,7 +28,6 @@ from aatest.plugins.analysis.drift import allan_terms_of
 from aatest.plugins.analysis.streaming import StaticReduction, band_rms_of, reduce_static
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.noise import NoiseResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 __all__ = ["BAND_HZ", "NoiseAnalysis", "NoiseOptions", "allan_terms", "band_rms", "sensor_noise"]
 

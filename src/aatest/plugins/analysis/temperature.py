@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
@@ -36,7 +37,6 @@ from aatest.plugins.analysis.streaming import Moments, reduce_static
 from aatest.plugins.analysis.sync import SyncedSteps
 from aatest.recording.dataset import Dataset, LazySteps, SensorInfo
 from aatest.results.temperature import TemperatureResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 T_REF_C = 25.0
 _TEMPERATURE = "temperature_c"

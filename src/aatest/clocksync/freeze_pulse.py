@@ -10,7 +10,7 @@ DAQ's own pulse goes 0→1. All paired edges give the linear clock relation (doc
 and the DAQ channels are resampled onto the table's uniform time vector, so every analysis
 reads both loggers on one time base. Without ``fp_latch_s`` (or where it is NaN, "not
 latched") an edge is only known to lie in the sample before its registering row; the relation
-is then the centre of the lines through every edge's interval (:mod:`aatest.sync.edges`).
+is then the centre of the lines through every edge's interval (:mod:`aatest.clocksync.edges`).
 """
 
 from __future__ import annotations
@@ -22,11 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from aatest.engine.errors import AnalysisError
-from aatest.engine.logs import SampledLog
-from aatest.engine.steps import PlannedStep
-from aatest.recording.dataset import Dataset, StepData
-from aatest.sync.edges import (
+from aatest.clocksync.edges import (
     LAG_SAMPLES,
     MIN_EDGES,
     check_counts,
@@ -36,9 +32,13 @@ from aatest.sync.edges import (
     line_fit,
     pair_edges,
 )
+from aatest.engine.errors import AnalysisError
+from aatest.engine.logs import SampledLog
+from aatest.engine.steps import PlannedStep
+from aatest.recording.dataset import Dataset, StepData
 
 if TYPE_CHECKING:  # the streamed record builds on this module; only its type is needed here
-    from aatest.sync.streamed import StreamedRecord
+    from aatest.clocksync.streamed import StreamedRecord
 
 #: a paired edge further than this fraction of the pulse period from the fit is inconsistent
 _PAIR_TOLERANCE_PERIODS = 0.25
@@ -131,7 +131,7 @@ class SyncedStep:
     table: Mapping[str, np.ndarray]
     daq: Mapping[str, np.ndarray]
     relation: ClockRelation
-    #: a long record whose table log covers its head only (:mod:`aatest.sync.streamed`):
+    #: a long record whose table log covers its head only (:mod:`aatest.clocksync.streamed`):
     #: the whole DAQ record, read block by block; ``time_s``/``table``/``daq`` are the head
     record: StreamedRecord | None = None
 
@@ -231,7 +231,7 @@ def fit_clock_relation(step_id: str, t_table: np.ndarray, t_daq: np.ndarray,
     """Fit ``t_table = offset + t_daq·(1 + drift)`` over all paired edges (docs/method.md §2 (4)).
 
     ``t_table`` are true (latch-corrected) edge times. Edges are paired in windows that double
-    from the first second (:func:`aatest.sync.edges.pair_edges`), so drifts of hundreds of ppm
+    from the first second (:func:`aatest.clocksync.edges.pair_edges`), so drifts of hundreds of ppm
     still pair correctly; the relation is the least-squares line through the pairs.
 
     Raises
@@ -265,7 +265,7 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
     """The clock relation from edges known only to their registering table sample.
 
     Pairs the edges (their centre estimates), undoes one-sample slips and takes the centre of
-    the set of lines through every edge's interval (:mod:`aatest.sync.edges`). A DAQ edge is
+    the set of lines through every edge's interval (:mod:`aatest.clocksync.edges`). A DAQ edge is
     logged on its first high sample, so the fitted line is that of the DAQ's edge samples; the
     trigger (``(table time of the first row, DAQ time of the trigger)``), generated on one of
     the DAQ's samples, pins it and the offset (:func:`refine_offset` does the same with latch
@@ -386,11 +386,11 @@ def clock_relation(data: StepData,
     without resampling anything (for summaries that need no samples).
 
     ``slope_range``: the slopes (1 + drift) other records of the same DAQ crystal allow
-    (:func:`~aatest.sync.edges.joint_slope_range`); without latch times the step's own range
+    (:func:`~aatest.clocksync.edges.joint_slope_range`); without latch times the step's own range
     is intersected with it, so a short record takes the rate its neighbours pin down.
     """
     if _partial(data):  # a long record the table logged the head of
-        from aatest.sync.streamed import log_pieces, streamed_relation
+        from aatest.clocksync.streamed import log_pieces, streamed_relation
 
         return streamed_relation(data.step, data.table, log_pieces(data.daq))
     time_s = np.asarray(data.daq.time_s, dtype=np.float64)
@@ -402,7 +402,7 @@ def clock_relation(data: StepData,
 
 def _partial(data: StepData) -> bool:
     """Whether the step's table log covers only the head of its record (a finite buffer)."""
-    from aatest.sync.streamed import is_partial
+    from aatest.clocksync.streamed import is_partial
 
     return is_partial(data.step, data.samples("table"), data.samples("daq"))
 
@@ -477,7 +477,7 @@ def synchronise(data: StepData, relation: ClockRelation | None = None) -> Synced
         Table samples covered by the DAQ record, with the DAQ channels on the same instants.
     """
     if _partial(data):  # a long record the table logged the head of: read piece by piece
-        from aatest.sync.streamed import log_pieces, synchronise_streamed
+        from aatest.clocksync.streamed import log_pieces, synchronise_streamed
 
         return synchronise_streamed(data.step, data.table, log_pieces(data.daq), relation)
     daq_time_s = _regular_time(np.asarray(data.daq.time_s, dtype=np.float64),

@@ -38,7 +38,7 @@ report: {template: frequency-response, sign: false}
 """
 #: |drift| ≥ 122 ppm moves the edges ≥ 2 table samples over an 8.2 s record: two crossings of a
 #: table sample in every step, which fix the drift (below that it is only bounded, see
-#: tests/sync/test_unlatched.py::test_small_drift_is_bounded_not_invented)
+#: tests/clocksync/test_unlatched.py::test_small_drift_is_bounded_not_invented)
 CASES = [(150.0, 1), (150.0, 2), (-150.0, 1), (-150.0, 2), (130.0, 3), (-130.0, 3)]
 
 

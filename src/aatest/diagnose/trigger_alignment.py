@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep
 from aatest.recording.dataset import StepData
-from aatest.sync.freeze_pulse import ClockRelation, SyncedStep
 
 _DIGITAL = ("sync_pulse", "trigger")
 #: a digital trigger line (0/1 volts-as-logged) is high above this level

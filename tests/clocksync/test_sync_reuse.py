@@ -5,8 +5,8 @@ from __future__ import annotations
 from scipy.interpolate import CubicSpline
 from synthetic_rig import SynthRig, make_step, sine_step
 
-from aatest.sync import synchronise
-from aatest.sync.freeze_pulse import clock_relation
+from aatest.clocksync import synchronise
+from aatest.clocksync.freeze_pulse import clock_relation
 
 
 def test_relation_from_the_sync_pass_reproduces_the_step_bit_for_bit() -> None:

@@ -14,12 +14,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from aatest.clocksync.edges import joint_slope_range
+from aatest.clocksync.freeze_pulse import clock_relation, rising_edges
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.sync import joint_drift
 from aatest.recording.dataset import StepData
-from aatest.sync.edges import joint_slope_range
-from aatest.sync.freeze_pulse import clock_relation, rising_edges
 from aatest.twin import model as m
 from aatest.twin.api import simulate_dataset
 

@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from aatest.clocksync.freeze_pulse import rising_edges, synchronise
+from aatest.clocksync.streamed import log_pieces, scan_daq
 from aatest.engine.interfaces import TableEnvelope
 from aatest.engine.logs import SampledLog
 from aatest.engine.procedure.envelope import head_step
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.streaming import Moments, StreamedWelch, allan_block
 from aatest.recording.dataset import StepData
-from aatest.sync.freeze_pulse import rising_edges, synchronise
-from aatest.sync.streamed import log_pieces, scan_daq
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.world import World
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from recording_data import sine_step, step_logs
 
+from aatest.clocksync.freeze_pulse import ClockRelation, clock_relation
 from aatest.engine.logs import SampledLog
 from aatest.recording.dataset import StepData
-from aatest.sync.freeze_pulse import ClockRelation, clock_relation
 
 SAMPLES = 200_000  # 100 s at 2 kHz: 10 000 pulse edges
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from aatest.clocksync import synchronise
 from aatest.engine.steps import PlannedStep
 from aatest.metrology.uncertainty.dynamic import LATCHED_OFFSET_U_S
 from aatest.metrology.uncertainty.evidence import _table_start_on_daq
 from aatest.recording.dataset import StepData
-from aatest.sync import synchronise
 from aatest.twin.api import realistic_rig_model, simulate_step
 
 SEEDS = range(10)

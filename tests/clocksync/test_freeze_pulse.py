@@ -11,12 +11,12 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from synthetic_rig import SynthRig, make_dataset, make_step, sine_step
 
+from aatest.clocksync import fit_clock_relation, synchronise, synchronise_all
 from aatest.engine.analysis.passes import run_analysis
 from aatest.engine.errors import AnalysisError
 from aatest.engine.logs import SampledLog
 from aatest.plugins.analysis.sync import SyncOutput
 from aatest.recording.dataset import StepData
-from aatest.sync import fit_clock_relation, synchronise, synchronise_all
 
 
 @pytest.mark.parametrize("drift_ppm", [-40.0, 0.0, 12.0, 250.0], ids=["neg", "zero", "pos", "big"])
