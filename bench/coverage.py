@@ -34,7 +34,7 @@ from scipy import stats
 
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.analysis.results_file import build_results, results_json
-from aatest.engine.procedure.rig_description import Instruments
+from aatest.engine.rig_description import Instruments
 from aatest.engine.run.events import RunEvents, terminal_responder
 from aatest.engine.run.rig import build_rig, sensor_datasheet
 from aatest.engine.run.run_state import open_state

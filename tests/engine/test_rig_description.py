@@ -8,7 +8,7 @@ import pytest
 
 from aatest.engine.errors import ProcedureError
 from aatest.engine.procedure.loader import load_rig
-from aatest.engine.procedure.rig_description import Instruments
+from aatest.engine.rig_description import Instruments
 
 
 def test_unknown_instrument_key_is_located(tmp_path: Path) -> None:

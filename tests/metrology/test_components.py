@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from aatest.engine.procedure.rig_description import Instruments
+from aatest.engine.rig_description import Instruments
 from aatest.metrology.uncertainty import components as comp
 from aatest.metrology.uncertainty.evidence import (
     LINE_SAMPLES,

@@ -8,11 +8,11 @@ import copy
 import pytest
 from contract_results import CHANNELS, decided, make_results
 
+from aatest.engine.analysis.plugins import installed_analyses, listed_analyses
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.metrology.uncertainty import apply_uncertainty
 from aatest.metrology.verdicts import apply_verdicts, failed, overall
-from aatest.metrology.verdicts_missing import listed_analyses
 from aatest.results import RunResults
 from aatest.results.base import Verdict
 
@@ -27,7 +27,8 @@ def _without(*keys: str) -> RunResults:
 def _judged(results: RunResults, acceptance: Acceptance, listed: list[str]) -> RunResults:
     apply_uncertainty(results)
     sheets = {ch: SensorDatasheet(model="sr207-aamu") for ch in CHANNELS}
-    return apply_verdicts(results, sheets, acceptance, listed_analyses(listed))
+    return apply_verdicts(results, sheets, acceptance, listed_analyses(listed),
+                          installed_analyses())
 
 
 def test_a_procedure_limit_without_its_quantity_is_incomplete() -> None:

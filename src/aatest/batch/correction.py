@@ -84,7 +84,7 @@ def load_correction(path: Path) -> ReferenceCorrection:
     InputError
         The file is unreadable or invalid; the message is ``FILE:LINE:COLUMN: field: …``.
     """
-    from aatest.engine.procedure.yaml_loader import load_model_file
+    from aatest.engine.yaml_loader import load_model_file
 
     return load_model_file(path, ReferenceCorrection)
 

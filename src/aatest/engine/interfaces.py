@@ -45,7 +45,7 @@ from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
 
 if TYPE_CHECKING:
-    from aatest.engine.procedure.rig_description import Instruments
+    from aatest.engine.rig_description import Instruments
 
 # The public names; SensorDatasheet is re-exported (sensor plugins return it).
 __all__ = [

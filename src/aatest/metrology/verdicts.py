@@ -219,7 +219,8 @@ def _sheet_of_sensor(sensor: str, sheets: Mapping[str, SensorDatasheet]) -> Sens
 
 
 def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
-          acceptance: Acceptance, listed: Sequence[Listed] = ()) -> list[Verdict]:
+          acceptance: Acceptance, listed: Sequence[Listed] = (),
+          installed: Sequence[Listed] = ()) -> list[Verdict]:
     """Every judged quantity the results contain, in channel order, then the ones not judged.
 
     Parameters
@@ -232,7 +233,11 @@ def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
         The procedure's decision rule, limit overrides and ``judge`` list (defaults: simple,
         datasheet limits, every quantity asked).
     listed
-        The analyses the procedure lists (:func:`.verdicts_missing.listed_analyses`).
+        The analyses the procedure lists
+        (:func:`aatest.engine.analysis.plugins.listed_analyses`).
+    installed
+        Every installed analysis (:func:`aatest.engine.analysis.plugins.installed_analyses`):
+        a quantity nobody listed names the analysis that would produce it.
     """
     chosen = None if acceptance.judge is None else set(acceptance.judge)
 
@@ -252,7 +257,7 @@ def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
         out += [verdict(sensor, item, _sheet_of_sensor(sensor, sheets))
                 for sensor, item in _misalignment(results)]
     out = [v for v in out if chosen is None or v.quantity in chosen]
-    return out + missing(results, out, sheets, acceptance, listed)
+    return out + missing(results, out, sheets, acceptance, listed, installed)
 
 
 def overall(verdicts: Sequence[Verdict]) -> Overall:
@@ -266,9 +271,10 @@ def overall(verdicts: Sequence[Verdict]) -> Overall:
 
 
 def apply_verdicts(results: RunResults, sheets: Mapping[str, SensorDatasheet],
-                   acceptance: Acceptance, listed: Sequence[Listed] = ()) -> RunResults:
+                   acceptance: Acceptance, listed: Sequence[Listed] = (),
+                   installed: Sequence[Listed] = ()) -> RunResults:
     """Judge the results and write ``verdicts`` and ``overall`` into them (in place)."""
-    verdicts = judge(results, sheets, acceptance, listed)
+    verdicts = judge(results, sheets, acceptance, listed, installed)
     results.verdicts = verdicts
     results.overall = overall(verdicts)
     return results

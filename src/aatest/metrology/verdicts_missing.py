@@ -16,7 +16,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from aatest.engine.errors import InputError, PluginError
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.requirements import judges_of, measures_of, needs_text
@@ -47,22 +46,6 @@ class Listed:
     cls: Any
 
 
-def listed_analyses(entries: Sequence[Any]) -> list[Listed]:
-    """The analyses a recording's procedure listed (aliases resolved, each once)."""
-    from aatest.engine.analysis import plugins
-
-    out: dict[str, Listed] = {}
-    for entry in entries:
-        try:
-            name, _options = plugins.split_entry(entry)
-            plugin = plugins.load(name)
-        except (InputError, PluginError) as exc:  # named by the analysis pass already
-            log.debug("%s", exc)
-            continue
-        out.setdefault(plugin.name, Listed(plugin.name, plugin.key, plugin.cls))
-    return list(out.values())
-
-
 def asked(acceptance: Acceptance, listed: Sequence[Listed]) -> list[str]:
     """The quantities the procedure asks to be judged, in the order of ``JUDGED``."""
     wanted: set[str]
@@ -74,26 +57,14 @@ def asked(acceptance: Acceptance, listed: Sequence[Listed]) -> list[str]:
     return [q for q in JUDGED if q in wanted]
 
 
-def _installed() -> list[tuple[str, Any]]:
-    """(name, class) of every installed analysis that loads."""
-    from aatest.engine.analysis import plugins
-
-    out = []
-    for name in plugins.installed_names():
-        try:
-            out.append((name, plugins.load(name).cls))
-        except PluginError:
-            continue
-    return out
-
-
-def _reason(quantity: str, channel: str, results: RunResults, listed: Sequence[Listed]) -> str:
+def _reason(quantity: str, channel: str, results: RunResults, listed: Sequence[Listed],
+            installed: Sequence[Listed]) -> str:
     """Why ``quantity`` has no value: the producing analysis' state and what it needs."""
     producer = next((item for item in listed if quantity in measures_of(item.cls)), None)
     if producer is None:
         names = ", ".join(item.name for item in listed) or "none"
-        hint = next((f"; the analysis '{name}' does" for name, cls in _installed()
-                     if quantity in measures_of(cls)), "")
+        hint = next((f"; the analysis '{item.name}' does" for item in installed
+                     if quantity in measures_of(item.cls)), "")
         return f"no listed analysis produces it (listed: {names}){hint}"
     needs = needs_text(producer.cls)
     if producer.name in results.analysis_errors:
@@ -107,9 +78,11 @@ def _reason(quantity: str, channel: str, results: RunResults, listed: Sequence[L
 
 def missing(results: RunResults, judged: Sequence[Verdict],
             sheets: Mapping[str, SensorDatasheet], acceptance: Acceptance,
-            listed: Sequence[Listed]) -> list[Verdict]:
+            listed: Sequence[Listed], installed: Sequence[Listed] = ()) -> list[Verdict]:
     """A ``not judged`` verdict per asked quantity without a value, and per listed analysis
-    that did not apply (when no other verdict already names it)."""
+    that did not apply (when no other verdict already names it). ``installed`` (every
+    installed analysis, found by the engine) lets a reason name the analysis that would
+    produce a quantity nobody listed."""
     have = {(v.quantity, v.channel) for v in judged}
     have_any = {v.quantity for v in judged}
     out: list[Verdict] = []
@@ -124,7 +97,8 @@ def missing(results: RunResults, judged: Sequence[Verdict],
             out.append(Verdict(
                 quantity=quantity, channel=channel, value=None, limit=limit,
                 rule=acceptance.rule, verdict="not judged", unit=QUANTITY_UNITS[quantity],
-                limit_source=source, reason=_reason(quantity, channel, results, listed)))
+                limit_source=source, reason=_reason(quantity, channel, results, listed,
+                                                    installed)))
     cited = " ".join(v.reason for v in out)
     for item in listed:
         if item.name in results.analysis_skipped and f"'{item.name}'" not in cited:

@@ -100,7 +100,7 @@ def prepare(procedure: Path, rig_file: Path | None, unit: UnitName | None = None
     from aatest.engine.procedure.envelope import check_envelope
     from aatest.engine.procedure.loader import load_rig, parse_procedure, rig_from_procedure
     from aatest.engine.procedure.planner import expand_traced
-    from aatest.engine.procedure.yaml_loader import read_text
+    from aatest.engine.yaml_loader import read_text
 
     text = read_text(procedure)  # read once: the hash recorded is of exactly what was planned
     proc = parse_procedure(text, str(procedure))
@@ -223,15 +223,16 @@ def decide(results: RunResults, data: Dataset) -> RunResults:
     Both stages fill fields of the typed results (validated on assignment, so a stage
     writing a value the models do not allow is an error, not a silent extra).
     """
+    from aatest.engine.analysis.plugins import installed_analyses, listed_analyses
     from aatest.engine.run.rig import datasheets
     from aatest.metrology.uncertainty import apply_uncertainty
     from aatest.metrology.verdicts import apply_verdicts
-    from aatest.metrology.verdicts_missing import listed_analyses
 
     apply_uncertainty(results, data=data)
     return apply_verdicts(results, datasheets(data.metadata, data.sensors),
                           acceptance_of(data.metadata),
-                          listed_analyses(list(data.metadata.get("analysis", []))))
+                          listed_analyses(list(data.metadata.get("analysis", []))),
+                          installed_analyses())
 
 
 def render_and_sign(

@@ -4,7 +4,7 @@ Each function returns the :class:`~aatest.metrology.uncertainty.gum.Input` of on
 reference (encoder accuracy and resolution, reference method, motion distortion), transverse
 motion, mounting misalignment, the logger (offset, gain, resolution), temperature,
 repeatability — quantified from the recording when it shows it (:mod:`.evidence`), else from
-the rig description (:class:`~aatest.engine.procedure.rig_description.Instruments`), else
+the rig description (:class:`~aatest.engine.rig_description.Instruments`), else
 returned as a *not evaluated* row (zero contribution, the reason in the basis). Relative
 inputs are dimensionless (unit ``1``); the measurement models multiply the estimate by
 ``(1 + x)``.

@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Literal
 
-from aatest.engine.procedure.rig_description import Instruments
+from aatest.engine.rig_description import Instruments
 from aatest.results import RunResults
 
 if TYPE_CHECKING:

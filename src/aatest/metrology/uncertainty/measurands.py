@@ -18,7 +18,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from aatest.engine.procedure.rig_description import Instruments
+from aatest.engine.rig_description import Instruments
 from aatest.metrology.uncertainty import components as comp
 from aatest.metrology.uncertainty.clock_window import clock_coverage_input
 from aatest.metrology.uncertainty.components import ARCSEC_RAD
