@@ -227,6 +227,15 @@ def test_engine_imports_no_plugin_twin_or_diagnose(graph: grimp.ImportGraph, pac
     )
 
 
+def test_reports_read_the_typed_record_not_the_recording(graph: grimp.ImportGraph) -> None:
+    """A report presents the results it is handed: it never reads the recording back (the
+    logged temperatures are summarised into the results when the run is analysed)."""
+    _fail_with(
+        "aatest.plugins.report reads the recording",
+        find_forbidden_imports(graph, "aatest.plugins.report", ["aatest.recording"]),
+    )
+
+
 def test_twin_imports_no_plugin(graph: grimp.ImportGraph) -> None:
     """(c) The simulated plugins build on the twin, never the reverse."""
     _fail_with(

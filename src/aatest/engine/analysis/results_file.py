@@ -18,6 +18,7 @@ from pydantic import TypeAdapter, ValidationError
 from aatest.engine.analysis.passes import AnalysisResults
 from aatest.engine.errors import InputError
 from aatest.recording.dataset import Dataset
+from aatest.recording.temperatures import logged_temperature
 from aatest.results import SCHEMA_VERSION, AnalysisBlock, RunResults
 from aatest.storage import Where
 
@@ -68,6 +69,7 @@ def build_results(
         wall_duration_s=wall_duration_s,
         metadata=plain_metadata(meta),
         figures=analysis.figures,
+        logged_temperature=logged_temperature(data),
     )
 
 
