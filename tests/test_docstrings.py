@@ -1,6 +1,8 @@
-"""Every public name of ``aatest.engine`` and ``aatest.results`` is documented, with its units.
+"""Every public name of the engine, the stages it orchestrates and the results is documented,
+with its units (``aatest.engine``, ``aatest.recording``, ``aatest.metrology``, ``aatest.storage``,
+``aatest.bundle``, ``aatest.results``: the packages mypy checks strictly).
 
-Read statically with ``ast`` (nothing is imported), over every module of both packages:
+Read statically with ``ast`` (nothing is imported), over every module of these packages:
 
 - every public class, function and method (no ``_`` in its module path or its own name, not
   nested in a function) has a docstring;
@@ -23,7 +25,7 @@ import pytest
 
 import aatest
 
-PACKAGES = ("engine", "results")
+PACKAGES = ("engine", "recording", "metrology", "storage", "bundle", "results")
 SOURCE_DIR = Path(aatest.__file__).parent
 
 #: unit suffix of a name → the pattern its docstring must contain

@@ -1,4 +1,4 @@
-"""Recording of runs in MCAP, and reading recordings (or import directories) back.
+"""Recorded data: runs in MCAP, measured-data import/export, and reading either back.
 
 This is the one entry point the engine and the CLI use:
 
@@ -18,7 +18,13 @@ decode a recording without aatest. Modules, in the order data flows through them
 - ``stream``    a long record's DAQ chunks spooled as they arrive, then written as its step file;
 - ``writer``    RunRecorder: atomic step files, the merge, storage faults, corrupt-file checks;
 - ``reader``    read_dataset: dispatches each topic on its schema encoding (v2, or v1 through
-  ``legacy_v1``).
+  ``legacy_v1``);
+- ``preview``   the 200 ms preview topics a generic MCAP viewer plots.
+
+Beside them: ``dataset`` (the :class:`~aatest.recording.dataset.Dataset` every analysis reads,
+with lazily decoded steps), ``data/`` (measured data in and out: the CSV import format, NI TDMS
+and ASAM MF4 logger files) and ``temperatures`` (the logged-temperature summary written into
+the results when a run is analysed).
 """
 
 from __future__ import annotations
