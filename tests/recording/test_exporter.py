@@ -116,7 +116,7 @@ def test_amplitude_only_sine_gets_its_peak_acceleration(tmp_path: Path) -> None:
 
 def test_twin_dataset_survives_record_export_import(tmp_path: Path) -> None:
     """Data from the digital twin: recording bit-exact, CSV export bit-exact on float64."""
-    api = pytest.importorskip("aatest.twin.api")
+    from aatest.twin import api
     steps = [
         PlannedStep(id="sine", kind="sine", axis="inner", samples=8192, sample_rate_hz=2000.0,
                     duration_s=4.096, frequency_hz=2.0, cycles=8, accel_dps2=400.0,
@@ -138,7 +138,8 @@ def test_twin_dataset_survives_record_export_import(tmp_path: Path) -> None:
         for log in ("table", "daq"):
             assert_same_channels(getattr(original, log), getattr(rec, log))
             assert_same_channels(getattr(original, log), getattr(imp, log))
-    analyses = pytest.importorskip("aatest.engine.analysis.passes")
+    from aatest.engine.analysis import passes as analyses
+
     on_recording = {k: v.model_dump()
                     for k, v in analyses.run_analyses(recorded, ["sync"]).values.items()}
     on_export = {k: v.model_dump()
