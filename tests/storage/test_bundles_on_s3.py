@@ -22,7 +22,7 @@ from aatest.cli import app
 from aatest.storage import RemotePath, locate
 
 RUNNER = CliRunner()
-PROCEDURE = Path(__file__).parents[3] / "src" / "aatest" / "procedures" / "scale-factor.yaml"
+PROCEDURE = Path(__file__).parents[2] / "src" / "aatest" / "procedures" / "scale-factor.yaml"
 SEED = "4"
 
 

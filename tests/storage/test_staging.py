@@ -14,7 +14,7 @@ import pytest
 
 from aatest.storage import RemotePath, locate, staging_dir
 
-SWEEP = Path(__file__).parents[1] / "data" / "resume-sweep.yaml"
+SWEEP = Path(__file__).parents[1] / "engine" / "data" / "resume-sweep.yaml"
 
 
 def aatest(*args: str) -> subprocess.CompletedProcess[str]:
@@ -63,7 +63,7 @@ def test_a_killed_run_to_s3_stays_local_and_resumes_to_s3(bucket: str) -> None:
     assert len(ids) == 8 and len(set(ids)) == 8, "every step recorded once, none lost"
 
 
-QUICK = Path(__file__).parents[2] / "data" / "procedures" / "quick-sine-3-steps.yaml"
+QUICK = Path(__file__).parents[1] / "data" / "procedures" / "quick-sine-3-steps.yaml"
 
 
 def test_a_failed_upload_keeps_the_run_and_resume_uploads_it(

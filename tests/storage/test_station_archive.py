@@ -15,7 +15,7 @@ from aatest.storage import RemotePath, StorageError, locate
 
 STATION_URL = "http://127.0.0.1:8671"
 STATION_WS = "ws://127.0.0.1:8671/ws"
-QUICK = Path(__file__).parents[2] / "station" / "data" / "quick-scale-factor.yaml"
+QUICK = Path(__file__).parents[1] / "station" / "data" / "quick-scale-factor.yaml"
 
 
 def test_a_station_run_is_uploaded_and_registered_at_the_archive(bucket: str, tmp_path: Path
