@@ -32,7 +32,7 @@ from s3_server import moto_s3
 from aatest.batch.archive import TwinUnit, record_run, register_references
 from aatest.batch.runner import BatchReport, run_batch
 from aatest.batch.selection import Selected, from_prefix, from_store
-from aatest.engine.storage import RemotePath, locate, upload_dir
+from aatest.storage import RemotePath, locate, upload_dir
 from aatest.records.models import RecordFilter
 from aatest.records.store import RecordStore
 

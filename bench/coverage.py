@@ -33,15 +33,15 @@ import numpy as np
 from scipy import stats
 
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import build_results, results_json
-from aatest.engine.procedure.rig_description import Instruments
-from aatest.engine.recording import RunRecorder, read_dataset
+from aatest.engine.analysis.results_file import build_results, results_json
+from aatest.engine.rig_description import Instruments
 from aatest.engine.run.events import RunEvents, terminal_responder
 from aatest.engine.run.rig import build_rig, sensor_datasheet
 from aatest.engine.run.run_state import open_state
 from aatest.engine.run.runner import procedure_sha256, run_metadata, run_plan
 from aatest.engine.run.session import decide, prepare
 from aatest.engine.steps import SensorRef
+from aatest.recording import RunRecorder, read_dataset
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.model import RigModel, dump_rig_model
 from aatest.twin.truth import (

@@ -88,7 +88,7 @@ def _plan(samples: int) -> list[PlannedStep]:
 def export_case(case: str, seed: int, out: Path) -> float:
     """Simulate and export one case to ``out``; return its size on disk (MB)."""
     from aatest.diagnose.scenarios import clean_rig, with_effects
-    from aatest.engine.data.exporter import export_csv
+    from aatest.recording.data.exporter import export_csv
     from aatest.twin.api import simulate_dataset
 
     plan_of, effects, _ = CASES[case]
@@ -100,7 +100,7 @@ def export_case(case: str, seed: int, out: Path) -> float:
 def child(data: Path, profile: Path | None) -> None:
     """Diagnose ``data`` in this (fresh) process; print one JSON line of measurements."""
     from aatest.diagnose.command import diagnose_command
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     start = time.perf_counter()
     read_dataset(data)
@@ -147,8 +147,8 @@ def run_suite(samples: int) -> None:
     """Score the hidden-effect suite (in-process pipeline on exported/imported data)."""
     from aatest.diagnose.pipeline import diagnose_dataset
     from aatest.diagnose.scenarios import judge, scenario_dataset, suite_cases
-    from aatest.engine.data.exporter import export_csv
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
+    from aatest.recording.data.exporter import export_csv
 
     cases, bad = suite_cases(), 0
     for name, hidden, seed in cases:

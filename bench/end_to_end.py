@@ -55,11 +55,11 @@ from tree_memory import TreeMemory  # bench/ is the script's directory, hence on
 
 from aatest.engine import registry
 from aatest.engine.forked import cpu_workers
-from aatest.engine.recording import RECORDING_NAME, RunRecorder
 from aatest.engine.run import session
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import open_state
 from aatest.engine.run.runner import procedure_sha256, run_metadata, run_plan
+from aatest.recording import RECORDING_NAME, RunRecorder
 
 PROCEDURE = Path(__file__).resolve().parents[1] / "src/aatest/procedures" \
     / "stepped-sine-frequency-response.yaml"
@@ -135,8 +135,8 @@ def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> None:
 
 def _analyse_and_report(prepared: Any, out: Path, phases: Phases) -> None:
     from aatest.engine.analysis.passes import run_analyses
-    from aatest.engine.analysis.results import build_results
-    from aatest.engine.recording import read_dataset
+    from aatest.engine.analysis.results_file import build_results
+    from aatest.recording import read_dataset
 
     def analyse() -> tuple[Any, Any]:
         data = read_dataset(out)

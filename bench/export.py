@@ -34,11 +34,11 @@ from pathlib import Path
 import numpy as np
 from recording import _twin_steps  # bench/ is the script's directory, hence on sys.path
 
-from aatest.engine.data import csv_table, exporter
-from aatest.engine.data.exporter import export_csv
-from aatest.engine.data.importer import import_dataset
-from aatest.engine.dataset import Dataset
-from aatest.engine.recording import RunRecorder, read_dataset
+from aatest.recording import RunRecorder, read_dataset
+from aatest.recording.data import csv_table, exporter
+from aatest.recording.data.exporter import export_csv
+from aatest.recording.data.importer import import_dataset
+from aatest.recording.dataset import Dataset
 
 MB = 1e6
 #: ``aatest export --csv`` of the shipped stepped-sine recording when issue 14 was opened, s

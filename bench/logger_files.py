@@ -26,11 +26,11 @@ from pathlib import Path
 import numpy as np
 from recording import _twin_steps  # bench/ is the script's directory, hence on sys.path
 
-from aatest.engine.data.exporter import export_csv
-from aatest.engine.data.logger_export import export_mf4, export_tdms
-from aatest.engine.dataset import Dataset
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import RunRecorder, read_dataset
+from aatest.recording import RunRecorder, read_dataset
+from aatest.recording.data.exporter import export_csv
+from aatest.recording.data.logger_export import export_mf4, export_tdms
+from aatest.recording.dataset import Dataset
 
 MB = 1e6
 EXPORTS: dict[str, Callable[[Dataset, Path], Path]] = {

@@ -25,10 +25,10 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-from aatest.engine.dataset import StepData
 from aatest.engine.logs import SampledLog
-from aatest.engine.recording import RunRecorder, read_dataset
 from aatest.engine.steps import PlannedStep
+from aatest.recording import RunRecorder, read_dataset
+from aatest.recording.dataset import StepData
 from aatest.twin.api import realistic_rig_model, simulate_dataset
 
 MB = 1e6

@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 from s3_server import moto_s3
 
+from aatest.bundle.manifest import file_sha256
 from aatest.engine.logs import DAQ, TABLE, SampledLog
-from aatest.engine.recording import RunRecorder, read_dataset
-from aatest.engine.run.manifest import file_sha256
 from aatest.engine.steps import PlannedStep
-from aatest.engine.storage import FETCHED, RemotePath, locate, upload_dir
+from aatest.recording import RunRecorder, read_dataset
+from aatest.storage import FETCHED, RemotePath, locate, upload_dir
 
 RATE_HZ = 2000.0
 

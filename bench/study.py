@@ -34,15 +34,15 @@ from pathlib import Path
 
 import numpy as np
 
+from aatest.clocksync.freeze_pulse import synchronise_all
 from aatest.engine.analysis.passes import run_analysis
-from aatest.engine.dataset import Dataset
 from aatest.engine.run.session import prepare
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis._common import input_accel_dps2
 from aatest.plugins.analysis.tfest import fit_discrete_tf, time_domain_fit
 from aatest.plugins.analysis.transfer_function import TransferFunctionOptions, split_points
+from aatest.recording.dataset import Dataset
 from aatest.results.frf import FrfPoint
-from aatest.sync.freeze_pulse import synchronise_all
 from aatest.twin.api import realistic_rig_model, simulate_dataset
 from aatest.twin.model import RigModel
 

@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from aatest.engine.analysis.verdicts import apply_verdicts
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.uncertainty import apply_uncertainty
+from aatest.metrology.uncertainty import apply_uncertainty
+from aatest.metrology.verdicts import apply_verdicts
 from aatest.results import RunResults
 
 K_V_PER_DPS2 = 0.004014

@@ -55,7 +55,7 @@ def use_server(monkeypatch: pytest.MonkeyPatch, endpoint: str, tmp_path: Path) -
 
 def new_bucket() -> str:
     """A new, empty bucket on the server the environment names; its name."""
-    from aatest.engine.storage.location import filesystem
+    from aatest.storage.location import filesystem
 
     name = f"lab-{uuid.uuid4().hex[:10]}"
     filesystem("s3").mkdir(name)

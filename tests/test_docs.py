@@ -224,7 +224,7 @@ def test_every_procedure_key_and_step_kind_is_documented() -> None:
 
 
 def test_every_diagnose_effect_is_in_the_vocabulary() -> None:
-    from aatest.diagnose.effects import CANDIDATES
+    from aatest.diagnose.candidates import CANDIDATES
 
     vocabulary = set(re.findall(r"^\| `(\w+)` \|", INTERFACES.read_text(encoding="utf-8"),
                                 flags=re.MULTILINE))

@@ -1,6 +1,8 @@
-"""Every public name of ``aatest.engine`` and ``aatest.results`` is documented, with its units.
+"""Every public name of the engine, the stages it orchestrates and the results is documented,
+with its units (``aatest.engine``, ``aatest.recording``, ``aatest.metrology``, ``aatest.storage``,
+``aatest.bundle``, ``aatest.results``: the packages mypy checks strictly).
 
-Read statically with ``ast`` (nothing is imported), over every module of both packages:
+Read statically with ``ast`` (nothing is imported), over every module of these packages:
 
 - every public class, function and method (no ``_`` in its module path or its own name, not
   nested in a function) has a docstring;
@@ -23,7 +25,7 @@ import pytest
 
 import aatest
 
-PACKAGES = ("engine", "results")
+PACKAGES = ("engine", "recording", "metrology", "storage", "bundle", "results")
 SOURCE_DIR = Path(aatest.__file__).parent
 
 #: unit suffix of a name → the pattern its docstring must contain
@@ -55,10 +57,10 @@ ALLOWED_UNDOCUMENTED: frozenset[str] = frozenset(
 )
 ALLOWED_WITHOUT_UNITS: frozenset[str] = frozenset(
     {
-        "aatest.engine.uncertainty.gum:Input.mean",  # generic: the caller's unit
-        "aatest.engine.uncertainty.statistics:finite_values",  # generic: the caller's unit
-        "aatest.engine.uncertainty.gum:Input.standard_uncertainty",  # generic: the caller's unit
-        "aatest.engine.uncertainty.gum:evaluate",  # generic: the caller's unit
+        "aatest.metrology.uncertainty.gum:Input.mean",  # generic: the caller's unit
+        "aatest.metrology.uncertainty.statistics:finite_values",  # generic: the caller's unit
+        "aatest.metrology.uncertainty.gum:Input.standard_uncertainty",  # generic: the caller's unit
+        "aatest.metrology.uncertainty.gum:evaluate",  # generic: the caller's unit
     }
 )
 
@@ -215,7 +217,7 @@ def test_allow_lists_name_only_current_failures(failures: tuple[dict[str, str], 
 def test_the_whole_of_both_packages_is_read() -> None:
     """Every module of both packages is parsed, including the subpackages."""
     keys = {name.key.partition(":")[0] for name in _all_public_names()}
-    assert {"aatest.engine.errors", "aatest.engine.recording.writer", "aatest.results.base"} <= keys
+    assert {"aatest.engine.errors", "aatest.recording.writer", "aatest.results.base"} <= keys
 
 
 # The checks themselves, on small sources, so a broken checker cannot pass silently.

@@ -6,7 +6,7 @@ OpenBLAS kernel (``OPENBLAS_CORETYPE``) and other SIMD loops in numpy, so sums a
 rounded in another order, and every step that amplifies rounding (an ill-conditioned solve, an
 iterative optimiser's stopping point, a difference of nearly equal numbers) carries that into
 the result. Each rule below names a class of results, the tolerance that follows from how that
-class is computed, and why. Measured on one recording (``engine/data/streaming``) with
+class is computed, and why. Measured on one recording (``recording/data/streaming``) with
 ``OPENBLAS_CORETYPE`` = SkylakeX, Haswell, Zen, Sandybridge and Nehalem and 1 or 2 BLAS
 threads, the largest deviations from the reference were: transfer-function candidates' ``V``
 8.9e-5 relative, their ``fit_pct`` 2e-4 percentage points, second-order-fit uncertainties 6.4e-7

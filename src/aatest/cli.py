@@ -240,7 +240,7 @@ def _json_out(json_out: Path | None, deprecated: Path | None) -> Path | None:
 def _where(target: str | None, exists: bool = True) -> Any:
     """A local path, or a location on object storage (``s3://…``; exit 2 naming a URL that
     does not exist when ``exists``); None stays None."""
-    from aatest.engine.storage import locate, require
+    from aatest.storage import locate, require
 
     if target is None:
         return None
@@ -361,7 +361,7 @@ def run(
 
     unit = session.UnitName(serial or None, model or None)
     target = _where(out, exists=False)
-    from aatest.engine.storage import RemotePath, staging_dir
+    from aatest.storage import RemotePath, staging_dir
 
     # free space is measured where the recording is written: a URL's local staging directory
     local = staging_dir(target) if isinstance(target, RemotePath) else target
@@ -429,7 +429,7 @@ def _print_summary(results: RunResults, bundle: Any, command: str, started: floa
 
 def _exit_on_outcome(results: RunResults) -> None:
     """After everything is written: exit 2 on failed analyses, 1 on a failed verdict."""
-    from aatest.engine.analysis.verdicts import failed
+    from aatest.metrology.verdicts import failed
 
     for name, message in results.analysis_errors.items():
         typer.echo(f"analysis {name}: {message}", err=True)
@@ -476,7 +476,7 @@ def analyze(
             where, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
         )
     if json_out is not None:
-        from aatest.engine.analysis.results import results_json
+        from aatest.engine.analysis.results_file import results_json
 
         json_out.write_text(json.dumps(results_json(results), indent=2), encoding="utf-8")
     _print_summary(results, target, "analyze", started, json_summary)
@@ -492,10 +492,10 @@ def export(
     mf4: Path | None = typer.Option(None, "--mf4", help="Output directory (MF4 + mapping)"),
 ) -> None:
     """Write a recording as CSV + dataset.yaml, or as a TDMS or MF4 file + mapping.yaml."""
-    from aatest.engine.data.exporter import export_csv
-    from aatest.engine.data.logger_export import export_mf4, export_tdms
     from aatest.engine.errors import InputError
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
+    from aatest.recording.data.exporter import export_csv
+    from aatest.recording.data.logger_export import export_mf4, export_tdms
 
     chosen = [(w, d) for w, d in ((export_csv, csv), (export_tdms, tdms), (export_mf4, mf4))
               if d is not None]
@@ -567,8 +567,8 @@ def _keygen_passphrase() -> str:
     import os
     import sys
 
+    from aatest.bundle.signing import SigningError
     from aatest.engine.run.session import PASSPHRASE_ENV
-    from aatest.engine.run.signing import SigningError
 
     secret = os.environ.get(PASSPHRASE_ENV) or (
         typer.prompt("passphrase", hide_input=True, confirmation_prompt=True)
@@ -589,7 +589,7 @@ def keygen(
              "asked); --no-passphrase writes it unencrypted"),
 ) -> None:
     """Create an Ed25519 signing key pair; print its fingerprint (for the lab profile)."""
-    from aatest.engine.run import signing
+    from aatest.bundle import signing
 
     fingerprint = signing.generate_keypair(keyfile, _keygen_passphrase() if passphrase else None)
     typer.echo(f"private key: {keyfile} (mode 0600, "
@@ -608,7 +608,7 @@ def verify(
 ) -> None:
     """Check a signed bundle, its signing key and its record: exit 0 untouched, 1 tampered,
     untrusted or wrong key."""
-    from aatest.engine.run import signing
+    from aatest.bundle import signing
     from aatest.records.attest import signer_lines, trusted_keys
     from aatest.records.commands import simulation_note, verify_against_record
 
@@ -661,6 +661,10 @@ def plugins() -> None:
         for ep in registry.entry_points(kind):
             try:
                 info = registry.load(kind, ep.name)
+                if kind == "effect":  # an effect's declaration is checked by aatest.effects
+                    from aatest.effects import validate_declaration
+
+                    validate_declaration(info.name, info.target, info.distribution)
                 typer.echo(f"  {info.name:24s} {info.distribution} {info.version}")
             except PluginError as exc:
                 typer.echo(f"  {ep.name:24s} BROKEN: {exc}")

@@ -35,16 +35,22 @@ from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from aatest.engine import registry
 from aatest.engine.errors import PluginError
 
-#: the contract vocabulary (docs/interfaces.md §4); a plugin may reuse a name only with
-#: ``shadows = True``
-BUILTIN_EFFECTS = registry.BUILTIN_EFFECTS
+#: the contract's effect vocabulary (docs/interfaces.md §4): an effect plugin may reuse one of
+#: these names only when it declares ``shadows = True``
+BUILTIN_EFFECTS: frozenset[str] = frozenset({
+    "bias_temperature", "scale_temperature", "nonlinearity_cubic", "saturation", "hysteresis",
+    "sensor_dynamics", "time_delay", "clock_drift", "jerk_sensitivity", "g_sensitivity",
+    "cross_axis", "misalignment", "rate_ripple", "motor_vibration", "excess_noise",
+    "amplitude_damping"})
+#: where an effect's contribution may enter the sensor model (:attr:`Effect.enters`)
+EFFECT_DOMAINS = ("acceleration", "voltage")
 
 
 @dataclass(frozen=True)
@@ -182,10 +188,56 @@ class InstalledEffect:
         return self.effect.name
 
 
+def validate_declaration(name: str, target: Any, dist: str) -> None:
+    """An effect plugin's declaration: its name, parameters with units, bounds and domain.
+
+    Checked on the class (nothing is constructed): the entry-point name is the effect's
+    ``name``, a built-in name needs ``shadows = True``, every parameter states a unit, shape
+    parameters are bounded, and ``enters`` / ``attributed_to`` take known values.
+    """
+    who = f"effect plugin {name!r} from distribution {dist!r}"
+    declared = getattr(target, "name", None)
+    if declared != name:
+        raise PluginError(f"{who} calls itself {declared!r}: the entry-point name must be the "
+                          "effect name")
+    if name in BUILTIN_EFFECTS and getattr(target, "shadows", False) is not True:
+        raise PluginError(f"{who} shadows the built-in effect of that name; set "
+                          "'shadows = True' to replace it deliberately")
+    linear = list(getattr(target, "parameters", ()) or ())
+    shape = list(getattr(target, "shape_parameters", ()) or ())
+    if not linear:
+        raise PluginError(f"{who} declares no (linear) parameters")
+    names = [getattr(p, "name", None) for p in linear + shape]
+    if len(set(names)) != len(names):
+        raise PluginError(f"{who} declares a parameter twice: {names}")
+    for p in linear + shape:
+        pname, unit = getattr(p, "name", None), getattr(p, "unit", None)
+        if not (isinstance(pname, str) and pname.isidentifier()):
+            raise PluginError(f"{who}: parameter name {pname!r} is not an identifier")
+        if not (isinstance(unit, str) and unit.strip()):
+            raise PluginError(f"{who}: parameter {pname!r} states no unit (use '1' when "
+                              "dimensionless)")
+    for p in shape:
+        lo, hi = getattr(p, "lower", None), getattr(p, "upper", None)
+        if lo is None or hi is None or not lo < hi:
+            raise PluginError(f"{who}: shape parameter {p.name!r} needs bounds lower < upper")
+    if getattr(target, "enters", None) not in EFFECT_DOMAINS:
+        raise PluginError(f"{who}: 'enters' must be one of {', '.join(EFFECT_DOMAINS)}")
+    if getattr(target, "attributed_to", "sensor") not in ("sensor", "table"):
+        raise PluginError(f"{who}: 'attributed_to' must be 'sensor' or 'table'")
+
+
 def _load(name: str) -> InstalledEffect:
-    """Load one effect (declaration checked by the registry), then construct it."""
+    """Load one effect, check its declaration (:func:`validate_declaration`), construct it."""
+    declared_by = [ep for ep in registry.entry_points("effect") if ep.name == name]
+    if len(declared_by) > 1:  # an effect name is global across distributions
+        dists = sorted(getattr(getattr(ep, "dist", None), "name", None) or "unknown"
+                       for ep in declared_by)
+        raise PluginError(f"effect {name!r} is declared by several distributions "
+                          f"({', '.join(dists)}): uninstall all but one")
     info = registry.load("effect", name)
     target, dist = info.target, info.distribution
+    validate_declaration(name, target, dist)
     if not (isinstance(target, type) and issubclass(target, Effect)):
         raise PluginError(f"effect plugin {name!r} from distribution {dist!r} is not a subclass "
                           "of aatest.effects.Effect")
@@ -324,7 +376,7 @@ def design_columns(tokens: Iterable[str], inputs: EffectInputs,
     return out
 
 
-__all__ = ["BUILTIN_EFFECTS", "Effect", "EffectInputs", "EffectParameter", "Excitation",
-           "InstalledEffect", "column_name", "design_column_names", "design_columns",
-           "evaluate_columns", "forward",
-           "installed_effects", "load_effect", "plugin_names", "refresh", "spec_token"]
+__all__ = ["BUILTIN_EFFECTS", "EFFECT_DOMAINS", "Effect", "EffectInputs", "EffectParameter",
+           "Excitation", "InstalledEffect", "column_name", "design_column_names", "design_columns",
+           "evaluate_columns", "forward", "installed_effects", "load_effect", "plugin_names",
+           "refresh", "spec_token", "validate_declaration"]

@@ -19,9 +19,9 @@ import pytest
 from batch_units import ARCHIVE_UNITS
 from s3_server import moto_server, new_bucket, use_server
 
-from aatest.engine.storage import locate
-from aatest.engine.storage.location import RemotePath
-from aatest.engine.storage.staging import upload_dir
+from aatest.storage import locate
+from aatest.storage.location import RemotePath
+from aatest.storage.staging import upload_dir
 from aatest.records.models import RecordFilter
 from aatest.records.store import RecordStore
 

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.diagnose.scenarios import Hidden, scenario_dataset, without_latch
-from aatest.engine.data.exporter import export_csv
+from aatest.recording.data.exporter import export_csv
 
 
 def diagnose_cli(tmp: Path, hidden: list[Hidden], seed: int, samples: int = 2**14,

@@ -29,7 +29,7 @@ from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.diagnose.scenarios import Hidden, draw_hidden, judge, scenario_dataset
-from aatest.engine.data.exporter import export_csv
+from aatest.recording.data.exporter import export_csv
 
 #: out-of-vocabulary kind → the ``unexplained`` kind that must report it
 OOV_KIND = {"even_order": "static_nonlinearity", "asymmetric_scale": "asymmetry",

@@ -9,7 +9,7 @@ import numpy as np
 
 from aatest.diagnose.command import diagnose_command
 from aatest.diagnose.scenarios import diagnostic_plan, draw_hidden, scenario_dataset
-from aatest.engine.data.exporter import export_csv
+from aatest.recording.data.exporter import export_csv
 from aatest.twin.api import simulate_dataset
 from aatest.twin.model import load_rig_model
 

@@ -5,8 +5,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from aatest.diagnose.alignment import nominal_fit
+from aatest.diagnose.candidates.base import Context
 from aatest.diagnose.design import ChannelInfo
-from aatest.diagnose.effects.base import Context
 from aatest.diagnose.replay import fit_axis_motion, replay_dataset
 from aatest.diagnose.scenarios import scenario_dataset
 

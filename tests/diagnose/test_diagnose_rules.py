@@ -92,8 +92,8 @@ def _without_table_pulse(directory) -> None:
 
 @pytest.mark.parametrize("drift_ppm", [120.0])
 def test_without_sync_edges_drift_comes_from_the_phase_trend(tmp_path, drift_ppm: float) -> None:
-    from aatest.engine.data.exporter import export_csv
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
+    from aatest.recording.data.exporter import export_csv
 
     hidden = [Hidden("clock_drift", {"drift_ppm": drift_ppm}, ())] if drift_ppm else []
     export_csv(scenario_dataset(hidden, 37, SAMPLES), tmp_path)

@@ -87,7 +87,7 @@ def test_clean_data_give_nothing(tmp_path: Path) -> None:
 def test_found_beside_a_builtin_effect(tmp_path: Path) -> None:
     """Twin data with the plugin effect and a bias temperature coefficient at once."""
     from aatest.diagnose.scenarios import clean_rig, diagnostic_plan
-    from aatest.engine.data.exporter import export_csv
+    from aatest.recording.data.exporter import export_csv
     from aatest.twin.api import simulate_dataset
 
     rig = clean_rig(9)

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from aatest.diagnose.effects.logger import WELCH_SEGMENT
+from aatest.diagnose.candidates.logger import WELCH_SEGMENT
 from aatest.diagnose.logger_chain import DEFAULT_ANTIALIAS_HZ, estimate_corner_hz, stated_antialias
-from aatest.engine.dataset import Dataset
 from aatest.engine.errors import ProcedureError
+from aatest.recording.dataset import Dataset
 from aatest.twin.daq import antialias_filter
 
 FS_HZ = 2000.0

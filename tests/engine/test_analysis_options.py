@@ -88,11 +88,10 @@ def test_options_survive_export_and_import(tmp_path: Path) -> None:
     """``aatest analyze`` on an exported directory re-runs the analyses with their options."""
     from dataclasses import replace
 
-    from aatest.engine.data.exporter import export_csv
-    from aatest.engine.data.importer import import_dataset
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "plugins" / "analysis"))
     from synthetic_rig import SynthRig, make_dataset, static_step
+
+    from aatest.recording.data.exporter import export_csv
+    from aatest.recording.data.importer import import_dataset
 
     entries = ["sync", {"scale_factor": {"reference": "central", "orders": [1, 4]}}]
     data = make_dataset([static_step("t", 0, 0, samples=1024)], SynthRig())

@@ -3,12 +3,11 @@ plugin classes are checked when loaded; cycles and unknown requirements are plug
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 from typing import Any
 
 import pytest
 from pydantic import BaseModel, ConfigDict
+from synthetic_rig import SynthRig, make_dataset, sine_step, static_step
 
 from aatest.engine import registry
 from aatest.engine.analysis import plugins
@@ -16,9 +15,6 @@ from aatest.engine.analysis.passes import order, run_analyses
 from aatest.engine.errors import PluginError
 from aatest.engine.interfaces import AnalysisOutput, NoOptions
 from aatest.results.base import ResultModel
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "plugins" / "analysis"))
-from synthetic_rig import SynthRig, make_dataset, sine_step, static_step
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,6 @@ import pytest
 from pydantic import ValidationError
 from ruamel.yaml import YAML
 
-from aatest.engine.data.importer import DatasetManifest
 from aatest.engine.datasheet import (
     REFERENCE_RANGE_DPS2,
     REFERENCE_SCALE_V_PER_DPS2,
@@ -19,6 +18,7 @@ from aatest.engine.datasheet import (
 )
 from aatest.engine.interfaces import RigContext, SharedResources
 from aatest.engine.steps import SensorRef
+from aatest.recording.data.importer import DatasetManifest
 
 ROOT = Path(__file__).parents[2]
 SRC = ROOT / "src" / "aatest"

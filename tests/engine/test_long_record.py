@@ -27,10 +27,10 @@ from aatest.engine.interfaces import (
 )
 from aatest.engine.logs import SampledLog
 from aatest.engine.procedure.envelope import head_step, step_violations, streams_record
-from aatest.engine.recording import read_dataset
-from aatest.engine.recording.writer import RunRecorder
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.daq.sim import SimDaq
+from aatest.recording import read_dataset
+from aatest.recording.writer import RunRecorder
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.world import World
 

@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 
 from aatest.engine import registry
-from aatest.engine.analysis.results import write_results
+from aatest.engine.analysis.results_file import write_results
 from aatest.engine.errors import InputError
 from aatest.engine.interfaces import PdfRenderer, Reporter
 from aatest.engine.run import session

@@ -145,7 +145,7 @@ def test_validate_json_lists_every_check_with_status_and_message(tmp_path: Path)
 
 def test_a_key_that_does_not_open_fails_before_motion(
         tmp_path: Path, sent: Counter[str], monkeypatch: pytest.MonkeyPatch) -> None:
-    from aatest.engine.run.signing import generate_keypair
+    from aatest.bundle.signing import generate_keypair
 
     key = tmp_path / "key.pem"
     generate_keypair(key, "right passphrase")

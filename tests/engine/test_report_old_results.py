@@ -17,7 +17,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.engine.analysis.results import read_results
+from aatest.engine.analysis.results_file import read_results
 
 SHIPPED = Path(__file__).resolve().parents[2] / "src/aatest/procedures/scale-factor.yaml"
 RUNNER = CliRunner()

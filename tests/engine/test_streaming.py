@@ -1,11 +1,11 @@
 """Bounded memory: a recording is read one step at a time, and the results do not change.
 
-``data/streaming/recording.mcap`` is a small stepped-sine run (``stepped-sine-small.yaml`` on
-the twin, seed 3); ``reference.json`` holds the steps and analysis of its ``results.json`` as
-the eager reader (every step decoded up front, commit a7a1300) computed them — except the FRF
-points' ratio and the transfer function fitted to it, re-written by this reader when the FRF
-ratio became the mean of Hann-weighted segments (its own values, so the equality of those
-blocks is pinned from then on, not against the eager reader).
+``tests/recording/data/streaming/recording.mcap`` is a small stepped-sine run
+(``stepped-sine-small.yaml`` on the twin, seed 3); ``reference.json`` holds the steps and
+analysis of its ``results.json`` as the eager reader (every step decoded up front, commit
+a7a1300) computed them — except the FRF points' ratio and the transfer function fitted to it,
+re-written by this reader when the FRF ratio became the mean of Hann-weighted segments (its own
+values, so the equality of those blocks is pinned from then on, not against the eager reader).
 """
 
 from __future__ import annotations
@@ -20,12 +20,12 @@ import pytest
 from tolerances import leaves, mismatches
 
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import build_results, results_json
-from aatest.engine.dataset import LazySteps
-from aatest.engine.recording import read_dataset, reader
+from aatest.engine.analysis.results_file import build_results, results_json
 from aatest.plugins.analysis.sync import SyncedSteps
+from aatest.recording import read_dataset, reader
+from aatest.recording.dataset import LazySteps
 
-DATA = Path(__file__).parent / "data" / "streaming"
+DATA = Path(__file__).parents[1] / "recording" / "data" / "streaming"
 RECORDING = DATA / "recording.mcap"
 
 
@@ -64,7 +64,7 @@ def _summary() -> Any:
 def _step_record(k: int) -> dict[str, Any]:
     from mcap.reader import make_reader
 
-    from aatest.engine.recording import format as fmt
+    from aatest.recording import format as fmt
 
     with open(RECORDING, "rb") as stream:
         records = [fmt.from_json_values(dict(r.metadata))
@@ -141,7 +141,7 @@ def test_streamed_results_equal_the_eager_reference() -> None:
            if not k.endswith((".fit_coverage", ".extrapolation_u_s"))}
     # redefined after it (issue 31 item 5): offset_u_s is now the clock alignment's own
     # standard uncertainty (0.2 µs with latch times, checked against the twin's truth in
-    # tests/sync), no longer the 144 µs edge spread; the FRF points' stated u_gain/u_phase/
+    # tests/clocksync), no longer the 144 µs edge spread; the FRF points' stated u_gain/u_phase/
     # u_delay are the local noise of the ratio, no longer an average over the motor band
     got = {k: v for k, v in got.items()
            if not k.endswith((".offset_u_s", ".u_gain_db", ".u_phase_deg", ".u_delay_s"))}
@@ -154,8 +154,8 @@ def test_streamed_results_equal_the_eager_reference() -> None:
 
 def test_partial_step_decodes_only_the_named_channels() -> None:
     """The sync pass reads only the pulses; its clock relation is the full step's."""
+    from aatest.clocksync.freeze_pulse import clock_relation
     from aatest.plugins.analysis.sync import _SYNC_CHANNELS
-    from aatest.sync.freeze_pulse import clock_relation
 
     steps = read_dataset(RECORDING).steps
     assert isinstance(steps, LazySteps)
@@ -173,8 +173,8 @@ def test_every_step_is_decoded_once_for_all_analyses_and_the_evidence(tmp_path: 
     decoded once — by this process or by one of the pass's forked workers: the decodes are
     counted in a file all of them append to — and every value equals that of the same steps
     held in memory."""
-    from aatest.engine.dataset import Dataset
-    from aatest.engine.uncertainty.evidence import gather
+    from aatest.metrology.uncertainty.evidence import gather
+    from aatest.recording.dataset import Dataset
 
     data = read_dataset(RECORDING)
     steps = data.steps

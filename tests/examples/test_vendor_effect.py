@@ -32,7 +32,7 @@ GENERATE = """\
 import sys
 from pathlib import Path
 from aatest.diagnose.scenarios import clean_rig, diagnostic_plan
-from aatest.engine.data.exporter import export_csv
+from aatest.recording.data.exporter import export_csv
 from aatest.twin.api import simulate_dataset
 from aatest.twin.model import PluginEffect
 

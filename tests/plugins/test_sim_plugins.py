@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from pydantic import ValidationError
+from twin_steps import sine_step, static_step
 
 from aatest.engine.errors import EnvelopeRefused, PluginError, RigFault
 from aatest.engine.interfaces import Chamber, Daq, RigContext, SensorDatasheet, Turntable
@@ -22,9 +22,6 @@ from aatest.plugins.turntable.sim import SimTurntable
 from aatest.twin.api import nominal_rig_model
 from aatest.twin.model import dump_rig_model
 from aatest.twin.session import TwinSession
-
-sys.path.insert(0, str(Path(__file__).parents[1] / "twin"))
-from twin_steps import sine_step, static_step
 
 
 def _rig(model: str = "sr207-aamu", seed: int = 7, **table_opts: object):

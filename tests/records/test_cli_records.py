@@ -121,7 +121,7 @@ def test_verify_reports_a_recording_changed_after_registration(
 def test_verify_reports_a_certificate_number_edited_and_resigned(
         sqlite_url: str, tmp_path: Path) -> None:
     """Re-signing a doctored results.json passes the signature check, but not the record."""
-    from aatest.engine.run import signing
+    from aatest.bundle import signing
 
     assert aatest("keygen", "--no-passphrase", tmp_path / "key")[0] == 0
     out = tmp_path / "doctored"

@@ -24,8 +24,9 @@ from typing import Any
 import pytest
 from sqlalchemy import select
 
+from aatest.bundle import signing
 from aatest.engine.errors import PluginError
-from aatest.engine.run import session, signing
+from aatest.engine.run import session
 from aatest.plugins.report import html
 from aatest.records import store as store_module
 from aatest.records.hook import registering
@@ -125,7 +126,8 @@ def test_a_failure_at_any_stage_leaves_no_trace(
 KILLED = """
 import copy, os, signal, sys
 from pathlib import Path
-from aatest.engine.run import session, signing
+from aatest.bundle import signing
+from aatest.engine.run import session
 from aatest.records.hook import registering
 from aatest.records.lab import LabProfile
 

@@ -84,6 +84,7 @@ ADDITIONS: tuple[tuple[str, str], ...] = (
      r"extrapolation_u_s)$", "sync without latch times and on a partial table log"),
     (r"^verdicts\[\d+\]\.(limit_source|reason)$", "where a limit came from; why not judged"),
     (r"^analysis\.bias\.[^.]+\.(setpoints|temperature_c)$", "bias per chamber set-point"),
+    (r"^logged_temperature$", "the logged temperatures, summarised for the certificate"),
 )
 
 

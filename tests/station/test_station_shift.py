@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 from conftest import Station, running_station, shot
 
-from aatest.engine.run import signing
+from aatest.bundle import signing
 
 pytestmark = pytest.mark.browser
 

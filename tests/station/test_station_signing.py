@@ -15,8 +15,8 @@ import pytest
 from starlette.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
+from aatest.bundle import signing
 from aatest.engine.errors import AatestError
-from aatest.engine.run import signing
 from aatest.station import StationOptions, build
 from aatest.station.app import POLICY_VIOLATION, parse_command
 

@@ -6,7 +6,7 @@ import numpy as np
 from twin_steps import static_step
 
 from aatest.engine.procedure.loader import RigConfig
-from aatest.engine.procedure.rig_description import Instruments, LoggerSpec
+from aatest.engine.rig_description import Instruments, LoggerSpec
 from aatest.engine.run.rig import build_rig
 from aatest.engine.steps import SensorRef
 from aatest.twin.api import simulate_step

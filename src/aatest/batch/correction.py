@@ -11,7 +11,7 @@ found, as the reference's recalibration certificate states it:
 - a data logger whose reading was ``(1 + g)`` times the true voltage (and ``offset_v`` above
   it): every sensor voltage channel it recorded was ``(1 + g)·V + offset_v``.
 
-:func:`corrected` undoes exactly that on a :class:`~aatest.engine.dataset.Dataset` as each
+:func:`corrected` undoes exactly that on a :class:`~aatest.recording.dataset.Dataset` as each
 step is decoded (the recording on disk is never changed), so the unchanged analyses then
 compute what the run would have given with a correct reference.
 """
@@ -25,8 +25,8 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from aatest.engine.dataset import Dataset, LazySteps, StepData
 from aatest.engine.logs import SampledLog
+from aatest.recording.dataset import Dataset, LazySteps, StepData
 
 #: table channels an angle encoder's scale error scales (by the naming of ``TABLE_CHANNELS``)
 ENCODER_SUFFIXES = ("_position_deg", "_rate_dps", "_accel_dps2", "_feedback_deg")
@@ -84,7 +84,7 @@ def load_correction(path: Path) -> ReferenceCorrection:
     InputError
         The file is unreadable or invalid; the message is ``FILE:LINE:COLUMN: field: …``.
     """
-    from aatest.engine.procedure.yaml_loader import load_model_file
+    from aatest.engine.yaml_loader import load_model_file
 
     return load_model_file(path, ReferenceCorrection)
 

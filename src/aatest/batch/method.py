@@ -27,8 +27,8 @@ from aatest.batch.correction import ReferenceCorrection
 Mode = Literal["analyze", "diagnose"]
 
 #: packages (relative to the aatest package) whose source decides a re-analysis' result
-_RESULT_CODE = ("engine/analysis", "engine/uncertainty", "engine/recording", "engine/data",
-                "plugins/analysis", "diagnose", "results", "sync", "batch/correction.py",
+_RESULT_CODE = ("engine/analysis", "metrology", "recording",
+                "plugins/analysis", "diagnose", "results", "clocksync", "batch/correction.py",
                 "batch/task.py")
 
 

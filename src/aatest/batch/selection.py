@@ -19,7 +19,7 @@ from typing import Any
 from sqlalchemy import Text, cast, select
 
 from aatest.engine.errors import InputError
-from aatest.engine.recording.writer import RECORDING_NAME
+from aatest.recording.writer import RECORDING_NAME
 from aatest.records.models import CalibrationRecord, RecordFilter
 from aatest.records.references import REFERENCES_KEY
 from aatest.records.store import RecordStore
@@ -82,7 +82,7 @@ def from_store(store: RecordStore, where: RecordFilter,
 def from_prefix(prefix: str, store: RecordStore | None) -> list[Selected]:
     """Every ``recording.mcap`` under ``prefix`` (a directory or fsspec URL), sorted.
 
-    A URL is opened with aatest's storage options (:mod:`aatest.engine.storage`: the
+    A URL is opened with aatest's storage options (:mod:`aatest.storage`: the
     ``AATEST_S3_ENDPOINT`` and credentials the rest of aatest uses), so a prefix on a lab's
     S3-compatible server lists the same objects ``aatest analyze`` would read.
 
@@ -91,8 +91,8 @@ def from_prefix(prefix: str, store: RecordStore | None) -> list[Selected]:
     InputError
         Nothing can be listed there, or no recording is found.
     """
-    from aatest.engine.storage import locate
-    from aatest.engine.storage.location import RemotePath, StorageError
+    from aatest.storage import locate
+    from aatest.storage.location import RemotePath, StorageError
 
     where = locate(prefix)
     try:

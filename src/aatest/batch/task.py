@@ -15,7 +15,7 @@ from typing import Any
 
 from aatest.batch.correction import ReferenceCorrection, corrected
 from aatest.batch.method import Mode
-from aatest.engine.dataset import Dataset
+from aatest.recording.dataset import Dataset
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,7 @@ class Task:
 def local_path(location: str) -> str | Path:
     """A local path for ``file://`` URLs and plain paths; other URLs are handed on as they are
     (the recording reader opens them with aatest's storage options)."""
-    from aatest.engine.storage import locate
+    from aatest.storage import locate
 
     where = locate(location)
     return where if isinstance(where, Path) else location
@@ -40,7 +40,7 @@ def local_path(location: str) -> str | Path:
 
 def open_dataset(task: Task) -> Dataset:
     """The task's recording as a dataset, as a correct reference would have recorded it."""
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     fix = None if task.correction is None else ReferenceCorrection.model_validate(
         task.correction)
@@ -50,7 +50,7 @@ def open_dataset(task: Task) -> Dataset:
 def analyse(data: Dataset) -> dict[str, Any]:
     """``aatest analyze`` without writing: results, key quantities and verdicts as JSON."""
     from aatest.engine.analysis.passes import run_analyses
-    from aatest.engine.analysis.results import build_results, results_json
+    from aatest.engine.analysis.results_file import build_results, results_json
     from aatest.engine.run.session import decide
     from aatest.engine.simulation import KIND_KEY, kind_of, metadata_of
     from aatest.records import extract

@@ -4,7 +4,7 @@ Flow (docs/interfaces.md §4, issue 5)::
 
     read_dataset ─ replay (sync, commanded motion aligned on the table log)
       ─ nominal fit (bias, K, logger filter, ±1-sample alignment) ─ residual views
-      ─ candidates (effects/: linear by least squares, shape by bounded optimisation)
+      ─ candidates (candidates/: linear by least squares, shape by bounded optimisation)
       ─ forward selection (held-out ΔBIC, materiality, physics vetoes) ─ findings
       ─ generic extensions for what remains (α², |α|, lines, trend, step) ─ unexplained
       ─ backward pass on the joint model (withdraw what it does not need, marginal evidence)

@@ -25,8 +25,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from aatest.diagnose.candidates.base import Context, scalar_search
 from aatest.diagnose.design import Fit, Spec, step_columns
-from aatest.diagnose.effects.base import Context, scalar_search
 
 
 def nominal_fit(ctx: Context, base: Spec | None = None) -> Fit:
@@ -56,11 +56,11 @@ def warp_freedom_ppm(ctx: Context) -> tuple[float, float] | None:
     """Warps (ppm) of the replay the sync edges leave open: None when they resolve the rate.
 
     The replay is synchronised at the centre of the drifts every step's edge intervals allow
-    (:func:`~aatest.sync.edges.joint_slope_range`); a warp ``w`` of the prediction stands for a
-    drift ``centre − w`` (:func:`~aatest.diagnose.effects.logger.phase_trend_drift`), so the
+    (:func:`~aatest.clocksync.edges.joint_slope_range`); a warp ``w`` of the prediction stands for a
+    drift ``centre − w`` (:func:`~aatest.diagnose.candidates.logger.phase_trend_drift`), so the
     open warps are the range mirrored about the centre.
     """
-    from aatest.diagnose.effects.logger import clock_drift
+    from aatest.diagnose.candidates.logger import clock_drift
 
     est = clock_drift(ctx)
     if est is None or est.range_ppm is None:

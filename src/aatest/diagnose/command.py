@@ -17,7 +17,7 @@ from typing import Any
 from aatest.diagnose.model_out import extended_model, write_model
 from aatest.diagnose.pipeline import diagnose_dataset
 from aatest.engine import registry
-from aatest.engine.storage import Where, locate
+from aatest.storage import Where, locate
 
 
 def _clean(value: Any) -> Any:
@@ -72,7 +72,7 @@ def summary(doc: dict[str, Any]) -> str:
 def _render_report(doc: dict[str, Any], figures: dict[str, str], out_dir: Where) -> None:
     """Render the diagnosis report when the plugin exists; never fail diagnose over it
     (a run on object storage gets it rendered locally and uploaded beside the recording)."""
-    from aatest.engine.storage import staged
+    from aatest.storage import staged
 
     try:
 
@@ -96,7 +96,7 @@ def diagnose_command(data: Where | str, json_out: Path | None,
         The findings, then the ``unexplained`` entries (contract dicts): empty when the
         nominal model explains the data.
     """
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     data = locate(data)  # a path, or a URL whose recording is streamed (docs/storage.md)
     dataset = read_dataset(data)

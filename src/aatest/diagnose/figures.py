@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from aatest.diagnose.effects.base import Context
+from aatest.diagnose.candidates.base import Context
 
 
 def _svg(fig: Figure) -> str:

@@ -13,10 +13,10 @@ import numpy as np
 from scipy import signal
 
 from aatest.diagnose.alignment import nominal_fit
+from aatest.diagnose.candidates.base import Context
 from aatest.diagnose.design import ChannelInfo, predict
-from aatest.diagnose.effects.base import Context
 from aatest.diagnose.replay import Replay
-from aatest.engine.dataset import Dataset
+from aatest.recording.dataset import Dataset
 from aatest.twin.daq import antialias_filter
 
 #: the logger pre-sample filter of the documented rig (docs/method.md §1.3), tried when unstated
@@ -80,7 +80,7 @@ def residual_noise_psd(ctx: Context, at_rest: bool = False
     noise alone, whereas an unexplained effect on a moving step (clipping, hysteresis, table
     ripple) puts harmonics of the motion into the band and bends the noise shape like a filter.
     """
-    from aatest.diagnose.effects.logger import WELCH_SEGMENT, residual_psd
+    from aatest.diagnose.candidates.logger import WELCH_SEGMENT, residual_psd
 
     fit = nominal_fit(ctx)
     pred = predict(ctx.replay, ctx.info, fit)

@@ -13,15 +13,15 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from aatest.diagnose.alignment import nominal_fit
-from aatest.diagnose.design import Fit, predict
-from aatest.diagnose.effects.base import Context, replace_spec
-from aatest.diagnose.effects.logger import (
+from aatest.diagnose.candidates.base import Context, replace_spec
+from aatest.diagnose.candidates.logger import (
     DEFAULT_CLOCK_TOLERANCE_PPM,
     clock_drift,
     excess_noise,
     one_clock_fit,
     phase_trend_drift,
 )
+from aatest.diagnose.design import Fit, predict
 from aatest.diagnose.figures import residual_figures
 from aatest.diagnose.logger_chain import channel_info, logger_options, targets_of
 from aatest.diagnose.noise_floor import EXPLAINED_RATIO, METHOD, NoiseFloor, noise_floor
@@ -38,7 +38,7 @@ from aatest.diagnose.selection import (
 )
 from aatest.diagnose.story import residual_entry, verdict
 from aatest.diagnose.unexplained import Outcome, explain, held_out_rmse, joint_residuals
-from aatest.engine.dataset import Dataset
+from aatest.recording.dataset import Dataset
 
 
 def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,

@@ -18,9 +18,9 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
+from aatest.diagnose.candidates.base import Context, linear_ci
+from aatest.diagnose.candidates.plugins import joint_parameters
 from aatest.diagnose.design import Spec
-from aatest.diagnose.effects.base import Context, linear_ci
-from aatest.diagnose.effects.plugins import joint_parameters
 from aatest.diagnose.selection import BIC_THRESHOLD, SHAPE_PARAMS, Finding
 from aatest.effects import spec_token
 

@@ -16,11 +16,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, StepData
+from aatest.clocksync.edges import joint_slope_range
+from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
 from aatest.engine.errors import AnalysisError
 from aatest.engine.steps import PlannedStep
-from aatest.sync.edges import joint_slope_range
-from aatest.sync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
+from aatest.recording.dataset import Dataset, StepData
 from aatest.twin import kinematics as kin
 
 #: samples of analytic motion computed beyond each end of a record, so that delays and
@@ -334,7 +334,7 @@ def _relations(dataset: Dataset) -> list[tuple[StepData, ClockRelation | None]]:
     on a fast sine the phase then slides by a visible fraction of a sample through the record —
     structure no sensor has. One crystal drives the DAQ through every step, so each step's
     relation is refitted inside the rates all steps allow together
-    (:func:`~aatest.sync.edges.joint_slope_range`); the offsets left open stay a nuisance of
+    (:func:`~aatest.clocksync.edges.joint_slope_range`); the offsets left open stay a nuisance of
     the nominal fit (:mod:`aatest.diagnose.alignment`).
     """
     recorded = [d for d in dataset.steps if d.step.recorded]
@@ -354,6 +354,6 @@ def _synchronised(data: StepData, relation: ClockRelation | None) -> SyncedStep 
             return synchronise(data, relation)
         except AnalysisError:
             pass
-    from aatest.diagnose.trigger_sync import trigger_aligned
+    from aatest.diagnose.trigger_alignment import trigger_aligned
 
     return trigger_aligned(data)

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from aatest.diagnose.effects.base import Context
+from aatest.diagnose.candidates.base import Context
 from aatest.diagnose.generic import SEEN_BY_TABLE, table_line_dps2
 from aatest.diagnose.noise_floor import NoiseFloor
 from aatest.diagnose.replay import StepReplay, sensor_acceleration

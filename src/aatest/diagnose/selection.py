@@ -23,10 +23,10 @@ import numpy as np
 from scipy import optimize
 
 from aatest.diagnose.alignment import realigned
+from aatest.diagnose.candidates import Candidate, vocabulary
+from aatest.diagnose.candidates.base import CandidateFit, Context, dynamic_peak_dps2
+from aatest.diagnose.candidates.shape import DAMPING_BOUNDS, MAX_DELAY_S, MAX_NATURAL_HZ
 from aatest.diagnose.design import Fit, Spec, predict
-from aatest.diagnose.effects import Candidate, vocabulary
-from aatest.diagnose.effects.base import CandidateFit, Context, dynamic_peak_dps2
-from aatest.diagnose.effects.shape import DAMPING_BOUNDS, MAX_DELAY_S, MAX_NATURAL_HZ
 
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.003

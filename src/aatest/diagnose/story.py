@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from aatest.diagnose.effects.base import Context
+from aatest.diagnose.candidates.base import Context
 from aatest.diagnose.noise_floor import EXPLAINED_RATIO, NoiseFloor
 from aatest.diagnose.residuals import spectrum_lines
 

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from aatest.diagnose.candidates.base import Context
 from aatest.diagnose.design import (
     Fit,
     Gram,
@@ -29,7 +30,6 @@ from aatest.diagnose.design import (
     fold_of,
     step_columns,
 )
-from aatest.diagnose.effects.base import Context
 from aatest.diagnose.generic import Proposal, proposals
 from aatest.diagnose.refit import backward_pass
 from aatest.diagnose.replay import StepReplay

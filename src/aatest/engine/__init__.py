@@ -1,21 +1,27 @@
-"""The engine: from a procedure file to a recorded, analysed run.
+"""The engine: orchestration from a procedure file to a recorded, analysed, decided run.
 
-Package map (data flows top to bottom):
+Package map. The shared records first (imported by the stages below the engine too), then the
+orchestration (which calls :mod:`aatest.recording`, :mod:`aatest.metrology`,
+:mod:`aatest.bundle` and :mod:`aatest.storage`):
 
-- ``errors``       the one exception tree (``AatestError``) and the CLI exit codes
-- ``steps``, ``logs``, ``dataset``  the shared records: planned steps, raw logs, analysis input
-- ``datasheet``    the sensor datasheet and the per-channel sensor record (every sensor number
-                   and its default defined once)
-- ``interfaces``   one ``Protocol`` per plugin kind, the rig context, the table envelope
-- ``registry``     installed plugins by entry-point group, validated when loaded
-- ``procedure/``   procedure YAML → pydantic models (with FILE:LINE:COLUMN errors) → plan →
-                   envelope check; the JSON Schema export
-- ``run/``         rig life cycle (safe stop on any fault), step loop with resume, run state,
-                   signatures, and ``session`` (what each command does end to end)
-- ``recording/``   MCAP recording: per-step crash-safe files, the merged recording, reading back
-- ``data/``        measured-data import and CSV export (the import format)
-- ``analysis/``    the analysis pass over a dataset (ordered by what each analysis requires) and
-                   the typed ``results.json`` (models in ``aatest.results``)
+- ``errors``          the one exception tree (``AatestError``) and the CLI exit codes
+- ``steps``, ``logs`` the shared records: planned steps, raw sampled logs
+- ``datasheet``       the sensor datasheet and the per-channel sensor record (every sensor
+                      number and its default defined once)
+- ``rig_description`` the rig's stated accuracies (``rig.yaml`` / ``dataset.yaml``)
+- ``yaml_loader``     safe YAML with line/column positions of every node
+- ``interfaces``      one ``Protocol`` per plugin kind, the rig context, the table envelope
+- ``requirements``    what an analysis needs from a plan, declared by the analysis
+- ``simulation``      which runs are simulations (never calibrations)
+- ``registry``        installed plugins by entry-point group, validated when loaded
+- ``procedure/``      procedure YAML → pydantic models (with FILE:LINE:COLUMN errors) → plan →
+                      envelope check; the JSON Schema export
+- ``plan_checks``     preflight checks of a procedure and its plan
+- ``run/``            rig life cycle (safe stop on any fault), step loop with resume, run state,
+                      and ``session`` (what each command does end to end)
+- ``analysis/``       the analysis pass over a dataset (ordered by what each analysis
+                      requires) and the typed ``results.json`` (models in ``aatest.results``)
+- ``forked``          map a function over forked worker processes (the analysis pass)
 
 The engine never imports a plugin module: plugins are found through entry points only.
 """

@@ -4,7 +4,7 @@ A sensor plugin describes a sensor *model* with one :class:`SensorDatasheet`; th
 it into one :class:`SensorInfo` per channel (:meth:`SensorDatasheet.sensor_infos`). That record
 is what a recording stores in its metadata, what ``dataset.yaml`` of the import format lists
 under ``sensors`` (docs/interfaces.md §3) and what every analysis reads from the
-:class:`~aatest.engine.dataset.Dataset`. Both models take the per-channel fields from
+:class:`~aatest.recording.dataset.Dataset`. Both models take the per-channel fields from
 :class:`SensorNominals`, so each number has one name, one unit and one default.
 
 The defaults describe the reference sensor class of docs/method.md §1.3 (the SR207-class servo

@@ -4,7 +4,7 @@ Why processes: the analysis pass's per-step work (parsing the recorded blocks, t
 around the FFTs and splines) holds the GIL, so threads side by side gained ≤ 5 % (measured,
 stepped sine on the 2-core machine) while two processes use both cores. Why fork: the
 function is usually a closure over a recording's lazy steps and the reductions analyses
-registered on them (:meth:`aatest.engine.dataset.LazySteps.watch`), which cannot be pickled
+registered on them (:meth:`aatest.recording.dataset.LazySteps.watch`), which cannot be pickled
 but which a forked child has already, at no copying cost. Only the items and the (small)
 results cross the process boundary.
 

@@ -37,15 +37,15 @@ from typing import (
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from aatest.engine.dataset import Dataset
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.logs import SampledLog
 from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep, SensorRef
+from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
 
 if TYPE_CHECKING:
-    from aatest.engine.procedure.rig_description import Instruments
+    from aatest.engine.rig_description import Instruments
 
 # The public names; SensorDatasheet is re-exported (sensor plugins return it).
 __all__ = [

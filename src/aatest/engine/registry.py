@@ -32,17 +32,9 @@ REQUIRED_METHODS: dict[str, tuple[str, ...]] = {
     "report": ("render",),
     "effect": ("columns", "forward", "testable", "signature"),
 }
-#: kinds whose options are not a ``Config`` model (an effect has typed ``parameters`` instead)
+#: kinds whose options are not a ``Config`` model (an effect has typed ``parameters`` instead;
+#: its declaration is checked by :mod:`aatest.effects`)
 _NO_CONFIG = frozenset({"analysis", "effect"})
-#: the contract's effect vocabulary (docs/interfaces.md §4): an effect plugin may reuse one of
-#: these names only when it declares ``shadows = True``
-BUILTIN_EFFECTS: frozenset[str] = frozenset({
-    "bias_temperature", "scale_temperature", "nonlinearity_cubic", "saturation", "hysteresis",
-    "sensor_dynamics", "time_delay", "clock_drift", "jerk_sensitivity", "g_sensitivity",
-    "cross_axis", "misalignment", "rate_ripple", "motor_vibration", "excess_noise",
-    "amplitude_damping"})
-#: where an effect's contribution may enter the sensor model (aatest.effects.Effect.enters)
-EFFECT_DOMAINS = ("acceleration", "voltage")
 
 
 @dataclass(frozen=True)
@@ -75,53 +67,12 @@ def _validate(kind: str, name: str, target: Any, dist: str) -> None:
             f"{kind} plugin {name!r} from distribution {dist!r} lacks required method(s) "
             f"{', '.join(missing)}"
         )
-    if kind == "effect":
-        _validate_effect(name, target, dist)
     config = getattr(target, "Config", None)
     if kind not in _NO_CONFIG and not (isinstance(config, type) and issubclass(config, BaseModel)):
         raise PluginError(
             f"{kind} plugin {name!r} from distribution {dist!r} must define a pydantic "
             f"'Config' model for its options"
         )
-
-
-def _validate_effect(name: str, target: Any, dist: str) -> None:
-    """An effect plugin's declaration: its name, parameters with units, bounds and domain.
-
-    Checked on the class (nothing is constructed): the entry-point name is the effect's
-    ``name``, a built-in name needs ``shadows = True``, every parameter states a unit, shape
-    parameters are bounded, and ``enters`` / ``attributed_to`` take known values.
-    """
-    who = f"effect plugin {name!r} from distribution {dist!r}"
-    declared = getattr(target, "name", None)
-    if declared != name:
-        raise PluginError(f"{who} calls itself {declared!r}: the entry-point name must be the "
-                          "effect name")
-    if name in BUILTIN_EFFECTS and getattr(target, "shadows", False) is not True:
-        raise PluginError(f"{who} shadows the built-in effect of that name; set "
-                          "'shadows = True' to replace it deliberately")
-    linear = list(getattr(target, "parameters", ()) or ())
-    shape = list(getattr(target, "shape_parameters", ()) or ())
-    if not linear:
-        raise PluginError(f"{who} declares no (linear) parameters")
-    names = [getattr(p, "name", None) for p in linear + shape]
-    if len(set(names)) != len(names):
-        raise PluginError(f"{who} declares a parameter twice: {names}")
-    for p in linear + shape:
-        pname, unit = getattr(p, "name", None), getattr(p, "unit", None)
-        if not (isinstance(pname, str) and pname.isidentifier()):
-            raise PluginError(f"{who}: parameter name {pname!r} is not an identifier")
-        if not (isinstance(unit, str) and unit.strip()):
-            raise PluginError(f"{who}: parameter {pname!r} states no unit (use '1' when "
-                              "dimensionless)")
-    for p in shape:
-        lo, hi = getattr(p, "lower", None), getattr(p, "upper", None)
-        if lo is None or hi is None or not lo < hi:
-            raise PluginError(f"{who}: shape parameter {p.name!r} needs bounds lower < upper")
-    if getattr(target, "enters", None) not in EFFECT_DOMAINS:
-        raise PluginError(f"{who}: 'enters' must be one of {', '.join(EFFECT_DOMAINS)}")
-    if getattr(target, "attributed_to", "sensor") not in ("sensor", "table"):
-        raise PluginError(f"{who}: 'attributed_to' must be 'sensor' or 'table'")
 
 
 #: entry points by kind, with the installation signature they were read under
@@ -227,10 +178,6 @@ def _load(kind: str, name: str) -> PluginInfo:
         raise PluginError(f"no {kind} plugin named {name!r} (installed: {known})")
     ep = matches[0]
     dist, version = _distribution(ep)
-    if kind == "effect" and len(matches) > 1:  # an effect name is global across distributions
-        dists = sorted(_distribution(e)[0] for e in matches)
-        raise PluginError(f"effect {name!r} is declared by several distributions "
-                          f"({', '.join(dists)}): uninstall all but one")
     try:
         target = ep.load()
     except Exception as exc:  # any import failure is the plugin's fault

@@ -109,7 +109,7 @@ def diagnose_recording(record: CalibrationRecord) -> list[dict[str, Any]]:
     """Run the diagnose pipeline on the recording of a calibration's run directory; the
     findings' names (effect, channel, attribution), which is all the fleet page compares."""
     from aatest.diagnose.pipeline import diagnose_dataset
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     document = diagnose_dataset(read_dataset(Path(record.bundle).parent))
     return [{key: str(f[key]) for key in ("effect", "channel", "attributed_to") if key in f}

@@ -35,7 +35,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from aatest.engine.errors import AnalysisError
-from aatest.engine.uncertainty.gum import K_COVERAGE
+from aatest.metrology.uncertainty.gum import K_COVERAGE
 from aatest.records.models import CalibrationRecord
 
 DAYS_PER_MONTH = 365.25 / 12.0

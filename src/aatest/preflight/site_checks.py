@@ -3,7 +3,7 @@
 
 Each returns ``(problems, message)`` or raises the error a run would meet later: the lab
 profile's own ``FILE:LINE:COLUMN`` problems from the model loader, a
-:class:`~aatest.engine.run.signing.SigningError` naming the key file, a
+:class:`~aatest.bundle.signing.SigningError` naming the key file, a
 :class:`~aatest.records.errors.RecordsError` naming the database (without its password).
 """
 
@@ -31,8 +31,8 @@ def lab_check(lab: Path | None) -> Outcome:
 def key_check(key: Path | None, sign_asked: bool) -> Outcome:
     """The signing key opens with ``AATEST_SIGNING_PASSPHRASE``; none is a warning when the
     procedure asks for a signed report (the run then leaves it unsigned)."""
+    from aatest.bundle.signing import key_fingerprint, load_private_key
     from aatest.engine.run.session import PASSPHRASE_ENV, SIGNING_KEY_ENV, signing_key
-    from aatest.engine.run.signing import key_fingerprint, load_private_key
 
     path = signing_key(key)
     if path is None:

@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from aatest.engine.storage import Where
 from aatest.results import RunResults
 from aatest.results.quantities import finite, quantity
 from aatest.results.rounding import round_measurement
+from aatest.storage import Where
 
 #: (analysis key, value field, U field or "" for the entry's ``expanded_uncertainty``,
 #: quantity registry key) of every certified scalar, in the order a certificate lists them

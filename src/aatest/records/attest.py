@@ -12,8 +12,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from aatest.engine.run.signing import VerifyResult, trusted_public_key
-from aatest.engine.run.trust import TrustedKey
+from aatest.bundle.signing import VerifyResult, trusted_public_key
+from aatest.bundle.trust import TrustedKey
 from aatest.records.lab import lab_path, load_lab
 
 

@@ -10,7 +10,6 @@ from typing import Any
 from rich import box
 from rich.table import Table
 
-from aatest.engine.storage import locate
 from aatest.presentation.terminal import render_text
 from aatest.records import audit
 from aatest.records.errors import RecordsError
@@ -25,6 +24,7 @@ from aatest.records.url import is_default_missing, resolve_url
 from aatest.records.verify import find_record, record_reasons, unregistered_reasons
 from aatest.results.quantities import quantity
 from aatest.results.rounding import measurement_text
+from aatest.storage import locate
 
 
 def _moment(text: str | None, option: str) -> datetime | None:

@@ -23,10 +23,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.analysis.results import results_json
+from aatest.engine.analysis.results_file import results_json
 from aatest.engine.run import bundle_hooks
 from aatest.engine.simulation import SIMULATION_PREFIX, is_simulation
-from aatest.engine.storage import Where
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
 from aatest.records.lab import LabProfile
@@ -34,6 +33,7 @@ from aatest.records.models import QuantityRecord, Registration
 from aatest.records.store import Issue, RecordStore, as_utc
 from aatest.results import RunResults
 from aatest.results.root import RunMetadata
+from aatest.storage import Where
 
 CERTIFICATE_KEY = "certificate_number"
 #: commands whose results earn a new certificate number (``report`` re-signs the same one)
@@ -144,7 +144,7 @@ def certificate_prefix(results: RunResults, lab: LabProfile) -> str:
 
 def bundle_files(bundle: Where) -> dict[str, str]:
     """SHA-256 of the bundle's files: what the signature covers (also for unsigned bundles)."""
-    from aatest.engine.run.signing import bundle_hashes
+    from aatest.bundle.signing import bundle_hashes
 
     return bundle_hashes(bundle)
 
@@ -184,12 +184,12 @@ def registration_for(
 
 def _results_for(data: Where) -> RunResults:
     """The run's results next to ``data``, else the recording's own metadata."""
-    from aatest.engine.analysis.results import RESULTS_FILE, plain_metadata, read_results
+    from aatest.engine.analysis.results_file import RESULTS_FILE, plain_metadata, read_results
 
     folder = data if data.is_dir() else data.parent
     if (folder / RESULTS_FILE).is_file():
         return read_results(folder)
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     dataset = read_dataset(data)
     return RunResults(procedure=dataset.procedure,

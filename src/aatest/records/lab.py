@@ -32,7 +32,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from aatest.engine.run.trust import TrustedKey
+from aatest.bundle.trust import TrustedKey
 from aatest.engine.simulation import SIMULATION_PREFIX
 
 LAB_ENV = "AATEST_LAB"
@@ -150,7 +150,7 @@ def load_lab(path: Path | None = None) -> LabProfile:
     YAML errors are reported as ``FILE:LINE:COLUMN: field: message`` (exit 2) by the engine's
     model loader.
     """
-    from aatest.engine.procedure.yaml_loader import load_model_file
+    from aatest.engine.yaml_loader import load_model_file
 
     chosen = lab_path(path)
     if chosen is None:

@@ -11,11 +11,11 @@ import json
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.run.manifest import UnsafeNameError, file_sha256, member_path
-from aatest.engine.run.signing import signature_path
-from aatest.engine.storage import RemotePath
+from aatest.bundle.manifest import UnsafeNameError, file_sha256, member_path
+from aatest.bundle.signing import signature_path
 from aatest.records.models import CalibrationRecord
 from aatest.records.store import RecordStore
+from aatest.storage import RemotePath
 
 
 def _json_field(path: Path | RemotePath, key: str) -> Any:

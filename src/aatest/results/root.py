@@ -223,6 +223,18 @@ class Signature(ResultModel):
     fingerprint: str
 
 
+class LoggedTemperature(ResultModel):
+    """Min, mean and max of every temperature sample the loggers recorded (°C), for the
+    certificate's environmental conditions (ISO/IEC 17025 §7.8.4.1 a); computed when the run is
+    analysed, so a report never reads the recording."""
+
+    min_c: Real | None = Field(None, description="lowest logged temperature, °C")
+    mean_c: Real | None = Field(None, description="mean of all logged temperature samples, °C")
+    max_c: Real | None = Field(None, description="highest logged temperature, °C")
+    samples: int = Field(0, description="temperature samples summarised (0: none logged)")
+    source: str = Field("", description="the recording or import directory they were read from")
+
+
 class RunResults(ResultModel):
     """The document between analysis and report: what was run, measured and decided."""
 
@@ -243,6 +255,9 @@ class RunResults(ResultModel):
     overall: Overall = "none"
     certificate_number: str | None = None
     signature: Signature | None = None
+    logged_temperature: LoggedTemperature | None = Field(
+        None, description="the temperatures logged during the run (absent: analysed before "
+                          "this field existed)")
 
     def steps_of_kind(self, kind: str) -> list[StepSummary]:
         """The recorded steps of one kind (``static``, ``sine``, ``constant_rate``, …)."""

@@ -31,13 +31,13 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from aatest.engine.errors import AatestError, InputError
 from aatest.engine.run.session import UnitName, default_operator
-from aatest.engine.storage import RemotePath
 from aatest.fleet.station import fleet_page
 from aatest.station.catalogue import RUN_FILES, History, Procedures, sensor_models, validation
 from aatest.station.control import RunController
 from aatest.station.security import Asgi, Guard, HostRule
 from aatest.station.units import check_serial, unit_history
 from aatest.station.uploads import MAX_UPLOAD_BYTES, UploadError, Uploads
+from aatest.storage import RemotePath
 
 STATIC = Path(str(resources.files("aatest.station") / "static"))
 HISTORY_ROWS = 20

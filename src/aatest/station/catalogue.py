@@ -89,7 +89,7 @@ def _entry(procedure_id: str, path: Path) -> dict[str, Any]:
 @functools.lru_cache(maxsize=1024)
 def _read_entry(procedure_id: str, path: Path, _mtime_ns: int, _size: int) -> dict[str, Any]:
     from aatest.engine.procedure.loader import parse_procedure
-    from aatest.engine.procedure.yaml_loader import read_text
+    from aatest.engine.yaml_loader import read_text
 
     prefix = procedure_id.split("/", 1)[0]
     entry: dict[str, Any] = {"id": procedure_id, "group": GROUPS.get(prefix, prefix)}
@@ -309,7 +309,7 @@ def run_summary(run_dir: Path) -> dict[str, Any]:
 
 def results_summary(run_dir: Path) -> dict[str, Any]:
     """The verdict banner and the judged quantities with U, from ``results.json`` if present."""
-    from aatest.engine.analysis.results import RESULTS_FILE, read_results
+    from aatest.engine.analysis.results_file import RESULTS_FILE, read_results
     from aatest.engine.errors import InputError
 
     if not _plain_file(run_dir / RESULTS_FILE):

@@ -20,9 +20,9 @@ from aatest.engine.run.events import AbortFlag, RunEvents
 from aatest.engine.run.rig import sensor_datasheet
 from aatest.engine.run.runner import default_run_dir
 from aatest.engine.run.session import UnitName
-from aatest.engine.storage import RemotePath
 from aatest.station.catalogue import History, Procedures, present_files, results_summary
 from aatest.station.live import Publish, StationObserver, StationResponder
+from aatest.storage import RemotePath
 
 
 @dataclass
@@ -150,10 +150,10 @@ class RunController:
     def _work(self, path: Path, run_dir: Path, resume: bool, operator: str,
               events: RunEvents, options: _Options) -> None:
         from aatest.engine.run import session
-        from aatest.engine.storage import publishing
         from aatest.records.errors import RecordsUnavailable
         from aatest.records.hook import registering
         from aatest.records.lab import load_lab
+        from aatest.storage import publishing
 
         notice = None
         try:
@@ -190,7 +190,7 @@ class _Options:
 
 def _recorded_unit(run_dir: Path) -> UnitName:
     """The unit a stopped run was recording (a resumed run goes on for the same unit)."""
-    from aatest.engine.recording.writer import STEPS_DIR, load_run_metadata
+    from aatest.recording.writer import STEPS_DIR, load_run_metadata
 
     try:
         sensor = load_run_metadata(run_dir / STEPS_DIR).get("sensor") or {}

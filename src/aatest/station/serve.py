@@ -17,10 +17,10 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.errors import InputError
-from aatest.engine.storage import RemotePath, locate
 from aatest.station.app import Signer, create_app
 from aatest.station.catalogue import Procedures, history_for
 from aatest.station.security import Asgi, HostRule, load_token
+from aatest.storage import RemotePath, locate
 
 #: the station's own directory inside the runs directory (uploaded procedures live there)
 STATION_DIR = ".station"
@@ -56,7 +56,7 @@ def load_signer(explicit: Path | None) -> Signer | None:
     """
     import os
 
-    from aatest.engine.run import signing
+    from aatest.bundle import signing
     from aatest.engine.run.session import PASSPHRASE_ENV, signing_key
 
     key_path = signing_key(explicit)

@@ -12,8 +12,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from aatest.engine.dataset import Dataset, SensorInfo, StepData
 from aatest.engine.steps import PlannedStep
+from aatest.recording.dataset import Dataset, SensorInfo, StepData
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.model import DaqModel, RigModel, SensorModel, TableModel, UnitModel
 from aatest.twin.synthesis import SimulatedStep

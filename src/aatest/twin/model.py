@@ -20,7 +20,7 @@ from aatest.engine.datasheet import (
 )
 
 if TYPE_CHECKING:
-    from aatest.engine.procedure.rig_description import Instruments, LoggerSpec
+    from aatest.engine.rig_description import Instruments, LoggerSpec
 
 
 class _Model(BaseModel):
@@ -333,7 +333,7 @@ class TableModel(_Model):
 
 def _stated_logger() -> LoggerSpec:
     """The documented rig's logger as its rig description states it (the one source)."""
-    from aatest.engine.procedure.rig_description import LoggerSpec
+    from aatest.engine.rig_description import LoggerSpec
 
     return LoggerSpec()
 
@@ -413,7 +413,7 @@ class RigModel(_Model):
         instruments
             The stated specifications (default: the documented rig's).
         """
-        from aatest.engine.procedure.rig_description import Instruments
+        from aatest.engine.rig_description import Instruments
 
         spec = instruments if instruments is not None else Instruments()
         rng = np.random.default_rng([int(seed), 0x1A7E])
@@ -451,7 +451,7 @@ class RigModel(_Model):
 
 def load_rig_model(path: str | Path) -> RigModel:
     """Load a model YAML safely; errors carry file:line:column (via the engine loader)."""
-    from aatest.engine.procedure.yaml_loader import load_model_file
+    from aatest.engine.yaml_loader import load_model_file
 
     return load_model_file(Path(path), RigModel)
 

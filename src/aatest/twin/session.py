@@ -13,7 +13,7 @@ from __future__ import annotations
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.errors import PluginError
 from aatest.engine.interfaces import RigContext
-from aatest.engine.procedure.rig_description import Instruments
+from aatest.engine.rig_description import Instruments
 from aatest.engine.steps import SensorRef
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.model import RigModel, load_rig_model

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from aatest.engine.analysis.passes import run_analysis
-from aatest.engine.dataset import Dataset
+from aatest.recording.dataset import Dataset
 
 
 def analyse(name: str, data: Dataset, **options: Any) -> Any:

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, SensorInfo, StepData
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.recording.dataset import Dataset, SensorInfo, StepData
 
 FS_HZ = 2000.0
 

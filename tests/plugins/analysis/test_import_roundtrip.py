@@ -19,8 +19,8 @@ def _analyse(data):  # type: ignore[no-untyped-def]
 
 @pytest.mark.pinned
 def test_same_numbers_after_csv_roundtrip(realistic_unit: Any, tmp_path: Path) -> None:
-    from aatest.engine.data.exporter import export_csv
-    from aatest.engine.data.importer import import_dataset
+    from aatest.recording.data.exporter import export_csv
+    from aatest.recording.data.importer import import_dataset
 
     model = realistic_unit.model_copy(update={"sensors": realistic_unit.sensors[:1]})
     steps = [sine_step("cal", 8, 400.0, samples=8192, settle_s=1.0),

@@ -15,7 +15,7 @@ import pytest
 from test_misalignment import _misalignment_steps
 
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import build_results
+from aatest.engine.analysis.results_file import build_results
 from aatest.engine.run.session import decide
 from aatest.results import RunResults
 from aatest.twin.api import simulate_dataset

@@ -14,11 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aatest.engine.dataset import Dataset, LazySteps, SensorInfo, StepData
 from aatest.engine.interfaces import AnalysisContext, TableEnvelope
 from aatest.engine.logs import SampledLog
 from aatest.engine.procedure.envelope import head_step
-from aatest.engine.recording import RunRecorder, read_dataset
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.drift import (
     BlockMeans,
@@ -29,6 +27,8 @@ from aatest.plugins.analysis.drift import (
     longest_static_index,
     reduce_record,
 )
+from aatest.recording import RunRecorder, read_dataset
+from aatest.recording.dataset import Dataset, LazySteps, SensorInfo, StepData
 from aatest.results.noise import DriftResult
 from aatest.twin.daq import antialias_filter
 from aatest.twin.defaults import realistic_rig_model

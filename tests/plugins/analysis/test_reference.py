@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from synthetic_rig import SynthRig, make_step, sine_step
 
+from aatest.clocksync import SyncedStep, synchronise
 from aatest.plugins.analysis._common import fundamental
 from aatest.plugins.analysis.reference import METHODS, levant_differentiator, reference_accel
-from aatest.sync import SyncedStep, synchronise
 
 
 @pytest.fixture(scope="module")

@@ -18,13 +18,13 @@ import pytest
 from scipy import signal
 from synthetic_rig import SynthRig, make_step, sine_step
 
+from aatest.clocksync import SyncedStep, synchronise
 from aatest.plugins.analysis._common import fundamental
 from aatest.plugins.analysis.reference import (
     PUBLIC_METHODS,
     SMOOTHED_CORNER_HZ,
     reference_accel,
 )
-from aatest.sync import SyncedStep, synchronise
 
 LINEAR = ("table_estimate", "central", "five_point", "smoothed")
 

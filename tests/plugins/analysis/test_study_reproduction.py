@@ -23,9 +23,9 @@ from typing import Any
 import pytest
 
 from aatest.engine.analysis.passes import run_analysis
-from aatest.engine.dataset import Dataset
 from aatest.engine.procedure.loader import parse_procedure
 from aatest.engine.run.session import prepare
+from aatest.recording.dataset import Dataset
 
 HERE = Path(__file__).parent / "procedures"
 #: the study's measured results (docs/method.md §4.3)

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.recording import read_dataset
 from aatest.plugins.analysis.sync import SyncedSteps
+from aatest.recording import read_dataset
 
-RECORDING = Path(__file__).parents[2] / "engine" / "data" / "streaming" / "recording.mcap"
+RECORDING = Path(__file__).parents[2] / "recording" / "data" / "streaming" / "recording.mcap"
 
 
 def test_a_view_of_some_channels_synchronises_them_identically() -> None:

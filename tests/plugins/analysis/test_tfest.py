@@ -56,12 +56,12 @@ def test_model_selection_on_noisy_points() -> None:
 def test_antialias_corner_sources() -> None:
     from pathlib import Path
 
-    from aatest.engine.dataset import Dataset
     from aatest.engine.interfaces import AnalysisContext
     from aatest.plugins.analysis.transfer_function import (
         TransferFunctionOptions,
         logger_antialias_hz,
     )
+    from aatest.recording.dataset import Dataset
 
     def ds(meta: dict) -> Dataset:  # type: ignore[type-arg]
         return Dataset("p", FS, (), (), Path("x"), meta)

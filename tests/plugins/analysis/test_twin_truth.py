@@ -121,8 +121,8 @@ def test_references_against_twin_truth(cal_run) -> None:  # type: ignore[no-unty
     """Each reference against the twin's true acceleration: broadband, and in the 20 Hz band
     the calibration uses (the true motion also carries ≈125 Hz servo vibration that no
     smoothing reference keeps, and the sensor barely sees)."""
+    from aatest.clocksync import synchronise_all
     from aatest.plugins.analysis.reference import METHODS, reference_accel, zero_phase_lowpass
-    from aatest.sync import synchronise_all
 
     _, data, truths, _ = cal_run
     synced = synchronise_all(data)[0]

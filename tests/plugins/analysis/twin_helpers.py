@@ -6,8 +6,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.dataset import Dataset, StepData
 from aatest.engine.steps import PlannedStep
+from aatest.recording.dataset import Dataset, StepData
 
 
 def twin_dataset(model: Any, steps: Sequence[PlannedStep], seed: int = 11,

@@ -23,8 +23,8 @@ from typer.testing import CliRunner
 
 import aatest
 from aatest.cli import app
-from aatest.engine.recording.reader import read_dataset
 from aatest.plugins.report.html import CalibrationCertificate
+from aatest.recording.reader import read_dataset
 from aatest.results import RunResults
 from aatest.results.quantities import quantity
 from aatest.twin.model import ChamberModel
@@ -131,11 +131,23 @@ def _render(document: dict[str, Any], run_dir: Path) -> str:
     return report.read_text(encoding="utf-8")
 
 
-def test_environment_not_recorded_without_a_recording(
+def test_environment_comes_from_the_results_not_the_recording(
         certified: tuple[Path, dict[str, Any], str], tmp_path: Path) -> None:
+    """Rendered into an empty directory (no recording to read), the certificate still states
+    the logged temperatures: the analysis summarised them into the results."""
+    _, results, page = certified
+    env = _section(_render(copy.deepcopy(results), tmp_path), "environment")
+    assert env == _section(page, "environment") and "samples" in env
+
+
+@pytest.mark.parametrize("logged", [None, {"samples": 0, "source": "recording.mcap"}],
+                         ids=["results-before-the-summary", "nothing-logged"])
+def test_environment_not_recorded_without_logged_temperatures(
+        certified: tuple[Path, dict[str, Any], str], tmp_path: Path,
+        logged: dict[str, Any] | None) -> None:
     _, results, _ = certified
     doc = copy.deepcopy(results)
-    doc["metadata"].pop("recording", None)
+    doc["logged_temperature"] = logged
     page = _render(doc, tmp_path)
     assert "Temperature: not recorded" in _section(page, "environment")
 

@@ -10,9 +10,7 @@ from pathlib import Path
 import pytest
 from contract_results import decided, make_results
 
-from aatest.engine import registry
-from aatest.engine.analysis.results import write_results
-from aatest.engine.run.signing import (
+from aatest.bundle.signing import (
     generate_keypair,
     key_fingerprint,
     load_private_key,
@@ -21,6 +19,8 @@ from aatest.engine.run.signing import (
     trusted_public_key,
     verify_bundle,
 )
+from aatest.engine import registry
+from aatest.engine.analysis.results_file import write_results
 from aatest.plugins.report.html import (
     CalibrationCertificate,
     DiagnosisReport,

@@ -4,7 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from aatest.engine.run import session, signing
+from aatest.bundle import signing
+from aatest.engine.run import session
 from aatest.plugins.report.pdf import find_browser
 
 QUICK = Path(__file__).parents[2] / "data" / "procedures" / "quick-sine-3-steps.yaml"

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from aatest.bundle.signing import generate_keypair, load_private_key, sign_bundle
 from aatest.cli import app
 from aatest.engine.run.session import render_and_sign
-from aatest.engine.run.signing import generate_keypair, load_private_key, sign_bundle
 from aatest.results import RunResults
 
 RUNNER = CliRunner()
@@ -83,7 +83,7 @@ def _lab_profile(path: Path, fingerprint: str, valid_from: str, valid_until: str
 
 def test_lab_profile_keys_are_trusted_within_their_period(signed_run: Path, key: Path,
                                                           tmp_path: Path) -> None:
-    from aatest.engine.run.signing import key_fingerprint
+    from aatest.bundle.signing import key_fingerprint
 
     fingerprint = key_fingerprint(load_private_key(key))
     lab = _lab_profile(tmp_path / "lab.yaml", fingerprint, "2020-01-01", "2100-01-01")

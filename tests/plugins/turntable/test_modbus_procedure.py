@@ -14,10 +14,10 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.engine.dataset import StepData
 from aatest.engine.errors import EXIT_RIG_FAULT
-from aatest.engine.recording import read_dataset
 from aatest.protocols.modbus_map import Fault
+from aatest.recording import read_dataset
+from aatest.recording.dataset import StepData
 from aatest.twin.servers.can_sim import CanFaultInjection, SimCanLogger
 from aatest.twin.servers.modbus_controller import FaultInjection
 from aatest.twin.servers.modbus_server import SimModbusServer

@@ -14,9 +14,9 @@ from aatest.engine.analysis import plugins
 from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Procedure
-from aatest.engine.procedure.yaml_loader import locate
 from aatest.engine.requirements import Coverage, PlanView, check_plan
 from aatest.engine.steps import Plan
+from aatest.engine.yaml_loader import locate
 
 #: step ids ``validate`` shows per analysis before it gives the count
 SHOWN = 3

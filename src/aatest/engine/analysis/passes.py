@@ -29,9 +29,9 @@ from threadpoolctl import threadpool_limits
 
 from aatest.engine.analysis import plugins as _plugins
 from aatest.engine.analysis.plugins import AnalysisEntry, AnalysisPlugin
-from aatest.engine.dataset import Dataset
 from aatest.engine.errors import AnalysisError, PluginError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.recording.dataset import Dataset
 
 log = logging.getLogger("aatest.analysis")
 
@@ -148,7 +148,7 @@ def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
 
 def _run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
                   options: Mapping[str, BaseModel] | None) -> AnalysisResults:
-    from aatest.engine.uncertainty.evidence import watch
+    from aatest.metrology.uncertainty.evidence import watch
 
     # the uncertainty stage reads every sine step after this pass: measured while the pass
     # decodes them, it need not decode them again

@@ -18,6 +18,7 @@ from pydantic import BaseModel, ValidationError
 
 from aatest.engine import registry
 from aatest.engine.errors import InputError, PluginError
+from aatest.metrology.verdicts_missing import Listed
 
 #: a procedure ``analysis:`` entry as written: ``name`` or ``{name: {options}}``
 AnalysisEntry = str | Mapping[str, Mapping[str, Any] | None]
@@ -150,4 +151,31 @@ def requested_options(entries: Sequence[AnalysisEntry]) -> dict[str, BaseModel]:
             out[name] = plugin.options(options)
         except ValidationError as exc:
             raise InputError(f"{plugin.describe()}: bad options: {exc}") from exc
+    return out
+
+
+def listed_analyses(entries: Sequence[Any]) -> list[Listed]:
+    """The analyses a recording's procedure listed (aliases resolved, each once), for the
+    verdict stage."""
+    out: dict[str, Listed] = {}
+    for entry in entries:
+        try:
+            name, _options = split_entry(entry)
+            plugin = load(name)
+        except (InputError, PluginError) as exc:  # named by the analysis pass already
+            log.debug("%s", exc)
+            continue
+        out.setdefault(plugin.name, Listed(plugin.name, plugin.key, plugin.cls))
+    return list(out.values())
+
+
+def installed_analyses() -> list[Listed]:
+    """Every installed analysis that loads, for the verdict stage's reasons."""
+    out = []
+    for name in installed_names():
+        try:
+            plugin = load(name)
+        except PluginError:
+            continue
+        out.append(Listed(plugin.name, plugin.key, plugin.cls))
     return out

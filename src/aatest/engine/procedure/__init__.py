@@ -1,8 +1,8 @@
 """Procedures: what a QA engineer writes, checked before anything moves.
 
 - ``models``        pydantic models of the procedure YAML (the JSON Schema's source)
-- ``yaml_loader``   safe YAML with line/column positions of every node
-- ``loader``        YAML → models; every problem as ``FILE:LINE:COLUMN: field: message``
+- ``loader``        YAML (:mod:`aatest.engine.yaml_loader`) → models; every problem as
+                    ``FILE:LINE:COLUMN: field: message``
 - ``generators``    sweeps, multi-position, temperature steps … → concrete steps
 - ``planner``       the expanded plan with its lab duration
 - ``envelope``      every step against the turntable's and the sensor's limits

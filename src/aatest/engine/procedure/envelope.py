@@ -47,9 +47,9 @@ from typing import Any
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.errors import EnvelopeError, Problem, ProcedureError
 from aatest.engine.interfaces import AxisLimits, TableEnvelope
-from aatest.engine.procedure.yaml_loader import locate as locate_in_tree
-from aatest.engine.procedure.yaml_loader import parse_yaml, read_text
 from aatest.engine.steps import Plan, PlannedStep
+from aatest.engine.yaml_loader import locate as locate_in_tree
+from aatest.engine.yaml_loader import parse_yaml, read_text
 
 #: a path into the procedure YAML, e.g. ("steps", 2, "sine_sweep")
 YamlPath = tuple[str | int, ...]

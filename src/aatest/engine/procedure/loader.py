@@ -28,7 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictStr, ValidationError, m
 from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.procedure import models as _procedure_models
 from aatest.engine.procedure.models import STEP_KINDS, Procedure
-from aatest.engine.procedure.rig_description import (
+from aatest.engine.rig_description import (
     EncoderSpec,
     Instruments,
     LabSpec,
@@ -36,7 +36,7 @@ from aatest.engine.procedure.rig_description import (
     TableGeometry,
     ThermometerSpec,
 )
-from aatest.engine.procedure.yaml_loader import (
+from aatest.engine.yaml_loader import (
     locate,
     parse_yaml,
     problems_from_validation,

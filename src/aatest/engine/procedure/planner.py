@@ -35,8 +35,8 @@ from aatest.engine.procedure import generators
 from aatest.engine.procedure.envelope import YamlPath, step_violations
 from aatest.engine.procedure.generators import snap_frequency, sweep_points
 from aatest.engine.procedure.models import Overrides, Procedure, StepEntry
-from aatest.engine.procedure.yaml_loader import locate
 from aatest.engine.steps import Plan, PlannedStep, SensorRef
+from aatest.engine.yaml_loader import locate
 
 #: upper bound on the steps one procedure may expand to
 MAX_STEPS = 20_000

@@ -5,6 +5,5 @@
 - ``writes``     step files written on a worker thread while the next step records
 - ``run_state``  ``run_state.json``: which steps are done, which prompts were shown
 - ``progress``   the operator's terminal progress line
-- ``signing``    Ed25519 keys and detached signatures of the report bundle
 - ``session``    what each CLI command does, end to end, without CLI concerns
 """

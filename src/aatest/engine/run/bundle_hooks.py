@@ -13,7 +13,7 @@ from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, Protocol
 
-from aatest.engine.storage import RemotePath
+from aatest.storage import RemotePath
 
 
 class BundleObserver(Protocol):

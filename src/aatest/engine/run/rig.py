@@ -10,16 +10,17 @@ or closed.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
 from aatest.engine import registry
-from aatest.engine.dataset import SensorInfo
 from aatest.engine.errors import AatestError, PluginError, RigFault
 from aatest.engine.interfaces import Chamber, Daq, RigContext, SensorDatasheet, Turntable
 from aatest.engine.steps import SensorRef
+from aatest.metrology.verdicts_limits import datasheet_from_info
+from aatest.recording.dataset import SensorInfo
 
 log = logging.getLogger("aatest.rig")
 
@@ -62,6 +63,22 @@ def sensor_datasheet(sensor: SensorRef) -> tuple[SensorDatasheet, str]:
             f"{type(sheet).__name__}, expected SensorDatasheet"
         )
     return sheet, f"{info.distribution} {info.version}"
+
+
+def datasheets(metadata: Mapping[str, Any], sensors: Sequence[SensorInfo]
+               ) -> dict[str, SensorDatasheet]:
+    """Each channel's datasheet: the recorded sensor model's plugin, else the channel's values.
+
+    A recording names its sensor model (``metadata["sensor"]``), whose plugin states every
+    limit; imported data states its datasheet values per channel in ``dataset.yaml``.
+    """
+    sensor = metadata.get("sensor")
+    if isinstance(sensor, Mapping) and sensor.get("model"):
+        sheet, source = sensor_datasheet(SensorRef.model_validate(dict(sensor)))
+        log.debug("acceptance limits from the datasheet of %s (%s)", sensor["model"], source)
+        # the recorded nominals are the datasheet's; the channel list is the recording's
+        return {info.channel: sheet for info in sensors} or dict.fromkeys(sheet.channels, sheet)
+    return {info.channel: datasheet_from_info(info) for info in sensors}
 
 
 def _construct(

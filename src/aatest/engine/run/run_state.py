@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from aatest.engine.errors import InputError
-from aatest.engine.storage import RemotePath
+from aatest.storage import RemotePath
 
 STATE_FILE = "run_state.json"
 LOCK_FILE = "run.lock"

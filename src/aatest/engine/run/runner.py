@@ -25,7 +25,6 @@ from typing import Any, cast
 from threadpoolctl import threadpool_limits
 
 import aatest
-from aatest.engine.dataset import StepData
 from aatest.engine.errors import AatestError, AnalysisError, InputError, PluginError, RigFault
 from aatest.engine.interfaces import (
     STREAM_CHUNK_S,
@@ -45,6 +44,7 @@ from aatest.engine.run.run_state import RunState
 from aatest.engine.run.writes import BackgroundWrites
 from aatest.engine.simulation import SIMULATED_PARTS_KEY
 from aatest.engine.steps import UNNAMED_SERIAL, Plan, PlannedStep
+from aatest.recording.dataset import StepData
 
 log = logging.getLogger("aatest.run")
 

@@ -14,19 +14,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from aatest.bundle import signing
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
-from aatest.engine.analysis.results import (
+from aatest.engine.analysis.results_file import (
     RESULTS_FILE,
     build_results,
     read_results,
     write_results,
 )
-from aatest.engine.dataset import Dataset
 from aatest.engine.errors import InputError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.run import bundle_hooks, signing
+from aatest.engine.run import bundle_hooks
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
 from aatest.engine.run.rig import Rig, build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock
@@ -40,9 +40,10 @@ from aatest.engine.run.runner import (
 )
 from aatest.engine.simulation import KIND_KEY, kind_of, metadata_of
 from aatest.engine.steps import Plan, SensorRef
-from aatest.engine.storage import RemotePath, Where
+from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
 from aatest.results.root import Signature
+from aatest.storage import RemotePath, Where
 
 log = logging.getLogger("aatest")
 
@@ -99,7 +100,7 @@ def prepare(procedure: Path, rig_file: Path | None, unit: UnitName | None = None
     from aatest.engine.procedure.envelope import check_envelope
     from aatest.engine.procedure.loader import load_rig, parse_procedure, rig_from_procedure
     from aatest.engine.procedure.planner import expand_traced
-    from aatest.engine.procedure.yaml_loader import read_text
+    from aatest.engine.yaml_loader import read_text
 
     text = read_text(procedure)  # read once: the hash recorded is of exactly what was planned
     proc = parse_procedure(text, str(procedure))
@@ -183,7 +184,7 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     ``data_path`` and ``out_dir`` may be on object storage (docs/storage.md): the recording
     is streamed, and the files written are uploaded there.
     """
-    from aatest.engine.recording import read_dataset
+    from aatest.recording import read_dataset
 
     data = read_dataset(data_path)
     requested = list(data.metadata.get("analysis", []))
@@ -222,15 +223,16 @@ def decide(results: RunResults, data: Dataset) -> RunResults:
     Both stages fill fields of the typed results (validated on assignment, so a stage
     writing a value the models do not allow is an error, not a silent extra).
     """
-    from aatest.engine.analysis.verdicts import apply_verdicts
-    from aatest.engine.analysis.verdicts_limits import datasheets
-    from aatest.engine.analysis.verdicts_missing import listed_analyses
-    from aatest.engine.uncertainty import apply_uncertainty
+    from aatest.engine.analysis.plugins import installed_analyses, listed_analyses
+    from aatest.engine.run.rig import datasheets
+    from aatest.metrology.uncertainty import apply_uncertainty
+    from aatest.metrology.verdicts import apply_verdicts
 
     apply_uncertainty(results, data=data)
     return apply_verdicts(results, datasheets(data.metadata, data.sensors),
                           acceptance_of(data.metadata),
-                          listed_analyses(list(data.metadata.get("analysis", []))))
+                          listed_analyses(list(data.metadata.get("analysis", []))),
+                          installed_analyses())
 
 
 def render_and_sign(
@@ -245,9 +247,9 @@ def render_and_sign(
 
     ``results`` is the typed record: written once as results.json, handed to the report
     plugin as it is. A ``run_dir`` on object storage gets its files rendered locally and
-    uploaded (:func:`aatest.engine.storage.staged`), then is signed in place.
+    uploaded (:func:`aatest.storage.staged`), then is signed in place.
     """
-    from aatest.engine.storage import publish, published, staged
+    from aatest.storage import publish, published, staged
 
     private = None
     if key_path is not None:
@@ -312,7 +314,7 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     ``unit`` names the unit calibrated (else the procedure's ``sensor``); a calibration of an
     unnamed unit on a real rig is refused once the rig started, before it moves (exit 2).
     An ``out_dir`` on object storage is recorded in a local staging directory and uploaded
-    once finished (:mod:`aatest.engine.storage.staging`); the URL is returned.
+    once finished (:mod:`aatest.storage.staging`); the URL is returned.
     """
     if isinstance(out_dir, RemotePath):
         return _run_to_url(out_dir, lambda local: run(
@@ -352,7 +354,7 @@ def _run_to_url(url: RemotePath, run_local: Any) -> tuple[Where, RunResults]:
     staging copy; an interrupted run stays there for ``--resume --out URL``."""
     import shutil
 
-    from aatest.engine.storage import publishing, staging_dir
+    from aatest.storage import publishing, staging_dir
 
     url.mkdir()  # a missing bucket is refused before anything moves
     local = staging_dir(url)
@@ -380,7 +382,7 @@ class _RunRequest:
 
 def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
     """The body of :func:`run`, executed while holding the run directory's lock."""
-    from aatest.engine.recording import RunRecorder
+    from aatest.recording import RunRecorder
 
     prepared, out_dir, resume, seed = (request.prepared, request.out_dir, request.resume,
                                        request.seed)
@@ -428,7 +430,7 @@ def _identify(recorder: Any, started: Rig) -> None:
     another serial is a :class:`RigFault` (exit 3, the rig is then stopped and closed).
     """
     from aatest.engine.errors import RigFault
-    from aatest.engine.recording.writer import load_run_metadata
+    from aatest.recording.writer import load_run_metadata
 
     recorded = load_run_metadata(recorder.steps_dir)
     identity = identity_metadata(started)

@@ -17,12 +17,12 @@ import numpy as np
 from pydantic import BaseModel
 from scipy import stats
 
-from aatest.engine.dataset import SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.sync import SyncedSteps, SyncOutput
-from aatest.sync.freeze_pulse import SyncedStep
+from aatest.recording.dataset import SensorInfo
 
 #: a sensor counts as excited by a step when its projection of the motion exceeds this
 _EXCITED_WEIGHT = 0.5

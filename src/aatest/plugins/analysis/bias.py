@@ -17,14 +17,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import scale_in_use, steps_of, t95
 from aatest.plugins.analysis.streaming import reduce_static
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.bias import BiasResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 _UP_G = 0.9  # |g component| above which a position counts as "axis up/down"
 _RAD_DPS2 = float(np.degrees(1.0))

@@ -23,14 +23,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import scale_in_use, steps_of
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.cross_axis import CrossAxisResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 #: coverage factor of the stated U (≈95 % for a normal distribution)
 COVERAGE_K = 2.0

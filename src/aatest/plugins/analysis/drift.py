@@ -20,13 +20,13 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from aatest.engine.dataset import Dataset, LazySteps
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.logs import SampledLog
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import new_figure, options_of, to_svg
+from aatest.recording.dataset import Dataset, LazySteps
 from aatest.results.noise import DriftResult
 
 _SLOPE_TOL = 0.15

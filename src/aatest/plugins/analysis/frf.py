@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
@@ -43,8 +43,8 @@ from aatest.plugins.analysis._common import (
     whole_cycles,
 )
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 HARMONICS = 6
 _COHERENCE_TOL_CYCLES = 1e-3

@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
@@ -35,8 +35,8 @@ from aatest.plugins.analysis.misalignment_method import (
     evaluate,
     misalignment_from_spectra,
 )
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.misalignment import MisalignmentResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 __all__ = ["MisalignmentAnalysis", "misalignment_from_spectra"]
 

@@ -6,8 +6,8 @@ expressed in °/s² (allantools, frequency data) on the longest record, with the
 terms read off the log-log curve: white noise N (slope −½, σ·√τ), bias instability B
 (flat minimum / 0.664) and random walk K (slope +½, σ/√(τ/3)).
 
-The ``drift`` analysis of long static records lives in :mod:`aatest.plugins.analysis.drift`;
-its plugin class is importable from here too (the entry point names ``noise:DriftAnalysis``).
+The ``drift`` analysis of long static records is :mod:`aatest.plugins.analysis.drift` (its own
+entry point); this module uses its Allan-deviation term fit (:func:`allan_terms_of`).
 """
 
 from __future__ import annotations
@@ -19,19 +19,17 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import new_figure, options_of, scale_in_use, steps_of, to_svg
-from aatest.plugins.analysis.drift import DriftAnalysis, DriftOptions, allan_terms_of
+from aatest.plugins.analysis.drift import allan_terms_of
 from aatest.plugins.analysis.streaming import StaticReduction, band_rms_of, reduce_static
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.noise import NoiseResult
-from aatest.sync.freeze_pulse import SyncedStep
 
-#: the drift analysis is re-exported: its entry point names ``noise:DriftAnalysis``
-__all__ = ["BAND_HZ", "DriftAnalysis", "DriftOptions", "NoiseAnalysis", "NoiseOptions",
-           "allan_terms", "allan_terms_of", "band_rms", "sensor_noise"]
+__all__ = ["BAND_HZ", "NoiseAnalysis", "NoiseOptions", "allan_terms", "band_rms", "sensor_noise"]
 
 BAND_HZ = 400.0
 

@@ -32,14 +32,14 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy import signal
 
-from aatest.engine.dataset import Dataset
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import fundamental, options_of, steps_of
+from aatest.recording.dataset import Dataset
 from aatest.results.reference import ReferenceResult
 from aatest.results.scale_factor import ReferenceChoice
-from aatest.sync.freeze_pulse import SyncedStep
 
 METHODS = ("table", "central_position", "five_point_position", "central_rate",
            "five_point_rate", "savgol", "smooth", "levant")

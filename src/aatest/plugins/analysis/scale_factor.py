@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
@@ -48,8 +48,8 @@ from aatest.plugins.analysis.reference import (
     reference_accel,
     zero_phase_lowpass,
 )
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.scale_factor import ReferenceChoice, ReferenceName, ScaleFactorResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 _MAX_CAL_FREQUENCY_HZ = 2.0
 #: datasheet threshold/resolution, fraction of the range (0.005 % FR)

@@ -18,13 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from aatest.engine.dataset import SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.plugins.analysis.scale_factor import (
     ScaleFactorOptions,
     calibrate_steps,
     calibration_candidates,
 )
-from aatest.sync.freeze_pulse import SyncedStep
+from aatest.recording.dataset import SensorInfo
 
 #: the reference temperature the headline scale factor is stated at, °C
 T_REF_C = 25.0

@@ -1,7 +1,7 @@
 """Reductions of a record fed block by block: moments, Welch PSD and Allan-deviation input.
 
 Why: a long static record (hours at 2 kHz, 10⁸ samples) is read from the recording piece by
-piece (:meth:`aatest.sync.freeze_pulse.SyncedStep.daq_blocks`); the static analyses (bias,
+piece (:meth:`aatest.clocksync.freeze_pulse.SyncedStep.daq_blocks`); the static analyses (bias,
 noise, temperature) reduce each block as it comes — vectorised within the block — and keep
 only the reductions, so their memory does not grow with the record. On a record held in memory
 (one block) every reduction gives what the whole-array computation gives, to rounding.

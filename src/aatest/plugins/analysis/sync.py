@@ -1,6 +1,6 @@
 """The ``sync`` analysis: the clock relation of every step, summarised for results.json.
 
-Memory: a recording's steps are decoded when read (:class:`~aatest.engine.dataset.LazySteps`),
+Memory: a recording's steps are decoded when read (:class:`~aatest.recording.dataset.LazySteps`),
 so the synchronised steps handed to the other analyses are a :class:`SyncedSteps` view that
 synchronises a step when it is read and keeps nothing: an analysis iterating them holds one
 step at a time, whatever the number of steps. Steps already in memory (a simulated or test
@@ -22,21 +22,21 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, LazySteps, StepData, StepWatch
-from aatest.engine.forked import parallel_map
-from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
-from aatest.engine.requirements import Requirement
-from aatest.engine.steps import PlannedStep
-from aatest.plugins.analysis import needs
-from aatest.results.sync import SyncResult
-from aatest.sync.edges import joint_slope_range
-from aatest.sync.freeze_pulse import (
+from aatest.clocksync.edges import joint_slope_range
+from aatest.clocksync.freeze_pulse import (
     ClockRelation,
     SyncedStep,
     clock_relation,
     synchronise,
 )
-from aatest.sync.streamed import is_partial, streamed_relation, synchronise_streamed
+from aatest.clocksync.streamed import is_partial, streamed_relation, synchronise_streamed
+from aatest.engine.forked import parallel_map
+from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
+from aatest.engine.requirements import Requirement
+from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis import needs
+from aatest.recording.dataset import Dataset, LazySteps, StepData, StepWatch
+from aatest.results.sync import SyncResult
 
 #: the channels a clock relation reads (besides the time stamps)
 _SYNC_CHANNELS = {"table": ("sync_pulse", "fp_latch_s"), "daq": ("sync_pulse", "trigger")}
@@ -251,7 +251,7 @@ class SyncedSteps(Sequence[SyncedStep]):
 
 def _is_long(steps: Sequence[StepData], index: int) -> bool:
     """Whether recorded step ``index`` of a recording is a long record whose table logged
-    only its head (:func:`~aatest.sync.streamed.is_partial`; nothing is decoded)."""
+    only its head (:func:`~aatest.clocksync.streamed.is_partial`; nothing is decoded)."""
     if not isinstance(steps, LazySteps):
         return False
     counts = steps[index]
@@ -316,7 +316,7 @@ class _Related:
 
 def joint_drift(relations: Sequence[ClockRelation]) -> tuple[float, float] | None:
     """(drift ppm, standard uncertainty ppm) common to the steps fitted without latch times:
-    the centre of :func:`~aatest.sync.edges.joint_slope_range`, uniform over it. None
+    the centre of :func:`~aatest.clocksync.edges.joint_slope_range`, uniform over it. None
     when there is none (the edge-weighted mean then stands, with the spread beside it)."""
     joint = joint_slope_range(relations)
     if joint is None:

@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from aatest.engine.dataset import Dataset, LazySteps, SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
@@ -35,8 +35,8 @@ from aatest.plugins.analysis.bias import gravity_along_g
 from aatest.plugins.analysis.polyfit import fit_polynomial
 from aatest.plugins.analysis.streaming import Moments, reduce_static
 from aatest.plugins.analysis.sync import SyncedSteps
+from aatest.recording.dataset import Dataset, LazySteps, SensorInfo
 from aatest.results.temperature import TemperatureResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 T_REF_C = 25.0
 _TEMPERATURE = "temperature_c"

@@ -22,7 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
 from scipy import signal
 from scipy.fft import next_fast_len
 
-from aatest.engine.dataset import Dataset, SensorInfo
+from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
 from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
@@ -47,9 +47,9 @@ from aatest.plugins.analysis.tfest import (
     model_metrics,
     second_order_delay_fit,
 )
+from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfPoint
 from aatest.results.transfer_function import TransferFunctionResult
-from aatest.sync.freeze_pulse import SyncedStep
 
 MAX_POLES = 5
 MIN_POINTS = 6

@@ -1,25 +1,22 @@
 """The ISO/IEC 17025 §7.8 content of a calibration certificate, prepared for the template.
 
-Everything here is read from the typed results (and, for the temperatures measured during the
-calibration, from the run's recording): the issuing lab (``metadata.lab``, written from the lab
-profile before signing), the item, the method and its hash, the dates, the results with U, k
-and coverage probability and their measurands, the reference's traceability, the conformity
-statement under the engine's decision rule, adjustments, the signatory, and who confirmed each
-operator prompt and how. Nothing is evaluated here: values, uncertainties and verdicts are the
-engine's; what the run did not record is printed as "not recorded", never invented.
+Everything here is read from the typed results — the temperatures measured during the
+calibration too (``logged_temperature``, summarised when the run was analysed): the issuing lab
+(``metadata.lab``, written from the lab profile before signing), the item, the method and its
+hash, the dates, the results with U, k and coverage probability and their measurands, the
+reference's traceability, the conformity statement under the engine's decision rule,
+adjustments, the signatory, and who confirmed each operator prompt and how. Nothing is
+evaluated here: values, uncertainties and verdicts are the engine's; what the run did not record
+is printed as "not recorded", never invented.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from aatest.engine.errors import AatestError
 from aatest.plugins.report.stated import frf_points, static_values
 from aatest.results import RunResults
 from aatest.results.quantities import QUANTITIES, finite
@@ -121,54 +118,13 @@ def _lab(results: RunResults) -> dict[str, Any]:
             "default_profile": True}
 
 
-def _temperature_columns(data: Any) -> Iterator[np.ndarray]:
-    """The finite samples (°C) of every ``temperature*`` channel of every step, a piece at a
-    time: a recording's steps are read block by block and only those channels decoded (the
-    temperature of a 2 h record is 115 MB, its whole DAQ log five times that)."""
-    from aatest.engine.dataset import LazySteps, NamesStartingWith
-
-    wanted = NamesStartingWith("temperature")
-    steps = data.steps
-    for index in range(len(steps)):
-        logs: Iterable[Any] = (
-            (piece for source in ("daq", "table") for piece in steps.pieces(index, source, wanted))
-            if isinstance(steps, LazySteps) else (steps[index].daq, steps[index].table))
-        for log in logs:
-            for name in log.channels:
-                if name in wanted:
-                    values = np.asarray(log[name], dtype=np.float64)
-                    yield values[np.isfinite(values)]
-
-
-def _temperatures(run_dir: Path, recording: str | None) -> Environment:
-    """Min/mean/max (°C) of every temperature sample the loggers recorded, and the file read;
-    accumulated step by step, so no step's temperature is kept once summarised."""
-    from aatest.engine.recording.reader import read_dataset
-
-    candidates = [Path(run_dir)]
-    if recording:
-        candidates.append(Path(recording))
-    for path in candidates:
-        try:
-            data = read_dataset(path)
-        except (AatestError, OSError, ValueError, LookupError):  # no readable recording here
-            continue
-        lows, highs, sums, count = [], [], [], 0
-        for values in _temperature_columns(data):
-            if values.size:
-                lows.append(float(values.min()))
-                highs.append(float(values.max()))
-                sums.append(float(np.sum(values)))
-                count += int(values.size)
-        if not count:
-            return Environment(None, None, None, 0, str(path))
-        return Environment(min(lows), math.fsum(sums) / count, max(highs), count, str(path))
-    return Environment(None, None, None, 0, "no recording")
-
-
-def environment(results: RunResults, run_dir: Path) -> Environment:
-    """Min/mean/max of the temperatures logged during the calibration (docs: §7.8.4.1 a)."""
-    return _temperatures(run_dir, results.metadata.recording)
+def environment(results: RunResults) -> Environment:
+    """Min/mean/max of the temperatures logged during the calibration (docs: §7.8.4.1 a), as
+    the analysis summarised them into the results (never read back from the recording)."""
+    logged = results.logged_temperature
+    if logged is None:  # analysed before results.json carried the summary
+        return Environment(None, None, None, 0, "not in these results")
+    return Environment(logged.min_c, logged.mean_c, logged.max_c, logged.samples, logged.source)
 
 
 def _measurand(stated: str, key: str) -> str:
@@ -338,7 +294,7 @@ def build_certificate(results: RunResults, run_dir: Path, channels: Sequence[str
         identification=identification, numbered=bool(number), lab=lab, item=_item(results),
         method=_method(results, procedure_sha256),
         calibrated_utc=results.metadata.started_utc or "not recorded", issued_utc=issued_utc,
-        environment=environment(results, run_dir), results=result_rows(results, channels),
+        environment=environment(results), results=result_rows(results, channels),
         traceability=trace_rows, traceability_source=trace_source,
         conformity=_conformity(results, rule), adjustment=_adjustment(results),
         signatories=[dict(s) for s in lab.get("signatories") or [] if isinstance(s, Mapping)],

@@ -3,8 +3,8 @@
 Templates hold no logic: everything they show — sections that exist, values with expanded
 uncertainties, verdicts, figures — is prepared here from the typed record
 (:class:`aatest.results.RunResults`), and a section is present only when its analysis is.
-Uncertainties, budgets and verdicts are the engine's (:mod:`aatest.engine.uncertainty`,
-:mod:`aatest.engine.analysis.verdicts`): shown as the results state them, never recomputed.
+Uncertainties, budgets and verdicts are the engine's (:mod:`aatest.metrology.uncertainty`,
+:mod:`aatest.metrology.verdicts`): shown as the results state them, never recomputed.
 Quantities are shown by their names and unit symbols (:mod:`aatest.results.quantities`).
 """
 
@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from aatest.engine.simulation import SIMULATION_TITLE, is_simulation
-from aatest.engine.uncertainty.budgets import channels
+from aatest.metrology.uncertainty.budgets import channels
 from aatest.plugins.report import figures as fig
 from aatest.plugins.report.sandbox import vet_svg
 from aatest.plugins.report.stated import budget_views, frf_rows, misalignment_rows, stated

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import aatest
-from aatest.engine.run.signing import file_sha256
+from aatest.bundle.signing import file_sha256
 from aatest.results import RunResults
 from aatest.results.root import RunMetadata
 from aatest.results.sensor import SensorInfo
