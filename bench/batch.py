@@ -32,9 +32,9 @@ from s3_server import moto_s3
 from aatest.batch.archive import TwinUnit, record_run, register_references
 from aatest.batch.runner import BatchReport, run_batch
 from aatest.batch.selection import Selected, from_prefix, from_store
-from aatest.storage import RemotePath, locate, upload_dir
 from aatest.records.models import RecordFilter
 from aatest.records.store import RecordStore
+from aatest.storage import RemotePath, locate, upload_dir
 
 RIGS = {"rig-1": ("ENC-1", "LOG-1"), "rig-2": ("ENC-1", "LOG-2"), "rig-3": ("ENC-3", "LOG-3")}
 SERIALS = 40  #: units; each is calibrated count / SERIALS times (its repeat calibrations)

@@ -19,11 +19,11 @@ import pytest
 from batch_units import ARCHIVE_UNITS
 from s3_server import moto_server, new_bucket, use_server
 
+from aatest.records.models import RecordFilter
+from aatest.records.store import RecordStore
 from aatest.storage import locate
 from aatest.storage.location import RemotePath
 from aatest.storage.staging import upload_dir
-from aatest.records.models import RecordFilter
-from aatest.records.store import RecordStore
 
 TIMEOUT_S = 600.0
 
