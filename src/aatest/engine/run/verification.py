@@ -19,7 +19,7 @@ from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 from aatest.engine.run import manifest
-from aatest.engine.run.signing import (
+from aatest.engine.run.signature_format import (
     ALGORITHM,
     BUNDLE_FILES,
     FINGERPRINT_META,
