@@ -35,14 +35,13 @@ from aatest.plugins.analysis._common import (
     group_of,
     input_accel_dps2,
     is_excited,
-    new_figure,
     options_of,
     select,
     steps_of,
-    to_svg,
     whole_cycles,
 )
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.results.frf import FrfResult
 from aatest.sync.freeze_pulse import SyncedStep
 

@@ -23,9 +23,14 @@ from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
-from aatest.plugins.analysis._common import new_figure, options_of, scale_in_use, steps_of, to_svg
+from aatest.plugins.analysis._common import (
+    options_of,
+    scale_in_use,
+    steps_of,
+)
 from aatest.plugins.analysis.drift import DriftAnalysis, DriftOptions, allan_terms_of
 from aatest.plugins.analysis.streaming import StaticReduction, band_rms_of, reduce_static
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.results.noise import NoiseResult
 from aatest.sync.freeze_pulse import SyncedStep
 
