@@ -25,6 +25,7 @@ from aatest.diagnose.design import (
 from aatest.diagnose.effects.base import Context
 from aatest.diagnose.generic import Proposal
 from aatest.diagnose.replay import StepReplay
+from aatest.numerics import TINY
 
 
 @dataclass
@@ -111,7 +112,7 @@ def bic_change(ctx: Context, new: Fit, old: Fit, extra_params: int) -> float:
     """BIC(new) − BIC(old) on held-out SSE with n_eff independent samples."""
     n_eff = new.n / ctx.correlation
     dk = new.k - old.k + extra_params
-    ratio = max(new.sse_held_out, 1e-300) / max(old.sse_held_out, 1e-300)
+    ratio = max(new.sse_held_out, TINY) / max(old.sse_held_out, TINY)
     return float(n_eff * np.log(ratio) + dk * np.log(n_eff))
 
 

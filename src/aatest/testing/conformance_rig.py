@@ -16,6 +16,7 @@ from aatest.engine import registry
 from aatest.engine.errors import RigFault
 from aatest.engine.interfaces import RigContext
 from aatest.engine.steps import PlannedStep
+from aatest.rig_defaults import LOG_RATE_HZ
 
 
 @dataclass
@@ -71,7 +72,7 @@ def build(kind: str, name: str, rig: ConformanceRig) -> Any:
 def short_step(kind: str = "static", **extra: Any) -> PlannedStep:
     """A 0.5 s step at 2 kHz (``extra``: sine/rate parameters)."""
     return PlannedStep(id=f"conformance-{kind}", kind=kind, samples=1000,
-                       sample_rate_hz=2000.0, settle_s=0.1, **extra)
+                       sample_rate_hz=LOG_RATE_HZ, settle_s=0.1, **extra)
 
 
 def until_fault(action: Callable[[], Any], timeout_s: float) -> RigFault:

@@ -36,6 +36,7 @@ from aatest.engine.recording.writer import (
 )
 from aatest.engine.steps import PlannedStep
 from aatest.engine.storage import RemotePath, Where, locate
+from aatest.rig_defaults import LOG_RATE_HZ
 
 IMPORT_MANIFEST = "dataset.yaml"
 #: the mapping file of a logger's TDMS/MF4 files (docs/interfaces.md §3)
@@ -402,7 +403,7 @@ def _build_dataset(
 
     steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered], pieces)
     rate = run_meta.get("sample_rate_hz") or (
-        ordered[0].step.sample_rate_hz if ordered else 2000.0
+        ordered[0].step.sample_rate_hz if ordered else LOG_RATE_HZ
     )
     procedure = run_meta.get("procedure")
     metadata = {

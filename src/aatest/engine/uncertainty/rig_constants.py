@@ -17,6 +17,7 @@ from aatest.engine.procedure.rig_description import Instruments
 from aatest.engine.uncertainty.declared import Basis, declared_encoder
 from aatest.engine.uncertainty.evidence import Evidence, gather
 from aatest.results import RunResults
+from aatest.rig_defaults import LOG_RATE_HZ, RECORD_SAMPLES
 
 
 class RigConstants(BaseModel):
@@ -35,8 +36,9 @@ class RigConstants(BaseModel):
     temperature_stability_c: float = Field(0.2, ge=0, description="± band during a record")
     thermometer_uncertainty_c: float = Field(0.1, ge=0, description="standard, per reading")
     noise_bandwidth_hz: float = Field(100.0, gt=0, description="anti-alias filter corner")
-    record_samples: int = Field(131_072, gt=0, description="samples per record if not stated")
-    sample_rate_hz: float = Field(2000.0, gt=0)
+    record_samples: int = Field(RECORD_SAMPLES, gt=0,
+                                description="samples per record if not stated")
+    sample_rate_hz: float = Field(LOG_RATE_HZ, gt=0)
     static_record_s: float = Field(67.5, gt=0, description="static record if not stated")
     temperature_span_c: float = Field(69.0, gt=0, description="−21…48 °C if not stated")
     instruments: Instruments = Field(default_factory=Instruments)

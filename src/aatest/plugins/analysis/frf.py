@@ -29,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from aatest.engine.dataset import Dataset, SensorInfo
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
+from aatest.numerics import TINY
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
     INPUT_ACCEL_CHANNELS,
@@ -71,7 +72,7 @@ class Tone:
 
     def snr_db(self, harmonics: int = 1) -> float:
         signal_power = float(np.sum(self.amplitudes[:harmonics] ** 2)) / 2.0
-        return float(10.0 * np.log10(signal_power / max(self.noise_power, 1e-300)))
+        return float(10.0 * np.log10(signal_power / max(self.noise_power, TINY)))
 
     @property
     def u_relative(self) -> float:

@@ -20,6 +20,7 @@ from matplotlib.figure import Figure
 from matplotlib.typing import RcKeyType
 from scipy import signal
 
+from aatest.numerics import Z95
 from aatest.presentation.figures import STYLE, to_svg
 from aatest.results.frf import FrfPoint
 from aatest.results.misalignment import SetSensor
@@ -28,10 +29,6 @@ from aatest.results.scale_factor import ScaleFactorChannel
 from aatest.results.sensor import SensorInfo
 from aatest.results.temperature import TemperatureChannel
 from aatest.results.transfer_function import TfModel
-
-#: two-sided 95 % quantile of the normal distribution (a ci95 half-width is Z95 standard
-#: uncertainties)
-Z95 = 1.959963984540054
 
 #: applied per plot (never globally, other plugins draw with matplotlib too): text kept as
 #: text, a compact font; the SVG itself is rendered by aatest.presentation.figures
