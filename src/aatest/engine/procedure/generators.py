@@ -59,11 +59,14 @@ class Walker(Protocol):
         ...
 
     def record(self, ov: Overrides, settle_s: float | None = None) -> dict[str, Any]:
-        """Sampling fields of a record, with the entry's overrides applied."""
+        """Sampling fields of a record, with the entry's overrides applied (``settle_s``, in
+        s, replaces the entry's settling time)."""
         ...
 
     def snap(self, freq_hz: float, mode: str, rec: dict[str, Any]) -> tuple[float, int | None]:
-        """The frequency snapped to whole cycles of the record (``mode`` none: unchanged)."""
+        """``freq_hz`` (Hz) snapped to whole cycles of the record ``rec`` (``mode`` none:
+        unchanged): the planned frequency in Hz and the cycle count (dimensionless; None when
+        not snapped)."""
         ...
 
     def emit(self, label: str, source: YamlPath, prompt: str | None = None, **fields: Any) -> None:
