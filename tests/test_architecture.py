@@ -8,7 +8,9 @@ imports inside functions included), so a lazy import cannot hide a dependency. T
     ``aatest.plugins.<kind>`` and each part of the engine: ``aatest.engine.run``,
     ``aatest.engine.errors`` …). The engine counts by its parts because its shared records
     (errors, steps, logs, interfaces) sit below the recording and metrology packages that its
-    orchestration (procedure, run, analysis pass) sits above;
+    orchestration (procedure, run, analysis pass) sits above; and none between modules
+    either: a shared piece lives in a module of its own that both import, not behind a lazy
+    import in one of them;
 (b) the engine and the packages it orchestrates (recording, metrology, storage, bundle) import
     no plugin, twin or diagnose module: plugins are found through entry points only;
 (c) ``aatest.twin`` imports no plugin: the simulated plugins build on the twin, not the reverse;
@@ -28,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 from scipy.sparse import csr_array
-from scipy.sparse.csgraph import shortest_path
+from scipy.sparse.csgraph import connected_components, shortest_path
 
 import aatest
 
@@ -124,6 +126,45 @@ def _package_edges(graph: grimp.ImportGraph) -> dict[tuple[str, str], list[tuple
     return edges
 
 
+def find_module_cycles(graph: grimp.ImportGraph) -> list[str]:
+    """Describe one cycle of every group of modules that import each other, hop by hop.
+
+    The groups are the strongly connected components of the module graph (scipy); each is
+    reported once, by the shortest cycle through its smallest module name, every hop with the
+    import lines behind it, followed by the group's other members.
+    """
+    modules = sorted(graph.modules)
+    index = {m: i for i, m in enumerate(modules)}
+    pairs = [(index[a], index[b]) for a in modules
+             for b in graph.find_modules_directly_imported_by(a)]
+    matrix = csr_array(
+        ([1.0] * len(pairs), ([a for a, _ in pairs], [b for _, b in pairs])),
+        shape=(len(modules),) * 2,
+    )
+    count, labels = connected_components(matrix, directed=True, connection="strong")
+    groups = [sorted(np.flatnonzero(labels == k)) for k in range(count)]
+    cyclic = [g for g in groups if len(g) > 1 or matrix[g[0], g[0]]]
+    if not cyclic:
+        return []
+    _, predecessors = shortest_path(matrix, unweighted=True, return_predecessors=True)
+    found = []
+    for group in sorted(cyclic, key=lambda g: modules[g[0]]):
+        first = group[0]
+        successors = [b for b in matrix[[first], :].indices if labels[b] == labels[first]]
+        closing = [(b, _path(predecessors, b, first, modules)) for b in sorted(successors)]
+        hops = min(((b, path) for b, path in closing if path is not None),
+                   key=lambda item: len(item[1]))[1]
+        cycle = [modules[first], *hops, modules[first]]
+        lines = [f"cycle {' -> '.join(cycle)}:"]
+        for a, b in itertools.pairwise(cycle):
+            lines.append(f"    {a} -> {b} ({_import_lines(graph, a, b)})")
+        others = sorted(set(modules[i] for i in group) - set(cycle))
+        if others:
+            lines.append(f"    (the same group also holds {', '.join(others)})")
+        found.append("\n".join(lines))
+    return found
+
+
 def find_forbidden_imports(
     graph: grimp.ImportGraph, importer_package: str, forbidden: Iterable[str]
 ) -> list[str]:
@@ -210,6 +251,11 @@ def test_allow_list_names_only_existing_imports(full_graph: grimp.ImportGraph) -
 def test_no_import_cycle_between_packages(graph: grimp.ImportGraph) -> None:
     """(a) Packages form a directed acyclic graph."""
     _fail_with("import cycles between packages", find_package_cycles(graph))
+
+
+def test_no_import_cycle_between_modules(graph: grimp.ImportGraph) -> None:
+    """(a) Modules form a directed acyclic graph, lazy imports inside functions included."""
+    _fail_with("import cycles between modules", find_module_cycles(graph))
 
 
 #: the engine and the stages it orchestrates: none of them may reach a plugin, the twin or diagnose
@@ -308,6 +354,47 @@ def test_acyclic_layers_report_nothing() -> None:
     assert find_package_cycles(built) == []
 
 
+def test_module_cycle_is_reported_hop_by_hop_with_lines() -> None:
+    """A three-module loop inside one package, closed by a lazy import, is one cycle."""
+    built = grimp.ImportGraph()
+    for importer, imported, line, text in [
+        ("aatest.sync.fit", "aatest.sync.edges", 12, "from aatest.sync.edges import pair"),
+        ("aatest.sync.edges", "aatest.sync.rel", 7, "from aatest.sync.rel import R"),
+        ("aatest.sync.rel", "aatest.sync.fit", 40, "    from aatest.sync.fit import f"),
+        ("aatest.sync.rel", "aatest.engine.errors", 3, "from aatest.engine import errors"),
+        ("aatest.sync.streamed", "aatest.sync.fit", 9, "from aatest.sync.fit import f"),
+    ]:
+        built.add_import(importer=importer, imported=imported, line_number=line,
+                         line_contents=text)
+    (message,) = find_module_cycles(built)
+    assert message.splitlines() == [
+        "cycle aatest.sync.edges -> aatest.sync.rel -> aatest.sync.fit -> aatest.sync.edges:",
+        "    aatest.sync.edges -> aatest.sync.rel (line 7: from aatest.sync.rel import R)",
+        "    aatest.sync.rel -> aatest.sync.fit (line 40:     from aatest.sync.fit import f)",
+        "    aatest.sync.fit -> aatest.sync.edges (line 12: from aatest.sync.edges import pair)",
+    ]
+
+
+def test_two_module_groups_are_two_cycles_and_a_chain_none() -> None:
+    """Each strongly connected group is reported once; imports that only point down are not."""
+    built = _synthetic(
+        [
+            ("aatest.results.quantities", "aatest.results.rounding"),
+            ("aatest.results.rounding", "aatest.results.quantities"),
+            ("aatest.records.audit", "aatest.records.store"),
+            ("aatest.records.store", "aatest.records.audit"),
+            ("aatest.records.store", "aatest.records.chain"),
+            ("aatest.cli", "aatest.records.store"),
+        ]
+    )
+    first, second = find_module_cycles(built)
+    assert first.splitlines()[0] == (
+        "cycle aatest.records.audit -> aatest.records.store -> aatest.records.audit:"
+    )
+    assert second.splitlines()[0].startswith("cycle aatest.results.quantities -> ")
+    assert find_module_cycles(_synthetic([("aatest.cli", "aatest.records.store")])) == []
+
+
 def test_forbidden_import_names_importer_and_line() -> None:
     """A forbidden import is reported with the importing module and its source line."""
     built = _synthetic([("aatest.engine.run.session", "aatest.plugins.report.pdf")])
@@ -320,7 +407,7 @@ def test_forbidden_import_names_importer_and_line() -> None:
     ("source", "expected"),
     [
         ("from aatest.twin.model import _helper", ["aatest.twin.model._helper"]),
-        ("def f():\n    from aatest.sync import _fit", ["aatest.sync._fit"]),
+        ("def f():\n    from aatest.clocksync import _fit", ["aatest.clocksync._fit"]),
         ("import aatest.engine._cache", ["aatest.engine._cache"]),
         ("from ..analysis._common import mean", ["aatest.plugins.analysis._common.mean"]),
         ("from ._frames import decode", []),

@@ -22,13 +22,10 @@ named; the output says which format was checked.
 from __future__ import annotations
 
 import base64
-import hashlib
 import json
 import os
-import re
 import stat
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -36,60 +33,45 @@ from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
 from aatest.bundle import manifest
+from aatest.bundle.signature_format import (
+    ALGORITHM,
+    BUNDLE_FILES,
+    FINGERPRINT_META,
+    LEGACY_FORMAT,
+    SIGNATURE_FORMAT,
+    SIGNED_FIELDS,
+    VerifyResult,
+    canonical_bytes,
+    key_fingerprint,
+    raw_public_key,
+    signature_path,
+    signed_payload,
+)
 from aatest.bundle.trust import TrustedKey
+from aatest.bundle.verification import verify
 from aatest.engine.errors import InputError
 from aatest.storage import Where, locate
+
+# the signature document's definitions live in .signature_format, shared with verification;
+# they stay importable from here
+__all__ = ["ALGORITHM", "BUNDLE_FILES", "FINGERPRINT_META", "LEGACY_FORMAT", "SIGNATURE_FORMAT",
+           "SIGNED_FIELDS", "SigningError", "VerifyResult", "bundle_hashes", "canonical_bytes",
+           "file_sha256", "generate_keypair", "key_fingerprint", "load_private_key",
+           "load_public_key", "public_key_path", "sign_bundle", "signature_path",
+           "signed_payload", "trusted_public_key", "verify_bundle"]
 
 #: SHA-256 of one file, as the manifest hashes it (kept here for callers of format 1)
 file_sha256 = manifest.file_sha256
 
-SIGNATURE_FORMAT = "aatest-signature/2"
-LEGACY_FORMAT = "aatest-signature/1"
-ALGORITHM = "Ed25519"
-#: the files next to the report that a format-1 signature covered (besides the report itself)
-BUNDLE_FILES: tuple[str, ...] = ("results.json", "recording.mcap", "report.pdf")
-#: the fields of a format-2 signature document that the signature covers
-SIGNED_FIELDS: tuple[str, ...] = ("format", "algorithm", "fingerprint", "signed_utc", "files",
-                                  "excluded")
-#: how a report states the fingerprint of the key that signs it (see the report templates)
-FINGERPRINT_META = re.compile(rb'<meta name="aatest-key-fingerprint" content="([0-9a-f]{64})"')
 
 
 class SigningError(InputError):
     """A key file is missing, unreadable, of the wrong type, too open or wrongly protected."""
 
 
-@dataclass
-class VerifyResult:
-    """Outcome of :func:`verify_bundle`; ``reasons`` names every problem found."""
-
-    ok: bool
-    reasons: list[str] = field(default_factory=list)
-    fingerprint: str | None = None
-    trusted: TrustedKey | None = None
-    signed_utc: datetime | None = None
-    format: str | None = None
-
-
-def signature_path(report_path: Where) -> Where:
-    """Where the detached signature of ``report_path`` lives (``report.html.sig``)."""
-    return report_path.with_name(report_path.name + ".sig")
-
-
 def public_key_path(key_path: Path) -> Path:
     """Where :func:`generate_keypair` writes the public key (``KEYFILE.pub``)."""
     return key_path.with_name(key_path.name + ".pub")
-
-
-def _raw_public(public_key: Ed25519PublicKey) -> bytes:
-    return public_key.public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
-
-
-def key_fingerprint(public_key: Ed25519PublicKey | Ed25519PrivateKey) -> str:
-    """SHA-256 hex of the raw 32-byte public key; printed on the certificate."""
-    if isinstance(public_key, Ed25519PrivateKey):
-        public_key = public_key.public_key()
-    return hashlib.sha256(_raw_public(public_key)).hexdigest()
 
 
 def _create_exclusive(path: Path, data: bytes, mode: int) -> None:
@@ -197,20 +179,6 @@ def bundle_hashes(report_path: Where) -> dict[str, str]:
     return hashes
 
 
-def canonical_bytes(document: dict[str, object]) -> bytes:
-    """The exact bytes that are signed: sorted-key, separator-free UTF-8 JSON."""
-    return json.dumps(document, sort_keys=True, separators=(",", ":")).encode()
-
-
-def signed_payload(document: dict[str, object]) -> bytes:
-    """What the signature of ``document`` covers: its :data:`SIGNED_FIELDS` (format 2), or its
-    ``files`` alone (format 1)."""
-    if document.get("format") == SIGNATURE_FORMAT:
-        return canonical_bytes({k: document.get(k) for k in SIGNED_FIELDS})
-    files = document.get("files")
-    return canonical_bytes(files if isinstance(files, dict) else {})
-
-
 def sign_bundle(report_path: Where, private_key: Ed25519PrivateKey) -> Where:
     """Sign the bundle around ``report_path``; write and return ``<report>.sig``.
 
@@ -231,7 +199,7 @@ def sign_bundle(report_path: Where, private_key: Ed25519PrivateKey) -> Where:
         "format": SIGNATURE_FORMAT,
         "algorithm": ALGORITHM,
         "fingerprint": key_fingerprint(private_key),
-        "public_key": base64.b64encode(_raw_public(private_key.public_key())).decode(),
+        "public_key": base64.b64encode(raw_public_key(private_key.public_key())).decode(),
         "signed_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "files": bundle_hashes(report_path),
         "excluded": dict(manifest.EXCLUSIONS),
@@ -244,6 +212,4 @@ def sign_bundle(report_path: Where, private_key: Ed25519PrivateKey) -> Where:
 
 def verify_bundle(report_path: Where, trusted: Sequence[TrustedKey] = ()) -> VerifyResult:
     """Check the bundle around ``report_path``: see :func:`.verification.verify`."""
-    from aatest.bundle.verification import verify
-
     return verify(report_path, trusted)

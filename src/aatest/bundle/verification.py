@@ -19,7 +19,7 @@ from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 from aatest.bundle import manifest
-from aatest.bundle.signing import (
+from aatest.bundle.signature_format import (
     ALGORITHM,
     BUNDLE_FILES,
     FINGERPRINT_META,

@@ -35,7 +35,7 @@ from scipy.optimize import brentq, minimize_scalar
 from aatest.engine.errors import AnalysisError
 
 if TYPE_CHECKING:
-    from aatest.clocksync.freeze_pulse import ClockRelation
+    from aatest.clocksync.relation import ClockRelation
 
 #: the true edge lies between this many table samples before the registering row (docs/method.md
 #: §2: registered in the controller cycle after the one the edge falls in)

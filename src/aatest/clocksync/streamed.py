@@ -3,7 +3,7 @@
 A controller's log buffer is finite: during an hours-long static record streamed by the DAQ,
 the table logs at full rate only as long as its buffer holds (the head of the record). The
 clocks are fitted on the freeze-pulse edges both loggers hold and the fitted drift is carried
-over the rest of the record; :class:`~aatest.clocksync.freeze_pulse.ClockRelation` states the share
+over the rest of the record; :class:`~aatest.clocksync.relation.ClockRelation` states the share
 of the record the fitted edges span (``fit_coverage``) and what carrying the drift adds to the
 alignment at the far end (``extrapolation_u_s``).
 
@@ -21,7 +21,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, edge_relation
+from aatest.clocksync.clock_fit import edge_relation
+from aatest.clocksync.relation import ClockRelation, SyncedStep
 from aatest.engine.errors import AnalysisError
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
@@ -74,7 +75,7 @@ class _Line:
         self.n = n
 
     def fit(self) -> tuple[float, float]:
-        """(intercept s, slope s/sample), as :func:`~aatest.clocksync.freeze_pulse._regular_fit`."""
+        """(intercept s, slope s/sample), as :func:`~aatest.clocksync.clock_fit.regular_fit`."""
         if self.n < _MIN_LINE or self.s_ii <= 0.0:
             raise AnalysisError(f"a log of {self.n} sample(s) has no time base to fit")
         slope = self.s_it / self.s_ii

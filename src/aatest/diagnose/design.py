@@ -33,6 +33,7 @@ from aatest.diagnose.replay import (
 )
 from aatest.effects import EffectInputs, design_column_names, design_columns
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
+from aatest.numerics import TINY
 from aatest.twin.daq import antialias_filter
 from aatest.twin.kinematics import E_I
 from aatest.twin.sensor import dynamics_filter, play_operator
@@ -458,7 +459,7 @@ def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.nd
 
 def solve(xtx: np.ndarray, xty: np.ndarray) -> np.ndarray:
     """Least-squares coefficients from a Gram matrix, with column equilibration."""
-    d = np.sqrt(np.clip(np.diag(xtx), 1e-300, None))
+    d = np.sqrt(np.clip(np.diag(xtx), TINY, None))
     a = xtx / np.outer(d, d)
     coef, *_ = np.linalg.lstsq(a, xty / d, rcond=1e-10)
     return coef / d

@@ -8,19 +8,17 @@ Matplotlib's object API only (no pyplot state), so rendering is safe in any proc
 
 from __future__ import annotations
 
-import io
 from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from aatest.diagnose.candidates.base import Context
+from aatest.presentation.figures import to_svg
 
 
 def _svg(fig: Figure) -> str:
-    buffer = io.StringIO()
-    fig.savefig(buffer, format="svg", metadata={"Date": None})
-    return buffer.getvalue()
+    return to_svg(fig)
 
 
 def per_step_bars(views: dict[str, Any], channel: str) -> str:

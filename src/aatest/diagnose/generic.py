@@ -28,6 +28,7 @@ from scipy import optimize, signal
 
 from aatest.diagnose.periodogram import dft_at, lomb_scargle_power
 from aatest.diagnose.replay import StepReplay
+from aatest.numerics import TINY
 
 #: a residual line stands this far above the median of the step-averaged residual spectrum
 LINE_SNR = 12.0
@@ -202,7 +203,7 @@ def _peak_frequencies(steps: tuple[StepReplay, ...], residuals: dict[int, np.nda
     spectra = [signal.welch(residuals[sr.index], fs=fs, nperseg=nper, detrend=_linear_detrend)
                for sr in steps]
     f = spectra[0][0]
-    norm = np.array([p / max(float(np.median(p)), 1e-300) for _, p in spectra])
+    norm = np.array([p / max(float(np.median(p)), TINY) for _, p in spectra])
     acc = norm.mean(axis=0)
     floor = float(np.median(acc))
     # one step alone must stand higher: its spectrum is not averaged over the others
@@ -261,7 +262,7 @@ def _line_proposal(steps: tuple[StepReplay, ...], f_hz: float) -> Proposal:
         phases = np.arctan2(coef[1::2], coef[0::2])
         amp_v = float(np.median(amps))
         # phase coherence over steps (1 = the same phase at every record start)
-        coherence = float(abs(np.sum(amps * np.exp(1j * phases))) / max(amps.sum(), 1e-300))
+        coherence = float(abs(np.sum(amps * np.exp(1j * phases))) / max(amps.sum(), TINY))
         seen = table_dps2 >= SEEN_BY_TABLE * amp_v / abs(k)
         where = ("also in the table log (motion)" if seen
                  else "in the sensor only (not in the table log)")

@@ -16,6 +16,7 @@ from aatest.diagnose.alignment import nominal_fit
 from aatest.diagnose.candidates.base import Context
 from aatest.diagnose.design import ChannelInfo, predict
 from aatest.diagnose.replay import Replay
+from aatest.numerics import TINY
 from aatest.recording.dataset import Dataset
 from aatest.twin.daq import antialias_filter
 
@@ -103,7 +104,7 @@ def noise_rolloff(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:
     high = (freq >= 0.2 * fs) & (freq <= 0.45 * fs)
     if not low.any() or not high.any():
         return 1.0
-    return float(np.median(psd[high]) / max(np.median(psd[low]), 1e-300))
+    return float(np.median(psd[high]) / max(np.median(psd[low]), TINY))
 
 
 def _noise_model(h2: np.ndarray, p: np.ndarray, use: np.ndarray | None = None
@@ -124,8 +125,8 @@ def _noise_model(h2: np.ndarray, p: np.ndarray, use: np.ndarray | None = None
     coef = np.zeros(2)
     for _ in range(_WHITTLE_ITER):
         coef, _ = nnls(x / m[:, None], y / m)
-        m = np.maximum(x @ coef, 1e-300)
-    return np.maximum(x_all @ coef, 1e-300), float(np.sum(np.log(m) + y / m))
+        m = np.maximum(x @ coef, TINY)
+    return np.maximum(x_all @ coef, TINY), float(np.sum(np.log(m) + y / m))
 
 
 def _filter_h2(fc: float, f: np.ndarray, fs: float) -> np.ndarray:

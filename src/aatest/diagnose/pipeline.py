@@ -38,6 +38,7 @@ from aatest.diagnose.selection import (
 )
 from aatest.diagnose.story import residual_entry, verdict
 from aatest.diagnose.unexplained import Outcome, explain, held_out_rmse, joint_residuals
+from aatest.numerics import K95, TINY
 from aatest.recording.dataset import Dataset
 
 
@@ -84,7 +85,7 @@ def _estimate_drift(ctx: Context) -> _Drift | None:
         return _Drift(d, ci, "phase trend (no sync edges)", ctx.current, fit, None, (-d, True))
     d, u = est.drift_ppm, est.u_ppm
     bound = est.range_ppm  # without latch times: the drifts the edges allow, a hard bound
-    ci = [d - 1.96 * u, d + 1.96 * u] if bound is None else [bound[0], bound[1]]
+    ci = [d - K95 * u, d + K95 * u] if bound is None else [bound[0], bound[1]]
     edges = _Drift(d, ci, "sync edges", one_clock_fit(ctx, d), ctx.current, d, None)
     if ctx.replay.fp_latch:
         return edges
@@ -109,8 +110,8 @@ def _drift_finding(ctx: Context, tolerance_ppm: float) -> tuple[Finding | None, 
         return None, {**row, "delta_bic": None, "testable": False,
                       "reason": "no sync edges and no sine step to show a phase trend"}
     n_eff = est.before.n / ctx.correlation
-    dbic = float(n_eff * np.log(max(est.after.sse_held_out, 1e-300)
-                                / max(est.before.sse_held_out, 1e-300)) + np.log(n_eff))
+    dbic = float(n_eff * np.log(max(est.after.sse_held_out, TINY)
+                                / max(est.before.sse_held_out, TINY)) + np.log(n_eff))
     row |= {"delta_bic": dbic, "parameters": {"drift_ppm": est.drift_ppm}, "source": est.source}
     significant = est.ci[0] > 0 or est.ci[1] < 0
     measured_by_edges = est.source == "sync edges"

@@ -16,16 +16,14 @@ marginal ΔBIC is, if anything, overstated: timing effects are never withdrawn w
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from aatest.diagnose.candidates.base import Context, linear_ci
 from aatest.diagnose.candidates.plugins import joint_parameters
 from aatest.diagnose.design import Spec
+from aatest.diagnose.joint import Joint, bic_change, held_out_rmse, joint_fit
 from aatest.diagnose.selection import BIC_THRESHOLD, SHAPE_PARAMS, Finding
 from aatest.effects import spec_token
-
-if TYPE_CHECKING:
-    from aatest.diagnose.unexplained import Joint
 
 _LINEAR_PARAMS = {"bias_temperature": ("bias_temperature", "coefficient_v_per_c", False),
                   "scale_temperature": ("scale_temperature", "coefficient_per_c", True),
@@ -54,8 +52,6 @@ def without(spec: Spec, effect: str) -> Spec | None:
 
 def _marginal(ctx: Context, joint: Joint, effect: str) -> tuple[float, float, Spec] | None:
     """(ΔBIC of keeping the effect, held-out RMS without it, the spec without it)."""
-    from aatest.diagnose.unexplained import bic_change, held_out_rmse, joint_fit
-
     reduced = without(joint.spec, effect)
     if reduced is None:
         return None
@@ -69,8 +65,6 @@ def backward_pass(ctx: Context, joint: Joint, findings: list[Finding]) -> dict[s
     ``joint`` is updated in place; kept findings get ``marginal`` evidence and, for linear
     effects, ``joint_fit`` parameters with 95 % intervals. Returns effect → reason withdrawn.
     """
-    from aatest.diagnose.unexplained import joint_fit
-
     withdrawn: dict[str, str] = {}
     for f in sorted(findings, key=lambda f: -f.delta_bic):
         m = _marginal(ctx, joint, f.effect)
@@ -89,8 +83,6 @@ def backward_pass(ctx: Context, joint: Joint, findings: list[Finding]) -> dict[s
 
 def _annotate(ctx: Context, joint: Joint, finding: Finding) -> None:
     """Marginal evidence and joint-fit intervals of one kept finding."""
-    from aatest.diagnose.unexplained import held_out_rmse
-
     m = _marginal(ctx, joint, finding.effect)
     if m is not None:
         finding.extra["marginal"] = {"delta_bic": m[0], "rmse_v_without": m[1],

@@ -18,9 +18,10 @@ import numpy as np
 
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2 as _K_V
 from aatest.engine.steps import PlannedStep
+from aatest.rig_defaults import LOG_RATE_HZ
 from aatest.twin import model as m
 
-FS_HZ = 2000.0
+FS_HZ = LOG_RATE_HZ
 
 
 def _sine(sid: str, cycles: int, accel: float, samples: int, *, axis: str = "inner",

@@ -27,6 +27,7 @@ from aatest.diagnose.candidates import Candidate, vocabulary
 from aatest.diagnose.candidates.base import CandidateFit, Context, dynamic_peak_dps2
 from aatest.diagnose.candidates.shape import DAMPING_BOUNDS, MAX_DELAY_S, MAX_NATURAL_HZ
 from aatest.diagnose.design import Fit, Spec, predict
+from aatest.numerics import TINY
 
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.003
@@ -113,7 +114,7 @@ def delta_bic(ctx: Context, new: Fit, old: Fit, effect: str) -> float:
     """BIC(new) − BIC(old) on held-out SSE with n_eff independent samples."""
     n_eff = new.n / ctx.correlation
     dk = (new.k - old.k) + SHAPE_PARAMS.get(effect, 0)
-    ratio = max(new.sse_held_out, 1e-300) / max(old.sse_held_out, 1e-300)
+    ratio = max(new.sse_held_out, TINY) / max(old.sse_held_out, TINY)
     return float(n_eff * np.log(ratio) + dk * np.log(n_eff))
 
 

@@ -43,6 +43,14 @@ from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep, SensorRef
 from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
+from aatest.rig_defaults import (
+    INNER_ACCEL_DPS2,
+    INNER_RATE_DPS,
+    LOG_CAPACITY_SAMPLES,
+    LOG_RATE_HZ,
+    OUTER_ACCEL_DPS2,
+    OUTER_RATE_DPS,
+)
 
 if TYPE_CHECKING:
     from aatest.engine.rig_description import Instruments
@@ -91,11 +99,11 @@ class TableEnvelope(BaseModel):
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
-    inner: AxisLimits = AxisLimits(rate_dps=1200.0, accel_dps2=1000.0)
-    outer: AxisLimits = AxisLimits(rate_dps=500.0, accel_dps2=200.0)
+    inner: AxisLimits = AxisLimits(rate_dps=INNER_RATE_DPS, accel_dps2=INNER_ACCEL_DPS2)
+    outer: AxisLimits = AxisLimits(rate_dps=OUTER_RATE_DPS, accel_dps2=OUTER_ACCEL_DPS2)
     axes: tuple[AxisName, ...] = ("inner", "outer")
-    max_log_rate_hz: float = 2000.0
-    log_capacity_samples: int = 230_000
+    max_log_rate_hz: float = LOG_RATE_HZ
+    log_capacity_samples: int = LOG_CAPACITY_SAMPLES
     #: usable terminal frequency with payload (docs/method.md §1.2: 10 Hz, not 11.25 Hz)
     max_frequency_hz: float = 10.0
     #: the rig's DAQ streams long records (:class:`StreamingDaq`); set by the engine from the

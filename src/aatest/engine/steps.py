@@ -11,6 +11,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from aatest.rig_defaults import LOG_RATE_HZ
+
 StepKind = Literal["static", "sine", "constant_rate", "chamber"]
 Axis = Literal["inner", "outer", "both", "none"]
 Remount = Literal["none", "sensors", "block", "both"]
@@ -37,7 +39,7 @@ class PlannedStep(_Frozen):
     axis: Axis = "none"
     duration_s: float = Field(0.0, ge=0, description="recorded length, samples / rate")
     settle_s: float = Field(0.0, ge=0, description="time in motion before recording starts")
-    sample_rate_hz: float = 2000.0
+    sample_rate_hz: float = LOG_RATE_HZ
     samples: int = 0
     frequency_hz: float | None = None
     cycles: int | None = Field(None, description="whole cycles in the record (coherent sine)")

@@ -1,13 +1,12 @@
 """The fleet pages' plots: drift with its interval, and I-MR control charts (SVG strings).
 
 Drawn like the report figures: matplotlib's object API (no pyplot state, safe from the
-station's worker threads), a fixed SVG hash salt and no date in the metadata, so the same data
-give the same file (stable element ids).
+station's worker threads), rendered by :mod:`aatest.presentation.figures`, so the same data
+give the same file (stable element ids, no date).
 """
 
 from __future__ import annotations
 
-import io
 from typing import Any
 
 import matplotlib
@@ -18,9 +17,9 @@ from scipy import stats
 
 from aatest.fleet.control import ControlChart
 from aatest.fleet.interval import DAYS_PER_MONTH, DriftFit, IntervalRecommendation
+from aatest.presentation.figures import STYLE, to_svg
 
-_STYLE: dict[Any, Any] = {"svg.hashsalt": "aatest-fleet", "svg.fonttype": "none",
-                          "font.size": 9}
+_STYLE: dict[Any, Any] = dict(STYLE)
 #: the drift plot looks this far past the longest observed interval (or the recommendation)
 _AHEAD = 1.5
 #: the band drawn about the fitted drift: the two-sided 95 % prediction interval
@@ -28,10 +27,7 @@ _BAND = 0.975
 
 
 def _svg(fig: Figure) -> str:
-    buffer = io.StringIO()
-    fig.savefig(buffer, format="svg", metadata={"Date": None}, bbox_inches="tight")
-    text = buffer.getvalue()
-    return text[text.index("<svg"):]
+    return to_svg(fig, tight=True, inline=True)
 
 
 def drift_plot(fit: DriftFit, recommendation: IntervalRecommendation | None,

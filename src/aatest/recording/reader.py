@@ -35,6 +35,7 @@ from aatest.recording.writer import (
     load_run_metadata,
     merged_step_ids,
 )
+from aatest.rig_defaults import LOG_RATE_HZ
 from aatest.storage import RemotePath, Where, locate
 
 IMPORT_MANIFEST = "dataset.yaml"
@@ -402,7 +403,7 @@ def _build_dataset(
 
     steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered], pieces)
     rate = run_meta.get("sample_rate_hz") or (
-        ordered[0].step.sample_rate_hz if ordered else 2000.0
+        ordered[0].step.sample_rate_hz if ordered else LOG_RATE_HZ
     )
     procedure = run_meta.get("procedure")
     metadata = {

@@ -30,6 +30,7 @@ from aatest.engine.errors import StorageFault
 from aatest.engine.logs import DAQ, SampledLog
 from aatest.recording import codec, proto
 from aatest.recording import format as fmt
+from aatest.recording.channels import CHUNK_BYTES, register_channels
 from aatest.recording.mcap_io import ChunkedWriter
 from aatest.recording.preview import Layout, PreviewStream, records_per_chunk
 
@@ -92,8 +93,6 @@ class DaqSpool:
             self._stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
             self._writer: ChunkedWriter = new_writer(self._stream)
             self._writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
-            from aatest.recording.writer import register_channels
-
             register_channels(self._writer)
         except OSError as exc:
             raise _storage(path, exc) from exc
@@ -132,7 +131,7 @@ class DaqSpool:
                 channel_id=fmt.CHANNEL_IDS[DAQ], log_time=t_ns, publish_time=t_ns,
                 sequence=sequence, data=data))
             self._pending_bytes += len(self._pending[-1].data)
-            if self._pending_bytes >= _chunk_bytes():
+            if self._pending_bytes >= CHUNK_BYTES:
                 self._flush()
         self._preview.add(part)
         self.blocks += len(times_ns)
@@ -230,12 +229,6 @@ class DaqSpool:
                 yield Message(channel_id=message.channel_id, log_time=message.log_time,
                               publish_time=message.publish_time, sequence=message.sequence,
                               data=block.SerializeToString())
-
-
-def _chunk_bytes() -> int:
-    from aatest.recording.writer import CHUNK_BYTES
-
-    return CHUNK_BYTES
 
 
 def _storage(path: Path, exc: OSError) -> StorageFault:

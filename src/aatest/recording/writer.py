@@ -30,16 +30,15 @@ import aatest
 from aatest.engine.errors import RecordingError, StorageFault
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.recording import codec, preview, proto
+from aatest.recording import codec, preview
 from aatest.recording import format as fmt
+from aatest.recording.channels import CHUNK_BYTES, register_channels
 from aatest.recording.mcap_io import ChunkedWriter
 from aatest.recording.stream import DaqSpool, spool_path
 
 RECORDING_NAME = "recording.mcap"
 STEPS_DIR = "steps"
 RUN_META_NAME = "run.json"
-#: chunk size before compression; 4 MiB keeps zstd efficient and memory bounded
-CHUNK_BYTES = 4 * 1024 * 1024
 #: the step index is a uint32 in every block
 MAX_STEP_INDEX = 2**32 - 1
 _STEP_FILE = re.compile(r"^(\d{3,})-(.+)\.mcap$")
@@ -99,15 +98,6 @@ def new_writer(stream: IO[bytes]) -> ChunkedWriter:
 def _check_index(index: int) -> None:
     if not 1 <= index <= MAX_STEP_INDEX:
         raise ValueError(f"step index {index} outside 1..{MAX_STEP_INDEX}")
-
-
-def register_channels(writer: ChunkedWriter) -> None:
-    """The one protobuf schema and the two stable channels (identical in every file)."""
-    writer.add_schema(Schema(id=fmt.SCHEMA_ID, name=proto.BLOCK_MESSAGE, encoding=fmt.ENCODING,
-                             data=proto.schema_data()))
-    for source, cid in fmt.CHANNEL_IDS.items():
-        writer.add_channel(Channel(id=cid, topic=fmt.topic(source), message_encoding=fmt.ENCODING,
-                                   schema_id=fmt.SCHEMA_ID, metadata={"source": source}))
 
 
 def _write_log(

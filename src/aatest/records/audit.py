@@ -17,20 +17,35 @@ import getpass
 import os
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from sqlalchemy import select
-from sqlalchemy.engine import Connection
+from sqlalchemy.engine import Connection, Engine
 
 from aatest.records import chain
 from aatest.records.errors import RecordsError
 from aatest.records.tables import audit_log, certificate_status, certificates
 
-if TYPE_CHECKING:
-    from aatest.records.store import RecordStore
-
 AUDIT_FORMAT = "aatest-audit/1"
 _CONTENT = ("id", "at_utc", "who", "action", "subject", "reason", "detail")
+
+
+class Store(Protocol):
+    """What the audit reads of a records store (:class:`~aatest.records.store.RecordStore`).
+
+    The store appends audit rows in its own transactions, so it imports this module; the
+    audit names only the two attributes it needs instead of importing the store back.
+    """
+
+    @property
+    def engine(self) -> Engine:
+        """The store's SQLAlchemy engine."""
+        ...
+
+    @property
+    def name(self) -> str:
+        """The store as a person reads it (its URL without a password)."""
+        ...
 
 
 def actor() -> str:
@@ -71,7 +86,7 @@ class AuditReport:
     broken: str | None
 
 
-def report(store: RecordStore) -> AuditReport:
+def report(store: Store) -> AuditReport:
     """Every audit row, oldest first, with the chain checked (``aatest records audit``)."""
     lines, previous = [], chain.GENESIS
     with store.engine.connect() as connection:
@@ -88,7 +103,7 @@ def report(store: RecordStore) -> AuditReport:
     return AuditReport(lines, None)
 
 
-def supersede(store: RecordStore, number: str, reason: str, by: str | None) -> str:
+def supersede(store: Store, number: str, reason: str, by: str | None) -> str:
     """Mark certificate ``number`` superseded by ``by`` (or withdrawn without); what happened."""
     if not reason.strip():
         raise RecordsError("a reason is required (--reason)")

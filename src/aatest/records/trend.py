@@ -6,7 +6,6 @@ limits, the fitted drift line (per year) and the next due date from the lab's in
 
 from __future__ import annotations
 
-import io
 from collections.abc import Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
@@ -16,10 +15,11 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.dates as mdates
-import matplotlib.pyplot as plt
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 from markupsafe import Markup
+from matplotlib.figure import Figure
 
+from aatest.presentation.figures import to_svg
 from aatest.records.history import display_name, fit_drift, next_due, quantity_names
 from aatest.records.models import CalibrationRecord
 
@@ -41,12 +41,8 @@ td,th{border:1px solid #ccc;padding:2px 8px;font-size:90%} figure{margin:1em 0}<
 """
 
 
-def _svg(figure: plt.Figure) -> Markup:
-    buffer = io.StringIO()
-    figure.savefig(buffer, format="svg", bbox_inches="tight")
-    plt.close(figure)
-    text = buffer.getvalue()
-    return Markup(text[text.index("<svg"):])  # drop the XML prolog: inline SVG
+def _svg(figure: Figure) -> Markup:
+    return Markup(to_svg(figure, tight=True, inline=True))  # our own figure: trusted SVG
 
 
 #: margin either side of the plotted dates, as a fraction of their span (at least a fortnight)
@@ -72,7 +68,8 @@ def _plot(records: Sequence[CalibrationRecord], name: str,
     when_days = mdates.date2num(when)  # matplotlib's date numbers: the axis is a date axis
     values = [r.quantities[name].value for r in rows]
     errors = [r.quantities[name].expanded_uncertainty or 0.0 for r in rows]
-    figure, axes = plt.subplots(figsize=(7.0, 3.0))
+    figure = Figure(figsize=(7.0, 3.0))
+    axes = figure.subplots()
     stated = any(r.quantities[name].expanded_uncertainty is not None for r in rows)
     axes.errorbar(when_days, values, yerr=errors, fmt="o", capsize=4,
                   label="calibration ± U" if stated else "calibration (U not stated)")

@@ -16,30 +16,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from aatest.results._fields import finite
+from aatest.results.digits import U_DIGITS, significant
+from aatest.results.rounding import measurement_text
 
-__all__ = ["ANALYSES", "DISTRIBUTIONS", "QUANTITIES", "REFERENCE_METHODS", "Quantity",
-           "analysis_name", "finite", "quantity", "reference_name", "significant"]
-
-#: significant digits of an expanded uncertainty (GUM 7.2.6: at most two)
-U_DIGITS = 2
-#: magnitudes written in scientific notation: at or above the first, below the second
-SCIENTIFIC_ABOVE, SCIENTIFIC_BELOW = 1e6, 1e-3
-
-
-def significant(value: float | None, digits: int) -> str:
-    """``value`` to ``digits`` significant figures, scientific outside 1e-3…1e6; ``—`` when
-    there is no finite value. The one number format of reports, station and terminal.
-
-    >>> significant(0.0040139, 5), significant(2.4987, 6), significant(None, 3)
-    ('4.0139e-03', '2.49870', '—')
-    """
-    f = finite(value)
-    if f is None:
-        return "—"
-    if f != 0 and (abs(f) >= SCIENTIFIC_ABOVE or abs(f) < SCIENTIFIC_BELOW):
-        return f"{f:.{max(digits - 1, 0)}e}"
-    return f"{f:.{digits}g}" if abs(f) >= 10 ** digits else f"{f:#.{digits}g}".rstrip(".")
-
+__all__ = [
+    "ANALYSES",
+    "DISTRIBUTIONS",
+    "QUANTITIES",
+    "REFERENCE_METHODS",
+    "U_DIGITS",
+    "Quantity",
+    "analysis_name",
+    "finite",
+    "quantity",
+    "reference_name",
+    "significant",
+]
 
 @dataclass(frozen=True)
 class Quantity:
@@ -58,8 +50,6 @@ class Quantity:
     def show(self, value: float | None, u: float | None = None) -> str:
         """``value ± U unit`` rounded per GUM 7.2.6 (:mod:`aatest.results.rounding`); without a
         U the value keeps the quantity's significant digits."""
-        from aatest.results.rounding import measurement_text  # it builds on significant()
-
         return measurement_text(value, u, self.unit, digits=self.digits)
 
 

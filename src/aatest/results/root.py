@@ -25,6 +25,7 @@ from aatest.results.sensor import SensorInfo
 from aatest.results.sync import SyncResult
 from aatest.results.temperature import TemperatureResult
 from aatest.results.transfer_function import TransferFunctionResult
+from aatest.rig_defaults import LOG_RATE_HZ
 
 #: version of the results.json layout written now; files without the field are version 1
 SCHEMA_VERSION = 2
@@ -114,7 +115,7 @@ class StepSummary(ResultModel):
     axis: str = "none"
     duration_s: Real = 0.0
     settle_s: Real = 0.0
-    sample_rate_hz: Real = 2000.0
+    sample_rate_hz: Real = LOG_RATE_HZ
     samples: int = 0
     frequency_hz: Real | None = None
     cycles: int | None = None

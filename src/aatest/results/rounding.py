@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from decimal import ROUND_HALF_UP, Decimal
 
 from aatest.results._fields import finite
-from aatest.results.quantities import U_DIGITS, significant
+from aatest.results.digits import U_DIGITS, significant
 
 __all__ = ["U_DIGITS", "Rounded", "measurement_text", "round_measurement"]
 

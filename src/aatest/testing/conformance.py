@@ -24,63 +24,24 @@ after a failed start) are in :mod:`aatest.testing.daq_conformance`.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any
 
 from aatest.engine import registry
-from aatest.engine.errors import EXIT_BAD_INPUT, AatestError, PluginError, RigFault
+from aatest.engine.errors import EXIT_BAD_INPUT, AatestError, PluginError
 from aatest.engine.interfaces import RigContext, TableEnvelope
 from aatest.engine.steps import PlannedStep
+from aatest.testing.conformance_rig import ConformanceRig, build, short_step, until_fault
+from aatest.testing.daq_conformance import check_daq_fault
+
+# the shared pieces live in aatest.testing.conformance_rig; plugin kits import them from here
+__all__ = ["GROUP", "KINDS", "ConformanceRig", "build", "check_chamber_life_cycle", "check_fault",
+           "check_refuses_bad_options", "check_simulated_flag", "check_table_envelope",
+           "check_table_life_cycle", "load_rig", "make_safe", "run_table_step", "short_step",
+           "twin_daq_rig", "twin_rig", "until_fault"]
 
 GROUP = "aatest.conformance"
-
-
-@dataclass
-class ConformanceRig:
-    """A plugin's simulator, as the conformance checks need it.
-
-    Attributes
-    ----------
-    options
-        The plugin's rig-file options pointing at the simulator.
-    faults
-        Fault name → a function that makes the simulator (or the link) fail from now on.
-    recover
-        Removes every injected fault (the operator fixed the rig).
-    is_safe
-        True when the simulator is in the safe state (table: motion stopped and motor off;
-        chamber: standby).
-    close
-        Stops the simulator.
-    context
-        The rig context to build the plugin with (simulated plugins share their twin through it).
-    trigger
-        Starts the DAQ (the trigger line a table log waits for); turntables only.
-    fault_timeout_s
-        The longest a call may take to report an injected fault.
-    partner
-        DAQs only: builds the (unstarted) turntable plugin the DAQ records beside, pointed at
-        the same simulator; the kit starts it and records each step with it as the runner
-        does. ``None``: the DAQ logs on its own (the kit waits the step's duration).
-    bad_options
-        Option sets the plugin's ``Config`` must refuse (beside an unknown option, which the
-        kit always tries).
-    """
-
-    options: dict[str, Any]
-    faults: dict[str, Callable[[], None]]
-    recover: Callable[[], None]
-    is_safe: Callable[[], bool]
-    close: Callable[[], None]
-    context: RigContext | None = None
-    trigger: Callable[[], None] = field(default=lambda: None)
-    fault_timeout_s: float = 10.0
-    partner: Callable[[], Any] | None = None
-    bad_options: tuple[dict[str, Any], ...] = ()
-
 KINDS = ("turntable", "daq", "chamber")
 
 
@@ -95,18 +56,6 @@ def load_rig(spec: str) -> tuple[str, str, Callable[[], ConformanceRig]]:
             return kind, name, entry.load()
     raise ValueError(f"--aatest-plugin {spec!r}: no '{GROUP}' entry point named {spec!r}; "
                      "the plugin's package must declare its simulator rig there")
-
-
-def build(kind: str, name: str, rig: ConformanceRig) -> Any:
-    """The plugin, configured for ``rig`` (construction must not do I/O)."""
-    info = registry.load(kind, name)
-    return info.target(registry.configure(info, rig.options), rig.context)
-
-
-def short_step(kind: str = "static", **extra: Any) -> PlannedStep:
-    """A 0.5 s step at 2 kHz (``extra``: sine/rate parameters)."""
-    return PlannedStep(id=f"conformance-{kind}", kind=kind, samples=1000,
-                       sample_rate_hz=2000.0, settle_s=0.1, **extra)
 
 
 def run_table_step(table: Any, rig: ConformanceRig, step: PlannedStep) -> Any:
@@ -193,23 +142,9 @@ def check_refuses_bad_options(kind: str, name: str, rig: ConformanceRig) -> None
             raise AssertionError(f"bad options {shown} were accepted")
 
 
-def until_fault(action: Callable[[], Any], timeout_s: float) -> RigFault:
-    started = time.monotonic()
-    try:
-        action()
-    except RigFault as exc:
-        elapsed = time.monotonic() - started
-        assert elapsed <= timeout_s, f"the fault took {elapsed:.1f} s (> {timeout_s:g} s)"
-        assert "\n" not in str(exc), "a rig fault is one line"
-        return exc
-    raise AssertionError("the injected fault did not raise RigFault")
-
-
 def check_fault(kind: str, name: str, rig: ConformanceRig, fault: str) -> None:
     """Inject ``fault`` mid-use: RigFault in time, safe state, then a fresh instance works."""
     if kind == "daq":
-        from aatest.testing.daq_conformance import check_daq_fault
-
         check_daq_fault(name, rig, fault)
         return
     plugin = build(kind, name, rig)

@@ -31,7 +31,7 @@ import numpy as np
 
 from aatest.engine.logs import DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.testing.conformance import ConformanceRig, build, short_step, until_fault
+from aatest.testing.conformance_rig import ConformanceRig, build, short_step, until_fault
 
 #: the median sample interval may differ from the nominal one by this much (a logger's crystal
 #: is within 100 ppm; 1 % leaves room for a rate stated to three digits)

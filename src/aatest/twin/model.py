@@ -18,6 +18,14 @@ from aatest.engine.datasheet import (
     REFERENCE_RANGE_DPS2,
     REFERENCE_SCALE_V_PER_DPS2,
 )
+from aatest.rig_defaults import (
+    INNER_ACCEL_DPS2,
+    INNER_RATE_DPS,
+    LOG_CAPACITY_SAMPLES,
+    LOG_RATE_HZ,
+    OUTER_ACCEL_DPS2,
+    OUTER_RATE_DPS,
+)
 
 if TYPE_CHECKING:
     from aatest.engine.rig_description import Instruments, LoggerSpec
@@ -292,8 +300,8 @@ class SensorModel(_Model):
 class AxisModel(_Model):
     """One table axis: limits, servo and the table-side effects seen by log and sensor alike."""
 
-    rate_limit_dps: float = 1200.0
-    accel_limit_dps2: float = 1000.0
+    rate_limit_dps: float = INNER_RATE_DPS
+    accel_limit_dps2: float = INNER_ACCEL_DPS2
     servo_bandwidth_hz: float = 40.0
     encoder_resolution_deg: float = 0.01 / 3600.0
     encoder_noise_deg: float = 0.2 / 3600.0
@@ -311,10 +319,10 @@ class TableModel(_Model):
     """The two-axis table and its controller/estimator."""
 
     inner: AxisModel = AxisModel()
-    outer: AxisModel = AxisModel(rate_limit_dps=500.0, accel_limit_dps2=200.0)
+    outer: AxisModel = AxisModel(rate_limit_dps=OUTER_RATE_DPS, accel_limit_dps2=OUTER_ACCEL_DPS2)
     controller_rate_hz: float = 5000.0
-    log_rate_hz: float = 2000.0
-    log_capacity_samples: int = 230_000
+    log_rate_hz: float = LOG_RATE_HZ
+    log_capacity_samples: int = LOG_CAPACITY_SAMPLES
     estimator: Literal["central", "five_point"] = "central"
     wobble_arcsec: float = 2.0
     orthogonality_arcsec: float = 3.0
@@ -341,7 +349,7 @@ def _stated_logger() -> LoggerSpec:
 class DaqModel(_Model):
     """The on-table sensor logger with its own crystal clock."""
 
-    sample_rate_hz: float = 2000.0
+    sample_rate_hz: float = LOG_RATE_HZ
     clock_drift: ClockDrift | None = None
     start_lead_s: float = Field(0.35, ge=0, description="DAQ starts logging this much earlier")
     stop_lag_s: float = Field(0.4, ge=0, description="and stops this much later (by hand)")

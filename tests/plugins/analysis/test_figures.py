@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 
-from aatest.plugins.analysis._common import new_figure, to_svg
+from aatest.presentation.figures import new_figure, to_svg
 
 #: ids matplotlib derives from its salt (clip paths, marker definitions); the sequential ones
 #: (``line2d_1``…) are the same in every figure whatever the salt

@@ -17,8 +17,8 @@ from scipy import optimize
 
 from aatest.diagnose.design import ChannelInfo, Fit, Spec, fit_spec
 from aatest.diagnose.replay import Replay
+from aatest.numerics import Z95
 
-Z95 = 1.959964
 #: logger offset (samples) a sync without latch times leaves open: ½ edge estimate + 1 rule
 UNLATCHED_FREEDOM_SAMPLES = 1.5
 

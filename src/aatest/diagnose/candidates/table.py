@@ -15,6 +15,7 @@ from scipy import optimize
 from aatest.diagnose.candidates.base import Z95, CandidateFit, Context, replace_spec
 from aatest.diagnose.periodogram import lomb_scargle_power
 from aatest.diagnose.replay import StepReplay, ripple_regressors
+from aatest.numerics import TINY
 
 #: ripple search range, cycles per degree
 RIPPLE_CPD = (0.2, 6.0)
@@ -91,7 +92,7 @@ def _ripple_seed(steps: list[StepReplay], known: tuple[float, ...]) -> tuple[flo
             rate = abs(s.inner.rate_dps)
             cpd = np.fft.rfftfreq(dev.size, s.dt_s) / rate
             inside = (cpd >= RIPPLE_CPD[0]) & (cpd <= RIPPLE_CPD[1])
-            floor = max(float(np.median(spec[inside])), 1e-300) if inside.any() else 1.0
+            floor = max(float(np.median(spec[inside])), TINY) if inside.any() else 1.0
             levels.append(np.interp(grid, cpd, spec / floor))
             widths.append(2.0 / (dev.size * s.dt_s * rate))
         rates = {round(abs(steps[i].inner.rate_dps), 6) for i in ramps}

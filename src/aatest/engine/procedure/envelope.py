@@ -47,12 +47,11 @@ from typing import Any
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.errors import EnvelopeError, Problem, ProcedureError
 from aatest.engine.interfaces import AxisLimits, TableEnvelope
+from aatest.engine.procedure.expansion import YamlPath, trace_of
 from aatest.engine.steps import Plan, PlannedStep
 from aatest.engine.yaml_loader import locate as locate_in_tree
 from aatest.engine.yaml_loader import parse_yaml, read_text
 
-#: a path into the procedure YAML, e.g. ("steps", 2, "sine_sweep")
-YamlPath = tuple[str | int, ...]
 #: relative slack so a value exactly at a limit passes despite rounding
 _RTOL = 1e-9
 
@@ -253,8 +252,6 @@ def check_envelope(plan: Plan, envelope: TableEnvelope, datasheet: SensorDatashe
         One :class:`Problem` per violation, naming the step id, the limit and the value.
     """
     if sources is None:
-        from aatest.engine.procedure.planner import trace_of  # the planner imports this module
-
         trace = trace_of(plan)
         sources = trace.sources if trace is not None else {}
     if locate is None:

@@ -16,10 +16,12 @@ Example
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
+from aatest.engine.errors import ProcedureError
+from aatest.engine.procedure.expansion import SkippedPoint, YamlPath
 from aatest.engine.procedure.models import (
     MAX_COUNT,
     ConstantRate,
@@ -27,18 +29,58 @@ from aatest.engine.procedure.models import (
     Misalignment,
     MultiPosition,
     Operator,
+    Overrides,
+    Procedure,
     Repeat,
     SineStep,
     SineSweep,
     StaticStep,
+    StepEntry,
     SweepFrequencies,
     TemperatureSteps,
 )
 from aatest.engine.steps import Mounting
 
-if TYPE_CHECKING:
-    from aatest.engine.procedure.envelope import YamlPath
-    from aatest.engine.procedure.planner import _Walker as Walker
+
+class Walker(Protocol):
+    """What a generator uses of the planner's walker (``planner._Walker``): its state and the
+    calls that append drafts. The planner calls the generators, so they name it by this
+    protocol instead of importing it back."""
+
+    proc: Procedure
+    skipped: list[SkippedPoint]
+    prompt: str | None
+    temperature_c: float | None
+    repetition: int
+    rep_suffix: str
+
+    def fail(self, path: YamlPath, message: str) -> ProcedureError:
+        """The procedure error located at ``path``."""
+        ...
+
+    def record(self, ov: Overrides, settle_s: float | None = None) -> dict[str, Any]:
+        """Sampling fields of a record, with the entry's overrides applied (``settle_s``, in
+        s, replaces the entry's settling time)."""
+        ...
+
+    def snap(self, freq_hz: float, mode: str, rec: dict[str, Any]) -> tuple[float, int | None]:
+        """``freq_hz`` (Hz) snapped to whole cycles of the record ``rec`` (``mode`` none:
+        unchanged): the planned frequency in Hz and the cycle count (dimensionless; None when
+        not snapped)."""
+        ...
+
+    def emit(self, label: str, source: YamlPath, prompt: str | None = None, **fields: Any) -> None:
+        """Append the draft of one planned step."""
+        ...
+
+    def emit_or_skip(self, label: str, source: YamlPath, skip: bool, **fields: Any) -> bool:
+        """Append a sweep point, or drop it when allowed and outside the envelope."""
+        ...
+
+    def walk(self, entries: tuple[StepEntry, ...], base: YamlPath) -> None:
+        """Expand nested step entries in order."""
+        ...
+
 
 #: misalignment set → the re-mounting done before every repetition (docs/method.md §4.5)
 REMOUNT = {"A": "none", "B": "none", "C": "sensors", "D": "sensors", "E": "block", "F": "block",

@@ -36,6 +36,8 @@ from pydantic import (
     model_validator,
 )
 
+from aatest.rig_defaults import LOG_RATE_HZ, RECORD_SAMPLES
+
 # --- strict scalar types (YAML "5" must not become 5, true must not become 1) -----------------
 Float = Annotated[float, Strict()]
 PositiveFloat = Annotated[float, Strict(), Field(gt=0)]
@@ -367,8 +369,8 @@ class RigPlugins(_Strict):
 class Sampling(_Strict):
     """Default logging for every record (2 kHz, 2^17 samples, 5 s settling)."""
 
-    rate_hz: PositiveFloat = 2000.0
-    samples: PositiveInt = 131072
+    rate_hz: PositiveFloat = LOG_RATE_HZ
+    samples: PositiveInt = RECORD_SAMPLES
     settle_s: NonNegFloat = 5.0
 
 

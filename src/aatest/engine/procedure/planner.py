@@ -24,15 +24,20 @@ Example
 
 from __future__ import annotations
 
-from collections import OrderedDict
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.interfaces import SensorDatasheet, TableEnvelope
 from aatest.engine.procedure import generators
-from aatest.engine.procedure.envelope import YamlPath, step_violations
+from aatest.engine.procedure.envelope import step_violations
+from aatest.engine.procedure.expansion import (
+    Expansion,
+    SkippedPoint,
+    YamlPath,
+    remember,
+    trace_of,
+)
 from aatest.engine.procedure.generators import snap_frequency, sweep_points
 from aatest.engine.procedure.models import Overrides, Procedure, StepEntry
 from aatest.engine.steps import Plan, PlannedStep, SensorRef
@@ -43,67 +48,6 @@ MAX_STEPS = 20_000
 
 __all__ = ["Expansion", "SkippedPoint", "default_datasheet", "expand", "expand_traced",
            "snap_frequency", "sweep_points", "trace_of"]
-
-
-@dataclass(frozen=True)
-class SkippedPoint:
-    """A sweep point dropped because it lies outside the envelope."""
-
-    label: str
-    source: YamlPath
-    frequency_hz: float
-    amplitude_deg: float
-    accel_dps2: float
-    group: str
-    reasons: tuple[str, ...]
-    limits: tuple[str, ...] = ()
-
-    def describe(self) -> str:
-        """The reasons, each with the limit it breaks: ``message [limit]; ...``."""
-        return "; ".join(f"{r} [{lim}]" for r, lim in zip(self.reasons, self.limits, strict=True))
-
-    def to_json(self) -> dict[str, Any]:
-        """Return the point as the JSON object of the plan's skipped list."""
-        return {"label": self.label, "frequency_hz": self.frequency_hz,
-                "amplitude_deg": self.amplitude_deg, "accel_dps2": self.accel_dps2,
-                "group": self.group, "reasons": list(self.reasons), "limits": list(self.limits)}
-
-
-@dataclass(frozen=True)
-class Expansion:
-    """A plan plus where each step came from and what was skipped."""
-
-    plan: Plan
-    sources: Mapping[str, YamlPath]
-    skipped: tuple[SkippedPoint, ...] = ()
-    #: (step id, requested Hz, planned Hz) of every frequency moved to whole cycles
-    snapped: tuple[tuple[str, float, float], ...] = ()
-
-    def to_contract_json(self) -> dict[str, Any]:
-        """The ``plan --json`` document with the extra key ``skipped``."""
-        return {**self.plan.to_contract_json(), "skipped": [s.to_json() for s in self.skipped]}
-
-    def snapped_lines(self) -> list[str]:
-        """What ``validate`` prints about frequencies moved to whole cycles (snap: coherent)."""
-        return [f"snapped: {step}: {asked:g} Hz → {planned:.6g} Hz (whole cycles in the record; "
-                "snap: none keeps the frequency asked)" for step, asked, planned in self.snapped]
-
-    def skipped_lines(self) -> list[str]:
-        """What ``validate`` prints about dropped points: a count, then one line per point."""
-        if not self.skipped:
-            return []
-        head = (f"skipped {len(self.skipped)} point(s) outside the envelope "
-                "(skip_outside_envelope: true):")
-        return [head, *(f"  {s.label}: {s.describe()}" for s in self.skipped)]
-
-
-_TRACES: OrderedDict[Plan, Expansion] = OrderedDict()
-_TRACE_KEEP = 32
-
-
-def trace_of(plan: Plan) -> Expansion | None:
-    """The :class:`Expansion` of a plan made by :func:`expand` in this process, if known."""
-    return _TRACES.get(plan)
 
 
 @dataclass
@@ -246,9 +190,7 @@ def expand_traced(procedure: Procedure, *, envelope: TableEnvelope | None = None
         raise walker.fail(("steps",), "the procedure plans no steps (every point was skipped)")
     plan, sources = _plan(procedure, walker.drafts)
     expansion = Expansion(plan, sources, tuple(walker.skipped), tuple(walker.snapped))
-    _TRACES[plan] = expansion
-    while len(_TRACES) > _TRACE_KEEP:
-        _TRACES.popitem(last=False)
+    remember(expansion)
     return expansion
 
 

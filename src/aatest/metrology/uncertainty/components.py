@@ -14,17 +14,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 from aatest.engine.datasheet import SensorDatasheet
-from aatest.metrology.uncertainty.declared import encoder_note
 from aatest.metrology.uncertainty.gum import Distribution, Input
+from aatest.metrology.uncertainty.rig_constants import RigConstants
 from aatest.metrology.uncertainty.statistics import PAIR, finite
 from aatest.results import RunResults
 from aatest.results.quantities import reference_name
-
-if TYPE_CHECKING:  # the constants module builds on these rows; only its type is needed here
-    from aatest.metrology.uncertainty.measurands import RigConstants
 
 #: one arcsecond in radians
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
@@ -62,7 +59,7 @@ def encoder_accuracy(c: RigConstants, amplitude_arcsec: float) -> Input:
     how = (f"over A = {amplitude_arcsec:.1f}″" if over_amplitude <= slope else
            f"slope bound a·2π·{enc.error_cycles_per_rev}/rev (A = {amplitude_arcsec:.1f}″)")
     what = f"encoder accuracy ±{enc.accuracy_arcsec:g}″"
-    note = encoder_note(c, "accuracy_arcsec", what, enc.cert_text())
+    note = c.encoder_note("accuracy_arcsec", what, enc.cert_text())
     return rel("encoder_accuracy", "reference: encoder accuracy", bound, f"{note} {how}",
                "rectangular")
 
@@ -74,7 +71,7 @@ def encoder_resolution(c: RigConstants, amplitude_arcsec: float) -> Input:
     what = f"encoder resolution {enc.resolution_counts_per_rev} counts/rev (q = {q:.3g}″)"
     return rel("encoder_resolution", "reference: encoder resolution",
                q / math.sqrt(12.0) / amplitude_arcsec,
-               f"{encoder_note(c, 'resolution_counts_per_rev', what)}, u = q/√12 over "
+               f"{c.encoder_note('resolution_counts_per_rev', what)}, u = q/√12 over "
                f"A = {amplitude_arcsec:.1f}″")
 
 

@@ -11,13 +11,10 @@ never budgeted as the documented rig's 0.01″ without the certificate saying so
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 from aatest.engine.rig_description import Instruments
 from aatest.results import RunResults
-
-if TYPE_CHECKING:
-    from aatest.metrology.uncertainty.measurands import RigConstants
 
 #: encoder field of the rig description → the capability a turntable plugin declares
 ENCODER_DECLARATIONS: dict[str, str] = {
@@ -79,14 +76,3 @@ def declared_encoder(results: RunResults, stated: Mapping[str, Any] | None,
         return instruments, basis
     encoder = instruments.encoder.model_copy(update=updates)
     return instruments.model_copy(update={"encoder": encoder}), basis
-
-
-def encoder_note(c: RigConstants, field: str, what: str, cert: str = "") -> str:
-    """The basis of an encoder row: the rig description's, the declaring plugin's, or a
-    stated default naming the missing declaration."""
-    kind, text = c.encoder_basis.get(field, ("", ""))
-    if kind == "declared":
-        return f"{text}: {what}"
-    if kind == "default":
-        return f"stated default: {what} ({text})"
-    return c.source(what, cert)

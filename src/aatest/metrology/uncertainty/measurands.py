@@ -16,15 +16,11 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
-
-from aatest.engine.rig_description import Instruments
 from aatest.metrology.uncertainty import components as comp
 from aatest.metrology.uncertainty.clock_window import clock_coverage_input
 from aatest.metrology.uncertainty.components import ARCSEC_RAD
-from aatest.metrology.uncertainty.declared import Basis, declared_encoder
-from aatest.metrology.uncertainty.evidence import Evidence, gather
 from aatest.metrology.uncertainty.gum import Input, Measurand, Ops
+from aatest.metrology.uncertainty.rig_constants import RigConstants
 from aatest.metrology.uncertainty.statistics import PAIR, ci_std, finite, finite_values
 from aatest.results import RunResults
 from aatest.results.bias import BiasChannel, BiasSetpoint, MountingBias
@@ -36,75 +32,6 @@ MIN_REGRESSION_POINTS = 3
 
 __all__ = ["ARCSEC_RAD", "RigConstants", "bias_measurand", "g_sensitivity_measurand",
            "scale_factor_measurand", "temperature_measurand"]
-
-
-class RigConstants(BaseModel):
-    """Stated accuracies of the rig that enter every budget (docs/method.md §1.2, §2).
-
-    Built from the run's rig description by :meth:`from_results` (the ``instruments`` block of
-    ``--rig``, or of an import's ``dataset.yaml``); ``instruments_stated`` is False when the
-    description stated none and the documented defaults stand in (each basis says so).
-    ``evidence`` holds what the recording itself shows (motion distortion, temperatures).
-    """
-
-    model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=True)
-    position_accuracy_arcsec: float = Field(1.0, ge=0, description="table positioning, 1″ RSS")
-    wobble_arcsec: float = Field(2.0, ge=0, description="inner-axis wobble bound")
-    orthogonality_arcsec: float = Field(3.0, ge=0, description="inner/outer orthogonality bound")
-    temperature_stability_c: float = Field(0.2, ge=0, description="± band during a record")
-    thermometer_uncertainty_c: float = Field(0.1, ge=0, description="standard, per reading")
-    noise_bandwidth_hz: float = Field(100.0, gt=0, description="anti-alias filter corner")
-    record_samples: int = Field(131_072, gt=0, description="samples per record if not stated")
-    sample_rate_hz: float = Field(2000.0, gt=0)
-    static_record_s: float = Field(67.5, gt=0, description="static record if not stated")
-    temperature_span_c: float = Field(69.0, gt=0, description="−21…48 °C if not stated")
-    instruments: Instruments = Field(default_factory=Instruments)
-    instruments_stated: bool = Field(False, description="the rig description stated them")
-    evidence: Evidence = Field(default_factory=Evidence)
-    #: encoder numbers not from the rig description: declared by the table plugin, or a
-    #: default naming the missing declaration (:mod:`.declared`)
-    encoder_basis: Basis = Field(default_factory=dict)
-
-    @classmethod
-    def from_results(cls, results: RunResults, data: Any = None) -> RigConstants:
-        """The constants of this run: its rig description's instruments and its recording.
-
-        Parameters
-        ----------
-        results
-            The typed results; ``metadata.rig.instruments`` (or ``rig.instruments``) is the
-            stated description.
-        data
-            The dataset the analyses ran on, for the measured components (None: none).
-        """
-        stated = _stated_instruments(results)
-        instruments = Instruments.model_validate(stated) if stated is not None else Instruments()
-        instruments, encoder_basis = declared_encoder(results, stated, instruments)
-        return cls(encoder_basis=encoder_basis,
-                   position_accuracy_arcsec=instruments.encoder.accuracy_arcsec,
-                   wobble_arcsec=instruments.table.wobble_arcsec,
-                   orthogonality_arcsec=instruments.table.orthogonality_arcsec,
-                   thermometer_uncertainty_c=instruments.thermometer.accuracy_c / math.sqrt(3.0),
-                   instruments=instruments, instruments_stated=stated is not None,
-                   evidence=gather(data))
-
-    def source(self, what: str, cert: str = "") -> str:
-        """``rig description: <what> (<cert>)``, or ``stated default: <what>`` without one."""
-        if self.instruments_stated:
-            return f"rig description: {what}" + (f" ({cert})" if cert else "")
-        return f"stated default: {what} (the rig description states none)"
-
-
-def _stated_instruments(results: RunResults) -> Mapping[str, Any] | None:
-    """The rig description's ``instruments`` block as recorded with the run, or None.
-
-    The rig description is the user's own YAML (``--rig``), recorded as written: a free-form
-    document, validated here by :class:`Instruments`.
-    """
-    for rig in (results.metadata.recorded("rig"), results.rig):
-        if isinstance(rig, Mapping) and isinstance(rig.get("instruments"), Mapping):
-            return rig["instruments"]  # type: ignore[no-any-return]
-    return None
 
 
 def _rel(name: str, label: str, u: float, note: str, dist: str = "normal") -> Input:

@@ -12,6 +12,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from aatest.engine.errors import InputError
+from aatest.numerics import Z95
 from aatest.results._fields import finite
 
 __all__ = ["PAIR", "Z95", "ResultsContractError", "ci_std", "finite", "finite_values",
@@ -19,8 +20,6 @@ __all__ = ["PAIR", "Z95", "ResultsContractError", "ci_std", "finite", "finite_va
 
 #: an interval is a pair of bounds; a mean needs at least two values
 PAIR = 2
-#: two-sided 95 % quantile of the normal distribution (ci95 half-width → standard uncertainty)
-Z95 = 1.959963984540054
 
 
 class ResultsContractError(InputError, LookupError):
@@ -33,9 +32,9 @@ def finite_values(values: Iterable[float | None]) -> list[float]:
 
 
 def ci_std(interval: Sequence[float] | None) -> float | None:
-    """Standard uncertainty from a 95 % interval ``[lo, hi]``: the half-width / 1.96.
+    """Standard uncertainty from a 95 % interval ``[lo, hi]``: the half-width / :data:`Z95`.
 
-    Large-sample fits: the interval is the estimate ± 1.96 standard uncertainties.
+    Large-sample fits: the interval is the estimate ± Z95 (≈1.96) standard uncertainties.
     """
     if interval is None or len(interval) != PAIR:
         return None

@@ -1,4 +1,7 @@
-"""Helpers every analysis shares: which acceleration a sensor sees, DFT bins, figures.
+"""Helpers every analysis shares: which acceleration a sensor sees, DFT bins, options.
+
+Figures are drawn and rendered by :mod:`aatest.presentation.figures`, like every other figure
+of aatest; the projections of motion and gravity live in :mod:`.geometry`.
 
 Frames (docs/interfaces.md §4): the sensors ride on the inner axis. A sensor on I sees inner-axis
 motion; outer-axis motion at inner angle ψ lies along O·cos ψ + P·sin ψ of the table top, so a
@@ -7,11 +10,9 @@ sensor on O sees ``cos ψ`` and one on P ``sin ψ`` of the outer acceleration.
 
 from __future__ import annotations
 
-import hashlib
-import io
 import math
 from collections.abc import Callable, Iterable, Sequence
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import numpy as np
 from pydantic import BaseModel
@@ -21,28 +22,12 @@ from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis.geometry import axis_weights, nominal_weight
 from aatest.plugins.analysis.sync import SyncedSteps, SyncOutput
 from aatest.recording.dataset import SensorInfo
 
 #: a sensor counts as excited by a step when its projection of the motion exceeds this
 _EXCITED_WEIGHT = 0.5
-
-
-def axis_weights(sensor_axis: str, inner_deg: float | np.ndarray) -> dict[str, float | np.ndarray]:
-    """Share of inner- and outer-axis acceleration along a sensor axis (I, O or P)."""
-    psi = np.deg2rad(inner_deg)
-    if sensor_axis == "I":
-        return {"inner": 1.0, "outer": 0.0}
-    if sensor_axis == "O":
-        return {"inner": 0.0, "outer": np.cos(psi)}
-    return {"inner": 0.0, "outer": np.sin(psi)}
-
-
-def nominal_weight(step: PlannedStep, sensor_axis: str) -> float:
-    """Projection of the step's moving axis onto the sensor axis at the commanded angles."""
-    if step.axis not in ("inner", "outer"):
-        return 0.0
-    return float(axis_weights(sensor_axis, step.inner_deg)[step.axis])
 
 
 def is_excited(step: PlannedStep, sensor: SensorInfo) -> bool:
@@ -100,46 +85,6 @@ def fundamental(x: np.ndarray, frequency_hz: float, fs_hz: float) -> complex:
 def t95(dof: int) -> float:
     """Two-sided 95 % Student-t coverage factor for ``dof`` degrees of freedom."""
     return float(stats.t.ppf(0.975, max(dof, 1)))
-
-
-def to_svg(fig: Any) -> str:
-    """Render a figure to a compact SVG string (text kept as text, not paths).
-
-    Reproducible: the same figure gives the same bytes in every run, so analysing the same
-    recording again gives the same ``results.json`` and report (matplotlib would otherwise salt
-    its element ids at random and stamp the date). The ids are salted with the figure's own
-    content (:func:`_content_salt`), so two different figures inlined in one report still get
-    different ids.
-    """
-    import matplotlib
-
-    buf = io.StringIO()
-    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": _content_salt(fig)}):
-        fig.savefig(buf, format="svg", metadata={"Date": None})
-    return buf.getvalue()
-
-
-def _content_salt(fig: Any) -> str:
-    """A digest of what a figure shows: its axes' texts and the data of their lines and
-    collections."""
-    digest = hashlib.sha256()
-    for ax in fig.axes:
-        for text in (ax.get_title(), ax.get_xlabel(), ax.get_ylabel()):
-            digest.update(text.encode() + b"\0")
-        for line in ax.lines:
-            digest.update(np.ascontiguousarray(line.get_xydata(), dtype=np.float64).tobytes())
-        for collection in ax.collections:
-            digest.update(np.ascontiguousarray(collection.get_offsets(), dtype=np.float64)
-                          .tobytes())
-    return digest.hexdigest()[:16]
-
-
-def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0) -> tuple[Any, Any]:
-    """A small figure with ``rows`` stacked axes, without pyplot's global state (Agg-safe)."""
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width_in, height_in * rows))
-    return fig, fig.subplots(rows, 1, squeeze=False)
 
 
 def group_of(step: PlannedStep) -> str:

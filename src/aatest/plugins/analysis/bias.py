@@ -22,6 +22,7 @@ from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import scale_in_use, steps_of, t95
+from aatest.plugins.analysis.geometry import gravity_along_g
 from aatest.plugins.analysis.streaming import reduce_static
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.bias import BiasResult
@@ -34,16 +35,6 @@ _RAD_DPS2 = float(np.degrees(1.0))
 _MIN_LINE_POINTS = 2
 #: the reference temperature the headline bias is stated at, °C
 T_REF_C = 25.0
-
-
-def gravity_along_g(sensor_axis: str, inner_deg: float, outer_deg: float) -> float:
-    """Specific force of gravity along a sensor axis (g) for a table at rest.
-
-    Table-top frame (P, O, I): up = (−sin φ·cos ψ, sin φ·sin ψ, cos φ) for outer φ, inner ψ.
-    """
-    psi, phi = np.radians(inner_deg), np.radians(outer_deg)
-    up = {"P": -np.sin(phi) * np.cos(psi), "O": np.sin(phi) * np.sin(psi), "I": np.cos(phi)}
-    return float(up[sensor_axis])
 
 
 def g_sensitivity_limit(sensor: SensorInfo) -> float:

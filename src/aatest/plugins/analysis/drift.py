@@ -25,7 +25,8 @@ from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.logs import SampledLog
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
-from aatest.plugins.analysis._common import new_figure, options_of, to_svg
+from aatest.plugins.analysis._common import options_of
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.recording.dataset import Dataset, LazySteps
 from aatest.results.noise import DriftResult
 

@@ -29,20 +29,20 @@ from pydantic import BaseModel, ConfigDict, Field
 from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
+from aatest.numerics import TINY
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
     INPUT_ACCEL_CHANNELS,
     group_of,
     input_accel_dps2,
     is_excited,
-    new_figure,
     options_of,
     select,
     steps_of,
-    to_svg,
     whole_cycles,
 )
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfResult
 
@@ -72,7 +72,7 @@ class Tone:
 
     def snr_db(self, harmonics: int = 1) -> float:
         signal_power = float(np.sum(self.amplitudes[:harmonics] ** 2)) / 2.0
-        return float(10.0 * np.log10(signal_power / max(self.noise_power, 1e-300)))
+        return float(10.0 * np.log10(signal_power / max(self.noise_power, TINY)))
 
     @property
     def u_relative(self) -> float:

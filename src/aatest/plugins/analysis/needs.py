@@ -11,6 +11,7 @@ import numpy as np
 
 from aatest.engine.requirements import Check, PlanView, Requirement, steps_where
 from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis.geometry import gravity_along_g, nominal_weight
 
 #: the highest frequency a scale-factor step may have, Hz (docs/method.md §4.3)
 MAX_CAL_FREQUENCY_HZ = 2.0
@@ -32,8 +33,6 @@ def _per_axis(need: str, picks: dict[str, list[PlannedStep]], view: PlanView) ->
 
 
 def _bias_pairs(view: PlanView) -> Check:
-    from aatest.plugins.analysis.bias import gravity_along_g  # bias declares these needs
-
     static = view.recorded("static")
     picks: dict[str, list[PlannedStep]] = {}
     for channel, axis in view.sensor_axes.items():
@@ -49,8 +48,6 @@ BIAS_NEED = ("static positions with each sensor's axis up and down (a ±1 g pair
 
 
 def _scale_steps(view: PlanView) -> Check:
-    from aatest.plugins.analysis._common import nominal_weight  # imports the sync plugin
-
     picks = {ch: [s for s in view.recorded("sine")
                   if abs(nominal_weight(s, axis)) >= EXCITED
                   and (s.frequency_hz or 0.0) <= MAX_CAL_FREQUENCY_HZ]

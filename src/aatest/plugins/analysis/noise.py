@@ -23,9 +23,10 @@ from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
-from aatest.plugins.analysis._common import new_figure, options_of, scale_in_use, steps_of, to_svg
+from aatest.plugins.analysis._common import options_of, scale_in_use, steps_of
 from aatest.plugins.analysis.drift import allan_terms_of
 from aatest.plugins.analysis.streaming import StaticReduction, band_rms_of, reduce_static
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.noise import NoiseResult
 

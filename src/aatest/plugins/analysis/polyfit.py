@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from aatest.numerics import TINY
 from aatest.plugins.analysis._common import t95
 
 
@@ -145,7 +146,7 @@ def cross_validate(u: np.ndarray, y: np.ndarray, max_order: int = 15, random_spl
         for p in range(max_order + 1):
             coef = scipy.linalg.solve_triangular(r[:p + 1, :p + 1], qty[:p + 1])
             rmse_val[p, j] = np.sqrt(np.mean((y[valid] - design_val[:, :p + 1] @ coef) ** 2))
-            sse = max(float(y[ident] @ y[ident] - qty[:p + 1] @ qty[:p + 1]), 1e-300)
+            sse = max(float(y[ident] @ y[ident] - qty[:p + 1] @ qty[:p + 1]), TINY)
             aic[p, j] = naic(sse / n_id, p + 1, n_id)
     return {"rmse_validation": rmse_val, "naic": aic}
 
@@ -163,7 +164,7 @@ def choose_order(table: dict[str, np.ndarray], rel_tol: float = 0.05, min_order:
     """
     rmse = table["rmse_validation"].mean(axis=1)
     aic = table["naic"].mean(axis=1)
-    ratio = max(1.0 + rel_tol, 1.0 + abs_tol / max(float(rmse.min()), 1e-300))
+    ratio = max(1.0 + rel_tol, 1.0 + abs_tol / max(float(rmse.min()), TINY))
     ok = (rmse <= rmse.min() * ratio) & (aic <= aic.min() + 2.0 * np.log(ratio) + 1e-9)
     ok[:min_order] = False
     return int(np.flatnonzero(ok)[0]) if ok.any() else int(np.argmin(rmse))

@@ -31,15 +31,14 @@ from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
+from aatest.numerics import K95
 from aatest.plugins.analysis import needs, polyfit
 from aatest.plugins.analysis._common import (
     fundamental,
     input_accel_dps2,
     is_excited,
-    new_figure,
     options_of,
     steps_of,
-    to_svg,
 )
 from aatest.plugins.analysis.reference import (
     PUBLIC_METHODS,
@@ -48,6 +47,8 @@ from aatest.plugins.analysis.reference import (
     reference_accel,
     zero_phase_lowpass,
 )
+from aatest.plugins.analysis.scale_levels import Level, headline_level, level_groups, linearity
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.scale_factor import ReferenceChoice, ReferenceName, ScaleFactorResult
 
@@ -206,7 +207,7 @@ def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0,
     linearity_l = polyfit.linearity_l(fit, u, ideal)
     return {
         "scale_v_per_dps2": scale, "scale_u_v_per_dps2": u_scale,
-        "scale_ci95": [scale - 1.96 * u_scale, scale + 1.96 * u_scale],
+        "scale_ci95": [scale - K95 * u_scale, scale + K95 * u_scale],
         "offset_v": offset_v, "offset_u_v": u_offset,
         "order": order, "rmse_dps2": fit.rmse, "coefficients": fit.coefficients.tolist(),
         "ci95": fit.ci95.tolist(), "fit": fit.summary(), "volts_mean_v": v_mean,
@@ -266,6 +267,27 @@ def calibrate_steps(chosen: Sequence[SyncedStep], sensor: SensorInfo,
     return result, _figure(volts, ref, result)
 
 
+def sensor_levels(steps: Sequence[SyncedStep], sensor: SensorInfo, options: ScaleFactorOptions
+                  ) -> tuple[dict[str, Any], str] | None:
+    """The channel's headline calibration with every level and the linearity, and the
+    headline's figure; None without a candidate step."""
+    groups = level_groups(calibration_candidates(steps, sensor))
+    if not groups:
+        return None
+    done: dict[Level, dict[str, Any]] = {}
+    figures: dict[Level, str] = {}
+    for (accel, temp), chosen in groups.items():
+        result, figures[(accel, temp)] = calibrate_steps(chosen, sensor, options)
+        done[(accel, temp)] = result | {
+            "accel_dps2": accel, "temperature_c": temp,
+            "frequency_hz": float(chosen[0].step.frequency_hz or 0.0)}
+    top = headline_level(list(done))
+    headline = dict(done[top])
+    headline["levels"] = [dict(r) for r in done.values()]
+    headline["linearity"] = linearity(done, top[1], sensor.range_dps2)
+    return headline, figures[top]
+
+
 class ScaleFactorAnalysis:
     """Polynomial scale-factor calibration of every sensor with a suitable sine step, at every
     acceleration level (and set-point), with the linearity across the levels."""
@@ -287,8 +309,6 @@ class ScaleFactorAnalysis:
         return any(s.step.kind == "sine" for s in data.steps)
 
     def run(self, data: Dataset, context: AnalysisContext) -> AnalysisOutput[ScaleFactorResult]:
-        from aatest.plugins.analysis.scale_levels import sensor_levels  # it calibrates with ours
-
         steps = steps_of(context)
         options = options_of(context, ScaleFactorOptions)
         values: dict[str, Any] = {}

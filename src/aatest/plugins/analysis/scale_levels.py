@@ -2,12 +2,13 @@
 
 The candidates of a sensor (:func:`.scale_factor.calibration_candidates`: sine along its axis
 at the frequency nearest 1 Hz) are grouped by peak acceleration and chamber set-point; each
-group is calibrated on its own (:func:`.scale_factor.calibrate_steps`), so a procedure with
+group is calibrated on its own (:func:`.scale_factor.sensor_levels`), so a procedure with
 100, 250 and 400 °/s² gets three scale factors, none silently dropped. The headline — the
 channel's ``scale_v_per_dps2`` — is the largest level at the set-point nearest 25 °C (the
 1 Hz, 70 %-of-range test of docs/method.md §4.3) and names its level and set-point. With two
 or more levels at that set-point the linearity across them is measured
-(:class:`aatest.results.scale_factor.LevelLinearity`).
+(:class:`aatest.results.scale_factor.LevelLinearity`). The calibration itself is the scale-factor
+analysis's; this module only groups, chooses and compares, so it imports nothing of it.
 """
 
 from __future__ import annotations
@@ -19,12 +20,6 @@ from typing import Any
 import numpy as np
 
 from aatest.clocksync.freeze_pulse import SyncedStep
-from aatest.plugins.analysis.scale_factor import (
-    ScaleFactorOptions,
-    calibrate_steps,
-    calibration_candidates,
-)
-from aatest.recording.dataset import SensorInfo
 
 #: the reference temperature the headline scale factor is stated at, °C
 T_REF_C = 25.0
@@ -36,10 +31,13 @@ MIN_LEVELS = 2
 Level = tuple[float, float | None]
 
 
-def level_groups(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[Level, list[SyncedStep]]:
-    """(peak acceleration °/s², set-point °C or None) → its records, in ascending order."""
+def level_groups(candidates: Sequence[SyncedStep]) -> dict[Level, list[SyncedStep]]:
+    """(peak acceleration °/s², set-point °C or None) → its records, in ascending order.
+
+    ``candidates``: a sensor's calibration records (:func:`.scale_factor.calibration_candidates`).
+    """
     groups: dict[Level, list[SyncedStep]] = defaultdict(list)
-    for s in calibration_candidates(steps, sensor):
+    for s in candidates:
         accel = float(s.step.accel_dps2 or 0.0)
         same = next((a for a, t in groups if t == s.step.temperature_c
                      and abs(a - accel) <= _SAME_LEVEL * max(a, accel)), accel)
@@ -71,24 +69,3 @@ def linearity(levels: dict[Level, dict[str, Any]], temperature_c: float | None,
             "scale_v_per_dps2_line": k_line, "deviation_dps2": deviation.tolist(),
             "nonlinearity_pct_fr": float(100.0 * np.max(np.abs(deviation)) / (2 * range_dps2)),
             "temperature_c": temperature_c}
-
-
-def sensor_levels(steps: Sequence[SyncedStep], sensor: SensorInfo, options: ScaleFactorOptions
-                  ) -> tuple[dict[str, Any], str] | None:
-    """The channel's headline calibration with every level and the linearity, and the
-    headline's figure; None without a candidate step."""
-    groups = level_groups(steps, sensor)
-    if not groups:
-        return None
-    done: dict[Level, dict[str, Any]] = {}
-    figures: dict[Level, str] = {}
-    for (accel, temp), chosen in groups.items():
-        result, figures[(accel, temp)] = calibrate_steps(chosen, sensor, options)
-        done[(accel, temp)] = result | {
-            "accel_dps2": accel, "temperature_c": temp,
-            "frequency_hz": float(chosen[0].step.frequency_hz or 0.0)}
-    top = headline_level(list(done))
-    headline = dict(done[top])
-    headline["levels"] = [dict(r) for r in done.values()]
-    headline["linearity"] = linearity(done, top[1], sensor.range_dps2)
-    return headline, figures[top]

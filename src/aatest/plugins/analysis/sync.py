@@ -35,6 +35,7 @@ from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis import needs
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.recording.dataset import Dataset, LazySteps, StepData, StepWatch
 from aatest.results.sync import SyncResult
 
@@ -357,8 +358,6 @@ def summarise(steps: Sequence[SyncedStep | _Related]) -> SyncResult:
 
 def sync_figure(steps: Sequence[SyncedStep | _Related]) -> str:
     """Drift and clock-relation residual of every step (one crystal: a flat drift line)."""
-    from aatest.plugins.analysis._common import new_figure, to_svg
-
     fig, ax = new_figure(2, height_in=2.0)
     idx = np.arange(len(steps))
     ax[0, 0].plot(idx, [s.relation.drift_ppm for s in steps], "o", ms=3)

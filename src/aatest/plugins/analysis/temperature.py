@@ -25,16 +25,15 @@ from aatest.plugins.analysis._common import (
     fundamental,
     input_accel_dps2,
     is_excited,
-    new_figure,
     select,
     steps_of,
     t95,
-    to_svg,
 )
 from aatest.plugins.analysis.bias import gravity_along_g
 from aatest.plugins.analysis.polyfit import fit_polynomial
 from aatest.plugins.analysis.streaming import Moments, reduce_static
 from aatest.plugins.analysis.sync import SyncedSteps
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.recording.dataset import Dataset, LazySteps, SensorInfo
 from aatest.results.temperature import TemperatureResult
 

@@ -34,11 +34,9 @@ from aatest.plugins.analysis._common import (
     group_of,
     input_accel_dps2,
     is_excited,
-    new_figure,
     options_of,
     select,
     steps_of,
-    to_svg,
 )
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
 from aatest.plugins.analysis.tfest import (
@@ -47,6 +45,7 @@ from aatest.plugins.analysis.tfest import (
     model_metrics,
     second_order_delay_fit,
 )
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfPoint
 from aatest.results.transfer_function import TransferFunctionResult

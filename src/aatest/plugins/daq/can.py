@@ -38,6 +38,7 @@ from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.protocols import can_frames as cf
 from aatest.protocols.can_bus import open_bus, send
+from aatest.rig_defaults import LOG_RATE_HZ
 
 log = logging.getLogger("aatest.daq.can")
 
@@ -98,7 +99,7 @@ class CanDaq:
         node_id: int = Field(1, ge=1, le=15)
         channels: list[str] | None = Field(None, description="sensor channel names in frame "
                                            "order; default the sensor datasheet's")
-        sample_rate_hz: float = Field(2000.0, gt=0, description="logger's nominal rate")
+        sample_rate_hz: float = Field(LOG_RATE_HZ, gt=0, description="logger's nominal rate")
         response_timeout_s: float = Field(2.0, gt=0)
         frame_timeout_s: float = Field(5.0, gt=0, description="longest silence in a record")
         on_frame_loss: Literal["fault", "record"] = "fault"

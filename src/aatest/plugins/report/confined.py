@@ -9,15 +9,15 @@ from a worker thread) whose limits the kernel enforces — :data:`RENDER_CPU_S` 
 once loaded (``RLIMIT_AS``) — and the parent waits at most :data:`RENDER_WALL_S`. Exceeding
 any of them is a :class:`~.sandbox.TemplateSecurityError` (exit 2) naming the template.
 
-The child receives the template's name, its lab directory and the view model (pickled: the
-parent built it, so nothing untrusted is unpickled) on stdin and answers the same way.
+The child (:mod:`.confined_child`) receives the template's name, its lab directory and the
+view model (pickled: the parent built it, so nothing untrusted is unpickled) on stdin and
+answers the same way.
 """
 
 from __future__ import annotations
 
 import os
 import pickle
-import resource
 import signal
 import subprocess
 import sys
@@ -25,12 +25,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from aatest.plugins.report.sandbox import (
-    TemplateError,
-    TemplateSecurityError,
-    load_template,
-    render_in_process,
-)
+from aatest.plugins.report.template_errors import TemplateError, TemplateSecurityError
 
 #: CPU seconds a render may use (the shipped certificate renders in well under 1 s)
 RENDER_CPU_S = 10
@@ -39,6 +34,8 @@ RENDER_MEMORY_BYTES = 512 * 1024 * 1024
 #: wall seconds the parent waits (the CPU limit plus start-up on a busy machine)
 RENDER_WALL_S = 60.0
 _PACKAGE_ROOT = Path(__file__).resolve().parents[3]
+#: the module the child runs: it imports the sandbox, which imports this module for the parent
+_CHILD = "aatest.plugins.report.confined_child"
 
 
 def render_confined(name: str, template_dir: Path | None, context: Mapping[str, Any],
@@ -58,7 +55,7 @@ def render_confined(name: str, template_dir: Path | None, context: Mapping[str, 
         [str(_PACKAGE_ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]),
         "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     try:
-        done = subprocess.run([sys.executable, "-m", __name__], input=payload,
+        done = subprocess.run([sys.executable, "-m", _CHILD], input=payload,
                               capture_output=True, timeout=RENDER_WALL_S, env=env, check=False)
     except subprocess.TimeoutExpired as exc:
         raise TemplateSecurityError(
@@ -75,35 +72,3 @@ def render_confined(name: str, template_dir: Path | None, context: Mapping[str, 
         return str(value)
     error = TemplateSecurityError if kind == "refused" else TemplateError
     raise error(str(value))
-
-
-def _limit_child(cpu_s: int, memory_bytes: int) -> None:
-    """Cap this (child) process: CPU seconds, and address space beyond what it holds now."""
-    used_s = resource.getrusage(resource.RUSAGE_SELF)
-    spent = int(used_s.ru_utime + used_s.ru_stime) + 1  # start-up and loading count too
-    resource.setrlimit(resource.RLIMIT_CPU, (spent + cpu_s, spent + cpu_s + 1))
-    with open("/proc/self/statm", encoding="ascii") as fh:
-        held = int(fh.read().split()[0]) * resource.getpagesize()
-    resource.setrlimit(resource.RLIMIT_AS, (held + memory_bytes,) * 2)
-
-
-def _child() -> None:
-    """The child's work: read the request, limit itself, render, answer on stdout."""
-    name, template_dir, context, cpu_s, memory_bytes = pickle.loads(sys.stdin.buffer.read())
-    template = load_template(name, template_dir)
-    where = str(template.filename or name)
-    _limit_child(cpu_s, memory_bytes)
-    try:
-        answer: tuple[str, str] = ("ok", render_in_process(template, context))
-    except TemplateSecurityError as exc:
-        answer = ("refused", str(exc))
-    except TemplateError as exc:
-        answer = ("error", str(exc))
-    except MemoryError:
-        answer = ("refused", f"{where}: template stopped at its limit of "
-                             f"{memory_bytes // 2**20} MiB memory")
-    sys.stdout.buffer.write(pickle.dumps(answer))
-
-
-if __name__ == "__main__":
-    _child()

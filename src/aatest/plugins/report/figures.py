@@ -10,7 +10,6 @@ lack the data; units follow the contract keys (V, °/s², dB, deg, °C).
 from __future__ import annotations
 
 import functools
-import io
 import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar
@@ -21,6 +20,8 @@ from matplotlib.figure import Figure
 from matplotlib.typing import RcKeyType
 from scipy import signal
 
+from aatest.numerics import Z95
+from aatest.presentation.figures import STYLE, to_svg
 from aatest.results.frf import FrfPoint
 from aatest.results.misalignment import SetSensor
 from aatest.results.quantities import finite
@@ -29,14 +30,9 @@ from aatest.results.sensor import SensorInfo
 from aatest.results.temperature import TemperatureChannel
 from aatest.results.transfer_function import TfModel
 
-#: two-sided 95 % quantile of the normal distribution (a ci95 half-width is Z95 standard
-#: uncertainties)
-Z95 = 1.959963984540054
-
-#: applied per plot (never globally, other plugins draw with matplotlib too): stable SVG ids,
-#: text kept as text (smaller, searchable), a compact font
-_STYLE: dict[RcKeyType, Any] = {"svg.hashsalt": "aatest", "svg.fonttype": "none",
-                                 "font.size": 9}
+#: applied per plot (never globally, other plugins draw with matplotlib too): text kept as
+#: text, a compact font; the SVG itself is rendered by aatest.presentation.figures
+_STYLE: dict[RcKeyType, Any] = dict(STYLE)
 #: a line needs two points; a complex number is stated as [re, im]
 _PAIR = 2
 
@@ -55,9 +51,7 @@ def _styled(plot: _Plot) -> _Plot:
 
 
 def _svg(fig: Figure) -> str:
-    buffer = io.StringIO()
-    fig.savefig(buffer, format="svg", metadata={"Date": None})
-    return buffer.getvalue()
+    return to_svg(fig)
 
 
 def _poly_band(entry: ScaleFactorChannel, n_coef: int, u_v: np.ndarray) -> np.ndarray | None:

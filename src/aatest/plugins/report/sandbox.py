@@ -39,7 +39,8 @@ from jinja2.exceptions import TemplateError as JinjaTemplateError
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 from markupsafe import Markup
 
-from aatest.engine.errors import InputError
+from aatest.plugins.report.confined import render_confined
+from aatest.plugins.report.template_errors import TemplateError, TemplateSecurityError
 from aatest.results.quantities import significant
 from aatest.results.rounding import measurement_text
 
@@ -57,14 +58,6 @@ _WIDTH_FILTERS = ("center", "indent", "wordwrap", "batch", "slice", "truncate")
 _WIDTH_METHODS = frozenset({"center", "ljust", "rjust", "zfill", "expandtabs"})
 _PERCENT_FIELD = re.compile(r"%(?:\([^)]*\))?[#0\- +]*(\*|\d+)?(?:\.(\*|\d+))?")
 #: |values| at or above / below these print in scientific notation
-
-
-class TemplateError(InputError):
-    """A report template is missing or broken (the message names the file and line)."""
-
-
-class TemplateSecurityError(TemplateError):
-    """A report template tried to leave the sandbox and was refused."""
 
 
 class _ConfinedLoader(FileSystemLoader):
@@ -258,8 +251,6 @@ def load_template(name: str, template_dir: Path | None = None) -> Template:
 def render_loaded(template: Template, context: Mapping[str, Any]) -> str:
     """Render a template from :func:`load_template` in a child process with CPU and memory
     limits (:func:`.confined.render_confined`); refusals and limits become aatest errors."""
-    from aatest.plugins.report.confined import render_confined
-
     template_dir = getattr(template.environment, "template_dir", None)
     return render_confined(str(template.name), template_dir, context)
 

@@ -42,6 +42,7 @@ from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.rig_description import Instruments
 from aatest.engine.steps import Mounting, PlannedStep
 from aatest.engine.yaml_loader import locate, parse_yaml, read_text, validate_tree
+from aatest.numerics import TINY
 from aatest.recording.data.csv_table import CsvColumns, read_csv
 from aatest.recording.dataset import Dataset, SensorInfo, StepData
 
@@ -160,7 +161,7 @@ def _frequency_problem(entry: StepEntry, nyquist_hz: float) -> str | None:
     if f_hz >= nyquist_hz:
         return f"{f_hz:g} Hz is not below the Nyquist frequency {nyquist_hz:g} Hz"
     if entry.kind == "sine" and entry.amplitude_deg is None and entry.accel_dps2 is not None:
-        amplitude_deg = entry.accel_dps2 / max((2 * math.pi * f_hz) ** 2, 1e-300)
+        amplitude_deg = entry.accel_dps2 / max((2 * math.pi * f_hz) ** 2, TINY)
         if not math.isfinite(amplitude_deg) or (2 * math.pi * f_hz) ** 2 == 0:
             return (f"{f_hz:g} Hz gives no finite amplitude accel_dps2/(2πf)² "
                     f"for accel_dps2 {entry.accel_dps2:g}")

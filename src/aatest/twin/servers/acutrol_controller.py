@@ -36,6 +36,7 @@ import numpy as np
 from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.logs import TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import Mounting, PlannedStep, Remount
+from aatest.rig_defaults import LOG_RATE_HZ
 from aatest.twin.servers.acutrol_parse import Command, CommandError, axis_of, numbers
 from aatest.twin.world import World
 
@@ -63,7 +64,7 @@ class _Axis:
 
 @dataclass
 class _Log:
-    rate_hz: float = 2000.0
+    rate_hz: float = LOG_RATE_HZ
     samples: int = 2000
     settle_s: float = 0.0
     label: str = ""

@@ -1,0 +1,64 @@
+"""The one way a figure becomes SVG: every plot of aatest goes through :func:`to_svg`.
+
+Analyses, the report, the diagnosis, the fleet pages and ``history`` all draw with
+matplotlib's object API (:func:`new_figure`: no pyplot state, safe in the station's worker
+threads) and render here, so every SVG is reproducible: the same figure gives the same bytes
+in every run. Matplotlib would otherwise salt its element ids at random (``svg.hashsalt``)
+and stamp the date; here the salt is a digest of what the figure shows
+(:func:`content_salt`), so two different figures inlined in one page still get different
+ids, and the date is left out. Text stays text (``svg.fonttype: none``: smaller, searchable).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+from typing import Any
+
+import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+
+#: applied while a figure is drawn (never globally: plugins draw with matplotlib too)
+STYLE: dict[Any, Any] = {"svg.fonttype": "none", "font.size": 9}
+
+
+def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0) -> tuple[Any, Any]:
+    """A small figure with ``rows`` stacked axes, without pyplot's global state (Agg-safe)."""
+    fig = Figure(figsize=(width_in, height_in * rows))
+    return fig, fig.subplots(rows, 1, squeeze=False)
+
+
+def content_salt(fig: Figure) -> str:
+    """A digest of what a figure shows: its axes' texts and the data of their lines and
+    collections (the salt of its SVG element ids)."""
+    digest = hashlib.sha256()
+    for ax in fig.axes:
+        for text in (ax.get_title(), ax.get_xlabel(), ax.get_ylabel()):
+            digest.update(text.encode() + b"\0")
+        for line in ax.lines:
+            digest.update(np.ascontiguousarray(line.get_xydata(), dtype=np.float64).tobytes())
+        for collection in ax.collections:
+            digest.update(np.ascontiguousarray(collection.get_offsets(), dtype=np.float64)
+                          .tobytes())
+    return digest.hexdigest()[:16]
+
+
+def to_svg(fig: Figure, *, tight: bool = False, inline: bool = False) -> str:
+    """Render ``fig`` to an SVG string with reproducible element ids and no date.
+
+    Parameters
+    ----------
+    fig
+        The figure (from :func:`new_figure` or :class:`matplotlib.figure.Figure`).
+    tight
+        Crop to the drawn content (``bbox_inches="tight"``), as the fleet and history pages do.
+    inline
+        Drop the XML prolog and doctype, for SVG inlined in an HTML page.
+    """
+    buffer = io.StringIO()
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": content_salt(fig)}):
+        fig.savefig(buffer, format="svg", metadata={"Date": None},
+                    bbox_inches="tight" if tight else None)
+    text = buffer.getvalue()
+    return text[text.index("<svg"):] if inline else text
