@@ -12,9 +12,9 @@ Identifiers (11-bit, ``n`` = logger node id 1..15):
   trigger), ``u8 n_channels``, ``i64 time_ns`` (logger clock, ns), ``i16 temperature``
   (0.01 °C), ``u16 session``.
 * ``0x700 + n`` STATUS from the logger, classic 8 bytes: ``u8 state`` (0 idle, 1 logging,
-  2 end of record, 3 chunk mark, 4 fault; bit 7 set by a simulated logger, e.g. ``aatest sim-server``), ``u8`` error
-  flags, ``u16 session``, ``u32`` sample frames sent in the
-  record (so a lost tail is detected too).
+  2 end of record, 3 chunk mark, 4 fault; bit 7 set by a simulated logger, e.g.
+  ``aatest sim-server``), ``u8`` error flags (:class:`LoggerError`), ``u16 session``, ``u32``
+  sample frames sent in the record (so a lost tail is detected too).
 
 Layout version 2 put the session tag into bytes that version 1 reserved as zero: a host picks a
 random non-zero tag, sends it in every command, and the logger echoes the tag of the session it

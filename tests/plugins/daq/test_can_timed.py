@@ -211,7 +211,7 @@ def test_a_whole_lost_chunk_is_a_fault(timed_pair: Callable) -> None:
 
 
 def test_a_lost_chunk_mark_is_covered_by_the_next(timed_pair: Callable) -> None:
-    daq, feeder, monitor = timed_pair(CanFaultInjection(drop_marks=frozenset({1})))
+    daq, _, monitor = timed_pair(CanFaultInjection(drop_marks=frozenset({1})))
     chunks, fault = _collect(daq, chunk_s=1.0)
     assert fault is None and sum(len(c) for c in chunks) == TOTAL
     assert len(chunks[0]) == 2 * CHUNK_MARK_FRAMES  # the second mark accounts for both blocks

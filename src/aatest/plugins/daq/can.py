@@ -238,8 +238,9 @@ class CanDaq:
         FAULT status, bus-off or a logger silent for ``frame_timeout_s`` is a RigFault too. A
         record left early (fault, abort) is stopped at the logger.
         """
-        account = ChunkAccount(self._decode, max(1, round(chunk_s * self.config.sample_rate_hz)),
-                               self.config.on_frame_loss == "record", self.config.sample_rate_hz)
+        rate_hz = step.sample_rate_hz  # the logger runs at the step's rate (docs/interfaces.md §3)
+        account = ChunkAccount(self._decode, max(1, round(chunk_s * rate_hz)),
+                               self.config.on_frame_loss == "record", rate_hz)
         self._start_timed(step)
         ended = False
         try:
@@ -247,12 +248,12 @@ class CanDaq:
                 try:
                     status, payloads = self._next_mark(account.sent)
                 except RigFault:  # bus-off, silence: the frames marked so far are kept
-                    yield from self._chunk(account)
+                    yield from self._chunk(account, rate_hz)
                     raise
                 ended = status.state != cf.LoggerState.CHUNK
                 account.add(status.frames_sent, payloads)
                 if account.due() or ended:
-                    yield from self._chunk(account)
+                    yield from self._chunk(account, rate_hz)
                 self.peak_buffered_frames = max(self.peak_buffered_frames,
                                                 account.peak_frames + self._rx.peak_frames)
                 if status.state == cf.LoggerState.FAULT:
@@ -289,7 +290,7 @@ class CanDaq:
                     raise RigFault(f"{self._where}: logger silent for {quiet:.1f} s in a timed "
                                    f"record ({sent} sample frames accounted for)") from None
 
-    def _chunk(self, account: ChunkAccount) -> Iterator[SampledLog]:
+    def _chunk(self, account: ChunkAccount, rate_hz: float) -> Iterator[SampledLog]:
         """Decode the marked frames; yield what may be kept; raise on a loss (fault)."""
         try:
             chunk = account.take()
@@ -297,7 +298,7 @@ class CanDaq:
             raise RigFault(f"{self._where}: {exc}; check 'channels'") from exc
         self.gaps += chunk.gaps
         if chunk.samples is not None and chunk.samples.seq.size:
-            yield self._to_log(chunk.samples)
+            yield self._to_log(chunk.samples, rate_hz)
         if chunk.gaps:
             message = loss_message(self._where, self.gaps, account.sent)
             if chunk.samples is None or self.config.on_frame_loss == "fault":
@@ -320,12 +321,13 @@ class CanDaq:
         return cf.decode_with_dbc(self.config.dbc_file, payloads, self._channels,
                                cf.SAMPLE_BASE + self.config.node_id)
 
-    def _to_log(self, decoded: cf.DecodedSamples) -> SampledLog:
+    def _to_log(self, decoded: cf.DecodedSamples, rate_hz: float | None = None) -> SampledLog:
         channels = {ch: decoded.volts[:, i] for i, ch in enumerate(self._channels)}
         channels.update(sync_pulse=decoded.sync_pulse, trigger=decoded.trigger,
                         temperature_c=decoded.temperature_c)
         units = {ch: "V" for ch in self._channels} | dict(DAQ_AUX_CHANNELS)
-        return SampledLog(DAQ, self.config.sample_rate_hz, decoded.time_s, channels, units)
+        rate = self.config.sample_rate_hz if rate_hz is None else rate_hz
+        return SampledLog(DAQ, rate, decoded.time_s, channels, units)
 
     def close(self) -> None:
         if self._notifier is not None:

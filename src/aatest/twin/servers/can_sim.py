@@ -22,11 +22,12 @@ controller without ``daq_stream`` makes it refuse (FAULT, REFUSED).
 from __future__ import annotations
 
 import logging
+import os
 import queue
 import threading
 import time
-from dataclasses import dataclass, field
 from collections.abc import Iterable
+from dataclasses import dataclass, field
 from typing import Any
 
 import can
@@ -39,6 +40,9 @@ log = logging.getLogger("aatest.sim.can")
 _PACE_BATCH = 64
 #: sample frames between two CHUNK marks of a timed record (4 s at 2 kHz)
 CHUNK_MARK_FRAMES = 8192
+#: environment variable: pace of the udp_multicast sample stream, frames/s (default 10 000); a
+#: slower pace lets a loaded host's receive thread keep up (a real bus' bit rate sets it)
+FRAME_RATE_ENV = "AATEST_SIM_CAN_FRAME_RATE_HZ"
 
 
 @dataclass
@@ -81,7 +85,7 @@ class SimCanLogger:
         self.controller = controller
         self.interface, self.channel, self.node_id = interface, channel, node_id
         if frame_rate_hz is None and interface == "udp_multicast":
-            frame_rate_hz = 10_000.0
+            frame_rate_hz = float(os.environ.get(FRAME_RATE_ENV, "10000"))
         self.frame_rate_hz = frame_rate_hz
         self.faults = faults or CanFaultInjection()
         #: the STATUS identity bit; a test of the real-rig path may clear it
