@@ -11,12 +11,15 @@ from __future__ import annotations
 import itertools
 import threading
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import can
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
+from aatest.cli import app
 from aatest.engine.errors import RigFault
 from aatest.engine.interfaces import StreamingDaq, supports_streaming
 from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
@@ -261,3 +264,27 @@ def test_leaving_a_record_early_stops_the_logger(timed_pair: Callable) -> None:
     lines = _settled(monitor, "END_OF_RECORD")
     assert len(first) == CHUNK_MARK_FRAMES and ("STOP", 0) in lines
     assert lines[-1][0] == "END_OF_RECORD" and lines[-1][1] < TOTAL
+
+
+LONG_PROCEDURE = """\
+procedure: can-long-validate
+sensor: {model: sr207, serial: "C-2"}
+rig: {turntable: sim, daq: sim, chamber: none}
+sampling: {rate_hz: 2000, settle_s: 2}
+steps:
+  - static: {label: up, inner_deg: 0, outer_deg: 0, duration_s: 3600}
+  - static: {label: down, inner_deg: 0, outer_deg: 180, duration_s: 3600}
+analysis: [sync, bias, noise, drift]
+report: {template: calibration-certificate, sign: false}
+"""
+
+
+def test_validate_accepts_long_static_steps_on_the_can_logger(tmp_path: Path) -> None:
+    """Two 1 h static steps (7.2 M samples each, 31× the table's log) on the modbus table and
+    the CAN logger: accepted because the logger streams (nothing is connected to validate)."""
+    procedure, rig = tmp_path / "p.yaml", tmp_path / "rig.yaml"
+    procedure.write_text(LONG_PROCEDURE)
+    rig.write_text("turntable: {plugin: modbus, host: 127.0.0.1, port: 1}\n"
+                   "daq: {plugin: can, interface: virtual, channel: nobody}\n")
+    result = CliRunner().invoke(app, ["validate", str(procedure), "--rig", str(rig)])
+    assert result.exit_code == 0, result.output
