@@ -185,11 +185,11 @@ def test_transcript_of_a_timed_record(timed_pair: Callable) -> None:
 def test_memory_is_one_chunk_and_one_block_whatever_the_length(timed_pair: Callable) -> None:
     """The plugin never holds the whole record: the frames held at once are bounded by the
     chunk asked for plus one logger block, not by the record's length."""
-    long = StreamingFeeder(record(n=6 * TOTAL))
+    long = StreamingFeeder(record(n=3 * TOTAL))
     daq, _, _ = timed_pair(feeder=long)
     chunks, fault = _collect(daq, chunk_s=2.0)  # 4 000 frames: every mark hands a chunk on
-    assert fault is None and sum(len(c) for c in chunks) == 6 * TOTAL
-    assert 0 < daq.peak_buffered_frames <= 2 * CHUNK_MARK_FRAMES < 6 * TOTAL / 10
+    assert fault is None and sum(len(c) for c in chunks) == 3 * TOTAL
+    assert 0 < daq.peak_buffered_frames <= 2 * CHUNK_MARK_FRAMES < 3 * TOTAL / 5
 
 
 def test_lost_frames_end_the_record_after_the_frames_before_them(timed_pair: Callable) -> None:

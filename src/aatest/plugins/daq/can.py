@@ -144,7 +144,8 @@ class CanDaq:
         #: whether a simulated logger answers (its STATUS identity bit), known after start();
         #: a run with any simulated part is a simulation, never a calibration
         self.simulated = False
-        #: most sample frames of a timed record held at once (bounded by a chunk and a block)
+        #: bound on the sample frames of a timed record held at once: the most waiting for
+        #: their chunk plus the most received between two marks (one chunk and one block)
         self.peak_buffered_frames = 0
 
     def channels(self) -> Sequence[str]:
@@ -251,7 +252,10 @@ class CanDaq:
                     yield from self._chunk(account, rate_hz)
                     raise
                 ended = status.state != cf.LoggerState.CHUNK
-                account.add(status.frames_sent, payloads)
+                try:
+                    account.add(status.frames_sent, payloads)
+                except ValueError as exc:
+                    raise RigFault(f"{self._where}: {exc}") from exc
                 if account.due() or ended:
                     yield from self._chunk(account, rate_hz)
                 self.peak_buffered_frames = max(self.peak_buffered_frames,
