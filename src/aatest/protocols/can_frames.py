@@ -3,21 +3,30 @@
 Identifiers (11-bit, ``n`` = logger node id 1..15):
 
 * ``0x100 + n`` COMMAND to the logger, classic 8 bytes: ``u8 opcode`` (1 PING, 2 START,
-  3 STOP), ``u16 session`` (the host's session tag, 0 = none), 5 bytes zero.
+  3 STOP, 4 TIMED_START), ``u16 session`` (the host's session tag, 0 = none), then for
+  TIMED_START ``u32 samples`` (the span the logger records after its trigger) and one zero
+  byte, else 5 bytes zero.
 * ``0x180 + n`` SAMPLE, CAN FD, one frame per sample, little-endian (Intel) layout
   :data:`SAMPLE_HEADER` followed by ``n_channels`` float32 volts, padded to a valid FD length:
   ``u16 seq`` (sample counter, wraps at 65536), ``u8 flags`` (bit 0 sync pulse, bit 1
   trigger), ``u8 n_channels``, ``i64 time_ns`` (logger clock, ns), ``i16 temperature``
   (0.01 °C), ``u16 session``.
 * ``0x700 + n`` STATUS from the logger, classic 8 bytes: ``u8 state`` (0 idle, 1 logging,
-  2 end of record; bit 7 set by a simulated logger, e.g. ``aatest sim-server``), ``u8`` error
-  flags, ``u16 session``, ``u32`` sample frames sent in the
-  record (so a lost tail is detected too).
+  2 end of record, 3 chunk mark, 4 fault; bit 7 set by a simulated logger, e.g.
+  ``aatest sim-server``), ``u8`` error flags (:class:`LoggerError`), ``u16 session``, ``u32``
+  sample frames sent in the record (so a lost tail is detected too).
 
 Layout version 2 put the session tag into bytes that version 1 reserved as zero: a host picks a
 random non-zero tag, sends it in every command, and the logger echoes the tag of the session it
 serves in its STATUS and sample frames, so two hosts sharing one bus keep only their own frames
 (a version-1 logger answers with tag 0, which a host then accepts).
+
+A timed record (TIMED_START) is ended by the logger itself: it records its lead, raises the
+trigger, records ``samples`` more and its stop lag, sending a CHUNK status after every block
+of sample frames with the number sent so far and END_OF_RECORD with the total, so a host
+accounts for every frame chunk by chunk and never holds the whole record. A logger that
+cannot go on (its buffer overran, or it refuses the record) sends a FAULT status whose error
+flags (:class:`LoggerError`) say why.
 
 Decoding is vectorised: payloads are joined and read as one numpy structured array. A gap in
 ``seq`` (or fewer frames than the logger says it sent) is never silent: :func:`find_gaps`
@@ -72,12 +81,31 @@ class Opcode(enum.IntEnum):
     PING = 1
     START = 2
     STOP = 3
+    #: a record of a given length that the logger ends itself, streamed in chunks
+    TIMED_START = 4
 
 
 class LoggerState(enum.IntEnum):
     IDLE = 0
     LOGGING = 1
     END_OF_RECORD = 2
+    #: in a timed record: every sample frame up to ``frames_sent`` has been sent
+    CHUNK = 3
+    #: the logger stopped the record; the error flags say why
+    FAULT = 4
+
+
+class LoggerError(enum.IntFlag):
+    """Error flags of a STATUS frame (its second byte)."""
+
+    #: the logger's own buffer overran: it lost samples and ended the record
+    OVERRUN = 0x01
+    #: the logger cannot make the record asked for (busy, or not this length)
+    REFUSED = 0x02
+
+
+#: bytes of the record length (u32 samples) in a TIMED_START command
+COMMAND_SAMPLES_BYTES = slice(3, 7)
 
 
 def sample_dtype(n_channels: int) -> np.dtype:
@@ -181,16 +209,19 @@ class Gap:
     lost: int
 
 
-def frame_index(seq: np.ndarray) -> np.ndarray:
+def frame_index(seq: np.ndarray, start: int = 0) -> np.ndarray:
     """Record frame index of every received frame, unwrapping the 16-bit counter.
 
     A record starts at ``seq`` 0, so the first received frame's index is its ``seq`` (a loss at
-    the start shows); later indices add the forward steps modulo 65 536 (vectorised).
+    the start shows); later indices add the forward steps modulo 65 536 (vectorised). A chunk
+    of a timed record that starts at frame index ``start`` is unwrapped from there (fewer than
+    65 536 frames lost at its start, which the logger's frame count bounds).
     """
     if seq.size == 0:
         return np.zeros(0, dtype=np.int64)
     steps = np.mod(np.diff(seq.astype(np.int64)), SEQ_MODULO)
-    return np.concatenate([[int(seq[0])], int(seq[0]) + np.cumsum(steps)])
+    first = start + (int(seq[0]) - start) % SEQ_MODULO
+    return np.concatenate([[first], first + np.cumsum(steps)])
 
 
 def find_gaps(index: np.ndarray, sent: int) -> list[Gap]:
@@ -226,6 +257,19 @@ def fill_gaps(decoded: DecodedSamples, index: np.ndarray, total: int,
 
 def command_payload(opcode: Opcode, session: int = NO_SESSION) -> bytes:
     return bytes([int(opcode)]) + session.to_bytes(2, "little") + bytes(5)
+
+
+def timed_command_payload(samples: int, session: int = NO_SESSION) -> bytes:
+    """TIMED_START: a record of ``samples`` after the trigger, ended by the logger itself."""
+    if not 0 < samples < 1 << 32:
+        raise ValueError(f"a timed record of {samples} samples does not fit the u32 field")
+    return (bytes([int(Opcode.TIMED_START)]) + session.to_bytes(2, "little")
+            + samples.to_bytes(4, "little") + bytes(1))
+
+
+def command_samples(payload: bytes | bytearray) -> int:
+    """Record length (samples after the trigger) of a TIMED_START command."""
+    return int.from_bytes(bytes(payload[COMMAND_SAMPLES_BYTES]), "little")
 
 
 def command_session(payload: bytes | bytearray) -> int:

@@ -165,6 +165,16 @@ class World:
         return DaqClock(t0_s, rate, drift, daq.timestamp_jitter_s,
                         daq.sync_pulse_hz, self.sync_phase, daq.sync_edge_jitter_s)
 
+    def set_record_samples(self, samples: int) -> None:
+        """Make the current step's record ``samples`` long after the trigger: a streaming
+        logger's timed record sets its own length, which may exceed what the table logs (the
+        simulated controllers learn the step from the table's log configuration)."""
+        if self._motion is None:
+            raise RigFault("simulated rig: record length set without begin_motion")
+        step, inner, outer = self._motion
+        self._motion = (step.model_copy(update={"samples": samples}), inner, outer)
+        self._result = None
+
     def start_daq(self) -> None:
         """Start the DAQ (and its trigger) at the current lab time."""
         self._daq_start_s = self.lab_time_s

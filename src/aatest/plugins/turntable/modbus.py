@@ -76,6 +76,8 @@ class ModbusTurntable:
         #: a run with any simulated part is a simulation, never a calibration
         self.simulated = False
         self.identity = ""
+        #: (previous log id, samples) of the head log armed in begin_motion for a streamed record
+        self._head_armed: tuple[int, int] | None = None
 
     # --- protocol plumbing -----------------------------------------------------------------
     def _call(self, what: str, fn: Callable[[ModbusTcpClient], T]) -> T:
@@ -234,8 +236,14 @@ class ModbusTurntable:
     @rig_boundary
     def begin_motion(self, step: PlannedStep) -> None:
         """Write the log configuration, the settling time and the step's demands, start,
-        and wait until the controller reports the profile settled."""
-        writes: dict[Reg, float] = {Reg.LOG_SAMPLES: step.samples,
+        and wait until the controller reports the profile settled.
+
+        A static step longer than the log buffer is streamed by the DAQ: the log is then its
+        head (:func:`~aatest.engine.procedure.envelope.head_step`), armed here, before the
+        DAQ's trigger starts the record (:meth:`record` collects it afterwards).
+        """
+        head = self._head_samples(step)
+        writes: dict[Reg, float] = {Reg.LOG_SAMPLES: head or step.samples,
                                     Reg.LOG_RATE_HZ: step.sample_rate_hz,
                                     Reg.SETTLE_S: step.settle_s}
         writes.update(_demands(step))
@@ -245,12 +253,28 @@ class ModbusTurntable:
         self._command(Command.START_MOTION)
         self._wait("settled", lambda s: Status.SETTLED in s,
                    step.settle_s + self.config.move_timeout_s)
+        self._head_armed = None
+        if head:
+            previous = int(self._value(Reg.LOG_ID))
+            self._command(Command.ARM_LOG)
+            self._head_armed = (previous, head)
+
+    def _head_samples(self, step: PlannedStep) -> int:
+        """The head's length when ``step`` is a static record longer than the log buffer
+        (the DAQ streams it), else 0."""
+        capacity = self.config.envelope.log_capacity_samples
+        return capacity if step.kind == "static" and step.samples > capacity else 0
 
     @rig_boundary
     def record(self, step: PlannedStep) -> SampledLog:
-        """Arm the log (started by the DAQ trigger), wait for it, download it."""
-        previous = int(self._value(Reg.LOG_ID))
-        self._command(Command.ARM_LOG)
+        """Arm the log (started by the DAQ trigger) unless begin_motion armed this head
+        already, wait for it, download it."""
+        armed, self._head_armed = self._head_armed, None
+        if armed is not None and armed[1] == step.samples:
+            previous = armed[0]
+        else:
+            previous = int(self._value(Reg.LOG_ID))
+            self._command(Command.ARM_LOG)
         record_s = step.samples / step.sample_rate_hz
         self._wait("log complete", lambda s: Status.LOG_DONE in s,
                    record_s + self.config.log_margin_s)

@@ -9,7 +9,9 @@ record does not take 70 s, and the same seed and commands give the logs the in-p
 simulated rig records (up to the map's f32 channels). The simulated CAN logger
 (:mod:`aatest.twin.servers.can_sim`) starts the DAQ through :meth:`SimController.daq_start`
 and receives the DAQ log of every record through ``on_daq_log``: table log and sensor log
-come from one twin.
+come from one twin. A timed record of the logger (:meth:`SimController.daq_stream`) is
+streamed from the World chunk by chunk instead, and the armed table log is then its head
+(the table's log buffer, as long as it holds), made as the in-process simulated table makes it.
 
 Fault injection (:class:`FaultInjection`) lets tests make the controller set a fault bit or stop
 answering when a record starts, answer slowly, or stop answering from a given command on;
@@ -18,14 +20,15 @@ answering when a record starts, answer slowly, or stop answering from a given co
 
 from __future__ import annotations
 
+import itertools
 import logging
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
-from aatest.engine.errors import EnvelopeRefused
+from aatest.engine.errors import EnvelopeRefused, RigFault
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.protocols import modbus_map as mm
@@ -68,6 +71,8 @@ class _Record:
     log_id: int
     table: SampledLog | None = None
     error: str | None = None
+    #: the table log of a streamed record: its head, no DAQ log for the CAN logger
+    head: PlannedStep | None = None
 
 
 class SimController:
@@ -96,6 +101,8 @@ class SimController:
         self._mode = Mode.HOLD
         self._moving = False
         self._daq_started = False
+        #: the DAQ streams this step's record (a timed record of the CAN logger)
+        self._streamed = False
         self._armed = False
         self._record: _Record | None = None
         self._log_count = 0
@@ -275,7 +282,7 @@ class SimController:
             return refusal
         self._status &= ~(Status.SETTLED | Status.LOG_ARMED | Status.LOG_RECORDING
                           | Status.LOG_DONE | Status.TRIGGER_SEEN)
-        self._daq_started = self._armed = False
+        self._daq_started = self._armed = self._streamed = False
         if mode == Mode.POSITION:
             self.world.move_to(self._get(Reg.INNER_POSITION_DEMAND_DEG),
                                self._get(Reg.OUTER_POSITION_DEMAND_DEG))
@@ -333,6 +340,35 @@ class SimController:
             self._status |= Status.TRIGGER_SEEN
             self._maybe_record()
 
+    def daq_stream(self, samples: int) -> Iterator[SampledLog]:
+        """The DAQ started a timed record of ``samples`` after its trigger (called by the CAN
+        logger): the trigger line goes high, the World's record takes that length, and its DAQ
+        log is returned lazily in chunks (one in memory at a time). The armed table log is the
+        record's head, made after the stream's first chunk as the in-process table makes it
+        after the DAQ's (same random streams).
+
+        Raises
+        ------
+        ValueError
+            A fault is active, no step is in motion, or a record already runs (the logger
+            refuses the timed record).
+        """
+        with self._lock:
+            if self._fault or self._daq_started:
+                raise ValueError("controller fault active or a record already running")
+            try:
+                self.world.set_record_samples(samples)
+            except RigFault as exc:
+                raise ValueError(str(exc)) from exc
+            self.world.start_daq()
+            self._daq_started = self._streamed = True
+            self._status |= Status.TRIGGER_SEEN
+        chunks = self.world.stream_daq(1)
+        first = next(chunks, None)
+        with self._lock:
+            self._maybe_record()
+        return itertools.chain([] if first is None else [first], chunks)
+
     def _maybe_record(self) -> None:
         if not (self._armed and self._daq_started) or self._record is not None:
             return
@@ -343,7 +379,8 @@ class SimController:
                 self._trip(self.faults.fault_on_record)
                 return
         self._armed = False
-        self._record = _Record(self._log_count + 1)
+        head = self._planned_step(Mode.HOLD) if self._streamed else None
+        self._record = _Record(self._log_count + 1, head=head)
         self._status = (self._status | Status.LOG_RECORDING) & ~Status.LOG_ARMED
         threading.Thread(target=self._synthesise, args=(self._record,), daemon=True,
                          name="sim-controller-record").start()
@@ -356,7 +393,11 @@ class SimController:
     def _synthesise(self, record: _Record) -> None:
         """Run the twin for the armed record (worker thread: the server keeps answering)."""
         try:
-            result = self.world.result()
+            if record.head is not None:
+                table, daq = self.world.snapshot_log(record.head), None
+            else:
+                result = self.world.result()
+                table, daq = result.table, result.daq
         except Exception as exc:  # noqa: BLE001 - reported through the fault word
             log.error("twin synthesis failed: %s: %s", type(exc).__name__, exc)
             with self._lock:
@@ -366,11 +407,11 @@ class SimController:
         with self._lock:
             if self._record is not record:
                 return
-            if self.on_daq_log is not None:  # queued before LOG_DONE: the stream precedes STOP
-                self.on_daq_log(result.daq)
-            record.table = result.table
+            if self.on_daq_log is not None and daq is not None:  # queued before LOG_DONE:
+                self.on_daq_log(daq)  # the stream precedes STOP
+            record.table = table
             self._log_count = record.log_id
-            self._publish_header(result.table, record.log_id)
+            self._publish_header(table, record.log_id)
 
     def _publish_header(self, table: SampledLog, log_id: int) -> None:
         self._put(Reg.LOG_ID, log_id)
