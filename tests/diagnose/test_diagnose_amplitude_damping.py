@@ -62,7 +62,7 @@ def test_without_dynamics_amplitude_damping_waits_for_them(run_diagnose) -> None
     _, doc = run_diagnose(hidden, seed=6, samples=QUICK)
     assert judge(doc, hidden) == []
     row = _row(doc, "amplitude_damping")
-    assert row["testable"] is False and "sensor_dynamics" in row["reason"]
+    assert row["delta_bic"] is None and "extends sensor_dynamics" in row["reason"]
 
 
 @pytest.mark.parametrize("accel_dps2", [1.0, 400.0])

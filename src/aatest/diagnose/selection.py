@@ -207,9 +207,12 @@ def _waiting(ctx: Context, cand: Candidate) -> bool:
 
 
 def _waiting_row(ctx: Context, cand: Candidate) -> dict[str, Any]:
-    return {"effect": cand.effect, "delta_bic": None, "accepted": False, "testable": False,
-            "reason": f"extends {cand.requires}, which the data do not support",
-            "channel": ctx.info.channel}
+    """The row of a waiting candidate: testable or not by its own check, but not tested."""
+    reason = cand.testable(ctx)
+    return {"effect": cand.effect, "delta_bic": None, "accepted": False,
+            "testable": reason is None, "channel": ctx.info.channel,
+            "reason": reason or f"not tested: it extends {cand.requires}, which the data do "
+                                "not support"}
 
 
 def _refusal_reasons(ctx: Context, rows: dict[str, dict[str, Any]],
