@@ -26,8 +26,10 @@ Rules a user should know, because the data alone cannot decide them:
   effect that the joint model no longer needs is withdrawn (its candidate row says why).
 * **Look-alikes.** Time-family effects (delay, jerk, dynamics) compete on held-out score; a
   jerk term that lags is refused (that is a delay), dynamics must show droop/peaking or
-  frequency-dependent lag beyond a delay. Table effects are attributed to the table only when
-  the table's own position log shows them.
+  frequency-dependent lag beyond a delay; ``amplitude_damping`` (the dynamics' damping
+  varying with amplitude) is tested only on top of accepted dynamics, against hysteresis
+  (which also lags more at small amplitude) on held-out score. Table effects are attributed
+  to the table only when the table's own position log shows them.
 * **Cross-axis vs misalignment.** In one mounting a tilt of the input axis by δ towards
   azimuth a and cross-axis ratios (rx, ry) = (tan δ·cos a, tan δ·sin a) give identical data
   (the cos δ change of the main response is absorbed by the calibrated scale factor), and the

@@ -109,7 +109,8 @@ def refine_step_shifts(ctx: Context, fit: Fit) -> Spec:
 
 
 #: effects that move the output's timing: the nominal's nuisances were fitted without them
-TIMING_EFFECTS = frozenset({"time_delay", "sensor_dynamics", "jerk_sensitivity", "hysteresis"})
+TIMING_EFFECTS = frozenset({"time_delay", "sensor_dynamics", "jerk_sensitivity", "hysteresis",
+                            "amplitude_damping"})
 
 
 def realigned(ctx: Context, fit: Fit, effect: str) -> Fit:

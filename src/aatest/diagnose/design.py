@@ -36,7 +36,8 @@ from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.numerics import TINY
 from aatest.twin.daq import antialias_filter
 from aatest.twin.kinematics import E_I
-from aatest.twin.sensor import dynamics_filter, play_operator
+from aatest.twin.model import AmplitudeDamping
+from aatest.twin.sensor import band_filter, damping_of, dynamics_filter, play_operator
 
 #: contiguous time blocks per step; even blocks form fold A, odd blocks fold B
 BLOCKS_PER_STEP = 8
@@ -66,6 +67,9 @@ class Spec:
     #: shape-parameter values of plugin effects (aatest.effects) in ``linear``:
     #: ((effect, ((parameter, value), …)), …)
     plugin_shape: tuple[tuple[str, tuple[tuple[str, float], ...]], ...] = ()
+    #: ``amplitude_damping`` (damping_per_decade, reference_dps2): the damping of
+    #: ``dynamics`` (ζ at the reference amplitude) follows each step's amplitude
+    amplitude_damping: tuple[float, float] | None = None
 
     def shift_of(self, index: int) -> float:
         """Total time shift of the prediction for step ``index`` (s)."""
@@ -139,6 +143,47 @@ def _dynamics(x: np.ndarray, spec: Spec, dt_s: float) -> np.ndarray:
         return x
     return _steady_lowpass(x, _dyn(float(spec.dynamics[0]), float(spec.dynamics[1]),
                                    round(dt_s, 15)))
+
+
+#: the amplitude's band (Hz) and floor (°/s²) of ``amplitude_damping`` (see step_damped)
+AMPLITUDE_BAND_HZ = 15.0
+MIN_AMPLITUDE_DPS2 = 1.0
+
+
+def step_amplitude_dps2(sr: StepReplay, info: ChannelInfo) -> float:
+    """Amplitude A (√2·RMS, °/s²) of the step's motion along the sensor axis, within the
+    15 Hz excitation band of ``amplitude_damping`` (memoised on the step).
+
+    The twin reads A over a trailing 2.5 s window; over a steady sine step that window holds
+    the same amplitude throughout, so one value per step is the twin's ζ(t) once the window
+    has filled (the record's first samples aside).
+    """
+    key = ("amplitude", info.axis, AMPLITUDE_BAND_HZ)
+    if key not in sr.memo:
+        alpha = sensor_acceleration(sr, info.axis, sr.padded_time_s)[2]
+        b, a = band_filter(AMPLITUDE_BAND_HZ, round(sr.dt_s, 15))
+        band = signal.lfilter(b, a, alpha, zi=signal.lfilter_zi(b, a) * alpha[0])[0]
+        sr.memo[key] = float(np.sqrt(2.0 * np.mean(band[PAD_SAMPLES:PAD_SAMPLES + sr.n] ** 2)))
+    return float(sr.memo[key])
+
+
+def step_damped(sr: StepReplay, info: ChannelInfo, spec: Spec) -> Spec:
+    """``spec`` with ``amplitude_damping`` resolved for one step: the dynamics' damping at
+    the step's amplitude, ζ(A) = ζ + c·log10(A/A_ref) within the twin's bounds.
+
+    A step with less than :data:`MIN_AMPLITUDE_DPS2` along the sensor axis (an outer-axis
+    sine seen through the cross-axis terms) is damped as at that floor: the twin's A there
+    is set by cross-axis coefficients not known before the fit, and its response is that
+    small part only.
+    """
+    if spec.amplitude_damping is None or spec.dynamics is None or not sr.dynamic:
+        return spec
+    c, ref = spec.amplitude_damping
+    amp = max(step_amplitude_dps2(sr, info), MIN_AMPLITUDE_DPS2)
+    zeta = damping_of(AmplitudeDamping(damping_per_decade=c, reference_dps2=ref),
+                      spec.dynamics[1], np.array([amp]))
+    return replace(spec, dynamics=(spec.dynamics[0], round(float(zeta[0]), 9)),
+                   amplitude_damping=None)
 
 
 def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float
@@ -254,6 +299,7 @@ def _design(sr: StepReplay, info: ChannelInfo, spec: Spec, wanted: set[str]
     if dynamic:
         assert temp is not None
         t_eval, key = _eval_times(sr, spec)
+        spec = step_damped(sr, info, spec)
         cols = (_sensor_columns(sr, info, spec, t_eval, key, temp, dynamic)
                 | _table_columns(sr, info, spec, t_eval, dynamic))
         out |= {name: _logger(col, info, sr.dt_s)[cut] for name, col in cols.items()
@@ -318,7 +364,7 @@ def _step_key(spec: Spec, sr: StepReplay) -> Spec:
         return spec
     key = replace(spec, hysteresis_dps2=0.0, saturation_dps2=None)
     if not spec.ripple_cpd and not spec.vibration_hz:
-        key = replace(key, delay_s=0.0, dynamics=None, warp_ppm=0.0)
+        key = replace(key, delay_s=0.0, dynamics=None, warp_ppm=0.0, amplitude_damping=None)
     return key
 
 

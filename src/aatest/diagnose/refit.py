@@ -34,7 +34,7 @@ _SHAPE_RESET: dict[str, dict[str, Any]] = {
     "saturation": {"saturation_dps2": None}, "hysteresis": {"hysteresis_dps2": 0.0},
     "sensor_dynamics": {"dynamics": None}, "time_delay": {"delay_s": 0.0},
     "rate_ripple": {"ripple_cpd": (), "ripple_motion_deg": ()},
-    "motor_vibration": {"vibration_hz": ()}}
+    "motor_vibration": {"vibration_hz": ()}, "amplitude_damping": {"amplitude_damping": None}}
 
 
 def without(spec: Spec, effect: str) -> Spec | None:

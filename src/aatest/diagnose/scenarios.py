@@ -135,6 +135,18 @@ DRAWS: dict[str, Callable[[np.random.Generator], Hidden]] = {
 }
 
 
+def draw_amplitude_damping(seed: int) -> list[Hidden]:
+    """Sensor dynamics whose damping follows the amplitude (seeded): both effects hidden,
+    since ``amplitude_damping`` varies the damping of ``sensor_dynamics`` and means nothing
+    without it. ``damping`` is ζ at the 10 °/s² reference diagnose reports it at."""
+    r = np.random.default_rng([seed, len("amplitude_damping")])
+    return [Hidden("sensor_dynamics", {"natural_frequency_hz": _u(r, 20.0, 40.0),
+                                       "damping": _u(r, 0.5, 0.9)},
+                   ("natural_frequency_hz", "damping")),
+            Hidden("amplitude_damping", {"damping_per_decade": _signed(r, 0.08, 0.2)},
+                   ("damping_per_decade",), {"reference_dps2": 10.0})]
+
+
 def draw_hidden(effect: str, seed: int) -> Hidden:
     """A hidden effect of type ``effect`` with a seeded random magnitude."""
     return DRAWS[effect](np.random.default_rng([seed, len(effect)]))

@@ -36,7 +36,8 @@ HOPELESS_BIC = 5.0
 #: an acceptance that lowers the held-out RMS by this share re-tests the dormant candidates
 WAKE_REDUCTION = 0.1
 #: effects with nonlinear shape parameters that trade with each other
-SHAPE_EFFECTS = frozenset({"time_delay", "hysteresis", "saturation", "sensor_dynamics"})
+SHAPE_EFFECTS = frozenset({"time_delay", "hysteresis", "saturation", "sensor_dynamics",
+                           "amplitude_damping"})
 #: joint refinement: initial simplex step (share of each value) and iterations per parameter
 POLISH_STEP = 0.1
 POLISH_ITER_PER_AXIS = 30
@@ -47,7 +48,7 @@ _NPERSEG = 1024
 _LOW_BAND_HZ = 2.0
 #: nonlinear parameters each effect adds on top of its design columns
 SHAPE_PARAMS = {"time_delay": 1, "sensor_dynamics": 2, "hysteresis": 1, "saturation": 1,
-                "rate_ripple": 1, "motor_vibration": 1}
+                "rate_ripple": 1, "motor_vibration": 1, "amplitude_damping": 1}
 
 
 @dataclass
@@ -163,6 +164,9 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
     while remaining and len(findings) < MAX_FINDINGS_PER_CHANNEL:
         scored = []
         for cand in remaining:
+            if _waiting(ctx, cand):
+                rows[cand.effect] = _waiting_row(ctx, cand)
+                continue
             cf, reason = _evaluate(ctx, cand)
             if cf is None:
                 rows[cand.effect] = {"effect": cand.effect, "delta_bic": None, "accepted": False,
@@ -175,8 +179,8 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
             scored.append((dbic, cand, cf))
         dormant += [c for c in remaining if rows[c.effect]["testable"]
                     and _hopeless(rows[c.effect])]
-        remaining = [c for c in remaining if rows[c.effect]["testable"]
-                     and not _hopeless(rows[c.effect])]
+        remaining = [c for c in remaining if _waiting(ctx, c) or (
+            rows[c.effect]["testable"] and not _hopeless(rows[c.effect]))]
         passing = [item for item in scored if _passes(item[2], item[0], ctx)]
         if not passing:
             break
@@ -196,6 +200,20 @@ def forward_select(ctx: Context, candidates: tuple[Candidate, ...] | None = None
     _mirror_misalignment(ctx, rows, findings)
     _refusal_reasons(ctx, rows, first_dbic, findings)
     return findings, rows
+
+
+def _waiting(ctx: Context, cand: Candidate) -> bool:
+    """Whether ``cand`` extends an effect not (yet) in the model: it is not tested before."""
+    return cand.requires is not None and cand.requires not in ctx.accepted
+
+
+def _waiting_row(ctx: Context, cand: Candidate) -> dict[str, Any]:
+    """The row of a waiting candidate: testable or not by its own check, but not tested."""
+    reason = cand.testable(ctx)
+    return {"effect": cand.effect, "delta_bic": None, "accepted": False,
+            "testable": reason is None, "channel": ctx.info.channel,
+            "reason": reason or f"not tested: it extends {cand.requires}, which the data do "
+                                "not support"}
 
 
 def _refusal_reasons(ctx: Context, rows: dict[str, dict[str, Any]],
@@ -254,7 +272,24 @@ def _shape_axes(ctx: Context) -> list[tuple[Callable[[Spec], float],
         axes.append((lambda s: s.dynamics[1] if s.dynamics else 0.7,
                      lambda s, v: replace(s, dynamics=(s.dynamics[0] if s.dynamics else 100.0, v)),
                      DAMPING_BOUNDS[0], DAMPING_BOUNDS[1]))
+    if "amplitude_damping" in ctx.accepted:
+        axes.append((_damping_at_decade, _put_damping_at_decade, *DAMPING_BOUNDS))
     return axes
+
+
+def _damping_at_decade(spec: Spec) -> float:
+    """ζ one decade above the reference amplitude: the amplitude dependence as a positive
+    parameter (the joint refinement scales each parameter by its value)."""
+    if spec.amplitude_damping is None or spec.dynamics is None:
+        return 0.7
+    return spec.dynamics[1] + spec.amplitude_damping[0]
+
+
+def _put_damping_at_decade(spec: Spec, value: float) -> Spec:
+    if spec.amplitude_damping is None or spec.dynamics is None:
+        return spec
+    return replace(spec, amplitude_damping=(round(value - spec.dynamics[1], 12),
+                                            spec.amplitude_damping[1]))
 
 
 def polish_shapes(ctx: Context, fit: Fit, added: str) -> Fit:
@@ -304,7 +339,9 @@ def _sync_shape_parameters(spec: Spec, findings: list[Finding]) -> None:
         "hysteresis": {"half_width_dps2": spec.hysteresis_dps2},
         "saturation": {"limit_dps2": spec.saturation_dps2},
         "sensor_dynamics": {"natural_frequency_hz": spec.dynamics[0] if spec.dynamics else None,
-                            "damping": spec.dynamics[1] if spec.dynamics else None}}
+                            "damping": spec.dynamics[1] if spec.dynamics else None},
+        "amplitude_damping": {"damping_per_decade": spec.amplitude_damping[0]
+                              if spec.amplitude_damping else None}}
     for f in findings:
         for key, new in values.get(f.effect, {}).items():
             old = f.parameters.get(key)

@@ -3,7 +3,8 @@
 ``CANDIDATES`` maps each built-in effect to (testability check, fit, attribution). Effects
 handled outside the residual fit — ``clock_drift`` (from the sync edges), ``excess_noise``
 (from the residual spectrum), ``misalignment`` (the cross-axis fit read as a tilt) — live in
-:mod:`aatest.diagnose.candidates.logger` and the selection.
+:mod:`aatest.diagnose.candidates.logger` and the selection. ``amplitude_damping`` extends
+``sensor_dynamics`` and is tested only once the dynamics are accepted (``requires``).
 
 The vocabulary is open: :func:`vocabulary` adds every installed effect plugin (entry-point
 group ``aatest.effects``, :mod:`aatest.effects`) as a candidate of the same kind, replacing a
@@ -16,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from aatest.diagnose.candidates import linear, plugins, shape, table, vibration
+from aatest.diagnose.candidates import amplitude, linear, plugins, shape, table, vibration
 from aatest.diagnose.candidates.base import CandidateFit, Context
 from aatest.effects import installed_effects
 
@@ -37,6 +38,8 @@ class Candidate:
     shape_params: int = 0
     #: the distribution that provides a plugin effect (None: built-in)
     distribution: str | None = None
+    #: an effect this one extends: it waits (untested) until that one is accepted
+    requires: str | None = None
 
 
 def _lin(name: str) -> Callable[[Context], CandidateFit]:
@@ -50,6 +53,9 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate("saturation", shape.testable_dynamic, shape.fit_saturation),
     Candidate("hysteresis", shape.testable_dynamic, shape.fit_hysteresis),
     Candidate("sensor_dynamics", shape.testable_dynamics, shape.fit_dynamics, time_family=True),
+    Candidate("amplitude_damping", amplitude.testable_amplitude,
+              amplitude.fit_amplitude_damping, time_family=True, shape_params=1,
+              requires="sensor_dynamics"),
     Candidate("time_delay", shape.testable_dynamic, shape.fit_delay, time_family=True),
     Candidate("jerk_sensitivity", shape.testable_dynamic, shape.fit_jerk, time_family=True),
     Candidate("g_sensitivity", linear.testable_gravity, _lin("g_sensitivity")),
