@@ -114,9 +114,9 @@ def _tell(observer: object, method: str, step: PlannedStep, value: TableStatus |
 @contextmanager
 def polling_status(turntable: object, step: PlannedStep, observer: object,
                    period_s: float = STATUS_PERIOD_S) -> Iterator[StatusPoll | None]:
-    """Poll the table's status while the ``with`` body runs the step (None: no ``status()``,
-    and the observer is told :data:`NO_STATUS`). A fault in the body stops the poll without a
-    last read, before the rig's safe stop."""
+    """Poll the table's status every ``period_s`` seconds while the ``with`` body runs the
+    step (None: no ``status()``, and the observer is told :data:`NO_STATUS`). A fault in the
+    body stops the poll without a last read, before the rig's safe stop."""
     if not reports_status(turntable):
         _tell(observer, "table_status_unavailable", step, NO_STATUS)
         yield None

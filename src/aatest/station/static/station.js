@@ -101,6 +101,13 @@ function renderSteps() {
   $("remaining").textContent = fmtTime(remaining);
 }
 
+// Tick labels that keep small values readable (a table at rest moves by 1e-4°; the default
+// labels round that to "0").
+function ticks(u, splits) {
+  return splits.map((v) => v == null ? "" : v === 0 ? "0"
+    : Math.abs(v) >= 1e-2 && Math.abs(v) < 1e5 ? String(+v.toPrecision(4)) : v.toExponential(1));
+}
+
 function makePlots(sensors, axis) {
   for (const id of ["plot-table", "plot-daq"]) $(id).innerHTML = "";
   const width = Math.min(900, window.innerWidth - 60);
@@ -108,10 +115,12 @@ function makePlots(sensors, axis) {
     scales: { x: { time: false } },
     series: [{ label: "t s" }, { label: "position °", stroke: "#1f3a5f", scale: "deg" },
              { label: "accel °/s²", stroke: "#d08b00", scale: "acc" }],
-    axes: [{}, { scale: "deg" }, { scale: "acc", side: 1 }] }, [[], [], []], $("plot-table"));
+    axes: [{}, { scale: "deg", values: ticks, size: 60 }, { scale: "acc", side: 1, values: ticks, size: 60 }] },
+    [[], [], []], $("plot-table"));
   const colours = ["#2a7a2a", "#a11", "#5a2a9a", "#0a7f8f", "#8f5a0a"];
   const daq = new uPlot({ title: "sensor channels (V)", width, height: 180, scales: { x: { time: false } },
-    series: [{ label: "t s" }, ...sensors.map((c, i) => ({ label: c, stroke: colours[i % colours.length] }))] },
+    series: [{ label: "t s" }, ...sensors.map((c, i) => ({ label: c, stroke: colours[i % colours.length] }))],
+    axes: [{}, { values: ticks, size: 60 }] },
     [[], ...sensors.map(() => [])], $("plot-daq"));
   state.plots = { table, daq, axis, sensors, tdata: [[], [], []], ddata: [[], ...sensors.map(() => [])] };
 }
@@ -138,7 +147,8 @@ function makeTableLive(id, axis, clock) {
     series: [{ label: clock === "host" ? "t s (station clock)" : "t s (table clock)" },
              { label: "position °", stroke: "#1f3a5f", scale: "deg" },
              { label: "rate °/s", stroke: "#a11", scale: "rate" }],
-    axes: [{}, { scale: "deg" }, { scale: "rate", side: 1 }] }, [[], [], []], $("plot-table-live"));
+    axes: [{}, { scale: "deg", values: ticks, size: 60 }, { scale: "rate", side: 1, values: ticks, size: 60 }] },
+    [[], [], []], $("plot-table-live"));
   state.tableLive = { id, axis, plot, data: [[], [], []] };
 }
 
