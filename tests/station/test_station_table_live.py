@@ -5,8 +5,8 @@ the ten-minute streamed rest of ``quick-long-static`` the page counts table read
 before the step is marked done (the twin's lab clock moves on by the blocks it generates).
 A vendor's table whose plugin has no ``status()`` (the example package's single-axis table)
 keeps working, and the page says that this table reports no live status. Screenshots go to
-``test-artifacts/station/`` (``table-live-rest.png`` is the one ``docs/station.png`` is taken
-from).
+``test-artifacts/station/`` (``table-live-rest-done.png``, the page as the rest's step ends, is the
+one ``docs/station.png`` is taken from).
 """
 
 from __future__ import annotations
@@ -41,6 +41,8 @@ def test_table_readings_arrive_while_the_long_rest_runs(station: Station, page: 
         " return s && s.id.startsWith('s002') && s.state === 'running'"
         " && state.tableLive.data[0].length >= 2; })()", timeout=180_000)
     shot(page, "table-live-rest")
+    page.wait_for_selector("#steps li[data-id^='s002'][data-state='done']", timeout=300_000)
+    shot(page, "table-live-rest-done")  # the whole rest: table readings and sensor chunks
     page.wait_for_selector("#verdict", state="visible", timeout=300_000)
     log = page.evaluate("state.log")
     rest = next(e["id"] for e in log if e["type"] == "step" and e["id"].startswith("s002"))
