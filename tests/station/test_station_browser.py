@@ -11,6 +11,9 @@ from conftest import Station, shot
 
 pytestmark = pytest.mark.browser
 
+#: the step of ``quick-sine-hold`` the operator's check comes before
+HELD = "s002-sine-inner-1.9531Hz-100dps2"
+
 
 def _open(page: Any, station: Station, procedure_id: str) -> None:
     page.goto(station.url)
@@ -90,11 +93,14 @@ def test_prompts_of_a_pivoted_misalignment_answered_in_the_page(
     assert results["metadata"]["confirm_prompts"] == "station"
 
 
-def test_abort_mid_step_then_resume(station: Station, page: Any) -> None:
-    _open(page, station, "lab/quick-sine-3-steps.yaml")
+def test_abort_a_held_step_then_resume(station: Station, page: Any) -> None:
+    # the twin records a step in well under a second: the run is held at the operator's check
+    # before s002, where Abort is pressed
+    _open(page, station, "lab/quick-sine-hold.yaml")
     page.click("#start")
     page.wait_for_selector(
         "#steps li[data-id='s001-sine-inner-0.9766Hz-100dps2'][data-state='done']")
+    page.wait_for_selector(f"#prompt-step:has-text('{HELD}')")
     page.wait_for_function("Number(document.getElementById('sample-count').textContent) > 0"
                            " && document.getElementById('current').textContent.startsWith('s002')")
     page.click("#abort")
@@ -107,6 +113,8 @@ def test_abort_mid_step_then_resume(station: Station, page: Any) -> None:
     kept = sorted(p.name for p in run.rglob("*.mcap"))
     assert len(kept) == 1 and "s001" in kept[0]  # only the completed step is on disk
     page.click("#resume")
+    page.wait_for_selector(f"#prompt-step:has-text('{HELD}')")  # not confirmed: asked again
+    page.click("#continue")
     page.wait_for_selector("#verdict", state="visible", timeout=120_000)
     shot(page, "resumed-finished")
     results = json.loads((run / "results.json").read_text())

@@ -95,7 +95,7 @@ def _signed_scale_factor_with_pdf(station: Station, page: Any, key: Path, record
     assert outline == "3px"
     page.keyboard.press("Enter")
     page.wait_for_selector("#run-state:has-text('running')")
-    assert _controls(page) == {"start_enabled": False, "abort_visible": True}
+    _controls_follow_the_state(page)  # the twin may be analysing already: read both at once
     page.wait_for_selector("#verdict:has-text('Verdict')", timeout=180_000)
     assert _controls(page) == {"start_enabled": True, "abort_visible": False}
     shot(page, "shift-1-verdict")
@@ -142,10 +142,12 @@ def _live_long_rest(page: Any) -> None:
 
 
 def _abort_by_keyboard(page: Any) -> None:
-    # 3. a run aborted by keyboard: Escape brings the focus to Abort, Enter presses it
-    page.select_option("#procedure", label="quick-sine-3-steps")
+    # 3. a run aborted by keyboard: Escape brings the focus to Abort, Enter presses it; the run
+    # is held at the operator's check before its second step (the twin would finish first)
+    page.select_option("#procedure", label="quick-sine-hold")
     page.click("#start")
     page.wait_for_selector("#steps li[data-id^='s001-sine'][data-state='done']", timeout=120_000)
+    page.wait_for_selector("#prompt-step:has-text('s002-sine')")
     shot(page, "shift-3-running")
     assert _controls(page) == {"start_enabled": False, "abort_visible": True}, (
         page.locator("#run-state").inner_text(), page.locator("#notice").inner_text())
@@ -157,6 +159,15 @@ def _abort_by_keyboard(page: Any) -> None:
     assert "aborted" in page.locator("#stopped-text").inner_text()
     assert _controls(page) == {"start_enabled": True, "abort_visible": False}
     assert page.locator("#resume").is_enabled()
+
+
+def _controls_follow_the_state(page: Any) -> None:
+    """Start is disabled while a run holds the rig, Abort offered until it analyses."""
+    seen = page.evaluate("({state: state.runState, start: !document.getElementById('start')"
+                         ".disabled, abort: !document.getElementById('abort').hidden})")
+    busy = seen["state"] in ("starting", "running", "waiting for the operator", "analysing")
+    assert seen["start"] is not busy, seen
+    assert seen["abort"] is (busy and seen["state"] != "analysing"), seen
 
 
 def _unit_page(station: Station, page: Any) -> None:

@@ -75,7 +75,7 @@ def _start(hardware: Hardware, tmp_path: Path, unit: UnitName) -> tuple[Events, 
     runs = tmp_path / "runs"
     runs.mkdir(exist_ok=True)
     controller = RunController(Procedures(hardware.lab), RunsDirHistory(runs), hardware.rig,
-                               events, replay_s=0.0)
+                               events)
     name = controller.start("lab/served.yaml", "Ada Operator", unit)
     assert events.ended.wait(120), [e["type"] for e in events.seen]
     return events, runs / name

@@ -14,7 +14,8 @@ is defined in :mod:`aatest.engine.datasheet` and re-exported here.
 Constructing a rig plugin does no I/O: ``validate`` and ``plan`` build the rig only to read its
 declarations (``envelope``, the optional ``capabilities`` and ``cannot_follow``) and never
 start, stop or close it. Optional methods (absent on older plugins, found with ``getattr``):
-``Turntable.capabilities()`` (:func:`table_capabilities`), ``Daq.cannot_follow(turntable)``
+``Turntable.capabilities()`` (:func:`table_capabilities`), ``Turntable.status()``
+(:class:`StatusTable`, :func:`table_status`), ``Daq.cannot_follow(turntable)``
 (:func:`daq_refusal`), ``Daq.stream_logging`` (:class:`StreamingDaq`). The whole contract:
 docs/vendor-plugins.md, "The plugin contract".
 """
@@ -59,8 +60,9 @@ if TYPE_CHECKING:
 __all__ = [
     "GROUPS", "Analysis", "AnalysisContext", "AnalysisOutput", "AxisLimits", "AxisName",
     "Chamber", "Daq", "DeclaresNeeds", "NoOptions", "PdfRenderer", "Reporter", "RigContext",
-    "SensorDatasheet", "SensorPlugin", "SharedResources", "TableCapabilities", "TableEnvelope",
-    "Turntable", "daq_refusal", "table_capabilities",
+    "SensorDatasheet", "SensorPlugin", "SharedResources", "StatusTable", "TableCapabilities",
+    "TableEnvelope", "TableStatus", "Turntable", "daq_refusal", "reports_status",
+    "table_capabilities", "table_status",
 ]
 
 #: entry-point group per plugin kind
@@ -264,6 +266,62 @@ def table_capabilities(turntable: object) -> TableCapabilities | None:
         raise PluginError(f"turntable {type(turntable).__name__}.capabilities() returned "
                           f"{type(declared).__name__}, expected TableCapabilities")
     return declared
+
+
+class TableStatus(BaseModel):
+    """One reading of the table's live state (``Turntable.status()``, optional).
+
+    ``time_s`` is when the reading was taken: on the controller's clock when it reports one
+    (``clock="controller"``: the Modbus map's controller time, the twin's lab time), else on
+    the host's monotonic clock (``clock="host"``). The outer axis is None on a single-axis
+    table. A display only: nothing is recorded or judged from it.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+    time_s: float
+    clock: Literal["controller", "host"]
+    inner_position_deg: float
+    inner_rate_dps: float
+    outer_position_deg: float | None = None
+    outer_rate_dps: float | None = None
+
+
+@runtime_checkable
+class StatusTable(Turntable, Protocol):
+    """Optional capability of a turntable plugin: report its live position and rate.
+
+    The run polls it while a step runs (about 10 times a second, in a thread of its own) to
+    show the operator where the table is; a plugin without it keeps working and the station
+    says that this table reports no live status. The call may come while another thread is
+    inside :meth:`Turntable.record`: a driver serialises its own link.
+    """
+
+    def status(self) -> TableStatus:
+        """Read the positions (°) and rates (°/s) now; quick (one request), never moves
+        anything. A failed read raises :class:`RigFault`; the run then stops polling and goes
+        on (the step's own calls report a dead link)."""
+
+
+def reports_status(turntable: object) -> bool:
+    """True when a turntable plugin offers the optional :class:`StatusTable` capability."""
+    return callable(getattr(turntable, "status", None))
+
+
+def table_status(turntable: object) -> TableStatus | None:
+    """The turntable's live status, None when the plugin reports none.
+
+    A plugin whose ``status()`` returns something else is a :class:`PluginError`.
+    """
+    from aatest.engine.errors import PluginError
+
+    read = getattr(turntable, "status", None)
+    if not callable(read):
+        return None
+    status = read()
+    if not isinstance(status, TableStatus):
+        raise PluginError(f"turntable {type(turntable).__name__}.status() returned "
+                          f"{type(status).__name__}, expected TableStatus")
+    return status
 
 
 def daq_refusal(daq: object, turntable: object) -> str | None:

@@ -213,8 +213,8 @@ def unit_routes(records_url: str | None, history: History) -> list[Route]:
     return [Route("/units/{serial}", unit_page), Route("/api/units/{serial}", unit_json)]
 
 
-def create_app(procedures: Procedures, history: History, rig_file: Path | None,  # noqa: PLR0913 - two of them keyword-only
-               token: str | None, replay_s: float = 2.0, records_url: str | None = None,
+def create_app(procedures: Procedures, history: History, rig_file: Path | None,
+               token: str | None, records_url: str | None = None,
                hosts: HostRule | None = None, *, signer: Signer | None = None,
                archive: RemotePath | None = None) -> Asgi:
     """Build the station application (wrapped in the host/origin/token guard).
@@ -223,7 +223,7 @@ def create_app(procedures: Procedures, history: History, rig_file: Path | None, 
     the station's reports are unsigned and the page says so.
     """
     hub = Hub()
-    controller = RunController(procedures, history, rig_file, hub.publish, replay_s,
+    controller = RunController(procedures, history, rig_file, hub.publish,
                                records_url, signer.key_path if signer else None,
                                archive=archive)
 

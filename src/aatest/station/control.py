@@ -45,6 +45,8 @@ class Snapshot:
             self.prompt = event
         elif kind == "prompt_answered":
             self.prompt = None
+        elif kind == "table_live_off":
+            self.run["table_status"] = event["reason"]
         elif kind in ("stopped", "finished", "analysing", "run_dir"):
             if kind == "stopped" and "exit_code" not in event:
                 return  # the engine's notice; the controller's final one follows
@@ -66,7 +68,6 @@ class RunController:
     history: History
     rig_file: Path | None
     publish: Publish
-    replay_s: float = 2.0
     #: records store the runs are registered in, as by ``aatest run --records`` (None: the
     #: default store, ``AATEST_RECORDS`` or the user's file)
     records_url: str | None = None
@@ -137,7 +138,7 @@ class RunController:
                    sheet.sensor_infos(plan.sensor.serial)]
         self._abort = AbortFlag()
         self._responder = StationResponder(self.emit, self._abort, sensors)
-        events = RunEvents(StationObserver(self.emit, self._abort, self.replay_s),
+        events = RunEvents(StationObserver(self.emit, self._abort),
                            self._responder, self._abort)
         self.snapshot = Snapshot(run={"name": run_dir.name, "operator": operator})
         self.emit({"type": "run_dir", "name": run_dir.name, "resume": resume,

@@ -1,25 +1,26 @@
 """The run as the station sees it: events for the browsers, prompts they answer, abort.
 
 :class:`StationObserver` turns the step loop's events (:mod:`aatest.engine.run.events`) into
-JSON messages for every connected browser. What the plots show depends on when the rig's
-loggers deliver samples, and the page says which it is:
+JSON messages for every connected browser. What the plots show depends on when the rig
+delivers samples, and the page says which it is:
 
+- the table's position and rate while a step runs, from its status as it is polled
+  (:mod:`aatest.engine.run.status_poll`, about ten readings a second on a real table): each
+  reading is published at once (``table_live``) and plotted on the table's own clock from the
+  step's first reading; a table whose plugin has no ``status()`` is named on the page as one
+  that reports no live status;
 - a long static record on a streaming DAQ arrives in chunks while the step runs
   (:meth:`StationObserver.step_chunk`): each chunk is plotted as it arrives, decimated to
   :data:`CHUNK_POINTS` points per channel, so during a 2-hour rest the operator watches the
   sensor channels grow; the table's snapshot log follows when the step ends;
 - a plugin that delivers its log only when the step ends (every recorded motion step: the
-  table's controller log, the DAQ's buffer) is shown then, decimated to :data:`PLOT_POINTS`
-  points per channel and replayed over at most ``replay_s`` seconds of wall time.
-
-The abort flag is checked between replay chunks, so an abort during a step drops that step, as
-a fault during recording would.
+  table's controller log, the DAQ's buffer) is shown then, at once, decimated to
+  :data:`PLOT_POINTS` points per channel.
 """
 
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from aatest.engine.errors import RunAborted
+from aatest.engine.interfaces import TableStatus
 from aatest.engine.logs import SampledLog
 from aatest.engine.run.events import AbortFlag, PromptAnswer, utc_now
 from aatest.engine.run.progress import describe
@@ -34,8 +36,6 @@ from aatest.engine.steps import Plan, PlannedStep
 
 #: points per channel sent for one step (enough to see a dead or saturating sensor)
 PLOT_POINTS = 400
-#: messages one step's samples are split into while replaying
-REPLAY_CHUNKS = 20
 #: points per channel sent for one streamed chunk (60 s of a long rest: one point per second)
 CHUNK_POINTS = 60
 #: what the page says about samples shown when the step has ended
@@ -64,9 +64,14 @@ def _step_json(step: PlannedStep) -> dict[str, Any]:
             "lab_duration_s": step.lab_duration_s}
 
 
+def _axis(step: PlannedStep) -> str:
+    """The axis a step's plots show: the one it moves (``inner`` for a static step)."""
+    return step.axis if step.axis in ("inner", "outer") else "inner"
+
+
 def _table_channels(step: PlannedStep, table: SampledLog) -> tuple[str, list[str]]:
     """The plotted axis and its position and acceleration channels present in ``table``."""
-    axis = step.axis if step.axis in ("inner", "outer") else "inner"
+    axis = _axis(step)
     wanted = [f"{axis}_position_deg", f"{axis}_accel_dps2"]
     return axis, [c for c in wanted if c in table.channels]
 
@@ -81,9 +86,10 @@ class StationObserver:
 
     publish: Publish
     abort: AbortFlag
-    replay_s: float = 2.0
     #: the streamed step being plotted live and the DAQ time (s) its plot starts at
     _live: tuple[str, float] | None = None
+    #: the step whose table status is plotted and its first reading's time (s, table clock)
+    _polled: tuple[str, float] | None = None
 
     def run_started(self, plan: Plan, done: frozenset[str]) -> None:
         """Send the step list with each step's state."""
@@ -94,7 +100,7 @@ class StationObserver:
 
     def step_started(self, step: PlannedStep) -> None:
         """Mark the step running and show its commanded motion."""
-        self._live = None
+        self._live = self._polled = None
         self.publish({"type": "step", "id": step.id, "state": "running", "motion": describe(step)})
 
     def prompt_raised(self, step: PlannedStep) -> None:
@@ -114,25 +120,38 @@ class StationObserver:
                       "daq": decimated(daq, sensors, CHUNK_POINTS, self._live[1])})
 
     def step_samples(self, step: PlannedStep, table: SampledLog, daq: SampledLog) -> None:
-        """Show the step's samples: after a streamed record only the table's log (the DAQ was
-        plotted chunk by chunk); otherwise replay both logs, stopping early on abort."""
+        """Show the step's samples as soon as the loggers delivered them: after a streamed
+        record only the table's log (the DAQ was plotted chunk by chunk); otherwise both logs
+        at once, in one message."""
         axis, table_channels = _table_channels(step, table)
         tab = decimated(table, table_channels, PLOT_POINTS)
         if self._live is not None and self._live[0] == step.id:
             self.publish({"type": "samples", "id": step.id, "table": tab})
             return
         sensors = _sensors(daq)
-        dq = decimated(daq, sensors, PLOT_POINTS)
         self.publish({"type": "plot_reset", "id": step.id, "axis": axis, "sensors": sensors,
                       "label": AFTER_STEP, "live": False})
-        for k in range(REPLAY_CHUNKS):
-            if self.abort.requested:
-                return
-            part = slice(k * PLOT_POINTS // REPLAY_CHUNKS, (k + 1) * PLOT_POINTS // REPLAY_CHUNKS)
-            self.publish({"type": "samples", "id": step.id,
-                          "table": {c: v[part] for c, v in tab.items()},
-                          "daq": {c: v[part] for c, v in dq.items()}})
-            time.sleep(self.replay_s / REPLAY_CHUNKS)
+        self.publish({"type": "samples", "id": step.id, "table": tab,
+                      "daq": decimated(daq, sensors, PLOT_POINTS)})
+
+    def table_status(self, step: PlannedStep, status: TableStatus) -> None:
+        """Publish one polled reading of the table (called from the poll's thread): time (s)
+        from the step's first reading on the table's clock, the step's axis's position (°)
+        and rate (°/s)."""
+        if self._polled is None or self._polled[0] != step.id:
+            self._polled = (step.id, status.time_s)
+        axis = _axis(step)
+        position = getattr(status, f"{axis}_position_deg")
+        rate = getattr(status, f"{axis}_rate_dps")
+        if position is None or rate is None:  # a single-axis table asked for its outer axis
+            axis, position, rate = "inner", status.inner_position_deg, status.inner_rate_dps
+        self.publish({"type": "table_live", "id": step.id, "axis": axis, "clock": status.clock,
+                      "t": round(status.time_s - self._polled[1], 6),
+                      "position_deg": position, "rate_dps": rate})
+
+    def table_status_unavailable(self, step: PlannedStep, reason: str) -> None:
+        """Say on the page why no live table status is shown for this step."""
+        self.publish({"type": "table_live_off", "id": step.id, "reason": reason})
 
     def step_finished(self, step: PlannedStep) -> None:
         """Mark the step done."""

@@ -38,8 +38,6 @@ class StationOptions(BaseModel):
     runs_dir: Path = Path("runs")
     lab_dir: Path | None = None
     rig_file: Path | None = None
-    #: wall seconds over which a recorded step's samples are replayed to the live plot
-    replay_s: float = Field(2.0, ge=0.0, le=10.0)
     #: further ``Host`` names the station answers to (``--allow-host``), NAME or NAME:PORT
     allow_hosts: tuple[str, ...] = ()
     #: fsspec URL each finished run is also uploaded below (``--archive``, docs/storage.md)
@@ -77,7 +75,7 @@ def build(options: StationOptions) -> Asgi:
     history = history_for(options.records, options.runs_dir)
     uploads = options.runs_dir / STATION_DIR / "uploads"
     return create_app(Procedures(options.lab_dir, uploads), history, options.rig_file, token,
-                      options.replay_s, options.records, hosts, signer=signer,
+                      options.records, hosts, signer=signer,
                       archive=_archive(options.archive))
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,6 +22,7 @@ from aatest.engine.steps import PlannedStep
 from aatest.twin import kinematics as kin
 from aatest.twin.chamber import ThermalState
 from aatest.twin.clocks import DaqClock
+from aatest.twin.grid import Grid
 from aatest.twin.model import RigModel
 from aatest.twin.profiles import AxisProfile, step_profiles
 from aatest.twin.synthesis import (
@@ -34,6 +36,17 @@ from aatest.twin.synthesis import (
     table_log,
 )
 from aatest.twin.table import AxisTruth, Tones, make_vibration, tracked
+
+
+@dataclass(frozen=True)
+class TableState:
+    """The table at one lab time (s): both axes' positions (°) and rates (°/s)."""
+
+    time_s: float
+    inner_deg: float
+    inner_dps: float
+    outer_deg: float
+    outer_dps: float
 
 
 class World:
@@ -151,6 +164,22 @@ class World:
         """Stop the profile and return to the step's start position."""
         self._motion = None
         self.lab_time_s += 1.0
+
+    def table_state(self) -> TableState:
+        """Where the table is now: each axis's real position and rate at the lab time.
+
+        During a step's motion, its truth (profile through the servo, ripple, vibration or
+        drift) evaluated at ``lab_time_s``; at rest, the held position. Reads state only: the
+        live status poll calls it from another thread while a step synthesises.
+        """
+        now_s, motion = self.lab_time_s, self._motion
+        if motion is None:
+            return TableState(now_s, self.inner_deg, 0.0, self.outer_deg, 0.0)
+        at = Grid(now_s, 1.0, 1)
+        (inner_deg, inner_dps, _), (outer_deg, outer_dps, _) = (
+            truth.evaluate(at) for truth in motion[1:])
+        return TableState(now_s, float(inner_deg[0]), float(inner_dps[0]),
+                          float(outer_deg[0]), float(outer_dps[0]))
 
     # --- DAQ and synthesis -----------------------------------------------------------------
     def daq_clock(self, t0_s: float, sample_rate_hz: float | None = None) -> DaqClock:

@@ -74,6 +74,12 @@ class RunObserver(Protocol):
     def step_finished(self, step: PlannedStep) -> None:
         """A step is on disk (or a chamber step is done)."""
 
+    # Optional (looked up with getattr; observers without them keep working), called from the
+    # status poll's thread while a step runs (:mod:`aatest.engine.run.status_poll`):
+    # ``table_status(step, status: TableStatus)``: a polled reading of the table's position
+    # and rate; ``table_status_unavailable(step, reason: str)``: the table reports no live
+    # status, or reading it failed (polling stopped for the step).
+
     def run_finished(self) -> None:
         """Every step is done; analysis and report follow."""
 

@@ -41,6 +41,7 @@ from aatest.engine.run.events import RunEvents
 from aatest.engine.run.progress import StepProgress
 from aatest.engine.run.rig import Rig, running
 from aatest.engine.run.run_state import RunState
+from aatest.engine.run.status_poll import polling_status
 from aatest.engine.run.writes import BackgroundWrites
 from aatest.engine.simulation import SIMULATED_PARTS_KEY
 from aatest.engine.steps import UNNAMED_SERIAL, Plan, PlannedStep
@@ -347,10 +348,12 @@ def run_plan(
                     state.chamber_steps_done.append(step.id)
                 elif _streamed(rig, step):
                     writes.wait()  # the recorder serves one writer at a time
-                    table, last = execute_streamed_step(rig, step, recorder, events)
+                    with polling_status(rig.turntable, step, events.observer):
+                        table, last = execute_streamed_step(rig, step, recorder, events)
                     events.observer.step_samples(step, table, last)
                 else:
-                    table, daq = execute_step(rig, step)
+                    with polling_status(rig.turntable, step, events.observer):
+                        table, daq = execute_step(rig, step)
                     events.observer.step_samples(step, table, daq)
                     events.abort.check()  # aborted while recording: the step is not kept
                     writes.submit(step, table, daq)

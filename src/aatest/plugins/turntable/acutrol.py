@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from typing import Any, Literal
 
@@ -31,7 +32,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aatest.engine.errors import RigFault, rig_boundary
-from aatest.engine.interfaces import RigContext, TableEnvelope
+from aatest.engine.interfaces import RigContext, TableEnvelope, TableStatus
 from aatest.engine.logs import TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
 
@@ -43,6 +44,8 @@ LOG_CHANNELS = ("time_s", *TABLE_CHANNELS)
 IDN_SERIAL_FIELD = 2
 #: a position reading this close to the demand is in position (the reads carry 6 decimals)
 IN_POSITION_DEG = 1e-3
+#: the live status query: both axes' position (°) and rate (°/s) in one line, one reply
+STATUS_QUERY = ":READ:POSITION? 1;RATE? 1;POSITION? 2;RATE? 2"
 
 
 class AcutrolTurntable:
@@ -80,6 +83,8 @@ class AcutrolTurntable:
         self.simulated = False
         self.identity = ""
         self._session: Any = None
+        #: one exchange at a time on the session (the live status poll has its own thread)
+        self._io = threading.Lock()
         cfg = self.config
         self.resource = cfg.resource or f"TCPIP::{cfg.host}::{cfg.port}::SOCKET"
         self._where = f"ACUTROL controller {self.resource}"
@@ -116,8 +121,9 @@ class AcutrolTurntable:
             raise RigFault(f"{self._where}: not connected ({line})")
         expect = query or self.config.acknowledged_writes
         try:
-            self._session.write(line)
-            reply = self._session.read() if expect else ""
+            with self._io:  # a reply belongs to the line just written
+                self._session.write(line)
+                reply = self._session.read() if expect else ""
         except Exception as exc:
             self._close_session()  # a late reply must not answer the next request
             raise RigFault(f"{self._where}: no valid reply to {line!r} "
@@ -236,6 +242,23 @@ class AcutrolTurntable:
                                f"{values.size} values, expected {count}")
             parts.append(values)
         return np.concatenate(parts) if parts else np.zeros(0)
+
+    @rig_boundary
+    def status(self) -> TableStatus:
+        """Both axes' position (°) and rate (°/s), read in one line (``:READ:POSITION? 1;
+        RATE? 1;POSITION? 2;RATE? 2``). The public command set reads no controller clock,
+        so the reading is timed on the host's monotonic clock, at the middle of the exchange."""
+        sent_s = time.monotonic()
+        reply = self.query(STATUS_QUERY)
+        time_s = (sent_s + time.monotonic()) / 2
+        try:
+            inner_deg, inner_dps, outer_deg, outer_dps = (float(v) for v in reply.split(";"))
+        except ValueError as exc:
+            raise RigFault(f"{self._where}: status reply {reply!r} to {STATUS_QUERY!r} is not "
+                           "four numbers") from exc
+        return TableStatus(time_s=time_s, clock="host", inner_position_deg=inner_deg,
+                           inner_rate_dps=inner_dps, outer_position_deg=outer_deg,
+                           outer_rate_dps=outer_dps)
 
     @rig_boundary
     def end_motion(self) -> None:

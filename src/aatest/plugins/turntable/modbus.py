@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from collections.abc import Callable
 from operator import methodcaller
@@ -28,7 +29,7 @@ from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
 from aatest.engine.errors import RigFault, rig_boundary
-from aatest.engine.interfaces import RigContext, TableCapabilities, TableEnvelope
+from aatest.engine.interfaces import RigContext, TableCapabilities, TableEnvelope, TableStatus
 from aatest.engine.logs import TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.protocols import modbus_map as mm
@@ -36,6 +37,10 @@ from aatest.protocols.modbus_map import Command, Fault, Mode, Refusal, Reg, Stat
 
 log = logging.getLogger("aatest.turntable.modbus")
 T = TypeVar("T")
+#: the live status block, read in one request: controller time, then each axis's position
+#: estimate and rate estimate (``Reg.CONTROLLER_TIME_S`` to ``Reg.OUTER_RATE_DPS``)
+STATUS_REGISTERS = (Reg.CONTROLLER_TIME_S, Reg.INNER_POSITION_DEG, Reg.INNER_RATE_DPS,
+                    Reg.OUTER_POSITION_DEG, Reg.OUTER_RATE_DPS)
 
 
 class ModbusTurntable:
@@ -71,6 +76,8 @@ class ModbusTurntable:
         self.context = context
         self._client: ModbusTcpClient | None = None
         self._seq = 0
+        #: one request at a time on the link (the live status poll reads from its own thread)
+        self._io = threading.Lock()
         self._where = f"Modbus controller {self.config.host}:{self.config.port}"
         #: whether a simulator answers (``Reg.SIMULATED``), known once :meth:`start` connected;
         #: a run with any simulated part is a simulation, never a calibration
@@ -85,7 +92,8 @@ class ModbusTurntable:
         if self._client is None:
             raise RigFault(f"{self._where}: not connected ({what})")
         try:
-            response = fn(self._client)
+            with self._io:
+                response = fn(self._client)
         except ModbusException as exc:
             raise RigFault(f"{self._where}: no answer to {what} within "
                            f"{self.config.timeout_s:g} s ({exc.__class__.__name__})") from exc
@@ -305,6 +313,20 @@ class ModbusTurntable:
             parts.append(mm.decode_channel_window(response.registers, channel,
                                                   min(per, samples - start)))
         return np.concatenate(parts) if parts else np.zeros(0)
+
+    @rig_boundary
+    def status(self) -> TableStatus:
+        """The live status block in one read (registers 6–21, one consistent snapshot):
+        controller time (s), each axis's position (°) and rate (°/s) estimates."""
+        first = STATUS_REGISTERS[0]
+        last = STATUS_REGISTERS[-1]
+        words = self._read(first, int(last) + mm.width(last) - int(first))
+        time_s, inner_deg, inner_dps, outer_deg, outer_dps = (
+            mm.decode(reg, words[reg - first: reg - first + mm.width(reg)])
+            for reg in STATUS_REGISTERS)
+        return TableStatus(time_s=time_s, clock="controller", inner_position_deg=inner_deg,
+                           inner_rate_dps=inner_dps, outer_position_deg=outer_deg,
+                           outer_rate_dps=outer_dps)
 
     @rig_boundary
     def end_motion(self) -> None:

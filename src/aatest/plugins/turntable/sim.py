@@ -10,7 +10,13 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict
 
 from aatest.engine.errors import EnvelopeRefused, RigFault
-from aatest.engine.interfaces import AxisLimits, RigContext, TableCapabilities, TableEnvelope
+from aatest.engine.interfaces import (
+    AxisLimits,
+    RigContext,
+    TableCapabilities,
+    TableEnvelope,
+    TableStatus,
+)
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.twin.session import twin_session
@@ -116,6 +122,17 @@ class SimTurntable:
 
     def end_motion(self) -> None:
         self.world.end_motion()
+
+    def status(self) -> TableStatus:
+        """The twin's table now: its motion state at the current lab time (the controller
+        clock of the twin). Only reads the shared twin (it may run in another thread)."""
+        world = self._twin.built_world
+        if world is None:
+            raise RigFault("simulated turntable: status read before the twin was built")
+        now = world.table_state()
+        return TableStatus(time_s=now.time_s, clock="controller",
+                           inner_position_deg=now.inner_deg, inner_rate_dps=now.inner_dps,
+                           outer_position_deg=now.outer_deg, outer_rate_dps=now.outer_dps)
 
     def safe_stop(self) -> None:
         """Stop motion and switch the motor off; never raises."""

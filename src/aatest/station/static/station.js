@@ -2,7 +2,9 @@
 "use strict";
 const $ = (id) => document.getElementById(id);
 const state = { steps: new Map(), startedMs: null, plots: null, received: 0, runName: null,
-  procedures: new Map(), log: [], runState: "" };
+  procedures: new Map(), log: [], runState: "", tableLive: null, tablePoints: 0 };
+// polled table readings kept per step plot; beyond this every second one is dropped
+const TABLE_LIVE_MAX = 4000;
 // run states in which a run holds the rig: Start is disabled, Abort offered
 const BUSY = new Set(["starting", "running", "waiting for the operator", "analysing"]);
 const ABORTABLE = new Set(["starting", "running", "waiting for the operator"]);
@@ -99,17 +101,26 @@ function renderSteps() {
   $("remaining").textContent = fmtTime(remaining);
 }
 
+// Tick labels that keep small values readable (a table at rest moves by 1e-4°; the default
+// labels round that to "0").
+function ticks(u, splits) {
+  return splits.map((v) => v == null ? "" : v === 0 ? "0"
+    : Math.abs(v) >= 1e-2 && Math.abs(v) < 1e5 ? String(+v.toPrecision(4)) : v.toExponential(1));
+}
+
 function makePlots(sensors, axis) {
   for (const id of ["plot-table", "plot-daq"]) $(id).innerHTML = "";
   const width = Math.min(900, window.innerWidth - 60);
-  const table = new uPlot({ title: `table (${axis} axis estimate)`, width, height: 180,
+  const table = new uPlot({ title: `table log (${axis} axis estimate, delivered by the controller)`, width, height: 180,
     scales: { x: { time: false } },
     series: [{ label: "t s" }, { label: "position °", stroke: "#1f3a5f", scale: "deg" },
              { label: "accel °/s²", stroke: "#d08b00", scale: "acc" }],
-    axes: [{}, { scale: "deg" }, { scale: "acc", side: 1 }] }, [[], [], []], $("plot-table"));
+    axes: [{}, { scale: "deg", values: ticks, size: 60 }, { scale: "acc", side: 1, values: ticks, size: 60 }] },
+    [[], [], []], $("plot-table"));
   const colours = ["#2a7a2a", "#a11", "#5a2a9a", "#0a7f8f", "#8f5a0a"];
   const daq = new uPlot({ title: "sensor channels (V)", width, height: 180, scales: { x: { time: false } },
-    series: [{ label: "t s" }, ...sensors.map((c, i) => ({ label: c, stroke: colours[i % colours.length] }))] },
+    series: [{ label: "t s" }, ...sensors.map((c, i) => ({ label: c, stroke: colours[i % colours.length] }))],
+    axes: [{}, { values: ticks, size: 60 }] },
     [[], ...sensors.map(() => [])], $("plot-daq"));
   state.plots = { table, daq, axis, sensors, tdata: [[], [], []], ddata: [[], ...sensors.map(() => [])] };
 }
@@ -124,6 +135,39 @@ function addSamples(msg) {
   }
   $("sample-count").textContent = String(state.received);
   state.log.push({ type: "samples", id: msg.id, live: !!msg.live, received: state.received });
+}
+
+// The table's position and rate from its status, polled while the step runs: one plot per
+// step, on the table's clock (or the station's, for a controller that reports no clock).
+function makeTableLive(id, axis, clock) {
+  $("plot-table-live").innerHTML = "";
+  const width = Math.min(900, window.innerWidth - 60);
+  const plot = new uPlot({ title: `table now (${axis} axis, polled status)`, width, height: 160,
+    scales: { x: { time: false } },
+    series: [{ label: clock === "host" ? "t s (station clock)" : "t s (table clock)" },
+             { label: "position °", stroke: "#1f3a5f", scale: "deg" },
+             { label: "rate °/s", stroke: "#a11", scale: "rate" }],
+    axes: [{}, { scale: "deg", values: ticks, size: 60 }, { scale: "rate", side: 1, values: ticks, size: 60 }] },
+    [[], [], []], $("plot-table-live"));
+  state.tableLive = { id, axis, plot, data: [[], [], []] };
+}
+
+function addTablePoint(msg) {
+  let p = state.tableLive;
+  if (!p || p.id !== msg.id || p.axis !== msg.axis) { makeTableLive(msg.id, msg.axis, msg.clock); p = state.tableLive; }
+  p.data[0].push(msg.t); p.data[1].push(msg.position_deg); p.data[2].push(msg.rate_dps);
+  if (p.data[0].length > TABLE_LIVE_MAX) p.data = p.data.map((s) => s.filter((_, i) => i % 2 === 0));
+  p.plot.setData(p.data);
+  state.tablePoints += 1;
+  $("table-live-count").textContent = String(state.tablePoints);
+  $("table-now").textContent = `${msg.position_deg.toFixed(4)} °, ${msg.rate_dps.toFixed(4)} °/s`;
+  const note = $("table-live-note"); note.dataset.live = "yes";
+  note.textContent = `Table of ${msg.id}: position and rate from its status, polled while the step runs.`;
+  state.log.push({ type: "table_live", id: msg.id, points: state.tablePoints });
+}
+
+function tableLiveOff(reason) {
+  const note = $("table-live-note"); note.dataset.live = "no"; note.textContent = `Live table: ${reason}.`;
 }
 
 function showPrompt(msg) {
@@ -190,6 +234,7 @@ function onEvent(msg) {
         showUnit(msg.run.model, msg.run.serial);
         setRunState({ run_dir: "starting", analysing: "analysing" }[msg.run.state] || msg.run.state || "");
         if (msg.run.state === "finished") showResult(msg.run);
+        if (msg.run.table_status) tableLiveOff(msg.run.table_status);
       }
       state.steps = new Map(msg.steps.map((s) => [s.id, s])); renderSteps(); showPrompt(msg.prompt);
       break;
@@ -199,6 +244,8 @@ function onEvent(msg) {
       showUnit(msg.model, msg.serial); state.log = []; state.steps = new Map(); renderSteps();
       $("current").textContent = "—"; $("motion").textContent = "";
       state.startedMs = Date.now(); state.received = 0; $("sample-count").textContent = "0";
+      state.tablePoints = 0; state.tableLive = null; $("table-live-count").textContent = "0";
+      $("plot-table-live").innerHTML = ""; $("table-now").textContent = "—";
       break;
     case "run_started":
       state.steps = new Map(msg.steps.map((s) => [s.id, s])); renderSteps(); setRunState("running");
@@ -213,6 +260,8 @@ function onEvent(msg) {
       makePlots(msg.sensors, msg.axis); $("plot-label").textContent = `Plots of ${msg.id}: ${msg.label}.`;
       $("plot-label").dataset.live = msg.live ? "yes" : "no"; break;
     case "samples": addSamples(msg); break;
+    case "table_live": addTablePoint(msg); break;
+    case "table_live_off": tableLiveOff(msg.reason); break;
     case "prompt": showPrompt(msg); setRunState("waiting for the operator"); break;
     case "prompt_answered": showPrompt(null); setRunState("running"); break;
     case "analysing": setRunState("analysing"); break;

@@ -146,12 +146,12 @@ class AcutrolProtocol:
 
     def _read(self, command: Command) -> str:
         ctl, axis = self.controller, axis_of(command)
-        state = ctl.axes[axis]
+        table = ctl.world.table_state()  # the twin's motion at the controller's lab time
         leaf = command.path[1]
         if leaf == "POSITION":
-            value = ctl.world.inner_deg if axis == 1 else ctl.world.outer_deg
+            value = table.inner_deg if axis == 1 else table.outer_deg
         elif leaf == "RATE":
-            value = state.rate_demand_dps if state.mode in ("R", "A") and ctl._motion else 0.0
+            value = table.inner_dps if axis == 1 else table.outer_dps
         else:
             value = 0.0
         return f"{value:.6f}"

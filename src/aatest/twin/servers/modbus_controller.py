@@ -188,9 +188,12 @@ class SimController:
         self._put(Reg.FAULT, int(self._fault))
         self._put(Reg.MODE_ACTIVE, int(self._mode))
         self._put(Reg.HEARTBEAT, int(self._get(Reg.HEARTBEAT)) + 1)
-        self._put(Reg.CONTROLLER_TIME_S, self.now_s())
-        self._put(Reg.INNER_POSITION_DEG, self.world.inner_deg)
-        self._put(Reg.OUTER_POSITION_DEG, self.world.outer_deg)
+        table = self.world.table_state()  # the twin's motion at the controller clock
+        self._put(Reg.CONTROLLER_TIME_S, table.time_s)
+        self._put(Reg.INNER_POSITION_DEG, table.inner_deg)
+        self._put(Reg.INNER_RATE_DPS, table.inner_dps)
+        self._put(Reg.OUTER_POSITION_DEG, table.outer_deg)
+        self._put(Reg.OUTER_RATE_DPS, table.outer_dps)
         recorded = self._record.table if self._record and self._record.table else None
         self._put(Reg.LOG_RECORDED, len(recorded) if recorded is not None else 0)
 
