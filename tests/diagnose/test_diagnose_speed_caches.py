@@ -15,7 +15,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import signal
 
-from aatest.diagnose import design
+from aatest.diagnose import column_store, design
 from aatest.diagnose.design import ChannelInfo, Spec, fit_gram, fold_of, gram, step_columns
 from aatest.diagnose.periodogram import dft_at, lomb_scargle_power
 from aatest.diagnose.replay import ALPHA_MEMO, replay_dataset, sensor_acceleration
@@ -89,14 +89,12 @@ def test_cached_gram_blocks_equal_the_full_design(replay) -> None:
 
 def test_released_columns_are_rebuilt_identically(replay, monkeypatch) -> None:
     """A budget too small to hold any column forces every extension to rebuild: same numbers."""
-    monkeypatch.setattr(design, "COLUMN_BUDGET_BYTES", 1)
+    monkeypatch.setattr(column_store, "COLUMN_BUDGET_BYTES", 1)
     cache: dict = {}
     targets = _targets(replay)
     for spec in SPECS:
         _assert_same(gram(replay, INFO, spec, targets, cache), _direct(replay, spec))
-    budget = cache[design._BUDGET]
-    held = [b for b in budget.order.values() if b.columns is not None]
-    assert len(held) <= 1  # only the block just used keeps its columns
+    assert len(cache[column_store.BUDGET_KEY].order) <= 1  # only the column just built is kept
 
 
 @pytest.mark.pinned

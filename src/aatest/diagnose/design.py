@@ -14,7 +14,6 @@ and scoring on the other (held-out SSE) costs a small linear solve, not a pass o
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
@@ -335,114 +334,23 @@ def _fold_products(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return np.stack([sum(parts[0::2]), sum(parts[1::2])])
 
 
-#: key of the column-memory budget inside a gram cache
-_BUDGET = "design column budget"
-#: bytes of design columns kept per channel for re-use (Gram blocks are always kept)
-COLUMN_BUDGET_BYTES = 64 * 2**20
-
-
-@dataclass
-class _StepBlock:
-    """One step's design under one shape: which columns it has, their Gram blocks per fold.
-
-    Linear candidates extend a model without changing its shape, so their step blocks share
-    every column but the new one: only the new column is built and multiplied (XᵀX grows by
-    one row and column). ``columns`` is dropped when the memory budget needs it and rebuilt
-    from the replay on demand.
-    """
-
-    names: list[str]
-    zero: set[str]
-    xtx: np.ndarray  # (2, m, m)
-    xty: np.ndarray  # (2, m)
-    yty: np.ndarray  # (2,)
-    count: np.ndarray  # (2,)
-    columns: np.ndarray | None  # (n, m) or None once released
-
-    def extend(self, sr: StepReplay, info: ChannelInfo, spec: Spec, missing: list[str],
-               y: np.ndarray) -> int:
-        """Build the ``missing`` columns and their products; return bytes of columns added
-        (the rebuilt old ones included, when the budget had released them)."""
-        before = 0 if self.columns is None else self.columns.nbytes
-        new = _design(sr, info, spec, set(missing))
-        added = [name for name in missing if name in new]
-        self.zero |= set(missing) - set(added)
-        if not added:
-            return 0
-        cols_new = np.column_stack([new[name] for name in added])
-        del new
-        if self.columns is None and self.names:
-            old = _design(sr, info, spec, set(self.names))
-            self.columns = np.column_stack([old[name] for name in self.names])
-        m, q = len(self.names), len(added)
-        xtx = np.zeros((2, m + q, m + q))
-        xtx[:, :m, :m] = self.xtx
-        if m:
-            assert self.columns is not None
-            cross = _fold_products(self.columns, cols_new, sr.n)
-            xtx[:, :m, m:] = cross
-            xtx[:, m:, :m] = cross.transpose(0, 2, 1)
-        xtx[:, m:, m:] = _fold_products(cols_new, cols_new, sr.n)
-        self.xtx = xtx
-        self.xty = np.concatenate([self.xty, _fold_products(cols_new, y, sr.n)], axis=1)
-        self.names += added
-        self.columns = cols_new if self.columns is None else np.hstack([self.columns, cols_new])
-        return self.columns.nbytes - before
-
-
-class _ColumnBudget:
-    """Least-recently-used step blocks holding columns, released beyond the byte budget."""
-
-    def __init__(self, limit_bytes: int) -> None:
-        self.limit = limit_bytes
-        self.used = 0
-        self.order: OrderedDict[Any, _StepBlock] = OrderedDict()
-
-    def touch(self, key: Any, block: _StepBlock, added_bytes: int) -> None:
-        self.used += added_bytes
-        self.order[key] = block
-        self.order.move_to_end(key)
-        while self.used > self.limit and len(self.order) > 1:
-            _, old = self.order.popitem(last=False)
-            if old.columns is not None:
-                self.used -= old.columns.nbytes
-                old.columns = None
-
-
-def _step_block(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
-                y: np.ndarray, cache: dict) -> _StepBlock:
-    """The step's Gram block with (at least) the columns ``names``, from/into ``cache``."""
-    key = ("step block", sr.index, replace(_step_key(spec, sr), linear=frozenset()))
-    block = cache.get(key)
-    if block is None:
-        y_parts = _fold_products(y, y, sr.n)
-        edges = _block_edges(sr.n)
-        sizes = np.diff(edges)
-        block = _StepBlock([], set(), np.zeros((2, 0, 0)), np.zeros((2, 0)), y_parts,
-                           np.array([sizes[0::2].sum(), sizes[1::2].sum()], dtype=float), None)
-        cache[key] = block
-    missing = [nm for nm in names if nm not in block.zero and nm not in block.names]
-    added = block.extend(sr, info, spec, missing, y) if missing else 0
-    budget = cache.setdefault(_BUDGET, _ColumnBudget(COLUMN_BUDGET_BYTES))
-    budget.touch(key, block, added)
-    return block
-
-
 def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
          cache: dict | None = None) -> Gram:
     """Per-fold Gram matrices of ``spec`` over all steps, against ``targets[step]`` (volts).
 
-    ``cache`` keeps each step's Gram block under the shape the step depends on (see
-    :class:`_StepBlock`): a search over a shape parameter rebuilds only the steps it can
-    change, and a linear extension builds only its new column. Without ``cache`` nothing is
-    kept beyond this call.
+    ``cache`` keeps each step's Gram block under the shape the step depends on, and its design
+    columns under what each of them depends on (:mod:`aatest.diagnose.column_store`): a
+    search over a shape parameter rebuilds only the columns it can change, and a linear
+    extension builds only its new column. Without ``cache`` nothing is kept beyond this call.
     """
     names = column_names(spec, replay)
     p = len(names)
     g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
+    from aatest.diagnose.column_store import step_block
+
     store: dict = cache if cache is not None else {}
     for sr in replay.steps:
-        block = _step_block(sr, info, spec, names, targets[sr.index], store)
+        block = step_block(sr, info, spec, names, targets[sr.index], store)
         pos = [names.index(nm) for nm in block.names if nm in names]
         sub = [j for j, nm in enumerate(block.names) if nm in names]
         ix = np.ix_(pos, pos)
@@ -512,6 +420,15 @@ def fit_spec(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, n
 
 
 def predict(replay: Replay, info: ChannelInfo, fit: Fit) -> dict[int, np.ndarray]:
-    """Model output (volts) per step for a fitted spec."""
-    return {sr.index: step_columns(sr, info, fit.spec, fit.names) @ fit.coef
-            for sr in replay.steps}
+    """Model output (volts) per step for a fitted spec.
+
+    Only the columns a step can make non-zero are built (a model with vibration terms has
+    two per tone per step, zero on every other step).
+    """
+    out = {}
+    for sr in replay.steps:
+        cols = _design(sr, info, fit.spec, set(fit.names))
+        used = [j for j, name in enumerate(fit.names) if name in cols]
+        x = np.column_stack([cols[fit.names[j]] for j in used])
+        out[sr.index] = x @ fit.coef[used]
+    return out
