@@ -185,10 +185,11 @@ def compare(case: str, seed: int, base_src: Path, rounds: int) -> None:
 
     bw, tw, bc, tc = med("base", "wall_s"), med("this", "wall_s"), med("base", "cpu_s"), \
         med("this", "cpu_s")
+    same = runs["base"][0]["findings"] == runs["this"][0]["findings"]
     print(f"{case}: median of {rounds}: wall {bw:.1f} → {tw:.1f} s (×{bw / tw:.2f}), CPU "
           f"{bc:.1f} → {tc:.1f} s (×{bc / tc:.2f}); peak RSS {med('base', 'rss_mb'):.0f} → "
           f"{med('this', 'rss_mb'):.0f} MB; findings "
-          f"{'the same' if runs['base'][0]['findings'] == runs['this'][0]['findings'] else 'DIFFER'}",
+          f"{'the same' if same else 'DIFFER'}",
           flush=True)
     if case in TARGETS:
         wall_s, rss_mb = TARGETS[case]

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Any
 
 import numpy as np
 from scipy import signal
@@ -30,6 +29,7 @@ from aatest.diagnose.replay import (
     sensor_acceleration,
     sensor_axes,
 )
+from aatest.diagnose.steady_state import response, tone_columns
 from aatest.effects import EffectInputs, design_column_names, design_columns
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.twin.daq import antialias_filter
@@ -214,9 +214,44 @@ def _ripple_motion(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nda
     return z_inner * total
 
 
+def _chain(info: ChannelInfo, spec: Spec, dt_s: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(b, a) of the sensor's dynamics and the logger's filter, as the design applies them."""
+    out = []
+    if spec.dynamics is not None:
+        out.append(_dyn(float(spec.dynamics[0]), float(spec.dynamics[1]), round(dt_s, 15))[:2])
+    if info.antialias_hz is not None:
+        out.append(_aa(float(info.antialias_hz), round(dt_s, 15))[:2])
+    return out
+
+
+def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
+           wanted: set[str], z_inner: float) -> tuple[dict[str, np.ndarray], list[int]]:
+    """Vibration columns on the record grid, through dynamics and logger, evaluated in the
+    frequency domain (:mod:`aatest.diagnose.steady_state`); and the tones left to the time
+    domain (a filter that rings beyond the padding)."""
+    done: dict[str, np.ndarray] = {}
+    left: list[int] = []
+    rec = t_eval[PAD_SAMPLES:PAD_SAMPLES + sr.n]
+    step_s = float(t_eval[1] - t_eval[0])
+    chain = _chain(info, spec, sr.dt_s)
+    for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
+        names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
+        if wanted.isdisjoint(names):
+            continue
+        w = 2 * np.pi * f_hz
+        h = response(chain, w * step_s, PAD_SAMPLES)
+        if h is None:
+            left.append(j)
+            continue
+        done[names[0]], done[names[1]] = tone_columns(h, w * rec, z_inner)
+    return done, left
+
+
 def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
-                   t_eval: np.ndarray, wanted: set[str]) -> dict[str, np.ndarray]:
-    """Inner-axis ripple and vibration as seen along the sensor axis, through its dynamics."""
+                   t_eval: np.ndarray, wanted: set[str], tones: list[int] | None = None
+                   ) -> dict[str, np.ndarray]:
+    """Inner-axis ripple and vibration as seen along the sensor axis, through its dynamics
+    (vibration: only the tones ``tones``, every one when None)."""
     z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
     cols: dict[str, np.ndarray] = {}
     for n in spec.ripple_cpd:
@@ -228,7 +263,7 @@ def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
         cols[rnames[1]] = _dynamics(z_inner * rc, spec, sr.dt_s)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
         names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
-        if wanted.isdisjoint(names):
+        if wanted.isdisjoint(names) or (tones is not None and j not in tones):
             continue
         w = 2 * np.pi * f_hz
         cols[names[0]] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
@@ -252,10 +287,13 @@ def _design(sr: StepReplay, info: ChannelInfo, spec: Spec, wanted: set[str]
     if dynamic:
         assert temp is not None
         t_eval, key = _eval_times(sr, spec)
+        z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
+        done, left = _tones(sr, info, spec, t_eval, dynamic, z_inner)
         cols = (_sensor_columns(sr, info, spec, t_eval, key, temp, dynamic)
-                | _table_columns(sr, info, spec, t_eval, dynamic))
+                | _table_columns(sr, info, spec, t_eval, dynamic, left))
         out |= {name: _logger(col, info, sr.dt_s)[cut] for name, col in cols.items()
                 if name in dynamic}
+        out |= {name: col for name, col in done.items() if name in dynamic}
     if "bias_temperature" in wanted:
         assert temp is not None
         out["bias_temperature"] = temp[cut]

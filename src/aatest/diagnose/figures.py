@@ -11,15 +11,21 @@ from __future__ import annotations
 import io
 from typing import Any
 
+import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
 from aatest.diagnose.effects.base import Context
 
+#: text as SVG text, not glyph outlines (as the report's own figures): a third less drawing
+#: time and a third smaller figures
+_STYLE = {"svg.fonttype": "none", "svg.hashsalt": "aatest-diagnose"}
+
 
 def _svg(fig: Figure) -> str:
     buffer = io.StringIO()
-    fig.savefig(buffer, format="svg", metadata={"Date": None})
+    with matplotlib.rc_context(_STYLE):
+        fig.savefig(buffer, format="svg", metadata={"Date": None})
     return buffer.getvalue()
 
 

@@ -80,28 +80,94 @@ def _generic_columns(sr: StepReplay, alpha: np.ndarray, generics: list[Proposal]
 
 
 def _generic_names(generics: list[Proposal], ctx: Context) -> list[str]:
-    sr = ctx.replay.steps[0]
-    return [f"{p.key}#{j}" for p in generics
-            for j in range(p.columns(sr, np.zeros(sr.n)).shape[1])]
+    return [f"{p.key}#{j}" for p in generics for j in range(_width(ctx, p))]
+
+
+#: key of the generic-column store (one named spec at a time) inside the channel's cache
+_GENERIC_KEY = "generic columns"
+
+
+def _store(ctx: Context, spec: Spec) -> dict[Any, Any]:
+    """The generic columns and products on the named spec ``spec`` (the last one only)."""
+    held = ctx.step_cache.get(_GENERIC_KEY)
+    if held is None or held[0] != spec:
+        held = (spec, {})
+        ctx.step_cache[_GENERIC_KEY] = held
+    return held[1]
+
+
+def _prune(ctx: Context, keep: list[Proposal]) -> None:
+    """Forget the columns of proposals not taken (their objects are kept alive by the store
+    so that ``id`` stays unique while they are in it)."""
+    held = ctx.step_cache.get(_GENERIC_KEY)
+    if held is None:
+        return
+    ids = {id(p) for p in keep}
+    for key in [k for k in held[1] if not set(k[1]) <= ids]:
+        del held[1][key]
+
+
+def _one_generic(ctx: Context, spec: Spec, names: list[str], sr: StepReplay,
+                 prop: Proposal) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+    """(columns on, the columns, named indices used, [cross, own, with y]) of one proposal on
+    one step, from the store when seen on this spec."""
+    store = _store(ctx, spec)
+    key = (sr.index, (id(prop),))
+    if key not in store:
+        used, x, alpha = _named_design(ctx, spec, names, sr)
+        gen = prop.columns(sr, alpha)
+        on = np.flatnonzero(np.any(gen != 0.0, axis=0))  # other steps' columns are zero here
+        gen = np.ascontiguousarray(gen[:, on])
+        products = [_fold_products(x, gen, sr.n), _fold_products(gen, gen, sr.n),
+                    _fold_products(gen, ctx.targets[sr.index], sr.n)] if on.size else []
+        store[key] = (on, gen, used, products, prop)
+    return store[key][:4]
+
+
+def _pair(ctx: Context, spec: Spec, names: list[str], sr: StepReplay, a: Proposal,
+          b: Proposal) -> np.ndarray:
+    """Per-fold products of two proposals' columns on one step (from the store)."""
+    store = _store(ctx, spec)
+    key = (sr.index, (id(a), id(b)))
+    if key not in store:
+        ca, cb = (_one_generic(ctx, spec, names, sr, p)[1] for p in (a, b))
+        store[key] = (_fold_products(ca, cb, sr.n), a, b)
+    return store[key][0]
 
 
 def _add_generics(g: Gram, ctx: Context, spec: Spec, k: int, sr: StepReplay,
                   generics: list[Proposal]) -> None:
     """Add one step's generic blocks (with its named columns, and among themselves)."""
-    used, x, alpha = _named_design(ctx, spec, g.names[:k], sr)
-    gen = _generic_columns(sr, alpha, generics)
-    on = np.flatnonzero(np.any(gen != 0.0, axis=0))  # other steps' columns are zero here
-    if not on.size:
-        return
-    gen, cols = gen[:, on], k + on
-    cross = _fold_products(x, gen, sr.n)
-    own = _fold_products(gen, gen, sr.n)
-    with_y = _fold_products(gen, ctx.targets[sr.index], sr.n)
-    for f in (0, 1):
-        g.xtx[f][np.ix_(used, cols)] += cross[f]
-        g.xtx[f][np.ix_(cols, used)] += cross[f].T
-        g.xtx[f][np.ix_(cols, cols)] += own[f]
-        g.xty[f][cols] += with_y[f]
+    names, start = g.names[:k], k
+    placed = []
+    for prop in generics:
+        on, _, used, products = _one_generic(ctx, spec, names, sr, prop)
+        cols = start + on
+        start += _width(ctx, prop)
+        if on.size:
+            cross, own, with_y = products
+            for f in (0, 1):
+                g.xtx[f][np.ix_(used, cols)] += cross[f]
+                g.xtx[f][np.ix_(cols, used)] += cross[f].T
+                g.xtx[f][np.ix_(cols, cols)] += own[f]
+                g.xty[f][cols] += with_y[f]
+            for other, other_cols in placed:
+                pair = _pair(ctx, spec, names, sr, other, prop)
+                for f in (0, 1):
+                    g.xtx[f][np.ix_(other_cols, cols)] += pair[f]
+                    g.xtx[f][np.ix_(cols, other_cols)] += pair[f].T
+            placed.append((prop, cols))
+
+
+def _width(ctx: Context, prop: Proposal) -> int:
+    """Number of columns of a proposal (the same on every step)."""
+    key = ("generic width", id(prop))
+    held = ctx.step_cache.get(key)
+    if held is None or held[1] is not prop:
+        sr = ctx.replay.steps[0]
+        held = (prop.columns(sr, np.zeros(sr.n)).shape[1], prop)
+        ctx.step_cache[key] = held
+    return held[0]
 
 
 def joint_fit(ctx: Context, spec: Spec, generics: list[Proposal]) -> Fit:
@@ -161,6 +227,7 @@ def _best_addition(ctx: Context, joint: Joint) -> tuple[float, Proposal, Fit] | 
         material = held_out_rmse(fit) < (1.0 - MIN_REDUCTION) * held_out_rmse(joint.fit)
         if dbic < -BIC_THRESHOLD and material and (best is None or dbic < best[0]):
             best = (dbic, prop, fit)
+    _prune(ctx, joint.generics + ([best[1]] if best is not None else []))
     return best
 
 
