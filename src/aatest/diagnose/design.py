@@ -38,6 +38,8 @@ from aatest.twin.sensor import dynamics_filter, play_operator
 
 #: contiguous time blocks per step; even blocks form fold A, odd blocks fold B
 BLOCKS_PER_STEP = 8
+#: unshifted vibration tones (sin and cos on the record grid) kept per step
+TONE_MEMO = 12
 
 
 @dataclass(frozen=True)
@@ -231,9 +233,10 @@ def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
     domain (a filter that rings beyond the padding)."""
     done: dict[str, np.ndarray] = {}
     left: list[int] = []
-    rec = t_eval[PAD_SAMPLES:PAD_SAMPLES + sr.n]
     step_s = float(t_eval[1] - t_eval[0])
     chain = _chain(info, spec, sr.dt_s)
+    t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    shift = spec.shift_of(sr.index)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
         names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
         if wanted.isdisjoint(names):
@@ -243,8 +246,29 @@ def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
         if h is None:
             left.append(j)
             continue
-        done[names[0]], done[names[1]] = tone_columns(h, w * rec, z_inner)
+        # a time shift turns the tone's phase: it goes into the complex gain, and the sine
+        # and cosine of the unshifted tone are computed once per warp
+        basis = _tone_basis(sr, f_hz, spec.warp_ppm, t_ref)
+        done[names[0]], done[names[1]] = tone_columns(h * np.exp(-1j * w * shift), basis,
+                                                      z_inner)
     return done, left
+
+
+def _tone_basis(sr: StepReplay, f_hz: float, warp_ppm: float, t_ref: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """sin and cos of 2πf·t on the record grid, t warped about ``t_ref`` and not shifted
+    (the :data:`TONE_MEMO` most recently used kept on the step)."""
+    key = ("tone", f_hz, warp_ppm, t_ref)
+    value = sr.memo.pop(key, None)
+    if value is None:
+        t = sr.time_s
+        theta = 2 * np.pi * f_hz * (t - warp_ppm * 1e-6 * (t - t_ref))
+        value = (np.sin(theta), np.cos(theta))
+        tones = [k for k in sr.memo if k[0] == "tone"]
+        for old in tones[: max(len(tones) - TONE_MEMO + 1, 0)]:
+            del sr.memo[old]
+    sr.memo[key] = value  # most recently used last
+    return value
 
 
 def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,

@@ -50,9 +50,10 @@ def response(filters: list[tuple[np.ndarray, np.ndarray]], omega_rad: float,
     return h
 
 
-def tone_columns(h: complex, theta_rad: np.ndarray, gain: float
+def tone_columns(h: complex, basis: tuple[np.ndarray, np.ndarray], gain: float
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """The steady-state outputs of ``gain``·sin θ and ``gain``·cos θ through response ``h``."""
-    s, c = np.sin(theta_rad), np.cos(theta_rad)
+    """The steady-state outputs of ``gain``·sin θ and ``gain``·cos θ through response ``h``
+    (``basis``: sin θ and cos θ). A delay τ of the input is the factor e^{−iωτ} in ``h``."""
+    s, c = basis
     re, im = gain * h.real, gain * h.imag
     return re * s + im * c, re * c - im * s
