@@ -139,6 +139,14 @@ def _columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
     return out
 
 
+def _stack(cols: dict[str, np.ndarray | None], names: list[str]) -> np.ndarray:
+    """The named columns side by side (each one built: a block's columns are never zero)."""
+    held = [cols[n] for n in names]
+    if any(c is None for c in held):
+        raise AssertionError("a block column was not rebuilt")
+    return np.column_stack([c for c in held if c is not None])
+
+
 def _empty(spec: Spec, sr: StepReplay, y: np.ndarray) -> StepBlock:
     sizes = np.diff(_block_edges(sr.n))
     return StepBlock(spec, [], [], {}, np.zeros((2, 0, 0)), np.zeros((2, 0)),
@@ -171,13 +179,13 @@ def _extend(block: StepBlock, sr: StepReplay, info: ChannelInfo, spec: Spec,
     block.zero |= {n: wanted[n] for n in missing if new[n] is None}
     if not added:
         return
-    cols_new = np.column_stack([new[n] for n in added])
+    cols_new = _stack(new, added)
     m, q = len(block.names), len(added)
     xtx = np.zeros((2, m + q, m + q))
     xtx[:, :m, :m] = block.xtx
     if m:
         old = _columns(sr, info, block.spec, block.names, block.keys, budget)
-        cross = _fold_products(np.column_stack([old[n] for n in block.names]), cols_new, sr.n)
+        cross = _fold_products(_stack(old, block.names), cols_new, sr.n)
         xtx[:, :m, m:] = cross
         xtx[:, m:, :m] = cross.transpose(0, 2, 1)
     xtx[:, m:, m:] = _fold_products(cols_new, cols_new, sr.n)
@@ -231,8 +239,7 @@ def step_design(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
     budget = cache[BUDGET_KEY]
     cols = _columns(sr, info, block.spec, [names[j] for j in used],
                     [block.keys[block.index[names[j]]] for j in used], budget)
-    x = (np.column_stack([cols[names[j]] for j in used]) if used
-         else np.zeros((sr.n, 0)))
+    x = _stack(cols, [names[j] for j in used]) if used else np.zeros((sr.n, 0))
     return np.asarray(used, dtype=int), x
 
 

@@ -14,12 +14,13 @@ from typing import Any
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.typing import RcKeyType
 
 from aatest.diagnose.effects.base import Context
 
 #: text as SVG text, not glyph outlines (as the report's own figures): a third less drawing
 #: time and a third smaller figures
-_STYLE = {"svg.fonttype": "none", "svg.hashsalt": "aatest-diagnose"}
+_STYLE: dict[RcKeyType, Any] = {"svg.fonttype": "none", "svg.hashsalt": "aatest-diagnose"}
 #: fixed margins (inches' share of the figure): a constrained layout measures every tick
 #: label's extent first, which took half the drawing time of these small figures
 _MARGINS = {"left": 0.11, "right": 0.98, "top": 0.88}

@@ -139,7 +139,7 @@ def _add_generics(g: Gram, ctx: Context, spec: Spec, k: int, sr: StepReplay,
                   generics: list[Proposal]) -> None:
     """Add one step's generic blocks (with its named columns, and among themselves)."""
     names, start = g.names[:k], k
-    placed = []
+    placed: list[tuple[Proposal, np.ndarray]] = []
     for prop in generics:
         on, _, used, products = _one_generic(ctx, spec, names, sr, prop)
         cols = start + on
