@@ -1,11 +1,13 @@
 """The speed-ups of ``aatest diagnose`` change no number: caches and fast sums against the
 direct computation (timings are measured in ``bench/diagnose.py``, never here).
 
-* per-step Gram blocks grown column by column, shared across specs and partly released under a
-  memory budget, give the per-fold XᵀX, Xᵀy, yᵀy of the full design built from scratch;
+* per-step Gram blocks grown column by column, started from the block of the shape before
+  (columns kept under what they depend on) and partly released under a memory budget, give
+  the per-fold XᵀX, Xᵀy, yᵀy of the full design built from scratch;
 * the O(n)-memory Lomb–Scargle periodogram equals SciPy's, the factorised single-frequency DFT
   equals the direct sum;
-* the commanded-acceleration memo stays short and returns what an uncached evaluation does.
+* the commanded-acceleration memo stays short and returns what an uncached evaluation does;
+* vibration tones read from the filters' frequency response equal the time-domain filtering.
 """
 
 from __future__ import annotations
