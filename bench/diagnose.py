@@ -19,6 +19,13 @@ shared with other work, CPU seconds are the steadier number; the targets are sta
 time on an otherwise idle machine.
 
     python bench/diagnose.py [--case stepped16 ...] [--seed 1] [--suite]
+    python bench/diagnose.py --compare BASE/src [--rounds 3] [--case multi ...]
+
+``--compare`` exports each case once and diagnoses it in fresh processes alternately on
+another checkout's ``src`` (put first on ``PYTHONPATH``: a baseline commit) and on this one,
+``--rounds`` times each, and prints the median wall and CPU ratios and both peak RSS: on a
+machine shared with other work only ratios measured side by side mean anything (peak RSS
+does not depend on the load).
 
 ``--suite`` also runs the full hidden-effect suite and prints its score.
 """
@@ -31,6 +38,7 @@ import io
 import json
 import os
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -143,6 +151,53 @@ def bench_case(case: str, seed: int, profile: Path | None) -> dict[str, Any]:
         return {"size_mb": size_mb, **json.loads(proc.stdout.strip().splitlines()[-1])}
 
 
+def _child(data: Path, src: Path | None) -> dict[str, Any]:
+    """Diagnose ``data`` in a fresh process (on the checkout ``src`` when given)."""
+    env = dict(os.environ)
+    if src is not None:
+        env["PYTHONPATH"] = os.pathsep.join([str(src), *filter(None, [env.get("PYTHONPATH")])])
+    proc = subprocess.run([sys.executable, __file__, "--child", str(data)], env=env,
+                          capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        raise SystemExit(f"diagnose on {src or 'this checkout'} failed\n{proc.stderr}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def compare(case: str, seed: int, base_src: Path, rounds: int) -> None:
+    """Diagnose one exported dataset alternately on ``base_src`` and on this checkout;
+    print the median wall and CPU seconds, their ratios and each side's peak RSS."""
+    this_src = Path(__file__).resolve().parents[1] / "src"
+    runs: dict[str, list[dict[str, Any]]] = {"base": [], "this": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        data = Path(tmp) / "import"
+        export_case(case, seed, data)
+        for i in range(rounds):
+            for label, src in (("base", base_src), ("this", this_src)):
+                r = _child(data, src)
+                runs[label].append(r)
+                print(f"{case} round {i + 1} {label}: {r['wall_s']:.1f} s wall, "
+                      f"{r['cpu_s']:.1f} s CPU, peak RSS {r['rss_mb']:.0f} MB; found "
+                      f"{', '.join(r['findings'] + r['unexplained']) or 'none'}; load average "
+                      f"{os.getloadavg()[0]:.1f}", flush=True)
+
+    def med(label: str, key: str) -> float:
+        return statistics.median(r[key] for r in runs[label])
+
+    bw, tw, bc, tc = med("base", "wall_s"), med("this", "wall_s"), med("base", "cpu_s"), \
+        med("this", "cpu_s")
+    same = runs["base"][0]["findings"] == runs["this"][0]["findings"]
+    print(f"{case}: median of {rounds}: wall {bw:.1f} → {tw:.1f} s (×{bw / tw:.2f}), CPU "
+          f"{bc:.1f} → {tc:.1f} s (×{bc / tc:.2f}); peak RSS {med('base', 'rss_mb'):.0f} → "
+          f"{med('this', 'rss_mb'):.0f} MB; findings "
+          f"{'the same' if same else 'DIFFER'}",
+          flush=True)
+    if case in TARGETS:
+        wall_s, rss_mb = TARGETS[case]
+        print(f"target {case}: ≤ {wall_s:g} s, ≤ {rss_mb:g} MB on an idle machine: project "
+              f"this checkout's idle wall time as the base's idle time ÷ {bw / tw:.2f} "
+              f"(or ÷ {bc / tc:.2f}, the CPU ratio)", flush=True)
+
+
 def run_suite(samples: int) -> None:
     """Score the hidden-effect suite (in-process pipeline on exported/imported data)."""
     from aatest.diagnose.pipeline import diagnose_dataset
@@ -168,10 +223,17 @@ def main() -> None:
     parser.add_argument("--profile", type=Path, default=None,
                         help="write a cProfile per case to PROFILE.<case>.prof")
     parser.add_argument("--suite", action="store_true")
+    parser.add_argument("--compare", type=Path, default=None, metavar="BASE_SRC",
+                        help="alternate with the checkout whose src directory this is")
+    parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--child", type=Path, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
         child(args.child, args.profile)
+        return
+    if args.compare is not None:
+        for case in args.case or list(TARGETS):
+            compare(case, args.seed, args.compare.resolve(), args.rounds)
         return
     cores = os.cpu_count() or 1
     for case in args.case or list(CASES):

@@ -1,11 +1,13 @@
 """The speed-ups of ``aatest diagnose`` change no number: caches and fast sums against the
 direct computation (timings are measured in ``bench/diagnose.py``, never here).
 
-* per-step Gram blocks grown column by column, shared across specs and partly released under a
-  memory budget, give the per-fold XᵀX, Xᵀy, yᵀy of the full design built from scratch;
+* per-step Gram blocks grown column by column, started from the block of the shape before
+  (columns kept under what they depend on) and partly released under a memory budget, give
+  the per-fold XᵀX, Xᵀy, yᵀy of the full design built from scratch;
 * the O(n)-memory Lomb–Scargle periodogram equals SciPy's, the factorised single-frequency DFT
   equals the direct sum;
-* the commanded-acceleration memo stays short and returns what an uncached evaluation does.
+* the commanded-acceleration memo stays short and returns what an uncached evaluation does;
+* vibration tones read from the filters' frequency response equal the time-domain filtering.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import signal
 
-from aatest.diagnose import design
+from aatest.diagnose import column_store, design
 from aatest.diagnose.design import ChannelInfo, Spec, fit_gram, fold_of, gram, step_columns
 from aatest.diagnose.periodogram import dft_at, lomb_scargle_power
 from aatest.diagnose.replay import ALPHA_MEMO, replay_dataset, sensor_acceleration
@@ -89,14 +91,12 @@ def test_cached_gram_blocks_equal_the_full_design(replay) -> None:
 
 def test_released_columns_are_rebuilt_identically(replay, monkeypatch) -> None:
     """A budget too small to hold any column forces every extension to rebuild: same numbers."""
-    monkeypatch.setattr(design, "COLUMN_BUDGET_BYTES", 1)
+    monkeypatch.setattr(column_store, "COLUMN_BUDGET_BYTES", 1)
     cache: dict = {}
     targets = _targets(replay)
     for spec in SPECS:
         _assert_same(gram(replay, INFO, spec, targets, cache), _direct(replay, spec))
-    budget = cache[design._BUDGET]
-    held = [b for b in budget.order.values() if b.columns is not None]
-    assert len(held) <= 1  # only the block just used keeps its columns
+    assert len(cache[column_store.BUDGET_KEY].order) <= 1  # only the column just built is kept
 
 
 @pytest.mark.pinned
@@ -155,3 +155,25 @@ def test_acceleration_memo_is_short_and_exact(replay) -> None:
     again = sensor_acceleration(sr, "I", tp - 1e-4 * (3 * ALPHA_MEMO - 1),
                                 ("test", 1e-4 * (3 * ALPHA_MEMO - 1)))
     assert_allclose(again, sensor_acceleration(sr, "I", tp - 1e-4 * (3 * ALPHA_MEMO - 1)))
+
+
+@pytest.mark.parametrize("dynamics", [None, (31.0, 0.6), (2.0, 0.05)])
+def test_vibration_columns_in_the_frequency_domain_equal_the_filtered_tone(replay, dynamics
+                                                                           ) -> None:
+    """A tone through the dynamics and the logger filter, read from their frequency response,
+    equals the time-domain filtering on the padded grid (the padding settles both filters; a
+    2 Hz resonance at ζ = 0.05 rings beyond it and keeps the time-domain path)."""
+    spec = Spec(vibration_hz=(33.3, 47.11), dynamics=dynamics, delay_s=0.0031, warp_ppm=40.0)
+    sr = next(s for s in replay.steps if s.motor_on)
+    names = [f"vib{sr.index}_{j}_{p}" for j in range(2) for p in "sc"]
+    got = design._design(sr, INFO, spec, set(names))
+    t_eval, _ = design._eval_times(sr, spec)
+    z = float(design.E_I @ design.sensor_axes(INFO.axis, sr.pivoted)[:, 2])
+    cut = slice(design.PAD_SAMPLES, design.PAD_SAMPLES + sr.n)
+    for j, f_hz in enumerate(spec.vibration_hz):
+        for p, fn in (("s", np.sin), ("c", np.cos)):
+            tone = z * fn(2 * np.pi * f_hz * t_eval)
+            direct = design._logger(design._dynamics(tone, spec, sr.dt_s), INFO, sr.dt_s)[cut]
+            # rounding of two recursive filters over 2^12 + 2048 samples: 1e-9 of the amplitude
+            assert_allclose(got[f"vib{sr.index}_{j}_{p}"], direct, rtol=0,
+                            atol=1e-9 * np.abs(direct).max())

@@ -14,10 +14,8 @@ and scoring on the other (held-out SSE) costs a small linear solve, not a pass o
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Any
 
 import numpy as np
 from scipy import signal
@@ -31,6 +29,7 @@ from aatest.diagnose.replay import (
     sensor_acceleration,
     sensor_axes,
 )
+from aatest.diagnose.steady_state import response, tone_columns
 from aatest.effects import EffectInputs, design_column_names, design_columns
 from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
 from aatest.numerics import TINY
@@ -41,6 +40,8 @@ from aatest.twin.sensor import band_filter, damping_of, dynamics_filter, play_op
 
 #: contiguous time blocks per step; even blocks form fold A, odd blocks fold B
 BLOCKS_PER_STEP = 8
+#: unshifted vibration tones (sin and cos on the record grid) kept per step
+TONE_MEMO = 12
 
 
 @dataclass(frozen=True)
@@ -261,9 +262,66 @@ def _ripple_motion(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nda
     return z_inner * total
 
 
+def _chain(info: ChannelInfo, spec: Spec, dt_s: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(b, a) of the sensor's dynamics and the logger's filter, as the design applies them."""
+    out = []
+    if spec.dynamics is not None:
+        out.append(_dyn(float(spec.dynamics[0]), float(spec.dynamics[1]), round(dt_s, 15))[:2])
+    if info.antialias_hz is not None:
+        out.append(_aa(float(info.antialias_hz), round(dt_s, 15))[:2])
+    return out
+
+
+def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
+           wanted: set[str], z_inner: float) -> tuple[dict[str, np.ndarray], list[int]]:
+    """Vibration columns on the record grid, through dynamics and logger, evaluated in the
+    frequency domain (:mod:`aatest.diagnose.steady_state`); and the tones left to the time
+    domain (a filter that rings beyond the padding)."""
+    done: dict[str, np.ndarray] = {}
+    left: list[int] = []
+    step_s = float(t_eval[1] - t_eval[0])
+    chain = _chain(info, spec, sr.dt_s)
+    t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    shift = spec.shift_of(sr.index)
+    for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
+        names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
+        if wanted.isdisjoint(names):
+            continue
+        w = 2 * np.pi * f_hz
+        h = response(chain, w * step_s, PAD_SAMPLES)
+        if h is None:
+            left.append(j)
+            continue
+        # a time shift turns the tone's phase: it goes into the complex gain, and the sine
+        # and cosine of the unshifted tone are computed once per warp
+        basis = _tone_basis(sr, f_hz, spec.warp_ppm, t_ref)
+        done[names[0]], done[names[1]] = tone_columns(h * np.exp(-1j * w * shift), basis,
+                                                      z_inner)
+    return done, left
+
+
+def _tone_basis(sr: StepReplay, f_hz: float, warp_ppm: float, t_ref: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """sin and cos of 2πf·t on the record grid, t warped about ``t_ref`` and not shifted
+    (the :data:`TONE_MEMO` most recently used kept on the step)."""
+    key = ("tone", f_hz, warp_ppm, t_ref)
+    value = sr.memo.pop(key, None)
+    if value is None:
+        t = sr.time_s
+        theta = 2 * np.pi * f_hz * (t - warp_ppm * 1e-6 * (t - t_ref))
+        value = (np.sin(theta), np.cos(theta))
+        tones = [k for k in sr.memo if k[0] == "tone"]
+        for old in tones[: max(len(tones) - TONE_MEMO + 1, 0)]:
+            del sr.memo[old]
+    sr.memo[key] = value  # most recently used last
+    return value
+
+
 def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
-                   t_eval: np.ndarray, wanted: set[str]) -> dict[str, np.ndarray]:
-    """Inner-axis ripple and vibration as seen along the sensor axis, through its dynamics."""
+                   t_eval: np.ndarray, wanted: set[str], tones: list[int] | None = None
+                   ) -> dict[str, np.ndarray]:
+    """Inner-axis ripple and vibration as seen along the sensor axis, through its dynamics
+    (vibration: only the tones ``tones``, every one when None)."""
     z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
     cols: dict[str, np.ndarray] = {}
     for n in spec.ripple_cpd:
@@ -275,7 +333,7 @@ def _table_columns(sr: StepReplay, info: ChannelInfo, spec: Spec,
         cols[rnames[1]] = _dynamics(z_inner * rc, spec, sr.dt_s)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
         names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
-        if wanted.isdisjoint(names):
+        if wanted.isdisjoint(names) or (tones is not None and j not in tones):
             continue
         w = 2 * np.pi * f_hz
         cols[names[0]] = _dynamics(z_inner * np.sin(w * t_eval), spec, sr.dt_s)
@@ -300,10 +358,13 @@ def _design(sr: StepReplay, info: ChannelInfo, spec: Spec, wanted: set[str]
         assert temp is not None
         t_eval, key = _eval_times(sr, spec)
         spec = step_damped(sr, info, spec)
+        z_inner = float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
+        done, left = _tones(sr, info, spec, t_eval, dynamic, z_inner)
         cols = (_sensor_columns(sr, info, spec, t_eval, key, temp, dynamic)
-                | _table_columns(sr, info, spec, t_eval, dynamic))
+                | _table_columns(sr, info, spec, t_eval, dynamic, left))
         out |= {name: _logger(col, info, sr.dt_s)[cut] for name, col in cols.items()
                 if name in dynamic}
+        out |= {name: col for name, col in done.items() if name in dynamic}
     if "bias_temperature" in wanted:
         assert temp is not None
         out["bias_temperature"] = temp[cut]
@@ -382,114 +443,23 @@ def _fold_products(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return np.stack([sum(parts[0::2]), sum(parts[1::2])])
 
 
-#: key of the column-memory budget inside a gram cache
-_BUDGET = "design column budget"
-#: bytes of design columns kept per channel for re-use (Gram blocks are always kept)
-COLUMN_BUDGET_BYTES = 64 * 2**20
-
-
-@dataclass
-class _StepBlock:
-    """One step's design under one shape: which columns it has, their Gram blocks per fold.
-
-    Linear candidates extend a model without changing its shape, so their step blocks share
-    every column but the new one: only the new column is built and multiplied (XᵀX grows by
-    one row and column). ``columns`` is dropped when the memory budget needs it and rebuilt
-    from the replay on demand.
-    """
-
-    names: list[str]
-    zero: set[str]
-    xtx: np.ndarray  # (2, m, m)
-    xty: np.ndarray  # (2, m)
-    yty: np.ndarray  # (2,)
-    count: np.ndarray  # (2,)
-    columns: np.ndarray | None  # (n, m) or None once released
-
-    def extend(self, sr: StepReplay, info: ChannelInfo, spec: Spec, missing: list[str],
-               y: np.ndarray) -> int:
-        """Build the ``missing`` columns and their products; return bytes of columns added
-        (the rebuilt old ones included, when the budget had released them)."""
-        before = 0 if self.columns is None else self.columns.nbytes
-        new = _design(sr, info, spec, set(missing))
-        added = [name for name in missing if name in new]
-        self.zero |= set(missing) - set(added)
-        if not added:
-            return 0
-        cols_new = np.column_stack([new[name] for name in added])
-        del new
-        if self.columns is None and self.names:
-            old = _design(sr, info, spec, set(self.names))
-            self.columns = np.column_stack([old[name] for name in self.names])
-        m, q = len(self.names), len(added)
-        xtx = np.zeros((2, m + q, m + q))
-        xtx[:, :m, :m] = self.xtx
-        if m:
-            assert self.columns is not None
-            cross = _fold_products(self.columns, cols_new, sr.n)
-            xtx[:, :m, m:] = cross
-            xtx[:, m:, :m] = cross.transpose(0, 2, 1)
-        xtx[:, m:, m:] = _fold_products(cols_new, cols_new, sr.n)
-        self.xtx = xtx
-        self.xty = np.concatenate([self.xty, _fold_products(cols_new, y, sr.n)], axis=1)
-        self.names += added
-        self.columns = cols_new if self.columns is None else np.hstack([self.columns, cols_new])
-        return self.columns.nbytes - before
-
-
-class _ColumnBudget:
-    """Least-recently-used step blocks holding columns, released beyond the byte budget."""
-
-    def __init__(self, limit_bytes: int) -> None:
-        self.limit = limit_bytes
-        self.used = 0
-        self.order: OrderedDict[Any, _StepBlock] = OrderedDict()
-
-    def touch(self, key: Any, block: _StepBlock, added_bytes: int) -> None:
-        self.used += added_bytes
-        self.order[key] = block
-        self.order.move_to_end(key)
-        while self.used > self.limit and len(self.order) > 1:
-            _, old = self.order.popitem(last=False)
-            if old.columns is not None:
-                self.used -= old.columns.nbytes
-                old.columns = None
-
-
-def _step_block(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
-                y: np.ndarray, cache: dict) -> _StepBlock:
-    """The step's Gram block with (at least) the columns ``names``, from/into ``cache``."""
-    key = ("step block", sr.index, replace(_step_key(spec, sr), linear=frozenset()))
-    block = cache.get(key)
-    if block is None:
-        y_parts = _fold_products(y, y, sr.n)
-        edges = _block_edges(sr.n)
-        sizes = np.diff(edges)
-        block = _StepBlock([], set(), np.zeros((2, 0, 0)), np.zeros((2, 0)), y_parts,
-                           np.array([sizes[0::2].sum(), sizes[1::2].sum()], dtype=float), None)
-        cache[key] = block
-    missing = [nm for nm in names if nm not in block.zero and nm not in block.names]
-    added = block.extend(sr, info, spec, missing, y) if missing else 0
-    budget = cache.setdefault(_BUDGET, _ColumnBudget(COLUMN_BUDGET_BYTES))
-    budget.touch(key, block, added)
-    return block
-
-
 def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
          cache: dict | None = None) -> Gram:
     """Per-fold Gram matrices of ``spec`` over all steps, against ``targets[step]`` (volts).
 
-    ``cache`` keeps each step's Gram block under the shape the step depends on (see
-    :class:`_StepBlock`): a search over a shape parameter rebuilds only the steps it can
-    change, and a linear extension builds only its new column. Without ``cache`` nothing is
-    kept beyond this call.
+    ``cache`` keeps each step's Gram block under the shape the step depends on, and its design
+    columns under what each of them depends on (:mod:`aatest.diagnose.column_store`): a
+    search over a shape parameter rebuilds only the columns it can change, and a linear
+    extension builds only its new column. Without ``cache`` nothing is kept beyond this call.
     """
     names = column_names(spec, replay)
     p = len(names)
     g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
+    from aatest.diagnose.column_store import step_block
+
     store: dict = cache if cache is not None else {}
     for sr in replay.steps:
-        block = _step_block(sr, info, spec, names, targets[sr.index], store)
+        block = step_block(sr, info, spec, names, targets[sr.index], store)
         pos = [names.index(nm) for nm in block.names if nm in names]
         sub = [j for j, nm in enumerate(block.names) if nm in names]
         ix = np.ix_(pos, pos)
@@ -559,6 +529,15 @@ def fit_spec(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, n
 
 
 def predict(replay: Replay, info: ChannelInfo, fit: Fit) -> dict[int, np.ndarray]:
-    """Model output (volts) per step for a fitted spec."""
-    return {sr.index: step_columns(sr, info, fit.spec, fit.names) @ fit.coef
-            for sr in replay.steps}
+    """Model output (volts) per step for a fitted spec.
+
+    Only the columns a step can make non-zero are built (a model with vibration terms has
+    two per tone per step, zero on every other step).
+    """
+    out = {}
+    for sr in replay.steps:
+        cols = _design(sr, info, fit.spec, set(fit.names))
+        used = [j for j, name in enumerate(fit.names) if name in cols]
+        x = np.column_stack([cols[fit.names[j]] for j in used])
+        out[sr.index] = x @ fit.coef[used]
+    return out

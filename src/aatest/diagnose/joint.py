@@ -10,18 +10,20 @@ blocks and scored on the other.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from aatest.diagnose.candidates.base import Context
+from aatest.diagnose.column_store import step_design
 from aatest.diagnose.design import (
     Fit,
     Gram,
     Spec,
+    _fold_products,
     column_names,
     fit_gram,
-    fold_of,
-    step_columns,
+    gram,
 )
 from aatest.diagnose.generic import Proposal
 from aatest.diagnose.replay import StepReplay
@@ -39,22 +41,18 @@ class Joint:
     evidence: list[dict[str, float]] = field(default_factory=list)
 
 
-def _named_columns(ctx: Context, spec: Spec, names: list[str], sr: StepReplay) -> np.ndarray:
-    """One step's named design (cached: re-used by every proposal tried on ``spec``)."""
-    key = ("named design", spec, sr.index)
-    if key not in ctx.step_cache:
-        ctx.step_cache[key] = step_columns(sr, ctx.info, spec, names)
-    return ctx.step_cache[key]
+def _named_design(ctx: Context, spec: Spec, names: list[str], sr: StepReplay
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One step's named design: (indices into ``names`` of its non-zero columns, those
+    columns, the sensed acceleration α the α-shaped extensions need: the ``scale`` column).
 
-
-def _named_gram(ctx: Context, spec: Spec, names: list[str], sr: StepReplay) -> list[tuple]:
-    """Per-fold (XᵀX, Xᵀy, yᵀy, count) of one step's named design (cached)."""
-    key = ("named gram", spec, sr.index)
-    if key not in ctx.step_cache:
-        x, y, folds = _named_columns(ctx, spec, names, sr), ctx.targets[sr.index], fold_of(sr.n)
-        ctx.step_cache[key] = [(x[m].T @ x[m], x[m].T @ y[m], float(y[m] @ y[m]), int(m.sum()))
-                               for m in (folds == 0, folds == 1)]
-    return ctx.step_cache[key]
+    The columns come from the channel's column store (shared with forward selection), never
+    as a dense matrix of every step's vibration terms, zero outside their own step.
+    """
+    used, x = step_design(sr, ctx.info, spec, names, ctx.targets[sr.index], ctx.step_cache)
+    at = np.flatnonzero(used == names.index("scale"))
+    alpha = x[:, at[0]] if at.size else np.zeros(sr.n)
+    return used, x, alpha
 
 
 def _generic_columns(sr: StepReplay, alpha: np.ndarray, generics: list[Proposal]) -> np.ndarray:
@@ -64,42 +62,112 @@ def _generic_columns(sr: StepReplay, alpha: np.ndarray, generics: list[Proposal]
 
 
 def _generic_names(generics: list[Proposal], ctx: Context) -> list[str]:
-    sr = ctx.replay.steps[0]
-    return [f"{p.key}#{j}" for p in generics
-            for j in range(p.columns(sr, np.zeros(sr.n)).shape[1])]
+    return [f"{p.key}#{j}" for p in generics for j in range(_width(ctx, p))]
 
 
-def _add_step(g: Gram, ctx: Context, spec: Spec, k: int, sr: StepReplay,
-              generics: list[Proposal]) -> None:
-    """Add one step to the joint Gram: cached named blocks, then the generic blocks."""
-    x = _named_columns(ctx, spec, g.names[:k], sr)
-    gen = _generic_columns(sr, x[:, 1], generics)
-    used = np.flatnonzero(np.any(gen != 0.0, axis=0))  # other steps' columns are zero here
-    gen, cols = gen[:, used], k + used
-    y, folds = ctx.targets[sr.index], fold_of(sr.n)
-    for f, (xtx, xty, yty, cnt) in enumerate(_named_gram(ctx, spec, g.names[:k], sr)):
-        g.xtx[f][:k, :k] += xtx
-        g.xty[f][:k] += xty
-        g.yty[f] += yty
-        g.count[f] += cnt
-        if used.size:
-            m = folds == f
-            xm, gm = x[m], gen[m]
-            cross = xm.T @ gm
-            g.xtx[f][:k, cols] += cross
-            g.xtx[f][cols, :k] += cross.T
-            g.xtx[f][np.ix_(cols, cols)] += gm.T @ gm
-            g.xty[f][cols] += gm.T @ y[m]
+#: key of the generic-column store (one named spec at a time) inside the channel's cache
+_GENERIC_KEY = "generic columns"
+
+
+def _store(ctx: Context, spec: Spec) -> dict[Any, Any]:
+    """The generic columns and products on the named spec ``spec`` (the last one only)."""
+    held = ctx.step_cache.get(_GENERIC_KEY)
+    if held is None or held[0] != spec:
+        held = (spec, {})
+        ctx.step_cache[_GENERIC_KEY] = held
+    return held[1]
+
+
+def _prune(ctx: Context, keep: list[Proposal]) -> None:
+    """Forget the columns of proposals not taken (their objects are kept alive by the store
+    so that ``id`` stays unique while they are in it)."""
+    held = ctx.step_cache.get(_GENERIC_KEY)
+    if held is None:
+        return
+    ids = {id(p) for p in keep}
+    for key in [k for k in held[1] if not set(k[1]) <= ids]:
+        del held[1][key]
+
+
+def _one_generic(ctx: Context, spec: Spec, names: list[str], sr: StepReplay,
+                 prop: Proposal) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+    """(columns on, the columns, named indices used, [cross, own, with y]) of one proposal on
+    one step, from the store when seen on this spec."""
+    store = _store(ctx, spec)
+    key = (sr.index, (id(prop),))
+    if key not in store:
+        used, x, alpha = _named_design(ctx, spec, names, sr)
+        gen = prop.columns(sr, alpha)
+        on = np.flatnonzero(np.any(gen != 0.0, axis=0))  # other steps' columns are zero here
+        gen = np.ascontiguousarray(gen[:, on])
+        products = [_fold_products(x, gen, sr.n), _fold_products(gen, gen, sr.n),
+                    _fold_products(gen, ctx.targets[sr.index], sr.n)] if on.size else []
+        store[key] = (on, gen, used, products, prop)
+    return store[key][:4]
+
+
+def _pair(ctx: Context, spec: Spec, names: list[str], sr: StepReplay, a: Proposal,
+          b: Proposal) -> np.ndarray:
+    """Per-fold products of two proposals' columns on one step (from the store)."""
+    store = _store(ctx, spec)
+    key = (sr.index, (id(a), id(b)))
+    if key not in store:
+        ca, cb = (_one_generic(ctx, spec, names, sr, p)[1] for p in (a, b))
+        store[key] = (_fold_products(ca, cb, sr.n), a, b)
+    return store[key][0]
+
+
+def _add_generics(g: Gram, ctx: Context, spec: Spec, k: int, sr: StepReplay,
+                  generics: list[Proposal]) -> None:
+    """Add one step's generic blocks (with its named columns, and among themselves)."""
+    names, start = g.names[:k], k
+    placed: list[tuple[Proposal, np.ndarray]] = []
+    for prop in generics:
+        on, _, used, products = _one_generic(ctx, spec, names, sr, prop)
+        cols = start + on
+        start += _width(ctx, prop)
+        if on.size:
+            cross, own, with_y = products
+            for f in (0, 1):
+                g.xtx[f][np.ix_(used, cols)] += cross[f]
+                g.xtx[f][np.ix_(cols, used)] += cross[f].T
+                g.xtx[f][np.ix_(cols, cols)] += own[f]
+                g.xty[f][cols] += with_y[f]
+            for other, other_cols in placed:
+                pair = _pair(ctx, spec, names, sr, other, prop)
+                for f in (0, 1):
+                    g.xtx[f][np.ix_(other_cols, cols)] += pair[f]
+                    g.xtx[f][np.ix_(cols, other_cols)] += pair[f].T
+            placed.append((prop, cols))
+
+
+def _width(ctx: Context, prop: Proposal) -> int:
+    """Number of columns of a proposal (the same on every step)."""
+    key = ("generic width", id(prop))
+    held = ctx.step_cache.get(key)
+    if held is None or held[1] is not prop:
+        sr = ctx.replay.steps[0]
+        held = (prop.columns(sr, np.zeros(sr.n)).shape[1], prop)
+        ctx.step_cache[key] = held
+    return held[0]
 
 
 def joint_fit(ctx: Context, spec: Spec, generics: list[Proposal]) -> Fit:
-    """Named spec and generic columns fitted together (two folds of time blocks)."""
-    named = column_names(spec, ctx.replay)
-    names = named + _generic_names(generics, ctx)
+    """Named spec and generic columns fitted together (two folds of time blocks).
+
+    The named part is the channel's cached Gram of ``spec`` (:func:`gram`); only the
+    generic columns' blocks are formed here.
+    """
+    named = gram(ctx.replay, ctx.info, spec, ctx.targets, ctx.step_cache)
+    k = len(named.names)
+    names = named.names + _generic_names(generics, ctx)
     p = len(names)
-    g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
-    for sr in ctx.replay.steps:
-        _add_step(g, ctx, spec, len(named), sr, generics)
+    g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), named.yty.copy(), named.count.copy())
+    g.xtx[:, :k, :k] = named.xtx
+    g.xty[:, :k] = named.xty
+    if generics:
+        for sr in ctx.replay.steps:
+            _add_generics(g, ctx, spec, k, sr, generics)
     return fit_gram(g, spec)
 
 
@@ -119,9 +187,10 @@ def bic_change(ctx: Context, new: Fit, old: Fit, extra_params: int) -> float:
 def joint_residuals(ctx: Context, joint: Joint) -> dict[int, np.ndarray]:
     """Measured − (named model + generic extensions), per step index (V)."""
     names = column_names(joint.spec, ctx.replay)
+    coef = joint.fit.coef
     out = {}
     for sr in ctx.replay.steps:
-        x = _named_columns(ctx, joint.spec, names, sr)
-        full = np.hstack([x, _generic_columns(sr, x[:, 1], joint.generics)])
-        out[sr.index] = ctx.targets[sr.index] - full @ joint.fit.coef
+        used, x, alpha = _named_design(ctx, joint.spec, names, sr)
+        model = x @ coef[used] + _generic_columns(sr, alpha, joint.generics) @ coef[len(names):]
+        out[sr.index] = ctx.targets[sr.index] - model
     return out

@@ -21,18 +21,21 @@ from typing import Any
 import numpy as np
 
 from aatest.diagnose.candidates.base import Context
-from aatest.diagnose.design import (
-    Fit,
-)
+from aatest.diagnose.design import Fit
 from aatest.diagnose.generic import Proposal, proposals
-from aatest.diagnose.joint import Joint, bic_change, held_out_rmse, joint_fit, joint_residuals
+from aatest.diagnose.joint import (
+    Joint,
+    _prune,
+    bic_change,
+    held_out_rmse,
+    joint_fit,
+    joint_residuals,
+)
 from aatest.diagnose.refit import backward_pass
 from aatest.diagnose.selection import BIC_THRESHOLD, MIN_REDUCTION, Finding
 
 #: generic extensions accepted per channel at most
 MAX_UNEXPLAINED = 4
-
-
 @dataclass
 class Outcome:
     """What the generic pass found on one channel."""
@@ -56,6 +59,7 @@ def _best_addition(ctx: Context, joint: Joint) -> tuple[float, Proposal, Fit] | 
         material = held_out_rmse(fit) < (1.0 - MIN_REDUCTION) * held_out_rmse(joint.fit)
         if dbic < -BIC_THRESHOLD and material and (best is None or dbic < best[0]):
             best = (dbic, prop, fit)
+    _prune(ctx, joint.generics + ([best[1]] if best is not None else []))
     return best
 
 

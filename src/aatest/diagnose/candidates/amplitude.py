@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from aatest.diagnose.design import MIN_AMPLITUDE_DPS2, Spec, step_amplitude_dps2
 from aatest.diagnose.candidates.base import (
     CandidateFit,
     Context,
@@ -26,6 +25,7 @@ from aatest.diagnose.candidates.base import (
     scalar_search,
 )
 from aatest.diagnose.candidates.shape import DAMPING_BOUNDS
+from aatest.diagnose.design import MIN_AMPLITUDE_DPS2, Spec, step_amplitude_dps2
 
 #: the amplitude at which ``sensor_dynamics.damping`` holds (°/s²)
 REFERENCE_DPS2 = 10.0
