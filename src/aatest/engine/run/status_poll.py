@@ -29,8 +29,6 @@ log = logging.getLogger("aatest.run.status")
 
 #: wall seconds between two status reads (10 Hz: enough to watch a table, light on its link)
 STATUS_PERIOD_S = 0.1
-#: wall seconds the step waits at its end for the poll thread's last read
-JOIN_TIMEOUT_S = 2.0
 #: what the observer is told for a table without ``status()``
 NO_STATUS = "this table reports no live status"
 
@@ -58,8 +56,10 @@ class StatusPoll:
         self.period_s = period_s
         self.points = 0
         self._last_s: float | None = None
-        self._last_read = False
         self._stop = threading.Event()
+        #: held while a reading is judged and passed on; ``_closed`` ends the passing on
+        self._passing = threading.Lock()
+        self._closed = self._failed = False
         self._thread = threading.Thread(target=self._loop, daemon=True,
                                          name=f"status-poll-{step.id}")
 
@@ -69,17 +69,18 @@ class StatusPoll:
         return self
 
     def stop(self, last_read: bool) -> None:
-        """Stop polling; ``last_read`` takes one more reading first (the step ended well: show
-        where it left the table). Waits at most :data:`JOIN_TIMEOUT_S` for the thread."""
-        self._last_read = last_read
+        """Stop polling; ``last_read`` takes one more reading first, in the caller's thread
+        (the step ended well: show where it left the table). The step does not wait for the
+        poll thread: a reading it is still taking is dropped."""
         self._stop.set()
-        self._thread.join(JOIN_TIMEOUT_S)
+        if last_read and not self._failed:
+            self._read()
+        with self._passing:
+            self._closed = True
 
     def _loop(self) -> None:
-        while self._read():
+        while not self._stop.is_set() and self._read():
             if self._stop.wait(self.period_s):
-                if self._last_read:
-                    self._read()
                 return
 
     def _read(self) -> bool:
@@ -89,14 +90,20 @@ class StatusPoll:
         except Exception as exc:  # noqa: BLE001 - a display must never end a step
             reason = f"live status read failed, polling stopped: {' '.join(str(exc).split())}"
             log.warning("step %s: %s", self.step.id, reason)
-            _tell(self.observer, "table_status_unavailable", self.step, reason)
+            self._failed = True
+            with self._passing:
+                if not self._closed:
+                    _tell(self.observer, "table_status_unavailable", self.step, reason)
             return False
         if status is None:
             return False
-        if self._last_s is None or status.time_s >= self._last_s + self.period_s:
-            self._last_s = status.time_s
-            self.points += 1
-            _tell(self.observer, "table_status", self.step, status)
+        with self._passing:
+            if self._closed:
+                return False
+            if self._last_s is None or status.time_s >= self._last_s + self.period_s:
+                self._last_s = status.time_s
+                self.points += 1
+                _tell(self.observer, "table_status", self.step, status)
         return True
 
 
