@@ -280,15 +280,13 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
     offset0 = None if trigger is None else trigger[0] - trigger[1]
     pairs = pair_edges(step_id, registered_s - lag_s, t_daq, period_s, offset0, table_dt_s)
     corrected, slips = correct_slips(pairs.t_table + lag_s, pairs.t_daq, table_dt_s)
-    fit, pin = None, None
-    if trigger is not None:
-        pin = (trigger[1], trigger[0] - daq_dt_s, trigger[0])
-        try:
-            fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range, pin)
+    fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range)
+    pin = None if trigger is None else (trigger[1], trigger[0] - daq_dt_s, trigger[0])
+    if pin is not None:
+        try:  # the trigger sets the offset only where the edges allow it; never the rate
+            interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, fit.slope_range, pin)
         except AnalysisError:
             pin = None  # the trigger disagrees with the edges: not where the contract puts it
-    if fit is None:
-        fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range)
     coef = np.array([fit.intercept_s - fit.slope * (fit.x0_s - t_daq[0]), fit.slope])
     check_paired(step_id, pairs.t_daq.size, registered_s - lag_s, t_daq, coef, 0.0, 1.0)
     slope, b_lo, b_hi = fit.slope, *fit.slope_range
