@@ -64,3 +64,44 @@ def test_diagnose_finds_the_drift_of_either_sign(tmp_path: Path, drift_ppm: floa
     assert found["clock_drift"]["drift_ppm"] == pytest.approx(drift_ppm, abs=DRIFT_TOL_PPM)
     assert doc["unexplained"] == []
     assert result.exit_code == 1  # a finding
+
+
+#: the foreign generator's 8.2 s steps: |drift| × record in table samples, per ppm
+RECORD_SAMPLES_PER_PPM = 16384 * 1e-6
+
+
+def _analysed(directory: Path, records: str) -> dict:
+    (directory / "dataset.yaml").write_text((directory / "dataset.yaml").read_text()
+                                            + "analysis: [sync, reference, scale_factor, frf]\n")
+    result = CliRunner().invoke(app, ["analyze", str(directory), "--records", records])
+    assert result.exit_code in (0, 1), result.output  # 1: a verdict, not a failure here
+    doc = json.loads((directory / "results.json").read_text())
+    assert not doc.get("analysis_errors"), doc.get("analysis_errors")
+    return dict(doc["analysis"])
+
+
+@pytest.mark.parametrize(("drift_ppm", "seed"), SWEEP)
+def test_analyze_without_latch_times_matches_with(tmp_path: Path, drift_ppm: float,
+                                                  seed: int) -> None:
+    """The foreign generator's data analysed with and without ``fp_latch_s``: every step
+    synchronised, the truth inside the stated drift range (within 0.5 ppm where every record
+    crosses ≥ 2 table samples), scale factor and FRF within the latch-less U."""
+    from foreign_dataset import Hidden, write_dataset
+
+    records = f"sqlite:///{tmp_path / 'records.db'}"
+    hidden = Hidden("clock_drift", drift_ppm)
+    latched = _analysed(write_dataset(tmp_path / "latch", hidden, latch=True, seed=seed), records)
+    blind = _analysed(write_dataset(tmp_path / "blind", hidden, seed=seed), records)
+    sync = blind["sync"]
+    assert len(sync["steps"]) == 8 and not any(s["latched"] for s in sync["steps"])
+    assert abs(sync["drift_ppm"] - drift_ppm) <= 3.0**0.5 * sync["drift_u_ppm"]  # uniform
+    if abs(drift_ppm) * RECORD_SAMPLES_PER_PPM >= 2.0:
+        assert sync["drift_ppm"] == pytest.approx(drift_ppm, abs=DRIFT_TOL_PPM)
+    for channel, ref in latched["scale_factor"].items():
+        sf = blind["scale_factor"][channel]
+        assert abs(sf["scale_v_per_dps2"] - ref["scale_v_per_dps2"]) <= sf["expanded_uncertainty"]
+    for channel, points in latched["frf"].items():
+        for ref, point in zip(points, blind["frf"][channel], strict=True):
+            assert abs(point["gain_db"] - ref["gain_db"]) <= point["gain_expanded_uncertainty_db"]
+            assert abs(point["phase_deg"] - ref["phase_deg"]) \
+                <= point["phase_expanded_uncertainty_deg"]
