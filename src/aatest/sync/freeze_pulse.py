@@ -268,7 +268,7 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
     the set of lines through every edge's interval (:mod:`aatest.sync.edges`). A DAQ edge is
     logged on its first high sample, so the fitted line is that of the DAQ's edge samples; the
     trigger (``(table time of the first row, DAQ time of the trigger)``), generated on one of
-    the DAQ's samples, pins it and the offset (:func:`refine_offset` does the same with latch
+    the DAQ's samples, sets the offset (:func:`refine_offset` does the same with latch
     times); a trigger the edges contradict (wired differently) is not used, and the DAQ
     sample's ambiguity stays in the offset. The trigger never bounds the rate: loggers mark
     the table's first row on the DAQ sample before it (aatest's trigger starts the log), on
