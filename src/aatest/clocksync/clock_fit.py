@@ -153,34 +153,37 @@ def fit_unlatched_relation(step_id: str, registered_s: np.ndarray, t_daq: np.nda
     the set of lines through every edge's interval (:mod:`aatest.clocksync.edges`). A DAQ edge is
     logged on its first high sample, so the fitted line is that of the DAQ's edge samples; the
     trigger (``(table time of the first row, DAQ time of the trigger)``), generated on one of
-    the DAQ's samples, pins it and the offset (:func:`refine_offset` does the same with latch
+    the DAQ's samples, sets the offset (:func:`refine_offset` does the same with latch
     times); a trigger the edges contradict (wired differently) is not used, and the DAQ
-    sample's ambiguity stays in the offset. ``drift_u_ppm`` and ``offset_u_s`` are uniform
-    over the set; ``offset_u_s`` is the alignment's at the record's centre (where an analysis
-    of the whole record feels it), not at DAQ time zero: with the trigger, the slope range
-    times the distance from it (the trigger itself is trusted as with latch times).
+    sample's ambiguity stays in the offset. The trigger never bounds the rate: loggers mark
+    the table's first row on the DAQ sample before it (aatest's trigger starts the log), on
+    the one after it (docs/interfaces.md §3) or on the nearest, and an interval that assumed
+    one of them tilted the lines of the others until it excluded their true rate (−40 ppm
+    fitted as −2.9). ``drift_u_ppm`` and ``offset_u_s`` are uniform over the set;
+    ``offset_u_s`` is the alignment's at the record's centre (where an analysis of the whole
+    record feels it), not at DAQ time zero: with the trigger, the slope range times the
+    distance from it and the trigger's own ±1 DAQ sample (the conventions above).
     """
     period_s = check_counts(step_id, registered_s, t_daq)
     lag_s = 0.5 * sum(LAG_SAMPLES) * table_dt_s
     offset0 = None if trigger is None else trigger[0] - trigger[1]
     pairs = pair_edges(step_id, registered_s - lag_s, t_daq, period_s, offset0, table_dt_s)
     corrected, slips = correct_slips(pairs.t_table + lag_s, pairs.t_daq, table_dt_s)
-    fit, pin = None, None
-    if trigger is not None:
-        pin = (trigger[1], trigger[0] - daq_dt_s, trigger[0])
-        try:
-            fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range, pin)
+    fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range)
+    pin = None if trigger is None else (trigger[1], trigger[0] - daq_dt_s, trigger[0] + daq_dt_s)
+    if pin is not None:
+        try:  # the trigger sets the offset only where the edges allow it; never the rate
+            interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, fit.slope_range, pin)
         except AnalysisError:
             pin = None  # the trigger disagrees with the edges: not where the contract puts it
-    if fit is None:
-        fit = interval_fit(step_id, corrected, pairs.t_daq, table_dt_s, slope_range)
     coef = np.array([fit.intercept_s - fit.slope * (fit.x0_s - t_daq[0]), fit.slope])
     check_paired(step_id, pairs.t_daq.size, registered_s - lag_s, t_daq, coef, 0.0, 1.0)
     slope, b_lo, b_hi = fit.slope, *fit.slope_range
     mid_daq_s = fit.x0_s + fit.x_mid_s
     if pin is not None and trigger is not None:  # the line passes the trigger: only b is open
         offset = trigger[0] - slope * trigger[1]
-        offset_u = (b_hi - b_lo) * abs(mid_daq_s - trigger[1]) / float(np.sqrt(12.0))
+        offset_u = float(np.hypot((b_hi - b_lo) * abs(mid_daq_s - trigger[1]),
+                                  2.0 * daq_dt_s) / np.sqrt(12.0))
     else:  # the true edges lie up to one DAQ sample before the logged ones
         offset = fit.intercept_s - slope * fit.x0_s + 0.5 * slope * daq_dt_s
         offset_u = float(np.sqrt((fit.mid_range_s[1] - fit.mid_range_s[0]) ** 2
