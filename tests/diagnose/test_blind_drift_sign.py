@@ -21,9 +21,9 @@ from test_diagnose_other_tools import write_other_tool_dir
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.recording.reader import read_dataset
 from aatest.clocksync.edges import joint_slope_range
 from aatest.clocksync.freeze_pulse import clock_relation
+from aatest.recording.reader import read_dataset
 
 #: |drift| of the slow sweep (ppm): below, near and beyond one table sample over a 4 s record
 SWEEP_PPM = (40.0, 100.0, 150.0)

@@ -18,7 +18,8 @@ from numpy.testing import assert_allclose
 from scipy import signal
 
 from aatest.diagnose import column_store, design
-from aatest.diagnose.design import ChannelInfo, Spec, fit_gram, fold_of, gram, step_columns
+from aatest.diagnose.column_store import gram
+from aatest.diagnose.design import ChannelInfo, Spec, fit_gram, fold_of, step_columns
 from aatest.diagnose.periodogram import dft_at, lomb_scargle_power
 from aatest.diagnose.replay import ALPHA_MEMO, replay_dataset, sensor_acceleration
 from aatest.diagnose.scenarios import draw_hidden, scenario_dataset

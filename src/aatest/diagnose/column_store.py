@@ -27,11 +27,16 @@ import numpy as np
 
 from aatest.diagnose.design import (
     ChannelInfo,
+    Fit,
+    Gram,
+    Replay,
     Spec,
     _block_edges,
     _design,
     _fold_products,
     _step_key,
+    column_names,
+    fit_gram,
 )
 from aatest.diagnose.replay import StepReplay
 
@@ -245,3 +250,37 @@ def step_design(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
 
 __all__ = ["BUDGET_KEY", "COLUMN_BUDGET_BYTES", "ColumnBudget", "StepBlock",
            "column_key", "step_block", "step_design"]
+
+
+def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
+         cache: dict | None = None) -> Gram:
+    """Per-fold Gram matrices of ``spec`` over all steps, against ``targets[step]`` (volts).
+
+    ``cache`` keeps each step's Gram block under the shape the step depends on, and its design
+    columns under what each of them depends on (:mod:`aatest.diagnose.column_store`): a
+    search over a shape parameter rebuilds only the columns it can change, and a linear
+    extension builds only its new column. Without ``cache`` nothing is kept beyond this call.
+    """
+    names = column_names(spec, replay)
+    p = len(names)
+    g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
+    store: dict = cache if cache is not None else {}
+    for sr in replay.steps:
+        block = step_block(sr, info, spec, names, targets[sr.index], store)
+        pos = [names.index(nm) for nm in block.names if nm in names]
+        sub = [j for j, nm in enumerate(block.names) if nm in names]
+        ix = np.ix_(pos, pos)
+        for f in (0, 1):
+            g.xtx[f][ix] += block.xtx[f][np.ix_(sub, sub)]
+            g.xty[f][pos] += block.xty[f][sub]
+        g.yty += block.yty
+        g.count += block.count
+        if cache is None:
+            store.clear()
+    return g
+
+
+def fit_spec(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
+             cache: dict | None = None) -> Fit:
+    """Fit ``spec`` to ``targets`` (volts per step); ``cache`` as in :func:`gram`."""
+    return fit_gram(gram(replay, info, spec, targets, cache), spec)

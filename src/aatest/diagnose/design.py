@@ -443,36 +443,6 @@ def _fold_products(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return np.stack([sum(parts[0::2]), sum(parts[1::2])])
 
 
-def gram(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
-         cache: dict | None = None) -> Gram:
-    """Per-fold Gram matrices of ``spec`` over all steps, against ``targets[step]`` (volts).
-
-    ``cache`` keeps each step's Gram block under the shape the step depends on, and its design
-    columns under what each of them depends on (:mod:`aatest.diagnose.column_store`): a
-    search over a shape parameter rebuilds only the columns it can change, and a linear
-    extension builds only its new column. Without ``cache`` nothing is kept beyond this call.
-    """
-    names = column_names(spec, replay)
-    p = len(names)
-    g = Gram(names, np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(2), np.zeros(2))
-    from aatest.diagnose.column_store import step_block
-
-    store: dict = cache if cache is not None else {}
-    for sr in replay.steps:
-        block = step_block(sr, info, spec, names, targets[sr.index], store)
-        pos = [names.index(nm) for nm in block.names if nm in names]
-        sub = [j for j, nm in enumerate(block.names) if nm in names]
-        ix = np.ix_(pos, pos)
-        for f in (0, 1):
-            g.xtx[f][ix] += block.xtx[f][np.ix_(sub, sub)]
-            g.xty[f][pos] += block.xty[f][sub]
-        g.yty += block.yty
-        g.count += block.count
-        if cache is None:
-            store.clear()
-    return g
-
-
 def solve(xtx: np.ndarray, xty: np.ndarray) -> np.ndarray:
     """Least-squares coefficients from a Gram matrix, with column equilibration."""
     d = np.sqrt(np.clip(np.diag(xtx), TINY, None))
@@ -520,12 +490,6 @@ def fit_gram(g: Gram, spec: Spec) -> Fit:
         o = 1 - f
         held += sse(g.xtx[o], g.xty[o], float(g.yty[o]), c)
     return Fit(spec, g.names, coef, max(sse(xtx, xty, yty, coef), 0.0), max(held, 0.0), g.n, xtx)
-
-
-def fit_spec(replay: Replay, info: ChannelInfo, spec: Spec, targets: dict[int, np.ndarray],
-             cache: dict | None = None) -> Fit:
-    """Fit ``spec`` to ``targets`` (volts per step); ``cache`` as in :func:`gram`."""
-    return fit_gram(gram(replay, info, spec, targets, cache), spec)
 
 
 def predict(replay: Replay, info: ChannelInfo, fit: Fit) -> dict[int, np.ndarray]:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from aatest.diagnose.candidates.base import Context
-from aatest.diagnose.column_store import step_design
+from aatest.diagnose.column_store import gram, step_design
 from aatest.diagnose.design import (
     Fit,
     Gram,
@@ -23,7 +23,6 @@ from aatest.diagnose.design import (
     _fold_products,
     column_names,
     fit_gram,
-    gram,
 )
 from aatest.diagnose.generic import Proposal
 from aatest.diagnose.replay import StepReplay

@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from aatest.diagnose.design import ChannelInfo, Fit, Spec, fit_spec
+from aatest.diagnose.column_store import fit_spec
+from aatest.diagnose.design import ChannelInfo, Fit, Spec
 from aatest.diagnose.replay import Replay
 from aatest.numerics import Z95
 
