@@ -15,7 +15,7 @@ from aatest.engine.procedure.envelope import check_envelope, step_violations
 from aatest.engine.procedure.loader import load_procedure, parse_procedure
 from aatest.engine.procedure.planner import default_datasheet, expand, expand_traced
 from aatest.engine.steps import PlannedStep
-from aatest.engine.yaml_loader import locate
+from aatest.positioned_yaml import locate
 
 DATA = Path(__file__).parents[1] / "data" / "procedures"
 SHEET = SensorDatasheet(model="sr207")

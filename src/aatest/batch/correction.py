@@ -84,7 +84,7 @@ def load_correction(path: Path) -> ReferenceCorrection:
     InputError
         The file is unreadable or invalid; the message is ``FILE:LINE:COLUMN: field: …``.
     """
-    from aatest.engine.yaml_loader import load_model_file
+    from aatest.positioned_yaml import load_model_file
 
     return load_model_file(path, ReferenceCorrection)
 

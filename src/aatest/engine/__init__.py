@@ -9,7 +9,6 @@ orchestration (which calls :mod:`aatest.recording`, :mod:`aatest.metrology`,
 - ``datasheet``       the sensor datasheet and the per-channel sensor record (every sensor
                       number and its default defined once)
 - ``rig_description`` the rig's stated accuracies (``rig.yaml`` / ``dataset.yaml``)
-- ``yaml_loader``     safe YAML with line/column positions of every node
 - ``interfaces``      one ``Protocol`` per plugin kind, the rig context, the table envelope
 - ``requirements``    what an analysis needs from a plan, declared by the analysis
 - ``simulation``      which runs are simulations (never calibrations)

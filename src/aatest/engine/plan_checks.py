@@ -19,7 +19,7 @@ from aatest.engine import registry
 from aatest.engine.errors import AatestError, PluginError, Problem
 from aatest.engine.logs import TABLE_CHANNELS
 from aatest.engine.steps import PlannedStep
-from aatest.engine.yaml_loader import locate, parse_yaml, read_text
+from aatest.positioned_yaml import locate, parse_yaml, read_text
 
 #: bytes of one logged value (every channel is float64 or packed narrower; float64 bounds it)
 VALUE_BYTES = 8

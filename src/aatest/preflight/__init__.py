@@ -137,7 +137,7 @@ def _guard(run: Callable[[], tuple[list[Problem], str]]
 
 def _procedure(report: Preflight, path: Path) -> Any:
     from aatest.engine.procedure.loader import parse_procedure
-    from aatest.engine.yaml_loader import read_text
+    from aatest.positioned_yaml import read_text
 
     parsed: list[Any] = []
 

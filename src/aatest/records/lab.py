@@ -150,7 +150,7 @@ def load_lab(path: Path | None = None) -> LabProfile:
     YAML errors are reported as ``FILE:LINE:COLUMN: field: message`` (exit 2) by the engine's
     model loader.
     """
-    from aatest.engine.yaml_loader import load_model_file
+    from aatest.positioned_yaml import load_model_file
 
     chosen = lab_path(path)
     if chosen is None:

@@ -89,7 +89,7 @@ def _entry(procedure_id: str, path: Path) -> dict[str, Any]:
 @functools.lru_cache(maxsize=1024)
 def _read_entry(procedure_id: str, path: Path, _mtime_ns: int, _size: int) -> dict[str, Any]:
     from aatest.engine.procedure.loader import parse_procedure
-    from aatest.engine.yaml_loader import read_text
+    from aatest.positioned_yaml import read_text
 
     prefix = procedure_id.split("/", 1)[0]
     entry: dict[str, Any] = {"id": procedure_id, "group": GROUPS.get(prefix, prefix)}

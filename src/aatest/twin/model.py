@@ -459,7 +459,7 @@ class RigModel(_Model):
 
 def load_rig_model(path: str | Path) -> RigModel:
     """Load a model YAML safely; errors carry file:line:column (via the engine loader)."""
-    from aatest.engine.yaml_loader import load_model_file
+    from aatest.positioned_yaml import load_model_file
 
     return load_model_file(Path(path), RigModel)
 

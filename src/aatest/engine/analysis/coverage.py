@@ -16,7 +16,7 @@ from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Procedure
 from aatest.engine.requirements import Coverage, PlanView, check_plan
 from aatest.engine.steps import Plan
-from aatest.engine.yaml_loader import locate
+from aatest.positioned_yaml import locate
 
 #: step ids ``validate`` shows per analysis before it gives the count
 SHOWN = 3

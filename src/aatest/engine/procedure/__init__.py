@@ -1,7 +1,7 @@
 """Procedures: what a QA engineer writes, checked before anything moves.
 
 - ``models``        pydantic models of the procedure YAML (the JSON Schema's source)
-- ``loader``        YAML (:mod:`aatest.engine.yaml_loader`) → models; every problem as
+- ``loader``        YAML (:mod:`aatest.positioned_yaml`) → models; every problem as
                     ``FILE:LINE:COLUMN: field: message``
 - ``generators``    sweeps, multi-position, temperature steps … → concrete steps
 - ``planner``       the expanded plan with its lab duration

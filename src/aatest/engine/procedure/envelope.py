@@ -49,8 +49,8 @@ from aatest.engine.errors import EnvelopeError, Problem, ProcedureError
 from aatest.engine.interfaces import AxisLimits, TableEnvelope
 from aatest.engine.procedure.expansion import YamlPath, trace_of
 from aatest.engine.steps import Plan, PlannedStep
-from aatest.engine.yaml_loader import locate as locate_in_tree
-from aatest.engine.yaml_loader import parse_yaml, read_text
+from aatest.positioned_yaml import locate as locate_in_tree
+from aatest.positioned_yaml import parse_yaml, read_text
 
 #: relative slack so a value exactly at a limit passes despite rounding
 _RTOL = 1e-9

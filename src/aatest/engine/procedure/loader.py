@@ -36,7 +36,7 @@ from aatest.engine.rig_description import (
     TableGeometry,
     ThermometerSpec,
 )
-from aatest.engine.yaml_loader import (
+from aatest.positioned_yaml import (
     locate,
     parse_yaml,
     problems_from_validation,

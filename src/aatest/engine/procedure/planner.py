@@ -41,7 +41,7 @@ from aatest.engine.procedure.expansion import (
 from aatest.engine.procedure.generators import snap_frequency, sweep_points
 from aatest.engine.procedure.models import Overrides, Procedure, StepEntry
 from aatest.engine.steps import Plan, PlannedStep, SensorRef
-from aatest.engine.yaml_loader import locate
+from aatest.positioned_yaml import locate
 
 #: upper bound on the steps one procedure may expand to
 MAX_STEPS = 20_000

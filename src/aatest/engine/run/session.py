@@ -100,7 +100,7 @@ def prepare(procedure: Path, rig_file: Path | None, unit: UnitName | None = None
     from aatest.engine.procedure.envelope import check_envelope
     from aatest.engine.procedure.loader import load_rig, parse_procedure, rig_from_procedure
     from aatest.engine.procedure.planner import expand_traced
-    from aatest.engine.yaml_loader import read_text
+    from aatest.positioned_yaml import read_text
 
     text = read_text(procedure)  # read once: the hash recorded is of exactly what was planned
     proc = parse_procedure(text, str(procedure))

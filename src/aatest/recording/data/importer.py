@@ -41,8 +41,8 @@ from aatest.engine.errors import ImportDataError, Problem, ProblemsError
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.rig_description import Instruments
 from aatest.engine.steps import Mounting, PlannedStep
-from aatest.engine.yaml_loader import locate, parse_yaml, read_text, validate_tree
 from aatest.numerics import TINY
+from aatest.positioned_yaml import locate, parse_yaml, read_text, validate_tree
 from aatest.recording.data.csv_table import CsvColumns, read_csv
 from aatest.recording.dataset import Dataset, SensorInfo, StepData
 

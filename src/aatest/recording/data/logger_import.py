@@ -26,7 +26,7 @@ import numpy as np
 
 from aatest.engine.errors import ImportDataError, Problem
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
-from aatest.engine.yaml_loader import locate
+from aatest.positioned_yaml import locate
 from aatest.recording.data.importer import (
     DatasetFileError,
     _filled,

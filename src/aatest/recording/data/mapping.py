@@ -12,7 +12,7 @@ name or its index) instead of a CSV file.
 Units are required where a quantity has more than one plausible unit: a mapping that says
 nothing about radians vs degrees is the error this file exists to prevent. Every problem is
 reported as ``FILE:LINE:COLUMN`` (the positioned YAML loader of
-:mod:`aatest.engine.yaml_loader`).
+:mod:`aatest.positioned_yaml`).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from typing import Any, Literal, get_args
 from pydantic import Field, model_validator
 
 from aatest.engine.errors import ProblemsError
-from aatest.engine.yaml_loader import parse_yaml, read_text, validate_tree
+from aatest.positioned_yaml import parse_yaml, read_text, validate_tree
 from aatest.recording.data.importer import DatasetFileError, DatasetManifest, StepEntry, _Strict
 
 MAPPING = "mapping.yaml"

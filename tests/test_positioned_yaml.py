@@ -4,7 +4,7 @@ import pytest
 from pydantic import BaseModel, ConfigDict
 
 from aatest.engine.errors import ProcedureError
-from aatest.engine.yaml_loader import parse_yaml, validate_tree
+from aatest.positioned_yaml import parse_yaml, validate_tree
 
 
 class Inner(BaseModel):

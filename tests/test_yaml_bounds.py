@@ -16,7 +16,7 @@ from starlette.testclient import TestClient
 
 from aatest.engine.errors import ProblemsError
 from aatest.engine.procedure.loader import load_procedure, load_rig
-from aatest.engine.yaml_loader import MAX_DEPTH, parse_yaml
+from aatest.positioned_yaml import MAX_DEPTH, parse_yaml
 from aatest.recording.data.importer import import_dataset
 from aatest.records.lab import load_lab
 from aatest.station import StationOptions, build
@@ -103,7 +103,7 @@ def test_validate_exits_2_within_memory_and_cpu_bounds(tmp_path: Path) -> None:
         [sys.executable, "-c",
          "import resource, sys\n"
          "from pathlib import Path\n"
-         "from aatest.engine.yaml_loader import parse_yaml\n"
+         "from aatest.positioned_yaml import parse_yaml\n"
          "from aatest.engine.errors import ProblemsError\n"
          "resource.setrlimit(resource.RLIMIT_CPU, (2, 3))\n"
          "resource.setrlimit(resource.RLIMIT_AS, (200 * 2**20,) * 2)\n"
