@@ -185,9 +185,9 @@ def _number(value: Any) -> float | None:
     return finite(float(value)) if isinstance(value, int | float) else None
 
 
-def _diagnosis_block(results: Mapping[str, Any]) -> Mapping[str, Any]:
-    block = results.get("diagnosis")
-    return block if isinstance(block, Mapping) else results
+def _diagnosis_block(document: Mapping[str, Any]) -> Mapping[str, Any]:
+    block = document.get("diagnosis")
+    return block if isinstance(block, Mapping) else document
 
 
 def _strongest_lines(lines: list[Any], count: int = 12) -> list[Mapping[str, Any]]:
@@ -213,16 +213,16 @@ def _unexplained_rows(diag: Mapping[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
+def build_diagnosis_context(document: Mapping[str, Any], run_dir: Path) -> dict[str, Any]:
     """View model of the ``aatest diagnose`` report (docs/interfaces.md §4)."""
-    diag = _diagnosis_block(results)
+    diag = _diagnosis_block(document)
     def rank(c: Mapping[str, Any]) -> tuple[bool, float]:
         bic = _number(c.get("delta_bic"))
         return bic is None, bic if bic is not None else 0.0  # untestable ones last
 
     candidates = sorted((c for c in diag.get("candidates") or [] if isinstance(c, Mapping)),
                         key=rank)
-    given = results.get("figures")
+    given = document.get("figures")
     drawn = given.get("diagnose") if isinstance(given, Mapping) else None
     figures = [{"section": "diagnose", "title": f"Diagnosis: {name.replace('_', ' ')}",
                 "svg": vet_svg(svg)}
@@ -235,7 +235,7 @@ def build_diagnosis_context(results: Mapping[str, Any], run_dir: Path) -> dict[s
     figures += [{"section": "diagnose", "title": title, "svg": vet_svg(svg)}
                 for title, svg in own if svg is not None]
     return {
-        **_header(_unrecorded(results), run_dir, "diagnosis",
+        **_header(_unrecorded(document), run_dir, "diagnosis",
                   "Diagnosis: what the simulation gets wrong"),
         "baseline": diag.get("baseline") or {},
         "findings": [f for f in diag.get("findings") or [] if isinstance(f, Mapping)],
