@@ -10,7 +10,6 @@ mid-task loses only the task it was running, which Dask runs again elsewhere).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from aatest.batch.correction import ReferenceCorrection, corrected
@@ -29,22 +28,13 @@ class Task:
     correction: dict[str, Any] | None = None
 
 
-def local_path(location: str) -> str | Path:
-    """A local path for ``file://`` URLs and plain paths; other URLs are handed on as they are
-    (the recording reader opens them with aatest's storage options)."""
-    from aatest.storage import locate
-
-    where = locate(location)
-    return where if isinstance(where, Path) else location
-
-
 def open_dataset(task: Task) -> Dataset:
     """The task's recording as a dataset, as a correct reference would have recorded it."""
     from aatest.recording import read_dataset
 
     fix = None if task.correction is None else ReferenceCorrection.model_validate(
         task.correction)
-    return corrected(read_dataset(local_path(task.recording)), fix)
+    return corrected(read_dataset(task.recording), fix)
 
 
 def analyse(data: Dataset) -> dict[str, Any]:
