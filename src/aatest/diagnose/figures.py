@@ -10,25 +10,15 @@ from __future__ import annotations
 
 from typing import Any
 
-import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.typing import RcKeyType
 
 from aatest.diagnose.candidates.base import Context
 from aatest.presentation.figures import to_svg
 
-#: text as SVG text, not glyph outlines (as the report's own figures): a third less drawing
-#: time and a third smaller figures
-_STYLE: dict[RcKeyType, Any] = {"svg.fonttype": "none", "svg.hashsalt": "aatest-diagnose"}
 #: fixed margins (inches' share of the figure): a constrained layout measures every tick
 #: label's extent first, which took half the drawing time of these small figures
 _MARGINS = {"left": 0.11, "right": 0.98, "top": 0.88}
-
-
-def _svg(fig: Figure) -> str:
-    with matplotlib.rc_context(_STYLE):
-        return to_svg(fig)
 
 
 def per_step_bars(views: dict[str, Any], channel: str) -> str:
@@ -45,7 +35,7 @@ def per_step_bars(views: dict[str, Any], channel: str) -> str:
     ax.set_yscale("log")
     ax.set_title(f"{channel}: residual per step", fontsize=9)
     ax.legend(fontsize=7)
-    return _svg(fig)
+    return to_svg(fig)
 
 
 def against_panels(views: dict[str, Any], channel: str) -> str:
@@ -60,7 +50,7 @@ def against_panels(views: dict[str, Any], channel: str) -> str:
         ax.tick_params(labelsize=6)
     np.atleast_1d(axes)[0].set_ylabel("nominal residual RMS (mV)", fontsize=7)
     fig.suptitle(f"{channel}: where the nominal replay is wrong", fontsize=9)
-    return _svg(fig)
+    return to_svg(fig)
 
 
 def spectrum_lines(views: dict[str, Any], channel: str) -> str | None:
@@ -79,7 +69,7 @@ def spectrum_lines(views: dict[str, Any], channel: str) -> str | None:
     ax.set_ylabel("line amplitude (mV)")
     ax.set_title(f"{channel}: residual spectrum lines", fontsize=9)
     ax.legend(fontsize=7)
-    return _svg(fig)
+    return to_svg(fig)
 
 
 def before_after_trace(ctx: Context, r0: dict[int, np.ndarray], r1: dict[int, np.ndarray]
@@ -100,7 +90,7 @@ def before_after_trace(ctx: Context, r0: dict[int, np.ndarray], r1: dict[int, np
     ax.set_ylabel("residual (mV)")
     ax.set_title(f"{ctx.info.channel}, step {sr.step.id}: before / after", fontsize=9)
     ax.legend(fontsize=7)
-    return _svg(fig)
+    return to_svg(fig)
 
 
 def residual_figures(ctx: Context, r0: dict[int, np.ndarray], r1: dict[int, np.ndarray],
