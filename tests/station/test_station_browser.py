@@ -67,7 +67,7 @@ def test_plots_update_step_by_step(station: Station, page: Any) -> None:
     expected = [entry for step in running for entry in (("step", step), ("samples", step))]
     assert order == expected
     counts = [e["received"] for e in log if e["type"] == "samples"]
-    assert counts[0] > 0 and all(b > a for a, b in zip(counts, counts[1:]))
+    assert counts[0] > 0 and counts == sorted(set(counts))
     assert int(page.locator("#sample-count").inner_text()) == counts[-1]
     # the plot now holds the last step, s003 (3.9062 Hz at 100 °/s²): the plotted table
     # position swings by the commanded 0.1660°, the sensor about its 2.5 V bias by
