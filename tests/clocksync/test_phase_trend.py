@@ -22,9 +22,10 @@ from aatest.clocksync.phase_trend import (
     trend_slope_range,
 )
 from aatest.engine.interfaces import AnalysisContext
+from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.sync import SyncAnalysis
-from aatest.recording.dataset import Dataset
+from aatest.recording.dataset import Dataset, LazySteps, _subset
 from aatest.twin import model as m
 from aatest.twin.api import simulate_dataset
 
@@ -115,3 +116,30 @@ def test_a_static_run_stays_bounded_by_its_edges() -> None:
     assert step["drift_source"] == "edges"
     lo_hi = clock_relation(data.steps[0]).slope_range
     assert lo_hi is not None and (lo_hi[0] - 1) * 1e6 <= 3.0 <= (lo_hi[1] - 1) * 1e6
+
+
+def _lazy(data: Dataset) -> Dataset:
+    """The same steps as a recording's: decoded (a channel subset) when read."""
+    steps = list(data.steps)
+
+    def load(index: int, source: str, channels: object) -> SampledLog:
+        log = steps[index].table if source == "table" else steps[index].daq
+        return log if channels is None else _subset(log, channels)  # type: ignore[arg-type]
+
+    counts = [{"table": s.samples("table"), "daq": s.samples("daq")} for s in steps]
+    return replace(data, steps=LazySteps([s.step for s in steps], load, counts))
+
+
+def test_a_recordings_steps_take_the_trend_as_steps_in_memory_do() -> None:
+    """Lazy steps (a recording: decoded per read, relations fitted apart) end with the same
+    refitted relations, and the analyses read the steps synchronised with them."""
+    plan = [_step("s1", "sine", 64), _step("s2", "sine", 32)]
+    memory = _dataset(9.0, 6, plan, False)
+    lazy = _lazy(memory)
+    out = SyncAnalysis().run(lazy, AnalysisContext())
+    kept = _sync(memory)
+    assert out.result.drift_ppm == pytest.approx(float(kept["drift_ppm"]), abs=1e-9)
+    assert all(s.drift_source == "edges + sine phase trend" for s in out.result.steps)
+    synced = list(out.steps)
+    assert all(s.relation.phase_trend for s in synced)
+    assert synced[0].relation.drift_ppm == pytest.approx(out.result.drift_ppm, abs=1e-9)
