@@ -21,10 +21,11 @@ from aatest.clocksync.phase_trend import (
     step_phase_trend,
     trend_slope_range,
 )
+from aatest.engine.forked import WORKERS_ENV
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.plugins.analysis.sync import SyncAnalysis
+from aatest.plugins.analysis.sync import SyncAnalysis, SyncedWatch, watch_synced
 from aatest.recording.dataset import Dataset, LazySteps, _subset
 from aatest.twin import model as m
 from aatest.twin.api import simulate_dataset
@@ -118,11 +119,15 @@ def test_a_static_run_stays_bounded_by_its_edges() -> None:
     assert lo_hi is not None and (lo_hi[0] - 1) * 1e6 <= 3.0 <= (lo_hi[1] - 1) * 1e6
 
 
-def _lazy(data: Dataset) -> Dataset:
-    """The same steps as a recording's: decoded (a channel subset) when read."""
+def _lazy(data: Dataset, volts_read: list[int] | None = None) -> Dataset:
+    """The same steps as a recording's: decoded (a channel subset) when read; each decode of
+    the sensor's volts (in this process) counted in ``volts_read``."""
     steps = list(data.steps)
 
     def load(index: int, source: str, channels: object) -> SampledLog:
+        if volts_read is not None and source == "daq" and (
+                channels is None or "v_sz" in channels):  # type: ignore[operator]
+            volts_read.append(index)
         log = steps[index].table if source == "table" else steps[index].daq
         return log if channels is None else _subset(log, channels)  # type: ignore[arg-type]
 
@@ -130,13 +135,20 @@ def _lazy(data: Dataset) -> Dataset:
     return replace(data, steps=LazySteps([s.step for s in steps], load, counts))
 
 
-def test_a_recordings_steps_take_the_trend_as_steps_in_memory_do() -> None:
+def test_a_recordings_steps_take_the_trend_as_steps_in_memory_do(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """Lazy steps (a recording: decoded per read, relations fitted apart) end with the same
     refitted relations, and the analyses read the steps synchronised with them."""
     plan = [_step("s1", "sine", 64), _step("s2", "sine", 32)]
     memory = _dataset(9.0, 6, plan, False)
-    lazy = _lazy(memory)
+    monkeypatch.setenv(WORKERS_ENV, "1")  # the sync pass in this process: its reads counted
+    volts_read: list[int] = []
+    lazy = _lazy(memory, volts_read)
+    # an analysis watching the volts in the sync pass, as the FRF does
+    watch_synced(lazy, "volts", SyncedWatch({"daq": ["v_sz"]}, lambda _: True, lambda _: None))
     out = SyncAnalysis().run(lazy, AnalysisContext())
+    # the trends come from the sync pass's own decode: the volts are read once per step
+    assert sorted(volts_read) == [0, 1]
     kept = _sync(memory)
     assert out.result.drift_ppm == pytest.approx(float(kept["drift_ppm"]), abs=1e-9)
     assert all(s.drift_source == "edges + sine phase trend" for s in out.result.steps)

@@ -33,6 +33,7 @@ from aatest.clocksync.phase_trend import (
     PhaseTrend,
     combined_drift,
     edges_fix_drift,
+    step_phase_trend,
     trend_slope_range,
     trends_of,
 )
@@ -306,15 +307,32 @@ def relations(steps: LazySteps, indices: Sequence[int],
     return [(index, relation) for index, (relation, _) in zip(indices, made, strict=True)]
 
 
+#: the synced watch that measures each sine step's phase trend during the sync pass
+_TREND_WATCH = "sync.phase_trend"
+#: the table's record of the motion a trend is measured against
+_MOTION = tuple(f"{a}_{q}" for a in ("inner", "outer") for q in ("position_deg", "accel_dps2"))
+
+
+def _is_sine(step: PlannedStep) -> bool:
+    return step.kind == "sine"
+
+
+def _watch_trends(data: Dataset) -> None:
+    """Have the sync pass measure the sine steps' phase trends from the decode and resampling
+    it makes anyway (the FRF reads the same volts), so a recording is not decoded again."""
+    watch_synced(data, _TREND_WATCH, SyncedWatch(
+        {"table": _MOTION, "daq": [s.channel for s in data.sensors]}, _is_sine,
+        step_phase_trend))
+
+
 def _trends(data: Dataset, synced: SyncedSteps, related: Sequence[SyncedStep | _Related]
             ) -> list[PhaseTrend]:
-    """The phase trend of every sine step (synchronised with its edge relation), reading only
-    the sensors' volts and the table's motion of those steps."""
+    """The phase trend of every sine step (synchronised with its edge relation): made by the
+    sync pass (:func:`_watch_trends`), else from the sensors' volts and the table's motion."""
     if synced._kept is not None:  # steps in memory: already synchronised
         return list(trends_of(s for s in related if isinstance(s, SyncedStep)).values())
-    motion = [f"{a}_{q}" for a in ("inner", "outer") for q in ("position_deg", "accel_dps2")]
-    view = synced.where(lambda p: p.kind == "sine").only(motion, [s.channel for s in data.sensors])
-    return list(trends_of(view).values())
+    view = synced.where(_is_sine).only(_MOTION, [s.channel for s in data.sensors])
+    return [t for t in view.reduced(_TREND_WATCH, step_phase_trend) if t is not None]
 
 
 def _narrowed_by_trend(data: Dataset, synced: SyncedSteps,
@@ -464,6 +482,7 @@ class SyncAnalysis:
         else:  # one step at a time: only its clock relation stays
             steps = data.steps
             assert isinstance(steps, LazySteps)  # what keep=False means
+            _watch_trends(data)
             synced.relations.update(relations(steps, synced._indices))
             related = [_Related(p, synced.relations[i])
                        for i, p in zip(synced._indices, synced.planned, strict=True)]
