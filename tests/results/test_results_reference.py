@@ -81,7 +81,7 @@ ADDITIONS: tuple[tuple[str, str], ...] = (
     (r"metadata\.(kind|simulated_parts)$", "simulation marking: a twin run is a simulation"),
     (r"metadata\.rig\.capabilities$", "declared capabilities, as recorded with the run"),
     (r"analysis\.sync\.steps\[\d+\]\.(latched|slips_corrected|fit_coverage|"
-     r"extrapolation_u_s)$", "sync without latch times and on a partial table log"),
+     r"extrapolation_u_s|drift_source)$", "sync without latch times and on a partial table log"),
     (r"^verdicts\[\d+\]\.(limit_source|reason)$", "where a limit came from; why not judged"),
     (r"^analysis\.bias\.[^.]+\.(setpoints|temperature_c)$", "bias per chamber set-point"),
     (r"^logged_temperature$", "the logged temperatures, summarised for the certificate"),

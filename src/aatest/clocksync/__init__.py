@@ -9,6 +9,8 @@ step without freeze-pulse edges is :mod:`aatest.diagnose.trigger_alignment`.
 - ``freeze_pulse``  the clock relation of one step from its freeze-pulse edges, synchronised steps
 - ``edges``         freeze-pulse edges paired by time; the clock relation without latch times
 - ``streamed``      a long record the table logged the head of, read block by block
+- ``phase_trend``   without latch times, the drift the sine steps' sensor phase trend fixes
+                    where the edges only bound it
 """
 
 from aatest.clocksync.edges import joint_slope_range

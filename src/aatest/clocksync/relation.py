@@ -63,6 +63,16 @@ class ClockRelation:
     #: the edges both loggers hold and carries the fitted drift over the rest
     fit_span_daq_s: tuple[float, float] | None = None
     record_span_daq_s: tuple[float, float] | None = None
+    #: the drift was narrowed inside the edges' range by the sine steps' phase trend (no latch
+    #: times; :mod:`aatest.clocksync.phase_trend`)
+    phase_trend: bool = False
+
+    @property
+    def drift_source(self) -> str:
+        """What fixed the drift: latch times, the edges alone, or the edges and the trend."""
+        if self.latched:
+            return "latch times"
+        return "edges + sine phase trend" if self.phase_trend else "edges"
 
     @property
     def fit_coverage(self) -> float:
@@ -91,7 +101,7 @@ class ClockRelation:
         """Map table-clock times (s) to DAQ-clock times (s)."""
         return (np.asarray(t_table_s) - self.offset_s) / (1.0 + self.drift_ppm * 1e-6)
 
-    def as_dict(self) -> dict[str, float | int | bool]:
+    def as_dict(self) -> dict[str, float | int | bool | str]:
         """The contract ``sync`` keys plus the drift's standard uncertainty."""
         return {
             "drift_ppm": self.drift_ppm,
@@ -104,6 +114,7 @@ class ClockRelation:
             "slips_corrected": self.slips_corrected,
             "fit_coverage": self.fit_coverage,
             "extrapolation_u_s": self.extrapolation_u_s,
+            "drift_source": self.drift_source,
         }
 
 

@@ -34,6 +34,11 @@ class StepSync(ClockFields):
     extrapolation_u_s: Real = Field(0.0, description="standard uncertainty the carried drift "
                                     "adds to the time alignment at the record point farthest "
                                     "from the paired edges, s (drift_u × distance)")
+    drift_source: str | None = Field(None, description="what fixed the drift: 'latch times', "
+                              "'edges' (without latch times: bounded to the drifts every edge "
+                              "interval allows) or 'edges + sine phase trend' (narrowed inside "
+                              "that range by the sensor-vs-table phase trend of the sine steps); "
+                              "absent from results written before it was stated")
 
 
 class SyncResult(ClockFields):

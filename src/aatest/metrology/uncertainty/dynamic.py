@@ -224,7 +224,8 @@ def _sync_offset_s(results: RunResults, point: FrfPoint) -> tuple[float, str]:
                 f"uniform over the lines through all {entry.edges_used} edge "
                 f"intervals and the trigger, u = {stated * 1e6:.0f} µs (not "
                 f"T/√12/√N: both loggers sample on one grid, so the edges' "
-                f"quantisation errors are not independent)")
+                f"quantisation errors are not independent); drift from the "
+                f"{entry.drift_source or 'edges'}, u = {float(entry.drift_u_ppm):.2g} ppm")
         if stated is not None and stated < LATCHED_OFFSET_U_S:
             return stated, ("measured: the clock alignment's own standard uncertainty, from the "
                             "freeze-pulse latch times of this record")
