@@ -106,6 +106,10 @@ def test_long_static_drift_streams_through_acutrol_and_can(tmp_path: Path) -> No
     for sync in wire["sync"]["steps"]:
         # the clocks are fitted on the head's edges: 20 s of a 90 s record (+ lead and lag)
         assert sync["fit_coverage"] == pytest.approx(HEAD_SAMPLES / FS_HZ / RECORD_S, rel=0.03)
+    for name in ("bias", "noise"):  # the budgets say so, and carry the extrapolated clock
+        rows = {row["name"]: row for row in wire[name]["v_sz"]["budget"]}
+        assert "spans 2 record(s) partly" in rows["clock_coverage"]["basis"], name
+        assert rows["clock_coverage"]["standard_uncertainty"] > 0
     for name, value in (("bias", "bias_v"), ("noise", "rms_max_v")):
         got, ref = wire[name]["v_sz"], twin[name]["v_sz"]
         assert abs(got[value] - ref[value]) <= got["expanded_uncertainty"], (name, got, ref)
