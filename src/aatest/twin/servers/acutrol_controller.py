@@ -18,11 +18,12 @@ tells IDLE/ARMED/RECORDING/DONE/ERROR, ``:XLOG:HEADER?`` gives ``id,samples,rate
 with 17 significant digits (float64 round trip). A timed record of the CAN logger
 (:meth:`AcutrolController.daq_stream`, a static record longer than the table's log) is
 streamed from the World chunk by chunk; the armed log is then its head (the samples
-``:XLOG:CONFIG`` asked for, at most the log's capacity), made as the in-process table makes it. ``:XLOG:MOUNTING pivoted,remount`` (after
-``:XLOG:CONFIG``, before the demands) stands in for the operator: it pivots and re-mounts the
-twin's sensor unit for that log as a step's operator prompt says (``pivoted`` 0|1, ``remount``
-none|sensors|block|both), so a pivoted procedure exercises the twin as the in-process ``sim``
-table does; a new ``:XLOG:CONFIG`` is back to the original mounting, not re-mounted.
+``:XLOG:CONFIG`` asked for, at most the log's capacity), made as the in-process table makes
+it. ``:XLOG:MOUNTING pivoted,remount`` (after ``:XLOG:CONFIG``, before the demands) stands
+in for the operator: it pivots and re-mounts the twin's sensor unit for that log as a step's
+operator prompt says (``pivoted`` 0|1, ``remount`` none|sensors|block|both), so a pivoted
+procedure exercises the twin as the in-process ``sim`` table does; a new ``:XLOG:CONFIG`` is
+back to the original mounting, not re-mounted.
 """
 
 from __future__ import annotations
