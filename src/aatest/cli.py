@@ -914,17 +914,21 @@ SimCanInterface = Annotated[str | None, typer.Option(
     "--can-interface", help="python-can interface of the simulated CAN logger")]
 SimCanChannel = Annotated[str | None, typer.Option(
     "--can-channel", help="python-can channel of the simulated CAN logger")]
+SimSensor = Annotated[str | None, typer.Option(
+    "--sensor", help="sensor model on the table (the procedure's sensor.model, e.g. "
+    "sr207-aamu); its channels are the CAN logger's; default one reference sensor")]
 
 
 @sim_server_app.command("modbus")
 @guarded
 def sim_server_modbus(host: SimHost = "127.0.0.1", port: SimPort = 5020, seed: SimSeed = 0,
                       can_interface: SimCanInterface = None,
-                      can_channel: SimCanChannel = None) -> None:
+                      can_channel: SimCanChannel = None, sensor: SimSensor = None) -> None:
     """Serve the simulated turntable over Modbus TCP (and its sensor logger on CAN)."""
     from aatest.twin.servers.modbus_server import serve_forever
 
-    serve_forever(host, port, seed, can_interface=can_interface, can_channel=can_channel)
+    serve_forever(host, port, seed, can_interface=can_interface, can_channel=can_channel,
+                  sensor=sensor)
 
 
 @sim_server_app.command("acutrol")
@@ -936,9 +940,7 @@ def sim_server_acutrol(
     chamber_port: int | None = typer.Option(
         None, "--chamber-port", help="default the chamber's own port: espec 10001, simserv 2049"),
     can_interface: SimCanInterface = None, can_channel: SimCanChannel = None,
-    sensor: str | None = typer.Option(
-        None, "--sensor", help="sensor model on the table (the procedure's sensor.model, e.g. "
-        "sr207-aamu); its channels are the CAN logger's; default one reference sensor"),
+    sensor: SimSensor = None,
 ) -> None:
     """Serve the simulated ACUTROL-class table (its sensor logger on CAN, optionally a chamber)."""
     from aatest.twin.servers.acutrol_server import serve_forever as serve_acutrol

@@ -283,7 +283,7 @@ def test_simulator_serves_the_sensors_of_the_named_model() -> None:
     in-process twin builds from the same datasheet; none named: the reference sensor."""
     from aatest.plugins.sensors.sr207 import SR207Unit
     from aatest.twin.defaults import realistic_rig_model
-    from aatest.twin.servers.acutrol_server import sensor_rig_model
+    from aatest.twin.servers.sensor_models import sensor_rig_model
 
     unit = sensor_rig_model("sr207-aamu")
     assert [(s.channel, s.axis) for s in unit.sensors] == [("v_sz", "I"), ("v_sy", "O"),

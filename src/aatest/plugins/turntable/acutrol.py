@@ -189,9 +189,16 @@ class AcutrolTurntable:
     @rig_boundary
     def begin_motion(self, step: PlannedStep) -> None:
         """Configure the log, set the step's modes and demands (one line: they start
-        together), arm the log (started by the DAQ trigger) and wait until settled."""
+        together), arm the log (started by the DAQ trigger) and wait until settled.
+
+        A static step longer than the log buffer is streamed by the DAQ: the log is then its
+        head (:func:`~aatest.engine.procedure.envelope.head_step`, as many samples as the
+        declared ``log_capacity_samples``), armed here before the DAQ's trigger starts the
+        record, and collected by :meth:`record` afterwards.
+        """
         label = step.id.replace(",", "_").replace(";", "_").replace(" ", "_")
-        self.write(f":XLOG:CONFIG {step.sample_rate_hz:.17g},{step.samples},"
+        samples = _logged_samples(step, self.config.envelope.log_capacity_samples)
+        self.write(f":XLOG:CONFIG {step.sample_rate_hz:.17g},{samples},"
                    f"{step.settle_s:.17g},{label}")
         mounting = step.mounting
         if self.simulated and (mounting.pivoted or mounting.remount != "none"):
@@ -283,6 +290,13 @@ class AcutrolTurntable:
 
     def close(self) -> None:
         self._close_session()
+
+
+def _logged_samples(step: PlannedStep, capacity: int) -> int:
+    """The samples the table logs of ``step``: all of them, or its head when the step is a
+    static record longer than the log buffer (the DAQ streams it; the envelope check refuses
+    any other step beyond the capacity before anything moves)."""
+    return capacity if step.kind == "static" and step.samples > capacity else step.samples
 
 
 def _profile(step: PlannedStep) -> tuple[str, str]:

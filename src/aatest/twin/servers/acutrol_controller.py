@@ -15,25 +15,30 @@ samples,settle,label`` sets it up, ``:XLOG:ARM`` arms it (starting a static hold
 runs), the DAQ trigger (the simulated CAN logger's ``daq_start``) starts it, ``:XLOG:STATE?``
 tells IDLE/ARMED/RECORDING/DONE/ERROR, ``:XLOG:HEADER?`` gives ``id,samples,rate,t0`` and
 ``:XLOG:DATA? channel,start,count`` returns values of one channel as comma-separated decimals
-with 17 significant digits (float64 round trip). ``:XLOG:MOUNTING pivoted,remount`` (after
-``:XLOG:CONFIG``, before the demands) stands in for the operator: it pivots and re-mounts the
-twin's sensor unit for that log as a step's operator prompt says (``pivoted`` 0|1, ``remount``
-none|sensors|block|both), so a pivoted procedure exercises the twin as the in-process ``sim``
-table does; a new ``:XLOG:CONFIG`` is back to the original mounting, not re-mounted.
+with 17 significant digits (float64 round trip). A timed record of the CAN logger
+(:meth:`AcutrolController.daq_stream`, a static record longer than the table's log) is
+streamed from the World chunk by chunk; the armed log is then its head (the samples
+``:XLOG:CONFIG`` asked for, at most the log's capacity), made as the in-process table makes
+it. ``:XLOG:MOUNTING pivoted,remount`` (after ``:XLOG:CONFIG``, before the demands) stands
+in for the operator: it pivots and re-mounts the twin's sensor unit for that log as a step's
+operator prompt says (``pivoted`` 0|1, ``remount`` none|sensors|block|both), so a pivoted
+procedure exercises the twin as the in-process ``sim`` table does; a new ``:XLOG:CONFIG`` is
+back to the original mounting, not re-mounted.
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import get_args
 
 import numpy as np
 
-from aatest.engine.errors import EnvelopeRefused
+from aatest.engine.errors import EnvelopeRefused, RigFault
 from aatest.engine.logs import TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import Mounting, PlannedStep, Remount
 from aatest.rig_defaults import LOG_RATE_HZ
@@ -72,6 +77,8 @@ class _Log:
     state: str = "IDLE"
     table: SampledLog | None = None
     log_id: int = 0
+    #: the log is the head of a record the CAN logger streams (:meth:`daq_stream`)
+    head: bool = False
 
 
 class AcutrolController:
@@ -86,6 +93,8 @@ class AcutrolController:
         self.on_daq_log: Callable[[SampledLog], None] | None = None
         self._motion = False
         self._daq_started = False
+        #: the DAQ streams this step's record (a timed record of the CAN logger)
+        self._streamed = False
         self._pending = False
         self._target: dict[str, float] | None = None
         self._logs = 0
@@ -140,7 +149,7 @@ class AcutrolController:
             self.world.end_motion()
             self._motion = False
         self.log.state = "IDLE" if self.log.state != "DONE" else "DONE"
-        self._daq_started = False
+        self._daq_started = self._streamed = False
 
     def demand_position(self, axis: int, position_deg: float) -> None:
         self._require_closed(axis)
@@ -220,7 +229,7 @@ class AcutrolController:
             self.world.begin_motion(step)
         except EnvelopeRefused as exc:
             raise CommandError(-222, f"Data out of range: {exc}") from exc
-        self._motion, self._daq_started = True, False
+        self._motion, self._daq_started, self._streamed = True, False, False
         self.log.state = "SETTLED"
 
     # --- interlocks ------------------------------------------------------------------------
@@ -272,16 +281,50 @@ class AcutrolController:
             self._daq_started = True
             self._maybe_record()
 
+    def daq_stream(self, samples: int) -> Iterator[SampledLog]:
+        """The DAQ started a timed record of ``samples`` after its trigger (called by the CAN
+        logger): the trigger line goes high, the World's record takes that length, and its DAQ
+        log is returned lazily in chunks (one in memory at a time). The armed table log is the
+        record's head, made after the stream's first chunk as the in-process table makes it
+        after the DAQ's (same random streams).
+
+        Raises
+        ------
+        ValueError
+            No step is in motion or a record already runs (the logger refuses the timed
+            record).
+        """
+        with self.lock:
+            if self._daq_started or not self._motion:
+                raise ValueError("no step in motion, or a record already running")
+            try:
+                self.world.set_record_samples(samples)
+            except RigFault as exc:
+                raise ValueError(str(exc)) from exc
+            self.world.start_daq()
+            self._daq_started = self._streamed = True
+        chunks = self.world.stream_daq(1)
+        first = next(chunks, None)
+        with self.lock:
+            self._maybe_record()
+        return itertools.chain([] if first is None else [first], chunks)
+
     def _maybe_record(self) -> None:
         if self.log.state != "ARMED" or not self._daq_started:
             return
-        self.log.state = "RECORDING"
+        self.log.state, self.log.head = "RECORDING", self._streamed
         threading.Thread(target=self._synthesise, args=(self.log,), daemon=True,
                          name="sim-acutrol-record").start()
 
     def _synthesise(self, record: _Log) -> None:
+        """Run the twin for the armed log (worker thread: the server keeps answering); the
+        head of a streamed record is the table's log alone (the DAQ log is being streamed)."""
         try:
-            result = self.world.result()
+            if record.head:
+                table, daq = self.world.snapshot_log(self._head_step(record)), None
+            else:
+                result = self.world.result()
+                table, daq = result.table, result.daq
         except Exception as exc:  # noqa: BLE001 - reported through the log state
             log.error("twin synthesis failed: %s: %s", type(exc).__name__, exc)
             with self.lock:
@@ -290,10 +333,17 @@ class AcutrolController:
         with self.lock:
             if self.log is not record:
                 return
-            if self.on_daq_log is not None:
-                self.on_daq_log(result.daq)
+            if self.on_daq_log is not None and daq is not None:
+                self.on_daq_log(daq)
             self._logs += 1
-            record.table, record.log_id, record.state = result.table, self._logs, "DONE"
+            record.table, record.log_id, record.state = table, self._logs, "DONE"
+
+    def _head_step(self, record: _Log) -> PlannedStep:
+        """The table log of a streamed record as configured: its rate and samples, at rest."""
+        return PlannedStep(kind="static", id=record.label or f"log{self._logs + 1:05d}",
+                           samples=record.samples, sample_rate_hz=record.rate_hz,
+                           settle_s=record.settle_s, inner_deg=self.world.inner_deg,
+                           outer_deg=self.world.outer_deg, mounting=record.mounting)
 
     def header(self) -> str:
         table = self.log.table

@@ -27,6 +27,7 @@ from aatest.twin.servers.acutrol_controller import MODE_LETTERS, AcutrolControll
 from aatest.twin.servers.acutrol_parse import Command, CommandError, axis_of, numbers, parse_line
 from aatest.twin.servers.background import serve_until_interrupted
 from aatest.twin.servers.line_server import LineServer
+from aatest.twin.servers.sensor_models import sensor_rig_model
 from aatest.twin.world import World
 
 ACUTROL_PORT = 9888  # the MIT driver's default
@@ -193,30 +194,6 @@ def acutrol_server(host: str = "127.0.0.1", port: int = 0, seed: int = 0,
         world = World(model, seed)
     controller = AcutrolController(world, lock)
     return LineServer(AcutrolProtocol(controller), host, port, lifetime_s)
-
-
-def sensor_rig_model(sensor: str | None) -> RigModel:
-    """The twin's realistic rig carrying the sensors of the sensor plugin ``sensor``.
-
-    The in-process twin builds its rig from the datasheet of the procedure's ``sensor.model``
-    (:class:`~aatest.twin.session.TwinSession`); a simulator in its own process is told the
-    model by its operator (``--sensor``) and builds the same one realistic sensor per datasheet
-    channel, so its CAN logger serves every channel of the unit. None: the reference sensor
-    (one channel ``v_sz``).
-
-    Raises
-    ------
-    PluginError
-        No installed sensor plugin has that name.
-    """
-    from aatest.twin.defaults import realistic_rig_model
-
-    if sensor is None:
-        return realistic_rig_model()
-    from aatest.engine.run.rig import sensor_datasheet
-    from aatest.engine.steps import SensorRef
-
-    return realistic_rig_model(sensor_datasheet(SensorRef(model=sensor))[0])
 
 
 def serve_forever(host: str, port: int, seed: int, *, chamber: str = "none",

@@ -148,21 +148,28 @@ class SimModbusServer(BackgroundServer):
 
 
 def serve_forever(host: str, port: int, seed: int, *, can_interface: str | None = None,
-                  can_channel: str | None = None) -> None:
+                  can_channel: str | None = None, sensor: str | None = None) -> None:
     """Serve the simulated table on Modbus TCP and the simulated CAN logger until Ctrl-C.
 
     The CAN side uses ``can_interface``/``can_channel``, else the environment variables
     ``AATEST_SIM_CAN_INTERFACE``/``AATEST_SIM_CAN_CHANNEL``, else ``udp_multicast`` on group
-    239.74.163.2 (needs python-can's ``msgpack`` extra); ``none`` serves the table only.
+    239.74.163.2 (needs python-can's ``msgpack`` extra); ``none`` serves the table only. The
+    twin carries the sensors of the sensor plugin ``sensor`` (:func:`sensor_rig_model`: one
+    channel per datasheet channel, as the in-process twin builds them; None: the reference
+    sensor), and the banner names the channels the CAN logger serves.
     """
+    from aatest.twin.servers.sensor_models import sensor_rig_model
+
     interface = can_interface or os.environ.get(CAN_INTERFACE_ENV, DEFAULT_CAN_INTERFACE)
     channel = can_channel or os.environ.get(CAN_CHANNEL_ENV, DEFAULT_CAN_CHANNEL)
-    server = SimModbusServer(host, port, seed)
+    server = SimModbusServer(host, port, seed, model=sensor_rig_model(sensor))
     extras = []
+    can = "CAN none"
     if interface != "none":
         from aatest.twin.servers.can_sim import SimCanLogger
 
         extras.append(SimCanLogger(server.controller, interface, channel).start())
-    can = f"{interface} {channel if interface != 'none' else ''}"
+        channels = ",".join(s.channel for s in server.controller.world.model.sensors)
+        can = f"CAN {interface} {channel} (sensors {channels})"
     serve_until_interrupted([server], f"aatest simulated controller: Modbus TCP {host}:{{0}}, "
-                                      f"CAN {can} (Ctrl-C stops)", extras)
+                                      f"{can} (Ctrl-C stops)", extras)
