@@ -28,6 +28,7 @@ import pytest
 from tolerances import REFERENCE_RULES, tolerance
 
 from aatest.engine.run.session import run
+from aatest.numerics import K95, Z95
 from aatest.results.quantities import reference_name
 
 DATA = Path(__file__).parent / "data"
@@ -81,6 +82,8 @@ def _added(path: str) -> bool:
 def documented_changes(document: Any) -> Any:
     """The old document with the changes made on purpose since, applied the way they were:
 
+    - the scale factor's ``scale_ci95`` is built with Z95 instead of K95 (its half-width
+      × Z95/K95);
     - the reference-method budget row names the acceleration references as a person reads
       them (``central_position`` → ``central difference of the position``), so no
       implementation name reaches the certificate.
@@ -95,6 +98,11 @@ def documented_changes(document: Any) -> Any:
     if out.get("basis") == "measured: sync analysis offset_u_s of this record":
         out["basis"] = ("measured: the clock alignment's own standard uncertainty, from the "
                         "freeze-pulse latch times of this record")  # no field name for a person
+    interval = out.get("scale_ci95")
+    if isinstance(interval, list) and len(interval) == 2:  # a [lo, hi] pair
+        # built as scale ± Z95·u since, the factor ci_std reads it back with (was K95 = 1.96)
+        middle, half = (interval[0] + interval[1]) / 2, (interval[1] - interval[0]) / 2
+        out["scale_ci95"] = [middle - half * Z95 / K95, middle + half * Z95 / K95]
     if out.get("name") == "reference_method" and "basis" in out:
         out["label"] = re.sub(r"\((\w+)\)$", lambda m: f"({reference_name(m.group(1))})",
                               out["label"])
