@@ -81,3 +81,14 @@ def test_named_numbers_are_not_typed_out_again() -> None:
 def test_the_scan_finds_float_literals_only(source: str, expected: list[tuple[int, float]]) -> None:
     """The scan sees float literals in code, not numbers inside strings or integer counts."""
     assert sorted(literals_named_elsewhere(source)) == sorted(expected)
+
+
+def test_the_mcap_chunk_size_is_stated_once() -> None:
+    """The recording's chunk size (``aatest.recording.channels.CHUNK_BYTES``) is assigned in
+    one module only: the preview chunks and the data chunks are sized alike."""
+    homes = sorted(str(p.relative_to(SOURCE)) for p in SOURCE.rglob("*.py")
+                   for node in ast.walk(ast.parse(p.read_text()))
+                   if isinstance(node, ast.Assign | ast.AnnAssign)
+                   for target in (node.targets if isinstance(node, ast.Assign) else [node.target])
+                   if isinstance(target, ast.Name) and target.id == "CHUNK_BYTES")
+    assert homes == ["recording/channels.py"]

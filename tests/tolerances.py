@@ -14,7 +14,8 @@ relative, the selected model's poles 7.1e-10 relative, the clock drift 1.4e-10 p
 else ≤ 4e-13 relative.
 
 Shared by every test that compares numbers against a committed reference
-(``from tolerances import mismatches``).
+(``from tolerances import mismatches``); :data:`REFERENCE_RULES` are those of the comparison
+with the dict-based engine's references (``tests/results/test_results_reference.py``).
 """
 
 from __future__ import annotations
@@ -65,9 +66,38 @@ RULES: tuple[Rule, ...] = (
 )
 
 
-def tolerance(path: str) -> Rule:
-    """The first rule whose pattern matches ``path``, else the default relative tolerance."""
-    for rule in RULES:
+#: results.json of the shipped procedures against the references the dict-based engine wrote
+#: (tests/results/test_results_reference.py): the same machine class, but a changed code path
+#: (typed records instead of dicts) may round in another order; paths have no leading dot
+REFERENCE_RULES: tuple[Rule, ...] = (
+    Rule(r"^analysis\.scale_factor\..*\.(fit|inverse|validation|coefficients|ci95)", 1e-3,
+         1e-12, "high-order polynomial least squares, condition ~1e12: polynomial fits up to "
+         "order 15 on a Vandermonde matrix (condition number ~1e12 even after centring): their "
+         "higher coefficients, covariances and the statistics derived from them carry ~1e-4 "
+         "of relative noise from the last bit of the solve"),
+    Rule(r"^analysis\.transfer_function\.", 1e-5, 1e-12,
+         "transfer-function least squares of lagged samples, condition ~1e8: ARX candidate "
+         "models of order up to 6 (normal equations of lagged samples) and the metrics (nAIC, "
+         "FPE, fit %) computed from their residuals"),
+    Rule(r"^analysis\.drift\..*\.allan_fit", 1e-6, 1e-15,
+         "Allan-term least squares: the Allan deviation fit solves for terms that are "
+         "differences of nearly equal slopes"),
+    Rule(r"^.*(correlation|residual|_rms_|rmse|sse)", 1e-7, 1e-14,
+         "residuals and correlations: differences of nearly equal numbers (a correlation near "
+         "±1 or a residual near 0): an absolute tolerance at the scale of its inputs' "
+         "rounding"),
+    Rule(r"^analysis\.scale_factor\..*\.nonlinearity_(dps2|pct_fr)$", 1e-9, 1e-9,
+         "deviation of a fit from itself: rounding noise around zero (~1e-13 °/s²)"),
+    Rule(r"^analysis\.sync\.drift_spread_ppm$", 1e-9, 1e-6,
+         "the spread of per-step drifts: a difference of nearly equal fitted drifts (ppm), as "
+         "the drift class of RULES"),
+)
+
+
+def tolerance(path: str, rules: tuple[Rule, ...] = RULES) -> Rule:
+    """The first of ``rules`` whose pattern matches ``path``, else the default relative
+    tolerance."""
+    for rule in rules:
         if re.search(rule.pattern, path):
             return rule
     return Rule("", DEFAULT_REL, 0.0, "well-conditioned sums, means and DFT ratios")

@@ -7,7 +7,9 @@ Two different 95 % factors are in use and must not be mixed up:
   a ``ci95`` converts to a standard uncertainty by dividing by it.
 - :data:`K95`, the coverage factor 1.96 that states an interval ``x ± k·u`` of about 95 %
   coverage for a normal distribution (JCGM 100 G.1.3, Table G.1, rounded as the GUM states
-  it); intervals written into results with it keep that rounding.
+  it), for a plugin that states its intervals that way. aatest's own ``ci95`` intervals are
+  built with :data:`Z95`, the factor ``ci_std`` divides by, so the standard uncertainty read
+  back from an interval is the one it was built from (1.96 would return it ×1.00002).
 
 :data:`TINY` stands in for zero before a division or a logarithm (a ratio of two sums of
 squares that may be exactly zero, the log of a spectrum floor): far below any physical value,

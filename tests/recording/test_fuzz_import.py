@@ -28,6 +28,10 @@ from aatest.engine.run.session import decide
 from aatest.plugins.report.html import CalibrationCertificate
 from aatest.recording.data.importer import import_dataset
 
+#: an overflow (inf, NaN) inside the analyses is a defect even when the run ends cleanly: an
+#: impossible value must be refused at import, naming its file, line and column
+pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
+
 #: 400 samples at 2 kHz hold two cycles at 10 Hz (the contract's 5 Hz holds 399/400 of one)
 BASE_MANIFEST = MANIFEST.replace("frequency_hz: 5.0", "frequency_hz: 10.0")
 CERTIFICATE = CalibrationCertificate(CalibrationCertificate.Config(plots=False))
@@ -160,6 +164,21 @@ def test_impossible_temperature_is_located(tmp_path: Path) -> None:
                                             for i, r in enumerate(lines[1:])]
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(ImportDataError, match=r"s01_daq.csv:7: temperature_c 1e\+300"):
+        import_dataset(directory)
+
+
+@pytest.mark.parametrize(("name", "column", "cell", "message"), [
+    ("s01_table.csv", 1, "1e300", r"s01_table.csv:5: position_deg 1e\+300 ° is outside"),
+    ("s01_table.csv", 2, "-1e300", r"s01_table.csv:5: rate_dps -1e\+300 °/s is outside"),
+    ("s01_table.csv", 3, "1e308", r"s01_table.csv:5: accel_dps2 1e\+308 °/s² is outside"),
+    ("s01_daq.csv", 3, "1e300", r"s01_daq.csv:5: v_sz 1e\+300 V is outside"),
+])
+def test_impossible_motion_and_volts_are_located(tmp_path: Path, name: str, column: int,
+                                                 cell: str, message: str) -> None:
+    """Each overflowed the reference comparison (× fs², squared) before it was refused."""
+    directory = base_dir(tmp_path)
+    mutate_csv(directory / name, "cell", 3, column, cell)  # data row 4, file line 5
+    with pytest.raises(ImportDataError, match=message):
         import_dataset(directory)
 
 

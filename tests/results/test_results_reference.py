@@ -5,9 +5,9 @@ end to end (results built as a dict and read by string keys): each procedure's s
 ``data/`` (same analyses, same report, fewer and shorter records) run on the digital twin with
 ``--seed 7``. Rerunning it now must give the same document: the same keys everywhere, the same
 strings (after the changes made on purpose, :func:`documented_changes`), numbers within the
-tolerances below. What legitimately differs run to run is left out
-(:data:`VOLATILE`); figures are compared by name (their SVG is the analyses', not this
-stage's).
+tolerances of ``tests/tolerances.py`` (``REFERENCE_RULES``). What legitimately differs run to
+run is left out (:data:`VOLATILE`); figures are compared by name (their SVG is the analyses',
+not this stage's).
 
 Regenerate (only when a change of results is intended, and say so in the commit)::
 
@@ -25,8 +25,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from tolerances import REFERENCE_RULES, tolerance
 
 from aatest.engine.run.session import run
+from aatest.numerics import K95, Z95
 from aatest.results.quantities import reference_name
 
 DATA = Path(__file__).parent / "data"
@@ -43,36 +45,6 @@ VOLATILE = {
 }
 #: numbers that are measured times, not results (the reference analysis times each method)
 VOLATILE_LEAVES = re.compile(r".*\.runtime_s$")
-
-#: relative tolerance of a well-conditioned number: a sum, mean, product or ratio of measured
-#: values loses a few ulp per operation; 1e-9 leaves six orders of magnitude for a different
-#: BLAS kernel or summation order and still catches any change of the computation
-REL = 1e-9
-#: (path pattern, rel, abs, reason) for numbers that are ill-conditioned by construction
-WIDE: tuple[tuple[str, float, float, str], ...] = (
-    # polynomial fits up to order 15 on a Vandermonde matrix (condition number ~1e12 even after
-    # centring): their higher coefficients, covariances and the statistics derived from them
-    # carry ~1e-4 of relative noise from the last bit of the solve
-    (r"analysis\.scale_factor\..*\.(fit|inverse|validation|coefficients|ci95)", 1e-3, 1e-12,
-     "high-order polynomial least squares, condition ~1e12"),
-    # ARX candidate models of order up to 6: normal equations of lagged samples (condition
-    # ~1e8) and the metrics (nAIC, FPE, fit %) computed from their residuals
-    (r"analysis\.transfer_function\.", 1e-5, 1e-12,
-     "transfer-function least squares of lagged samples, condition ~1e8"),
-    # the Allan deviation fit solves for terms that are differences of nearly equal slopes
-    (r"analysis\.drift\..*\.allan_fit", 1e-6, 1e-15, "Allan-term least squares"),
-    # a correlation near ±1 or a residual near 0 is a small difference of large numbers: an
-    # absolute tolerance at the scale of its inputs' rounding
-    (r".*(correlation|residual|_rms_|rmse|sse)", 1e-7, 1e-14,
-     "residuals and correlations: differences of nearly equal numbers"),
-    # a model's deviation from its own fit is zero up to the rounding of the fit (~1e-13 °/s²)
-    (r"analysis\.scale_factor\..*\.nonlinearity_(dps2|pct_fr)$", 1e-9, 1e-9,
-     "deviation of a fit from itself: rounding noise around zero"),
-    # the spread of per-step drifts: a difference of nearly equal fitted drifts (ppm)
-    (r"analysis\.sync\.drift_spread_ppm$", 1e-9, 1e-6,
-     "difference of nearly equal drifts, as the drift class of tests/tolerances.py"),
-)
-
 
 #: keys the results gained on purpose since the references were written (documented in
 #: docs/interfaces.md): a path pattern each; they may appear in the new document only
@@ -110,6 +82,8 @@ def _added(path: str) -> bool:
 def documented_changes(document: Any) -> Any:
     """The old document with the changes made on purpose since, applied the way they were:
 
+    - the scale factor's ``scale_ci95`` is built with Z95 instead of K95 (its half-width
+      × Z95/K95);
     - the reference-method budget row names the acceleration references as a person reads
       them (``central_position`` → ``central difference of the position``), so no
       implementation name reaches the certificate.
@@ -124,6 +98,11 @@ def documented_changes(document: Any) -> Any:
     if out.get("basis") == "measured: sync analysis offset_u_s of this record":
         out["basis"] = ("measured: the clock alignment's own standard uncertainty, from the "
                         "freeze-pulse latch times of this record")  # no field name for a person
+    interval = out.get("scale_ci95")
+    if isinstance(interval, list) and len(interval) == 2:  # a [lo, hi] pair
+        # built as scale ± Z95·u since, the factor ci_std reads it back with (was K95 = 1.96)
+        middle, half = (interval[0] + interval[1]) / 2, (interval[1] - interval[0]) / 2
+        out["scale_ci95"] = [middle - half * Z95 / K95, middle + half * Z95 / K95]
     if out.get("name") == "reference_method" and "basis" in out:
         out["label"] = re.sub(r"\((\w+)\)$", lambda m: f"({reference_name(m.group(1))})",
                               out["label"])
@@ -147,15 +126,9 @@ def comparable(document: dict[str, Any]) -> dict[str, Any]:
     return dict(_without_encoder_basis(out))
 
 
-def _tolerance(path: str) -> tuple[float, float]:
-    for pattern, rel, abs_, _reason in WIDE:
-        if re.match(pattern, path):
-            return rel, abs_
-    return REL, 0.0
-
-
 def _number_differs(before: float, after: float, path: str) -> list[str]:
-    rel, abs_ = _tolerance(path)
+    rule = tolerance(path, REFERENCE_RULES)
+    rel, abs_ = rule.rel, rule.abs
     if VOLATILE_LEAVES.match(path) or math.isclose(before, after, rel_tol=rel, abs_tol=abs_):
         return []
     return [f"{path}: {before!r} became {after!r} (rel {rel:g}, abs {abs_:g})"]

@@ -38,7 +38,7 @@ from aatest.diagnose.selection import (
 )
 from aatest.diagnose.story import residual_entry, verdict
 from aatest.diagnose.unexplained import Outcome, explain, held_out_rmse, joint_residuals
-from aatest.numerics import K95, TINY
+from aatest.numerics import TINY, Z95
 from aatest.recording.dataset import Dataset
 
 
@@ -85,7 +85,7 @@ def _estimate_drift(ctx: Context) -> _Drift | None:
         return _Drift(d, ci, "phase trend (no sync edges)", ctx.current, fit, None, (-d, True))
     d, u = est.drift_ppm, est.u_ppm
     bound = est.range_ppm  # without latch times: the drifts the edges allow, a hard bound
-    ci = [d - K95 * u, d + K95 * u] if bound is None else [bound[0], bound[1]]
+    ci = [d - Z95 * u, d + Z95 * u] if bound is None else [bound[0], bound[1]]
     edges = _Drift(d, ci, "sync edges", one_clock_fit(ctx, d), ctx.current, d, None)
     if ctx.replay.fp_latch:
         return edges

@@ -13,18 +13,25 @@ from __future__ import annotations
 
 import hashlib
 import io
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import matplotlib
 import numpy as np
-from matplotlib.figure import Figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: applied while a figure is drawn (never globally: plugins draw with matplotlib too)
 STYLE: dict[Any, Any] = {"svg.fonttype": "none", "font.size": 9}
 
 
 def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0) -> tuple[Any, Any]:
-    """A small figure with ``rows`` stacked axes, without pyplot's global state (Agg-safe)."""
+    """A small figure with ``rows`` stacked axes, without pyplot's global state (Agg-safe).
+
+    Matplotlib is imported here, not with this module: importing it builds its font cache
+    in the user's home, and commands that draw nothing (``aatest validate``) leave no file.
+    """
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(width_in, height_in * rows))
     return fig, fig.subplots(rows, 1, squeeze=False)
 
@@ -56,6 +63,8 @@ def to_svg(fig: Figure, *, tight: bool = False, inline: bool = False) -> str:
     inline
         Drop the XML prolog and doctype, for SVG inlined in an HTML page.
     """
+    import matplotlib
+
     buffer = io.StringIO()
     with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": content_salt(fig)}):
         fig.savefig(buffer, format="svg", metadata={"Date": None},

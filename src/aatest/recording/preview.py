@@ -46,6 +46,7 @@ from mcap.records import Channel, Schema
 
 from aatest.engine.logs import TABLE, SampledLog
 from aatest.recording import proto
+from aatest.recording.channels import CHUNK_BYTES
 
 #: length of one preview window, s (a 2 kHz logger: 400 samples per window). Why not 10 ms:
 #: the preview's doubles hardly compress and MCAP indexes every message with 16 bytes
@@ -226,10 +227,6 @@ def log_times_ns(time_s: np.ndarray, start_ns: int, floor_ns: int) -> np.ndarray
     """
     times = start_ns + np.round(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64)
     return np.maximum(times, floor_ns).astype(np.uint64)
-
-
-#: preview bytes per chunk before compression
-CHUNK_BYTES = 4 * 1024 * 1024
 
 
 def records_per_chunk(layout: Layout) -> int:

@@ -36,7 +36,7 @@ from aatest.recording.writer import (
     merged_step_ids,
 )
 from aatest.rig_defaults import LOG_RATE_HZ
-from aatest.storage import RemotePath, Where, locate
+from aatest.storage import RemotePath, StorageError, Where, locate
 
 IMPORT_MANIFEST = "dataset.yaml"
 #: the mapping file of a logger's TDMS/MF4 files (docs/interfaces.md §3)
@@ -171,11 +171,14 @@ def _read_file(path: Where) -> _FileContents:
 
 @contextmanager
 def _translated(path: Where) -> Iterator[None]:
-    """Every low-level decoding failure becomes a RecordingError naming the file."""
+    """Every low-level decoding failure becomes a RecordingError naming the file; storage
+    that fails while the file is read says so itself (it is no damage of the file)."""
     try:
         yield
-    except RecordingError:
+    except (RecordingError, StorageError):
         raise
+    except FileNotFoundError as exc:  # gone since the run's files were listed
+        raise RecordingError(f"{path}: not found ({exc})") from exc
     except _DECODE_ERRORS as exc:
         raise RecordingError(
             f"{path}: corrupt or truncated recording ({type(exc).__name__}: {exc})"

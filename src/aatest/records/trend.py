@@ -11,15 +11,11 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.dates as mdates
 from jinja2.sandbox import ImmutableSandboxedEnvironment
 from markupsafe import Markup
-from matplotlib.figure import Figure
 
-from aatest.presentation.figures import to_svg
+from aatest.presentation.figures import new_figure, to_svg
 from aatest.records.history import display_name, fit_drift, next_due, quantity_names
 from aatest.records.models import CalibrationRecord
 
@@ -41,7 +37,7 @@ td,th{border:1px solid #ccc;padding:2px 8px;font-size:90%} figure{margin:1em 0}<
 """
 
 
-def _svg(figure: Figure) -> Markup:
+def _svg(figure: Any) -> Markup:
     return Markup(to_svg(figure, tight=True, inline=True))  # our own figure: trusted SVG
 
 
@@ -68,8 +64,8 @@ def _plot(records: Sequence[CalibrationRecord], name: str,
     when_days = mdates.date2num(when)  # matplotlib's date numbers: the axis is a date axis
     values = [r.quantities[name].value for r in rows]
     errors = [r.quantities[name].expanded_uncertainty or 0.0 for r in rows]
-    figure = Figure(figsize=(7.0, 3.0))
-    axes = figure.subplots()
+    figure, grid = new_figure(1, 7.0, 3.0)
+    axes = grid[0, 0]
     stated = any(r.quantities[name].expanded_uncertainty is not None for r in rows)
     axes.errorbar(when_days, values, yerr=errors, fmt="o", capsize=4,
                   label="calibration ± U" if stated else "calibration (U not stated)")

@@ -107,9 +107,27 @@ def translated(url: str) -> Iterator[None]:
     except (OSError, ValueError, RuntimeError) as exc:
         raise StorageError(f"{url}: {type(exc).__name__}: {exc}") from exc
     except Exception as exc:
-        if type(exc).__module__.split(".")[0] in ("botocore", "aiobotocore", "s3fs"):
+        if type(exc).__module__.split(".")[0] in _BACKEND_MODULES:
             raise StorageError(f"{url}: {type(exc).__name__}: {exc}") from exc
         raise
+
+
+#: packages whose own exceptions (not OSError) say a storage backend failed: the S3 client's,
+#: and aiohttp's (a server that closes the connection mid-response raises its
+#: ``ServerDisconnectedError``, which is no OSError)
+_BACKEND_MODULES = ("botocore", "aiobotocore", "s3fs", "aiohttp")
+
+
+@contextmanager
+def reading(url: str) -> Iterator[None]:
+    """Failures while an open object is read are a :class:`StorageError` naming ``url``
+    (exit 2): an object that vanishes after it was opened is no missing file a caller could
+    handle, but unreadable input, as is a server that stops answering mid-read."""
+    try:
+        with translated(url):
+            yield
+    except FileNotFoundError as exc:
+        raise StorageError(f"{url}: the object disappeared while it was read ({exc})") from exc
 
 
 class RemotePath:
@@ -206,7 +224,7 @@ class RemotePath:
         with translated(str(self)):
             handle = self.fs.open(self.path, mode, block_size=block_bytes,
                                   cache_type="readahead")
-        return cast("IO[Any]", _Counted(handle) if "r" in mode else handle)
+        return cast("IO[Any]", _Counted(handle, str(self)) if "r" in mode else handle)
 
     def read_bytes(self) -> bytes:
         """The whole object (for small files: results, signatures, run state)."""
@@ -256,10 +274,11 @@ FETCHED = {"bytes": 0, "handles": 0}
 
 class _Counted:
     """A read handle that adds the bytes its cache fetched to :data:`FETCHED` when closed —
-    how tests and the bench show that a partial read fetches part of an object."""
+    how tests and the bench show that a partial read fetches part of an object. Its reads
+    and seeks fail as a :class:`StorageError` naming ``url`` (see :func:`reading`)."""
 
-    def __init__(self, handle: Any) -> None:
-        self._handle = handle
+    def __init__(self, handle: Any, url: str) -> None:
+        self._handle, self._url = handle, url
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._handle, name)
@@ -272,6 +291,22 @@ class _Counted:
 
     def __iter__(self) -> Iterator[bytes]:
         return iter(self._handle)
+
+    def read(self, size: int = -1) -> bytes:
+        with reading(self._url):
+            return bytes(self._handle.read(size))
+
+    def readinto(self, buffer: Any) -> int:
+        with reading(self._url):
+            return int(self._handle.readinto(buffer))
+
+    def readline(self, size: int = -1) -> bytes:
+        with reading(self._url):
+            return bytes(self._handle.readline(size))
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        with reading(self._url):
+            return int(self._handle.seek(offset, whence))
 
     def close(self) -> None:
         if not self._handle.closed:

@@ -41,3 +41,22 @@ def test_correlation_inflation_of_white_and_coloured_residuals() -> None:
     phi = 0.8
     coloured = signal.lfilter([1.0], [1.0, -phi], white)
     assert correlation_inflation(coloured) == pytest.approx((1 + phi) / (1 - phi), rel=0.1)
+
+
+def test_scale_interval_converts_back_to_its_standard_uncertainty() -> None:
+    """``scale_ci95`` is built with the factor ``ci_std`` divides by (Z95): the standard
+    uncertainty the budget reads back from the interval is the fit's own. With the GUM's
+    rounded 1.96 it came back 1.96/1.959964 = 1 + 1.8e-5 too large."""
+    import numpy as np
+
+    from aatest.metrology.uncertainty.statistics import ci_std
+    from aatest.plugins.analysis.scale_factor import calibrate
+
+    rng = np.random.default_rng(5)
+    ref = 400.0 * np.sin(np.linspace(0.0, 20 * np.pi, 4000))
+    volts = 2.5 + 0.004 * ref + rng.normal(0.0, 1e-3, ref.size)
+    result = calibrate(volts, ref)
+    u = result["scale_u_v_per_dps2"]
+    # the half-width is the difference of two numbers ≈ scale: rounding leaves ε·scale/u of
+    # u, ≲ 1e-11 here (u ≈ 1e-5 of the scale); 1e-9 still sees the 1.8e-5 of a mixed factor
+    assert ci_std(result["scale_ci95"]) == pytest.approx(u, rel=1e-9)

@@ -190,3 +190,27 @@ def test_socketcan_vcan0_when_available() -> None:
     finally:
         daq.close()
         logger.stop()
+
+
+def test_record_is_labelled_with_the_step_rate_not_the_nominal_one() -> None:
+    """The logger runs at the step's rate (docs/interfaces.md §3): a 1 kHz step's record says
+    1 kHz although the configuration states the logger's nominal 2 kHz; so do the times the
+    record's gaps are filled with."""
+    fast = daq_log(1000)
+    record = SampledLog(DAQ, 1000.0, fast.time_s * 2.0, dict(fast.channels), dict(fast.units))
+    channel = f"can-test-{next(_names)}"
+    logger = SimCanLogger(Feeder(record), "virtual", channel,
+                          faults=CanFaultInjection(drop_frames=frozenset({999}))).start()
+    daq = CanDaq(CanDaq.Config(channel=channel, channels=["v_sz", "v_sy"], response_timeout_s=1.0,
+                               frame_timeout_s=0.5, on_frame_loss="record"), None)
+    try:
+        daq.start()
+        daq.start_logging(STEP.model_copy(update={"sample_rate_hz": 1000.0}))
+        got = daq.stop_logging()
+    finally:
+        daq.close()
+        logger.stop()
+    assert daq.config.sample_rate_hz == 2000.0 and got.sample_rate_hz == 1000.0
+    # the lost last frame's time is extrapolated at the step's period (1 ms), not the nominal
+    # 0.5 ms (the clock's jitter is 12 µs RMS at this rate: 50 µs is four of it)
+    assert got.time_s[999] == pytest.approx(got.time_s[998] + 1e-3, abs=5e-5)

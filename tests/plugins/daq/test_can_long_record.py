@@ -44,15 +44,16 @@ PROCEDURE = textwrap.dedent(f"""\
     rig: {{turntable: sim, daq: sim, chamber: none}}
     sampling: {{rate_hz: {FS_HZ:g}, settle_s: 2}}
     steps:
-      - static: {{label: up, inner_deg: 0, outer_deg: 0, duration_s: {RECORD_S:g}}}
-      - static: {{label: down, inner_deg: 0, outer_deg: 180, duration_s: {RECORD_S:g}}}
+      - static: {{label: up, inner_deg: 0, outer_deg: 0, duration_s: {RECORD_S:g},
+                  motor_on: false}}
+      - static: {{label: down, inner_deg: 0, outer_deg: 180, duration_s: {RECORD_S:g},
+                  motor_on: false}}
     analysis: [sync, bias, noise, drift]
-    acceptance: {{limits: {{noise_rms_v: 0.02}}}}
     report: {{template: calibration-certificate, sign: false}}
     """)
-# The steps hold the motor on (the modbus table keeps its servo on in a static step), and so
-# does the in-process twin they are compared with: the servo's jitter puts the output noise
-# at ≈ 7.5 mV RMS, over the datasheet's 3 mV limit, hence the procedure's own 20 mV limit.
+# The steps switch the motor off, on the modbus table as on the in-process twin they are
+# compared with: no servo jitter (≈ 7.5 mV RMS at the output with the motor on), so the noise
+# is judged against the datasheet's own limit.
 #: the runner's chunk (60 lab s) in frames (a logger block between two marks comes on top)
 CHUNK_FRAMES = int(60 * FS_HZ)
 

@@ -22,10 +22,9 @@ procedure: served-long
 sensor: {model: sr207, serial: "S-1"}
 sampling: {rate_hz: 2000, settle_s: 1}
 steps:
-  - static: {label: up, inner_deg: 0, outer_deg: 0, duration_s: 12}
-  - static: {label: down, inner_deg: 0, outer_deg: 180, duration_s: 12}
+  - static: {label: up, inner_deg: 0, outer_deg: 0, duration_s: 12, motor_on: false}
+  - static: {label: down, inner_deg: 0, outer_deg: 180, duration_s: 12, motor_on: false}
 analysis: [sync, bias, noise, drift]
-acceptance: {limits: {noise_rms_v: 0.02}}
 report: {template: calibration-certificate, sign: false}
 """
 HEAD_SAMPLES = 4000

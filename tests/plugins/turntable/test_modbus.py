@@ -94,3 +94,21 @@ def test_controller_enforces_the_declared_envelope(make_rig: Callable) -> None:
         table.begin_motion(SINE)  # 100 °/s² > the declared 80 °/s²: the controller refuses
     table.safe_stop()
     table.close()
+
+
+def test_static_step_with_the_motor_off_is_held_without_the_servo(make_rig: Callable) -> None:
+    """``motor_on: false`` reaches the controller as the simulated table honours it: the
+    step's truth has the motor off (no servo jitter on the sensor: the twin's table adds its
+    motor vibration only with the motor on), and the motor is on again for the next move."""
+    rig = make_rig()
+    rig.daq.start()
+    rig.turntable.start()
+    world = rig.server.controller.world  # test looks behind the wire
+    still = PlannedStep(id="s01-off", kind="static", samples=4096, settle_s=0.5, motor_on=False)
+    rig.turntable.move_to(0.0, 0.0)
+    rig.turntable.begin_motion(still)
+    assert world._motion[1].motor_on is False and world._motion[2].motor_on is False
+    rig.turntable.end_motion()
+    assert world.motor_on and Status.MOTOR_ON in rig.turntable._status()
+    table, _ = run_step(rig, still)  # a whole record with the motor off
+    assert len(table) == still.samples and world.motor_on

@@ -31,7 +31,7 @@ from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
-from aatest.numerics import K95
+from aatest.numerics import Z95
 from aatest.plugins.analysis import needs, polyfit
 from aatest.plugins.analysis._common import (
     fundamental,
@@ -207,7 +207,7 @@ def calibrate(volts: np.ndarray, ref_dps2: np.ndarray, inflation: float = 1.0,
     linearity_l = polyfit.linearity_l(fit, u, ideal)
     return {
         "scale_v_per_dps2": scale, "scale_u_v_per_dps2": u_scale,
-        "scale_ci95": [scale - K95 * u_scale, scale + K95 * u_scale],
+        "scale_ci95": [scale - Z95 * u_scale, scale + Z95 * u_scale],
         "offset_v": offset_v, "offset_u_v": u_offset,
         "order": order, "rmse_dps2": fit.rmse, "coefficients": fit.coefficients.tolist(),
         "ci95": fit.ci95.tolist(), "fit": fit.summary(), "volts_mean_v": v_mean,

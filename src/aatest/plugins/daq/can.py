@@ -148,6 +148,8 @@ class CanDaq:
         #: bound on the sample frames of a timed record held at once: the most waiting for
         #: their chunk plus the most received between two marks (one chunk and one block)
         self.peak_buffered_frames = 0
+        #: the rate of the record being logged (the step's; nominal until one starts)
+        self._record_rate_hz = self.config.sample_rate_hz
 
     def channels(self) -> Sequence[str]:
         return [*self._channels, *DAQ_AUX_CHANNELS]
@@ -201,10 +203,13 @@ class CanDaq:
 
     @rig_boundary
     def start_logging(self, step: PlannedStep) -> None:
-        """Start the logger (its trigger line starts the table log)."""
+        """Start the logger (its trigger line starts the table log); the record it returns
+        is labelled with the step's rate, the one the logger runs at (docs/interfaces.md §3),
+        not the configured nominal rate."""
         self._rx.samples = []
         self._rx.status = queue.Queue()
         self._rx.active = True
+        self._record_rate_hz = step.sample_rate_hz  # the logger runs at the step's rate
         self._command(cf.Opcode.START)
         self._expect(cf.LoggerState.LOGGING, "acknowledgement of START")
 
@@ -225,9 +230,8 @@ class CanDaq:
             if self.config.on_frame_loss == "fault" or not payloads:
                 raise RigFault(message)
             log.warning("%s; gaps kept as NaN samples", message)
-            decoded = cf.fill_gaps(decoded, index, len(payloads) + lost,
-                                   self.config.sample_rate_hz)
-        return self._to_log(decoded)
+            decoded = cf.fill_gaps(decoded, index, len(payloads) + lost, self._record_rate_hz)
+        return self._to_log(decoded, self._record_rate_hz)
 
     def stream_logging(self, step: PlannedStep, chunk_s: float) -> Iterator[SampledLog]:
         """Ask the logger for a timed record of the step's span (TIMED_START: it ends the record

@@ -12,12 +12,9 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
-import matplotlib
 import numpy as np
-from matplotlib.figure import Figure
-from matplotlib.typing import RcKeyType
 from scipy import signal
 
 from aatest.numerics import Z95
@@ -29,6 +26,10 @@ from aatest.results.scale_factor import ScaleFactorChannel
 from aatest.results.sensor import SensorInfo
 from aatest.results.temperature import TemperatureChannel
 from aatest.results.transfer_function import TfModel
+
+if TYPE_CHECKING:  # matplotlib is imported when a plot is drawn (aatest.presentation.figures)
+    from matplotlib.figure import Figure
+    from matplotlib.typing import RcKeyType
 
 #: applied per plot (never globally, other plugins draw with matplotlib too): text kept as
 #: text, a compact font; the SVG itself is rendered by aatest.presentation.figures
@@ -44,6 +45,8 @@ def _styled(plot: _Plot) -> _Plot:
 
     @functools.wraps(plot)
     def wrapper(*args: Any, **kwargs: Any) -> str | None:
+        import matplotlib
+
         with matplotlib.rc_context(_STYLE):
             return plot(*args, **kwargs)
 
@@ -52,6 +55,13 @@ def _styled(plot: _Plot) -> _Plot:
 
 def _svg(fig: Figure) -> str:
     return to_svg(fig)
+
+
+def _figure(width_in: float, height_in: float) -> Figure:
+    """A constrained-layout figure (matplotlib imported only now)."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width_in, height_in), layout="constrained")
 
 
 def _poly_band(entry: ScaleFactorChannel, n_coef: int, u_v: np.ndarray) -> np.ndarray | None:
@@ -86,7 +96,7 @@ def calibration_curve(entry: ScaleFactorChannel, sensor: SensorInfo,
     u_v = np.linspace(-peak * k_v, peak * k_v, 201)
     y = np.polynomial.polynomial.polyval(u_v, coefficients)
     band = _poly_band(entry, len(coefficients), u_v)
-    fig = Figure(figsize=(6.4, 4.6), layout="constrained")
+    fig = _figure(6.4, 4.6)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[2, 1])
     top.plot(u_v, y, color="C0", label=f"order {len(coefficients) - 1} fit")
     if band is not None:
@@ -130,7 +140,7 @@ def bode(points: Sequence[FrfPoint], tf: TfModel | None,
     gain = np.array([p.gain_db for p in rows])
     phase = np.array([finite(p.phase_deg) or np.nan for p in rows])
     groups = np.array([p.group or "FRF points" for p in rows])
-    fig = Figure(figsize=(6.4, 4.8), layout="constrained")
+    fig = _figure(6.4, 4.8)
     ax_g, ax_p = fig.subplots(2, 1, sharex=True)
     for i, group in enumerate(dict.fromkeys(groups)):  # one colour per test group
         sel = groups == group
@@ -162,7 +172,7 @@ def bias_vs_temperature(entry: TemperatureChannel) -> str | None:
               if finite(t) is not None and finite(b) is not None]
     if len(points) < _PAIR:
         return None
-    fig = Figure(figsize=(6.4, 3.4), layout="constrained")
+    fig = _figure(6.4, 3.4)
     ax = fig.subplots()
     for i, branch in enumerate(sorted({p[2] for p in points})):
         sel = [p for p in points if p[2] == branch]
@@ -197,7 +207,7 @@ def misalignment_plane(sets: Mapping[str, Mapping[str, SetSensor]]) -> str | Non
              for z in [_relative_cross(block[sensor])] if z is not None]
     if not drawn:
         return None
-    fig = Figure(figsize=(5.0, 4.2), layout="constrained")
+    fig = _figure(5.0, 4.2)
     ax = fig.subplots()
     for i, sensor, label, z in drawn:
         pivoted = "ABCDEFGH".find(label) % 2 == 1
@@ -227,7 +237,7 @@ def diagnosis_bars(diagnosis: Mapping[str, Any]) -> str | None:
     gain = diagnosis.get("gain") or {}
     if not candidates and not gain:
         return None
-    fig = Figure(figsize=(6.4, 3.2), layout="constrained")
+    fig = _figure(6.4, 3.2)
     ax_c, ax_g = fig.subplots(1, 2, width_ratios=[3, 1])
     names = [str(c["effect"]) for c in candidates]
     values = [float(c["delta_bic"]) for c in candidates]
@@ -251,7 +261,7 @@ def residual_steps(view: Mapping[str, Any], max_steps: int = 40) -> str | None:
     names = [str(r.get("step", i)) for i, r in enumerate(rows)]
     before = np.array([1e3 * float(r["rms_v_nominal"]) for r in rows])
     after = np.array([1e3 * (_number(r.get("rms_v_extended")) or np.nan) for r in rows])
-    fig = Figure(figsize=(6.4, 1.2 + 0.22 * len(rows)), layout="constrained")
+    fig = _figure(6.4, 1.2 + 0.22 * len(rows))
     ax = fig.subplots()
     y = np.arange(len(rows))
     ax.barh(y - 0.2, before, height=0.4, color="0.6", label="nominal simulation")

@@ -85,6 +85,8 @@ class ModbusTurntable:
         self.identity = ""
         #: (previous log id, samples) of the head log armed in begin_motion for a streamed record
         self._head_armed: tuple[int, int] | None = None
+        #: the current step holds the table with the motor off (``motor_on: false``)
+        self._motor_off = False
 
     # --- protocol plumbing -----------------------------------------------------------------
     def _call(self, what: str, fn: Callable[[ModbusTcpClient], T]) -> T:
@@ -246,6 +248,10 @@ class ModbusTurntable:
         """Write the log configuration, the settling time and the step's demands, start,
         and wait until the controller reports the profile settled.
 
+        A step with ``motor_on: false`` (static only: the twin refuses motion without the
+        motor) switches the motor off before it starts, as the simulated table does;
+        :meth:`end_motion` switches it on again.
+
         A static step longer than the log buffer is streamed by the DAQ: the log is then its
         head (:func:`~aatest.engine.procedure.envelope.head_step`), armed here, before the
         DAQ's trigger starts the record (:meth:`record` collects it afterwards).
@@ -258,6 +264,9 @@ class ModbusTurntable:
         self._write(writes)
         self._call("write LOG_LABEL", lambda c: c.write_registers(
             int(Reg.LOG_LABEL), mm.encode_label(step.id), device_id=self.config.unit_id))
+        self._motor_off = not step.motor_on
+        if self._motor_off:  # a static step at rest without the servo's jitter (it may drift)
+            self._command(Command.MOTOR_OFF)
         self._command(Command.START_MOTION)
         self._wait("settled", lambda s: Status.SETTLED in s,
                    step.settle_s + self.config.move_timeout_s)
@@ -330,7 +339,11 @@ class ModbusTurntable:
 
     @rig_boundary
     def end_motion(self) -> None:
-        """Stop the profile; the controller returns to its start position."""
+        """Stop the profile; the controller returns to its start position (the motor on
+        again after a step recorded with it off)."""
+        if self._motor_off:  # the servo back on first: it returns the table to the start
+            self._command(Command.MOTOR_ON)
+            self._motor_off = False
         self._command(Command.STOP)
         self._wait("back at the start position",
                    lambda s: Status.IN_POSITION in s and Status.MOVING not in s,

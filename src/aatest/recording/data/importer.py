@@ -43,6 +43,7 @@ from aatest.engine.rig_description import Instruments
 from aatest.engine.steps import Mounting, PlannedStep
 from aatest.numerics import TINY
 from aatest.positioned_yaml import locate, parse_yaml, read_text, validate_tree
+from aatest.recording.data import plausible
 from aatest.recording.data.csv_table import CsvColumns, read_csv
 from aatest.recording.dataset import Dataset, SensorInfo, StepData
 
@@ -258,7 +259,7 @@ def _daq_log(entry: StepEntry, csv: CsvColumns, rate_hz: float, sensors: list[st
     channels.update({ch: csv.columns[ch] for ch in sensors})
     present = list(channels)
     if "temperature_c" in csv.columns:
-        channels["temperature_c"] = _plausible_temperature(csv)
+        channels["temperature_c"] = plausible.temperature(csv)
         present.append("temperature_c")
     else:
         fill = entry.temperature_c if entry.temperature_c is not None else t_ref_c
@@ -266,21 +267,6 @@ def _daq_log(entry: StepEntry, csv: CsvColumns, rate_hz: float, sensors: list[st
     units = {ch: "V" for ch in sensors} | {"sync_pulse": "1", "trigger": "1",
                                             "temperature_c": "degC"}
     return SampledLog(DAQ, rate_hz, csv.columns["time_s"], channels, units), present
-
-
-#: temperatures (°C) a logged sensor can have: above absolute zero, below any chamber's limit
-TEMPERATURE_RANGE_C = (-273.15, 1000.0)
-
-
-def _plausible_temperature(csv: CsvColumns) -> np.ndarray:
-    """The ``temperature_c`` column, refused at its first impossible value (file and line)."""
-    values = csv.columns["temperature_c"]
-    low, high = TEMPERATURE_RANGE_C
-    bad = np.flatnonzero(~((values >= low) & (values <= high)))
-    if bad.size:
-        raise ImportDataError(csv.path, f"temperature_c {values[bad[0]]:g} °C is outside "
-                                        f"{low:g}…{high:g} °C", line=int(csv.row_lines[bad[0]]))
-    return values
 
 
 def _filled(samples: int, value: float) -> np.ndarray:
@@ -413,6 +399,8 @@ def _step(entry: StepEntry, table_csv: CsvColumns, daq_csv: CsvColumns, rate_hz:
             raise ImportDataError(csv.path, f"{len(csv)} data row(s); a step needs at least "
                                             f"{MIN_ROWS} (its time base is fitted through them)",
                                   line=int(csv.row_lines[0]) if len(csv) else None)
+    plausible.check_table(table_csv)
+    plausible.check_volts(daq_csv, sensor_channels)
     table, table_present = _table_log(entry, table_csv, rate_hz)
     daq, daq_present = _daq_log(entry, daq_csv, rate_hz, sensor_channels, t_ref_c)
     return (StepData(_planned(entry, len(table), rate_hz), table, daq),

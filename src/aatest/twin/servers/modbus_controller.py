@@ -278,7 +278,7 @@ class SimController:
         if code not in Mode._value2member_map_:
             return Refusal.UNKNOWN_COMMAND
         mode = Mode(code)
-        if not self.world.motor_on:
+        if not self.world.motor_on and mode != Mode.HOLD:  # holding at rest needs no motor
             return Refusal.MOTOR_OFF
         refusal = self._check_user_limits(mode)
         if refusal:
