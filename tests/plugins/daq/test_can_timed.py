@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -134,10 +135,10 @@ def _collect(daq: CanDaq, chunk_s: float = 6.0) -> tuple[list[SampledLog], RigFa
 
 
 def _settled(monitor: Monitor, last: str) -> list[tuple[str, int]]:
-    """The monitor's transcript once the ``last`` line arrived (the notifier thread lags)."""
-    for _ in range(100):
-        if monitor.lines and monitor.lines[-1][0] == last:
-            break
+    """The monitor's transcript once the ``last`` line arrived (the notifier thread lags; on
+    a loaded machine by seconds, so the wait ends on the line, with 10 s as the limit)."""
+    deadline_s = time.monotonic() + 10.0
+    while not (monitor.lines and monitor.lines[-1][0] == last) and time.monotonic() < deadline_s:
         threading.Event().wait(0.02)
     return list(monitor.lines)
 
