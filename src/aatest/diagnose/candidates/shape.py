@@ -211,8 +211,33 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
     """Play operator half width, fitted jointly with the ±1-sample alignment nuisance.
 
     Hysteresis lags a sine by ≈ r/A rad, comparable to the sync's sub-sample offset at large
-    amplitude; the two separate because only hysteresis grows as the amplitude falls.
+    amplitude; the two separate because only hysteresis grows as the amplitude falls. A dead
+    band narrower than one step of the stated converter is vetoed (:func:`_below_converter`).
     """
+    out = _fit_play(ctx)
+    out.veto = _below_converter(ctx, out)
+    return out
+
+
+def _below_converter(ctx: Context, out: CandidateFit) -> str | None:
+    """Why a fitted play operator is not evidence of sensor hysteresis, or None.
+
+    A play of half width r moves the reading by at most r·|K| (V); an ideal converter of step q
+    rounds it by up to q/2, so a dead band 2·r·|K| within one step q is an error the logger's
+    own staircase makes as well: the data cannot attribute it to the sensor, and a sub-step
+    play that lowers the residual is fitting structure of another origin below the logger's
+    resolution (docs/interfaces.md §4). Without a stated logger the default one (±10 V,
+    16 bit, q = 305 µV) applies, as in the uncertainty budget's resolution row.
+    """
+    band_v = 2.0 * out.parameters["half_width_dps2"] * abs(ctx.scale_of(out.fit))
+    if band_v > ctx.converter_step_v:
+        return None
+    return (f"dead band 2·r·|K| = {band_v * 1e6:.0f} µV is within one step of the stated "
+            f"converter (q = {ctx.converter_step_v * 1e6:.0f} µV): below the logger's resolution")
+
+
+def _fit_play(ctx: Context) -> CandidateFit:
+    """The play operator's half width that best explains the data (no veto)."""
     base = ctx.current.spec
     peak = dynamic_peak_dps2(ctx)
     hi = 0.1 * peak
