@@ -12,6 +12,7 @@ waveform error smaller than the converter's own rounding is not the sensor's.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -88,12 +89,12 @@ def stated_converter(dataset: Dataset) -> tuple[LoggerSpec, str]:
     the stated default logger (:class:`~aatest.engine.rig_description.LoggerSpec`, ±10 V / 16 bit).
     """
     rig = dataset.metadata.get("rig")
-    instruments = rig.get("instruments") if isinstance(rig, dict) else None
-    if isinstance(instruments, dict) and isinstance(instruments.get("logger"), dict):
+    instruments = rig.get("instruments") if isinstance(rig, Mapping) else None
+    if isinstance(instruments, Mapping) and isinstance(instruments.get("logger"), Mapping):
         return LoggerSpec.model_validate(instruments["logger"]), "rig description"
     model = dataset.metadata.get("model")
-    daq = model.get("daq") if isinstance(model, dict) else None
-    if isinstance(daq, dict) and "adc_bits" in daq and "adc_range_v" in daq:
+    daq = model.get("daq") if isinstance(model, Mapping) else None
+    if isinstance(daq, Mapping) and "adc_bits" in daq and "adc_range_v" in daq:
         return (LoggerSpec(bits=daq["adc_bits"], range_v=tuple(daq["adc_range_v"])),
                 "the data's rig model")
     return LoggerSpec(), "stated default (the data state no logger)"
