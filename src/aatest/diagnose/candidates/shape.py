@@ -222,12 +222,15 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
 def _below_converter(ctx: Context, out: CandidateFit) -> str | None:
     """Why a fitted play operator is not evidence of sensor hysteresis, or None.
 
-    A play of half width r moves the reading by at most r·|K| (V); an ideal converter of step q
-    rounds it by up to q/2, so a dead band 2·r·|K| within one step q is an error the logger's
-    own staircase makes as well: the data cannot attribute it to the sensor, and a sub-step
-    play that lowers the residual is fitting structure of another origin below the logger's
-    resolution (docs/interfaces.md §4). Without a stated logger the default one (±10 V,
-    16 bit, q = 305 µV) applies, as in the uncertainty budget's resolution row.
+    A play of half width r moves the reading by at most r·|K| (V), a dead band of 2·r·|K|.
+    The logger is stated only down to its converter step q (range and bits); within one step
+    its transfer is not characterised — a real converter's code-transition hysteresis and
+    differential nonlinearity are of that size — so a dead band 2·r·|K| ≤ q lies where the
+    logger's own staircase is unknown and is not attributed to the sensor, even when noise
+    dithers it finely enough for the fit to resolve it. A sub-step play that lowers the
+    residual may as well be fitting structure of another origin (docs/interfaces.md §4).
+    Without a stated logger the stated default (±10 V, 16 bit, q = 305 µV) applies, as in
+    the uncertainty budget's resolution row.
     """
     band_v = 2.0 * out.parameters["half_width_dps2"] * abs(ctx.scale_of(out.fit))
     if band_v > ctx.converter_step_v:
