@@ -16,6 +16,9 @@ Rules a user should know, because the data alone cannot decide them:
   white noise — plus the logger's pre-sample filter when the data's model states one, or when
   the residual noise visibly rolls off like the rig's documented 100 Hz filter (docs/method.md
   §1.3); with white noise the replay that fits the signal better decides.
+* **Converter.** The logger's converter is the one the data state (rig description, else the
+  data's rig model, else the stated default ±10 V / 16 bit): a hysteresis dead band within one
+  of its steps is not attributed to the sensor, and its q/√12 bounds the excess-noise floor.
 * **Alignment.** Without ``fp_latch_s`` the sync pulse aligns the loggers to about one sample:
   the nominal model may shift the sensor by up to 1.5 samples (±½ for the edge estimate, one
   for the rule), and a delay, lead (jerk term) or dynamics whose lag is within that is never

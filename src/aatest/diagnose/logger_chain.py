@@ -1,12 +1,18 @@
-"""Which logger chain the nominal replay assumes: the pre-sample filter question.
+"""Which logger chain the nominal replay assumes: the pre-sample filter and the converter.
 
 The documented rig's sensor logger has a 100 Hz 2nd-order pre-sample filter (docs/method.md §1.3);
 data from other tools may have none. The data's model file decides when it exists; otherwise
 the residual noise does, because the filter shapes the sensor noise it records.
+
+The converter (input range and bits, so its step q) is the logger the data state: the rig
+description's ``instruments.logger`` recorded with them, else the data's rig model, else the
+stated default (±10 V, 16 bit). Its step bounds what the data can attribute to the sensor: a
+waveform error smaller than the converter's own rounding is not the sensor's.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +22,7 @@ from aatest.diagnose.alignment import nominal_fit
 from aatest.diagnose.candidates.base import Context
 from aatest.diagnose.design import ChannelInfo, predict
 from aatest.diagnose.replay import Replay
+from aatest.engine.rig_description import LoggerSpec
 from aatest.numerics import TINY
 from aatest.recording.dataset import Dataset
 from aatest.twin.daq import antialias_filter
@@ -71,6 +78,26 @@ def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
         if "daq" in rig.model_fields_set:  # a sensor-only model file states no logger
             return True, rig.daq.antialias_hz
     return False, None
+
+
+def stated_converter(dataset: Dataset) -> tuple[LoggerSpec, str]:
+    """(converter, where it is stated) of the sensor logger the data were recorded with.
+
+    The rig description's ``instruments.logger`` recorded with the data comes first (the one
+    source the uncertainty budget's resolution row reads too); a simulated dataset's rig model
+    states the converter it quantised with (``daq.adc_bits``, ``daq.adc_range_v``); otherwise
+    the stated default logger (:class:`~aatest.engine.rig_description.LoggerSpec`, ±10 V / 16 bit).
+    """
+    rig = dataset.metadata.get("rig")
+    instruments = rig.get("instruments") if isinstance(rig, Mapping) else None
+    if isinstance(instruments, Mapping) and isinstance(instruments.get("logger"), Mapping):
+        return LoggerSpec.model_validate(instruments["logger"]), "rig description"
+    model = dataset.metadata.get("model")
+    daq = model.get("daq") if isinstance(model, Mapping) else None
+    if isinstance(daq, Mapping) and "adc_bits" in daq and "adc_range_v" in daq:
+        return (LoggerSpec(bits=daq["adc_bits"], range_v=tuple(daq["adc_range_v"])),
+                "the data's rig model")
+    return LoggerSpec(), "stated default (the data state no logger)"
 
 
 def residual_noise_psd(ctx: Context, at_rest: bool = False

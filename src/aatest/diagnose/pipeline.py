@@ -23,7 +23,12 @@ from aatest.diagnose.candidates.logger import (
 )
 from aatest.diagnose.design import Fit, predict
 from aatest.diagnose.figures import residual_figures
-from aatest.diagnose.logger_chain import channel_info, logger_options, targets_of
+from aatest.diagnose.logger_chain import (
+    channel_info,
+    logger_options,
+    stated_converter,
+    targets_of,
+)
 from aatest.diagnose.noise_floor import EXPLAINED_RATIO, METHOD, NoiseFloor, noise_floor
 from aatest.diagnose.replay import Replay, replay_dataset
 from aatest.diagnose.residuals import residual_views
@@ -46,7 +51,8 @@ def diagnose_channel(dataset: Dataset, replay: Replay, channel: str,
                      corner: float | None) -> tuple[ChannelResult, Context]:
     """Nominal fit, noise correlation and forward selection for one channel."""
     ctx = Context(replay, channel_info(dataset, channel, corner, replay.t_ref_c),
-                  targets_of(replay, channel), None)  # type: ignore[arg-type]
+                  targets_of(replay, channel), None,  # type: ignore[arg-type]
+                  converter_step_v=stated_converter(dataset)[0].step_v)
     nominal = nominal_fit(ctx)
     ctx.current = nominal
     ctx.correlation = correlation_factor(ctx, nominal)
@@ -239,6 +245,7 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
     findings = sorted(_dedupe_table_effects(findings), key=lambda f: f.delta_bic)
     explain_refusals(candidates)
     before, named, after = np.sqrt(sse / n_total)
+    converter, converter_source = stated_converter(dataset)
     doc = {
         "baseline": {"rmse_v": float(before)},
         "findings": [f.as_dict() for f in findings],
@@ -249,7 +256,9 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
         "candidates": candidates,
         "channels": channels,
         "logger": {"antialias_hz": corner, "source": source, "t_ref_c": replay.t_ref_c,
-                   "fp_latch_s": replay.fp_latch, "clock_tolerance_ppm": tol},
+                   "fp_latch_s": replay.fp_latch, "clock_tolerance_ppm": tol,
+                   "converter": {"range_v": list(converter.range_v), "bits": converter.bits,
+                                 "step_v": converter.step_v, "source": converter_source}},
         "residuals": views,
         "steps_skipped": list(replay.skipped),
     }

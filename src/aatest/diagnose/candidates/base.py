@@ -38,6 +38,9 @@ class Context:
     step_cache: dict[Any, Any] = field(default_factory=dict)
     #: effects accepted so far (their shape parameters are in ``current`` and stay there)
     accepted: set[str] = field(default_factory=set)
+    #: one step q of the stated sensor logger's converter (V; 0 = an ideal converter): a
+    #: waveform error the converter's own rounding can make is not evidence of a sensor effect
+    converter_step_v: float = 0.0
 
     def fit(self, spec: Spec) -> Fit:
         """Fit (memoised) a spec on this channel."""

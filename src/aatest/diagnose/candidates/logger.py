@@ -27,6 +27,8 @@ DEFAULT_CLOCK_TOLERANCE_PPM = 20.0
 MAX_DRIFT_PPM = 2000.0
 #: a white floor below this is ADC quantisation and numerical noise, not an effect (V)
 MIN_EXCESS_RMS_V = 2e-4
+#: a white floor within this factor of the stated converter's q/√12 is its quantisation noise
+QUANTISATION_MARGIN = 2.0
 #: without a pre-sample filter, noise must exceed the stated sensor noise by this factor
 NOISE_MARGIN = 1.25
 #: Welch segment (samples) of the residual spectrum; shorter records are left out
@@ -139,22 +141,27 @@ def excess_noise(ctx: Context, residuals: dict[int, np.ndarray], stated_noise_v:
     """(excess RMS V, 95 % interval, veto reason or None, ΔBIC).
 
     ΔBIC compares a white floor of fitted variance with the expected floor σ0 (quantisation
-    level behind a pre-sample filter, else the stated sensor noise) on the samples of the
-    band used: −N·(r − 1 − ln r) + ln N with r = σ̂²/σ0² (a one-parameter variance test).
+    level of the stated converter behind a pre-sample filter, else the stated sensor noise)
+    on the samples of the band used: −N·(r − 1 − ln r) + ln N with r = σ̂²/σ0² (a
+    one-parameter variance test).
     """
     floor, _ = white_floor_rms_v(ctx, residuals)
     n = sum(r.size for r in residuals.values())
     corner = ctx.info.antialias_hz
     filtered = corner is not None
-    sigma0 = 0.5 * MIN_EXCESS_RMS_V if filtered else max(stated_noise_v, 1e-9)
+    # behind a filter the floor's expected level is the converter's: q/√12 of the stated logger
+    # (16 bit over ±10 V: 88 µV), within QUANTISATION_MARGIN; never below MIN_EXCESS_RMS_V
+    min_excess = max(MIN_EXCESS_RMS_V, QUANTISATION_MARGIN * ctx.converter_step_v / np.sqrt(12.0))
+    sigma0 = 0.5 * min_excess if filtered else max(stated_noise_v, 1e-9)
     n_band = n * (0.45 - 4.0 * corner * ctx.replay.dt_s if corner is not None else 0.2) * 2
     ratio = max(floor**2 / sigma0**2, 1e-12)
     dbic = float(-max(n_band, 1.0) * (ratio - 1.0 - np.log(ratio)) * (1 if ratio > 1 else -1)
                  + np.log(max(n_band, 2.0)))
     if filtered:
         value = floor
-        veto = (None if value >= MIN_EXCESS_RMS_V
-                else "no white floor above the pre-sample filter band")
+        veto = (None if value >= min_excess
+                else f"no white floor above the pre-sample filter band beyond "
+                     f"{min_excess * 1e6:.0f} µV (quantisation and numerical noise)")
     else:
         value = float(np.sqrt(max(floor**2 - stated_noise_v**2, 0.0)))
         veto = None if floor >= NOISE_MARGIN * stated_noise_v else (

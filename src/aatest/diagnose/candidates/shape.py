@@ -211,8 +211,36 @@ def fit_hysteresis(ctx: Context) -> CandidateFit:
     """Play operator half width, fitted jointly with the ±1-sample alignment nuisance.
 
     Hysteresis lags a sine by ≈ r/A rad, comparable to the sync's sub-sample offset at large
-    amplitude; the two separate because only hysteresis grows as the amplitude falls.
+    amplitude; the two separate because only hysteresis grows as the amplitude falls. A dead
+    band narrower than one step of the stated converter is vetoed (:func:`_below_converter`).
     """
+    out = _fit_play(ctx)
+    out.veto = _below_converter(ctx, out)
+    return out
+
+
+def _below_converter(ctx: Context, out: CandidateFit) -> str | None:
+    """Why a fitted play operator is not evidence of sensor hysteresis, or None.
+
+    A play of half width r moves the reading by at most r·|K| (V), a dead band of 2·r·|K|.
+    The logger is stated only down to its converter step q (range and bits); within one step
+    its transfer is not characterised — a real converter's code-transition hysteresis and
+    differential nonlinearity are of that size — so a dead band 2·r·|K| ≤ q lies where the
+    logger's own staircase is unknown and is not attributed to the sensor, even when noise
+    dithers it finely enough for the fit to resolve it. A sub-step play that lowers the
+    residual may as well be fitting structure of another origin (docs/interfaces.md §4).
+    Without a stated logger the stated default (±10 V, 16 bit, q = 305 µV) applies, as in
+    the uncertainty budget's resolution row.
+    """
+    band_v = 2.0 * out.parameters["half_width_dps2"] * abs(ctx.scale_of(out.fit))
+    if band_v > ctx.converter_step_v:
+        return None
+    return (f"dead band 2·r·|K| = {band_v * 1e6:.0f} µV is within one step of the stated "
+            f"converter (q = {ctx.converter_step_v * 1e6:.0f} µV): below the logger's resolution")
+
+
+def _fit_play(ctx: Context) -> CandidateFit:
+    """The play operator's half width that best explains the data (no veto)."""
     base = ctx.current.spec
     peak = dynamic_peak_dps2(ctx)
     hi = 0.1 * peak
