@@ -36,6 +36,21 @@ def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0) -> 
     return fig, fig.subplots(rows, 1, squeeze=False)
 
 
+def frequency_axis(*axes: Any) -> None:
+    """Log frequency axes whose decades are labelled as plain numbers (0.1, 1, 10, 100 Hz).
+
+    Why: matplotlib labels log decades in mathtext (10⁻¹, 10⁰, …), which every renderer parses
+    anew with pyparsing, twice per figure (the layout's Agg pass and the SVG): measured, ≈ 30 %
+    of a Bode figure's rendering time, for labels a reader takes in faster as numbers. Minor
+    ticks keep matplotlib's own labels (shown only on an axis spanning about a decade or less).
+    """
+    from matplotlib.ticker import StrMethodFormatter  # lazily: validate imports no matplotlib
+
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(StrMethodFormatter("{x:g}"))
+
+
 def content_salt(fig: Figure) -> str:
     """A digest of what a figure shows: its axes' texts and the data of their lines and
     collections (the salt of its SVG element ids)."""

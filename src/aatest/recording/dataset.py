@@ -9,7 +9,7 @@ where the data came from and can always be re-run offline. Its per-channel senso
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Container, Iterator, Mapping, Sequence
+from collections.abc import Callable, Container, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -122,7 +122,7 @@ class StepWatch:
         The reduction of the decoded step (the union of the channels, and the time stamps).
     """
 
-    channels: Callable[[PlannedStep], Mapping[str, Collection[str]]]
+    channels: Callable[[PlannedStep], Mapping[str, Container[str]]]
     applies: Callable[[PlannedStep], bool]
     reduce: Callable[[StepData], Any]
 

@@ -31,6 +31,7 @@ from aatest.engine.analysis import plugins as _plugins
 from aatest.engine.analysis.plugins import AnalysisEntry, AnalysisPlugin
 from aatest.engine.errors import AnalysisError, PluginError
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.recording import temperatures
 from aatest.recording.dataset import Dataset
 
 log = logging.getLogger("aatest.analysis")
@@ -150,9 +151,10 @@ def _run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
                   options: Mapping[str, BaseModel] | None) -> AnalysisResults:
     from aatest.metrology.uncertainty.evidence import watch
 
-    # the uncertainty stage reads every sine step after this pass: measured while the pass
-    # decodes them, it need not decode them again
+    # the uncertainty stage and the results' logged-temperature summary read every step after
+    # this pass: measured while the pass decodes them, they need not decode them again
     watch(data)
+    temperatures.watch(data)
     explicit = bool(requested)
     names = _requested_names(requested) if explicit else _plugins.installed_names()
     chosen = dict(_plugins.requested_options(requested)) | dict(options or {})

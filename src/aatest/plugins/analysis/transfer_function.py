@@ -45,7 +45,7 @@ from aatest.plugins.analysis.tfest import (
     model_metrics,
     second_order_delay_fit,
 )
-from aatest.presentation.figures import new_figure, to_svg
+from aatest.presentation.figures import frequency_axis, new_figure, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfPoint
 from aatest.results.transfer_function import TransferFunctionResult
@@ -265,6 +265,7 @@ def _bode(f: np.ndarray, h: np.ndarray, model: DiscreteTf, title: str) -> str:
     ax[0, 0].set(ylabel="gain / dB", title=title)
     ax[1, 0].set(xlabel="frequency / Hz", ylabel="phase / °")
     ax[0, 0].legend(fontsize=6)
+    frequency_axis(ax[0, 0], ax[1, 0])
     fig.tight_layout()
     return to_svg(fig)
 
