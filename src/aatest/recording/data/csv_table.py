@@ -26,6 +26,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -292,7 +293,7 @@ def _arrow_table(source: pa.NativeFile, header: tuple[str, ...], wanted: list[st
     )
 
 
-def _float64_values(column: pa.ChunkedArray) -> np.ndarray:
+def _float64_values(column: pa.ChunkedArray[Any]) -> np.ndarray:
     """One float64 column of Arrow's parse as a NumPy array that owns its memory.
 
     The chunks' value buffers are copied straight into one array (Arrow's own
@@ -303,9 +304,11 @@ def _float64_values(column: pa.ChunkedArray) -> np.ndarray:
     out = np.empty(len(column), dtype=np.float64)
     start = 0
     for chunk in column.chunks:
-        size = len(chunk)
-        out[start:start + size] = np.frombuffer(chunk.buffers()[1], dtype=np.float64,
-                                                count=size, offset=8 * chunk.offset)
+        size, values = len(chunk), chunk.buffers()[1]
+        if size:
+            assert values is not None  # a non-empty float64 chunk has a value buffer
+            out[start:start + size] = np.frombuffer(memoryview(values), dtype=np.float64,
+                                                    count=size, offset=8 * chunk.offset)
         start += size
     return out
 
