@@ -133,8 +133,21 @@ def child(data: Path, profile: Path | None) -> None:
         "import_s": import_s, "wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime - cpu0,
         "rss_mb": usage.ru_maxrss / 1024.0,
         "findings": [f["effect"] for f in doc["findings"]],
+        "values": _six_digits(doc),
         "unexplained": [u["kind"] for u in doc["unexplained"]],
         "tested": sum(1 for c in doc["candidates"] if c.get("testable"))}))
+
+
+def _six_digits(doc: dict[str, Any]) -> list[str]:
+    """Every finding's parameters and ΔBIC, every unexplained entry's ΔBIC and the gain, to
+    6 significant digits: what an optimisation must leave unchanged."""
+    out = [f"{f['effect']} ({f.get('channel', '')}): "
+           + ", ".join(f"{k}={v:.6g}" for k, v in sorted(f["parameters"].items()))
+           + f"; ΔBIC {f['evidence']['delta_bic']:.6g}" for f in doc["findings"]]
+    out += [f"unexplained {u['kind']} ({u.get('channel', '')}): ΔBIC "
+            f"{u['evidence']['delta_bic']:.6g}" for u in doc["unexplained"]]
+    gain = doc["gain"]
+    return [*out, f"held-out RMS {gain['rmse_v_before']:.6g} → {gain['rmse_v_after']:.6g} V"]
 
 
 def bench_case(case: str, seed: int, profile: Path | None) -> dict[str, Any]:
@@ -185,11 +198,17 @@ def compare(case: str, seed: int, base_src: Path, rounds: int) -> None:
 
     bw, tw, bc, tc = med("base", "wall_s"), med("this", "wall_s"), med("base", "cpu_s"), \
         med("this", "cpu_s")
+    base_values, this_values = runs["base"][0].get("values"), runs["this"][0]["values"]
     same = runs["base"][0]["findings"] == runs["this"][0]["findings"]
+    if base_values is not None:  # a base whose bench prints them
+        same = same and base_values == this_values
+    for line in this_values:
+        mark = "" if base_values is None or line in base_values else "  (base differs)"
+        print(f"  {line}{mark}", flush=True)
     print(f"{case}: median of {rounds}: wall {bw:.1f} → {tw:.1f} s (×{bw / tw:.2f}), CPU "
           f"{bc:.1f} → {tc:.1f} s (×{bc / tc:.2f}); peak RSS {med('base', 'rss_mb'):.0f} → "
           f"{med('this', 'rss_mb'):.0f} MB; findings "
-          f"{'the same' if same else 'DIFFER'}",
+          f"{'the same (to 6 digits)' if same else 'DIFFER'}",
           flush=True)
     if case in TARGETS:
         wall_s, rss_mb = TARGETS[case]

@@ -202,6 +202,8 @@ def _eval_times(sr: StepReplay, spec: Spec) -> tuple[np.ndarray, tuple[float, fl
     tp = sr.padded_time_s
     shift = spec.shift_of(sr.index)
     t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    if spec.warp_ppm == 0.0:  # the same times (x − 0 is x), two passes fewer
+        return tp - shift, (shift, spec.warp_ppm, t_ref)
     return tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref), (shift, spec.warp_ppm, t_ref)
 
 
@@ -262,14 +264,24 @@ def _ripple_motion(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nda
     return z_inner * total
 
 
-def _chain(info: ChannelInfo, spec: Spec, dt_s: float) -> list[tuple[np.ndarray, np.ndarray]]:
+def _chain(dynamics: tuple[float, float] | None, antialias_hz: float | None, dt_s: float
+           ) -> list[tuple[np.ndarray, np.ndarray]]:
     """(b, a) of the sensor's dynamics and the logger's filter, as the design applies them."""
     out = []
-    if spec.dynamics is not None:
-        out.append(_dyn(float(spec.dynamics[0]), float(spec.dynamics[1]), round(dt_s, 15))[:2])
-    if info.antialias_hz is not None:
-        out.append(_aa(float(info.antialias_hz), round(dt_s, 15))[:2])
+    if dynamics is not None:
+        out.append(_dyn(float(dynamics[0]), float(dynamics[1]), round(dt_s, 15))[:2])
+    if antialias_hz is not None:
+        out.append(_aa(float(antialias_hz), round(dt_s, 15))[:2])
     return out
+
+
+@lru_cache(maxsize=4096)
+def _chain_response(dynamics: tuple[float, float] | None, antialias_hz: float | None,
+                    dt_s: float, omega_rad: float) -> complex | None:
+    """:func:`~aatest.diagnose.steady_state.response` of :func:`_chain` at Ω rad/sample,
+    memoised: every tone column of every step is rebuilt on each shape a search tries, most
+    of them under a chain and at a frequency met before (a few numbers per entry)."""
+    return response(_chain(dynamics, antialias_hz, dt_s), omega_rad, PAD_SAMPLES)
 
 
 def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
@@ -280,7 +292,6 @@ def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
     done: dict[str, np.ndarray] = {}
     left: list[int] = []
     step_s = float(t_eval[1] - t_eval[0])
-    chain = _chain(info, spec, sr.dt_s)
     t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
     shift = spec.shift_of(sr.index)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
@@ -288,7 +299,7 @@ def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
         if wanted.isdisjoint(names):
             continue
         w = 2 * np.pi * f_hz
-        h = response(chain, w * step_s, PAD_SAMPLES)
+        h = _chain_response(spec.dynamics, info.antialias_hz, sr.dt_s, w * step_s)
         if h is None:
             left.append(j)
             continue
@@ -392,10 +403,18 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
 
 
 def _temperature(sr: StepReplay, info: ChannelInfo, padded: int) -> np.ndarray:
-    """T − T_ref on the padded grid (edge values held), °C."""
-    if sr.temperature_c is None:
-        return np.zeros(padded)
-    return np.pad(sr.temperature_c - info.t_ref_c, PAD_SAMPLES, mode="edge")
+    """T − T_ref on the padded grid (edge values held), °C; read-only, memoised on the step
+    (every column build of every spec needs it)."""
+    key = ("temperature", info.t_ref_c, padded)
+    value = sr.memo.get(key)
+    if value is None:
+        if sr.temperature_c is None:
+            value = np.zeros(padded)
+        else:
+            value = np.pad(sr.temperature_c - info.t_ref_c, PAD_SAMPLES, mode="edge")
+        value.flags.writeable = False
+        sr.memo[key] = value
+    return value
 
 
 @dataclass

@@ -133,8 +133,14 @@ class StepReplay:
 
     @property
     def padded_time_s(self) -> np.ndarray:
-        """Record times extended by :data:`PAD_SAMPLES` on each side."""
-        return self.dt_s * np.arange(-PAD_SAMPLES, self.n + PAD_SAMPLES)
+        """Record times extended by :data:`PAD_SAMPLES` on each side (read-only, memoised:
+        every column build evaluates the motion on it)."""
+        value = self.memo.get(("padded_time_s",))
+        if value is None:
+            value = self.dt_s * np.arange(-PAD_SAMPLES, self.n + PAD_SAMPLES)
+            value.flags.writeable = False
+            self.memo[("padded_time_s",)] = value
+        return value
 
     @property
     def dynamic(self) -> bool:

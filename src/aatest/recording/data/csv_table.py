@@ -26,6 +26,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -264,7 +265,7 @@ def _read_plain(path: Path, required: Sequence[str], optional: Sequence[str]) ->
                 table = _arrow_table(source, header, wanted)
     except (pa.ArrowInvalid, pa.ArrowTypeError, OSError):
         return None
-    columns = {n: _read_only(table.column(n).to_numpy()) for n in wanted}
+    columns = {n: _read_only(_float64_values(table.column(n))) for n in wanted}
     rows = np.arange(table.num_rows, dtype=np.int64) + 2
     return CsvColumns(path, columns, header, rows)
 
@@ -277,6 +278,9 @@ def _arrow_table(source: pa.NativeFile, header: tuple[str, ...], wanted: list[st
     """
     return pa_csv.read_csv(
         source,  # type: ignore[arg-type]  # the stubs omit NativeFile
+        # malloc, whose large blocks go back to the system when freed: the default pool
+        # (mimalloc) keeps ≈ 25 MB of freed parse buffers resident after a 45 MB import
+        memory_pool=pa.system_memory_pool(),
         # one thread per file: files are read two at a time (importer), and on a busy
         # 2-core machine Arrow's block threads cost more CPU than they save wall time
         read_options=pa_csv.ReadOptions(column_names=list(header), skip_rows=1,
@@ -287,6 +291,26 @@ def _arrow_table(source: pa.NativeFile, header: tuple[str, ...], wanted: list[st
             include_columns=wanted, column_types={n: pa.float64() for n in wanted},
             strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[]),
     )
+
+
+def _float64_values(column: pa.ChunkedArray[Any]) -> np.ndarray:
+    """One float64 column of Arrow's parse as a NumPy array that owns its memory.
+
+    The chunks' value buffers are copied straight into one array (Arrow's own
+    ``to_numpy`` imports pandas, ≈ 50 MB resident and half a second, for nothing), and the
+    array owns its memory, so the parsed table is released as soon as the file is read.
+    The columns are non-null by construction (``null_values=[]``, ``*_can_be_null=False``).
+    """
+    out = np.empty(len(column), dtype=np.float64)
+    start = 0
+    for chunk in column.chunks:
+        size, values = len(chunk), chunk.buffers()[1]
+        if size:
+            assert values is not None  # a non-empty float64 chunk has a value buffer
+            out[start:start + size] = np.frombuffer(memoryview(values), dtype=np.float64,
+                                                    count=size, offset=8 * chunk.offset)
+        start += size
+    return out
 
 
 def _read_only(values: np.ndarray) -> np.ndarray:
