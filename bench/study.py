@@ -11,14 +11,13 @@ reports: the study's value, the twin's, their difference, the tolerance and whet
   roll-off at the highest frequency (9.99 Hz) against the flat level (the mean gain at
   ≤ 1 Hz), the frequency where the gain starts to fall (the lowest point from which every
   higher point is ≥ 0.1 dB below the flat level), and the phase delay's spread in samples;
-- transfer functions (the stepped sine's 400 °/s² group, the study's 28 test points): models
-  identified on points 7, 11, 15, …, 27 of the 28 (1.007, 1.999, 3.006, 5.005, 7.004 and
-  9.003 Hz — the whole frequencies of the grid) by time-domain (output-error) estimation on
-  those records, and validated in the time domain on the other 22 records with the table's
-  acceleration estimate as input (fit %, MATLAB's ``compare``);
-  without a delay and with the study's 28-sample delay. "7, 11, …, 27 of 1–28" are point
-  numbers of the 28-point matrix, not Hz: the study's FRF stops at 9.99 Hz (docs/method.md
-  §1.3, §4.4) and its identifying points are then exactly the grid's whole frequencies;
+- transfer functions (``study-transfer-function.yaml``: the study's 28 test points at
+  400 °/s²): models identified on points 7, 11, 15, …, 27 of the 28 (1.007, 1.999, 3.006,
+  5.005, 7.004 and 9.003 Hz — the grid's whole frequencies) by time-domain (output-error)
+  estimation on those records, validated in the time domain on the other 22 records with the
+  table's acceleration estimate as input (fit %, MATLAB's ``compare``); without a delay and
+  with the study's 28-sample delay. "7, 11, …, 27 of 1–28" number the 28 points, not Hz: the
+  study's FRF stops at 9.99 Hz (docs/method.md §1.3, §4.4);
 - cross-axis ratios and misalignment (``pivoted-misalignment.yaml``, the three-sensor unit).
 
 Tolerances (issue 28): FRF roll-off ± 0.15 dB, fits ± 1.5 points, L within 30 %, delays within
@@ -184,9 +183,11 @@ class TfDesign:
 
 
 def tf_design(model: RigModel, seed: int) -> TfDesign:
-    """The study's design on the twin: the 400 °/s² group of the stepped sine, points 7, 11,
-    …, 27 (1-based, frequency order) identify, the other 22 validate."""
-    steps = [s for s in _accel_steps() if abs((s.accel_dps2 or 0.0) - TF_ACCEL_DPS2) < 1e-9]
+    """The study's design on the twin (``study-transfer-function.yaml``: the stepped sine's
+    400 °/s² group): points 7, 11, …, 27 (1-based, frequency order) identify, the other 22
+    validate."""
+    steps = [s for s in _plan("study-transfer-function.yaml") if s.kind == "sine"]
+    assert len(steps) == 28 and {s.accel_dps2 for s in steps} == {TF_ACCEL_DPS2}
     data = simulate_dataset(model, steps, seed)
     points = sorted(run_analysis("frf", data).result["v_sz"], key=lambda p: p.frequency_hz)
     f = np.array([p.frequency_hz for p in points])
@@ -197,13 +198,13 @@ def tf_design(model: RigModel, seed: int) -> TfDesign:
     return TfDesign(f, h, ident, valid, _records(data, f[valid]), dt, _records(data, f[ident]))
 
 
-def tf_fits(design: TfDesign, delays: Sequence[int] = (0, STUDY_DELAY_SAMPLES)
-            ) -> dict[tuple[int, int, int], float]:
+def tf_fits(design: TfDesign, delays: Sequence[int] = (0, STUDY_DELAY_SAMPLES),
+            max_poles: int = 5) -> dict[tuple[int, int, int], float]:
     """Time-domain validation fit % of every (poles, zeros, delay) model, each estimated in
     the time domain (output error, stable by construction) on the identification records as
     the study's ``tfest`` did, started from the fit to their FRF points."""
     fits = {}
-    for n in range(6):
+    for n in range(max_poles + 1):
         for m in range(n + 1):
             for d in delays:
                 start = fit_discrete_tf(design.f_hz[design.ident], design.h[design.ident], n, m,

@@ -97,7 +97,7 @@ def fit_discrete_tf_oe(records: Sequence[tuple[np.ndarray, np.ndarray]], n: int,
     if start is not None and stable_start:
         num0, den0 = np.asarray(start.num, np.float64), np.asarray(start.den, np.float64)
     else:
-        den0 = np.poly(_START_POLES[:n]) if n else np.ones(1)
+        den0 = np.asarray(np.poly(_START_POLES[:n]) if n else np.ones(1), dtype=np.float64)
         gain = float(np.sum(weight**2 * (g_hat * shift.conj()).real) / np.sum(weight**2))
         num0 = np.zeros(m + 1)
         num0[0] = gain * float(np.sum(den0))
