@@ -78,7 +78,8 @@ KNOWN_MISSES = {
                                   "the dithered hysteresis ±2.5 at 0.4–0.5 Hz",
     "TF00": "a gain-only model with the study's own 24–31-sample lag fits ≤ 66 % on its 22 "
             "validation points (≤ 72 % as a mean of records); 78.56 % needs ≈ 15 samples "
-            "(bench/study_gaps.py --only tf00)",
+            "with the raw input estimate; through a causal 50 Hz low-pass (≈ 9 samples) the "
+            "twin gives 77.6 % (bench/study_gaps.py --only tf00 tf)",
     "best model fit, 28-sample delay": "time-domain estimation puts it at ≈ 96.8 % (n ≤ 3), "
                                        "3.1 points under the twin's best models as the study's "
                                        "are 3–6 under theirs; the twin's best (99.9 %) is 1.3 "
