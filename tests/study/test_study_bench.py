@@ -76,16 +76,22 @@ KNOWN_MISSES = {
     "gain starts to fall": "a linear roll-off of ≤ 1 dB at 10 Hz is ≤ 0.05 dB at 2 Hz",
     "phase delay spread, 1 °/s²": "the damping that gives 1 dB adds ≈ 4 samples of lag and "
                                   "the dithered hysteresis ±2.5 at 0.4–0.5 Hz",
-    "TF00": "a gain-only model's fit is set by the phase lag the FRF rows reproduce",
-    "best model fit, 28-sample delay": "28 samples exceed the twin's ≈24.5-sample lag at "
-                                       "400 °/s²: models with poles go unstable, TF00 ≈ 88 %",
+    "TF00": "a gain-only model with the study's own 24–31-sample lag fits ≤ 66 % on its 22 "
+            "validation points (≤ 72 % as a mean of records); 78.56 % needs ≈ 15 samples "
+            "with the raw input estimate; through a causal 50 Hz low-pass (≈ 9 samples) the "
+            "twin gives 77.6 % (bench/study_gaps.py --only tf00 tf)",
+    "best model fit, 28-sample delay": "time-domain estimation puts it at ≈ 96.8 % (n ≤ 3), "
+                                       "3.1 points under the twin's best models as the study's "
+                                       "are 3–6 under theirs; the twin's best (99.9 %) is 1.3 "
+                                       "above the study's, and the row sits ≈ 1.5 above its",
     "cross-axis ratio range": "the unit's drawn mounting errors reach 1.19 %",
 }
 
 
 @pytest.mark.slow
 def test_every_study_row() -> None:
-    """Every bench row (≈ 10 min on one core): within tolerance, or a known miss."""
+    """Every bench row (≈ 27 min CPU; the transfer-function section's 42 output-error fits
+    ≈ 17 of it): within tolerance, or a known miss."""
     model = realistic_rig_model()
     rows = [row for section in bench.SECTIONS.values() for row in section(model, 7)]
     unexpected = [f"{r.name}: twin {r.twin}, study {r.study}" for r in rows
