@@ -235,26 +235,27 @@ def test_pivoted_misalignment_matches_the_in_process_twin(tmp_path: Path) -> Non
 
 @pytest.mark.slow
 def test_study_transfer_function_matches_the_in_process_twin(tmp_path: Path) -> None:
-    """`study-transfer-function` (400 °/s², whole frequencies 1–10 Hz) with records of 7 s
-    instead of 70 s (14 000 samples, still whole cycles: c = 7·f) through the ACUTROL
-    oscillation demand and the CAN logger: every FRF point, the chosen discrete model and its
-    continuous equivalent match the in-process twin."""
+    """`study-transfer-function` (400 °/s², identified on 1, 2, 3, 5, 7 and 9 Hz) on its whole
+    frequencies 1–9 Hz only, with records of 7 s instead of 65.5 s (14 000 samples, still whole
+    cycles: c = 7·f), through the ACUTROL oscillation demand and the CAN logger: every FRF
+    point, the chosen discrete model and its continuous equivalent match the in-process twin."""
     rig = RigProcess("espec", multicast_group()).start()
     try:
         text = shipped("study-transfer-function", **{
-            r"samples: 140000": "samples: 14000", r"settle_s: 5": "settle_s: 1",
-            r"cycles: \[[^\]]*\]": "cycles: [7, 14, 21, 28, 35, 42, 49, 56, 63, 70]"})
+            r"samples: 131072": "samples: 14000", r"settle_s: 5": "settle_s: 1",
+            r"frequencies:\n(?: {8,}.*\n)+":
+                "frequencies: {include: [1, 2, 3, 4, 5, 6, 7, 8, 9], snap: coherent}\n"})
         wire, twin = analyses(tmp_path, rig, text)
     finally:
         rig.stop()
     # The runs draw the same seeded samples and differ only by the CAN logger's f32 volts:
     # ≤ 6e-8 relative on each fundamental, i.e. ≤ 5.2e-7 dB and 3.4e-6° per FRF point
-    # (measured: 7e-15 dB, 5e-12°). The models are least-squares fits of these 10 points:
+    # (measured: 7e-15 dB, 5e-12°). The models are least-squares fits of these 9 points:
     # 1e-5 relative allows their parameters a condition number of ~100 (measured: 4e-11 on the
     # natural frequency, 3e-12 on the DC gain), 1e-3 % the fit (measured 3e-9 %), while a
     # changed structure or delay would show.
     points_wire, points_twin = wire["frf"]["v_sz"], twin["frf"]["v_sz"]
-    assert len(points_wire) == len(points_twin) == 10
+    assert len(points_wire) == len(points_twin) == 9
     for p_wire, p_twin in zip(points_wire, points_twin, strict=True):
         assert p_wire["gain_db"] == pytest.approx(p_twin["gain_db"], abs=1e-6)
         assert p_wire["phase_deg"] == pytest.approx(p_twin["phase_deg"], abs=1e-5)
