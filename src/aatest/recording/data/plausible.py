@@ -31,7 +31,8 @@ TEMPERATURE_RANGE_C = (-273.15, 1000.0)
 
 
 def range_of(column: str) -> tuple[float, float, str] | None:
-    """The possible ``(low, high, unit)`` of a table column by its name's unit, else None."""
+    """The possible ``(low, high, unit)`` of a table column by its name's unit, else None:
+    the limits in that unit (°, °/s or °/s²)."""
     for suffix, limit, unit in (("_deg", POSITION_LIMIT_DEG, "°"), ("_dps", RATE_LIMIT_DPS, "°/s"),
                                 ("_dps2", ACCEL_LIMIT_DPS2, "°/s²")):
         if column.endswith(suffix):
@@ -41,7 +42,8 @@ def range_of(column: str) -> tuple[float, float, str] | None:
 
 def checked(csv: CsvColumns, column: str, low: float, high: float, unit: str) -> np.ndarray:
     """``column`` of ``csv``, refused at its first value outside ``[low, high]`` (file, line,
-    column and the range in the message)."""
+    column and the range in the message); ``low`` and ``high`` are in the column's ``unit``
+    (°, °/s, °/s² or V)."""
     values = csv.columns[column]
     bad = np.flatnonzero(~((values >= low) & (values <= high)))
     if bad.size:
