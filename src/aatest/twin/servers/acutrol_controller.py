@@ -28,7 +28,6 @@ back to the original mounting, not re-mounted.
 
 from __future__ import annotations
 
-import itertools
 import logging
 import math
 import threading
@@ -38,11 +37,12 @@ from typing import get_args
 
 import numpy as np
 
-from aatest.engine.errors import EnvelopeRefused, RigFault
+from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.logs import TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import Mounting, PlannedStep, Remount
 from aatest.rig_defaults import LOG_RATE_HZ
 from aatest.twin.servers.acutrol_parse import Command, CommandError, axis_of, numbers
+from aatest.twin.servers.timed_record import start_timed_record, stream_after_first_chunk
 from aatest.twin.world import World
 
 log = logging.getLogger("aatest.sim.acutrol")
@@ -297,17 +297,13 @@ class AcutrolController:
         with self.lock:
             if self._daq_started or not self._motion:
                 raise ValueError("no step in motion, or a record already running")
-            try:
-                self.world.set_record_samples(samples)
-            except RigFault as exc:
-                raise ValueError(str(exc)) from exc
-            self.world.start_daq()
+            start_timed_record(self.world, samples)
             self._daq_started = self._streamed = True
-        chunks = self.world.stream_daq(1)
-        first = next(chunks, None)
+        return stream_after_first_chunk(self.world, self._record_under_lock)
+
+    def _record_under_lock(self) -> None:
         with self.lock:
             self._maybe_record()
-        return itertools.chain([] if first is None else [first], chunks)
 
     def _maybe_record(self) -> None:
         if self.log.state != "ARMED" or not self._daq_started:

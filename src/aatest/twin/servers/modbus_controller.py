@@ -20,7 +20,6 @@ answering when a record starts, answer slowly, or stop answering from a given co
 
 from __future__ import annotations
 
-import itertools
 import logging
 import threading
 from collections.abc import Callable, Iterator
@@ -28,12 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aatest.engine.errors import EnvelopeRefused, RigFault
+from aatest.engine.errors import EnvelopeRefused
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.protocols import modbus_map as mm
 from aatest.protocols.modbus_map import Command, Fault, Mode, Refusal, Reg, Status
 from aatest.twin.model import RigModel
+from aatest.twin.servers.timed_record import start_timed_record, stream_after_first_chunk
 from aatest.twin.world import World
 
 log = logging.getLogger("aatest.sim.modbus")
@@ -359,18 +359,14 @@ class SimController:
         with self._lock:
             if self._fault or self._daq_started:
                 raise ValueError("controller fault active or a record already running")
-            try:
-                self.world.set_record_samples(samples)
-            except RigFault as exc:
-                raise ValueError(str(exc)) from exc
-            self.world.start_daq()
+            start_timed_record(self.world, samples)
             self._daq_started = self._streamed = True
             self._status |= Status.TRIGGER_SEEN
-        chunks = self.world.stream_daq(1)
-        first = next(chunks, None)
+        return stream_after_first_chunk(self.world, self._record_under_lock)
+
+    def _record_under_lock(self) -> None:
         with self._lock:
             self._maybe_record()
-        return itertools.chain([] if first is None else [first], chunks)
 
     def _maybe_record(self) -> None:
         if not (self._armed and self._daq_started) or self._record is not None:
