@@ -23,7 +23,7 @@ as float64). Lines end in ``\n``; the header is never quoted.
 from __future__ import annotations
 
 import math
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -35,6 +35,7 @@ from ruamel.yaml import YAML
 
 from aatest.engine.errors import InputError
 from aatest.engine.logs import SampledLog
+from aatest.engine.rig_description import Instruments
 from aatest.engine.simulation import SIMULATED_PARTS_KEY, simulated_parts
 from aatest.engine.steps import Mounting, PlannedStep
 from aatest.recording.data.importer import DAQ_REQUIRED, MANIFEST, TABLE_REQUIRED
@@ -159,9 +160,36 @@ def manifest(dataset: Dataset, entries: list[dict[str, Any]]) -> dict[str, Any]:
         doc["report_template"] = template
     if parts := simulated_parts(dataset.metadata):  # exported simulations stay simulations
         doc[SIMULATED_PARTS_KEY] = parts
+    if (instruments := stated_instruments(dataset)) is not None:
+        doc["instruments"] = instruments
     doc["sensors"] = [s.model_dump(mode="json") for s in dataset.sensors]
     doc["steps"] = entries
     return doc
+
+
+def stated_instruments(dataset: Dataset) -> dict[str, Any] | None:
+    """The rig description's ``instruments`` block recorded with ``dataset``, or None.
+
+    Why: an import reads the stated logger, encoder and thermometer from this block
+    (diagnose's converter, the uncertainty budgets); without it an analysis of the export would
+    silently fall back to the stated defaults. Only what the rig description states is written
+    (``exclude_unset``), as the recording keeps it, so a default stays a default after import.
+
+    Raises
+    ------
+    InputError
+        The recorded block is not a valid ``instruments`` block (it names what is wrong).
+    """
+    rig = dataset.metadata.get("rig")
+    block = rig.get("instruments") if isinstance(rig, Mapping) else None
+    if block is None:
+        return None
+    try:
+        stated = Instruments.model_validate(block)
+    except ValueError as exc:  # pydantic's ValidationError is a ValueError
+        raise InputError(f"{dataset.source}: the recorded rig description's instruments "
+                         f"cannot be exported: {exc}") from exc
+    return stated.model_dump(mode="json", exclude_unset=True)
 
 
 def _export_step(

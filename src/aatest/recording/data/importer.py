@@ -333,7 +333,10 @@ def import_dataset(directory: str | Path) -> Dataset:
         steps=tuple(steps), source=directory,
         metadata=_metadata(present, t_ref_c, model_file) | manifest.model_dump(
             include={"analysis", "report_template", "simulated_parts"}, exclude_none=True)
-        | ({"rig": {"instruments": manifest.instruments.model_dump(mode="json")}}
+        # only what the file states, as a recording keeps its rig description: a budget row
+        # tells a stated value from a declared or a default one
+        | ({"rig": {"instruments": manifest.instruments.model_dump(mode="json",
+                                                                    exclude_unset=True)}}
            if manifest.instruments is not None else {}),
     )
 

@@ -1,0 +1,71 @@
+"""``aatest export`` keeps the rig description's instruments (docs/interfaces.md §3).
+
+Without them an analysis or ``diagnose`` of the export falls back to the stated default
+logger (±10 V, 16 bit) and default encoder, not the rig's stated ones.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from ruamel.yaml import YAML
+
+from aatest.diagnose.logger_chain import stated_converter
+from aatest.engine.rig_description import Instruments
+from aatest.engine.run.session import run
+from aatest.recording import read_dataset
+from aatest.recording.data.exporter import export_csv
+
+QUICK = Path(__file__).resolve().parents[1] / "data" / "procedures"
+
+#: a 12-bit ±5 V logger, unlike the stated default (16 bit, ±10 V), so a fallback shows
+RIG_YAML = """\
+turntable: {plugin: sim}
+instruments:
+  encoder: {accuracy_arcsec: 1.5, cert_id: ENC-77, cert_date: 2026-01-12, lab: PTB}
+  logger: {bits: 12, range_v: [-5.0, 5.0], offset_accuracy_v: 0.0015, cert_id: LOG-123}
+"""
+
+
+@pytest.fixture(scope="module")
+def twin_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A twin run of the quick two-step static procedure with a stated rig description."""
+    base = tmp_path_factory.mktemp("instruments")
+    rig = base / "rig.yaml"
+    rig.write_text(RIG_YAML, encoding="utf-8")
+    out, _ = run(QUICK / "quick-static-2-steps.yaml", rig, base / "run", False, 3, None,
+                 show_progress=False, confirm_prompts="auto")
+    return Path(str(out))
+
+
+def test_export_import_round_trips_the_instruments(twin_run: Path, tmp_path: Path) -> None:
+    recorded = read_dataset(twin_run)
+    stated = recorded.metadata["rig"]["instruments"]
+    assert stated["logger"]["cert_id"] == "LOG-123"  # the run recorded the rig description
+    out = export_csv(recorded, tmp_path / "csv")
+    doc = YAML(typ="safe").load((out / "dataset.yaml").read_text(encoding="utf-8"))
+    assert Instruments.model_validate(doc["instruments"]) == Instruments.model_validate(stated)
+    imported = read_dataset(out)
+    # only what the rig description states, on both sides: a default stays a default
+    assert imported.metadata["rig"]["instruments"] == stated
+    assert "thermometer" not in imported.metadata["rig"]["instruments"]
+
+
+def test_diagnose_of_the_export_reads_the_stated_logger(twin_run: Path, tmp_path: Path) -> None:
+    imported = read_dataset(export_csv(read_dataset(twin_run), tmp_path / "csv"))
+    spec, source = stated_converter(imported)
+    assert source == "rig description"
+    assert (spec.bits, tuple(spec.range_v)) == (12, (-5.0, 5.0))
+    assert spec.step_v == pytest.approx(10.0 / 4096, rel=1e-12)  # exact: a power of two
+
+
+def test_export_without_stated_instruments_writes_none(tmp_path: Path) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("turntable: {plugin: sim}\n", encoding="utf-8")
+    out, _ = run(QUICK / "quick-static-2-steps.yaml", rig, tmp_path / "run", False, 3, None,
+                 show_progress=False, confirm_prompts="auto")
+    exported = export_csv(read_dataset(Path(str(out))), tmp_path / "csv")
+    doc = YAML(typ="safe").load((exported / "dataset.yaml").read_text(encoding="utf-8"))
+    assert "instruments" not in doc
+    assert stated_converter(read_dataset(exported))[1] != "rig description"
