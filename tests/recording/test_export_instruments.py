@@ -16,6 +16,7 @@ from aatest.engine.rig_description import Instruments
 from aatest.engine.run.session import run
 from aatest.recording import read_dataset
 from aatest.recording.data.exporter import export_csv
+from aatest.recording.data.logger_export import export_tdms
 
 QUICK = Path(__file__).resolve().parents[1] / "data" / "procedures"
 
@@ -58,6 +59,13 @@ def test_diagnose_of_the_export_reads_the_stated_logger(twin_run: Path, tmp_path
     assert source == "rig description"
     assert (spec.bits, tuple(spec.range_v)) == (12, (-5.0, 5.0))
     assert spec.step_v == pytest.approx(10.0 / 4096, rel=1e-12)  # exact: a power of two
+
+
+def test_tdms_export_round_trips_the_instruments(twin_run: Path, tmp_path: Path) -> None:
+    recorded = read_dataset(twin_run)
+    imported = read_dataset(export_tdms(recorded, tmp_path / "tdms"))
+    assert imported.metadata["rig"]["instruments"] == recorded.metadata["rig"]["instruments"]
+    assert stated_converter(imported)[1] == "rig description"
 
 
 def test_export_without_stated_instruments_writes_none(tmp_path: Path) -> None:

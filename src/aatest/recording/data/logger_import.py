@@ -147,7 +147,9 @@ def import_logger_files(mapping_path: str | Path) -> Dataset:
         "source_format": f"aatest.import/{mapping.format}"}
     metadata |= mapping.model_dump(include={"analysis", "report_template"}, exclude_none=True)
     if mapping.instruments is not None:
-        metadata["rig"] = {"instruments": mapping.instruments.model_dump(mode="json")}
+        # only what the mapping states, as a recording keeps its rig description
+        metadata["rig"] = {"instruments": mapping.instruments.model_dump(
+            mode="json", exclude_unset=True)}
     return Dataset(procedure=mapping.procedure, sample_rate_hz=rate_hz,
                    sensors=tuple(SensorInfo(**s.model_dump()) for s in mapping.sensors),
                    steps=steps, source=directory, metadata=metadata)
