@@ -342,9 +342,13 @@ def test_simulator_holds_still_with_the_motor_off_and_refuses_motion() -> None:
         table = _table(server.port)
         table.start()
         table.move_to(0.0, 0.0)
-        table.begin_motion(PlannedStep(id="s01-off", **MOTOR_OFF))
+        step = PlannedStep(id="s01-off", **MOTOR_OFF)
+        table.begin_motion(step)
         assert not world.motor_on
         assert world._motion[1].motor_on is False and world._motion[2].motor_on is False
+        server.protocol.controller.daq_start()  # type: ignore[attr-defined]  # the trigger
+        log = table.record(step)  # a whole record with the motor off
+        assert len(log) == step.samples and not world.motor_on
         table.end_motion()
         assert world.motor_on
         table.move_to(0.0, 0.0)  # the next step's move is accepted
