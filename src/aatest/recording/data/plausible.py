@@ -79,7 +79,8 @@ def temperature(csv: CsvColumns) -> np.ndarray:
 def range_of_channel(name: str, sensors: list[str]) -> tuple[float, float, str] | None:
     """The possible ``(low, high, unit)`` of a canonical channel: a table column's by its unit,
     a sensor's ±:data:`VOLTAGE_LIMIT_V`, ``temperature_c``'s :data:`TEMPERATURE_RANGE_C`;
-    None for channels with no physical range here (time, pulses, latches)."""
+    None for channels with no physical range here (time, pulses, latches). The limits are in
+    the returned unit: °, °/s, °/s², V or °C."""
     if name in sensors:
         return -VOLTAGE_LIMIT_V, VOLTAGE_LIMIT_V, "V"
     if name == "temperature_c":
