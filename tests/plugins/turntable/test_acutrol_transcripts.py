@@ -301,3 +301,60 @@ def test_unknown_sensor_model_is_bad_input() -> None:
                                       "sr999", "--can-interface", "none"])
     assert result.exit_code == 2
     assert "no sensor plugin named 'sr999' (installed: " in result.output
+
+
+# --- a static step held with the motor off (motor_on: false) ------------------------------
+MOTOR_OFF = {"kind": "static", "samples": 4000, "sample_rate_hz": 2000.0, "settle_s": 1.0,
+             "motor_on": False}
+
+
+def test_a_motor_off_step_opens_the_interlocks_and_closes_them_after() -> None:
+    """``motor_on: false``: the interlocks open (the public set's motor off, [MIT] shutdown
+    ':interlock:open 1') before the hold is armed, and close again ([MIT] startup) before the
+    table is next commanded."""
+    from aatest.engine.steps import PlannedStep
+
+    step = PlannedStep(id="s01-off", **MOTOR_OFF)
+    transcript = [
+        *START,
+        (b":XLOG:CONFIG 2000,4000,1,s01-off\r\n", OK),  # [SIM]
+        (b":INTERLOCK:OPEN 1;:INTERLOCK:OPEN 2\r\n", OK),  # [MIT] ':interlock:open 1'
+        *STATIC_TAIL,
+        (b":INTERLOCK:RESET;:INTERLOCK:CLOSE 1;:INTERLOCK:CLOSE 2\r\n", OK),  # [MIT] startup
+        (b":MODE:POSITION 1;:MODE:POSITION 2\r\n", OK),  # end of motion [WS] ':M:P 1'
+    ]
+    with TranscriptServer(transcript) as server:
+        table = _table(server.port)
+        table.start()
+        table.begin_motion(step)
+        table.end_motion()
+        table.close()
+
+
+def test_simulator_holds_still_with_the_motor_off_and_refuses_motion() -> None:
+    """Through the driver: the simulator's twin holds the motor-off step without the servo
+    (its truth has the motor off on both axes), the motor is on again after it; with the
+    interlocks open an armed sine is refused (motion needs the motor)."""
+    from aatest.engine.steps import PlannedStep
+
+    with acutrol_server(model=RigModel()) as server:
+        world = server.protocol.controller.world  # type: ignore[attr-defined]  # behind the wire
+        table = _table(server.port)
+        table.start()
+        table.move_to(0.0, 0.0)
+        step = PlannedStep(id="s01-off", **MOTOR_OFF)
+        table.begin_motion(step)
+        assert not world.motor_on
+        assert world._motion[1].motor_on is False and world._motion[2].motor_on is False
+        server.protocol.controller.daq_start()  # type: ignore[attr-defined]  # the trigger
+        log = table.record(step)  # a whole record with the motor off
+        assert len(log) == step.samples and not world.motor_on
+        table.end_motion()
+        assert world.motor_on
+        table.move_to(0.0, 0.0)  # the next step's move is accepted
+        table.write(":M:S 1;:D:O 1,1,2,0")  # a sine demanded with the motor on
+        table.write(":I:O 1;:I:O 2;:XLOG:CONFIG 2000,100,0,x")  # motor off, demand kept
+        with pytest.raises(RigFault, match=r"-221,.*interlock open"):
+            table.write(":XLOG:ARM")
+        table.safe_stop()
+        table.close()

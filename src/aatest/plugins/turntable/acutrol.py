@@ -88,6 +88,8 @@ class AcutrolTurntable:
         cfg = self.config
         self.resource = cfg.resource or f"TCPIP::{cfg.host}::{cfg.port}::SOCKET"
         self._where = f"ACUTROL controller {self.resource}"
+        #: the current step holds the table with the motor off (``motor_on: false``)
+        self._motor_off = False
 
     # --- transport -------------------------------------------------------------------------
     def _open(self) -> None:
@@ -195,6 +197,11 @@ class AcutrolTurntable:
         head (:func:`~aatest.engine.procedure.envelope.head_step`, as many samples as the
         declared ``log_capacity_samples``), armed here before the DAQ's trigger starts the
         record, and collected by :meth:`record` afterwards.
+
+        A static step with ``motor_on: false`` opens both interlocks before the log is armed:
+        in the public command set the interlock is what switches the motor off (the MIT
+        driver's shutdown, :meth:`safe_stop`); the hold then has no servo jitter and may
+        drift. :meth:`end_motion` closes them again before the table is commanded.
         """
         label = step.id.replace(",", "_").replace(";", "_").replace(" ", "_")
         samples = _logged_samples(step, self.config.envelope.log_capacity_samples)
@@ -206,6 +213,9 @@ class AcutrolTurntable:
             # step's prompt; on a real table the operator does it and nothing is sent
             self.write(f":XLOG:MOUNTING {int(mounting.pivoted)},{mounting.remount}")
         modes, demands = _profile(step)
+        self._motor_off = not step.motor_on
+        if self._motor_off:  # validation admits motor_on: false on static steps only
+            self.write(":INTERLOCK:OPEN 1;:INTERLOCK:OPEN 2")
         if modes:
             self.write(modes)
             self.write(demands)
@@ -269,7 +279,11 @@ class AcutrolTurntable:
 
     @rig_boundary
     def end_motion(self) -> None:
-        """Back to position mode on both axes: the profile stops, the table holds."""
+        """Back to position mode on both axes: the profile stops, the table holds (the
+        interlocks closed first, motor on, after a step held with the motor off)."""
+        if self._motor_off:
+            self.write(":INTERLOCK:RESET;:INTERLOCK:CLOSE 1;:INTERLOCK:CLOSE 2")
+            self._motor_off = False
         self.write(":MODE:POSITION 1;:MODE:POSITION 2")
 
     def safe_stop(self) -> None:

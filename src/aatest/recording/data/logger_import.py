@@ -27,6 +27,7 @@ import numpy as np
 from aatest.engine.errors import ImportDataError, Problem
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.positioned_yaml import locate
+from aatest.recording.data import plausible
 from aatest.recording.data.importer import (
     DatasetFileError,
     _filled,
@@ -289,7 +290,8 @@ class _Loader:
         with open_logger_file(side.file, self._format) as opened:
             group = opened.group(side.group)
             assert group is not None  # checked on import; the file may not change meanwhile
-            values = {name: _converted(group, side, name, spec, start, length)
+            values = {name: _converted(group, side, name, spec, start, length,
+                                           self._sensors)
                       for name, spec in wanted.items()}
             if "time_s" not in values:
                 values["time_s"] = group.time_base(side.specs["sync_pulse"][0].channel, start,
@@ -346,8 +348,10 @@ def fills_feedback(position: str, asked: Container[str]) -> bool:
 
 
 def _converted(group: LoggerGroup, side: _Side, name: str, spec: ChannelMap, start: int,
-               length: int | None) -> np.ndarray:
-    """One channel in aatest's unit: a 0/1 pulse as uint8, anything else as float64."""
+               length: int | None, sensors: list[str]) -> np.ndarray:
+    """One channel in aatest's unit: a 0/1 pulse as uint8, anything else as float64 within
+    the physically possible range of its quantity (:mod:`~aatest.recording.data.plausible`,
+    as the CSV import holds it)."""
     raw = group.read(spec.channel, start, length)
     where = f"group {side.group!r}, channel {spec.channel!r}"
     if isinstance(spec, PulseChannel):
@@ -360,6 +364,7 @@ def _converted(group: LoggerGroup, side: _Side, name: str, spec: ChannelMap, sta
     if bad.size:
         raise ImportDataError(side.file, f"{where}: sample {start + int(bad[0])} is not a finite "
                               f"number ({float(values[bad[0]])!r})")
+    plausible.check_samples(side.file, where, name, values, start, sensors)
     values.flags.writeable = False
     return values
 

@@ -5,12 +5,16 @@ A CSV cell may be a finite float and still no measurement: ``1e300`` V at a sens
 overflows float64 in the analyses (a second difference multiplies a position by fs² ≈ 4e6, an
 RMS squares it) and becomes inf or NaN without saying where it came from. The import refuses
 it instead, naming the file, the line and the column (exit 2), like any other malformed cell.
+A TDMS or MF4 channel (:mod:`aatest.recording.data.logger_import`) is held to the same ranges
+after its mapped scaling, named by file, group, channel and sample index (it has no lines).
 
 Each range is far beyond any instrument aatest characterises — it only separates measurements
 from impossible numbers, and keeps every later product (× fs², squares) finite.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -70,3 +74,31 @@ def check_volts(csv: CsvColumns, sensors: list[str]) -> None:
 def temperature(csv: CsvColumns) -> np.ndarray:
     """The ``temperature_c`` column within :data:`TEMPERATURE_RANGE_C`."""
     return checked(csv, "temperature_c", *TEMPERATURE_RANGE_C, "°C")
+
+
+def range_of_channel(name: str, sensors: list[str]) -> tuple[float, float, str] | None:
+    """The possible ``(low, high, unit)`` of a canonical channel: a table column's by its unit,
+    a sensor's ±:data:`VOLTAGE_LIMIT_V`, ``temperature_c``'s :data:`TEMPERATURE_RANGE_C`;
+    None for channels with no physical range here (time, pulses, latches). The limits are in
+    the returned unit: °, °/s, °/s², V or °C."""
+    if name in sensors:
+        return -VOLTAGE_LIMIT_V, VOLTAGE_LIMIT_V, "V"
+    if name == "temperature_c":
+        return *TEMPERATURE_RANGE_C, "°C"
+    return range_of(name)
+
+
+def check_samples(path: str | Path, where: str, name: str, values: np.ndarray, start: int,
+                  sensors: list[str]) -> None:
+    """Refuse the first sample of a logger channel (canonical ``name``, in aatest's unit)
+    outside its range, naming ``path``, ``where`` (group and channel) and its sample index
+    counted from the record's start (``values`` begin at sample ``start``)."""
+    found = range_of_channel(name, sensors)
+    if found is None:
+        return
+    low, high, unit = found
+    bad = np.flatnonzero(~((values >= low) & (values <= high)))
+    if bad.size:
+        raise ImportDataError(path, f"{where}: {name} {values[bad[0]]:g} {unit} at sample "
+                                    f"{start + int(bad[0])} is outside {low:g}…{high:g} {unit}: "
+                                    "not a possible measurement")

@@ -4,10 +4,11 @@
 :class:`~aatest.twin.world.World`, the same calls the in-process ``sim`` table makes: a position
 demand moves, a rate demand (rate mode) or an oscillation demand (synthesis mode) starts the
 profile and settles, a mode change stops it (back to the start position), an open interlock
-switches the motor off. Every demand is checked against the mode's rate and acceleration
-limits (``:LIMIT:RATE``/``:LIMIT:ACCELERATION``) and the twin's own factory limits, and refused
-with a SCPI error (-222 data out of range, -221 settings conflict) otherwise. Errors go to an
-error queue (``:SYSTEM:ERROR?``, ``*STB?`` bit 2).
+switches the motor off (``:XLOG:ARM`` then holds the table still without the servo, a
+``motor_on: false`` static step; any motion stays refused). Every demand is checked against
+the mode's rate and acceleration limits (``:LIMIT:RATE``/``:LIMIT:ACCELERATION``) and the
+twin's own factory limits, and refused with a SCPI error (-222 data out of range, -221
+settings conflict) otherwise. Errors go to an error queue (``:SYSTEM:ERROR?``, ``*STB?`` bit 2).
 
 The table log is a simulator-side convention (``:XLOG:…``, not in the public command set; a
 real controller's own logging path differs, docs/driver-acutrol.md): ``:XLOG:CONFIG rate,
@@ -264,7 +265,8 @@ class AcutrolController:
     def arm(self) -> None:
         if self.log.state not in ("SETTLED", "IDLE", "DONE"):
             raise CommandError(-221, f"Settings conflict; log {self.log.state.lower()}")
-        if not self.world.motor_on:
+        if not self.world.motor_on and (self._motion or self._step().kind != "static"):
+            # holding still needs no motor (a motor-off static step); motion does
             raise CommandError(-221, "Settings conflict; interlock open")
         if not self._motion:
             self.log.state = "ARMING"
