@@ -29,13 +29,15 @@ def test_the_rig_descriptions_logger_comes_first(tmp_path: Path) -> None:
                         + "instruments:\n  logger: {bits: 12, range_v: [-5.0, 5.0]}\n")
     spec, source = stated_converter(read_dataset(data))
     assert (spec.bits, tuple(spec.range_v)) == (12, (-5.0, 5.0))
-    assert spec.step_v == pytest.approx(10.0 / 4096, rel=1e-12)  # exact: a power of two
+    # exact on any CPU: (5 − (−5)) and the division by 2**12 are exact in binary floats
+    assert spec.step_v == 10.0 / 4096
     assert source == "rig description"
 
 
 def test_without_a_stated_logger_the_stated_default_applies(tmp_path: Path) -> None:
     spec, source = stated_converter(read_dataset(write_multi(tmp_path / "d", samples=4096)))
-    assert spec.step_v == pytest.approx(20.0 / 2**16, rel=1e-12)  # ±10 V, 16 bit: 305 µV
+    # ±10 V, 16 bit: 305 µV, exact on any CPU (20 / 2**16 is a power-of-two division)
+    assert spec.step_v == 20.0 / 2**16
     assert source.startswith("stated default")
 
 

@@ -58,7 +58,8 @@ def test_diagnose_of_the_export_reads_the_stated_logger(twin_run: Path, tmp_path
     spec, source = stated_converter(imported)
     assert source == "rig description"
     assert (spec.bits, tuple(spec.range_v)) == (12, (-5.0, 5.0))
-    assert spec.step_v == pytest.approx(10.0 / 4096, rel=1e-12)  # exact: a power of two
+    # exact on any CPU: (5 − (−5)) and the division by 2**12 are exact in binary floats
+    assert spec.step_v == 10.0 / 4096
 
 
 def test_tdms_export_round_trips_the_instruments(twin_run: Path, tmp_path: Path) -> None:
