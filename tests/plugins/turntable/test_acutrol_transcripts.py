@@ -24,6 +24,7 @@ import pytest
 
 from aatest.engine.errors import RigFault
 from aatest.engine.interfaces import AxisLimits, TableEnvelope
+from aatest.engine.steps import PlannedStep
 from aatest.plugins.turntable.acutrol import AcutrolTurntable
 from aatest.testing.transcript import TranscriptServer
 from aatest.twin.model import RigModel
@@ -68,6 +69,17 @@ def _table(port: int, **options: object) -> AcutrolTurntable:
     return AcutrolTurntable(config, None)
 
 
+def _step_through(transcript: list[tuple[bytes, bytes | None]], step: PlannedStep) -> None:
+    """Start the driver against ``transcript`` and run ``step`` through its whole motion (the
+    server fails the test on any line out of order)."""
+    with TranscriptServer(transcript) as server:
+        table = _table(server.port)
+        table.start()
+        table.begin_motion(step)
+        table.end_motion()
+        table.close()
+
+
 def test_start_move_and_safe_stop_send_exactly_the_public_commands() -> None:
     with TranscriptServer(START + MOVE + SAFE_STOP) as server:
         table = _table(server.port)
@@ -80,8 +92,6 @@ def test_start_move_and_safe_stop_send_exactly_the_public_commands() -> None:
 
 
 def test_sine_step_uses_synthesis_mode_and_the_oscillation_demand() -> None:
-    from aatest.engine.steps import PlannedStep
-
     step = PlannedStep(id="s001-sine", kind="sine", axis="inner", frequency_hz=2.0,
                        amplitude_deg=1.5, samples=4000, sample_rate_hz=2000.0, settle_s=1.0)
     transcript = [
@@ -93,12 +103,7 @@ def test_sine_step_uses_synthesis_mode_and_the_oscillation_demand() -> None:
         (b":XLOG:STATE?\r\n", reply("ARMED")),  # [SIM]
         (b":MODE:POSITION 1;:MODE:POSITION 2\r\n", OK),  # end of motion [WS] ':M:P 1'
     ]
-    with TranscriptServer(transcript) as server:
-        table = _table(server.port)
-        table.start()
-        table.begin_motion(step)
-        table.end_motion()
-        table.close()
+    _step_through(transcript, step)
 
 
 def test_gpib_style_framing_is_a_setting() -> None:
@@ -227,8 +232,6 @@ STATIC_TAIL = [
 def test_a_pivoted_step_tells_only_the_simulator_its_mounting(simulator: bool) -> None:
     """On a real table the operator pivots and re-mounts at the prompt and the controller hears
     nothing of it; the simulator, which has no operator, gets the step's mounting."""
-    from aatest.engine.steps import PlannedStep
-
     step = PlannedStep(id="static-i0-o0-pivoted-r1", **PIVOTED)
     mounting = [(b":XLOG:MOUNTING 1,both\r\n", OK)] if simulator else []  # [SIM]
     transcript = [
@@ -312,8 +315,6 @@ def test_a_motor_off_step_opens_the_interlocks_and_closes_them_after() -> None:
     """``motor_on: false``: the interlocks open (the public set's motor off, [MIT] shutdown
     ':interlock:open 1') before the hold is armed, and close again ([MIT] startup) before the
     table is next commanded."""
-    from aatest.engine.steps import PlannedStep
-
     step = PlannedStep(id="s01-off", **MOTOR_OFF)
     transcript = [
         *START,
@@ -323,20 +324,13 @@ def test_a_motor_off_step_opens_the_interlocks_and_closes_them_after() -> None:
         (b":INTERLOCK:RESET;:INTERLOCK:CLOSE 1;:INTERLOCK:CLOSE 2\r\n", OK),  # [MIT] startup
         (b":MODE:POSITION 1;:MODE:POSITION 2\r\n", OK),  # end of motion [WS] ':M:P 1'
     ]
-    with TranscriptServer(transcript) as server:
-        table = _table(server.port)
-        table.start()
-        table.begin_motion(step)
-        table.end_motion()
-        table.close()
+    _step_through(transcript, step)
 
 
 def test_simulator_holds_still_with_the_motor_off_and_refuses_motion() -> None:
     """Through the driver: the simulator's twin holds the motor-off step without the servo
     (its truth has the motor off on both axes), the motor is on again after it; with the
     interlocks open an armed sine is refused (motion needs the motor)."""
-    from aatest.engine.steps import PlannedStep
-
     with acutrol_server(model=RigModel()) as server:
         world = server.protocol.controller.world  # type: ignore[attr-defined]  # behind the wire
         table = _table(server.port)
