@@ -7,11 +7,13 @@ fast clock that starts 0.25 s earlier, with a linear sensor and a temperature ch
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.recording.dataset import SensorInfo
+from aatest.recording.dataset import Dataset, SensorInfo, StepData
 
 RATE_HZ = 2000.0
 SENSOR = SensorInfo(channel="v_sz", axis="I", nominal_bias_v=2.5, nominal_scale_v_per_dps2=0.004014)
@@ -84,3 +86,17 @@ def run_meta(steps: list[PlannedStep]) -> dict[str, object]:
         "seed": 7, "sensors": [vars(SENSOR)], "plan": [s.model_dump(mode="json") for s in steps],
         "started_utc": "2026-11-21T06:00:00+00:00",
     }
+
+
+def one_step_dataset(procedure: str, step: PlannedStep, table: SampledLog, daq: SampledLog
+                     ) -> tuple[Dataset, dict[str, object]]:
+    """A dataset of one sine ``step`` with its two logs, and the dataset.yaml keys that
+    describe it (for the logger-file writers)."""
+    dataset = Dataset(procedure=procedure, sample_rate_hz=RATE_HZ, sensors=(SENSOR,),
+                      steps=(StepData(step, table, daq),), source=Path("."))
+    manifest = {"procedure": procedure, "sample_rate_hz": RATE_HZ,
+                "sensors": [SENSOR.model_dump(mode="json")],
+                "steps": [{"id": step.id, "kind": "sine", "axis": step.axis,
+                           "frequency_hz": step.frequency_hz, "accel_dps2": step.accel_dps2,
+                           "outer_deg": step.outer_deg}]}
+    return dataset, manifest

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from logger_writers import write_mf4, write_tdms
 from nptdms import ChannelObject, TdmsWriter
-from recording_data import RATE_HZ, SENSOR, sine_step, step_logs
+from recording_data import one_step_dataset, sine_step, step_logs
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.recording.dataset import Dataset, StepData
+from aatest.recording.dataset import Dataset
 
 RUNNER = CliRunner()
 
@@ -22,14 +22,7 @@ def _dataset() -> tuple[Dataset, dict[str, object]]:
     """One synthetic sine step (NumPy only) and the dataset.yaml keys that describe it."""
     step = sine_step("s01", samples=4096)
     table, daq = step_logs(step, 3)
-    dataset = Dataset(procedure="mapping-errors", sample_rate_hz=RATE_HZ, sensors=(SENSOR,),
-                      steps=(StepData(step, table, daq),), source=Path("."))
-    manifest = {"procedure": "mapping-errors", "sample_rate_hz": RATE_HZ,
-                "sensors": [SENSOR.model_dump(mode="json")],
-                "steps": [{"id": "s01", "kind": "sine", "axis": "inner",
-                           "frequency_hz": step.frequency_hz, "accel_dps2": step.accel_dps2,
-                           "outer_deg": step.outer_deg}]}
-    return dataset, manifest
+    return one_step_dataset("mapping-errors", step, table, daq)
 
 
 @pytest.fixture

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from logger_writers import write_mf4, write_tdms
-from recording_data import RATE_HZ, SENSOR, sine_step, step_logs
+from recording_data import one_step_dataset, sine_step, step_logs
 from typer.testing import CliRunner
 
 from aatest.cli import app
@@ -41,14 +41,7 @@ def _dataset(source: str, channel: str, value: float) -> tuple[Dataset, dict[str
         table = _with(table, channel, value)
     else:
         daq = _with(daq, channel, value)
-    dataset = Dataset(procedure="plausible", sample_rate_hz=RATE_HZ, sensors=(SENSOR,),
-                      steps=(StepData(step, table, daq),), source=Path("."))
-    manifest = {"procedure": "plausible", "sample_rate_hz": RATE_HZ,
-                "sensors": [SENSOR.model_dump(mode="json")],
-                "steps": [{"id": "s01", "kind": "sine", "axis": "inner",
-                           "frequency_hz": step.frequency_hz, "accel_dps2": step.accel_dps2,
-                           "outer_deg": step.outer_deg}]}
-    return dataset, manifest
+    return one_step_dataset("plausible", step, table, daq)
 
 
 @pytest.mark.parametrize(("writer", "source", "channel", "file_channel", "says"), [
