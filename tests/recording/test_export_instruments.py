@@ -6,17 +6,23 @@ logger (±10 V, 16 bit) and default encoder, not the rig's stated ones.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+from typing import Any
 
 import pytest
 from ruamel.yaml import YAML
 
 from aatest.diagnose.logger_chain import stated_converter
+from aatest.engine.errors import InputError
 from aatest.engine.rig_description import Instruments
 from aatest.engine.run.session import run
+from aatest.metrology.uncertainty import components as comp
+from aatest.metrology.uncertainty.measurands import RigConstants
 from aatest.recording import read_dataset
 from aatest.recording.data.exporter import export_csv
 from aatest.recording.data.logger_export import export_tdms
+from aatest.results import RunResults
 
 QUICK = Path(__file__).resolve().parents[1] / "data" / "procedures"
 
@@ -78,3 +84,30 @@ def test_export_without_stated_instruments_writes_none(tmp_path: Path) -> None:
     doc = YAML(typ="safe").load((exported / "dataset.yaml").read_text(encoding="utf-8"))
     assert "instruments" not in doc
     assert stated_converter(read_dataset(exported))[1] != "rig description"
+
+
+@pytest.mark.parametrize("exporter", [export_csv, export_tdms], ids=["csv", "tdms"])
+def test_export_keeps_the_plugins_declarations(twin_run: Path, tmp_path: Path,
+                                               exporter: Any) -> None:
+    """The turntable plugin's declared encoder survives export and import, so the budget of
+    an analysis of the export names the declaration, not the stated default encoder."""
+    recorded = read_dataset(twin_run)
+    declared = recorded.metadata["rig"]["capabilities"]["turntable"]
+    assert declared["plugin"] == "sim"  # the run recorded what the twin's table declares
+    assert declared["declared"]["encoder_resolution_counts_per_rev"] > 0
+    imported = read_dataset(exporter(recorded, tmp_path / "out"))
+    assert imported.metadata["rig"]["capabilities"] == recorded.metadata["rig"]["capabilities"]
+    constants = RigConstants.from_results(RunResults.model_validate(
+        {"procedure": "export", "metadata": {"rig": imported.metadata["rig"]}}))
+    note = comp.encoder_resolution(constants, 3600.0).note
+    assert note.startswith("declared by the turntable plugin 'sim'"), note
+
+
+def test_a_corrupt_recorded_declaration_is_named(twin_run: Path, tmp_path: Path) -> None:
+    recorded = read_dataset(twin_run)
+    rig = dict(recorded.metadata["rig"])
+    rig["capabilities"] = {"turntable": {"plugin": "sim",
+                                         "declared": {"encoder_resolution_counts_per_rev": -3}}}
+    broken = dataclasses.replace(recorded, metadata={**recorded.metadata, "rig": rig})
+    with pytest.raises(InputError, match=r"(?s)plugin declarations.*encoder_resolution"):
+        export_csv(broken, tmp_path / "csv")

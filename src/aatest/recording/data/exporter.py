@@ -38,7 +38,12 @@ from aatest.engine.logs import SampledLog
 from aatest.engine.rig_description import Instruments
 from aatest.engine.simulation import SIMULATED_PARTS_KEY, simulated_parts
 from aatest.engine.steps import Mounting, PlannedStep
-from aatest.recording.data.importer import DAQ_REQUIRED, MANIFEST, TABLE_REQUIRED
+from aatest.recording.data.importer import (
+    DAQ_REQUIRED,
+    MANIFEST,
+    TABLE_REQUIRED,
+    RecordedCapabilities,
+)
 from aatest.recording.dataset import Dataset, StepData
 
 #: threads formatting CSV files (one per file of a step: table and DAQ)
@@ -162,6 +167,8 @@ def manifest(dataset: Dataset, entries: list[dict[str, Any]]) -> dict[str, Any]:
         doc[SIMULATED_PARTS_KEY] = parts
     if (instruments := stated_instruments(dataset)) is not None:
         doc["instruments"] = instruments
+    if (capabilities := recorded_capabilities(dataset)) is not None:
+        doc["capabilities"] = capabilities
     doc["sensors"] = [s.model_dump(mode="json") for s in dataset.sensors]
     doc["steps"] = entries
     return doc
@@ -190,6 +197,31 @@ def stated_instruments(dataset: Dataset) -> dict[str, Any] | None:
         raise InputError(f"{dataset.source}: the recorded rig description's instruments "
                          f"cannot be exported: {exc}") from exc
     return stated.model_dump(mode="json", exclude_unset=True)
+
+
+def recorded_capabilities(dataset: Dataset) -> dict[str, Any] | None:
+    """What the run's plugins declared (``rig.capabilities``, recorded by the engine), or None.
+
+    Why: the budget takes the encoder's resolution and accuracy from the turntable plugin's
+    declaration when the rig description states none; without this block an analysis of the
+    export would budget the stated default encoder (and say so) where the run had a declared
+    one.
+
+    Raises
+    ------
+    InputError
+        The recorded block is not a valid declaration (it names what is wrong).
+    """
+    rig = dataset.metadata.get("rig")
+    block = rig.get("capabilities") if isinstance(rig, Mapping) else None
+    if block is None:
+        return None
+    try:
+        recorded = RecordedCapabilities.model_validate(block)
+    except ValueError as exc:  # pydantic's ValidationError is a ValueError
+        raise InputError(f"{dataset.source}: the recorded plugin declarations (rig "
+                         f"capabilities) cannot be exported: {exc}") from exc
+    return recorded.model_dump(mode="json", exclude_unset=True)
 
 
 def _export_step(

@@ -38,6 +38,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from aatest.engine.errors import ImportDataError, Problem, ProblemsError
+from aatest.engine.interfaces import TableCapabilities
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.rig_description import Instruments
 from aatest.engine.steps import Mounting, PlannedStep
@@ -117,6 +118,25 @@ class StepEntry(_Strict):
         return self
 
 
+class TurntableDeclaration(_Strict):
+    """What the turntable plugin of the exported run declared (``rig.capabilities.turntable``).
+
+    Why: the budget takes the encoder's numbers from the plugin's declaration where the rig
+    description states none; an export that dropped it would make the re-imported run's
+    budget fall back to the stated defaults.
+    """
+
+    plugin: str | None = None
+    distribution: str | None = None
+    declared: TableCapabilities | None = None
+
+
+class RecordedCapabilities(_Strict):
+    """The declarations the engine recorded beside the rig description (``rig.capabilities``)."""
+
+    turntable: TurntableDeclaration | None = None
+
+
 class DatasetManifest(_Strict):
     """The ``dataset.yaml`` of an import directory."""
 
@@ -134,6 +154,8 @@ class DatasetManifest(_Strict):
     simulated_parts: list[str] | None = None
     #: stated accuracies of the instruments (the logger's above all); absent: stated defaults
     instruments: Instruments | None = None
+    #: what the run's plugins declared (``aatest export`` writes it); absent: nothing declared
+    capabilities: RecordedCapabilities | None = None
 
     @model_validator(mode="after")
     def _unique(self) -> DatasetManifest:
@@ -333,12 +355,22 @@ def import_dataset(directory: str | Path) -> Dataset:
         steps=tuple(steps), source=directory,
         metadata=_metadata(present, t_ref_c, model_file) | manifest.model_dump(
             include={"analysis", "report_template", "simulated_parts"}, exclude_none=True)
-        # only what the file states, as a recording keeps its rig description: a budget row
-        # tells a stated value from a declared or a default one
-        | ({"rig": {"instruments": manifest.instruments.model_dump(mode="json",
-                                                                    exclude_unset=True)}}
-           if manifest.instruments is not None else {}),
+        | rig_metadata(manifest),
     )
+
+
+def rig_metadata(manifest: DatasetManifest) -> dict[str, Any]:
+    """The ``rig`` block of the imported dataset's metadata: only what the file states.
+
+    As a recording keeps its rig description, so a budget row tells a stated value from a
+    declared or a default one (``exclude_unset``: a default stays a default after import).
+    """
+    rig: dict[str, Any] = {}
+    if manifest.instruments is not None:
+        rig["instruments"] = manifest.instruments.model_dump(mode="json", exclude_unset=True)
+    if manifest.capabilities is not None:
+        rig["capabilities"] = manifest.capabilities.model_dump(mode="json", exclude_unset=True)
+    return {"rig": rig} if rig else {}
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,7 @@ from aatest.recording.data.importer import (
     _metadata,
     _planned,
     _t_ref_c,
+    rig_metadata,
 )
 from aatest.recording.data.logger_files import (
     AmbiguousGroupError,
@@ -147,10 +148,7 @@ def import_logger_files(mapping_path: str | Path) -> Dataset:
     metadata = _metadata(present, t_ref_c, model_file) | {
         "source_format": f"aatest.import/{mapping.format}"}
     metadata |= mapping.model_dump(include={"analysis", "report_template"}, exclude_none=True)
-    if mapping.instruments is not None:
-        # only what the mapping states, as a recording keeps its rig description
-        metadata["rig"] = {"instruments": mapping.instruments.model_dump(
-            mode="json", exclude_unset=True)}
+    metadata |= rig_metadata(mapping)  # only what the mapping states
     return Dataset(procedure=mapping.procedure, sample_rate_hz=rate_hz,
                    sensors=tuple(SensorInfo(**s.model_dump()) for s in mapping.sensors),
                    steps=steps, source=directory, metadata=metadata)
