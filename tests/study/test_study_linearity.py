@@ -57,10 +57,14 @@ def test_the_study_unit_meets_the_sliding_mode_rows() -> None:
     250 within 1 %, its L the identity (0 to rounding: it is the ideal line)."""
     model = bench.study_unit_model()
     sensor = model.sensors[0]
+    # the unit's two numbers follow from the study's by closed formulas (docs/method.md §4.3
+    # quotes them to the 3 digits pinned here)
+    assert sensor.nonlinearity_cubic is not None
+    assert sensor.nonlinearity_cubic.c3 == pytest.approx(0.0366, rel=1e-3)
+    assert 1.0 / sensor.scale_v_per_dps2 == pytest.approx(253.36, rel=1e-4)
     data = simulate_dataset(model, bench._plan("scale-factor.yaml"), 7)
     sliding = run_analysis("scale_factor", data, {"reference": "sliding_mode",
                                                   "orders": (3, 3)}).result["v_sz"]
-    assert sensor.nonlinearity_cubic is not None
     truth = (sensor.nonlinearity_cubic.c3 * bench.AMPLITUDE_DPS2**3
              / (4 * np.sqrt(2) * sensor.range_dps2**2))
     assert sliding.linearity_l_dps2 == pytest.approx(truth, abs=0.05)
