@@ -30,12 +30,18 @@ reference, 3rd order, linear term 255.1 (°/s²)/V). Four sections:
    ±1 % and ±0.05 % FR), which is why it is a variant and not the realistic default.
    ``--write-model PATH`` writes it for ``bench/study.py --model PATH --only scale``.
 
+5. ``tuning`` — the sliding-mode reference's own part: Levant's differentiator with its
+   Lipschitz bound C at multiples of the record's peak jerk (the analysis uses 1×). Only a
+   differentiator that loses its sliding mode (C ≲ 0.3×) moves the cubic's linear term or L,
+   and there its RMSE is not the study's 14.5 °/s²; at the bound that reproduces the RMSE the
+   linear term stays 1/K.
+
 And ``cross`` (minutes per seed): the cross-axis ratios of the pivoted test over seeds — the
 study's 0.03–1.1 % is one draw of the unit's mounting errors; the twin's maximum over seeds
 says whether 1.1 is inside the draws' spread.
 
-    python bench/study_linearity.py [--seeds 7] [--only identity consistency scan variant cross]
-                                    [--write-model PATH]
+    python bench/study_linearity.py [--seeds 7] [--write-model PATH]
+        [--only identity consistency scan variant tuning cross]
 """
 
 from __future__ import annotations
@@ -49,9 +55,17 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from study import CROSS_RANGE_PCT, SCALE, _plan, scale_rows
 
-from aatest.clocksync.freeze_pulse import synchronise_all
+from aatest.clocksync.freeze_pulse import SyncedStep, synchronise_all
 from aatest.engine.analysis.passes import run_analysis
-from aatest.plugins.analysis.scale_factor import aligned_pair
+from aatest.plugins.analysis._common import fundamental, input_accel_dps2
+from aatest.plugins.analysis.reference import (
+    default_cutoff_hz,
+    first_difference,
+    levant_differentiator,
+    zero_phase_lowpass,
+)
+from aatest.plugins.analysis.scale_factor import _fractional_delay, aligned_pair
+from aatest.recording.dataset import SensorInfo
 from aatest.twin.api import realistic_rig_model, simulate_dataset
 from aatest.twin.model import NonlinearityCubic, RigModel, dump_rig_model
 
@@ -193,6 +207,46 @@ def variant_rows(seed: int, write: Path | None) -> None:
         print(f"   written to {write}")
 
 
+#: Lipschitz bounds tried, as multiples of the record's peak jerk (the analysis uses 1)
+JERK_FACTORS = (0.25, 0.3, 0.5, 1.0, 3.0)
+
+
+def _levant_pair(synced: SyncedStep, sensor: SensorInfo, factor: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(volts, Levant reference °/s²) aligned as the scale-factor analysis aligns them, with
+    the differentiator's bound at ``factor`` × the smoothed estimate's peak jerk."""
+    fs, f0 = synced.sample_rate_hz, float(synced.step.frequency_hz or 1.0)
+    cutoff = default_cutoff_hz(synced)
+    smooth = zero_phase_lowpass(synced.table["inner_accel_dps2"], fs, cutoff)
+    jerk = float(np.max(np.abs(first_difference(smooth, fs))))
+    raw = levant_differentiator(synced.table["inner_rate_dps"], fs, factor * jerk)
+    ref = input_accel_dps2(synced, sensor.axis, raw)
+    volts = zero_phase_lowpass(synced.daq[sensor.channel], fs, cutoff)
+    ratio = fundamental(volts, f0, fs) / fundamental(ref, f0, fs)
+    delay_s = float(-np.angle(ratio * np.sign(ratio.real or 1.0)) / (2 * np.pi * f0))
+    trim = int(3.0 * fs / cutoff) + int(abs(delay_s) * fs) + 8
+    ref = _fractional_delay(ref, delay_s, fs)
+    return volts[trim:-trim], ref[trim:-trim]
+
+
+def tuning_rows(seed: int) -> None:
+    """The sliding-mode cubic's linear term, L and RMSE over the differentiator's bound."""
+    data = simulate_dataset(realistic_rig_model(), _plan("scale-factor.yaml"), seed)
+    synced, sensor = synchronise_all(data)[0], data.sensors[0]
+    volts, table, *_ = aligned_pair(synced, sensor, "table_estimate")
+    print("5. Levant's bound C (× peak jerk): sliding cubic's linear term, L, RMSE "
+          f"(study {LINEAR_SLIDING}, {L_SLIDING}, {SCALE['sliding_mode'][2]})")
+    for factor in JERK_FACTORS:
+        v, ref = _levant_pair(synced, sensor, factor)
+        mean = float(np.mean(v))
+        g = P.polyfit(volts - mean, table, 1)
+        cubic = P.polyfit(v - mean, ref, 3)
+        lin = _rms(P.polyval(v - mean, cubic - np.pad(g, (0, 2))))
+        rmse = _rms(ref - P.polyval(v - mean, cubic))
+        print(f"   C = {factor:<4g} linear {cubic[1]:7.2f}  L {lin:7.3f}  RMSE {rmse:6.2f}",
+              flush=True)
+
+
 def cross_ratios_pct(seed: int) -> np.ndarray:
     """|cross-axis ratio| (%) of every set, sensor and axis of the pivoted test on the
     three-sensor unit (the bench's misalignment section)."""
@@ -209,7 +263,7 @@ def cross_rows(seeds: list[int]) -> None:
     """Cross-axis ratio range of the pivoted test per seed (the unit's mounting draws) and the
     spread of its maximum, the statistic the bench compares with the study's 1.1 %."""
     low, high = CROSS_RANGE_PCT
-    print(f"5. cross-axis ratios (pivoted test, 8 sets × 3 sensors × 2 axes), % — study "
+    print(f"6. cross-axis ratios (pivoted test, 8 sets × 3 sensors × 2 axes), % — study "
           f"{low:g}–{high:g}")
     maxima = []
     for seed in seeds:
@@ -227,8 +281,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[7])
     parser.add_argument("--only", nargs="+",
-                        choices=["identity", "consistency", "scan", "variant", "cross"],
-                        default=["identity", "consistency", "scan", "variant"])
+                        choices=["identity", "consistency", "scan", "variant", "tuning",
+                                 "cross"],
+                        default=["identity", "consistency", "scan", "variant", "tuning"])
     parser.add_argument("--write-model", type=Path, help="write the study-unit model YAML here")
     args = parser.parse_args()
     seed = args.seeds[0]
@@ -240,6 +295,8 @@ def main() -> None:
         scan_rows(seed)
     if "variant" in args.only:
         variant_rows(seed, args.write_model)
+    if "tuning" in args.only:
+        tuning_rows(seed)
     if "cross" in args.only:
         cross_rows(args.seeds)
 
