@@ -68,6 +68,10 @@ TF_ACCEL_DPS2, IDENTIFICATION_POINTS = 400.0, (7, 11, 15, 19, 23, 27)
 FALL_DB = 0.1
 #: cross-axis ratios measured, % (docs/method.md §4.5), and the misalignment specification, °
 CROSS_RANGE_PCT, MISALIGNMENT_SPEC_DEG = (0.03, 1.1), 0.5
+#: the largest ratio is one draw of the unit's mounting errors, in the study as in the twin: over
+#: seeds 1–8 the twin's is 0.80–1.19 % (mean 0.97, SD 0.15; bench/study_linearity.py --only
+#: cross), so two draws differ by SD ≈ 0.21 % and ± 0.4 % (2 SD) is what one record resolves
+CROSS_MAX_TOL_PCT = 0.4
 
 
 @dataclass(frozen=True)
@@ -242,8 +246,8 @@ def misalignment_rows(seed: int) -> Iterator[Row]:
     deltas = [abs(s.delta_deg) for sensors in out.scenarios.values() for s in sensors.values()]
     low, high = CROSS_RANGE_PCT
     yield Row("cross-axis ratio range, %", f"{low:g}–{high:g}",
-              f"{min(ratios):.3f}–{max(ratios):.3f}", "—", "max within the range",
-              low <= max(ratios) <= high)
+              f"{min(ratios):.3f}–{max(ratios):.3f}", f"max {max(ratios) - high:+.3f}",
+              f"max ± {CROSS_MAX_TOL_PCT:g}", abs(max(ratios) - high) <= CROSS_MAX_TOL_PCT)
     below = float(np.mean(np.array(deltas) < MISALIGNMENT_SPEC_DEG))
     yield Row("misalignments below 0.5°", "most", f"{100 * below:.0f} % (max "
               f"{max(deltas):.2f}°)", "—", "> 50 %", below > 0.5)
