@@ -9,9 +9,10 @@ Where it is not (here 10.0137 ms: 20.0274 samples), the edges take every positio
 sample and the same feasible set fixes the drift to a few times the edge-jitter allowance over
 the record — no separate vernier estimator is needed. (A small rational ratio gives a coarse
 vernier only: 10.1 ms = 101/5 samples reads positions 0.2 sample apart.) The allowance (12 µs,
-four times the twin's edge jitter) sets the floor: ≈ 8.5 ppm wide over 8 s, a uniform u of
-≈ 2.5 ppm — about what a least-squares line through 800 quantised edges would give. Synthetic edges from a known line; no noise beyond the
-registration's quantisation, so the truth must lie inside the feasible set.
+four times the twin's edge jitter) sets the floor: ≈ 8.5 ppm wide over 8 s, a uniform u of ≈
+2.5 ppm — about what a least-squares line through 800 quantised edges would give. Synthetic
+edges from a known line; no noise beyond the registration's quantisation, so the truth must lie
+inside the feasible set.
 """
 
 from __future__ import annotations

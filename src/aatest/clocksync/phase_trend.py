@@ -9,24 +9,26 @@ that slides linearly through the step,
 
     φ_sensor(t) − φ_table(t) = φ₀ + 2π·f·(d − d′)·t,
 
-whatever the sensor's (constant) gain and phase. The step is fitted whole, sensor and encoder alike, as a sine whose complex amplitude moves
-linearly through the record, ``x ≈ Re{(c₀ + c₁·t)·e^{iωt}}``, plus its first harmonics and a
-cubic bias (one linear least-squares solve): the phase slope is ``Im(c₁/c₀)``. Its uncertainty
-comes from the residual's noise density next to ``f`` (Welch), so coloured noise counts as what
-it is at ``f``: ``u ≈ √(12·S(f)/T³)/(A·2π·f)`` (``S`` the one-sided density, ``A`` the
-amplitude), a tenth of a ppm or two on an 8 s, 8 Hz step of the realistic sensor.
+whatever the sensor's (constant) gain and phase. The step is fitted whole, sensor and encoder
+alike, as a sine whose complex amplitude moves linearly through the record, ``x ≈ Re{(c₀ +
+c₁·t)·e^{iωt}}``, plus its first harmonics and a cubic bias (one linear least-squares solve,
+Tukey-weighted): the phase slope is ``Im(c₁/c₀)``. Its uncertainty comes from the residual's
+noise density next to ``f`` (Welch), so coloured noise counts as what it is at ``f``: ``u ≈
+√(12·S(f)/T³)/(A·2π·f)`` (``S`` the one-sided density, ``A`` the amplitude), a tenth of a ppm
+or two on an 8 s, 8 Hz step of the realistic sensor.
 
 What the phase wanders by, on the twin's realistic sensor (each effect switched off in turn,
-three 8.2 s sines at 1, 4 and 8 Hz, last three quarters cut into 0.4 s segments): 0.17 mrad
-RMS per segment at 8 Hz, 0.08 mrad with the table's 35 Hz motor vibration off, 0.015 mrad with
-the sensor's 1 mV noise off too. The vibration is real motion the sensor sees as acceleration
-and the encoder, as position, (f/35 Hz)² weaker; a rectangular 0.4 s segment leaks ≈ 3 % of it
-into the ``f`` bin, the whole record ≈ 0.2 %. The noise passes the DAQ's 100 Hz pre-sample
-filter, so its density at ``f`` is ≈ √10 times that of white noise of the same RMS (0.1 mrad
-per segment, not the 0.03 a white-noise estimate from the residual's RMS says). Neither the
-amplitude-dependent damping nor the bias drift, ripple or floor vibration moved the scatter;
-the damping makes the settling the first quarter leaves out (≈ 0.7 mrad at 8 Hz in the first
-0.4 s, gone after ≈ 2 s).
+three 8.2 s sines at 1, 4 and 8 Hz, last three quarters cut into 0.4 s segments): 0.17 mrad RMS
+per segment at 8 Hz, 0.08 mrad with the table's 35 Hz motor vibration off, 0.015 mrad with the
+sensor's 1 mV noise off too. The vibration is real motion the sensor sees as acceleration and
+the encoder, as position, (f/35 Hz)² weaker; a rectangular 0.4 s segment leaks ≈ 3 % of it into
+the ``f`` bin, the whole record's hard ends still ≈ 0.2 % (≈ 0.9 ppm of trend at 4 Hz on seed
+1, gone with the vibration off), a record tapered over a fifth of its length none that shows.
+The noise passes the DAQ's 100 Hz pre-sample filter, so its density at ``f`` is ≈ √10 times
+that of white noise of the same RMS (0.1 mrad per segment, not the 0.03 a white-noise estimate
+from the residual's RMS says). Neither the amplitude-dependent damping nor the bias drift,
+ripple or floor vibration moved the scatter; the damping makes the settling the first quarter
+leaves out (≈ 0.7 mrad at 8 Hz in the first 0.4 s, gone after ≈ 2 s).
 
 The steps share one DAQ crystal, so their estimates are combined (inverse-variance; steps whose
 u is more than :data:`POOL_U_RATIO` times the best one's are left out); the edges' feasible
@@ -62,10 +64,16 @@ BIAS_DEGREE = 3
 #: a channel whose record phase is uncertain by more than this (rad) does not see the motion
 #: (0.02 rad per cycle-long segment of the former segment fit, over 16 of them)
 MAX_PHASE_NOISE_RAD = 0.005
+#: the fit's weight tapers to zero over this fraction of the record (Tukey): a record's hard
+#: ends leak a far line (the table's 35 Hz vibration, which the encoder hardly sees) into the
+#: moving amplitude as 1/(Δf·T), a tapered one as 1/(Δf·T)³
+TAPER_FRACTION = 0.2
 #: Welch segment length for the noise density next to ``f`` (s; shorter records: half)
 NOISE_SEGMENT_S = 4.0
 #: the noise density is averaged over ``f ± max(2 Hz, f/2)``, harmonics and DC left out
 NOISE_BAND_HZ = 2.0
+#: a noise density is averaged over at least this many Welch bins
+MIN_NOISE_BINS = 3
 #: steps whose u exceeds the best step's by more than this are not pooled: their weight would be
 #: < 1/9 of it, and a slow sine's few cycles leave its u the least reliable (1 Hz steps of the
 #: realistic sensor: 8 cycles, errors up to 2.8 u against 0.9 u at 4 and 8 Hz)
@@ -112,7 +120,8 @@ def _noise_variance(residual: np.ndarray, fs_hz: float, f_hz: float) -> float:
     band = (np.abs(freq - f_hz) < max(NOISE_BAND_HZ, 0.5 * f_hz)) & (freq > 3.0 * df)
     for h in range(1, HARMONICS + 1):
         band &= np.abs(freq - h * f_hz) > 2.5 * df
-    if np.count_nonzero(band) < 3:  # a slow sine: its harmonics fill the band, read above them
+    if np.count_nonzero(band) < MIN_NOISE_BINS:  # a slow sine: harmonics fill the band,
+        # read above them
         band = (freq > HARMONICS * f_hz + 2.5 * df) & (freq < HARMONICS * f_hz + 5.0)
     return float(np.mean(psd[band])) * 0.5 * fs_hz
 
@@ -121,9 +130,12 @@ def _slope(x: np.ndarray, t_s: np.ndarray, f_hz: float, fs_hz: float
            ) -> tuple[float, float, float]:
     """(phase slope rad/s, its standard uncertainty, the record phase's) of one channel."""
     design, half_s = _design(t_s, f_hz)
-    coef, *_ = np.linalg.lstsq(design, x, rcond=None)
+    weight = signal.windows.tukey(x.size, TAPER_FRACTION)
+    weighted = design * weight[:, None]
+    inverse = np.linalg.inv(weighted.T @ design)
+    coef = inverse @ (weighted.T @ x)
     variance = _noise_variance(x - design @ coef, fs_hz, f_hz)
-    cov = variance * np.linalg.inv(design.T @ design)[:4, :4]
+    cov = variance * (inverse @ (weighted.T @ weighted) @ inverse.T)[:4, :4]
     a0, b0, a1, b1 = coef[:4]
     power = half_s * (a0 * a0 + b0 * b0)
     slope = (a1 * b0 - b1 * a0) / power  # Im(c₁/c₀), c = a − i·b, c₁ per second
