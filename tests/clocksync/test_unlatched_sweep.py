@@ -64,7 +64,7 @@ report: {template: frequency-response, sign: false}
 """
 #: seeds 1–3, each at a large, a middling and a small drift (|drift| < 30 ppm: fewer than two
 #: crossings in 32.8 s, the phase trend's case); the phase trend of one 8 Hz sine of 32.8 s
-#: states u ≈ 0.1 ppm on the realistic sensor, so 0.5 ppm is ≈ 5 u
+#: states u ≈ 0.04 ppm on the realistic sensor, so 0.5 ppm is > 10 u
 LONG_CASES = [(150.0, 1), (-81.4, 1), (26.3, 1), (-150.0, 2), (61.0, 2), (-12.0, 2),
               (130.0, 3), (-26.3, 3), (4.7, 3)]
 
@@ -139,7 +139,7 @@ def test_blind_long_sine_fixes_any_drift(tmp_path: Path, drift_ppm: float, seed:
 
 #: drifts whose edges cross fewer than two samples in 8.2 s (|drift| < 122 ppm), seeds 1–3 and
 #: four more: the trend of the 1, 4 and 8 Hz sines (each fitted whole) fixes them to its stated
-#: u ≈ 0.2–0.55 ppm (docs/method.md §2)
+#: u ≈ 0.25–0.4 ppm (docs/method.md §2)
 SHORT_SMALL_CASES = [(-81.4, 1), (61.0, 2), (-26.3, 3), (-81.4, 4), (10.0, 7), (100.0, 8),
                      (-45.0, 9)]
 
@@ -149,7 +149,7 @@ SHORT_SMALL_CASES = [(-81.4, 1), (61.0, 2), (-26.3, 3), (-81.4, 4), (10.0, 7), (
 def test_blind_short_sines_fix_the_drift_the_edges_bound(tmp_path: Path, drift_ppm: float,
                                                          seed: int) -> None:
     """8.2 s sines at 1–8 Hz whose edges only bound the drift: the whole-step phase trend
-    states u ≈ 0.2–0.55 ppm (the sensor's noise at f, coloured by the DAQ's 100 Hz filter, and
+    states u ≈ 0.25–0.4 ppm (the sensor's noise at f, coloured by the DAQ's 100 Hz filter, and
     the steps' scatter); the error stays inside 3 u (0.3 % outside for a normal error) and
     inside the 0.5 ppm target."""
     with_latch, blind = _blind_pair(tmp_path, drift_ppm, seed, PROCEDURE)
