@@ -107,7 +107,9 @@ def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: 
     """
     k = 2 * np.pi * ripple.cycles_per_deg  # rad per degree
     # the ripple is ≈1″: its terms are computed in single precision (relative 3e-7 is plenty)
-    sin, cos = sincos32(k * angle + ripple.phase_rad, np.float32)
+    phase = np.multiply(k, angle)
+    phase += ripple.phase_rad
+    sin, cos = sincos32(phase, np.float32)
     a = np.float32(ripple.amplitude_deg)
     if ripple.rejection_bandwidth_hz is None:
         s, c = a * sin, a * cos
@@ -121,8 +123,18 @@ def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: 
         scale = (-a) * r3 / (d_re * d_re + d_im * d_im)
         s_re, s_im = scale * d_im, scale * d_re
         s, c = sin * s_re + cos * s_im, cos * s_re - sin * s_im
+    # rate + k·rate·c and accel + k·accel·c − (k·rate)²·s, the same float64 operations in
+    # place (a + b is b + a bit for bit): two full-length temporaries instead of seven
     krate = k * rate
-    return angle + s, rate + krate * c, accel + k * accel * c - krate * krate * s
+    new_rate = krate * c
+    new_rate += rate
+    new_accel = np.multiply(k, accel)
+    new_accel *= c
+    new_accel += accel
+    krate *= krate
+    krate *= s
+    new_accel -= krate
+    return angle + s, new_rate, new_accel
 
 
 def _noisy(values: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
