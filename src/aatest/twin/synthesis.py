@@ -4,6 +4,11 @@ Everything is computed on whole arrays from the World's record of the step: the 
 each axis (analytic in lab time), the DAQ clock and the sensor temperature. The table log is
 sampled on the table clock from the trigger on; the DAQ log on its own crystal clock from
 ``start_lead_s`` before the trigger to ``stop_lag_s`` after the table log ends.
+
+Two threads, one result: the table top's rigid motion on the DAQ grid draws nothing at random,
+so it is computed on a worker thread (:func:`_rigid_block`) while the table log, then the
+DAQ's noise, draw from the step's streams in their fixed order; the worker is joined before
+:func:`synthesise` returns (no thread outlives a step, so the analysis may fork afterwards).
 """
 
 from __future__ import annotations
