@@ -12,7 +12,7 @@ from aatest.plugins.sensors.sr207 import SR207Unit
 from aatest.twin.api import nominal_rig_model, realistic_rig_model, simulate_step
 from aatest.twin.grid import Grid
 from aatest.twin.profiles import AxisProfile
-from aatest.twin.table import tracked
+from aatest.twin.table import _stencils, tracked
 
 #: the three-sensor unit (S_Z on I, S_Y on O, S_X on P)
 AAMU = SR207Unit().datasheet()
@@ -159,3 +159,20 @@ def test_nominal_table_is_ideal() -> None:
     sim = simulate_step(nominal_rig_model(), sine_step(2.0, 100.0), seed=38)
     # only the central difference's truncation error (ωh)²/12 ≈ 3e-6 remains
     assert_allclose(sim.table["inner_accel_dps2"], sim.truth["inner_accel_dps2"], rtol=0, atol=4e-4)
+
+
+@pytest.mark.parametrize("method", ["five_point", "central"])
+def test_in_place_stencils_are_the_written_formulas(method: str) -> None:
+    # exact: the in-place evaluation runs the same float64 operations in the same order
+    # (x − y is x + (−y), a + b is b + a bit for bit), on non-integer "counts" too (an ideal
+    # encoder's estimates are the angles themselves)
+    counts = np.random.default_rng(4).normal(33.3, 123.456, 4000)
+    n = counts.size - 4
+    f = [counts[2 + k: 2 + k + n] for k in (-2, -1, 0, 1, 2)]
+    rate, accel = _stencils(f, method)
+    if method == "five_point":
+        assert np.array_equal(rate, -f[4] + 8 * f[3] - 8 * f[1] + f[0])
+        assert np.array_equal(accel, -f[4] + 16 * f[3] - 30 * f[2] + 16 * f[1] - f[0])
+    else:
+        assert np.array_equal(rate, f[3] - f[1])
+        assert np.array_equal(accel, f[3] - 2 * f[2] + f[1])

@@ -85,16 +85,18 @@ def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.n
         scaled = np.subtract(exact, offset) if offset else exact.copy()
         np.divide(scaled, step, out=scaled)
         np.round(scaled, out=scaled)
-    fits = np.abs(scaled) < _MAX_EXACT_CODE  # also False for NaN/inf
-    codes = (scaled if fits.all() else np.where(fits, scaled, 0.0)).astype(np.int64)
-    # bit for bit, except that −0.0 may come back as +0.0: the one value an integer code cannot
-    # carry is the sign of a zero (a rounded encoder reading just below 0), the same physical
-    # value in every computation the analyses make. For finite floats, == is exactly that
-    # (equal bits, or two zeros); a value that does not fit is never finite-and-equal.
-    back = codes.astype(np.float64)
-    np.multiply(back, step, out=back)
-    if offset:  # (+ 0.0 only turns −0.0 into +0.0, which == does not see)
-        np.add(back, offset, out=back)
+        fits = np.abs(scaled) < _MAX_EXACT_CODE  # also False for NaN/inf
+        codes = (scaled if fits.all() else np.where(fits, scaled, 0.0)).astype(np.int64)
+        # bit for bit, except that −0.0 may come back as +0.0: the one value an integer code
+        # cannot carry is the sign of a zero (a rounded encoder reading just below 0), the
+        # same physical value in every computation the analyses make. For finite floats, ==
+        # is exactly that (equal bits, or two zeros); a value that does not fit is never
+        # finite-and-equal. Where it fits, ``scaled`` is the code as a float64 exactly (a
+        # whole number below 2^53), up to the sign of a zero: it stands in for
+        # codes.astype(float64), one pass and one temporary fewer.
+        back = np.multiply(scaled, step, out=scaled)
+        if offset:  # (+ 0.0 only turns −0.0 into +0.0, which == does not see)
+            np.add(back, offset, out=back)
     same = np.equal(back, exact, out=fits, where=fits)  # stays False where it does not fit
     return _Coded(codes, np.logical_and.reduceat(same, starts), step, offset)
 

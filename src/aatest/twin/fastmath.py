@@ -19,7 +19,12 @@ _TWO_PI = 2.0 * np.pi
 def sincos32(x: np.ndarray, dtype: type = np.float64) -> tuple[np.ndarray, np.ndarray]:
     """(sin x, cos x), absolute error < 3e-7 (radians in); ``dtype`` of the result."""
     x = np.asarray(x, dtype=np.float64)
-    r = (x - _TWO_PI * np.rint(x * (1.0 / _TWO_PI))).astype(np.float32)
+    # x − 2π·rint(x/2π), in place (the same float64 operations without three temporaries)
+    reduced = np.multiply(x, 1.0 / _TWO_PI)
+    np.rint(reduced, out=reduced)
+    reduced *= _TWO_PI
+    np.subtract(x, reduced, out=reduced)
+    r = reduced.astype(np.float32)
     return np.sin(r).astype(dtype, copy=False), np.cos(r).astype(dtype, copy=False)
 
 
@@ -31,8 +36,14 @@ def standard_normal(rng: np.random.Generator, n: int) -> np.ndarray:
     """
     half = (n + 1) // 2
     u = rng.random(2 * half)
-    radius = np.sqrt(-2.0 * np.log(1.0 - u[:half]))  # 1 − u ∈ (0, 1]: no log(0)
-    s, c = sincos32(_TWO_PI * u[half:])
+    radius = np.subtract(1.0, u[:half])  # 1 − u ∈ (0, 1]: no log(0)
+    np.log(radius, out=radius)
+    radius *= -2.0
+    np.sqrt(radius, out=radius)
+    angle = u[half:]
+    angle *= _TWO_PI
+    # float32 sin/cos promote exactly to float64 inside the products
+    s, c = sincos32(angle, np.float32)
     out = np.empty(2 * half)
     np.multiply(radius, c, out=out[:half])
     np.multiply(radius, s, out=out[half:])

@@ -4,11 +4,17 @@ Everything is computed on whole arrays from the World's record of the step: the 
 each axis (analytic in lab time), the DAQ clock and the sensor temperature. The table log is
 sampled on the table clock from the trigger on; the DAQ log on its own crystal clock from
 ``start_lead_s`` before the trigger to ``stop_lag_s`` after the table log ends.
+
+Two threads, one result: the table top's rigid motion on the DAQ grid draws nothing at random,
+so it is computed on a worker thread (:func:`_rigid_block`) while the table log, then the
+DAQ's noise, draw from the step's streams in their fixed order; the worker is joined before
+:func:`synthesise` returns (no thread outlives a step, so the analysis may fork afterwards).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
@@ -198,10 +204,30 @@ def _daq_samples(setup: StepSetup) -> int:
     return setup.trigger_index + int(np.ceil((table_span_daq_s + lag) * clock.sample_rate_hz))
 
 
+#: the table top's motion on one grid before the floor's rocking is added: (α_top (3, n)
+#: °/s², up (3, n) g, (sin, cos) of the inner angle, (sin, cos) of the outer angle)
+TopMotion = tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray],
+                  tuple[np.ndarray, np.ndarray]]
+
+
 def _top_motion(setup: StepSetup, grid: Grid,
                 floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(α_top (3, n) °/s², up (3, n) g) of the table top on a lab-time grid, incl. parasitics
     and the floor's rocking ``floor`` (2, n) about the lab's horizontal axes."""
+    return _with_floor(_rigid_motion(setup, grid), floor)
+
+
+def _with_floor(motion: TopMotion, floor: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Add the floor's rocking to a :func:`_rigid_motion` (its α array, in place)."""
+    alpha, up, sc_i, sc_o = motion
+    if floor is not None:
+        alpha += kin.lab_horizontal_top(sc_i, sc_o, floor)
+    return alpha, up
+
+
+def _rigid_motion(setup: StepSetup, grid: Grid) -> TopMotion:
+    """The table top's motion without the floor's rocking: every term that draws nothing at
+    random, so it can be computed before (or while) the random streams are drawn."""
     th_i, w_i, a_i = setup.inner.evaluate(grid)
     th_o, w_o, a_o = setup.outer.evaluate(grid)
     sc_i = sincos_deg(th_i, setup.inner.profile.moving, setup.inner.profile.start_deg)
@@ -217,9 +243,35 @@ def _top_motion(setup: StepSetup, grid: Grid,
         leak = table.unbalance_parasitic_dps2_per_dps2 * lowpass(a_o, b, a)
         alpha[0] += leak * sc_i[1]
         alpha[1] -= leak * sc_i[0]
-    if floor is not None:
-        alpha += kin.lab_horizontal_top(sc_i, sc_o, floor)
-    return alpha, kin.gravity_top(sc_i, sc_o, setup.gimbal)
+    return alpha, kin.gravity_top(sc_i, sc_o, setup.gimbal), sc_i, sc_o
+
+
+def _sensor_delay_s(model: RigModel, sensor: SensorModel) -> float:
+    """How late a sensor channel sees the motion (its own delay and the logger's timing
+    error, s): its motion is evaluated at t − delay."""
+    delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
+    if model.daq.logger_error is not None:  # the logger's own timing error (drawn)
+        delay += model.daq.logger_error.timing_offset_s
+    return delay
+
+
+@dataclass(frozen=True)
+class _RigidBlock:
+    """What a DAQ generation block needs that draws nothing at random: the sensor
+    temperature and, per sensor delay, the rigid motion of the table top."""
+
+    temperature_c: np.ndarray
+    motion: dict[float, TopMotion]
+
+
+def _rigid_block(setup: StepSetup, grid: Grid) -> _RigidBlock:
+    """:class:`_RigidBlock` of one generation block (thread-safe: reads ``setup`` only)."""
+    motion: dict[float, TopMotion] = {}
+    for sensor in setup.model.sensors:
+        delay = _sensor_delay_s(setup.model, sensor)
+        if delay not in motion:  # (the floor noise is not re-timed by the tiny delays)
+            motion[delay] = _rigid_motion(setup, grid.shifted(-delay))
+    return _RigidBlock(setup.thermal.temperature_at(grid.times), motion)
 
 
 #: records longer than this are generated in blocks of :data:`GENERATION_BLOCK` samples
@@ -263,14 +315,16 @@ def daq_units(setup: StepSetup) -> tuple[dict[str, str], dict[str, tuple[float, 
 
 
 def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | None = None,
-               drift_rng: np.random.Generator | None = None) -> Iterator[SampledLog]:
+               drift_rng: np.random.Generator | None = None,
+               first: Future[_RigidBlock] | None = None) -> Iterator[SampledLog]:
     """The step's DAQ log, generated block by block (:func:`generation_block`).
 
     Every random draw comes from ``rng`` in block order and every stateful stage (the floor's
     band-pass, the sensor dynamics, the anti-alias filter, the bias drift) continues across
     blocks, so the concatenated blocks do not depend on how a consumer groups them. ``truth``
     (one-shot synthesis of a short record) receives the deferred noise-free entries;
-    ``drift_rng`` draws the sensors' bias drift (``SensorModel.bias_drift``).
+    ``drift_rng`` draws the sensors' bias drift (``SensorModel.bias_drift``); ``first`` is the
+    first block's :func:`_rigid_block`, being computed on another thread (:func:`synthesise`).
     """
     clock = setup.clock
     n = _daq_samples(setup)
@@ -279,29 +333,42 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
     drift = drift_rng if drift_rng is not None else np.random.default_rng(0)
     state = _DaqState(sensors={s.channel: ChannelState(drift_rng=drift)
                                for s in setup.model.sensors})
-    for first in range(0, max(n, 1), block):
-        m = min(block, n - first)
-        grid = Grid(clock.t0_s + first * clock.lab_dt_s, clock.lab_dt_s, m)
-        channels = _daq_block(setup, grid, first, rng, state, truth if block == n else None)
-        yield SampledLog(DAQ, clock.sample_rate_hz, _stamped(clock, first, m, rng),
-                         _read_only(channels), units, quanta)
+    starts = range(0, max(n, 1), block)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
+        rigid = first if first is not None else pool.submit(
+            _rigid_block, setup, _block_grid(clock, 0, min(block, n)))
+        for start in starts:
+            grid = _block_grid(clock, start, min(block, n - start))
+            current = rigid.result()
+            if start + block < n:  # the next block's rigid motion, while this one draws
+                rigid = pool.submit(_rigid_block, setup, _block_grid(
+                    clock, start + block, min(block, n - start - block)))
+            channels = _daq_block(setup, grid, start, rng, state,
+                                  truth if block == n else None, current)
+            del current
+            yield SampledLog(DAQ, clock.sample_rate_hz, _stamped(clock, start, grid.n, rng),
+                             _read_only(channels), units, quanta)
+
+
+def _block_grid(clock: DaqClock, first: int, m: int) -> Grid:
+    """Lab-time grid of the ``m`` DAQ samples from sample ``first`` on."""
+    return Grid(clock.t0_s + first * clock.lab_dt_s, clock.lab_dt_s, m)
 
 
 def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generator,
-               state: _DaqState, truth: LazyTruth | None) -> dict[str, np.ndarray]:
+               state: _DaqState, truth: LazyTruth | None,
+               rigid: _RigidBlock) -> dict[str, np.ndarray]:
     """Channels of one generation block starting at DAQ sample ``first``."""
     model, clock = setup.model, setup.clock
-    temperature = setup.thermal.temperature_at(grid.times)
+    temperature = rigid.temperature_c
     channels: dict[str, np.ndarray] = {}
     motion: dict[float, tuple[np.ndarray, np.ndarray]] = {}
     floor, state.floor_zi = floor_rocking_block(model.table, grid.n, clock.lab_dt_s, rng,
                                                 state.floor_zi)
     for sensor in model.sensors:
-        delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
-        if model.daq.logger_error is not None:  # the logger's own timing error (drawn)
-            delay += model.daq.logger_error.timing_offset_s
-        if delay not in motion:  # (the floor noise is not re-timed by the tiny delays)
-            motion[delay] = _top_motion(setup, grid.shifted(-delay), floor)
+        delay = _sensor_delay_s(model, sensor)
+        if delay not in motion:
+            motion[delay] = _with_floor(rigid.motion[delay], floor)
         alpha, up = motion[delay]
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s,
                            grid.times - setup.trigger_time_s)
@@ -392,12 +459,13 @@ def _accel_truth(truth: LazyTruth, channels: list[str]) -> dict[str, np.ndarray]
 
 
 def _daq_log(setup: StepSetup, rng: np.random.Generator,
-             drift_rng: np.random.Generator | None = None) -> tuple[SampledLog, LazyTruth]:
+             drift_rng: np.random.Generator | None = None,
+             first: Future[_RigidBlock] | None = None) -> tuple[SampledLog, LazyTruth]:
     """The whole DAQ log at once: the concatenation of :func:`daq_blocks`."""
     clock = setup.clock
     n = _daq_samples(setup)
     truth = LazyTruth(daq_time_s=Grid(clock.t0_s, clock.lab_dt_s, n).times - setup.trigger_time_s)
-    blocks = list(daq_blocks(setup, rng, truth, drift_rng))
+    blocks = list(daq_blocks(setup, rng, truth, drift_rng, first))
     return concatenate_logs(blocks), truth
 
 
@@ -428,8 +496,14 @@ def synthesise(setup: StepSetup, rng: np.random.Generator,
     ``daq_rng`` (default: ``rng`` after the table log) draws the DAQ log, ``drift_rng`` the
     sensors' bias drift; a streamed record uses the same two streams (:func:`daq_blocks`).
     """
-    table, table_truth = _table_log(setup, rng)
-    daq, truth = _daq_log(setup, daq_rng if daq_rng is not None else rng, drift_rng)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
+        # the DAQ's first block of rigid motion (no random draw) on the second core while
+        # the table log draws: both draw from ``rng`` in a fixed order, the motion from none
+        first = pool.submit(_rigid_block, setup, _block_grid(
+            setup.clock, 0, generation_block(_daq_samples(setup))))
+        table, table_truth = _table_log(setup, rng)
+        daq, truth = _daq_log(setup, daq_rng if daq_rng is not None else rng, drift_rng,
+                              first)
     truth.update(table_truth)
     truth["drift_ppm"] = setup.clock.drift_ppm
     # t_table_log = offset + t_daq·(1 + drift): the DAQ's sample 0 precedes the trigger

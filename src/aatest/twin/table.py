@@ -107,7 +107,9 @@ def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: 
     """
     k = 2 * np.pi * ripple.cycles_per_deg  # rad per degree
     # the ripple is ≈1″: its terms are computed in single precision (relative 3e-7 is plenty)
-    sin, cos = sincos32(k * angle + ripple.phase_rad, np.float32)
+    phase = np.multiply(k, angle)
+    phase += ripple.phase_rad
+    sin, cos = sincos32(phase, np.float32)
     a = np.float32(ripple.amplitude_deg)
     if ripple.rejection_bandwidth_hz is None:
         s, c = a * sin, a * cos
@@ -121,17 +123,38 @@ def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: 
         scale = (-a) * r3 / (d_re * d_re + d_im * d_im)
         s_re, s_im = scale * d_im, scale * d_re
         s, c = sin * s_re + cos * s_im, cos * s_re - sin * s_im
+    # rate + k·rate·c and accel + k·accel·c − (k·rate)²·s, the same float64 operations in
+    # place (a + b is b + a bit for bit): two full-length temporaries instead of seven
     krate = k * rate
-    return angle + s, rate + krate * c, accel + k * accel * c - krate * krate * s
+    new_rate = krate * c
+    new_rate += rate
+    new_accel = np.multiply(k, accel)
+    new_accel *= c
+    new_accel += accel
+    krate *= krate
+    krate *= s
+    new_accel -= krate
+    return angle + s, new_rate, new_accel
 
 
 def _noisy(values: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
-    return values + sigma * standard_normal(rng, values.size) if sigma > 0.0 else values
+    """``values + sigma·N(0, 1)``, a new array (the input itself when ``sigma`` is 0)."""
+    if sigma <= 0.0:
+        return values
+    noise = standard_normal(rng, values.size)
+    noise *= sigma
+    noise += values  # a + b is b + a bit for bit: no third array
+    return noise
 
 
 def quantise(values: np.ndarray, step: float) -> np.ndarray:
     """Round to a multiple of ``step`` (no-op when step is 0)."""
-    return values if step <= 0.0 else np.round(values / step) * step
+    if step <= 0.0:
+        return values
+    counts = np.divide(values, step)
+    np.round(counts, out=counts)
+    counts *= step
+    return counts
 
 
 #: stencil half-width needed on each side of the record
@@ -149,20 +172,43 @@ def estimates(
     """
     res = model.encoder_resolution_deg
     noisy = _noisy(true_angle_deg, model.estimate_noise_deg, rng)
-    counts = np.round(noisy / res) if res > 0.0 else noisy  # the controller works in counts
+    counts = noisy  # the controller works in counts
+    if res > 0.0:
+        counts = np.divide(noisy, res)
+        np.round(counts, out=counts)
     raw = quantise(_noisy(true_angle_deg, model.encoder_noise_deg, rng), res)
     p = STENCIL_PAD
     n = true_angle_deg.size - 2 * p
     f = [counts[p + k: p + k + n] for k in (-2, -1, 0, 1, 2)]
-    if method == "five_point":
-        rate = -f[4] + 8 * f[3] - 8 * f[1] + f[0]
-        accel = -f[4] + 16 * f[3] - 30 * f[2] + 16 * f[1] - f[0]
-    else:
-        rate = f[3] - f[1]
-        accel = f[3] - 2 * f[2] + f[1]
     quanta = estimate_quanta(model, dt_s, method)
-    return {"position_deg": f[2] * quanta["position_deg"], "rate_dps": rate * quanta["rate_dps"],
-            "accel_dps2": accel * quanta["accel_dps2"], "feedback_deg": raw[p: p + n]}
+    rate, accel = _stencils(f, method)
+    rate *= quanta["rate_dps"]
+    accel *= quanta["accel_dps2"]
+    return {"position_deg": f[2] * quanta["position_deg"], "rate_dps": rate,
+            "accel_dps2": accel, "feedback_deg": raw[p: p + n]}
+
+
+def _stencils(f: list[np.ndarray], method: str) -> tuple[np.ndarray, np.ndarray]:
+    """Rate and acceleration stencils (in counts) of the shifted views ``f`` (k = −2…2).
+
+    Five-point: −f₂ + 8f₁ − 8f₋₁ + f₋₂ and −f₂ + 16f₁ − 30f₀ + 16f₋₁ − f₋₂, evaluated left to
+    right as written, in place (x − y is x + (−y) and a + b is b + a, bit for bit).
+    """
+    if method != "five_point":
+        return f[3] - f[1], f[3] - 2 * f[2] + f[1]
+    rate = np.multiply(f[3], 8.0)
+    rate -= f[4]
+    term = np.multiply(f[1], 8.0)
+    rate -= term
+    rate += f[0]
+    accel = np.multiply(f[3], 16.0)
+    accel -= f[4]
+    np.multiply(f[2], 30.0, out=term)
+    accel -= term
+    np.multiply(f[1], 16.0, out=term)
+    accel += term
+    accel -= f[0]
+    return rate, accel
 
 
 def estimate_quanta(model: AxisModel, dt_s: float, method: str) -> dict[str, float]:

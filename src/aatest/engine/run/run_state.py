@@ -45,13 +45,23 @@ class RunState:
     finished: bool = False
 
     def save(self, run_dir: Path) -> None:
-        """Write the state atomically (temporary file, fsync, rename) into ``run_dir``."""
+        """Write the state atomically (temporary file, fsync, rename) into ``run_dir``.
+
+        A state unchanged since this object last saved it to the same file is not written
+        again: the file holds it already, and the fsync (≈ 12 ms on a virtual disk, in the
+        step loop after every step) bought nothing.
+        """
+        text = json.dumps(asdict(self), indent=2)
+        path = run_dir / STATE_FILE
+        if vars(self).get("_saved_as") == (path, text) and path.exists():
+            return
         tmp = run_dir / (STATE_FILE + ".tmp")
         with tmp.open("w", encoding="utf-8") as fh:
-            json.dump(asdict(self), fh, indent=2)
+            fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, run_dir / STATE_FILE)
+        os.replace(tmp, path)
+        vars(self)["_saved_as"] = (path, text)
 
     @classmethod
     def load(cls, run_dir: Path | RemotePath) -> RunState:
