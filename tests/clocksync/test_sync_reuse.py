@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from synthetic_rig import SynthRig, make_step, sine_step
 
-from aatest.clocksync import synchronise
-from aatest.clocksync import freeze_pulse
+from aatest.clocksync import freeze_pulse, synchronise
 from aatest.clocksync.freeze_pulse import clock_relation
 
 
