@@ -38,3 +38,13 @@ def test_a_drifting_grid_on_a_sine_matches_the_spline_on_time_stamps() -> None:
     # the fractional index from time stamps of ≈15 s: rounding of 1e-15 s in 5e-4 s steps
     # moves a point by ~1e-12 samples, the value by ~1e-12·2π·3/2000 of the amplitude
     assert np.max(np.abs(got - expected)) <= 1e-13
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_value_that_is_not_finite_is_refused_as_cubic_spline_refuses_it(bad: float) -> None:
+    y = np.sin(0.1 * np.arange(1000))
+    y[500] = bad
+    with pytest.raises(ValueError, match="finite"):
+        CubicSpline(np.arange(1000.0), y)
+    with pytest.raises(ValueError, match="finite"):
+        uniform_cubic_spline(y, np.arange(0.0, 999.0, 0.5))

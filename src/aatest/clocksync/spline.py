@@ -33,10 +33,18 @@ def uniform_cubic_spline(values: np.ndarray, at_index: np.ndarray) -> np.ndarray
     fractional indices ``at_index`` (inside ``[0, n − 1]``; what CubicSpline gives there).
 
     A record shorter than two end windows is handed to CubicSpline whole.
+
+    Raises
+    ------
+    ValueError
+        When a value is not finite, as CubicSpline does (the B-spline's prefilter would
+        spread a NaN over the whole record instead).
     """
     y = np.asarray(values, dtype=np.float64)
     u = np.asarray(at_index, dtype=np.float64)
     n = y.size
+    if not np.all(np.isfinite(y)):
+        raise ValueError("`y` must contain only finite values.")
     if n < 2 * EDGE_WINDOW:
         return np.asarray(CubicSpline(np.arange(n, dtype=np.float64), y)(u))
     out = ndimage.map_coordinates(y, u[None, :], order=3, mode="mirror", prefilter=True)
