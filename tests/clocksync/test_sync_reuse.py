@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from scipy.interpolate import CubicSpline
 from synthetic_rig import SynthRig, make_step, sine_step
 
-from aatest.clocksync import synchronise
+from aatest.clocksync import freeze_pulse, synchronise
 from aatest.clocksync.freeze_pulse import clock_relation
 
 
@@ -27,13 +26,13 @@ def test_relation_from_the_sync_pass_reproduces_the_step_bit_for_bit() -> None:
 def test_daq_channels_are_resampled_when_read(monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """Only the channels an analysis reads are splined, each once."""
     calls: list[int] = []
-    original = CubicSpline.__init__
+    original = freeze_pulse.uniform_cubic_spline
 
-    def counting(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+    def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
         calls.append(1)
-        original(self, *args, **kwargs)
+        return original(*args, **kwargs)
 
-    monkeypatch.setattr(CubicSpline, "__init__", counting)
+    monkeypatch.setattr(freeze_pulse, "uniform_cubic_spline", counting)
     synced = synchronise(make_step(sine_step("s", 8, 100.0), SynthRig(), seed=6))
     assert calls == []
     first = synced.daq["v_sz"]

@@ -19,10 +19,10 @@ from collections.abc import Callable, Container, Iterable, Iterator, Mapping, Se
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from aatest.clocksync.clock_fit import edge_relation
 from aatest.clocksync.relation import ClockRelation, SyncedStep
+from aatest.clocksync.spline import uniform_cubic_spline, uniform_index
 from aatest.engine.errors import AnalysisError
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
@@ -218,7 +218,7 @@ class HeadChannels(Mapping[str, np.ndarray]):
             idx = np.clip(np.searchsorted(time_s, self._at_s), 0, time_s.size - 1)
             picked: np.ndarray = values[idx]
             return picked
-        return np.asarray(CubicSpline(time_s, values.astype(np.float64))(self._at_s))
+        return uniform_cubic_spline(values, uniform_index(time_s, self._at_s))
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._names)

@@ -211,6 +211,14 @@ def _fit_fundamentals(segments: np.ndarray, frequency_hz: float, fs_hz: float,
     return np.asarray(coef[:, 1] - 1j * coef[:, 1 + count])
 
 
+def _segments(record: np.ndarray, length: int, hop: int, count: int) -> np.ndarray:
+    """The ``count`` segments of ``length`` samples, ``hop`` apart, as rows: a strided view
+    (the values of a gathered copy, without building an index of every sample)."""
+    windows = np.lib.stride_tricks.sliding_window_view(
+        np.asarray(record, dtype=np.float64), length)
+    return windows[:(count - 1) * hop + 1:hop]
+
+
 def _overlap_correlation(length: int, hop: int) -> float:
     """Correlation of white noise's fundamental estimates in two segments ``hop`` apart
     (Σ w[n]·w[n+hop] / Σ w², Hann w: 1/6 at 50 % overlap)."""
@@ -238,11 +246,9 @@ def segmented_ratio(reference: np.ndarray, output: np.ndarray, frequency_hz: flo
     """
     n = min(reference.size, output.size)
     length, hop, count = segment_layout(n, frequency_hz, fs_hz)
-    starts = np.arange(count) * hop
-    index = starts[:, None] + np.arange(length)
-    x = _fit_fundamentals(np.asarray(reference, dtype=np.float64)[index], frequency_hz, fs_hz,
+    x = _fit_fundamentals(_segments(reference, length, hop, count), frequency_hz, fs_hz,
                           harmonics)
-    y = _fit_fundamentals(np.asarray(output, dtype=np.float64)[index], frequency_hz, fs_hz,
+    y = _fit_fundamentals(_segments(output, length, hop, count), frequency_hz, fs_hz,
                           harmonics)
     ratios = y / x
     mean = complex(np.mean(ratios))
