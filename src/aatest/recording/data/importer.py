@@ -37,8 +37,8 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from aatest.engine.capabilities import TableCapabilities
 from aatest.engine.errors import ImportDataError, Problem, ProblemsError
-from aatest.engine.interfaces import TableCapabilities
 from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.engine.rig_description import Instruments
 from aatest.engine.steps import Mounting, PlannedStep
