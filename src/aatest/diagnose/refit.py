@@ -35,8 +35,6 @@ _SHAPE_RESET: dict[str, dict[str, Any]] = {
     "sensor_dynamics": {"dynamics": None}, "time_delay": {"delay_s": 0.0},
     "rate_ripple": {"ripple_cpd": (), "ripple_motion_deg": ()},
     "motor_vibration": {"vibration_hz": ()}, "amplitude_damping": {"amplitude_damping": None}}
-#: effects with a searched shape parameter and a design column of their own
-_SHAPE_AND_COLUMN = {"rotor_stiction": {"stiction_dps": 0.0}}
 
 
 def without(spec: Spec, effect: str) -> Spec | None:
@@ -49,8 +47,8 @@ def without(spec: Spec, effect: str) -> Spec | None:
         return replace(spec, linear=spec.linear - {effect})
     if effect in _SHAPE_RESET:
         return replace(spec, **_SHAPE_RESET[effect])
-    if effect in _SHAPE_AND_COLUMN:
-        return replace(spec, linear=spec.linear - {effect}, **_SHAPE_AND_COLUMN[effect])
+    if effect == "rotor_stiction":  # a searched break-away rate and a column of its own
+        return replace(spec, linear=spec.linear - {effect}, stiction_dps=0.0)
     return None
 
 
