@@ -16,9 +16,9 @@ flat level (the mean gain at ≤ 1 Hz), ± 1 Hz.
    loss rise ten times faster than the 10 °/s² one, while the study's roll-offs need about
    twice: the grid below finds no (r, depth) that meets both lowest accelerations' rows.
 2. ``frf`` (minutes). ``bench/study.py``'s FRF rows on the realistic twin and on the realistic
-   twin with the stiction gap (``realistic_rig_model(stiction=True)``).
+   twin with the stiction gap (``realistic_rig_model(stiction=True)``, ``--variants``).
 
-    python bench/study_lowamp.py [--seed 7] [--only shape frf]
+    python bench/study_lowamp.py [--seed 7] [--only shape frf] [--variants realistic stiction]
 """
 
 from __future__ import annotations
@@ -113,9 +113,11 @@ def shape_rows() -> None:
               + f" … 9.99:{loss[-1]:.2f} dB")
 
 
-def frf_table(seed: int) -> None:
-    for name, model in (("realistic", realistic_rig_model()),
-                        ("realistic + stiction", realistic_rig_model(stiction=True))):
+def frf_table(seed: int, variants: list[str]) -> None:
+    models = {"realistic": realistic_rig_model,
+              "stiction": lambda: realistic_rig_model(stiction=True)}
+    for name in variants:
+        model = models[name]()
         print(f"2. {name} (seed {seed})")
         for row in frf_rows(model, seed):
             print(f"   {row.name:<44} {row.study:>10} {row.twin:>14} {row.difference:>12}  "
@@ -126,11 +128,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--only", nargs="+", choices=["shape", "frf"], default=["shape", "frf"])
+    parser.add_argument("--variants", nargs="+", choices=["realistic", "stiction"],
+                        default=["realistic", "stiction"], help="rigs of the frf section")
     args = parser.parse_args()
     if "shape" in args.only:
         shape_rows()
     if "frf" in args.only:
-        frf_table(args.seed)
+        frf_table(args.seed, args.variants)
 
 
 if __name__ == "__main__":

@@ -90,6 +90,10 @@ STICTION_AMPLITUDE_DAMPING = AmplitudeDamping(damping_per_decade=-0.083, referen
 #: two lowest accelerations start to fall at ≈2 Hz, 1.0 and 0.5 dB down at 10 Hz, with the
 #: damping of the higher ones their phase delays stay 24–31 samples (bench/study_lowamp.py)
 REALISTIC_STICTION = RotorStiction(breakaway_rate_dps=0.055, depth=0.11)
+#: with the gap the 1 °/s² delays scatter ± 2.5 samples about their mean (the dithered gap and
+#: hysteresis at 0.4–1 Hz); 2.35 ms of transport (24.7–25.2 samples at 400 °/s²) keeps that
+#: scatter inside the study's 24–31 samples
+_STICTION_DELAY_S = 0.00235
 
 
 def realistic_sensor_model(sheet: SensorDatasheet, channel: str, axis: SensorAxis,
@@ -129,7 +133,8 @@ def realistic_sensor_model(sheet: SensorDatasheet, channel: str, axis: SensorAxi
         model = model.model_copy(update={
             "sensor_dynamics": SensorDynamics(natural_frequency_hz=30.0,
                                               damping=_STICTION_DAMPING_BELOW_100),
-            "amplitude_damping": STICTION_AMPLITUDE_DAMPING, "rotor_stiction": REALISTIC_STICTION})
+            "amplitude_damping": STICTION_AMPLITUDE_DAMPING, "rotor_stiction": REALISTIC_STICTION,
+            "time_delay": TimeDelay(delay_s=_STICTION_DELAY_S)})
     return model
 
 

@@ -252,8 +252,7 @@ def stiction_gate(model: SensorModel, inp: SensorInputs) -> np.ndarray:
     """1 where the rotor moves, 1 − ``depth`` where it sticks to the case (``rotor_stiction``):
     the case's rate about the sensor axis within ±``breakaway_rate_dps`` of zero."""
     assert model.rotor_stiction is not None
-    if inp.rate_top_dps is None:
-        raise ValueError("rotor_stiction needs the table top's angular rate (rate_top_dps)")
+    assert inp.rate_top_dps is not None, "rotor_stiction needs the table top's rate"
     stiction = model.rotor_stiction
     rate = inp.axes[:, 2] @ inp.rate_top_dps
     return 1.0 - stiction.depth * (np.abs(rate) < stiction.breakaway_rate_dps)
