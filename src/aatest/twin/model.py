@@ -203,9 +203,9 @@ class ExcessNoise(_Model):
 
 class RotorStiction(_Model):
     """The rotor sticks to the case around every rate reversal: while the case's angular rate
-    about the sensor axis is within ±``breakaway_rate_dps`` of zero the sensor does not respond
-    (sensed α = 0), outside it responds fully. On a sine of acceleration A at f the gap
-    removes the acceleration peaks (rate zero) and costs ≈ 8·r·f/A of the fundamental's gain
+    about the sensor axis is within ±``breakaway_rate_dps`` of zero the sensor loses the share
+    ``depth`` of its response, outside it responds fully. On a sine of acceleration A at f the gap
+    removes the acceleration peaks (rate zero) and costs ≈ 8·depth·r·f/A of the fundamental
     with no phase shift, r the break-away rate: a loss growing linearly with frequency at
     constant acceleration and vanishing at large A (docs/method.md §1.3: at 1 and 10 °/s² the
     gain starts to fall at ≈ 2 Hz). The table's own vibration dithers the gap at very low
