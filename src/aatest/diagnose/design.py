@@ -6,7 +6,8 @@ the commanded motion; everything else enters linearly, as one or two columns sca
 sensor's scale factor K, so for fixed shape parameters the whole model is one least-squares
 problem. The order of the signal path is the twin's (``aatest.twin.sensor``):
 
-    α(t − delay) → hysteresis → dynamics → saturation → cubic → K(T) → + b(T) + jerk → logger filter
+    α(t − delay) → hysteresis → stiction gap → dynamics → saturation → cubic → K(T) → + b(T)
+    + jerk → logger filter
 
 Per step and per fold only the Gram matrix XᵀX, Xᵀy and yᵀy are kept, so fitting on one fold
 and scoring on the other (held-out SSE) costs a small linear solve, not a pass over the data.
