@@ -64,3 +64,23 @@ def test_simulated_output_at_rest_is_the_datasheet_bias() -> None:
     sim = simulate_step(realistic_rig_model(sheet, drift_ppm=0.0), static_step(samples=8192), 3)
     volts = np.asarray(sim.daq["v_sz"])
     assert abs(float(np.mean(volts)) - 1.25) < 0.01
+
+
+def test_rotor_stiction_is_opt_in_and_keeps_the_damping_at_400_dps2() -> None:
+    """``stiction=True`` adds the rotor's gap and flattens the damping below 100 °/s² (the gap
+    takes over the low-amplitude roll-off); at the scale-factor and transfer-function
+    records' 400 °/s² the damping stays the default's (0.7318 vs 0.7300: ≈ 0.1 sample of lag).
+    """
+    from aatest.twin.defaults import REALISTIC_STICTION
+    from aatest.twin.sensor import damping_of
+
+    plain, gap = (realistic_rig_model(stiction=s).sensors[0] for s in (False, True))
+    assert plain.rotor_stiction is None
+    assert gap.rotor_stiction == REALISTIC_STICTION
+    amps = np.array([1.0, 10.0, 100.0, 400.0])
+    zeta = {}
+    for name, s in (("plain", plain), ("gap", gap)):
+        assert s.amplitude_damping is not None and s.sensor_dynamics is not None
+        zeta[name] = damping_of(s.amplitude_damping, s.sensor_dynamics.damping, amps)
+    assert zeta["gap"][:3] == pytest.approx(0.78, abs=1e-12)  # flat up to its floor
+    assert zeta["gap"][3] == pytest.approx(zeta["plain"][3], abs=0.002)

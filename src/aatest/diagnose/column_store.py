@@ -67,8 +67,9 @@ def column_key(name: str, key: Spec, ripple: frozenset[str], vibration: frozense
         return (name, timing, key.dynamics, key.ripple_cpd)
     if name in vibration:
         return (name, timing, key.dynamics, key.vibration_hz)
+    stiction = key.stiction_dps if name == "rotor_stiction" else 0.0  # only its own column
     return (name, timing, key.ripple_motion_deg, key.hysteresis_dps2, key.dynamics,
-            key.saturation_dps2, key.plugin_shape)
+            key.saturation_dps2, key.plugin_shape, stiction)
 
 
 def _table_names(spec: Spec, index: int) -> tuple[frozenset[str], frozenset[str]]:

@@ -6,7 +6,8 @@ the commanded motion; everything else enters linearly, as one or two columns sca
 sensor's scale factor K, so for fixed shape parameters the whole model is one least-squares
 problem. The order of the signal path is the twin's (``aatest.twin.sensor``):
 
-    α(t − delay) → hysteresis → dynamics → saturation → cubic → K(T) → + b(T) + jerk → logger filter
+    α(t − delay) → hysteresis → stiction gap → dynamics → saturation → cubic → K(T) → + b(T)
+    + jerk → logger filter
 
 Per step and per fold only the Gram matrix XᵀX, Xᵀy and yᵀy are kept, so fitting on one fold
 and scoring on the other (held-out SSE) costs a small linear solve, not a pass over the data.
@@ -28,6 +29,7 @@ from aatest.diagnose.replay import (
     ripple_regressors,
     sensor_acceleration,
     sensor_axes,
+    sensor_rate,
 )
 from aatest.diagnose.steady_state import response, tone_columns
 from aatest.effects import EffectInputs, design_column_names, design_columns
@@ -71,6 +73,9 @@ class Spec:
     #: ``amplitude_damping`` (damping_per_decade, reference_dps2): the damping of
     #: ``dynamics`` (ζ at the reference amplitude) follows each step's amplitude
     amplitude_damping: tuple[float, float] | None = None
+    #: ``rotor_stiction``'s break-away rate (°/s; 0 = off): with ``rotor_stiction`` in
+    #: ``linear`` a column of the response lost while the case's rate is within ±it of zero
+    stiction_dps: float = 0.0
 
     def shift_of(self, index: int) -> float:
         """Total time shift of the prediction for step ``index`` (s)."""
@@ -102,6 +107,8 @@ def column_names(spec: Spec, replay: Replay) -> list[str]:
             names.append(name)
     if "cross_axis" in spec.linear:
         names += ["cross_x", "cross_y"]
+    if "rotor_stiction" in spec.linear:
+        names.append("rotor_stiction")
     names += design_column_names(spec.linear)  # plugin effects (aatest.effects)
     for n in spec.ripple_cpd:
         names += [f"ripple{n:g}_s", f"ripple{n:g}_c"]
@@ -209,7 +216,7 @@ def _eval_times(sr: StepReplay, spec: Spec) -> tuple[np.ndarray, tuple[float, fl
 
 #: design columns built on the sensed acceleration (computed by :func:`_sensor_columns`)
 _SENSOR_COLUMNS = frozenset({"scale", "scale_temperature", "nonlinearity_cubic",
-                             "jerk_sensitivity", "cross_x", "cross_y"})
+                             "jerk_sensitivity", "cross_x", "cross_y", "rotor_stiction"})
 
 
 def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
@@ -235,6 +242,8 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
             cols["nonlinearity_cubic"] = shaped**3 / info.range_dps2**2
     if "jerk_sensitivity" in wanted:
         cols["jerk_sensitivity"] = np.gradient(sensed, sr.dt_s)
+    if "rotor_stiction" in wanted:
+        cols["rotor_stiction"] = _stiction_column(sr, info, spec, t_eval, sensed)
     if "cross_x" in wanted:
         cols["cross_x"] = _dynamics(alpha3[0], spec, sr.dt_s)
     if "cross_y" in wanted:
@@ -244,6 +253,17 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
         cols |= design_columns(spec.linear, plugin_inputs,
                                {e: dict(v) for e, v in spec.plugin_shape})
     return cols
+
+
+def _stiction_column(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
+                     sensed: np.ndarray) -> np.ndarray:
+    """The response ``rotor_stiction`` removes (its coefficient is −depth·K): the sensed
+    acceleration while the commanded rate about the sensor axis is within ±the break-away
+    rate, through the dynamics (the twin's order: the gap acts before them)."""
+    if spec.stiction_dps <= 0.0 or not sr.dynamic:
+        return np.zeros_like(sensed)
+    gap = np.abs(sensor_rate(sr, info.axis, t_eval)) < spec.stiction_dps
+    return _dynamics(np.where(gap, sensed, 0.0), spec, sr.dt_s)
 
 
 def _ripple_motion(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray
@@ -442,7 +462,7 @@ def _step_key(spec: Spec, sr: StepReplay) -> Spec:
     spec = replace(spec, delay_s=spec.shift_of(sr.index), step_shift_s=())
     if sr.dynamic:
         return spec
-    key = replace(spec, hysteresis_dps2=0.0, saturation_dps2=None)
+    key = replace(spec, hysteresis_dps2=0.0, saturation_dps2=None, stiction_dps=0.0)
     if not spec.ripple_cpd and not spec.vibration_hz:
         key = replace(key, delay_s=0.0, dynamics=None, warp_ppm=0.0, amplitude_damping=None)
     return key

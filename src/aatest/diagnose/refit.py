@@ -47,6 +47,8 @@ def without(spec: Spec, effect: str) -> Spec | None:
         return replace(spec, linear=spec.linear - {effect})
     if effect in _SHAPE_RESET:
         return replace(spec, **_SHAPE_RESET[effect])
+    if effect == "rotor_stiction":  # a searched break-away rate and a column of its own
+        return replace(spec, linear=spec.linear - {effect}, stiction_dps=0.0)
     return None
 
 

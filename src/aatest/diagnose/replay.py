@@ -227,6 +227,13 @@ def sensor_acceleration(replay: StepReplay, axis: str, time_s: np.ndarray,
     return sensor_axes(axis, replay.pivoted).T @ top
 
 
+def sensor_rate(replay: StepReplay, axis: str, time_s: np.ndarray) -> np.ndarray:
+    """Commanded angular rate about the sensor's sensitive axis, (n,) °/s."""
+    m = replay.motion(time_s)
+    top = kin.angular_rate_top(_sincos(m["inner_angle"]), m["inner_rate"], m["outer_rate"])
+    return np.asarray(sensor_axes(axis, replay.pivoted)[:, 2] @ top)
+
+
 def gravity_along(replay: StepReplay, axis: str) -> np.ndarray:
     """Specific force along the sensor's sensitive axis (g), on the record grid."""
     m = replay.motion(replay.time_s)

@@ -147,6 +147,15 @@ def draw_amplitude_damping(seed: int) -> list[Hidden]:
                    ("damping_per_decade",), {"reference_dps2": 10.0})]
 
 
+def draw_rotor_stiction(seed: int) -> Hidden:
+    """A rotor stiction gap (seeded) the diagnostic plan's slowest sines reveal: break-away
+    rate 0.3–0.8 °/s against their 1.6–8 °/s rate amplitudes, depth 0.3–0.6. Not in
+    :data:`DRAWS`: the suites keep their cases (its own tests hide it)."""
+    r = np.random.default_rng([seed, len("rotor_stiction")])
+    return Hidden("rotor_stiction", {"breakaway_rate_dps": _u(r, 0.3, 0.8),
+                                     "depth": _u(r, 0.3, 0.6)}, ("breakaway_rate_dps", "depth"))
+
+
 def draw_hidden(effect: str, seed: int) -> Hidden:
     """A hidden effect of type ``effect`` with a seeded random magnitude."""
     return DRAWS[effect](np.random.default_rng([seed, len(effect)]))

@@ -48,7 +48,8 @@ _NPERSEG = 1024
 _LOW_BAND_HZ = 2.0
 #: nonlinear parameters each effect adds on top of its design columns
 SHAPE_PARAMS = {"time_delay": 1, "sensor_dynamics": 2, "hysteresis": 1, "saturation": 1,
-                "rate_ripple": 1, "motor_vibration": 1, "amplitude_damping": 1}
+                "rate_ripple": 1, "motor_vibration": 1, "amplitude_damping": 1,
+                "rotor_stiction": 1}
 
 
 @dataclass

@@ -29,6 +29,7 @@ from aatest.twin.model import (
     NonlinearityCubic,
     RateRipple,
     RigModel,
+    RotorStiction,
     Saturation,
     ScaleTemperature,
     SensorDynamics,
@@ -38,8 +39,8 @@ from aatest.twin.model import (
     UnitModel,
 )
 
-__all__ = ["REALISTIC_RIPPLE", "REALISTIC_VIBRATION", "SLIP_RING_RMS_V", "realistic_rig_model",
-           "realistic_sensor_model", "realistic_sensor_models"]
+__all__ = ["REALISTIC_RIPPLE", "REALISTIC_STICTION", "REALISTIC_VIBRATION", "SLIP_RING_RMS_V",
+           "realistic_rig_model", "realistic_sensor_model", "realistic_sensor_models"]
 
 #: table-side defaults that reproduce docs/method.md §1.2 (motor line, ripple, estimate noise)
 REALISTIC_VIBRATION = MotorVibration(frequency_hz=35.0, amplitude_dps2=6.0, bandwidth_hz=6.0)
@@ -75,17 +76,37 @@ _NOISE_RMS_V = 0.001
 _RESOLUTION_FR = 0.00005
 #: the sensed acceleration clips this far beyond the rated range
 _SATURATION_FR = 1.05
+#: with the stiction gap: the rotor's damping ratio up to 100 °/s², falling 0.083 per decade
+#: of amplitude above (0.73 at 400 °/s², as without the gap): the 10 Hz gain is 0.3 dB down at
+#: 100 °/s² and 0.12 dB at 400 (measured 0.4, 0.2 dB)
+_STICTION_DAMPING_BELOW_100 = 0.78
+STICTION_AMPLITUDE_DAMPING = AmplitudeDamping(damping_per_decade=-0.083, reference_dps2=100.0,
+                                              floor_dps2=100.0)
+#: the rotor sticks to the case while the rate about its axis is within ±0.055 °/s and then
+#: loses 11 % of its response. On the stepped sine (docs/method.md §1.3, §4.4) this is a gain
+#: loss with no phase that grows with f/A: at 10 °/s² the 10 Hz gain falls ≈0.35 dB more and
+#: the fall starts below 3 Hz; at 1 °/s² the gap covers the whole cycle from ≈3 Hz on (≈0.75
+#: dB more at 10 Hz, the fall starting at ≈2 Hz); ≤0.03 dB at 100 and 400 °/s². Measured: the
+#: two lowest accelerations start to fall at ≈2 Hz, 1.0 and 0.5 dB down at 10 Hz, with the
+#: damping of the higher ones their phase delays stay 24–31 samples (bench/study_lowamp.py)
+REALISTIC_STICTION = RotorStiction(breakaway_rate_dps=0.055, depth=0.11)
+#: with the gap the 1 °/s² delays scatter ± 2.5 samples about their mean (the dithered gap and
+#: hysteresis at 0.4–1 Hz); 2.35 ms of transport (24.7–25.2 samples at 400 °/s²) keeps that
+#: scatter inside the study's 24–31 samples
+_STICTION_DELAY_S = 0.00235
 
 
-def realistic_sensor_model(sheet: SensorDatasheet, channel: str, axis: SensorAxis) -> SensorModel:
+def realistic_sensor_model(sheet: SensorDatasheet, channel: str, axis: SensorAxis,
+                           stiction: bool = False) -> SensorModel:
     """One channel of ``sheet`` as a realistic sensor, every datasheet error term switched on.
 
     Bias, scale factor and range are the datasheet's (bias shifted by the unit's individual
-    offset); resolution and saturation scale with the range.
+    offset); resolution and saturation scale with the range. ``stiction`` adds the rotor's
+    stiction gap (:data:`REALISTIC_STICTION`) with the damping that goes with it.
     """
     bias_offset_v, azimuth_deg = _INDIVIDUAL[axis]
     range_dps2 = sheet.range_dps2
-    return SensorModel(
+    model = SensorModel(
         channel=channel, axis=axis, bias_v=sheet.nominal_bias_v + bias_offset_v,
         scale_v_per_dps2=sheet.nominal_scale_v_per_dps2, range_dps2=range_dps2,
         noise_rms_v=_NOISE_RMS_V, resolution_dps2=_RESOLUTION_FR * range_dps2,
@@ -108,16 +129,25 @@ def realistic_sensor_model(sheet: SensorDatasheet, channel: str, axis: SensorAxi
         misalignment=Misalignment(angle_deg=0.2, azimuth_deg=azimuth_deg),
         bias_drift=REALISTIC_DRIFT,
     )
+    if stiction:  # the stiction gap takes over the low-amplitude damping's extra roll-off
+        model = model.model_copy(update={
+            "sensor_dynamics": SensorDynamics(natural_frequency_hz=30.0,
+                                              damping=_STICTION_DAMPING_BELOW_100),
+            "amplitude_damping": STICTION_AMPLITUDE_DAMPING, "rotor_stiction": REALISTIC_STICTION,
+            "time_delay": TimeDelay(delay_s=_STICTION_DELAY_S)})
+    return model
 
 
-def realistic_sensor_models(sheet: SensorDatasheet) -> list[SensorModel]:
+def realistic_sensor_models(sheet: SensorDatasheet, stiction: bool = False
+                            ) -> list[SensorModel]:
     """One realistic sensor model per channel of the datasheet, in channel order."""
-    return [realistic_sensor_model(sheet, channel, axis)
+    return [realistic_sensor_model(sheet, channel, axis, stiction)
             for channel, axis in sheet.channels.items()]
 
 
 def realistic_rig_model(sensors: SensorDatasheet | Sequence[SensorModel] | None = None,
-                        *, drift_ppm: float = 12.0, slip_ring: bool = False) -> RigModel:
+                        *, drift_ppm: float = 12.0, slip_ring: bool = False,
+                        stiction: bool = False) -> RigModel:
     """The rig as measured (docs/method.md §1.2–1.3, §2).
 
     Parameters
@@ -129,11 +159,18 @@ def realistic_rig_model(sensors: SensorDatasheet | Sequence[SensorModel] | None 
         DAQ crystal rate error, ppm.
     slip_ring
         Route the sensors through the slip ring (≈11 mV RMS added).
+    stiction
+        Give the datasheet's sensors the rotor's stiction gap (:data:`REALISTIC_STICTION`):
+        the stepped sine's low-acceleration rows of the study (bench/study_lowamp.py). Off
+        by default: the gap also trims the sine peaks of the scale-factor record and the
+        cross-axis responses (a sensor turned about another axis barely turns about its
+        own), which moves other rows of bench/study.py (seed 7: sliding-mode L 0.073 →
+        0.042 °/s², largest cross-axis ratio 1.19 → 1.08 %).
     """
     if sensors is None:
         sensors = SensorDatasheet(model="reference")
     if isinstance(sensors, SensorDatasheet):
-        sensors = realistic_sensor_models(sensors)
+        sensors = realistic_sensor_models(sensors, stiction)
     axis = {"rate_ripple": list(REALISTIC_RIPPLE), "motor_vibration": REALISTIC_VIBRATION,
             "estimate_noise_deg": 0.01 / 3600}
     base = TableModel()

@@ -94,6 +94,24 @@ def angular_acceleration_top(
     return _apply_wobble(alpha, s, c, gimbal.wobble_arcsec)
 
 
+def angular_rate_top(inner_sincos: tuple[np.ndarray, np.ndarray], inner_rate_dps: np.ndarray,
+                     outer_rate_dps: np.ndarray, gimbal: GimbalErrors = GimbalErrors()
+                     ) -> np.ndarray:
+    """Angular velocity of the table top in its own frame, shape (3, n), °/s.
+
+    The quantity whose derivative :func:`angular_acceleration_top` is (the same outer-axis
+    direction, orthogonality and wobble).
+    """
+    s, c = inner_sincos
+    eps = gimbal.orthogonality_arcsec * ARCSEC_RAD
+    v_o, v_i = np.cos(eps), -np.sin(eps)
+    rate = np.empty((3, *np.shape(s)))
+    rate[0] = v_o * outer_rate_dps * s
+    rate[1] = v_o * outer_rate_dps * c
+    rate[2] = inner_rate_dps + v_i * outer_rate_dps
+    return _apply_wobble(rate, s, c, gimbal.wobble_arcsec)
+
+
 def gravity_top(inner_sincos: tuple[np.ndarray, np.ndarray],
                 outer_sincos: tuple[np.ndarray, np.ndarray],
                 gimbal: GimbalErrors = GimbalErrors()) -> np.ndarray:

@@ -88,6 +88,8 @@ class AmplitudeDamping(_Model):
     reference_dps2: float = Field(gt=0)
     window_s: float = Field(2.5, gt=0, description="≥ one period of the slowest sine")
     band_hz: float = Field(15.0, gt=0, description="the amplitude's band (low-pass corner)")
+    floor_dps2: float | None = Field(
+        None, gt=0, description="below this amplitude ζ stays at ζ(floor) (None: no floor)")
 
 
 class TimeDelay(_Model):
@@ -199,6 +201,21 @@ class ExcessNoise(_Model):
     rms_v: float = Field(ge=0)
 
 
+class RotorStiction(_Model):
+    """The rotor sticks to the case around every rate reversal: while the case's angular rate
+    about the sensor axis is within ±``breakaway_rate_dps`` of zero the sensor loses the share
+    ``depth`` of its response, outside it responds fully. On a sine of acceleration A at f the gap
+    removes the acceleration peaks (rate zero) and costs ≈ 8·depth·r·f/A of the fundamental
+    with no phase shift, r the break-away rate: a loss growing linearly with frequency at
+    constant acceleration and vanishing at large A (docs/method.md §1.3: at 1 and 10 °/s² the
+    gain starts to fall at ≈ 2 Hz). The table's own vibration dithers the gap at very low
+    acceleration, which bounds the loss there."""
+
+    breakaway_rate_dps: float = Field(gt=0)
+    depth: float = Field(1.0, gt=0, le=1, description="the share of the response lost while "
+                         "the rotor sticks (1: none left)")
+
+
 #: effect name → parameter model, exactly the contract vocabulary
 EFFECTS: dict[str, type[_Model]] = {
     "bias_temperature": BiasTemperature,
@@ -217,6 +234,7 @@ EFFECTS: dict[str, type[_Model]] = {
     "rate_ripple": RateRipple,
     "motor_vibration": MotorVibration,
     "excess_noise": ExcessNoise,
+    "rotor_stiction": RotorStiction,
 }
 
 class PluginEffect(_Model):
@@ -288,6 +306,7 @@ class SensorModel(_Model):
         None, description="effects from installed plugins (aatest.effects), applied after the "
         "built-in chain: in °/s² before the scale factor or in volts, as each plugin declares")
     bias_drift: BiasDrift | None = None
+    rotor_stiction: RotorStiction | None = None
 
     @model_validator(mode="after")
     def _damping_has_dynamics(self) -> SensorModel:

@@ -3,8 +3,8 @@
 Signal path of one sensor channel (docs/interfaces.md §4 vocabulary, same parameter names):
 
     α_top (table-top frame) ─ axis projection (misalignment, pivot, re-mount) ─ cross_axis
-    ─ g_sensitivity ─ hysteresis (play) ─ sensor_dynamics (amplitude_damping) ─ saturation
-    ─ resolution
+    ─ g_sensitivity ─ hysteresis (play) ─ rotor_stiction (a gap around the rate reversals)
+    ─ sensor_dynamics (amplitude_damping) ─ saturation ─ resolution
     ─ nonlinearity_cubic ─ plugin effects in °/s² ─ scale (scale_temperature)
     ─ bias (bias_temperature) ─ jerk ─ plugin effects in V → volts
 
@@ -121,7 +121,8 @@ def trailing_amplitude(x: np.ndarray, window: int, state: ChannelState | None) -
 def damping_of(effect: AmplitudeDamping, damping: float, amplitude_dps2: np.ndarray
                ) -> np.ndarray:
     """ζ(A) of :class:`AmplitudeDamping` around the sensor's ``damping``, within bounds."""
-    ratio = np.maximum(amplitude_dps2, 1e-9) / effect.reference_dps2
+    floor = effect.floor_dps2 if effect.floor_dps2 is not None else 1e-9
+    ratio = np.maximum(amplitude_dps2, floor) / effect.reference_dps2
     return np.clip(damping + effect.damping_per_decade * np.log10(ratio), *_ZETA_BOUNDS)
 
 
@@ -212,6 +213,8 @@ class SensorInputs:
     dt_s : sample spacing in lab seconds.
     time_s : (n,) lab time since the table record started (s), for time-dependent plugin
         effects; None: since the first sample.
+    rate_top_dps : (3, n) angular velocity of the table top (already delayed), °/s; needed
+        by ``rotor_stiction`` only.
     """
 
     alpha_top_dps2: np.ndarray
@@ -220,6 +223,7 @@ class SensorInputs:
     axes: np.ndarray
     dt_s: float
     time_s: np.ndarray | None = None
+    rate_top_dps: np.ndarray | None = None
 
 
 def sensed_acceleration(model: SensorModel, inp: SensorInputs,
@@ -244,6 +248,16 @@ def sensed_acceleration(model: SensorModel, inp: SensorInputs,
     return alpha
 
 
+def stiction_gate(model: SensorModel, inp: SensorInputs) -> np.ndarray:
+    """1 where the rotor moves, 1 − ``depth`` where it sticks to the case (``rotor_stiction``):
+    the case's rate about the sensor axis within ±``breakaway_rate_dps`` of zero."""
+    assert model.rotor_stiction is not None
+    assert inp.rate_top_dps is not None, "rotor_stiction needs the table top's rate"
+    stiction = model.rotor_stiction
+    rate = inp.axes[:, 2] @ inp.rate_top_dps
+    return 1.0 - stiction.depth * (np.abs(rate) < stiction.breakaway_rate_dps)
+
+
 def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
                  state: ChannelState | None = None) -> np.ndarray:
     """Sensor output voltage before the DAQ's filter, white noise and ADC (V).
@@ -253,7 +267,7 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
     (``bias_drift``, a random process of its own stream) is only generated with a state.
     """
     sensed = sensed_acceleration(model, inp, state)
-    alpha = sensed
+    alpha = sensed if model.rotor_stiction is None else sensed * stiction_gate(model, inp)
     if model.sensor_dynamics is not None and model.amplitude_damping is not None:
         alpha = amplitude_dynamics(model, alpha, inp.dt_s, state)
     elif model.sensor_dynamics is not None:

@@ -274,6 +274,15 @@ def _rigid_block(setup: StepSetup, grid: Grid) -> _RigidBlock:
     return _RigidBlock(setup.thermal.temperature_at(grid.times), motion)
 
 
+def _top_rate(setup: StepSetup, grid: Grid) -> np.ndarray:
+    """Angular velocity (3, n) °/s of the table top on a lab-time grid (``rotor_stiction``
+    gates on it; the floor's rocking, ≪ 0.01 °/s, is left out)."""
+    th_i, w_i, _ = setup.inner.evaluate(grid)
+    _, w_o, _ = setup.outer.evaluate(grid)
+    sc_i = sincos_deg(th_i, setup.inner.profile.moving, setup.inner.profile.start_deg)
+    return kin.angular_rate_top(sc_i, w_i, w_o, setup.gimbal)
+
+
 #: records longer than this are generated in blocks of :data:`GENERATION_BLOCK` samples
 SINGLE_BLOCK_MAX = 2**18
 #: generation block of a long record (≈ 65.5 s at 2 kHz); the state of every filter, noise
@@ -370,8 +379,10 @@ def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generato
         if delay not in motion:
             motion[delay] = _with_floor(rigid.motion[delay], floor)
         alpha, up = motion[delay]
+        rate = (_top_rate(setup, grid.shifted(-delay)) if sensor.rotor_stiction is not None
+                else None)
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s,
-                           grid.times - setup.trigger_time_s)
+                           grid.times - setup.trigger_time_s, rate)
         carried = state.sensors.setdefault(sensor.channel, ChannelState())
         clean = output_volts(sensor, inp, model.t_ref_c, carried)
         channels[sensor.channel] = _record_block(clean, sensor, model.daq, clock.lab_dt_s, rng,

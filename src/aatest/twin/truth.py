@@ -100,14 +100,17 @@ def _ratio_once(model: RigModel, channel: str, frequency_hz: float, accel_dps2: 
     omega = 2.0 * math.pi * frequency_hz
     # start at rest in acceleration (sin), as a commanded sine does; the sensor sees it delayed
     alpha = accel_dps2 * np.sin(omega * (t - delay))
+    rate = -accel_dps2 / omega * np.cos(omega * (t - delay))
     if vibration is not None:
         # the motor band is part of the motion the sensor sees: it dithers the hysteresis
-        # (the play operator), which changes the fundamental
+        # (the play operator) and the rotor's stiction gap, which changes the fundamental
         phases = 2 * math.pi * np.outer(t - delay, vibration.frequency_hz) + vibration.phase_rad
         alpha = alpha + np.sin(phases) @ vibration.amplitude_dps2
-    alpha_top = np.outer(_rotation_axis(sensor), alpha)
-    inputs = SensorInputs(alpha_top, np.zeros((3, n)), np.full(n, temperature_c),
-                          _mounted_axes(sensor), dt_s)
+        w_v = 2 * math.pi * vibration.frequency_hz
+        rate = rate - np.cos(phases) @ (vibration.amplitude_dps2 / w_v)
+    axis = _rotation_axis(sensor)
+    inputs = SensorInputs(np.outer(axis, alpha), np.zeros((3, n)), np.full(n, temperature_c),
+                          _mounted_axes(sensor), dt_s, rate_top_dps=np.outer(axis, rate))
     volts = noiseless(output_volts(sensor, inputs, model.t_ref_c), model.daq, dt_s)
     window = slice(settle, n)
     out = _fundamental(volts[window], omega * t[window])
@@ -169,7 +172,8 @@ def bias_truth_v(model: RigModel, channel: str, temperature_c: float) -> float:
     sensor = model.sensor(channel)
     n = 4  # a few samples: the jerk term needs a gradient
     inputs = SensorInputs(np.zeros((3, n)), np.zeros((3, n)), np.full(n, temperature_c),
-                          _mounted_axes(sensor), 1.0 / model.daq.sample_rate_hz)
+                          _mounted_axes(sensor), 1.0 / model.daq.sample_rate_hz,
+                          rate_top_dps=np.zeros((3, n)))
     return float(output_volts(sensor, inputs, model.t_ref_c)[0])
 
 
