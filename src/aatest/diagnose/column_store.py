@@ -145,11 +145,12 @@ def _columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
 
 
 def _stack(cols: dict[str, np.ndarray | None], names: list[str]) -> np.ndarray:
-    """The named columns side by side (each one built: a block's columns are never zero)."""
+    """The named columns as the rows of one (len(names), n) array (each one built: a block's
+    columns are never zero)."""
     held = [cols[n] for n in names]
     if any(c is None for c in held):
         raise AssertionError("a block column was not rebuilt")
-    return np.column_stack([c for c in held if c is not None])
+    return np.stack([c for c in held if c is not None])
 
 
 def _empty(spec: Spec, sr: StepReplay, y: np.ndarray) -> StepBlock:
@@ -233,7 +234,8 @@ def step_block(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
 
 def step_design(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
                 y: np.ndarray, cache: dict[Any, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """(indices into ``names`` of the columns non-zero on this step, those columns (n, u)).
+    """(indices into ``names`` of the columns non-zero on this step, those columns as rows
+    (u, n)).
 
     The columns come from the store of :func:`step_block` (built when released), so a model
     with many step-local columns (vibration tones of every step) is never held as a dense
@@ -244,7 +246,7 @@ def step_design(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str],
     budget = cache[BUDGET_KEY]
     cols = _columns(sr, info, block.spec, [names[j] for j in used],
                     [block.keys[block.index[names[j]]] for j in used], budget)
-    x = _stack(cols, [names[j] for j in used]) if used else np.zeros((sr.n, 0))
+    x = _stack(cols, [names[j] for j in used]) if used else np.zeros((0, sr.n))
     return np.asarray(used, dtype=int), x
 
 
