@@ -200,12 +200,18 @@ def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float
 
 def _eval_times(sr: StepReplay, spec: Spec) -> tuple[np.ndarray, tuple[float, float, float]]:
     """Times (padded grid) at which the motion is evaluated, and their memo key."""
-    tp = sr.padded_time_s
     shift = spec.shift_of(sr.index)
     t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    return _eval_times_of(sr.padded_time_s, sr, spec), (shift, spec.warp_ppm, t_ref)
+
+
+def _eval_times_of(tp: np.ndarray, sr: StepReplay, spec: Spec) -> np.ndarray:
+    """Evaluation times of the padded grid times ``tp`` under ``spec``'s shift and warp."""
+    shift = spec.shift_of(sr.index)
     if spec.warp_ppm == 0.0:  # the same times (x − 0 is x), two passes fewer
-        return tp - shift, (shift, spec.warp_ppm, t_ref)
-    return tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref), (shift, spec.warp_ppm, t_ref)
+        return tp - shift
+    t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    return tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref)
 
 
 #: design columns built on the sensed acceleration (computed by :func:`_sensor_columns`)
@@ -293,23 +299,63 @@ def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
     done: dict[str, np.ndarray] = {}
     left: list[int] = []
     step_s = float(t_eval[1] - t_eval[0])
-    t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
-    shift = spec.shift_of(sr.index)
+    t_ref = tone_reference_s(sr, spec)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
         names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
         if wanted.isdisjoint(names):
             continue
-        w = 2 * np.pi * f_hz
-        h = _chain_response(spec.dynamics, info.antialias_hz, sr.dt_s, w * step_s)
-        if h is None:
+        gain = tone_gain(sr, info, spec, f_hz, step_s)
+        if gain is None:
             left.append(j)
             continue
-        # a time shift turns the tone's phase: it goes into the complex gain, and the sine
-        # and cosine of the unshifted tone are computed once per warp
         basis = _tone_basis(sr, f_hz, spec.warp_ppm, t_ref)
-        done[names[0]], done[names[1]] = tone_columns(h * np.exp(-1j * w * shift), basis,
-                                                      z_inner)
+        done[names[0]], done[names[1]] = tone_columns(gain, basis, z_inner)
     return done, left
+
+
+def tone_reference_s(sr: StepReplay, spec: Spec) -> float:
+    """Time (s in the record) about which the clock warp turns the tones."""
+    return 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+
+
+def eval_step_s(sr: StepReplay, spec: Spec) -> float:
+    """Spacing of the evaluation grid of :func:`_eval_times` (its first two samples, with
+    the same arithmetic), without evaluating the whole grid."""
+    return float(np.diff(_eval_times_of(sr.padded_time_s[:2], sr, spec))[0])
+
+
+def tone_gain(sr: StepReplay, info: ChannelInfo, spec: Spec, f_hz: float,
+              step_s: float | None = None) -> complex | None:
+    """Complex gain of one vibration tone through dynamics and logger (``spec`` resolved for
+    the step, :func:`step_damped`), with the step's time shift turning its phase; None when
+    a filter rings beyond the padding (the tone is then filtered in the time domain).
+
+    The tone's design columns are Re and Im of gain·e^{iθ} with θ = 2πf·t (warped, not
+    shifted): ``gain.real·sin θ + gain.imag·cos θ`` and ``gain.real·cos θ − gain.imag·sin θ``
+    (:func:`~aatest.diagnose.steady_state.tone_columns`), so everything a delay or the
+    dynamics change about a tone is in this one number.
+    """
+    w = 2 * np.pi * f_hz
+    step = eval_step_s(sr, spec) if step_s is None else step_s
+    h = _chain_response(spec.dynamics, info.antialias_hz, sr.dt_s, w * step)
+    if h is None:
+        return None
+    # a time shift turns the tone's phase: it goes into the complex gain, and the sine and
+    # cosine of the unshifted tone are computed once per warp
+    return complex(h * np.exp(-1j * w * spec.shift_of(sr.index)))
+
+
+def inner_projection(sr: StepReplay, info: ChannelInfo) -> float:
+    """Share of an inner-axis acceleration along the sensor's sensitive axis."""
+    return float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
+
+
+def tone_basis_row(sr: StepReplay, f_hz: float, warp_ppm: float, from_start: bool,
+                   part: str) -> np.ndarray:
+    """sin θ (``part`` "s") or cos θ ("c") of one tone on the record grid (read-only)."""
+    t_ref = 0.0 if from_start else 0.5 * sr.time_s[-1]
+    sin, cos = _tone_basis(sr, f_hz, warp_ppm, t_ref)
+    return sin if part == "s" else cos
 
 
 def _tone_basis(sr: StepReplay, f_hz: float, warp_ppm: float, t_ref: float
