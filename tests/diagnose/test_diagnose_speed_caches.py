@@ -65,9 +65,17 @@ SPECS = [
     Spec(linear=frozenset({"bias_temperature"}), dynamics=(31.0, 0.6)),
     Spec(linear=frozenset({"bias_temperature", "scale_temperature"}), dynamics=(31.0, 0.6)),
     Spec(hysteresis_dps2=2.0, saturation_dps2=300.0),
+    # the same dynamics with the damping following the amplitude, then differently: every
+    # column through the dynamics changes although ``dynamics`` does not
+    Spec(dynamics=(31.0, 0.6), amplitude_damping=(0.3, 10.0)),
+    Spec(dynamics=(31.0, 0.6), amplitude_damping=(0.05, 10.0)),
     Spec(ripple_cpd=(2.0,), vibration_hz=(33.3,)),
     Spec(linear=frozenset({"cross_axis"}), ripple_cpd=(2.0,), vibration_hz=(33.3,),
          dynamics=(31.0, 0.6)),
+    # vibration tones kept as sines and cosines, turned by a gain a delay and the dynamics set
+    Spec(vibration_hz=(33.3, 47.11), dynamics=(31.0, 0.6), delay_s=0.0031),
+    Spec(vibration_hz=(33.3, 47.11), dynamics=(29.0, 0.7), delay_s=0.0011),
+    Spec(vibration_hz=(33.3, 47.11), dynamics=(29.0, 0.7), amplitude_damping=(0.2, 10.0)),
     Spec(),
     Spec(linear=frozenset({"bias_temperature", "scale_temperature", "cross_axis"})),
 ]

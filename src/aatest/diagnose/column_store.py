@@ -74,13 +74,15 @@ def column_key(name: str, key: Spec, ripple: frozenset[str], vibration: frozense
     timing = (key.delay_s, key.warp_ppm, key.warp_from_start)
     if name == "jerk_sensitivity":
         return (name, timing, key.ripple_motion_deg, key.hysteresis_dps2)
+    # the dynamics a step sees: ζ follows the step's amplitude under ``amplitude_damping``
+    dynamics = (key.dynamics, key.amplitude_damping)
     if name in ("cross_x", "cross_y"):
-        return (name, timing, key.dynamics)
+        return (name, timing, dynamics)
     if name in ripple:
-        return (name, timing, key.dynamics, key.ripple_cpd)
+        return (name, timing, dynamics, key.ripple_cpd)
     if name in vibration:
-        return (name, timing, key.dynamics, key.vibration_hz)
-    return (name, timing, key.ripple_motion_deg, key.hysteresis_dps2, key.dynamics,
+        return (name, timing, dynamics, key.vibration_hz)
+    return (name, timing, key.ripple_motion_deg, key.hysteresis_dps2, dynamics,
             key.saturation_dps2, key.plugin_shape)
 
 
