@@ -186,3 +186,23 @@ def test_vibration_columns_in_the_frequency_domain_equal_the_filtered_tone(repla
             # rounding of two recursive filters over 2^12 + 2048 samples: 1e-9 of the amplitude
             assert_allclose(got[f"vib{sr.index}_{j}_{p}"], direct, rtol=0,
                             atol=1e-9 * np.abs(direct).max())
+
+
+@pytest.mark.parametrize(("natural_hz", "damping"), [(38.877, 0.653), (0.5, 0.05), (1000.0, 3.0)])
+def test_closed_form_dynamics_filter_is_the_twins(natural_hz: float, damping: float) -> None:
+    """The design's second-order filter in closed form is the twin's bilinear transform, and
+    its initial state is the steady state of a unit input."""
+    from aatest.twin.sensor import dynamics_filter
+
+    dt_s = 0.0005
+    b, a, zi = design._dyn(natural_hz, damping, dt_s)
+    b_twin, a_twin = dynamics_filter(natural_hz, damping, dt_s)
+    # sums of like-signed terms of size k² = (2/dt)²: rounding of a few operations
+    assert_allclose(b, b_twin, rtol=1e-13)
+    assert_allclose(a, a_twin, rtol=0, atol=1e-13)
+    _, zf = signal.lfilter(b, a, np.ones(20000), zi=zi)
+    # a steady state stays put under a unit input (to rounding of the recursion)
+    assert_allclose(zf, zi, rtol=1e-12)
+    # SciPy's lfilter_zi solves the same system (less accurately for a slow resonance:
+    # its pivot 1 + a1 + a2 = 4ωn²/a0 is a difference of numbers near 1)
+    assert_allclose(zi, signal.lfilter_zi(b_twin, a_twin), rtol=1e-9)
