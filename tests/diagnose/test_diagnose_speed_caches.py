@@ -206,3 +206,19 @@ def test_closed_form_dynamics_filter_is_the_twins(natural_hz: float, damping: fl
     # SciPy's lfilter_zi solves the same system (less accurately for a slow resonance:
     # its pivot 1 + a1 + a2 = 4ωn²/a0 is a difference of numbers near 1)
     assert_allclose(zi, signal.lfilter_zi(b_twin, a_twin), rtol=1e-9)
+
+
+def test_still_outer_axis_acceleration_is_the_full_kinematics(replay) -> None:
+    """With the outer axis still, the inner axis's acceleration alone is the top's: the same
+    numbers as the full kinematics (every other term is an exact zero)."""
+    from aatest.diagnose.replay import _sincos, kin, sensor_axes
+
+    still = [sr for sr in replay.steps if not sr.outer.moving]
+    assert still and len(still) < len(replay.steps)  # both paths are met by this replay
+    for sr in replay.steps:
+        t = sr.padded_time_s - 0.0013
+        m = sr.motion(t)
+        top = kin.angular_acceleration_top(_sincos(m["inner_angle"]), m["inner_rate"],
+                                           m["inner_accel"], m["outer_rate"], m["outer_accel"])
+        assert_allclose(sensor_acceleration(sr, "I", t), sensor_axes("I", sr.pivoted).T @ top,
+                        rtol=0, atol=0)
