@@ -65,9 +65,17 @@ SPECS = [
     Spec(linear=frozenset({"bias_temperature"}), dynamics=(31.0, 0.6)),
     Spec(linear=frozenset({"bias_temperature", "scale_temperature"}), dynamics=(31.0, 0.6)),
     Spec(hysteresis_dps2=2.0, saturation_dps2=300.0),
+    # the same dynamics with the damping following the amplitude, then differently: every
+    # column through the dynamics changes although ``dynamics`` does not
+    Spec(dynamics=(31.0, 0.6), amplitude_damping=(0.3, 10.0)),
+    Spec(dynamics=(31.0, 0.6), amplitude_damping=(0.05, 10.0)),
     Spec(ripple_cpd=(2.0,), vibration_hz=(33.3,)),
     Spec(linear=frozenset({"cross_axis"}), ripple_cpd=(2.0,), vibration_hz=(33.3,),
          dynamics=(31.0, 0.6)),
+    # vibration tones kept as sines and cosines, turned by a gain a delay and the dynamics set
+    Spec(vibration_hz=(33.3, 47.11), dynamics=(31.0, 0.6), delay_s=0.0031),
+    Spec(vibration_hz=(33.3, 47.11), dynamics=(29.0, 0.7), delay_s=0.0011),
+    Spec(vibration_hz=(33.3, 47.11), dynamics=(29.0, 0.7), amplitude_damping=(0.2, 10.0)),
     Spec(),
     Spec(linear=frozenset({"bias_temperature", "scale_temperature", "cross_axis"})),
 ]
@@ -178,3 +186,39 @@ def test_vibration_columns_in_the_frequency_domain_equal_the_filtered_tone(repla
             # rounding of two recursive filters over 2^12 + 2048 samples: 1e-9 of the amplitude
             assert_allclose(got[f"vib{sr.index}_{j}_{p}"], direct, rtol=0,
                             atol=1e-9 * np.abs(direct).max())
+
+
+@pytest.mark.parametrize(("natural_hz", "damping"), [(38.877, 0.653), (0.5, 0.05), (1000.0, 3.0)])
+def test_closed_form_dynamics_filter_is_the_twins(natural_hz: float, damping: float) -> None:
+    """The design's second-order filter in closed form is the twin's bilinear transform, and
+    its initial state is the steady state of a unit input."""
+    from aatest.twin.sensor import dynamics_filter
+
+    dt_s = 0.0005
+    b, a, zi = design._dyn(natural_hz, damping, dt_s)
+    b_twin, a_twin = dynamics_filter(natural_hz, damping, dt_s)
+    # sums of like-signed terms of size k² = (2/dt)²: rounding of a few operations
+    assert_allclose(b, b_twin, rtol=1e-13)
+    assert_allclose(a, a_twin, rtol=0, atol=1e-13)
+    _, zf = signal.lfilter(b, a, np.ones(20000), zi=zi)
+    # a steady state stays put under a unit input (to rounding of the recursion)
+    assert_allclose(zf, zi, rtol=1e-12)
+    # SciPy's lfilter_zi solves the same system (less accurately for a slow resonance:
+    # its pivot 1 + a1 + a2 = 4ωn²/a0 is a difference of numbers near 1)
+    assert_allclose(zi, signal.lfilter_zi(b_twin, a_twin), rtol=1e-9)
+
+
+def test_still_outer_axis_acceleration_is_the_full_kinematics(replay) -> None:
+    """With the outer axis still, the inner axis's acceleration alone is the top's: the same
+    numbers as the full kinematics (every other term is an exact zero)."""
+    from aatest.diagnose.replay import _sincos, kin, sensor_axes
+
+    still = [sr for sr in replay.steps if not sr.outer.moving]
+    assert still and len(still) < len(replay.steps)  # both paths are met by this replay
+    for sr in replay.steps:
+        t = sr.padded_time_s - 0.0013
+        m = sr.motion(t)
+        top = kin.angular_acceleration_top(_sincos(m["inner_angle"]), m["inner_rate"],
+                                           m["inner_accel"], m["outer_rate"], m["outer_accel"])
+        assert_allclose(sensor_acceleration(sr, "I", t), sensor_axes("I", sr.pivoted).T @ top,
+                        rtol=0, atol=0)

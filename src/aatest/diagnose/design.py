@@ -20,6 +20,7 @@ from functools import lru_cache
 
 import numpy as np
 from scipy import signal
+from scipy.linalg import lapack
 
 from aatest.diagnose.replay import (
     PAD_SAMPLES,
@@ -38,7 +39,7 @@ from aatest.numerics import TINY
 from aatest.twin.daq import antialias_filter
 from aatest.twin.kinematics import E_I
 from aatest.twin.model import AmplitudeDamping
-from aatest.twin.sensor import band_filter, damping_of, dynamics_filter, play_operator
+from aatest.twin.sensor import band_filter, damping_of, play_operator
 
 #: contiguous time blocks per step; even blocks form fold A, odd blocks fold B
 BLOCKS_PER_STEP = 8
@@ -128,9 +129,29 @@ def _aa(corner_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarr
 @lru_cache(maxsize=64)
 def _dyn(natural_frequency_hz: float, damping: float, dt_s: float
          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(b, a, unit steady-state initial conditions) of the sensor's second-order dynamics."""
-    b, a = dynamics_filter(natural_frequency_hz, damping, dt_s)
-    return b, a, signal.lfilter_zi(b, a)
+    """(b, a, unit steady-state initial conditions) of the sensor's second-order dynamics.
+
+    The twin's filter (:func:`aatest.twin.sensor.dynamics_filter`: ωn²/(s² + 2ζωn s + ωn²)
+    by the bilinear transform) in closed form: a dynamics search meets a new (ωn, ζ) on
+    almost every evaluation, and SciPy's general polynomial route and ``lfilter_zi`` cost
+    about a millisecond each per filter; these are the same numbers to rounding (tested).
+    With k = 2/dt (s = k·(1 − z⁻¹)/(1 + z⁻¹)):
+
+        b = ωn²·(1, 2, 1) / a0,   a = (a0, 2ωn² − 2k², k² − 2ζωn·k + ωn²) / a0,
+        a0 = k² + 2ζωn·k + ωn²
+    """
+    wn = 2 * np.pi * natural_frequency_hz
+    k = 2.0 / dt_s
+    k2, wn2, cross = k * k, wn * wn, 2.0 * damping * wn * k
+    a0 = k2 + cross + wn2
+    b = np.array([wn2, 2.0 * wn2, wn2]) / a0
+    a = np.array([1.0, (2.0 * wn2 - 2.0 * k2) / a0, (k2 - cross + wn2) / a0])
+    # steady state of lfilter's transposed direct form under a unit input (lfilter_zi):
+    # (I − Aᵀ)·zi = b[1:] − a[1:]·b[0], solved for the 2×2 companion matrix; its pivot
+    # 1 + a1 + a2 is 4ωn²/a0 exactly (summed, it cancels for a slow resonance)
+    rhs = b[1:] - a[1:] * b[0]
+    z0 = (rhs[0] + rhs[1]) / (4.0 * wn2 / a0)
+    return b, a, np.array([z0, rhs[1] - a[2] * z0])
 
 
 def _steady_lowpass(x: np.ndarray, filt: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
@@ -206,12 +227,18 @@ def _ripple_columns(sr: StepReplay, t_eval: np.ndarray, n_cpd: float
 
 def _eval_times(sr: StepReplay, spec: Spec) -> tuple[np.ndarray, tuple[float, float, float]]:
     """Times (padded grid) at which the motion is evaluated, and their memo key."""
-    tp = sr.padded_time_s
     shift = spec.shift_of(sr.index)
     t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    return _eval_times_of(sr.padded_time_s, sr, spec), (shift, spec.warp_ppm, t_ref)
+
+
+def _eval_times_of(tp: np.ndarray, sr: StepReplay, spec: Spec) -> np.ndarray:
+    """Evaluation times of the padded grid times ``tp`` under ``spec``'s shift and warp."""
+    shift = spec.shift_of(sr.index)
     if spec.warp_ppm == 0.0:  # the same times (x − 0 is x), two passes fewer
-        return tp - shift, (shift, spec.warp_ppm, t_ref)
-    return tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref), (shift, spec.warp_ppm, t_ref)
+        return tp - shift
+    t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+    return tp - shift - spec.warp_ppm * 1e-6 * (tp - t_ref)
 
 
 #: design columns built on the sensed acceleration (computed by :func:`_sensor_columns`)
@@ -312,23 +339,63 @@ def _tones(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
     done: dict[str, np.ndarray] = {}
     left: list[int] = []
     step_s = float(t_eval[1] - t_eval[0])
-    t_ref = 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
-    shift = spec.shift_of(sr.index)
+    t_ref = tone_reference_s(sr, spec)
     for j, f_hz in enumerate(spec.vibration_hz if sr.motor_on else ()):
         names = (f"vib{sr.index}_{j}_s", f"vib{sr.index}_{j}_c")
         if wanted.isdisjoint(names):
             continue
-        w = 2 * np.pi * f_hz
-        h = _chain_response(spec.dynamics, info.antialias_hz, sr.dt_s, w * step_s)
-        if h is None:
+        gain = tone_gain(sr, info, spec, f_hz, step_s)
+        if gain is None:
             left.append(j)
             continue
-        # a time shift turns the tone's phase: it goes into the complex gain, and the sine
-        # and cosine of the unshifted tone are computed once per warp
         basis = _tone_basis(sr, f_hz, spec.warp_ppm, t_ref)
-        done[names[0]], done[names[1]] = tone_columns(h * np.exp(-1j * w * shift), basis,
-                                                      z_inner)
+        done[names[0]], done[names[1]] = tone_columns(gain, basis, z_inner)
     return done, left
+
+
+def tone_reference_s(sr: StepReplay, spec: Spec) -> float:
+    """Time (s in the record) about which the clock warp turns the tones."""
+    return 0.0 if spec.warp_from_start else 0.5 * sr.time_s[-1]
+
+
+def eval_step_s(sr: StepReplay, spec: Spec) -> float:
+    """Spacing of the evaluation grid of :func:`_eval_times` (its first two samples, with
+    the same arithmetic), without evaluating the whole grid."""
+    return float(np.diff(_eval_times_of(sr.padded_time_s[:2], sr, spec))[0])
+
+
+def tone_gain(sr: StepReplay, info: ChannelInfo, spec: Spec, f_hz: float,
+              step_s: float | None = None) -> complex | None:
+    """Complex gain of one vibration tone through dynamics and logger (``spec`` resolved for
+    the step, :func:`step_damped`), with the step's time shift turning its phase; None when
+    a filter rings beyond the padding (the tone is then filtered in the time domain).
+
+    The tone's design columns are Re and Im of gain·e^{iθ} with θ = 2πf·t (warped, not
+    shifted): ``gain.real·sin θ + gain.imag·cos θ`` and ``gain.real·cos θ − gain.imag·sin θ``
+    (:func:`~aatest.diagnose.steady_state.tone_columns`), so everything a delay or the
+    dynamics change about a tone is in this one number.
+    """
+    w = 2 * np.pi * f_hz
+    step = eval_step_s(sr, spec) if step_s is None else step_s
+    h = _chain_response(spec.dynamics, info.antialias_hz, sr.dt_s, w * step)
+    if h is None:
+        return None
+    # a time shift turns the tone's phase: it goes into the complex gain, and the sine and
+    # cosine of the unshifted tone are computed once per warp
+    return complex(h * np.exp(-1j * w * spec.shift_of(sr.index)))
+
+
+def inner_projection(sr: StepReplay, info: ChannelInfo) -> float:
+    """Share of an inner-axis acceleration along the sensor's sensitive axis."""
+    return float(E_I @ sensor_axes(info.axis, sr.pivoted)[:, 2])
+
+
+def tone_basis_row(sr: StepReplay, f_hz: float, warp_ppm: float, from_start: bool,
+                   part: str) -> np.ndarray:
+    """sin θ (``part`` "s") or cos θ ("c") of one tone on the record grid (read-only)."""
+    t_ref = 0.0 if from_start else 0.5 * sr.time_s[-1]
+    sin, cos = _tone_basis(sr, f_hz, warp_ppm, t_ref)
+    return sin if part == "s" else cos
 
 
 def _tone_basis(sr: StepReplay, f_hz: float, warp_ppm: float, t_ref: float
@@ -413,13 +480,13 @@ def step_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, names: list[str]
     vibration terms, are zero by construction).
     """
     cols = _design(sr, info, spec, set(names))
-    out = np.zeros((sr.n, len(names)))
+    out = np.zeros((len(names), sr.n))  # filled by rows (contiguous), returned transposed
     used = [j for j, name in enumerate(names) if name in cols]
     for j in used:
-        out[:, j] = cols[names[j]]
+        out[j] = cols[names[j]]
     if used_out is not None:
         used_out.extend(used)
-    return out
+    return out.T
 
 
 def _temperature(sr: StepReplay, info: ChannelInfo, padded: int) -> np.ndarray:
@@ -476,17 +543,39 @@ def _block_edges(n: int) -> np.ndarray:
 
 
 def _fold_products(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
-    """Per-fold aᵀb, shape (2, …): a, b are (n, ·) or (n,) on one step's record."""
+    """Per-fold a·bᵀ, shape (2, …): a, b are (·, n) or (n,) on one step's record, one column
+    per row (rows are stacked by copying contiguous memory; a column-major stack of the same
+    columns writes every element with a stride and cost five times as much)."""
     edges = _block_edges(n)
-    parts = [a[edges[k]:edges[k + 1]].T @ b[edges[k]:edges[k + 1]] for k in range(BLOCKS_PER_STEP)]
+    parts = [a[..., edges[k]:edges[k + 1]] @ b[..., edges[k]:edges[k + 1]].T
+             for k in range(BLOCKS_PER_STEP)]
     return np.stack([sum(parts[0::2]), sum(parts[1::2])])
 
 
+#: reciprocal condition (1-norm estimate) above which the equilibrated normal equations are
+#: solved by Cholesky: both that and the SVD then err by about κ·ε ≤ 1e-8 relative, far below
+#: any coefficient's uncertainty; a worse-conditioned (or rank-deficient) Gram keeps the SVD
+#: and its truncation of singular values below 1e-10 of the largest
+CHOLESKY_RCOND = 1e-8
+
+
 def solve(xtx: np.ndarray, xty: np.ndarray) -> np.ndarray:
-    """Least-squares coefficients from a Gram matrix, with column equilibration."""
+    """Least-squares coefficients from a Gram matrix, with column equilibration.
+
+    Cholesky when the equilibrated Gram is well conditioned (a tenth of the SVD's cost on
+    the hundred-column designs of a vibration band), else the truncated SVD.
+    """
     d = np.sqrt(np.clip(np.diag(xtx), TINY, None))
     a = xtx / np.outer(d, d)
-    coef, *_ = np.linalg.lstsq(a, xty / d, rcond=1e-10)
+    b = xty / d
+    factor, info = lapack.dpotrf(a, lower=0, clean=1)
+    if info == 0:
+        rcond, info = lapack.dpocon(factor, float(np.abs(a).sum(axis=0).max()))
+        if info == 0 and rcond > CHOLESKY_RCOND:
+            coef, info = lapack.dpotrs(factor, b, lower=0)
+            if info == 0:
+                return np.asarray(coef) / d
+    coef, *_ = np.linalg.lstsq(a, b, rcond=1e-10)
     return coef / d
 
 
@@ -541,6 +630,6 @@ def predict(replay: Replay, info: ChannelInfo, fit: Fit) -> dict[int, np.ndarray
     for sr in replay.steps:
         cols = _design(sr, info, fit.spec, set(fit.names))
         used = [j for j, name in enumerate(fit.names) if name in cols]
-        x = np.column_stack([cols[fit.names[j]] for j in used])
-        out[sr.index] = x @ fit.coef[used]
+        x = np.stack([cols[fit.names[j]] for j in used])
+        out[sr.index] = fit.coef[used] @ x
     return out

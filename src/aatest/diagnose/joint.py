@@ -43,14 +43,15 @@ class Joint:
 def _named_design(ctx: Context, spec: Spec, names: list[str], sr: StepReplay
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One step's named design: (indices into ``names`` of its non-zero columns, those
-    columns, the sensed acceleration α the α-shaped extensions need: the ``scale`` column).
+    columns as rows (u, n), the sensed acceleration α the α-shaped extensions need: the
+    ``scale`` column).
 
     The columns come from the channel's column store (shared with forward selection), never
     as a dense matrix of every step's vibration terms, zero outside their own step.
     """
     used, x = step_design(sr, ctx.info, spec, names, ctx.targets[sr.index], ctx.step_cache)
     at = np.flatnonzero(used == names.index("scale"))
-    alpha = x[:, at[0]] if at.size else np.zeros(sr.n)
+    alpha = x[at[0]] if at.size else np.zeros(sr.n)
     return used, x, alpha
 
 
@@ -98,7 +99,7 @@ def _one_generic(ctx: Context, spec: Spec, names: list[str], sr: StepReplay,
         used, x, alpha = _named_design(ctx, spec, names, sr)
         gen = prop.columns(sr, alpha)
         on = np.flatnonzero(np.any(gen != 0.0, axis=0))  # other steps' columns are zero here
-        gen = np.ascontiguousarray(gen[:, on])
+        gen = np.ascontiguousarray(gen[:, on].T)  # one column per row, as the named design
         products = [_fold_products(x, gen, sr.n), _fold_products(gen, gen, sr.n),
                     _fold_products(gen, ctx.targets[sr.index], sr.n)] if on.size else []
         store[key] = (on, gen, used, products, prop)
@@ -190,6 +191,6 @@ def joint_residuals(ctx: Context, joint: Joint) -> dict[int, np.ndarray]:
     out = {}
     for sr in ctx.replay.steps:
         used, x, alpha = _named_design(ctx, joint.spec, names, sr)
-        model = x @ coef[used] + _generic_columns(sr, alpha, joint.generics) @ coef[len(names):]
+        model = coef[used] @ x + _generic_columns(sr, alpha, joint.generics) @ coef[len(names):]
         out[sr.index] = ctx.targets[sr.index] - model
     return out

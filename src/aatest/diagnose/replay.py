@@ -65,6 +65,15 @@ class AxisMotion:
     def amplitude_deg(self) -> float:
         return float(np.hypot(self.sin_deg, self.cos_deg))
 
+    def acceleration(self, time_s: np.ndarray) -> np.ndarray:
+        """The accel_dps2 of :meth:`evaluate` alone (the same arithmetic, a third of it)."""
+        t = np.asarray(time_s, dtype=float)
+        accel = np.zeros_like(t)
+        if self.frequency_hz > 0.0:
+            w = 2 * np.pi * self.frequency_hz
+            accel = accel - w * w * (self.sin_deg * np.sin(w * t) + self.cos_deg * np.cos(w * t))
+        return accel
+
     def evaluate(self, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(angle_deg, rate_dps, accel_dps2) at times ``time_s`` (s from record start)."""
         t = np.asarray(time_s, dtype=float)
@@ -221,6 +230,13 @@ def sensor_acceleration(replay: StepReplay, axis: str, time_s: np.ndarray,
                 del replay.memo[old]
         replay.memo[key] = value  # most recently used last
         return value
+    if not replay.outer.moving:
+        # the outer axis still: its rate and acceleration are zero, every term of the top's
+        # acceleration but the inner axis's own is zero and the inner angle's sine and cosine
+        # (half of the evaluation) are not needed (kinematics.angular_acceleration_top)
+        top = np.zeros((3, np.size(time_s)))
+        top[2] = replay.inner.acceleration(time_s)
+        return sensor_axes(axis, replay.pivoted).T @ top
     m = replay.motion(time_s)
     top = kin.angular_acceleration_top(_sincos(m["inner_angle"]), m["inner_rate"],
                                        m["inner_accel"], m["outer_rate"], m["outer_accel"])
