@@ -6,7 +6,8 @@ Signal path of one sensor channel (docs/interfaces.md §4 vocabulary, same param
     ─ g_sensitivity ─ hysteresis (play) ─ sensor_dynamics (amplitude_damping) ─ saturation
     ─ resolution
     ─ nonlinearity_cubic ─ plugin effects in °/s² ─ scale (scale_temperature)
-    ─ bias (bias_temperature) ─ jerk ─ plugin effects in V → volts
+    ─ bias (bias_temperature) ─ jerk ─ jerk_distortion (on the dynamics' output)
+    ─ plugin effects in V → volts
 
 ``time_delay`` is applied upstream by evaluating the motion at t − delay (exact for any delay,
 no fractional-delay filter); white noise is added by the DAQ chain (see :mod:`daq`) so that
@@ -260,6 +261,7 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
         b, a = dynamics_filter(model.sensor_dynamics.natural_frequency_hz,
                                model.sensor_dynamics.damping, round(inp.dt_s, 15))
         alpha = lowpass_carry(alpha, b, a, "dynamics", state)
+    response = alpha
     if model.saturation is not None:
         lim = model.saturation.limit_dps2
         alpha = np.clip(alpha, -lim, lim)
@@ -289,4 +291,7 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
     if model.jerk_sensitivity is not None:
         jerk = np.gradient(sensed, inp.dt_s)
         volts = volts + model.jerk_sensitivity.coefficient_v_per_dps3 * jerk
+    if model.jerk_distortion is not None:
+        volts = volts + model.jerk_distortion.coefficient_v_per_dps3_squared * np.gradient(
+            response, inp.dt_s) ** 2
     return volts + plugin_volts
