@@ -97,7 +97,7 @@ def column_names(spec: Spec, replay: Replay) -> list[str]:
     """Names of the design columns of ``spec`` (bias and scale always first)."""
     names = ["bias", "scale"]
     for name in ("bias_temperature", "scale_temperature", "nonlinearity_cubic",
-                 "jerk_sensitivity", "g_sensitivity"):
+                 "jerk_sensitivity", "g_sensitivity", "jerk_distortion"):
         if name in spec.linear:
             names.append(name)
     if "cross_axis" in spec.linear:
@@ -209,7 +209,7 @@ def _eval_times(sr: StepReplay, spec: Spec) -> tuple[np.ndarray, tuple[float, fl
 
 #: design columns built on the sensed acceleration (computed by :func:`_sensor_columns`)
 _SENSOR_COLUMNS = frozenset({"scale", "scale_temperature", "nonlinearity_cubic",
-                             "jerk_sensitivity", "cross_x", "cross_y"})
+                             "jerk_sensitivity", "cross_x", "cross_y", "jerk_distortion"})
 
 
 def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
@@ -235,6 +235,8 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
             cols["nonlinearity_cubic"] = shaped**3 / info.range_dps2**2
     if "jerk_sensitivity" in wanted:
         cols["jerk_sensitivity"] = np.gradient(sensed, sr.dt_s)
+    if "jerk_distortion" in wanted:  # on the rotor's response, as the twin applies it
+        cols["jerk_distortion"] = np.gradient(_dynamics(sensed, spec, sr.dt_s), sr.dt_s) ** 2
     if "cross_x" in wanted:
         cols["cross_x"] = _dynamics(alpha3[0], spec, sr.dt_s)
     if "cross_y" in wanted:

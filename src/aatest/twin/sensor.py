@@ -288,10 +288,17 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
         volts = volts + model.bias_temperature.coefficient_v_per_c * d_temp
     if model.bias_drift is not None and state is not None:
         volts = volts + bias_drift_v(model.bias_drift, volts.size, inp.dt_s, state)
+    return volts + jerk_volts(model, sensed, response, inp.dt_s) + plugin_volts
+
+
+def jerk_volts(model: SensorModel, sensed: np.ndarray, response: np.ndarray, dt_s: float
+               ) -> np.ndarray | float:
+    """The jerk terms (V): ``jerk_sensitivity`` on the sensed acceleration's jerk, and
+    ``jerk_distortion`` on the squared jerk of the rotor's response (after the dynamics)."""
+    out: np.ndarray | float = 0.0
     if model.jerk_sensitivity is not None:
-        jerk = np.gradient(sensed, inp.dt_s)
-        volts = volts + model.jerk_sensitivity.coefficient_v_per_dps3 * jerk
+        out = model.jerk_sensitivity.coefficient_v_per_dps3 * np.gradient(sensed, dt_s)
     if model.jerk_distortion is not None:
-        volts = volts + model.jerk_distortion.coefficient_v_per_dps3_squared * np.gradient(
-            response, inp.dt_s) ** 2
-    return volts + plugin_volts
+        out = out + model.jerk_distortion.coefficient_v_per_dps3_squared * np.gradient(
+            response, dt_s) ** 2
+    return out

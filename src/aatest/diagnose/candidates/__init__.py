@@ -17,7 +17,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from aatest.diagnose.candidates import amplitude, linear, plugins, shape, table, vibration
+from aatest.diagnose.candidates import (
+    amplitude,
+    distortion,
+    linear,
+    plugins,
+    shape,
+    table,
+    vibration,
+)
 from aatest.diagnose.candidates.base import CandidateFit, Context
 from aatest.effects import installed_effects
 
@@ -64,6 +72,8 @@ CANDIDATES: tuple[Candidate, ...] = (
               repeatable=3),
     Candidate("motor_vibration", vibration.testable_vibration, vibration.fit_vibration,
               attributed_to="table"),
+    Candidate("jerk_distortion", distortion.testable_distortion,
+              distortion.fit_jerk_distortion),
 )
 
 
