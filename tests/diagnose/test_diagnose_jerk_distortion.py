@@ -30,6 +30,7 @@ def test_hidden_jerk_distortion_is_found_with_its_coefficient(run_diagnose, seed
     finding = next(f for f in doc["findings"] if f["effect"] == "jerk_distortion")
     lo, hi = finding["ci95"]["coefficient_v_per_dps3_squared"]
     assert lo < finding["parameters"]["coefficient_v_per_dps3_squared"] < hi
+    assert finding["second_harmonic_dps2_at_peak_jerk"] > 0  # its size, as documented
     sensor = load_rig_model(tmp_path / "model.yaml").sensors[0]  # the twin takes it back
     assert sensor.jerk_distortion is not None
 
