@@ -89,10 +89,6 @@ KNOWN_MISSES = {
             "validation points (≤ 72 % as a mean of records); 78.56 % needs ≈ 15 samples "
             "with the raw input estimate; through a causal 50 Hz low-pass (≈ 9 samples) the "
             "twin gives 77.6 % (bench/study_gaps.py --only tf00 tf)",
-    "best model fit, 28-sample delay": "time-domain estimation puts it at ≈ 96.8 % (n ≤ 3), "
-                                       "3.1 points under the twin's best models as the study's "
-                                       "are 3–6 under theirs; the twin's best (99.9 %) is 1.3 "
-                                       "above the study's, and the row sits ≈ 1.5 above its",
     "cross-axis ratio range": "the unit's drawn mounting errors reach 1.19 %",
 }
 

@@ -81,8 +81,9 @@ _SATURATION_FR = 1.05
 #: where the twin's fit 99.86 % without it: a 1.5 % residual no linear model of the table's
 #: estimate removes, and the harmonic distortion the study measured rising above ≈ 4 Hz and
 #: with amplitude (docs/method.md §1.3) is one. 5.3e-8 puts a second harmonic of RMS 1.5 %
-#: over the study's 22 validation records (0.04 % at 1 Hz, 0.5 % at 3.6 Hz, 4.2 % at 10 Hz, at
-#: 400 °/s²), nothing at the fundamental (bench/study_gaps.py --only thd)
+#: over the study's 22 validation records (0.05 % at 1 Hz, 0.67 % at 4 Hz, 4.2 % at 10 Hz, at
+#: 400 °/s²), nothing at the fundamental; the best fit becomes 98.52 % (bench/study.py --only
+#: tf; the evidence: bench/study_gaps.py --only thd)
 _JERK_DISTORTION_DPS2_PER_DPS3_SQ = 5.3e-8
 
 
