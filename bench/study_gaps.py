@@ -18,7 +18,18 @@
    lag. If one filter puts TF00 and the 28-sample row on the study's numbers together, the
    study's input was a smoothed estimate, not the raw one.
 
-    python bench/study_gaps.py [--seeds 7 8 9] [--only delay tf00 tf]
+4. **What caps the study's linear fits** (best models 98.36–98.59 %, the twin 99.86 % without
+   a distortion). The 400 °/s² design with and without the rotor's ``jerk_distortion``: the
+   sensor's and the table estimate's THD per frequency (the study: THD rises above ≈ 4 Hz and
+   with amplitude, higher in the sensor than in the table signal) and the transfer-function
+   rows (n ≤ 3). A residual no linear model removes lowers the best fit and, in quadrature,
+   the 28-sample row; it cannot raise TF00.
+5. **Is the logged estimate band-limited?** The noise of the table's acceleration estimate
+   (the records less their fitted harmonics) raw and through the 50 Hz low-pass of item 3:
+   the study's scale-factor RMSE against that estimate (29.8 °/s², §4.3) needs the raw
+   estimate's noise, so a controller filter lagging it ≈ 9 samples is not what it logged.
+
+    python bench/study_gaps.py [--seeds 7 8 9] [--only delay tf00 tf thd estimate]
 """
 
 from __future__ import annotations
@@ -132,18 +143,69 @@ def tf_rows(seed: int) -> None:
               f"{late[0]:>9.2f}% (n={late[1][0]},m={late[1][1]})", flush=True)
 
 
+def thd_pct(x: np.ndarray, f_hz: float, harmonics: int = 6) -> float:
+    """THD (harmonics 2..6 over the fundamental, %) of a coherent record's DFT bins."""
+    spectrum = np.abs(np.fft.rfft(x - np.mean(x)))
+    k = round(f_hz * x.size / FS_HZ)
+    amps = spectrum[[k * h for h in range(1, harmonics + 1)]]
+    return float(100 * np.sqrt(np.sum(amps[1:] ** 2)) / amps[0])
+
+
+def without_distortion(seed: int) -> TfDesign:
+    """The design on the realistic rig with the rotor's jerk distortion switched off."""
+    model = realistic_rig_model()
+    sensors = [s.model_copy(update={"jerk_distortion": None}) for s in model.sensors]
+    return tf_design(model.model_copy(update={"sensors": sensors}), seed)
+
+
+def thd_rows(seeds: list[int]) -> None:
+    """THD and transfer-function rows without and with the rotor's jerk distortion."""
+    variants = {"without jerk_distortion": without_distortion(seeds[0]),
+                "realistic (with it)": tf_design(realistic_rig_model(), seeds[0])}
+    shown = (0, 5, 10, 13, 15, 17, 19, 21)  # validation records 0.40 … 9.99 Hz
+    for name, design in variants.items():
+        f_valid = design.f_hz[design.valid]
+        print(f"{name}: THD %, table estimate / sensor, at "
+              + ", ".join(f"{f_valid[i]:.1f} Hz {thd_pct(design.records[i][0], f_valid[i]):.2f}"
+                          f"/{thd_pct(design.records[i][1], f_valid[i]):.2f}" for i in shown))
+        fits = tf_fits(design, max_poles=GAP_MAX_POLES)
+        best = max((v, k) for k, v in fits.items() if k[2] == 0 and k[0] > 0)
+        late = max((v, k) for k, v in fits.items() if k[2] == STUDY_DELAY_SAMPLES)
+        print(f"{'':4}TF00 {fits[(0, 0, 0)]:.2f} %, best no delay {best[0]:.2f} % "
+              f"(n={best[1][0]},m={best[1][1]}), 28-sample delay {late[0]:.2f} % "
+              f"(n={late[1][0]},m={late[1][1]}); study 78.56, 98.36–98.59, 92.8–95.3",
+              flush=True)
+
+
+def estimate_rows(seeds: list[int]) -> None:
+    """Noise of the table's acceleration estimate, raw and through a 50 Hz low-pass."""
+    design = tf_design(realistic_rig_model(), seeds[0])
+    sos = signal.butter(2, 50.0, fs=FS_HZ, output="sos")
+    for name, filt in (("raw (what the twin logs)", None), ("50 Hz low-pass", sos)):
+        rms = []
+        for (u, _), f in zip(design.records, design.f_hz[design.valid], strict=True):
+            x = u if filt is None else signal.sosfilt(filt, u)[2000:]
+            t = np.arange(x.size) / FS_HZ
+            cols = [np.ones_like(t)] + [g(2 * np.pi * h * f * t) for h in range(1, 7)
+                                        for g in (np.sin, np.cos)]
+            basis = np.column_stack(cols)
+            coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
+            rms.append(float(np.std(x - basis @ coef)))
+        print(f"estimate noise, {name:<26} {np.mean(rms):6.2f} °/s² RMS (study's scale-factor "
+              "RMSE against the estimate: 29.8)")
+
+
+SECTIONS = {"tf00": lambda _seeds: tf00_rows(), "tf": lambda seeds: tf_rows(seeds[0]),
+            "delay": delay_rows, "thd": thd_rows, "estimate": estimate_rows}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[7, 8, 9])
-    parser.add_argument("--only", nargs="+", choices=["delay", "tf00", "tf"],
-                        default=["delay", "tf00", "tf"])
+    parser.add_argument("--only", nargs="+", choices=list(SECTIONS), default=list(SECTIONS))
     args = parser.parse_args()
-    if "tf00" in args.only:
-        tf00_rows()
-    if "tf" in args.only:
-        tf_rows(args.seeds[0])
-    if "delay" in args.only:
-        delay_rows(args.seeds)
+    for name in args.only:
+        SECTIONS[name](args.seeds)
 
 
 if __name__ == "__main__":

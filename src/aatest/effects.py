@@ -48,7 +48,7 @@ BUILTIN_EFFECTS: frozenset[str] = frozenset({
     "bias_temperature", "scale_temperature", "nonlinearity_cubic", "saturation", "hysteresis",
     "sensor_dynamics", "time_delay", "clock_drift", "jerk_sensitivity", "g_sensitivity",
     "cross_axis", "misalignment", "rate_ripple", "motor_vibration", "excess_noise",
-    "amplitude_damping", "rotor_stiction"})
+    "amplitude_damping", "rotor_stiction", "jerk_distortion"})
 #: where an effect's contribution may enter the sensor model (:attr:`Effect.enters`)
 EFFECT_DOMAINS = ("acceleration", "voltage")
 

@@ -146,6 +146,9 @@ MULTI: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("twin", ("hysteresis", "g_sensitivity")),
     ("twin", ("jerk_sensitivity", "rate_ripple")),
     ("twin", ("cross_axis", "excess_noise")),
+    # the rotor's second harmonic beside the odd cubic and beside the dynamics it acts after
+    ("twin", ("jerk_distortion", "nonlinearity_cubic")),
+    ("twin", ("jerk_distortion", "sensor_dynamics")),
 )
 #: out-of-vocabulary cases: alone (two magnitudes/seeds), and beside a vocabulary effect
 OOV: tuple[tuple[str, ...], ...] = (

@@ -158,6 +158,20 @@ def test_jerk_sensitivity(tmp_path: Path) -> None:
     assert_allclose(coef[2], 1e-6, rtol=0.03)
 
 
+def test_jerk_distortion(tmp_path: Path) -> None:
+    """Least squares on [1, α, j²] returns c (the j² term ≈ 30 mV against 1 mV noise; the
+    truth's jerk differs from the twin's by the logger's sample timing only: 2 %)."""
+    model = model_from_yaml(
+        tmp_path, _base(), sensor={"jerk_distortion": {"coefficient_v_per_dps3_squared": 1e-9}}
+    )
+    sim = simulate_step(model, sine_step(8.0, 300.0, samples=8192), 9)
+    alpha = sim.truth["alpha_v_sz"]
+    jerk = np.gradient(alpha, 1 / 2000.0)
+    design = np.column_stack([np.ones_like(alpha), alpha, jerk**2])
+    coef = np.linalg.lstsq(design, np.asarray(sim.daq["v_sz"]), rcond=None)[0]
+    assert_allclose(coef[2], 1e-9, rtol=0.02)
+
+
 def test_g_sensitivity(tmp_path: Path) -> None:
     model = model_from_yaml(
         tmp_path, _base(), sensor={"g_sensitivity": {"coefficient_dps2_per_g": 0.573}}

@@ -103,7 +103,7 @@ def column_names(spec: Spec, replay: Replay) -> list[str]:
     """Names of the design columns of ``spec`` (bias and scale always first)."""
     names = ["bias", "scale"]
     for name in ("bias_temperature", "scale_temperature", "nonlinearity_cubic",
-                 "jerk_sensitivity", "g_sensitivity"):
+                 "jerk_sensitivity", "g_sensitivity", "jerk_distortion"):
         if name in spec.linear:
             names.append(name)
     if "cross_axis" in spec.linear:
@@ -243,7 +243,8 @@ def _eval_times_of(tp: np.ndarray, sr: StepReplay, spec: Spec) -> np.ndarray:
 
 #: design columns built on the sensed acceleration (computed by :func:`_sensor_columns`)
 _SENSOR_COLUMNS = frozenset({"scale", "scale_temperature", "nonlinearity_cubic",
-                             "jerk_sensitivity", "cross_x", "cross_y", "rotor_stiction"})
+                             "jerk_sensitivity", "cross_x", "cross_y", "rotor_stiction",
+                             "jerk_distortion"})
 
 
 def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
@@ -271,6 +272,8 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
         cols["jerk_sensitivity"] = np.gradient(sensed, sr.dt_s)
     if "rotor_stiction" in wanted:
         cols["rotor_stiction"] = _stiction_column(sr, info, spec, t_eval, sensed)
+    if "jerk_distortion" in wanted:  # on the rotor's response, as the twin applies it
+        cols["jerk_distortion"] = np.gradient(_dynamics(sensed, spec, sr.dt_s), sr.dt_s) ** 2
     if "cross_x" in wanted:
         cols["cross_x"] = _dynamics(alpha3[0], spec, sr.dt_s)
     if "cross_y" in wanted:

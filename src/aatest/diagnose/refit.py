@@ -29,7 +29,9 @@ _LINEAR_PARAMS = {"bias_temperature": ("bias_temperature", "coefficient_v_per_c"
                   "scale_temperature": ("scale_temperature", "coefficient_per_c", True),
                   "nonlinearity_cubic": ("nonlinearity_cubic", "c3", True),
                   "g_sensitivity": ("g_sensitivity", "coefficient_dps2_per_g", True),
-                  "jerk_sensitivity": ("jerk_sensitivity", "coefficient_v_per_dps3", False)}
+                  "jerk_sensitivity": ("jerk_sensitivity", "coefficient_v_per_dps3", False),
+                  "jerk_distortion": ("jerk_distortion", "coefficient_v_per_dps3_squared",
+                                      False)}
 _SHAPE_RESET: dict[str, dict[str, Any]] = {
     "saturation": {"saturation_dps2": None}, "hysteresis": {"hysteresis_dps2": 0.0},
     "sensor_dynamics": {"dynamics": None}, "time_delay": {"delay_s": 0.0},

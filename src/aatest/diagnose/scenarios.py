@@ -132,6 +132,10 @@ DRAWS: dict[str, Callable[[np.random.Generator], Hidden]] = {
         ("frequency_hz", "amplitude_dps2"),
         {"bandwidth_hz": float(r.choice([0.0, _u(r, 2.0, 6.0)]))}),
     "excess_noise": lambda r: Hidden("excess_noise", {"rms_v": _u(r, 0.002, 0.012)}, ("rms_v",)),
+    # 2nd harmonic 1.5–5 % in the 8 Hz, 400 °/s² step (the realistic default: 2.7 %)
+    "jerk_distortion": lambda r: Hidden(
+        "jerk_distortion", {"coefficient_v_per_dps3_squared": _K_V * _u(r, 3e-8, 1e-7)},
+        ("coefficient_v_per_dps3_squared",)),
 }
 
 

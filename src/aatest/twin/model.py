@@ -195,6 +195,21 @@ class LoggerError(_Model):
                                    "against the table's latch (not seen by the sync fit)")
 
 
+class JerkDistortion(_Model):
+    """Second-order distortion of the rotor's response: output += c·(dα_r/dt)², α_r the
+    acceleration after ``sensor_dynamics`` (the sensed acceleration without them).
+
+    For a sine of amplitude A at frequency f the term is c·(2πf·A)²·cos²: a second harmonic of
+    relative size c·(2πf)²·A/(2K) and a DC shift, nothing at the fundamental — the FRF is
+    unchanged while the total harmonic distortion rises with f² and with A (the measured THD
+    rises above ≈ 4 Hz and with amplitude, docs/method.md §1.3), and no linear model of the
+    table's estimate can fit it. Motion above the rotor's response (the table's 35 Hz motor
+    band, its 60–130 Hz ripple) is filtered by the dynamics before it is squared.
+    """
+
+    coefficient_v_per_dps3_squared: float
+
+
 class ExcessNoise(_Model):
     """Extra white output noise (e.g. through a slip ring)."""
 
@@ -235,6 +250,7 @@ EFFECTS: dict[str, type[_Model]] = {
     "motor_vibration": MotorVibration,
     "excess_noise": ExcessNoise,
     "rotor_stiction": RotorStiction,
+    "jerk_distortion": JerkDistortion,
 }
 
 class PluginEffect(_Model):
@@ -307,6 +323,7 @@ class SensorModel(_Model):
         "built-in chain: in °/s² before the scale factor or in volts, as each plugin declares")
     bias_drift: BiasDrift | None = None
     rotor_stiction: RotorStiction | None = None
+    jerk_distortion: JerkDistortion | None = None
 
     @model_validator(mode="after")
     def _damping_has_dynamics(self) -> SensorModel:

@@ -6,7 +6,8 @@ Signal path of one sensor channel (docs/interfaces.md §4 vocabulary, same param
     ─ g_sensitivity ─ hysteresis (play) ─ rotor_stiction (a gap around the rate reversals)
     ─ sensor_dynamics (amplitude_damping) ─ saturation ─ resolution
     ─ nonlinearity_cubic ─ plugin effects in °/s² ─ scale (scale_temperature)
-    ─ bias (bias_temperature) ─ jerk ─ plugin effects in V → volts
+    ─ bias (bias_temperature) ─ jerk ─ jerk_distortion (on the dynamics' output)
+    ─ plugin effects in V → volts
 
 ``time_delay`` is applied upstream by evaluating the motion at t − delay (exact for any delay,
 no fractional-delay filter); white noise is added by the DAQ chain (see :mod:`daq`) so that
@@ -274,6 +275,7 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
         b, a = dynamics_filter(model.sensor_dynamics.natural_frequency_hz,
                                model.sensor_dynamics.damping, round(inp.dt_s, 15))
         alpha = lowpass_carry(alpha, b, a, "dynamics", state)
+    response = alpha
     if model.saturation is not None:
         lim = model.saturation.limit_dps2
         alpha = np.clip(alpha, -lim, lim)
@@ -300,7 +302,17 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
         volts = volts + model.bias_temperature.coefficient_v_per_c * d_temp
     if model.bias_drift is not None and state is not None:
         volts = volts + bias_drift_v(model.bias_drift, volts.size, inp.dt_s, state)
+    return volts + jerk_volts(model, sensed, response, inp.dt_s) + plugin_volts
+
+
+def jerk_volts(model: SensorModel, sensed: np.ndarray, response: np.ndarray, dt_s: float
+               ) -> np.ndarray | float:
+    """The jerk terms (V): ``jerk_sensitivity`` on the sensed acceleration's jerk, and
+    ``jerk_distortion`` on the squared jerk of the rotor's response (after the dynamics)."""
+    out: np.ndarray | float = 0.0
     if model.jerk_sensitivity is not None:
-        jerk = np.gradient(sensed, inp.dt_s)
-        volts = volts + model.jerk_sensitivity.coefficient_v_per_dps3 * jerk
-    return volts + plugin_volts
+        out = model.jerk_sensitivity.coefficient_v_per_dps3 * np.gradient(sensed, dt_s)
+    if model.jerk_distortion is not None:
+        out = out + model.jerk_distortion.coefficient_v_per_dps3_squared * np.gradient(
+            response, dt_s) ** 2
+    return out

@@ -44,8 +44,10 @@ def test_scale_factor_against_twin(cal_run) -> None:  # type: ignore[no-untyped-
     assert v["scale_v_per_dps2"] == pytest.approx(truth, rel=1e-3)
     assert set(results["scale_factor"]) == {"v_sz"}  # only the I sensor is excited
     # the twin's cubic (c3 = 0.002, ≈0.005 % FR) sits at the resolution threshold of the order
-    # choice: on this short record order 1 or 3 are both "not meaningfully worse"
-    assert v["order"] in (1, 3)
+    # choice: on this short record order 1 or 3 are both "not meaningfully worse"; the rotor's
+    # jerk distortion (c·j² = −c·ω²·α² + const at one frequency, 0.17 °/s² at 1 Hz, 400 °/s²)
+    # is a quadratic term of the same size, so order 2 is as true
+    assert v["order"] in (1, 2, 3)
 
 
 def _truth_response(model: Any, f_hz: float, accel_dps2: float) -> complex:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 from aatest.diagnose.candidates import (
     amplitude,
+    distortion,
     linear,
     plugins,
     shape,
@@ -74,6 +75,8 @@ CANDIDATES: tuple[Candidate, ...] = (
               attributed_to="table"),
     Candidate("rotor_stiction", stiction.testable_stiction, stiction.fit_stiction,
               shape_params=1),
+    Candidate("jerk_distortion", distortion.testable_distortion,
+              distortion.fit_jerk_distortion),
 )
 
 
