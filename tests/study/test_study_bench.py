@@ -80,16 +80,19 @@ def test_linearity_l_of_both_models_against_the_twin_truth() -> None:
 KNOWN_MISSES = {
     "table_estimate: L": "a straight-line model is its own ideal line (L = 0); the study's "
                          "0.464 needs its Eq. 3.36 construction, not in the method brief",
-    "sliding_mode: linear term": "the study's cubic curvature at the sine peaks (reference)",
-    "sliding_mode: L": "same: the study's sliding-mode reference under-reads the peaks",
-    "gain starts to fall": "a linear roll-off of ≤ 1 dB at 10 Hz is ≤ 0.05 dB at 2 Hz",
-    "phase delay spread, 1 °/s²": "the damping that gives 1 dB adds ≈ 4 samples of lag and "
-                                  "the dithered hysteresis ±2.5 at 0.4–0.5 Hz",
+    "sliding_mode: linear term": "the study's pair 255.1 / L 1.261 needs L ≥ 1.82 under Eq. "
+                                 "3.36; only a unit outside its datasheet gives both "
+                                 "(bench/study_linearity.py)",
+    "sliding_mode: L": "same: one sensor curvature cannot give both study L values",
+    "gain starts to fall": "the default has no stiction gap; realistic_rig_model(stiction=True) "
+                           "meets the fall and delay rows (bench/study_lowamp.py) but moves the "
+                           "sliding-mode L",
+    "phase delay spread, 1 °/s²": "the amplitude damping that gives 1 dB adds ≈ 4 samples of "
+                                  "lag; the stiction variant keeps 24.4–29.3",
     "TF00": "a gain-only model with the study's own 24–31-sample lag fits ≤ 66 % on its 22 "
             "validation points (≤ 72 % as a mean of records); 78.56 % needs ≈ 15 samples "
             "with the raw input estimate; through a causal 50 Hz low-pass (≈ 9 samples) the "
             "twin gives 77.6 % (bench/study_gaps.py --only tf00 tf)",
-    "cross-axis ratio range": "the unit's drawn mounting errors reach 1.19 %",
 }
 
 
@@ -102,4 +105,5 @@ def test_every_study_row() -> None:
     unexpected = [f"{r.name}: twin {r.twin}, study {r.study}" for r in rows
                   if not r.ok and not any(r.name.startswith(k) for k in KNOWN_MISSES)]
     assert not unexpected, "\n".join(unexpected)
-    assert sum(r.ok for r in rows) >= 13
+    # 16 of 23 at seed 7 on the merged tree: 5 scale, 7 FRF, cross-axis, misalignment, 2 TF
+    assert sum(r.ok for r in rows) >= 16
