@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pa_csv
+from pydantic import BaseModel
 from ruamel.yaml import YAML
 
 from aatest.engine.errors import InputError
@@ -187,16 +188,8 @@ def stated_instruments(dataset: Dataset) -> dict[str, Any] | None:
     InputError
         The recorded block is not a valid ``instruments`` block (it names what is wrong).
     """
-    rig = dataset.metadata.get("rig")
-    block = rig.get("instruments") if isinstance(rig, Mapping) else None
-    if block is None:
-        return None
-    try:
-        stated = Instruments.model_validate(block)
-    except ValueError as exc:  # pydantic's ValidationError is a ValueError
-        raise InputError(f"{dataset.source}: the recorded rig description's instruments "
-                         f"cannot be exported: {exc}") from exc
-    return stated.model_dump(mode="json", exclude_unset=True)
+    return _recorded_block(dataset, "instruments", Instruments,
+                           "the recorded rig description's instruments")
 
 
 def recorded_capabilities(dataset: Dataset) -> dict[str, Any] | None:
@@ -212,15 +205,21 @@ def recorded_capabilities(dataset: Dataset) -> dict[str, Any] | None:
     InputError
         The recorded block is not a valid declaration (it names what is wrong).
     """
+    return _recorded_block(dataset, "capabilities", RecordedCapabilities,
+                           "the recorded plugin declarations (rig capabilities)")
+
+
+def _recorded_block(dataset: Dataset, key: str, schema: type[BaseModel],
+                    what: str) -> dict[str, Any] | None:
+    """``metadata.rig[key]`` validated by ``schema``, only the keys it states; None if absent."""
     rig = dataset.metadata.get("rig")
-    block = rig.get("capabilities") if isinstance(rig, Mapping) else None
+    block = rig.get(key) if isinstance(rig, Mapping) else None
     if block is None:
         return None
     try:
-        recorded = RecordedCapabilities.model_validate(block)
+        recorded = schema.model_validate(block)
     except ValueError as exc:  # pydantic's ValidationError is a ValueError
-        raise InputError(f"{dataset.source}: the recorded plugin declarations (rig "
-                         f"capabilities) cannot be exported: {exc}") from exc
+        raise InputError(f"{dataset.source}: {what} cannot be exported: {exc}") from exc
     return recorded.model_dump(mode="json", exclude_unset=True)
 
 
