@@ -42,6 +42,7 @@ VOLATILE = {
     ("wall_duration_s",), ("certificate_number",), ("metadata", "started_utc"),
     ("metadata", "recording"), ("metadata", "operator"), ("metadata", "procedure_text"),
     ("metadata", "lab"),
+    ("logged_temperature", "source"),  # the recording's path, where the run was written
 }
 #: numbers that are measured times, not results (the reference analysis times each method)
 VOLATILE_LEAVES = re.compile(r".*\.runtime_s$")
