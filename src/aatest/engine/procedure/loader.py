@@ -169,8 +169,11 @@ def parse_procedure(text: str, filename: str = "<procedure>") -> Procedure:
 
     Analysis options are validated by each analysis plugin's own ``Options`` model.
     """
+    from aatest.engine import registry
+
     proc, tree = _guarded(filename, text, Procedure)
-    problems = _analysis_problems(proc, tree, filename)
+    with registry.pinned():  # each entry resolves aliases: read the installation once
+        problems = _analysis_problems(proc, tree, filename)
     if problems:
         raise ProcedureError(problems)
     return proc.with_source(filename, tree)  # type: ignore[no-any-return]

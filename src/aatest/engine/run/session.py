@@ -90,6 +90,7 @@ class Prepared:
         return dict(self.expansion.to_contract_json())
 
 
+@registry.pinned()  # the installed plugins are read once (preflight prepares outside a run)
 def prepare(procedure: Path, rig_file: Path | None, unit: UnitName | None = None) -> Prepared:
     """Load, expand and envelope-check a procedure; nothing moves.
 

@@ -20,11 +20,14 @@ from typing import Any
 
 import numpy as np
 from numpy.polynomial import Polynomial
+from numpy.polynomial import polynomial as P
 from scipy import optimize
 
 from aatest.plugins.analysis.polyfit import fit_percent, fpe, naic
 
 _SK_ITERATIONS = 12
+#: the power limit :class:`~numpy.polynomial.Polynomial` passes to ``polypow``
+_MAX_POWER = Polynomial.maxpower
 
 
 @dataclass(frozen=True)
@@ -77,9 +80,10 @@ def _sk_fit(w: np.ndarray, g: np.ndarray, n: int, m: int) -> tuple[np.ndarray, n
     weight = np.ones(w.size)
     pb = np.zeros(m + 1)
     pa = np.ones(1)
+    # the unweighted columns do not change between iterations: built once
+    basis = np.column_stack([w**i for i in range(m + 1)] + [-g * w**i for i in range(1, n + 1)])
     for _ in range(_SK_ITERATIONS if n else 1):
-        cols = [w**i for i in range(m + 1)] + [-g * w**i for i in range(1, n + 1)]
-        design = np.column_stack(cols) / weight[:, None]
+        design = basis / weight[:, None]
         rhs = g / weight
         a_real = np.vstack([design.real, design.imag])
         sol, *_ = np.linalg.lstsq(a_real, np.concatenate([rhs.real, rhs.imag]), rcond=None)
@@ -123,13 +127,19 @@ def _refine(w: np.ndarray, g: np.ndarray, pb: np.ndarray, pa: np.ndarray
     return sol.x[:m1], np.concatenate([[1.0], sol.x[m1:]])
 
 
-def _to_z(p_w: np.ndarray, c: float) -> Polynomial:
-    """P(w) with w = (z − 1)/c as a polynomial in z."""
-    zm1 = Polynomial([-1.0 / c, 1.0 / c])
-    out = Polynomial([0.0])
+def _to_z(p_w: np.ndarray, c: float) -> np.ndarray:
+    """Coefficients (ascending powers of z) of P(w) with w = (z − 1)/c.
+
+    The very operations of ``Σ coef·Polynomial([−1/c, 1/c])**i`` (``polypow``, ``polymul``,
+    ``polyadd``, which is what :class:`~numpy.polynomial.Polynomial`'s operators call) on
+    plain arrays: the same coefficients without building a ``Polynomial`` per term (the
+    transfer-function scan converts ≈ 2 000 models per run).
+    """
+    zm1 = np.array([-1.0 / c, 1.0 / c])
+    out = np.array([0.0])
     for i, coef in enumerate(p_w):
-        out = out + coef * zm1**i
-    return out
+        out = P.polyadd(out, P.polymul(coef, P.polypow(zm1, i, _MAX_POWER)))
+    return np.asarray(out, dtype=np.float64)
 
 
 def fit_discrete_tf(f_hz: np.ndarray, h: np.ndarray, n: int, m: int, dt: float,
@@ -142,7 +152,7 @@ def fit_discrete_tf(f_hz: np.ndarray, h: np.ndarray, n: int, m: int, dt: float,
     z = 1.0 + w * w0 * dt
     g = np.asarray(h) * z**delay_samples * z ** (-(n - m))
     pb, pa = _refine(w, g, *_sk_fit(w, g, n, m))
-    bz, az = _to_z(pb, w0 * dt).coef, _to_z(pa, w0 * dt).coef
+    bz, az = _to_z(pb, w0 * dt), _to_z(pa, w0 * dt)
     bz = np.pad(bz, (0, m + 1 - bz.size)) if bz.size < m + 1 else bz[:m + 1]
     az = np.pad(az, (0, n + 1 - az.size)) if az.size < n + 1 else az[:n + 1]
     lead = az[-1]
@@ -154,14 +164,15 @@ def fit_discrete_tf(f_hz: np.ndarray, h: np.ndarray, n: int, m: int, dt: float,
 def model_metrics(model: DiscreteTf, f_id: np.ndarray, h_id: np.ndarray, f_val: np.ndarray,
                   h_val: np.ndarray, delay_estimated: bool) -> dict[str, Any]:
     """MATLAB-style quality metrics on identification and validation points."""
-    e_id = h_id - model.response(f_id)
+    fitted_id = model.response(f_id)
+    e_id = h_id - fitted_id
     v = float(np.mean(np.abs(e_id) ** 2))
     n_p = model.n_poles + model.num.size + int(delay_estimated)
     n_id = h_id.size
     poles, zeros = model.poles(), model.zeros()
     return {
         "fit_pct": fit_percent(h_val, model.response(f_val)) if h_val.size > 1 else float("nan"),
-        "fit_id_pct": fit_percent(h_id, model.response(f_id)),
+        "fit_id_pct": fit_percent(h_id, fitted_id),
         "V": v, "n_params": n_p, "N": n_id,
         "nAIC": naic(v, n_p, n_id),
         "FPE": fpe(v, n_p, n_id) if n_p < n_id else float("inf"),

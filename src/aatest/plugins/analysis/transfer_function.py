@@ -194,6 +194,12 @@ def _candidate(f: np.ndarray, h: np.ndarray, n: int, m: int, d: int, source: str
     return model, {"n": n, "m": m, "delay_samples": d, "delay_source": source, **metrics}
 
 
+def _rescanned(known: tuple[DiscreteTf, dict[str, Any]] | None
+               ) -> tuple[DiscreteTf, dict[str, Any]] | None:
+    """A fitted cross-correlation-delay candidate as the scan's row of the same delay."""
+    return None if known is None else (known[0], {**known[1], "delay_source": "scan"})
+
+
 def _usable(row: dict[str, Any]) -> bool:
     return row["stable"] and row["zeros_outside_unit_circle"] == 0 and np.isfinite(row["fit_pct"])
 
@@ -220,8 +226,13 @@ def estimate(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],
               for m in range(n + 1) for d, src in delays]
     plain = [r for _, r in fitted if r["delay_source"] == "none" and r["n"] <= _SCAN_MAX_POLES]
     top = int(xcorr["delay_samples"]) if with_delay else -1
+    # the scan passes the cross-correlation delay too: that structure is fitted already (the
+    # same fit and metrics, an estimated delay either way), only its source is "scan"
+    done = {(r["n"], r["m"], r["delay_samples"]): (model, r) for model, r in fitted
+            if r["delay_source"] == "xcorr"}
     for r in plain:
-        fitted += [_candidate(f, h, r["n"], r["m"], d, "scan", dt, split)
+        fitted += [_rescanned(done.get((r["n"], r["m"], d))) or
+                   _candidate(f, h, r["n"], r["m"], d, "scan", dt, split)
                    for d in range(1, top + 2)]
     rows = [r for _, r in fitted]
     k = _choose(rows)
