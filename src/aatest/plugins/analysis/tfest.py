@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 from numpy.polynomial import Polynomial
-from numpy.polynomial import polynomial as P
+from numpy.polynomial import polynomial as npoly
 from scipy import optimize
 
 from aatest.plugins.analysis.polyfit import fit_percent, fpe, naic
@@ -138,7 +138,7 @@ def _to_z(p_w: np.ndarray, c: float) -> np.ndarray:
     zm1 = np.array([-1.0 / c, 1.0 / c])
     out = np.array([0.0])
     for i, coef in enumerate(p_w):
-        out = P.polyadd(out, P.polymul(coef, P.polypow(zm1, i, _MAX_POWER)))
+        out = npoly.polyadd(out, npoly.polymul(coef, npoly.polypow(zm1, i, _MAX_POWER)))
     return np.asarray(out, dtype=np.float64)
 
 
