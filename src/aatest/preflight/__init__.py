@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from aatest.engine import plan_checks
+from aatest.engine import plan_checks, registry
 from aatest.engine.errors import AatestError, InputError, Problem, ProblemsError
 from aatest.preflight import site_checks
 
@@ -190,6 +190,7 @@ def _plan(report: Preflight, path: Path, rig: Path | None, site: Site) -> None:
     report.add("disk space", *plan_checks.disk_problems(prepared, site.out_dir or Path("runs")))
 
 
+@registry.pinned()  # every check resolves plugins and aliases: read the installation once
 def preflight(procedure: Path, rig: Path | None, site: Site | None = None) -> Preflight:
     """Run every preflight check; never raises for a failed check (see :meth:`raise_if_failed`)."""
     site = site or Site()
