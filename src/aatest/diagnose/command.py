@@ -9,8 +9,11 @@ wrong, named or not); the CLI exits 1 when there is any, 0 otherwise.
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import json
 import math
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -96,10 +99,55 @@ def diagnose_command(data: Where | str, json_out: Path | None,
         The findings, then the ``unexplained`` entries (contract dicts): empty when the
         nominal model explains the data.
     """
+    with _long_lived_frozen():
+        # a path, or a URL whose recording is streamed (docs/storage.md)
+        return _diagnose(locate(data), json_out, model_out)
+
+
+@contextlib.contextmanager
+def _long_lived_frozen() -> Iterator[None]:
+    """Keep the objects alive before the diagnosis out of the cyclic garbage collector's
+    scans while it runs (:func:`gc.freeze`; :func:`gc.unfreeze` after, so they are collected
+    as before).
+
+    Why: the modules, classes and functions imported by then (about 150 000 objects) are
+    scanned by every full collection; the diagnosis allocates enough to trigger two or three,
+    measured at 0.3 s each on the 16-step dataset — a tenth of its CPU time — for objects
+    that are never garbage. A caller that froze objects itself keeps them frozen.
+    """
+    if gc.get_freeze_count():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
+def _return_freed_heap() -> None:
+    """Give the heap memory freed so far back to the system (glibc's ``malloc_trim``; a no-op
+    where there is none).
+
+    Why: an import directory is parsed by reader threads, and glibc keeps what each thread
+    freed in that thread's own arena, where the diagnosis (on the main thread) never reuses
+    it: 24 MB of the 16-step dataset's peak resident memory, measured.
+    """
+    import ctypes
+
+    try:
+        trim = ctypes.CDLL(None).malloc_trim  # the process's own symbols: libc's, if glibc
+    except (OSError, AttributeError):
+        return
+    trim(0)
+
+
+def _diagnose(data: Where, json_out: Path | None, model_out: Path | None) -> list[dict]:
+    """The body of :func:`diagnose_command` on a located ``data``."""
     from aatest.recording import read_dataset
 
-    data = locate(data)  # a path, or a URL whose recording is streamed (docs/storage.md)
     dataset = read_dataset(data)
+    _return_freed_heap()
     figures: dict[str, str] = {}
     doc = _clean(diagnose_dataset(dataset, figures=figures))
     print(summary(doc))

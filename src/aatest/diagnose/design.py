@@ -271,7 +271,7 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
     if "jerk_sensitivity" in wanted:
         cols["jerk_sensitivity"] = np.gradient(sensed, sr.dt_s)
     if "rotor_stiction" in wanted:
-        cols["rotor_stiction"] = _stiction_column(sr, info, spec, t_eval, sensed)
+        cols["rotor_stiction"] = _stiction_column(sr, info, spec, t_eval, sensed, key)
     if "jerk_distortion" in wanted:  # on the rotor's response, as the twin applies it
         cols["jerk_distortion"] = np.gradient(_dynamics(sensed, spec, sr.dt_s), sr.dt_s) ** 2
     if "cross_x" in wanted:
@@ -286,14 +286,33 @@ def _sensor_columns(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.nd
 
 
 def _stiction_column(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray,
-                     sensed: np.ndarray) -> np.ndarray:
+                     sensed: np.ndarray, key: tuple) -> np.ndarray:
     """The response ``rotor_stiction`` removes (its coefficient is −depth·K): the sensed
     acceleration while the commanded rate about the sensor axis is within ±the break-away
     rate, through the dynamics (the twin's order: the gap acts before them)."""
     if spec.stiction_dps <= 0.0 or not sr.dynamic:
         return np.zeros_like(sensed)
-    gap = np.abs(sensor_rate(sr, info.axis, t_eval)) < spec.stiction_dps
+    gap = _abs_rate(sr, info.axis, t_eval, key) < spec.stiction_dps
     return _dynamics(np.where(gap, sensed, 0.0), spec, sr.dt_s)
+
+
+#: |commanded rate| evaluations kept per step (a break-away search meets one time grid only)
+RATE_MEMO = 2
+
+
+def _abs_rate(sr: StepReplay, axis: str, t_eval: np.ndarray, key: tuple) -> np.ndarray:
+    """|commanded rate| about the sensor axis on the grid ``t_eval`` (memo key ``key``, the
+    :data:`RATE_MEMO` most recently used kept): the break-away search tries a dozen and more
+    gaps on one grid, and the rate (both axes' motion, the kinematics) is most of a column."""
+    memo_key = ("abs rate", axis, key)
+    value = sr.memo.pop(memo_key, None)
+    if value is None:
+        value = np.abs(sensor_rate(sr, axis, t_eval))
+        held = [k for k in sr.memo if k[0] == "abs rate"]
+        for old in held[: max(len(held) - RATE_MEMO + 1, 0)]:
+            del sr.memo[old]
+    sr.memo[memo_key] = value  # most recently used last
+    return value
 
 
 def _ripple_motion(sr: StepReplay, info: ChannelInfo, spec: Spec, t_eval: np.ndarray

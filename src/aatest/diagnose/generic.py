@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize, signal
 
-from aatest.diagnose.periodogram import dft_at, lomb_scargle_power
+from aatest.diagnose.periodogram import dft_at, is_uniform, lomb_scargle_at
 from aatest.diagnose.replay import StepReplay
 from aatest.numerics import TINY
 
@@ -160,10 +160,8 @@ def _line_power(steps: tuple[StepReplay, ...], residuals: dict[int, np.ndarray],
     residual: the least-squares (Lomb–Scargle) power, not the periodogram, whose peak the
     negative-frequency image pulls off a line with few cycles in the record (by 1.8 mHz for
     13 cycles of 3.3 Hz)."""
-    omega = np.array([2.0 * np.pi * f_hz])
-    return float(sum(lomb_scargle_power(sr.time_s, residuals[sr.index]
-                                        - residuals[sr.index].mean(), omega)[0]
-                     for sr in steps))
+    return float(sum(lomb_scargle_at(sr.time_s, residuals[sr.index]
+                                     - residuals[sr.index].mean(), f_hz) for sr in steps))
 
 
 def harmonic_of(f_hz: float, sr: StepReplay, tol_hz: float) -> int | None:
@@ -235,10 +233,12 @@ def table_line_dps2(sr: StepReplay, f_hz: float) -> float:
     amp = 0.0
     df = 1.0 / (sr.n * sr.dt_s)
     around = f_hz + df * np.concatenate([-np.arange(3, 11), np.arange(3, 11)])
+    uniform = is_uniform(sr.time_s)  # 17 sums per axis on one grid: checked once
     for dev in sr.table_deviation_deg.values():
         d = dev - dev.mean()
-        line = abs(dft_at(d, sr.time_s, f_hz))
-        level = float(np.median([abs(dft_at(d, sr.time_s, g)) for g in around if g > 0]))
+        line = abs(dft_at(d, sr.time_s, f_hz, uniform))
+        level = float(np.median([abs(dft_at(d, sr.time_s, g, uniform))
+                                 for g in around if g > 0]))
         if line > TABLE_LINE_SNR * level:
             amp = max(amp, 2.0 * line / dev.size * (2 * np.pi * f_hz) ** 2)
     return amp

@@ -59,7 +59,27 @@ def lomb_scargle_power(x: np.ndarray, y: np.ndarray, omega: np.ndarray) -> np.nd
     return out
 
 
-def _uniform(time_s: np.ndarray) -> bool:
+def lomb_scargle_at(time_s: np.ndarray, y: np.ndarray, f_hz: float) -> float:
+    """:func:`lomb_scargle_power` of ``y`` at the one frequency ``f_hz`` (ω = 2πf).
+
+    The two sums it needs, Σ y·exp(iωt) and Σ exp(2iωt), are :func:`dft_at` sums (conjugated),
+    so on a uniform grid about 2√n complex exponentials are evaluated instead of n: a line
+    search calls this a few hundred times on 2^14-sample steps.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    uniform = is_uniform(t)
+    b = dft_at(y, t, f_hz, uniform).conjugate()  # Σ y cos ωt + i Σ y sin ωt
+    z2 = dft_at(np.ones(t.size), t, 2.0 * f_hz, uniform).conjugate()  # Σ exp(2iωt)
+    n = float(t.size)
+    cc, ss, cs = 0.5 * (n + z2.real), 0.5 * (n - z2.real), 0.5 * z2.imag
+    det = cc * ss - cs * cs
+    if det <= 0.0:
+        return 0.0
+    yc, ys = b.real, b.imag
+    return float(0.5 * (ss * yc * yc - 2.0 * cs * yc * ys + cc * ys * ys) / det)
+
+
+def is_uniform(time_s: np.ndarray) -> bool:
     """Whether ``time_s`` is t0 + k·dt to rounding."""
     n = time_s.size
     if n < _MIN_FACTORISED:
@@ -69,18 +89,20 @@ def _uniform(time_s: np.ndarray) -> bool:
     return bool(np.max(np.abs(time_s - time_s[0] - dt * np.arange(n))) <= tol)
 
 
-def dft_at(values: np.ndarray, time_s: np.ndarray, f_hz: float) -> complex:
+def dft_at(values: np.ndarray, time_s: np.ndarray, f_hz: float,
+           uniform: bool | None = None) -> complex:
     """Σ values_k · exp(−2πi·f·t_k) (V·1 for volts; units of ``values``).
 
     On a uniform grid t_k = t0 + k·dt the phasor factorises as exp(−iω(t0 + (mB + j)dt)) over a
     (m, j) reshape of the record, so only about 2√n exponentials are evaluated; otherwise the
-    direct sum is used.
+    direct sum is used. ``uniform``: whether ``time_s`` is uniform (:func:`is_uniform`), when
+    the caller knows (a scan of many frequencies on one grid checks it once); None: checked.
     """
     v = np.asarray(values, dtype=np.float64)
     t = np.asarray(time_s, dtype=np.float64)
     w = 2.0 * np.pi * float(f_hz)
     n = v.size
-    if not _uniform(t):
+    if not (is_uniform(t) if uniform is None else uniform):
         return complex(v.astype(complex) @ np.exp(-1j * w * t))
     dt = (t[-1] - t[0]) / (n - 1)
     block = max(1, int(np.sqrt(n)))

@@ -10,9 +10,9 @@ phase trend").
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep
+from aatest.clocksync.spline import uniform_cubic_spline
 from aatest.recording.dataset import StepData
 
 _DIGITAL = ("sync_pulse", "trigger")
@@ -39,13 +39,16 @@ def trigger_aligned(data: StepData) -> SyncedStep | None:
     if keep.sum() < 0.5 * keep.size:
         return None
     channels = {}
+    # the grid is regular by construction: the not-a-knot spline through it is the uniform
+    # B-spline of :mod:`aatest.clocksync.spline` (CubicSpline's values to rounding, 3× faster)
+    at_index = (at_daq[keep] - daq_t[0]) * daq.sample_rate_hz
     for name, values in daq.channels.items():
         v = np.asarray(values, dtype=float)
         if name in _DIGITAL:
             idx = np.clip(np.searchsorted(daq_t, at_daq[keep]), 0, n - 1)
             channels[name] = v[idx]
         else:
-            channels[name] = CubicSpline(daq_t, v)(at_daq[keep])
+            channels[name] = uniform_cubic_spline(v, at_index)
     return SyncedStep(step=data.step, time_s=table_t[keep], sample_rate_hz=table.sample_rate_hz,
                       table={k: np.asarray(v)[keep] for k, v in table.channels.items()},
                       daq=channels, relation=relation)

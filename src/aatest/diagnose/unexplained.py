@@ -59,7 +59,9 @@ def _best_addition(ctx: Context, joint: Joint) -> tuple[float, Proposal, Fit] | 
         material = held_out_rmse(fit) < (1.0 - MIN_REDUCTION) * held_out_rmse(joint.fit)
         if dbic < -BIC_THRESHOLD and material and (best is None or dbic < best[0]):
             best = (dbic, prop, fit)
-    _prune(ctx, joint.generics + ([best[1]] if best is not None else []))
+        # only the taken extensions' and the best one's columns are needed again: a
+        # proposal's columns on every step (up to a few MB each) are not kept past its trial
+        _prune(ctx, joint.generics + ([best[1]] if best is not None else []))
     return best
 
 
