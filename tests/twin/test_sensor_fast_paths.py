@@ -113,25 +113,58 @@ def test_amplitude_dynamics_block_by_block_equals_the_weighted_sum() -> None:
         assert sorted(fast.filters) == sorted(ref.filters)
 
 
-def test_blend_equals_the_ascending_weighted_sum_with_exact_zeros() -> None:
-    """frac = 0 (an unused upper filter), negative zeros and a low of one value per run."""
+@pytest.mark.parametrize("runs", ["few", "many"])
+def test_blend_equals_the_ascending_weighted_sum_with_exact_zeros(runs: str) -> None:
+    """frac = 0 (an unused upper filter), negative zeros, filters cut after their last
+    weighted sample; few runs of one filter pair (slices) and many (one gather)."""
     rng = np.random.default_rng(5)
-    n, k0 = 64, 10
-    low = k0 + rng.integers(0, 4, n)
+    n, k0 = 4000, 10
+    if runs == "few":
+        low = k0 + np.repeat(rng.integers(0, 4, 20), n // 20)
+    else:
+        low = k0 + rng.integers(0, 4, n)
     frac = rng.random(n)
     frac[::5] = 0.0
+    frac[n // 2:n // 2 + 300] = 0.0
     rows = rng.standard_normal((6, n))
     rows[:, ::7] = -0.0
     _, needed = sn._grid_filters_needed(low, frac)
-    rows[np.flatnonzero(needed < 0)] = 0.0  # a filter nobody weighs is never run
+    filtered = {r: rows[r, :needed[r] + 1] for r in np.flatnonzero(needed >= 0).tolist()}
     expected = np.zeros(n)
     for k in range(int(low.min()), int(low.max()) + 2):
         weight = np.where(low == k, 1.0 - frac, 0.0) + np.where(low == k - 1, frac, 0.0)
         if weight.any():
             expected += weight * rows[k - k0]
-    got = sn._blend(rows[:needed.size], low - k0, frac)
+    got = sn._blend(filtered, low - k0, frac)
     assert np.array_equal(got, expected)
     assert np.array_equal(np.signbit(got), np.signbit(expected))
+
+
+def _reference_drift(drift, n: int, state: sn.ChannelState) -> np.ndarray:
+    """The plain definition of :func:`sensor.bias_drift_v` (new arrays at every step)."""
+    rng = state.drift_rng
+    t_s = state.elapsed_s + DT_S * np.arange(n)
+    out = drift.rate_v_per_h * t_s / 3600.0
+    steps = drift.random_walk_v_per_sqrt_s * np.sqrt(DT_S) * sn.standard_normal(rng, n)
+    walk = state.walk_v + np.cumsum(steps)
+    state.walk_v = float(walk[-1])
+    out = out + walk
+    phi = float(np.exp(-DT_S / drift.correlation_s))
+    w = np.sqrt(1.0 - phi * phi) * drift.instability_v * sn.standard_normal(rng, n)
+    markov, _ = signal.lfilter([1.0], [1.0, -phi], w, zi=[phi * state.markov_v])
+    state.markov_v = float(markov[-1])
+    state.elapsed_s += DT_S * n
+    return out + markov
+
+
+def test_bias_drift_in_place_equals_its_plain_definition() -> None:
+    drift = _sensor().bias_drift
+    assert drift is not None and drift.random_walk_v_per_sqrt_s > 0 and drift.instability_v > 0
+    fast = sn.ChannelState(drift_rng=np.random.default_rng(8))
+    ref = sn.ChannelState(drift_rng=np.random.default_rng(8))
+    for n in (1, 5000, 30_001):
+        expected = _reference_drift(drift, n, ref)
+        assert np.array_equal(sn.bias_drift_v(drift, n, DT_S, fast), expected)
 
 
 def test_filters_needed_are_the_nonzero_weights() -> None:

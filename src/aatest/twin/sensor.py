@@ -177,7 +177,7 @@ def amplitude_dynamics(model: SensorModel, alpha: np.ndarray, dt_s: float,
     # sample i takes 1 − frac_i of the ζ-grid filter low_i and frac_i of filter low_i + 1:
     # a filter is run only up to the last sample that uses it when no later block continues it
     k0, needed = _grid_filters_needed(low, frac)
-    rows = np.zeros((needed.size, alpha.size))  # (untouched pages of an idle row stay unmapped)
+    filtered: dict[int, np.ndarray] = {}  # row → output of filter k0 + row (a prefix)
     used = set()
     for row in np.flatnonzero(needed >= 0):
         k = k0 + int(row)
@@ -185,11 +185,11 @@ def amplitude_dynamics(model: SensorModel, alpha: np.ndarray, dt_s: float,
                                round(dt_s, 15))
         used.add(f"dynamics:{k}")
         stop = alpha.size if state is not None and not state.final else int(needed[row]) + 1
-        rows[row, :stop] = lowpass_carry(alpha[:stop], b, a, f"dynamics:{k}", state)
+        filtered[int(row)] = lowpass_carry(alpha[:stop], b, a, f"dynamics:{k}", state)
     if state is not None:  # a filter idle for a block would resume from a stale state
         for key in [k for k in state.filters if k.startswith("dynamics:") and k not in used]:
             del state.filters[key]
-    return _blend(rows, low - k0, frac)
+    return _blend(filtered, low - k0, frac)
 
 
 def _grid_filters_needed(low: np.ndarray, frac: np.ndarray) -> tuple[int, np.ndarray]:
@@ -217,14 +217,45 @@ def _last_index(values: np.ndarray, size: int, index: np.ndarray | None = None) 
     return last
 
 
-def _blend(rows: np.ndarray, row: np.ndarray, frac: np.ndarray) -> np.ndarray:
-    """(1 − frac)·rows[row] + frac·rows[row + 1], sample by sample, then + 0.0.
+#: runs of one grid filter pair up to which the blend works on slices (else one gather)
+_BLEND_RUNS = 64
+
+
+def _blend(filtered: dict[int, np.ndarray], row: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """(1 − frac)·y[row] + frac·y[row + 1], sample by sample, then + 0.0 (``filtered``: row →
+    filter output, a prefix long enough for every sample that weighs it; a missing or
+    shorter row has weight 0 where it is absent).
 
     The same float operations, bit for bit, as accumulating Σ_k w_k·y_k over every grid
     filter k in ascending order from zero (the other weights are exact zeros, adding ±0; the
     final + 0.0 gives the +0 that sum starts from where both terms are zero).
     """
     n = frac.size
+    ends = np.append(np.flatnonzero(row[1:] != row[:-1]) + 1, n)
+    if ends.size > _BLEND_RUNS:
+        return _blend_gathered(filtered, row, frac)
+    out = np.subtract(1.0, frac)
+    start = 0
+    for end in ends.tolist():
+        k = int(row[start])
+        out[start:end] *= filtered[k][start:end]
+        upper = filtered.get(k + 1)
+        stop = min(end, upper.size) if upper is not None else start
+        if stop > start:
+            out[start:stop] += frac[start:stop] * upper[start:stop]
+        start = end
+    out += 0.0
+    return out
+
+
+def _blend_gathered(filtered: dict[int, np.ndarray], row: np.ndarray,
+                    frac: np.ndarray) -> np.ndarray:
+    """:func:`_blend` by one gather from a (filters × samples) table (many runs)."""
+    n = frac.size
+    rows = np.zeros((int(row.max()) + 2, n))
+    for k, y in filtered.items():
+        if k < rows.shape[0]:
+            rows[k, :y.size] = y
     flat = row * n
     flat += np.arange(n)
     table = rows.ravel()
@@ -235,7 +266,6 @@ def _blend(rows: np.ndarray, row: np.ndarray, frac: np.ndarray) -> np.ndarray:
     upper *= frac
     out += upper
     out += 0.0
-    return out
     return out
 
 
@@ -268,19 +298,26 @@ def bias_drift_v(drift: BiasDrift, n: int, dt_s: float, state: ChannelState) -> 
     """
     rng = state.drift_rng if state.drift_rng is not None else np.random.default_rng(0)
     state.drift_rng = rng
-    t_s = state.elapsed_s + dt_s * np.arange(n)
-    out = drift.rate_v_per_h * t_s / 3600.0
+    # rate·(elapsed + dt·k)/3600 + walk + Gauss–Markov, in place (a + b, a·b commute)
+    out = np.arange(n, dtype=np.float64)
+    out *= dt_s
+    out += state.elapsed_s
+    out *= drift.rate_v_per_h
+    out /= 3600.0
     if drift.random_walk_v_per_sqrt_s > 0.0:
-        steps = drift.random_walk_v_per_sqrt_s * np.sqrt(dt_s) * standard_normal(rng, n)
-        walk = state.walk_v + np.cumsum(steps)
+        walk = standard_normal(rng, n)
+        walk *= drift.random_walk_v_per_sqrt_s * np.sqrt(dt_s)
+        np.cumsum(walk, out=walk)
+        walk += state.walk_v
         state.walk_v = float(walk[-1])
-        out = out + walk
+        out += walk
     if drift.instability_v > 0.0:
         phi = float(np.exp(-dt_s / drift.correlation_s))
-        w = np.sqrt(1.0 - phi * phi) * drift.instability_v * standard_normal(rng, n)
+        w = standard_normal(rng, n)
+        w *= np.sqrt(1.0 - phi * phi) * drift.instability_v
         markov, _ = signal.lfilter([1.0], [1.0, -phi], w, zi=[phi * state.markov_v])
         state.markov_v = float(markov[-1])
-        out = out + markov
+        out += markov
     state.elapsed_s += dt_s * n
     return np.asarray(out, dtype=float)
 
