@@ -15,6 +15,7 @@ from scipy import signal
 
 from aatest.plugins.sensors.sr207 import SR207Unit
 from aatest.twin import sensor as sn
+from aatest.twin import zeta_blend as zb
 from aatest.twin.api import realistic_rig_model
 from aatest.twin.model import SensorModel
 
@@ -128,14 +129,14 @@ def test_blend_equals_the_ascending_weighted_sum_with_exact_zeros(runs: str) -> 
     frac[n // 2:n // 2 + 300] = 0.0
     rows = rng.standard_normal((6, n))
     rows[:, ::7] = -0.0
-    _, needed = sn._grid_filters_needed(low, frac)
+    _, needed = zb.filters_needed(low, frac)
     filtered = {r: rows[r, :needed[r] + 1] for r in np.flatnonzero(needed >= 0).tolist()}
     expected = np.zeros(n)
     for k in range(int(low.min()), int(low.max()) + 2):
         weight = np.where(low == k, 1.0 - frac, 0.0) + np.where(low == k - 1, frac, 0.0)
         if weight.any():
             expected += weight * rows[k - k0]
-    got = sn._blend(filtered, low - k0, frac)
+    got = zb.blend(filtered, low - k0, frac)
     assert np.array_equal(got, expected)
     assert np.array_equal(np.signbit(got), np.signbit(expected))
 
@@ -170,7 +171,7 @@ def test_bias_drift_in_place_equals_its_plain_definition() -> None:
 def test_filters_needed_are_the_nonzero_weights() -> None:
     low = np.array([5, 5, 6, 8, 8, 6, 5])
     frac = np.array([0.5, 0.0, 0.0, 0.25, 0.0, 0.0, 0.0])
-    k0, last = sn._grid_filters_needed(low, frac)
+    k0, last = zb.filters_needed(low, frac)
     # k = 5: samples 0, 1, 6; k = 6: 0 (5 + frac) and 2, 5; k = 7: none (frac 0 at 6);
     # k = 8: 3, 4; k = 9: 3 (8 + frac)
     assert k0 == 5

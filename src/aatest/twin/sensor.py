@@ -25,6 +25,7 @@ from scipy import signal
 from aatest.effects import EffectInputs, forward, load_effect
 from aatest.twin.fastmath import standard_normal
 from aatest.twin.model import AmplitudeDamping, BiasDrift, SensorModel
+from aatest.twin.zeta_blend import blend, filters_needed
 
 #: damping-ratio grid of the amplitude-dependent dynamics: the output blends the two grid
 #: filters around ζ(t) (a 0.02 step moves the 10 Hz gain of a 30 Hz sensor by < 0.01 dB)
@@ -92,8 +93,8 @@ def band_filter(corner_hz: float, dt_s: float) -> tuple:
 
 
 def unit_steady_state(b: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """``scipy.signal.lfilter_zi(b, a)`` (read-only), solved once per filter: a step filters
-    ≈ 30 blocks through a dozen distinct filters, each solve costs a companion matrix."""
+    """``scipy.signal.lfilter_zi(b, a)`` (read-only), solved once per filter: every step
+    starts a dozen filters from steady state, and each solve builds a companion system."""
     b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
     return _unit_steady_state(b.tobytes(), a.tobytes())
 
@@ -176,7 +177,7 @@ def amplitude_dynamics(model: SensorModel, alpha: np.ndarray, dt_s: float,
     frac = grid - low
     # sample i takes 1 − frac_i of the ζ-grid filter low_i and frac_i of filter low_i + 1:
     # a filter is run only up to the last sample that uses it when no later block continues it
-    k0, needed = _grid_filters_needed(low, frac)
+    k0, needed = filters_needed(low, frac)
     filtered: dict[int, np.ndarray] = {}  # row → output of filter k0 + row (a prefix)
     used = set()
     for row in np.flatnonzero(needed >= 0):
@@ -189,84 +190,7 @@ def amplitude_dynamics(model: SensorModel, alpha: np.ndarray, dt_s: float,
     if state is not None:  # a filter idle for a block would resume from a stale state
         for key in [k for k in state.filters if k.startswith("dynamics:") and k not in used]:
             del state.filters[key]
-    return _blend(filtered, low - k0, frac)
-
-
-def _grid_filters_needed(low: np.ndarray, frac: np.ndarray) -> tuple[int, np.ndarray]:
-    """(k0, last): the ζ-grid filters k0, k0 + 1, … that ``amplitude_dynamics`` blends with
-    a non-zero weight, as the last sample index that weights filter k0 + j (−1: none).
-
-    Filter k weighs 1 − frac > 0 where low = k and frac where low = k − 1 (when frac > 0).
-    """
-    k0 = int(low.min())
-    size = int(low.max()) - k0 + 2
-    last = _last_index(low - k0, size)
-    positive = np.flatnonzero(frac > 0.0)
-    upper = _last_index(low[positive] - (k0 - 1), size, positive)
-    return k0, np.maximum(last, upper)
-
-
-def _last_index(values: np.ndarray, size: int, index: np.ndarray | None = None) -> np.ndarray:
-    """Last position (``index[i]`` of the i-th value, default i) of each value 0…size − 1
-    in ``values`` (−1 when absent; values outside the range are ignored): run ends only."""
-    last = np.full(size, -1, dtype=np.int64)
-    if values.size:
-        ends = np.append(np.flatnonzero(values[1:] != values[:-1]), values.size - 1)
-        keep = ends[values[ends] < size]
-        np.maximum.at(last, values[keep], keep if index is None else index[keep])
-    return last
-
-
-#: runs of one grid filter pair up to which the blend works on slices (else one gather)
-_BLEND_RUNS = 64
-
-
-def _blend(filtered: dict[int, np.ndarray], row: np.ndarray, frac: np.ndarray) -> np.ndarray:
-    """(1 − frac)·y[row] + frac·y[row + 1], sample by sample, then + 0.0 (``filtered``: row →
-    filter output, a prefix long enough for every sample that weighs it; a missing or
-    shorter row has weight 0 where it is absent).
-
-    The same float operations, bit for bit, as accumulating Σ_k w_k·y_k over every grid
-    filter k in ascending order from zero (the other weights are exact zeros, adding ±0; the
-    final + 0.0 gives the +0 that sum starts from where both terms are zero).
-    """
-    n = frac.size
-    ends = np.append(np.flatnonzero(row[1:] != row[:-1]) + 1, n)
-    if ends.size > _BLEND_RUNS:
-        return _blend_gathered(filtered, row, frac)
-    out = np.subtract(1.0, frac)
-    start = 0
-    for end in ends.tolist():
-        k = int(row[start])
-        out[start:end] *= filtered[k][start:end]
-        upper = filtered.get(k + 1)
-        stop = min(end, upper.size) if upper is not None else start
-        if stop > start:
-            out[start:stop] += frac[start:stop] * upper[start:stop]
-        start = end
-    out += 0.0
-    return out
-
-
-def _blend_gathered(filtered: dict[int, np.ndarray], row: np.ndarray,
-                    frac: np.ndarray) -> np.ndarray:
-    """:func:`_blend` by one gather from a (filters × samples) table (many runs)."""
-    n = frac.size
-    rows = np.zeros((int(row.max()) + 2, n))
-    for k, y in filtered.items():
-        if k < rows.shape[0]:
-            rows[k, :y.size] = y
-    flat = row * n
-    flat += np.arange(n)
-    table = rows.ravel()
-    out = np.subtract(1.0, frac)
-    out *= table.take(flat)
-    flat += n
-    upper = table.take(flat)
-    upper *= frac
-    out += upper
-    out += 0.0
-    return out
+    return blend(filtered, low - k0, frac)
 
 
 @dataclass
