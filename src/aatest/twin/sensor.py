@@ -25,6 +25,7 @@ from scipy import signal
 from aatest.effects import EffectInputs, forward, load_effect
 from aatest.twin.fastmath import standard_normal
 from aatest.twin.model import AmplitudeDamping, BiasDrift, SensorModel
+from aatest.twin.zeta_blend import blend, filters_needed
 
 #: damping-ratio grid of the amplitude-dependent dynamics: the output blends the two grid
 #: filters around ζ(t) (a 0.02 step moves the 10 Hz gain of a 30 Hz sensor by < 0.01 dB)
@@ -53,12 +54,18 @@ def play_operator(x: np.ndarray, half_width: float, y0: float | None = None) -> 
     if half_width <= 0.0 or x.size == 0:
         return x.copy()
     lo, hi = x - half_width, x + half_width
+    # each pass writes the composed clamps into the other pair of buffers (no temporaries)
+    lo_next, hi_next = np.empty_like(lo), np.empty_like(hi)
     shift = 1
     while shift < x.size:
         # compose the clamp ending at k−shift (applied first) with the one ending at k
-        new_lo = np.minimum(np.maximum(lo[:-shift], lo[shift:]), hi[shift:])
-        new_hi = np.minimum(np.maximum(hi[:-shift], lo[shift:]), hi[shift:])
-        lo[shift:], hi[shift:] = new_lo, new_hi
+        lo_next[:shift], hi_next[:shift] = lo[:shift], hi[:shift]
+        new_lo, new_hi = lo_next[shift:], hi_next[shift:]
+        np.maximum(lo[:-shift], lo[shift:], out=new_lo)
+        np.minimum(new_lo, hi[shift:], out=new_lo)
+        np.maximum(hi[:-shift], lo[shift:], out=new_hi)
+        np.minimum(new_hi, hi[shift:], out=new_hi)
+        lo, hi, lo_next, hi_next = lo_next, hi_next, lo, hi
         shift *= 2
         # once every window of `shift` samples pins the output (lo == hi), earlier history
         # no longer matters: stop (typically after 4–6 passes instead of 17)
@@ -85,9 +92,23 @@ def band_filter(corner_hz: float, dt_s: float) -> tuple:
     return signal.butter(4, min(corner_hz, 0.9 * nyquist), fs=1.0 / dt_s)
 
 
+def unit_steady_state(b: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """``scipy.signal.lfilter_zi(b, a)`` (read-only), solved once per filter: every step
+    starts a dozen filters from steady state, and each solve builds a companion system."""
+    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    return _unit_steady_state(b.tobytes(), a.tobytes())
+
+
+@lru_cache(maxsize=256)
+def _unit_steady_state(b: bytes, a: bytes) -> np.ndarray:
+    zi = signal.lfilter_zi(np.frombuffer(b), np.frombuffer(a))
+    zi.flags.writeable = False
+    return zi
+
+
 def lowpass(x: np.ndarray, b: np.ndarray, a: np.ndarray) -> np.ndarray:
     """Filter starting in steady state at the first sample (no start-up transient)."""
-    zi = signal.lfilter_zi(b, a) * x[0]
+    zi = unit_steady_state(b, a) * x[0]
     return signal.lfilter(b, a, x, zi=zi)[0]
 
 
@@ -100,7 +121,7 @@ def lowpass_carry(x: np.ndarray, b: np.ndarray, a: np.ndarray, key: str,
         return lowpass(x, b, a)
     zi = state.filters.get(key)
     if zi is None:
-        zi = signal.lfilter_zi(b, a) * x[0]
+        zi = unit_steady_state(b, a) * x[0]
     y, state.filters[key] = signal.lfilter(b, a, x, zi=zi)
     return np.asarray(y)
 
@@ -111,12 +132,23 @@ def trailing_amplitude(x: np.ndarray, window: int, state: ChannelState | None) -
     sq = np.asarray(x, dtype=np.float64) ** 2
     tail = state.filters.get("amplitude_tail") if state is not None else None
     full = sq if tail is None else np.concatenate([tail, sq])
-    csum = np.concatenate([[0.0], np.cumsum(full)])
-    end = np.arange(full.size - sq.size, full.size) + 1
-    start = np.maximum(end - window, 0)
+    csum = np.empty(full.size + 1)
+    csum[0] = 0.0
+    np.cumsum(full, out=csum[1:])
     if state is not None:
         state.filters["amplitude_tail"] = full[-max(window - 1, 1):]
-    return np.sqrt(2.0 * (csum[end] - csum[start]) / (end - start))
+    # window sums csum[end] − csum[start], end = m + 1 … size, start = max(end − window, 0),
+    # divided by end − start: by slices (the first `short` windows start at 0)
+    m = full.size - sq.size
+    short = max(0, min(window, full.size) - m)
+    out = np.empty(sq.size)
+    np.subtract(csum[m + 1: m + 1 + short], csum[0], out=out[:short])
+    np.subtract(csum[m + 1 + short:], csum[m + 1 + short - window: full.size + 1 - window],
+                out=out[short:])
+    out *= 2.0
+    out[:short] /= np.arange(m + 1, m + 1 + short)
+    out[short:] /= window
+    return np.sqrt(out, out=out)
 
 
 def damping_of(effect: AmplitudeDamping, damping: float, amplitude_dps2: np.ndarray
@@ -143,20 +175,22 @@ def amplitude_dynamics(model: SensorModel, alpha: np.ndarray, dt_s: float,
     grid = damping_of(eff, dyn.damping, amplitude) / _ZETA_STEP
     low = np.floor(grid).astype(np.int64)
     frac = grid - low
-    out = np.zeros_like(alpha, dtype=np.float64)
+    # sample i takes 1 − frac_i of the ζ-grid filter low_i and frac_i of filter low_i + 1:
+    # a filter is run only up to the last sample that uses it when no later block continues it
+    k0, needed = filters_needed(low, frac)
+    filtered: dict[int, np.ndarray] = {}  # row → output of filter k0 + row (a prefix)
     used = set()
-    for k in range(int(low.min()), int(low.max()) + 2):
-        weight = np.where(low == k, 1.0 - frac, 0.0) + np.where(low == k - 1, frac, 0.0)
-        if not weight.any():
-            continue
+    for row in np.flatnonzero(needed >= 0):
+        k = k0 + int(row)
         b, a = dynamics_filter(dyn.natural_frequency_hz, round(k * _ZETA_STEP, 6),
                                round(dt_s, 15))
         used.add(f"dynamics:{k}")
-        out += weight * lowpass_carry(alpha, b, a, f"dynamics:{k}", state)
+        stop = alpha.size if state is not None and not state.final else int(needed[row]) + 1
+        filtered[int(row)] = lowpass_carry(alpha[:stop], b, a, f"dynamics:{k}", state)
     if state is not None:  # a filter idle for a block would resume from a stale state
         for key in [k for k in state.filters if k.startswith("dynamics:") and k not in used]:
             del state.filters[key]
-    return out
+    return blend(filtered, low - k0, frac)
 
 
 @dataclass
@@ -175,6 +209,8 @@ class ChannelState:
     markov_v: float = 0.0
     elapsed_s: float = 0.0
     drift_rng: np.random.Generator | None = None
+    #: no later block continues this one: filters may stop at the last sample they feed
+    final: bool = False
 
 
 def bias_drift_v(drift: BiasDrift, n: int, dt_s: float, state: ChannelState) -> np.ndarray:
@@ -186,19 +222,26 @@ def bias_drift_v(drift: BiasDrift, n: int, dt_s: float, state: ChannelState) -> 
     """
     rng = state.drift_rng if state.drift_rng is not None else np.random.default_rng(0)
     state.drift_rng = rng
-    t_s = state.elapsed_s + dt_s * np.arange(n)
-    out = drift.rate_v_per_h * t_s / 3600.0
+    # rate·(elapsed + dt·k)/3600 + walk + Gauss–Markov, in place (a + b, a·b commute)
+    out = np.arange(n, dtype=np.float64)
+    out *= dt_s
+    out += state.elapsed_s
+    out *= drift.rate_v_per_h
+    out /= 3600.0
     if drift.random_walk_v_per_sqrt_s > 0.0:
-        steps = drift.random_walk_v_per_sqrt_s * np.sqrt(dt_s) * standard_normal(rng, n)
-        walk = state.walk_v + np.cumsum(steps)
+        walk = standard_normal(rng, n)
+        walk *= drift.random_walk_v_per_sqrt_s * np.sqrt(dt_s)
+        np.cumsum(walk, out=walk)
+        walk += state.walk_v
         state.walk_v = float(walk[-1])
-        out = out + walk
+        out += walk
     if drift.instability_v > 0.0:
         phi = float(np.exp(-dt_s / drift.correlation_s))
-        w = np.sqrt(1.0 - phi * phi) * drift.instability_v * standard_normal(rng, n)
+        w = standard_normal(rng, n)
+        w *= np.sqrt(1.0 - phi * phi) * drift.instability_v
         markov, _ = signal.lfilter([1.0], [1.0, -phi], w, zi=[phi * state.markov_v])
         state.markov_v = float(markov[-1])
-        out = out + markov
+        out += markov
     state.elapsed_s += dt_s * n
     return np.asarray(out, dtype=float)
 

@@ -352,6 +352,8 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
             if start + block < n:  # the next block's rigid motion, while this one draws
                 rigid = pool.submit(_rigid_block, setup, _block_grid(
                     clock, start + block, min(block, n - start - block)))
+            for carried in state.sensors.values():  # the last block ends every filter
+                carried.final = start + block >= n
             channels = _daq_block(setup, grid, start, rng, state,
                                   truth if block == n else None, current)
             del current

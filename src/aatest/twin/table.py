@@ -39,10 +39,22 @@ class Tones:
 
     def evaluate(self, grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(angle_deg, rate_dps, accel_dps2) of the vibration, zero-mean in all three."""
+        sums = self._sums(grid)
+        return -sums[2].imag, -sums[1].real, sums[0].imag
+
+    def add_to(self, grid: Grid, angle_deg: np.ndarray, rate_dps: np.ndarray,
+               accel_dps2: np.ndarray) -> None:
+        """Add :meth:`evaluate` to the three arrays in place (x − y is x + (−y), bit for bit,
+        so the sums are those of adding the evaluated arrays)."""
+        sums = self._sums(grid)
+        np.subtract(angle_deg, sums[2].imag, out=angle_deg)
+        np.subtract(rate_dps, sums[1].real, out=rate_dps)
+        np.add(accel_dps2, sums[0].imag, out=accel_dps2)
+
+    def _sums(self, grid: Grid) -> np.ndarray:
         w = 2 * np.pi * self.frequency_hz
         a = self.amplitude_dps2
-        sums = grid.tone_sum(w, self.phase_rad, np.stack([a, a / w, a / (w * w)]))
-        return -sums[2].imag, -sums[1].real, sums[0].imag
+        return grid.tone_sum(w, self.phase_rad, np.stack([a, a / w, a / (w * w)]))
 
 
 def make_vibration(model: MotorVibration | None, rng: np.random.Generator) -> Tones | None:
@@ -90,8 +102,7 @@ class AxisTruth:
         for ripple in self.model.rate_ripple if self.profile.moving else ():
             angle, rate, accel = _add_ripple(ripple, angle, rate, accel)
         if self.motor_on and self.vibration is not None:
-            va, vr, vac = self.vibration.evaluate(grid)
-            angle, rate, accel = angle + va, rate + vr, accel + vac
+            self.vibration.add_to(grid, angle, rate, accel)  # (fresh arrays: ours to change)
         elif not self.motor_on and self.drift_dps:
             angle = angle + self.drift_dps * (grid.times - self.profile.t0_s)
             rate = rate + self.drift_dps
