@@ -71,15 +71,70 @@ class _Coded:
     offset: float
 
 
+#: ``(max|x| + 2·|offset|) / quantum`` up to which a channel's codes may be found by
+#: multiplying with ``1 / quantum`` instead of dividing (:func:`_coded_by_reciprocal`)
+_RECIPROCAL_SAFE_CODES = float(2**47)
+
+
 def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray) -> _Coded:
     """Integer codes of a whole channel, with each block's verdict: do its codes give back every
-    value bit for bit? (The per-block choice of :func:`encode_blocks`, made for all at once.)"""
+    value bit for bit? (The per-block choice of :func:`encode_blocks`, made for all at once.)
+
+    Codes come from :func:`_coded_by_reciprocal` where the channel's magnitude makes it give
+    exactly the codes and verdicts of :func:`_coded_by_division` (the definition), else from
+    the latter.
+    """
     if values.dtype.kind in "iub":
         return _Coded(values.astype(np.int64), np.ones(starts.size, dtype=bool), 1.0, 0.0)
     exact = values.astype(np.float64, copy=False)
     step, offset = quantum if quantum is not None else (1.0, 0.0)
     if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
         return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
+    if _reciprocal_is_exact(exact, step, offset):
+        return _coded_by_reciprocal(exact, step, offset, starts)
+    return _coded_by_division(exact, step, offset, starts)
+
+
+def _reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
+    """Whether rounding ``(x − offset)·(1/step)`` gives every code :func:`_coded_by_division`
+    finds exact, for every value ``x`` of the channel (``step`` > 0 and ``offset`` finite).
+
+    Why it does when ``(max|x| + 2·|offset|)/step ≤ 2^47``: if ``x = fl(fl(c·step) + offset)``
+    for a code ``c``, then ``|c| + |offset|/step < 2^48`` and the float64 roundings of the
+    subtraction, of ``1/step`` and of the product move the quotient from ``c`` by at most
+    ``5.1·2^-53·2^48 ≈ 0.16`` (and the division's by less): both round to ``c``. A value no
+    code gives back fails the check whichever code is tried. So every sample gets the same
+    verdict, and every exact one the same code, by either route. NaN or ±inf in the channel
+    (or a ratio beyond 2^47) keeps the division.
+    """
+    if exact.size == 0:
+        return False
+    top = max(float(exact.max()), -float(exact.min()))
+    with np.errstate(over="ignore", invalid="ignore"):
+        ratio = (top + 2.0 * abs(offset)) / step
+    return bool(ratio <= _RECIPROCAL_SAFE_CODES)  # False for NaN and inf
+
+
+def _coded_by_reciprocal(exact: np.ndarray, step: float, offset: float,
+                         starts: np.ndarray) -> _Coded:
+    """:func:`_coded_by_division` for a channel :func:`_reciprocal_is_exact` accepts: one
+    multiplication for the division (a third of its cost), and no test of which codes fit
+    (all are below 2^48)."""
+    scaled = np.subtract(exact, offset) if offset else np.multiply(exact, 1.0 / step)
+    if offset:
+        np.multiply(scaled, 1.0 / step, out=scaled)
+    np.round(scaled, out=scaled)
+    codes = scaled.astype(np.int64)
+    back = np.multiply(scaled, step, out=scaled)  # the code as a float64 is exact (< 2^53)
+    if offset:
+        np.add(back, offset, out=back)
+    return _Coded(codes, np.logical_and.reduceat(np.equal(back, exact), starts), step, offset)
+
+
+def _coded_by_division(exact: np.ndarray, step: float, offset: float,
+                       starts: np.ndarray) -> _Coded:
+    """The definition of a float64 channel's codes: ``round((x − offset) / step)`` where it
+    fits below 2^53, exact where ``code·step + offset`` gives back ``x``."""
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         # x − 0.0 is x bit for bit, so a zero offset is skipped (in place: no temporaries)
         scaled = np.subtract(exact, offset) if offset else exact.copy()
@@ -101,14 +156,65 @@ def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.n
     return _Coded(codes, np.logical_and.reduceat(same, starts), step, offset)
 
 
+#: serialised field keys written by hand (proto.py numbers)
+_PACKED_KEY, _VALUES_KEY = proto.tag(_PACKED_FIELD), proto.tag(_VALUES_FIELD)
+_TIME_KEY, _CHANNELS_KEY = proto.tag(_TIME_FIELD), proto.tag(_CHANNELS_FIELD)
+
+
+@dataclass(frozen=True)
+class _Choice:
+    """Per block of an exact channel: delta-coded or not, code width; and the chosen codes
+    of the whole channel as byte planes of the widest width (row ``b``: byte ``b`` of every
+    code, little-endian two's complement)."""
+
+    delta: list[bool]
+    widths: list[int]
+    planes: np.ndarray  # uint8, (widest width, samples)
+
+
+def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool]) -> _Choice:
+    """Delta or plain codes per block (the smaller sum of magnitudes), each block's width,
+    and the byte planes, in whole-channel passes.
+
+    Why planes of the widest width serve every block: a code that fits ``w`` bytes has the
+    same low ``w`` bytes in any wider two's complement, so a block of width ``w`` is rows
+    ``0 … w−1`` of its columns; the planes are cut by shifts of the narrow integers, which
+    reads memory in order (a transposed copy of the bytes is 2–3× slower).
+    """
+    steps = np.empty_like(codes)
+    np.subtract(codes[1:], codes[:-1], out=steps[1:])
+    steps[starts] = codes[starts]  # each block's first difference is from 0
+    magnitude = np.abs(codes)
+    code_sum = np.add.reduceat(magnitude, starts)
+    code_top = np.maximum.reduceat(magnitude, starts)
+    np.abs(steps, out=magnitude)
+    delta = np.add.reduceat(magnitude, starts) < code_sum
+    top = np.where(delta, np.maximum.reduceat(magnitude, starts), code_top)
+    del magnitude
+    chosen = steps if delta.all() else codes if not delta.any() else np.where(
+        np.repeat(delta, np.diff(np.append(starts, codes.size))), steps, codes)
+    widths = [_width(t) for t in top.tolist()]
+    widest = max(w for w, ok in zip(widths, exact, strict=True) if ok)
+    # codes of blocks that are not exact may not fit: their bytes are never used
+    narrow = chosen.astype(f"<i{widest}").view(f"<u{widest}")
+    if widest == 1:
+        planes = narrow.view(np.uint8).reshape(1, -1)
+    else:
+        planes = np.empty((widest, codes.size), dtype=np.uint8)
+        planes[0] = narrow  # the low byte (a truncating cast)
+        for byte in range(1, widest):
+            planes[byte] = narrow >> (8 * byte)
+    return _Choice(delta.tolist(), widths, planes)
+
+
 class _ChannelEncoder:
     """Serialised ``Channel`` messages of one channel, block by block, built from whole arrays.
 
     Codes where exact (delta-coded where that is smaller: smooth signals, counters), else
-    float64 values; the codes and widths of every block are found in one vectorised pass. The
-    scalar fields (``name``, ``unit``, ``dtype``, ``quantum``, ``offset``, ``delta``,
-    ``width``, ``shuffled``) are serialised by protobuf, so each message is byte for byte what
-    ``SerializeToString`` gives.
+    float64 values; the codes, widths and byte planes of every block are found in one
+    vectorised pass. The scalar fields (``name``, ``unit``, ``dtype``, ``quantum``,
+    ``offset``, ``delta``, ``width``, ``shuffled``) are serialised by protobuf, so each
+    message is byte for byte what ``SerializeToString`` gives.
     """
 
     def __init__(self, name: str, unit: str, values: np.ndarray,
@@ -118,42 +224,35 @@ class _ChannelEncoder:
         self._channel = channel
         head = channel(name=name, unit=unit, dtype=values.dtype.str)
         self._head: bytes = head.SerializeToString()
-        self._bounds = np.append(starts, values.size)
+        self._bounds = np.append(starts, values.size).tolist()
         coded = _coded(values, quantum, starts)
         self._exact = coded.exact.tolist()
         self._tails: dict[bool, bytes] = {
             delta: channel(quantum=coded.quantum, offset=coded.offset, delta=delta)
             .SerializeToString() for delta in (False, True)}
-        self._delta: list[bool] = [False] * starts.size
-        self._widths: list[int] = [8] * starts.size
-        if any(self._exact):
-            codes = coded.codes
-            steps = np.empty_like(codes)
-            np.subtract(codes[1:], codes[:-1], out=steps[1:])
-            steps[starts] = codes[starts]  # each block's first difference is from 0
-            magnitude = np.abs(steps)
-            delta = np.add.reduceat(magnitude, starts) < np.add.reduceat(np.abs(codes), starts)
-            self._delta = delta.tolist()
-            self._chosen = steps if delta.all() else codes if not delta.any() else np.where(
-                np.repeat(delta, np.diff(self._bounds)), steps, codes)
-            if not delta.all():
-                magnitude = np.abs(self._chosen)
-            self._widths = [_width(top) for top in np.maximum.reduceat(magnitude, starts).tolist()]
+        self._choice = _choose(coded.codes, starts, self._exact) if any(self._exact) else None
+
+    def parts(self, block: int) -> tuple[list[Any], int]:
+        """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
+        pieces (joined once, into the whole block), and their length in bytes."""
+        first, last = self._bounds[block], self._bounds[block + 1]
+        if self._exact[block] and self._choice is not None:
+            width = self._choice.widths[block]
+            planes = [self._choice.planes[byte, first:last] for byte in range(width)]
+            size = width * (last - first)
+            tail = _packing(self._channel, width, width > 1)
+            head = b"".join((self._head, self._tails[self._choice.delta[block]], _PACKED_KEY,
+                             proto.varint(size)))
+            return [head, *planes, tail], len(head) + size + len(tail)
+        raw = np.ascontiguousarray(self._values[first:last], dtype="<f8")
+        if not raw.size:
+            return [self._head], len(self._head)
+        head = b"".join((self._head, _VALUES_KEY, proto.varint(raw.nbytes)))
+        return [head, raw], len(head) + raw.nbytes
 
     def message(self, block: int) -> bytes:
         """The serialised ``Channel`` of block number ``block``."""
-        first, last = self._bounds[block], self._bounds[block + 1]
-        if self._exact[block]:
-            width = self._widths[block]
-            codes = self._chosen[first:last].astype(f"<i{width}")
-            shuffled = width > 1
-            payload = (codes.view(np.uint8).reshape(-1, width).T.tobytes() if shuffled
-                       else codes.tobytes())
-            return b"".join((self._head, self._tails[self._delta[block]],
-                             proto.length_delimited(_PACKED_FIELD, payload),
-                             _packing(self._channel, width, shuffled)))
-        raw = self._values[first:last].astype("<f8").tobytes()
-        return b"".join((self._head, proto.length_delimited(_VALUES_FIELD, raw) if raw else b""))
+        return b"".join(self.parts(block)[0])
 
 
 #: code widths (bytes) of format v3, narrowest first
@@ -224,12 +323,12 @@ def encode_blocks(
         head = block_type(sequence=first_sequence + sequence,
                           first_sample=first_sample + int(starts[sequence]), **before)
         tail = block_type(log_time_ns=log_time_ns, **after)
-        yield b"".join([
-            head.SerializeToString(),
-            proto.length_delimited(_TIME_FIELD, time.message(sequence)),
-            *(proto.length_delimited(_CHANNELS_FIELD, c.message(sequence)) for c in channels),
-            tail.SerializeToString(),
-        ])
+        parts = [head.SerializeToString()]
+        for key, encoder in ((_TIME_KEY, time), *((_CHANNELS_KEY, c) for c in channels)):
+            pieces, size = encoder.parts(sequence)
+            parts += (key, proto.varint(size), *pieces)
+        parts.append(tail.SerializeToString())
+        yield b"".join(parts)  # the one copy of the samples into the message
 
 
 def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None]:
