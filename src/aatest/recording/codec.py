@@ -65,7 +65,8 @@ def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dty
 class _Coded:
     """One channel of a whole log as codes, and which of its blocks they reproduce exactly."""
 
-    codes: np.ndarray  # int64, one per sample (meaningless inside blocks that are not exact)
+    codes: np.ndarray  # int64 (int32 if all fit), one per sample (meaningless inside blocks
+    #                    that are not exact)
     exact: np.ndarray  # bool, one per block
     quantum: float
     offset: float
@@ -74,6 +75,9 @@ class _Coded:
 #: ``(max|x| + 2·|offset|) / quantum`` up to which a channel's codes may be found by
 #: multiplying with ``1 / quantum`` instead of dividing (:func:`_coded_by_reciprocal`)
 _RECIPROCAL_SAFE_CODES = float(2**47)
+#: ... up to which every code, and every difference of two, fits an int32: half the memory
+#: traffic for the delta choice and the byte planes (codes of ±2^29 differ by < 2^31)
+_INT32_SAFE_CODES = float(2**29)
 
 
 def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray) -> _Coded:
@@ -90,9 +94,21 @@ def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.n
     step, offset = quantum if quantum is not None else (1.0, 0.0)
     if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
         return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
-    if _reciprocal_is_exact(exact, step, offset):
-        return _coded_by_reciprocal(exact, step, offset, starts)
+    ratio = _code_ratio(exact, step, offset)
+    if ratio <= _RECIPROCAL_SAFE_CODES:  # False for NaN and inf
+        integers = np.int32 if ratio <= _INT32_SAFE_CODES else np.int64
+        return _coded_by_reciprocal(exact, step, offset, starts, integers)
     return _coded_by_division(exact, step, offset, starts)
+
+
+def _code_ratio(exact: np.ndarray, step: float, offset: float) -> float:
+    """``(max|x| + 2·|offset|) / step`` of a channel: above every code's magnitude (NaN or
+    inf for a channel holding NaN or inf, or none at all)."""
+    if exact.size == 0:
+        return float("nan")
+    top = max(float(exact.max()), -float(exact.min()))
+    with np.errstate(over="ignore", invalid="ignore"):
+        return (top + 2.0 * abs(offset)) / step
 
 
 def _reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
@@ -107,24 +123,19 @@ def _reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
     verdict, and every exact one the same code, by either route. NaN or ±inf in the channel
     (or a ratio beyond 2^47) keeps the division.
     """
-    if exact.size == 0:
-        return False
-    top = max(float(exact.max()), -float(exact.min()))
-    with np.errstate(over="ignore", invalid="ignore"):
-        ratio = (top + 2.0 * abs(offset)) / step
-    return bool(ratio <= _RECIPROCAL_SAFE_CODES)  # False for NaN and inf
+    return bool(_code_ratio(exact, step, offset) <= _RECIPROCAL_SAFE_CODES)
 
 
-def _coded_by_reciprocal(exact: np.ndarray, step: float, offset: float,
-                         starts: np.ndarray) -> _Coded:
+def _coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: np.ndarray,
+                         integers: type[np.signedinteger[Any]] = np.int64) -> _Coded:
     """:func:`_coded_by_division` for a channel :func:`_reciprocal_is_exact` accepts: one
     multiplication for the division (a third of its cost), and no test of which codes fit
-    (all are below 2^48)."""
+    (all are below 2^48). ``integers``: the dtype of the codes (int32 when they fit)."""
     scaled = np.subtract(exact, offset) if offset else np.multiply(exact, 1.0 / step)
     if offset:
         np.multiply(scaled, 1.0 / step, out=scaled)
     np.round(scaled, out=scaled)
-    codes = scaled.astype(np.int64)
+    codes = scaled.astype(integers)
     back = np.multiply(scaled, step, out=scaled)  # the code as a float64 is exact (< 2^53)
     if offset:
         np.add(back, offset, out=back)
@@ -185,10 +196,10 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool]) -> _Choice
     np.subtract(codes[1:], codes[:-1], out=steps[1:])
     steps[starts] = codes[starts]  # each block's first difference is from 0
     magnitude = np.abs(codes)
-    code_sum = np.add.reduceat(magnitude, starts)
+    code_sum = np.add.reduceat(magnitude, starts, dtype=np.int64)  # exact for int32 too
     code_top = np.maximum.reduceat(magnitude, starts)
     np.abs(steps, out=magnitude)
-    delta = np.add.reduceat(magnitude, starts) < code_sum
+    delta = np.add.reduceat(magnitude, starts, dtype=np.int64) < code_sum
     top = np.where(delta, np.maximum.reduceat(magnitude, starts), code_top)
     del magnitude
     chosen = steps if delta.all() else codes if not delta.any() else np.where(
