@@ -1,12 +1,12 @@
 """The writer's fast route to a channel's codes gives exactly the codes of the definition.
 
-:func:`aatest.recording.codec._coded` finds a float channel's integer codes by multiplying with
-``1/quantum`` when the channel's magnitude allows it (:func:`_reciprocal_is_exact`), else by
-the defining division (:func:`_coded_by_division`). A recorded block is bytes of those codes
-and verdicts, so the two routes must agree on every block's verdict and on every code of an
-exact block, for the twin's real logs and for floats made to sit just off the code grid, on
-ties, and at the edge of the magnitude bound. These are exact integer and boolean
-comparisons: the claim is identity, not closeness.
+:func:`aatest.recording.channel_codes.coded` finds a float channel's integer codes by
+multiplying with ``1/quantum`` when the channel's magnitude allows it
+(:func:`reciprocal_is_exact`), else by the defining division (:func:`coded_by_division`). A
+recorded block is bytes of those codes and verdicts, so the two routes must agree on every
+block's verdict and on every code of an exact block, for the twin's real logs and for floats
+made to sit just off the code grid, on ties, and at the edge of the magnitude bound. These
+are exact integer and boolean comparisons: the claim is identity, not closeness.
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aatest.recording.codec import (
-    _coded,
-    _coded_by_division,
-    _coded_by_reciprocal,
-    _reciprocal_is_exact,
+from aatest.recording.channel_codes import (
+    coded,
+    coded_by_division,
+    coded_by_reciprocal,
+    reciprocal_is_exact,
 )
 from aatest.twin.api import realistic_rig_model, simulate_dataset
 
@@ -33,8 +33,8 @@ def _assert_same_as_division(values: np.ndarray, quantum: float, offset: float) 
     """Both routes: the same verdict per block, the same codes in every exact block."""
     starts = _starts(values.size)
     exact = values.astype(np.float64)
-    fast = _coded(values, (quantum, offset), starts)
-    slow = _coded_by_division(exact, quantum, offset, starts)
+    fast = coded(values, (quantum, offset), starts)
+    slow = coded_by_division(exact, quantum, offset, starts)
     np.testing.assert_array_equal(fast.exact, slow.exact)
     bounds = np.append(starts, values.size)
     for block in np.flatnonzero(slow.exact):
@@ -65,7 +65,7 @@ def test_twin_channels_take_the_fast_route_and_match_the_definition(twin_logs: l
             if values.dtype.kind != "f":
                 continue
             quantum, offset = declared.get(name, (1.0, 0.0))
-            fast_channels += _reciprocal_is_exact(values, quantum, offset)
+            fast_channels += reciprocal_is_exact(values, quantum, offset)
             _assert_same_as_division(values, quantum, offset)
     # every float channel of the twin is far inside the bound (ADC codes < 2^16, encoder
     # counts < 2^30): a bound that never admits them would test nothing
@@ -109,20 +109,20 @@ def test_codes_at_the_magnitude_bound_match_the_definition() -> None:
     for offset in (0.0, -7.0):
         codes = rng.integers(2**46 - 2**20, 2**46, n) * rng.choice([-1, 1], n)
         values = codes.astype(np.float64) * quantum + offset
-        assert _reciprocal_is_exact(values, quantum, offset)
+        assert reciprocal_is_exact(values, quantum, offset)
         _assert_same_as_division(values, quantum, offset)
         _assert_same_as_division(np.nextafter(values, 0.0), quantum, offset)
     beyond = rng.integers(2**52, 2**53, n).astype(np.float64) * quantum
-    assert not _reciprocal_is_exact(beyond, quantum, 0.0)
+    assert not reciprocal_is_exact(beyond, quantum, 0.0)
     _assert_same_as_division(beyond, quantum, 0.0)
     # why the bound: there the reciprocal's rounding picks other codes than the division
     starts = _starts(n)
-    assert not np.array_equal(_coded_by_reciprocal(beyond, quantum, 0.0, starts).exact,
-                              _coded_by_division(beyond, quantum, 0.0, starts).exact)
+    assert not np.array_equal(coded_by_reciprocal(beyond, quantum, 0.0, starts).exact,
+                              coded_by_division(beyond, quantum, 0.0, starts).exact)
     for bad in (np.nan, np.inf, -np.inf):
         values = rng.integers(-100, 100, n) * quantum
         values[3] = bad
-        assert not _reciprocal_is_exact(values, quantum, 0.0)
+        assert not reciprocal_is_exact(values, quantum, 0.0)
         _assert_same_as_division(values, quantum, 0.0)
-    assert not _reciprocal_is_exact(np.ones(4), 5e-324, 0.0)  # subnormal quantum: ratio inf
-    assert not _reciprocal_is_exact(np.ones(4) * 1e300, 1e-300, 0.0)
+    assert not reciprocal_is_exact(np.ones(4), 5e-324, 0.0)  # subnormal quantum: ratio inf
+    assert not reciprocal_is_exact(np.ones(4) * 1e300, 1e-300, 0.0)
