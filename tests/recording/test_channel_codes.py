@@ -126,3 +126,26 @@ def test_codes_at_the_magnitude_bound_match_the_definition() -> None:
         _assert_same_as_division(values, quantum, 0.0)
     assert not reciprocal_is_exact(np.ones(4), 5e-324, 0.0)  # subnormal quantum: ratio inf
     assert not reciprocal_is_exact(np.ones(4) * 1e300, 1e-300, 0.0)
+
+
+def test_int32_codes_and_sums_choose_what_int64_ones_do() -> None:
+    """Codes found as int32 (summed in int32 when the limit allows) give the delta choice,
+    widths and byte planes of the same codes in int64, at the edge of the int32-sum limit
+    (steps of ±2^19 on every sample) and beyond it (int64 sums)."""
+    from aatest.recording.channel_codes import _choose
+
+    rng = np.random.default_rng(3)
+    n = 3 * BLOCK + 77
+    starts = _starts(n)
+    exact = [True] * starts.size
+    edge = float(2**18 - 2)  # 2·(limit)·4096 < 2^31: int32 sums
+    for limit, codes in [
+        (edge, rng.choice([-(2**18 - 3), 2**18 - 3], n)),  # alternating extremes
+        (edge, np.cumsum(rng.integers(-3, 4, n)) + 2**17),  # a slow drift: delta-coded
+        (float(2**29), rng.integers(-(2**29), 2**29, n)),  # int64 sums
+    ]:
+        as32 = _choose(codes.astype(np.int32), starts, exact, limit)
+        as64 = _choose(codes.astype(np.int64), starts, exact)
+        assert as32.delta == as64.delta
+        assert as32.widths == as64.widths
+        np.testing.assert_array_equal(as32.planes, as64.planes)

@@ -37,6 +37,8 @@ class _Coded:
     exact: np.ndarray  # bool, one per block
     quantum: float
     offset: float
+    #: above every |code| (also in blocks that are not exact); inf when unknown
+    limit: float = float("inf")
 
 
 #: ``(max|x| + 2·|offset|) / quantum`` up to which a channel's codes may be found by
@@ -64,7 +66,7 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
     ratio = _code_ratio(exact, step, offset)
     if ratio <= _RECIPROCAL_SAFE_CODES:  # False for NaN and inf
         integers = np.int32 if ratio <= _INT32_SAFE_CODES else np.int64
-        return coded_by_reciprocal(exact, step, offset, starts, integers)
+        return coded_by_reciprocal(exact, step, offset, starts, integers, ratio + 1.0)
     return coded_by_division(exact, step, offset, starts)
 
 
@@ -94,7 +96,8 @@ def reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
 
 
 def coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: np.ndarray,
-                         integers: type[np.signedinteger[Any]] = np.int64) -> _Coded:
+                         integers: type[np.signedinteger[Any]] = np.int64,
+                         limit: float = float("inf")) -> _Coded:
     """:func:`coded_by_division` for a channel :func:`reciprocal_is_exact` accepts: one
     multiplication for the division (a third of its cost), and no test of which codes fit
     (all are below 2^48). ``integers``: the dtype of the codes (int32 when they fit)."""
@@ -106,7 +109,8 @@ def coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: n
     back = np.multiply(scaled, step, out=scaled)  # the code as a float64 is exact (< 2^53)
     if offset:
         np.add(back, offset, out=back)
-    return _Coded(codes, np.logical_and.reduceat(np.equal(back, exact), starts), step, offset)
+    return _Coded(codes, np.logical_and.reduceat(np.equal(back, exact), starts), step, offset,
+                  limit)
 
 
 def coded_by_division(exact: np.ndarray, step: float, offset: float,
@@ -149,7 +153,8 @@ class _Choice:
     planes: np.ndarray  # uint8, (widest width, samples)
 
 
-def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool]) -> _Choice:
+def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
+            limit: float = float("inf")) -> _Choice:
     """Delta or plain codes per block (the smaller sum of magnitudes), each block's width,
     and the byte planes, in whole-channel passes.
 
@@ -158,14 +163,18 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool]) -> _Choice
     ``0 … w−1`` of its columns; the planes are cut by shifts of the narrow integers, which
     reads memory in order (a transposed copy of the bytes is 2–3× slower).
     """
+    longest = int(np.diff(np.append(starts, codes.size)).max())
+    # a block's sum of |codes| or |differences| is below 2·limit·longest: int32 sums of int32
+    # codes are exact below 2^31 and 4× faster than int64 ones (NumPy widens int32 otherwise)
+    sums = np.int32 if codes.dtype == np.int32 and 2.0 * limit * longest < 2**31 else np.int64
     steps = np.empty_like(codes)
     np.subtract(codes[1:], codes[:-1], out=steps[1:])
     steps[starts] = codes[starts]  # each block's first difference is from 0
     magnitude = np.abs(codes)
-    code_sum = np.add.reduceat(magnitude, starts, dtype=np.int64)  # exact for int32 too
+    code_sum = np.add.reduceat(magnitude, starts, dtype=sums)
     code_top = np.maximum.reduceat(magnitude, starts)
     np.abs(steps, out=magnitude)
-    delta = np.add.reduceat(magnitude, starts, dtype=np.int64) < code_sum
+    delta = np.add.reduceat(magnitude, starts, dtype=sums) < code_sum
     top = np.where(delta, np.maximum.reduceat(magnitude, starts), code_top)
     del magnitude
     chosen = steps if delta.all() else codes if not delta.any() else np.where(
@@ -207,7 +216,8 @@ class ChannelEncoder:
         self._tails: dict[bool, bytes] = {
             delta: channel(quantum=found.quantum, offset=found.offset, delta=delta)
             .SerializeToString() for delta in (False, True)}
-        self._choice = _choose(found.codes, starts, self._exact) if any(self._exact) else None
+        self._choice = (_choose(found.codes, starts, self._exact, found.limit)
+                        if any(self._exact) else None)
 
     def parts(self, block: int) -> tuple[list[Any], int]:
         """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
