@@ -8,7 +8,7 @@ encoder counts, time steps) gets the same codes and verdicts from a multiplicati
 ``1/quantum`` (:func:`coded_by_reciprocal`, a third of the division's cost; the bound is
 derived in :func:`reciprocal_is_exact`), in int32 when they fit. A channel's byte planes are
 cut once, from the narrow integers, and each block's message is handed over as pieces to be
-joined once, into the block: on the stepped sine, writing a step file took 54–59 → 35 ms
+joined once, into the block: on the stepped sine, writing a step file took ≈ 55 → 31 ms
 of CPU (same bytes).
 """
 
