@@ -92,10 +92,16 @@ def _mixed_log(n: int, seed: int) -> SampledLog:
         "bools": rng.random(n) > 0.5, "bytes": rng.integers(0, 255, n).astype(np.uint8),
         "single": rng.normal(0, 1, n).astype(np.float32), "noise": rng.normal(0, 1, n),
         "ramp": np.cumsum(rng.integers(-3, 4, n)) * 0.001, "nan_quantum": adc.copy(),
+        # blocks of width 1, 2, 4 and 8 in one channel (they share its byte planes), plain
+        # noise then a delta-coded drift, with an off-grid block between
+        "widening": np.round(rng.normal(0, 1, n) * 1e3 ** (np.arange(n) // BLOCK)) * 0.5,
+        "drift": (np.cumsum(rng.integers(-2, 3, n)) + 7**(np.arange(n) // BLOCK * 6)) * 0.25,
     }
+    if n > BLOCK:
+        channels["widening"][BLOCK + 1] += 0.1
     quanta = {"adc": (LSB_V, -10.0), "off_grid": (LSB_V, -10.0), "counts": (q_deg, 0.0),
               "bad": (LSB_V, 0.0), "ramp": (0.001, 0.0), "nan_quantum": (float("nan"), 0.0),
-              "time_s": (1 / 2000, 0.0)}
+              "time_s": (1 / 2000, 0.0), "widening": (0.5, 0.0), "drift": (0.25, 0.0)}
     return SampledLog("daq", 2000.0, np.arange(n) / 2000.0, channels,
                       {"adc": "V", "counts": "deg"}, quanta)
 

@@ -24,13 +24,14 @@ integers are read with :func:`numpy.frombuffer` at a few ns, and zstd compresses
 Where the quantum comes from: integer and boolean arrays are their own codes; float arrays use
 the ``(quantum, offset)`` the logger declared in :attr:`SampledLog.quantisation` (``time_s``
 included), else quantum 1 when every value is a whole number (0/1 pulses stored as float).
+
+The encoder's half (codes, delta choice, widths, byte planes) is
+:mod:`aatest.recording.channel_codes`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Container, Iterable, Iterator, Mapping
-from dataclasses import dataclass
-from functools import cache
 from itertools import chain
 from typing import Any
 
@@ -38,12 +39,11 @@ import numpy as np
 
 from aatest.engine.logs import SampledLog
 from aatest.recording import proto
+from aatest.recording.channel_codes import WIDTHS, ChannelEncoder
 
 TIME_COLUMN = "time_s"
 #: field numbers (proto.py): Channel.values, Channel.packed, SampleBlock.time, .channels
-_VALUES_FIELD, _PACKED_FIELD, _TIME_FIELD, _CHANNELS_FIELD = 4, 9, 7, 8
-#: largest |code| a float64 carries exactly (2^53)
-_MAX_EXACT_CODE = float(2**53)
+_TIME_FIELD, _CHANNELS_FIELD = 7, 8
 _ALLOWED_KINDS = "fiub"
 
 
@@ -61,115 +61,7 @@ def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dty
     return values.astype(dtype, copy=False)
 
 
-@dataclass(frozen=True)
-class _Coded:
-    """One channel of a whole log as codes, and which of its blocks they reproduce exactly."""
-
-    codes: np.ndarray  # int64, one per sample (meaningless inside blocks that are not exact)
-    exact: np.ndarray  # bool, one per block
-    quantum: float
-    offset: float
-
-
-def _coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray) -> _Coded:
-    """Integer codes of a whole channel, with each block's verdict: do its codes give back every
-    value bit for bit? (The per-block choice of :func:`encode_blocks`, made for all at once.)"""
-    if values.dtype.kind in "iub":
-        return _Coded(values.astype(np.int64), np.ones(starts.size, dtype=bool), 1.0, 0.0)
-    exact = values.astype(np.float64, copy=False)
-    step, offset = quantum if quantum is not None else (1.0, 0.0)
-    if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
-        return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
-    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        # x − 0.0 is x bit for bit, so a zero offset is skipped (in place: no temporaries)
-        scaled = np.subtract(exact, offset) if offset else exact.copy()
-        np.divide(scaled, step, out=scaled)
-        np.round(scaled, out=scaled)
-        fits = np.abs(scaled) < _MAX_EXACT_CODE  # also False for NaN/inf
-        codes = (scaled if fits.all() else np.where(fits, scaled, 0.0)).astype(np.int64)
-        # bit for bit, except that −0.0 may come back as +0.0: the one value an integer code
-        # cannot carry is the sign of a zero (a rounded encoder reading just below 0), the
-        # same physical value in every computation the analyses make. For finite floats, ==
-        # is exactly that (equal bits, or two zeros); a value that does not fit is never
-        # finite-and-equal. Where it fits, ``scaled`` is the code as a float64 exactly (a
-        # whole number below 2^53), up to the sign of a zero: it stands in for
-        # codes.astype(float64), one pass and one temporary fewer.
-        back = np.multiply(scaled, step, out=scaled)
-        if offset:  # (+ 0.0 only turns −0.0 into +0.0, which == does not see)
-            np.add(back, offset, out=back)
-    same = np.equal(back, exact, out=fits, where=fits)  # stays False where it does not fit
-    return _Coded(codes, np.logical_and.reduceat(same, starts), step, offset)
-
-
-class _ChannelEncoder:
-    """Serialised ``Channel`` messages of one channel, block by block, built from whole arrays.
-
-    Codes where exact (delta-coded where that is smaller: smooth signals, counters), else
-    float64 values; the codes and widths of every block are found in one vectorised pass. The
-    scalar fields (``name``, ``unit``, ``dtype``, ``quantum``, ``offset``, ``delta``,
-    ``width``, ``shuffled``) are serialised by protobuf, so each message is byte for byte what
-    ``SerializeToString`` gives.
-    """
-
-    def __init__(self, name: str, unit: str, values: np.ndarray,
-                 quantum: tuple[float, float] | None, starts: np.ndarray) -> None:
-        channel = proto.channel_class()
-        self._values = values
-        self._channel = channel
-        head = channel(name=name, unit=unit, dtype=values.dtype.str)
-        self._head: bytes = head.SerializeToString()
-        self._bounds = np.append(starts, values.size)
-        coded = _coded(values, quantum, starts)
-        self._exact = coded.exact.tolist()
-        self._tails: dict[bool, bytes] = {
-            delta: channel(quantum=coded.quantum, offset=coded.offset, delta=delta)
-            .SerializeToString() for delta in (False, True)}
-        self._delta: list[bool] = [False] * starts.size
-        self._widths: list[int] = [8] * starts.size
-        if any(self._exact):
-            codes = coded.codes
-            steps = np.empty_like(codes)
-            np.subtract(codes[1:], codes[:-1], out=steps[1:])
-            steps[starts] = codes[starts]  # each block's first difference is from 0
-            magnitude = np.abs(steps)
-            delta = np.add.reduceat(magnitude, starts) < np.add.reduceat(np.abs(codes), starts)
-            self._delta = delta.tolist()
-            self._chosen = steps if delta.all() else codes if not delta.any() else np.where(
-                np.repeat(delta, np.diff(self._bounds)), steps, codes)
-            if not delta.all():
-                magnitude = np.abs(self._chosen)
-            self._widths = [_width(top) for top in np.maximum.reduceat(magnitude, starts).tolist()]
-
-    def message(self, block: int) -> bytes:
-        """The serialised ``Channel`` of block number ``block``."""
-        first, last = self._bounds[block], self._bounds[block + 1]
-        if self._exact[block]:
-            width = self._widths[block]
-            codes = self._chosen[first:last].astype(f"<i{width}")
-            shuffled = width > 1
-            payload = (codes.view(np.uint8).reshape(-1, width).T.tobytes() if shuffled
-                       else codes.tobytes())
-            return b"".join((self._head, self._tails[self._delta[block]],
-                             proto.length_delimited(_PACKED_FIELD, payload),
-                             _packing(self._channel, width, shuffled)))
-        raw = self._values[first:last].astype("<f8").tobytes()
-        return b"".join((self._head, proto.length_delimited(_VALUES_FIELD, raw) if raw else b""))
-
-
-#: code widths (bytes) of format v3, narrowest first
-_WIDTHS = (1, 2, 4, 8)
-
-
-def _width(top: int) -> int:
-    """The narrowest width whose signed integers hold every code of magnitude ≤ ``top`` (codes
-    are below 2^53: the widest always does)."""
-    return next((w for w in _WIDTHS[:-1] if top < 1 << (8 * w - 1)), _WIDTHS[-1])
-
-
-@cache
-def _packing(channel: Any, width: int, shuffled: bool) -> bytes:
-    """The serialised ``width`` and ``shuffled`` fields (after ``packed`` in field order)."""
-    return bytes(channel(width=width, shuffled=shuffled).SerializeToString())
+_TIME_KEY, _CHANNELS_KEY = proto.tag(_TIME_FIELD), proto.tag(_CHANNELS_FIELD)
 
 
 def check_dtypes(log: SampledLog) -> None:
@@ -204,7 +96,7 @@ def encode_blocks(
     one (a streamed record's chunk, :mod:`aatest.recording.stream`); default 0.
 
     Each message is what the protobuf API serialises for the same ``SampleBlock``; the codes of
-    all blocks are computed on whole channels at once (:class:`_ChannelEncoder`).
+    all blocks are computed on whole channels at once (:class:`ChannelEncoder`).
     """
     check_dtypes(log)
     blocks = -(-len(log) // block_samples)
@@ -215,8 +107,8 @@ def encode_blocks(
         return
     starts = np.arange(blocks, dtype=np.intp) * block_samples
     declared = dict(log.quantisation)
-    time = _ChannelEncoder(TIME_COLUMN, "s", log.time_s, declared.get(TIME_COLUMN), starts)
-    channels = [_ChannelEncoder(name, str(log.units.get(name, "")), values, declared.get(name),
+    time = ChannelEncoder(TIME_COLUMN, "s", log.time_s, declared.get(TIME_COLUMN), starts)
+    channels = [ChannelEncoder(name, str(log.units.get(name, "")), values, declared.get(name),
                                 starts) for name, values in log.channels.items()]
     before, after = _header_parts(header)
     block_type = proto.block_class()
@@ -224,12 +116,12 @@ def encode_blocks(
         head = block_type(sequence=first_sequence + sequence,
                           first_sample=first_sample + int(starts[sequence]), **before)
         tail = block_type(log_time_ns=log_time_ns, **after)
-        yield b"".join([
-            head.SerializeToString(),
-            proto.length_delimited(_TIME_FIELD, time.message(sequence)),
-            *(proto.length_delimited(_CHANNELS_FIELD, c.message(sequence)) for c in channels),
-            tail.SerializeToString(),
-        ])
+        parts = [head.SerializeToString()]
+        for key, encoder in ((_TIME_KEY, time), *((_CHANNELS_KEY, c) for c in channels)):
+            pieces, size = encoder.parts(sequence)
+            parts += (key, proto.varint(size), *pieces)
+        parts.append(tail.SerializeToString())
+        yield b"".join(parts)  # the one copy of the samples into the message
 
 
 def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None]:
@@ -257,7 +149,7 @@ def _unpacked(message: Any) -> np.ndarray:
     """The integers of a v3 ``packed`` field, in their stored width (no copy unless shuffled)."""
     width = int(message.width)
     packed = message.packed
-    if width not in _WIDTHS or len(packed) % width:
+    if width not in WIDTHS or len(packed) % width:
         raise ValueError(f"channel {message.name!r}: {len(packed)} packed bytes do not "
                          f"make codes of width {width}")
     raw = np.frombuffer(packed, dtype=np.uint8)
@@ -292,7 +184,7 @@ def _decoded_into(message: Any, out: np.ndarray) -> bool:
     if codes.size != out.size:
         return False
     if message.delta:
-        if codes.itemsize == _WIDTHS[-1] or codes.size >= 1 << (54 - 8 * codes.itemsize):
+        if codes.itemsize == WIDTHS[-1] or codes.size >= 1 << (54 - 8 * codes.itemsize):
             return False
         np.cumsum(codes, dtype=np.float64, out=out)
     else:

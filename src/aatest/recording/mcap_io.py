@@ -44,6 +44,15 @@ MAGIC = struct.pack("<8B", 137, 77, 67, 65, 80, 48, 13, 10)
 #: compresses ~3.4x faster (≈600 vs 180 MB/s) for a 7 % larger file (ratio 0.39 vs 0.36), and
 #: compression was a tenth of the CPU time of recording a run; any level decodes the same way
 COMPRESSION_LEVEL = 1
+#: a ``Message`` record's opcode, length, channel id, sequence, log and publish time; the
+#: length counts the fields after it (2 + 4 + 8 + 8 bytes) and the data
+_MESSAGE_HEAD = struct.Struct("<BQHIQQ")
+_MESSAGE_FIELDS = 22
+#: a ``Chunk`` record up to its compression name: opcode, length, start and end time,
+#: uncompressed size and CRC, the name's length; the length counts 8 + 8 + 8 + 4 + 4 bytes,
+#: the name, the data's 8-byte length and the data
+_CHUNK_HEAD = struct.Struct("<BQQQQII")
+_CHUNK_FIELDS = 40
 
 
 class ChunkedWriter:
@@ -119,23 +128,33 @@ class ChunkedWriter:
         self.stats.metadata_count += 1
 
     def add_chunk(self, messages: Iterable[Message]) -> None:
-        """Compress ``messages`` (of registered channels) into one chunk with its indexes."""
-        builder = RecordBuilder()
+        """Compress ``messages`` (of registered channels) into one chunk with its indexes.
+
+        The records are what ``Message.write`` builds, packed here with one ``struct`` call
+        each and joined once (a ``RecordBuilder`` copies every payload twice more).
+        """
+        pieces: list[bytes] = []
         indexes: dict[int, MessageIndex] = {}
         times = []
+        offset = 0
         for message in messages:
             entry = indexes.setdefault(message.channel_id, MessageIndex(message.channel_id, []))
-            entry.records.append((message.log_time, builder.count))
+            entry.records.append((message.log_time, offset))
             times.append(message.log_time)
-            message.write(builder)
+            size = len(message.data)
+            pieces += (_MESSAGE_HEAD.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + size,
+                                          message.channel_id, message.sequence,
+                                          message.log_time, message.publish_time),
+                       message.data)
+            offset += _MESSAGE_HEAD.size + size
         if not times:
             return
-        data = builder.end()
+        data = b"".join(pieces)
         compressed = self._compressor.compress(data)
         chunk = Chunk(compression="zstd", data=compressed, message_end_time=max(times),
                       message_start_time=min(times), uncompressed_crc=zlib.crc32(data),
                       uncompressed_size=len(data))
-        start, length = self._write(chunk)
+        start, length = self._write_chunk(chunk)
         index_start = self._offset
         offsets = {}
         for channel_id, index in indexes.items():
@@ -147,6 +166,19 @@ class ChunkedWriter:
             message_start_time=chunk.message_start_time, uncompressed_size=len(data)))
         counts = {cid: len(ix.records) for cid, ix in indexes.items()}
         self._count(counts, chunk.message_start_time, chunk.message_end_time, chunks=1)
+
+    def _write_chunk(self, chunk: Chunk) -> tuple[int, int]:
+        """Write a ``Chunk`` record as ``Chunk.write`` lays it out, its compressed data
+        straight from ``chunk`` (not copied through a builder); return (start, length)."""
+        name = chunk.compression.encode()
+        head = b"".join((
+            _CHUNK_HEAD.pack(Opcode.CHUNK, _CHUNK_FIELDS + len(name) + len(chunk.data),
+                             chunk.message_start_time, chunk.message_end_time,
+                             chunk.uncompressed_size, chunk.uncompressed_crc, len(name)),
+            name, struct.pack("<Q", len(chunk.data))))
+        start = self._write_bytes(head)
+        self._write_bytes(chunk.data)
+        return start, len(head) + len(chunk.data)
 
     def add_record_chunk(self, channel_id: int, data: bytes, log_times_ns: np.ndarray) -> None:
         """Compress ready-made ``Message`` records of one channel, all of one size, into a chunk.
@@ -165,7 +197,7 @@ class ChunkedWriter:
         chunk = Chunk(compression="zstd", data=compressed, message_end_time=end_ns,
                       message_start_time=start_ns, uncompressed_crc=zlib.crc32(data),
                       uncompressed_size=len(data))
-        start, length = self._write(chunk)
+        start, length = self._write_chunk(chunk)
         pairs = np.empty((count, 2), dtype="<u8")
         pairs[:, 0] = times
         pairs[:, 1] = np.arange(count, dtype=np.uint64) * size

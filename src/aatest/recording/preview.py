@@ -120,6 +120,7 @@ class Layout:
         slot = zlib.crc32(key) % _ID_SLOTS
         return FIRST_CHANNEL_ID + 2 * slot + (0 if self.source == TABLE else 1)
 
+    @cache  # noqa: B019 - a handful of layouts per process; frozen and hashable
     def schema_data(self) -> bytes:
         """The serialised ``FileDescriptorSet`` of the message (MCAP schema encoding protobuf)."""
         file = descriptor_pb2.FileDescriptorProto(
@@ -181,7 +182,24 @@ class Windows:
     values: Mapping[str, np.ndarray]
 
 
-def windows(log: SampledLog, layout: Layout, per_window: int) -> Windows:
+@dataclass(frozen=True)
+class Samples:
+    """Consecutive samples of a logger's previewed channels: views of its log, or of a window
+    carried over between chunks (a :class:`SampledLog` would copy its time stamps each time)."""
+
+    time_s: np.ndarray
+    channels: Mapping[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return int(self.time_s.shape[0])
+
+    def part(self, start: int, stop: int) -> Samples:
+        """Samples ``start … stop − 1`` (views)."""
+        return Samples(self.time_s[start:stop],
+                       {k: v[start:stop] for k, v in self.channels.items()})
+
+
+def windows(log: SampledLog | Samples, layout: Layout, per_window: int) -> Windows:
     """Min, max and mean of every window of ``per_window`` samples (a short last one too)."""
     n = len(log)
     starts = np.arange(0, n, per_window, dtype=np.intp)
@@ -248,7 +266,7 @@ class PreviewStream:
                  sink: Callable[[Layout, bytes, np.ndarray], None]) -> None:
         self._step_index, self._start_ns, self._floor_ns = step_index, start_ns, floor_ns
         self._sink = sink
-        self._carry: SampledLog | None = None
+        self._carry: Samples | None = None
         self._sequence = 0
         self.layout: Layout | None = None
 
@@ -258,12 +276,13 @@ class PreviewStream:
             return
         if self.layout is None:
             self.layout = layout_of(log)
-        joined = log if self._carry is None else _join(self._carry, log)
+        samples = Samples(log.time_s, {c: log.channels[c] for c in self.layout.channels})
+        joined = samples if self._carry is None else _join(self._carry, samples)
         per_window = window_samples(log.sample_rate_hz)
         whole = len(joined) // per_window * per_window
         if whole:
-            self._emit(_part(joined, 0, whole), per_window)
-        self._carry = _part(joined, whole, len(joined)) if whole < len(joined) else None
+            self._emit(joined.part(0, whole), per_window)
+        self._carry = joined.part(whole, len(joined)) if whole < len(joined) else None
 
     def finish(self) -> None:
         """Emit the short last window, if any."""
@@ -271,13 +290,13 @@ class PreviewStream:
             self._emit(self._carry, len(self._carry))
             self._carry = None
 
-    def _emit(self, log: SampledLog, per_window: int) -> None:
+    def _emit(self, samples: Samples, per_window: int) -> None:
         layout = self.layout
         if layout is None or not layout.channels:
             return
         per_chunk = records_per_chunk(layout) * per_window
-        for first in range(0, len(log), per_chunk):
-            stats = windows(_part(log, first, min(len(log), first + per_chunk)), layout,
+        for first in range(0, len(samples), per_chunk):
+            stats = windows(samples.part(first, min(len(samples), first + per_chunk)), layout,
                             per_window)
             times = log_times_ns(stats.time_s, self._start_ns, self._floor_ns)
             self._sink(layout, message_records(layout, self._step_index, stats, times,
@@ -285,13 +304,6 @@ class PreviewStream:
             self._sequence += len(times)
 
 
-def _part(log: SampledLog, start: int, stop: int) -> SampledLog:
-    return SampledLog(log.source, log.sample_rate_hz, log.time_s[start:stop],
-                      {k: v[start:stop] for k, v in log.channels.items()}, dict(log.units))
-
-
-def _join(first: SampledLog, second: SampledLog) -> SampledLog:
-    return SampledLog(first.source, first.sample_rate_hz,
-                      np.concatenate([first.time_s, second.time_s]),
-                      {k: np.concatenate([v, second.channels[k]])
-                       for k, v in first.channels.items()}, dict(first.units))
+def _join(first: Samples, second: Samples) -> Samples:
+    return Samples(np.concatenate([first.time_s, second.time_s]),
+                   {k: np.concatenate([v, second.channels[k]]) for k, v in first.channels.items()})

@@ -198,8 +198,13 @@ def write_step_file(
     index: int,
     logs: tuple[SampledLog, SampledLog],
     extra: dict[str, Any] | None = None,
+    run_values: dict[str, str] | None = None,
 ) -> None:
-    """Write one self-contained step recording (run metadata, step metadata, both logs)."""
+    """Write one self-contained step recording (run metadata, step metadata, both logs).
+
+    ``run_values``: ``fmt.json_values(run_meta)`` if the caller has it already (the run
+    metadata holds the whole plan: encoding it for every step costs ≈ 1 ms a step).
+    """
     _check_index(index)
     for log, source in zip(logs, fmt.CHANNEL_IDS, strict=True):
         if log.source != source:
@@ -209,7 +214,7 @@ def write_step_file(
     timed = {log.source: (log, fmt.block_log_times_ns(log.time_s, origin_ns, fmt.BLOCK_SAMPLES))
              for log in logs}
     writer = new_writer(stream)
-    writer.add_metadata(fmt.RUN_RECORD, fmt.json_values(run_meta))
+    writer.add_metadata(fmt.RUN_RECORD, run_values or fmt.json_values(run_meta))
     record = fmt.json_values(step_record(step, index, timed, extra))
     writer.add_metadata(fmt.STEP_RECORD, record)
     register_channels(writer)
@@ -336,6 +341,15 @@ class RunRecorder:
         self.steps_dir.mkdir(parents=True, exist_ok=True)
         self._run_meta: dict[str, Any] = load_run_metadata(self.steps_dir)
         self._files: dict[str, tuple[Path, int]] | None = None
+        self._values_of: dict[str, Any] | None = None
+        self._values: dict[str, str] = {}
+
+    def _run_values(self, meta: dict[str, Any]) -> dict[str, str]:
+        """``fmt.json_values(meta)``, encoded once per run metadata (it is replaced, never
+        changed in place, by :meth:`write_run_metadata`)."""
+        if self._values_of is not meta:
+            self._values_of, self._values = meta, fmt.json_values(meta)
+        return self._values
 
     def write_run_metadata(self, meta: dict[str, Any]) -> None:
         """Store the run's metadata (procedure, rig, versions, seed, sensors, plan ...)."""
@@ -369,7 +383,9 @@ class RunRecorder:
         """
         path, index = self._step_path(step, index)
         meta = self._run_meta or {"format": fmt.FORMAT, "aatest_version": aatest.__version__}
-        atomic_write(path, lambda s: write_step_file(s, meta, step, index, (table, daq), extra))
+        values = self._run_values(meta)
+        atomic_write(path, lambda s: write_step_file(s, meta, step, index, (table, daq), extra,
+                                                     values))
         self._completed(step.id, path, index)
         return path
 
