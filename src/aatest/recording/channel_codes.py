@@ -56,6 +56,9 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
     Codes come from :func:`coded_by_reciprocal` where the channel's magnitude makes it give
     exactly the codes and verdicts of :func:`coded_by_division` (the definition), else from
     the latter.
+
+    ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
+    encoder); codes and ``limit`` are dimensionless.
     """
     if values.dtype.kind in "iub":
         return _Coded(values.astype(np.int64), np.ones(starts.size, dtype=bool), 1.0, 0.0)
@@ -91,6 +94,9 @@ def reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
     code gives back fails the check whichever code is tried. So every sample gets the same
     verdict, and every exact one the same code, by either route. NaN or ±inf in the channel
     (or a ratio beyond 2^47) keeps the division.
+
+    ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
+    encoder); codes and ``limit`` are dimensionless.
     """
     return bool(_code_ratio(exact, step, offset) <= _RECIPROCAL_SAFE_CODES)
 
@@ -100,7 +106,11 @@ def coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: n
                          limit: float = float("inf")) -> _Coded:
     """:func:`coded_by_division` for a channel :func:`reciprocal_is_exact` accepts: one
     multiplication for the division (a third of its cost), and no test of which codes fit
-    (all are below 2^48). ``integers``: the dtype of the codes (int32 when they fit)."""
+    (all are below 2^48). ``integers``: the dtype of the codes (int32 when they fit).
+
+    ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
+    encoder); codes and ``limit`` are dimensionless.
+    """
     scaled = np.subtract(exact, offset) if offset else np.multiply(exact, 1.0 / step)
     if offset:
         np.multiply(scaled, 1.0 / step, out=scaled)
@@ -116,7 +126,11 @@ def coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: n
 def coded_by_division(exact: np.ndarray, step: float, offset: float,
                        starts: np.ndarray) -> _Coded:
     """The definition of a float64 channel's codes: ``round((x − offset) / step)`` where it
-    fits below 2^53, exact where ``code·step + offset`` gives back ``x``."""
+    fits below 2^53, exact where ``code·step + offset`` gives back ``x``.
+
+    ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
+    encoder); codes and ``limit`` are dimensionless.
+    """
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         # x − 0.0 is x bit for bit, so a zero offset is skipped (in place: no temporaries)
         scaled = np.subtract(exact, offset) if offset else exact.copy()
