@@ -89,6 +89,9 @@ def _signed_scale_factor_with_pdf(station: Station, page: Any, key: Path, record
     page.focus("#procedure")
     page.keyboard.press("Enter")  # validates and moves to Start
     page.wait_for_selector("#plan[data-procedure='lab/quick-scale-factor.yaml'] tbody tr")
+    # the plan may already be there from the validation the selection started (a fast
+    # validate answers before Enter is pressed): Enter's own validation then moves the focus
+    page.wait_for_function("document.activeElement && document.activeElement.id === 'start'")
     assert _focused(page) == "start"
     # the focus reached by keyboard is visible: the station's 3 px outline
     outline = page.evaluate("getComputedStyle(document.activeElement).outlineWidth")
