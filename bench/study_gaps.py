@@ -30,16 +30,17 @@
    estimate's noise, so a controller filter lagging it ≈ 9 samples is not what it logged.
 
 6. **What puts TF00 on 78.56 %** (``cause``). The design's TF00 read as MATLAB's ``compare``
-   might report it (the validation records together, the mean and the median of their own
-   fits, 1 − NMSE, a gain with a one-sample lag: a discrete ``tfest`` without feedthrough, or
-   a backward second difference in the estimate), beside the FRF delay and the
-   cross-correlation delay, with the input paired 0–14 samples late against the output (a
-   shift that keeps the estimate's noise: ``bench/study.py``'s ``lag_input``); then the
-   delayed and undelayed models (n ≤ 2) unshifted, 12 samples late and through a causal
-   50 Hz low-pass (item 3's smoothing, which lags without the noise). Only a lag reaches
-   78.56 %, at ≈ 12 samples; there the 28-sample row comes within the bench's ± 1.5 of the
-   study's range too, while the FRF and cross-correlation delays fall to 12–13 samples: the
-   study's TF records and its FRF records cannot share one alignment.
+   might report it (the validation records together, the mean and the median of their own fits,
+   1 − NMSE, a gain with a one-sample lag: a discrete ``tfest`` without feedthrough, or a
+   backward second difference in the estimate), beside the FRF delay and the cross-correlation
+   delay, with the input paired 0–14 samples late against the output (a shift that keeps the
+   estimate's noise: ``bench/study.py``'s ``lag_input``); then the delayed and undelayed models
+   (n ≤ 2) unshifted, 12 samples late and through a causal 50 Hz low-pass (item 3's smoothing,
+   which lags without the noise). Only a lag reaches 78.56 %, at ≈ 12 samples; there the
+   28-sample row comes within the bench's ± 1.5 of the study's range too (n ≤ 5 in
+   ``bench/study.py --tf-input-lag 12``: inside it, 94.41 %), while the FRF and cross-
+   correlation delays fall to 12–13 samples: the study's TF records and its FRF records cannot
+   share one alignment.
 
     python bench/study_gaps.py [--seeds 7 8 9] [--only delay tf00 tf thd estimate cause]
 """
