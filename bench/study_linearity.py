@@ -64,7 +64,7 @@ from aatest.plugins.analysis.reference import (
     levant_differentiator,
     zero_phase_lowpass,
 )
-from aatest.plugins.analysis.scale_factor import _fractional_delay, aligned_pair
+from aatest.plugins.analysis.scale_factor import aligned_pair, fractional_delay
 from aatest.recording.dataset import SensorInfo
 from aatest.twin.api import realistic_rig_model, simulate_dataset
 from aatest.twin.model import NonlinearityCubic, RigModel, dump_rig_model
@@ -225,7 +225,7 @@ def _levant_pair(synced: SyncedStep, sensor: SensorInfo, factor: float
     ratio = fundamental(volts, f0, fs) / fundamental(ref, f0, fs)
     delay_s = float(-np.angle(ratio * np.sign(ratio.real or 1.0)) / (2 * np.pi * f0))
     trim = int(3.0 * fs / cutoff) + int(abs(delay_s) * fs) + 8
-    ref = _fractional_delay(ref, delay_s, fs)
+    ref = fractional_delay(ref, delay_s, fs)
     return volts[trim:-trim], ref[trim:-trim]
 
 

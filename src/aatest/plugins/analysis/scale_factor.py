@@ -109,8 +109,11 @@ def calibration_candidates(steps: Sequence[SyncedStep], sensor: SensorInfo) -> l
             if abs(float(s.step.frequency_hz or 0.0) - best_f) < _SAME_FREQUENCY_HZ]
 
 
-def _fractional_delay(x: np.ndarray, delay_s: float, fs_hz: float) -> np.ndarray:
-    """x(t − delay) by an FFT phase ramp (exact for the periodic part of a coherent record)."""
+def fractional_delay(x: np.ndarray, delay_s: float, fs_hz: float) -> np.ndarray:
+    """x(t − delay) by an FFT phase ramp (exact for the periodic part of a coherent record).
+
+    Public: the study benches shift references with it as :func:`aligned_pair` does.
+    """
     freqs = np.fft.rfftfreq(x.size, 1.0 / fs_hz)
     return np.fft.irfft(np.fft.rfft(x) * np.exp(-2j * np.pi * freqs * delay_s), n=x.size)
 
@@ -134,7 +137,7 @@ def aligned_pair(synced: SyncedStep, sensor: SensorInfo, reference: ReferenceCho
     volts = zero_phase_lowpass(synced.daq[sensor.channel], fs, cutoff)
     ratio = fundamental(volts, f0, fs) / fundamental(ref, f0, fs)
     delay_s = float(-np.angle(ratio * np.sign(ratio.real or 1.0)) / (2 * np.pi * f0))
-    ref = _fractional_delay(ref, delay_s, fs)
+    ref = fractional_delay(ref, delay_s, fs)
     trim = int(3.0 * fs / cutoff) + int(abs(delay_s) * fs) + 8
     return volts[trim:-trim], ref[trim:-trim], delay_s, cutoff
 
