@@ -1,13 +1,15 @@
 """Step files written one step behind the rig, on a worker thread.
 
-Why: writing a step (encoding its blocks, zstd, fsync) took ≈40 % of the record phase's CPU
-time, while the rig (the twin, or a real table recording in real time) does nothing else for
-that step. Encoding, compression and fsync release the GIL for most of their time, so the
-write of step k overlaps the recording of step k + 1 on the second core. The step files are
-the same bytes as a write in the loop makes (each depends only on its own step), and a write's
-error (a full disk: :class:`~aatest.engine.errors.StorageFault`) is raised in the step loop no
-later than the next step's write, the next streamed step or the end of the run — before any
-step after it is written, so the files on disk still end at the last good step and
+Why: writing a step (encoding its blocks, zstd, fsync) is a sizeable share of the record
+phase's CPU time (≈ 31 ms a stepped-sine step, ≈ 12 % of the record phase's samples, measured
+with ``bench/step_writer.py`` and py-spy; ≈ 40 % when this thread was added), while the rig
+(the twin, or a real table recording in real time) does nothing else for that step.
+Encoding, compression and fsync release the GIL for most of their time, so the write of step
+k overlaps the recording of step k + 1 on the second core. The step files are the same bytes
+as a write in the loop makes (each depends only on its own step), and a write's error (a full
+disk: :class:`~aatest.engine.errors.StorageFault`) is raised in the step loop no later than
+the next step's write, the next streamed step or the end of the run — before any step after
+it is written, so the files on disk still end at the last good step and
 ``--resume`` records the rest.
 """
 
