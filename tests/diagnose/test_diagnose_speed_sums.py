@@ -9,7 +9,6 @@
 
 from __future__ import annotations
 
-import gc
 from dataclasses import replace
 
 import numpy as np
@@ -18,7 +17,6 @@ from numpy.testing import assert_allclose
 from scipy.interpolate import CubicSpline
 
 from aatest.diagnose import design
-from aatest.diagnose.command import _long_lived_frozen
 from aatest.diagnose.design import ChannelInfo, Spec
 from aatest.diagnose.periodogram import dft_at, lomb_scargle_at, lomb_scargle_power
 from aatest.diagnose.replay import replay_dataset
@@ -90,19 +88,3 @@ def test_trigger_alignment_resamples_as_cubic_spline(dataset) -> None:
     # rounding of the knot times (t0 + k/fs, ≈ 1e-16 of t0 each) carried through the slope:
     # ≈ 1e-13 of the signal's range, well inside 1e-10
     assert_allclose(synced.daq["v_sz"], expected, rtol=0, atol=1e-10 * np.ptp(volts))
-
-
-def test_gc_freeze_is_undone_and_a_callers_freeze_kept() -> None:
-    if gc.get_freeze_count():
-        pytest.skip("the test process itself froze objects")
-    with _long_lived_frozen():
-        assert gc.get_freeze_count() > 0
-    assert gc.get_freeze_count() == 0
-    gc.freeze()
-    try:
-        held = gc.get_freeze_count()
-        with _long_lived_frozen():
-            pass
-        assert gc.get_freeze_count() == held  # the caller's freeze stays
-    finally:
-        gc.unfreeze()

@@ -9,17 +9,15 @@ wrong, named or not); the CLI exits 1 when there is any, 0 otherwise.
 
 from __future__ import annotations
 
-import contextlib
-import gc
 import json
 import math
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from aatest.diagnose.model_out import extended_model, write_model
 from aatest.diagnose.pipeline import diagnose_dataset
 from aatest.engine import registry
+from aatest.engine.gc_freeze import older_objects_frozen
 from aatest.storage import Where, locate
 
 
@@ -99,30 +97,9 @@ def diagnose_command(data: Where | str, json_out: Path | None,
         The findings, then the ``unexplained`` entries (contract dicts): empty when the
         nominal model explains the data.
     """
-    with _long_lived_frozen():
+    with older_objects_frozen():  # aatest.engine.gc_freeze says why
         # a path, or a URL whose recording is streamed (docs/storage.md)
         return _diagnose(locate(data), json_out, model_out)
-
-
-@contextlib.contextmanager
-def _long_lived_frozen() -> Iterator[None]:
-    """Keep the objects alive before the diagnosis out of the cyclic garbage collector's
-    scans while it runs (:func:`gc.freeze`; :func:`gc.unfreeze` after, so they are collected
-    as before).
-
-    Why: the modules, classes and functions imported by then (about 150 000 objects) are
-    scanned by every full collection; the diagnosis allocates enough to trigger two or three,
-    measured at 0.3 s each on the 16-step dataset — a tenth of its CPU time — for objects
-    that are never garbage. A caller that froze objects itself keeps them frozen.
-    """
-    if gc.get_freeze_count():
-        yield
-        return
-    gc.freeze()
-    try:
-        yield
-    finally:
-        gc.unfreeze()
 
 
 def _return_freed_heap() -> None:

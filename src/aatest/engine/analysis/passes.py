@@ -18,8 +18,7 @@ from __future__ import annotations
 
 import gc
 import logging
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from graphlib import CycleError, TopologicalSorter
 from types import MappingProxyType
@@ -31,6 +30,7 @@ from threadpoolctl import threadpool_limits
 from aatest.engine.analysis import plugins as _plugins
 from aatest.engine.analysis.plugins import AnalysisEntry, AnalysisPlugin
 from aatest.engine.errors import AnalysisError, PluginError
+from aatest.engine.gc_freeze import older_objects_frozen
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.recording import temperatures
 from aatest.recording.dataset import Dataset
@@ -144,28 +144,8 @@ def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
     ≈ 9 s of CPU time on the second core for no gain in wall time, CPU the pass's forked
     workers (:func:`aatest.plugins.analysis.sync.relations`) use instead.
     """
-    with threadpool_limits(limits=1, user_api="blas"), _older_objects_frozen():
+    with threadpool_limits(limits=1, user_api="blas"), older_objects_frozen():
         return _run_analyses(data, requested, options)
-
-
-@contextmanager
-def _older_objects_frozen() -> Iterator[None]:
-    """Leave every object that exists before the pass out of its collections (``gc.freeze``).
-
-    Why: the pass collects after each plugin (:func:`_run_analyses`), and a full collection
-    walks every tracked object — the imported modules (NumPy, SciPy, matplotlib, pydantic) and
-    the dataset —, ≈ 90 ms each on the stepped sine, for garbage that can only be among the
-    objects the pass made. The pass's own objects are collected as before; the older ones
-    are handed back to the collector when it ends (an enclosing freeze is left as it was).
-    """
-    if gc.get_freeze_count() > 0:
-        yield
-        return
-    gc.freeze()
-    try:
-        yield
-    finally:
-        gc.unfreeze()
 
 
 def _run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
