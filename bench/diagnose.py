@@ -58,6 +58,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from child_run import child_json  # bench/ is the script's directory, hence on sys.path
 
 from aatest.engine.steps import PlannedStep
 
@@ -253,14 +254,7 @@ def bench_case(case: str, seed: int, profile: Path | None) -> dict[str, Any]:
 
 def _child(data: Path, src: Path | None) -> dict[str, Any]:
     """Diagnose ``data`` in a fresh process (on the checkout ``src`` when given)."""
-    env = dict(os.environ)
-    if src is not None:
-        env["PYTHONPATH"] = os.pathsep.join([str(src), *filter(None, [env.get("PYTHONPATH")])])
-    proc = subprocess.run([sys.executable, __file__, "--child", str(data)], env=env,
-                          capture_output=True, text=True, check=False)
-    if proc.returncode != 0:
-        raise SystemExit(f"diagnose on {src or 'this checkout'} failed\n{proc.stderr}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    return child_json(__file__, src, ["--child", str(data)], "diagnose")
 
 
 def compare(case: str, seed: int, base_src: Path, rounds: int) -> None:

@@ -43,14 +43,13 @@ import os
 import resource
 import shutil
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
+from child_run import child_json
 from tree_memory import TreeMemory  # bench/ is the script's directory, hence on sys.path
 
 from aatest.engine import registry
@@ -162,13 +161,7 @@ def _pinned() -> contextlib.AbstractContextManager[Any]:
 
 def _child_rows(src: Path, argv: list[str]) -> tuple[list[tuple[str, float, float]], float]:
     """Run this benchmark in a fresh process on the checkout ``src``; its phases and lab s."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(src), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    proc = subprocess.run([sys.executable, __file__, "--json", *argv], env=env, check=False,
-                          capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SystemExit(f"benchmark on {src} failed:\n{proc.stderr}")
-    doc = json.loads(proc.stdout.strip().splitlines()[-1])
+    doc = child_json(__file__, src, ["--json", *argv], "benchmark")
     return [tuple(r) for r in doc["phases"]], float(doc["lab_s"])
 
 

@@ -24,10 +24,10 @@ import io
 import json
 import math
 import os
-import subprocess
-import sys
 import time
 from pathlib import Path
+
+from child_run import child_json  # bench/ is the script's directory, hence on sys.path
 
 from aatest.engine.steps import PlannedStep
 from aatest.recording.dataset import StepData
@@ -70,13 +70,7 @@ def measure(count: int, rounds: int) -> tuple[float, str]:
 
 
 def _child(src: Path, argv: list[str]) -> tuple[float, str]:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(src), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    proc = subprocess.run([sys.executable, __file__, "--json", *argv], env=env, check=False,
-                          capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SystemExit(f"benchmark on {src} failed:\n{proc.stderr}")
-    doc = json.loads(proc.stdout.strip().splitlines()[-1])
+    doc = child_json(__file__, src, ["--json", *argv], "benchmark")
     return float(doc["cpu_s"]), str(doc["sha256"])
 
 
