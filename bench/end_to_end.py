@@ -21,6 +21,12 @@ pages counted once), the figure to hold against 800 MB. ``AATEST_WORKERS=1`` run
 analysis pass in this process alone.
 
     python bench/end_to_end.py [--steps N] [--dir DIR] [--seed 0] [--analyse-only RUN_DIR]
+    python bench/end_to_end.py --procedure src/aatest/procedures/static-multi-position.yaml
+
+Operator prompts (pivot, re-mount) are confirmed unattended, as ``aatest run
+--confirm-prompts auto`` does, so the procedures with prompts (static multi-position,
+pivoted misalignment) can be timed too.
+
     python bench/end_to_end.py --compare BASE/src [--rounds 3] [--steps N]
 
 ``--compare`` runs the benchmark in fresh processes alternately on another checkout's
@@ -55,6 +61,7 @@ from tree_memory import TreeMemory  # bench/ is the script's directory, hence on
 from aatest.engine import registry
 from aatest.engine.forked import cpu_workers
 from aatest.engine.run import session
+from aatest.engine.run.events import AutoResponder, RunEvents
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import open_state
 from aatest.engine.run.runner import procedure_sha256, run_metadata, run_plan
@@ -124,8 +131,11 @@ def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> None:
     meta = run_metadata(plan, rig, prepared.text, seed, "bench")
     meta["report_template"] = plan.report_template
     recorder.write_run_metadata(meta)
+    # unattended, as `aatest run --confirm-prompts auto`: a procedure with operator prompts
+    # (pivot, re-mount) runs too, each prompt logged to stderr
+    events = RunEvents(responder=AutoResponder())
     phases.time("record", lambda: run_plan(plan, rig, recorder, state, out,
-                                           show_progress=False))
+                                           show_progress=False, events=events))
     phases.time("merge", recorder.finalize)
     state.finished = True
     state.save(out)
