@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.diagnose.scenarios import Hidden, scenario_dataset, without_latch
+from aatest.diagnose.scenarios import Hidden, draw_hidden, judge, scenario_dataset, without_latch
 from aatest.recording.data.exporter import export_csv
 
 
@@ -37,3 +37,15 @@ def run_diagnose(tmp_path: Path):
 def diagnose_cli_fn():
     """The CLI runner itself, for tests that make their own temporary directories."""
     return diagnose_cli
+
+
+@pytest.fixture
+def not_claimed_as(run_diagnose):
+    """Hide one look-alike effect alone (``draw_hidden(look_alike, seed)``, ``samples`` per
+    step): the diagnosis must judge it right and claim nothing as the effect ``named``."""
+    def check(named: str, look_alike: str, seed: int, samples: int) -> None:
+        hidden = [draw_hidden(look_alike, seed)]
+        _, doc = run_diagnose(hidden, seed=seed, samples=samples)
+        assert judge(doc, hidden) == []
+        assert not any(f["effect"] == named for f in doc["findings"])
+    return check
