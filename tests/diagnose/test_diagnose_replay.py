@@ -6,9 +6,9 @@ from numpy.testing import assert_allclose
 
 from aatest.diagnose.alignment import nominal_fit
 from aatest.diagnose.candidates.base import Context
-from aatest.diagnose.design import ChannelInfo
 from aatest.diagnose.replay import fit_axis_motion, replay_dataset
 from aatest.diagnose.scenarios import scenario_dataset
+from aatest.diagnose.spec import ChannelInfo
 
 
 def test_fit_axis_motion_recovers_sine_and_ramp() -> None:

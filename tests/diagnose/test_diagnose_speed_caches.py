@@ -19,10 +19,12 @@ from scipy import signal
 
 from aatest.diagnose import column_store, design
 from aatest.diagnose.column_store import gram
-from aatest.diagnose.design import ChannelInfo, Spec, fit_gram, fold_of, step_columns
+from aatest.diagnose.design import step_columns
+from aatest.diagnose.gram import fit_gram, fold_of
 from aatest.diagnose.periodogram import dft_at, lomb_scargle_power
 from aatest.diagnose.replay import ALPHA_MEMO, replay_dataset, sensor_acceleration
 from aatest.diagnose.scenarios import draw_hidden, scenario_dataset
+from aatest.diagnose.spec import ChannelInfo, Spec
 
 INFO = ChannelInfo("v_sz", "I", 572.958, 100.0, 25.0)
 

@@ -17,10 +17,10 @@ from numpy.testing import assert_allclose
 from scipy.interpolate import CubicSpline
 
 from aatest.diagnose import design
-from aatest.diagnose.design import ChannelInfo, Spec
 from aatest.diagnose.periodogram import dft_at, lomb_scargle_at, lomb_scargle_power
 from aatest.diagnose.replay import replay_dataset
 from aatest.diagnose.scenarios import draw_hidden, scenario_dataset
+from aatest.diagnose.spec import ChannelInfo, Spec
 from aatest.diagnose.trigger_alignment import trigger_aligned
 
 INFO = ChannelInfo("v_sz", "I", 572.958, 100.0, 25.0)

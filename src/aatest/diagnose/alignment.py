@@ -26,7 +26,9 @@ from dataclasses import replace
 import numpy as np
 
 from aatest.diagnose.candidates.base import Context, scalar_search
-from aatest.diagnose.design import Fit, Spec, step_columns
+from aatest.diagnose.design import step_columns
+from aatest.diagnose.gram import Fit
+from aatest.diagnose.spec import Spec
 
 
 def nominal_fit(ctx: Context, base: Spec | None = None) -> Fit:

@@ -34,24 +34,19 @@ from typing import Any
 import numpy as np
 
 from aatest.diagnose.design import (
-    ChannelInfo,
-    Fit,
-    Gram,
     Replay,
-    Spec,
-    _block_edges,
     _design,
-    _fold_products,
     _step_key,
     column_names,
     eval_step_s,
-    fit_gram,
     inner_projection,
     step_damped,
     tone_basis_row,
     tone_gain,
 )
+from aatest.diagnose.gram import Fit, Gram, block_edges, fit_gram, fold_products
 from aatest.diagnose.replay import StepReplay
+from aatest.diagnose.spec import ChannelInfo, Spec
 
 #: key of the column-memory budget inside a gram cache
 BUDGET_KEY = "design column budget"
@@ -226,9 +221,9 @@ def _stack(cols: dict[str, np.ndarray | None], names: list[str]) -> np.ndarray:
 
 
 def _empty(spec: Spec, sr: StepReplay, y: np.ndarray, gains: dict[int, complex]) -> StepBlock:
-    sizes = np.diff(_block_edges(sr.n))
+    sizes = np.diff(block_edges(sr.n))
     return StepBlock(spec, [], [], {}, np.zeros((2, 0, 0)), np.zeros((2, 0)),
-                     _fold_products(y, y, sr.n),
+                     fold_products(y, y, sr.n),
                      np.array([sizes[0::2].sum(), sizes[1::2].sum()], dtype=float), gains=gains)
 
 
@@ -263,12 +258,12 @@ def _extend(block: StepBlock, sr: StepReplay, info: ChannelInfo, spec: Spec,
     xtx[:, :m, :m] = block.xtx
     if m:
         old = _columns(sr, info, block.spec, block.names, block.keys, budget)
-        cross = _fold_products(_stack(old, block.names), cols_new, sr.n)
+        cross = fold_products(_stack(old, block.names), cols_new, sr.n)
         xtx[:, :m, m:] = cross
         xtx[:, m:, :m] = cross.transpose(0, 2, 1)
-    xtx[:, m:, m:] = _fold_products(cols_new, cols_new, sr.n)
+    xtx[:, m:, m:] = fold_products(cols_new, cols_new, sr.n)
     block.xtx = xtx
-    block.xty = np.concatenate([block.xty, _fold_products(cols_new, y, sr.n)], axis=1)
+    block.xty = np.concatenate([block.xty, fold_products(cols_new, y, sr.n)], axis=1)
     block.names += added
     block.keys += [wanted[n] for n in added]
     block.index = {n: j for j, n in enumerate(block.names)}

@@ -9,19 +9,19 @@ problem. The order of the signal path is the twin's (``aatest.twin.sensor``):
     α(t − delay) → hysteresis → stiction gap → dynamics → saturation → cubic → K(T) → + b(T)
     + jerk → logger filter
 
-Per step and per fold only the Gram matrix XᵀX, Xᵀy and yᵀy are kept, so fitting on one fold
-and scoring on the other (held-out SSE) costs a small linear solve, not a pass over the data.
+The model's records are in :mod:`aatest.diagnose.spec`, its least squares on Gram matrices in
+:mod:`aatest.diagnose.gram`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
 from scipy import signal
-from scipy.linalg import lapack
 
+from aatest.diagnose.gram import Fit
 from aatest.diagnose.replay import (
     PAD_SAMPLES,
     Replay,
@@ -32,71 +32,16 @@ from aatest.diagnose.replay import (
     sensor_axes,
     sensor_rate,
 )
+from aatest.diagnose.spec import ChannelInfo, Spec
 from aatest.diagnose.steady_state import response, tone_columns
 from aatest.effects import EffectInputs, design_column_names, design_columns
-from aatest.engine.datasheet import REFERENCE_SCALE_V_PER_DPS2
-from aatest.numerics import TINY
 from aatest.twin.daq import antialias_filter
 from aatest.twin.kinematics import E_I
 from aatest.twin.model import AmplitudeDamping
 from aatest.twin.sensor import band_filter, damping_of, play_operator
 
-#: contiguous time blocks per step; even blocks form fold A, odd blocks fold B
-BLOCKS_PER_STEP = 8
 #: unshifted vibration tones (sin and cos on the record grid) kept per step
 TONE_MEMO = 12
-
-
-@dataclass(frozen=True)
-class Spec:
-    """Which effects a model has, with the current values of its shape parameters."""
-
-    linear: frozenset[str] = frozenset()
-    delay_s: float = 0.0
-    dynamics: tuple[float, float] | None = None
-    hysteresis_dps2: float = 0.0
-    saturation_dps2: float | None = None
-    ripple_cpd: tuple[float, ...] = ()
-    #: the table log's ripple lines, (cycles/°, sin, cos coefficient °) on the ripple
-    #: regressors: real motion, so the sensing element feels it with the commanded motion
-    #: (a cubic, clipping or backlash acts on the sum, the jerk pickup on its derivative)
-    ripple_motion_deg: tuple[tuple[float, float, float], ...] = ()
-    vibration_hz: tuple[float, ...] = ()
-    warp_ppm: float = 0.0
-    #: warp about the record start (trigger-aligned loggers) instead of its middle (edge fit)
-    warp_from_start: bool = False
-    #: per-step alignment offsets (s) on top of ``delay_s``, indexed by step (empty = none):
-    #: the sync pulse aligns each step's loggers to about one sample only
-    step_shift_s: tuple[float, ...] = ()
-    #: shape-parameter values of plugin effects (aatest.effects) in ``linear``:
-    #: ((effect, ((parameter, value), …)), …)
-    plugin_shape: tuple[tuple[str, tuple[tuple[str, float], ...]], ...] = ()
-    #: ``amplitude_damping`` (damping_per_decade, reference_dps2): the damping of
-    #: ``dynamics`` (ζ at the reference amplitude) follows each step's amplitude
-    amplitude_damping: tuple[float, float] | None = None
-    #: ``rotor_stiction``'s break-away rate (°/s; 0 = off): with ``rotor_stiction`` in
-    #: ``linear`` a column of the response lost while the case's rate is within ±it of zero
-    stiction_dps: float = 0.0
-
-    def shift_of(self, index: int) -> float:
-        """Total time shift of the prediction for step ``index`` (s)."""
-        return self.delay_s + (self.step_shift_s[index] if self.step_shift_s else 0.0)
-
-    def with_linear(self, *names: str) -> Spec:
-        return replace(self, linear=self.linear | frozenset(names))
-
-
-@dataclass(frozen=True)
-class ChannelInfo:
-    """What the design needs about one sensor channel."""
-
-    channel: str
-    axis: str
-    range_dps2: float
-    antialias_hz: float | None
-    t_ref_c: float
-    #: datasheet scale factor, used when the data cannot calibrate K (no motion along z)
-    nominal_scale_v_per_dps2: float = REFERENCE_SCALE_V_PER_DPS2
 
 
 def column_names(spec: Spec, replay: Replay) -> list[str]:
@@ -526,26 +471,6 @@ def _temperature(sr: StepReplay, info: ChannelInfo, padded: int) -> np.ndarray:
     return value
 
 
-@dataclass
-class Gram:
-    """Sufficient statistics of a linear least-squares problem on two folds."""
-
-    names: list[str]
-    xtx: np.ndarray  # (2, p, p)
-    xty: np.ndarray  # (2, p)
-    yty: np.ndarray  # (2,)
-    count: np.ndarray  # (2,)
-
-    @property
-    def n(self) -> int:
-        return int(self.count.sum())
-
-
-def fold_of(n: int) -> np.ndarray:
-    """Fold (0 or 1) of each sample of an n-sample record: alternating contiguous blocks."""
-    return (np.arange(n) * BLOCKS_PER_STEP // max(n, 1)) % 2
-
-
 def _step_key(spec: Spec, sr: StepReplay) -> Spec:
     """The part of ``spec`` a step's columns depend on (a still step ignores the shape)."""
     spec = replace(spec, delay_s=spec.shift_of(sr.index), step_shift_s=())
@@ -555,91 +480,6 @@ def _step_key(spec: Spec, sr: StepReplay) -> Spec:
     if not spec.ripple_cpd and not spec.vibration_hz:
         key = replace(key, delay_s=0.0, dynamics=None, warp_ppm=0.0, amplitude_damping=None)
     return key
-
-
-@lru_cache(maxsize=64)
-def _block_edges(n: int) -> np.ndarray:
-    """Start indices of the contiguous time blocks of an n-sample record (and n)."""
-    return np.searchsorted(np.arange(n) * BLOCKS_PER_STEP // max(n, 1),
-                           np.arange(BLOCKS_PER_STEP + 1))
-
-
-def _fold_products(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
-    """Per-fold a·bᵀ, shape (2, …): a, b are (·, n) or (n,) on one step's record, one column
-    per row (rows are stacked by copying contiguous memory; a column-major stack of the same
-    columns writes every element with a stride and cost five times as much)."""
-    edges = _block_edges(n)
-    parts = [a[..., edges[k]:edges[k + 1]] @ b[..., edges[k]:edges[k + 1]].T
-             for k in range(BLOCKS_PER_STEP)]
-    return np.stack([sum(parts[0::2]), sum(parts[1::2])])
-
-
-#: reciprocal condition (1-norm estimate) above which the equilibrated normal equations are
-#: solved by Cholesky: both that and the SVD then err by about κ·ε ≤ 1e-8 relative, far below
-#: any coefficient's uncertainty; a worse-conditioned (or rank-deficient) Gram keeps the SVD
-#: and its truncation of singular values below 1e-10 of the largest
-CHOLESKY_RCOND = 1e-8
-
-
-def solve(xtx: np.ndarray, xty: np.ndarray) -> np.ndarray:
-    """Least-squares coefficients from a Gram matrix, with column equilibration.
-
-    Cholesky when the equilibrated Gram is well conditioned (a tenth of the SVD's cost on
-    the hundred-column designs of a vibration band), else the truncated SVD.
-    """
-    d = np.sqrt(np.clip(np.diag(xtx), TINY, None))
-    a = xtx / np.outer(d, d)
-    b = xty / d
-    factor, info = lapack.dpotrf(a, lower=0, clean=1)
-    if info == 0:
-        rcond, info = lapack.dpocon(factor, float(np.abs(a).sum(axis=0).max()))
-        if info == 0 and rcond > CHOLESKY_RCOND:
-            coef, info = lapack.dpotrs(factor, b, lower=0)
-            if info == 0:
-                return np.asarray(coef) / d
-    coef, *_ = np.linalg.lstsq(a, b, rcond=1e-10)
-    return coef / d
-
-
-def sse(xtx: np.ndarray, xty: np.ndarray, yty: float, coef: np.ndarray) -> float:
-    """Residual sum of squares of ``coef`` on the data summarised by a Gram matrix."""
-    return float(yty - 2.0 * coef @ xty + coef @ xtx @ coef)
-
-
-@dataclass(frozen=True)
-class Fit:
-    """A fitted spec: coefficients on all data, in-sample and held-out SSE."""
-
-    spec: Spec
-    names: list[str]
-    coef: np.ndarray
-    sse_in: float
-    sse_held_out: float
-    n: int
-    xtx: np.ndarray
-
-    def value(self, name: str) -> float:
-        return float(self.coef[self.names.index(name)]) if name in self.names else 0.0
-
-    @property
-    def scale(self) -> float:
-        return self.value("scale")
-
-    @property
-    def k(self) -> int:
-        return len(self.names)
-
-
-def fit_gram(g: Gram, spec: Spec) -> Fit:
-    """Coefficients on both folds, plus the two-fold cross-validated (held-out) SSE."""
-    xtx, xty, yty = g.xtx.sum(0), g.xty.sum(0), float(g.yty.sum())
-    coef = solve(xtx, xty)
-    held = 0.0
-    for f in (0, 1):
-        c = solve(g.xtx[f], g.xty[f])
-        o = 1 - f
-        held += sse(g.xtx[o], g.xty[o], float(g.yty[o]), c)
-    return Fit(spec, g.names, coef, max(sse(xtx, xty, yty, coef), 0.0), max(held, 0.0), g.n, xtx)
 
 
 def predict(replay: Replay, info: ChannelInfo, fit: Fit) -> dict[int, np.ndarray]:

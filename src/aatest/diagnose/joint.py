@@ -16,16 +16,11 @@ import numpy as np
 
 from aatest.diagnose.candidates.base import Context
 from aatest.diagnose.column_store import gram, step_design
-from aatest.diagnose.design import (
-    Fit,
-    Gram,
-    Spec,
-    _fold_products,
-    column_names,
-    fit_gram,
-)
+from aatest.diagnose.design import column_names
 from aatest.diagnose.generic import Proposal
+from aatest.diagnose.gram import Fit, Gram, fit_gram, fold_products
 from aatest.diagnose.replay import StepReplay
+from aatest.diagnose.spec import Spec
 from aatest.numerics import TINY
 
 
@@ -100,8 +95,8 @@ def _one_generic(ctx: Context, spec: Spec, names: list[str], sr: StepReplay,
         gen = prop.columns(sr, alpha)
         on = np.flatnonzero(np.any(gen != 0.0, axis=0))  # other steps' columns are zero here
         gen = np.ascontiguousarray(gen[:, on].T)  # one column per row, as the named design
-        products = [_fold_products(x, gen, sr.n), _fold_products(gen, gen, sr.n),
-                    _fold_products(gen, ctx.targets[sr.index], sr.n)] if on.size else []
+        products = [fold_products(x, gen, sr.n), fold_products(gen, gen, sr.n),
+                    fold_products(gen, ctx.targets[sr.index], sr.n)] if on.size else []
         store[key] = (on, gen, used, products, prop)
     return store[key][:4]
 
@@ -113,7 +108,7 @@ def _pair(ctx: Context, spec: Spec, names: list[str], sr: StepReplay, a: Proposa
     key = (sr.index, (id(a), id(b)))
     if key not in store:
         ca, cb = (_one_generic(ctx, spec, names, sr, p)[1] for p in (a, b))
-        store[key] = (_fold_products(ca, cb, sr.n), a, b)
+        store[key] = (fold_products(ca, cb, sr.n), a, b)
     return store[key][0]
 
 

@@ -20,8 +20,9 @@ from scipy import signal
 
 from aatest.diagnose.alignment import nominal_fit
 from aatest.diagnose.candidates.base import Context
-from aatest.diagnose.design import ChannelInfo, predict
+from aatest.diagnose.design import predict
 from aatest.diagnose.replay import Replay
+from aatest.diagnose.spec import ChannelInfo
 from aatest.engine.rig_description import LoggerSpec
 from aatest.numerics import TINY
 from aatest.recording.dataset import Dataset

@@ -21,8 +21,9 @@ from aatest.diagnose.candidates.logger import (
     one_clock_fit,
     phase_trend_drift,
 )
-from aatest.diagnose.design import Fit, predict
+from aatest.diagnose.design import predict
 from aatest.diagnose.figures import residual_figures
+from aatest.diagnose.gram import Fit
 from aatest.diagnose.logger_chain import (
     channel_info,
     logger_options,

@@ -20,9 +20,9 @@ from typing import Any
 
 from aatest.diagnose.candidates.base import Context, linear_ci
 from aatest.diagnose.candidates.plugins import joint_parameters
-from aatest.diagnose.design import Spec
 from aatest.diagnose.joint import Joint, bic_change, held_out_rmse, joint_fit
 from aatest.diagnose.selection import BIC_THRESHOLD, SHAPE_PARAMS, Finding
+from aatest.diagnose.spec import Spec
 from aatest.effects import spec_token
 
 _LINEAR_PARAMS = {"bias_temperature": ("bias_temperature", "coefficient_v_per_c", False),

@@ -26,7 +26,9 @@ from aatest.diagnose.alignment import realigned
 from aatest.diagnose.candidates import Candidate, vocabulary
 from aatest.diagnose.candidates.base import CandidateFit, Context, dynamic_peak_dps2
 from aatest.diagnose.candidates.shape import DAMPING_BOUNDS, MAX_DELAY_S, MAX_NATURAL_HZ
-from aatest.diagnose.design import Fit, Spec, predict
+from aatest.diagnose.design import predict
+from aatest.diagnose.gram import Fit
+from aatest.diagnose.spec import Spec
 from aatest.numerics import TINY
 
 BIC_THRESHOLD = 10.0

@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 
 from aatest.diagnose.candidates.base import Context
-from aatest.diagnose.design import Fit
 from aatest.diagnose.generic import Proposal, proposals
+from aatest.diagnose.gram import Fit
 from aatest.diagnose.joint import (
     Joint,
     _prune,

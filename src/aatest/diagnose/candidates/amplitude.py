@@ -25,7 +25,8 @@ from aatest.diagnose.candidates.base import (
     scalar_search,
 )
 from aatest.diagnose.candidates.shape import DAMPING_BOUNDS
-from aatest.diagnose.design import MIN_AMPLITUDE_DPS2, Spec, step_amplitude_dps2
+from aatest.diagnose.design import MIN_AMPLITUDE_DPS2, step_amplitude_dps2
+from aatest.diagnose.spec import Spec
 
 #: the amplitude at which ``sensor_dynamics.damping`` holds (°/s²)
 REFERENCE_DPS2 = 10.0

@@ -16,8 +16,9 @@ import numpy as np
 from scipy import optimize
 
 from aatest.diagnose.column_store import fit_spec
-from aatest.diagnose.design import ChannelInfo, Fit, Spec
+from aatest.diagnose.gram import Fit
 from aatest.diagnose.replay import Replay
+from aatest.diagnose.spec import ChannelInfo, Spec
 from aatest.numerics import Z95
 
 #: logger offset (samples) a sync without latch times leaves open: ½ edge estimate + 1 rule

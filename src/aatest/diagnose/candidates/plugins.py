@@ -25,7 +25,8 @@ from aatest.diagnose.candidates.base import (
     replace_spec,
     scalar_search,
 )
-from aatest.diagnose.design import Fit, Spec
+from aatest.diagnose.gram import Fit
+from aatest.diagnose.spec import Spec
 from aatest.effects import (
     Effect,
     Excitation,

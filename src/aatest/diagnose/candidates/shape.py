@@ -24,7 +24,8 @@ from aatest.diagnose.candidates.base import (
     replace_spec,
     scalar_search,
 )
-from aatest.diagnose.design import Spec, step_columns
+from aatest.diagnose.design import step_columns
+from aatest.diagnose.spec import Spec
 
 MAX_DELAY_S = 0.08
 #: sine frequencies needed before second-order dynamics can be told from a delay

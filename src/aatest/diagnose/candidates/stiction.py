@@ -24,8 +24,8 @@ from aatest.diagnose.candidates.base import (
     replace_spec,
     scalar_search,
 )
-from aatest.diagnose.design import Spec
 from aatest.diagnose.replay import sensor_rate
+from aatest.diagnose.spec import Spec
 
 #: the gap is searched up to this share of the largest peak rate of a sine step
 MAX_SHARE_OF_PEAK_RATE = 0.5
