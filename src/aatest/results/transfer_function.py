@@ -54,11 +54,15 @@ class SecondOrderDelay(ResultModel):
     natural_frequency_hz: Real
     damping: Real
     delay_s: Real
-    u_natural_frequency_hz: Real
-    u_damping: Real
-    u_delay_s: Real
+    #: standard uncertainties from the fit's Jacobian; ``None`` for a parameter on a bound
+    u_natural_frequency_hz: Real | None
+    u_damping: Real | None
+    u_delay_s: Real | None
     fit_pct: Real
     deembedded_antialias_hz: Real | None = None
+    #: parameters the fit holds on a bound (e.g. ``damping`` at 5: an overdamped pair): their
+    #: values are limits of the fit, not estimates, and carry no stated uncertainty
+    at_bound: list[str] = Field(default_factory=list)
 
 
 class TfModel(ResultModel):

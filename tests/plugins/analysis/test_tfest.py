@@ -74,3 +74,33 @@ def test_antialias_corner_sources() -> None:
     assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "can"}}}), AnalysisContext()) is None
     none = AnalysisContext(options=TransferFunctionOptions(antialias_hz="none"))
     assert logger_antialias_hz(ds({"rig": {"daq": {"plugin": "sim"}}}), none) is None
+
+
+def _continuous(fn_hz: float, zeta: float, delay_s: float) -> np.ndarray:
+    s = 2j * np.pi * F28
+    wn = 2 * np.pi * fn_hz
+    return 0.004 * wn**2 / (s**2 + 2 * zeta * wn * s + wn**2) * np.exp(-s * delay_s)
+
+
+def test_second_order_free_fit_states_every_uncertainty() -> None:
+    rng = np.random.default_rng(11)
+    h = _continuous(30.0, 0.7, 0.002) * (1 + rng.normal(0, 1e-3, F28.size))
+    phys = second_order_delay_fit(F28, h, 0.007)
+    assert phys["at_bound"] == []
+    assert phys["damping"] == pytest.approx(0.7, rel=0.2)
+    # the stated u is a 1σ of the points' 1e-3 relative noise: the truth lies within 4σ
+    for name in ("natural_frequency_hz", "damping", "delay_s"):
+        assert phys[f"u_{name}"] is not None and phys[f"u_{name}"] > 0
+    assert abs(phys["natural_frequency_hz"] - 30.0) < 4 * phys["u_natural_frequency_hz"]
+
+
+def test_second_order_fit_on_its_damping_bound_states_no_uncertainty_for_it() -> None:
+    # an overdamped pair (ζ = 12, beyond the fit's bound of 5) seen up to 10 Hz: the fit
+    # holds ζ on the bound, where the Jacobian's curvature bounds nothing
+    h = _continuous(200.0, 12.0, 0.001)
+    phys = second_order_delay_fit(F28, h, 0.012)
+    assert phys["damping"] == pytest.approx(5.0, abs=1e-6)
+    assert phys["at_bound"] == ["damping"]
+    assert phys["u_damping"] is None
+    # the parameters left free keep a stated (conditional) uncertainty
+    assert phys["u_delay_s"] is not None and phys["u_natural_frequency_hz"] is not None

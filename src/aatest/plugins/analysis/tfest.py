@@ -181,12 +181,25 @@ def model_metrics(model: DiscreteTf, f_id: np.ndarray, h_id: np.ndarray, f_val: 
     }
 
 
+#: the second-order-plus-delay model's parameters, in the fit's order (results.json names)
+SECOND_ORDER_PARAMETERS = ("gain_v_per_dps2", "natural_frequency_hz", "damping", "delay_s")
+#: their bounds: K ≥ 0, ωn ∈ [2π, 1e4] rad/s, ζ ∈ [0.05, 5], τ ∈ [−0.05, 0.2] s
+_SECOND_ORDER_LOWER = np.array([0.0, 2 * np.pi, 0.05, -0.05])
+_SECOND_ORDER_UPPER = np.array([np.inf, 1e4, 5.0, 0.2])
+#: relative distance to a bound within which a parameter counts as held on it (the
+#: solver's stopping point on a pressed bound lies ≈ 1e-6 inside; a free optimum this close
+#: has a Jacobian interval that crosses the bound anyway)
+BOUND_MARGIN = 1e-4
+
+
 def second_order_delay_fit(f_hz: np.ndarray, h: np.ndarray, delay0_s: float) -> dict[str, Any]:
     """Fit K·ωn²/(s² + 2ζωn·s + ωn²)·e^{−sτ} to FRF points (K, ωn, ζ, τ; relative errors).
 
     Started from a grid of natural frequencies (5–200 Hz) with ζ = 0.7 and the cross-correlation
     delay split between dynamics and transport; the best local solution is kept. Standard
-    uncertainties come from the Jacobian at the solution.
+    uncertainties come from the Jacobian at the solution, for the parameters not held on a
+    bound (ζ ∈ [0.05, 5], τ ∈ [−0.05, 0.2] s, fn ∈ [1, 1592] Hz); those on a bound are named in
+    ``at_bound`` and their uncertainty is ``None``.
     """
     s = 2j * np.pi * np.asarray(f_hz)
     h = np.asarray(h)
@@ -205,20 +218,57 @@ def second_order_delay_fit(f_hz: np.ndarray, h: np.ndarray, delay0_s: float) -> 
         wn = 2 * np.pi * fn
         tau0 = max(delay0_s - 1.4 / wn, 0.0)
         sol = optimize.least_squares(residual, [k0, wn, 0.7, tau0], method="trf",
-                                     bounds=([0, 2 * np.pi, 0.05, -0.05], [np.inf, 1e4, 5, 0.2]))
+                                     bounds=(_SECOND_ORDER_LOWER, _SECOND_ORDER_UPPER))
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None
-    dof = max(2 * h.size - 4, 1)
+    # a parameter held on its bound is not estimated: the curvature there says nothing of
+    # its uncertainty (and, with ζ at 5, ωn and ζ are nearly degenerate: an overdamped pair
+    # is identified only through its slow pole), so the free parameters' covariance is taken
+    # with it fixed and its own uncertainty is not stated
+    free = ~_on_bound(best.x, best.active_mask)
+    dof = max(2 * h.size - int(free.sum()), 1)
     # a dense residual without jac_sparsity gives a dense Jacobian (the stubs allow sparse too)
-    jac = np.asarray(best.jac, dtype=np.float64)
-    cov = np.linalg.pinv(jac.T @ jac) * 2 * best.cost / dof
-    u = np.sqrt(np.clip(np.diag(cov), 0, None))
+    jac = np.asarray(best.jac, dtype=np.float64)[:, free]
+    u = np.full(free.size, np.nan)
+    u[free] = np.sqrt(np.diag(_covariance(jac)) * 2 * best.cost / dof)
     k, wn, zeta, tau = best.x
     return {"gain_v_per_dps2": float(k), "natural_frequency_hz": float(wn / (2 * np.pi)),
             "damping": float(zeta), "delay_s": float(tau),
-            "u_natural_frequency_hz": float(u[1] / (2 * np.pi)), "u_damping": float(u[2]),
-            "u_delay_s": float(u[3]), "fit_pct": fit_percent(h, model(best.x))}
+            "u_natural_frequency_hz": _stated(u[1] / (2 * np.pi)), "u_damping": _stated(u[2]),
+            "u_delay_s": _stated(u[3]), "fit_pct": fit_percent(h, model(best.x)),
+            "at_bound": [name for name, f in zip(SECOND_ORDER_PARAMETERS, free, strict=True)
+                         if not f]}
+
+
+def _on_bound(x: np.ndarray, active_mask: np.ndarray) -> np.ndarray:
+    """Which parameters the fit holds on a bound: the solver's active set, or within
+    :data:`BOUND_MARGIN` of a bound (``trf`` keeps its iterates strictly inside and stops
+    ≈ 1e-6 short of a bound it presses on, reporting it free)."""
+    near = [np.isfinite(b) & (np.abs(x - b) <= BOUND_MARGIN * np.abs(b))
+            for b in (_SECOND_ORDER_LOWER, _SECOND_ORDER_UPPER)]
+    return (np.asarray(active_mask) != 0) | near[0] | near[1]
+
+
+def _covariance(jac: np.ndarray) -> np.ndarray:
+    """(JᵀJ)⁻¹ by the SVD of the column-equilibrated Jacobian, without truncation.
+
+    A pseudo-inverse drops a near-degenerate direction — the one along which the data do not
+    tell two parameters apart — and so states it as *certain*; the full inverse states it as
+    what it is, uncertain (an exactly degenerate direction gives an infinite variance).
+    """
+    norm = np.linalg.norm(jac, axis=0)
+    norm[norm == 0.0] = 1.0
+    _, sv, vt = np.linalg.svd(jac / norm, full_matrices=False)
+    with np.errstate(divide="ignore"):
+        scaled = (vt.T / sv**2) @ vt
+    return np.asarray(scaled / np.outer(norm, norm))
+
+
+def _stated(u: float) -> float | None:
+    """An uncertainty for the results (``None``: not stated — its parameter is on a bound,
+    or the data cannot separate it from another, an infinite variance)."""
+    return float(u) if np.isfinite(u) else None
 
 
 def time_domain_fit(model: DiscreteTf, records: list[tuple[np.ndarray, np.ndarray]],
