@@ -5,19 +5,23 @@ each axis (analytic in lab time), the DAQ clock and the sensor temperature. The 
 sampled on the table clock from the trigger on; the DAQ log on its own crystal clock from
 ``start_lead_s`` before the trigger to ``stop_lag_s`` after the table log ends.
 
-Two threads, one result: the table top's rigid motion on the DAQ grid draws nothing at random,
-so it is computed on a worker thread (:func:`_rigid_block`) while the table log, then the
-DAQ's noise, draw from the step's streams in their fixed order; the worker is joined before
-:func:`synthesise` returns (no thread outlives a step, so the analysis may fork afterwards).
+Two threads, one result: the table log computes on a worker thread while the DAQ log
+computes on the caller's (:func:`synthesise`); when both draw from one stream, the table log's
+draws are made first (:mod:`aatest.twin.drawn_ahead`), so every number drawn is the one a
+serial synthesis draws. The table top's rigid motion on the DAQ grid draws nothing at random:
+a long record computes the next block's on a worker while a block draws (:func:`daq_blocks`).
+Every worker is joined before :func:`synthesise` returns (no thread outlives a step, so the
+analysis may fork afterwards).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from scipy import signal
@@ -28,6 +32,7 @@ from aatest.twin import kinematics as kin
 from aatest.twin.chamber import ThermalState
 from aatest.twin.clocks import TIMESTAMP_TICK_S, DaqClock, table_sync
 from aatest.twin.daq import antialias_filter, noiseless, quantise_adc
+from aatest.twin.drawn_ahead import DrawsDiffer, UniformTape, normal_uniforms
 from aatest.twin.fastmath import standard_normal
 from aatest.twin.grid import Grid, sincos_deg
 from aatest.twin.model import DaqModel, RigModel, SensorModel, TableModel
@@ -114,7 +119,11 @@ class SimulatedStep:
     truth: LazyTruth
 
 
-def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, dict[str, Any]]:
+def _table_log(setup: StepSetup, rng: np.random.Generator,
+               pulse: tuple[np.ndarray, np.ndarray] | None = None,
+               ) -> tuple[SampledLog, dict[str, Any]]:
+    """The table log and its truth; ``pulse`` (:func:`_table_pulse`, drawn last) when the
+    caller has drawn it already."""
     step, tm = setup.step, setup.model.table
     dt = 1.0 / step.sample_rate_hz
     grid = Grid(setup.trigger_time_s - STENCIL_PAD * dt, dt, step.samples + 2 * STENCIL_PAD)
@@ -134,8 +143,9 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
         truth[f"{name}_angle_deg"] = angle[inner_slice]
         truth[f"{name}_rate_dps"] = rate[inner_slice]
         truth[f"{name}_accel_dps2"] = accel[inner_slice]
-    time_s = np.arange(step.samples) * dt
-    channels["sync_pulse"], channels["fp_latch_s"] = _table_pulse(setup, time_s, rng)
+    time_s = _table_times(setup)
+    channels["sync_pulse"], channels["fp_latch_s"] = (
+        pulse if pulse is not None else _table_pulse(setup, time_s, rng))
     moving = "outer" if step.axis == "outer" else "inner"
     truth.update(time_s=time_s, angle_deg=truth[f"{moving}_angle_deg"],
                  rate_dps=truth[f"{moving}_rate_dps"], accel_dps2=truth[f"{moving}_accel_dps2"])
@@ -324,16 +334,16 @@ def daq_units(setup: StepSetup) -> tuple[dict[str, str], dict[str, tuple[float, 
 
 
 def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | None = None,
-               drift_rng: np.random.Generator | None = None,
-               first: Future[_RigidBlock] | None = None) -> Iterator[SampledLog]:
+               drift_rng: np.random.Generator | None = None) -> Iterator[SampledLog]:
     """The step's DAQ log, generated block by block (:func:`generation_block`).
 
     Every random draw comes from ``rng`` in block order and every stateful stage (the floor's
     band-pass, the sensor dynamics, the anti-alias filter, the bias drift) continues across
     blocks, so the concatenated blocks do not depend on how a consumer groups them. ``truth``
     (one-shot synthesis of a short record) receives the deferred noise-free entries;
-    ``drift_rng`` draws the sensors' bias drift (``SensorModel.bias_drift``); ``first`` is the
-    first block's :func:`_rigid_block`, being computed on another thread (:func:`synthesise`).
+    ``drift_rng`` draws the sensors' bias drift (``SensorModel.bias_drift``). The next block's
+    rigid motion (no random draw) is computed on a worker thread while a block draws; a
+    one-block record computes it in line (no thread).
     """
     clock = setup.clock
     n = _daq_samples(setup)
@@ -343,15 +353,15 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
     state = _DaqState(sensors={s.channel: ChannelState(drift_rng=drift)
                                for s in setup.model.sensors})
     starts = range(0, max(n, 1), block)
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
-        rigid = first if first is not None else pool.submit(
-            _rigid_block, setup, _block_grid(clock, 0, min(block, n)))
+    with ExitStack() as stack:
+        pool = (stack.enter_context(ThreadPoolExecutor(
+            max_workers=1, thread_name_prefix="aatest-twin")) if len(starts) > 1 else None)
+        rigid = _rigid_soon(pool, setup, 0, min(block, n))
         for start in starts:
             grid = _block_grid(clock, start, min(block, n - start))
             current = rigid.result()
             if start + block < n:  # the next block's rigid motion, while this one draws
-                rigid = pool.submit(_rigid_block, setup, _block_grid(
-                    clock, start + block, min(block, n - start - block)))
+                rigid = _rigid_soon(pool, setup, start + block, min(block, n - start - block))
             for carried in state.sensors.values():  # the last block ends every filter
                 carried.final = start + block >= n
             channels = _daq_block(setup, grid, start, rng, state,
@@ -359,6 +369,17 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
             del current
             yield SampledLog(DAQ, clock.sample_rate_hz, _stamped(clock, start, grid.n, rng),
                              _read_only(channels), units, quanta)
+
+
+def _rigid_soon(pool: ThreadPoolExecutor | None, setup: StepSetup, first: int,
+                m: int) -> Future[_RigidBlock]:
+    """:func:`_rigid_block` of DAQ samples ``first``… on ``pool``, or now without one."""
+    grid = _block_grid(setup.clock, first, m)
+    if pool is not None:
+        return pool.submit(_rigid_block, setup, grid)
+    done: Future[_RigidBlock] = Future()
+    done.set_result(_rigid_block(setup, grid))
+    return done
 
 
 def _block_grid(clock: DaqClock, first: int, m: int) -> Grid:
@@ -472,13 +493,12 @@ def _accel_truth(truth: LazyTruth, channels: list[str]) -> dict[str, np.ndarray]
 
 
 def _daq_log(setup: StepSetup, rng: np.random.Generator,
-             drift_rng: np.random.Generator | None = None,
-             first: Future[_RigidBlock] | None = None) -> tuple[SampledLog, LazyTruth]:
+             drift_rng: np.random.Generator | None = None) -> tuple[SampledLog, LazyTruth]:
     """The whole DAQ log at once: the concatenation of :func:`daq_blocks`."""
     clock = setup.clock
     n = _daq_samples(setup)
     truth = LazyTruth(daq_time_s=Grid(clock.t0_s, clock.lab_dt_s, n).times - setup.trigger_time_s)
-    blocks = list(daq_blocks(setup, rng, truth, drift_rng, first))
+    blocks = list(daq_blocks(setup, rng, truth, drift_rng))
     return concatenate_logs(blocks), truth
 
 
@@ -508,18 +528,67 @@ def synthesise(setup: StepSetup, rng: np.random.Generator,
 
     ``daq_rng`` (default: ``rng`` after the table log) draws the DAQ log, ``drift_rng`` the
     sensors' bias drift; a streamed record uses the same two streams (:func:`daq_blocks`).
+    The table log computes on a worker thread while this thread computes the DAQ log; with one
+    stream for both, the table log's uniforms are drawn first (:mod:`aatest.twin.drawn_ahead`)
+    and its pulse then, so the DAQ log draws what it draws in a serial synthesis. The worker
+    is joined before this returns (no thread outlives a step: the analysis may fork later).
     """
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
-        # the DAQ's first block of rigid motion (no random draw) on the second core while
-        # the table log draws: both draw from ``rng`` in a fixed order, the motion from none
-        first = pool.submit(_rigid_block, setup, _block_grid(
-            setup.clock, 0, generation_block(_daq_samples(setup))))
-        table, table_truth = _table_log(setup, rng)
-        daq, truth = _daq_log(setup, daq_rng if daq_rng is not None else rng, drift_rng,
-                              first)
+    if daq_rng is not None:  # two streams: nothing to hand on
+        table, table_truth, daq, truth = _concurrently(setup, rng, None, daq_rng, drift_rng)
+    else:
+        table, table_truth, daq, truth = _one_stream(setup, rng, drift_rng)
     truth.update(table_truth)
     truth["drift_ppm"] = setup.clock.drift_ppm
     # t_table_log = offset + t_daq·(1 + drift): the DAQ's sample 0 precedes the trigger
     truth["offset_s"] = setup.clock.t0_s - setup.trigger_time_s
     truth["temperature_c"] = float(setup.thermal.temperature_at(setup.trigger_time_s))
     return SimulatedStep(table=table, daq=daq, truth=truth)
+
+
+_BothLogs = tuple[SampledLog, dict[str, Any], SampledLog, LazyTruth]
+
+
+def _one_stream(setup: StepSetup, rng: np.random.Generator,
+                drift_rng: np.random.Generator | None) -> _BothLogs:
+    """Both logs from one stream, concurrently; serially again from the saved states when the
+    table log drew otherwise than :func:`_table_uniforms` says (same numbers either way)."""
+    saved_rng = rng.bit_generator.state
+    saved_drift = drift_rng.bit_generator.state if drift_rng is not None else None
+    tape = UniformTape(rng, _table_uniforms(setup))
+    pulse = _table_pulse(setup, _table_times(setup), rng)
+    try:
+        logs = _concurrently(setup, cast(np.random.Generator, tape), pulse, rng, drift_rng)
+        if tape.exhausted:
+            return logs
+    except DrawsDiffer:
+        pass
+    rng.bit_generator.state = saved_rng
+    if drift_rng is not None and saved_drift is not None:
+        drift_rng.bit_generator.state = saved_drift
+    table, table_truth = _table_log(setup, rng)
+    return table, table_truth, *_daq_log(setup, rng, drift_rng)
+
+
+def _concurrently(setup: StepSetup, table_rng: np.random.Generator,
+                  pulse: tuple[np.ndarray, np.ndarray] | None, daq_rng: np.random.Generator,
+                  drift_rng: np.random.Generator | None) -> _BothLogs:
+    """The table log on a worker thread, the DAQ log on this one."""
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
+        table = pool.submit(_table_log, setup, table_rng, pulse)
+        daq, truth = _daq_log(setup, daq_rng, drift_rng)
+        return *table.result(), daq, truth
+
+
+def _table_times(setup: StepSetup) -> np.ndarray:
+    """Table log time stamps (s from the trigger), as :func:`_table_log` makes them."""
+    return np.arange(setup.step.samples) * (1.0 / setup.step.sample_rate_hz)
+
+
+def _table_uniforms(setup: StepSetup) -> int:
+    """Uniforms the table log's estimates draw (:func:`aatest.twin.table.estimates`: the
+    estimate noise, then the encoder noise, of each axis with that noise, on the padded grid);
+    its pulse, drawn after them, is not counted."""
+    m = setup.step.samples + 2 * STENCIL_PAD
+    table = setup.model.table
+    return sum(normal_uniforms(m) for axis in (table.inner, table.outer)
+               for sigma in (axis.estimate_noise_deg, axis.encoder_noise_deg) if sigma > 0.0)
