@@ -77,15 +77,17 @@ def test_overlapped_synthesis_equals_the_sequential_one(
         assert np.array_equal(overlapped.truth[key], expected), key
 
 
+@pytest.mark.parametrize("count", ["_table_uniforms", "_floor_uniforms", "_record_uniforms",
+                                   "_stamp_uniforms"])
 @pytest.mark.parametrize("extra", [2, -2], ids=["too-many", "too-few"])
 def test_a_miscounted_draw_ahead_redoes_the_step_serially(
-        extra: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    """If the table log draws other than counted (here: the count is off by one pair), the
-    step is redone from the saved stream states: slower, the same numbers."""
+        count: str, extra: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """If a log draws other than counted (here: a count is off by one pair), the step is
+    redone from the saved stream states: slower, the same numbers."""
     setup = _setup(STEPS[0])
     table, _, daq, _ = _serial(setup)
-    counted = synthesis._table_uniforms
-    monkeypatch.setattr(synthesis, "_table_uniforms", lambda s: counted(s) + extra)
+    counted = getattr(synthesis, count)
+    monkeypatch.setattr(synthesis, count, lambda *a: counted(*a) + extra)
     calls = _counted_table_logs(monkeypatch)
     redone = synthesise(setup, np.random.default_rng(5), drift_rng=np.random.default_rng(6))
     assert len(calls) == 2 and isinstance(calls[1], np.random.Generator)

@@ -334,7 +334,8 @@ def daq_units(setup: StepSetup) -> tuple[dict[str, str], dict[str, tuple[float, 
 
 
 def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | None = None,
-               drift_rng: np.random.Generator | None = None) -> Iterator[SampledLog]:
+               drift_rng: np.random.Generator | None = None,
+               ahead: _BlockAhead | None = None) -> Iterator[SampledLog]:
     """The step's DAQ log, generated block by block (:func:`generation_block`).
 
     Every random draw comes from ``rng`` in block order and every stateful stage (the floor's
@@ -343,7 +344,8 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
     (one-shot synthesis of a short record) receives the deferred noise-free entries;
     ``drift_rng`` draws the sensors' bias drift (``SensorModel.bias_drift``). The next block's
     rigid motion (no random draw) is computed on a worker thread while a block draws; a
-    one-block record computes it in line (no thread).
+    one-block record computes it in line (no thread). ``ahead``: a one-block record's floor
+    rocking and time stamps, drawn ahead (:func:`synthesise`); ``rng`` then draws the rest.
     """
     clock = setup.clock
     n = _daq_samples(setup)
@@ -365,10 +367,12 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
             for carried in state.sensors.values():  # the last block ends every filter
                 carried.final = start + block >= n
             channels = _daq_block(setup, grid, start, rng, state,
-                                  truth if block == n else None, current)
+                                  truth if block == n else None, current, ahead)
             del current
-            yield SampledLog(DAQ, clock.sample_rate_hz, _stamped(clock, start, grid.n, rng),
-                             _read_only(channels), units, quanta)
+            stamps = (ahead.stamps.result() if ahead is not None
+                      else _stamped(clock, start, grid.n, rng))
+            yield SampledLog(DAQ, clock.sample_rate_hz, stamps, _read_only(channels), units,
+                             quanta)
 
 
 def _rigid_soon(pool: ThreadPoolExecutor | None, setup: StepSetup, first: int,
@@ -387,16 +391,25 @@ def _block_grid(clock: DaqClock, first: int, m: int) -> Grid:
     return Grid(clock.t0_s + first * clock.lab_dt_s, clock.lab_dt_s, m)
 
 
+@dataclass(frozen=True)
+class _BlockAhead:
+    """A one-block DAQ record's draws that need no motion, made ahead on a worker thread:
+    the floor's rocking (:func:`floor_rocking_block`) and the time stamps (:func:`_stamped`)."""
+
+    floor: Future[tuple[np.ndarray | None, np.ndarray | None]]
+    stamps: Future[np.ndarray]
+
+
 def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generator,
-               state: _DaqState, truth: LazyTruth | None,
-               rigid: _RigidBlock) -> dict[str, np.ndarray]:
+               state: _DaqState, truth: LazyTruth | None, rigid: _RigidBlock,
+               ahead: _BlockAhead | None = None) -> dict[str, np.ndarray]:
     """Channels of one generation block starting at DAQ sample ``first``."""
     model, clock = setup.model, setup.clock
     temperature = rigid.temperature_c
     channels: dict[str, np.ndarray] = {}
     motion: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-    floor, state.floor_zi = floor_rocking_block(model.table, grid.n, clock.lab_dt_s, rng,
-                                                state.floor_zi)
+    floor, state.floor_zi = (ahead.floor.result() if ahead is not None else floor_rocking_block(
+        model.table, grid.n, clock.lab_dt_s, rng, state.floor_zi))
     for sensor in model.sensors:
         delay = _sensor_delay_s(model, sensor)
         if delay not in motion:
@@ -439,6 +452,11 @@ def _stamped(clock: DaqClock, first: int, n: int, rng: np.random.Generator) -> n
         * TIMESTAMP_TICK_S
 
 
+def _stamp_uniforms(clock: DaqClock, n: int) -> int:
+    """Uniforms :func:`_stamped` draws for ``n`` samples."""
+    return normal_uniforms(n) if clock.jitter_s else 0
+
+
 def floor_rocking_block(table: TableModel, n: int, dt_s: float, rng: np.random.Generator,
                         zi: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Building vibration (2, n) °/s² of the next block, continuing the band-pass state ``zi``
@@ -450,6 +468,17 @@ def floor_rocking_block(table: TableModel, n: int, dt_s: float, rng: np.random.G
     start = zi if zi is not None else np.zeros((2, max(len(a), len(b)) - 1))
     rocking, state = signal.lfilter(b, a, white, axis=1, zi=start)
     return rocking * (table.floor_vibration_rms_dps2 / gain), state
+
+
+def _floor_uniforms(table: TableModel, n: int) -> int:
+    """Uniforms :func:`floor_rocking_block` draws for ``n`` samples."""
+    return normal_uniforms(2 * n) if table.floor_vibration_rms_dps2 > 0.0 else 0
+
+
+def _record_uniforms(sensor: SensorModel, daq: DaqModel, n: int) -> int:
+    """Uniforms :func:`_record_block` draws for ``n`` samples of a channel."""
+    extra = any(x is not None and x.rms_v for x in (sensor.excess_noise, daq.slip_ring))
+    return normal_uniforms(n) * ((1 if sensor.noise_rms_v else 0) + (1 if extra else 0))
 
 
 def _record_block(clean_v: np.ndarray, sensor: SensorModel, daq: DaqModel, dt_s: float,
@@ -493,12 +522,13 @@ def _accel_truth(truth: LazyTruth, channels: list[str]) -> dict[str, np.ndarray]
 
 
 def _daq_log(setup: StepSetup, rng: np.random.Generator,
-             drift_rng: np.random.Generator | None = None) -> tuple[SampledLog, LazyTruth]:
+             drift_rng: np.random.Generator | None = None,
+             ahead: _BlockAhead | None = None) -> tuple[SampledLog, LazyTruth]:
     """The whole DAQ log at once: the concatenation of :func:`daq_blocks`."""
     clock = setup.clock
     n = _daq_samples(setup)
     truth = LazyTruth(daq_time_s=Grid(clock.t0_s, clock.lab_dt_s, n).times - setup.trigger_time_s)
-    blocks = list(daq_blocks(setup, rng, truth, drift_rng))
+    blocks = list(daq_blocks(setup, rng, truth, drift_rng, ahead))
     return concatenate_logs(blocks), truth
 
 
@@ -550,15 +580,23 @@ _BothLogs = tuple[SampledLog, dict[str, Any], SampledLog, LazyTruth]
 
 def _one_stream(setup: StepSetup, rng: np.random.Generator,
                 drift_rng: np.random.Generator | None) -> _BothLogs:
-    """Both logs from one stream, concurrently; serially again from the saved states when the
-    table log drew otherwise than :func:`_table_uniforms` says (same numbers either way)."""
+    """Both logs from one stream, concurrently; serially again from the saved states when a
+    log drew otherwise than counted (:func:`_table_uniforms`, :func:`_daq_ahead`)."""
     saved_rng = rng.bit_generator.state
     saved_drift = drift_rng.bit_generator.state if drift_rng is not None else None
-    tape = UniformTape(rng, _table_uniforms(setup))
+    table_tape = UniformTape(rng, _table_uniforms(setup))
     pulse = _table_pulse(setup, _table_times(setup), rng)
+    tapes = [table_tape]
     try:
-        logs = _concurrently(setup, cast(np.random.Generator, tape), pulse, rng, drift_rng)
-        if tape.exhausted:
+        if generation_block(_daq_samples(setup)) < _daq_samples(setup):  # several blocks
+            logs = _concurrently(setup, cast(np.random.Generator, table_tape), pulse, rng,
+                                 drift_rng)
+        else:
+            tapes += _daq_tapes(setup, rng)
+            logs = _concurrently(setup, cast(np.random.Generator, table_tape), pulse,
+                                 cast(np.random.Generator, tapes[2]), drift_rng,
+                                 (tapes[1], tapes[3]))
+        if all(tape.exhausted for tape in tapes):
             return logs
     except DrawsDiffer:
         pass
@@ -569,13 +607,31 @@ def _one_stream(setup: StepSetup, rng: np.random.Generator,
     return table, table_truth, *_daq_log(setup, rng, drift_rng)
 
 
+def _daq_tapes(setup: StepSetup, rng: np.random.Generator) -> list[UniformTape]:
+    """A one-block DAQ record's uniforms in the order it draws them: the floor's rocking,
+    every channel's noise (:func:`_record_block`), the time stamps' jitter."""
+    n, model = _daq_samples(setup), setup.model
+    return [UniformTape(rng, _floor_uniforms(model.table, n)),
+            UniformTape(rng, sum(_record_uniforms(s, model.daq, n) for s in model.sensors)),
+            UniformTape(rng, _stamp_uniforms(setup.clock, n))]
+
+
 def _concurrently(setup: StepSetup, table_rng: np.random.Generator,
                   pulse: tuple[np.ndarray, np.ndarray] | None, daq_rng: np.random.Generator,
-                  drift_rng: np.random.Generator | None) -> _BothLogs:
-    """The table log on a worker thread, the DAQ log on this one."""
+                  drift_rng: np.random.Generator | None,
+                  ahead: tuple[UniformTape, UniformTape] | None = None) -> _BothLogs:
+    """The table log (and a one-block DAQ record's floor rocking and time stamps, drawn from
+    the tapes ``ahead``) on a worker thread, the DAQ log on this one."""
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
+        block = None
+        if ahead is not None:  # first what the DAQ log needs soonest
+            n, clock = _daq_samples(setup), setup.clock
+            floor = pool.submit(floor_rocking_block, setup.model.table, n, clock.lab_dt_s,
+                                cast(np.random.Generator, ahead[0]), None)
+            stamps = pool.submit(_stamped, clock, 0, n, cast(np.random.Generator, ahead[1]))
+            block = _BlockAhead(floor, stamps)
         table = pool.submit(_table_log, setup, table_rng, pulse)
-        daq, truth = _daq_log(setup, daq_rng, drift_rng)
+        daq, truth = _daq_log(setup, daq_rng, drift_rng, block)
         return *table.result(), daq, truth
 
 
