@@ -15,9 +15,10 @@ from twin_steps import rate_step, sine_step, static_step
 
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.twin import synthesis
+from aatest.twin import step_synthesis, synthesis
 from aatest.twin.defaults import realistic_rig_model
-from aatest.twin.synthesis import StepSetup, _daq_log, _table_log, synthesise
+from aatest.twin.step_synthesis import synthesise
+from aatest.twin.synthesis import StepSetup, _daq_log, _table_log
 from aatest.twin.world import World
 
 
@@ -56,7 +57,7 @@ def _counted_table_logs(monkeypatch: pytest.MonkeyPatch) -> list[object]:
         calls.append(rng)
         return real(setup, rng, *args)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(synthesis, "_table_log", counted)
+    monkeypatch.setattr(step_synthesis, "_table_log", counted)
     return calls
 
 
@@ -69,7 +70,7 @@ def test_overlapped_synthesis_equals_the_sequential_one(
     overlapped = synthesise(setup, np.random.default_rng(5),
                             drift_rng=np.random.default_rng(6))
     # drawn ahead and concurrent: one table log, from the tape (no serial redo)
-    assert len(calls) == 1 and isinstance(calls[0], synthesis.UniformTape)
+    assert len(calls) == 1 and isinstance(calls[0], step_synthesis.UniformTape)
     _same(overlapped.table, table)
     _same(overlapped.daq, daq)
     for key in ("angle_deg", "accel_dps2", "daq_time_s", "volts_v_sz", "alpha_v_sz"):
@@ -77,8 +78,8 @@ def test_overlapped_synthesis_equals_the_sequential_one(
         assert np.array_equal(overlapped.truth[key], expected), key
 
 
-@pytest.mark.parametrize("count", ["_table_uniforms", "_floor_uniforms", "_record_uniforms",
-                                   "_stamp_uniforms"])
+@pytest.mark.parametrize("count", ["table_uniforms", "floor_uniforms", "record_uniforms",
+                                   "stamp_uniforms"])
 @pytest.mark.parametrize("extra", [2, -2], ids=["too-many", "too-few"])
 def test_a_miscounted_draw_ahead_redoes_the_step_serially(
         count: str, extra: int, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -86,8 +87,8 @@ def test_a_miscounted_draw_ahead_redoes_the_step_serially(
     redone from the saved stream states: slower, the same numbers."""
     setup = _setup(STEPS[0])
     table, _, daq, _ = _serial(setup)
-    counted = getattr(synthesis, count)
-    monkeypatch.setattr(synthesis, count, lambda *a: counted(*a) + extra)
+    counted = getattr(step_synthesis, count)
+    monkeypatch.setattr(step_synthesis, count, lambda *a: counted(*a) + extra)
     calls = _counted_table_logs(monkeypatch)
     redone = synthesise(setup, np.random.default_rng(5), drift_rng=np.random.default_rng(6))
     assert len(calls) == 2 and isinstance(calls[1], np.random.Generator)

@@ -1,7 +1,7 @@
 """Uniform random numbers drawn ahead of the computation that consumes them.
 
 Why: a short step's table log and DAQ log draw from one generator, the table log's draws
-first (:func:`aatest.twin.synthesis.synthesise`). Those draws are cheap; the computation
+first (:func:`aatest.twin.step_synthesis.synthesise`). Those draws are cheap; the computation
 around them (the axes' motion on the table grid, the estimates) is not. Drawing the table
 log's uniforms first, in one call, hands the generator on to the DAQ log at once, so the two
 logs compute on two threads while every number drawn stays the one a serial synthesis
