@@ -9,17 +9,18 @@ random draw of the step, the outer axis and the temperature, the floor's rocking
 stamps, then the whole table log.
 
 Same numbers: a short step's two logs draw from one stream, the table log's draws first
-(World.result). The worker draws all of them up front, in that order, onto tapes
-(:mod:`aatest.twin.drawn_ahead`: ``random(a + b)`` is ``random(a)`` then ``random(b)``), so
-what each consumer gets does not depend on which thread computes when; a consumer that draws
-other than counted makes the step redo itself serially from the saved stream states (slower,
-the same bytes). A long record's DAQ log has a stream of its own and only runs beside the
-table log. The worker is joined before :func:`synthesise` returns (no thread outlives a step,
-so the analysis may fork afterwards).
+(:meth:`aatest.twin.world.World.result`). The worker draws all of them up front, in that
+order, onto tapes (:mod:`aatest.twin.drawn_ahead`: ``random(a + b)`` is ``random(a)`` then
+``random(b)``), so what each consumer gets does not depend on which thread computes when; a
+consumer that draws other than counted makes the step redo itself serially from the saved
+stream states (slower, the same bytes). A long record's DAQ log has a stream of its own and
+only runs beside the table log. The worker is joined before :func:`synthesise` returns (no
+thread outlives a step, so the analysis may fork afterwards).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, cast
@@ -166,7 +167,8 @@ def _tape(tape: UniformTape) -> np.random.Generator:
     return cast(np.random.Generator, tape)
 
 
-def _later(drawn: Future[_Drawn], pick: Any) -> Future[np.random.Generator]:
+def _later(drawn: Future[_Drawn],
+           pick: Callable[[_Drawn], np.random.Generator]) -> Future[np.random.Generator]:
     """A future of ``pick(drawn)``, done when ``drawn`` is (no thread of its own)."""
     result: Future[np.random.Generator] = Future()
 
