@@ -17,6 +17,8 @@ Where each part lives (data flows top to bottom):
 - ``chamber``     set-point steps, first-order sensor lag, stabilisation
 - ``grid`` / ``fastmath``  uniform-grid phasors, fast trig and noise (the benchmark's budget)
 - ``synthesis``   one step's table log, DAQ log and truth, all vectorised
+- ``step_synthesis`` / ``drawn_ahead``  a step's pieces on two threads, every number drawn
+                  in the serial order (uniforms drawn ahead onto tapes)
 - ``world``       the rig state in virtual lab time, shared by the simulated plugins
 - ``session``     ``TwinSession``: the one World of a rig, shared through ``RigContext.resources``
 - ``defaults``    the realistic rig: sensor error terms built from a datasheet, table, logger

@@ -5,16 +5,17 @@ each axis (analytic in lab time), the DAQ clock and the sensor temperature. The 
 sampled on the table clock from the trigger on; the DAQ log on its own crystal clock from
 ``start_lead_s`` before the trigger to ``stop_lag_s`` after the table log ends.
 
-Two threads, one result: the table top's rigid motion on the DAQ grid draws nothing at random,
-so it is computed on a worker thread (:func:`_rigid_block`) while the table log, then the
-DAQ's noise, draw from the step's streams in their fixed order; the worker is joined before
-:func:`synthesise` returns (no thread outlives a step, so the analysis may fork afterwards).
+How a step's pieces are spread over two threads with the numbers a serial synthesis draws:
+:mod:`aatest.twin.step_synthesis`. A long record computes the next block's rigid motion (no
+random draw) on a worker while a block draws (:func:`daq_blocks`), and joins it before the
+last block is returned (no thread outlives a record, so the analysis may fork afterwards).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
@@ -28,6 +29,7 @@ from aatest.twin import kinematics as kin
 from aatest.twin.chamber import ThermalState
 from aatest.twin.clocks import TIMESTAMP_TICK_S, DaqClock, table_sync
 from aatest.twin.daq import antialias_filter, noiseless, quantise_adc
+from aatest.twin.drawn_ahead import normal_uniforms
 from aatest.twin.fastmath import standard_normal
 from aatest.twin.grid import Grid, sincos_deg
 from aatest.twin.model import DaqModel, RigModel, SensorModel, TableModel
@@ -114,7 +116,11 @@ class SimulatedStep:
     truth: LazyTruth
 
 
-def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, dict[str, Any]]:
+def _table_log(setup: StepSetup, rng: np.random.Generator,
+               pulse: tuple[np.ndarray, np.ndarray] | None = None,
+               ) -> tuple[SampledLog, dict[str, Any]]:
+    """The table log and its truth; ``pulse`` (:func:`_table_pulse`, drawn last) when the
+    caller has drawn it already."""
     step, tm = setup.step, setup.model.table
     dt = 1.0 / step.sample_rate_hz
     grid = Grid(setup.trigger_time_s - STENCIL_PAD * dt, dt, step.samples + 2 * STENCIL_PAD)
@@ -134,8 +140,9 @@ def _table_log(setup: StepSetup, rng: np.random.Generator) -> tuple[SampledLog, 
         truth[f"{name}_angle_deg"] = angle[inner_slice]
         truth[f"{name}_rate_dps"] = rate[inner_slice]
         truth[f"{name}_accel_dps2"] = accel[inner_slice]
-    time_s = np.arange(step.samples) * dt
-    channels["sync_pulse"], channels["fp_latch_s"] = _table_pulse(setup, time_s, rng)
+    time_s = table_times(setup)
+    channels["sync_pulse"], channels["fp_latch_s"] = (
+        pulse if pulse is not None else _table_pulse(setup, time_s, rng))
     moving = "outer" if step.axis == "outer" else "inner"
     truth.update(time_s=time_s, angle_deg=truth[f"{moving}_angle_deg"],
                  rate_dps=truth[f"{moving}_rate_dps"], accel_dps2=truth[f"{moving}_accel_dps2"])
@@ -225,13 +232,25 @@ def _with_floor(motion: TopMotion, floor: np.ndarray | None) -> tuple[np.ndarray
     return alpha, up
 
 
-def _rigid_motion(setup: StepSetup, grid: Grid) -> TopMotion:
+#: the outer axis on one grid: ((angle °, rate °/s, acceleration °/s²), (sin, cos) of the angle)
+OuterAxis = tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def _outer_axis(setup: StepSetup, grid: Grid) -> OuterAxis:
+    """The outer axis' share of :func:`_rigid_motion` (thread-safe: reads ``setup`` only)."""
+    evaluated = setup.outer.evaluate(grid)
+    profile = setup.outer.profile
+    return evaluated, sincos_deg(evaluated[0], profile.moving, profile.start_deg)
+
+
+def _rigid_motion(setup: StepSetup, grid: Grid,
+                  outer: Callable[[], OuterAxis] | None = None) -> TopMotion:
     """The table top's motion without the floor's rocking: every term that draws nothing at
-    random, so it can be computed before (or while) the random streams are drawn."""
+    random, so it can be computed before (or while) the random streams are drawn. ``outer``
+    gives the outer axis' share when another thread computes it (asked after the inner's)."""
     th_i, w_i, a_i = setup.inner.evaluate(grid)
-    th_o, w_o, a_o = setup.outer.evaluate(grid)
     sc_i = sincos_deg(th_i, setup.inner.profile.moving, setup.inner.profile.start_deg)
-    sc_o = sincos_deg(th_o, setup.outer.profile.moving, setup.outer.profile.start_deg)
+    (_, w_o, a_o), sc_o = outer() if outer is not None else _outer_axis(setup, grid)
     alpha = kin.angular_acceleration_top(sc_i, w_i, a_i, w_o, a_o, setup.gimbal)
     table = setup.model.table
     if table.unbalance_parasitic_dps2_per_dps2 and setup.outer.profile.moving:
@@ -264,14 +283,40 @@ class _RigidBlock:
     motion: dict[float, TopMotion]
 
 
-def _rigid_block(setup: StepSetup, grid: Grid) -> _RigidBlock:
-    """:class:`_RigidBlock` of one generation block (thread-safe: reads ``setup`` only)."""
-    motion: dict[float, TopMotion] = {}
-    for sensor in setup.model.sensors:
-        delay = _sensor_delay_s(setup.model, sensor)
-        if delay not in motion:  # (the floor noise is not re-timed by the tiny delays)
-            motion[delay] = _rigid_motion(setup, grid.shifted(-delay))
-    return _RigidBlock(setup.thermal.temperature_at(grid.times), motion)
+@dataclass(frozen=True)
+class OuterPart:
+    """The share of a block's :class:`_RigidBlock` another thread can compute while this one
+    computes the inner axis: per sensor delay the outer axis, and the sensor temperature."""
+
+    outer: dict[float, OuterAxis]
+    temperature_c: np.ndarray
+
+
+def _delays(setup: StepSetup) -> list[float]:
+    """The distinct sensor delays (s) of the rig, in sensor order."""
+    return list(dict.fromkeys(_sensor_delay_s(setup.model, s) for s in setup.model.sensors))
+
+
+def outer_part(setup: StepSetup, grid: Grid) -> OuterPart:
+    """:class:`OuterPart` of a block on the lab-time ``grid`` (thread-safe)."""
+    return OuterPart({d: _outer_axis(setup, grid.shifted(-d)) for d in _delays(setup)},
+                     setup.thermal.temperature_at(grid.times))
+
+
+def _rigid_block(setup: StepSetup, grid: Grid,
+                 part: Future[OuterPart] | None = None) -> _RigidBlock:
+    """:class:`_RigidBlock` of one generation block (thread-safe: reads ``setup`` only);
+    ``part``: its :class:`OuterPart`, being computed on another thread."""
+    if part is None:
+        part = Future()
+        part.set_result(outer_part(setup, grid))
+    motion = {delay: _rigid_motion(setup, grid.shifted(-delay), partial(_outer_of, part, delay))
+              for delay in _delays(setup)}  # (the floor noise is not re-timed by the tiny delays)
+    return _RigidBlock(part.result().temperature_c, motion)
+
+
+def _outer_of(part: Future[OuterPart], delay: float) -> OuterAxis:
+    return part.result().outer[delay]
 
 
 def _top_rate(setup: StepSetup, grid: Grid) -> np.ndarray:
@@ -325,15 +370,17 @@ def daq_units(setup: StepSetup) -> tuple[dict[str, str], dict[str, tuple[float, 
 
 def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | None = None,
                drift_rng: np.random.Generator | None = None,
-               first: Future[_RigidBlock] | None = None) -> Iterator[SampledLog]:
+               ahead: BlockAhead | None = None) -> Iterator[SampledLog]:
     """The step's DAQ log, generated block by block (:func:`generation_block`).
 
     Every random draw comes from ``rng`` in block order and every stateful stage (the floor's
     band-pass, the sensor dynamics, the anti-alias filter, the bias drift) continues across
     blocks, so the concatenated blocks do not depend on how a consumer groups them. ``truth``
     (one-shot synthesis of a short record) receives the deferred noise-free entries;
-    ``drift_rng`` draws the sensors' bias drift (``SensorModel.bias_drift``); ``first`` is the
-    first block's :func:`_rigid_block`, being computed on another thread (:func:`synthesise`).
+    ``drift_rng`` draws the sensors' bias drift (``SensorModel.bias_drift``). The next block's
+    rigid motion (no random draw) is computed on a worker thread while a block draws; a
+    one-block record computes it in line (no thread). ``ahead``: what a one-block record's
+    caller computes and draws on another thread (:class:`BlockAhead`); ``rng`` is then unused.
     """
     clock = setup.clock
     n = _daq_samples(setup)
@@ -343,22 +390,37 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
     state = _DaqState(sensors={s.channel: ChannelState(drift_rng=drift)
                                for s in setup.model.sensors})
     starts = range(0, max(n, 1), block)
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
-        rigid = first if first is not None else pool.submit(
-            _rigid_block, setup, _block_grid(clock, 0, min(block, n)))
+    with ExitStack() as stack:
+        pool = (stack.enter_context(ThreadPoolExecutor(
+            max_workers=1, thread_name_prefix="aatest-twin")) if len(starts) > 1 else None)
+        rigid = _rigid_soon(pool, setup, 0, min(block, n),
+                            ahead.outer if ahead is not None else None)
         for start in starts:
             grid = _block_grid(clock, start, min(block, n - start))
             current = rigid.result()
             if start + block < n:  # the next block's rigid motion, while this one draws
-                rigid = pool.submit(_rigid_block, setup, _block_grid(
-                    clock, start + block, min(block, n - start - block)))
+                rigid = _rigid_soon(pool, setup, start + block, min(block, n - start - block))
             for carried in state.sensors.values():  # the last block ends every filter
                 carried.final = start + block >= n
-            channels = _daq_block(setup, grid, start, rng, state,
-                                  truth if block == n else None, current)
+            channels = _daq_block(setup, grid, start,
+                                  ahead.record.result() if ahead is not None else rng, state,
+                                  truth if block == n else None, current, ahead)
             del current
-            yield SampledLog(DAQ, clock.sample_rate_hz, _stamped(clock, start, grid.n, rng),
-                             _read_only(channels), units, quanta)
+            stamps = (ahead.stamps.result() if ahead is not None
+                      else _stamped(clock, start, grid.n, rng))
+            yield SampledLog(DAQ, clock.sample_rate_hz, stamps, _read_only(channels), units,
+                             quanta)
+
+
+def _rigid_soon(pool: ThreadPoolExecutor | None, setup: StepSetup, first: int, m: int,
+                part: Future[OuterPart] | None = None) -> Future[_RigidBlock]:
+    """:func:`_rigid_block` of DAQ samples ``first``… on ``pool``, or now without one."""
+    grid = _block_grid(setup.clock, first, m)
+    if pool is not None:
+        return pool.submit(_rigid_block, setup, grid)
+    done: Future[_RigidBlock] = Future()
+    done.set_result(_rigid_block(setup, grid, part))
+    return done
 
 
 def _block_grid(clock: DaqClock, first: int, m: int) -> Grid:
@@ -366,16 +428,28 @@ def _block_grid(clock: DaqClock, first: int, m: int) -> Grid:
     return Grid(clock.t0_s + first * clock.lab_dt_s, clock.lab_dt_s, m)
 
 
+@dataclass(frozen=True)
+class BlockAhead:
+    """What a one-block DAQ record takes from another thread: the outer axis and temperature
+    (:func:`outer_part`), the floor's rocking (:func:`floor_rocking_block`), the time stamps
+    (:func:`_stamped`) and the uniforms of the channels' noise (:func:`record_uniforms`)."""
+
+    outer: Future[OuterPart]
+    floor: Future[tuple[np.ndarray | None, np.ndarray | None]]
+    stamps: Future[np.ndarray]
+    record: Future[np.random.Generator]
+
+
 def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generator,
-               state: _DaqState, truth: LazyTruth | None,
-               rigid: _RigidBlock) -> dict[str, np.ndarray]:
+               state: _DaqState, truth: LazyTruth | None, rigid: _RigidBlock,
+               ahead: BlockAhead | None = None) -> dict[str, np.ndarray]:
     """Channels of one generation block starting at DAQ sample ``first``."""
     model, clock = setup.model, setup.clock
     temperature = rigid.temperature_c
     channels: dict[str, np.ndarray] = {}
     motion: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-    floor, state.floor_zi = floor_rocking_block(model.table, grid.n, clock.lab_dt_s, rng,
-                                                state.floor_zi)
+    floor, state.floor_zi = (ahead.floor.result() if ahead is not None else floor_rocking_block(
+        model.table, grid.n, clock.lab_dt_s, rng, state.floor_zi))
     for sensor in model.sensors:
         delay = _sensor_delay_s(model, sensor)
         if delay not in motion:
@@ -418,6 +492,11 @@ def _stamped(clock: DaqClock, first: int, n: int, rng: np.random.Generator) -> n
         * TIMESTAMP_TICK_S
 
 
+def stamp_uniforms(clock: DaqClock, n: int) -> int:
+    """Uniforms :func:`_stamped` draws for ``n`` samples."""
+    return normal_uniforms(n) if clock.jitter_s else 0
+
+
 def floor_rocking_block(table: TableModel, n: int, dt_s: float, rng: np.random.Generator,
                         zi: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Building vibration (2, n) °/s² of the next block, continuing the band-pass state ``zi``
@@ -429,6 +508,17 @@ def floor_rocking_block(table: TableModel, n: int, dt_s: float, rng: np.random.G
     start = zi if zi is not None else np.zeros((2, max(len(a), len(b)) - 1))
     rocking, state = signal.lfilter(b, a, white, axis=1, zi=start)
     return rocking * (table.floor_vibration_rms_dps2 / gain), state
+
+
+def floor_uniforms(table: TableModel, n: int) -> int:
+    """Uniforms :func:`floor_rocking_block` draws for ``n`` samples."""
+    return normal_uniforms(2 * n) if table.floor_vibration_rms_dps2 > 0.0 else 0
+
+
+def record_uniforms(sensor: SensorModel, daq: DaqModel, n: int) -> int:
+    """Uniforms :func:`_record_block` draws for ``n`` samples of a channel."""
+    extra = any(x is not None and x.rms_v for x in (sensor.excess_noise, daq.slip_ring))
+    return normal_uniforms(n) * ((1 if sensor.noise_rms_v else 0) + (1 if extra else 0))
 
 
 def _record_block(clean_v: np.ndarray, sensor: SensorModel, daq: DaqModel, dt_s: float,
@@ -473,12 +563,12 @@ def _accel_truth(truth: LazyTruth, channels: list[str]) -> dict[str, np.ndarray]
 
 def _daq_log(setup: StepSetup, rng: np.random.Generator,
              drift_rng: np.random.Generator | None = None,
-             first: Future[_RigidBlock] | None = None) -> tuple[SampledLog, LazyTruth]:
+             ahead: BlockAhead | None = None) -> tuple[SampledLog, LazyTruth]:
     """The whole DAQ log at once: the concatenation of :func:`daq_blocks`."""
     clock = setup.clock
     n = _daq_samples(setup)
     truth = LazyTruth(daq_time_s=Grid(clock.t0_s, clock.lab_dt_s, n).times - setup.trigger_time_s)
-    blocks = list(daq_blocks(setup, rng, truth, drift_rng, first))
+    blocks = list(daq_blocks(setup, rng, truth, drift_rng, ahead))
     return concatenate_logs(blocks), truth
 
 
@@ -501,25 +591,16 @@ def _undelayed(setup: StepSetup, grid: Grid, motion: dict[float, tuple[np.ndarra
     return motion[0.0][0]
 
 
-def synthesise(setup: StepSetup, rng: np.random.Generator,
-               daq_rng: np.random.Generator | None = None,
-               drift_rng: np.random.Generator | None = None) -> SimulatedStep:
-    """Table log, DAQ log and truth of one step (all vectorised).
+def table_times(setup: StepSetup) -> np.ndarray:
+    """Table log time stamps (s from the trigger), as :func:`_table_log` makes them."""
+    return np.arange(setup.step.samples) * (1.0 / setup.step.sample_rate_hz)
 
-    ``daq_rng`` (default: ``rng`` after the table log) draws the DAQ log, ``drift_rng`` the
-    sensors' bias drift; a streamed record uses the same two streams (:func:`daq_blocks`).
-    """
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
-        # the DAQ's first block of rigid motion (no random draw) on the second core while
-        # the table log draws: both draw from ``rng`` in a fixed order, the motion from none
-        first = pool.submit(_rigid_block, setup, _block_grid(
-            setup.clock, 0, generation_block(_daq_samples(setup))))
-        table, table_truth = _table_log(setup, rng)
-        daq, truth = _daq_log(setup, daq_rng if daq_rng is not None else rng, drift_rng,
-                              first)
-    truth.update(table_truth)
-    truth["drift_ppm"] = setup.clock.drift_ppm
-    # t_table_log = offset + t_daq·(1 + drift): the DAQ's sample 0 precedes the trigger
-    truth["offset_s"] = setup.clock.t0_s - setup.trigger_time_s
-    truth["temperature_c"] = float(setup.thermal.temperature_at(setup.trigger_time_s))
-    return SimulatedStep(table=table, daq=daq, truth=truth)
+
+def table_uniforms(setup: StepSetup) -> int:
+    """Uniforms the table log's estimates draw (:func:`aatest.twin.table.estimates`: the
+    estimate noise, then the encoder noise, of each axis with that noise, on the padded grid);
+    its pulse, drawn after them, is not counted."""
+    m = setup.step.samples + 2 * STENCIL_PAD
+    table = setup.model.table
+    return sum(normal_uniforms(m) for axis in (table.inner, table.outer)
+               for sigma in (axis.estimate_noise_deg, axis.encoder_noise_deg) if sigma > 0.0)

@@ -25,6 +25,7 @@ from aatest.twin.clocks import DaqClock
 from aatest.twin.grid import Grid
 from aatest.twin.model import RigModel
 from aatest.twin.profiles import AxisProfile, step_profiles
+from aatest.twin.step_synthesis import synthesise
 from aatest.twin.synthesis import (
     SINGLE_BLOCK_MAX,
     SimulatedStep,
@@ -32,7 +33,6 @@ from aatest.twin.synthesis import (
     concatenate_logs,
     daq_blocks,
     daq_record_samples,
-    synthesise,
     table_log,
 )
 from aatest.twin.table import AxisTruth, Tones, make_vibration, tracked
