@@ -1,0 +1,46 @@
+"""The sync pass hands its workers the sine steps of one frequency together.
+
+Why it matters: a watched FRF point's segment fit needs a pseudo-inverse that depends only on
+the frequency and record length; a worker computes it once and keeps it, so steps of one
+frequency in one worker compute it once, not once per worker
+(:func:`aatest.plugins.analysis.synced_steps.relations`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis.synced_steps import _batches
+from aatest.recording.dataset import LazySteps
+
+
+def _steps(planned: list[PlannedStep]) -> LazySteps:
+    def load(index: int, source: str, channels: Any) -> Any:
+        raise AssertionError("batching decodes nothing")
+
+    return LazySteps(planned, load, [{} for _ in planned])
+
+
+def _sine(step_id: str, frequency_hz: float, group: str) -> PlannedStep:
+    return PlannedStep(id=step_id, kind="sine", axis="inner", frequency_hz=frequency_hz,
+                       group=group)
+
+
+def test_sine_steps_of_one_frequency_share_a_batch_and_other_steps_stand_alone() -> None:
+    planned = [_sine("a1", 1.0, "a"), _sine("a2", 2.0, "a"),
+               PlannedStep(id="s1", kind="static"), PlannedStep(id="s2", kind="static"),
+               _sine("b1", 1.0, "b"), _sine("b2", 2.0, "b"), _sine("b3", 3.0, "b"),
+               _sine("c2", 2.0, "c")]
+    steps = _steps(planned)
+    assert _batches(steps, range(len(planned))) == [[0, 4], [1, 5, 7], [2], [3], [6]]
+    # a subset and any order: each batch keeps the order given, batches their first step's
+    assert _batches(steps, [7, 6, 1, 0, 2]) == [[7, 1], [6], [0], [2]]
+
+
+def test_every_index_is_in_exactly_one_batch() -> None:
+    planned = [_sine(f"s{i}", float(1 + i % 5), f"g{i // 5}") for i in range(23)]
+    indices = list(range(23))[::-1]
+    batches = _batches(_steps(planned), indices)
+    assert sorted(i for batch in batches for i in batch) == sorted(indices)
+    assert all(len({planned[i].frequency_hz for i in batch}) == 1 for batch in batches)
