@@ -1,6 +1,7 @@
-"""The sync pass hands its workers the sine steps of one frequency together.
+"""How the sync pass shares out its work: the sine steps of one frequency go to a worker
+together, and each step decodes only the channels its watches read.
 
-Why it matters: a watched FRF point's segment fit needs a pseudo-inverse that depends only on
+Why batches: a watched FRF point's segment fit needs a pseudo-inverse that depends only on
 the frequency and record length; a worker computes it once and keeps it, so steps of one
 frequency in one worker compute it once, not once per worker
 (:func:`aatest.plugins.analysis.synced_steps.relations`).
@@ -44,3 +45,27 @@ def test_every_index_is_in_exactly_one_batch() -> None:
     batches = _batches(_steps(planned), indices)
     assert sorted(i for batch in batches for i in batch) == sorted(indices)
     assert all(len({planned[i].frequency_hz for i in batch}) == 1 for batch in batches)
+
+
+def test_the_phase_trend_asks_only_the_moving_axis_motion_of_a_step() -> None:
+    """What the trend reads of a sine step (its moving axis' position and acceleration) is
+    all the sync pass decodes for it: the other axis' delta-coded encoder is left alone."""
+    from pathlib import Path
+
+    from aatest.engine.datasheet import SensorInfo
+    from aatest.plugins.analysis.sync_trend import watch_trends
+    from aatest.plugins.analysis.sync_watches import _REGISTERED
+    from aatest.recording.dataset import Dataset
+
+    inner = _sine("i", 1.0, "a")
+    outer = PlannedStep(id="o", kind="sine", axis="outer", frequency_hz=1.0, group="a")
+    steps = _steps([inner, outer])
+    data = Dataset(procedure="p", sample_rate_hz=2000.0, sensors=(SensorInfo(channel="v_z"),),
+                   steps=steps, source=Path("."))
+    watch_trends(data)
+    watches = _REGISTERED[steps]
+    assert watches.channels(inner)["table"] == [
+        "sync_pulse", "fp_latch_s", "inner_position_deg", "inner_accel_dps2"]
+    assert watches.channels(outer)["table"] == [
+        "sync_pulse", "fp_latch_s", "outer_position_deg", "outer_accel_dps2"]
+    assert watches.channels(outer)["daq"] == ["sync_pulse", "trigger", "v_z"]
