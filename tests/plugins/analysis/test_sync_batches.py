@@ -34,8 +34,9 @@ def test_sine_steps_of_one_frequency_share_a_batch_and_other_steps_stand_alone()
                _sine("b1", 1.0, "b"), _sine("b2", 2.0, "b"), _sine("b3", 3.0, "b"),
                _sine("c2", 2.0, "c")]
     steps = _steps(planned)
-    assert _batches(steps, range(len(planned))) == [[0, 4], [1, 5, 7], [2], [3], [6]]
-    # a subset and any order: each batch keeps the order given, batches their first step's
+    # the largest batch first (the workers then finish together), else by first step
+    assert _batches(steps, range(len(planned))) == [[1, 5, 7], [0, 4], [2], [3], [6]]
+    # a subset and any order: each batch keeps the order given
     assert _batches(steps, [7, 6, 1, 0, 2]) == [[7, 1], [6], [0], [2]]
 
 

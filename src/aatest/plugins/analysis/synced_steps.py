@@ -203,12 +203,13 @@ def _attempt(steps: LazySteps, index: int
 
 def _batches(steps: LazySteps, indices: Sequence[int]) -> list[list[int]]:
     """``indices`` cut into the pass's work items: the sine steps of one frequency and rate
-    together (their FRF fits share one design), every other step alone; in the order of
-    each item's first step."""
+    together (their FRF fits share one design), every other step alone. The largest items
+    go first (then in the order of their first step), so the workers finish together: the
+    last items handed out are the shortest."""
     items: dict[Any, list[int]] = {}
     for index in indices:
         step = steps.planned[index]
         key = ((step.frequency_hz, step.sample_rate_hz) if step.kind == "sine"
                and step.frequency_hz else ("step", index))
         items.setdefault(key, []).append(index)
-    return list(items.values())
+    return sorted(items.values(), key=len, reverse=True)
