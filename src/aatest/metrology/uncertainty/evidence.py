@@ -120,13 +120,14 @@ def local_noise_rel(x: np.ndarray, cycles: int) -> float | None:
     n = x.size
     if cycles < 1 or n < 8 * cycles:
         return None
-    spec = np.fft.rfft(x - np.mean(x)) * 2.0 / n
+    raw = np.fft.rfft(x - np.mean(x))
     near = np.concatenate([cycles - _NEAR_BINS, cycles + _NEAR_BINS])
-    near = near[(near > 0) & (near < spec.size) & (near % cycles != 0)]
-    fundamental = abs(spec[cycles])
+    near = near[(near > 0) & (near < raw.size) & (near % cycles != 0)]
+    # only the bins read are scaled to peak amplitudes (the same operations on each)
+    fundamental = abs(raw[cycles] * 2.0 / n)
     if near.size == 0 or fundamental <= 0:
         return None
-    return float(np.sqrt(np.mean(np.abs(spec[near]) ** 2) / 2.0) / fundamental)
+    return float(np.sqrt(np.mean(np.abs(raw[near] * 2.0 / n) ** 2) / 2.0) / fundamental)
 
 
 #: a 0/1 logic channel (the DAQ's trigger) is high above half its swing
@@ -145,9 +146,10 @@ def _table_start_on_daq(record: Any, spare: int) -> int:
     """
     trigger = record.daq.channels.get("trigger")
     if trigger is not None:
-        high = np.flatnonzero(np.asarray(trigger, dtype=float) > _LOGIC_HIGH)
-        if high.size and 0 <= high[0] <= spare:
-            return int(high[0])
+        high = np.asarray(trigger, dtype=float) > _LOGIC_HIGH
+        first = int(np.argmax(high))  # the first high sample (0 when none is)
+        if high.size and high[first] and first <= spare:
+            return first
     return spare // 2
 
 

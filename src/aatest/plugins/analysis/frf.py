@@ -219,9 +219,11 @@ def _segments(record: np.ndarray, length: int, hop: int, count: int) -> np.ndarr
     return windows[:(count - 1) * hop + 1:hop]
 
 
+@functools.lru_cache(maxsize=32)
 def _overlap_correlation(length: int, hop: int) -> float:
     """Correlation of white noise's fundamental estimates in two segments ``hop`` apart
-    (Σ w[n]·w[n+hop] / Σ w², Hann w: 1/6 at 50 % overlap)."""
+    (Σ w[n]·w[n+hop] / Σ w², Hann w: 1/6 at 50 % overlap; cached like the layout's
+    projector: a stepped sine repeats each layout in every group)."""
     w = _periodic_hann(length)
     return float(np.dot(w[hop:], w[:length - hop]) / np.dot(w, w)) if hop < length else 0.0
 

@@ -37,16 +37,22 @@ class SyncedWatch:
     Parameters
     ----------
     channels
-        The table and DAQ channels the reduction reads, by source (``"table"``/``"daq"``).
+        The table and DAQ channels the reduction reads, by source (``"table"``/``"daq"``);
+        or a function giving them for a planned step (a reduction that reads only the
+        moving axis' channels: the other axis' are then not decoded).
     applies
         Whether the reduction is wanted for a planned step.
     reduce
         The reduction of the synchronised step.
     """
 
-    channels: Mapping[str, Collection[str]]
+    channels: Mapping[str, Collection[str]] | Callable[[PlannedStep], Mapping[str, Collection[str]]]
     applies: Callable[[PlannedStep], bool]
     reduce: Callable[[SyncedStep], Any]
+
+    def channels_of(self, step: PlannedStep) -> Mapping[str, Collection[str]]:
+        """The channels the reduction reads of ``step``, by source."""
+        return self.channels(step) if callable(self.channels) else self.channels
 
 
 @dataclass(frozen=True)
@@ -71,9 +77,9 @@ class _Watches:
         return [(n, w) for n, w in self.watches.items() if step.recorded and w.applies(step)]
 
     def channels(self, step: PlannedStep) -> dict[str, list[str]]:
-        due = [w for _, w in self._due(step)]
+        due = [w.channels_of(step) for _, w in self._due(step)]
         return {source: list(dict.fromkeys([*SYNC_CHANNELS[source], *(
-            name for w in due for name in w.channels.get(source, ()))]))
+            name for channels in due for name in channels.get(source, ()))]))
             for source in ("table", "daq")}
 
     def applies(self, step: PlannedStep) -> bool:

@@ -166,10 +166,50 @@ def relations(steps: LazySteps, indices: Sequence[int],
     the GIL for much of it; measured on the 2-core machine, two threads gained ≤ 5 %, two
     forked workers ≈ 45 % (``bench/end_to_end.py``). Each step's relation and watched results
     depend only on that step, so they are the same whatever the worker; the workers hand the
-    watched results back (:meth:`LazySteps.kept`) and this process keeps them. The error of
-    the first failing step in order is the one raised (:func:`parallel_map`).
+    watched results back (:meth:`LazySteps.kept`) and this process keeps them.
+
+    Why the steps go to the workers in batches of one frequency (:func:`_batches`): a
+    watched FRF point's segment fit is the pseudo-inverse of a design that depends only on
+    the frequency and the record length, computed once per worker and kept
+    (:func:`aatest.plugins.analysis.frf._segment_projector`); a stepped sine repeats each
+    frequency in every group, so step by step both workers computed nearly every one of
+    them, batch by batch one worker does. The error of the first failing step in order is
+    the one raised, here, with its own traceback: a step that failed in a worker is computed
+    again in this process.
     """
-    made = parallel_map(lambda i: (_relation_of(steps, i), steps.kept(i)), indices, workers)
-    for index, (_, kept) in zip(indices, made, strict=True):
+    batches = _batches(steps, indices)
+    made = parallel_map(lambda batch: [_attempt(steps, i) for i in batch], batches, workers)
+    attempts = {i: found for batch, out in zip(batches, made, strict=True)
+                for i, found in zip(batch, out, strict=True)}
+    related: list[tuple[int, ClockRelation]] = []
+    for index in indices:
+        found = attempts[index]
+        relation, kept = found if found is not None else (_relation_of(steps, index),
+                                                          steps.kept(index))
         steps.keep(index, kept)
-    return [(index, relation) for index, (relation, _) in zip(indices, made, strict=True)]
+        related.append((index, relation))
+    return related
+
+
+def _attempt(steps: LazySteps, index: int
+             ) -> tuple[ClockRelation, dict[str, Any]] | None:
+    """The clock relation and watched results of step ``index``, or None when it raised
+    (the caller computes it again and meets the error with its traceback)."""
+    try:
+        return _relation_of(steps, index), steps.kept(index)
+    except Exception:  # noqa: BLE001 - raised again by the caller's own call, in order
+        return None
+
+
+def _batches(steps: LazySteps, indices: Sequence[int]) -> list[list[int]]:
+    """``indices`` cut into the pass's work items: the sine steps of one frequency and rate
+    together (their FRF fits share one design), every other step alone. The largest items
+    go first (then in the order of their first step), so the workers finish together: the
+    last items handed out are the shortest."""
+    items: dict[Any, list[int]] = {}
+    for index in indices:
+        step = steps.planned[index]
+        key = ((step.frequency_hz, step.sample_rate_hz) if step.kind == "sine"
+               and step.frequency_hz else ("step", index))
+        items.setdefault(key, []).append(index)
+    return sorted(items.values(), key=len, reverse=True)
