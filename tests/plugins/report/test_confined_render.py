@@ -99,3 +99,15 @@ def test_a_child_started_ahead_renders_with_the_same_limits_or_is_ended(tmp_path
         render_confined("evil.html.j2", _lab(tmp_path, "{% for i in range(10**8) %}"
                         "{% for j in range(10**8) %}{% endfor %}{% endfor %}"), {}, cpu_s=1)
     assert not confined._WAITING
+
+
+def test_a_block_inside_another_starts_no_second_child(tmp_path: Path) -> None:
+    from aatest.plugins.report import confined
+
+    lab = _lab(tmp_path, "<p>{{ x }}</p>")
+    with confined.prestarted():
+        with confined.prestarted():
+            assert len(confined._WAITING) == 1
+            assert render_confined("evil.html.j2", lab, {"x": 7}) == "<p>7</p>"
+        assert not confined._WAITING
+    assert not confined._WAITING

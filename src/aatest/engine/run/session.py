@@ -194,15 +194,31 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     lab = lab_duration_s if lab_duration_s is not None else sum(
         s.step.lab_duration_s for s in data.steps
     )
-    results = build_results(data, analysis, lab, wall_duration_s or 0.0)
-    for key, value in (extra_metadata or {}).items():
-        setattr(results.metadata, key, value)
-    setattr(results.metadata, KIND_KEY, kind_of(metadata_of(results)))  # never a calibration
-    results = decide(results, data)
-    out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
-    render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
+    with report_prepared(report_name):
+        results = build_results(data, analysis, lab, wall_duration_s or 0.0)
+        for key, value in (extra_metadata or {}).items():
+            setattr(results.metadata, key, value)
+        setattr(results.metadata, KIND_KEY, kind_of(metadata_of(results)))  # never a calibration
+        results = decide(results, data)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
     return results
+
+
+def report_prepared(template: str) -> contextlib.AbstractContextManager[Any]:
+    """The report plugin's optional ``preparing()`` (see :func:`_render`) around the whole
+    report phase: results, uncertainty and verdicts, then the render, so what the plugin starts
+    there overlaps all of that work. A plugin that does not load prepares nothing here (the
+    render then says why it cannot run).
+    """
+    try:
+        info = registry.load("report", template)
+        reporter = info.target(registry.configure(info, {}))
+    except AatestError:
+        return contextlib.nullcontext()
+    preparing = getattr(reporter, "preparing", None)
+    return preparing() if callable(preparing) else contextlib.nullcontext()
 
 
 def acceptance_of(metadata: Mapping[str, Any]) -> Acceptance:
