@@ -153,11 +153,16 @@ def _analyse_and_report(prepared: Any, out: Path, phases: Phases) -> None:
 
     data, analysis = phases.time("analyse", analyse)
 
+    template = prepared.plan.report_template or "calibration-certificate"
+    # the report plugin prepares its render over the whole phase, as `aatest run` does (a
+    # checkout from before session.report_prepared has none)
+    report_prepared = getattr(session, "report_prepared", lambda _: contextlib.nullcontext())
+
     def report() -> None:
-        results = build_results(data, analysis, prepared.plan.lab_duration_s, 0.0)
-        results = session.decide(results, data)
-        session.render_and_sign(results, out, prepared.plan.report_template or
-                                "calibration-certificate", None, None)
+        with report_prepared(template):
+            results = build_results(data, analysis, prepared.plan.lab_duration_s, 0.0)
+            results = session.decide(results, data)
+            session.render_and_sign(results, out, template, None, None)
 
     phases.time("report", report)
 

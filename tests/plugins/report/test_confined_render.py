@@ -81,3 +81,33 @@ def test_shipped_certificate_renders_confined(results: dict[str, Any], run_dir: 
     fast = CalibrationCertificate(CalibrationCertificate.Config(plots=False))
     html = fast.render(results, run_dir, None).read_text()
     assert "Calibration certificate" in html
+
+
+def test_a_child_started_ahead_renders_with_the_same_limits_or_is_ended(tmp_path: Path
+                                                                        ) -> None:
+    from aatest.plugins.report import confined
+
+    lab = _lab(tmp_path, "<p>{{ x }}</p>")
+    with confined.prestarted():
+        (_, ahead), = confined._WAITING
+        assert render_confined("evil.html.j2", lab, {"x": 41 + 1}) == "<p>42</p>"
+        assert ahead.returncode == 0 and not confined._WAITING  # that child answered
+    with confined.prestarted():
+        (_, unused), = confined._WAITING
+    assert unused.returncode is not None and not confined._WAITING  # ended, not left behind
+    with confined.prestarted(), pytest.raises(TemplateSecurityError, match=r"evil\.html\.j2"):
+        render_confined("evil.html.j2", _lab(tmp_path, "{% for i in range(10**8) %}"
+                        "{% for j in range(10**8) %}{% endfor %}{% endfor %}"), {}, cpu_s=1)
+    assert not confined._WAITING
+
+
+def test_a_block_inside_another_starts_no_second_child(tmp_path: Path) -> None:
+    from aatest.plugins.report import confined
+
+    lab = _lab(tmp_path, "<p>{{ x }}</p>")
+    with confined.prestarted():
+        with confined.prestarted():
+            assert len(confined._WAITING) == 1
+            assert render_confined("evil.html.j2", lab, {"x": 7}) == "<p>7</p>"
+        assert not confined._WAITING
+    assert not confined._WAITING

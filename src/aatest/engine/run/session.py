@@ -6,6 +6,7 @@ results → report → signature
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
@@ -23,7 +24,7 @@ from aatest.engine.analysis.results_file import (
     read_results,
     write_results,
 )
-from aatest.engine.errors import InputError
+from aatest.engine.errors import AatestError, InputError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run import bundle_hooks
@@ -193,15 +194,31 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     lab = lab_duration_s if lab_duration_s is not None else sum(
         s.step.lab_duration_s for s in data.steps
     )
-    results = build_results(data, analysis, lab, wall_duration_s or 0.0)
-    for key, value in (extra_metadata or {}).items():
-        setattr(results.metadata, key, value)
-    setattr(results.metadata, KIND_KEY, kind_of(metadata_of(results)))  # never a calibration
-    results = decide(results, data)
-    out_dir.mkdir(parents=True, exist_ok=True)
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
-    render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
+    with report_prepared(report_name):
+        results = build_results(data, analysis, lab, wall_duration_s or 0.0)
+        for key, value in (extra_metadata or {}).items():
+            setattr(results.metadata, key, value)
+        setattr(results.metadata, KIND_KEY, kind_of(metadata_of(results)))  # never a calibration
+        results = decide(results, data)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        render_and_sign(results, out_dir, report_name, template_dir, key_path, pdf)
     return results
+
+
+def report_prepared(template: str) -> contextlib.AbstractContextManager[Any]:
+    """The report plugin's optional ``preparing()`` (see :func:`_render`) around the whole
+    report phase: results, uncertainty and verdicts, then the render, so what the plugin starts
+    there overlaps all of that work. A plugin that does not load prepares nothing here (the
+    render then says why it cannot run).
+    """
+    try:
+        info = registry.load("report", template)
+        reporter = info.target(registry.configure(info, {}))
+    except AatestError:
+        return contextlib.nullcontext()
+    preparing = getattr(reporter, "preparing", None)
+    return preparing() if callable(preparing) else contextlib.nullcontext()
 
 
 def acceptance_of(metadata: Mapping[str, Any]) -> Acceptance:
@@ -270,14 +287,25 @@ def render_and_sign(
 
 def _render(results: RunResults, run_dir: Path, template: str, template_dir: Path | None,
             pdf: bool) -> Path:
-    """results.json and the report plugin's files (and PDF) in the local ``run_dir``."""
-    write_results(results, run_dir)
-    info = registry.load("report", template)
-    reporter = info.target(registry.configure(info, {}))
-    if pdf and not isinstance(reporter, PdfRenderer):
-        raise InputError(f"report '{template}' cannot print a PDF (its plugin has no "
-                         "render_pdf); run without --pdf or choose another report")
-    report: Path = reporter.render(results, run_dir, template_dir)
+    """results.json and the report plugin's files (and PDF) in the local ``run_dir``.
+
+    A report plugin may prepare its render while results.json is written (its optional
+    ``preparing()``, a context manager: the HTML reports start their confined render process
+    there, whose imports then overlap this process's work).
+    """
+    try:
+        info = registry.load("report", template)
+        reporter = info.target(registry.configure(info, {}))
+    except AatestError:
+        write_results(results, run_dir)  # the results stand even when the report cannot
+        raise
+    preparing = getattr(reporter, "preparing", None)
+    with preparing() if callable(preparing) else contextlib.nullcontext():
+        write_results(results, run_dir)
+        if pdf and not isinstance(reporter, PdfRenderer):
+            raise InputError(f"report '{template}' cannot print a PDF (its plugin has no "
+                             "render_pdf); run without --pdf or choose another report")
+        report: Path = reporter.render(results, run_dir, template_dir)
     if pdf and isinstance(reporter, PdfRenderer):
         reporter.render_pdf(report)
     return report

@@ -330,9 +330,24 @@ def group_model(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: Sen
     Discrete models describe sensor and logger lumped (as measured); the physical
     second-order-plus-delay model has the logger's known pre-sample filter de-embedded.
     """
-    f = np.array([p.frequency_hz for p in points])
-    h = np.array([complex(p.re, p.im) for p in points])
-    xc, fs = _xcorr(steps, sensor)
+    xcorr = _xcorr(steps, sensor)
+    values, svg = _discrete_model(points, xcorr, sensor, options)
+    return _with_physical(values, _physical_model(points, xcorr, antialias_hz)), svg
+
+
+def _group_frf(points: list[FrfPoint]) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies (Hz) and complex responses of a group's FRF points."""
+    return (np.array([p.frequency_hz for p in points]),
+            np.array([complex(p.re, p.im) for p in points]))
+
+
+def _discrete_model(points: list[FrfPoint], xcorr: tuple[dict[str, float], float],
+                    sensor: SensorInfo, options: TransferFunctionOptions | None
+                    ) -> tuple[dict[str, Any], str]:
+    """The chosen discrete model of a group (every value but the physical model) and its Bode
+    figure; ``xcorr`` is the group's :func:`_xcorr`."""
+    f, h = _group_frf(points)
+    xc, fs = xcorr
     dt = 1.0 / fs
     model, rows, k = estimate(f, h, dt, xc, options)
     best = rows[k]
@@ -345,11 +360,20 @@ def group_model(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: Sen
         "fit_id_pct": best["fit_id_pct"], "zeros_outside_unit_circle":
         best["zeros_outside_unit_circle"], "xcorr": xc,
         "continuous": continuous_equivalent(model), "candidates": rows,
-        "second_order_delay": second_order_delay_fit(
-            f, h / antialias_response(f, antialias_hz), xc["delay_s"]) | {
-            "deembedded_antialias_hz": antialias_hz},
     }
     return values, _bode(f, h, model, f"{sensor.channel} n={best['n']} m={best['m']}")
+
+
+def _physical_model(points: list[FrfPoint], xcorr: tuple[dict[str, float], float],
+                    antialias_hz: float | None) -> dict[str, Any]:
+    """The group's second-order-plus-delay fit, the logger's pre-sample filter de-embedded."""
+    f, h = _group_frf(points)
+    return second_order_delay_fit(f, h / antialias_response(f, antialias_hz),
+                                  xcorr[0]["delay_s"]) | {"deembedded_antialias_hz": antialias_hz}
+
+
+def _with_physical(values: dict[str, Any], physical: dict[str, Any]) -> dict[str, Any]:
+    return {**values, "second_order_delay": physical}
 
 
 def _frf_points(context: AnalysisContext) -> dict[str, list[FrfPoint]]:
@@ -399,23 +423,34 @@ def sensor_models(points: Mapping[str, list[FrfPoint]], steps: Sequence[SyncedSt
     """:func:`channel_models` of every sensor, by channel.
 
     The groups of all sensors are fitted side by side on forked workers in one
-    :func:`parallel_map` (each group's candidate scan and Bode figure depend only on that
-    group): the stepped sine's five groups took ≈ 3.5 s of the analysis phase in one
-    process, and one map over both sensors' groups keeps both workers busy to the end
+    :func:`parallel_map` (each group's candidate scan, Bode figure and physical model depend
+    only on that group): the stepped sine's five groups took ≈ 3.5 s of the analysis phase in
+    one process, and one map over both sensors' groups keeps both workers busy to the end
     (a map per sensor left one idle on each sensor's odd group).
     """
     fitted = {s.channel: _fitted_groups(points.get(s.channel, []), options) for s in sensors}
-    items = [(i, g) for i, s in enumerate(sensors) for g in fitted[s.channel]]
+    groups = [(i, g) for i, s in enumerate(sensors) for g in fitted[s.channel]]
+    # each group is two items, its discrete models with their figure (≈ 5× the CPU) and its
+    # physical model, the long ones first: the map's workers then end together, where five
+    # whole groups on two workers left one idle for a group's time (measured: ≈ 0.5 s)
+    items = [(kind, i, g) for kind in ("discrete", "physical") for i, g in groups]
+    # both items of a group read its correlation: summed here once (the sync pass made the
+    # steps' terms, and hands each out once), the workers inherit it
+    xcorrs = {(i, g): _xcorr(select(steps, _in_group(g, sensors[i])), sensors[i])
+              for i, g in groups}
 
-    def fit(item: tuple[int, str]) -> tuple[dict[str, Any], str]:
-        sensor, g = sensors[item[0]], item[1]
-        return group_model([p for p in points.get(sensor.channel, []) if p.group == g],
-                           select(steps, _in_group(g, sensor)), sensor, antialias_hz, options)
+    def fit(item: tuple[str, int, str]) -> Any:
+        kind, i, g = item
+        mine = [p for p in points.get(sensors[i].channel, []) if p.group == g]
+        if kind == "discrete":
+            return _discrete_model(mine, xcorrs[i, g], sensors[i], options)
+        return _physical_model(mine, xcorrs[i, g], antialias_hz)
 
-    made = parallel_map(fit, items)
+    done = dict(zip(items, parallel_map(fit, items), strict=True))
     out = {}
     for i, s in enumerate(sensors):
-        mine = [m for (k, _), m in zip(items, made, strict=True) if k == i]
+        mine = [(_with_physical(done["discrete", i, g][0], done["physical", i, g]),
+                 done["discrete", i, g][1]) for g in fitted[s.channel]]
         out[s.channel] = _channel_row(points.get(s.channel, []), s, fitted[s.channel], mine)
     return out
 

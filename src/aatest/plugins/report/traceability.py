@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 import aatest
-from aatest.bundle.signing import file_sha256
 from aatest.results import RunResults
 from aatest.results.root import RunMetadata
 from aatest.results.sensor import SensorInfo
@@ -86,6 +85,8 @@ def _table_serial(results: RunResults) -> str:
 def recording_hash(run_dir: Path) -> str:
     """SHA-256 of the run's recording, or a plain statement that there is none."""
     path = Path(run_dir) / RECORDING_FILE
+    from aatest.bundle.signing import file_sha256  # lazily: the render child needs none
+
     return file_sha256(path) if path.is_file() else "no recording.mcap in the run directory"
 
 
