@@ -67,7 +67,7 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
     if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
         return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
     ratio = _code_ratio(exact, step, offset)
-    if ratio <= _RECIPROCAL_SAFE_CODES:  # False for NaN and inf
+    if _admits_reciprocal(ratio):
         integers = np.int32 if ratio <= _INT32_SAFE_CODES else np.int64
         return coded_by_reciprocal(exact, step, offset, starts, integers, ratio + 1.0)
     return coded_by_division(exact, step, offset, starts)
@@ -98,7 +98,13 @@ def reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
     ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
     encoder); codes and ``limit`` are dimensionless.
     """
-    return bool(_code_ratio(exact, step, offset) <= _RECIPROCAL_SAFE_CODES)
+    return _admits_reciprocal(_code_ratio(exact, step, offset))
+
+
+def _admits_reciprocal(ratio: float) -> bool:
+    """The bound of :func:`reciprocal_is_exact` on a channel's :func:`_code_ratio` (the one
+    place it is tested; False for NaN and inf)."""
+    return bool(ratio <= _RECIPROCAL_SAFE_CODES)
 
 
 def coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: np.ndarray,
@@ -114,7 +120,7 @@ def coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: n
     scaled = np.subtract(exact, offset) if offset else np.multiply(exact, 1.0 / step)
     if offset:
         np.multiply(scaled, 1.0 / step, out=scaled)
-    np.round(scaled, out=scaled)
+    np.rint(scaled, out=scaled)  # what np.round does for 0 decimals, without its wrapper
     codes = scaled.astype(integers)
     back = np.multiply(scaled, step, out=scaled)  # the code as a float64 is exact (< 2^53)
     if offset:
@@ -177,44 +183,68 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     ``0 … w−1`` of its columns; the planes are cut by shifts of the narrow integers, which
     reads memory in order (a transposed copy of the bytes is 2–3× slower).
     """
-    longest = int(np.diff(np.append(starts, codes.size)).max())
+    sizes = np.diff(starts, append=codes.size)
     # a block's sum of |codes| or |differences| is below 2·limit·longest: int32 sums of int32
     # codes are exact below 2^31 and 4× faster than int64 ones (NumPy widens int32 otherwise)
-    sums = np.int32 if codes.dtype == np.int32 and 2.0 * limit * longest < 2**31 else np.int64
+    sums = (np.int32 if codes.dtype == np.int32 and 2.0 * limit * int(sizes.max()) < 2**31
+            else np.int64)
     steps = np.empty_like(codes)
     np.subtract(codes[1:], codes[:-1], out=steps[1:])
     steps[starts] = codes[starts]  # each block's first difference is from 0
     magnitude = np.abs(codes)
     code_sum = np.add.reduceat(magnitude, starts, dtype=sums)
-    code_top = np.maximum.reduceat(magnitude, starts)
-    np.abs(steps, out=magnitude)
-    delta = np.add.reduceat(magnitude, starts, dtype=sums) < code_sum
-    top = np.where(delta, np.maximum.reduceat(magnitude, starts), code_top)
-    del magnitude
+    step_magnitude = np.abs(steps)
+    delta = np.add.reduceat(step_magnitude, starts, dtype=sums) < code_sum
+    top = np.maximum.reduceat(step_magnitude, starts)
+    if not delta.all():  # the codes' own top only where they are stored (rarely)
+        top = np.where(delta, top, np.maximum.reduceat(magnitude, starts))
+    del magnitude, step_magnitude
     chosen = steps if delta.all() else codes if not delta.any() else np.where(
-        np.repeat(delta, np.diff(np.append(starts, codes.size))), steps, codes)
+        np.repeat(delta, sizes), steps, codes)
     widths = [_width(t) for t in top.tolist()]
     widest = max(w for w, ok in zip(widths, exact, strict=True) if ok)
-    # codes of blocks that are not exact may not fit: their bytes are never used
-    narrow = chosen.astype(f"<i{widest}").view(f"<u{widest}")
+    # codes of blocks that are not exact may not fit: their bytes are never used (no copy
+    # when the codes are of the widest width already)
+    narrow = chosen.astype(f"<i{widest}", copy=False).view(f"<u{widest}")
     if widest == 1:
         planes = narrow.view(np.uint8).reshape(1, -1)
     else:
         planes = np.empty((widest, codes.size), dtype=np.uint8)
         planes[0] = narrow  # the low byte (a truncating cast)
-        for byte in range(1, widest):
-            planes[byte] = narrow >> (8 * byte)
+        for byte in range(1, widest):  # the shifted bytes, cast straight into their row
+            np.right_shift(narrow, 8 * byte, out=planes[byte], casting="unsafe")
     return _Choice(delta.tolist(), widths, planes)
+
+
+#: samples a pass of :class:`ChannelEncoder` codes at once (whole blocks, at least one). Why
+#: not the whole channel: a pass makes ≈ 7 whole-array steps over the values, their codes,
+#: differences and magnitudes (≈ 30 bytes a sample); 8 blocks of 4096 samples keep them in a
+#: core's L2 cache, where 2^17 samples spilled it to memory at every step
+_PASS_SAMPLES = 32_768
+
+
+def _passes(bounds: list[int]) -> list[tuple[int, int]]:
+    """``(first, stop)`` block numbers of consecutive passes over blocks ``bounds[b] …
+    bounds[b + 1]``: as many whole blocks as fit :data:`_PASS_SAMPLES`, at least one."""
+    passes, first = [], 0
+    while first < len(bounds) - 1:
+        stop = first + 1
+        while stop < len(bounds) - 1 and bounds[stop + 1] - bounds[first] <= _PASS_SAMPLES:
+            stop += 1
+        passes.append((first, stop))
+        first = stop
+    return passes
 
 
 class ChannelEncoder:
     """Serialised ``Channel`` messages of one channel, block by block, built from whole arrays.
 
     Codes where exact (delta-coded where that is smaller: smooth signals, counters), else
-    float64 values; the codes, widths and byte planes of every block are found in one
-    vectorised pass. The scalar fields (``name``, ``unit``, ``dtype``, ``quantum``,
-    ``offset``, ``delta``, ``width``, ``shuffled``) are serialised by protobuf, so each
-    message is byte for byte what ``SerializeToString`` gives.
+    float64 values; the codes, widths and byte planes are found by vectorised passes over a
+    few blocks at a time (:data:`_PASS_SAMPLES`; every choice is per block, so passes give
+    the bytes one pass over the whole channel gives). The scalar fields (``name``, ``unit``,
+    ``dtype``, ``quantum``, ``offset``, ``delta``, ``width``, ``shuffled``) are serialised by
+    protobuf, so each message is byte for byte what ``SerializeToString`` gives.
     """
 
     def __init__(self, name: str, unit: str, values: np.ndarray,
@@ -224,27 +254,51 @@ class ChannelEncoder:
         self._channel = channel
         head = channel(name=name, unit=unit, dtype=values.dtype.str)
         self._head: bytes = head.SerializeToString()
-        self._bounds = np.append(starts, values.size).tolist()
-        found = coded(values, quantum, starts)
-        self._exact = found.exact.tolist()
+        self._bounds: list[int] = np.append(starts, values.size).tolist()
+        self._exact: list[bool] = []
+        self._delta: list[bool] = []
+        self._widths: list[int] = []
+        #: per block: the byte planes of its pass and the pass's first sample
+        self._planes: list[tuple[np.ndarray, int] | None] = []
+        step_offset = (1.0, 0.0)
+        for first, stop in _passes(self._bounds):
+            origin, end = self._bounds[first], self._bounds[stop]
+            found = coded(values[origin:end], quantum, starts[first:stop] - origin)
+            step_offset = (found.quantum, found.offset)
+            self._add_pass(found, starts[first:stop] - origin, origin)
         self._tails: dict[bool, bytes] = {
-            delta: channel(quantum=found.quantum, offset=found.offset, delta=delta)
+            delta: channel(quantum=step_offset[0], offset=step_offset[1], delta=delta)
             .SerializeToString() for delta in (False, True)}
-        self._choice = (_choose(found.codes, starts, self._exact, found.limit)
-                        if any(self._exact) else None)
+
+    def _add_pass(self, found: _Coded, starts: np.ndarray, origin: int) -> None:
+        """Keep one pass's verdicts, choices and byte planes (``starts``: its blocks' first
+        samples, counted from the pass's first sample ``origin`` in the channel)."""
+        exact = found.exact.tolist()
+        self._exact += exact
+        if not any(exact):
+            self._delta += [False] * len(exact)
+            self._widths += [WIDTHS[-1]] * len(exact)
+            self._planes += [None] * len(exact)
+            return
+        choice = _choose(found.codes, starts, exact, found.limit)
+        self._delta += choice.delta
+        self._widths += choice.widths
+        self._planes += [(choice.planes, origin)] * len(exact)
 
     def parts(self, block: int) -> tuple[list[Any], int]:
         """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
         pieces (joined once, into the whole block), and their length in bytes."""
         first, last = self._bounds[block], self._bounds[block + 1]
-        if self._exact[block] and self._choice is not None:
-            width = self._choice.widths[block]
-            planes = [self._choice.planes[byte, first:last] for byte in range(width)]
+        planes = self._planes[block]
+        if self._exact[block] and planes is not None:
+            width = self._widths[block]
+            rows, origin = planes
+            pieces = [rows[byte, first - origin:last - origin] for byte in range(width)]
             size = width * (last - first)
             tail = _packing(self._channel, width, width > 1)
-            head = b"".join((self._head, self._tails[self._choice.delta[block]], _PACKED_KEY,
+            head = b"".join((self._head, self._tails[self._delta[block]], _PACKED_KEY,
                              proto.varint(size)))
-            return [head, *planes, tail], len(head) + size + len(tail)
+            return [head, *pieces, tail], len(head) + size + len(tail)
         raw = np.ascontiguousarray(self._values[first:last], dtype="<f8")
         if not raw.size:
             return [self._head], len(self._head)
