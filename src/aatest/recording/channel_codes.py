@@ -260,6 +260,7 @@ class ChannelEncoder:
         self._widths: list[int] = []
         #: per block: the byte planes of its pass and the pass's first sample
         self._planes: list[tuple[np.ndarray, int] | None] = []
+        self._frames: dict[tuple[bytes, bool, int, int], tuple[bytes, bytes]] = {}
         step_offset = (1.0, 0.0)
         for first, stop in _passes(self._bounds):
             origin, end = self._bounds[first], self._bounds[stop]
@@ -288,26 +289,48 @@ class ChannelEncoder:
     def parts(self, block: int) -> tuple[list[Any], int]:
         """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
         pieces (joined once, into the whole block), and their length in bytes."""
+        return self.field(block, b"")
+
+    def field(self, block: int, key: bytes) -> tuple[list[Any], int]:
+        """:meth:`parts` as the field ``key`` of a message: the field key and the message's
+        length first, then its pieces; and the whole field's length in bytes. The bytes
+        around the samples (key, length, scalar fields) are built once per kind of block."""
         first, last = self._bounds[block], self._bounds[block + 1]
         planes = self._planes[block]
         if self._exact[block] and planes is not None:
             width = self._widths[block]
+            frame = (key, self._delta[block], width, last - first)
+            head, tail = self._frames.get(frame) or self._frame(*frame)
             rows, origin = planes
-            pieces = [rows[byte, first - origin:last - origin] for byte in range(width)]
-            size = width * (last - first)
-            tail = _packing(self._channel, width, width > 1)
-            head = b"".join((self._head, self._tails[self._delta[block]], _PACKED_KEY,
-                             proto.varint(size)))
-            return [head, *pieces, tail], len(head) + size + len(tail)
+            start, stop = first - origin, last - origin
+            pieces = [head, *[rows[byte, start:stop] for byte in range(width)], tail]
+            return pieces, len(head) + width * (last - first) + len(tail)
         raw = np.ascontiguousarray(self._values[first:last], dtype="<f8")
         if not raw.size:
-            return [self._head], len(self._head)
-        head = b"".join((self._head, _VALUES_KEY, proto.varint(raw.nbytes)))
+            head = _keyed(key, self._head, 0)
+            return [head], len(head)
+        head = _keyed(key, b"".join((self._head, _VALUES_KEY, proto.varint(raw.nbytes))),
+                      raw.nbytes)
         return [head, raw], len(head) + raw.nbytes
+
+    def _frame(self, key: bytes, delta: bool, width: int, samples: int) -> tuple[bytes, bytes]:
+        """The bytes before and after the byte planes of a packed block (memoised)."""
+        size = width * samples
+        tail = _packing(self._channel, width, width > 1)
+        head = b"".join((self._head, self._tails[delta], _PACKED_KEY, proto.varint(size)))
+        head = _keyed(key, head, size + len(tail))
+        self._frames[(key, delta, width, samples)] = head, tail
+        return head, tail
 
     def message(self, block: int) -> bytes:
         """The serialised ``Channel`` of block number ``block``."""
         return b"".join(self.parts(block)[0])
+
+
+def _keyed(key: bytes, head: bytes, rest: int) -> bytes:
+    """``head`` of a message ``rest`` bytes longer, preceded by its field ``key`` and length
+    (as is, without a ``key``)."""
+    return b"".join((key, proto.varint(len(head) + rest), head)) if key else head
 
 
 #: code widths (bytes) of format v3, narrowest first
