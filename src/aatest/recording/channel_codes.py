@@ -14,8 +14,10 @@ of CPU (same bytes).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cache
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -64,7 +66,7 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
         return _Coded(values.astype(np.int64), np.ones(starts.size, dtype=bool), 1.0, 0.0)
     exact = values.astype(np.float64, copy=False)
     step, offset = quantum if quantum is not None else (1.0, 0.0)
-    if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
+    if not math.isfinite(step) or step <= 0.0 or not math.isfinite(offset):
         return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
     ratio = _code_ratio(exact, step, offset)
     if _admits_reciprocal(ratio):
@@ -78,9 +80,9 @@ def _code_ratio(exact: np.ndarray, step: float, offset: float) -> float:
     inf for a channel holding NaN or inf, or none at all)."""
     if exact.size == 0:
         return float("nan")
-    top = max(float(exact.max()), -float(exact.min()))
-    with np.errstate(over="ignore", invalid="ignore"):
-        return (top + 2.0 * abs(offset)) / step
+    top = max(float(np.maximum.reduce(exact)), -float(np.minimum.reduce(exact)))
+    # in Python floats an overflow is inf and NaN stays NaN, without NumPy's warnings
+    return (top + 2.0 * abs(float(offset))) / float(step)
 
 
 def reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
@@ -183,11 +185,11 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     ``0 … w−1`` of its columns; the planes are cut by shifts of the narrow integers, which
     reads memory in order (a transposed copy of the bytes is 2–3× slower).
     """
-    sizes = np.diff(starts, append=codes.size)
+    bounds = [*starts.tolist(), codes.size]
+    longest = max(stop - first for first, stop in pairwise(bounds))
     # a block's sum of |codes| or |differences| is below 2·limit·longest: int32 sums of int32
     # codes are exact below 2^31 and 4× faster than int64 ones (NumPy widens int32 otherwise)
-    sums = (np.int32 if codes.dtype == np.int32 and 2.0 * limit * int(sizes.max()) < 2**31
-            else np.int64)
+    sums = np.int32 if codes.dtype == np.int32 and 2.0 * limit * longest < 2**31 else np.int64
     steps = np.empty_like(codes)
     np.subtract(codes[1:], codes[:-1], out=steps[1:])
     steps[starts] = codes[starts]  # each block's first difference is from 0
@@ -195,12 +197,13 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     code_sum = np.add.reduceat(magnitude, starts, dtype=sums)
     step_magnitude = np.abs(steps)
     delta = np.add.reduceat(step_magnitude, starts, dtype=sums) < code_sum
+    choices = delta.tolist()  # (a few blocks: Python's all/any cost less than NumPy's)
     top = np.maximum.reduceat(step_magnitude, starts)
-    if not delta.all():  # the codes' own top only where they are stored (rarely)
+    if not all(choices):  # the codes' own top only where they are stored (rarely)
         top = np.where(delta, top, np.maximum.reduceat(magnitude, starts))
     del magnitude, step_magnitude
-    chosen = steps if delta.all() else codes if not delta.any() else np.where(
-        np.repeat(delta, sizes), steps, codes)
+    chosen = steps if all(choices) else codes if not any(choices) else np.where(
+        np.repeat(delta, np.diff(bounds)), steps, codes)
     widths = [_width(t) for t in top.tolist()]
     widest = max(w for w, ok in zip(widths, exact, strict=True) if ok)
     # codes of blocks that are not exact may not fit: their bytes are never used (no copy
@@ -213,14 +216,16 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
         planes[0] = narrow  # the low byte (a truncating cast)
         for byte in range(1, widest):  # the shifted bytes, cast straight into their row
             np.right_shift(narrow, 8 * byte, out=planes[byte], casting="unsafe")
-    return _Choice(delta.tolist(), widths, planes)
+    return _Choice(choices, widths, planes)
 
 
 #: samples a pass of :class:`ChannelEncoder` codes at once (whole blocks, at least one). Why
 #: not the whole channel: a pass makes ≈ 7 whole-array steps over the values, their codes,
-#: differences and magnitudes (≈ 30 bytes a sample); 8 blocks of 4096 samples keep them in a
-#: core's L2 cache, where 2^17 samples spilled it to memory at every step
-_PASS_SAMPLES = 32_768
+#: differences and magnitudes (≈ 30 bytes a sample); 16 blocks of 4096 samples keep most of
+#: them in a core's L2 cache, where 2^17 samples spilled it at every step. Why not fewer:
+#: a pass costs ≈ 40 µs of NumPy calls whatever its length (measured with
+#: bench/step_writer.py: 8 and 32 blocks a pass were slower)
+_PASS_SAMPLES = 65_536
 
 
 def _passes(bounds: list[int]) -> list[tuple[int, int]]:
@@ -340,7 +345,7 @@ WIDTHS = (1, 2, 4, 8)
 def _width(top: int) -> int:
     """The narrowest width whose signed integers hold every code of magnitude ≤ ``top`` (codes
     are below 2^53: the widest always does)."""
-    return next((w for w in WIDTHS[:-1] if top < 1 << (8 * w - 1)), WIDTHS[-1])
+    return 1 if top < 1 << 7 else 2 if top < 1 << 15 else 4 if top < 1 << 31 else 8
 
 
 @cache
