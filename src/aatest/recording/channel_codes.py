@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, lru_cache
 from itertools import pairwise
 from typing import Any
 
@@ -257,24 +257,25 @@ class ChannelEncoder:
         channel = proto.channel_class()
         self._values = values
         self._channel = channel
-        head = channel(name=name, unit=unit, dtype=values.dtype.str)
-        self._head: bytes = head.SerializeToString()
+        self._head = _serialised(channel, name=name, unit=unit, dtype=values.dtype.str)
         self._bounds: list[int] = np.append(starts, values.size).tolist()
         self._exact: list[bool] = []
         self._delta: list[bool] = []
         self._widths: list[int] = []
         #: per block: the byte planes of its pass and the pass's first sample
         self._planes: list[tuple[list[memoryview], int] | None] = []
-        self._frames: dict[tuple[bytes, bool, int, int], tuple[bytes, bytes]] = {}
         step_offset = (1.0, 0.0)
         for first, stop in _passes(self._bounds):
             origin, end = self._bounds[first], self._bounds[stop]
             found = coded(values[origin:end], quantum, starts[first:stop] - origin)
             step_offset = (found.quantum, found.offset)
             self._add_pass(found, starts[first:stop] - origin, origin)
-        self._tails: dict[bool, bytes] = {
-            delta: channel(quantum=step_offset[0], offset=step_offset[1], delta=delta)
-            .SerializeToString() for delta in (False, True)}
+        # name to delta, per encoder (not memoised: a cache would take an offset of −0.0 for
+        # 0.0, equal keys, and they serialise apart)
+        self._packed_heads = {
+            delta: self._head + channel(quantum=step_offset[0], offset=step_offset[1],
+                                        delta=delta).SerializeToString()
+            for delta in (False, True)}
 
     def _add_pass(self, found: _Coded, starts: np.ndarray, origin: int) -> None:
         """Keep one pass's verdicts, choices and byte planes (``starts``: its blocks' first
@@ -306,8 +307,8 @@ class ChannelEncoder:
         planes = self._planes[block]
         if self._exact[block] and planes is not None:
             width = self._widths[block]
-            frame = (key, self._delta[block], width, last - first)
-            head, tail = self._frames.get(frame) or self._frame(*frame)
+            head, tail = _frame(self._channel, self._packed_heads[self._delta[block]], key,
+                                width, last - first)
             rows, origin = planes
             start, stop = first - origin, last - origin
             pieces = [head, *[rows[byte][start:stop] for byte in range(width)], tail]
@@ -320,18 +321,27 @@ class ChannelEncoder:
                       raw.nbytes)
         return [head, raw], len(head) + raw.nbytes
 
-    def _frame(self, key: bytes, delta: bool, width: int, samples: int) -> tuple[bytes, bytes]:
-        """The bytes before and after the byte planes of a packed block (memoised)."""
-        size = width * samples
-        tail = _packing(self._channel, width, width > 1)
-        head = b"".join((self._head, self._tails[delta], _PACKED_KEY, proto.varint(size)))
-        head = _keyed(key, head, size + len(tail))
-        self._frames[(key, delta, width, samples)] = head, tail
-        return head, tail
 
     def message(self, block: int) -> bytes:
         """The serialised ``Channel`` of block number ``block``."""
         return b"".join(self.parts(block)[0])
+
+
+@lru_cache(maxsize=1024)
+def _serialised(channel: Any, **fields: Any) -> bytes:
+    """A ``Channel`` holding only ``fields``, serialised (memoised: the same few per run)."""
+    return bytes(channel(**fields).SerializeToString())
+
+
+@lru_cache(maxsize=1024)
+def _frame(channel: Any, head: bytes, key: bytes, width: int, samples: int
+           ) -> tuple[bytes, bytes]:
+    """The bytes before and after the byte planes of a packed block of ``samples`` codes
+    (memoised: every step of a run has the same few kinds of block). ``head``: the channel's
+    serialised fields before ``packed`` (name, unit, dtype, quantum, offset, delta)."""
+    size = width * samples
+    tail = _packing(channel, width, width > 1)
+    return _keyed(key, b"".join((head, _PACKED_KEY, proto.varint(size))), size + len(tail)), tail
 
 
 def _keyed(key: bytes, head: bytes, rest: int) -> bytes:
