@@ -167,12 +167,14 @@ _PACKED_KEY, _VALUES_KEY = proto.tag(_PACKED_FIELD), proto.tag(_VALUES_FIELD)
 @dataclass(frozen=True)
 class _Choice:
     """Per block of an exact channel: delta-coded or not, code width; and the chosen codes
-    of the whole channel as byte planes of the widest width (row ``b``: byte ``b`` of every
-    code, little-endian two's complement)."""
+    as byte planes of the widest width, block after block (a block of ``n`` codes starting
+    at sample ``s`` is ``widest·n`` bytes from ``widest·s`` on, its row ``b`` byte ``b`` of
+    every code, little-endian two's complement)."""
 
     delta: list[bool]
     widths: list[int]
-    planes: np.ndarray  # uint8, (widest width, samples)
+    planes: np.ndarray  # uint8, widest width × samples, block after block
+    widest: int
 
 
 def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
@@ -181,9 +183,10 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     and the byte planes, in whole-channel passes.
 
     Why planes of the widest width serve every block: a code that fits ``w`` bytes has the
-    same low ``w`` bytes in any wider two's complement, so a block of width ``w`` is rows
-    ``0 … w−1`` of its columns; the planes are cut by shifts of the narrow integers, which
-    reads memory in order (a transposed copy of the bytes is 2–3× slower).
+    same low ``w`` bytes in any wider two's complement, so a block of width ``w`` is its first
+    ``w`` rows, one run of bytes (the planes are laid out block after block: one piece of a
+    message, not ``w``). The planes are cut by shifts of the narrow integers, which reads
+    memory in order (a transposed copy of the bytes is 2–3× slower).
     """
     bounds = [*starts.tolist(), codes.size]
     longest = max(stop - first for first, stop in pairwise(bounds))
@@ -209,14 +212,26 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     # codes of blocks that are not exact may not fit: their bytes are never used (no copy
     # when the codes are of the widest width already)
     narrow = chosen.astype(f"<i{widest}", copy=False).view(f"<u{widest}")
-    if widest == 1:
-        planes = narrow.view(np.uint8).reshape(1, -1)
-    else:
-        planes = np.empty((widest, codes.size), dtype=np.uint8)
-        planes[0] = narrow  # the low byte (a truncating cast)
-        for byte in range(1, widest):  # the shifted bytes, cast straight into their row
-            np.right_shift(narrow, 8 * byte, out=planes[byte], casting="unsafe")
-    return _Choice(choices, widths, planes)
+    planes = narrow.view(np.uint8) if widest == 1 else _planes(narrow, bounds, widest)
+    return _Choice(choices, widths, planes, widest)
+
+
+def _planes(narrow: np.ndarray, bounds: list[int], widest: int) -> np.ndarray:
+    """The byte planes of ``narrow`` (unsigned, ``widest`` bytes) block after block: the
+    leading blocks of equal length in one strided pass per byte, any others one by one."""
+    planes = np.empty(widest * narrow.size, dtype=np.uint8)
+    size = bounds[1] - bounds[0]
+    equal = next((i for i, (a, b) in enumerate(pairwise(bounds)) if b - a != size),
+                 len(bounds) - 1)
+    runs = [(bounds[0], equal, size)] + [(a, 1, b - a) for a, b in pairwise(bounds[equal:])]
+    for first, blocks, length in runs:
+        source = narrow[first:first + blocks * length].reshape(blocks, length)
+        rows = planes[widest * first:widest * (first + blocks * length)].reshape(
+            blocks, widest, length)
+        rows[:, 0, :] = source  # the low byte (a truncating cast)
+        for byte in range(1, widest):  # the shifted bytes, cast straight into their rows
+            np.right_shift(source, 8 * byte, out=rows[:, byte, :], casting="unsafe")
+    return planes
 
 
 #: samples a pass of :class:`ChannelEncoder` codes at once (whole blocks, at least one). Why
@@ -262,8 +277,8 @@ class ChannelEncoder:
         self._exact: list[bool] = []
         self._delta: list[bool] = []
         self._widths: list[int] = []
-        #: per block: the byte planes of its pass and the pass's first sample
-        self._planes: list[tuple[list[memoryview], int] | None] = []
+        #: per block: the byte planes of its pass, the pass's first sample and widest width
+        self._planes: list[tuple[memoryview, int, int] | None] = []
         step_offset = (1.0, 0.0)
         for first, stop in _passes(self._bounds):
             origin, end = self._bounds[first], self._bounds[stop]
@@ -290,9 +305,8 @@ class ChannelEncoder:
         choice = _choose(found.codes, starts, exact, found.limit)
         self._delta += choice.delta
         self._widths += choice.widths
-        # one memoryview per plane: slicing and joining them costs a third of NumPy views
-        rows = [memoryview(plane) for plane in choice.planes]
-        self._planes += [(rows, origin)] * len(exact)
+        # a memoryview: slicing and joining it costs a third of a NumPy view
+        self._planes += [(memoryview(choice.planes), origin, choice.widest)] * len(exact)
 
     def parts(self, block: int) -> tuple[list[Any], int]:
         """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
@@ -309,10 +323,9 @@ class ChannelEncoder:
             width = self._widths[block]
             head, tail = _frame(self._channel, self._packed_heads[self._delta[block]], key,
                                 width, last - first)
-            rows, origin = planes
-            start, stop = first - origin, last - origin
-            pieces = [head, *[rows[byte][start:stop] for byte in range(width)], tail]
-            return pieces, len(head) + width * (last - first) + len(tail)
+            rows, origin, widest = planes
+            start, size = widest * (first - origin), width * (last - first)
+            return [head, rows[start:start + size], tail], len(head) + size + len(tail)
         raw = np.ascontiguousarray(self._values[first:last], dtype="<f8")
         if not raw.size:
             head = _keyed(key, self._head, 0)
