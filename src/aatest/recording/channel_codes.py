@@ -6,10 +6,13 @@ kept for a block only where ``code·quantum + offset`` gives back every value bi
 channel whose values are small against ``2^47`` quanta (every channel of a rig: ADC codes,
 encoder counts, time steps) gets the same codes and verdicts from a multiplication by
 ``1/quantum`` (:func:`coded_by_reciprocal`, a third of the division's cost; the bound is
-derived in :func:`reciprocal_is_exact`), in int32 when they fit. A channel's byte planes are
-cut once, from the narrow integers, and each block's message is handed over as pieces to be
-joined once, into the block: on the stepped sine, writing a step file took ≈ 55 → 31 ms
-of CPU (same bytes).
+derived in :func:`reciprocal_is_exact`), in int32 when they fit. A channel is coded in
+passes of a few blocks (:data:`_PASS_SAMPLES`, so a pass's arrays stay in cache), each pass
+taking its own route: the bound holds sample by sample, so it may be tested on any part of
+a channel. A pass's byte planes are cut once, from the narrow integers, block after block,
+and each block's message is handed over as pieces to be joined once, into the MCAP chunk:
+on the stepped sine, writing a step file took ≈ 55 → 31 ms of CPU, then ≈ 30 → 26 ms
+(bench/step_writer.py, same bytes).
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ _INT32_SAFE_CODES = float(2**29)
 
 def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray) -> _Coded:
     """Integer codes of a whole channel, with each block's verdict: do its codes give back every
-    value bit for bit? (The per-block choice of :func:`encode_blocks`, made for all at once.)
+    value bit for bit? (The per-block choice of :func:`encode_blocks`, made for many at once.)
 
     Codes come from :func:`coded_by_reciprocal` where the channel's magnitude makes it give
     exactly the codes and verdicts of :func:`coded_by_division` (the definition), else from
@@ -95,7 +98,9 @@ def reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
     ``5.1·2^-53·2^48 ≈ 0.16`` (and the division's by less): both round to ``c``. A value no
     code gives back fails the check whichever code is tried. So every sample gets the same
     verdict, and every exact one the same code, by either route. NaN or ±inf in the channel
-    (or a ratio beyond 2^47) keeps the division.
+    (or a ratio beyond 2^47) keeps the division. The argument is made sample by sample, so
+    it holds for any part of a channel that meets the bound (:class:`ChannelEncoder` tests
+    it pass by pass).
 
     ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
     encoder); codes and ``limit`` are dimensionless.
@@ -180,7 +185,7 @@ class _Choice:
 def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
             limit: float = float("inf")) -> _Choice:
     """Delta or plain codes per block (the smaller sum of magnitudes), each block's width,
-    and the byte planes, in whole-channel passes.
+    and the byte planes, in whole-array steps over a pass of blocks.
 
     Why planes of the widest width serve every block: a code that fits ``w`` bytes has the
     same low ``w`` bytes in any wider two's complement, so a block of width ``w`` is its first

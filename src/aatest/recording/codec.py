@@ -96,7 +96,8 @@ def encode_blocks(
     one (a streamed record's chunk, :mod:`aatest.recording.stream`); default 0.
 
     Each message is what the protobuf API serialises for the same ``SampleBlock``; the codes of
-    all blocks are computed on whole channels at once (:class:`ChannelEncoder`).
+    all blocks are computed in whole-array steps over a few blocks at a time
+    (:class:`ChannelEncoder`).
     """
     for pieces, _ in encode_block_pieces(log, header, block_samples, log_times_ns,
                                          first_sequence, first_sample):
