@@ -311,7 +311,7 @@ class ChannelEncoder:
         self._delta += choice.delta
         self._widths += choice.widths
         # a memoryview: slicing and joining it costs a third of a NumPy view
-        self._planes += [(memoryview(choice.planes), origin, choice.widest)] * len(exact)
+        self._planes += [(choice.planes.data, origin, choice.widest)] * len(exact)
 
     def parts(self, block: int) -> tuple[list[Any], int]:
         """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
