@@ -166,3 +166,28 @@ def test_packed_codes_of_a_bad_width_are_refused(width: int, size: int) -> None:
     message = proto.channel_class()(name="x", dtype="<f8", packed=bytes(size), width=width)
     with pytest.raises(ValueError, match="packed bytes do not make codes of width"):
         channel_values(message)
+
+
+def test_encoder_bytes_equal_the_protobuf_api_across_coding_passes() -> None:
+    """A channel longer than one coding pass (:data:`channel_codes._PASS_SAMPLES`): each pass
+    chooses its own route (codes by the reciprocal in int32 or int64, or by the division)
+    and its own byte planes; the blocks are still the protobuf API's, block by block."""
+    from aatest.recording.channel_codes import _PASS_SAMPLES
+
+    n = _PASS_SAMPLES + 2 * BLOCK + 5  # a whole pass, then two blocks and five samples
+    log = _mixed_log(n, seed=4)
+    rng = np.random.default_rng(4)
+    late = np.arange(n) >= _PASS_SAMPLES
+    small = rng.integers(-100, 100, n).astype(np.float64)
+    channels = {
+        **log.channels,
+        # int32 codes in the first pass, codes near 2^50 (the division) in the second
+        "late_huge": np.where(late, small + 2.0**50, small) * 0.5,
+        # int64 codes (beyond 2^29) in the first pass, int32 ones in the second
+        "early_wide": np.where(late, small, small + 2.0**40) * 0.5,
+    }
+    quanta = {**log.quantisation, "late_huge": (0.5, 0.0), "early_wide": (0.5, 0.0)}
+    log = SampledLog("daq", 2000.0, log.time_s, channels, dict(log.units), quanta)
+    times_ns = [10**9 * k for k in range(-(-n // BLOCK))]
+    assert list(encode_blocks(log, HEADER, BLOCK, times_ns)) == \
+        _reference_blocks(log, HEADER, times_ns)

@@ -6,16 +6,21 @@ kept for a block only where ``code·quantum + offset`` gives back every value bi
 channel whose values are small against ``2^47`` quanta (every channel of a rig: ADC codes,
 encoder counts, time steps) gets the same codes and verdicts from a multiplication by
 ``1/quantum`` (:func:`coded_by_reciprocal`, a third of the division's cost; the bound is
-derived in :func:`reciprocal_is_exact`), in int32 when they fit. A channel's byte planes are
-cut once, from the narrow integers, and each block's message is handed over as pieces to be
-joined once, into the block: on the stepped sine, writing a step file took ≈ 55 → 31 ms
-of CPU (same bytes).
+derived in :func:`reciprocal_is_exact`), in int32 when they fit. A channel is coded in
+passes of a few blocks (:data:`_PASS_SAMPLES`, so a pass's arrays stay in cache), each pass
+taking its own route: the bound holds sample by sample, so it may be tested on any part of
+a channel. A pass's byte planes are cut once, from the narrow integers, block after block,
+and each block's message is handed over as pieces to be joined once, into the MCAP chunk:
+on the stepped sine, writing a step file took ≈ 55 → 31 ms of CPU, then ≈ 30 → 26 ms
+(bench/step_writer.py, same bytes).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, lru_cache
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -51,7 +56,7 @@ _INT32_SAFE_CODES = float(2**29)
 
 def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray) -> _Coded:
     """Integer codes of a whole channel, with each block's verdict: do its codes give back every
-    value bit for bit? (The per-block choice of :func:`encode_blocks`, made for all at once.)
+    value bit for bit? (The per-block choice of :func:`encode_blocks`, made for many at once.)
 
     Codes come from :func:`coded_by_reciprocal` where the channel's magnitude makes it give
     exactly the codes and verdicts of :func:`coded_by_division` (the definition), else from
@@ -64,10 +69,10 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
         return _Coded(values.astype(np.int64), np.ones(starts.size, dtype=bool), 1.0, 0.0)
     exact = values.astype(np.float64, copy=False)
     step, offset = quantum if quantum is not None else (1.0, 0.0)
-    if not np.isfinite(step) or step <= 0.0 or not np.isfinite(offset):
+    if not math.isfinite(step) or step <= 0.0 or not math.isfinite(offset):
         return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
     ratio = _code_ratio(exact, step, offset)
-    if ratio <= _RECIPROCAL_SAFE_CODES:  # False for NaN and inf
+    if _admits_reciprocal(ratio):
         integers = np.int32 if ratio <= _INT32_SAFE_CODES else np.int64
         return coded_by_reciprocal(exact, step, offset, starts, integers, ratio + 1.0)
     return coded_by_division(exact, step, offset, starts)
@@ -78,9 +83,9 @@ def _code_ratio(exact: np.ndarray, step: float, offset: float) -> float:
     inf for a channel holding NaN or inf, or none at all)."""
     if exact.size == 0:
         return float("nan")
-    top = max(float(exact.max()), -float(exact.min()))
-    with np.errstate(over="ignore", invalid="ignore"):
-        return (top + 2.0 * abs(offset)) / step
+    top = max(float(np.maximum.reduce(exact)), -float(np.minimum.reduce(exact)))
+    # in Python floats an overflow is inf and NaN stays NaN, without NumPy's warnings
+    return (top + 2.0 * abs(float(offset))) / float(step)
 
 
 def reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
@@ -93,12 +98,20 @@ def reciprocal_is_exact(exact: np.ndarray, step: float, offset: float) -> bool:
     ``5.1·2^-53·2^48 ≈ 0.16`` (and the division's by less): both round to ``c``. A value no
     code gives back fails the check whichever code is tried. So every sample gets the same
     verdict, and every exact one the same code, by either route. NaN or ±inf in the channel
-    (or a ratio beyond 2^47) keeps the division.
+    (or a ratio beyond 2^47) keeps the division. The argument is made sample by sample, so
+    it holds for any part of a channel that meets the bound (:class:`ChannelEncoder` tests
+    it pass by pass).
 
     ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
     encoder); codes and ``limit`` are dimensionless.
     """
-    return bool(_code_ratio(exact, step, offset) <= _RECIPROCAL_SAFE_CODES)
+    return _admits_reciprocal(_code_ratio(exact, step, offset))
+
+
+def _admits_reciprocal(ratio: float) -> bool:
+    """The bound of :func:`reciprocal_is_exact` on a channel's :func:`_code_ratio` (the one
+    place it is tested; False for NaN and inf)."""
+    return bool(ratio <= _RECIPROCAL_SAFE_CODES)
 
 
 def coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: np.ndarray,
@@ -114,7 +127,7 @@ def coded_by_reciprocal(exact: np.ndarray, step: float, offset: float, starts: n
     scaled = np.subtract(exact, offset) if offset else np.multiply(exact, 1.0 / step)
     if offset:
         np.multiply(scaled, 1.0 / step, out=scaled)
-    np.round(scaled, out=scaled)
+    np.rint(scaled, out=scaled)  # what np.round does for 0 decimals, without its wrapper
     codes = scaled.astype(integers)
     back = np.multiply(scaled, step, out=scaled)  # the code as a float64 is exact (< 2^53)
     if offset:
@@ -159,25 +172,29 @@ _PACKED_KEY, _VALUES_KEY = proto.tag(_PACKED_FIELD), proto.tag(_VALUES_FIELD)
 @dataclass(frozen=True)
 class _Choice:
     """Per block of an exact channel: delta-coded or not, code width; and the chosen codes
-    of the whole channel as byte planes of the widest width (row ``b``: byte ``b`` of every
-    code, little-endian two's complement)."""
+    as byte planes of the widest width, block after block (a block of ``n`` codes starting
+    at sample ``s`` is ``widest·n`` bytes from ``widest·s`` on, its row ``b`` byte ``b`` of
+    every code, little-endian two's complement)."""
 
     delta: list[bool]
     widths: list[int]
-    planes: np.ndarray  # uint8, (widest width, samples)
+    planes: np.ndarray  # uint8, widest width × samples, block after block
+    widest: int
 
 
 def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
             limit: float = float("inf")) -> _Choice:
     """Delta or plain codes per block (the smaller sum of magnitudes), each block's width,
-    and the byte planes, in whole-channel passes.
+    and the byte planes, in whole-array steps over a pass of blocks.
 
     Why planes of the widest width serve every block: a code that fits ``w`` bytes has the
-    same low ``w`` bytes in any wider two's complement, so a block of width ``w`` is rows
-    ``0 … w−1`` of its columns; the planes are cut by shifts of the narrow integers, which
-    reads memory in order (a transposed copy of the bytes is 2–3× slower).
+    same low ``w`` bytes in any wider two's complement, so a block of width ``w`` is its first
+    ``w`` rows, one run of bytes (the planes are laid out block after block: one piece of a
+    message, not ``w``). The planes are cut by shifts of the narrow integers, which reads
+    memory in order (a transposed copy of the bytes is 2–3× slower).
     """
-    longest = int(np.diff(np.append(starts, codes.size)).max())
+    bounds = [*starts.tolist(), codes.size]
+    longest = max(stop - first for first, stop in pairwise(bounds))
     # a block's sum of |codes| or |differences| is below 2·limit·longest: int32 sums of int32
     # codes are exact below 2^31 and 4× faster than int64 ones (NumPy widens int32 otherwise)
     sums = np.int32 if codes.dtype == np.int32 and 2.0 * limit * longest < 2**31 else np.int64
@@ -186,35 +203,73 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     steps[starts] = codes[starts]  # each block's first difference is from 0
     magnitude = np.abs(codes)
     code_sum = np.add.reduceat(magnitude, starts, dtype=sums)
-    code_top = np.maximum.reduceat(magnitude, starts)
-    np.abs(steps, out=magnitude)
-    delta = np.add.reduceat(magnitude, starts, dtype=sums) < code_sum
-    top = np.where(delta, np.maximum.reduceat(magnitude, starts), code_top)
-    del magnitude
-    chosen = steps if delta.all() else codes if not delta.any() else np.where(
-        np.repeat(delta, np.diff(np.append(starts, codes.size))), steps, codes)
+    step_magnitude = np.abs(steps)
+    delta = np.add.reduceat(step_magnitude, starts, dtype=sums) < code_sum
+    choices = delta.tolist()  # (a few blocks: Python's all/any cost less than NumPy's)
+    top = np.maximum.reduceat(step_magnitude, starts)
+    if not all(choices):  # the codes' own top only where they are stored (rarely)
+        top = np.where(delta, top, np.maximum.reduceat(magnitude, starts))
+    del magnitude, step_magnitude
+    chosen = steps if all(choices) else codes if not any(choices) else np.where(
+        np.repeat(delta, np.diff(bounds)), steps, codes)
     widths = [_width(t) for t in top.tolist()]
     widest = max(w for w, ok in zip(widths, exact, strict=True) if ok)
-    # codes of blocks that are not exact may not fit: their bytes are never used
-    narrow = chosen.astype(f"<i{widest}").view(f"<u{widest}")
-    if widest == 1:
-        planes = narrow.view(np.uint8).reshape(1, -1)
-    else:
-        planes = np.empty((widest, codes.size), dtype=np.uint8)
-        planes[0] = narrow  # the low byte (a truncating cast)
-        for byte in range(1, widest):
-            planes[byte] = narrow >> (8 * byte)
-    return _Choice(delta.tolist(), widths, planes)
+    # codes of blocks that are not exact may not fit: their bytes are never used (no copy
+    # when the codes are of the widest width already)
+    narrow = chosen.astype(f"<i{widest}", copy=False).view(f"<u{widest}")
+    planes = narrow.view(np.uint8) if widest == 1 else _planes(narrow, bounds, widest)
+    return _Choice(choices, widths, planes, widest)
+
+
+def _planes(narrow: np.ndarray, bounds: list[int], widest: int) -> np.ndarray:
+    """The byte planes of ``narrow`` (unsigned, ``widest`` bytes) block after block: the
+    leading blocks of equal length in one strided pass per byte, any others one by one."""
+    planes = np.empty(widest * narrow.size, dtype=np.uint8)
+    size = bounds[1] - bounds[0]
+    equal = next((i for i, (a, b) in enumerate(pairwise(bounds)) if b - a != size),
+                 len(bounds) - 1)
+    runs = [(bounds[0], equal, size)] + [(a, 1, b - a) for a, b in pairwise(bounds[equal:])]
+    for first, blocks, length in runs:
+        source = narrow[first:first + blocks * length].reshape(blocks, length)
+        rows = planes[widest * first:widest * (first + blocks * length)].reshape(
+            blocks, widest, length)
+        rows[:, 0, :] = source  # the low byte (a truncating cast)
+        for byte in range(1, widest):  # the shifted bytes, cast straight into their rows
+            np.right_shift(source, 8 * byte, out=rows[:, byte, :], casting="unsafe")
+    return planes
+
+
+#: samples a pass of :class:`ChannelEncoder` codes at once (whole blocks, at least one). Why
+#: not the whole channel: a pass makes ≈ 7 whole-array steps over the values, their codes,
+#: differences and magnitudes (≈ 30 bytes a sample); 16 blocks of 4096 samples keep most of
+#: them in a core's L2 cache, where 2^17 samples spilled it at every step. Why not fewer:
+#: a pass costs ≈ 40 µs of NumPy calls whatever its length (measured with
+#: bench/step_writer.py: 8 and 32 blocks a pass were slower)
+_PASS_SAMPLES = 65_536
+
+
+def _passes(bounds: list[int]) -> list[tuple[int, int]]:
+    """``(first, stop)`` block numbers of consecutive passes over blocks ``bounds[b] …
+    bounds[b + 1]``: as many whole blocks as fit :data:`_PASS_SAMPLES`, at least one."""
+    passes, first = [], 0
+    while first < len(bounds) - 1:
+        stop = first + 1
+        while stop < len(bounds) - 1 and bounds[stop + 1] - bounds[first] <= _PASS_SAMPLES:
+            stop += 1
+        passes.append((first, stop))
+        first = stop
+    return passes
 
 
 class ChannelEncoder:
     """Serialised ``Channel`` messages of one channel, block by block, built from whole arrays.
 
     Codes where exact (delta-coded where that is smaller: smooth signals, counters), else
-    float64 values; the codes, widths and byte planes of every block are found in one
-    vectorised pass. The scalar fields (``name``, ``unit``, ``dtype``, ``quantum``,
-    ``offset``, ``delta``, ``width``, ``shuffled``) are serialised by protobuf, so each
-    message is byte for byte what ``SerializeToString`` gives.
+    float64 values; the codes, widths and byte planes are found by vectorised passes over a
+    few blocks at a time (:data:`_PASS_SAMPLES`; every choice is per block, so passes give
+    the bytes one pass over the whole channel gives). The scalar fields (``name``, ``unit``,
+    ``dtype``, ``quantum``, ``offset``, ``delta``, ``width``, ``shuffled``) are serialised by
+    protobuf, so each message is byte for byte what ``SerializeToString`` gives.
     """
 
     def __init__(self, name: str, unit: str, values: np.ndarray,
@@ -222,38 +277,95 @@ class ChannelEncoder:
         channel = proto.channel_class()
         self._values = values
         self._channel = channel
-        head = channel(name=name, unit=unit, dtype=values.dtype.str)
-        self._head: bytes = head.SerializeToString()
-        self._bounds = np.append(starts, values.size).tolist()
-        found = coded(values, quantum, starts)
-        self._exact = found.exact.tolist()
-        self._tails: dict[bool, bytes] = {
-            delta: channel(quantum=found.quantum, offset=found.offset, delta=delta)
-            .SerializeToString() for delta in (False, True)}
-        self._choice = (_choose(found.codes, starts, self._exact, found.limit)
-                        if any(self._exact) else None)
+        self._head = _serialised(channel, name=name, unit=unit, dtype=values.dtype.str)
+        self._bounds: list[int] = np.append(starts, values.size).tolist()
+        self._exact: list[bool] = []
+        self._delta: list[bool] = []
+        self._widths: list[int] = []
+        #: per block: the byte planes of its pass, the pass's first sample and widest width
+        self._planes: list[tuple[memoryview, int, int] | None] = []
+        step_offset = (1.0, 0.0)
+        for first, stop in _passes(self._bounds):
+            origin, end = self._bounds[first], self._bounds[stop]
+            found = coded(values[origin:end], quantum, starts[first:stop] - origin)
+            step_offset = (found.quantum, found.offset)
+            self._add_pass(found, starts[first:stop] - origin, origin)
+        # name to delta, per encoder (not memoised: a cache would take an offset of −0.0 for
+        # 0.0, equal keys, and they serialise apart)
+        self._packed_heads = {
+            delta: self._head + channel(quantum=step_offset[0], offset=step_offset[1],
+                                        delta=delta).SerializeToString()
+            for delta in (False, True)}
+
+    def _add_pass(self, found: _Coded, starts: np.ndarray, origin: int) -> None:
+        """Keep one pass's verdicts, choices and byte planes (``starts``: its blocks' first
+        samples, counted from the pass's first sample ``origin`` in the channel)."""
+        exact = found.exact.tolist()
+        self._exact += exact
+        if not any(exact):
+            self._delta += [False] * len(exact)
+            self._widths += [WIDTHS[-1]] * len(exact)
+            self._planes += [None] * len(exact)
+            return
+        choice = _choose(found.codes, starts, exact, found.limit)
+        self._delta += choice.delta
+        self._widths += choice.widths
+        # a memoryview: slicing and joining it costs a third of a NumPy view
+        self._planes += [(choice.planes.data, origin, choice.widest)] * len(exact)
 
     def parts(self, block: int) -> tuple[list[Any], int]:
         """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
         pieces (joined once, into the whole block), and their length in bytes."""
+        return self.field(block, b"")
+
+    def field(self, block: int, key: bytes) -> tuple[list[Any], int]:
+        """:meth:`parts` as the field ``key`` of a message: the field key and the message's
+        length first, then its pieces; and the whole field's length in bytes. The bytes
+        around the samples (key, length, scalar fields) are built once per kind of block."""
         first, last = self._bounds[block], self._bounds[block + 1]
-        if self._exact[block] and self._choice is not None:
-            width = self._choice.widths[block]
-            planes = [self._choice.planes[byte, first:last] for byte in range(width)]
-            size = width * (last - first)
-            tail = _packing(self._channel, width, width > 1)
-            head = b"".join((self._head, self._tails[self._choice.delta[block]], _PACKED_KEY,
-                             proto.varint(size)))
-            return [head, *planes, tail], len(head) + size + len(tail)
+        planes = self._planes[block]
+        if self._exact[block] and planes is not None:
+            width = self._widths[block]
+            head, tail = _frame(self._channel, self._packed_heads[self._delta[block]], key,
+                                width, last - first)
+            rows, origin, widest = planes
+            start, size = widest * (first - origin), width * (last - first)
+            return [head, rows[start:start + size], tail], len(head) + size + len(tail)
         raw = np.ascontiguousarray(self._values[first:last], dtype="<f8")
         if not raw.size:
-            return [self._head], len(self._head)
-        head = b"".join((self._head, _VALUES_KEY, proto.varint(raw.nbytes)))
+            head = _keyed(key, self._head, 0)
+            return [head], len(head)
+        head = _keyed(key, b"".join((self._head, _VALUES_KEY, proto.varint(raw.nbytes))),
+                      raw.nbytes)
         return [head, raw], len(head) + raw.nbytes
+
 
     def message(self, block: int) -> bytes:
         """The serialised ``Channel`` of block number ``block``."""
         return b"".join(self.parts(block)[0])
+
+
+@lru_cache(maxsize=1024)
+def _serialised(channel: Any, **fields: Any) -> bytes:
+    """A ``Channel`` holding only ``fields``, serialised (memoised: the same few per run)."""
+    return bytes(channel(**fields).SerializeToString())
+
+
+@lru_cache(maxsize=1024)
+def _frame(channel: Any, head: bytes, key: bytes, width: int, samples: int
+           ) -> tuple[bytes, bytes]:
+    """The bytes before and after the byte planes of a packed block of ``samples`` codes
+    (memoised: every step of a run has the same few kinds of block). ``head``: the channel's
+    serialised fields before ``packed`` (name, unit, dtype, quantum, offset, delta)."""
+    size = width * samples
+    tail = _packing(channel, width, width > 1)
+    return _keyed(key, b"".join((head, _PACKED_KEY, proto.varint(size))), size + len(tail)), tail
+
+
+def _keyed(key: bytes, head: bytes, rest: int) -> bytes:
+    """``head`` of a message ``rest`` bytes longer, preceded by its field ``key`` and length
+    (as is, without a ``key``)."""
+    return b"".join((key, proto.varint(len(head) + rest), head)) if key else head
 
 
 #: code widths (bytes) of format v3, narrowest first
@@ -263,7 +375,7 @@ WIDTHS = (1, 2, 4, 8)
 def _width(top: int) -> int:
     """The narrowest width whose signed integers hold every code of magnitude ≤ ``top`` (codes
     are below 2^53: the widest always does)."""
-    return next((w for w in WIDTHS[:-1] if top < 1 << (8 * w - 1)), WIDTHS[-1])
+    return 1 if top < 1 << 7 else 2 if top < 1 << 15 else 4 if top < 1 << 31 else 8
 
 
 @cache

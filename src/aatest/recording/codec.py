@@ -96,8 +96,21 @@ def encode_blocks(
     one (a streamed record's chunk, :mod:`aatest.recording.stream`); default 0.
 
     Each message is what the protobuf API serialises for the same ``SampleBlock``; the codes of
-    all blocks are computed on whole channels at once (:class:`ChannelEncoder`).
+    all blocks are computed in whole-array steps over a few blocks at a time
+    (:class:`ChannelEncoder`).
     """
+    for pieces, _ in encode_block_pieces(log, header, block_samples, log_times_ns,
+                                         first_sequence, first_sample):
+        yield b"".join(pieces)  # the one copy of the samples into the message
+
+
+def encode_block_pieces(
+    log: SampledLog, header: Mapping[str, object], block_samples: int, log_times_ns: list[int],
+    first_sequence: int = 0, first_sample: int = 0,
+) -> Iterator[tuple[list[Any], int]]:
+    """:func:`encode_blocks`, each message as consecutive byte-like pieces (bytes and uint8
+    arrays) with its length in bytes: a writer joins the pieces of a whole MCAP chunk at once,
+    so the samples are copied once into the chunk, not into each message first."""
     check_dtypes(log)
     blocks = -(-len(log) // block_samples)
     if len(log_times_ns) != blocks:
@@ -115,13 +128,14 @@ def encode_blocks(
     for sequence, log_time_ns in enumerate(log_times_ns):
         head = block_type(sequence=first_sequence + sequence,
                           first_sample=first_sample + int(starts[sequence]), **before)
-        tail = block_type(log_time_ns=log_time_ns, **after)
         parts = [head.SerializeToString()]
+        length = len(parts[0])
         for key, encoder in ((_TIME_KEY, time), *((_CHANNELS_KEY, c) for c in channels)):
-            pieces, size = encoder.parts(sequence)
-            parts += (key, proto.varint(size), *pieces)
-        parts.append(tail.SerializeToString())
-        yield b"".join(parts)  # the one copy of the samples into the message
+            pieces, size = encoder.field(sequence, key)
+            parts += pieces
+            length += size
+        parts.append(block_type(log_time_ns=log_time_ns, **after).SerializeToString())
+        yield parts, length + len(parts[-1])
 
 
 def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None]:

@@ -149,7 +149,11 @@ class ChunkedWriter:
             offset += _MESSAGE_HEAD.size + size
         if not times:
             return
-        data = b"".join(pieces)
+        self._add_joined(b"".join(pieces), indexes, times)
+
+    def _add_joined(self, data: bytes, indexes: dict[int, MessageIndex], times: list[int]
+                    ) -> None:
+        """Compress a chunk's joined ``Message`` records and write it with its indexes."""
         compressed = self._compressor.compress(data)
         chunk = Chunk(compression="zstd", data=compressed, message_end_time=max(times),
                       message_start_time=min(times), uncompressed_crc=zlib.crc32(data),
@@ -166,6 +170,26 @@ class ChunkedWriter:
             message_start_time=chunk.message_start_time, uncompressed_size=len(data)))
         counts = {cid: len(ix.records) for cid, ix in indexes.items()}
         self._count(counts, chunk.message_start_time, chunk.message_end_time, chunks=1)
+
+    def add_message_pieces(self, channel_id: int,
+                           messages: Sequence[tuple[int, int, Sequence[Any], int]]) -> None:
+        """:meth:`add_chunk` for messages of one channel, each given as ``(log time in ns,
+        sequence, pieces, length)``: its data is its byte-like pieces (bytes, uint8 arrays)
+        back to back, ``length`` bytes. The pieces of all messages are joined once, into the
+        chunk (the chunk is the one :meth:`add_chunk` writes for the joined messages)."""
+        pieces: list[Any] = []
+        entries = []
+        offset = 0
+        for log_time, sequence, data, size in messages:
+            entries.append((log_time, offset))
+            pieces.append(_MESSAGE_HEAD.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + size, channel_id,
+                                             sequence, log_time, log_time))
+            pieces += data
+            offset += _MESSAGE_HEAD.size + size
+        if entries:
+            times = [t for t, _ in entries]
+            self._add_joined(b"".join(pieces), {channel_id: MessageIndex(channel_id, entries)},
+                             times)
 
     def _write_chunk(self, chunk: Chunk) -> tuple[int, int]:
         """Write a ``Chunk`` record as ``Chunk.write`` lays it out, its compressed data

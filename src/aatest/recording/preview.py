@@ -38,7 +38,7 @@ import re
 import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 
 import numpy as np
 from google.protobuf import descriptor_pb2
@@ -90,6 +90,7 @@ def window_samples(sample_rate_hz: float) -> int:
     return max(1, round(WINDOW_S * float(sample_rate_hz)))
 
 
+@cache  # a few channel names per rig; called for every window run (a regex each)
 def _field_name(channel: str, statistic: str) -> str:
     return re.sub(r"[^A-Za-z0-9_]", "_", f"{channel}_{statistic}")
 
@@ -112,7 +113,7 @@ class Layout:
         """Field names from number 3 on (1 = step_index, 2 = time_s)."""
         return [_field_name(c, s) for c in self.channels for s in STATISTICS]
 
-    @property
+    @cached_property  # read for every chunk of preview records
     def channel_id(self) -> int:
         """MCAP channel id: a stable slot from the logger and its channel list, odd for the
         DAQ and even for the table, above the exact blocks' channel ids."""

@@ -105,19 +105,18 @@ def _write_log(
 ) -> None:
     """Add one logger's sample blocks of a step, in chunks of about :data:`CHUNK_BYTES`."""
     cid = fmt.CHANNEL_IDS[log.source]
-    pending: list[Message] = []
+    pending: list[tuple[int, int, list[Any], int]] = []
     size = 0
-    blocks = codec.encode_blocks(log, {**header, "source": log.source,
-                                       "sample_rate_hz": float(log.sample_rate_hz)},
-                                 fmt.BLOCK_SAMPLES, times_ns)
-    for seq, (t_ns, data) in enumerate(zip(times_ns, blocks, strict=True)):
-        pending.append(Message(channel_id=cid, log_time=t_ns, publish_time=t_ns, sequence=seq,
-                               data=data))
-        size += len(data)
+    blocks = codec.encode_block_pieces(log, {**header, "source": log.source,
+                                             "sample_rate_hz": float(log.sample_rate_hz)},
+                                       fmt.BLOCK_SAMPLES, times_ns)
+    for seq, (t_ns, (pieces, length)) in enumerate(zip(times_ns, blocks, strict=True)):
+        pending.append((t_ns, seq, pieces, length))
+        size += length
         if size >= CHUNK_BYTES:
-            writer.add_chunk(pending)
+            writer.add_message_pieces(cid, pending)
             pending, size = [], 0
-    writer.add_chunk(pending)
+    writer.add_message_pieces(cid, pending)
 
 
 #: schema ids of the preview messages in a step file (the merger renumbers schemas anyway)
