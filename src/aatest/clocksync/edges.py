@@ -105,16 +105,18 @@ def _robust_line(tt: np.ndarray, td: np.ndarray, floor_s: float) -> tuple[np.nda
 
 
 def _median(x: np.ndarray) -> float:
-    """``np.median`` of a 1-D float array without NaN, by the same partition and mean.
+    """``np.median`` of a 1-D float array without NaN: the same middle order statistic(s)
+    and, for an even size, their sum ÷ 2 as ``np.mean`` forms it.
 
-    Why: the robust line takes two medians per pairing window, and ``np.median``'s generic
-    reduction machinery cost as much as the partition itself on a few thousand edges.
+    Why: the robust line takes two medians per pairing window, and NumPy's SIMD sort of a
+    few thousand residuals takes less than half the time of the partition ``np.median``
+    uses (the order statistics are the same numbers whichever puts them in place).
     """
     half = x.size // 2
+    ordered = np.sort(x)
     if x.size % 2:
-        return float(np.partition(x, half)[half])
-    part = np.partition(x, (half - 1, half))
-    return float(np.add.reduce(part[half - 1: half + 1])) / 2.0  # np.mean's sum ÷ count
+        return float(ordered[half])
+    return float(np.add.reduce(ordered[half - 1: half + 1])) / 2.0
 
 
 def _one_to_one(k: np.ndarray) -> bool:
