@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from aatest.twin import fastmath, table
-from aatest.twin.model import RateRipple
+from aatest.twin.daq import quantise_adc
+from aatest.twin.model import DaqModel, RateRipple
 
 _TWO_PI = 2.0 * np.pi
 
@@ -76,3 +77,12 @@ def test_ripple_in_place_equals_the_plain_chain_rule(rejection_hz: float | None)
         assert np.array_equal(mine, plain)
     for given, before in zip((angle, rate, accel), kept, strict=True):  # inputs untouched
         assert np.array_equal(given, before)
+
+
+def test_adc_in_place_equals_the_plain_formula() -> None:
+    daq = DaqModel()
+    lo, hi = daq.adc_range_v
+    lsb = (hi - lo) / 2**daq.adc_bits
+    volts = np.random.default_rng(4).uniform(1.2 * lo, 1.2 * hi, 50_001)  # both clip ends
+    plain = np.clip(np.round((volts - lo) / lsb) * lsb + lo, lo, hi - lsb)
+    assert np.array_equal(quantise_adc(volts, daq), plain)
