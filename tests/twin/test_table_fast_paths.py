@@ -14,7 +14,8 @@ import pytest
 
 from aatest.twin import fastmath, table
 from aatest.twin.daq import quantise_adc
-from aatest.twin.model import DaqModel, RateRipple
+from aatest.twin.grid import Grid
+from aatest.twin.model import AxisModel, DaqModel, RateRipple
 
 _TWO_PI = 2.0 * np.pi
 
@@ -86,3 +87,43 @@ def test_adc_in_place_equals_the_plain_formula() -> None:
     volts = np.random.default_rng(4).uniform(1.2 * lo, 1.2 * hi, 50_001)  # both clip ends
     plain = np.clip(np.round((volts - lo) / lsb) * lsb + lo, lo, hi - lsb)
     assert np.array_equal(quantise_adc(volts, daq), plain)
+
+
+@pytest.mark.parametrize(("start_s", "dt_s"), [(0.0, 5e-4), (12.345678, 1.0 / 2000.0 * (1 + 12e-6)),
+                                               (-3.1, 1e-3)])
+def test_grid_times_in_place_equal_the_plain_formula(start_s: float, dt_s: float) -> None:
+    grid = Grid(start_s, dt_s, 140_001)
+    assert np.array_equal(grid.times, start_s + dt_s * np.arange(grid.n))
+
+
+def _reference_estimates(true_angle_deg: np.ndarray, model: AxisModel, dt_s: float,
+                         method: str, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """``estimates`` as first written: the counts and the feedback in new arrays."""
+    res = model.encoder_resolution_deg
+    noisy = table._noisy(true_angle_deg, model.estimate_noise_deg, rng)
+    counts = np.round(noisy / res) if res > 0.0 else noisy
+    raw = table._noisy(true_angle_deg, model.encoder_noise_deg, rng)
+    raw = np.round(raw / res) * res if res > 0.0 else raw
+    p = table.STENCIL_PAD
+    n = true_angle_deg.size - 2 * p
+    f = [counts[p + k: p + k + n] for k in (-2, -1, 0, 1, 2)]
+    quanta = table.estimate_quanta(model, dt_s, method)
+    rate, accel = table._stencils(f, method)
+    return {"position_deg": f[2] * quanta["position_deg"], "rate_dps": rate * quanta["rate_dps"],
+            "accel_dps2": accel * quanta["accel_dps2"], "feedback_deg": raw[p: p + n]}
+
+
+@pytest.mark.parametrize("method", ["five_point", "central"])
+@pytest.mark.parametrize(("resolution_deg", "noise_deg"), [(1e-5, 3e-6), (0.0, 3e-6), (1e-5, 0.0)])
+def test_estimates_in_place_equal_the_plain_ones(method: str, resolution_deg: float,
+                                                 noise_deg: float) -> None:
+    model = AxisModel(encoder_resolution_deg=resolution_deg, estimate_noise_deg=noise_deg,
+                      encoder_noise_deg=noise_deg)
+    angle, _, _ = _sine_motion(10_004, seed=8)
+    kept = angle.copy()
+    fast = table.estimates(angle, model, 1e-3, method, np.random.default_rng(2))
+    plain = _reference_estimates(kept, model, 1e-3, method, np.random.default_rng(2))
+    assert fast.keys() == plain.keys()
+    for name, values in fast.items():
+        assert np.array_equal(values, plain[name]), name
+    assert np.array_equal(angle, kept)  # the true angle is not written to

@@ -182,11 +182,11 @@ def _noisy(values: np.ndarray, sigma: float, rng: np.random.Generator) -> np.nda
     return noise
 
 
-def quantise(values: np.ndarray, step: float) -> np.ndarray:
-    """Round to a multiple of ``step`` (no-op when step is 0)."""
+def quantise(values: np.ndarray, step: float, in_place: bool = False) -> np.ndarray:
+    """Round to a multiple of ``step`` (no-op when step is 0); ``in_place``: in ``values``."""
     if step <= 0.0:
         return values
-    counts = np.divide(values, step)
+    counts = np.divide(values, step, out=values if in_place else None)
     np.round(counts, out=counts)
     counts *= step
     return counts
@@ -208,10 +208,11 @@ def estimates(
     res = model.encoder_resolution_deg
     noisy = _noisy(true_angle_deg, model.estimate_noise_deg, rng)
     counts = noisy  # the controller works in counts
-    if res > 0.0:
-        counts = np.divide(noisy, res)
+    if res > 0.0:  # (in the noisy array itself when it is a new one)
+        counts = np.divide(noisy, res, out=None if noisy is true_angle_deg else noisy)
         np.round(counts, out=counts)
-    raw = quantise(_noisy(true_angle_deg, model.encoder_noise_deg, rng), res)
+    feedback = _noisy(true_angle_deg, model.encoder_noise_deg, rng)
+    raw = quantise(feedback, res, in_place=feedback is not true_angle_deg)
     p = STENCIL_PAD
     n = true_angle_deg.size - 2 * p
     f = [counts[p + k: p + k + n] for k in (-2, -1, 0, 1, 2)]
