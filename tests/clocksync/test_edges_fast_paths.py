@@ -94,3 +94,7 @@ def test_median_is_numpys_median(size: int) -> None:
     values = np.round(rng.standard_normal(size) * 1e-6, 12)  # with repeated values
     values[: size // 4] = 0.0
     assert edges._median(values) == float(np.median(values))
+
+
+def test_median_with_nan_is_numpys_nan() -> None:
+    assert np.isnan(edges._median(np.array([1.0, np.nan, 3.0, 2.0])))

@@ -105,7 +105,7 @@ def _robust_line(tt: np.ndarray, td: np.ndarray, floor_s: float) -> tuple[np.nda
 
 
 def _median(x: np.ndarray) -> float:
-    """``np.median`` of a 1-D float array without NaN: the same middle order statistic(s)
+    """``np.median`` of a 1-D float array: the same middle order statistic(s)
     and, for an even size, their sum ÷ 2 as ``np.mean`` forms it.
 
     Why: the robust line takes two medians per pairing window, and NumPy's SIMD sort of a
@@ -114,6 +114,8 @@ def _median(x: np.ndarray) -> float:
     """
     half = x.size // 2
     ordered = np.sort(x)
+    if x.size == 0 or np.isnan(ordered[-1]):  # (NaN sorts last) NumPy's own answer
+        return float(np.median(x))
     if x.size % 2:
         return float(ordered[half])
     return float(np.add.reduce(ordered[half - 1: half + 1])) / 2.0
@@ -284,7 +286,7 @@ def check_counts(step_id: str, t_table: np.ndarray, t_daq: np.ndarray) -> float:
             f"step {step_id}: sync edges missing ({t_table.size} on the table, "
             f"{t_daq.size} on the DAQ; need ≥ {MIN_EDGES}) — check the freeze-pulse wiring"
         )
-    return float(np.median(np.diff(t_daq)))
+    return _median(np.diff(t_daq))
 
 
 def check_paired(step_id: str, paired: int, t_table: np.ndarray, t_daq: np.ndarray,
