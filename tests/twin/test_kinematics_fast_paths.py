@@ -90,3 +90,13 @@ def test_top_kinematics_in_place_equal_the_plain_formulas(gimbal: kin.GimbalErro
     floor = np.random.default_rng(12).standard_normal((2, th_i.size))
     assert np.array_equal(kin.lab_horizontal_top(sc_i, sc_o, floor),
                           _horizontal(sc_i, sc_o, floor))
+
+
+def test_top_kinematics_of_one_instant_equal_the_plain_formulas() -> None:
+    sc_i, sc_o = (np.sin(0.3), np.cos(0.3)), (np.sin(1.2), np.cos(1.2))
+    assert np.array_equal(kin.angular_acceleration_top(sc_i, 20.0, 3.0, -7.0, 40.0, GIMBAL),
+                          _accel(sc_i, 20.0, 3.0, -7.0, 40.0, GIMBAL))
+    assert np.array_equal(kin.gravity_top(sc_i, sc_o, GIMBAL), _gravity(sc_i, sc_o, GIMBAL))
+    floor = np.array([0.3, -0.2])
+    assert np.array_equal(kin.lab_horizontal_top(sc_i, sc_o, floor),
+                          _horizontal(sc_i, sc_o, floor))
