@@ -14,6 +14,7 @@ import pytest
 
 from aatest.plugins.sensors.sr207 import SR207Unit
 from aatest.twin import sensor as sn
+from aatest.twin import sensor_output
 from aatest.twin.api import realistic_rig_model
 from aatest.twin.model import SensorModel
 
@@ -81,7 +82,7 @@ def test_output_volts_in_place_equals_the_plain_formulas() -> None:
 @pytest.mark.parametrize("n", [2, 3, 1001])
 def test_gradient_is_numpys(n: int) -> None:
     x = np.random.default_rng(n).standard_normal(n).cumsum()
-    assert np.array_equal(sn.gradient(x, DT_S), np.gradient(x, DT_S))
+    assert np.array_equal(sensor_output.gradient(x, DT_S), np.gradient(x, DT_S))
 
 
 def test_damping_of_in_place_equals_the_plain_formula() -> None:
