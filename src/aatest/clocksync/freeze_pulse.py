@@ -15,6 +15,7 @@ is then the centre of the lines through every edge's interval (:mod:`aatest.cloc
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections.abc import Iterator, Mapping
 from dataclasses import replace
 
@@ -101,8 +102,34 @@ def clock_relation(data: StepData,
     time_s = np.asarray(data.daq.time_s, dtype=np.float64)
     fit = regular_fit(time_s)
     daq_time_s = regular_time(time_s, fit)
-    known = None if slope_range is None else _fitted_relation(data, daq_time_s, slope_range)
-    return replace(_relation(data, daq_time_s, known)[0], daq_time_fit=fit)
+    relation = _fitted_relation(data, daq_time_s, slope_range)
+    table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
+    if not _covers_ordered(table_time_s, daq_time_s, relation):
+        _relation(data, daq_time_s, relation)  # the general check (raises when not covered)
+    return replace(relation, daq_time_fit=fit)
+
+
+def _covers_ordered(table_time_s: np.ndarray, daq_time_s: np.ndarray,
+                    relation: ClockRelation) -> bool:
+    """Whether the DAQ record covers ≥ 50 % of the table log, decided as :func:`_relation`
+    decides it but without mapping every table sample (False: not decidable so, or not covered).
+
+    Table times in order and a rising relation map monotonically, sample by sample the same
+    IEEE operations, so the samples inside the DAQ record are one run of indices whose ends
+    two bisections find, each mapping a single sample: the check of every recorded step
+    (run-time and analysis) no longer maps 2^17 samples it then throws away.
+    """
+    n = table_time_s.size
+    rate = 1.0 + relation.drift_ppm * 1e-6
+    if n == 0 or not rate > 0.0 or not bool(np.all(table_time_s[1:] >= table_time_s[:-1])):
+        return False
+
+    def at_daq_s(i: int) -> float:
+        return float(relation.to_daq_s(table_time_s[i: i + 1])[0])
+
+    first_in = bisect_left(range(n), True, key=lambda i: at_daq_s(i) >= daq_time_s[0])
+    first_after = bisect_left(range(n), True, key=lambda i: at_daq_s(i) > daq_time_s[-1])
+    return first_after - first_in >= 0.5 * n
 
 
 def _partial(data: StepData) -> bool:

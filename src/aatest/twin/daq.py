@@ -36,7 +36,13 @@ def quantise_adc(volts: np.ndarray, daq: DaqModel) -> np.ndarray:
     """ADC conversion: clip to the input range and round to one LSB."""
     lo, hi = daq.adc_range_v
     lsb = (hi - lo) / 2**daq.adc_bits
-    return np.clip(np.round((volts - lo) / lsb) * lsb + lo, lo, hi - lsb)
+    # clip(round((v − lo)/lsb)·lsb + lo, lo, hi − lsb): the same operations in one buffer
+    codes = np.subtract(volts, lo)
+    codes /= lsb
+    np.round(codes, out=codes)
+    codes *= lsb
+    codes += lo
+    return np.clip(codes, lo, hi - lsb, out=codes)
 
 
 def noiseless(clean_v: np.ndarray, daq: DaqModel, dt_s: float) -> np.ndarray:

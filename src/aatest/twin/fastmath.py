@@ -36,7 +36,9 @@ def standard_normal(rng: np.random.Generator, n: int) -> np.ndarray:
     """
     half = (n + 1) // 2
     u = rng.random(2 * half)
-    radius = np.subtract(1.0, u[:half])  # 1 − u ∈ (0, 1]: no log(0)
+    # every stage in place in the uniforms' own buffer: radius in the first half, the angle
+    # in the second, then the products written back over them (the same float64 operations)
+    radius = np.subtract(1.0, u[:half], out=u[:half])  # 1 − u ∈ (0, 1]: no log(0)
     np.log(radius, out=radius)
     radius *= -2.0
     np.sqrt(radius, out=radius)
@@ -44,7 +46,6 @@ def standard_normal(rng: np.random.Generator, n: int) -> np.ndarray:
     angle *= _TWO_PI
     # float32 sin/cos promote exactly to float64 inside the products
     s, c = sincos32(angle, np.float32)
-    out = np.empty(2 * half)
-    np.multiply(radius, c, out=out[:half])
-    np.multiply(radius, s, out=out[half:])
-    return out[:n]
+    np.multiply(radius, s, out=angle)
+    np.multiply(radius, c, out=radius)
+    return u[:n]

@@ -29,7 +29,12 @@ class Grid:
     @cached_property
     def times(self) -> np.ndarray:
         """Lab times of the samples (s)."""
-        return self.start_s + self.dt_s * np.arange(self.n)
+        # start + dt·k in one float64 buffer: k as float64 is exact (n < 2^53), the very
+        # operand the integer arange was promoted to, and a + b, a·b commute bit for bit
+        times = np.arange(self.n, dtype=np.float64)
+        times *= self.dt_s
+        times += self.start_s
+        return times
 
     def shifted(self, by_s: float) -> Grid:
         """The same grid ``by_s`` seconds later."""

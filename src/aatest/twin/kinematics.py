@@ -88,9 +88,17 @@ def angular_acceleration_top(
     v_o, v_i = np.cos(eps), -np.sin(eps)
     cross = np.radians(inner_rate_dps) * outer_rate_dps  # (rad/s)·(°/s) = °/s²
     alpha = np.empty((3, *np.shape(s)))
-    alpha[0] = v_o * (outer_accel_dps2 * s + cross * c)
-    alpha[1] = v_o * (outer_accel_dps2 * c - cross * s)
-    alpha[2] = inner_accel_dps2 + v_i * outer_accel_dps2
+    rows = _rows(alpha)
+    # each row formed in place in its output (a·b and a + b commute bit for bit)
+    row = np.multiply(outer_accel_dps2, s, out=rows[0])  # v_o·(α_o·s + cross·c)
+    scratch = np.multiply(cross, c, out=np.empty_like(rows[0]))
+    row += scratch
+    row *= v_o
+    row = np.multiply(outer_accel_dps2, c, out=rows[1])  # v_o·(α_o·c − cross·s)
+    row -= np.multiply(cross, s, out=scratch)
+    row *= v_o
+    row = np.multiply(outer_accel_dps2, v_i, out=rows[2])  # α_i + v_i·α_o
+    row += inner_accel_dps2
     return _apply_wobble(alpha, s, c, gimbal.wobble_arcsec)
 
 
@@ -125,11 +133,16 @@ def gravity_top(inner_sincos: tuple[np.ndarray, np.ndarray],
     # up in the outer frame is (−sin φ, 0, cos φ); then R_x(ε)ᵀ, then R_z(ψ)ᵀ
     u0 = -sin_phi
     u1 = np.sin(eps) * cos_phi
-    u2 = np.cos(eps) * cos_phi
     up = np.empty((3, *np.shape(s)))
-    up[0] = c * u0 + s * u1
-    up[1] = -s * u0 + c * u1
-    up[2] = u2
+    rows = _rows(up)
+    # c·u0 + s·u1 and −s·u0 + c·u1 = c·u1 − s·u0 ((−a)·b = −(a·b), x + (−y) = x − y and
+    # a + b = b + a, bit for bit), each in its output row
+    row = np.multiply(c, u0, out=rows[0])
+    scratch = np.multiply(s, u1, out=np.empty_like(rows[0]))
+    row += scratch
+    row = np.multiply(c, u1, out=rows[1])
+    row -= np.multiply(s, u0, out=scratch)
+    np.multiply(np.cos(eps), cos_phi, out=rows[2])
     return _apply_wobble(up, s, c, gimbal.wobble_arcsec)
 
 
@@ -144,11 +157,21 @@ def _apply_wobble(vec: np.ndarray, s: np.ndarray, c: np.ndarray,
     w = wobble_arcsec * ARCSEC_RAD
     if w == 0.0:
         return vec
-    a0, a1 = c, -s
-    z = vec[2].copy()
-    vec[2] += w * (a0 * vec[1] - a1 * vec[0])
-    vec[0] += w * (a1 * z)
-    vec[1] -= w * (a0 * z)
+    # with a = (c, −s): z += w·(c·y + s·x), x −= w·(s·z), y −= w·(c·z) — the operations of
+    # a0·y − a1·x and x + w·(a1·z) with the signs folded ((−a)·b = −(a·b), x − (−y) = x + y)
+    rows = _rows(vec)
+    z = rows[2].copy()
+    term = np.multiply(c, rows[1], out=np.empty_like(rows[1]))
+    scratch = np.multiply(s, rows[0], out=np.empty_like(rows[0]))
+    term += scratch
+    term *= w
+    rows[2] += term
+    np.multiply(s, z, out=term)
+    term *= w
+    rows[0] -= term
+    np.multiply(c, z, out=term)
+    term *= w
+    rows[1] -= term
     return vec
 
 
@@ -164,7 +187,19 @@ def lab_horizontal_top(inner_sincos: tuple[np.ndarray, np.ndarray],
     sin_phi, cos_phi = outer_sincos
     h1, h2 = about_lab
     out = np.empty((3, *np.shape(h1)))
-    out[0] = h1 * (c * cos_phi) + h2 * s
-    out[1] = h2 * c - h1 * (s * cos_phi)
-    out[2] = h1 * sin_phi
+    rows = _rows(out)
+    row = np.multiply(c, cos_phi, out=rows[0])  # h1·(c·cos φ) + h2·s, in the output row
+    row *= h1
+    scratch = np.multiply(h2, s, out=np.empty_like(rows[0]))
+    row += scratch
+    row = np.multiply(s, cos_phi, out=rows[1])  # h2·c − h1·(s·cos φ)
+    row *= h1
+    np.subtract(np.multiply(h2, c, out=scratch), row, out=row)
+    np.multiply(h1, sin_phi, out=rows[2])
     return out
+
+
+def _rows(vectors: np.ndarray) -> np.ndarray:
+    """The three rows of a (3, …) result as arrays to write into (a single vector's rows as
+    length-1 views: its elements are scalars, which ``out=`` cannot take)."""
+    return vectors.reshape(3, 1) if vectors.ndim == 1 else vectors

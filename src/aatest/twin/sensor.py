@@ -25,6 +25,7 @@ from scipy import signal
 from aatest.effects import EffectInputs, forward, load_effect
 from aatest.twin.fastmath import standard_normal
 from aatest.twin.model import AmplitudeDamping, BiasDrift, SensorModel
+from aatest.twin.sensor_output import cubic, jerk_volts, volts_before_drift
 from aatest.twin.zeta_blend import blend, filters_needed
 
 #: damping-ratio grid of the amplitude-dependent dynamics: the output blends the two grid
@@ -155,8 +156,16 @@ def damping_of(effect: AmplitudeDamping, damping: float, amplitude_dps2: np.ndar
                ) -> np.ndarray:
     """ζ(A) of :class:`AmplitudeDamping` around the sensor's ``damping``, within bounds."""
     floor = effect.floor_dps2 if effect.floor_dps2 is not None else 1e-9
-    ratio = np.maximum(amplitude_dps2, floor) / effect.reference_dps2
-    return np.clip(damping + effect.damping_per_decade * np.log10(ratio), *_ZETA_BOUNDS)
+    # damping + c·log10(max(A, floor)/ref), clipped: in one buffer (a·b, a + b commute)
+    if np.ndim(amplitude_dps2) == 0:  # a scalar amplitude: the plain formula
+        ratio = np.maximum(amplitude_dps2, floor) / effect.reference_dps2
+        return np.clip(damping + effect.damping_per_decade * np.log10(ratio), *_ZETA_BOUNDS)
+    zeta = np.maximum(amplitude_dps2, floor)
+    zeta /= effect.reference_dps2
+    np.log10(zeta, out=zeta)
+    zeta *= effect.damping_per_decade
+    zeta += damping
+    return np.clip(zeta, *_ZETA_BOUNDS, out=zeta)
 
 
 def amplitude_dynamics(model: SensorModel, alpha: np.ndarray, dt_s: float,
@@ -172,9 +181,10 @@ def amplitude_dynamics(model: SensorModel, alpha: np.ndarray, dt_s: float,
     b, a = band_filter(eff.band_hz, round(dt_s, 15))
     band = lowpass_carry(alpha, b, a, "amplitude_band", state)
     amplitude = trailing_amplitude(band, max(round(eff.window_s / dt_s), 1), state)
-    grid = damping_of(eff, dyn.damping, amplitude) / _ZETA_STEP
+    grid = damping_of(eff, dyn.damping, amplitude)
+    grid /= _ZETA_STEP
     low = np.floor(grid).astype(np.int64)
-    frac = grid - low
+    frac = np.subtract(grid, low, out=grid)
     # sample i takes 1 − frac_i of the ζ-grid filter low_i and frac_i of filter low_i + 1:
     # a filter is run only up to the last sample that uses it when no later block continues it
     k0, needed = filters_needed(low, frac)
@@ -283,7 +293,9 @@ def sensed_acceleration(model: SensorModel, inp: SensorInputs,
         axis = inp.axes[:, 2]
     alpha = axis @ inp.alpha_top_dps2
     if model.g_sensitivity is not None:
-        alpha += model.g_sensitivity.coefficient_dps2_per_g * (inp.axes[:, 2] @ inp.up_g)
+        along = inp.axes[:, 2] @ inp.up_g
+        along *= model.g_sensitivity.coefficient_dps2_per_g
+        alpha += along
     if model.hysteresis is not None:
         start = state.play_dps2 if state is not None else None
         alpha = play_operator(alpha, model.hysteresis.half_width_dps2, start)
@@ -323,39 +335,26 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
         lim = model.saturation.limit_dps2
         alpha = np.clip(alpha, -lim, lim)
     if model.resolution_dps2 > 0.0:
-        alpha = np.round(alpha / model.resolution_dps2) * model.resolution_dps2
+        counts = np.divide(alpha, model.resolution_dps2)  # round(α/res)·res, in one buffer
+        np.round(counts, out=counts)
+        counts *= model.resolution_dps2
+        alpha = counts
     d_temp = inp.temperature_c - t_ref_c
     time_s = inp.time_s if inp.time_s is not None else np.arange(alpha.size) * inp.dt_s
     plugin_inputs = EffectInputs(alpha, sensed, d_temp, time_s, inp.dt_s, model.range_dps2)
     if model.nonlinearity_cubic is not None:
-        alpha = alpha * (1.0 + model.nonlinearity_cubic.c3 * (alpha / model.range_dps2) ** 2)
-    plugin_volts = np.zeros_like(alpha)
+        alpha = cubic(alpha, model.nonlinearity_cubic.c3, model.range_dps2)
+    plugin_volts: np.ndarray | None = None  # Σ of the plugin terms in V, from zeros
     for pe in model.plugin_effects or ():
         installed = load_effect(pe.effect, pe.distribution)
         term = forward(installed, plugin_inputs, pe.parameters)
         if installed.effect.enters == "acceleration":
             alpha = alpha + term
         else:
-            plugin_volts = plugin_volts + term
-    scale: float | np.ndarray = model.scale_v_per_dps2  # per sample once temperature-dependent
-    if model.scale_temperature is not None:
-        scale = scale * (1.0 + model.scale_temperature.coefficient_per_c * d_temp)
-    volts = model.bias_v + scale * alpha
-    if model.bias_temperature is not None:
-        volts = volts + model.bias_temperature.coefficient_v_per_c * d_temp
+            plugin_volts = (np.zeros_like(alpha) if plugin_volts is None else plugin_volts) + term
+    volts = volts_before_drift(model, alpha, d_temp)
     if model.bias_drift is not None and state is not None:
-        volts = volts + bias_drift_v(model.bias_drift, volts.size, inp.dt_s, state)
-    return volts + jerk_volts(model, sensed, response, inp.dt_s) + plugin_volts
-
-
-def jerk_volts(model: SensorModel, sensed: np.ndarray, response: np.ndarray, dt_s: float
-               ) -> np.ndarray | float:
-    """The jerk terms (V): ``jerk_sensitivity`` on the sensed acceleration's jerk, and
-    ``jerk_distortion`` on the squared jerk of the rotor's response (after the dynamics)."""
-    out: np.ndarray | float = 0.0
-    if model.jerk_sensitivity is not None:
-        out = model.jerk_sensitivity.coefficient_v_per_dps3 * np.gradient(sensed, dt_s)
-    if model.jerk_distortion is not None:
-        out = out + model.jerk_distortion.coefficient_v_per_dps3_squared * np.gradient(
-            response, dt_s) ** 2
-    return out
+        volts += bias_drift_v(model.bias_drift, volts.size, inp.dt_s, state)
+    volts += jerk_volts(model, sensed, response, inp.dt_s)
+    volts += 0.0 if plugin_volts is None else plugin_volts  # (+ 0.0: as adding the zeros)
+    return volts

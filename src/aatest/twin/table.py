@@ -125,17 +125,11 @@ def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: 
     if ripple.rejection_bandwidth_hz is None:
         s, c = a * sin, a * cos
     else:
-        # S(jr) = (jr)³/(1 + jr)³ = −j·r³ / (d_re + j·d_im), in real arithmetic for speed
-        r = np.abs(rate).astype(np.float32) * np.float32(
-            ripple.cycles_per_deg / ripple.rejection_bandwidth_hz)
-        r2 = r * r
-        r3 = r2 * r
-        d_re, d_im = 1.0 - 3.0 * r2, 3.0 * r - r3
-        scale = (-a) * r3 / (d_re * d_re + d_im * d_im)
-        s_re, s_im = scale * d_im, scale * d_re
-        s, c = sin * s_re + cos * s_im, cos * s_re - sin * s_im
+        s, c = _rejected(ripple, rate, a, sin, cos)
     # rate + k·rate·c and accel + k·accel·c − (k·rate)²·s, the same float64 operations in
-    # place (a + b is b + a bit for bit): two full-length temporaries instead of seven
+    # place (a + b is b + a bit for bit): two full-length temporaries instead of seven; s and
+    # c promoted to float64 once (exact) instead of inside each of four mixed products
+    s, c = s.astype(np.float64), c.astype(np.float64)
     krate = k * rate
     new_rate = krate * c
     new_rate += rate
@@ -145,7 +139,37 @@ def _add_ripple(ripple: RateRipple, angle: np.ndarray, rate: np.ndarray, accel: 
     krate *= krate
     krate *= s
     new_accel -= krate
-    return angle + s, new_rate, new_accel
+    s += angle
+    return s, new_rate, new_accel
+
+
+def _rejected(ripple: RateRipple, rate: np.ndarray, a: np.float32, sin: np.ndarray,
+              cos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ripple's (sine, cosine) terms through the servo's disturbance sensitivity, float32.
+
+    S(jr) = (jr)³/(1 + jr)³ = −j·r³ / (d_re + j·d_im), in real arithmetic for speed; each
+    product and sum in place, operands in the order written (a·b is b·a bit for bit).
+    """
+    assert ripple.rejection_bandwidth_hz is not None
+    r = np.abs(rate).astype(np.float32)
+    r *= np.float32(ripple.cycles_per_deg / ripple.rejection_bandwidth_hz)
+    r2 = r * r
+    r3 = r2 * r
+    d_re = np.multiply(r2, np.float32(3.0), out=r2)  # 1 − 3·r²
+    np.subtract(np.float32(1.0), d_re, out=d_re)
+    d_im = np.multiply(r, np.float32(3.0), out=r)  # 3·r − r³
+    d_im -= r3
+    scale = np.multiply(r3, -a, out=r3)  # (−a)·r³ / (d_re² + d_im²)
+    denominator = d_re * d_re
+    denominator += np.square(d_im)
+    scale /= denominator
+    s_re = np.multiply(scale, d_im, out=d_im)
+    s_im = np.multiply(scale, d_re, out=d_re)
+    s = sin * s_re  # sin·s_re + cos·s_im
+    s += np.multiply(cos, s_im, out=denominator)
+    c = np.multiply(cos, s_re, out=cos)  # cos·s_re − sin·s_im
+    c -= np.multiply(sin, s_im, out=s_im)
+    return s, c
 
 
 def _noisy(values: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
@@ -158,11 +182,11 @@ def _noisy(values: np.ndarray, sigma: float, rng: np.random.Generator) -> np.nda
     return noise
 
 
-def quantise(values: np.ndarray, step: float) -> np.ndarray:
-    """Round to a multiple of ``step`` (no-op when step is 0)."""
+def quantise(values: np.ndarray, step: float, in_place: bool = False) -> np.ndarray:
+    """Round to a multiple of ``step`` (no-op when step is 0); ``in_place``: in ``values``."""
     if step <= 0.0:
         return values
-    counts = np.divide(values, step)
+    counts = np.divide(values, step, out=values if in_place else None)
     np.round(counts, out=counts)
     counts *= step
     return counts
@@ -184,10 +208,11 @@ def estimates(
     res = model.encoder_resolution_deg
     noisy = _noisy(true_angle_deg, model.estimate_noise_deg, rng)
     counts = noisy  # the controller works in counts
-    if res > 0.0:
-        counts = np.divide(noisy, res)
+    if res > 0.0:  # (in the noisy array itself when it is a new one)
+        counts = np.divide(noisy, res, out=None if noisy is true_angle_deg else noisy)
         np.round(counts, out=counts)
-    raw = quantise(_noisy(true_angle_deg, model.encoder_noise_deg, rng), res)
+    feedback = _noisy(true_angle_deg, model.encoder_noise_deg, rng)
+    raw = quantise(feedback, res, in_place=feedback is not true_angle_deg)
     p = STENCIL_PAD
     n = true_angle_deg.size - 2 * p
     f = [counts[p + k: p + k + n] for k in (-2, -1, 0, 1, 2)]
