@@ -110,7 +110,10 @@ def encode_block_pieces(
 ) -> Iterator[tuple[list[Any], int]]:
     """:func:`encode_blocks`, each message as consecutive byte-like pieces (bytes and uint8
     arrays) with its length in bytes: a writer joins the pieces of a whole MCAP chunk at once,
-    so the samples are copied once into the chunk, not into each message first."""
+    so the samples are copied once into the chunk, not into each message first.
+
+    ``log_times_ns`` holds each block's MCAP log time in nanoseconds (UTC), one per block.
+    """
     check_dtypes(log)
     blocks = -(-len(log) // block_samples)
     if len(log_times_ns) != blocks:
