@@ -137,25 +137,3 @@ def test_a_result_that_does_not_pickle_is_computed_here() -> None:
     out = parallel_map(task, [0, 1, 2])
     assert isinstance(out[1], type(threading.Lock()))
     assert [v for v, _ in (out[0], out[2])] == [0, 2]  # type: ignore[misc]
-
-
-def test_work_meanwhile_runs_here_once_while_the_children_compute() -> None:
-    done: list[int] = []
-    forked.meanwhile(lambda: done.append(os.getpid()))
-    forked.meanwhile(lambda: 1 / 0)  # a failing warm-up is only logged
-    out = parallel_map(_square_and_pid, list(range(6)))
-    assert [v for v, _ in out] == [x * x for x in range(6)]
-    if cpu_workers() >= 2:
-        assert done == [PARENT]
-        parallel_map(_square_and_pid, list(range(6)))
-        assert done == [PARENT]  # done once, not again at the next map
-
-
-def test_work_meanwhile_waits_for_a_map_that_forks_and_can_be_dropped() -> None:
-    done: list[int] = []
-    forked.meanwhile(lambda: done.append(1))
-    parallel_map(_square_and_pid, [3])  # one item: no fork, nothing beside it
-    assert done == []
-    forked.discard_pending()
-    parallel_map(_square_and_pid, list(range(6)))
-    assert done == []

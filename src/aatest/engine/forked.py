@@ -24,7 +24,7 @@ import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, TypeVar, cast
 
 T = TypeVar("T")
@@ -45,8 +45,6 @@ class _ForkState:
     task: Callable[[Any], Any] | None = None
     #: True in a forked child: it forks no workers of its own
     in_worker: bool = False
-    #: work for this process while the next map's children compute (:func:`meanwhile`)
-    pending: list[Callable[[], None]] = field(default_factory=list)
 
 
 _STATE = _ForkState()
@@ -100,33 +98,6 @@ def _call(item: Any) -> tuple[bool, Any]:
         return False, None
 
 
-def meanwhile(work: Callable[[], None]) -> None:
-    """Have this process do ``work`` while the next :func:`parallel_map` that forks waits for
-    its children, instead of idling there.
-
-    For work whose only effect is to make later work cheaper (importing and warming a library
-    the caller will need): done beside the children it costs no wall time of its own where
-    it would otherwise run alone, one core idle. It is dropped where no map forks (see
-    :func:`discard_pending`) and an error in it is only logged: the later work meets it.
-    """
-    _STATE.pending.append(work)
-
-
-def discard_pending() -> None:
-    """Drop the :func:`meanwhile` work no map has done (its caller no longer needs it)."""
-    _STATE.pending.clear()
-
-
-def _do_pending() -> None:
-    """This process's :func:`meanwhile` work, done once."""
-    while _STATE.pending:
-        work = _STATE.pending.pop(0)
-        try:
-            work()
-        except Exception as exc:  # noqa: BLE001 - a warm-up; the work it prepares meets it
-            log.debug("work beside the workers failed: %r", exc)
-
-
 def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None = None
                  ) -> list[R]:
     """``task(item)`` of each item, in order, on up to ``workers`` forked children (default:
@@ -160,7 +131,6 @@ def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None
     gc.freeze()
     try:
         futures = [pool.submit(_call, item) for item in items]
-        _do_pending()  # the children exist (all forked at the first submit): work beside them
         for item, future in zip(items, futures, strict=True):
             out.append(_taken(future, task, item))
     except BrokenProcessPool:
@@ -194,5 +164,4 @@ def _taken(future: Future[tuple[bool, Any]], task: Callable[[T], R], item: T) ->
     return cast(R, result) if ok else task(item)
 
 
-__all__ = ["WORKERS_ENV", "cpu_workers", "discard_pending", "fork_workers", "meanwhile",
-           "parallel_map"]
+__all__ = ["WORKERS_ENV", "cpu_workers", "fork_workers", "parallel_map"]

@@ -36,22 +36,6 @@ def new_figure(rows: int = 1, width_in: float = 6.0, height_in: float = 3.0) -> 
     return fig, fig.subplots(rows, 1, squeeze=False)
 
 
-def warm() -> None:
-    """Import matplotlib and load what its first figure loads (fonts, the SVG backend), so a
-    later figure costs only its own drawing.
-
-    Why: the first figure of a process costs ≈ 0.75 s of CPU (≈ 0.55 s importing matplotlib),
-    most of it once per process; the analysis pass does this while its forked workers run
-    (:func:`aatest.engine.forked.meanwhile`) and its workers forked later inherit it. What a
-    figure shows and its SVG bytes do not depend on it (the ids are salted by content).
-    """
-    fig, ax = new_figure(1, width_in=1.0, height_in=1.0)
-    ax[0, 0].plot([0.0, 1.0], [0.0, 1.0], "o", ms=3)
-    ax[0, 0].set(xlabel="x", ylabel="y", title="t")
-    fig.tight_layout()
-    to_svg(fig)
-
-
 def frequency_axis(*axes: Any) -> None:
     """Log frequency axes whose decades are labelled as plain numbers (0.1, 1, 10, 100 Hz).
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import gc
 import logging
-import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from graphlib import CycleError, TopologicalSorter
@@ -31,10 +30,8 @@ from threadpoolctl import threadpool_limits
 from aatest.engine.analysis import plugins as _plugins
 from aatest.engine.analysis.plugins import AnalysisEntry, AnalysisPlugin
 from aatest.engine.errors import AnalysisError, PluginError
-from aatest.engine.forked import discard_pending, meanwhile
 from aatest.engine.gc_freeze import older_objects_frozen
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
-from aatest.presentation import figures
 from aatest.recording import temperatures
 from aatest.recording.dataset import Dataset
 
@@ -148,15 +145,7 @@ def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
     workers (:func:`aatest.plugins.analysis.sync.relations`) use instead.
     """
     with threadpool_limits(limits=1, user_api="blas"), older_objects_frozen():
-        # the analyses draw their figures in this process after their forked workers return,
-        # one core idle: matplotlib's import and first figure (≈ 0.75 s CPU) are done while
-        # the first map's workers run instead (nothing, when no map forks)
-        if "matplotlib" not in sys.modules:
-            meanwhile(figures.warm)
-        try:
-            return _run_analyses(data, requested, options)
-        finally:
-            discard_pending()
+        return _run_analyses(data, requested, options)
 
 
 def _run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
