@@ -15,10 +15,11 @@ from twin_steps import rate_step, sine_step, static_step
 
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.twin import step_synthesis, synthesis
+from aatest.twin import step_synthesis, synthesis, table_log
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.step_synthesis import synthesise
-from aatest.twin.synthesis import StepSetup, _daq_log, _table_log
+from aatest.twin.synthesis import StepSetup, _daq_log
+from aatest.twin.table_log import table_log_with_truth
 from aatest.twin.world import World
 
 
@@ -44,20 +45,20 @@ STEPS = [sine_step(7.0, 400.0, samples=4096), sine_step(0.7, 50.0, samples=4096,
 
 def _serial(setup: StepSetup) -> tuple[SampledLog, dict, SampledLog, synthesis.LazyTruth]:
     rng = np.random.default_rng(5)
-    table, table_truth = _table_log(setup, rng)  # first the table log, then the DAQ log
+    table, table_truth = table_log_with_truth(setup, rng)  # first the table log, then the DAQ log
     return table, table_truth, *_daq_log(setup, rng, np.random.default_rng(6))
 
 
 def _counted_table_logs(monkeypatch: pytest.MonkeyPatch) -> list[object]:
     """Record the generator each table log is computed from."""
     calls: list[object] = []
-    real = synthesis._table_log
+    real = table_log.table_log_with_truth
 
     def counted(setup: StepSetup, rng: np.random.Generator, *args: object) -> object:
         calls.append(rng)
         return real(setup, rng, *args)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(step_synthesis, "_table_log", counted)
+    monkeypatch.setattr(step_synthesis, "table_log_with_truth", counted)
     return calls
 
 
@@ -102,7 +103,7 @@ def test_two_streams_compute_concurrently_with_their_own_draws() -> None:
     setup = _setup(STEPS[2])
     both = synthesise(setup, np.random.default_rng(5), np.random.default_rng(7),
                       np.random.default_rng(6))
-    table, _ = _table_log(setup, np.random.default_rng(5))
+    table, _ = table_log_with_truth(setup, np.random.default_rng(5))
     daq, _ = _daq_log(setup, np.random.default_rng(7), np.random.default_rng(6))
     _same(both.table, table)
     _same(both.daq, daq)

@@ -16,7 +16,8 @@ Where each part lives (data flows top to bottom):
                   registration one cycle late with ``fp_latch_s``
 - ``chamber``     set-point steps, first-order sensor lag, stabilisation
 - ``grid`` / ``fastmath``  uniform-grid phasors, fast trig and noise (the benchmark's budget)
-- ``synthesis``   one step's table log, DAQ log and truth, all vectorised
+- ``synthesis``   one step's DAQ log, rigid motion and truth, all vectorised
+- ``table_log``   one step's table controller log (estimates, sync pulse) and its truth
 - ``step_synthesis`` / ``drawn_ahead``  a step's pieces on two threads, every number drawn
                   in the serial order (uniforms drawn ahead onto tapes)
 - ``world``       the rig state in virtual lab time, shared by the simulated plugins

@@ -38,17 +38,14 @@ from aatest.twin.synthesis import (
     _daq_log,
     _daq_samples,
     _stamped,
-    _table_log,
-    _table_pulse,
     floor_rocking_block,
     floor_uniforms,
     generation_block,
     outer_part,
     record_uniforms,
     stamp_uniforms,
-    table_times,
-    table_uniforms,
 )
+from aatest.twin.table_log import table_log_with_truth, table_pulse, table_times, table_uniforms
 
 _BothLogs = tuple[SampledLog, dict[str, Any], SampledLog, LazyTruth]
 
@@ -78,7 +75,7 @@ def _two_streams(setup: StepSetup, rng: np.random.Generator, daq_rng: np.random.
                  drift_rng: np.random.Generator | None) -> _BothLogs:
     """The table log on a worker, the DAQ log (its own streams) on this thread."""
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aatest-twin") as pool:
-        table = pool.submit(_table_log, setup, rng)
+        table = pool.submit(table_log_with_truth, setup, rng)
         daq, truth = _daq_log(setup, daq_rng, drift_rng)
         return *table.result(), daq, truth
 
@@ -86,7 +83,7 @@ def _two_streams(setup: StepSetup, rng: np.random.Generator, daq_rng: np.random.
 def _serial(setup: StepSetup, rng: np.random.Generator,
             drift_rng: np.random.Generator | None) -> _BothLogs:
     """The table log, then the DAQ log, from one stream (the reference order of draws)."""
-    table, table_truth = _table_log(setup, rng)
+    table, table_truth = table_log_with_truth(setup, rng)
     return table, table_truth, *_daq_log(setup, rng, drift_rng)
 
 
@@ -110,7 +107,7 @@ def _draw(setup: StepSetup, rng: np.random.Generator) -> _Drawn:
     estimates, its pulse, then the DAQ log's floor rocking, channel noise and time stamps."""
     n, model = _daq_samples(setup), setup.model
     table = UniformTape(rng, table_uniforms(setup))
-    pulse = _table_pulse(setup, table_times(setup), rng)
+    pulse = table_pulse(setup, table_times(setup), rng)
     return _Drawn(table, pulse, UniformTape(rng, floor_uniforms(model.table, n)),
                   UniformTape(rng, sum(record_uniforms(s, model.daq, n) for s in model.sensors)),
                   UniformTape(rng, stamp_uniforms(setup.clock, n)))
@@ -151,7 +148,7 @@ def _overlapped(setup: StepSetup, rng: np.random.Generator,
                 setup.model.table, n, clock.lab_dt_s, _tape(drawn.result().floor), None)),
             stamps=pool.submit(lambda: _stamped(clock, 0, n, _tape(drawn.result().stamps))),
             record=_later(drawn, lambda d: _tape(d.record)))
-        table = pool.submit(lambda: _table_log(setup, _tape(drawn.result().table),
+        table = pool.submit(lambda: table_log_with_truth(setup, _tape(drawn.result().table),
                                                drawn.result().pulse))
         daq, truth = _daq_log(setup, _tape(_NO_DRAWS), drift_rng, ahead)
         return (*table.result(), daq, truth), drawn.result()

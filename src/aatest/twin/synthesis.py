@@ -2,8 +2,9 @@
 
 Everything is computed on whole arrays from the World's record of the step: the real motion of
 each axis (analytic in lab time), the DAQ clock and the sensor temperature. The table log is
-sampled on the table clock from the trigger on; the DAQ log on its own crystal clock from
-``start_lead_s`` before the trigger to ``stop_lag_s`` after the table log ends.
+sampled on the table clock from the trigger on (:mod:`aatest.twin.table_log`); the DAQ log,
+here, on its own crystal clock from ``start_lead_s`` before the trigger to ``stop_lag_s`` after
+the table log ends.
 
 How a step's pieces are spread over two threads with the numbers a serial synthesis draws:
 :mod:`aatest.twin.step_synthesis`. A long record computes the next block's rigid motion (no
@@ -23,11 +24,11 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, TABLE, TABLE_CHANNELS, SampledLog
+from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.twin import kinematics as kin
 from aatest.twin.chamber import ThermalState
-from aatest.twin.clocks import TIMESTAMP_TICK_S, DaqClock, table_sync
+from aatest.twin.clocks import TIMESTAMP_TICK_S, DaqClock
 from aatest.twin.daq import antialias_filter, noiseless, quantise_adc
 from aatest.twin.drawn_ahead import normal_uniforms
 from aatest.twin.fastmath import standard_normal
@@ -41,7 +42,7 @@ from aatest.twin.sensor import (
     lowpass_carry,
     output_volts,
 )
-from aatest.twin.table import STENCIL_PAD, AxisTruth, estimate_quanta, estimates
+from aatest.twin.table import AxisTruth
 from aatest.twin.table import _band_filter as band_filter
 
 
@@ -116,91 +117,12 @@ class SimulatedStep:
     truth: LazyTruth
 
 
-def _table_log(setup: StepSetup, rng: np.random.Generator,
-               pulse: tuple[np.ndarray, np.ndarray] | None = None,
-               ) -> tuple[SampledLog, dict[str, Any]]:
-    """The table log and its truth; ``pulse`` (:func:`_table_pulse`, drawn last) when the
-    caller has drawn it already."""
-    step, tm = setup.step, setup.model.table
-    dt = 1.0 / step.sample_rate_hz
-    grid = Grid(setup.trigger_time_s - STENCIL_PAD * dt, dt, step.samples + 2 * STENCIL_PAD)
-    channels: dict[str, np.ndarray] = {}
-    truth: dict[str, Any] = {}
-    axes = (("inner", setup.inner, tm.inner), ("outer", setup.outer, tm.outer))
-    for name, axis, axis_model in axes:
-        angle, rate, accel = axis.evaluate(grid)
-        encoder = axis_model.encoder_error  # what the encoder reports, not where the table is
-        seen = angle + encoder.error_deg(angle) if encoder is not None else angle
-        est = estimates(seen, axis_model, dt, tm.estimator, rng)
-        channels[f"{name}_position_deg"] = est["position_deg"]
-        channels[f"{name}_rate_dps"] = est["rate_dps"]
-        channels[f"{name}_accel_dps2"] = est["accel_dps2"]
-        channels[f"{name}_feedback_deg"] = est["feedback_deg"]
-        inner_slice = slice(STENCIL_PAD, STENCIL_PAD + step.samples)
-        truth[f"{name}_angle_deg"] = angle[inner_slice]
-        truth[f"{name}_rate_dps"] = rate[inner_slice]
-        truth[f"{name}_accel_dps2"] = accel[inner_slice]
-    time_s = table_times(setup)
-    channels["sync_pulse"], channels["fp_latch_s"] = (
-        pulse if pulse is not None else _table_pulse(setup, time_s, rng))
-    moving = "outer" if step.axis == "outer" else "inner"
-    truth.update(time_s=time_s, angle_deg=truth[f"{moving}_angle_deg"],
-                 rate_dps=truth[f"{moving}_rate_dps"], accel_dps2=truth[f"{moving}_accel_dps2"])
-    # encoder counts: the controller's log channels are integer multiples of these
-    quanta = {f"{a}_{c}": (q, 0.0) for a, _, m in axes if m.encoder_resolution_deg > 0.0
-              for c, q in estimate_quanta(m, dt, tm.estimator).items()}
-    log = SampledLog(TABLE, step.sample_rate_hz, time_s,
-                     _read_only({c: channels[c] for c in TABLE_CHANNELS}), dict(TABLE_CHANNELS),
-                     {"time_s": (dt, 0.0), **quanta})
-    return log, truth
-
-
-def table_log(setup: StepSetup, rng: np.random.Generator) -> SampledLog:
-    """The table controller's log of a step alone (e.g. its snapshots during a long record)."""
-    return _table_log(setup, rng)[0]
-
-
-def _read_only(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def read_only(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Hand fresh arrays to the (immutable) log without the defensive copy it makes of
     writeable ones; nothing else holds them for writing."""
     for values in channels.values():
         values.flags.writeable = False
     return channels
-
-
-#: rows of a snapshot log whose pulse edges are generated together (bounded memory)
-SNAPSHOT_ROWS_PER_WINDOW = 600
-
-
-def _table_pulse(setup: StepSetup, time_s: np.ndarray,
-                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Sync pulse as registered by the table, with the latch times (table clock).
-
-    A snapshot log (rows further apart than the pulse period, hours long) is done in windows of
-    :data:`SNAPSHOT_ROWS_PER_WINDOW` rows, each with the edges since the row before it, so the
-    200 edges per second of a long record are never all in memory at once.
-    """
-    dt_s = float(time_s[1] - time_s[0]) if time_s.size > 1 else 0.0
-    if time_s.size <= SNAPSHOT_ROWS_PER_WINDOW or dt_s * setup.clock.sync_hz <= 1.0:
-        return _pulse_rows(setup, time_s, rng)
-    levels, latches = [], []
-    for first in range(0, time_s.size, SNAPSHOT_ROWS_PER_WINDOW):
-        start = max(first - 1, 0)  # the row before: its edges register on row `first`
-        level, latch = _pulse_rows(setup, time_s[start:first + SNAPSHOT_ROWS_PER_WINDOW], rng)
-        levels.append(level[first - start:])
-        latches.append(latch[first - start:])
-    return np.concatenate(levels), np.concatenate(latches)
-
-
-def _pulse_rows(setup: StepSetup, time_s: np.ndarray,
-                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_table_pulse` of consecutive rows ``time_s`` (table clock, s)."""
-    clock, trig = setup.clock, setup.trigger_time_s
-    daq_span = (np.array([time_s[0] - 0.05, time_s[-1] + 0.05]) + trig - clock.t0_s) / clock.scale
-    edge_daq, rising = clock.edges(float(daq_span[0]), float(daq_span[1]), rng)
-    edge_table = clock.lab_time(edge_daq) - trig
-    level_before = 0.0 if rising[0] else 1.0
-    return table_sync(edge_table, rising, level_before, time_s)
 
 
 def _daq_samples(setup: StepSetup) -> int:
@@ -408,7 +330,7 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
             del current
             stamps = (ahead.stamps.result() if ahead is not None
                       else _stamped(clock, start, grid.n, rng))
-            yield SampledLog(DAQ, clock.sample_rate_hz, stamps, _read_only(channels), units,
+            yield SampledLog(DAQ, clock.sample_rate_hz, stamps, read_only(channels), units,
                              quanta)
 
 
@@ -580,7 +502,7 @@ def concatenate_logs(blocks: list[SampledLog]) -> SampledLog:
     channels = {name: np.concatenate([b.channels[name] for b in blocks])
                 for name in first.channels}
     return SampledLog(first.source, first.sample_rate_hz,
-                      np.concatenate([b.time_s for b in blocks]), _read_only(channels),
+                      np.concatenate([b.time_s for b in blocks]), read_only(channels),
                       dict(first.units), dict(first.quantisation))
 
 
@@ -589,18 +511,3 @@ def _undelayed(setup: StepSetup, grid: Grid, motion: dict[float, tuple[np.ndarra
     if 0.0 not in motion:
         motion[0.0] = _top_motion(setup, grid, floor)
     return motion[0.0][0]
-
-
-def table_times(setup: StepSetup) -> np.ndarray:
-    """Table log time stamps (s from the trigger), as :func:`_table_log` makes them."""
-    return np.arange(setup.step.samples) * (1.0 / setup.step.sample_rate_hz)
-
-
-def table_uniforms(setup: StepSetup) -> int:
-    """Uniforms the table log's estimates draw (:func:`aatest.twin.table.estimates`: the
-    estimate noise, then the encoder noise, of each axis with that noise, on the padded grid);
-    its pulse, drawn after them, is not counted."""
-    m = setup.step.samples + 2 * STENCIL_PAD
-    table = setup.model.table
-    return sum(normal_uniforms(m) for axis in (table.inner, table.outer)
-               for sigma in (axis.estimate_noise_deg, axis.encoder_noise_deg) if sigma > 0.0)

@@ -33,9 +33,9 @@ from aatest.twin.synthesis import (
     concatenate_logs,
     daq_blocks,
     daq_record_samples,
-    table_log,
 )
 from aatest.twin.table import AxisTruth, Tones, make_vibration, tracked
+from aatest.twin.table_log import table_log
 
 
 @dataclass(frozen=True)
