@@ -142,7 +142,12 @@ def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> None:
     recorder.prune_step_files()
 
 
-def _analyse_and_report(prepared: Any, out: Path, phases: Phases) -> None:
+def _analyse_and_report(prepared: Any, out: Path, phases: Phases, recorded_here: bool
+                        ) -> tuple[float, int]:
+    """Time the analyse and report phases; the lab time (s) the results state and the number of
+    steps analysed. The lab time is the plan's when
+    this bench recorded the run, else the recorded steps' own (``--analyse-only``: the run may
+    be of another procedure or length than the options given), as ``aatest analyze`` does."""
     from aatest.engine.analysis.passes import run_analyses
     from aatest.engine.analysis.results_file import build_results
     from aatest.recording import read_dataset
@@ -152,6 +157,8 @@ def _analyse_and_report(prepared: Any, out: Path, phases: Phases) -> None:
         return data, run_analyses(data, list(data.metadata.get("analysis", [])))
 
     data, analysis = phases.time("analyse", analyse)
+    lab_s = (prepared.plan.lab_duration_s if recorded_here
+             else sum(s.step.lab_duration_s for s in data.steps))
 
     template = prepared.plan.report_template or "calibration-certificate"
     # the report plugin prepares its render over the whole phase, as `aatest run` does (a
@@ -160,11 +167,12 @@ def _analyse_and_report(prepared: Any, out: Path, phases: Phases) -> None:
 
     def report() -> None:
         with report_prepared(template):
-            results = build_results(data, analysis, prepared.plan.lab_duration_s, 0.0)
+            results = build_results(data, analysis, lab_s, 0.0)
             results = session.decide(results, data)
             session.render_and_sign(results, out, template, None, None)
 
     phases.time("report", report)
+    return float(lab_s), len(data.steps)
 
 
 def _pinned() -> contextlib.AbstractContextManager[Any]:
@@ -242,15 +250,14 @@ def main() -> None:
             if out.exists():
                 shutil.rmtree(out)
             _record(prepared, out, args.seed, phases)
-        _analyse_and_report(prepared, out, phases)
-    lab_s = prepared.plan.lab_duration_s
+        lab_s, steps = _analyse_and_report(prepared, out, phases, args.analyse_only is None)
     recording_mb = (out / RECORDING_NAME).stat().st_size / MB
     if args.json:
         print(json.dumps({"phases": [r[:3] for r in phases.rows], "lab_s": lab_s}))
         if args.dir is None and args.analyse_only is None:
             shutil.rmtree(out.parent, ignore_errors=True)
         return
-    print(f"{prepared.plan.procedure}: {len(prepared.plan.steps)} steps, lab time {lab_s:.0f} s,"
+    print(f"{prepared.plan.procedure}: {steps} steps, lab time {lab_s:.0f} s,"
           f" recording {recording_mb:.1f} MB ({out})")
     print(f"  {'phase':<8} {'wall/s':>8} {'CPU/s':>8} {'peak RSS/MB':>12}")
     for name, wall, cpu, peak in phases.rows:
