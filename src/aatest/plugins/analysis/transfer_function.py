@@ -20,7 +20,6 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
 from scipy import signal
-from scipy.fft import next_fast_len
 
 from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
@@ -30,15 +29,13 @@ from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
-    INPUT_ACCEL_CHANNELS,
     group_of,
-    input_accel_dps2,
     is_excited,
     options_of,
     select,
     steps_of,
 )
-from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
+from aatest.plugins.analysis.tf_xcorr import rated_xcorr, watch_xcorr
 from aatest.plugins.analysis.tfest import (
     DiscreteTf,
     fit_discrete_tf,
@@ -52,8 +49,6 @@ from aatest.results.transfer_function import TransferFunctionResult
 
 MAX_POLES = 5
 MIN_POINTS = 6
-XCORR_MIN_STRENGTH = 0.9
-_MAX_LAG_S = 0.05
 _FIT_TIE_PCT = 0.5
 _SCAN_MAX_POLES = 2
 #: a listed identification split needs this many points (a gain and a phase trend)
@@ -81,85 +76,6 @@ class TransferFunctionOptions(BaseModel):
     antialias_hz: float | Literal["auto", "none"] = Field("auto", description="Hz, auto, none")
     identification_hz: tuple[PositiveFloat, ...] = Field(
         (), description="frequencies (Hz) whose nearest points identify; the rest validate")
-
-
-def xcorr_delay(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
-    """Delay (s, whole samples) maximising the summed normalised input–output correlation.
-
-    Reads only the table's acceleration and the sensor's channel of each step (a lazy view
-    decodes nothing else).
-    """
-    return _xcorr(steps, sensor)[0]
-
-
-def _xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[str, float], float]:
-    """:func:`xcorr_delay` and the steps' sample rate (Hz), each step synchronised once (or
-    its correlation made by the sync pass, :func:`watch_xcorr`)."""
-    if isinstance(steps, SyncedSteps):
-        steps = steps.only(table=INPUT_ACCEL_CHANNELS, daq=(sensor.channel,))
-        terms = steps.reduced(_watch_name(sensor), lambda s: _rated_term(s, sensor))
-    else:
-        terms = [_rated_term(s, sensor) for s in steps]
-    if not terms:
-        raise IndexError("no steps to correlate")
-    fs = terms[0][0]
-    max_lag = int(_MAX_LAG_S * fs)
-    if any(rate != fs for rate, _ in terms):  # every step's lags are those of the first
-        terms = [(fs, _xcorr_term(s, sensor, max_lag)) for s in steps]
-    total = np.zeros(max_lag + 1)
-    for _, term in terms:
-        total += term
-    total /= len(terms)
-    lag = int(np.argmax(np.abs(total)))
-    strength = float(abs(total[lag]))
-    return {"delay_samples": lag, "delay_s": lag / fs, "strength": strength,
-            "accepted": bool(strength >= XCORR_MIN_STRENGTH)}, fs
-
-
-def _xcorr_term(s: SyncedStep, sensor: SensorInfo, max_lag: int) -> np.ndarray:
-    """One step's normalised input–output correlation at lags 0..``max_lag`` (samples)."""
-    x = input_accel_dps2(s, sensor.axis)
-    y = np.asarray(s.daq[sensor.channel], dtype=np.float64)
-    x, y = x - x.mean(), y - y.mean()
-    # lags 0..max_lag of the linear correlation need nfft ≥ n + max_lag (no wrap-around);
-    # a 5-smooth length is ~10x faster than the next power of two above 2n
-    nfft = next_fast_len(x.size + max_lag, real=True)
-    cc = np.fft.irfft(np.conj(np.fft.rfft(x, nfft)) * np.fft.rfft(y, nfft), nfft)
-    overlap = x.size - np.arange(max_lag + 1)
-    term: np.ndarray = cc[:max_lag + 1] / overlap / (np.std(x) * np.std(y))
-    return term
-
-
-def _rated_term(s: SyncedStep, sensor: SensorInfo) -> tuple[float, np.ndarray]:
-    """The step's sample rate (Hz) and its correlation over the lags that rate gives."""
-    return s.sample_rate_hz, _xcorr_term(s, sensor, int(_MAX_LAG_S * s.sample_rate_hz))
-
-
-def _watch_name(sensor: SensorInfo) -> str:
-    return f"transfer_function.xcorr:{sensor.channel}"
-
-
-def watch_xcorr(data: Dataset, options: TransferFunctionOptions) -> None:
-    """Have the sync pass correlate input and output of every sine step a model will read
-    (groups with ``options.min_points`` steps along a sensor), as it decodes the step: each
-    recorded step is then decoded once, not once more here (values identical)."""
-    sine = [p for p in data.planned if p.kind == "sine"]
-    for sensor in data.sensors:
-        counts: dict[str, int] = {}
-        for p in sine:
-            if is_excited(p, sensor):
-                counts[group_of(p)] = counts.get(group_of(p), 0) + 1
-        modelled = {g for g, n in counts.items() if n >= options.min_points}
-
-        def wanted(p: PlannedStep, sensor: SensorInfo = sensor,
-                   modelled: set[str] = modelled) -> bool:
-            return p.kind == "sine" and group_of(p) in modelled and is_excited(p, sensor)
-
-        def term(s: SyncedStep, sensor: SensorInfo = sensor) -> tuple[float, np.ndarray]:
-            return _rated_term(s, sensor)
-
-        watch_synced(data, _watch_name(sensor), SyncedWatch(
-            {"table": INPUT_ACCEL_CHANNELS, "daq": (sensor.channel,)}, wanted, term))
 
 
 #: identification and validation points (indices into the frequency-sorted FRF)
@@ -330,7 +246,7 @@ def group_model(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: Sen
     Discrete models describe sensor and logger lumped (as measured); the physical
     second-order-plus-delay model has the logger's known pre-sample filter de-embedded.
     """
-    xcorr = _xcorr(steps, sensor)
+    xcorr = rated_xcorr(steps, sensor)
     values, svg = _discrete_model(points, xcorr, sensor, options)
     return _with_physical(values, _physical_model(points, xcorr, antialias_hz)), svg
 
@@ -345,7 +261,7 @@ def _discrete_model(points: list[FrfPoint], xcorr: tuple[dict[str, float], float
                     sensor: SensorInfo, options: TransferFunctionOptions | None
                     ) -> tuple[dict[str, Any], str]:
     """The chosen discrete model of a group (every value but the physical model) and its Bode
-    figure; ``xcorr`` is the group's :func:`_xcorr`."""
+    figure; ``xcorr`` is the group's :func:`rated_xcorr`."""
     f, h = _group_frf(points)
     xc, fs = xcorr
     dt = 1.0 / fs
@@ -436,7 +352,7 @@ def sensor_models(points: Mapping[str, list[FrfPoint]], steps: Sequence[SyncedSt
     items = [(kind, i, g) for kind in ("discrete", "physical") for i, g in groups]
     # both items of a group read its correlation: summed here once (the sync pass made the
     # steps' terms, and hands each out once), the workers inherit it
-    xcorrs = {(i, g): _xcorr(select(steps, _in_group(g, sensors[i])), sensors[i])
+    xcorrs = {(i, g): rated_xcorr(select(steps, _in_group(g, sensors[i])), sensors[i])
               for i, g in groups}
 
     def fit(item: tuple[str, int, str]) -> Any:
@@ -472,8 +388,9 @@ class TransferFunctionAnalysis:
 
     def watch_steps(self, data: Dataset, options: BaseModel) -> None:
         """Register the cross-correlations with the sync pass (:func:`watch_xcorr`)."""
-        watch_xcorr(data, options if isinstance(options, TransferFunctionOptions) else
-                    TransferFunctionOptions.model_validate(options.model_dump()))
+        tf_options = (options if isinstance(options, TransferFunctionOptions) else
+                      TransferFunctionOptions.model_validate(options.model_dump()))
+        watch_xcorr(data, tf_options.min_points)
 
     def run(self, data: Dataset, context: AnalysisContext
             ) -> AnalysisOutput[TransferFunctionResult]:

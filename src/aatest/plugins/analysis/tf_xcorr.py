@@ -1,0 +1,109 @@
+"""The input–output delay of a transfer-function group, by cross-correlation (docs/method.md §4.4).
+
+Per step, the normalised correlation of the table's acceleration (input) and the sensor's
+channel (output) at lags 0..50 ms; summed over a group's steps, its peak gives the delay a
+discrete model may carry, accepted only when the peak is strong. The sync pass computes each
+step's term as it decodes the step (:func:`watch_xcorr`), so no step is decoded again here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.fft import next_fast_len
+
+from aatest.clocksync.freeze_pulse import SyncedStep
+from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis._common import (
+    INPUT_ACCEL_CHANNELS,
+    group_of,
+    input_accel_dps2,
+    is_excited,
+)
+from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
+from aatest.recording.dataset import Dataset, SensorInfo
+
+#: normalised correlation peak at or above which the delay is accepted for the models
+XCORR_MIN_STRENGTH = 0.9
+#: the longest delay looked for (s)
+_MAX_LAG_S = 0.05
+
+
+def xcorr_delay(steps: Sequence[SyncedStep], sensor: SensorInfo) -> dict[str, float]:
+    """Delay (s, whole samples) maximising the summed normalised input–output correlation.
+
+    Reads only the table's acceleration and the sensor's channel of each step (a lazy view
+    decodes nothing else).
+    """
+    return rated_xcorr(steps, sensor)[0]
+
+
+def rated_xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[str, float], float]:
+    """:func:`xcorr_delay` and the steps' sample rate (Hz), each step synchronised once (or
+    its correlation made by the sync pass, :func:`watch_xcorr`)."""
+    if isinstance(steps, SyncedSteps):
+        steps = steps.only(table=INPUT_ACCEL_CHANNELS, daq=(sensor.channel,))
+        terms = steps.reduced(_watch_name(sensor), lambda s: _rated_term(s, sensor))
+    else:
+        terms = [_rated_term(s, sensor) for s in steps]
+    if not terms:
+        raise IndexError("no steps to correlate")
+    fs = terms[0][0]
+    max_lag = int(_MAX_LAG_S * fs)
+    if any(rate != fs for rate, _ in terms):  # every step's lags are those of the first
+        terms = [(fs, _xcorr_term(s, sensor, max_lag)) for s in steps]
+    total = np.zeros(max_lag + 1)
+    for _, term in terms:
+        total += term
+    total /= len(terms)
+    lag = int(np.argmax(np.abs(total)))
+    strength = float(abs(total[lag]))
+    return {"delay_samples": lag, "delay_s": lag / fs, "strength": strength,
+            "accepted": bool(strength >= XCORR_MIN_STRENGTH)}, fs
+
+
+def _xcorr_term(s: SyncedStep, sensor: SensorInfo, max_lag: int) -> np.ndarray:
+    """One step's normalised input–output correlation at lags 0..``max_lag`` (samples)."""
+    x = input_accel_dps2(s, sensor.axis)
+    y = np.asarray(s.daq[sensor.channel], dtype=np.float64)
+    x, y = x - x.mean(), y - y.mean()
+    # lags 0..max_lag of the linear correlation need nfft ≥ n + max_lag (no wrap-around);
+    # a 5-smooth length is ~10x faster than the next power of two above 2n
+    nfft = next_fast_len(x.size + max_lag, real=True)
+    cc = np.fft.irfft(np.conj(np.fft.rfft(x, nfft)) * np.fft.rfft(y, nfft), nfft)
+    overlap = x.size - np.arange(max_lag + 1)
+    term: np.ndarray = cc[:max_lag + 1] / overlap / (np.std(x) * np.std(y))
+    return term
+
+
+def _rated_term(s: SyncedStep, sensor: SensorInfo) -> tuple[float, np.ndarray]:
+    """The step's sample rate (Hz) and its correlation over the lags that rate gives."""
+    return s.sample_rate_hz, _xcorr_term(s, sensor, int(_MAX_LAG_S * s.sample_rate_hz))
+
+
+def _watch_name(sensor: SensorInfo) -> str:
+    return f"transfer_function.xcorr:{sensor.channel}"
+
+
+def watch_xcorr(data: Dataset, min_points: int) -> None:
+    """Have the sync pass correlate input and output of every sine step a model will read
+    (groups with ``min_points`` steps along a sensor), as it decodes the step: each
+    recorded step is then decoded once, not once more here (values identical)."""
+    sine = [p for p in data.planned if p.kind == "sine"]
+    for sensor in data.sensors:
+        counts: dict[str, int] = {}
+        for p in sine:
+            if is_excited(p, sensor):
+                counts[group_of(p)] = counts.get(group_of(p), 0) + 1
+        modelled = {g for g, n in counts.items() if n >= min_points}
+
+        def wanted(p: PlannedStep, sensor: SensorInfo = sensor,
+                   modelled: set[str] = modelled) -> bool:
+            return p.kind == "sine" and group_of(p) in modelled and is_excited(p, sensor)
+
+        def term(s: SyncedStep, sensor: SensorInfo = sensor) -> tuple[float, np.ndarray]:
+            return _rated_term(s, sensor)
+
+        watch_synced(data, _watch_name(sensor), SyncedWatch(
+            {"table": INPUT_ACCEL_CHANNELS, "daq": (sensor.channel,)}, wanted, term))
