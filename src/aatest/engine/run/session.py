@@ -213,10 +213,20 @@ def report_prepared(template: str) -> contextlib.AbstractContextManager[Any]:
     render then says why it cannot run).
     """
     try:
-        info = registry.load("report", template)
-        reporter = info.target(registry.configure(info, {}))
+        reporter = _reporter(template)
     except AatestError:
         return contextlib.nullcontext()
+    return _preparing(reporter)
+
+
+def _reporter(template: str) -> Any:
+    """The report plugin ``template``, configured (raises when it does not load)."""
+    info = registry.load("report", template)
+    return info.target(registry.configure(info, {}))
+
+
+def _preparing(reporter: Any) -> contextlib.AbstractContextManager[Any]:
+    """The plugin's optional ``preparing()`` context, or one that does nothing."""
     preparing = getattr(reporter, "preparing", None)
     return preparing() if callable(preparing) else contextlib.nullcontext()
 
@@ -294,13 +304,11 @@ def _render(results: RunResults, run_dir: Path, template: str, template_dir: Pat
     there, whose imports then overlap this process's work).
     """
     try:
-        info = registry.load("report", template)
-        reporter = info.target(registry.configure(info, {}))
+        reporter = _reporter(template)
     except AatestError:
         write_results(results, run_dir)  # the results stand even when the report cannot
         raise
-    preparing = getattr(reporter, "preparing", None)
-    with preparing() if callable(preparing) else contextlib.nullcontext():
+    with _preparing(reporter):
         write_results(results, run_dir)
         if pdf and not isinstance(reporter, PdfRenderer):
             raise InputError(f"report '{template}' cannot print a PDF (its plugin has no "
