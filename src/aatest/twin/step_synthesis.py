@@ -148,8 +148,8 @@ def _overlapped(setup: StepSetup, rng: np.random.Generator,
                 setup.model.table, n, clock.lab_dt_s, _tape(drawn.result().floor), None)),
             stamps=pool.submit(lambda: _stamped(clock, 0, n, _tape(drawn.result().stamps))),
             record=_later(drawn, lambda d: _tape(d.record)))
-        table = pool.submit(lambda: table_log_with_truth(setup, _tape(drawn.result().table),
-                                               drawn.result().pulse))
+        table = pool.submit(lambda: table_log_with_truth(
+            setup, _tape(drawn.result().table), drawn.result().pulse))
         daq, truth = _daq_log(setup, _tape(_NO_DRAWS), drift_rng, ahead)
         return (*table.result(), daq, truth), drawn.result()
 
