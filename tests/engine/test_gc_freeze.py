@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import gc
 
+import pytest
+
 from aatest.engine.gc_freeze import older_objects_frozen
 
 
@@ -14,9 +16,15 @@ def test_gc_freeze_is_undone_and_a_callers_freeze_kept() -> None:
     assert gc.get_freeze_count() == 0
     gc.freeze()
     try:
-        held = gc.get_freeze_count()
-        with older_objects_frozen():
-            pass
-        assert gc.get_freeze_count() == held  # the caller's freeze stays
+        # the caller's freeze stays: it is neither redone nor undone inside (spied on, since
+        # the frozen count itself drifts as other threads free frozen objects: CI saw −1)
+        calls: list[str] = []
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(gc, "freeze", lambda: calls.append("freeze"))
+            patch.setattr(gc, "unfreeze", lambda: calls.append("unfreeze"))
+            with older_objects_frozen():
+                pass
+        assert calls == []
+        assert gc.get_freeze_count() > 0
     finally:
         gc.unfreeze()
