@@ -200,6 +200,13 @@ _SECOND_ORDER_UPPER = np.array([np.inf, 1e4, 5.0, 0.2])
 #: solver's stopping point on a pressed bound lies ≈ 1e-6 inside; a free optimum this close
 #: has a Jacobian interval that crosses the bound anyway)
 BOUND_MARGIN = 1e-4
+#: the fit's stopping tolerances (ftol, xtol, gtol): near machine precision. Why not the
+#: default 1e-8: ωn, ζ and τ are strongly correlated, and at 1e-8 the solver stopped up to
+#: 1e-4 of a parameter's uncertainty short of the minimum, at a point set by its path, so a
+#: change of the FRF points in their 13th digit (rounding) moved ωn by 3e-5 relative; at
+#: 1e-15 the stopping point is the minimum to the cost's rounding (≈ 1e-6 of u on the stepped
+#: sine), for ≈ 20 % more evaluations
+_SECOND_ORDER_TOL = 1e-15
 
 
 def second_order_delay_fit(f_hz: np.ndarray, h: np.ndarray, delay0_s: float) -> dict[str, Any]:
@@ -228,7 +235,9 @@ def second_order_delay_fit(f_hz: np.ndarray, h: np.ndarray, delay0_s: float) -> 
         wn = 2 * np.pi * fn
         tau0 = max(delay0_s - 1.4 / wn, 0.0)
         sol = optimize.least_squares(residual, [k0, wn, 0.7, tau0], method="trf",
-                                     bounds=(_SECOND_ORDER_LOWER, _SECOND_ORDER_UPPER))
+                                     bounds=(_SECOND_ORDER_LOWER, _SECOND_ORDER_UPPER),
+                                     ftol=_SECOND_ORDER_TOL, xtol=_SECOND_ORDER_TOL,
+                                     gtol=_SECOND_ORDER_TOL)
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None
