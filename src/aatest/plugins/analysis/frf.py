@@ -25,6 +25,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
+from scipy import linalg
 
 from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
@@ -175,25 +176,51 @@ def _periodic_hann(length: int) -> np.ndarray:
     return 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(length) / length)
 
 
+#: a Gram matrix of the segment fit conditioned worse than this is solved by the SVD instead
+#: (the well-laid-out design's is ≈ 2, see :func:`_segment_projector`)
+_GRAM_MAX_CONDITION = 1e6
+
+
 @functools.lru_cache(maxsize=32)
 def _segment_projector(length: int, frequency_hz: float, fs_hz: float, harmonics: int
-                       ) -> tuple[np.ndarray, np.ndarray, int]:
-    """(pseudo-inverse of the Hann-weighted design, √weights, harmonic count) of a segment fit.
+                       ) -> np.ndarray:
+    """(length, 2) weights whose products with a segment are the fundamental's cosine and
+    sine coefficients of its Hann-weighted least-squares fit (:func:`_fit_fundamentals`).
+
+    The fit's normal equations G·c = Dᵀ·W·x (D: columns 1, cos kωτ, sin kωτ; W: the periodic
+    Hann weights) are solved once for the two fundamental rows, with the weights folded in:
+    coefficients = x·(W·D·G⁻¹)[:, fundamental]. Why the normal equations are sound here: the
+    columns are sines and cosines of whole cycles per segment (two at least) on a uniform
+    grid, which the Hann weights leave orthogonal but for the rounding of the segment to a
+    sample, so G is diagonal to that rounding (ΣW/2 for cos² and sin², ΣW for the mean) and
+    its condition number is ≈ 2 (measured over the stepped sine's layouts: 2.0000 to 2.23 with
+    a harmonic next to Nyquist). Squaring it costs no digits, and a Cholesky factor of the
+    13 × 13 G takes ≈ a tenth of the time of the SVD of the length × 13 design. A G worse
+    than :data:`_GRAM_MAX_CONDITION` (a harmonic at Nyquist, whose sine column vanishes)
+    falls back to the pseudo-inverse.
 
     Why cached: it depends only on the segment layout, and a stepped sine repeats each
-    frequency in every acceleration group; the reference and the output of a step share it.
-    One SVD per layout instead of two per step (the arrays are read-only).
+    frequency in every acceleration group; the reference and the output of a step share it
+    (the array is read-only).
     """
     omega_tau = 2.0 * np.pi * frequency_hz / fs_hz * np.arange(length)
     k = np.arange(1, harmonics + 1)
     k = k[k * frequency_hz < fs_hz / 2.0]
     angles = np.outer(omega_tau, k)
     design = np.column_stack([np.ones(length), np.cos(angles), np.sin(angles)])
-    root_w = np.sqrt(_periodic_hann(length))
-    projector = np.linalg.pinv(design * root_w[:, None])
+    weights = _periodic_hann(length)
+    weighted = design * weights[:, None]
+    gram = weighted.T @ design
+    fundamental = [1, 1 + int(k.size)]
+    if np.linalg.cond(gram) <= _GRAM_MAX_CONDITION:
+        picked = linalg.cho_solve(linalg.cho_factor(gram), np.eye(gram.shape[0])[:, fundamental])
+        projector = weighted @ picked
+    else:
+        root_w = np.sqrt(weights)
+        projector = (np.linalg.pinv(design * root_w[:, None])[fundamental] * root_w).T
+    projector = np.ascontiguousarray(projector)
     projector.flags.writeable = False
-    root_w.flags.writeable = False
-    return projector, root_w, int(k.size)
+    return projector
 
 
 def _fit_fundamentals(segments: np.ndarray, frequency_hz: float, fs_hz: float,
@@ -203,12 +230,12 @@ def _fit_fundamentals(segments: np.ndarray, frequency_hz: float, fs_hz: float,
     Nyquist (τ: time from the segment's start; the phase reference cancels in a ratio).
 
     The fit removes every periodic component exactly however many samples a period holds,
-    and the Hann weights make non-harmonic content (the motor band) leak as 1/Δ³.
+    and the Hann weights make non-harmonic content (the motor band) leak as 1/Δ³. Only the
+    fundamental's two coefficients are formed (:func:`_segment_projector`).
     """
-    projector, root_w, count = _segment_projector(segments.shape[1], frequency_hz, fs_hz,
-                                                  harmonics)
-    coef = (segments * root_w) @ projector.T
-    return np.asarray(coef[:, 1] - 1j * coef[:, 1 + count])
+    projector = _segment_projector(segments.shape[1], frequency_hz, fs_hz, harmonics)
+    coef = segments @ projector
+    return np.asarray(coef[:, 0] - 1j * coef[:, 1])
 
 
 def _segments(record: np.ndarray, length: int, hop: int, count: int) -> np.ndarray:
