@@ -15,6 +15,7 @@ identification points, n_p = n + m + 1 (+1 for an estimated delay).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -200,41 +201,98 @@ _SECOND_ORDER_UPPER = np.array([np.inf, 1e4, 5.0, 0.2])
 #: solver's stopping point on a pressed bound lies ≈ 1e-6 inside; a free optimum this close
 #: has a Jacobian interval that crosses the bound anyway)
 BOUND_MARGIN = 1e-4
-#: the fit's stopping tolerances (ftol, xtol, gtol): near machine precision. Why not the
-#: default 1e-8: ωn, ζ and τ are strongly correlated, and at 1e-8 the solver stopped up to
-#: 1e-4 of a parameter's uncertainty short of the minimum, at a point set by its path, so a
-#: change of the FRF points in their 13th digit (rounding) moved ωn by 3e-5 relative; at
-#: 1e-15 the stopping point is the minimum to the cost's rounding (≈ 1e-6 of u on the stepped
-#: sine), for ≈ 20 % more evaluations
+#: the trust-region fit's stopping tolerances (ftol, xtol, gtol). Why not the default 1e-8:
+#: ωn, ζ and τ are strongly correlated, and at 1e-8 the solver stopped up to 1e-4 of a
+#: parameter's uncertainty short of the minimum, at a point set by its path, so a change of
+#: the FRF points in their 13th digit (rounding) moved ωn by 3e-5 relative
 _SECOND_ORDER_TOL = 1e-15
+#: Gauss–Newton steps that finish the fit (:func:`_polished`); each at least halves the
+#: distance to the minimum of a fit this good, so a handful reaches rounding
+_POLISH_STEPS = 8
+
+
+def _second_order_terms(f_hz: np.ndarray, h: np.ndarray) -> tuple[
+        Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray],
+        Callable[[np.ndarray], np.ndarray]]:
+    """(model, residual, Jacobian) of K·ωn²/(s² + 2ζωn·s + ωn²)·e^{−sτ} against ``h``:
+    relative complex errors (h − model)/|h|, real and imaginary parts stacked.
+
+    The Jacobian is analytic (∂/∂K = model/K, ∂/∂ωn = model·(2/ωn − (2ζs + 2ωn)/D),
+    ∂/∂ζ = −model·2ωn·s/D, ∂/∂τ = −s·model, D the denominator, each over −|h|): the
+    finite-difference one cost four residuals per step and carried its step error (≈ 3e-6
+    relative) into the stated uncertainties.
+    """
+    s = 2j * np.pi * np.asarray(f_hz)
+    h = np.asarray(h)
+    scale = np.abs(h)
+
+    def model(theta: np.ndarray) -> np.ndarray:
+        k, wn, zeta, tau = theta
+        return np.asarray(k * wn**2 / (s**2 + 2 * zeta * wn * s + wn**2) * np.exp(-s * tau))
+
+    def residual(theta: np.ndarray) -> np.ndarray:
+        e = (h - model(theta)) / scale
+        return np.concatenate([e.real, e.imag])
+
+    def jacobian(theta: np.ndarray) -> np.ndarray:
+        _, wn, zeta, tau = theta
+        den = s**2 + 2 * zeta * wn * s + wn**2
+        unit = wn**2 / den * np.exp(-s * tau)  # the model at K = 1
+        m = theta[0] * unit
+        cols = np.column_stack([unit, m * (2.0 / wn - (2 * zeta * s + 2 * wn) / den),
+                                -m * 2 * wn * s / den, -s * m]) / -scale[:, None]
+        return np.concatenate([cols.real, cols.imag])
+
+    return model, residual, jacobian
+
+
+def _polished(residual: Callable[[np.ndarray], np.ndarray],
+              jacobian: Callable[[np.ndarray], np.ndarray], x: np.ndarray,
+              free: np.ndarray) -> np.ndarray:
+    """``x`` after Gauss–Newton steps on the ``free`` parameters (those on a bound stay).
+
+    Why: the trust-region solver accepts a step only when the cost falls, and near the
+    minimum the fall drowns in the cost's rounding, so it stops ≈ 1e-6 of a parameter's
+    uncertainty short, where its path left it. The Gauss–Newton step is set by the
+    gradient, not by the cost, so a few of them end at the minimum to rounding: the fit then
+    depends on the FRF points, not on how the solver got there. A step that leaves the
+    bounds or raises the cost beyond rounding ends the polish.
+    """
+    cost = float(residual(x) @ residual(x))
+    for _ in range(_POLISH_STEPS):
+        jac = jacobian(x)[:, free]
+        norm = np.linalg.norm(jac, axis=0)
+        norm[norm == 0.0] = 1.0
+        step = np.linalg.lstsq(jac / norm, -residual(x), rcond=None)[0] / norm
+        trial = x.copy()
+        trial[free] += step
+        trial_cost = float(residual(trial) @ residual(trial))
+        if (np.any(trial < _SECOND_ORDER_LOWER) or np.any(trial > _SECOND_ORDER_UPPER)
+                or trial_cost > cost * (1.0 + 1e-12)):
+            break
+        x, cost = trial, trial_cost
+        if np.all(np.abs(step) <= 1e-15 * np.abs(x[free])):
+            break
+    return x
 
 
 def second_order_delay_fit(f_hz: np.ndarray, h: np.ndarray, delay0_s: float) -> dict[str, Any]:
     """Fit K·ωn²/(s² + 2ζωn·s + ωn²)·e^{−sτ} to FRF points (K, ωn, ζ, τ; relative errors).
 
     Started from a grid of natural frequencies (5–200 Hz) with ζ = 0.7 and the cross-correlation
-    delay split between dynamics and transport; the best local solution is kept. Standard
-    uncertainties come from the Jacobian at the solution, for the parameters not held on a
-    bound (ζ ∈ [0.05, 5], τ ∈ [−0.05, 0.2] s, fn ∈ [1, 1592] Hz); those on a bound are named in
-    ``at_bound`` and their uncertainty is ``None``.
+    delay split between dynamics and transport; the best local solution is kept and finished
+    by Gauss–Newton steps (:func:`_polished`). Standard uncertainties come from the Jacobian at
+    the solution, for the parameters not held on a bound (ζ ∈ [0.05, 5], τ ∈ [−0.05, 0.2] s,
+    fn ∈ [1, 1592] Hz); those on a bound are named in ``at_bound`` and their uncertainty is
+    ``None``.
     """
-    s = 2j * np.pi * np.asarray(f_hz)
-    h = np.asarray(h)
-
-    def model(theta: np.ndarray) -> np.ndarray:
-        k, wn, zeta, tau = theta
-        return k * wn**2 / (s**2 + 2 * zeta * wn * s + wn**2) * np.exp(-s * tau)
-
-    def residual(theta: np.ndarray) -> np.ndarray:
-        e = (h - model(theta)) / np.abs(h)
-        return np.concatenate([e.real, e.imag])
-
-    k0 = float(np.abs(h[np.argmin(f_hz)]))
+    model, residual, jacobian = _second_order_terms(f_hz, h)
+    k0 = float(np.abs(np.asarray(h)[np.argmin(f_hz)]))
     best = None
     for fn in (5.0, 10.0, 20.0, 40.0, 80.0, 160.0):
         wn = 2 * np.pi * fn
         tau0 = max(delay0_s - 1.4 / wn, 0.0)
-        sol = optimize.least_squares(residual, [k0, wn, 0.7, tau0], method="trf",
+        sol = optimize.least_squares(residual, [k0, wn, 0.7, tau0], jac=jacobian, method="trf",
                                      bounds=(_SECOND_ORDER_LOWER, _SECOND_ORDER_UPPER),
                                      ftol=_SECOND_ORDER_TOL, xtol=_SECOND_ORDER_TOL,
                                      gtol=_SECOND_ORDER_TOL)
@@ -246,16 +304,16 @@ def second_order_delay_fit(f_hz: np.ndarray, h: np.ndarray, delay0_s: float) -> 
     # is identified only through its slow pole), so the free parameters' covariance is taken
     # with it fixed and its own uncertainty is not stated
     free = ~_on_bound(best.x, best.active_mask)
-    dof = max(2 * h.size - int(free.sum()), 1)
-    # a dense residual without jac_sparsity gives a dense Jacobian (the stubs allow sparse too)
-    jac = np.asarray(best.jac, dtype=np.float64)[:, free]
+    x = _polished(residual, jacobian, np.asarray(best.x, dtype=np.float64), free)
+    r = residual(x)
+    dof = max(r.size - int(free.sum()), 1)
     u = np.full(free.size, np.nan)
-    u[free] = np.sqrt(np.diag(_covariance(jac)) * 2 * best.cost / dof)
-    k, wn, zeta, tau = best.x
+    u[free] = np.sqrt(np.diag(_covariance(jacobian(x)[:, free])) * float(r @ r) / dof)
+    k, wn, zeta, tau = x
     return {"gain_v_per_dps2": float(k), "natural_frequency_hz": float(wn / (2 * np.pi)),
             "damping": float(zeta), "delay_s": float(tau),
             "u_natural_frequency_hz": _stated(u[1] / (2 * np.pi)), "u_damping": _stated(u[2]),
-            "u_delay_s": _stated(u[3]), "fit_pct": fit_percent(h, model(best.x)),
+            "u_delay_s": _stated(u[3]), "fit_pct": fit_percent(h, model(x)),
             "at_bound": [name for name, f in zip(SECOND_ORDER_PARAMETERS, free, strict=True)
                          if not f]}
 
