@@ -40,6 +40,19 @@ def is_excited(step: PlannedStep, sensor: SensorInfo) -> bool:
 INPUT_ACCEL_CHANNELS = ("inner_accel_dps2", "outer_accel_dps2", "inner_position_deg")
 
 
+def input_accel_channels(step: PlannedStep) -> tuple[str, ...]:
+    """The table channels :func:`input_accel_dps2` reads of ``step`` (of
+    :data:`INPUT_ACCEL_CHANNELS`): the moving axis' acceleration estimate and the inner
+    position (the outer axis' weight). Why: the sync pass's watches then leave the other
+    axis' estimate of every sine step undecoded."""
+    return (f"{_moving_axis(step.axis)}_accel_dps2", "inner_position_deg")
+
+
+def _moving_axis(axis: str) -> str:
+    """The axis whose acceleration estimate a step's input is (inner unless outer moves)."""
+    return axis if axis in ("inner", "outer") else "inner"
+
+
 def input_accel_dps2(synced: SyncedStep, sensor_axis: str,
                      accel: np.ndarray | None = None) -> np.ndarray:
     """Table-estimated acceleration along a sensor axis, °/s², on the synced time grid.
@@ -47,7 +60,7 @@ def input_accel_dps2(synced: SyncedStep, sensor_axis: str,
     ``accel`` replaces the moving axis' logged estimate (e.g. a smoothed reference).
     """
     step = synced.step
-    moving = step.axis if step.axis in ("inner", "outer") else "inner"
+    moving = _moving_axis(step.axis)
     base = synced.table[f"{moving}_accel_dps2"] if accel is None else accel
     psi = synced.table.get("inner_position_deg", np.full(len(synced), step.inner_deg))
     weight = axis_weights(sensor_axis, np.mean(psi) if moving == "outer" else 0.0)[moving]

@@ -35,6 +35,7 @@ from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
     INPUT_ACCEL_CHANNELS,
     group_of,
+    input_accel_channels,
     input_accel_dps2,
     is_excited,
     options_of,
@@ -421,8 +422,10 @@ def watch_points(data: Dataset, harmonics: int = HARMONICS) -> None:
         def point(synced: SyncedStep, sensor: SensorInfo = sensor) -> dict[str, Any]:
             return frf_point(synced, sensor, harmonics)
 
-        watch_synced(data, _watch_name(sensor, harmonics), SyncedWatch(
-            {"table": INPUT_ACCEL_CHANNELS, "daq": (sensor.channel,)}, excited, point))
+        def channels(p: Any, sensor: SensorInfo = sensor) -> dict[str, tuple[str, ...]]:
+            return {"table": input_accel_channels(p), "daq": (sensor.channel,)}
+
+        watch_synced(data, _watch_name(sensor, harmonics), SyncedWatch(channels, excited, point))
 
 
 class FrfAnalysis:

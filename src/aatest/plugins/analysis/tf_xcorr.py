@@ -18,6 +18,7 @@ from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis._common import (
     INPUT_ACCEL_CHANNELS,
     group_of,
+    input_accel_channels,
     input_accel_dps2,
     is_excited,
 )
@@ -105,5 +106,7 @@ def watch_xcorr(data: Dataset, min_points: int) -> None:
         def term(s: SyncedStep, sensor: SensorInfo = sensor) -> tuple[float, np.ndarray]:
             return _rated_term(s, sensor)
 
-        watch_synced(data, _watch_name(sensor), SyncedWatch(
-            {"table": INPUT_ACCEL_CHANNELS, "daq": (sensor.channel,)}, wanted, term))
+        def channels(p: PlannedStep, sensor: SensorInfo = sensor) -> dict[str, tuple[str, ...]]:
+            return {"table": input_accel_channels(p), "daq": (sensor.channel,)}
+
+        watch_synced(data, _watch_name(sensor), SyncedWatch(channels, wanted, term))
