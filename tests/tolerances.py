@@ -54,8 +54,9 @@ RULES: tuple[Rule, ...] = (
          "fit % = 100·(1 − ‖r‖/‖y − ȳ‖) moves by (100 − fit)·ΔV/(2V) ≤ 200 × 5e-4 = 0.1 "
          "percentage points for V's 1e-3 (above)"),
     Rule(r"transfer_function\..*second_order_delay\.", 1e-5, 0.0,
-         "four well-determined parameters at the stopping point of a trust-region fit "
-         "(xtol = 1e-8), their uncertainties from pinv(JᵀJ) at that point (condition ≲ 1e3)"),
+         "four well-determined parameters at the minimum of a trust-region fit finished by "
+         "Gauss–Newton steps (set to rounding, not by the solver's path), their uncertainties "
+         "from (JᵀJ)⁻¹ of the analytic Jacobian there (condition ≲ 1e3)"),
     Rule(r"transfer_function\.", 1e-6, 0.0,
          "the selected model's coefficients stop at the refinement's xtol = 1e-8; mapping the "
          "scaled w-polynomials to z (w = (z − 1)/(ω₀T)) amplifies by its condition ≲ 1e2"),
