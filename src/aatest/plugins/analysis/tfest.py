@@ -209,6 +209,8 @@ _SECOND_ORDER_TOL = 1e-15
 #: Gauss–Newton steps that finish the fit (:func:`_polished`); each at least halves the
 #: distance to the minimum of a fit this good, so a handful reaches rounding
 _POLISH_STEPS = 8
+#: a polishing step may raise the cost by this much (relative): its rounding, no more
+_POLISH_COST_ROUNDING = 1e-12
 
 
 def _second_order_terms(f_hz: np.ndarray, h: np.ndarray) -> tuple[
@@ -267,8 +269,8 @@ def _polished(residual: Callable[[np.ndarray], np.ndarray],
         trial = x.copy()
         trial[free] += step
         trial_cost = float(residual(trial) @ residual(trial))
-        if (np.any(trial < _SECOND_ORDER_LOWER) or np.any(trial > _SECOND_ORDER_UPPER)
-                or trial_cost > cost * (1.0 + 1e-12)):
+        inside = bool(np.all(trial >= _SECOND_ORDER_LOWER) and np.all(trial <= _SECOND_ORDER_UPPER))
+        if not (inside and trial_cost <= cost * (1.0 + _POLISH_COST_ROUNDING)):  # NaN: stop
             break
         x, cost = trial, trial_cost
         if np.all(np.abs(step) <= 1e-15 * np.abs(x[free])):
