@@ -18,9 +18,11 @@ on the stepped sine, writing a step file took ≈ 55 → 31 ms of CPU, then ≈ 
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass
 from functools import cache, lru_cache
-from itertools import pairwise
+from itertools import compress, pairwise
+from operator import sub
 from typing import Any
 
 import numpy as np
@@ -194,7 +196,8 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     memory in order (a transposed copy of the bytes is 2–3× slower).
     """
     bounds = [*starts.tolist(), codes.size]
-    longest = max(stop - first for first, stop in pairwise(bounds))
+    lengths = list(map(sub, bounds[1:], bounds[:-1]))
+    longest = max(lengths)
     # a block's sum of |codes| or |differences| is below 2·limit·longest: int32 sums of int32
     # codes are exact below 2^31 and 4× faster than int64 ones (NumPy widens int32 otherwise)
     sums = np.int32 if codes.dtype == np.int32 and 2.0 * limit * longest < 2**31 else np.int64
@@ -211,23 +214,31 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
         top = np.where(delta, top, np.maximum.reduceat(magnitude, starts))
     del magnitude, step_magnitude
     chosen = steps if all(choices) else codes if not any(choices) else np.where(
-        np.repeat(delta, np.diff(bounds)), steps, codes)
-    widths = [_width(t) for t in top.tolist()]
-    widest = max(w for w, ok in zip(widths, exact, strict=True) if ok)
+        np.repeat(delta, lengths), steps, codes)
+    # each block's width: the narrowest whose signed integers hold every code of magnitude
+    # ≤ its top (codes are below 2^53: the widest always does); inline, as a call per block
+    # costs more than the comparisons
+    widths = [1 if t < 1 << 7 else 2 if t < 1 << 15 else 4 if t < 1 << 31 else 8
+              for t in top.tolist()]
+    widest = max(widths) if all(exact) else max(compress(widths, exact))
     # codes of blocks that are not exact may not fit: their bytes are never used (no copy
     # when the codes are of the widest width already)
-    narrow = chosen.astype(f"<i{widest}", copy=False).view(f"<u{widest}")
-    planes = narrow.view(np.uint8) if widest == 1 else _planes(narrow, bounds, widest)
+    narrow = chosen.astype(_NARROW[widest], copy=False).view(_UNSIGNED[widest])
+    planes = narrow.view(np.uint8) if widest == 1 else _planes(narrow, bounds, lengths,
+                                                                widest)
     return _Choice(choices, widths, planes, widest)
 
 
-def _planes(narrow: np.ndarray, bounds: list[int], widest: int) -> np.ndarray:
+def _planes(narrow: np.ndarray, bounds: list[int], lengths: list[int], widest: int
+            ) -> np.ndarray:
     """The byte planes of ``narrow`` (unsigned, ``widest`` bytes) block after block: the
-    leading blocks of equal length in one strided pass per byte, any others one by one."""
+    leading blocks of equal length in one strided pass per byte, any others one by one
+    (``lengths``: the blocks' lengths, ``bounds``: their first samples and the end)."""
     planes = np.empty(widest * narrow.size, dtype=np.uint8)
-    size = bounds[1] - bounds[0]
-    equal = next((i for i, (a, b) in enumerate(pairwise(bounds)) if b - a != size),
-                 len(bounds) - 1)
+    size = lengths[0]
+    equal = lengths.count(size)
+    if equal < len(lengths):  # a block of another length: the leading run ends before it
+        equal = next(i for i, length in enumerate(lengths) if length != size)
     runs = [(bounds[0], equal, size)] + [(a, 1, b - a) for a, b in pairwise(bounds[equal:])]
     for first, blocks, length in runs:
         source = narrow[first:first + blocks * length].reshape(blocks, length)
@@ -248,9 +259,11 @@ def _planes(narrow: np.ndarray, bounds: list[int], widest: int) -> np.ndarray:
 _PASS_SAMPLES = 65_536
 
 
-def _passes(bounds: list[int]) -> list[tuple[int, int]]:
+@lru_cache(maxsize=256)
+def _passes(bounds: tuple[int, ...]) -> tuple[tuple[int, int], ...]:
     """``(first, stop)`` block numbers of consecutive passes over blocks ``bounds[b] …
-    bounds[b + 1]``: as many whole blocks as fit :data:`_PASS_SAMPLES`, at least one."""
+    bounds[b + 1]``: as many whole blocks as fit :data:`_PASS_SAMPLES`, at least one
+    (memoised: every channel of a log, and most logs of a run, have the same blocks)."""
     passes, first = [], 0
     while first < len(bounds) - 1:
         stop = first + 1
@@ -258,7 +271,7 @@ def _passes(bounds: list[int]) -> list[tuple[int, int]]:
             stop += 1
         passes.append((first, stop))
         first = stop
-    return passes
+    return tuple(passes)
 
 
 class ChannelEncoder:
@@ -285,17 +298,15 @@ class ChannelEncoder:
         #: per block: the byte planes of its pass, the pass's first sample and widest width
         self._planes: list[tuple[memoryview, int, int] | None] = []
         step_offset = (1.0, 0.0)
-        for first, stop in _passes(self._bounds):
+        for first, stop in _passes(tuple(self._bounds)):
             origin, end = self._bounds[first], self._bounds[stop]
-            found = coded(values[origin:end], quantum, starts[first:stop] - origin)
+            pass_starts = starts[first:stop] - origin
+            found = coded(values[origin:end], quantum, pass_starts)
             step_offset = (found.quantum, found.offset)
-            self._add_pass(found, starts[first:stop] - origin, origin)
-        # name to delta, per encoder (not memoised: a cache would take an offset of −0.0 for
-        # 0.0, equal keys, and they serialise apart)
-        self._packed_heads = {
-            delta: self._head + channel(quantum=step_offset[0], offset=step_offset[1],
-                                        delta=delta).SerializeToString()
-            for delta in (False, True)}
+            self._add_pass(found, pass_starts, origin)
+        # name to delta (memoised by the floats' bits: a cache keyed by the floats would take
+        # an offset of −0.0 for 0.0, equal keys, and they serialise apart)
+        self._packed_heads = _packed_heads(channel, self._head, _FLOAT_PAIR.pack(*step_offset))
 
     def _add_pass(self, found: _Coded, starts: np.ndarray, origin: int) -> None:
         """Keep one pass's verdicts, choices and byte planes (``starts``: its blocks' first
@@ -312,6 +323,28 @@ class ChannelEncoder:
         self._widths += choice.widths
         # a memoryview: slicing and joining it costs a third of a NumPy view
         self._planes += [(choice.planes.data, origin, choice.widest)] * len(exact)
+
+    def fields(self, key: bytes) -> list[tuple[list[Any], int]]:
+        """:meth:`field` of every block, in order (the per-block lookups made once)."""
+        bounds, heads, channel = self._bounds, self._packed_heads, self._channel
+        frames: dict[tuple[bool, int, int], tuple[bytes, bytes]] = {}
+        out = []
+        for block, (exact, planes, delta, width) in enumerate(zip(
+                self._exact, self._planes, self._delta, self._widths, strict=True)):
+            if not exact or planes is None:
+                out.append(self.field(block, key))
+                continue
+            first = bounds[block]
+            samples = bounds[block + 1] - first
+            kind = (delta, width, samples)
+            frame = frames.get(kind)
+            if frame is None:
+                frame = frames[kind] = _frame(channel, heads[delta], key, width, samples)
+            head, tail = frame
+            rows, origin, widest = planes
+            start, size = widest * (first - origin), width * samples
+            out.append(([head, rows[start:start + size], tail], len(head) + size + len(tail)))
+        return out
 
     def parts(self, block: int) -> tuple[list[Any], int]:
         """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
@@ -351,6 +384,20 @@ def _serialised(channel: Any, **fields: Any) -> bytes:
     return bytes(channel(**fields).SerializeToString())
 
 
+#: a channel's quantum and offset as the bytes of two little-endian float64 (a cache key)
+_FLOAT_PAIR = struct.Struct("<dd")
+
+
+@lru_cache(maxsize=1024)
+def _packed_heads(channel: Any, head: bytes, step_offset: bytes) -> dict[bool, bytes]:
+    """``head`` (a channel's serialised name, unit and dtype) and the serialised quantum,
+    offset and delta before ``packed``, per delta (``step_offset``: :data:`_FLOAT_PAIR`
+    bytes; memoised: the same few per run)."""
+    step, offset = _FLOAT_PAIR.unpack(step_offset)
+    return {delta: head + channel(quantum=step, offset=offset, delta=delta).SerializeToString()
+            for delta in (False, True)}
+
+
 @lru_cache(maxsize=1024)
 def _frame(channel: Any, head: bytes, key: bytes, width: int, samples: int
            ) -> tuple[bytes, bytes]:
@@ -370,12 +417,9 @@ def _keyed(key: bytes, head: bytes, rest: int) -> bytes:
 
 #: code widths (bytes) of format v3, narrowest first
 WIDTHS = (1, 2, 4, 8)
-
-
-def _width(top: int) -> int:
-    """The narrowest width whose signed integers hold every code of magnitude ≤ ``top`` (codes
-    are below 2^53: the widest always does)."""
-    return 1 if top < 1 << 7 else 2 if top < 1 << 15 else 4 if top < 1 << 31 else 8
+#: per width: the dtypes of its signed and unsigned little-endian integers
+_NARROW = {w: np.dtype(f"<i{w}") for w in WIDTHS}
+_UNSIGNED = {w: np.dtype(f"<u{w}") for w in WIDTHS}
 
 
 @cache

@@ -128,13 +128,15 @@ def encode_block_pieces(
                                 starts) for name, values in log.channels.items()]
     before, after = _header_parts(header)
     block_type = proto.block_class()
+    # every block's fields of a channel at once (a column per channel)
+    columns = [time.fields(_TIME_KEY), *(c.fields(_CHANNELS_KEY) for c in channels)]
     for sequence, log_time_ns in enumerate(log_times_ns):
         head = block_type(sequence=first_sequence + sequence,
-                          first_sample=first_sample + int(starts[sequence]), **before)
+                          first_sample=first_sample + sequence * block_samples, **before)
         parts = [head.SerializeToString()]
         length = len(parts[0])
-        for key, encoder in ((_TIME_KEY, time), *((_CHANNELS_KEY, c) for c in channels)):
-            pieces, size = encoder.field(sequence, key)
+        for column in columns:
+            pieces, size = column[sequence]
             parts += pieces
             length += size
         parts.append(block_type(log_time_ns=log_time_ns, **after).SerializeToString())
