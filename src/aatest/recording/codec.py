@@ -32,6 +32,7 @@ The encoder's half (codes, delta choice, widths, byte planes) is
 from __future__ import annotations
 
 from collections.abc import Container, Iterable, Iterator, Mapping
+from functools import cache
 from itertools import chain
 from typing import Any
 
@@ -73,9 +74,15 @@ def check_dtypes(log: SampledLog) -> None:
         raise ValueError(f"{log.source} log has a channel named {TIME_COLUMN!r}")
 
 
+@cache
+def _block_field_numbers() -> dict[str, int]:
+    """``SampleBlock`` field name → number (read from the descriptor once)."""
+    return {f.name: f.number for f in proto.block_class().DESCRIPTOR.fields}
+
+
 def _header_parts(header: Mapping[str, object]) -> tuple[dict[str, object], dict[str, object]]:
     """``header`` split into the block fields serialised before the channels and after them."""
-    numbers = {f.name: f.number for f in proto.block_class().DESCRIPTOR.fields}
+    numbers = _block_field_numbers()
     unknown = set(header) - set(numbers)
     if unknown:
         raise ValueError(f"unknown SampleBlock fields {sorted(unknown)}")
