@@ -185,7 +185,7 @@ class _Choice:
 
 
 def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
-            limit: float = float("inf")) -> _Choice:
+            limit: float = float("inf"), bounds: list[int] | None = None) -> _Choice:
     """Delta or plain codes per block (the smaller sum of magnitudes), each block's width,
     and the byte planes, in whole-array steps over a pass of blocks.
 
@@ -193,9 +193,11 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     same low ``w`` bytes in any wider two's complement, so a block of width ``w`` is its first
     ``w`` rows, one run of bytes (the planes are laid out block after block: one piece of a
     message, not ``w``). The planes are cut by shifts of the narrow integers, which reads
-    memory in order (a transposed copy of the bytes is 2–3× slower).
+    memory in order (a transposed copy of the bytes is 2–3× slower). ``bounds``: the blocks'
+    first samples and the end, if the caller has them as a list.
     """
-    bounds = [*starts.tolist(), codes.size]
+    if bounds is None:
+        bounds = [*starts.tolist(), codes.size]
     lengths = list(map(sub, bounds[1:], bounds[:-1]))
     longest = max(lengths)
     # a block's sum of |codes| or |differences| is below 2·limit·longest: int32 sums of int32
@@ -259,17 +261,34 @@ def _planes(narrow: np.ndarray, bounds: list[int], lengths: list[int], widest: i
 _PASS_SAMPLES = 65_536
 
 
+@dataclass(frozen=True)
+class _Pass:
+    """A coding pass: blocks ``first … stop − 1``, samples ``origin … end − 1`` of a channel,
+    and its blocks' first samples counted from ``origin`` (an array, and a list with ``end``)."""
+
+    first: int
+    stop: int
+    origin: int
+    end: int
+    starts: np.ndarray
+    bounds: list[int]
+
+
 @lru_cache(maxsize=256)
-def _passes(bounds: tuple[int, ...]) -> tuple[tuple[int, int], ...]:
-    """``(first, stop)`` block numbers of consecutive passes over blocks ``bounds[b] …
-    bounds[b + 1]``: as many whole blocks as fit :data:`_PASS_SAMPLES`, at least one
-    (memoised: every channel of a log, and most logs of a run, have the same blocks)."""
+def _passes(bounds: tuple[int, ...]) -> tuple[_Pass, ...]:
+    """Consecutive passes over blocks ``bounds[b] … bounds[b + 1]``: as many whole blocks as
+    fit :data:`_PASS_SAMPLES`, at least one (memoised: every channel of a log, and most logs
+    of a run, have the same blocks; the arrays are read-only)."""
     passes, first = [], 0
     while first < len(bounds) - 1:
         stop = first + 1
         while stop < len(bounds) - 1 and bounds[stop + 1] - bounds[first] <= _PASS_SAMPLES:
             stop += 1
-        passes.append((first, stop))
+        origin = bounds[first]
+        relative = [b - origin for b in bounds[first:stop + 1]]
+        starts = np.array(relative[:-1], dtype=np.intp)
+        starts.flags.writeable = False
+        passes.append(_Pass(first, stop, origin, bounds[stop], starts, relative))
         first = stop
     return tuple(passes)
 
@@ -298,19 +317,16 @@ class ChannelEncoder:
         #: per block: the byte planes of its pass, the pass's first sample and widest width
         self._planes: list[tuple[memoryview, int, int] | None] = []
         step_offset = (1.0, 0.0)
-        for first, stop in _passes(tuple(self._bounds)):
-            origin, end = self._bounds[first], self._bounds[stop]
-            pass_starts = starts[first:stop] - origin
-            found = coded(values[origin:end], quantum, pass_starts)
+        for part in _passes(tuple(self._bounds)):
+            found = coded(values[part.origin:part.end], quantum, part.starts)
             step_offset = (found.quantum, found.offset)
-            self._add_pass(found, pass_starts, origin)
+            self._add_pass(found, part)
         # name to delta (memoised by the floats' bits: a cache keyed by the floats would take
         # an offset of −0.0 for 0.0, equal keys, and they serialise apart)
         self._packed_heads = _packed_heads(channel, self._head, _FLOAT_PAIR.pack(*step_offset))
 
-    def _add_pass(self, found: _Coded, starts: np.ndarray, origin: int) -> None:
-        """Keep one pass's verdicts, choices and byte planes (``starts``: its blocks' first
-        samples, counted from the pass's first sample ``origin`` in the channel)."""
+    def _add_pass(self, found: _Coded, part: _Pass) -> None:
+        """Keep one pass's verdicts, choices and byte planes."""
         exact = found.exact.tolist()
         self._exact += exact
         if not any(exact):
@@ -318,11 +334,11 @@ class ChannelEncoder:
             self._widths += [WIDTHS[-1]] * len(exact)
             self._planes += [None] * len(exact)
             return
-        choice = _choose(found.codes, starts, exact, found.limit)
+        choice = _choose(found.codes, part.starts, exact, found.limit, part.bounds)
         self._delta += choice.delta
         self._widths += choice.widths
         # a memoryview: slicing and joining it costs a third of a NumPy view
-        self._planes += [(choice.planes.data, origin, choice.widest)] * len(exact)
+        self._planes += [(choice.planes.data, part.origin, choice.widest)] * len(exact)
 
     def fields(self, key: bytes) -> list[tuple[list[Any], int]]:
         """:meth:`field` of every block, in order (the per-block lookups made once)."""
