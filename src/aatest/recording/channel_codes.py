@@ -56,7 +56,8 @@ _RECIPROCAL_SAFE_CODES = float(2**47)
 _INT32_SAFE_CODES = float(2**29)
 
 
-def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray) -> _Coded:
+def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray,
+          extremes: tuple[float, float] | None = None) -> _Coded:
     """Integer codes of a whole channel, with each block's verdict: do its codes give back every
     value bit for bit? (The per-block choice of :func:`encode_blocks`, made for many at once.)
 
@@ -65,7 +66,8 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
     the latter.
 
     ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
-    encoder); codes and ``limit`` are dimensionless.
+    encoder); codes and ``limit`` are dimensionless. ``extremes``: the least and the largest
+    value of a float64 ``values``, if the caller has them (:func:`_extremes`).
     """
     if values.dtype.kind in "iub":
         return _Coded(values.astype(np.int64), np.ones(starts.size, dtype=bool), 1.0, 0.0)
@@ -73,19 +75,27 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
     step, offset = quantum if quantum is not None else (1.0, 0.0)
     if not math.isfinite(step) or step <= 0.0 or not math.isfinite(offset):
         return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
-    ratio = _code_ratio(exact, step, offset)
+    ratio = _code_ratio(exact, step, offset, extremes)
     if _admits_reciprocal(ratio):
         integers = np.int32 if ratio <= _INT32_SAFE_CODES else np.int64
         return coded_by_reciprocal(exact, step, offset, starts, integers, ratio + 1.0)
     return coded_by_division(exact, step, offset, starts)
 
 
-def _code_ratio(exact: np.ndarray, step: float, offset: float) -> float:
+def _extremes(exact: np.ndarray) -> tuple[float, float]:
+    """The least and the largest value of a float64 array (NaN for both if it holds a NaN)."""
+    return float(np.minimum.reduce(exact)), float(np.maximum.reduce(exact))
+
+
+def _code_ratio(exact: np.ndarray, step: float, offset: float,
+                extremes: tuple[float, float] | None = None) -> float:
     """``(max|x| + 2·|offset|) / step`` of a channel: above every code's magnitude (NaN or
-    inf for a channel holding NaN or inf, or none at all)."""
+    inf for a channel holding NaN or inf, or none at all). ``extremes``: its
+    :func:`_extremes`, if known."""
     if exact.size == 0:
         return float("nan")
-    top = max(float(np.maximum.reduce(exact)), -float(np.minimum.reduce(exact)))
+    low, high = extremes if extremes is not None else _extremes(exact)
+    top = max(high, -low)
     # in Python floats an overflow is inf and NaN stays NaN, without NumPy's warnings
     return (top + 2.0 * abs(float(offset))) / float(step)
 
@@ -272,6 +282,9 @@ class _Pass:
     end: int
     starts: np.ndarray
     bounds: list[int]
+    #: the blocks' lengths, as a list and as a (read-only) array
+    lengths: list[int]
+    lengths_array: np.ndarray
 
 
 @lru_cache(maxsize=256)
@@ -287,8 +300,11 @@ def _passes(bounds: tuple[int, ...]) -> tuple[_Pass, ...]:
         origin = bounds[first]
         relative = [b - origin for b in bounds[first:stop + 1]]
         starts = np.array(relative[:-1], dtype=np.intp)
-        starts.flags.writeable = False
-        passes.append(_Pass(first, stop, origin, bounds[stop], starts, relative))
+        lengths = list(map(sub, relative[1:], relative[:-1]))
+        lengths_array = np.array(lengths, dtype=np.intp)
+        starts.flags.writeable = lengths_array.flags.writeable = False
+        passes.append(_Pass(first, stop, origin, bounds[stop], starts, relative, lengths,
+                            lengths_array))
         first = stop
     return tuple(passes)
 
@@ -318,9 +334,15 @@ class ChannelEncoder:
         self._planes: list[tuple[memoryview, int, int] | None] = []
         step_offset = (1.0, 0.0)
         for part in _passes(tuple(self._bounds)):
-            found = coded(values[part.origin:part.end], quantum, part.starts)
+            chunk = values[part.origin:part.end]
+            extremes = _extremes(chunk) if chunk.dtype == np.float64 else None
+            if extremes is not None and extremes[0] == extremes[1]:
+                found = coded(chunk[:1], quantum, _FIRST)  # one value stands for all
+                self._add_constant(found, part)
+            else:
+                found = coded(chunk, quantum, part.starts, extremes)
+                self._add_pass(found, part)
             step_offset = (found.quantum, found.offset)
-            self._add_pass(found, part)
         # name to delta (memoised by the floats' bits: a cache keyed by the floats would take
         # an offset of −0.0 for 0.0, equal keys, and they serialise apart)
         self._packed_heads = _packed_heads(channel, self._head, _FLOAT_PAIR.pack(*step_offset))
@@ -339,6 +361,40 @@ class ChannelEncoder:
         self._widths += choice.widths
         # a memoryview: slicing and joining it costs a third of a NumPy view
         self._planes += [(choice.planes.data, part.origin, choice.widest)] * len(exact)
+
+    def _add_constant(self, found: _Coded, part: _Pass) -> None:
+        """:meth:`_add_pass` for a pass whose values all compare equal (a logger at rest: a
+        table standing still, a constant temperature), from ``found``, the coding of its first
+        value alone; what :func:`_choose` chooses for it, built without its whole-array steps.
+
+        Why it is the same: codes and verdicts are found value by value, and values that
+        compare equal (the same float, or two zeros) give the same code ``c`` and verdict, by
+        either route (the route and the width of the integers depend only on the largest
+        magnitude, the same for one value as for all). A block of ``n`` such codes has the
+        magnitude sum ``n·|c|`` and the difference sum ``|c|`` (its first difference is from
+        0, the others 0): delta-coded exactly when ``c ≠ 0`` and ``n > 1``; its top is ``|c|``
+        either way, so every block has ``c``'s width. Its bytes are ``c`` then zeros (delta),
+        or ``c`` alone (``n = 1``), or all zero (``c = 0``): each block's rows hold ``c``'s
+        bytes in their first column and zeros elsewhere.
+        """
+        code, exact = int(found.codes[0]), bool(found.exact[0])
+        lengths = part.lengths
+        self._exact += [exact] * len(lengths)
+        if not exact:
+            self._delta += [False] * len(lengths)
+            self._widths += [WIDTHS[-1]] * len(lengths)
+            self._planes += [None] * len(lengths)
+            return
+        top = abs(code)
+        width = 1 if top < 1 << 7 else 2 if top < 1 << 15 else 4 if top < 1 << 31 else 8
+        planes = np.zeros(width * part.bounds[-1], dtype=np.uint8)
+        if code:
+            rows = width * part.starts  # each block's first column, row 0
+            for byte, value in enumerate(code.to_bytes(width, "little", signed=True)):
+                planes[rows + byte * part.lengths_array] = value
+        self._delta += [bool(code) and length > 1 for length in lengths]
+        self._widths += [width] * len(lengths)
+        self._planes += [(planes.data, part.origin, width)] * len(lengths)
 
     def fields(self, key: bytes) -> list[tuple[list[Any], int]]:
         """:meth:`field` of every block, in order (the per-block lookups made once)."""
@@ -400,6 +456,9 @@ def _serialised(channel: Any, **fields: Any) -> bytes:
     return bytes(channel(**fields).SerializeToString())
 
 
+#: the first samples of a single block at sample 0
+_FIRST = np.zeros(1, dtype=np.intp)
+_FIRST.flags.writeable = False
 #: a channel's quantum and offset as the bytes of two little-endian float64 (a cache key)
 _FLOAT_PAIR = struct.Struct("<dd")
 
