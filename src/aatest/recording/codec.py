@@ -135,7 +135,7 @@ def encode_block_pieces(
                                 starts) for name, values in log.channels.items()]
     before, after = _header_parts(header)
     block_type = proto.block_class()
-    # every block's fields of a channel at once (a column per channel)
+    # each channel's fields block by block (a generator per channel)
     columns = [time.fields(_TIME_KEY), *(c.fields(_CHANNELS_KEY) for c in channels)]
     for sequence, log_time_ns in enumerate(log_times_ns):
         head = block_type(sequence=first_sequence + sequence,
@@ -143,7 +143,7 @@ def encode_block_pieces(
         parts = [head.SerializeToString()]
         length = len(parts[0])
         for column in columns:
-            pieces, size = column[sequence]
+            pieces, size = next(column)
             parts += pieces
             length += size
         parts.append(block_type(log_time_ns=log_time_ns, **after).SerializeToString())
