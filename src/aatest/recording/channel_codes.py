@@ -12,7 +12,9 @@ taking its own route: the bound holds sample by sample, so it may be tested on a
 a channel. A pass's byte planes are cut once, from the narrow integers, block after block,
 and each block's message is handed over as pieces to be joined once, into the MCAP chunk:
 on the stepped sine, writing a step file took ≈ 55 → 31 ms of CPU, then ≈ 30 → 26 ms
-(bench/step_writer.py, same bytes).
+(bench/step_writer.py, same bytes), then ≈ 24 → 22.5 ms with the per-block lookups made once
+per channel, the passes planned once per log and passes of equal values coded from one value
+(:meth:`ChannelEncoder._add_constant`).
 """
 
 from __future__ import annotations
