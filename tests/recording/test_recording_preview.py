@@ -198,7 +198,8 @@ def test_a_whole_log_previews_at_once_as_window_by_window(samples: int,
     outputs = []
     for last in (False, True):
         records: list[bytes] = []
-        stream = PreviewStream(3, 10**18, 10**18, lambda _l, data, _t: records.append(data))
+        stream = PreviewStream(3, 10**18, 10**18,
+                               lambda _l, data, _t, into=records: into.append(data))
         stream.add(log, last=last)
         if not last:
             stream.finish()
