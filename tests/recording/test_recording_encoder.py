@@ -191,3 +191,31 @@ def test_encoder_bytes_equal_the_protobuf_api_across_coding_passes() -> None:
     times_ns = [10**9 * k for k in range(-(-n // BLOCK))]
     assert list(encode_blocks(log, HEADER, BLOCK, times_ns)) == \
         _reference_blocks(log, HEADER, times_ns)
+
+
+def test_constant_passes_encode_as_the_protobuf_api_does() -> None:
+    """Passes whose values all compare equal take a short cut (the coding of one value stands
+    for all): zero, positive and negative codes of every width, −0.0 among 0.0, a value off
+    the grid, an offset, inf, a single-sample last block and a channel constant in one pass
+    only must still give the protobuf API's blocks, block by block."""
+    from aatest.recording.channel_codes import _PASS_SAMPLES
+
+    n = _PASS_SAMPLES + BLOCK + 1  # a whole pass, then a block and a block of one sample
+    zeros = np.zeros(n)
+    zeros[::3] = -0.0
+    late = np.arange(n) >= _PASS_SAMPLES
+    channels = {
+        "zeros": zeros, "small": np.full(n, 0.75), "negative": np.full(n, -300.25),
+        "wide": np.full(n, -(2.0**40) * 0.25), "widest": np.full(n, 2.0**50 * 0.25),
+        "off_grid": np.full(n, 0.1), "offset": np.full(n, LSB_V * 1000 - 10.0),
+        "inf": np.full(n, np.inf),
+        "moves_late": np.where(late, np.arange(n) % 5 * 0.25, 2.5),
+        "temperature": np.full(n, 23.0),  # no declared quantum: whole numbers, quantum 1
+    }
+    quanta = {name: (0.25, 0.0) for name in channels} | {
+        "offset": (LSB_V, -10.0), "off_grid": (0.25, 0.0), "time_s": (1 / 2000, 0.0)}
+    del quanta["temperature"]
+    log = SampledLog("daq", 2000.0, np.arange(n) / 2000.0, channels, {}, quanta)
+    times_ns = [10**9 * k for k in range(-(-n // BLOCK))]
+    assert list(encode_blocks(log, HEADER, BLOCK, times_ns)) == \
+        _reference_blocks(log, HEADER, times_ns)

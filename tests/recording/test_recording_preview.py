@@ -178,3 +178,33 @@ def test_typescript_reader_decodes_the_preview_and_a_browser_plots_it(tmp_path: 
                     f"--screenshot={shot}", page.as_uri()],
                    capture_output=True, timeout=120, check=False)
     assert shot.exists() and shot.stat().st_size > 10_000  # a plotted page, not a blank one
+
+
+@pytest.mark.parametrize("samples", [8000, 9001, 150, 70_123])
+def test_a_whole_log_previews_at_once_as_window_by_window(samples: int,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """``add(log, last=True)`` (a whole log, the short last window included in one pass) gives
+    the bytes ``add`` then ``finish`` give: whole windows, a short last one, a log shorter
+    than a window, and more windows than one chunk holds (chunks of 100 records here)."""
+    from aatest.recording import preview
+    from aatest.recording.preview import PreviewStream, records_per_chunk
+
+    rng = np.random.default_rng(5)
+    log = SampledLog("daq", 2000.0, np.arange(samples) / 2000.0,
+                     {"v_sz": rng.normal(0, 1, samples), "temperature_c": np.full(samples, 23.5)},
+                     {"v_sz": "V", "temperature_c": "°C"}, {})
+    record_bytes = preview.layout_of(log).record_dtype().itemsize
+    monkeypatch.setattr(preview, "CHUNK_BYTES", 100 * record_bytes)
+    outputs = []
+    for last in (False, True):
+        records: list[bytes] = []
+        stream = PreviewStream(3, 10**18, 10**18,
+                               lambda _l, data, _t, into=records: into.append(data))
+        stream.add(log, last=last)
+        if not last:
+            stream.finish()
+        outputs.append(b"".join(records))
+    assert outputs[0] == outputs[1]
+    assert len(outputs[1]) == -(-samples // WINDOW) * record_bytes
+    assert stream.layout is not None and records_per_chunk(stream.layout) == 100
+    assert samples < 70_000 or -(-samples // WINDOW) > 100  # the longest spans chunks

@@ -12,15 +12,20 @@ taking its own route: the bound holds sample by sample, so it may be tested on a
 a channel. A pass's byte planes are cut once, from the narrow integers, block after block,
 and each block's message is handed over as pieces to be joined once, into the MCAP chunk:
 on the stepped sine, writing a step file took ≈ 55 → 31 ms of CPU, then ≈ 30 → 26 ms
-(bench/step_writer.py, same bytes).
+(bench/step_writer.py, same bytes), then ≈ 24 → 22.5 ms with the per-block lookups made once
+per channel, the passes planned once per log and passes of equal values coded from one value
+(:meth:`ChannelEncoder._add_constant`).
 """
 
 from __future__ import annotations
 
 import math
+import struct
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cache, lru_cache
-from itertools import pairwise
+from itertools import compress, pairwise
+from operator import sub
 from typing import Any
 
 import numpy as np
@@ -54,7 +59,8 @@ _RECIPROCAL_SAFE_CODES = float(2**47)
 _INT32_SAFE_CODES = float(2**29)
 
 
-def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray) -> _Coded:
+def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.ndarray,
+          extremes: tuple[float, float] | None = None) -> _Coded:
     """Integer codes of a whole channel, with each block's verdict: do its codes give back every
     value bit for bit? (The per-block choice of :func:`encode_blocks`, made for many at once.)
 
@@ -63,7 +69,8 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
     the latter.
 
     ``step``/``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an
-    encoder); codes and ``limit`` are dimensionless.
+    encoder); codes and ``limit`` are dimensionless. ``extremes``: the least and the largest
+    value of a float64 ``values``, if the caller has them (:func:`_extremes`).
     """
     if values.dtype.kind in "iub":
         return _Coded(values.astype(np.int64), np.ones(starts.size, dtype=bool), 1.0, 0.0)
@@ -71,19 +78,27 @@ def coded(values: np.ndarray, quantum: tuple[float, float] | None, starts: np.nd
     step, offset = quantum if quantum is not None else (1.0, 0.0)
     if not math.isfinite(step) or step <= 0.0 or not math.isfinite(offset):
         return _Coded(np.zeros(values.size, np.int64), np.zeros(starts.size, bool), step, offset)
-    ratio = _code_ratio(exact, step, offset)
+    ratio = _code_ratio(exact, step, offset, extremes)
     if _admits_reciprocal(ratio):
         integers = np.int32 if ratio <= _INT32_SAFE_CODES else np.int64
         return coded_by_reciprocal(exact, step, offset, starts, integers, ratio + 1.0)
     return coded_by_division(exact, step, offset, starts)
 
 
-def _code_ratio(exact: np.ndarray, step: float, offset: float) -> float:
+def _extremes(exact: np.ndarray) -> tuple[float, float]:
+    """The least and the largest value of a float64 array (NaN for both if it holds a NaN)."""
+    return float(np.minimum.reduce(exact)), float(np.maximum.reduce(exact))
+
+
+def _code_ratio(exact: np.ndarray, step: float, offset: float,
+                extremes: tuple[float, float] | None = None) -> float:
     """``(max|x| + 2·|offset|) / step`` of a channel: above every code's magnitude (NaN or
-    inf for a channel holding NaN or inf, or none at all)."""
+    inf for a channel holding NaN or inf, or none at all). ``extremes``: its
+    :func:`_extremes`, if known."""
     if exact.size == 0:
         return float("nan")
-    top = max(float(np.maximum.reduce(exact)), -float(np.minimum.reduce(exact)))
+    low, high = extremes if extremes is not None else _extremes(exact)
+    top = max(high, -low)
     # in Python floats an overflow is inf and NaN stays NaN, without NumPy's warnings
     return (top + 2.0 * abs(float(offset))) / float(step)
 
@@ -183,7 +198,7 @@ class _Choice:
 
 
 def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
-            limit: float = float("inf")) -> _Choice:
+            limit: float = float("inf"), bounds: list[int] | None = None) -> _Choice:
     """Delta or plain codes per block (the smaller sum of magnitudes), each block's width,
     and the byte planes, in whole-array steps over a pass of blocks.
 
@@ -191,10 +206,13 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
     same low ``w`` bytes in any wider two's complement, so a block of width ``w`` is its first
     ``w`` rows, one run of bytes (the planes are laid out block after block: one piece of a
     message, not ``w``). The planes are cut by shifts of the narrow integers, which reads
-    memory in order (a transposed copy of the bytes is 2–3× slower).
+    memory in order (a transposed copy of the bytes is 2–3× slower). ``bounds``: the blocks'
+    first samples and the end, if the caller has them as a list.
     """
-    bounds = [*starts.tolist(), codes.size]
-    longest = max(stop - first for first, stop in pairwise(bounds))
+    if bounds is None:
+        bounds = [*starts.tolist(), codes.size]
+    lengths = list(map(sub, bounds[1:], bounds[:-1]))
+    longest = max(lengths)
     # a block's sum of |codes| or |differences| is below 2·limit·longest: int32 sums of int32
     # codes are exact below 2^31 and 4× faster than int64 ones (NumPy widens int32 otherwise)
     sums = np.int32 if codes.dtype == np.int32 and 2.0 * limit * longest < 2**31 else np.int64
@@ -211,23 +229,31 @@ def _choose(codes: np.ndarray, starts: np.ndarray, exact: list[bool],
         top = np.where(delta, top, np.maximum.reduceat(magnitude, starts))
     del magnitude, step_magnitude
     chosen = steps if all(choices) else codes if not any(choices) else np.where(
-        np.repeat(delta, np.diff(bounds)), steps, codes)
-    widths = [_width(t) for t in top.tolist()]
-    widest = max(w for w, ok in zip(widths, exact, strict=True) if ok)
+        np.repeat(delta, lengths), steps, codes)
+    # each block's width: the narrowest whose signed integers hold every code of magnitude
+    # ≤ its top (codes are below 2^53: the widest always does); inline, as a call per block
+    # costs more than the comparisons
+    widths = [1 if t < 1 << 7 else 2 if t < 1 << 15 else 4 if t < 1 << 31 else 8
+              for t in top.tolist()]
+    widest = max(widths) if all(exact) else max(compress(widths, exact))
     # codes of blocks that are not exact may not fit: their bytes are never used (no copy
     # when the codes are of the widest width already)
-    narrow = chosen.astype(f"<i{widest}", copy=False).view(f"<u{widest}")
-    planes = narrow.view(np.uint8) if widest == 1 else _planes(narrow, bounds, widest)
+    narrow = chosen.astype(_NARROW[widest], copy=False).view(_UNSIGNED[widest])
+    planes = narrow.view(np.uint8) if widest == 1 else _planes(narrow, bounds, lengths,
+                                                                widest)
     return _Choice(choices, widths, planes, widest)
 
 
-def _planes(narrow: np.ndarray, bounds: list[int], widest: int) -> np.ndarray:
+def _planes(narrow: np.ndarray, bounds: list[int], lengths: list[int], widest: int
+            ) -> np.ndarray:
     """The byte planes of ``narrow`` (unsigned, ``widest`` bytes) block after block: the
-    leading blocks of equal length in one strided pass per byte, any others one by one."""
+    leading blocks of equal length in one strided pass per byte, any others one by one
+    (``lengths``: the blocks' lengths, ``bounds``: their first samples and the end)."""
     planes = np.empty(widest * narrow.size, dtype=np.uint8)
-    size = bounds[1] - bounds[0]
-    equal = next((i for i, (a, b) in enumerate(pairwise(bounds)) if b - a != size),
-                 len(bounds) - 1)
+    size = lengths[0]
+    equal = lengths.count(size)
+    if equal < len(lengths):  # a block of another length: the leading run ends before it
+        equal = next(i for i, length in enumerate(lengths) if length != size)
     runs = [(bounds[0], equal, size)] + [(a, 1, b - a) for a, b in pairwise(bounds[equal:])]
     for first, blocks, length in runs:
         source = narrow[first:first + blocks * length].reshape(blocks, length)
@@ -248,17 +274,42 @@ def _planes(narrow: np.ndarray, bounds: list[int], widest: int) -> np.ndarray:
 _PASS_SAMPLES = 65_536
 
 
-def _passes(bounds: list[int]) -> list[tuple[int, int]]:
-    """``(first, stop)`` block numbers of consecutive passes over blocks ``bounds[b] …
-    bounds[b + 1]``: as many whole blocks as fit :data:`_PASS_SAMPLES`, at least one."""
+@dataclass(frozen=True)
+class _Pass:
+    """A coding pass: blocks ``first … stop − 1``, samples ``origin … end − 1`` of a channel,
+    and its blocks' first samples counted from ``origin`` (an array, and a list with ``end``)."""
+
+    first: int
+    stop: int
+    origin: int
+    end: int
+    starts: np.ndarray
+    bounds: list[int]
+    #: the blocks' lengths, as a list and as a (read-only) array
+    lengths: list[int]
+    lengths_array: np.ndarray
+
+
+@lru_cache(maxsize=256)
+def _passes(bounds: tuple[int, ...]) -> tuple[_Pass, ...]:
+    """Consecutive passes over blocks ``bounds[b] … bounds[b + 1]``: as many whole blocks as
+    fit :data:`_PASS_SAMPLES`, at least one (memoised: every channel of a log, and most logs
+    of a run, have the same blocks; the arrays are read-only)."""
     passes, first = [], 0
     while first < len(bounds) - 1:
         stop = first + 1
         while stop < len(bounds) - 1 and bounds[stop + 1] - bounds[first] <= _PASS_SAMPLES:
             stop += 1
-        passes.append((first, stop))
+        origin = bounds[first]
+        relative = [b - origin for b in bounds[first:stop + 1]]
+        starts = np.array(relative[:-1], dtype=np.intp)
+        lengths = list(map(sub, relative[1:], relative[:-1]))
+        lengths_array = np.array(lengths, dtype=np.intp)
+        starts.flags.writeable = lengths_array.flags.writeable = False
+        passes.append(_Pass(first, stop, origin, bounds[stop], starts, relative, lengths,
+                            lengths_array))
         first = stop
-    return passes
+    return tuple(passes)
 
 
 class ChannelEncoder:
@@ -285,21 +336,22 @@ class ChannelEncoder:
         #: per block: the byte planes of its pass, the pass's first sample and widest width
         self._planes: list[tuple[memoryview, int, int] | None] = []
         step_offset = (1.0, 0.0)
-        for first, stop in _passes(self._bounds):
-            origin, end = self._bounds[first], self._bounds[stop]
-            found = coded(values[origin:end], quantum, starts[first:stop] - origin)
+        for part in _passes(tuple(self._bounds)):
+            chunk = values[part.origin:part.end]
+            extremes = _extremes(chunk) if chunk.dtype == np.float64 else None
+            if extremes is not None and extremes[0] == extremes[1]:
+                found = coded(chunk[:1], quantum, _FIRST)  # one value stands for all
+                self._add_constant(found, part)
+            else:
+                found = coded(chunk, quantum, part.starts, extremes)
+                self._add_pass(found, part)
             step_offset = (found.quantum, found.offset)
-            self._add_pass(found, starts[first:stop] - origin, origin)
-        # name to delta, per encoder (not memoised: a cache would take an offset of −0.0 for
-        # 0.0, equal keys, and they serialise apart)
-        self._packed_heads = {
-            delta: self._head + channel(quantum=step_offset[0], offset=step_offset[1],
-                                        delta=delta).SerializeToString()
-            for delta in (False, True)}
+        # name to delta (memoised by the floats' bits: a cache keyed by the floats would take
+        # an offset of −0.0 for 0.0, equal keys, and they serialise apart)
+        self._packed_heads = _packed_heads(channel, self._head, _FLOAT_PAIR.pack(*step_offset))
 
-    def _add_pass(self, found: _Coded, starts: np.ndarray, origin: int) -> None:
-        """Keep one pass's verdicts, choices and byte planes (``starts``: its blocks' first
-        samples, counted from the pass's first sample ``origin`` in the channel)."""
+    def _add_pass(self, found: _Coded, part: _Pass) -> None:
+        """Keep one pass's verdicts, choices and byte planes."""
         exact = found.exact.tolist()
         self._exact += exact
         if not any(exact):
@@ -307,11 +359,67 @@ class ChannelEncoder:
             self._widths += [WIDTHS[-1]] * len(exact)
             self._planes += [None] * len(exact)
             return
-        choice = _choose(found.codes, starts, exact, found.limit)
+        choice = _choose(found.codes, part.starts, exact, found.limit, part.bounds)
         self._delta += choice.delta
         self._widths += choice.widths
         # a memoryview: slicing and joining it costs a third of a NumPy view
-        self._planes += [(choice.planes.data, origin, choice.widest)] * len(exact)
+        self._planes += [(choice.planes.data, part.origin, choice.widest)] * len(exact)
+
+    def _add_constant(self, found: _Coded, part: _Pass) -> None:
+        """:meth:`_add_pass` for a pass whose values all compare equal (a logger at rest: a
+        table standing still, a constant temperature), from ``found``, the coding of its first
+        value alone; what :func:`_choose` chooses for it, built without its whole-array steps.
+
+        Why it is the same: codes and verdicts are found value by value, and values that
+        compare equal (the same float, or two zeros) give the same code ``c`` and verdict, by
+        either route (the route and the width of the integers depend only on the largest
+        magnitude, the same for one value as for all). A block of ``n`` such codes has the
+        magnitude sum ``n·|c|`` and the difference sum ``|c|`` (its first difference is from
+        0, the others 0): delta-coded exactly when ``c ≠ 0`` and ``n > 1``; its top is ``|c|``
+        either way, so every block has ``c``'s width. Its bytes are ``c`` then zeros (delta),
+        or ``c`` alone (``n = 1``), or all zero (``c = 0``): each block's rows hold ``c``'s
+        bytes in their first column and zeros elsewhere.
+        """
+        code, exact = int(found.codes[0]), bool(found.exact[0])
+        lengths = part.lengths
+        self._exact += [exact] * len(lengths)
+        if not exact:
+            self._delta += [False] * len(lengths)
+            self._widths += [WIDTHS[-1]] * len(lengths)
+            self._planes += [None] * len(lengths)
+            return
+        top = abs(code)
+        width = 1 if top < 1 << 7 else 2 if top < 1 << 15 else 4 if top < 1 << 31 else 8
+        planes = np.zeros(width * part.bounds[-1], dtype=np.uint8)
+        if code:
+            rows = width * part.starts  # each block's first column, row 0
+            for byte, value in enumerate(code.to_bytes(width, "little", signed=True)):
+                planes[rows + byte * part.lengths_array] = value
+        self._delta += [bool(code) and length > 1 for length in lengths]
+        self._widths += [width] * len(lengths)
+        self._planes += [(planes.data, part.origin, width)] * len(lengths)
+
+    def fields(self, key: bytes) -> Iterator[tuple[list[Any], int]]:
+        """:meth:`field` of every block, in order (the per-block lookups made once). A
+        generator: a step's blocks of every channel held at once would be thousands of small
+        lists, enough to set off the garbage collector (≈ 2 ms a step on the stepped sine)."""
+        bounds, heads, channel = self._bounds, self._packed_heads, self._channel
+        frames: dict[tuple[bool, int, int], tuple[bytes, bytes]] = {}
+        for block, (exact, planes, delta, width) in enumerate(zip(
+                self._exact, self._planes, self._delta, self._widths, strict=True)):
+            if not exact or planes is None:
+                yield self.field(block, key)
+                continue
+            first = bounds[block]
+            samples = bounds[block + 1] - first
+            kind = (delta, width, samples)
+            frame = frames.get(kind)
+            if frame is None:
+                frame = frames[kind] = _frame(channel, heads[delta], key, width, samples)
+            head, tail = frame
+            rows, origin, widest = planes
+            start, size = widest * (first - origin), width * samples
+            yield [head, rows[start:start + size], tail], len(head) + size + len(tail)
 
     def parts(self, block: int) -> tuple[list[Any], int]:
         """The serialised ``Channel`` of block number ``block`` as consecutive byte-like
@@ -351,6 +459,23 @@ def _serialised(channel: Any, **fields: Any) -> bytes:
     return bytes(channel(**fields).SerializeToString())
 
 
+#: the first samples of a single block at sample 0
+_FIRST = np.zeros(1, dtype=np.intp)
+_FIRST.flags.writeable = False
+#: a channel's quantum and offset as the bytes of two little-endian float64 (a cache key)
+_FLOAT_PAIR = struct.Struct("<dd")
+
+
+@lru_cache(maxsize=1024)
+def _packed_heads(channel: Any, head: bytes, step_offset: bytes) -> dict[bool, bytes]:
+    """``head`` (a channel's serialised name, unit and dtype) and the serialised quantum,
+    offset and delta before ``packed``, per delta (``step_offset``: :data:`_FLOAT_PAIR`
+    bytes; memoised: the same few per run)."""
+    step, offset = _FLOAT_PAIR.unpack(step_offset)
+    return {delta: head + channel(quantum=step, offset=offset, delta=delta).SerializeToString()
+            for delta in (False, True)}
+
+
 @lru_cache(maxsize=1024)
 def _frame(channel: Any, head: bytes, key: bytes, width: int, samples: int
            ) -> tuple[bytes, bytes]:
@@ -370,12 +495,9 @@ def _keyed(key: bytes, head: bytes, rest: int) -> bytes:
 
 #: code widths (bytes) of format v3, narrowest first
 WIDTHS = (1, 2, 4, 8)
-
-
-def _width(top: int) -> int:
-    """The narrowest width whose signed integers hold every code of magnitude ≤ ``top`` (codes
-    are below 2^53: the widest always does)."""
-    return 1 if top < 1 << 7 else 2 if top < 1 << 15 else 4 if top < 1 << 31 else 8
+#: per width: the dtypes of its signed and unsigned little-endian integers
+_NARROW = {w: np.dtype(f"<i{w}") for w in WIDTHS}
+_UNSIGNED = {w: np.dtype(f"<u{w}") for w in WIDTHS}
 
 
 @cache

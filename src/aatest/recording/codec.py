@@ -32,6 +32,7 @@ The encoder's half (codes, delta choice, widths, byte planes) is
 from __future__ import annotations
 
 from collections.abc import Container, Iterable, Iterator, Mapping
+from functools import cache
 from itertools import chain
 from typing import Any
 
@@ -73,9 +74,15 @@ def check_dtypes(log: SampledLog) -> None:
         raise ValueError(f"{log.source} log has a channel named {TIME_COLUMN!r}")
 
 
+@cache
+def _block_field_numbers() -> dict[str, int]:
+    """``SampleBlock`` field name → number (read from the descriptor once)."""
+    return {f.name: f.number for f in proto.block_class().DESCRIPTOR.fields}
+
+
 def _header_parts(header: Mapping[str, object]) -> tuple[dict[str, object], dict[str, object]]:
     """``header`` split into the block fields serialised before the channels and after them."""
-    numbers = {f.name: f.number for f in proto.block_class().DESCRIPTOR.fields}
+    numbers = _block_field_numbers()
     unknown = set(header) - set(numbers)
     if unknown:
         raise ValueError(f"unknown SampleBlock fields {sorted(unknown)}")
@@ -128,13 +135,15 @@ def encode_block_pieces(
                                 starts) for name, values in log.channels.items()]
     before, after = _header_parts(header)
     block_type = proto.block_class()
+    # each channel's fields block by block (a generator per channel)
+    columns = [time.fields(_TIME_KEY), *(c.fields(_CHANNELS_KEY) for c in channels)]
     for sequence, log_time_ns in enumerate(log_times_ns):
         head = block_type(sequence=first_sequence + sequence,
-                          first_sample=first_sample + int(starts[sequence]), **before)
+                          first_sample=first_sample + sequence * block_samples, **before)
         parts = [head.SerializeToString()]
         length = len(parts[0])
-        for key, encoder in ((_TIME_KEY, time), *((_CHANNELS_KEY, c) for c in channels)):
-            pieces, size = encoder.field(sequence, key)
+        for column in columns:
+            pieces, size = next(column)
             parts += pieces
             length += size
         parts.append(block_type(log_time_ns=log_time_ns, **after).SerializeToString())

@@ -271,15 +271,22 @@ class PreviewStream:
         self._sequence = 0
         self.layout: Layout | None = None
 
-    def add(self, log: SampledLog) -> None:
-        """Take the next samples; emit every window they complete."""
+    def add(self, log: SampledLog, last: bool = False) -> None:
+        """Take the next samples; emit every window they complete (with ``last``: every
+        window, the short last one too, as :meth:`finish` would, in one pass)."""
         if len(log) == 0:
+            if last:
+                self.finish()
             return
         if self.layout is None:
             self.layout = layout_of(log)
         samples = Samples(log.time_s, {c: log.channels[c] for c in self.layout.channels})
         joined = samples if self._carry is None else _join(self._carry, samples)
         per_window = window_samples(log.sample_rate_hz)
+        if last:  # windows() takes a short last window as finish() does: same values
+            self._emit(joined, per_window)
+            self._carry = None
+            return
         whole = len(joined) // per_window * per_window
         if whole:
             self._emit(joined.part(0, whole), per_window)

@@ -164,8 +164,7 @@ def _write_preview(writer: ChunkedWriter, log: SampledLog, index: int, origin_ns
     chunks = PreviewChunks(writer)
     stream = preview.PreviewStream(index, origin_ns + fmt.STEP_MARGIN_S * 1_000_000_000,
                                    origin_ns, chunks)
-    stream.add(log)
-    stream.finish()
+    stream.add(log, last=True)
     chunks.flush()
 
 
