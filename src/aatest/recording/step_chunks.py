@@ -29,6 +29,7 @@ from __future__ import annotations
 import hashlib
 import struct
 import zlib
+from collections.abc import Collection
 from pathlib import Path
 from typing import IO, Any
 
@@ -41,8 +42,9 @@ from aatest.recording import format as fmt
 _SOURCES = ("table", "daq")
 
 
-def step_digests(path: Path) -> dict[str, str]:
-    """Step id → digest (hex) of every step an aatest MCAP file holds (a step file: one).
+def step_digests(path: Path, only: Collection[str] | None = None) -> dict[str, str]:
+    """Step id → digest (hex) of every step an aatest MCAP file holds (a step file: one), or
+    of those in ``only``.
 
     Raises
     ------
@@ -55,8 +57,10 @@ def step_digests(path: Path) -> dict[str, str]:
         if summary is None:
             raise RecordingError(f"{path}: no summary (an unfinished write)")
         records = [dict(r.metadata) for r in reader.iter_metadata() if r.name == fmt.STEP_RECORD]
-        return {str(fmt.from_json_values(values)["step"]["id"]): _digest(stream, summary, values)
-                for values in records}
+        ids = [str(fmt.from_json_values(values)["step"]["id"]) for values in records]
+        return {step_id: _digest(stream, summary, values)
+                for step_id, values in zip(ids, records, strict=True)
+                if only is None or step_id in only}
 
 
 def _digest(stream: IO[bytes], summary: Any, values: dict[str, str]) -> str:

@@ -27,6 +27,7 @@ on any exit), and it ends by itself when the run process is gone (its pipe close
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -104,7 +105,7 @@ class EarlyResults:
                 or not isinstance(source, Path) or not source.is_file():
             return 0
         context = context_digest(data)
-        digests = step_digests(source)
+        digests = step_digests(source, only=set(self.made))
         offered = 0
         for index, step in enumerate(data.planned):
             made = self.made.get(step.id)
@@ -186,10 +187,8 @@ class EarlyAnalysis:
         self._send((step_id, str(path)))
 
     def _send(self, message: Any) -> None:
-        try:
+        with contextlib.suppress(OSError, ValueError):
             self._inbox.send(message)
-        except (OSError, ValueError):
-            pass
 
     def _collect(self) -> None:
         while True:
@@ -207,10 +206,9 @@ class EarlyAnalysis:
         made; the child is reaped."""
         self._send(_DRAIN if drain else None)
         if drain or self._heard.is_set():
-            try:
+            # late: close() ends it, the pass computes what it did not send
+            with contextlib.suppress(subprocess.TimeoutExpired):
                 self._process.wait(DRAIN_S if drain else JOIN_S)
-            except subprocess.TimeoutExpired:
-                pass  # late: close() ends it, the pass computes what it did not send
         self.close()
         return EarlyResults(dict(self._made))
 
@@ -315,11 +313,14 @@ def serve(inbox: Connection, outbox: Connection) -> None:
     or None)`` on ``outbox``; end on ``None`` (after the step in flight: newly arrived
     messages are read before each step), on :data:`_DRAIN` once every step sent before it
     is done, or when the parent is gone."""
+    from threadpoolctl import threadpool_limits
+
     from aatest.engine import registry
 
     queue: deque[tuple[str, str]] = deque()
     draining = False
-    with registry.pinned():
+    # BLAS on one thread, as in the pass (run_analyses): the same sums in the same order
+    with registry.pinned(), threadpool_limits(limits=1, user_api="blas"):
         child = _Child()
         while True:
             if (not queue and not draining) or inbox.poll():
@@ -363,7 +364,7 @@ class _Child:
         from aatest.recording import read_dataset
         from aatest.recording.step_chunks import step_digests
 
-        digest = step_digests(path)[step_id]
+        digest = step_digests(path, only={step_id})[step_id]
         single = read_dataset(path)
         base = self._base or self._first(single)
         index = self._index[step_id]

@@ -427,7 +427,7 @@ class _RunRequest:
 
 def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
     """The body of :func:`run`, executed while holding the run directory's lock."""
-    from aatest.engine.run.early_analysis import EarlyResults, early_analysis
+    from aatest.engine.run.early_analysis import early_analysis
     from aatest.recording import RunRecorder
 
     prepared, out_dir, resume, seed = (request.prepared, request.out_dir, request.resume,
