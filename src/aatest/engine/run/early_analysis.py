@@ -32,13 +32,10 @@ import hashlib
 import json
 import logging
 import os
-import signal
 import subprocess
 import sys
 import threading
-import warnings
-from collections import deque
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
@@ -60,9 +57,9 @@ JOIN_S = 10.0
 #: how long a drain may take (s)
 DRAIN_S = 600.0
 #: the message asking the child to finish every step sent, then end (tests)
-_DRAIN = "drain"
+DRAIN = "drain"
 #: the child's program: the module imported under its own name (its records unpickle here)
-_CHILD_MAIN = "import sys; from aatest.engine.run.early_analysis import main; main(sys.argv[1:])"
+_CHILD_MAIN = "import sys; from aatest.engine.run.early_child import main; main(sys.argv[1:])"
 
 
 @dataclass(frozen=True)
@@ -111,9 +108,12 @@ class EarlyResults:
             made = self.made.get(step.id)
             if made is None or made.context != context or digests.get(step.id) != made.digest:
                 continue
-            for name, result in made.results.items():
-                load(name).cls.take_early(data, index, result)
-            offered += 1
+            takes = [(getattr(load(name).cls, "take_early", None), result)
+                     for name, result in made.results.items()]
+            if all(callable(take) for take, _ in takes):
+                for take, result in takes:
+                    take(data, index, result)  # type: ignore[misc] # checked just above
+                offered += 1
         return offered
 
 
@@ -162,7 +162,8 @@ class EarlyAnalysis:
         try:
             self._process = subprocess.Popen(
                 [sys.executable, "-c", _CHILD_MAIN, str(to_child), str(from_child)],
-                pass_fds=(to_child, from_child), stdin=subprocess.DEVNULL, close_fds=True)
+                pass_fds=(to_child, from_child), stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, close_fds=True)
         finally:
             os.close(to_child)  # the child's ends: its exit then closes the pipe for the reader
             os.close(from_child)
@@ -179,7 +180,7 @@ class EarlyAnalysis:
 
     @property
     def pid(self) -> int:
-        """The child's process id."""
+        """The child's process id (:mod:`aatest.engine.run.early_child` runs there)."""
         return self._process.pid
 
     def send(self, step_id: str, path: Path) -> None:
@@ -204,7 +205,7 @@ class EarlyAnalysis:
         """Stop the child after its step in flight (``drain``: after every step sent; else
         at once while it has sent nothing yet, i.e. is still importing) and return what it
         made; the child is reaped."""
-        self._send(_DRAIN if drain else None)
+        self._send(DRAIN if drain else None)
         if drain or self._heard.is_set():
             # late: close() ends it, the pass computes what it did not send
             with contextlib.suppress(subprocess.TimeoutExpired):
@@ -289,118 +290,3 @@ def _wants_early_safely(plan: Plan) -> bool:
     except Exception as exc:  # noqa: BLE001 - an unloadable analysis fails in the pass, named
         log.debug("no analysis while recording: %s", exc)
         return False
-
-
-# --- the child ----------------------------------------------------------------------------------
-
-
-def main(argv: Sequence[str]) -> None:
-    """The child's entry (``argv``: the descriptors of its inbox and outbox pipes)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it reaps this one
-    warnings.simplefilter("ignore")  # the pass reports what a step's analysis warns about
-    logging.disable(logging.CRITICAL)
-    inbox = Connection(int(argv[0]), writable=False)
-    outbox = Connection(int(argv[1]), readable=False)
-    try:
-        serve(inbox, outbox)
-    finally:
-        inbox.close()
-        outbox.close()
-
-
-def serve(inbox: Connection, outbox: Connection) -> None:
-    """The child's loop: analyse each step file named on ``inbox`` and send ``(step id, Made
-    or None)`` on ``outbox``; end on ``None`` (after the step in flight: newly arrived
-    messages are read before each step), on :data:`_DRAIN` once every step sent before it
-    is done, or when the parent is gone."""
-    from threadpoolctl import threadpool_limits
-
-    from aatest.engine import registry
-
-    queue: deque[tuple[str, str]] = deque()
-    draining = False
-    # BLAS on one thread, as in the pass (run_analyses): the same sums in the same order
-    with registry.pinned(), threadpool_limits(limits=1, user_api="blas"):
-        child = _Child()
-        while True:
-            if (not queue and not draining) or inbox.poll():
-                try:
-                    message = inbox.recv()
-                except (EOFError, OSError):
-                    return
-                if message is None:
-                    return
-                if message == _DRAIN:
-                    draining = True
-                else:
-                    queue.append(message)
-                continue
-            if not queue:  # drained
-                return
-            step_id, path = queue.popleft()
-            try:
-                outbox.send((step_id, child.analyse(step_id, Path(path))))
-            except (OSError, ValueError):
-                return
-
-
-class _Child:
-    """The plan-wide view the child analyses each step in (from the first step file)."""
-
-    def __init__(self) -> None:
-        self._base: Dataset | None = None
-        self._context = ""
-        self._index: dict[str, int] = {}
-
-    def analyse(self, step_id: str, path: Path) -> Made | None:
-        """Step ``step_id``'s ``early_step`` results, or None when anything failed."""
-        try:
-            return self._analyse(step_id, path)
-        except Exception:  # noqa: BLE001 - the pass computes the step and meets the error
-            return None
-
-    def _analyse(self, step_id: str, path: Path) -> Made:
-        from aatest.engine.analysis.passes import register_watches
-        from aatest.recording import read_dataset
-        from aatest.recording.step_chunks import step_digests
-
-        digest = step_digests(path, only={step_id})[step_id]
-        single = read_dataset(path)
-        base = self._base or self._first(single)
-        index = self._index[step_id]
-        data = _one_step_view(base, single.steps, index)
-        watched = register_watches(data, list(data.metadata.get("analysis", [])))
-        results = {p.name: p.cls.early_step(data, index) for p in watched.plugins
-                   if callable(getattr(p.cls, "early_step", None)) and p.cls().applies_to(data)}
-        return Made(digest, self._context, results)
-
-    def _first(self, single: Dataset) -> Dataset:
-        """The plan's recorded steps, sensors and sample rate, as the recording will state
-        them (its run record, as every step file embeds it)."""
-        meta = single.metadata
-        planned = [p for p in (PlannedStep.model_validate(e) for e in meta.get("plan") or [])
-                   if p.recorded]
-        rate = meta.get("sample_rate_hz") or (planned[0].sample_rate_hz if planned else
-                                              single.sample_rate_hz)
-        steps = LazySteps(planned, _no_log, [{} for _ in planned])
-        self._base = Dataset(single.procedure, float(rate), single.sensors, steps,
-                             single.source, meta)
-        self._context = context_digest(self._base)
-        self._index = {p.id: i for i, p in enumerate(planned)}
-        return self._base
-
-
-def _no_log(index: int, source: str, channels: Any) -> Any:
-    raise LookupError(f"step {index} is not in this step file")
-
-
-def _one_step_view(base: Dataset, single: Any, index: int) -> Dataset:
-    """``base`` whose step ``index`` is the one step of a step file's lazy steps ``single``
-    (fresh lazy steps: the watches registered on it see this step only)."""
-    assert isinstance(single, LazySteps)
-    counts: list[Mapping[str, int]] = [{} for _ in base.planned]
-    counts[index] = {source: single[0].samples(source) for source in ("table", "daq")}
-    steps = LazySteps(base.planned, lambda _i, source, channels: single.log(0, source, channels),
-                      counts, lambda _i, source, channels: single.pieces(0, source, channels))
-    return Dataset(base.procedure, base.sample_rate_hz, base.sensors, steps, base.source,
-                   base.metadata)

@@ -184,6 +184,9 @@ def relations(steps: LazySteps, indices: Sequence[int],
     them, batch by batch one worker does. The error of the first failing step in order is
     the one raised, here, with its own traceback: a step that failed in a worker is computed
     again in this process.
+
+    A step :func:`offer` was given (``aatest run`` made it while recording, of the same bytes:
+    :mod:`aatest.engine.run.early_analysis`) is taken as it is, not computed again.
     """
     offered = _OFFERED.pop(steps, {})
     todo = [i for i in indices if i not in offered]
