@@ -12,8 +12,9 @@ by :func:`~aatest.engine.analysis.passes.register_watches`; each analysis plugin
 (``take_early(data, index, result)``) for the steps whose bytes in ``recording.mcap`` are the
 ones the child decoded (:mod:`aatest.recording.step_chunks`) and whose plan, sensors and
 analyses are the ones it watched for; every other step (missing, mismatched, failed, not yet
-reached, a resumed run's earlier steps, a child that died) is computed in the pass as
-without it. Errors in the child never fail the run.
+reached when the record phase ended — the child is then ended at once —, a resumed run's
+earlier steps, a child that died) is computed in the pass as without it. Errors in the child
+never fail the run.
 
 Not sent: streamed steps (long static records, analysed piece by piece), and nothing at all
 when the plan has no step to send or ``AATEST_EARLY_ANALYSIS=0`` (then the run is the same as
@@ -52,8 +53,6 @@ log = logging.getLogger("aatest.analysis")
 EARLY_ENV = "AATEST_EARLY_ANALYSIS"
 #: the child's niceness increment: it runs on what the record phase leaves of the CPUs
 NICENESS = 10
-#: how long the end of the record phase waits for the child to finish its step in flight (s)
-JOIN_S = 10.0
 #: how long a drain may take (s)
 DRAIN_S = 600.0
 #: the message asking the child to finish every step sent, then end (tests)
@@ -151,7 +150,8 @@ def wants_early(plan: Plan) -> bool:
 class EarlyAnalysis:
     """The child process, the pipes to it and the thread that collects what it sends.
 
-    The child is a fresh interpreter running :func:`main` (``subprocess``: spawned by
+    The child is a fresh interpreter running :func:`aatest.engine.run.early_child.main`
+    (``subprocess``: spawned by
     ``exec``, safe beside the run's threads, and it imports only aatest, not this process's
     main module); the two pipes are passed to it by descriptor.
     """
@@ -164,6 +164,10 @@ class EarlyAnalysis:
                 [sys.executable, "-c", _CHILD_MAIN, str(to_child), str(from_child)],
                 pass_fds=(to_child, from_child), stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, close_fds=True)
+        except BaseException:
+            os.close(self._inbox_fd)
+            os.close(self._outbox_fd)
+            raise
         finally:
             os.close(to_child)  # the child's ends: its exit then closes the pipe for the reader
             os.close(from_child)
@@ -172,8 +176,6 @@ class EarlyAnalysis:
         self._outbox = Connection(self._outbox_fd, writable=False)
         self._made: dict[str, Made] = {}
         self._closed = False
-        #: set once the child has sent anything (its imports are done)
-        self._heard = threading.Event()
         self._reader = threading.Thread(target=self._collect, name="aatest-early-results",
                                         daemon=True)
         self._reader.start()
@@ -195,21 +197,23 @@ class EarlyAnalysis:
         while True:
             try:
                 step_id, made = self._outbox.recv()
-            except (EOFError, OSError, ValueError):
+            except Exception:  # noqa: BLE001 - the pipe's end (a child ended mid-message too)
                 return
-            self._heard.set()
             if made is not None:
                 self._made[step_id] = made
 
     def results(self, drain: bool = False) -> EarlyResults:
-        """Stop the child after its step in flight (``drain``: after every step sent; else
-        at once while it has sent nothing yet, i.e. is still importing) and return what it
-        made; the child is reaped."""
-        self._send(DRAIN if drain else None)
-        if drain or self._heard.is_set():
-            # late: close() ends it, the pass computes what it did not send
+        """What the child made, the child ended and reaped.
+
+        Ended at once: the steps it has not sent (the one in flight, those queued) are left
+        to the pass, which computes them on every core, sooner than this one child would
+        finish them (the results it has sent are in the pipe and still read). ``drain``
+        (tests): after it has made every step sent.
+        """
+        if drain:
+            self._send(DRAIN)
             with contextlib.suppress(subprocess.TimeoutExpired):
-                self._process.wait(DRAIN_S if drain else JOIN_S)
+                self._process.wait(DRAIN_S)
         self.close()
         return EarlyResults(dict(self._made))
 
@@ -277,7 +281,12 @@ def early_analysis(plan: Plan, recorder: Any, envelope: Any) -> Iterator[EarlyRu
     if not steps or not _wants_early_safely(plan):
         yield EarlyRun(recorder)
         return
-    early = EarlyAnalysis()
+    try:
+        early = EarlyAnalysis()
+    except OSError as exc:  # no process to spare: the pass analyses every step, as without
+        log.debug("no analysis while recording: %s", exc)
+        yield EarlyRun(recorder)
+        return
     try:
         yield EarlyRun(_Notifying(recorder, early, steps), early)
     finally:
