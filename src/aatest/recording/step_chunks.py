@@ -33,7 +33,9 @@ from collections.abc import Collection
 from pathlib import Path
 from typing import IO, Any
 
+from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
+from mcap.records import Metadata
 
 from aatest.engine.errors import RecordingError
 from aatest.recording import format as fmt
@@ -56,11 +58,18 @@ def step_digests(path: Path, only: Collection[str] | None = None) -> dict[str, s
         summary = reader.get_summary()
         if summary is None:
             raise RecordingError(f"{path}: no summary (an unfinished write)")
-        records = [dict(r.metadata) for r in reader.iter_metadata() if r.name == fmt.STEP_RECORD]
+        records = [_metadata(stream, ix) for ix in summary.metadata_indexes
+                   if ix.name == fmt.STEP_RECORD]  # not the run record: it holds the plan
         ids = [str(fmt.from_json_values(values)["step"]["id"]) for values in records]
         return {step_id: _digest(stream, summary, values)
                 for step_id, values in zip(ids, records, strict=True)
                 if only is None or step_id in only}
+
+
+def _metadata(stream: IO[bytes], index: Any) -> dict[str, str]:
+    """The values of the metadata record ``index`` points at (after its opcode and length)."""
+    stream.seek(index.offset + 1 + 8)
+    return dict(Metadata.read(ReadDataStream(stream)).metadata)
 
 
 def _digest(stream: IO[bytes], summary: Any, values: dict[str, str]) -> str:
