@@ -9,6 +9,11 @@ each phase timed on its own:
 - ``analyse`` the recording is read and the procedure's analyses run;
 - ``report``  uncertainty, verdicts, results.json, the HTML certificate (and its signature).
 
+During ``record`` a child process makes the sync pass's per-step work as each step file is
+written (:mod:`aatest.engine.run.early_analysis`, as ``aatest run`` does; off with
+``AATEST_EARLY_ANALYSIS=0``); it is ended and reaped at the end of ``merge``, so its CPU
+seconds count there, and the bench prints how many steps ``analyse`` took from it.
+
 It prints wall and CPU seconds per phase (CPU counts the analysis pass's forked workers,
 :func:`aatest.plugins.analysis.sync.relations`), lab ÷ wall (issue 26 asks ≥ 1000× on this 2-core
 machine) and lab ÷ CPU (meaningful when other jobs share the machine), the peak resident memory
