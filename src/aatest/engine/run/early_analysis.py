@@ -277,7 +277,8 @@ def early_analysis(plan: Plan, recorder: Any, envelope: Any) -> Iterator[EarlyRu
     """Around the record phase: a child analysing the plan's sendable steps (see the module
     docstring), or none (disabled, nothing to send, no analysis makes early work). The child
     is reaped on any exit (a rig fault, Ctrl-C, an abort)."""
-    steps = sendable(plan, envelope) if enabled() and os.name == "posix" else []
+    possible = enabled() and os.name == "posix" and bool(sys.executable)
+    steps = sendable(plan, envelope) if possible else []
     if not steps or not _wants_early_safely(plan):
         yield EarlyRun(recorder)
         return
