@@ -30,6 +30,7 @@ _OFFERED: WeakKeyDictionary[LazySteps, dict[int, Attempt]] = WeakKeyDictionary()
 
 log = logging.getLogger("aatest.analysis")
 
+
 class SyncedSteps(Sequence[SyncedStep]):
     """Recorded steps synchronised when read; ``planned`` and :meth:`where` decode nothing.
 
