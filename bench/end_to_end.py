@@ -9,6 +9,11 @@ each phase timed on its own:
 - ``analyse`` the recording is read and the procedure's analyses run;
 - ``report``  uncertainty, verdicts, results.json, the HTML certificate (and its signature).
 
+During ``record`` a child process makes the sync pass's per-step work as each step file is
+written (:mod:`aatest.engine.run.early_analysis`, as ``aatest run`` does; off with
+``AATEST_EARLY_ANALYSIS=0``); it is ended and reaped at the end of ``merge``, so its CPU
+seconds count there, and the bench prints how many steps ``analyse`` took from it.
+
 It prints wall and CPU seconds per phase (CPU counts the analysis pass's forked workers,
 :func:`aatest.plugins.analysis.sync.relations`), lab ÷ wall (issue 26 asks ≥ 1000× on this 2-core
 machine) and lab ÷ CPU (meaningful when other jobs share the machine), the peak resident memory
@@ -123,7 +128,8 @@ class Phases:
         return result
 
 
-def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> None:
+def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> Any:
+    """Record the run; what the analysis made during the record phase (None without)."""
     plan = prepared.plan
     state = open_state(out, plan.procedure, procedure_sha256(prepared.text), seed, False)
     recorder = RunRecorder(out)
@@ -134,18 +140,42 @@ def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> None:
     # unattended, as `aatest run --confirm-prompts auto`: a procedure with operator prompts
     # (pivot, re-mount) runs too, each prompt logged to stderr
     events = RunEvents(responder=AutoResponder())
-    phases.time("record", lambda: run_plan(plan, rig, recorder, state, out,
-                                           show_progress=False, events=events))
-    phases.time("merge", recorder.finalize)
+    with _early_analysis(prepared, recorder) as early:
+        phases.time("record", lambda: run_plan(plan, rig, early.recorder, state, out,
+                                               show_progress=False, events=events))
+        # the analysis made during the record phase is collected (its child reaped) here
+        results = phases.time("merge", lambda: (recorder.finalize(), early.results())[1])
     state.finished = True
     state.save(out)
     recorder.prune_step_files()
+    return results
 
 
-def _analyse_and_report(prepared: Any, out: Path, phases: Phases, recorded_here: bool
-                        ) -> tuple[float, int]:
+class _NoEarly:
+    """A checkout from before :mod:`aatest.engine.run.early_analysis`: nothing made early."""
+
+    def __init__(self, recorder: Any) -> None:
+        self.recorder = recorder
+
+    def results(self) -> None:
+        return None
+
+
+def _early_analysis(prepared: Any, recorder: Any) -> contextlib.AbstractContextManager[Any]:
+    """The per-step analysis during the record phase, as ``aatest run`` makes it (none in a
+    checkout without it, or with ``AATEST_EARLY_ANALYSIS=0``)."""
+    try:
+        from aatest.engine.run.early_analysis import early_analysis
+    except ImportError:
+        return contextlib.nullcontext(_NoEarly(recorder))
+    return early_analysis(prepared.plan, recorder, prepared.envelope)
+
+
+def _analyse_and_report(prepared: Any, out: Path, phases: Phases, recorded_here: bool,
+                        early: Any = None) -> tuple[float, int, int]:
     """Time the analyse and report phases; the lab time (s) the results state and the number of
-    steps analysed. The lab time is the plan's when
+    steps analysed and of steps the analysis took from the record phase. The lab time is the
+    plan's when
     this bench recorded the run, else the recorded steps' own (``--analyse-only``: the run may
     be of another procedure or length than the options given), as ``aatest analyze`` does."""
     from aatest.engine.analysis.passes import run_analyses
@@ -154,6 +184,8 @@ def _analyse_and_report(prepared: Any, out: Path, phases: Phases, recorded_here:
 
     def analyse() -> tuple[Any, Any]:
         data = read_dataset(out)
+        if early is not None:
+            early.offer(data)
         return data, run_analyses(data, list(data.metadata.get("analysis", [])))
 
     data, analysis = phases.time("analyse", analyse)
@@ -172,7 +204,7 @@ def _analyse_and_report(prepared: Any, out: Path, phases: Phases, recorded_here:
             session.render_and_sign(results, out, template, None, None)
 
     phases.time("report", report)
-    return float(lab_s), len(data.steps)
+    return float(lab_s), len(data.steps), early.offered if early is not None else 0
 
 
 def _pinned() -> contextlib.AbstractContextManager[Any]:
@@ -182,10 +214,12 @@ def _pinned() -> contextlib.AbstractContextManager[Any]:
     return pinned() if pinned is not None else contextlib.nullcontext()
 
 
-def _child_rows(src: Path, argv: list[str]) -> tuple[list[tuple[str, float, float]], float]:
-    """Run this benchmark in a fresh process on the checkout ``src``; its phases and lab s."""
+def _child_rows(src: Path, argv: list[str]
+                ) -> tuple[list[tuple[str, float, float]], float, int]:
+    """Run this benchmark in a fresh process on the checkout ``src``; its phases, lab s and
+    the steps the analysis took from the record phase."""
     doc = child_json(__file__, src, ["--json", *argv], "benchmark")
-    return [tuple(r) for r in doc["phases"]], float(doc["lab_s"])
+    return [tuple(r) for r in doc["phases"]], float(doc["lab_s"]), int(doc.get("taken", 0))
 
 
 def compare(base_src: Path, rounds: int, argv: list[str]) -> None:
@@ -195,11 +229,12 @@ def compare(base_src: Path, rounds: int, argv: list[str]) -> None:
     lab_s = 0.0
     for i in range(rounds):
         for label, src in (("base", base_src), ("this", this_src)):
-            rows, lab_s = _child_rows(src, argv)
+            rows, lab_s, taken = _child_rows(src, argv)
             runs[label].append(rows)
             total = sum(r[1] for r in rows)
             print(f"round {i + 1} {label}: total {total:.2f} s wall, lab ÷ wall "
-                  f"{lab_s / total:.0f}x; load average {os.getloadavg()[0]:.1f}", flush=True)
+                  f"{lab_s / total:.0f}x, {taken} steps analysed during the record phase; "
+                  f"load average {os.getloadavg()[0]:.1f}", flush=True)
     names = [r[0] for r in runs["this"][0]] + ["total"]
 
     def median(label: str, name: str, col: int) -> float:
@@ -243,22 +278,27 @@ def main() -> None:
             update={"steps": prepared.plan.steps[:args.steps]})
     phases = Phases()
     with TreeMemory() as tree, _pinned():
+        early = None
         if args.analyse_only is not None:
             out = args.analyse_only
         else:
             out = args.dir or Path(tempfile.mkdtemp(prefix="aatest-bench-e2e-")) / "run"
             if out.exists():
                 shutil.rmtree(out)
-            _record(prepared, out, args.seed, phases)
-        lab_s, steps = _analyse_and_report(prepared, out, phases, args.analyse_only is None)
+            early = _record(prepared, out, args.seed, phases)
+        lab_s, steps, taken = _analyse_and_report(prepared, out, phases,
+                                                  args.analyse_only is None, early)
     recording_mb = (out / RECORDING_NAME).stat().st_size / MB
     if args.json:
-        print(json.dumps({"phases": [r[:3] for r in phases.rows], "lab_s": lab_s}))
+        print(json.dumps({"phases": [r[:3] for r in phases.rows], "lab_s": lab_s,
+                          "taken": taken}))
         if args.dir is None and args.analyse_only is None:
             shutil.rmtree(out.parent, ignore_errors=True)
         return
     print(f"{prepared.plan.procedure}: {steps} steps, lab time {lab_s:.0f} s,"
           f" recording {recording_mb:.1f} MB ({out})")
+    print(f"analysis: {taken} of {steps} steps' sync-pass work taken from the record phase "
+          "(AATEST_EARLY_ANALYSIS=0: none)")
     print(f"  {'phase':<8} {'wall/s':>8} {'CPU/s':>8} {'peak RSS/MB':>12}")
     for name, wall, cpu, peak in phases.rows:
         print(f"  {name:<8} {wall:8.2f} {cpu:8.2f} {peak:12.0f}")

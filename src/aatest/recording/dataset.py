@@ -265,6 +265,13 @@ class LazySteps(Sequence[StepData]):
             if name in self._watches:
                 self._watches[name][1][index] = result
 
+    def log(self, index: int, source: str, channels: Container[str] | None = None
+            ) -> SampledLog:
+        """The ``"table"`` or ``"daq"`` log of step ``index``, decoded now, with the time
+        stamps and only ``channels`` (all when None); no watch runs. Why: a view of these
+        steps in another dataset (:mod:`aatest.engine.run.early_analysis`) loads through it."""
+        return self._load(range(len(self))[index], source, channels)
+
     def pieces(self, index: int, source: str, channels: Container[str] | None = None
                ) -> Iterator[SampledLog]:
         """The ``"table"`` or ``"daq"`` log of step ``index`` as consecutive pieces in sample

@@ -93,7 +93,11 @@ def order(names: Sequence[str]) -> list[AnalysisPlugin]:
         raise PluginError("analysis requirements form a cycle: " + " → ".join(cycle)) from exc
 
 
-def _requested_names(entries: Sequence[AnalysisEntry]) -> list[str]:
+def requested_names(entries: Sequence[AnalysisEntry]) -> list[str]:
+    """The plugin names procedure ``analysis:`` entries ask for (aliases resolved), once each;
+    every installed analysis when there are none (each then decides whether it applies)."""
+    if not entries:
+        return _plugins.installed_names()
     aliases = _plugins.aliases()
     names = [aliases.get(n, n) for n in (_plugins.split_entry(e)[0] for e in entries)]
     return list(dict.fromkeys(names))
@@ -148,8 +152,30 @@ def run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
         return _run_analyses(data, requested, options)
 
 
-def _run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
-                  options: Mapping[str, BaseModel] | None) -> AnalysisResults:
+@dataclass(frozen=True)
+class Watched:
+    """The analyses a pass runs, resolved, once their per-step reductions are registered."""
+
+    #: the plugins in run order (requirements first)
+    plugins: list[AnalysisPlugin]
+    #: the names asked for (after aliases), or every installed analysis
+    names: list[str]
+    #: validated options by plugin name (those given; the others use their defaults)
+    chosen: dict[str, BaseModel]
+    #: whether the analyses were named (else every installed one, each deciding if it applies)
+    explicit: bool
+
+
+def register_watches(data: Dataset, requested: Sequence[AnalysisEntry],
+                     options: Mapping[str, BaseModel] | None = None) -> Watched:
+    """Resolve the requested analyses and register every per-step reduction the pass makes
+    while it decodes each step: the uncertainty evidence, the logged temperatures and each
+    applicable plugin's ``watch_steps``.
+
+    One function for the analysis pass and for the analysis a run makes of each step while it
+    still records (:mod:`aatest.engine.run.early_analysis`): both then reduce a step the
+    same way.
+    """
     from aatest.metrology.uncertainty.evidence import watch
 
     # the uncertainty stage and the results' logged-temperature summary read every step after
@@ -157,12 +183,20 @@ def _run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
     watch(data)
     temperatures.watch(data)
     explicit = bool(requested)
-    names = _requested_names(requested) if explicit else _plugins.installed_names()
+    names = requested_names(requested)
     chosen = dict(_plugins.requested_options(requested)) | dict(options or {})
-    out = AnalysisResults()
-    by_name: dict[str, AnalysisOutput[Any]] = {}
     plugins = order(names)
     _watch_steps(plugins, data, chosen)
+    return Watched(plugins, names, chosen, explicit)
+
+
+def _run_analyses(data: Dataset, requested: Sequence[AnalysisEntry],
+                  options: Mapping[str, BaseModel] | None) -> AnalysisResults:
+    watched = register_watches(data, requested, options)
+    plugins, names, chosen, explicit = (watched.plugins, watched.names, watched.chosen,
+                                        watched.explicit)
+    out = AnalysisResults()
+    by_name: dict[str, AnalysisOutput[Any]] = {}
     for plugin in plugins:
         if not plugin.cls().applies_to(data):
             out.skipped.append(plugin.name)

@@ -13,7 +13,7 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from aatest.bundle import signing
 from aatest.engine import registry
@@ -45,6 +45,9 @@ from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
 from aatest.results.root import Signature
 from aatest.storage import RemotePath, Where
+
+if TYPE_CHECKING:
+    from aatest.engine.run.early_analysis import EarlyResults
 
 log = logging.getLogger("aatest")
 
@@ -175,6 +178,7 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     wall_duration_s: float | None = None,
     pdf: bool = False,
     extra_metadata: dict[str, Any] | None = None,
+    early: EarlyResults | None = None,
 ) -> RunResults:
     """Read a recording/import, run its analyses, write results.json and the signed report;
     return the typed results (what report plugins read).
@@ -183,12 +187,16 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     ``wall_duration_s`` (s) to 0 for imported data that has no run behind it; both are
     reported so the lab-time-to-wall-time ratio of a run stays on record.
     ``extra_metadata`` is merged into the results metadata (e.g. who confirmed each prompt).
+    ``early``: the per-step analysis ``aatest run`` made while recording
+    (:mod:`aatest.engine.run.early_analysis`); the pass takes what is of the same data.
     ``data_path`` and ``out_dir`` may be on object storage (docs/storage.md): the recording
     is streamed, and the files written are uploaded there.
     """
     from aatest.recording import read_dataset
 
     data = read_dataset(data_path)
+    if early is not None:
+        early.offer(data)
     requested = list(data.metadata.get("analysis", []))
     analysis = run_analyses(data, requested)
     lab = lab_duration_s if lab_duration_s is not None else sum(
@@ -419,6 +427,7 @@ class _RunRequest:
 
 def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
     """The body of :func:`run`, executed while holding the run directory's lock."""
+    from aatest.engine.run.early_analysis import early_analysis
     from aatest.recording import RunRecorder
 
     prepared, out_dir, resume, seed = (request.prepared, request.out_dir, request.resume,
@@ -428,15 +437,20 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
     sha = procedure_sha256(prepared.text)
     state = open_state(out_dir, plan.procedure, sha, seed, resume)
     recorder = RunRecorder(out_dir)
+    early_results: EarlyResults | None = None
     if not state.finished:  # a finished run that is "resumed" is only analysed again
         rig = build_rig(prepared.rig_config, plan.sensor, seed)
         if not resume:
             meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
             meta["report_template"] = plan.report_template
             recorder.write_run_metadata(meta)  # before start: a failed start can be resumed
-        run_plan(plan, rig, recorder, state, out_dir, show_progress=request.show_progress,
-                 events=events, on_started=lambda started: _identify(recorder, started))
-        recorder.finalize()
+        # the analysis pass's per-step work is made while the rig records (a child process)
+        with early_analysis(plan, recorder, prepared.envelope) as early:
+            run_plan(plan, rig, early.recorder, state, out_dir,
+                     show_progress=request.show_progress, events=events,
+                     on_started=lambda started: _identify(recorder, started))
+            recorder.finalize()
+            early_results = early.results()
         state.finished = True
         state.save(out_dir)
     # only now, with every step inside recording.mcap, the per-step copies can go
@@ -455,6 +469,7 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
                         "confirm_prompts": request.prompt_mode,
                         **({"soak_stability": state.soak_stability} if state.soak_stability
                            else {})},
+        early=early_results,
     )
     return out_dir, results
 

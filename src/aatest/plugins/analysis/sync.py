@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from aatest.clocksync.freeze_pulse import SyncedStep, clock_relation
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
@@ -32,7 +32,7 @@ from aatest.plugins.analysis import needs
 from aatest.plugins.analysis.sync_summary import Related, joint_drift, summarise, sync_figure
 from aatest.plugins.analysis.sync_trend import narrowed_by_trend, watch_trends
 from aatest.plugins.analysis.sync_watches import SYNC_CHANNELS, SyncedWatch, watch_synced
-from aatest.plugins.analysis.synced_steps import SyncedSteps, relations
+from aatest.plugins.analysis.synced_steps import SyncedSteps, attempt, offer, relations
 from aatest.recording.dataset import Dataset, LazySteps, StepData
 from aatest.results.sync import SyncResult
 
@@ -70,6 +70,25 @@ class SyncAnalysis:
         (pulses, trigger and time stamps only), else :class:`AnalysisError`."""
         clock_relation(step)
     Result: ClassVar[type[SyncResult]] = SyncResult
+
+    @staticmethod
+    def early_step(data: Dataset, index: int) -> Any:
+        """Step ``index``'s share of the sync pass (its clock relation and watched results),
+        made while the run still records (:mod:`aatest.engine.run.early_analysis`; the pass's
+        watches are registered on ``data``), or None when it raised: the pass then computes
+        the step itself and meets the error there."""
+        steps = data.steps
+        if not isinstance(steps, LazySteps):
+            return None
+        watch_trends(data)  # as run() registers it before the pass
+        return attempt(steps, index)
+
+    @staticmethod
+    def take_early(data: Dataset, index: int, found: Any) -> None:
+        """Have the pass take :meth:`early_step`'s result for step ``index`` of ``data``,
+        checked by the caller to be of the same recorded bytes and watches."""
+        if isinstance(data.steps, LazySteps) and found is not None:
+            offer(data.steps, index, found)
 
     def applies_to(self, data: Dataset) -> bool:
         return any(p.recorded for p in data.planned)

@@ -9,8 +9,10 @@ step's clock relation from one decode, feeding the synced watches
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from typing import Any, overload
+from weakref import WeakKeyDictionary
 
 from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
 from aatest.clocksync.streamed import is_partial, streamed_relation, synchronise_streamed
@@ -21,6 +23,13 @@ from aatest.recording.dataset import Dataset, LazySteps, StepData
 
 #: a watched result not (or no longer) there
 _MISSING = object()
+#: what one step's share of the sync pass makes: its clock relation and watched results
+Attempt = tuple[ClockRelation, dict[str, Any]]
+#: attempts made elsewhere of the same recorded data (:func:`offer`), by lazy steps and index
+_OFFERED: WeakKeyDictionary[LazySteps, dict[int, Attempt]] = WeakKeyDictionary()
+
+log = logging.getLogger("aatest.analysis")
+
 
 class SyncedSteps(Sequence[SyncedStep]):
     """Recorded steps synchronised when read; ``planned`` and :meth:`where` decode nothing.
@@ -176,11 +185,20 @@ def relations(steps: LazySteps, indices: Sequence[int],
     them, batch by batch one worker does. The error of the first failing step in order is
     the one raised, here, with its own traceback: a step that failed in a worker is computed
     again in this process.
+
+    A step :func:`offer` was given (``aatest run`` made it while recording, of the same bytes:
+    :mod:`aatest.engine.run.early_analysis`) is taken as it is, not computed again.
     """
-    batches = _batches(steps, indices)
-    made = parallel_map(lambda batch: [_attempt(steps, i) for i in batch], batches, workers)
-    attempts = {i: found for batch, out in zip(batches, made, strict=True)
-                for i, found in zip(batch, out, strict=True)}
+    offered = _OFFERED.pop(steps, {})
+    todo = [i for i in indices if i not in offered]
+    batches = _batches(steps, todo)
+    made = parallel_map(lambda batch: [attempt(steps, i) for i in batch], batches, workers)
+    attempts: dict[int, Attempt | None] = {
+        i: found for batch, out in zip(batches, made, strict=True)
+        for i, found in zip(batch, out, strict=True)}
+    attempts |= {i: offered[i] for i in indices if i in offered}
+    log.debug("sync pass: %d of %d steps taken as analysed while the run recorded",
+              len(indices) - len(todo), len(indices))
     related: list[tuple[int, ClockRelation]] = []
     for index in indices:
         found = attempts[index]
@@ -191,8 +209,14 @@ def relations(steps: LazySteps, indices: Sequence[int],
     return related
 
 
-def _attempt(steps: LazySteps, index: int
-             ) -> tuple[ClockRelation, dict[str, Any]] | None:
+def offer(steps: LazySteps, index: int, found: Attempt) -> None:
+    """Hand :func:`relations` step ``index``'s :func:`attempt`, made elsewhere of the same
+    recorded bytes (the caller checks that: :mod:`aatest.recording.step_chunks`) with the same
+    watches registered; the pass then takes it instead of decoding the step. Taken once."""
+    _OFFERED.setdefault(steps, {})[index] = found
+
+
+def attempt(steps: LazySteps, index: int) -> Attempt | None:
     """The clock relation and watched results of step ``index``, or None when it raised
     (the caller computes it again and meets the error with its traceback)."""
     try:

@@ -1,0 +1,302 @@
+"""The analysis pass's per-step work, made while the run still records, in a process of its own.
+
+Why: recording a stepped sine leaves the second core idle for much of the record phase (the
+rig's critical path runs on one), while the analysis pass that follows spends most of its CPU
+on work that depends on one step alone: decoding it, fitting its clock relation, resampling it
+and the watched per-step reductions (FRF points, cross-correlations, evidence, temperatures).
+So ``aatest run`` starts one child process at the start of the record phase, at a lower CPU
+priority (it takes what the rig leaves), hands it each step file as soon as it is written, and
+the child makes each step's share of the pass as the pass would (the same watches, registered
+by :func:`~aatest.engine.analysis.passes.register_watches`; each analysis plugin's optional
+``early_step(data, index)``). After the record phase the pass takes those results
+(``take_early(data, index, result)``) for the steps whose bytes in ``recording.mcap`` are the
+ones the child decoded (:mod:`aatest.recording.step_chunks`) and whose plan, sensors and
+analyses are the ones it watched for; every other step (missing, mismatched, failed, not yet
+reached when the record phase ended — the child is then ended at once —, a resumed run's
+earlier steps, a child that died) is computed in the pass as without it. Errors in the child
+never fail the run.
+
+Not sent: streamed steps (long static records, analysed piece by piece), and nothing at all
+when the plan has no step to send or ``AATEST_EARLY_ANALYSIS=0`` (then the run is the same as
+without this module: the switch lets anyone check that the results are identical).
+
+The child is a new interpreter (the run process has threads: a fork of it could copy a held
+lock), whose imports overlap the first steps; results come back over a pipe from this child
+only (nothing is ever unpickled from a file). It is always reaped (:meth:`EarlyAnalysis.close`
+on any exit), and it ends by itself when the run process is gone (its pipe closes).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import logging
+import os
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from aatest.engine.procedure.envelope import streams_record
+from aatest.engine.steps import Plan, PlannedStep
+from aatest.recording.dataset import Dataset, LazySteps
+
+log = logging.getLogger("aatest.analysis")
+
+#: ``0`` turns the analysis during the record phase off (``aatest run`` then analyses after)
+EARLY_ENV = "AATEST_EARLY_ANALYSIS"
+#: the child's niceness increment: it runs on what the record phase leaves of the CPUs
+NICENESS = 10
+#: how long a drain may take (s)
+DRAIN_S = 600.0
+#: the message asking the child to finish every step sent, then end (tests)
+DRAIN = "drain"
+#: the child's program: the module imported under its own name (its records unpickle here)
+_CHILD_MAIN = "import sys; from aatest.engine.run.early_child import main; main(sys.argv[1:])"
+
+
+@dataclass(frozen=True)
+class Made:
+    """One step as the child analysed it."""
+
+    #: :func:`~aatest.recording.step_chunks.step_digests` of the step file it decoded
+    digest: str
+    #: :func:`context_digest` of the dataset it registered the watches on
+    context: str
+    #: each plugin's ``early_step`` result, by plugin name
+    results: dict[str, Any]
+
+
+@dataclass
+class EarlyResults:
+    """What the child made by step id; :meth:`offer` hands the valid ones to the pass."""
+
+    made: dict[str, Made] = field(default_factory=dict)
+    #: steps handed to the pass by the last :meth:`offer`
+    offered: int = 0
+
+    def offer(self, data: Dataset) -> int:
+        """Hand each step of ``data`` the child made of the same bytes and for the same plan,
+        sensors and analyses to its plugins' ``take_early``; return how many. Never raises:
+        a step not handed over is computed by the pass (which meets any error itself)."""
+        try:
+            self.offered = self._offer(data)
+        except Exception as exc:  # noqa: BLE001 - the pass computes every step and meets it
+            log.debug("analysis made while recording not used: %s", exc)
+            self.offered = 0
+        return self.offered
+
+    def _offer(self, data: Dataset) -> int:
+        from aatest.engine.analysis.plugins import load
+        from aatest.recording.step_chunks import step_digests
+
+        source = data.source
+        if not self.made or not isinstance(data.steps, LazySteps) \
+                or not isinstance(source, Path) or not source.is_file():
+            return 0
+        context = context_digest(data)
+        digests = step_digests(source, only=set(self.made))
+        offered = 0
+        for index, step in enumerate(data.planned):
+            made = self.made.get(step.id)
+            if made is None or made.context != context or digests.get(step.id) != made.digest:
+                continue
+            takes = [(getattr(load(name).cls, "take_early", None), result)
+                     for name, result in made.results.items()]
+            if all(callable(take) for take, _ in takes):
+                for take, result in takes:
+                    take(data, index, result)  # type: ignore[misc] # checked just above
+                offered += 1
+        return offered
+
+
+def context_digest(data: Dataset) -> str:
+    """SHA-256 of what the watches of a pass depend on besides a step's own data: the planned
+    steps, the sensors, the dataset's sample rate and the requested analyses."""
+    doc = {"planned": [p.model_dump(mode="json") for p in data.planned],
+           "sensors": [s.model_dump(mode="json") for s in data.sensors],
+           "sample_rate_hz": data.sample_rate_hz,
+           "analysis": list(data.metadata.get("analysis", []))}
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"), default=repr)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def enabled() -> bool:
+    """False when ``AATEST_EARLY_ANALYSIS=0``."""
+    return os.environ.get(EARLY_ENV, "1").strip() != "0"
+
+
+def sendable(plan: Plan, envelope: Any) -> list[PlannedStep]:
+    """The steps of ``plan`` a run would send: recorded and not streamed (``envelope``: the
+    table's, with the DAQ's streaming capability, as the planner saw it)."""
+    return [s for s in plan.steps
+            if s.recorded and (envelope is None or not streams_record(s, envelope))]
+
+
+def wants_early(plan: Plan) -> bool:
+    """Whether an analysis the plan runs (or one it requires) makes per-step work early."""
+    from aatest.engine.analysis.passes import order, requested_names
+
+    plugins = order(requested_names(plan.analysis))
+    return any(callable(getattr(p.cls, "early_step", None)) for p in plugins)
+
+
+class EarlyAnalysis:
+    """The child process, the pipes to it and the thread that collects what it sends.
+
+    The child is a fresh interpreter running :func:`aatest.engine.run.early_child.main`
+    (``subprocess``: spawned by
+    ``exec``, safe beside the run's threads, and it imports only aatest, not this process's
+    main module); the two pipes are passed to it by descriptor.
+    """
+
+    def __init__(self) -> None:
+        to_child, self._inbox_fd = os.pipe()
+        self._outbox_fd, from_child = os.pipe()
+        try:
+            self._process = subprocess.Popen(
+                [sys.executable, "-c", _CHILD_MAIN, str(to_child), str(from_child)],
+                pass_fds=(to_child, from_child), stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, close_fds=True)
+        except BaseException:
+            os.close(self._inbox_fd)
+            os.close(self._outbox_fd)
+            raise
+        finally:
+            os.close(to_child)  # the child's ends: its exit then closes the pipe for the reader
+            os.close(from_child)
+        _lower_priority(self._process.pid)
+        self._inbox = Connection(self._inbox_fd, readable=False)
+        self._outbox = Connection(self._outbox_fd, writable=False)
+        self._made: dict[str, Made] = {}
+        self._closed = False
+        self._reader = threading.Thread(target=self._collect, name="aatest-early-results",
+                                        daemon=True)
+        self._reader.start()
+
+    @property
+    def pid(self) -> int:
+        """The child's process id (:mod:`aatest.engine.run.early_child` runs there)."""
+        return self._process.pid
+
+    def send(self, step_id: str, path: Path) -> None:
+        """Queue a complete step file (a dead child is no error: the pass computes it)."""
+        self._send((step_id, str(path)))
+
+    def _send(self, message: Any) -> None:
+        with contextlib.suppress(OSError, ValueError):
+            self._inbox.send(message)
+
+    def _collect(self) -> None:
+        while True:
+            try:
+                step_id, made = self._outbox.recv()
+            except Exception:  # noqa: BLE001 - the pipe's end (a child ended mid-message too)
+                return
+            if made is not None:
+                self._made[step_id] = made
+
+    def results(self, drain: bool = False) -> EarlyResults:
+        """What the child made, the child ended and reaped.
+
+        Ended at once: the steps it has not sent (the one in flight, those queued) are left
+        to the pass, which computes them on every core, sooner than this one child would
+        finish them (the results it has sent are in the pipe and still read). ``drain``
+        (tests): after it has made every step sent.
+        """
+        if drain:
+            self._send(DRAIN)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self._process.wait(DRAIN_S)
+        self.close()
+        return EarlyResults(dict(self._made))
+
+    def close(self) -> None:
+        """End the child (at once if it still runs) and reap it; end the reader thread."""
+        if self._closed:
+            return
+        self._closed = True
+        self._inbox.close()  # the child's next read ends its loop
+        if self._process.poll() is None:
+            self._process.kill()
+        self._process.wait()
+        self._reader.join()
+        self._outbox.close()
+
+
+def _lower_priority(pid: int | None) -> None:
+    """Lower the child's CPU priority by :data:`NICENESS` from its start (its imports too)."""
+    try:
+        if pid is not None:
+            os.setpriority(os.PRIO_PROCESS, pid,
+                           os.getpriority(os.PRIO_PROCESS, 0) + NICENESS)
+    except OSError:  # a platform without it: the child runs at the run's priority
+        pass
+
+
+class _Notifying:
+    """The run's recorder, sending each step file to the child once it is written (after the
+    atomic rename: the file is complete). Every other attribute is the recorder's."""
+
+    def __init__(self, recorder: Any, early: EarlyAnalysis, steps: Sequence[PlannedStep]
+                 ) -> None:
+        self._recorder, self._early = recorder, early
+        self._ids = {s.id for s in steps}
+
+    def write_step(self, step: PlannedStep, *args: Any, **kwargs: Any) -> Any:
+        path = self._recorder.write_step(step, *args, **kwargs)
+        if step.id in self._ids:
+            self._early.send(step.id, Path(path))
+        return path
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._recorder, name)
+
+
+@dataclass
+class EarlyRun:
+    """What :func:`early_analysis` yields: the recorder to run the plan with, and
+    :meth:`results` to call once the record phase is over."""
+
+    recorder: Any
+    analysis: EarlyAnalysis | None = None
+
+    def results(self) -> EarlyResults | None:
+        """What the child made (None without a child); the child is reaped."""
+        return self.analysis.results() if self.analysis is not None else None
+
+
+@contextmanager
+def early_analysis(plan: Plan, recorder: Any, envelope: Any) -> Iterator[EarlyRun]:
+    """Around the record phase: a child analysing the plan's sendable steps (see the module
+    docstring), or none (disabled, nothing to send, no analysis makes early work). The child
+    is reaped on any exit (a rig fault, Ctrl-C, an abort)."""
+    possible = enabled() and os.name == "posix" and bool(sys.executable)
+    steps = sendable(plan, envelope) if possible else []
+    if not steps or not _wants_early_safely(plan):
+        yield EarlyRun(recorder)
+        return
+    try:
+        early = EarlyAnalysis()
+    except OSError as exc:  # no process to spare: the pass analyses every step, as without
+        log.debug("no analysis while recording: %s", exc)
+        yield EarlyRun(recorder)
+        return
+    try:
+        yield EarlyRun(_Notifying(recorder, early, steps), early)
+    finally:
+        early.close()
+
+
+def _wants_early_safely(plan: Plan) -> bool:
+    try:
+        return wants_early(plan)
+    except Exception as exc:  # noqa: BLE001 - an unloadable analysis fails in the pass, named
+        log.debug("no analysis while recording: %s", exc)
+        return False

@@ -1,0 +1,82 @@
+"""The early analysis's child work, in this process: each step file made as the pass makes
+that step of the merged recording, taken only where the recorded bytes are the same."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+import pytest
+from recording_data import run_meta, sine_step, step_logs
+
+from aatest.engine.analysis.passes import run_analyses
+from aatest.engine.registry import pinned
+from aatest.engine.run.early_analysis import EarlyResults
+from aatest.engine.run.early_child import _Child
+from aatest.recording import RunRecorder, read_dataset
+from aatest.recording.step_chunks import step_digests
+
+ANALYSIS = ["sync", "frf"]
+
+
+def _record(run_dir: Path) -> tuple[RunRecorder, list[Any]]:
+    """Three synthetic sine steps, each written to its step file (not merged yet)."""
+    steps = [sine_step(f"s{i:02d}", samples=8192) for i in range(1, 4)]
+    recorder = RunRecorder(run_dir)
+    recorder.write_run_metadata({**run_meta(steps), "analysis": ANALYSIS})
+    for seed, step in enumerate(steps):
+        recorder.write_step(step, *step_logs(step, seed))
+    return recorder, steps
+
+
+def _made(recorder: RunRecorder, steps: list[Any]) -> EarlyResults:
+    """What the child makes of each step file, as it arrives."""
+    child = _Child()
+    files = dict(zip([s.id for s in steps], recorder.step_files(), strict=True))
+    made = {step_id: child.analyse(step_id, path) for step_id, path in files.items()}
+    assert all(m is not None for m in made.values())
+    return EarlyResults({k: v for k, v in made.items() if v is not None})
+
+
+def _analysed(run_dir: Path, early: EarlyResults | None) -> dict[str, Any]:
+    data = read_dataset(run_dir)
+    if early is not None:
+        early.offer(data)
+    done = run_analyses(data, ANALYSIS)
+    assert not done.errors
+    return {"values": {k: v.model_dump(mode="json") for k, v in done.values.items()},
+            "figures": done.figures}
+
+
+def test_steps_made_by_the_child_give_the_same_results(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    with pinned():
+        recorder, steps = _record(tmp_path)
+        early = _made(recorder, steps)
+        recorder.finalize()
+        assert {k: m.digest for k, m in early.made.items()} == step_digests(
+            tmp_path / "recording.mcap")  # merged verbatim: the same bytes
+        caplog.set_level(logging.DEBUG, "aatest.analysis")
+        plain = _analysed(tmp_path, None)
+        taken = _analysed(tmp_path, early)
+    assert early.offered == 3
+    assert [r.getMessage() for r in caplog.records if "sync pass" in r.getMessage()] == [
+        "sync pass: 0 of 3 steps taken as analysed while the run recorded",
+        "sync pass: 3 of 3 steps taken as analysed while the run recorded"]
+    assert taken == plain  # every value and figure
+
+
+def test_a_step_recorded_again_after_the_child_read_it_is_computed_again(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    with pinned():
+        recorder, steps = _record(tmp_path)
+        early = _made(recorder, steps)
+        recorder.write_step(steps[1], *step_logs(steps[1], seed=11))  # other samples, same id
+        recorder.finalize()
+        caplog.set_level(logging.DEBUG, "aatest.analysis")
+        plain = _analysed(tmp_path, None)
+        taken = _analysed(tmp_path, early)
+    assert early.offered == 2
+    assert "sync pass: 2 of 3 steps taken" in caplog.text
+    assert taken == plain
