@@ -178,8 +178,9 @@ def relations(steps: LazySteps, indices: Sequence[int],
     watched results back (:meth:`LazySteps.kept`) and this process keeps them.
 
     Why the steps go to the workers in batches of one frequency (:func:`_batches`): a
-    watched FRF point's segment fit is the pseudo-inverse of a design that depends only on
-    the frequency and the record length, computed once per worker and kept
+    watched FRF point's segment fit is a projector (the fundamental's rows of the fit's normal
+    equations) that depends only on the frequency and the record length, computed once per
+    worker and kept
     (:func:`aatest.plugins.analysis.frf._segment_projector`); a stepped sine repeats each
     frequency in every group, so step by step both workers computed nearly every one of
     them, batch by batch one worker does. The error of the first failing step in order is
