@@ -101,8 +101,8 @@ def serve_until_interrupted(servers: Sequence[BackgroundServer], banner: str,
     for), serve until Ctrl-C or until one ends, then stop ``extras`` and the servers."""
     for server in servers:
         server.start()
-    print(banner.format(*[s.port for s in servers]), flush=True)
-    try:
+    try:  # the banner inside: a Ctrl-C right after it (its reader acts at once) stops cleanly
+        print(banner.format(*[s.port for s in servers]), flush=True)
         while all(s.running for s in servers):
             time.sleep(0.5)
     except KeyboardInterrupt:
