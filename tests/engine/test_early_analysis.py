@@ -7,6 +7,7 @@ import json
 import logging
 import os
 import shutil
+import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -162,3 +163,19 @@ def test_no_child_when_switched_off_or_nothing_to_send(monkeypatch: pytest.Monke
         assert early.analysis is None and early.recorder is recorder
     assert [s.id for s in early_analysis.sendable(static.plan, static.envelope)] == [
         static.plan.steps[0].id]
+
+
+@pytest.mark.parametrize(("threads", "kind"), [(1, early_analysis._Forked),
+                                               (2, subprocess.Popen)])
+def test_forked_when_alone_a_new_interpreter_beside_a_thread(
+        monkeypatch: pytest.MonkeyPatch, threads: int, kind: type) -> None:
+    # a fork beside another thread could copy a lock it holds: then a new interpreter
+    monkeypatch.setattr(early_analysis.threading, "active_count", lambda: threads)
+    early = EarlyAnalysis()
+    try:
+        assert isinstance(early._process, kind)
+        pid = early.pid
+    finally:
+        early.close()
+    with pytest.raises(ProcessLookupError):  # ended and reaped either way
+        os.kill(pid, 0)

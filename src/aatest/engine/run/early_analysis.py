@@ -20,19 +20,20 @@ Not sent: streamed steps (long static records, analysed piece by piece), and not
 when the plan has no step to send or ``AATEST_EARLY_ANALYSIS=0`` (then the run is the same as
 without this module: the switch lets anyone check that the results are identical).
 
-The child is a new interpreter (the run process has threads: a fork of it could copy a held
-lock), whose imports overlap the first steps; results come back over a pipe from this child
-only (nothing is ever unpickled from a file). It is always reaped (:meth:`EarlyAnalysis.close`
-on any exit), and it ends by itself when the run process is gone (its pipe closes).
+The child is a fork of the run process when that runs no other thread yet (it then starts
+with the analysis plugins already imported), else a new interpreter (a fork beside another
+thread could copy a held lock) whose imports overlap the first steps; results come back over
+a pipe from this child only (nothing is ever unpickled from a file). It is always reaped
+(:meth:`EarlyAnalysis.close` on any exit), and it ends by itself when the run process is gone
+(its pipe closes).
 """
 
 from __future__ import annotations
 
 import contextlib
-import hashlib
-import json
 import logging
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -44,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from aatest.engine.procedure.envelope import streams_record
+from aatest.engine.run.early_made import DRAIN, Made, context_digest
 from aatest.engine.steps import Plan, PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
 
@@ -55,22 +57,8 @@ EARLY_ENV = "AATEST_EARLY_ANALYSIS"
 NICENESS = 10
 #: how long a drain may take (s)
 DRAIN_S = 600.0
-#: the message asking the child to finish every step sent, then end (tests)
-DRAIN = "drain"
 #: the child's program: the module imported under its own name (its records unpickle here)
 _CHILD_MAIN = "import sys; from aatest.engine.run.early_child import main; main(sys.argv[1:])"
-
-
-@dataclass(frozen=True)
-class Made:
-    """One step as the child analysed it."""
-
-    #: :func:`~aatest.recording.step_chunks.step_digests` of the step file it decoded
-    digest: str
-    #: :func:`context_digest` of the dataset it registered the watches on
-    context: str
-    #: each plugin's ``early_step`` result, by plugin name
-    results: dict[str, Any]
 
 
 @dataclass
@@ -116,17 +104,6 @@ class EarlyResults:
         return offered
 
 
-def context_digest(data: Dataset) -> str:
-    """SHA-256 of what the watches of a pass depend on besides a step's own data: the planned
-    steps, the sensors, the dataset's sample rate and the requested analyses."""
-    doc = {"planned": [p.model_dump(mode="json") for p in data.planned],
-           "sensors": [s.model_dump(mode="json") for s in data.sensors],
-           "sample_rate_hz": data.sample_rate_hz,
-           "analysis": list(data.metadata.get("analysis", []))}
-    text = json.dumps(doc, sort_keys=True, separators=(",", ":"), default=repr)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-
 def enabled() -> bool:
     """False when ``AATEST_EARLY_ANALYSIS=0``."""
     return os.environ.get(EARLY_ENV, "1").strip() != "0"
@@ -150,20 +127,16 @@ def wants_early(plan: Plan) -> bool:
 class EarlyAnalysis:
     """The child process, the pipes to it and the thread that collects what it sends.
 
-    The child is a fresh interpreter running :func:`aatest.engine.run.early_child.main`
-    (``subprocess``: spawned by
-    ``exec``, safe beside the run's threads, and it imports only aatest, not this process's
-    main module); the two pipes are passed to it by descriptor.
+    The child runs :func:`aatest.engine.run.early_child.main` (see :func:`_start_child` for
+    how it is started); the two pipes are passed to it by descriptor.
     """
 
     def __init__(self) -> None:
         to_child, self._inbox_fd = os.pipe()
         self._outbox_fd, from_child = os.pipe()
         try:
-            self._process = subprocess.Popen(
-                [sys.executable, "-c", _CHILD_MAIN, str(to_child), str(from_child)],
-                pass_fds=(to_child, from_child), stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, close_fds=True)
+            self._process = _start_child(to_child, from_child,
+                                         (self._inbox_fd, self._outbox_fd))
         except BaseException:
             os.close(self._inbox_fd)
             os.close(self._outbox_fd)
@@ -228,6 +201,72 @@ class EarlyAnalysis:
         self._process.wait()
         self._reader.join()
         self._outbox.close()
+
+
+class _Forked:
+    """A forked child's handle, with the part of :class:`subprocess.Popen` this module uses."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self._status: int | None = None
+
+    def poll(self) -> int | None:
+        """The child's exit status once it has ended (and is reaped), else None."""
+        if self._status is None:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self._status = os.waitstatus_to_exitcode(status)
+        return self._status
+
+    def wait(self, timeout: float | None = None) -> int:
+        """Reap the child (``timeout`` (s) is not supported: it waits until the end)."""
+        if self._status is None:
+            _, status = os.waitpid(self.pid, 0)
+            self._status = os.waitstatus_to_exitcode(status)
+        return self._status
+
+    def kill(self) -> None:
+        """SIGKILL (a child already ended and reaped is left alone)."""
+        if self._status is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGKILL)
+
+
+def _start_child(to_child: int, from_child: int, parent_ends: tuple[int, ...]
+                 ) -> subprocess.Popen[bytes] | _Forked:
+    """Start the child: forked when this process runs no other thread, else a new interpreter.
+
+    Why fork when it is safe: the child then starts with the analysis plugins this process
+    has already imported (the procedure's check loaded them), instead of importing numpy,
+    scipy and aatest again (measured ≈ 1.6 s of CPU, all of it taken from the record phase
+    it overlaps). A fork beside another thread could copy a lock that thread holds, so
+    then (and where fork does not exist) it is a fresh interpreter (``subprocess``), which
+    imports only aatest, not this process's main module.
+    """
+    if hasattr(os, "fork") and threading.active_count() == 1:
+        pid = os.fork()
+        if pid == 0:  # the child: never returns
+            _forked_main(to_child, from_child, parent_ends)
+        return _Forked(pid)
+    return subprocess.Popen(
+        [sys.executable, "-c", _CHILD_MAIN, str(to_child), str(from_child)],
+        pass_fds=(to_child, from_child), stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, close_fds=True)
+
+
+def _forked_main(to_child: int, from_child: int, parent_ends: tuple[int, ...]) -> None:
+    """The forked child's whole life: serve, then ``os._exit`` (never the parent's exit
+    handlers, nor a second flush of the parent's buffered output)."""
+    code = 1
+    try:
+        for fd in parent_ends:
+            os.close(fd)
+        from aatest.engine.run.early_child import main
+
+        main([str(to_child), str(from_child)])
+        code = 0
+    finally:
+        os._exit(code)
 
 
 def _lower_priority(pid: int | None) -> None:

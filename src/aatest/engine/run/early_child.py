@@ -20,7 +20,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.run.early_analysis import DRAIN, Made, context_digest
+from aatest.engine.run.early_made import DRAIN, Made, context_digest
 from aatest.engine.steps import PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
 

@@ -1,0 +1,42 @@
+"""What the early-analysis child hands back, and what both sides check it against.
+
+Shared by :mod:`aatest.engine.run.early_analysis` (the run's side: starts the child, takes
+its results) and :mod:`aatest.engine.run.early_child` (the child's loop): the run's side
+imports the child's loop to start it in a fork, so the loop must not import the run's side
+(a module import cycle).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from typing import Any
+
+from aatest.recording.dataset import Dataset
+
+#: the message asking the child to finish every step sent, then end (tests)
+DRAIN = "drain"
+
+
+@dataclass(frozen=True)
+class Made:
+    """One step as the child analysed it."""
+
+    #: :func:`~aatest.recording.step_chunks.step_digests` of the step file it decoded
+    digest: str
+    #: :func:`context_digest` of the dataset it registered the watches on
+    context: str
+    #: each plugin's ``early_step`` result, by plugin name
+    results: dict[str, Any]
+
+
+def context_digest(data: Dataset) -> str:
+    """SHA-256 of what the watches of a pass depend on besides a step's own data: the planned
+    steps, the sensors, the dataset's sample rate and the requested analyses."""
+    doc = {"planned": [p.model_dump(mode="json") for p in data.planned],
+           "sensors": [s.model_dump(mode="json") for s in data.sensors],
+           "sample_rate_hz": data.sample_rate_hz,
+           "analysis": list(data.metadata.get("analysis", []))}
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"), default=repr)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
