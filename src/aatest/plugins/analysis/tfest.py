@@ -260,19 +260,21 @@ def _polished(residual: Callable[[np.ndarray], np.ndarray],
     depends on the FRF points, not on how the solver got there. A step that leaves the
     bounds or raises the cost beyond rounding ends the polish.
     """
-    cost = float(residual(x) @ residual(x))
+    r = residual(x)
+    cost = float(r @ r)
     for _ in range(_POLISH_STEPS):
         jac = jacobian(x)[:, free]
         norm = np.linalg.norm(jac, axis=0)
         norm[norm == 0.0] = 1.0
-        step = np.linalg.lstsq(jac / norm, -residual(x), rcond=None)[0] / norm
+        step = np.linalg.lstsq(jac / norm, -r, rcond=None)[0] / norm
         trial = x.copy()
         trial[free] += step
-        trial_cost = float(residual(trial) @ residual(trial))
+        r_trial = residual(trial)
+        trial_cost = float(r_trial @ r_trial)
         inside = bool(np.all(trial >= _SECOND_ORDER_LOWER) and np.all(trial <= _SECOND_ORDER_UPPER))
         if not (inside and trial_cost <= cost * (1.0 + _POLISH_COST_ROUNDING)):  # NaN: stop
             break
-        x, cost = trial, trial_cost
+        x, r, cost = trial, r_trial, trial_cost
         if np.all(np.abs(step) <= 1e-15 * np.abs(x[free])):
             break
     return x
