@@ -11,7 +11,7 @@ the file and what is wrong. The layout is described in :mod:`aatest.recording.fo
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Container, Iterator
+from collections.abc import Collection, Container, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -231,11 +231,8 @@ class _StepChunks:
         ids = {self.channels_by_topic[t].id for t in topics if t in self.channels_by_topic}
         low = -1 if starting_at is None else starting_at
         high = 2**64 if ending_at is None else ending_at
-        chosen = [ix for ix in self.summary.chunk_indexes
-                  if ix.message_end_time >= low and ix.message_start_time <= high
-                  and ids & set(ix.message_index_offsets)]
         with self.path.open("rb") as stream:
-            for index in sorted(chosen, key=lambda ix: ix.chunk_start_offset):
+            for index in chunks_overlapping(self.summary, ids, low, high):
                 for record in self.read_chunk(stream, index):
                     if (isinstance(record, Message) and record.channel_id in ids
                             and low <= record.log_time <= high):
@@ -246,6 +243,18 @@ class _StepChunks:
         """The records of one chunk, its CRC checked (flipped bits must not pass)."""
         stream.seek(index.chunk_start_offset + 1 + 8)  # opcode and record length
         return list(breakup_chunk(Chunk.read(ReadDataStream(stream)), validate_crc=True))
+
+
+def chunks_overlapping(summary: Any, channel_ids: Collection[int], low_ns: int, high_ns: int
+                       ) -> list[Any]:
+    """The chunk indexes of ``summary`` holding messages of ``channel_ids`` that may lie in
+    ``[low_ns, high_ns]`` (ns, log time), in file order: the chunks a decode of one step's
+    log reads (and :mod:`aatest.recording.step_chunks` digests)."""
+    ids = set(channel_ids)
+    return sorted((ix for ix in summary.chunk_indexes
+                   if ix.message_end_time >= low_ns and ix.message_start_time <= high_ns
+                   and ids & set(ix.message_index_offsets)),
+                  key=lambda ix: ix.chunk_start_offset)
 
 
 def _load_log(entry: _StepEntry, source: str, chunks: _StepChunks,

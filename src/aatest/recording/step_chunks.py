@@ -39,6 +39,7 @@ from mcap.records import Metadata
 
 from aatest.engine.errors import RecordingError
 from aatest.recording import format as fmt
+from aatest.recording.reader import chunks_overlapping
 
 #: the logger channels a step's decode reads (the preview topics are never decoded)
 _SOURCES = ("table", "daq")
@@ -81,17 +82,8 @@ def _digest(stream: IO[bytes], summary: Any, values: dict[str, str]) -> str:
         digest.update(source.encode("ascii"))
         if not span:
             continue
-        for index in _chunks_read(summary, fmt.CHANNEL_IDS[source], span[0], span[1]):
+        for index in chunks_overlapping(summary, {fmt.CHANNEL_IDS[source]}, span[0], span[1]):
             stream.seek(index.chunk_start_offset)
             raw = stream.read(index.chunk_length)
             digest.update(struct.pack("<QI", len(raw), zlib.crc32(raw)))
     return digest.hexdigest()
-
-
-def _chunks_read(summary: Any, channel_id: int, low_ns: int, high_ns: int) -> list[Any]:
-    """The chunk indexes a decode of one log reads: the chunks of ``channel_id`` whose
-    messages overlap ``[low_ns, high_ns]``, in file order (the reader's own selection)."""
-    return sorted((ix for ix in summary.chunk_indexes
-                   if ix.message_end_time >= low_ns and ix.message_start_time <= high_ns
-                   and channel_id in ix.message_index_offsets),
-                  key=lambda ix: ix.chunk_start_offset)
