@@ -8,6 +8,7 @@ import logging
 import os
 import shutil
 import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -179,3 +180,17 @@ def test_forked_when_alone_a_new_interpreter_beside_a_thread(
         early.close()
     with pytest.raises(ProcessLookupError):  # ended and reaped either way
         os.kill(pid, 0)
+
+
+def test_forked_child_wait_honours_its_timeout() -> None:
+    # Popen.wait(timeout) raises TimeoutExpired while the child runs; the forked handle too
+    pid = os.fork()
+    if pid == 0:  # the child: sleeps past the first wait's timeout, then exits with 3
+        time.sleep(0.5)
+        os._exit(3)
+    forked = early_analysis._Forked(pid)
+    with pytest.raises(subprocess.TimeoutExpired):
+        forked.wait(0.05)
+    assert forked.poll() is None  # still running: the timeout did not reap or kill it
+    assert forked.wait(10.0) == 3
+    assert forked.wait() == 3  # reaped once; the status is kept

@@ -37,6 +37,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -219,11 +220,23 @@ class _Forked:
         return self._status
 
     def wait(self, timeout: float | None = None) -> int:
-        """Reap the child (``timeout`` (s) is not supported: it waits until the end)."""
-        if self._status is None:
-            _, status = os.waitpid(self.pid, 0)
-            self._status = os.waitstatus_to_exitcode(status)
-        return self._status
+        """Reap the child and return its exit status, as :meth:`subprocess.Popen.wait`.
+
+        ``timeout`` (s): raise :class:`subprocess.TimeoutExpired` when the child still runs
+        after it (polled every 10 ms: ``waitpid`` itself has no timeout); None waits until
+        the child ends.
+        """
+        if timeout is None:
+            if self._status is None:
+                _, status = os.waitpid(self.pid, 0)
+                self._status = os.waitstatus_to_exitcode(status)
+            return self._status
+        deadline_s = time.monotonic() + timeout
+        while (status := self.poll()) is None:
+            if time.monotonic() >= deadline_s:
+                raise subprocess.TimeoutExpired(f"early-analysis child {self.pid}", timeout)
+            time.sleep(0.01)
+        return status
 
     def kill(self) -> None:
         """SIGKILL (a child already ended and reaped is left alone)."""
