@@ -10,7 +10,7 @@ each phase timed on its own:
 - ``report``  uncertainty, verdicts, results.json, the HTML certificate (and its signature).
 
 During ``record`` a child process makes the sync pass's per-step work as each step file is
-written (:mod:`aatest.engine.run.early_analysis`, as ``aatest run`` does; off with
+written (:mod:`aatest.early.analysis`, as ``aatest run`` does; off with
 ``AATEST_EARLY_ANALYSIS=0``); it is ended and reaped at the end of ``merge``, so its CPU
 seconds count there, and the bench prints how many steps ``analyse`` took from it.
 
@@ -64,12 +64,12 @@ from child_run import child_json
 from tree_memory import TreeMemory  # bench/ is the script's directory, hence on sys.path
 
 from aatest.engine import registry
-from aatest.engine.forked import cpu_workers
 from aatest.engine.run import session
 from aatest.engine.run.events import AutoResponder, RunEvents
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import open_state
 from aatest.engine.run.runner import procedure_sha256, run_metadata, run_plan
+from aatest.parallel.forked import cpu_workers
 from aatest.recording import RECORDING_NAME, RunRecorder
 
 PROCEDURE = Path(__file__).resolve().parents[1] / "src/aatest/procedures" \
@@ -152,7 +152,7 @@ def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> Any:
 
 
 class _NoEarly:
-    """A checkout from before :mod:`aatest.engine.run.early_analysis`: nothing made early."""
+    """A checkout from before :mod:`aatest.early.analysis`: nothing made early."""
 
     def __init__(self, recorder: Any) -> None:
         self.recorder = recorder
@@ -165,7 +165,7 @@ def _early_analysis(prepared: Any, recorder: Any) -> contextlib.AbstractContextM
     """The per-step analysis during the record phase, as ``aatest run`` makes it (none in a
     checkout without it, or with ``AATEST_EARLY_ANALYSIS=0``)."""
     try:
-        from aatest.engine.run.early_analysis import early_analysis
+        from aatest.early.analysis import early_analysis
     except ImportError:
         return contextlib.nullcontext(_NoEarly(recorder))
     return early_analysis(prepared.plan, recorder, prepared.envelope)

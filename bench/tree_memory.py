@@ -1,6 +1,6 @@
 """Peak proportional memory (PSS) of a process and its children, sampled from another process.
 
-Why PSS and a separate process: the analysis forks workers (:mod:`aatest.engine.forked`) that
+Why PSS and a separate process: the analysis forks workers (:mod:`aatest.parallel.forked`) that
 share most of their pages with the parent, so summing resident sizes counts those pages once
 per process; the kernel's proportional set size splits every shared page among its sharers,
 so the sum over the tree is the memory the run really holds. Sampling runs in a child of its

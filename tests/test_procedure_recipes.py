@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aatest.cli import app
-from aatest.engine.procedure.schema_export import render
+from aatest.schemas.export import render
 
 ROOT = Path(__file__).resolve().parents[1]
 GUIDE = ROOT / "docs" / "procedures.md"
@@ -58,5 +58,5 @@ def test_every_shipped_procedure_has_the_schema_modeline() -> None:
     for path in sorted(SHIPPED.glob("*.yaml")):
         first = path.read_text(encoding="utf-8").splitlines()[0]
         assert first == "# yaml-language-server: $schema=procedure.schema.json", path
-    # the copy the modeline names is the generated schema (python -m ...schema_export)
+    # the copy the modeline names is the generated schema (python -m aatest.schemas.export)
     assert (SHIPPED / "procedure.schema.json").read_text(encoding="utf-8") == render()

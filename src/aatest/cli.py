@@ -638,7 +638,7 @@ def schema(
         "print the modeline a procedure's first line takes"),
 ) -> None:
     """Print the procedure JSON Schema (for editors), or with --results that of results.json."""
-    from aatest.engine.procedure.schema_export import install_schemas, render
+    from aatest.schemas.export import install_schemas, render
 
     if install is not None:
         procedure_schema = install_schemas(install)

@@ -21,10 +21,10 @@ from aatest.clocksync.phase_trend import (
     step_phase_trend,
     trend_slope_range,
 )
-from aatest.engine.forked import WORKERS_ENV
 from aatest.engine.interfaces import AnalysisContext
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.parallel.forked import WORKERS_ENV
 from aatest.plugins.analysis.sync import SyncAnalysis, SyncedWatch, watch_synced
 from aatest.recording.dataset import Dataset, LazySteps, _subset
 from aatest.twin import model as m

@@ -75,7 +75,7 @@ def test_the_certificate_says_where_the_limits_came_from(sources: list[str], sai
 
 
 def test_schema_install_writes_what_the_modeline_names(tmp_path: Path) -> None:
-    from aatest.engine.procedure.schema_export import render
+    from aatest.schemas.export import render
 
     result = CliRunner().invoke(app, ["schema", "--install", str(tmp_path / "schemas")])
     assert result.exit_code == 0, result.output

@@ -7,8 +7,8 @@ from pathlib import Path
 from sqlalchemy import create_engine, text
 from typer.testing import CliRunner
 
+from aatest.bundle import observers as bundle_observers
 from aatest.cli import app
-from aatest.engine.run import bundle_hooks
 from aatest.records.commands import verify_against_record
 from aatest.records.hook import registering
 from aatest.records.lab import LabProfile
@@ -29,9 +29,9 @@ def _certificate(url: str, folder: Path) -> tuple[str, Path]:
     folder.mkdir()
     bundle = folder / "report.html"
     with registering(url, LAB, "run"):
-        bundle_hooks.before_signing(results)
+        bundle_observers.before_signing(results)
         bundle.write_text(f"<html>{results.certificate_number}</html>")
-        bundle_hooks.after_signing(results, bundle)
+        bundle_observers.after_signing(results, bundle)
     return str(results.certificate_number), bundle
 
 

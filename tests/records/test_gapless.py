@@ -177,7 +177,7 @@ def test_kill_between_signing_and_registration(
 STATION = """
 import sys
 from pathlib import Path
-from aatest.engine.run import bundle_hooks
+from aatest.bundle import observers as bundle_observers
 from aatest.records.hook import registering
 from aatest.records.lab import LabProfile
 from aatest.results import RunResults
@@ -189,10 +189,10 @@ for i in range(count):
         "sensor": {"model": "sr207", "serial": f"S{station}-{i}"}}})
     bundle = folder / f"s{station}-{i}" / "report.html"
     with registering(url, lab, "run"):
-        bundle_hooks.before_signing(results)
+        bundle_observers.before_signing(results)
         bundle.parent.mkdir(parents=True)
         bundle.write_text(f"<html>{results.certificate_number}</html>")
-        bundle_hooks.after_signing(results, bundle)
+        bundle_observers.after_signing(results, bundle)
 """
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from aatest.engine.run import bundle_hooks
+from aatest.bundle import observers as bundle_observers
 from aatest.records.hook import registering
 from aatest.records.lab import LabProfile
 from aatest.records.models import RecordFilter
@@ -21,10 +21,10 @@ def _bundle(folder: Path) -> Path:
 def test_results_get_consecutive_numbers_and_the_lab(sqlite_url: str, tmp_path: Path) -> None:
     first, second = RunResults(procedure="scale-factor"), RunResults(procedure="scale-factor")
     with registering(sqlite_url, LabProfile(certificate_prefix="TY"), "run"):
-        bundle_hooks.before_signing(first)
-        bundle_hooks.after_signing(first, _bundle(tmp_path / "a"))
-        bundle_hooks.before_signing(second)
-        bundle_hooks.after_signing(second, _bundle(tmp_path / "b"))
+        bundle_observers.before_signing(first)
+        bundle_observers.after_signing(first, _bundle(tmp_path / "a"))
+        bundle_observers.before_signing(second)
+        bundle_observers.after_signing(second, _bundle(tmp_path / "b"))
     assert first.certificate_number is not None and first.certificate_number.endswith("-000001")
     assert second.certificate_number is not None
     assert second.certificate_number.endswith("-000002")
@@ -36,10 +36,10 @@ def test_a_number_never_registered_is_rolled_back(sqlite_url: str, tmp_path: Pat
     """A bundle that never reached registration leaves no number: the next one takes it."""
     abandoned, kept = RunResults(procedure="scale-factor"), RunResults(procedure="scale-factor")
     with registering(sqlite_url, LabProfile(certificate_prefix="TY"), "run"):
-        bundle_hooks.before_signing(abandoned)  # e.g. the report failed after this
+        bundle_observers.before_signing(abandoned)  # e.g. the report failed after this
     with registering(sqlite_url, LabProfile(certificate_prefix="TY"), "run"):
-        bundle_hooks.before_signing(kept)
-        bundle_hooks.after_signing(kept, _bundle(tmp_path / "kept"))
+        bundle_observers.before_signing(kept)
+        bundle_observers.after_signing(kept, _bundle(tmp_path / "kept"))
     assert kept.certificate_number is not None
     assert abandoned.certificate_number == kept.certificate_number
     with RecordStore.open(sqlite_url) as store:
@@ -51,18 +51,18 @@ def test_report_keeps_the_number_and_outside_a_scope_nothing_happens(
         sqlite_url: str, tmp_path: Path) -> None:
     issued = RunResults(procedure="scale-factor")
     with registering(sqlite_url, LabProfile(certificate_prefix="TY"), "run"):
-        bundle_hooks.before_signing(issued)
-        bundle_hooks.after_signing(issued, _bundle(tmp_path / "run"))
+        bundle_observers.before_signing(issued)
+        bundle_observers.after_signing(issued, _bundle(tmp_path / "run"))
     assert issued.certificate_number is not None
     kept = RunResults(procedure="scale-factor", certificate_number=issued.certificate_number)
     with registering(sqlite_url, LabProfile(certificate_prefix="TY"), "report"):
-        bundle_hooks.before_signing(kept)
+        bundle_observers.before_signing(kept)
     assert kept.certificate_number == issued.certificate_number
     never = RunResults(procedure="scale-factor", certificate_number="TY-2026-000042")
     with registering(sqlite_url, LabProfile(certificate_prefix="TY"), "report"):
-        bundle_hooks.before_signing(never)  # stated, never issued: re-signing numbers it
+        bundle_observers.before_signing(never)  # stated, never issued: re-signing numbers it
     assert never.certificate_number == f"{issued.certificate_number[:-6]}000002"
     untouched = RunResults(procedure="scale-factor")
-    bundle_hooks.before_signing(untouched)
-    bundle_hooks.after_signing(untouched, tmp_path / "report.html")
+    bundle_observers.before_signing(untouched)
+    bundle_observers.after_signing(untouched, tmp_path / "report.html")
     assert untouched == RunResults(procedure="scale-factor")

@@ -8,6 +8,8 @@ A run's report directory (report, ``results.json``, ``recording.mcap``, ``run_st
 - ``signing``       Ed25519 keys and the detached signature file ``<report>.sig``
 - ``trust``         which keys a verifier trusts (the lab's, by fingerprint and validity period)
 - ``verification``  intact files, a valid signature and a trusted key, each with named reasons
+- ``observers``     who is told before a bundle's results are written and once it is signed
+                    (the records store, installed by the CLI)
 
 The engine's session signs a bundle at the end of a run (:mod:`aatest.engine.run.session`);
 nothing here runs a plugin or reads a recording's contents.

@@ -17,7 +17,7 @@ from typing import Any
 from aatest.diagnose.model_out import extended_model, write_model
 from aatest.diagnose.pipeline import diagnose_dataset
 from aatest.engine import registry
-from aatest.engine.gc_freeze import older_objects_frozen
+from aatest.parallel.gc_freeze import older_objects_frozen
 from aatest.storage import Where, locate
 
 
@@ -97,7 +97,7 @@ def diagnose_command(data: Where | str, json_out: Path | None,
         The findings, then the ``unexplained`` entries (contract dicts): empty when the
         nominal model explains the data.
     """
-    with older_objects_frozen():  # aatest.engine.gc_freeze says why
+    with older_objects_frozen():  # aatest.parallel.gc_freeze says why
         # a path, or a URL whose recording is streamed (docs/storage.md)
         return _diagnose(locate(data), json_out, model_out)
 

@@ -269,7 +269,7 @@ class LazySteps(Sequence[StepData]):
             ) -> SampledLog:
         """The ``"table"`` or ``"daq"`` log of step ``index``, decoded now, with the time
         stamps and only ``channels`` (all when None); no watch runs. Why: a view of these
-        steps in another dataset (:mod:`aatest.engine.run.early_analysis`) loads through it."""
+        steps in another dataset (:mod:`aatest.early.analysis`) loads through it."""
         return self._load(range(len(self))[index], source, channels)
 
     def pieces(self, index: int, source: str, channels: Container[str] | None = None

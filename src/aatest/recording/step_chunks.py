@@ -2,7 +2,7 @@
 merged recording that copied it.
 
 Why: an analysis made of a step file while the run was still recording
-(:mod:`aatest.engine.run.early_analysis`) may stand for the analysis of the same step in
+(:mod:`aatest.early.analysis`) may stand for the analysis of the same step in
 ``recording.mcap`` only when the pass would decode exactly the same bytes there. A step's logs
 are decoded from its step record (JSON values: the step, the sample counts, the quantisation,
 the log-time span of each log) and from the chunks of the ``/table`` and ``/daq`` channels

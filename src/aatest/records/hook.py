@@ -23,8 +23,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from aatest.bundle import observers as bundle_observers
 from aatest.engine.analysis.results_file import results_json
-from aatest.engine.run import bundle_hooks
 from aatest.engine.simulation import SIMULATION_PREFIX, is_simulation
 from aatest.records import extract
 from aatest.records.errors import RecordsUnavailable
@@ -128,7 +128,7 @@ def registering(records_url: str | None, lab: LabProfile, command: str) -> Itera
     """Register everything the enclosed session call produces; raise a deferred DB error."""
     registrar = Registrar(records_url, lab, command)
     try:
-        with bundle_hooks.observing(registrar):
+        with bundle_observers.observing(registrar):
             yield registrar
     finally:
         registrar.close()

@@ -30,8 +30,8 @@ from threadpoolctl import threadpool_limits
 from aatest.engine.analysis import plugins as _plugins
 from aatest.engine.analysis.plugins import AnalysisEntry, AnalysisPlugin
 from aatest.engine.errors import AnalysisError, PluginError
-from aatest.engine.gc_freeze import older_objects_frozen
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
+from aatest.parallel.gc_freeze import older_objects_frozen
 from aatest.recording import temperatures
 from aatest.recording.dataset import Dataset
 
@@ -173,7 +173,7 @@ def register_watches(data: Dataset, requested: Sequence[AnalysisEntry],
     applicable plugin's ``watch_steps``.
 
     One function for the analysis pass and for the analysis a run makes of each step while it
-    still records (:mod:`aatest.engine.run.early_analysis`): both then reduce a step the
+    still records (:mod:`aatest.early.analysis`): both then reduce a step the
     same way.
     """
     from aatest.metrology.uncertainty.evidence import watch

@@ -6,5 +6,6 @@
 - ``generators``    sweeps, multi-position, temperature steps … → concrete steps
 - ``planner``       the expanded plan with its lab duration
 - ``envelope``      every step against the turntable's and the sensor's limits
-- ``schema_export`` ``aatest schema``
+
+The JSON Schema export (``aatest schema``) is :mod:`aatest.schemas.export`.
 """

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
+from aatest.bundle import observers as bundle_observers
 from aatest.bundle import signing
 from aatest.engine import registry
 from aatest.engine.analysis.passes import run_analyses
@@ -27,7 +28,6 @@ from aatest.engine.analysis.results_file import (
 from aatest.engine.errors import AatestError, InputError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.run import bundle_hooks
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
 from aatest.engine.run.rig import Rig, build_rig
 from aatest.engine.run.run_state import STATE_FILE, RunState, open_state, run_lock
@@ -47,7 +47,7 @@ from aatest.results.root import Signature
 from aatest.storage import RemotePath, Where
 
 if TYPE_CHECKING:
-    from aatest.engine.run.early_analysis import EarlyResults
+    from aatest.early.analysis import EarlyResults
 
 log = logging.getLogger("aatest")
 
@@ -188,7 +188,7 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     reported so the lab-time-to-wall-time ratio of a run stays on record.
     ``extra_metadata`` is merged into the results metadata (e.g. who confirmed each prompt).
     ``early``: the per-step analysis ``aatest run`` made while recording
-    (:mod:`aatest.engine.run.early_analysis`); the pass takes what is of the same data.
+    (:mod:`aatest.early.analysis`); the pass takes what is of the same data.
     ``data_path`` and ``out_dir`` may be on object storage (docs/storage.md): the recording
     is streamed, and the files written are uploaded there.
     """
@@ -292,14 +292,15 @@ def render_and_sign(
         private = signing.load_private_key(key_path, os.environ.get(PASSPHRASE_ENV))
         fingerprint = signing.key_fingerprint(private.public_key())
         results.signature = Signature(fingerprint=fingerprint)
-    bundle_hooks.before_signing(results)  # e.g. a certificate number, before results are written
+    # e.g. a certificate number, before results are written
+    bundle_observers.before_signing(results)
     with staged(run_dir) as local_dir:
         local_report = _render(results, local_dir, template, template_dir, pdf)
     report = published(local_report, local_dir, run_dir)
     if private is not None:
         signing.sign_bundle(report, private)
     report = publish(report)  # `run --out URL`: the finished bundle goes up, then is registered
-    bundle_hooks.after_signing(results, report)
+    bundle_observers.after_signing(results, report)
     return report
 
 
@@ -427,7 +428,7 @@ class _RunRequest:
 
 def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
     """The body of :func:`run`, executed while holding the run directory's lock."""
-    from aatest.engine.run.early_analysis import early_analysis
+    from aatest.early.analysis import early_analysis
     from aatest.recording import RunRecorder
 
     prepared, out_dir, resume, seed = (request.prepared, request.out_dir, request.resume,

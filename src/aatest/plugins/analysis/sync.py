@@ -74,7 +74,7 @@ class SyncAnalysis:
     @staticmethod
     def early_step(data: Dataset, index: int) -> Any:
         """Step ``index``'s share of the sync pass (its clock relation and watched results),
-        made while the run still records (:mod:`aatest.engine.run.early_analysis`; the pass's
+        made while the run still records (:mod:`aatest.early.analysis`; the pass's
         watches are registered on ``data``), or None when it raised: the pass then computes
         the step itself and meets the error there."""
         steps = data.steps

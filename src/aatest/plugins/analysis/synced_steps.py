@@ -16,8 +16,8 @@ from weakref import WeakKeyDictionary
 
 from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
 from aatest.clocksync.streamed import is_partial, streamed_relation, synchronise_streamed
-from aatest.engine.forked import parallel_map
 from aatest.engine.steps import PlannedStep
+from aatest.parallel.forked import parallel_map
 from aatest.plugins.analysis.sync_watches import SYNC_CHANNELS, synchronised_of
 from aatest.recording.dataset import Dataset, LazySteps, StepData
 
@@ -167,7 +167,7 @@ def _relation_of(steps: LazySteps, index: int) -> ClockRelation:
 def relations(steps: LazySteps, indices: Sequence[int],
               workers: int | None = None) -> list[tuple[int, ClockRelation]]:
     """``(index, clock relation)`` of each of ``indices``, in their order, on ``workers``
-    forked processes (default: one per CPU; see :func:`aatest.engine.forked.fork_workers`
+    forked processes (default: one per CPU; see :func:`aatest.parallel.forked.fork_workers`
     for when it is one, this process's own loop).
 
     Why processes: the pass is most of the analysis phase (stepped sine: decoding, clock fit,
@@ -188,7 +188,7 @@ def relations(steps: LazySteps, indices: Sequence[int],
     again in this process.
 
     A step :func:`offer` was given (``aatest run`` made it while recording, of the same bytes:
-    :mod:`aatest.engine.run.early_analysis`) is taken as it is, not computed again.
+    :mod:`aatest.early.analysis`) is taken as it is, not computed again.
     """
     offered = _OFFERED.pop(steps, {})
     todo = [i for i in indices if i not in offered]

@@ -23,10 +23,10 @@ from scipy import signal
 
 from aatest.clocksync.freeze_pulse import SyncedStep
 from aatest.engine.errors import AnalysisError
-from aatest.engine.forked import parallel_map
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput
 from aatest.engine.requirements import Requirement
 from aatest.engine.steps import PlannedStep
+from aatest.parallel.forked import parallel_map
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
     group_of,

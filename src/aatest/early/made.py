@@ -1,7 +1,7 @@
 """What the early-analysis child hands back, and what both sides check it against.
 
-Shared by :mod:`aatest.engine.run.early_analysis` (the run's side: starts the child, takes
-its results) and :mod:`aatest.engine.run.early_child` (the child's loop): the run's side
+Shared by :mod:`aatest.early.analysis` (the run's side: starts the child, takes
+its results) and :mod:`aatest.early.child` (the child's loop): the run's side
 imports the child's loop to start it in a fork, so the loop must not import the run's side
 (a module import cycle).
 """

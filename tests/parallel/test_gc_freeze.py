@@ -6,7 +6,7 @@ import gc
 
 import pytest
 
-from aatest.engine.gc_freeze import older_objects_frozen
+from aatest.parallel.gc_freeze import older_objects_frozen
 
 
 def test_gc_freeze_is_undone_and_a_callers_freeze_kept() -> None:

@@ -16,10 +16,11 @@ from typing import Any
 import pytest
 from mcap.reader import make_reader
 
+from aatest.early import analysis as early_analysis
+from aatest.early.analysis import EarlyAnalysis, EarlyResults
 from aatest.engine.errors import RecordingError, RigFault
 from aatest.engine.logs import SampledLog
-from aatest.engine.run import early_analysis, session
-from aatest.engine.run.early_analysis import EarlyAnalysis, EarlyResults
+from aatest.engine.run import session
 from aatest.engine.run.events import NullObserver, RunEvents
 from aatest.engine.steps import PlannedStep
 from aatest.recording import read_dataset

@@ -10,10 +10,10 @@ from typing import Any
 import pytest
 from recording_data import run_meta, sine_step, step_logs
 
+from aatest.early.analysis import EarlyResults
+from aatest.early.child import _Child
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.registry import pinned
-from aatest.engine.run.early_analysis import EarlyResults
-from aatest.engine.run.early_child import _Child
 from aatest.recording import RunRecorder, read_dataset
 from aatest.recording.step_chunks import step_digests
 

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import json
 
-from aatest.engine.procedure.schema_export import SCHEMA_PATH, procedure_json_schema, render
+from aatest.schemas.export import SCHEMA_PATH, procedure_json_schema, render
 
 
 def test_committed_schema_is_fresh() -> None:
     committed = SCHEMA_PATH.read_text(encoding="utf-8")
     assert committed == render(), (
         "src/aatest/schemas/procedure.schema.json is stale: run "
-        "`python -m aatest.engine.procedure.schema_export` and commit the result")
+        "`python -m aatest.schemas.export` and commit the result")
 
 
 def test_schema_describes_the_contract_shape() -> None:
@@ -26,15 +26,15 @@ def test_schema_describes_the_contract_shape() -> None:
 
 
 def test_committed_results_schema_is_fresh() -> None:
-    from aatest.engine.procedure.schema_export import RESULTS_SCHEMA_PATH
+    from aatest.schemas.export import RESULTS_SCHEMA_PATH
 
     assert RESULTS_SCHEMA_PATH.read_text(encoding="utf-8") == render(results=True), (
         "src/aatest/schemas/results.schema.json is stale: run "
-        "`python -m aatest.engine.procedure.schema_export` and commit the result")
+        "`python -m aatest.schemas.export` and commit the result")
 
 
 def test_results_schema_shape() -> None:
-    from aatest.engine.procedure.schema_export import results_json_schema
+    from aatest.schemas.export import results_json_schema
 
     schema = results_json_schema()
     assert schema["title"] == "aatest results" and schema["additionalProperties"] is False
@@ -52,7 +52,7 @@ def test_cli_prints_the_committed_schemas() -> None:
     from typer.testing import CliRunner
 
     from aatest.cli import app
-    from aatest.engine.procedure.schema_export import RESULTS_SCHEMA_PATH
+    from aatest.schemas.export import RESULTS_SCHEMA_PATH
 
     runner = CliRunner()
     assert runner.invoke(app, ["schema"]).output == SCHEMA_PATH.read_text(encoding="utf-8")

@@ -1,7 +1,7 @@
 """JSON Schemas generated from the pydantic models (never hand-edited).
 
 Two documents, both committed under ``src/aatest/schemas/`` and checked for staleness by
-``tests/engine/test_schema_fresh.py``:
+``tests/schemas/test_schema_fresh.py``:
 
 - ``procedure.schema.json``: the procedure YAML, for editors (completion and checking);
 - ``results.schema.json``: ``results.json`` (:class:`aatest.results.RunResults`), for anyone
@@ -11,7 +11,7 @@ Example
 -------
 Regenerate the committed copies after changing the models::
 
-    python -m aatest.engine.procedure.schema_export          # writes the committed copies
+    python -m aatest.schemas.export                          # writes the committed copies
     aatest schema > procedure.schema.json                    # the same documents on stdout
     aatest schema --results > results.schema.json
 
@@ -34,7 +34,7 @@ from aatest.engine.procedure.models import Procedure
 from aatest.results import RunResults
 
 #: where the committed copies live (package data, shipped with the wheel)
-SCHEMA_DIR = Path(__file__).resolve().parents[2] / "schemas"
+SCHEMA_DIR = Path(__file__).resolve().parent
 SCHEMA_PATH = SCHEMA_DIR / "procedure.schema.json"
 RESULTS_SCHEMA_PATH = SCHEMA_DIR / "results.schema.json"
 #: a copy beside the shipped procedures, so their modeline names it without leaving the folder

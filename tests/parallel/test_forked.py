@@ -1,4 +1,4 @@
-"""Forked workers (:mod:`aatest.engine.forked`): the results of a plain loop, errors raised
+"""Forked workers (:mod:`aatest.parallel.forked`): the results of a plain loop, errors raised
 here in order, a dead worker's items computed here, and no fork where it is unsafe."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import threading
 
 import pytest
 
-from aatest.engine import forked
-from aatest.engine.forked import WORKERS_ENV, cpu_workers, fork_workers, parallel_map
+from aatest.parallel import forked
+from aatest.parallel.forked import WORKERS_ENV, cpu_workers, fork_workers, parallel_map
 
 PARENT = os.getpid()
 

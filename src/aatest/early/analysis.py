@@ -45,8 +45,8 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
+from aatest.early.made import DRAIN, Made, context_digest
 from aatest.engine.procedure.envelope import streams_record
-from aatest.engine.run.early_made import DRAIN, Made, context_digest
 from aatest.engine.steps import Plan, PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
 
@@ -59,7 +59,7 @@ NICENESS = 10
 #: how long a drain may take (s)
 DRAIN_S = 600.0
 #: the child's program: the module imported under its own name (its records unpickle here)
-_CHILD_MAIN = "import sys; from aatest.engine.run.early_child import main; main(sys.argv[1:])"
+_CHILD_MAIN = "import sys; from aatest.early.child import main; main(sys.argv[1:])"
 
 
 @dataclass
@@ -128,7 +128,7 @@ def wants_early(plan: Plan) -> bool:
 class EarlyAnalysis:
     """The child process, the pipes to it and the thread that collects what it sends.
 
-    The child runs :func:`aatest.engine.run.early_child.main` (see :func:`_start_child` for
+    The child runs :func:`aatest.early.child.main` (see :func:`_start_child` for
     how it is started); the two pipes are passed to it by descriptor.
     """
 
@@ -156,7 +156,7 @@ class EarlyAnalysis:
 
     @property
     def pid(self) -> int:
-        """The child's process id (:mod:`aatest.engine.run.early_child` runs there)."""
+        """The child's process id (:mod:`aatest.early.child` runs there)."""
         return self._process.pid
 
     def send(self, step_id: str, path: Path) -> None:
@@ -228,8 +228,8 @@ class _Forked:
         """
         if timeout is None:
             if self._status is None:
-                _, status = os.waitpid(self.pid, 0)
-                self._status = os.waitstatus_to_exitcode(status)
+                _, waited = os.waitpid(self.pid, 0)
+                self._status = os.waitstatus_to_exitcode(waited)
             return self._status
         deadline_s = time.monotonic() + timeout
         while (status := self.poll()) is None:
@@ -274,7 +274,7 @@ def _forked_main(to_child: int, from_child: int, parent_ends: tuple[int, ...]) -
     try:
         for fd in parent_ends:
             os.close(fd)
-        from aatest.engine.run.early_child import main
+        from aatest.early.child import main
 
         main([str(to_child), str(from_child)])
         code = 0

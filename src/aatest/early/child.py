@@ -1,4 +1,4 @@
-"""The child process of :mod:`aatest.engine.run.early_analysis`: each step file it is sent,
+"""The child process of :mod:`aatest.early.analysis`: each step file it is sent,
 analysed as the analysis pass will analyse that step of ``recording.mcap``.
 
 It builds the plan-wide view the pass sees (the plan's recorded steps, the sensors and sample
@@ -20,7 +20,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from aatest.engine.run.early_made import DRAIN, Made, context_digest
+from aatest.early.made import DRAIN, Made, context_digest
 from aatest.engine.steps import PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
 
