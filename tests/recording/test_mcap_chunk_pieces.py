@@ -9,11 +9,16 @@ MCAP reader must give every message back.
 from __future__ import annotations
 
 import io
+import zlib
 from typing import Any
 
 import numpy as np
+import zstandard
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import Channel, Message, Schema
+from mcap.records import Channel, Chunk, Message, MessageIndex, Schema
+from mcap.stream_reader import StreamReader
 
 from aatest.recording.mcap_io import ChunkedWriter
 
@@ -49,3 +54,28 @@ def test_message_pieces_make_the_chunk_of_the_joined_messages() -> None:
             make_reader(io.BytesIO(joined)).iter_messages()]
     assert read == [(t, seq, b"".join(bytes(memoryview(p).cast("B")) for p in parts))
                     for t, seq, parts in messages]
+
+
+def test_chunk_crc_and_message_index_are_the_mcap_records() -> None:
+    """The chunk's CRC is zlib's CRC-32 of its messages (computed by zlib-ng), and the message
+    index packed by hand is the record ``MessageIndex.write`` builds."""
+    rng = np.random.default_rng(3)
+    messages: list[tuple[int, int, list[Any]]] = [
+        (10**9 + 7 * k, k, [rng.integers(0, 256, 1000 + k, dtype=np.uint8).tobytes()])
+        for k in range(5)]
+    data = _file(True, messages)
+    records = list(StreamReader(io.BytesIO(data), emit_chunks=True,
+                                validate_crcs=True).records)
+    chunk = next(r for r in records if isinstance(r, Chunk))
+    messages_bytes = zstandard.ZstdDecompressor().decompress(chunk.data)
+    assert chunk.uncompressed_crc == zlib.crc32(messages_bytes)
+    index = next(r for r in records if isinstance(r, MessageIndex))
+    builder = RecordBuilder()
+    MessageIndex(channel_id=7, records=index.records).write(builder)
+    start = data.index(builder.end())  # the record mcap builds is in the file, verbatim
+    assert data[start] == Opcode.MESSAGE_INDEX
+    offsets, offset = [], 0
+    for _, _, parts in messages:
+        offsets.append(offset)
+        offset += 31 + len(parts[0])  # a Message record's opcode, length and fields
+    assert index.records == [(t, o) for (t, _, _), o in zip(messages, offsets, strict=True)]

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 import struct
-import zlib
 from collections.abc import Iterable, Sequence
+from itertools import chain
 from typing import IO, Any
 
 import numpy as np
@@ -38,6 +38,7 @@ from mcap.records import (
     Statistics,
     SummaryOffset,
 )
+from zlib_ng.zlib_ng import crc32
 
 MAGIC = struct.pack("<8B", 137, 77, 67, 65, 80, 48, 13, 10)
 #: zstd level of the chunks. Why 1, not zstd's default 3: on the delta-coded sample blocks it
@@ -53,6 +54,22 @@ _MESSAGE_FIELDS = 22
 #: the name, the data's 8-byte length and the data
 _CHUNK_HEAD = struct.Struct("<BQQQQII")
 _CHUNK_FIELDS = 40
+#: a ``MessageIndex`` record up to its entries: opcode, length, channel id, the entries'
+#: length in bytes; the length counts 2 + 4 bytes and the entries (16 bytes each)
+_INDEX_HEAD = struct.Struct("<BQHI")
+_INDEX_FIELDS = 6
+
+# Why zlib-ng's crc32, not zlib's: the same CRC-32 (a fixed function of the bytes), computed
+# ≈ 6× faster (folding with carry-less multiplication): ≈ 1 ms less CPU per step file of the
+# stepped sine, whose chunks hold 5 MB of messages a step (bench/step_writer.py)
+
+
+def _message_index(channel_id: int, entries: Sequence[tuple[int, int]]) -> bytes:
+    """A ``MessageIndex`` record as ``MessageIndex.write`` lays it out, packed in one
+    ``struct`` call (``entries``: each message's log time in ns and offset in the chunk)."""
+    size = 16 * len(entries)
+    return struct.pack(f"<BQHI{2 * len(entries)}Q", Opcode.MESSAGE_INDEX, _INDEX_FIELDS + size,
+                       channel_id, size, *chain.from_iterable(entries))
 
 
 class ChunkedWriter:
@@ -156,13 +173,13 @@ class ChunkedWriter:
         """Compress a chunk's joined ``Message`` records and write it with its indexes."""
         compressed = self._compressor.compress(data)
         chunk = Chunk(compression="zstd", data=compressed, message_end_time=max(times),
-                      message_start_time=min(times), uncompressed_crc=zlib.crc32(data),
+                      message_start_time=min(times), uncompressed_crc=crc32(data),
                       uncompressed_size=len(data))
         start, length = self._write_chunk(chunk)
         index_start = self._offset
         offsets = {}
         for channel_id, index in indexes.items():
-            offsets[channel_id] = self._write(index)[0]
+            offsets[channel_id] = self._write_bytes(_message_index(channel_id, index.records))
         self._chunk_indexes.append(ChunkIndex(
             chunk_length=length, chunk_start_offset=start, compression="zstd",
             compressed_size=len(compressed), message_end_time=chunk.message_end_time,
@@ -219,15 +236,15 @@ class ChunkedWriter:
         compressed = self._compressor.compress(data)
         start_ns, end_ns = int(times.min()), int(times.max())
         chunk = Chunk(compression="zstd", data=compressed, message_end_time=end_ns,
-                      message_start_time=start_ns, uncompressed_crc=zlib.crc32(data),
+                      message_start_time=start_ns, uncompressed_crc=crc32(data),
                       uncompressed_size=len(data))
         start, length = self._write_chunk(chunk)
         pairs = np.empty((count, 2), dtype="<u8")
         pairs[:, 0] = times
         pairs[:, 1] = np.arange(count, dtype=np.uint64) * size
         entries = pairs.tobytes()
-        head = struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 2 + 4 + len(entries), channel_id,
-                           len(entries))
+        head = _INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, _INDEX_FIELDS + len(entries), channel_id,
+                                len(entries))
         index_start = self._write_bytes(head + entries)
         self._chunk_indexes.append(ChunkIndex(
             chunk_length=length, chunk_start_offset=start, compression="zstd",
@@ -296,8 +313,8 @@ class ChunkedWriter:
         for offset in offsets:
             offset.write(builder)
         summary = builder.end()
-        crc = zlib.crc32(summary)
-        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, offset_start), crc)
+        crc = crc32(summary)
+        crc = crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, offset_start), crc)
         self._write_bytes(summary)
         self._write(Footer(summary_start=summary_start, summary_offset_start=offset_start,
                            summary_crc=crc))
