@@ -15,6 +15,7 @@ from weakref import WeakKeyDictionary
 
 from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
 from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis.step_spectra import shared
 from aatest.recording.dataset import Dataset, LazySteps, StepData, StepWatch
 
 #: the channels a clock relation reads (besides the time stamps)
@@ -89,11 +90,12 @@ class _Watches:
         relation = clock_relation(raw)
         synced = synchronise(raw, relation)
         done = Synchronised(relation)
-        for name, watch in self._due(raw.step):
-            try:
-                done.results[name] = watch.reduce(synced)
-            except Exception:  # noqa: BLE001 - its owner recomputes the step, meets the error
-                continue
+        with shared():  # the watches read the same records: each transformed once
+            for name, watch in self._due(raw.step):
+                try:
+                    done.results[name] = watch.reduce(synced)
+                except Exception:  # noqa: BLE001 - its owner recomputes the step, meets it
+                    continue
         return done
 
 

@@ -22,6 +22,7 @@ from aatest.plugins.analysis._common import (
     input_accel_dps2,
     is_excited,
 )
+from aatest.plugins.analysis.step_spectra import centred_rfft, input_key, output_key
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
 from aatest.recording.dataset import Dataset, SensorInfo
 
@@ -65,16 +66,42 @@ def rated_xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[s
 
 
 def _xcorr_term(s: SyncedStep, sensor: SensorInfo, max_lag: int) -> np.ndarray:
-    """One step's normalised input–output correlation at lags 0..``max_lag`` (samples)."""
+    """One step's normalised input–output correlation at lags 0..``max_lag`` (samples).
+
+    From the records' own DFTs (the FRF point's, :mod:`~aatest.plugins.analysis.step_spectra`:
+    inside the sync pass each is made once a step): their product is the circular correlation,
+    and lag l of the linear one is that less the l products wrapped around the end (Σ over
+    j < l of x[n−l+j]·y[j]), a few thousand products instead of three FFTs of n + max_lag.
+    """
     x = input_accel_dps2(s, sensor.axis)
     y = np.asarray(s.daq[sensor.channel], dtype=np.float64)
+    if x.size != y.size or not 0 <= max_lag < x.size:
+        return _padded_term(x, y, max_lag)
+    n = x.size
+    spectra = np.conj(centred_rfft(x, input_key(s, sensor)))
+    spectra *= centred_rfft(y, output_key(s, sensor))
+    cc = np.fft.irfft(spectra, n)[:max_lag + 1]
     x, y = x - x.mean(), y - y.mean()
-    # lags 0..max_lag of the linear correlation need nfft ≥ n + max_lag (no wrap-around);
+    if max_lag:  # wrapped[l] = Σ_j tail[max_lag − l + j]·head[j]: a full convolution's end
+        wrapped = np.convolve(x[n - max_lag:], y[max_lag - 1::-1])
+        cc[1:] -= wrapped[max_lag - 1:][::-1]
+    return _normalised(cc, x, y)
+
+
+def _padded_term(x: np.ndarray, y: np.ndarray, max_lag: int) -> np.ndarray:
+    """:func:`_xcorr_term` of records of different lengths: the linear correlation by FFTs
+    padded past ``max_lag`` (no wrap-around)."""
+    x, y = x - x.mean(), y - y.mean()
     # a 5-smooth length is ~10x faster than the next power of two above 2n
-    nfft = next_fast_len(x.size + max_lag, real=True)
+    nfft = next_fast_len(max(x.size, y.size) + max_lag, real=True)
     cc = np.fft.irfft(np.conj(np.fft.rfft(x, nfft)) * np.fft.rfft(y, nfft), nfft)
-    overlap = x.size - np.arange(max_lag + 1)
-    term: np.ndarray = cc[:max_lag + 1] / overlap / (np.std(x) * np.std(y))
+    return _normalised(cc[:max_lag + 1], x, y)
+
+
+def _normalised(cc: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Correlation sums at lags 0.. over the overlap and the centred records' deviations."""
+    overlap = x.size - np.arange(cc.size)
+    term: np.ndarray = cc / overlap / (np.std(x) * np.std(y))
     return term
 
 
