@@ -76,14 +76,17 @@ def measure(run_dir: Path, rounds: int, dump: Path | None) -> dict[str, Any]:
                    and (s := _decoded(steps, i)) is not None]
         cpu: dict[str, list[float]] = {name: [] for name in steps._watches}
         results: dict[str, list[Any]] = {}
-        for _ in range(rounds):
-            for name, (watch, _done) in steps._watches.items():
-                out = []
-                t = time.process_time()
-                for _i, step in decoded:
-                    out.append(watch.reduce(step) if watch.applies(step.step) else None)
-                cpu[name].append((time.process_time() - t) / len(decoded))
-                results[name] = out
+        for _ in range(rounds):  # step by step, each step's watches in order, as a decode
+            spent = dict.fromkeys(cpu, 0.0)
+            results = {name: [] for name in cpu}
+            for _i, step in decoded:
+                for name, (watch, _done) in steps._watches.items():
+                    t = time.process_time()
+                    results[name].append(watch.reduce(step) if watch.applies(step.step)
+                                         else None)
+                    spent[name] += time.process_time() - t
+            for name, seconds in spent.items():
+                cpu[name].append(seconds / len(decoded))
     if dump is not None:
         dump.write_bytes(pickle.dumps(_plain(results)))
     return {"steps": len(decoded),

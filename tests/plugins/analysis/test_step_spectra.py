@@ -7,14 +7,17 @@ circular correlation less its wrapped products). Both must give the values compu
 
 from __future__ import annotations
 
+import gc
+
 import numpy as np
 
+from aatest import record_spectra
 from aatest.clocksync.relation import ClockRelation, SyncedStep
 from aatest.engine.datasheet import SensorInfo
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.frf import frf_point
-from aatest.plugins.analysis.step_spectra import centred_rfft, shared
 from aatest.plugins.analysis.tf_xcorr import _padded_term, _xcorr_term
+from aatest.record_spectra import BY_MEMORY, centred_rfft, shared
 
 FS_HZ = 2000.0
 N = 2**14
@@ -72,3 +75,18 @@ def test_a_spectrum_is_kept_only_inside_the_scope() -> None:
         assert centred_rfft(x[:32], "k") is not first  # another length: another record
         assert not first.flags.writeable
     np.testing.assert_array_equal(first, np.fft.rfft(x - x.mean()))
+
+
+def test_a_read_only_record_is_known_by_its_memory_while_it_lives() -> None:
+    owner = np.random.default_rng(6).normal(size=256)
+    owner.flags.writeable = False  # as a decoded recording's channel
+    first = centred_rfft(owner, BY_MEMORY)
+    assert centred_rfft(owner[:], "any key") is first  # another view of the same values
+    assert centred_rfft(owner[:128], BY_MEMORY) is not first  # other values
+    writeable = owner.copy()
+    assert centred_rfft(writeable, BY_MEMORY) is not centred_rfft(writeable, BY_MEMORY)
+    np.testing.assert_array_equal(first, np.fft.rfft(owner - owner.mean()))
+    kept = len(record_spectra._KEPT)
+    del owner
+    gc.collect()
+    assert len(record_spectra._KEPT) < kept  # gone with its record
