@@ -92,7 +92,8 @@ def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float,
     inside its ``shared`` scope the record's DFT is made once for every reduction of it.
     """
     n, cycles = whole_cycles(x.size, frequency_hz, fs_hz)
-    spec = centred_rfft(x[:n], key) * 2.0 / n
+    spec = centred_rfft(x[:n], key) * 2.0
+    spec /= n
     coherent = abs(frequency_hz * n / fs_hz - round(frequency_hz * n / fs_hz)) < \
         _COHERENCE_TOL_CYCLES
     bins = cycles * np.arange(1, harmonics + 1)
@@ -104,10 +105,12 @@ def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float,
         mask[max(b - guard, 1):b + guard + 1] = False
     amps = np.zeros(harmonics)
     amps[:bins.size] = np.abs(spec[bins])
-    noise = np.abs(spec[mask]) ** 2
-    return Tone(fundamental=complex(spec[cycles]), amplitudes=amps,
-                noise_power=float(np.sum(noise)) / 2.0,
-                noise_bin_power=float(np.mean(noise)) if noise.size else 0.0, coherent=coherent,
+    power = np.abs(spec)  # |X|² of every bin, then the noise bins': the values and the
+    power *= power  # sums of squaring the noise bins alone, without a copy of them complex
+    noise = power[mask]
+    total = float(np.sum(noise))
+    return Tone(fundamental=complex(spec[cycles]), amplitudes=amps, noise_power=total / 2.0,
+                noise_bin_power=total / noise.size if noise.size else 0.0, coherent=coherent,
                 spectrum=spec, cycles=cycles)
 
 
