@@ -3,9 +3,10 @@
 The uncertainty stage reads the results; a few components are measured from the logs
 themselves: the distortion of the table's motion (THD of the position log, harmonics 2–5 in
 acceleration) and the servo's non-commanded content at the fundamental, and the temperature
-logged beside the sensor during each record. One pass over the recording, vectorised (one
-FFT per sine record); without a recording (a results.json re-read alone) the components are
-reported as not evaluated.
+logged beside the sensor during each record. One pass over the recording, vectorised (an FFT
+of each record read: the position, the table's acceleration, whose spectrum the FRF point
+reuses (:mod:`aatest.record_spectra`), and each sensor's volts); without a recording (a
+results.json re-read alone) the components are reported as not evaluated.
 """
 
 from __future__ import annotations
