@@ -57,7 +57,9 @@ def input_accel_dps2(synced: SyncedStep, sensor_axis: str,
                      accel: np.ndarray | None = None) -> np.ndarray:
     """Table-estimated acceleration along a sensor axis, °/s², on the synced time grid.
 
-    ``accel`` replaces the moving axis' logged estimate (e.g. a smoothed reference).
+    ``accel`` replaces the moving axis' logged estimate (e.g. a smoothed reference). Where the
+    axis weight is exactly one, the array returned is that estimate itself (read-only when
+    decoded from a recording): treat it as read-only.
     """
     step = synced.step
     moving = _moving_axis(step.axis)
