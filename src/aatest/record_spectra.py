@@ -10,8 +10,8 @@ spectrum once:
 - a read-only view of a read-only array that owns its data (a decoded recording's channel:
   nobody can change its values) is known by its memory; its spectrum is kept while that
   array lives, for the last :data:`KEPT` such arrays only (a few MB, whatever holds the
-  decoded steps): the table's acceleration, which the evidence transforms before the sync
-  pass's watches run;
+  decoded steps), and handed out again only to the same values: the table's acceleration,
+  which the evidence transforms before the sync pass's watches run;
 - any other record is known by the ``key`` its caller names it by, and only inside
   :func:`shared` (one step's reductions): the sensor's volts resampled for the step.
 
@@ -32,7 +32,7 @@ import numpy as np
 _SHARED: ContextVar[dict[tuple[Hashable, int], np.ndarray] | None] = ContextVar(
     "record_spectra", default=None)
 #: spectra of read-only records still alive, by memory (:func:`_memory_key`), newest last
-_KEPT: OrderedDict[tuple[int, ...], np.ndarray] = OrderedDict()
+_KEPT: OrderedDict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = OrderedDict()
 #: read-only records whose spectra are kept at most (the records of the step in progress)
 KEPT = 4
 #: the key of a record to be known by its memory only (when read-only; else nothing is kept)
@@ -62,7 +62,7 @@ def centred_rfft(values: np.ndarray, key: Hashable | None = None) -> np.ndarray:
         return np.fft.rfft(x - x.mean())
     memory = _memory_key(x)
     memo = None if memory is not None or key == BY_MEMORY else _SHARED.get()
-    found = _KEPT.get(memory) if memory is not None else \
+    found = _kept(memory, x) if memory is not None else \
         None if memo is None else memo.get((key, x.size))
     if found is not None:
         return found
@@ -87,10 +87,24 @@ def _memory_key(x: np.ndarray) -> tuple[int, ...] | None:
     return (id(owner), x.__array_interface__["data"][0], x.size, x.strides[0])
 
 
+def _kept(memory: tuple[int, ...], x: np.ndarray) -> np.ndarray | None:
+    """The spectrum kept for the values ``x`` at ``memory``, if those are still its values.
+
+    Why compare: read-only is a promise the owner of an array could take back (a decoder
+    reusing its buffers); a copy of the values and one comparison (a tenth of an FFT) make
+    a stale spectrum impossible.
+    """
+    found = _KEPT.get(memory)
+    if found is None or not np.array_equal(found[1], x):
+        return None
+    return found[0]
+
+
 def _keep(memory: tuple[int, ...], spectrum: np.ndarray, x: np.ndarray) -> None:
-    """Keep ``spectrum`` under ``memory`` until its owner dies or :data:`KEPT` newer come."""
+    """Keep ``spectrum`` (and a copy of the values it is of) under ``memory`` until the
+    values' owner dies or :data:`KEPT` newer come."""
     owner = x if x.base is None else x.base
-    _KEPT[memory] = spectrum
+    _KEPT[memory] = (spectrum, x.copy())
     weakref.finalize(owner, _KEPT.pop, memory, None)
     while len(_KEPT) > KEPT:
         try:

@@ -90,3 +90,15 @@ def test_a_read_only_record_is_known_by_its_memory_while_it_lives() -> None:
     del owner
     gc.collect()
     assert len(record_spectra._KEPT) < kept  # gone with its record
+
+
+def test_a_record_changed_under_its_memory_is_transformed_again() -> None:
+    owner = np.random.default_rng(7).normal(size=256)
+    owner.flags.writeable = False
+    first = centred_rfft(owner, BY_MEMORY)
+    owner.flags.writeable = True  # its owner takes the promise back (a reused buffer)
+    owner[3] += 1.0
+    owner.flags.writeable = False
+    again = centred_rfft(owner, BY_MEMORY)
+    assert again is not first
+    np.testing.assert_array_equal(again, np.fft.rfft(owner - owner.mean()))
