@@ -8,6 +8,7 @@ step's term as it decodes the step (:func:`watch_xcorr`), so no step is decoded 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -71,21 +72,32 @@ def _xcorr_term(s: SyncedStep, sensor: SensorInfo, max_lag: int) -> np.ndarray:
     From the records' own DFTs (the FRF point's, :mod:`~aatest.plugins.analysis.step_spectra`:
     inside the sync pass each is made once a step): their product is the circular correlation,
     and lag l of the linear one is that less the l products wrapped around the end (Σ over
-    j < l of x[n−l+j]·y[j]), a few thousand products instead of three FFTs of n + max_lag.
+    j < l of x[n−l+j]·y[j]), a few thousand products instead of three FFTs of n + max_lag;
+    each record's deviation is its spectrum's power (Parseval), not another pass over it.
     """
     x = input_accel_dps2(s, sensor.axis)
     y = np.asarray(s.daq[sensor.channel], dtype=np.float64)
     if x.size != y.size or not 0 <= max_lag < x.size:
         return _padded_term(x, y, max_lag)
     n = x.size
-    spectra = np.conj(centred_rfft(x, input_key(s, sensor)))
-    spectra *= centred_rfft(y, output_key(s, sensor))
+    fx, fy = centred_rfft(x, input_key(s, sensor)), centred_rfft(y, output_key(s, sensor))
+    spectra = np.conj(fx)
+    spectra *= fy
     cc = np.fft.irfft(spectra, n)[:max_lag + 1]
-    x, y = x - x.mean(), y - y.mean()
     if max_lag:  # wrapped[l] = Σ_j tail[max_lag − l + j]·head[j]: a full convolution's end
-        wrapped = np.convolve(x[n - max_lag:], y[max_lag - 1::-1])
-        cc[1:] -= wrapped[max_lag - 1:][::-1]
-    return _normalised(cc, x, y)
+        tail, head = x[n - max_lag:] - x.mean(), y[max_lag - 1::-1] - y.mean()
+        cc[1:] -= np.convolve(tail, head)[max_lag - 1:][::-1]
+    overlap = n - np.arange(cc.size)
+    term: np.ndarray = cc / overlap / (_rms(fx, n) * _rms(fy, n))
+    return term
+
+
+def _rms(spectrum: np.ndarray, n: int) -> float:
+    """√(mean x²) of the ``n`` samples x whose rfft is ``spectrum`` (Parseval: the bins
+    between 0 and Nyquist stand for two each): the deviation of a centred record."""
+    power = float(np.sum(spectrum.real**2)) + float(np.sum(spectrum.imag**2))
+    ends = abs(spectrum[0]) ** 2 + (abs(spectrum[-1]) ** 2 if n % 2 == 0 else 0.0)
+    return math.sqrt(max(2.0 * power - ends, 0.0)) / n
 
 
 def _padded_term(x: np.ndarray, y: np.ndarray, max_lag: int) -> np.ndarray:
