@@ -79,6 +79,19 @@ def test_pairing_equals_the_masked_pairing(seed: int, n: int, drift_ppm: float,
     assert np.array_equal(fast.t_daq, plain_daq)
 
 
+@pytest.mark.parametrize(("head", "drift_ppm"), [(0.6, 40.0), (0.05, -90.0)])
+def test_a_table_log_shorter_than_the_daq_record_pairs_as_the_masked_pairing(
+        head: float, drift_ppm: float) -> None:
+    """The last windows then reach DAQ edges no table edge pairs with."""
+    t_table, t_daq = _edges(4, 6554, drift_ppm)
+    t_table = t_table[:int(head * t_table.size)]
+    fast = edges.pair_edges("s", t_table, t_daq, PERIOD_S, None, TABLE_DT_S)
+    plain_table, plain_daq = _reference_pairs(t_table, t_daq, None)
+    assert fast.t_table.size > 0.9 * t_table.size
+    assert np.array_equal(fast.t_table, plain_table)
+    assert np.array_equal(fast.t_daq, plain_daq)
+
+
 def test_unordered_edges_pair_as_the_masked_pairing() -> None:
     t_table, t_daq = _edges(3, 2000, 10.0)
     t_table[[100, 101]] = t_table[[101, 100]]  # two edges out of time order

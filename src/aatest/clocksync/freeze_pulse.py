@@ -46,8 +46,8 @@ from aatest.recording.dataset import Dataset, StepData
 # the fitting (aatest.clocksync.clock_fit) and the records (aatest.clocksync.relation) live in
 # modules of their own, which the streamed path shares; their names stay importable from here
 __all__ = ["LOGIC_THRESHOLD", "ClockRelation", "SyncedStep", "clock_relation", "edge_relation",
-           "fit_clock_relation", "fit_unlatched_relation", "refine_offset", "rising_edges",
-           "synchronise", "synchronise_all"]
+           "fit_and_synchronise", "fit_clock_relation", "fit_unlatched_relation", "refine_offset",
+           "rising_edges", "synchronise", "synchronise_all"]
 
 _DIGITAL = ("sync_pulse", "trigger")
 
@@ -185,6 +185,26 @@ def synchronise(data: StepData, relation: ClockRelation | None = None) -> Synced
         return synchronise_streamed(data.step, data.table, log_pieces(data.daq), relation)
     daq_time_s = regular_time(np.asarray(data.daq.time_s, dtype=np.float64),
                                relation.daq_time_fit if relation is not None else None)
+    return _synchronised(data, daq_time_s, relation)
+
+
+def fit_and_synchronise(data: StepData) -> SyncedStep:
+    """:func:`synchronise` of a step with its :func:`clock_relation` (the synchronised step's
+    ``relation``, its DAQ time fit included): the same values, the DAQ's regular time base
+    made once, not once for the fit and again for the resampling (the sync pass's watches)."""
+    if _partial(data):
+        return synchronise(data, clock_relation(data))
+    time_s = np.asarray(data.daq.time_s, dtype=np.float64)
+    fit = regular_fit(time_s)
+    daq_time_s = regular_time(time_s, fit)
+    relation = replace(_fitted_relation(data, daq_time_s), daq_time_fit=fit)
+    return _synchronised(data, daq_time_s, relation)
+
+
+def _synchronised(data: StepData, daq_time_s: np.ndarray,
+                  relation: ClockRelation | None) -> SyncedStep:
+    """A whole record synchronised on its regular DAQ time base ``daq_time_s`` (the relation
+    fitted here when None; refused when the DAQ record covers < 50 % of the table log)."""
     relation, at_daq_s, keep = _relation(data, daq_time_s, relation)  # keep: contiguous
     table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
     table = {name: np.asarray(v)[keep] for name, v in data.table.channels.items()}

@@ -3,9 +3,10 @@
 The uncertainty stage reads the results; a few components are measured from the logs
 themselves: the distortion of the table's motion (THD of the position log, harmonics 2–5 in
 acceleration) and the servo's non-commanded content at the fundamental, and the temperature
-logged beside the sensor during each record. One pass over the recording, vectorised (one
-FFT per sine record); without a recording (a results.json re-read alone) the components are
-reported as not evaluated.
+logged beside the sensor during each record. One pass over the recording, vectorised (an FFT
+of each record read: the position, the table's acceleration, whose spectrum the FRF point
+reuses (:mod:`aatest.record_spectra`), and each sensor's volts); without a recording (a
+results.json re-read alone) the components are reported as not evaluated.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from aatest.record_spectra import BY_MEMORY, centred_rfft
 
 #: harmonics of the fundamental summed into the motion THD
 HARMONICS = 5
@@ -114,13 +117,17 @@ def _motion(position_deg: np.ndarray, cycles: int, amplitude_deg: float) -> Moti
 _NEAR_BINS = np.arange(3, 41)
 
 
-def local_noise_rel(x: np.ndarray, cycles: int) -> float | None:
+def local_noise_rel(x: np.ndarray, cycles: int, shared: bool = False) -> float | None:
     """Relative (dimensionless) standard uncertainty of the fundamental of ``x`` (``cycles``
-    periods in its ``n`` samples): √(mean |X_k|²/2)/|X_1| over the bins near the fundamental."""
+    periods in its ``n`` samples): √(mean |X_k|²/2)/|X_1| over the bins near the fundamental.
+
+    ``shared``: ``x`` is a record the FRF point transforms too (the table's acceleration):
+    its spectrum is made once (:func:`aatest.record_spectra.centred_rfft`).
+    """
     n = x.size
     if cycles < 1 or n < 8 * cycles:
         return None
-    raw = np.fft.rfft(x - np.mean(x))
+    raw = centred_rfft(x, BY_MEMORY if shared else None)
     near = np.concatenate([cycles - _NEAR_BINS, cycles + _NEAR_BINS])
     near = near[(near > 0) & (near < raw.size) & (near % cycles != 0)]
     # only the bins read are scaled to peak amplitudes (the same operations on each)
@@ -159,7 +166,7 @@ def _bin_noise(record: Any, cycles: int, channels: list[str]) -> BinNoise | None
     accel = record.table.channels.get(f"{step.axis}_accel_dps2")
     if accel is None:
         return None
-    table = local_noise_rel(np.asarray(accel, dtype=float), cycles)
+    table = local_noise_rel(np.asarray(accel, dtype=float), cycles, shared=True)
     n = np.size(accel)
     per_channel = {}
     for channel in channels:

@@ -57,13 +57,17 @@ def input_accel_dps2(synced: SyncedStep, sensor_axis: str,
                      accel: np.ndarray | None = None) -> np.ndarray:
     """Table-estimated acceleration along a sensor axis, °/s², on the synced time grid.
 
-    ``accel`` replaces the moving axis' logged estimate (e.g. a smoothed reference).
+    ``accel`` replaces the moving axis' logged estimate (e.g. a smoothed reference). Where the
+    axis weight is exactly one, the array returned is that estimate itself (read-only when
+    decoded from a recording): treat it as read-only.
     """
     step = synced.step
     moving = _moving_axis(step.axis)
     base = synced.table[f"{moving}_accel_dps2"] if accel is None else accel
     psi = synced.table.get("inner_position_deg", np.full(len(synced), step.inner_deg))
     weight = axis_weights(sensor_axis, np.mean(psi) if moving == "outer" else 0.0)[moving]
+    if isinstance(weight, float) and weight == 1.0:  # the logged record itself (x·1 = x):
+        return np.asarray(base, dtype=np.float64)  # its spectrum is the evidence's one
     return np.asarray(base, dtype=np.float64) * weight
 
 

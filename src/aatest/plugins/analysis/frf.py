@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -43,6 +43,7 @@ from aatest.plugins.analysis._common import (
     steps_of,
     whole_cycles,
 )
+from aatest.plugins.analysis.step_spectra import centred_rfft, input_key, output_key
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
 from aatest.presentation.figures import frequency_axis, new_figure, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
@@ -83,12 +84,16 @@ class Tone:
 
 
 def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float,
-                 harmonics: int = HARMONICS) -> Tone:
+                 harmonics: int = HARMONICS, key: Hashable | None = None) -> Tone:
     """Fundamental, harmonics 1..``harmonics`` and noise of a record at a known excitation
-    frequency (the THD sums harmonics 2..``harmonics``)."""
+    frequency (the THD sums harmonics 2..``harmonics``).
+
+    ``key`` names the record for :func:`~aatest.plugins.analysis.step_spectra.centred_rfft`:
+    inside its ``shared`` scope the record's DFT is made once for every reduction of it.
+    """
     n, cycles = whole_cycles(x.size, frequency_hz, fs_hz)
-    seg = np.asarray(x[:n], dtype=np.float64)
-    spec = np.fft.rfft(seg - seg.mean()) * 2.0 / n
+    spec = centred_rfft(x[:n], key) * 2.0
+    spec /= n
     coherent = abs(frequency_hz * n / fs_hz - round(frequency_hz * n / fs_hz)) < \
         _COHERENCE_TOL_CYCLES
     bins = cycles * np.arange(1, harmonics + 1)
@@ -100,10 +105,12 @@ def analyse_tone(x: np.ndarray, frequency_hz: float, fs_hz: float,
         mask[max(b - guard, 1):b + guard + 1] = False
     amps = np.zeros(harmonics)
     amps[:bins.size] = np.abs(spec[bins])
-    noise = np.abs(spec[mask]) ** 2
-    return Tone(fundamental=complex(spec[cycles]), amplitudes=amps,
-                noise_power=float(np.sum(noise)) / 2.0,
-                noise_bin_power=float(np.mean(noise)) if noise.size else 0.0, coherent=coherent,
+    power = np.abs(spec)  # |X|² of every bin, then the noise bins': the values and the
+    power *= power  # sums of squaring the noise bins alone, without a copy of them complex
+    noise = power[mask]
+    total = float(np.sum(noise))
+    return Tone(fundamental=complex(spec[cycles]), amplitudes=amps, noise_power=total / 2.0,
+                noise_bin_power=total / noise.size if noise.size else 0.0, coherent=coherent,
                 spectrum=spec, cycles=cycles)
 
 
@@ -321,8 +328,9 @@ def frf_point(synced: SyncedStep, sensor: SensorInfo, harmonics: int = HARMONICS
     step, fs = synced.step, synced.sample_rate_hz
     f0 = float(step.frequency_hz or 0.0)
     reference, output = input_accel_dps2(synced, sensor.axis), synced.daq[sensor.channel]
-    table = analyse_tone(reference, f0, fs, harmonics)
-    sensor_tone = analyse_tone(output, f0, fs, harmonics)
+    # the same records' DFTs as the cross-correlation's (tf_xcorr), made once per step
+    table = analyse_tone(reference, f0, fs, harmonics, input_key(synced, sensor))
+    sensor_tone = analyse_tone(output, f0, fs, harmonics, output_key(synced, sensor))
     u_local = local_ratio_noise_rel(table, sensor_tone)
     segmented = segmented_ratio(reference, output, f0, fs, harmonics)
     # a record of fewer than three cycles has no two segments: its whole-record bin stands

@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 from weakref import WeakKeyDictionary
 
-from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
+from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, fit_and_synchronise
 from aatest.engine.steps import PlannedStep
+from aatest.plugins.analysis.step_spectra import shared
 from aatest.recording.dataset import Dataset, LazySteps, StepData, StepWatch
 
 #: the channels a clock relation reads (besides the time stamps)
@@ -86,14 +87,14 @@ class _Watches:
         return bool(self._due(step))
 
     def reduce(self, raw: StepData) -> Synchronised:
-        relation = clock_relation(raw)
-        synced = synchronise(raw, relation)
-        done = Synchronised(relation)
-        for name, watch in self._due(raw.step):
-            try:
-                done.results[name] = watch.reduce(synced)
-            except Exception:  # noqa: BLE001 - its owner recomputes the step, meets the error
-                continue
+        synced = fit_and_synchronise(raw)
+        done = Synchronised(synced.relation)
+        with shared():  # the watches read the same records: each transformed once
+            for name, watch in self._due(raw.step):
+                try:
+                    done.results[name] = watch.reduce(synced)
+                except Exception:  # noqa: BLE001 - its owner recomputes the step, meets it
+                    continue
         return done
 
 

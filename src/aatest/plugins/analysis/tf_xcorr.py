@@ -8,6 +8,7 @@ step's term as it decodes the step (:func:`watch_xcorr`), so no step is decoded 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -22,6 +23,7 @@ from aatest.plugins.analysis._common import (
     input_accel_dps2,
     is_excited,
 )
+from aatest.plugins.analysis.step_spectra import centred_rfft, input_key, output_key
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
 from aatest.recording.dataset import Dataset, SensorInfo
 
@@ -65,16 +67,53 @@ def rated_xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[s
 
 
 def _xcorr_term(s: SyncedStep, sensor: SensorInfo, max_lag: int) -> np.ndarray:
-    """One step's normalised input–output correlation at lags 0..``max_lag`` (samples)."""
+    """One step's normalised input–output correlation at lags 0..``max_lag`` (samples).
+
+    From the records' own DFTs (the FRF point's, :mod:`~aatest.plugins.analysis.step_spectra`:
+    inside the sync pass each is made once a step): their product is the circular correlation,
+    and lag l of the linear one is that less the l products wrapped around the end (Σ over
+    j < l of x[n−l+j]·y[j]), a few thousand products instead of three FFTs of n + max_lag;
+    each record's deviation is its spectrum's power (Parseval), not another pass over it.
+    """
     x = input_accel_dps2(s, sensor.axis)
     y = np.asarray(s.daq[sensor.channel], dtype=np.float64)
+    if x.size != y.size or not 0 <= max_lag < x.size:
+        return _padded_term(x, y, max_lag)
+    n = x.size
+    fx, fy = centred_rfft(x, input_key(s, sensor)), centred_rfft(y, output_key(s, sensor))
+    spectra = np.conj(fx)
+    spectra *= fy
+    cc = np.fft.irfft(spectra, n)[:max_lag + 1]
+    if max_lag:  # wrapped[l] = Σ_j tail[max_lag − l + j]·head[j]: a full convolution's end
+        tail, head = x[n - max_lag:] - x.mean(), y[max_lag - 1::-1] - y.mean()
+        cc[1:] -= np.convolve(tail, head)[max_lag - 1:][::-1]
+    overlap = n - np.arange(cc.size)
+    term: np.ndarray = cc / overlap / (_rms(fx, n) * _rms(fy, n))
+    return term
+
+
+def _rms(spectrum: np.ndarray, n: int) -> float:
+    """√(mean x²) of the ``n`` samples x whose rfft is ``spectrum`` (Parseval: the bins
+    between 0 and Nyquist stand for two each): the deviation of a centred record."""
+    power = float(np.sum(spectrum.real**2)) + float(np.sum(spectrum.imag**2))
+    ends = abs(spectrum[0]) ** 2 + (abs(spectrum[-1]) ** 2 if n % 2 == 0 else 0.0)
+    return math.sqrt(max(2.0 * power - ends, 0.0)) / n
+
+
+def _padded_term(x: np.ndarray, y: np.ndarray, max_lag: int) -> np.ndarray:
+    """:func:`_xcorr_term` of records of different lengths: the linear correlation by FFTs
+    padded past ``max_lag`` (no wrap-around)."""
     x, y = x - x.mean(), y - y.mean()
-    # lags 0..max_lag of the linear correlation need nfft ≥ n + max_lag (no wrap-around);
     # a 5-smooth length is ~10x faster than the next power of two above 2n
-    nfft = next_fast_len(x.size + max_lag, real=True)
+    nfft = next_fast_len(max(x.size, y.size) + max_lag, real=True)
     cc = np.fft.irfft(np.conj(np.fft.rfft(x, nfft)) * np.fft.rfft(y, nfft), nfft)
-    overlap = x.size - np.arange(max_lag + 1)
-    term: np.ndarray = cc[:max_lag + 1] / overlap / (np.std(x) * np.std(y))
+    return _normalised(cc[:max_lag + 1], x, y)
+
+
+def _normalised(cc: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Correlation sums at lags 0.. over the overlap and the centred records' deviations."""
+    overlap = x.size - np.arange(cc.size)
+    term: np.ndarray = cc / overlap / (np.std(x) * np.std(y))
     return term
 
 
