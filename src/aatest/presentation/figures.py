@@ -51,6 +51,22 @@ def frequency_axis(*axes: Any) -> None:
         ax.xaxis.set_major_formatter(StrMethodFormatter("{x:g}"))
 
 
+def tight_layout(fig: Figure) -> None:
+    """Adjust ``fig``'s subplot parameters as :meth:`Figure.tight_layout` does, leaving it
+    without a layout engine.
+
+    Why: ``Figure.tight_layout`` leaves a placeholder engine on the figure, and a figure with
+    any engine is drawn twice by ``savefig`` (a layout pass, then the file); measured, the
+    extra pass is ≈ 10 % of a Bode figure's SVG. The same subplot parameters, the same bytes.
+    """
+    from matplotlib.layout_engine import TightLayoutEngine
+
+    if fig.get_layout_engine() is not None:  # e.g. constrained layout set in matplotlibrc
+        fig.tight_layout()
+        return
+    TightLayoutEngine().execute(fig)
+
+
 def content_salt(fig: Figure) -> str:
     """A digest of what a figure shows: its axes' texts and the data of their lines and
     collections (the salt of its SVG element ids)."""
