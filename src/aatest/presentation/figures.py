@@ -64,7 +64,9 @@ def tight_layout(fig: Figure) -> None:
     if fig.get_layout_engine() is not None:  # e.g. constrained layout set in matplotlibrc
         fig.tight_layout()
         return
-    TightLayoutEngine().execute(fig)
+    # Figure.tight_layout's own engine: its defaults, and no ``rect`` (the engine's default
+    # rect (0, 0, 1, 1) would run the layout a second time, to the same parameters)
+    TightLayoutEngine(pad=1.08, h_pad=None, w_pad=None, rect=None).execute(fig)
 
 
 def content_salt(fig: Figure) -> str:
