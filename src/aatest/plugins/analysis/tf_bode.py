@@ -2,9 +2,11 @@
 
 Every group of the stepped sine gets one, drawn on the transfer-function analysis's workers.
 The figure is built once per thread and redrawn with each group's data (lines, title, limits,
-layout): the same SVG bytes as a new figure (tests/plugins/analysis/test_tf_bode.py), for
-≈ 60 % of its CPU — a new figure creates its ≈ 100 ticks (each a handful of artists) and
-measures every tick label again, for the same axes each time.
+layout): the same SVG bytes as a new figure (tests/plugins/analysis/test_tf_bode.py) at
+≈ 60 % of its CPU (0.23 → 0.14 s a figure; 0.09 s with the layout of
+:func:`~aatest.presentation.figures.tight_layout`) — a new figure creates its ≈ 100 ticks
+(each a handful of artists) and measures every tick label again, for the same axes each
+time. The figure stays with its thread (≈ 3 MB with matplotlib's caches).
 """
 
 from __future__ import annotations
