@@ -51,6 +51,27 @@ def frequency_axis(*axes: Any) -> None:
         ax.xaxis.set_major_formatter(StrMethodFormatter("{x:g}"))
 
 
+def tight_layout(fig: Figure) -> None:
+    """Adjust ``fig``'s subplot parameters as :meth:`Figure.tight_layout` does, leaving it
+    without a layout engine.
+
+    Why: ``Figure.tight_layout`` leaves a placeholder engine on the figure, and a figure with
+    any engine is drawn twice by ``savefig`` (a layout pass, then the file); measured, the
+    extra pass is 15–40 % of a two-axes Bode figure's ``savefig``. The same subplot
+    parameters, the same SVG bytes (tests/plugins/analysis/test_tf_bode.py).
+    """
+    from matplotlib.layout_engine import TightLayoutEngine
+
+    if fig.get_layout_engine() is not None:  # e.g. constrained layout set in matplotlibrc
+        fig.tight_layout()
+        return
+    # Figure.tight_layout's own engine: its defaults, and no ``rect`` (the engine's default
+    # rect (0, 0, 1, 1) would run the layout a second time, to the same parameters); the
+    # stubs type ``rect`` as a tuple, but None is what Figure.tight_layout itself passes
+    no_rect: Any = None
+    TightLayoutEngine(pad=1.08, h_pad=None, w_pad=None, rect=no_rect).execute(fig)
+
+
 def content_salt(fig: Figure) -> str:
     """A digest of what a figure shows: its axes' texts and the data of their lines and
     collections (the salt of its SVG element ids)."""

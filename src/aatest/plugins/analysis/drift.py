@@ -26,7 +26,7 @@ from aatest.engine.logs import SampledLog
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import options_of
-from aatest.presentation.figures import new_figure, to_svg
+from aatest.presentation.figures import new_figure, tight_layout, to_svg
 from aatest.recording.dataset import Dataset, LazySteps
 from aatest.results.noise import DriftResult
 
@@ -289,7 +289,7 @@ def drift_figure(channel: str, values: dict[str, Any], t_h: np.ndarray,
     allan = values["allan_dps2"]
     ax[1, 0].loglog(allan["tau_s"], allan["adev"], "o-", ms=3)
     ax[1, 0].set(xlabel="τ / s", ylabel="Allan dev. / (°/s²)")
-    fig.tight_layout()
+    tight_layout(fig)
     return to_svg(fig)
 
 

@@ -45,7 +45,7 @@ from aatest.plugins.analysis._common import (
 )
 from aatest.plugins.analysis.step_spectra import centred_rfft, input_key, output_key
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
-from aatest.presentation.figures import frequency_axis, new_figure, to_svg
+from aatest.presentation.figures import frequency_axis, new_figure, tight_layout, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfResult
 
@@ -382,7 +382,7 @@ def bode_figure(points: list[dict[str, Any]], title: str) -> str:
     ax[1, 0].set(xlabel="frequency / Hz", ylabel="phase / °")
     ax[0, 0].legend(fontsize=6)
     frequency_axis(ax[0, 0], ax[1, 0])
-    fig.tight_layout()
+    tight_layout(fig)
     return to_svg(fig)
 
 

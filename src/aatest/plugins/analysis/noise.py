@@ -26,7 +26,7 @@ from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import options_of, scale_in_use, steps_of
 from aatest.plugins.analysis.drift import allan_terms_of
 from aatest.plugins.analysis.streaming import StaticReduction, band_rms_of, reduce_static
-from aatest.presentation.figures import new_figure, to_svg
+from aatest.presentation.figures import new_figure, tight_layout, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.noise import NoiseResult
 
@@ -93,7 +93,7 @@ def sensor_noise(steps: Sequence[SyncedStep], sensor: SensorInfo, scale_v_per_dp
     ax[0, 0].set(xlabel="frequency / Hz", ylabel="V/√Hz", title=f"noise {sensor.channel}")
     ax[1, 0].loglog(allan["tau_s"], allan["adev"], "o-", ms=3)
     ax[1, 0].set(xlabel="τ / s", ylabel="Allan dev. / (°/s²)")
-    fig.tight_layout()
+    tight_layout(fig)
     return values, to_svg(fig)
 
 

@@ -48,7 +48,7 @@ from aatest.plugins.analysis.reference import (
     zero_phase_lowpass,
 )
 from aatest.plugins.analysis.scale_levels import Level, headline_level, level_groups, linearity
-from aatest.presentation.figures import new_figure, to_svg
+from aatest.presentation.figures import new_figure, tight_layout, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.scale_factor import ReferenceChoice, ReferenceName, ScaleFactorResult
 
@@ -234,7 +234,7 @@ def _figure(volts: np.ndarray, ref: np.ndarray, result: dict[str, Any]) -> str:
     ax[0, 0].legend(fontsize=7)
     ax[1, 0].plot(ref[::step], (ref - fit)[::step], ".", ms=1, rasterized=True)
     ax[1, 0].set(xlabel="reference / (°/s²)", ylabel="residual / (°/s²)")
-    fig.tight_layout()
+    tight_layout(fig)
     return to_svg(fig)
 
 

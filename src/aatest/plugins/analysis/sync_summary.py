@@ -14,7 +14,7 @@ import numpy as np
 from aatest.clocksync.edges import joint_slope_range
 from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep
 from aatest.engine.steps import PlannedStep
-from aatest.presentation.figures import new_figure, to_svg
+from aatest.presentation.figures import new_figure, tight_layout, to_svg
 from aatest.results.sync import SyncResult
 
 
@@ -75,5 +75,5 @@ def sync_figure(steps: Sequence[SyncedStep | Related]) -> str:
     ax[0, 0].set(ylabel="drift / ppm", title="logger synchronisation")
     ax[1, 0].plot(idx, [s.relation.residual_rms_us for s in steps], "o", ms=3)
     ax[1, 0].set(xlabel="step", ylabel="residual RMS / µs")
-    fig.tight_layout()
+    tight_layout(fig)
     return to_svg(fig)

@@ -33,7 +33,7 @@ from aatest.plugins.analysis.bias import gravity_along_g
 from aatest.plugins.analysis.polyfit import fit_polynomial
 from aatest.plugins.analysis.streaming import Moments, reduce_static
 from aatest.plugins.analysis.sync import SyncedSteps
-from aatest.presentation.figures import new_figure, to_svg
+from aatest.presentation.figures import new_figure, tight_layout, to_svg
 from aatest.recording.dataset import Dataset, LazySteps, SensorInfo
 from aatest.results.temperature import TemperatureResult
 
@@ -170,7 +170,7 @@ def _figure(row: dict[str, Any], channel: str) -> str:
         ax[1, 0].plot(row["scale_temperatures_c"], np.array(row["scale_v_per_dps2"]) * 1e3, "o",
                       ms=4)
         ax[1, 0].set(xlabel="sensor temperature / °C", ylabel="scale / (mV/(°/s²))")
-    fig.tight_layout()
+    tight_layout(fig)
     return to_svg(fig)
 
 

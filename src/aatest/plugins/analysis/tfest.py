@@ -15,6 +15,7 @@ identification points, n_p = n + m + 1 (+1 for an estimated delay).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -80,20 +81,30 @@ def _w_of(f_hz: np.ndarray, dt: float, w0: float) -> np.ndarray:
 
 
 def _sk_fit(w: np.ndarray, g: np.ndarray, n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """Sanathanan–Koerner: polynomials P_b (deg m) and P_a (deg n, P_a(0) = 1) in w."""
+    """Sanathanan–Koerner: polynomials P_b (deg m) and P_a (deg n, P_a(0) = 1) in w.
+
+    Each iteration's solution depends only on the previous one (through the weights), so once
+    a solution repeats bit for bit the iterations cycle: the last one's solution is known
+    without computing the rest (≈ 45 % of the fits repeat, on average ≈ 4 iterations early).
+    """
     weight = np.ones(w.size)
-    pb = np.zeros(m + 1)
-    pa = np.ones(1)
+    iterations = _SK_ITERATIONS if n else 1
     # the unweighted columns do not change between iterations: built once
     basis = np.column_stack([w**i for i in range(m + 1)] + [-g * w**i for i in range(1, n + 1)])
-    for _ in range(_SK_ITERATIONS if n else 1):
+    solutions: list[np.ndarray] = []
+    seen: dict[bytes, int] = {}
+    for k in range(iterations):
         design = basis / weight[:, None]
         rhs = g / weight
         a_real = np.vstack([design.real, design.imag])
         sol, *_ = np.linalg.lstsq(a_real, np.concatenate([rhs.real, rhs.imag]), rcond=None)
-        pb, pa = sol[:m + 1], np.concatenate([[1.0], sol[m + 1:]])
-        weight = np.abs(_polyval(w, pa))
-    return pb, pa
+        first = seen.setdefault(sol.tobytes(), k)
+        if first != k:  # iteration k repeats iteration first: a cycle of k − first
+            sol = solutions[first + (iterations - 1 - first) % (k - first)]
+            break
+        solutions.append(sol)
+        weight = np.abs(_polyval(w, np.concatenate([[1.0], sol[m + 1:]])))
+    return sol[:m + 1], np.concatenate([[1.0], sol[m + 1:]])
 
 
 def _refine(w: np.ndarray, g: np.ndarray, pb: np.ndarray, pa: np.ndarray
@@ -107,21 +118,35 @@ def _refine(w: np.ndarray, g: np.ndarray, pb: np.ndarray, pa: np.ndarray
     m1 = pb.size
     scale = 1.0 / np.abs(g)
     powers = w[:, None] ** np.arange(max(m1, pa.size))  # wⁱ, one column per power
+    # the last point's polynomials, residual and Jacobian: ``leastsq`` evaluates both at the
+    # start point twice (its argument check, then MINPACK), and MINPACK asks the Jacobian at
+    # the point whose residual it has just evaluated (≈ 70 % of the calls)
+    last: dict[str, Any] = {"theta": b""}
 
-    def parts(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return _polyval(w, theta[:m1]), _polyval(w, np.concatenate([[1.0], theta[m1:]]))
+    def parts(theta: np.ndarray) -> dict[str, Any]:
+        key = theta.tobytes()
+        if last["theta"] != key:
+            last.clear()
+            last.update(theta=key, num=_polyval(w, theta[:m1]),
+                        den=_polyval(w, np.concatenate([[1.0], theta[m1:]])))
+        return last
 
     def residual(theta: np.ndarray) -> np.ndarray:
-        num, den = parts(theta)
-        e = (g - num / den) * scale
-        return np.concatenate([e.real, e.imag])
+        at = parts(theta)
+        if "residual" not in at:
+            e = (g - at["num"] / at["den"]) * scale
+            at["residual"] = np.concatenate([e.real, e.imag])
+        return np.asarray(at["residual"])
 
     def jacobian(theta: np.ndarray) -> np.ndarray:
-        num, den = parts(theta)
-        inv = scale / den
-        jac = np.concatenate([-powers[:, :m1] * inv[:, None],
-                              powers[:, 1:pa.size] * (num * inv / den)[:, None]], axis=1)
-        return np.concatenate([jac.real, jac.imag])
+        at = parts(theta)
+        if "jacobian" not in at:
+            num, den = at["num"], at["den"]
+            inv = scale / den
+            jac = np.concatenate([-powers[:, :m1] * inv[:, None],
+                                  powers[:, 1:pa.size] * (num * inv / den)[:, None]], axis=1)
+            at["jacobian"] = np.concatenate([jac.real, jac.imag])
+        return np.asarray(at["jacobian"])
 
     theta0 = np.concatenate([pb, pa[1:]])
     if theta0.size * 1 >= 2 * w.size:
@@ -146,11 +171,19 @@ def _to_z(p_w: np.ndarray, c: float) -> np.ndarray:
     plain arrays: the same coefficients without building a ``Polynomial`` per term (the
     transfer-function scan converts ≈ 2 000 models per run).
     """
-    zm1 = np.array([-1.0 / c, 1.0 / c])
     out = np.array([0.0])
     for i, coef in enumerate(p_w):
-        out = npoly.polyadd(out, npoly.polymul(coef, npoly.polypow(zm1, i, _MAX_POWER)))
+        out = npoly.polyadd(out, npoly.polymul(coef, _zm1_power(c, i)))
     return np.asarray(out, dtype=np.float64)
+
+
+@functools.lru_cache(maxsize=64)
+def _zm1_power(c: float, i: int) -> np.ndarray:
+    """``polypow([−1/c, 1/c], i)``: the same for every model of a group (c = ω₀T), kept
+    (read-only: every caller shares it)."""
+    power = npoly.polypow(np.array([-1.0 / c, 1.0 / c]), i, _MAX_POWER)
+    power.flags.writeable = False
+    return power
 
 
 def fit_discrete_tf(f_hz: np.ndarray, h: np.ndarray, n: int, m: int, dt: float,

@@ -35,6 +35,7 @@ from aatest.plugins.analysis._common import (
     select,
     steps_of,
 )
+from aatest.plugins.analysis.tf_bode import bode_svg
 from aatest.plugins.analysis.tf_xcorr import rated_xcorr, watch_xcorr
 from aatest.plugins.analysis.tfest import (
     DiscreteTf,
@@ -42,7 +43,6 @@ from aatest.plugins.analysis.tfest import (
     model_metrics,
     second_order_delay_fit,
 )
-from aatest.presentation.figures import frequency_axis, new_figure, to_svg
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfPoint
 from aatest.results.transfer_function import TransferFunctionResult
@@ -192,22 +192,6 @@ def _pairs(values: np.ndarray) -> list[list[float]]:
     return [[float(v.real), float(v.imag)] for v in np.asarray(values, dtype=complex)]
 
 
-def _bode(f: np.ndarray, h: np.ndarray, model: DiscreteTf, title: str) -> str:
-    grid = np.logspace(-1, np.log10(500.0), 300)
-    fig, ax = new_figure(2, height_in=2.4)
-    resp = model.response(grid)
-    ax[0, 0].semilogx(f, 20 * np.log10(np.abs(h)), "o", ms=3, label="FRF")
-    ax[0, 0].semilogx(grid, 20 * np.log10(np.abs(resp)), "-", lw=0.8, label="model")
-    ax[1, 0].semilogx(f, np.degrees(np.unwrap(np.angle(h))), "o", ms=3)
-    ax[1, 0].semilogx(grid, np.degrees(np.unwrap(np.angle(resp))), "-", lw=0.8)
-    ax[0, 0].set(ylabel="gain / dB", title=title)
-    ax[1, 0].set(xlabel="frequency / Hz", ylabel="phase / °")
-    ax[0, 0].legend(fontsize=6)
-    frequency_axis(ax[0, 0], ax[1, 0])
-    fig.tight_layout()
-    return to_svg(fig)
-
-
 def antialias_response(f_hz: np.ndarray, corner_hz: float | None, order: int = 2) -> np.ndarray:
     """Response of the logger's analogue Butterworth pre-sample filter (1 when unknown)."""
     if not corner_hz:
@@ -277,7 +261,7 @@ def _discrete_model(points: list[FrfPoint], xcorr: tuple[dict[str, float], float
         best["zeros_outside_unit_circle"], "xcorr": xc,
         "continuous": continuous_equivalent(model), "candidates": rows,
     }
-    return values, _bode(f, h, model, f"{sensor.channel} n={best['n']} m={best['m']}")
+    return values, bode_svg(f, h, model, f"{sensor.channel} n={best['n']} m={best['m']}")
 
 
 def _physical_model(points: list[FrfPoint], xcorr: tuple[dict[str, float], float],
