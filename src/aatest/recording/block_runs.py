@@ -21,10 +21,10 @@ once. So the decoded arrays are the same, bit for bit.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -90,8 +90,7 @@ def unpacked(message: Any) -> np.ndarray:
     return _codes(raw, 1, samples, width, bool(message.shuffled) and width > 1).reshape(-1)
 
 
-@dataclass(frozen=True)
-class _Kind:
+class _Kind(NamedTuple):
     """How a block's channel stores its codes: blocks of one kind decode as one array."""
 
     width: int
@@ -103,19 +102,21 @@ class _Kind:
     samples: int
 
 
-@dataclass(frozen=True)
-class Planned:
-    """One block's packed channel, checked and waiting for its batch: its column, its first
-    sample in the column, how its codes are stored and their bytes."""
+class Planned(NamedTuple):
+    """One block's packed channel, checked and waiting for its batch: its first sample in
+    its column, how its codes are stored and their bytes."""
 
-    column: np.ndarray
     start: int
     kind: _Kind
     packed: bytes
 
 
+#: channel name → its planned blocks, in the order they came
+Plans = dict[str, list[Planned]]
+
+
 def plan_block(block: Any, columns: Mapping[str, np.ndarray], size: int, start: int,
-               plans: list[Planned]) -> None:
+               plans: Plans) -> None:
     """Check each kept channel of ``block`` (``size`` samples from ``start`` in its columns)
     and add its packed codes to ``plans``; a channel stored otherwise (float64 ``values``, v2
     varint ``codes``) is decoded and placed at once.
@@ -123,35 +124,33 @@ def plan_block(block: Any, columns: Mapping[str, np.ndarray], size: int, start: 
     Raises
     ------
     ValueError
-        As :func:`~aatest.recording.codec.channel_values` would for the channel alone, or when
-        a channel's sample count or dtype differs from its block's time stamps or columns.
+        As :func:`channel_values` would for the channel alone, or when a channel's sample
+        count or dtype differs from its block's time stamps or columns.
     """
     for message in (block.time, *block.channels):
-        column = columns.get(message.name)
+        name = message.name
+        column = columns.get(name)
         if column is None:
             continue
-        name = message.name
         dtype = checked_dtype(name, message.dtype)
         packed = message.packed
-        codes, values = message.codes, message.values
-        if (len(packed) > 0) + (len(codes) > 0) + (len(values) > 0) > 1:
+        if (len(packed) > 0) + (len(message.codes) > 0) + (len(message.values) > 0) > 1:
             raise ValueError(f"channel {name!r} has more than one of packed, codes, values")
-        into = column[start:start + size]
         if not packed:
-            _place_unpacked(message, dtype, into, block.sequence)
+            _place_unpacked(message, dtype, column[start:start + size], block.sequence)
             continue
-        width = int(message.width)
+        width = message.width
         if width not in WIDTHS or len(packed) % width:
             raise ValueError(f"channel {name!r}: {len(packed)} packed bytes do not "
                              f"make codes of width {width}")
-        if len(packed) // width != size or into.size != size:
+        if len(packed) // width != size or start + size > column.size:
             raise ValueError(f"channel {name!r} has {len(packed) // width} samples in "
                              f"block {block.sequence}, time has {size}")
         if dtype != column.dtype:
             raise ValueError(f"channel {name!r} changes dtype between blocks")
-        kind = _Kind(width, bool(message.shuffled) and width > 1, bool(message.delta),
-                     float(message.quantum), float(message.offset), message.dtype, size)
-        plans.append(Planned(column, start, kind, packed))
+        kind = _Kind(width, message.shuffled and width > 1, message.delta, message.quantum,
+                     message.offset, message.dtype, size)
+        plans.setdefault(name, []).append(Planned(start, kind, packed))
 
 
 def _place_unpacked(message: Any, dtype: np.dtype, into: np.ndarray, sequence: int) -> None:
@@ -165,19 +164,77 @@ def _place_unpacked(message: Any, dtype: np.dtype, into: np.ndarray, sequence: i
     into[...] = values
 
 
-def decode_batch(plans: list[Planned]) -> None:
-    """Decode every planned channel into its column, a run of alike consecutive blocks of
-    a column at a time (module docstring); ``plans`` is emptied."""
-    by_column: dict[int, list[Planned]] = {}
-    for plan in plans:
-        by_column.setdefault(id(plan.column), []).append(plan)
+def decode_batch(plans: Plans, columns: Mapping[str, np.ndarray]) -> None:
+    """Decode every planned channel into its column (module docstring); ``plans`` is emptied.
+
+    A channel's float64 blocks that differ only in their code width are decoded together
+    (:func:`_decode_grid`); any others a run of alike consecutive blocks at a time.
+    """
+    for name, planned in plans.items():
+        column = columns[name]
+        groups: dict[tuple[Any, ...], list[Planned]] = {}
+        for plan in planned:
+            groups.setdefault(plan.kind[2:], []).append(plan)  # all but width and planes
+        for group in groups.values():
+            if not _decode_grid(group, column):
+                _decode_runs(group, column)
     plans.clear()
-    for planned in by_column.values():
-        first = 0
-        for i in range(1, len(planned) + 1):
-            if i == len(planned) or not _continues(planned[i - 1], planned[i]):
-                _decode_run(planned[first:i])
-                first = i
+
+
+def _decode_runs(planned: list[Planned], column: np.ndarray) -> None:
+    """Decode ``planned`` a run of alike consecutive blocks at a time (:func:`_decode_run`)."""
+    first = 0
+    for i in range(1, len(planned) + 1):
+        if i == len(planned) or not _continues(planned[i - 1], planned[i]):
+            _decode_run(planned[first:i], column)
+            first = i
+
+
+def _decode_grid(group: list[Planned], column: np.ndarray) -> bool:
+    """Decode blocks of a float64 channel stored alike but for their widths, which tile a
+    part of ``column`` (in any order), at once: each width's codes converted into their rows,
+    then every row cumulated (:func:`_running_sums`) and scaled together. False, with nothing
+    written, for blocks that do not tile (a damaged log) or need the int64 path."""
+    kind = group[0].kind
+    samples = kind.samples
+    if (kind.dtype != _FLOAT64 or column.dtype != np.float64 or samples == 0
+            or (kind.delta and any(_sum_may_be_inexact(p.kind.width, samples) for p in group))):
+        return False
+    base = min(p.start for p in group)
+    rows = [(p.start - base) // samples for p in group]
+    if (any((p.start - base) % samples for p in group)
+            or sorted(rows) != list(range(len(group)))):
+        return False
+    flat = column[base:base + len(group) * samples]
+    grid = flat.reshape(len(group), samples)
+    if kind.delta and len(group) > 1:
+        _running_sums(group, rows, grid)
+    else:
+        for codes, where in _by_storage(group, rows).values():
+            grid[where] = codes  # the int → float64 conversion astype makes
+        if kind.delta:
+            np.cumsum(grid, axis=1, out=grid)
+    flat *= kind.quantum
+    if not _adds_nothing(kind.quantum, kind.offset):
+        flat += kind.offset
+    return True
+
+
+def _by_storage(group: list[Planned], rows: list[int]
+                ) -> dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]]:
+    """The codes of ``group``'s blocks by (width, byte planes), one row per block, and the
+    rows of the grid (:func:`_decode_grid`) they go to."""
+    parts: dict[tuple[int, bool], list[tuple[int, bytes]]] = {}
+    for plan, row in zip(group, rows, strict=True):
+        parts.setdefault((plan.kind.width, plan.kind.shuffled), []).append((row, plan.packed))
+    samples = group[0].kind.samples
+    out = {}
+    for (width, shuffled), blocks in parts.items():
+        payload = blocks[0][1] if len(blocks) == 1 else b"".join(p for _, p in blocks)
+        codes = _codes(np.frombuffer(payload, dtype=np.uint8), len(blocks), samples, width,
+                       shuffled)
+        out[width, shuffled] = (codes, np.array([row for row, _ in blocks], dtype=np.intp))
+    return out
 
 
 def _continues(before: Planned, after: Planned) -> bool:
@@ -185,26 +242,52 @@ def _continues(before: Planned, after: Planned) -> bool:
     return after.kind == before.kind and after.start == before.start + before.kind.samples
 
 
-def _decode_run(run: list[Planned]) -> None:
-    """Decode consecutive blocks of one kind into their column at once, one row per block."""
+def _decode_run(run: list[Planned], column: np.ndarray) -> None:
+    """Decode consecutive blocks of one kind into their column at once, one row per block,
+    by :func:`channel_values`' int64 path (the kinds :func:`_decode_grid` leaves)."""
     kind = run[0].kind
     rows, samples = len(run), kind.samples
     raw = np.frombuffer(run[0].packed if rows == 1 else b"".join(p.packed for p in run),
                         dtype=np.uint8)
     codes = _codes(raw, rows, samples, kind.width, kind.shuffled)
     start = run[0].start
-    flat = run[0].column[start:start + rows * samples]
-    into = flat.reshape(rows, samples)
-    if (kind.dtype == _FLOAT64 and flat.dtype == np.float64
-            and not (kind.delta and _sum_may_be_inexact(kind.width, samples))):
-        into[...] = codes  # the int → float64 conversion astype makes
-        if kind.delta:
-            np.cumsum(into, axis=1, out=into)  # each row: one block's exact running sums
-        flat *= kind.quantum
-        flat += kind.offset
-        return
+    into = column[start:start + rows * samples].reshape(rows, samples)
     integers = np.cumsum(codes, axis=1, dtype=np.int64) if kind.delta else codes
     into[...] = decode_codes(integers, kind.quantum, kind.offset, np.dtype(kind.dtype))
+
+
+def _running_sums(group: list[Planned], rows: list[int], grid: np.ndarray) -> None:
+    """Each block's running sums of its codes in float64, into its row of ``grid``: two rows
+    at a time, as the real and imaginary parts of one complex128 running sum.
+
+    Why: a running sum waits for the sum before it (≈ 3 ns a sample however it is written
+    in NumPy); a complex sum makes two independent float64 additions in that time, so two
+    blocks are summed for the price of one. The additions are those of a float64 running
+    sum of each row (a complex addition adds the real and the imaginary parts apart), exact
+    for the whole numbers summed here (:func:`_sum_may_be_inexact`).
+    """
+    count, samples = grid.shape
+    pairs = (count + 1) // 2
+    lanes = np.empty((pairs, samples, 2))  # row r: lanes[r // 2, :, r % 2]
+    by_row = lanes.transpose(0, 2, 1)  # (pairs, 2, samples): the rows, as a view
+    if count % 2:
+        by_row[-1, 1] = 0.0  # the odd row's partner: zeros
+    for codes, where in _by_storage(group, rows).values():
+        by_row[where // 2, where % 2] = codes  # int → float64, as astype converts
+    sums = lanes.view(np.complex128)[:, :, 0]
+    np.cumsum(sums, axis=1, out=sums)
+    even = count - count % 2
+    grid[:even].reshape(even // 2, 2, samples)[...] = by_row[:even // 2]
+    if count % 2:
+        grid[-1] = by_row[-1, 0]
+
+
+def _adds_nothing(quantum: float, offset: float) -> bool:
+    """Whether adding ``offset`` to every ``code·quantum`` leaves it as it is, bit for bit:
+    for an offset of +0.0 and a finite quantum > 0, no product is −0.0 (a code is a whole
+    number: 0 gives +0.0, any other at least ``quantum`` in magnitude), and ``x + 0.0`` is
+    ``x`` for any other ``x`` (±inf included)."""
+    return offset == 0.0 and math.copysign(1.0, offset) > 0 and 0.0 < quantum < math.inf
 
 
 def _sum_may_be_inexact(width: int, samples: int) -> bool:

@@ -41,7 +41,7 @@ import numpy as np
 from aatest.engine.logs import SampledLog
 from aatest.recording import proto
 from aatest.recording.block_runs import (
-    Planned,
+    Plans,
     channel_values,
     decode_batch,
     decode_codes,
@@ -174,7 +174,7 @@ def _allocated(first: Any, samples: int, keep: Container[str] | None
 
 
 def _place(block: Any, columns: dict[str, np.ndarray], samples: int, origin: int = 0,
-           plans: list[Planned] | None = None) -> int:
+           plans: Plans | None = None) -> int:
     """Check one block and decode it into ``columns`` at its ``first_sample`` (less
     ``origin``, the first sample ``columns`` hold); return its sample count. ``samples``: the
     log's whole length. ``plans``: add its packed channels there, to be decoded with the
@@ -183,10 +183,10 @@ def _place(block: Any, columns: dict[str, np.ndarray], samples: int, origin: int
     start = int(block.first_sample)
     if start + size > samples:
         raise ValueError(f"has more samples than the {samples} its step record says")
-    pending: list[Planned] = [] if plans is None else plans
+    pending: Plans = {} if plans is None else plans
     plan_block(block, columns, size, start - origin, pending)
     if plans is None:
-        decode_batch(pending)
+        decode_batch(pending, columns)
     return size
 
 
@@ -241,7 +241,7 @@ def blocks_to_log(
     columns = _allocated(first, samples, channels)
     units = {c.name: c.unit for c in first.channels if c.name in columns}
     placed: dict[int, tuple[int, int]] = {}
-    plans: list[Planned] = []
+    plans: Plans = {}
     batched = 0  # samples of the blocks in ``plans``
     for block in chain((first,), stream):
         if [c.name for c in block.channels] != names:
@@ -252,9 +252,9 @@ def blocks_to_log(
         placed[int(block.sequence)] = (int(block.first_sample), size)
         batched += size
         if batched >= _BATCH_SAMPLES:
-            decode_batch(plans)
+            decode_batch(plans, columns)
             batched = 0
-    decode_batch(plans)
+    decode_batch(plans, columns)
     _check_continuity(placed, samples)
     return _as_log(columns, source, sample_rate_hz, units, quantisation, channels)
 
