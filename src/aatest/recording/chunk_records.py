@@ -4,7 +4,8 @@ Why not :func:`mcap.stream_reader.breakup_chunk`: it makes a new zstd context pe
 copies every message out of the decompressed chunk through a ``BytesIO`` (≈ 3 MB a step of
 the stepped sine, then copied again by the protobuf parser). Here the decompressed chunk is
 split in place: each message's ``data`` is a ``memoryview`` into it (the protobuf parser reads
-any buffer), and one zstd context per thread is kept. The checks are those of
+any buffer), one zstd context per thread is kept, and the CRC-32 is ISA-L's (the same
+checksum as zlib's, several times faster). The checks are those of
 ``breakup_chunk(chunk, validate_crc=True)``: the uncompressed data's CRC-32 (when the chunk
 has one) and the records' lengths, which must end exactly at the chunk's end. Chunks that are
 not zstd-compressed are read by ``breakup_chunk`` itself.
@@ -14,10 +15,10 @@ from __future__ import annotations
 
 import struct
 import threading
-import zlib
 from typing import Any
 
 import zstandard
+from isal import isal_zlib
 from mcap.exceptions import EndOfFile, McapError
 from mcap.opcode import Opcode
 from mcap.records import Chunk, Message
@@ -54,7 +55,7 @@ def chunk_messages(chunk: Chunk) -> list[Any]:
         return list(breakup_chunk(chunk, validate_crc=True))
     data = _decompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
     if chunk.uncompressed_crc != 0:
-        crc = zlib.crc32(data)
+        crc = isal_zlib.crc32(data)  # zlib's CRC-32, ≈ 7× faster (≈ 2 ms a step)
         if crc != chunk.uncompressed_crc:
             raise CRCValidationError(expected=chunk.uncompressed_crc, actual=crc, record=chunk)
     return _split(data)
