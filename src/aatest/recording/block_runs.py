@@ -22,7 +22,8 @@ once. So the decoded arrays are the same, bit for bit.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+import threading
+from collections.abc import Iterator, Mapping
 from functools import lru_cache
 from typing import Any, NamedTuple
 
@@ -87,7 +88,8 @@ def unpacked(message: Any) -> np.ndarray:
                          f"make codes of width {width}")
     raw = np.frombuffer(packed, dtype=np.uint8)
     samples = len(packed) // width
-    return _codes(raw, 1, samples, width, bool(message.shuffled) and width > 1).reshape(-1)
+    codes = _codes(raw, 1, samples, width, bool(message.shuffled) and width > 1)
+    return codes.reshape(-1).copy() if message.shuffled and width > 1 else codes.reshape(-1)
 
 
 class _Kind(NamedTuple):
@@ -210,7 +212,7 @@ def _decode_grid(group: list[Planned], column: np.ndarray) -> bool:
     if kind.delta and len(group) > 1:
         _running_sums(group, rows, grid)
     else:
-        for codes, where in _by_storage(group, rows).values():
+        for codes, where in _by_storage(group, rows):
             grid[where] = codes  # the int → float64 conversion astype makes
         if kind.delta:
             np.cumsum(grid, axis=1, out=grid)
@@ -221,20 +223,19 @@ def _decode_grid(group: list[Planned], column: np.ndarray) -> bool:
 
 
 def _by_storage(group: list[Planned], rows: list[int]
-                ) -> dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]]:
+                ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """The codes of ``group``'s blocks by (width, byte planes), one row per block, and the
-    rows of the grid (:func:`_decode_grid`) they go to."""
+    rows of the grid (:func:`_decode_grid`) they go to. A generator: each width's codes are
+    a temporary (:func:`_scratch`), to be used before the next is asked for."""
     parts: dict[tuple[int, bool], list[tuple[int, bytes]]] = {}
     for plan, row in zip(group, rows, strict=True):
         parts.setdefault((plan.kind.width, plan.kind.shuffled), []).append((row, plan.packed))
     samples = group[0].kind.samples
-    out = {}
     for (width, shuffled), blocks in parts.items():
         payload = blocks[0][1] if len(blocks) == 1 else b"".join(p for _, p in blocks)
         codes = _codes(np.frombuffer(payload, dtype=np.uint8), len(blocks), samples, width,
                        shuffled)
-        out[width, shuffled] = (codes, np.array([row for row, _ in blocks], dtype=np.intp))
-    return out
+        yield codes, np.array([row for row, _ in blocks], dtype=np.intp)
 
 
 def _continues(before: Planned, after: Planned) -> bool:
@@ -268,11 +269,11 @@ def _running_sums(group: list[Planned], rows: list[int], grid: np.ndarray) -> No
     """
     count, samples = grid.shape
     pairs = (count + 1) // 2
-    lanes = np.empty((pairs, samples, 2))  # row r: lanes[r // 2, :, r % 2]
+    lanes = _scratch("lanes", (pairs, samples, 2), np.float64)  # row r: lanes[r // 2, :, r % 2]
     by_row = lanes.transpose(0, 2, 1)  # (pairs, 2, samples): the rows, as a view
     if count % 2:
         by_row[-1, 1] = 0.0  # the odd row's partner: zeros
-    for codes, where in _by_storage(group, rows).values():
+    for codes, where in _by_storage(group, rows):
         by_row[where // 2, where % 2] = codes  # int → float64, as astype converts
     sums = lanes.view(np.complex128)[:, :, 0]
     np.cumsum(sums, axis=1, out=sums)
@@ -280,6 +281,29 @@ def _running_sums(group: list[Planned], rows: list[int], grid: np.ndarray) -> No
     grid[:even].reshape(even // 2, 2, samples)[...] = by_row[:even // 2]
     if count % 2:
         grid[-1] = by_row[-1, 0]
+
+
+#: bytes up to which a temporary array is kept for the next decode (:func:`_scratch`)
+_SCRATCH_BYTES = 1 << 23
+_local = threading.local()
+
+
+def _scratch(name: str, shape: tuple[int, ...], dtype: type[np.generic]) -> np.ndarray:
+    """A temporary array for this thread, uninitialised, kept for the next call of ``name``
+    when at most :data:`_SCRATCH_BYTES` (a few MB for good); larger ones are fresh.
+
+    Why: a step's decode needs a temporary of ≈ 1 MB per channel; allocated anew each time,
+    the C library hands such blocks back to the kernel and takes them again, and the page
+    faults cost ≈ a third of the decode's CPU time. The caller must not keep it.
+    """
+    size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    if size > _SCRATCH_BYTES:
+        return np.empty(shape, dtype=dtype)
+    kept: dict[str, np.ndarray] = _local.__dict__.setdefault("scratch", {})
+    buffer = kept.get(name)
+    if buffer is None or buffer.size < size:
+        buffer = kept[name] = np.empty(max(size, 1 << 20), dtype=np.uint8)
+    return buffer[:size].view(dtype).reshape(shape)
 
 
 def _adds_nothing(quantum: float, offset: float) -> bool:
@@ -300,10 +324,11 @@ def _codes(raw: np.ndarray, rows: int, samples: int, width: int, shuffled: bool
            ) -> np.ndarray:
     """The packed integers of ``rows`` blocks of ``samples`` codes each, one row per block
     (byte planes put back together when ``shuffled``: a plane at a time, each a unit-stride
-    read, where a transposed copy of the whole walks rows of 2–8 bytes)."""
+    read, where a transposed copy of the whole walks rows of 2–8 bytes). Put together, they
+    are a temporary (:func:`_scratch`): used before the next call, never kept."""
     if shuffled:
         planes = raw.reshape(rows, width, samples)
-        joined = np.empty((rows, samples, width), dtype=np.uint8)
+        joined = _scratch("planes", (rows, samples, width), np.uint8)
         for byte in range(width):
             joined[:, :, byte] = planes[:, byte, :]
         raw = joined
