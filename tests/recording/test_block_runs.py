@@ -40,9 +40,10 @@ def _width(stored: np.ndarray) -> int:
 
 #: (name, dtype, quantum, offset): an ADC with an offset, a zero offset, a negative quantum
 #: with +0.0 and −0.0 offsets (where −0.0 products must come out as channel_values gives
-#: them), and an integer channel (the int64 path)
+#: them), an integer channel (the int64 path), and +0.0 and −0.0 offsets in turn
 CHANNELS = [("v", "<f8", 20.0 / 2**16, -10.0), ("deg", "<f8", 1 / 3600.0, 0.0),
-            ("neg", "<f8", -0.5, 0.0), ("negz", "<f8", -0.5, -0.0), ("count", "<i4", 1.0, 0.0)]
+            ("neg", "<f8", -0.5, 0.0), ("negz", "<f8", -0.5, -0.0), ("count", "<i4", 1.0, 0.0),
+            ("flip", "<f8", -0.5, float("nan"))]  # offset +0.0 and −0.0 block after block
 
 
 def _blocks(rng: np.random.Generator, sizes: list[int]) -> list[Any]:
@@ -56,6 +57,9 @@ def _blocks(rng: np.random.Generator, sizes: list[int]) -> list[Any]:
             top = int(rng.choice([3, 100, 20_000, 2**20]))
             codes = rng.integers(-top, top, size, endpoint=True)
             delta = bool(rng.integers(2))
+            if name == "flip":  # zero codes (−0.0 products) in blocks alike but for the offset
+                codes, delta = codes % 3 - 1, False
+                offset = -0.0 if sequence % 2 else 0.0  # noqa: PLW2901 - per block
             stored = np.diff(codes, prepend=np.int64(0)) if delta else codes
             block.channels.add().CopyFrom(
                 _channel(name, stored, _width(stored), delta, quantum, offset, dtype))

@@ -6,10 +6,12 @@ channels, so decoding it block by block is ≈ 400 small decodes whose NumPy cal
 bookkeeping cost more than their arithmetic. A block's channel is checked when its block
 arrives (:func:`plan_block`: the same checks and errors, in the same order, as a decode of
 that block alone) and its packed bytes kept; a batch of blocks is then decoded channel by
-channel (:func:`decode_batch`): consecutive blocks whose codes are stored alike (width, byte
-planes, delta, quantum, offset, dtype, length) and which follow each other in the log are
-joined into one array of one row per block, and un-shuffled, cumulated (row by row: each
-block's running sum restarts at its first code) and scaled in one call each.
+channel (:func:`decode_batch`): the blocks of a float64 channel stored alike but for their
+code widths (delta, quantum, offset, dtype, length), which tile a part of the log, are
+decoded as one grid of one row per block: each width's codes joined, un-shuffled and
+converted into their rows at once, then every row cumulated (each block's running sum
+restarts at its first code) and scaled in one call each. Other channels (integers, 8-byte
+deltas) are decoded a run of alike consecutive blocks at a time.
 
 Every value is computed by the operations of the block-by-block decode, in the same order
 per sample (:func:`~aatest.recording.codec.channel_values`, and its float64 shortcut): a
@@ -22,6 +24,7 @@ once. So the decoded arrays are the same, bit for bit.
 from __future__ import annotations
 
 import math
+import struct
 import threading
 from collections.abc import Iterator, Mapping
 from functools import lru_cache
@@ -102,6 +105,9 @@ class _Kind(NamedTuple):
     offset: float
     dtype: str
     samples: int
+    #: ``quantum`` and ``offset`` as bytes: kinds compare equal only when their scaling is
+    #: the same bit for bit (as floats, an offset of −0.0 equals one of +0.0)
+    scale: bytes
 
 
 class Planned(NamedTuple):
@@ -113,6 +119,7 @@ class Planned(NamedTuple):
     packed: bytes
 
 
+_SCALE = struct.Struct("<dd")
 #: channel name → its planned blocks, in the order they came
 Plans = dict[str, list[Planned]]
 
@@ -150,8 +157,9 @@ def plan_block(block: Any, columns: Mapping[str, np.ndarray], size: int, start: 
                              f"block {block.sequence}, time has {size}")
         if dtype != column.dtype:
             raise ValueError(f"channel {name!r} changes dtype between blocks")
-        kind = _Kind(width, message.shuffled and width > 1, message.delta, message.quantum,
-                     message.offset, message.dtype, size)
+        quantum, offset = message.quantum, message.offset
+        kind = _Kind(width, message.shuffled and width > 1, message.delta, quantum, offset,
+                     message.dtype, size, _SCALE.pack(quantum, offset))
         plans.setdefault(name, []).append(Planned(start, kind, packed))
 
 
