@@ -26,7 +26,8 @@ the ``(quantum, offset)`` the logger declared in :attr:`SampledLog.quantisation`
 included), else quantum 1 when every value is a whole number (0/1 pulses stored as float).
 
 The encoder's half (codes, delta choice, widths, byte planes) is
-:mod:`aatest.recording.channel_codes`.
+:mod:`aatest.recording.channel_codes`; the decoder's (a log's blocks decoded a channel and a
+batch of blocks at a time, bit for bit as block by block) :mod:`aatest.recording.block_runs`.
 """
 
 from __future__ import annotations
@@ -160,7 +161,8 @@ def _allocated(first: Any, samples: int, keep: Container[str] | None
     """One empty array per channel (``time_s`` first), ``samples`` long, in its logged dtype.
 
     Laid out from the ``first`` block read (every block must carry the same channels) and
-    filled block by block in place: no per-block arrays to concatenate afterwards.
+    filled in place, a batch of blocks at a time: no per-block arrays to concatenate
+    afterwards.
     """
     columns: dict[str, np.ndarray] = {}
     for message in (first.time, *first.channels):
