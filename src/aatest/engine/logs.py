@@ -75,7 +75,7 @@ class SampledLog:
             arr = arr.copy() if arr.flags.writeable else arr
             arr.flags.writeable = False
             frozen[name] = arr
-        time = time.copy()
+        time = time.copy() if time.flags.writeable else time  # read-only: kept, as channels
         time.flags.writeable = False
         object.__setattr__(self, "time_s", time)
         object.__setattr__(self, "channels", MappingProxyType(frozen))

@@ -26,7 +26,8 @@ the ``(quantum, offset)`` the logger declared in :attr:`SampledLog.quantisation`
 included), else quantum 1 when every value is a whole number (0/1 pulses stored as float).
 
 The encoder's half (codes, delta choice, widths, byte planes) is
-:mod:`aatest.recording.channel_codes`.
+:mod:`aatest.recording.channel_codes`; the decoder's (a log's blocks decoded a channel and a
+batch of blocks at a time, bit for bit as block by block) :mod:`aatest.recording.block_runs`.
 """
 
 from __future__ import annotations
@@ -40,26 +41,24 @@ import numpy as np
 
 from aatest.engine.logs import SampledLog
 from aatest.recording import proto
-from aatest.recording.channel_codes import WIDTHS, ChannelEncoder
+from aatest.recording.block_runs import (
+    Plans,
+    channel_values,
+    decode_batch,
+    decode_codes,
+    plan_block,
+)
+from aatest.recording.channel_codes import ChannelEncoder
 
 TIME_COLUMN = "time_s"
 #: field numbers (proto.py): Channel.values, Channel.packed, SampleBlock.time, .channels
 _TIME_FIELD, _CHANNELS_FIELD = 7, 8
 _ALLOWED_KINDS = "fiub"
-
-
-def decode_codes(codes: np.ndarray, quantum: float, offset: float, dtype: np.dtype) -> np.ndarray:
-    """Physical values of ``codes``: integer dtypes as themselves, floats ``code·quantum + offset``.
-
-    The one formula the writer checks against and every reader must use (float64 arithmetic).
-    ``quantum`` and ``offset`` are in the channel's own unit (V for an ADC, deg for an encoder).
-    """
-    if dtype.kind in "iub":
-        return codes.astype(dtype)
-    values = codes.astype(np.float64)
-    values *= quantum  # in place: the same float64 operations, without temporaries
-    values += offset
-    return values.astype(dtype, copy=False)
+#: samples of the blocks whose codes are decoded together (a step of the stepped sine, 2^17
+#: samples of 32 blocks, in one batch; an hours-long record's 60-s blocks one or two at a time)
+_BATCH_SAMPLES = 1 << 18
+__all__ = ["blocks_to_log", "blocks_to_pieces", "channel_values", "check_dtypes",
+           "decode_codes", "encode_block_pieces", "encode_blocks", "samples_in"]
 
 
 _TIME_KEY, _CHANNELS_KEY = proto.tag(_TIME_FIELD), proto.tag(_CHANNELS_FIELD)
@@ -150,80 +149,6 @@ def encode_block_pieces(
         yield parts, length + len(parts[-1])
 
 
-def channel_values(message: Any) -> tuple[np.ndarray, tuple[float, float] | None]:
-    """One ``Channel`` message → (values in the logged dtype, (quantum, offset) or None).
-
-    Values, quantum and offset are in the channel's own unit (e.g. V, deg, s). Codes may be
-    ``packed`` (v3) or varint ``codes`` (v2); a message holds one of the three kinds.
-    """
-    dtype = np.dtype(message.dtype)
-    if dtype.kind not in _ALLOWED_KINDS or dtype.byteorder == ">":
-        raise ValueError(f"channel {message.name!r} has unsupported dtype {dtype}")
-    packed, codes, values = message.packed, message.codes, message.values
-    if (len(packed) > 0) + (len(codes) > 0) + (len(values) > 0) > 1:
-        raise ValueError(f"channel {message.name!r} has more than one of packed, codes, values")
-    if not packed and not len(codes):
-        return np.array(values, dtype=np.float64).astype(dtype), None
-    quantum = (float(message.quantum), float(message.offset))
-    integers = _unpacked(message) if packed else np.array(codes, dtype=np.int64)
-    if message.delta:
-        integers = np.cumsum(integers, dtype=np.int64)
-    return decode_codes(integers, *quantum, dtype), quantum
-
-
-def _unpacked(message: Any) -> np.ndarray:
-    """The integers of a v3 ``packed`` field, in their stored width (no copy unless shuffled)."""
-    width = int(message.width)
-    packed = message.packed
-    if width not in WIDTHS or len(packed) % width:
-        raise ValueError(f"channel {message.name!r}: {len(packed)} packed bytes do not "
-                         f"make codes of width {width}")
-    raw = np.frombuffer(packed, dtype=np.uint8)
-    if message.shuffled and width > 1:
-        # byte planes → one row of bytes per code, a plane at a time: NumPy copies each plane
-        # with a unit-stride read, where a transposed copy of the whole (3–4× slower) walks
-        # rows of 2–8 bytes
-        planes = raw.reshape(width, -1)
-        rows = np.empty((planes.shape[1], width), dtype=np.uint8)
-        for byte, plane in enumerate(planes):
-            rows[:, byte] = plane
-        raw = rows.reshape(-1)
-    return raw.view(f"<i{width}")
-
-
-def _decoded_into(message: Any, out: np.ndarray) -> bool:
-    """Decode a packed float64 channel straight into ``out`` (float64, its block's samples):
-    :func:`decode_codes` of its codes (cumulated when delta-coded), in place. False, with
-    nothing written, for any other kind of message (:func:`channel_values` decodes it).
-
-    Why: a block's channel is a few thousand samples, so decoding it is mostly per-call
-    overhead; summing the codes straight into the column in float64 and scaling in place
-    makes four NumPy calls of the nine, and no temporaries. The sums are the very ones of
-    the int64 path: every running sum of whole numbers below 2^53 is exact in float64, and
-    codes of ``width`` bytes over a block of fewer than 2^(54 − 8·width) samples cannot
-    reach it (wider codes or longer blocks take the int64 path).
-    """
-    if (not message.packed or out.dtype != np.float64 or message.dtype != _FLOAT64
-            or len(message.codes) or len(message.values)):
-        return False
-    codes = _unpacked(message)
-    if codes.size != out.size:
-        return False
-    if message.delta:
-        if codes.itemsize == WIDTHS[-1] or codes.size >= 1 << (54 - 8 * codes.itemsize):
-            return False
-        np.cumsum(codes, dtype=np.float64, out=out)
-    else:
-        out[...] = codes  # the int → float64 conversion astype makes
-    out *= float(message.quantum)
-    out += float(message.offset)
-    return True
-
-
-#: the dtype string of a float64 channel as the writer stores it
-_FLOAT64 = np.dtype(np.float64).str
-
-
 def samples_in(message: Any) -> int:
     """The number of samples a ``Channel`` message holds (whichever way they are stored)."""
     if message.packed:
@@ -236,7 +161,8 @@ def _allocated(first: Any, samples: int, keep: Container[str] | None
     """One empty array per channel (``time_s`` first), ``samples`` long, in its logged dtype.
 
     Laid out from the ``first`` block read (every block must carry the same channels) and
-    filled block by block in place: no per-block arrays to concatenate afterwards.
+    filled in place, a batch of blocks at a time: no per-block arrays to concatenate
+    afterwards.
     """
     columns: dict[str, np.ndarray] = {}
     for message in (first.time, *first.channels):
@@ -249,27 +175,20 @@ def _allocated(first: Any, samples: int, keep: Container[str] | None
     return columns
 
 
-def _place(block: Any, columns: dict[str, np.ndarray], samples: int, origin: int = 0) -> int:
-    """Decode one block into ``columns`` at its ``first_sample`` (less ``origin``, the first
-    sample ``columns`` hold); return its sample count. ``samples``: the log's whole length."""
+def _place(block: Any, columns: dict[str, np.ndarray], samples: int, origin: int = 0,
+           plans: Plans | None = None) -> int:
+    """Check one block and decode it into ``columns`` at its ``first_sample`` (less
+    ``origin``, the first sample ``columns`` hold); return its sample count. ``samples``: the
+    log's whole length. ``plans``: add its packed channels there, to be decoded with the
+    blocks after it (:func:`~aatest.recording.block_runs.decode_batch`); None: decode now."""
     size = samples_in(block.time)
     start = int(block.first_sample)
     if start + size > samples:
         raise ValueError(f"has more samples than the {samples} its step record says")
-    for message in (block.time, *block.channels):
-        column = columns.get(message.name)
-        if column is None:
-            continue
-        into = column[start - origin:start - origin + size]
-        if into.size == size and _decoded_into(message, into):
-            continue
-        values, _ = channel_values(message)
-        if values.size != size:
-            raise ValueError(f"channel {message.name!r} has {values.size} samples in "
-                             f"block {block.sequence}, time has {size}")
-        if values.dtype != column.dtype:
-            raise ValueError(f"channel {message.name!r} changes dtype between blocks")
-        into[...] = values
+    pending: Plans = {} if plans is None else plans
+    plan_block(block, columns, size, start - origin, pending)
+    if plans is None:
+        decode_batch(pending, columns)
     return size
 
 
@@ -297,9 +216,11 @@ def blocks_to_log(
 ) -> SampledLog:
     """Rebuild one step's :class:`SampledLog` from its decoded ``SampleBlock`` messages.
 
-    ``blocks`` may be any iterable (a generator reading the file): each block is decoded into
-    preallocated columns at its ``first_sample`` and can be dropped at once, so memory holds the
-    decoded columns and one block, never every block of an hours-long record. Order and
+    ``blocks`` may be any iterable (a generator reading the file): each block is checked as it
+    comes and can be dropped at once; its packed codes wait for the next few blocks (up to
+    :data:`_BATCH_SAMPLES` samples) and are decoded with them into preallocated columns at
+    their ``first_sample`` (:mod:`aatest.recording.block_runs`). So memory holds the decoded
+    columns and a few blocks' codes, never every block of an hours-long record. Order and
     continuity are checked once all blocks are placed.
 
     ``sample_rate_hz`` is the logger's nominal rate in Hz, ``samples`` the count the step record
@@ -322,12 +243,20 @@ def blocks_to_log(
     columns = _allocated(first, samples, channels)
     units = {c.name: c.unit for c in first.channels if c.name in columns}
     placed: dict[int, tuple[int, int]] = {}
+    plans: Plans = {}
+    batched = 0  # samples of the blocks in ``plans``
     for block in chain((first,), stream):
         if [c.name for c in block.channels] != names:
             raise ValueError(f"block {block.sequence} does not continue the log")
         if block.sequence in placed:
             raise ValueError(f"block sequence number {block.sequence} is repeated")
-        placed[int(block.sequence)] = (int(block.first_sample), _place(block, columns, samples))
+        size = _place(block, columns, samples, plans=plans)
+        placed[int(block.sequence)] = (int(block.first_sample), size)
+        batched += size
+        if batched >= _BATCH_SAMPLES:
+            decode_batch(plans, columns)
+            batched = 0
+    decode_batch(plans, columns)
     _check_continuity(placed, samples)
     return _as_log(columns, source, sample_rate_hz, units, quantisation, channels)
 

@@ -20,13 +20,13 @@ from typing import Any
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
 from mcap.records import Chunk, Message
-from mcap.stream_reader import breakup_chunk
 
 from aatest.engine.errors import RecordingError
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
 from aatest.recording import codec, legacy_v1, proto
 from aatest.recording import format as fmt
+from aatest.recording.chunk_records import chunk_messages
 from aatest.recording.dataset import Dataset, LazySteps, SensorInfo
 from aatest.recording.writer import (
     RECORDING_NAME,
@@ -240,9 +240,10 @@ class _StepChunks:
 
     @staticmethod
     def read_chunk(stream: Any, index: Any) -> list[Any]:
-        """The records of one chunk, its CRC checked (flipped bits must not pass)."""
+        """The message records of one chunk, its CRC checked (flipped bits must not pass);
+        their ``data`` are views into the decompressed chunk (:mod:`.chunk_records`)."""
         stream.seek(index.chunk_start_offset + 1 + 8)  # opcode and record length
-        return list(breakup_chunk(Chunk.read(ReadDataStream(stream)), validate_crc=True))
+        return chunk_messages(Chunk.read(ReadDataStream(stream)))
 
 
 def chunks_overlapping(summary: Any, channel_ids: Collection[int], low_ns: int, high_ns: int
@@ -342,7 +343,7 @@ def _decode_v1(
     if expected and expected != hashlib.sha256(schema.data).hexdigest():
         raise RecordingError(f"{where}: schema is corrupt (checksum mismatch)")
     parts = sorted(
-        (message.sequence, message.data)
+        (message.sequence, bytes(message.data))
         for _, _, message in reader.iter_messages(topics=[channel.topic], log_time_order=False)
     )
     samples = meta.get("samples")

@@ -28,11 +28,11 @@ from __future__ import annotations
 
 import hashlib
 import struct
-import zlib
 from collections.abc import Collection
 from pathlib import Path
 from typing import IO, Any
 
+from zlib_ng.zlib_ng import crc32
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
 from mcap.records import Metadata
@@ -85,5 +85,5 @@ def _digest(stream: IO[bytes], summary: Any, values: dict[str, str]) -> str:
         for index in chunks_overlapping(summary, {fmt.CHANNEL_IDS[source]}, span[0], span[1]):
             stream.seek(index.chunk_start_offset)
             raw = stream.read(index.chunk_length)
-            digest.update(struct.pack("<QI", len(raw), zlib.crc32(raw)))
+            digest.update(struct.pack("<QI", len(raw), crc32(raw)))  # zlib's CRC-32
     return digest.hexdigest()
