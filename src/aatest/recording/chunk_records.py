@@ -18,11 +18,11 @@ import threading
 from typing import Any
 
 import zstandard
-from zlib_ng.zlib_ng import crc32
 from mcap.exceptions import EndOfFile, McapError
 from mcap.opcode import Opcode
 from mcap.records import Chunk, Message
 from mcap.stream_reader import CRCValidationError, breakup_chunk
+from zlib_ng.zlib_ng import crc32
 
 #: a record's opcode and length; a message record's channel id, sequence, log and publish time
 _RECORD_HEAD = struct.Struct("<BQ")

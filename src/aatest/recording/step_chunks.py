@@ -32,10 +32,10 @@ from collections.abc import Collection
 from pathlib import Path
 from typing import IO, Any
 
-from zlib_ng.zlib_ng import crc32
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
 from mcap.records import Metadata
+from zlib_ng.zlib_ng import crc32
 
 from aatest.engine.errors import RecordingError
 from aatest.recording import format as fmt
