@@ -69,8 +69,12 @@ from aatest.engine.run.events import AutoResponder, RunEvents
 from aatest.engine.run.rig import build_rig
 from aatest.engine.run.run_state import open_state
 from aatest.engine.run.runner import procedure_sha256, run_metadata, run_plan
-from aatest.parallel.forked import cpu_workers
 from aatest.recording import RECORDING_NAME, RunRecorder
+
+try:
+    from aatest.parallel.forked import cpu_workers
+except ImportError:  # a checkout from before aatest.parallel (--compare)
+    from aatest.engine.forked import cpu_workers  # type: ignore[no-redef,import-not-found]
 
 PROCEDURE = Path(__file__).resolve().parents[1] / "src/aatest/procedures" \
     / "stepped-sine-frequency-response.yaml"
@@ -166,8 +170,11 @@ def _early_analysis(prepared: Any, recorder: Any) -> contextlib.AbstractContextM
     checkout without it, or with ``AATEST_EARLY_ANALYSIS=0``)."""
     try:
         from aatest.early.analysis import early_analysis
-    except ImportError:
-        return contextlib.nullcontext(_NoEarly(recorder))
+    except ImportError:  # a checkout from before aatest.early (--compare)
+        try:
+            from aatest.engine.run.early_analysis import early_analysis  # type: ignore[no-redef,import-not-found]
+        except ImportError:
+            return contextlib.nullcontext(_NoEarly(recorder))
     return early_analysis(prepared.plan, recorder, prepared.envelope)
 
 
