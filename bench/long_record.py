@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -119,8 +120,13 @@ def _measured(phase: Callable[[Path, Path], None], first: Path, second: Path) ->
 
 
 def _child(*args: str) -> dict[str, float]:
-    done = subprocess.run([sys.executable, __file__, "--child", *args], check=True,
-                          capture_output=True, text=True)
+    """Run one phase in a fresh process; its failure ends the bench with the phase's own
+    error (the last lines it wrote), not a bare exit status."""
+    done = subprocess.run([sys.executable, __file__, "--child", *args],
+                          check=False, capture_output=True, text=True)
+    if done.returncode != 0:
+        tail = "\n".join(done.stderr.strip().splitlines()[-5:])
+        raise SystemExit(f"the {args[0]} phase failed (exit {done.returncode}):\n{tail}")
     return dict(json.loads(done.stdout.strip().splitlines()[-1]))
 
 
@@ -139,6 +145,15 @@ def main() -> None:
         return
     root = args.keep or Path(tempfile.mkdtemp(prefix="aatest-long-"))
     root.mkdir(parents=True, exist_ok=True)
+    try:
+        _bench(args, root)
+    finally:  # an 8 h run leaves GBs: only --keep keeps them
+        if args.keep is None:
+            shutil.rmtree(root, ignore_errors=True)
+
+
+def _bench(args: argparse.Namespace, root: Path) -> None:
+    """Record, analyse and run each record length under ``root``; print the table."""
     print(f"{'record':>8} {'lab s':>8} {'phase':>8} {'wall s':>8} {'lab/wall':>9} "
           f"{'peak MB':>12} {'recording MB':>13}")
     drifts = []
