@@ -4,6 +4,7 @@ that step of the merged recording, taken only where the recorded bytes are the s
 from __future__ import annotations
 
 import logging
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -80,3 +81,30 @@ def test_a_step_recorded_again_after_the_child_read_it_is_computed_again(
     assert early.offered == 2
     assert "sync pass: 2 of 3 steps taken" in caplog.text
     assert taken == plain
+
+
+def test_a_taken_steps_warnings_are_raised_where_the_pass_takes_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # the pass computing a step would have warned; taking the child's result must too
+    from aatest.plugins.analysis.sync import SyncAnalysis
+
+    real = SyncAnalysis.early_step
+
+    def warning_early_step(data: Any, index: int) -> Any:
+        warnings.warn(f"step {index} looks odd", RuntimeWarning, stacklevel=1)
+        return real(data, index)
+
+    monkeypatch.setattr(SyncAnalysis, "early_step", staticmethod(warning_early_step))
+    with pinned():
+        recorder, steps = _record(tmp_path)
+        early = _made(recorder, steps)
+        recorder.finalize()
+        assert [[w.message for w in m.warned] for m in early.made.values()] == [
+            ["step 0 looks odd"], ["step 1 looks odd"], ["step 2 looks odd"]]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            early.offer(read_dataset(tmp_path))
+    assert early.offered == 3
+    assert [(w.category, str(w.message)) for w in caught] == [
+        (RuntimeWarning, f"step {i} looks odd") for i in range(3)]
+    assert {Path(w.filename).name for w in caught} == {Path(__file__).name}  # where raised

@@ -14,7 +14,8 @@ ones the child decoded (:mod:`aatest.recording.step_chunks`) and whose plan, sen
 analyses are the ones it watched for; every other step (missing, mismatched, failed, not yet
 reached when the record phase ended — the child is then ended at once —, a resumed run's
 earlier steps, a child that died) is computed in the pass as without it. Errors in the child
-never fail the run.
+never fail the run; the warnings a taken step's analyses raised there are raised again when
+the pass takes it, as the pass computing the step would have raised them.
 
 Not sent: streamed steps (long static records, analysed piece by piece), and nothing at all
 when the plan has no step to send or ``AATEST_EARLY_ANALYSIS=0`` (then the run is the same as
@@ -38,6 +39,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -45,7 +47,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from aatest.early.made import DRAIN, Made, context_digest
+from aatest.early.made import DRAIN, Made, Warned, context_digest
 from aatest.engine.procedure.envelope import streams_record
 from aatest.engine.steps import Plan, PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
@@ -101,8 +103,21 @@ class EarlyResults:
             if all(callable(take) for take, _ in takes):
                 for take, result in takes:
                     take(data, index, result)  # type: ignore[misc] # checked just above
+                _warn_again(made.warned)
                 offered += 1
         return offered
+
+
+def _warn_again(warned: Sequence[Warned]) -> None:
+    """Raise the warnings a taken step's analysis raised in the child, as from where they were
+    raised (the run's filters decide, as for the pass's own). A class this process has not
+    imported is raised as :class:`UserWarning`: nothing is imported for the child."""
+    for w in warned:
+        module, _, name = w.category.rpartition(".")
+        found = getattr(sys.modules.get(module), name, None)
+        category = found if isinstance(found, type) and issubclass(found, Warning) \
+            else UserWarning
+        warnings.warn_explicit(w.message, category, w.filename, w.lineno)
 
 
 def enabled() -> bool:

@@ -20,7 +20,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from aatest.early.made import DRAIN, Made, context_digest
+from aatest.early.made import DRAIN, Made, Warned, context_digest
 from aatest.engine.steps import PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
 
@@ -28,7 +28,9 @@ from aatest.recording.dataset import Dataset, LazySteps
 def main(argv: Sequence[str]) -> None:
     """The child's entry (``argv``: the descriptors of its inbox and outbox pipes)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it reaps this one
-    warnings.simplefilter("ignore")  # the pass reports what a step's analysis warns about
+    # outside a step's analyses (imports, reading its file): theirs are recorded per step
+    # (_Child._analyse) and raised again where the pass takes the step
+    warnings.simplefilter("ignore")
     logging.disable(logging.CRITICAL)
     inbox = Connection(int(argv[0]), writable=False)
     outbox = Connection(int(argv[1]), readable=False)
@@ -101,9 +103,14 @@ class _Child:
         index = self._index[step_id]
         data = _one_step_view(base, single.steps, index)
         watched = register_watches(data, list(data.metadata.get("analysis", [])))
-        results = {p.name: p.cls.early_step(data, index) for p in watched.plugins
-                   if callable(getattr(p.cls, "early_step", None)) and p.cls().applies_to(data)}
-        return Made(digest, self._context, results)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")  # each one; the run's filters judge them again
+            results = {p.name: p.cls.early_step(data, index) for p in watched.plugins
+                       if callable(getattr(p.cls, "early_step", None))
+                       and p.cls().applies_to(data)}
+        warned = tuple(Warned(f"{w.category.__module__}.{w.category.__qualname__}",
+                              str(w.message), w.filename, w.lineno) for w in caught)
+        return Made(digest, self._context, results, warned)
 
     def _first(self, single: Dataset) -> Dataset:
         """The plan's recorded steps, sensors and sample rate, as the recording will state

@@ -20,6 +20,19 @@ DRAIN = "drain"
 
 
 @dataclass(frozen=True)
+class Warned:
+    """A warning a step's analysis raised in the child, raised again where the pass takes
+    that step (the pass computing the step itself would have raised it there)."""
+
+    #: the warning's class, ``module.QualName`` (e.g. ``builtins.RuntimeWarning``)
+    category: str
+    message: str
+    #: the source file and line that raised it (what the warning filters match and print)
+    filename: str
+    lineno: int
+
+
+@dataclass(frozen=True)
 class Made:
     """One step as the child analysed it."""
 
@@ -29,6 +42,8 @@ class Made:
     context: str
     #: each plugin's ``early_step`` result, by plugin name
     results: dict[str, Any]
+    #: the warnings those ``early_step`` calls raised, in order
+    warned: tuple[Warned, ...] = ()
 
 
 def context_digest(data: Dataset) -> str:
