@@ -7,7 +7,7 @@ from numpy.testing import assert_allclose
 from twin_steps import static_step
 
 from aatest.twin.api import realistic_rig_model, simulate_step
-from aatest.twin.synthesis import SimulatedStep
+from aatest.twin.step_setup import SimulatedStep
 
 
 def rising_rows(pulse: np.ndarray) -> np.ndarray:

@@ -15,10 +15,11 @@ from twin_steps import rate_step, sine_step, static_step
 
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.twin import step_synthesis, synthesis, table_log
+from aatest.twin import step_synthesis, table_log
 from aatest.twin.defaults import realistic_rig_model
+from aatest.twin.step_setup import LazyTruth, StepSetup
 from aatest.twin.step_synthesis import synthesise
-from aatest.twin.synthesis import StepSetup, _daq_log
+from aatest.twin.synthesis import _daq_log
 from aatest.twin.table_log import table_log_with_truth
 from aatest.twin.world import World
 
@@ -43,7 +44,7 @@ STEPS = [sine_step(7.0, 400.0, samples=4096), sine_step(0.7, 50.0, samples=4096,
          static_step(samples=4096), rate_step(20.0, samples=4096)]
 
 
-def _serial(setup: StepSetup) -> tuple[SampledLog, dict, SampledLog, synthesis.LazyTruth]:
+def _serial(setup: StepSetup) -> tuple[SampledLog, dict, SampledLog, LazyTruth]:
     rng = np.random.default_rng(5)
     table, table_truth = table_log_with_truth(setup, rng)  # first the table log, then the DAQ log
     return table, table_truth, *_daq_log(setup, rng, np.random.default_rng(6))

@@ -9,7 +9,7 @@ from ruamel.yaml import YAML
 
 from aatest.engine.steps import PlannedStep
 from aatest.twin.model import RigModel, load_rig_model, model_document
-from aatest.twin.synthesis import SimulatedStep
+from aatest.twin.step_setup import SimulatedStep
 
 FS_HZ = 2000.0
 

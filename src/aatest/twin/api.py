@@ -16,7 +16,7 @@ from aatest.engine.steps import PlannedStep
 from aatest.recording.dataset import Dataset, SensorInfo, StepData
 from aatest.twin.defaults import realistic_rig_model
 from aatest.twin.model import DaqModel, RigModel, SensorModel, TableModel, UnitModel
-from aatest.twin.synthesis import SimulatedStep
+from aatest.twin.step_setup import SimulatedStep
 from aatest.twin.world import World
 
 __all__ = ["SimulatedStep", "World", "nominal_rig_model", "realistic_rig_model", "run_step",

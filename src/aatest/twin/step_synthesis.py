@@ -29,11 +29,10 @@ import numpy as np
 
 from aatest.engine.logs import SampledLog
 from aatest.twin.drawn_ahead import DrawsDiffer, UniformTape
+from aatest.twin.rigid_motion import outer_part
+from aatest.twin.step_setup import LazyTruth, SimulatedStep, StepSetup
 from aatest.twin.synthesis import (
     BlockAhead,
-    LazyTruth,
-    SimulatedStep,
-    StepSetup,
     _block_grid,
     _daq_log,
     _daq_samples,
@@ -41,7 +40,6 @@ from aatest.twin.synthesis import (
     floor_rocking_block,
     floor_uniforms,
     generation_block,
-    outer_part,
     record_uniforms,
     stamp_uniforms,
 )

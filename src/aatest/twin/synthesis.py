@@ -14,115 +14,39 @@ last block is returned (no thread outlives a record, so the analysis may fork af
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
 
 import numpy as np
 from scipy import signal
 
 from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
-from aatest.engine.steps import PlannedStep
-from aatest.twin import kinematics as kin
-from aatest.twin.chamber import ThermalState
 from aatest.twin.clocks import TIMESTAMP_TICK_S, DaqClock
 from aatest.twin.daq import antialias_filter, noiseless, quantise_adc
 from aatest.twin.drawn_ahead import normal_uniforms
 from aatest.twin.fastmath import standard_normal
-from aatest.twin.grid import Grid, sincos_deg
-from aatest.twin.model import DaqModel, RigModel, SensorModel, TableModel
+from aatest.twin.grid import Grid
+from aatest.twin.model import DaqModel, SensorModel, TableModel
+from aatest.twin.rigid_motion import (
+    OuterPart,
+    RigidBlock,
+    rigid_block,
+    sensor_delay_s,
+    top_motion,
+    top_rate,
+    with_floor,
+)
 from aatest.twin.sensor import (
     ChannelState,
     SensorInputs,
-    dynamics_filter,
-    lowpass,
     lowpass_carry,
     output_volts,
 )
-from aatest.twin.table import AxisTruth
+from aatest.twin.step_setup import LazyTruth, StepSetup, read_only
 from aatest.twin.table import _band_filter as band_filter
-
-
-@dataclass(frozen=True)
-class StepSetup:
-    """Everything the World knows about one recorded step when the DAQ starts."""
-
-    model: RigModel
-    step: PlannedStep
-    inner: AxisTruth
-    outer: AxisTruth
-    clock: DaqClock
-    thermal: ThermalState
-    #: channel → sensor axes (columns x, y, z) in table-top coordinates
-    axes: dict[str, np.ndarray]
-    stop_lag_s: float
-
-    @property
-    def gimbal(self) -> kin.GimbalErrors:
-        return kin.GimbalErrors(self.model.table.orthogonality_arcsec,
-                                self.model.table.wobble_arcsec)
-
-    @property
-    def trigger_index(self) -> int:
-        return round(self.model.daq.start_lead_s * self.clock.sample_rate_hz)
-
-    @property
-    def trigger_time_s(self) -> float:
-        """Lab time of the trigger = first table log sample."""
-        return float(self.clock.lab_time(self.trigger_index / self.clock.sample_rate_hz))
-
-
-class LazyTruth(Mapping[str, Any]):
-    """The truth of a step; expensive entries (noise-free volts, undelayed sensor-axis
-    acceleration) are computed on first access, so plugins that never look pay nothing.
-
-    Deferred computations receive the mapping as their argument instead of closing over it:
-    a closure cycle would keep whole records alive until a full garbage collection.
-    """
-
-    def __init__(self, **values: Any) -> None:
-        self._values: dict[str, Any] = dict(values)
-        self._deferred: dict[str, Callable[[LazyTruth], Any]] = {}
-
-    def defer(self, key: str, compute: Callable[[LazyTruth], Any]) -> None:
-        self._deferred[key] = compute
-
-    def __setitem__(self, key: str, value: Any) -> None:
-        self._values[key] = value
-
-    def update(self, other: Mapping[str, Any]) -> None:
-        self._values.update(other)
-
-    def __getitem__(self, key: str) -> Any:
-        if key not in self._values and key in self._deferred:
-            self._values[key] = self._deferred.pop(key)(self)
-        return self._values[key]
-
-    def __iter__(self) -> Iterator[str]:
-        yield from list(self._values) + [k for k in self._deferred if k not in self._values]
-
-    def __len__(self) -> int:
-        return len(set(self._values) | set(self._deferred))
-
-
-@dataclass(frozen=True)
-class SimulatedStep:
-    """Both logs of one step and the truth behind them (see :func:`synthesise`)."""
-
-    table: SampledLog
-    daq: SampledLog
-    truth: LazyTruth
-
-
-def read_only(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Hand fresh arrays to the (immutable) log without the defensive copy it makes of
-    writeable ones; nothing else holds them for writing."""
-    for values in channels.values():
-        values.flags.writeable = False
-    return channels
 
 
 def _daq_samples(setup: StepSetup) -> int:
@@ -131,123 +55,6 @@ def _daq_samples(setup: StepSetup) -> int:
     table_span_daq_s = step.samples / step.sample_rate_hz / clock.scale
     lag = setup.stop_lag_s
     return setup.trigger_index + int(np.ceil((table_span_daq_s + lag) * clock.sample_rate_hz))
-
-
-#: the table top's motion on one grid before the floor's rocking is added: (α_top (3, n)
-#: °/s², up (3, n) g, (sin, cos) of the inner angle, (sin, cos) of the outer angle)
-TopMotion = tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray],
-                  tuple[np.ndarray, np.ndarray]]
-
-
-def _top_motion(setup: StepSetup, grid: Grid,
-                floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(α_top (3, n) °/s², up (3, n) g) of the table top on a lab-time grid, incl. parasitics
-    and the floor's rocking ``floor`` (2, n) about the lab's horizontal axes."""
-    return _with_floor(_rigid_motion(setup, grid), floor)
-
-
-def _with_floor(motion: TopMotion, floor: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Add the floor's rocking to a :func:`_rigid_motion` (its α array, in place)."""
-    alpha, up, sc_i, sc_o = motion
-    if floor is not None:
-        alpha += kin.lab_horizontal_top(sc_i, sc_o, floor)
-    return alpha, up
-
-
-#: the outer axis on one grid: ((angle °, rate °/s, acceleration °/s²), (sin, cos) of the angle)
-OuterAxis = tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
-
-
-def _outer_axis(setup: StepSetup, grid: Grid) -> OuterAxis:
-    """The outer axis' share of :func:`_rigid_motion` (thread-safe: reads ``setup`` only)."""
-    evaluated = setup.outer.evaluate(grid)
-    profile = setup.outer.profile
-    return evaluated, sincos_deg(evaluated[0], profile.moving, profile.start_deg)
-
-
-def _rigid_motion(setup: StepSetup, grid: Grid,
-                  outer: Callable[[], OuterAxis] | None = None) -> TopMotion:
-    """The table top's motion without the floor's rocking: every term that draws nothing at
-    random, so it can be computed before (or while) the random streams are drawn. ``outer``
-    gives the outer axis' share when another thread computes it (asked after the inner's)."""
-    th_i, w_i, a_i = setup.inner.evaluate(grid)
-    sc_i = sincos_deg(th_i, setup.inner.profile.moving, setup.inner.profile.start_deg)
-    (_, w_o, a_o), sc_o = outer() if outer is not None else _outer_axis(setup, grid)
-    alpha = kin.angular_acceleration_top(sc_i, w_i, a_i, w_o, a_o, setup.gimbal)
-    table = setup.model.table
-    if table.unbalance_parasitic_dps2_per_dps2 and setup.outer.profile.moving:
-        # unbalanced payload: the outer axis' acceleration (incl. its ripple and motor band)
-        # leaks into motion about the inner-base P axis through the controller's correction,
-        # a resonance near 35 Hz: ≈k at low frequency, peaks in the motor band
-        b, a = dynamics_filter(table.unbalance_resonance_hz, table.unbalance_damping,
-                               round(grid.dt_s, 15))
-        leak = table.unbalance_parasitic_dps2_per_dps2 * lowpass(a_o, b, a)
-        alpha[0] += leak * sc_i[1]
-        alpha[1] -= leak * sc_i[0]
-    return alpha, kin.gravity_top(sc_i, sc_o, setup.gimbal), sc_i, sc_o
-
-
-def _sensor_delay_s(model: RigModel, sensor: SensorModel) -> float:
-    """How late a sensor channel sees the motion (its own delay and the logger's timing
-    error, s): its motion is evaluated at t − delay."""
-    delay = sensor.time_delay.delay_s if sensor.time_delay is not None else 0.0
-    if model.daq.logger_error is not None:  # the logger's own timing error (drawn)
-        delay += model.daq.logger_error.timing_offset_s
-    return delay
-
-
-@dataclass(frozen=True)
-class _RigidBlock:
-    """What a DAQ generation block needs that draws nothing at random: the sensor
-    temperature and, per sensor delay, the rigid motion of the table top."""
-
-    temperature_c: np.ndarray
-    motion: dict[float, TopMotion]
-
-
-@dataclass(frozen=True)
-class OuterPart:
-    """The share of a block's :class:`_RigidBlock` another thread can compute while this one
-    computes the inner axis: per sensor delay the outer axis, and the sensor temperature."""
-
-    outer: dict[float, OuterAxis]
-    temperature_c: np.ndarray
-
-
-def _delays(setup: StepSetup) -> list[float]:
-    """The distinct sensor delays (s) of the rig, in sensor order."""
-    return list(dict.fromkeys(_sensor_delay_s(setup.model, s) for s in setup.model.sensors))
-
-
-def outer_part(setup: StepSetup, grid: Grid) -> OuterPart:
-    """:class:`OuterPart` of a block on the lab-time ``grid`` (thread-safe)."""
-    return OuterPart({d: _outer_axis(setup, grid.shifted(-d)) for d in _delays(setup)},
-                     setup.thermal.temperature_at(grid.times))
-
-
-def _rigid_block(setup: StepSetup, grid: Grid,
-                 part: Future[OuterPart] | None = None) -> _RigidBlock:
-    """:class:`_RigidBlock` of one generation block (thread-safe: reads ``setup`` only);
-    ``part``: its :class:`OuterPart`, being computed on another thread."""
-    if part is None:
-        part = Future()
-        part.set_result(outer_part(setup, grid))
-    motion = {delay: _rigid_motion(setup, grid.shifted(-delay), partial(_outer_of, part, delay))
-              for delay in _delays(setup)}  # (the floor noise is not re-timed by the tiny delays)
-    return _RigidBlock(part.result().temperature_c, motion)
-
-
-def _outer_of(part: Future[OuterPart], delay: float) -> OuterAxis:
-    return part.result().outer[delay]
-
-
-def _top_rate(setup: StepSetup, grid: Grid) -> np.ndarray:
-    """Angular velocity (3, n) °/s of the table top on a lab-time grid (``rotor_stiction``
-    gates on it; the floor's rocking, ≪ 0.01 °/s, is left out)."""
-    th_i, w_i, _ = setup.inner.evaluate(grid)
-    _, w_o, _ = setup.outer.evaluate(grid)
-    sc_i = sincos_deg(th_i, setup.inner.profile.moving, setup.inner.profile.start_deg)
-    return kin.angular_rate_top(sc_i, w_i, w_o, setup.gimbal)
 
 
 #: records longer than this are generated in blocks of :data:`GENERATION_BLOCK` samples
@@ -335,13 +142,13 @@ def daq_blocks(setup: StepSetup, rng: np.random.Generator, truth: LazyTruth | No
 
 
 def _rigid_soon(pool: ThreadPoolExecutor | None, setup: StepSetup, first: int, m: int,
-                part: Future[OuterPart] | None = None) -> Future[_RigidBlock]:
-    """:func:`_rigid_block` of DAQ samples ``first``… on ``pool``, or now without one."""
+                part: Future[OuterPart] | None = None) -> Future[RigidBlock]:
+    """:func:`rigid_block` of DAQ samples ``first``… on ``pool``, or now without one."""
     grid = _block_grid(setup.clock, first, m)
     if pool is not None:
-        return pool.submit(_rigid_block, setup, grid)
-    done: Future[_RigidBlock] = Future()
-    done.set_result(_rigid_block(setup, grid, part))
+        return pool.submit(rigid_block, setup, grid)
+    done: Future[RigidBlock] = Future()
+    done.set_result(rigid_block(setup, grid, part))
     return done
 
 
@@ -363,7 +170,7 @@ class BlockAhead:
 
 
 def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generator,
-               state: _DaqState, truth: LazyTruth | None, rigid: _RigidBlock,
+               state: _DaqState, truth: LazyTruth | None, rigid: RigidBlock,
                ahead: BlockAhead | None = None) -> dict[str, np.ndarray]:
     """Channels of one generation block starting at DAQ sample ``first``."""
     model, clock = setup.model, setup.clock
@@ -373,11 +180,11 @@ def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generato
     floor, state.floor_zi = (ahead.floor.result() if ahead is not None else floor_rocking_block(
         model.table, grid.n, clock.lab_dt_s, rng, state.floor_zi))
     for sensor in model.sensors:
-        delay = _sensor_delay_s(model, sensor)
+        delay = sensor_delay_s(model, sensor)
         if delay not in motion:
-            motion[delay] = _with_floor(rigid.motion[delay], floor)
+            motion[delay] = with_floor(rigid.motion[delay], floor)
         alpha, up = motion[delay]
-        rate = (_top_rate(setup, grid.shifted(-delay)) if sensor.rotor_stiction is not None
+        rate = (top_rate(setup, grid.shifted(-delay)) if sensor.rotor_stiction is not None
                 else None)
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s,
                            grid.times - setup.trigger_time_s, rate)
@@ -509,5 +316,5 @@ def concatenate_logs(blocks: list[SampledLog]) -> SampledLog:
 def _undelayed(setup: StepSetup, grid: Grid, motion: dict[float, tuple[np.ndarray, np.ndarray]],
                floor: np.ndarray | None) -> np.ndarray:
     if 0.0 not in motion:
-        motion[0.0] = _top_motion(setup, grid, floor)
+        motion[0.0] = top_motion(setup, grid, floor)
     return motion[0.0][0]

@@ -17,7 +17,7 @@ from aatest.engine.logs import TABLE, TABLE_CHANNELS, SampledLog
 from aatest.twin.clocks import table_sync
 from aatest.twin.drawn_ahead import normal_uniforms
 from aatest.twin.grid import Grid
-from aatest.twin.synthesis import StepSetup, read_only
+from aatest.twin.step_setup import StepSetup, read_only
 from aatest.twin.table import STENCIL_PAD, estimate_quanta, estimates
 
 

@@ -25,11 +25,10 @@ from aatest.twin.clocks import DaqClock
 from aatest.twin.grid import Grid
 from aatest.twin.model import RigModel
 from aatest.twin.profiles import AxisProfile, step_profiles
+from aatest.twin.step_setup import SimulatedStep, StepSetup
 from aatest.twin.step_synthesis import synthesise
 from aatest.twin.synthesis import (
     SINGLE_BLOCK_MAX,
-    SimulatedStep,
-    StepSetup,
     concatenate_logs,
     daq_blocks,
     daq_record_samples,
