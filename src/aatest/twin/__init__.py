@@ -16,7 +16,10 @@ Where each part lives (data flows top to bottom):
                   registration one cycle late with ``fp_latch_s``
 - ``chamber``     set-point steps, first-order sensor lag, stabilisation
 - ``grid`` / ``fastmath``  uniform-grid phasors, fast trig and noise (the benchmark's budget)
-- ``synthesis``   one step's DAQ log, rigid motion and truth, all vectorised
+- ``step_setup``  one step's record: what the World knows when the DAQ starts, what synthesis
+                  returns (its truth computed on first access)
+- ``rigid_motion`` the table top's motion on a grid: every term that draws nothing at random
+- ``synthesis``   one step's DAQ log and truth, in generation blocks, all vectorised
 - ``table_log``   one step's table controller log (estimates, sync pulse) and its truth
 - ``step_synthesis`` / ``drawn_ahead``  a step's pieces on two threads, every number drawn
                   in the serial order (uniforms drawn ahead onto tapes)
