@@ -32,9 +32,10 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-#: code widths (bytes) of format v3 (:data:`aatest.recording.channel_codes.WIDTHS`)
-WIDTHS = (1, 2, 4, 8)
-_ALLOWED_KINDS = "fiub"
+from aatest.recording.channel_codes import WIDTHS
+
+#: the dtype kinds a block's channel may have (floats, signed and unsigned integers, bools)
+ALLOWED_KINDS = "fiub"
 #: the dtype string of a float64 channel as the writer stores it
 _FLOAT64 = np.dtype(np.float64).str
 
@@ -58,7 +59,7 @@ def checked_dtype(name: str, dtype_str: str) -> np.dtype:
     """The dtype a ``Channel`` names, refused when a block cannot carry it (memoised: a run
     has a few)."""
     dtype = np.dtype(dtype_str)
-    if dtype.kind not in _ALLOWED_KINDS or dtype.byteorder == ">":
+    if dtype.kind not in ALLOWED_KINDS or dtype.byteorder == ">":
         raise ValueError(f"channel {name!r} has unsupported dtype {dtype}")
     return dtype
 

@@ -42,8 +42,10 @@ import numpy as np
 from aatest.engine.logs import SampledLog
 from aatest.recording import proto
 from aatest.recording.block_runs import (
+    ALLOWED_KINDS,
     Plans,
     channel_values,
+    checked_dtype,
     decode_batch,
     decode_codes,
     plan_block,
@@ -53,7 +55,6 @@ from aatest.recording.channel_codes import ChannelEncoder
 TIME_COLUMN = "time_s"
 #: field numbers (proto.py): Channel.values, Channel.packed, SampleBlock.time, .channels
 _TIME_FIELD, _CHANNELS_FIELD = 7, 8
-_ALLOWED_KINDS = "fiub"
 #: samples of the blocks whose codes are decoded together (a step of the stepped sine, 2^17
 #: samples of 32 blocks, in one batch; an hours-long record's 60-s blocks one or two at a time)
 _BATCH_SAMPLES = 1 << 18
@@ -67,7 +68,7 @@ _TIME_KEY, _CHANNELS_KEY = proto.tag(_TIME_FIELD), proto.tag(_CHANNELS_FIELD)
 def check_dtypes(log: SampledLog) -> None:
     """Refuse channels a block cannot carry (complex, strings, objects)."""
     for name, values in log.channels.items():
-        if values.dtype.kind not in _ALLOWED_KINDS:
+        if values.dtype.kind not in ALLOWED_KINDS:
             raise TypeError(f"channel {name!r} has unsupported dtype {values.dtype}")
     if TIME_COLUMN in log.channels:
         raise ValueError(f"{log.source} log has a channel named {TIME_COLUMN!r}")
@@ -168,10 +169,8 @@ def _allocated(first: Any, samples: int, keep: Container[str] | None
     for message in (first.time, *first.channels):
         if keep is not None and message.name != TIME_COLUMN and message.name not in keep:
             continue
-        dtype = np.dtype(message.dtype)
-        if dtype.kind not in _ALLOWED_KINDS or dtype.byteorder == ">":
-            raise ValueError(f"channel {message.name!r} has unsupported dtype {dtype}")
-        columns[message.name] = np.empty(samples, dtype=dtype)
+        columns[message.name] = np.empty(samples, dtype=checked_dtype(message.name,
+                                                                      message.dtype))
     return columns
 
 
