@@ -2,7 +2,8 @@
 
 The ``--compare`` modes of the benches time a baseline checkout and this one side by side:
 each round is a fresh interpreter whose ``PYTHONPATH`` starts with that checkout's ``src``,
-and the child prints one JSON document as its last line.
+and the child prints one JSON document as its last line. :func:`leaves` lays two such
+outputs side by side, value by value.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import json
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -26,3 +28,16 @@ def child_json(script: str, src: Path | None, argv: list[str], label: str) -> di
     if proc.returncode != 0:
         raise SystemExit(f"{label} on {src or 'this checkout'} failed:\n{proc.stderr}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def leaves(value: Any, path: str = "") -> Iterator[tuple[str, Any]]:
+    """Every leaf of a nested output (dicts, lists, tuples) with its path (``.a.b[3]``): what
+    two checkouts' outputs are compared by."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield from leaves(item, f"{path}.{key}")
+    elif isinstance(value, list | tuple):
+        for i, item in enumerate(value):
+            yield from leaves(item, f"{path}[{i}]")
+    else:
+        yield path, value

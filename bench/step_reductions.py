@@ -27,11 +27,10 @@ import pickle
 import statistics
 import tempfile
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from child_run import child_json  # bench/ is the script's directory, hence on sys.path
+from child_run import child_json, leaves  # bench/ (the script's directory) is on sys.path
 
 from aatest.engine import registry
 from aatest.recording import read_dataset
@@ -108,20 +107,9 @@ def _plain(x: Any) -> Any:
     return x
 
 
-def _numbers(x: Any, path: str = "") -> Iterator[tuple[str, Any]]:
-    if isinstance(x, dict):
-        for k, v in x.items():
-            yield from _numbers(v, f"{path}/{k}")
-    elif isinstance(x, list):
-        for k, v in enumerate(x):
-            yield from _numbers(v, f"{path}[{k}]")
-    else:
-        yield path, x
-
-
 def largest_change(a: Any, b: Any) -> tuple[float, str, int]:
     """The largest relative difference of two dumps' numbers, where, and how many differ."""
-    na, nb = dict(_numbers(a)), dict(_numbers(b))
+    na, nb = dict(leaves(a)), dict(leaves(b))
     if na.keys() != nb.keys():
         return math.inf, f"keys differ: {sorted(na.keys() ^ nb.keys())[:3]}", -1
     worst, where, count = 0.0, "", 0

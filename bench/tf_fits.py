@@ -36,7 +36,7 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from child_run import child_json  # bench/ is the script's directory, hence on sys.path
+from child_run import child_json, leaves  # bench/ (the script's directory) is on sys.path
 
 #: the captured inputs: sensor_models' arguments, the steps reduced to their planned steps and
 #: each group's cross-correlation by (channel, step ids)
@@ -115,17 +115,10 @@ def _warm_matplotlib() -> None:
     to_svg(fig)
 
 
-def _numbers(value: Any, path: str = "") -> dict[str, float]:
+def _numbers(value: Any) -> dict[str, float]:
     """Every number of a (nested) result by its path."""
-    if isinstance(value, dict):
-        return {k: v for key, item in value.items() for k, v in
-                _numbers(item, f"{path}.{key}").items()}
-    if isinstance(value, list | tuple):
-        return {k: v for i, item in enumerate(value) for k, v in
-                _numbers(item, f"{path}[{i}]").items()}
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return {}
-    return {path: float(value)}
+    return {path: float(leaf) for path, leaf in leaves(value)
+            if isinstance(leaf, int | float) and not isinstance(leaf, bool)}
 
 
 def differences(base: Any, this: Any) -> list[str]:
