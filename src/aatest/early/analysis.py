@@ -32,9 +32,11 @@ a pipe from this child only (nothing is ever unpickled from a file). It is alway
 from __future__ import annotations
 
 import contextlib
+import inspect
 import logging
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -47,7 +49,8 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from aatest.early.made import DRAIN, Made, Warned, context_digest
+from aatest.early import handover
+from aatest.early.made import DRAIN, Fitted, Made, StepSent, Warned, context_digest
 from aatest.engine.procedure.envelope import streams_record
 from aatest.engine.steps import Plan, PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
@@ -60,6 +63,10 @@ EARLY_ENV = "AATEST_EARLY_ANALYSIS"
 NICENESS = 10
 #: how long a drain may take (s)
 DRAIN_S = 600.0
+#: handed segments the child may hold at once (sent, its result not back yet): one it
+#: analyses (whose arrays a decode would allocate too) and one queued, so memory grows by about
+#: one step's logs; a step beyond is sent without (the child decodes it)
+MAX_HANDED = 2
 #: the child's program: the module imported under its own name (its records unpickle here)
 _CHILD_MAIN = "import sys; from aatest.early.child import main; main(sys.argv[1:])"
 
@@ -150,16 +157,27 @@ class EarlyAnalysis:
     def __init__(self) -> None:
         to_child, self._inbox_fd = os.pipe()
         self._outbox_fd, from_child = os.pipe()
+        self._segments, child_segments = _segment_sockets()
+        parent_ends = (self._inbox_fd, self._outbox_fd,
+                       *((self._segments.fileno(),) if self._segments is not None else ()))
         try:
-            self._process = _start_child(to_child, from_child,
-                                         (self._inbox_fd, self._outbox_fd))
+            self._process = _start_child(to_child, from_child, parent_ends,
+                                         child_segments.fileno()
+                                         if child_segments is not None else None)
         except BaseException:
             os.close(self._inbox_fd)
             os.close(self._outbox_fd)
+            if self._segments is not None:
+                self._segments.close()
             raise
         finally:
             os.close(to_child)  # the child's ends: its exit then closes the pipe for the reader
             os.close(from_child)
+            if child_segments is not None:
+                child_segments.close()
+        self._lock = threading.Lock()  # the writer thread and the step loop both send
+        #: handed steps whose result has not come back (:data:`MAX_HANDED`)
+        self._handed: set[str] = set()
         _lower_priority(self._process.pid)
         self._inbox = Connection(self._inbox_fd, readable=False)
         self._outbox = Connection(self._outbox_fd, writable=False)
@@ -174,11 +192,45 @@ class EarlyAnalysis:
         """The child's process id (:mod:`aatest.early.child` runs there)."""
         return self._process.pid
 
-    def send(self, step_id: str, path: Path) -> None:
-        """Queue a complete step file (a dead child is no error: the pass computes it)."""
-        self._send((step_id, str(path)))
+    def send(self, step_id: str, path: Path, handed: tuple[handover.Handed, int] | None = None
+             ) -> None:
+        """Queue a complete step file (a dead child is no error: the pass computes it).
+
+        ``handed``: its logs in a memory file (the layout and the descriptor, closed here):
+        the descriptor goes over the socket first, then the message naming it.
+        """
+        try:
+            with self._lock:
+                told = None
+                if handed is not None and self._segments is not None:
+                    try:
+                        socket.send_fds(self._segments, [step_id.encode("utf-8")], [handed[1]])
+                    except OSError:  # a full socket, a dead child: decoded instead
+                        pass
+                    else:
+                        told = handed[0]
+                        self._handed.add(step_id)
+                self._send_locked(StepSent(step_id, str(path), told))
+        finally:
+            if handed is not None:
+                os.close(handed[1])  # a queued or mapped descriptor keeps the memory
+
+    def may_hand(self) -> bool:
+        """Whether a step's logs may be handed now (fewer than :data:`MAX_HANDED` out)."""
+        with self._lock:
+            return self._segments is not None and len(self._handed) < MAX_HANDED \
+                and not self._closed
+
+    def fitted(self, step_id: str, relation: Any) -> None:
+        """Tell the child the clock relation the run-time check fitted on the step's logs."""
+        with self._lock:
+            self._send_locked(Fitted(step_id, relation))
 
     def _send(self, message: Any) -> None:
+        with self._lock:
+            self._send_locked(message)
+
+    def _send_locked(self, message: Any) -> None:
         with contextlib.suppress(OSError, ValueError):
             self._inbox.send(message)
 
@@ -188,6 +240,8 @@ class EarlyAnalysis:
                 step_id, made = self._outbox.recv()
             except Exception:  # noqa: BLE001 - the pipe's end (a child ended mid-message too)
                 return
+            with self._lock:
+                self._handed.discard(step_id)
             if made is not None:
                 self._made[step_id] = made
 
@@ -217,6 +271,8 @@ class EarlyAnalysis:
         self._process.wait()
         self._reader.join()
         self._outbox.close()
+        if self._segments is not None:
+            self._segments.close()  # the child is gone: queued descriptors are freed with it
 
 
 class _Forked:
@@ -260,8 +316,22 @@ class _Forked:
                 os.kill(self.pid, signal.SIGKILL)
 
 
-def _start_child(to_child: int, from_child: int, parent_ends: tuple[int, ...]
-                 ) -> subprocess.Popen[bytes] | _Forked:
+def _segment_sockets() -> tuple[socket.socket | None, socket.socket | None]:
+    """The run's and the child's ends of the socket handed segments' descriptors go over
+    (None, None where memory files or descriptor passing do not exist: nothing is handed).
+    The run's end never blocks: a step whose descriptor does not fit is decoded instead."""
+    if not hasattr(os, "memfd_create") or not hasattr(socket, "send_fds"):
+        return None, None
+    try:
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    except OSError:
+        return None, None
+    ours.setblocking(False)
+    return ours, theirs
+
+
+def _start_child(to_child: int, from_child: int, parent_ends: tuple[int, ...],
+                 segments: int | None = None) -> subprocess.Popen[bytes] | _Forked:
     """Start the child: forked when this process runs no other thread, else a new interpreter.
 
     Why fork when it is safe: the child then starts with the analysis plugins this process
@@ -271,18 +341,19 @@ def _start_child(to_child: int, from_child: int, parent_ends: tuple[int, ...]
     then (and where fork does not exist) it is a fresh interpreter (``subprocess``), which
     imports only aatest, not this process's main module.
     """
+    fds = (to_child, from_child, *((segments,) if segments is not None else ()))
     if hasattr(os, "fork") and threading.active_count() == 1:
         pid = os.fork()
         if pid == 0:  # the child: never returns
-            _forked_main(to_child, from_child, parent_ends)
+            _forked_main(fds, parent_ends)
         return _Forked(pid)
     return subprocess.Popen(
-        [sys.executable, "-c", _CHILD_MAIN, str(to_child), str(from_child)],
-        pass_fds=(to_child, from_child), stdin=subprocess.DEVNULL,
+        [sys.executable, "-c", _CHILD_MAIN, *map(str, fds)],
+        pass_fds=fds, stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, close_fds=True)
 
 
-def _forked_main(to_child: int, from_child: int, parent_ends: tuple[int, ...]) -> None:
+def _forked_main(fds: tuple[int, ...], parent_ends: tuple[int, ...]) -> None:
     """The forked child's whole life: serve, then ``os._exit`` (never the parent's exit
     handlers, nor a second flush of the parent's buffered output)."""
     code = 1
@@ -291,7 +362,7 @@ def _forked_main(to_child: int, from_child: int, parent_ends: tuple[int, ...]) -
             os.close(fd)
         from aatest.early.child import main
 
-        main([str(to_child), str(from_child)])
+        main([str(fd) for fd in fds])
         code = 0
     finally:
         os._exit(code)
@@ -309,21 +380,59 @@ def _lower_priority(pid: int | None) -> None:
 
 class _Notifying:
     """The run's recorder, sending each step file to the child once it is written (after the
-    atomic rename: the file is complete). Every other attribute is the recorder's."""
+    atomic rename: the file is complete), with the step's logs in shared memory when the child
+    may take them (:mod:`aatest.early.handover`), and the clock relation the run-time check
+    fitted (:meth:`step_checked`). Every other attribute is the recorder's."""
 
     def __init__(self, recorder: Any, early: EarlyAnalysis, steps: Sequence[PlannedStep]
                  ) -> None:
         self._recorder, self._early = recorder, early
         self._ids = {s.id for s in steps}
+        self._hands = "coded" in inspect.signature(recorder.write_step).parameters
 
     def write_step(self, step: PlannedStep, *args: Any, **kwargs: Any) -> Any:
-        path = self._recorder.write_step(step, *args, **kwargs)
-        if step.id in self._ids:
-            self._early.send(step.id, Path(path))
+        if step.id not in self._ids:
+            return self._recorder.write_step(step, *args, **kwargs)
+        logs = [*args[:2]] or [kwargs.get("table"), kwargs.get("daq")]
+        hands = self._hands and self._early.may_hand() and "coded" not in kwargs \
+            and all(log is not None for log in logs)
+        coded: dict[str, dict[str, list[bool]]] = {}
+        path = self._recorder.write_step(step, *args, **kwargs, **(
+            {"coded": coded} if hands else {}))
+        self._early.send(step.id, Path(path),
+                         _handed(step.id, Path(path), logs, coded) if hands else None)
         return path
+
+    def step_checked(self, step: PlannedStep, relation: Any) -> None:
+        """The run-time check's clock relation of a step just recorded, for the child."""
+        if step.id in self._ids and relation is not None:
+            self._early.fitted(step.id, relation)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._recorder, name)
+
+
+def _handed(step_id: str, path: Path, logs: Sequence[Any], coded: Any
+            ) -> tuple[handover.Handed, int] | None:
+    """The step's logs in a memory file as a decode of ``path`` gives them, with the digest
+    of the bytes just written there (:mod:`aatest.recording.step_chunks`: what the pass
+    checks ``recording.mcap`` against, so it holds for the handed arrays); None when that
+    fails (the child decodes the file)."""
+    from aatest.recording import format as fmt
+    from aatest.recording.step_chunks import step_digests
+
+    try:
+        fd, layouts, size, exact = handover.fill(logs, coded, fmt.BLOCK_SAMPLES)
+    except Exception as exc:  # noqa: BLE001 - the child decodes the step file instead
+        log.debug("step %s not handed over: %s", step_id, exc)
+        return None
+    try:
+        digest = step_digests(path, only={step_id})[step_id]
+    except Exception as exc:  # noqa: BLE001 - as above
+        os.close(fd)
+        log.debug("step %s not handed over: %s", step_id, exc)
+        return None
+    return handover.Handed(digest, size, fmt.BLOCK_SAMPLES, layouts, exact), fd
 
 
 @dataclass

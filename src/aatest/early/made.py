@@ -13,10 +13,30 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
+from aatest.early.handover import Handed
 from aatest.recording.dataset import Dataset
 
 #: the message asking the child to finish every step sent, then end (tests)
 DRAIN = "drain"
+
+
+@dataclass(frozen=True)
+class StepSent:
+    """A step file for the child; ``handed``: its logs come in shared memory too (the
+    segment's descriptor is on the socket, sent just before this message), else None."""
+
+    step_id: str
+    path: str
+    handed: Handed | None = None
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """The clock relation the run-time check fitted on a step's logged arrays (see
+    :attr:`Handed.relation_inputs_exact` for when it is the child's own)."""
+
+    step_id: str
+    relation: Any
 
 
 @dataclass(frozen=True)
@@ -36,7 +56,8 @@ class Warned:
 class Made:
     """One step as the child analysed it."""
 
-    #: :func:`~aatest.recording.step_chunks.step_digests` of the step file it decoded
+    #: :func:`~aatest.recording.step_chunks.step_digests` of the step file it decoded, or
+    #: (a handed step) of the file the run process wrote the handed arrays to
     digest: str
     #: :func:`context_digest` of the dataset it registered the watches on
     context: str

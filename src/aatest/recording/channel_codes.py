@@ -350,6 +350,11 @@ class ChannelEncoder:
         # an offset of −0.0 for 0.0, equal keys, and they serialise apart)
         self._packed_heads = _packed_heads(channel, self._head, _FLOAT_PAIR.pack(*step_offset))
 
+    @property
+    def exact_blocks(self) -> list[bool]:
+        """Per block: whether it is stored as codes (True) or as float64 values."""
+        return list(self._exact)
+
     def _add_pass(self, found: _Coded, part: _Pass) -> None:
         """Keep one pass's verdicts, choices and byte planes."""
         exact = found.exact.tolist()

@@ -114,12 +114,17 @@ def encode_blocks(
 def encode_block_pieces(
     log: SampledLog, header: Mapping[str, object], block_samples: int, log_times_ns: list[int],
     first_sequence: int = 0, first_sample: int = 0,
+    coded: dict[str, list[bool]] | None = None,
 ) -> Iterator[tuple[list[Any], int]]:
     """:func:`encode_blocks`, each message as consecutive byte-like pieces (bytes and uint8
     arrays) with its length in bytes: a writer joins the pieces of a whole MCAP chunk at once,
     so the samples are copied once into the chunk, not into each message first.
 
     ``log_times_ns`` holds each block's MCAP log time in nanoseconds (UTC), one per block.
+    ``coded``: filled with each channel's (``time_s`` included) per-block verdict, True where
+    the block is stored as codes (its decode then gives +0.0 for a logged −0.0, the one bit
+    a code cannot carry), False where as float64 values (bit for bit); what a reader of the
+    logged arrays needs to hold exactly the decoded ones (:mod:`aatest.early.handover`).
     """
     check_dtypes(log)
     blocks = -(-len(log) // block_samples)
@@ -133,6 +138,10 @@ def encode_block_pieces(
     time = ChannelEncoder(TIME_COLUMN, "s", log.time_s, declared.get(TIME_COLUMN), starts)
     channels = [ChannelEncoder(name, str(log.units.get(name, "")), values, declared.get(name),
                                 starts) for name, values in log.channels.items()]
+    if coded is not None:
+        coded |= {TIME_COLUMN: time.exact_blocks,
+                  **{name: c.exact_blocks for name, c in zip(log.channels, channels,
+                                                             strict=True)}}
     before, after = _header_parts(header)
     block_type = proto.block_class()
     # each channel's fields block by block (a generator per channel)

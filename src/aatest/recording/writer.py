@@ -101,15 +101,17 @@ def _check_index(index: int) -> None:
 
 
 def _write_log(
-    writer: ChunkedWriter, header: dict[str, Any], log: SampledLog, times_ns: list[int]
+    writer: ChunkedWriter, header: dict[str, Any], log: SampledLog, times_ns: list[int],
+    coded: dict[str, list[bool]] | None = None,
 ) -> None:
-    """Add one logger's sample blocks of a step, in chunks of about :data:`CHUNK_BYTES`."""
+    """Add one logger's sample blocks of a step, in chunks of about :data:`CHUNK_BYTES`
+    (``coded``: see :func:`~aatest.recording.codec.encode_block_pieces`)."""
     cid = fmt.CHANNEL_IDS[log.source]
     pending: list[tuple[int, int, list[Any], int]] = []
     size = 0
     blocks = codec.encode_block_pieces(log, {**header, "source": log.source,
                                              "sample_rate_hz": float(log.sample_rate_hz)},
-                                       fmt.BLOCK_SAMPLES, times_ns)
+                                       fmt.BLOCK_SAMPLES, times_ns, coded=coded)
     for seq, (t_ns, (pieces, length)) in enumerate(zip(times_ns, blocks, strict=True)):
         pending.append((t_ns, seq, pieces, length))
         size += length
@@ -197,11 +199,14 @@ def write_step_file(
     logs: tuple[SampledLog, SampledLog],
     extra: dict[str, Any] | None = None,
     run_values: dict[str, str] | None = None,
+    coded: dict[str, dict[str, list[bool]]] | None = None,
 ) -> None:
     """Write one self-contained step recording (run metadata, step metadata, both logs).
 
     ``run_values``: ``fmt.json_values(run_meta)`` if the caller has it already (the run
     metadata holds the whole plan: encoding it for every step costs ≈ 1 ms a step).
+    ``coded``: filled by logger (``table``, ``daq``) with which blocks of each channel are
+    stored as codes (:func:`~aatest.recording.codec.encode_block_pieces`).
     """
     _check_index(index)
     for log, source in zip(logs, fmt.CHANNEL_IDS, strict=True):
@@ -219,7 +224,8 @@ def write_step_file(
     header = {"step_id": step.id, "step_index": index,
               "step_record_sha256": fmt.record_digest(record)}
     for log, times_ns in timed.values():
-        _write_log(writer, header, log, times_ns)
+        _write_log(writer, header, log, times_ns,
+                   None if coded is None else coded.setdefault(log.source, {}))
     for log in logs:
         _write_preview(writer, log, index, origin_ns)
     writer.finish()
@@ -373,17 +379,19 @@ class RunRecorder:
         daq: SampledLog,
         extra: dict[str, Any] | None = None,
         index: int | None = None,
+        coded: dict[str, dict[str, list[bool]]] | None = None,
     ) -> Path:
         """Write one completed step atomically; return its file.
 
         ``index`` (1-based plan position) defaults to the step's position in the run
         metadata's ``plan``, else to the next free number. Re-writing a step replaces it.
+        ``coded``: see :func:`write_step_file`.
         """
         path, index = self._step_path(step, index)
         meta = self._run_meta or {"format": fmt.FORMAT, "aatest_version": aatest.__version__}
         values = self._run_values(meta)
         atomic_write(path, lambda s: write_step_file(s, meta, step, index, (table, daq), extra,
-                                                     values))
+                                                     values, coded))
         self._completed(step.id, path, index)
         return path
 

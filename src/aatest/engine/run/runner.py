@@ -177,13 +177,14 @@ def execute_step(rig: Rig, step: PlannedStep) -> tuple[Any, Any]:
     return table, daq
 
 
-def check_step_sync(step: PlannedStep, table: SampledLog, daq: SampledLog) -> None:
+def check_step_sync(step: PlannedStep, table: SampledLog, daq: SampledLog) -> Any:
     """Fail the run at a step whose loggers cannot be synchronised, not after the whole run.
 
     Cheap: the installed ``sync`` analysis (its ``check_step``) reads the pulses, the trigger
     and the time stamps only (no channel is resampled). The step is already handed to the
     recorder (data is never lost). Found through its entry point like every analysis, so the
-    engine does not depend on the synchronisation package.
+    engine does not depend on the synchronisation package. Returns what ``check_step``
+    returns (the shipped one: the step's clock relation; None without a check).
 
     Raises
     ------
@@ -194,12 +195,21 @@ def check_step_sync(step: PlannedStep, table: SampledLog, daq: SampledLog) -> No
 
     check = getattr(registry.load("analysis", "sync").target, "check_step", None)
     if check is None:  # a replacement sync analysis without the run-time check
-        return
+        return None
     try:
-        check(StepData(step=step, table=table, daq=daq))
+        return check(StepData(step=step, table=table, daq=daq))
     except AnalysisError as exc:
         raise RigFault(f"{exc} — the loggers cannot be synchronised (checked as the step was "
                        f"recorded; the step is kept in the recording)") from exc
+
+
+def _checked(recorder: Any, step: PlannedStep, checked: Any) -> None:
+    """Hand what the run-time check returned to a recorder that takes it (``step_checked``:
+    :mod:`aatest.early.analysis` passes the step's clock relation to its child, which then
+    does not fit it again)."""
+    step_checked = getattr(recorder, "step_checked", None)
+    if step_checked is not None:
+        step_checked(step, checked)
 
 
 def _syncs(plan: Plan, table: SampledLog, daq: SampledLog) -> bool:
@@ -358,7 +368,7 @@ def run_plan(
                     events.abort.check()  # aborted while recording: the step is not kept
                     writes.submit(step, table, daq)
                     if _syncs(plan, table, daq):
-                        check_step_sync(step, table, daq)
+                        _checked(recorder, step, check_step_sync(step, table, daq))
                 state.save(run_dir)
                 progress.end(step)
                 events.observer.step_finished(step)

@@ -25,13 +25,18 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from aatest.clocksync.freeze_pulse import SyncedStep, clock_relation
+from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relation
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis.sync_summary import Related, joint_drift, summarise, sync_figure
 from aatest.plugins.analysis.sync_trend import narrowed_by_trend, watch_trends
-from aatest.plugins.analysis.sync_watches import SYNC_CHANNELS, SyncedWatch, watch_synced
+from aatest.plugins.analysis.sync_watches import (
+    SYNC_CHANNELS,
+    SyncedWatch,
+    known_relation,
+    watch_synced,
+)
 from aatest.plugins.analysis.synced_steps import SyncedSteps, attempt, offer, relations
 from aatest.recording.dataset import Dataset, LazySteps, StepData
 from aatest.results.sync import SyncResult
@@ -65,10 +70,11 @@ class SyncAnalysis:
     Options: ClassVar[type[NoOptions]] = NoOptions
 
     @staticmethod
-    def check_step(step: StepData) -> None:
+    def check_step(step: StepData) -> ClockRelation:
         """The run's check of one step as it is recorded: its clock relation can be fitted
-        (pulses, trigger and time stamps only), else :class:`AnalysisError`."""
-        clock_relation(step)
+        (pulses, trigger and time stamps only), else :class:`AnalysisError`. Returns it
+        (the early analysis takes it instead of fitting it again: :mod:`aatest.early`)."""
+        return clock_relation(step)
     Result: ClassVar[type[SyncResult]] = SyncResult
 
     @staticmethod
@@ -82,6 +88,13 @@ class SyncAnalysis:
             return None
         watch_trends(data)  # as run() registers it before the pass
         return attempt(steps, index)
+
+    @staticmethod
+    def known_relation(data: Dataset, step_id: str, relation: ClockRelation) -> None:
+        """Have the pass's watches on ``data`` synchronise step ``step_id`` with ``relation``,
+        the clock relation of the very arrays they will read, instead of fitting it
+        (:func:`~aatest.plugins.analysis.sync_watches.known_relation`)."""
+        known_relation(data, step_id, relation)
 
     @staticmethod
     def take_early(data: Dataset, index: int, found: Any) -> None:

@@ -13,7 +13,12 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 from weakref import WeakKeyDictionary
 
-from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, fit_and_synchronise
+from aatest.clocksync.freeze_pulse import (
+    ClockRelation,
+    SyncedStep,
+    fit_and_synchronise,
+    synchronise,
+)
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.step_spectra import shared
 from aatest.recording.dataset import Dataset, LazySteps, StepData, StepWatch
@@ -73,6 +78,8 @@ class _Watches:
 
     def __init__(self) -> None:
         self.watches: dict[str, SyncedWatch] = {}
+        #: clock relations already fitted on a step's data, by step id (:func:`known_relation`)
+        self.known: dict[str, ClockRelation] = {}
 
     def _due(self, step: PlannedStep) -> list[tuple[str, SyncedWatch]]:
         return [(n, w) for n, w in self.watches.items() if step.recorded and w.applies(step)]
@@ -87,7 +94,8 @@ class _Watches:
         return bool(self._due(step))
 
     def reduce(self, raw: StepData) -> Synchronised:
-        synced = fit_and_synchronise(raw)
+        known = self.known.pop(raw.step.id, None)
+        synced = fit_and_synchronise(raw) if known is None else synchronise(raw, known)
         done = Synchronised(synced.relation)
         with shared():  # the watches read the same records: each transformed once
             for name, watch in self._due(raw.step):
@@ -115,6 +123,18 @@ def watch_synced(data: Dataset, name: str, watch: SyncedWatch) -> None:
         watches = _REGISTERED[steps] = _Watches()
         steps.watch(_Watches.name, StepWatch(watches.channels, watches.applies, watches.reduce))
     _REGISTERED[steps].watches.setdefault(name, watch)
+
+
+def known_relation(data: Dataset, step_id: str, relation: ClockRelation) -> None:
+    """Have the synced watches synchronise step ``step_id`` with ``relation`` instead of
+    fitting it: the :func:`~aatest.clocksync.freeze_pulse.clock_relation` of the very arrays
+    they will read, fitted elsewhere (the run-time check, :mod:`aatest.early.child`), so the
+    same relation and synchronised step (``synchronise`` with the relation is
+    ``fit_and_synchronise``, its fit skipped). Used once; nothing when no watch is
+    registered on ``data``'s steps."""
+    watches = _REGISTERED.get(data.steps) if isinstance(data.steps, LazySteps) else None
+    if watches is not None:
+        watches.known[step_id] = relation
 
 
 def synchronised_of(steps: Sequence[StepData], index: int) -> Synchronised | None:
