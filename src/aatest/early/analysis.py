@@ -5,12 +5,19 @@ rig's critical path runs on one), while the analysis pass that follows spends mo
 on work that depends on one step alone: decoding it, fitting its clock relation, resampling it
 and the watched per-step reductions (FRF points, cross-correlations, evidence, temperatures).
 So ``aatest run`` starts one child process at the start of the record phase, at a lower CPU
-priority (it takes what the rig leaves), hands it each step file as soon as it is written, and
+priority (it takes what the rig leaves), hands it each step file as soon as it is written —
+with what the run process already has: the step's logs in shared memory, as a decode of the
+file gives them (:mod:`aatest.early.handover`; ≈ 14 ms of the child's CPU a stepped-sine step
+not spent decoding), and the clock relation the run-time check has just fitted on them
+(:meth:`_Notifying.step_checked`; not fitted again) —, and
 the child makes each step's share of the pass as the pass would (the same watches, registered
 by :func:`~aatest.engine.analysis.passes.register_watches`; each analysis plugin's optional
 ``early_step(data, index)``). After the record phase the pass takes those results
 (``take_early(data, index, result)``) for the steps whose bytes in ``recording.mcap`` are the
-ones the child decoded (:mod:`aatest.recording.step_chunks`) and whose plan, sensors and
+ones the child decoded, or (a handed step) the ones the run process wrote the handed arrays to,
+digested by the writer thread as soon as it has renamed the file into place
+(:mod:`aatest.recording.step_chunks`; the run process is its run directory's one writer), and
+whose plan, sensors and
 analyses are the ones it watched for; every other step (missing, mismatched, failed, not yet
 reached when the record phase ended — the child is then ended at once —, a resumed run's
 earlier steps, a child that died) is computed in the pass as without it. Errors in the child
@@ -64,8 +71,9 @@ NICENESS = 10
 #: how long a drain may take (s)
 DRAIN_S = 600.0
 #: handed segments the child may hold at once (sent, its result not back yet): one it
-#: analyses (whose arrays a decode would allocate too) and one queued, so memory grows by about
-#: one step's logs; a step beyond is sent without (the child decodes it)
+#: analyses (whose arrays a decode would allocate too) and one queued; they are reused, so
+#: memory grows by about one step's handed logs (the channels the child reads: 10 of a
+#: stepped-sine step's 16 arrays); a step beyond is sent without (the child decodes it)
 MAX_HANDED = 2
 #: the child's program: the module imported under its own name (its records unpickle here)
 _CHILD_MAIN = "import sys; from aatest.early.child import main; main(sys.argv[1:])"
@@ -176,8 +184,15 @@ class EarlyAnalysis:
             if child_segments is not None:
                 child_segments.close()
         self._lock = threading.Lock()  # the writer thread and the step loop both send
-        #: handed steps whose result has not come back (:data:`MAX_HANDED`)
-        self._handed: set[str] = set()
+        #: handed steps' segments whose result has not come back (:data:`MAX_HANDED`)
+        self._handed: dict[str, handover.Segment] = {}
+        #: segments the child is done with, to fill again
+        self._free: list[handover.Segment] = []
+        #: steps whose logs were handed over (the others the child decodes)
+        self.handed_steps = 0
+        #: the channels the child read of the handed steps so far, by logger: those handed
+        #: of the next (None until it has told: every channel)
+        self._wanted: dict[str, set[str]] = {}
         _lower_priority(self._process.pid)
         self._inbox = Connection(self._inbox_fd, readable=False)
         self._outbox = Connection(self._outbox_fd, writable=False)
@@ -192,34 +207,59 @@ class EarlyAnalysis:
         """The child's process id (:mod:`aatest.early.child` runs there)."""
         return self._process.pid
 
-    def send(self, step_id: str, path: Path, handed: tuple[handover.Handed, int] | None = None
-             ) -> None:
+    def send(self, step_id: str, path: Path,
+             handed: tuple[handover.Handed, handover.Segment] | None = None) -> None:
         """Queue a complete step file (a dead child is no error: the pass computes it).
 
-        ``handed``: its logs in a memory file (the layout and the descriptor, closed here):
-        the descriptor goes over the socket first, then the message naming it.
+        ``handed``: its logs in a segment (from :meth:`lend`, filled): the descriptor goes
+        over the socket first, then the message naming it.
         """
-        try:
-            with self._lock:
-                told = None
-                if handed is not None and self._segments is not None:
-                    try:
-                        socket.send_fds(self._segments, [step_id.encode("utf-8")], [handed[1]])
-                    except OSError:  # a full socket, a dead child: decoded instead
-                        pass
-                    else:
-                        told = handed[0]
-                        self._handed.add(step_id)
-                self._send_locked(StepSent(step_id, str(path), told))
-        finally:
-            if handed is not None:
-                os.close(handed[1])  # a queued or mapped descriptor keeps the memory
-
-    def may_hand(self) -> bool:
-        """Whether a step's logs may be handed now (fewer than :data:`MAX_HANDED` out)."""
         with self._lock:
-            return self._segments is not None and len(self._handed) < MAX_HANDED \
-                and not self._closed
+            told = None
+            if handed is not None:
+                try:
+                    if self._segments is None or self._closed:
+                        raise OSError("no child to hand to")
+                    socket.send_fds(self._segments, [step_id.encode("utf-8")],
+                                    [handed[1].fd])
+                except OSError:  # a full socket, a dead child: decoded instead
+                    self._give_back(handed[1])
+                else:
+                    told = handed[0]
+                    self._handed[step_id] = handed[1]
+                    self.handed_steps += 1
+            self._send_locked(StepSent(step_id, str(path), told))
+
+    def lend(self) -> handover.Segment | None:
+        """A segment to fill with the next step's logs (None: :data:`MAX_HANDED` are out,
+        or none can be made: the child decodes the step); :meth:`send` or :meth:`give_back`
+        it."""
+        with self._lock:
+            if self._segments is None or self._closed or len(self._handed) >= MAX_HANDED:
+                return None
+            if self._free:
+                return self._free.pop()
+        try:
+            return handover.Segment()
+        except OSError:
+            return None
+
+    def give_back(self, segment: handover.Segment) -> None:
+        """A lent segment not handed after all."""
+        with self._lock:
+            self._give_back(segment)
+
+    def _give_back(self, segment: handover.Segment) -> None:
+        if self._closed:
+            segment.close()
+        else:
+            self._free.append(segment)
+
+    def wanted(self) -> dict[str, frozenset[str]] | None:
+        """The channels to hand of the next step by logger (None: all), see :attr:`_wanted`."""
+        with self._lock:
+            return {k: frozenset(v) for k, v in self._wanted.items()} if self._wanted \
+                else None
 
     def fitted(self, step_id: str, relation: Any) -> None:
         """Tell the child the clock relation the run-time check fitted on the step's logs."""
@@ -237,11 +277,15 @@ class EarlyAnalysis:
     def _collect(self) -> None:
         while True:
             try:
-                step_id, made = self._outbox.recv()
+                step_id, made, read = self._outbox.recv()
             except Exception:  # noqa: BLE001 - the pipe's end (a child ended mid-message too)
                 return
             with self._lock:
-                self._handed.discard(step_id)
+                done = self._handed.pop(step_id, None)  # unmapped by the child: free again
+                if done is not None:
+                    self._give_back(done)
+                for source, names in (read or {}).items():
+                    self._wanted.setdefault(source, set()).update(names)
             if made is not None:
                 self._made[step_id] = made
 
@@ -258,6 +302,8 @@ class EarlyAnalysis:
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self._process.wait(DRAIN_S)
         self.close()
+        log.debug("analysis while recording: %d steps made, %d of them handed over",
+                  len(self._made), self.handed_steps)
         return EarlyResults(dict(self._made))
 
     def close(self) -> None:
@@ -273,6 +319,10 @@ class EarlyAnalysis:
         self._outbox.close()
         if self._segments is not None:
             self._segments.close()  # the child is gone: queued descriptors are freed with it
+        with self._lock:
+            for segment in (*self._free, *self._handed.values()):
+                segment.close()
+            self._free, self._handed = [], {}
 
 
 class _Forked:
@@ -394,13 +444,21 @@ class _Notifying:
         if step.id not in self._ids:
             return self._recorder.write_step(step, *args, **kwargs)
         logs = [*args[:2]] or [kwargs.get("table"), kwargs.get("daq")]
-        hands = self._hands and self._early.may_hand() and "coded" not in kwargs \
-            and all(log is not None for log in logs)
+        segment = self._early.lend() if self._hands and "coded" not in kwargs \
+            and all(log is not None for log in logs) else None
         coded: dict[str, dict[str, list[bool]]] = {}
-        path = self._recorder.write_step(step, *args, **kwargs, **(
-            {"coded": coded} if hands else {}))
-        self._early.send(step.id, Path(path),
-                         _handed(step.id, Path(path), logs, coded) if hands else None)
+        try:
+            path = self._recorder.write_step(step, *args, **kwargs, **(
+                {"coded": coded} if segment is not None else {}))
+        except BaseException:
+            if segment is not None:
+                self._early.give_back(segment)
+            raise
+        handed = None if segment is None else _handed(step.id, Path(path), logs, coded,
+                                                      segment, self._early.wanted())
+        if segment is not None and handed is None:
+            self._early.give_back(segment)
+        self._early.send(step.id, Path(path), handed)
         return path
 
     def step_checked(self, step: PlannedStep, relation: Any) -> None:
@@ -412,27 +470,28 @@ class _Notifying:
         return getattr(self._recorder, name)
 
 
-def _handed(step_id: str, path: Path, logs: Sequence[Any], coded: Any
-            ) -> tuple[handover.Handed, int] | None:
+def _handed(step_id: str, path: Path, logs: Sequence[Any], coded: Any,
+            segment: handover.Segment, wanted: Any = None
+            ) -> tuple[handover.Handed, handover.Segment] | None:
     """The step's logs in a memory file as a decode of ``path`` gives them, with the digest
     of the bytes just written there (:mod:`aatest.recording.step_chunks`: what the pass
     checks ``recording.mcap`` against, so it holds for the handed arrays); None when that
-    fails (the child decodes the file)."""
+    fails (the child decodes the file). ``wanted``: hand only these channels by logger
+    (:func:`aatest.early.handover.layout`; a channel the child reads beyond them it decodes)."""
     from aatest.recording import format as fmt
     from aatest.recording.step_chunks import step_digests
 
     try:
-        fd, layouts, size, exact = handover.fill(logs, coded, fmt.BLOCK_SAMPLES)
+        layouts, size, exact = handover.fill(segment, logs, coded, fmt.BLOCK_SAMPLES, wanted)
     except Exception as exc:  # noqa: BLE001 - the child decodes the step file instead
         log.debug("step %s not handed over: %s", step_id, exc)
         return None
     try:
         digest = step_digests(path, only={step_id})[step_id]
     except Exception as exc:  # noqa: BLE001 - as above
-        os.close(fd)
         log.debug("step %s not handed over: %s", step_id, exc)
         return None
-    return handover.Handed(digest, size, fmt.BLOCK_SAMPLES, layouts, exact), fd
+    return handover.Handed(digest, size, fmt.BLOCK_SAMPLES, layouts, exact), segment
 
 
 @dataclass

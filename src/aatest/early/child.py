@@ -57,7 +57,8 @@ def serve(inbox: Connection, outbox: Connection, segments: socket.socket | None 
           ) -> None:
     """The child's loop: analyse each step named on ``inbox`` (:class:`StepSent`; its logs
     mapped from the segment on ``segments`` when handed) and send ``(step id, Made or
-    None)`` on ``outbox``; keep the relations the run-time check fitted (:class:`Fitted`);
+    None, channels read by logger or None)`` on ``outbox`` (the run process hands those of
+    the next steps); keep the relations the run-time check fitted (:class:`Fitted`);
     end on ``None`` (after the step in flight: newly arrived messages are read before each
     step), on :data:`DRAIN` once every step sent before it is done, or when the parent is
     gone."""
@@ -91,8 +92,9 @@ def serve(inbox: Connection, outbox: Connection, segments: socket.socket | None 
                 finally:
                     if mapped is not None:
                         mapped.close()
+                read = {k: sorted(v) for k, v in mapped.read.items()} if mapped else None
                 try:
-                    outbox.send((sent.step_id, made))
+                    outbox.send((sent.step_id, made, read))
                 except (OSError, ValueError):
                     return
         finally:
@@ -176,7 +178,7 @@ class _Child:
             digest = mapped.handed.digest
             base = self._base or self._first(read_dataset(path))  # its records only
             index = self._index[step_id]
-            data = _handed_view(base, mapped, index)
+            data = _handed_view(base, mapped, index, path)
         watched = register_watches(data, list(data.metadata.get("analysis", [])))
         if mapped is not None and relation is not None \
                 and mapped.handed.relation_inputs_exact:
@@ -213,13 +215,32 @@ def _no_log(index: int, source: str, channels: Any) -> Any:
     raise LookupError(f"step {index} is not in this step file")
 
 
-def _handed_view(base: Dataset, mapped: Mapped, index: int) -> Dataset:
+def _handed_view(base: Dataset, mapped: Mapped, index: int, path: Path) -> Dataset:
     """``base`` whose step ``index`` is read from a handed segment (fresh lazy steps, as in
-    :func:`_one_step_view`)."""
+    :func:`_one_step_view`); channels not handed are decoded from the step file ``path``
+    (the same arrays: the run process hands those the child read of the steps before)."""
+    from aatest.recording import read_dataset
+
+    decoded: list[LazySteps] = []
+
+    def file() -> LazySteps:
+        if not decoded:
+            steps = read_dataset(path).steps
+            assert isinstance(steps, LazySteps)
+            decoded.append(steps)
+        return decoded[0]
+
+    def load(_i: int, source: str, channels: Any) -> Any:
+        return mapped.log(source, channels) if mapped.holds(source, channels) \
+            else file().log(0, source, channels)
+
+    def pieces(_i: int, source: str, channels: Any) -> Any:
+        return mapped.pieces(source, channels) if mapped.holds(source, channels) \
+            else file().pieces(0, source, channels)
+
     counts: list[Mapping[str, int]] = [{} for _ in base.planned]
     counts[index] = {source: mapped.samples(source) for source in ("table", "daq")}
-    steps = LazySteps(base.planned, lambda _i, source, channels: mapped.log(source, channels),
-                      counts, lambda _i, source, channels: mapped.pieces(source, channels))
+    steps = LazySteps(base.planned, load, counts, pieces)
     return Dataset(base.procedure, base.sample_rate_hz, base.sensors, steps, base.source,
                    base.metadata)
 

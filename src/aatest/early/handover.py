@@ -17,11 +17,13 @@ quantisation (a JSON round trip of floats is exact), every channel's unit (``""`
 named none), the logged dtypes and order, the time stamps as float64; pieces are the written
 blocks (``BLOCK_SAMPLES`` samples each), as :meth:`LazySteps.pieces` decodes them.
 
-How: one anonymous memory file per step (``memfd``), filled once right after the step file is
-written, its descriptor passed over a Unix socket and mapped read-only by the child. Nothing
-has a name, so nothing can leak: the kernel frees the memory when the last descriptor and
-mapping are gone (the run process closes its own after sending; a killed child, or a
-descriptor still queued in the socket when either process dies, frees it too).
+How: anonymous memory files (``memfd``, :class:`Segment`), one filled right after each step
+file is written, its descriptor passed over a Unix socket and mapped read-only by the child,
+which unmaps it before it sends the step's result back; the run process then reuses it for a
+later step. Only the channels the child read of the steps before are handed (it decodes any
+other from the file). Nothing has a name, so nothing can leak: the kernel frees the memory
+when the last descriptor and mapping are gone (the run process closes its own when the child
+is reaped, or by dying; a killed child's, and those still queued in the socket, go with it).
 ``tests/early/test_handover.py`` checks the arrays equal a decode, bit for bit.
 """
 
@@ -65,8 +67,14 @@ class LogLayout:
     #: channel name → unit, every channel (``""`` where the log named none), logged order
     units: tuple[tuple[str, str], ...]
     quantisation: tuple[tuple[str, tuple[float, float]], ...]
-    #: the time stamps first, then the channels in logged order
+    #: the time stamps first, then the handed channels in logged order (a step may hand
+    #: only the channels the child reads: :func:`layout`)
     arrays: tuple[ArrayAt, ...]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Every channel of the log, handed or not, in logged order."""
+        return tuple(name for name, _ in self.units)
 
 
 @dataclass(frozen=True)
@@ -90,13 +98,18 @@ def _aligned(size: int) -> int:
     return -(-size // _ALIGN) * _ALIGN
 
 
-def layout(logs: Sequence[SampledLog]) -> tuple[tuple[LogLayout, ...], int]:
-    """Where each array of ``logs`` goes in a segment, and the segment's size in bytes."""
+def layout(logs: Sequence[SampledLog], wanted: Mapping[str, Container[str]] | None = None
+           ) -> tuple[tuple[LogLayout, ...], int]:
+    """Where each array of ``logs`` goes in a segment, and the segment's size in bytes.
+
+    ``wanted``: by logger, the only channels to hand (with the time stamps and the clock
+    relation's inputs, :data:`RELATION_INPUTS`); None: every channel.
+    """
     offset = 0
     layouts = []
     for log in logs:
         arrays = []
-        for name, values in (("time_s", log.time_s), *log.channels.items()):
+        for name, values in _handed_arrays(log, wanted):
             arrays.append(ArrayAt(name, values.dtype.str, offset))
             offset += _aligned(values.nbytes)
         layouts.append(LogLayout(
@@ -107,42 +120,85 @@ def layout(logs: Sequence[SampledLog]) -> tuple[tuple[LogLayout, ...], int]:
     return tuple(layouts), max(offset, 1)
 
 
-def fill(logs: Sequence[SampledLog], coded: Mapping[str, Mapping[str, Sequence[bool]]],
-         block_samples: int) -> tuple[int, tuple[LogLayout, ...], int, bool]:
-    """A new memory file holding ``logs`` as a decode of their step file gives them.
+def _handed_arrays(log: SampledLog, wanted: Mapping[str, Container[str]] | None
+                   ) -> list[tuple[str, np.ndarray]]:
+    """The time stamps and the channels of ``log`` to hand (see :func:`layout`)."""
+    chosen = log.channels.items() if wanted is None else [
+        (name, values) for name, values in log.channels.items()
+        if name in wanted.get(log.source, ()) or name in RELATION_INPUTS.get(log.source, ())]
+    return [("time_s", log.time_s), *chosen]
 
-    ``coded``: by logger and channel, which written blocks are codes (from the writer).
-    Returns the file's descriptor (the caller closes it), the layouts, the size and whether
-    the relation's inputs are unchanged (:attr:`Handed.relation_inputs_exact`).
+
+_POPULATE = getattr(mmap, "MAP_POPULATE", 0)
+
+
+class Segment:
+    """A memory file the run process fills with a step's logs and hands to the child, then
+    fills again with a later step's once the child has sent that step's result back (it has
+    unmapped it by then).
+
+    Why reused: a new memory file costs its pages' allocation and zeroing, ≈ 13 ms of CPU for
+    a stepped-sine step's 16.5 MB (measured), ten times the copy itself; a reused one keeps
+    its pages (resized to each step's arrays: only a longer tail is allocated).
+    """
+
+    def __init__(self) -> None:
+        self.fd = os.memfd_create("aatest-early-step", os.MFD_CLOEXEC)
+        self.size = 0
+        self._mapping: mmap.mmap | None = None
+
+    def mapped(self, size: int) -> mmap.mmap:
+        """This process's read-write mapping, the file resized to ``size`` bytes."""
+        if self._mapping is None or size != self.size:
+            self._unmap()
+            os.ftruncate(self.fd, size)
+            self.size = size
+            self._mapping = mmap.mmap(self.fd, size, flags=mmap.MAP_SHARED | _POPULATE,
+                                      prot=mmap.PROT_READ | mmap.PROT_WRITE)
+        return self._mapping
+
+    def _unmap(self) -> None:
+        if self._mapping is not None:
+            self._mapping.close()
+            self._mapping = None
+
+    def close(self) -> None:
+        """Unmap and close (the memory goes once the child has no mapping or descriptor)."""
+        self._unmap()
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+
+
+def fill(segment: Segment, logs: Sequence[SampledLog],
+         coded: Mapping[str, Mapping[str, Sequence[bool]]], block_samples: int,
+         wanted: Mapping[str, Container[str]] | None = None
+         ) -> tuple[tuple[LogLayout, ...], int, bool]:
+    """Fill ``segment`` with ``logs`` as a decode of their step file gives them.
+
+    ``coded``: by logger and channel, which written blocks are codes (from the writer);
+    ``wanted``: see :func:`layout`. Returns the layouts, the size and whether the relation's
+    inputs are unchanged (:attr:`Handed.relation_inputs_exact`).
 
     Raises
     ------
     OSError
-        No memory file (not Linux, out of memory); KeyError when ``coded`` lacks a channel.
+        Out of memory; KeyError when ``coded`` lacks a channel.
     """
-    layouts, size = layout(logs)
-    fd = os.memfd_create("aatest-early-step", os.MFD_CLOEXEC)
-    try:
-        os.ftruncate(fd, size)
-        exact = True
-        with mmap.mmap(fd, size, flags=mmap.MAP_SHARED | getattr(mmap, "MAP_POPULATE", 0),
-                       prot=mmap.PROT_READ | mmap.PROT_WRITE) as segment:
-            for log, placed in zip(logs, layouts, strict=True):
-                verdicts = coded[log.source]
-                inputs = RELATION_INPUTS.get(log.source, ())
-                for at, values in zip(placed.arrays, (log.time_s, *log.channels.values()),
-                                      strict=True):
-                    into = np.ndarray(values.shape, np.dtype(at.dtype), segment, at.offset)
-                    _copy_as_decoded(values, into, verdicts[at.name], block_samples)
-                    if at.name in inputs and values.dtype.kind == "f" and not np.array_equal(
-                            values.view(_UINT[values.itemsize]),
-                            into.view(_UINT[values.itemsize])):
-                        exact = False
-                    del into
-    except BaseException:
-        os.close(fd)
-        raise
-    return fd, layouts, size, exact
+    layouts, size = layout(logs, wanted)
+    exact = True
+    into_bytes = segment.mapped(size)
+    for log, placed in zip(logs, layouts, strict=True):
+        verdicts = coded[log.source]
+        inputs = RELATION_INPUTS.get(log.source, ())
+        for at, (_, values) in zip(placed.arrays, _handed_arrays(log, wanted), strict=True):
+            into = np.ndarray(values.shape, np.dtype(at.dtype), into_bytes, at.offset)
+            _copy_as_decoded(values, into, verdicts[at.name], block_samples)
+            if at.name in inputs and values.dtype.kind == "f" and not np.array_equal(
+                    values.view(_UINT[values.itemsize]), into.view(_UINT[values.itemsize])):
+                exact = False
+            del into
+    return layouts, size, exact
 
 
 _UINT = {2: np.uint16, 4: np.uint32, 8: np.uint64}
@@ -170,11 +226,15 @@ class Mapped:
     """A handed segment mapped read-only, as the logs a decode of the step file gives."""
 
     def __init__(self, fd: int, handed: Handed) -> None:
-        self._segment = mmap.mmap(fd, handed.size, flags=mmap.MAP_SHARED,
+        self._segment = mmap.mmap(fd, handed.size, flags=mmap.MAP_SHARED | _POPULATE,
                                   prot=mmap.PROT_READ)
         self.handed = handed
         self.logs: dict[str, SampledLog] = {placed.source: self._log(placed)
                                             for placed in handed.logs}
+        self._names = {placed.source: placed.names for placed in handed.logs}
+        #: the channels asked for, by logger (handed or not): what the run process hands
+        #: of the next steps
+        self.read: dict[str, set[str]] = {source: set() for source in self.logs}
 
     def _log(self, placed: LogLayout) -> SampledLog:
         arrays = [np.frombuffer(self._segment, np.dtype(at.dtype), placed.samples, at.offset)
@@ -188,9 +248,16 @@ class Mapped:
         """The samples of logger ``source``'s log."""
         return len(self.logs[source])
 
+    def holds(self, source: str, channels: Container[str] | None) -> bool:
+        """Whether every channel of ``source``'s log in ``channels`` (all when None) was
+        handed (noted in :attr:`read` either way)."""
+        asked = [n for n in self._names[source] if channels is None or n in channels]
+        self.read[source].update(asked)
+        return all(n in self.logs[source].channels for n in asked)
+
     def log(self, source: str, channels: Container[str] | None = None) -> SampledLog:
         """Logger ``source``'s log with the time stamps and only ``channels`` (all when None),
-        as a decode of only those channels gives it."""
+        as a decode of only those channels gives it (when :meth:`holds` them)."""
         return subset(self.logs[source], channels)
 
     def pieces(self, source: str, channels: Container[str] | None = None

@@ -20,8 +20,11 @@ Equal digests mean the same record values (SHA-256) and chunk records equal in n
 uncompressed CRC and compressed CRC: two independent 32-bit checks over each chunk, against
 the accidental differences that can occur here (a step recorded again on resume, a damaged
 copy). Since a decode is a function of those bytes alone, equal digests give equal decoded
-logs. Reading costs one CRC pass over the step's compressed bytes (no decompression: ≈ 1 ms
-per MB), a fraction of a decode.
+logs. The early child may also be handed a step's logs instead of decoding its file
+(:mod:`aatest.early.handover`: the arrays a decode gives, bit for bit); its digest is then the
+run process's, of the file it has just written those arrays to, so equal digests still give
+equal decoded logs. Reading costs one CRC pass over the step's compressed bytes (no
+decompression: ≈ 1 ms per MB), a fraction of a decode.
 """
 
 from __future__ import annotations
