@@ -25,6 +25,12 @@ other from the file). Nothing has a name, so nothing can leak: the kernel frees 
 when the last descriptor and mapping are gone (the run process closes its own when the child
 is reaped, or by dying; a killed child's, and those still queued in the socket, go with it).
 ``tests/early/test_handover.py`` checks the arrays equal a decode, bit for bit.
+
+Measured on 24 twin stepped-sine steps (CPU per step, medians): the child's work 33.6 ms
+decoding the file and fitting the relation, 14.3 ms handed (the same ``Made``, bit for bit);
+the run process pays 1.5 ms to fill a reused segment with the 10 arrays the child reads and
+0.7 ms to digest the step file it wrote (a new segment per step cost ≈ 13 ms more: its pages'
+allocation and zeroing).
 """
 
 from __future__ import annotations
