@@ -159,7 +159,11 @@ class EarlyAnalysis:
     """The child process, the pipes to it and the thread that collects what it sends.
 
     The child runs :func:`aatest.early.child.main` (see :func:`_start_child` for
-    how it is started); the two pipes are passed to it by descriptor.
+    how it is started); the two pipes, and the socket the handed segments' descriptors go
+    over (:mod:`aatest.early.handover`), are passed to it by descriptor. The segments are
+    this object's: lent to the writer thread (:meth:`lend`), handed with a step
+    (:meth:`send`), free again once the child has sent that step's result, closed with the
+    child (:meth:`close`).
     """
 
     def __init__(self) -> None:
