@@ -7,6 +7,7 @@ results → report → signature
 from __future__ import annotations
 
 import contextlib
+import inspect
 import logging
 import os
 import sys
@@ -233,10 +234,17 @@ def _reporter(template: str) -> Any:
     return info.target(registry.configure(info, {}))
 
 
-def _preparing(reporter: Any) -> contextlib.AbstractContextManager[Any]:
-    """The plugin's optional ``preparing()`` context, or one that does nothing."""
+def _preparing(reporter: Any, run_dir: Path | None = None
+               ) -> contextlib.AbstractContextManager[Any]:
+    """The plugin's optional ``preparing()`` context, or one that does nothing; given the
+    ``run_dir`` it will render into, when its ``preparing`` takes one (``run_dir=``)."""
     preparing = getattr(reporter, "preparing", None)
-    return preparing() if callable(preparing) else contextlib.nullcontext()
+    if not callable(preparing):
+        return contextlib.nullcontext()
+    takes_run_dir = run_dir is not None and "run_dir" in inspect.signature(preparing).parameters
+    prepared: contextlib.AbstractContextManager[Any] = (
+        preparing(run_dir=run_dir) if takes_run_dir else preparing())
+    return prepared
 
 
 def acceptance_of(metadata: Mapping[str, Any]) -> Acceptance:
@@ -309,15 +317,16 @@ def _render(results: RunResults, run_dir: Path, template: str, template_dir: Pat
     """results.json and the report plugin's files (and PDF) in the local ``run_dir``.
 
     A report plugin may prepare its render while results.json is written (its optional
-    ``preparing()``, a context manager: the HTML reports start their confined render process
-    there, whose imports then overlap this process's work).
+    ``preparing()``, a context manager, given ``run_dir=`` when it takes it: the HTML reports
+    start their confined render process there, whose imports then overlap this process's
+    work, and hash the recording on a thread meanwhile).
     """
     try:
         reporter = _reporter(template)
     except AatestError:
         write_results(results, run_dir)  # the results stand even when the report cannot
         raise
-    with _preparing(reporter):
+    with _preparing(reporter, run_dir):
         write_results(results, run_dir)
         if pdf and not isinstance(reporter, PdfRenderer):
             raise InputError(f"report '{template}' cannot print a PDF (its plugin has no "
