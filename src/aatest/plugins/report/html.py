@@ -52,6 +52,9 @@ class _HtmlReport:
     title: ClassVar[str]
     sections: ClassVar[frozenset[str]] = ALL_SECTIONS
     output_name: ClassVar[str] = "report.html"
+    #: the render reads only the typed record it is handed, never results.json: the engine
+    #: writes that file meanwhile (:func:`aatest.engine.run.session._results_written`)
+    renders_from_record: ClassVar[bool] = True
 
     def __init__(self, config: ReportConfig | None = None) -> None:
         self.config = config if config is not None else self.Config()
