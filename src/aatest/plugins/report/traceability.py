@@ -117,10 +117,11 @@ def hashed_ahead(run_dir: Path) -> Iterator[None]:
     takes that digest.
 
     Why: the report states the recording's SHA-256, and hashing a stepped-sine recording
-    (168 MB) takes ≈ 0.12 s. ``hashlib`` releases the GIL while it hashes, so started before
-    results.json is written (pure Python JSON encoding), the digest is made on the other core
-    meanwhile. The same digest: the same bytes hashed by the same function, and it is taken
-    only while the file's identity (inode, size, modification time) is the one hashed.
+    (168 MB) takes ≈ 0.12 s. ``hashlib`` releases the GIL while it hashes, so started when
+    the render is prepared, the digest is made on the other core while results.json is
+    encoded (pure Python JSON) and the view model built. The same digest: the same bytes
+    hashed by the same function, and it is taken only while the file's identity (inode,
+    size, modification time) is the one hashed.
     The thread ends before the block does (a process that forks workers, which refuses to
     fork while another thread runs, never sees it after the block).
     """
