@@ -1,14 +1,19 @@
 """The Bode figure drawn on a reused figure is the very SVG of a new figure.
 
 Why exact equality: the reuse only skips rebuilding what every drawing rebuilds the same way
-(axes, ticks, measured labels); a changed byte would mean state left from the previous group
-(limits, layout, ticks) shows in the next one.
+(axes, ticks, measured labels, the frequency axes' extents); a changed byte would mean state
+left from the previous group (limits, layout, ticks) shows in the next one. The layout leaves
+the spines out (their extents lie inside the axes' and their labels'): the reference does too,
+and its subplot parameters are those of matplotlib's own layout to rounding.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from aatest.plugins.analysis import tf_bode
 from aatest.plugins.analysis.tf_bode import MODEL_GRID_HZ, bode_svg
 from aatest.plugins.analysis.tfest import DiscreteTf
 from aatest.presentation.figures import frequency_axis, new_figure, to_svg
@@ -16,7 +21,8 @@ from aatest.presentation.figures import frequency_axis, new_figure, to_svg
 DT_S = 1 / 2000.0
 
 
-def _new_figure_svg(f: np.ndarray, h: np.ndarray, model: DiscreteTf, title: str) -> str:
+def _new_figure(f: np.ndarray, h: np.ndarray, model: DiscreteTf, title: str,
+                spines_in_layout: bool = False) -> Any:
     """The drawing on a new figure each time (the former one, kept as the reference)."""
     fig, ax = new_figure(2, height_in=2.4)
     resp = model.response(MODEL_GRID_HZ)
@@ -28,8 +34,14 @@ def _new_figure_svg(f: np.ndarray, h: np.ndarray, model: DiscreteTf, title: str)
     ax[1, 0].set(xlabel="frequency / Hz", ylabel="phase / °")
     ax[0, 0].legend(fontsize=6)
     frequency_axis(ax[0, 0], ax[1, 0])
+    for spine in (*ax[0, 0].spines.values(), *ax[1, 0].spines.values()):
+        spine.set_in_layout(spines_in_layout)
     fig.tight_layout()
-    return to_svg(fig)
+    return fig
+
+
+def _new_figure_svg(f: np.ndarray, h: np.ndarray, model: DiscreteTf, title: str) -> str:
+    return to_svg(_new_figure(f, h, model, title))
 
 
 def _cases() -> list[tuple[np.ndarray, np.ndarray, DiscreteTf, str]]:
@@ -50,3 +62,35 @@ def _cases() -> list[tuple[np.ndarray, np.ndarray, DiscreteTf, str]]:
 def test_reused_figure_gives_the_bytes_of_a_new_one() -> None:
     for f, h, model, title in _cases():
         assert bode_svg(f, h, model, title) == _new_figure_svg(f, h, model, title), title
+
+
+#: what leaving the spines out may move a subplot parameter: a spine's edge is the axes' edge
+#: through another chain of transforms, so it may differ by an ulp of a display coordinate
+#: (a few hundred px: ~1e-13 px), over an axes size of ~150 px: ~1e-15; ten such
+_SPINE_ROUNDING = 1e-14
+
+
+def test_layout_is_matplotlibs_with_the_spines_to_rounding() -> None:
+    keys = ("left", "right", "bottom", "top", "wspace", "hspace")
+    for f, h, model, title in _cases():
+        bode_svg(f, h, model, title)
+        mine = tf_bode._FIGURES.bode.fig.subplotpars
+        theirs = _new_figure(f, h, model, title, spines_in_layout=True).subplotpars
+        for key in keys:
+            assert abs(getattr(mine, key) - getattr(theirs, key)) <= _SPINE_ROUNDING, (title, key)
+
+
+def test_frequency_axes_are_measured_once_per_view() -> None:
+    for f, h, model, title in _cases():
+        bode_svg(f, h, model, title)
+    figure = tf_bode._FIGURES.bode
+    # every case shows 0.1-500 Hz (the model's grid): one extent per axis and kind of call
+    assert len(figure.x_extents) == len({(k[0], k[-1]) for k in figure.x_extents}) <= 4
+    assert "get_tightbbox" not in vars(figure.gain.xaxis)  # the axis's own method again
+
+
+def test_a_wider_band_is_measured_anew() -> None:
+    f, h, model, title = _cases()[1]
+    wide = np.geomspace(20.0, 900.0, 12)  # beyond the model's grid: other frequency limits
+    for case in ((wide, model.response(wide), model, "wide"), (f, h, model, title)):
+        assert bode_svg(*case) == _new_figure_svg(*case), case[-1]

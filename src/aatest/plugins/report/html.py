@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -21,6 +21,7 @@ from aatest.plugins.report import confined, pdf
 from aatest.plugins.report.certificate import build_certificate
 from aatest.plugins.report.context import ALL_SECTIONS, build_context, build_diagnosis_context
 from aatest.plugins.report.sandbox import load_template, render_loaded
+from aatest.plugins.report.traceability import hashed_ahead
 from aatest.results import RunResults
 
 
@@ -51,6 +52,9 @@ class _HtmlReport:
     title: ClassVar[str]
     sections: ClassVar[frozenset[str]] = ALL_SECTIONS
     output_name: ClassVar[str] = "report.html"
+    #: the render reads only the typed record it is handed, never results.json: the engine
+    #: writes that file meanwhile (:func:`aatest.engine.run.session._results_written`)
+    renders_from_record: ClassVar[bool] = True
 
     def __init__(self, config: ReportConfig | None = None) -> None:
         self.config = config if config is not None else self.Config()
@@ -59,11 +63,17 @@ class _HtmlReport:
         return build_context(results, run_dir, self.template, self.title, self.sections,
                              self.config.plots)
 
-    def preparing(self) -> contextlib.AbstractContextManager[None]:
+    @contextlib.contextmanager
+    def preparing(self, run_dir: Path | None = None) -> Iterator[None]:
         """Start the confined render's process now, while the caller still works (writing
         results.json): its imports (≈ 0.4 s CPU) then overlap that work; it is ended on exit
-        when no render took it (:func:`.confined.prestarted`)."""
-        return confined.prestarted()
+        when no render took it (:func:`.confined.prestarted`). Given the ``run_dir`` to
+        render into, hash its recording meanwhile too (:func:`.traceability.hashed_ahead`)."""
+        with contextlib.ExitStack() as stack:
+            stack.enter_context(confined.prestarted())
+            if run_dir is not None:
+                stack.enter_context(hashed_ahead(run_dir))
+            yield
 
     @classmethod
     def check_template(cls, template_dir: Path | None = None) -> None:
