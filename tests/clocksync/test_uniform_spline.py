@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import ndimage
 from scipy.interpolate import CubicSpline
 
+from aatest.clocksync import spline
 from aatest.clocksync.spline import EDGE_WINDOW, uniform_cubic_spline, uniform_index
 
 #: both are the same interpolating spline, computed two ways: they differ by rounding only. The
@@ -48,3 +50,18 @@ def test_a_value_that_is_not_finite_is_refused_as_cubic_spline_refuses_it(bad: f
         CubicSpline(np.arange(1000.0), y)
     with pytest.raises(ValueError, match="finite"):
         uniform_cubic_spline(y, np.arange(0.0, 999.0, 0.5))
+
+
+@pytest.mark.parametrize("points", [1, spline._BLOCK, 2 * spline._BLOCK + 3])
+def test_the_b_spline_is_map_coordinates_bit_for_bit(points: int) -> None:
+    """The blocked evaluation makes map_coordinates' operations in its order: equal values,
+    not merely close ones, whether a point lies inside, in an end interval or is NaN."""
+    rng = np.random.default_rng(points)
+    n = 3000
+    y = np.cumsum(rng.normal(size=n)) + 1e3 * np.sin(0.003 * np.arange(n))
+    drifting = 0.37 + np.arange(points) * (1.0 - 12e-6) * (n - 1) / max(points, 1)
+    scattered = rng.uniform(0.0, n - 1.0, size=points)
+    ends = np.array([0.0, 0.5, 1.0, 1.5, n - 3.0, n - 2.5, n - 2.0, n - 1.5, n - 1.0, np.nan])
+    for u in (drifting, scattered, np.concatenate([scattered, ends])):
+        expected = ndimage.map_coordinates(y, u[None, :], order=3, mode="mirror")
+        np.testing.assert_array_equal(spline._bspline(y, u), expected)

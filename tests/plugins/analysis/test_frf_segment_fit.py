@@ -43,3 +43,11 @@ def test_fundamentals_equal_a_direct_least_squares_fit(frequency_hz: float) -> N
     # ≈ 1e-16 × 600 ≈ 1e-13 of the fundamental, with a 100× margin
     assert np.max(np.abs(fitted / direct - 1.0)) < 1e-11
     assert np.abs(fitted) == pytest.approx(0.004, rel=0.05)  # and it is the fundamental
+
+
+@pytest.mark.parametrize("harmonics", [1, frf.HARMONICS])
+def test_the_design_is_the_stacked_columns_bit_for_bit(harmonics: int) -> None:
+    """The columns written in place are column_stack's of the same cosines and sines."""
+    angles = np.outer(2.0 * np.pi * 0.992 / 2000.0 * np.arange(16_129), np.arange(1, harmonics + 1))
+    stacked = np.column_stack([np.ones(angles.shape[0]), np.cos(angles), np.sin(angles)])
+    np.testing.assert_array_equal(frf._design(angles), stacked)

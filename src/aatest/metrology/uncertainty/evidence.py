@@ -102,7 +102,7 @@ def _motion(position_deg: np.ndarray, cycles: int, amplitude_deg: float) -> Moti
     n = position_deg.size
     if cycles < 1 or n < 4 * HARMONICS * cycles:
         return None
-    spectrum = np.fft.rfft(position_deg - np.mean(position_deg))
+    spectrum = centred_rfft(position_deg)  # rfft(x − mean(x)), nothing kept
     fundamental = abs(spectrum[cycles]) * 2.0 / n
     if fundamental <= 0:
         return None

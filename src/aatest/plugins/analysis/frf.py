@@ -215,7 +215,7 @@ def _segment_projector(length: int, frequency_hz: float, fs_hz: float, harmonics
     k = np.arange(1, harmonics + 1)
     k = k[k * frequency_hz < fs_hz / 2.0]
     angles = np.outer(omega_tau, k)
-    design = np.column_stack([np.ones(length), np.cos(angles), np.sin(angles)])
+    design = _design(angles)
     weights = _periodic_hann(length)
     weighted = design * weights[:, None]
     gram = weighted.T @ design
@@ -229,6 +229,22 @@ def _segment_projector(length: int, frequency_hz: float, fs_hz: float, harmonics
     projector = np.ascontiguousarray(projector)
     projector.flags.writeable = False
     return projector
+
+
+def _design(angles: np.ndarray) -> np.ndarray:
+    """The columns 1, cos(angles), sin(angles) of the segment fit, each written in place.
+
+    Why not ``column_stack``: the cosines and sines of a cached layout's ≈ 16 000 × 6 angles
+    are the cost that matters (≈ 1.8 ms); stacking them made three more arrays and copied
+    them, another ≈ 1.8 ms (page faults of fresh megabytes included) at each of the stepped
+    sine's 28 layouts. The values are the same ufuncs' of the same angles.
+    """
+    harmonics = angles.shape[1]
+    design = np.empty((angles.shape[0], 1 + 2 * harmonics))
+    design[:, 0] = 1.0
+    np.cos(angles, out=design[:, 1:1 + harmonics])
+    np.sin(angles, out=design[:, 1 + harmonics:])
+    return design
 
 
 def _fit_fundamentals(segments: np.ndarray, frequency_hz: float, fs_hz: float,
