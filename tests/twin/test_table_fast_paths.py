@@ -136,7 +136,8 @@ def test_equal_grids_share_one_read_only_times_array() -> None:
     assert not first.times.flags.writeable
     assert np.array_equal(first.times, 123.456 + (1.0 / 2000.0) * np.arange(50_000))
     # grids that differ only in a zero's sign or in a last bit keep their own arrays
-    assert Grid(-0.0, 1.0, 3).times is not Grid(0.0, 1.0, 3).times
+    assert Grid(-0.0, 1.0, 5000).times is not Grid(0.0, 1.0, 5000).times
+    assert Grid(1.0, 1.0, 1).times is not Grid(1.0, 1.0, 1).times  # too short to keep
     assert Grid(np.nextafter(123.456, 200.0), 1.0 / 2000.0, 50_000).times is not first.times
 
 

@@ -22,6 +22,7 @@ _BLOCK = 512
 #: is built as a separate Grid by each stage that needs its times (the outer axis, the inner
 #: axis, the sensor temperature, the truth), each of which would compute the same array
 _TIMES_KEPT = 4
+_TIMES_MIN_SAMPLES = 4096
 _times: dict[tuple[str, str, int], np.ndarray] = {}
 _times_lock = threading.Lock()
 
@@ -48,6 +49,8 @@ class Grid:
         times *= self.dt_s
         times += self.start_s
         times.flags.writeable = False
+        if self.n < _TIMES_MIN_SAMPLES:  # (a status poll's one sample evicts nothing)
+            return times
         with _times_lock:
             _times[key] = times
             while len(_times) > _TIMES_KEPT:
