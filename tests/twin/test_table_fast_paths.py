@@ -127,3 +127,37 @@ def test_estimates_in_place_equal_the_plain_ones(method: str, resolution_deg: fl
     for name, values in fast.items():
         assert np.array_equal(values, plain[name]), name
     assert np.array_equal(angle, kept)  # the true angle is not written to
+
+
+def test_equal_grids_share_one_read_only_times_array() -> None:
+    """The stages of a step build the DAQ grid as separate Grid objects: one array for all."""
+    first, again = Grid(123.456, 1.0 / 2000.0, 50_000), Grid(123.456, 1.0 / 2000.0, 50_000)
+    assert again.times is first.times
+    assert not first.times.flags.writeable
+    assert np.array_equal(first.times, 123.456 + (1.0 / 2000.0) * np.arange(50_000))
+    # grids that differ only in a zero's sign or in a last bit keep their own arrays
+    assert Grid(-0.0, 1.0, 5000).times is not Grid(0.0, 1.0, 5000).times
+    assert Grid(1.0, 1.0, 1).times is not Grid(1.0, 1.0, 1).times  # too short to keep
+    assert Grid(np.nextafter(123.456, 200.0), 1.0 / 2000.0, 50_000).times is not first.times
+
+
+def test_settled_temperature_equals_the_decay_formula() -> None:
+    """At the set-point the temperature is the set-point + 0·decay at every time, bit for bit
+    (before the step time too, and for a negative set-point)."""
+    from aatest.twin.chamber import ThermalState
+    from aatest.twin.model import ChamberModel
+
+    for setpoint_c in (23.0, -40.0, 0.0):
+        state = ThermalState(ChamberModel(), setpoint_c=setpoint_c, from_c=setpoint_c,
+                             step_time_s=100.0)
+        times = np.linspace(-50.0, 9e4, 100_001)
+        decay = np.exp(-np.maximum(times - 100.0, 0.0) / state.model.sensor_time_constant_s)
+        plain = setpoint_c + (setpoint_c - setpoint_c) * decay
+        got = state.temperature_at(times)
+        assert np.array_equal(got, plain)
+        assert np.array_equal(np.signbit(got), np.signbit(plain))
+    moving = ThermalState(ChamberModel(), setpoint_c=60.0, from_c=23.0, step_time_s=100.0)
+    times = np.linspace(0.0, 9e4, 1001)
+    tau = moving.model.sensor_time_constant_s
+    assert np.array_equal(moving.temperature_at(times),
+                          60.0 + (23.0 - 60.0) * np.exp(-np.maximum(times - 100.0, 0.0) / tau))

@@ -30,8 +30,18 @@ class ThermalState:
         return cls(model=model, setpoint_c=t, from_c=t)
 
     def temperature_at(self, lab_time_s: np.ndarray | float) -> np.ndarray:
-        """Sensor temperature (°C) at lab times (not before the last step)."""
-        elapsed = np.maximum(np.asarray(lab_time_s, dtype=float) - self.step_time_s, 0.0)
+        """Sensor temperature (°C) at lab times (not before the last step).
+
+        Settled (``from_c`` is the set-point), at finite times: the set-point + (+0)·decay with
+        0 ≤ decay ≤ 1 is the set-point + 0.0 at every time, bit for bit, without the five
+        passes of the decay (the stepped-sine procedure runs at ambient throughout).
+        """
+        times = np.asarray(lab_time_s, dtype=float)
+        if (self.from_c == self.setpoint_c and self.model.sensor_time_constant_s > 0.0
+                and times.ndim >= 1 and np.isfinite([self.setpoint_c, self.step_time_s]).all()
+                and np.isfinite(times).all()):
+            return np.full(times.shape, self.setpoint_c + 0.0)
+        elapsed = np.maximum(times - self.step_time_s, 0.0)
         decay = np.exp(-elapsed / self.model.sensor_time_constant_s)
         return self.setpoint_c + (self.from_c - self.setpoint_c) * decay
 

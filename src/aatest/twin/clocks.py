@@ -131,7 +131,8 @@ def table_sync(edge_times_s: np.ndarray, rising: np.ndarray, level_before: float
     counts = np.bincount(reg_row[inside], minlength=table_time_s.size)
     idx = np.cumsum(counts) - 1
     after = np.where(rising, 1.0, 0.0)
-    level = np.where(idx >= 0, after[np.maximum(idx, 0)], level_before)
+    registered, last = idx >= 0, np.maximum(idx, 0)  # (each formed once for both channels)
+    level = np.where(registered, after[last], level_before)
     reg_time = table_time_s[0] + reg_row * dt
-    latch = np.where(idx >= 0, (reg_time - edge_times_s)[np.maximum(idx, 0)], 0.0)
+    latch = np.where(registered, (reg_time - edge_times_s)[last], 0.0)
     return level, latch

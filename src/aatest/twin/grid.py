@@ -8,6 +8,7 @@ short tables instead of a transcendental call per sample (≈ 5× faster, exact 
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -16,6 +17,14 @@ import numpy as np
 from aatest.twin.fastmath import sincos32
 
 _BLOCK = 512
+
+#: the time arrays of the last few grids, by the bits of (start, dt) and n: a step's DAQ grid
+#: is built as a separate Grid by each stage that needs its times (the outer axis, the inner
+#: axis, the sensor temperature, the truth), each of which would compute the same array
+_TIMES_KEPT = 4
+_TIMES_MIN_SAMPLES = 4096
+_times: dict[tuple[str, str, int], np.ndarray] = {}
+_times_lock = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -28,12 +37,24 @@ class Grid:
 
     @cached_property
     def times(self) -> np.ndarray:
-        """Lab times of the samples (s)."""
+        """Lab times of the samples (s), read-only: shared by equal grids."""
+        key = (float(self.start_s).hex(), float(self.dt_s).hex(), int(self.n))
+        with _times_lock:
+            times = _times.get(key)
+        if times is not None:
+            return times
         # start + dt·k in one float64 buffer: k as float64 is exact (n < 2^53), the very
         # operand the integer arange was promoted to, and a + b, a·b commute bit for bit
         times = np.arange(self.n, dtype=np.float64)
         times *= self.dt_s
         times += self.start_s
+        times.flags.writeable = False
+        if self.n < _TIMES_MIN_SAMPLES:  # (a status poll's one sample evicts nothing)
+            return times
+        with _times_lock:
+            _times[key] = times
+            while len(_times) > _TIMES_KEPT:
+                del _times[next(iter(_times))]
         return times
 
     def shifted(self, by_s: float) -> Grid:

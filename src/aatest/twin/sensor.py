@@ -340,8 +340,9 @@ def output_volts(model: SensorModel, inp: SensorInputs, t_ref_c: float,
         counts *= model.resolution_dps2
         alpha = counts
     d_temp = inp.temperature_c - t_ref_c
-    time_s = inp.time_s if inp.time_s is not None else np.arange(alpha.size) * inp.dt_s
-    plugin_inputs = EffectInputs(alpha, sensed, d_temp, time_s, inp.dt_s, model.range_dps2)
+    if model.plugin_effects:  # (their inputs only when there are some: time_s is a pass)
+        time_s = inp.time_s if inp.time_s is not None else np.arange(alpha.size) * inp.dt_s
+        plugin_inputs = EffectInputs(alpha, sensed, d_temp, time_s, inp.dt_s, model.range_dps2)
     if model.nonlinearity_cubic is not None:
         alpha = cubic(alpha, model.nonlinearity_cubic.c3, model.range_dps2)
     plugin_volts: np.ndarray | None = None  # Σ of the plugin terms in V, from zeros

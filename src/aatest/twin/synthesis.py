@@ -179,6 +179,9 @@ def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generato
     motion: dict[float, tuple[np.ndarray, np.ndarray]] = {}
     floor, state.floor_zi = (ahead.floor.result() if ahead is not None else floor_rocking_block(
         model.table, grid.n, clock.lab_dt_s, rng, state.floor_zi))
+    # time since the trigger: read by plugin effects only (one array for every channel)
+    since_trigger = (grid.times - setup.trigger_time_s
+                     if any(s.plugin_effects for s in model.sensors) else None)
     for sensor in model.sensors:
         delay = sensor_delay_s(model, sensor)
         if delay not in motion:
@@ -187,7 +190,7 @@ def _daq_block(setup: StepSetup, grid: Grid, first: int, rng: np.random.Generato
         rate = (top_rate(setup, grid.shifted(-delay)) if sensor.rotor_stiction is not None
                 else None)
         inp = SensorInputs(alpha, up, temperature, setup.axes[sensor.channel], clock.lab_dt_s,
-                           grid.times - setup.trigger_time_s, rate)
+                           since_trigger, rate)
         carried = state.sensors.setdefault(sensor.channel, ChannelState())
         clean = output_volts(sensor, inp, model.t_ref_c, carried)
         channels[sensor.channel] = _record_block(clean, sensor, model.daq, clock.lab_dt_s, rng,
@@ -285,6 +288,11 @@ def _alpha_truth(_: LazyTruth, axis_z: np.ndarray, setup: StepSetup, grid: Grid,
     return np.asarray(axis_z @ _undelayed(setup, grid, motion, floor))
 
 
+def _daq_time_truth(_: LazyTruth, grid: Grid, trigger_s: float) -> np.ndarray:
+    """Truth entry: lab time of each DAQ sample since the trigger (s)."""
+    return grid.times - trigger_s
+
+
 def _accel_truth(truth: LazyTruth, channels: list[str]) -> dict[str, np.ndarray]:
     """Truth entry: channel → acceleration along its sensitive axis (°/s²)."""
     return {ch: truth[f"alpha_{ch}"] for ch in channels}
@@ -296,7 +304,9 @@ def _daq_log(setup: StepSetup, rng: np.random.Generator,
     """The whole DAQ log at once: the concatenation of :func:`daq_blocks`."""
     clock = setup.clock
     n = _daq_samples(setup)
-    truth = LazyTruth(daq_time_s=Grid(clock.t0_s, clock.lab_dt_s, n).times - setup.trigger_time_s)
+    truth = LazyTruth()
+    truth.defer("daq_time_s", partial(_daq_time_truth, grid=Grid(clock.t0_s, clock.lab_dt_s, n),
+                                      trigger_s=setup.trigger_time_s))
     blocks = list(daq_blocks(setup, rng, truth, drift_rng, ahead))
     return concatenate_logs(blocks), truth
 
