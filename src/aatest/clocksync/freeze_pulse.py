@@ -23,6 +23,7 @@ import numpy as np
 
 from aatest.clocksync.clock_fit import (
     LOGIC_THRESHOLD,
+    daq_edge_samples,
     daq_edges,
     edge_relation,
     fit_clock_relation,
@@ -30,6 +31,7 @@ from aatest.clocksync.clock_fit import (
     refine_offset,
     regular_fit,
     regular_time,
+    regular_time_at,
     rising_edges,
 )
 from aatest.clocksync.relation import ClockRelation, SyncedStep
@@ -101,15 +103,24 @@ def clock_relation(data: StepData,
         return streamed_relation(data.step, data.table, log_pieces(data.daq))
     time_s = np.asarray(data.daq.time_s, dtype=np.float64)
     fit = regular_fit(time_s)
-    daq_time_s = regular_time(time_s, fit)
-    relation = _fitted_relation(data, daq_time_s, slope_range)
+    # the regular DAQ time base at the edges, the trigger and the ends only (the values
+    # regular_time gives there): _fitted_relation's work without the array of every sample
+    idx, first = daq_edge_samples(data)
+    t_daq = regular_time_at(time_s, fit, idx)
+    offset0 = (None if first is None else
+               float(data.table.time_s[0]) - float(regular_time_at(time_s, fit, first)))
+    span = (float(regular_time_at(time_s, fit, 0)),
+            float(regular_time_at(time_s, fit, time_s.size - 1)))
+    relation = replace(_edge_relation(data, t_daq, offset0, slope_range),
+                       record_span_daq_s=span)
     table_time_s = np.asarray(data.table.time_s, dtype=np.float64)
-    if not _covers_ordered(table_time_s, daq_time_s, relation):
-        _relation(data, daq_time_s, relation)  # the general check (raises when not covered)
+    if not _covers_ordered(table_time_s, span, relation):
+        # the general check (raises when not covered)
+        _relation(data, regular_time(time_s, fit), relation)
     return replace(relation, daq_time_fit=fit)
 
 
-def _covers_ordered(table_time_s: np.ndarray, daq_time_s: np.ndarray,
+def _covers_ordered(table_time_s: np.ndarray, daq_span_s: tuple[float, float],
                     relation: ClockRelation) -> bool:
     """Whether the DAQ record covers ≥ 50 % of the table log, decided as :func:`_relation`
     decides it but without mapping every table sample (False: not decidable so, or not covered).
@@ -127,8 +138,8 @@ def _covers_ordered(table_time_s: np.ndarray, daq_time_s: np.ndarray,
     def at_daq_s(i: int) -> float:
         return float(relation.to_daq_s(table_time_s[i: i + 1])[0])
 
-    first_in = bisect_left(range(n), True, key=lambda i: at_daq_s(i) >= daq_time_s[0])
-    first_after = bisect_left(range(n), True, key=lambda i: at_daq_s(i) > daq_time_s[-1])
+    first_in = bisect_left(range(n), True, key=lambda i: at_daq_s(i) >= daq_span_s[0])
+    first_after = bisect_left(range(n), True, key=lambda i: at_daq_s(i) > daq_span_s[1])
     return first_after - first_in >= 0.5 * n
 
 
