@@ -105,10 +105,12 @@ def timed_pair() -> Iterator[Callable[..., tuple[CanDaq, StreamingFeeder, Monito
     parts: list[Any] = []
 
     def make(faults: CanFaultInjection | None = None, feeder: StreamingFeeder | None = None,
+             frame_rate_hz: float | None = None,
              **config: object) -> tuple[CanDaq, StreamingFeeder, Monitor]:
         channel = f"can-timed-{next(_names)}"
         feeder = feeder or StreamingFeeder(record())
-        logger = SimCanLogger(feeder, "virtual", channel, faults=faults).start()
+        logger = SimCanLogger(feeder, "virtual", channel, frame_rate_hz=frame_rate_hz,
+                              faults=faults).start()
         monitor = Monitor()
         bus = can.Bus(interface="virtual", channel=channel, fd=True)
         notifier = can.Notifier(bus, [monitor], timeout=0.05)
@@ -194,7 +196,11 @@ def test_memory_is_one_chunk_and_one_block_whatever_the_length(timed_pair: Calla
 
 
 def test_lost_frames_end_the_record_after_the_frames_before_them(timed_pair: Callable) -> None:
-    daq, feeder, monitor = timed_pair(CanFaultInjection(drop_frames=frozenset({20_000, 20_001})))
+    # paced as a logger sends (5 kHz: the 5 424 frames after the chunk mark that reveals the
+    # loss take ≈ 1.1 s): unpaced, a loaded machine let the simulator send all 30 000 frames
+    # before the host's STOP reached it, and the early end this test checks never happened
+    daq, feeder, monitor = timed_pair(CanFaultInjection(drop_frames=frozenset({20_000, 20_001})),
+                                      frame_rate_hz=5000.0)
     chunks, fault = _collect(daq)
     assert fault is not None and "lost 2 sample frames of the timed record (2 from frame " \
         "20000; 24576 sent so far); the frames before the loss are recorded" in str(fault)
