@@ -14,23 +14,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from synthetic_rig import SynthRig, make_step, sine_step
+from test_edges_fast_paths import _reference_robust
 
 from aatest.clocksync import clock_fit, edges, freeze_pulse
 from aatest.clocksync.relation import ClockRelation
 from aatest.engine.errors import AnalysisError
 from aatest.engine.logs import SampledLog
 from aatest.recording.dataset import StepData
-
-
-def _reference_robust(tt: np.ndarray, td: np.ndarray, floor_s: float
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    coef, res = edges.line_fit(tt, td)
-    mad = 1.4826 * float(np.median(np.abs(res - np.median(res))))
-    keep = np.abs(res) <= max(5.0 * mad, floor_s)
-    if keep.sum() >= edges.MIN_EDGES and not keep.all():
-        coef, _ = edges.line_fit(tt[keep], td[keep])
-        coef = np.array([coef[0] - coef[1] * (td[keep][0] - td[0]), coef[1]])
-    return coef, keep
 
 
 @pytest.mark.parametrize("case", ["inside-floor", "outliers", "wide-scatter", "nan"])
