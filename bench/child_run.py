@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import subprocess
 import sys
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -41,3 +43,21 @@ def leaves(value: Any, path: str = "") -> Iterator[tuple[str, Any]]:
             yield from leaves(item, f"{path}[{i}]")
     else:
         yield path, value
+
+
+def alternate(script: str, checkouts: dict[str, Path], argv: list[str], label: str,
+              processes: int) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
+    """Run ``script argv --dump FILE --json`` on each checkout's ``src`` in turn, ``processes``
+    times each (alternating, so a change of machine load hits both alike): every run's JSON
+    by checkout, and each checkout's last dumped output (a pickle the script wrote) to compare
+    the two by (:func:`leaves`)."""
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in checkouts}
+    with tempfile.TemporaryDirectory() as tmp:
+        dumps = {name: Path(tmp) / f"{name}.pickle" for name in checkouts}
+        for _ in range(processes):
+            for name, src in checkouts.items():
+                runs[name].append(child_json(script, src, [*argv, "--dump", str(dumps[name]),
+                                                           "--json"], label))
+        # the benches' own pickles, written by the child a moment ago in our temporary folder
+        outputs = {name: pickle.loads(dumps[name].read_bytes()) for name in checkouts}
+    return runs, outputs

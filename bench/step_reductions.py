@@ -25,12 +25,11 @@ import json
 import math
 import pickle
 import statistics
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from child_run import child_json, leaves  # bench/ (the script's directory) is on sys.path
+from child_run import alternate, leaves  # bench/ (the script's directory) is on sys.path
 
 from aatest.engine import registry
 from aatest.recording import read_dataset
@@ -130,17 +129,11 @@ def largest_change(a: Any, b: Any) -> tuple[float, str, int]:
 def compare(run_dir: Path, base_src: Path, rounds: int) -> None:
     """This bench on the base checkout and on this one, alternately; ratios per watch."""
     this_src = Path(__file__).resolve().parents[1] / "src"
-    runs: dict[str, list[dict[str, float]]] = {"base": [], "this": []}
-    with tempfile.TemporaryDirectory() as tmp:
-        dumps = {label: Path(tmp) / f"{label}.pickle" for label in runs}
-        for _ in range(2):
-            for label, src in (("base", base_src), ("this", this_src)):
-                doc = child_json(__file__, src, [str(run_dir), "--rounds", str(rounds),
-                                                 "--dump", str(dumps[label]), "--json"],
-                                 "step reductions")
-                runs[label].append(doc["cpu_ms"])
-        worst, where, count = largest_change(*(pickle.loads(dumps[label].read_bytes())
-                                               for label in ("base", "this")))
+    docs, outputs = alternate(__file__, {"base": base_src, "this": this_src},
+                              [str(run_dir), "--rounds", str(rounds)], "step reductions", 2)
+    runs = {label: [d["cpu_ms"] for d in got] for label, got in docs.items()}
+    doc = docs["this"][-1]
+    worst, where, count = largest_change(outputs["base"], outputs["this"])
     print(f"per-step reductions of {run_dir} ({doc['steps']} steps), CPU ms per step, "
           f"best of 2 processes × median of {rounds} rounds")
     print(f"  {'watch':<28} {'base':>8} {'this':>8} {'ratio':>6}")

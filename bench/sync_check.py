@@ -23,12 +23,11 @@ import json
 import pickle
 import pstats
 import statistics
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from child_run import child_json, leaves  # bench/ (the script's directory) is on sys.path
+from child_run import alternate, leaves  # bench/ (the script's directory) is on sys.path
 
 from aatest.engine import registry
 from aatest.recording import read_dataset
@@ -81,17 +80,11 @@ def _plain(x: Any) -> Any:
 def compare(run_dir: Path, base_src: Path, rounds: int) -> None:
     """This bench on the base checkout and on this one, alternately; the ratio."""
     this_src = Path(__file__).resolve().parents[1] / "src"
-    runs: dict[str, list[float]] = {"base": [], "this": []}
-    with tempfile.TemporaryDirectory() as tmp:
-        dumps = {label: Path(tmp) / f"{label}.pickle" for label in runs}
-        for _ in range(3):
-            for label, src in (("base", base_src), ("this", this_src)):
-                doc = child_json(__file__, src, [str(run_dir), "--rounds", str(rounds),
-                                                 "--dump", str(dumps[label]), "--json"],
-                                 "sync check")
-                runs[label].append(doc["cpu_ms"])
-        a, b = (dict(leaves(pickle.loads(dumps[label].read_bytes())))
-                for label in ("base", "this"))
+    docs, outputs = alternate(__file__, {"base": base_src, "this": this_src},
+                              [str(run_dir), "--rounds", str(rounds)], "sync check", 3)
+    runs = {label: [d["cpu_ms"] for d in got] for label, got in docs.items()}
+    doc = docs["this"][-1]
+    a, b = (dict(leaves(outputs[label])) for label in ("base", "this"))
     differ = sum(1 for k in a.keys() | b.keys()
                  if repr(a.get(k)) != repr(b.get(k)))  # repr: NaN == NaN, bits of floats
     base, this = min(runs["base"]), min(runs["this"])
