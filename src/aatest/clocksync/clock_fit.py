@@ -76,8 +76,8 @@ def regular_time(time_s: np.ndarray, fit: tuple[float, float] | None = None) -> 
     noise of the stamps, not of the sampling, so the fit is the better time base. ``fit``: the
     line already fitted to these stamps (:func:`regular_fit`), else fitted here.
     """
-    intercept, slope = fit if fit is not None else regular_fit(time_s)
-    return time_s[0] + intercept + slope * np.arange(time_s.size, dtype=np.float64)
+    return regular_time_at(time_s, fit if fit is not None else regular_fit(time_s),
+                           np.arange(time_s.size, dtype=np.float64))
 
 
 def regular_time_at(time_s: np.ndarray, fit: tuple[float, float],
