@@ -8,11 +8,13 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from recording_data import run_meta, sine_step, step_logs
 
 from aatest.early.analysis import EarlyResults
-from aatest.early.child import _Child
+from aatest.early.child import _Child, _Later
+from aatest.early.made import LaterMade
 from aatest.engine.analysis.passes import run_analyses
 from aatest.engine.registry import pinned
 from aatest.recording import RunRecorder, read_dataset
@@ -40,11 +42,12 @@ def _made(recorder: RunRecorder, steps: list[Any]) -> EarlyResults:
     return EarlyResults({k: v for k, v in made.items() if v is not None})
 
 
-def _analysed(run_dir: Path, early: EarlyResults | None) -> dict[str, Any]:
+def _analysed(run_dir: Path, early: EarlyResults | None, analysis: list[str] | None = None
+              ) -> dict[str, Any]:
     data = read_dataset(run_dir)
     if early is not None:
         early.offer(data)
-    done = run_analyses(data, ANALYSIS)
+    done = run_analyses(data, analysis or ANALYSIS)
     assert not done.errors
     return {"values": {k: v.model_dump(mode="json") for k, v in done.values.items()},
             "figures": done.figures}
@@ -108,3 +111,82 @@ def test_a_taken_steps_warnings_are_raised_where_the_pass_takes_it(
     assert [(w.category, str(w.message)) for w in caught] == [
         (RuntimeWarning, f"step {i} looks odd") for i in range(3)]
     assert {Path(w.filename).name for w in caught} == {Path(__file__).name}  # where raised
+
+
+def _two_groups(run_dir: Path) -> tuple[RunRecorder, list[Any]]:
+    """Two test groups of six coherent sine frequencies each (what a transfer-function
+    model needs), each step written to its step file (not merged yet)."""
+    base = sine_step(samples=8192)
+    steps = [base.model_copy(update={
+        "id": f"s{k:02d}-{group}", "group": group, "cycles": cycles,
+        "frequency_hz": cycles * base.sample_rate_hz / base.samples,
+        "amplitude_deg": 100.0 / (2 * np.pi * cycles * base.sample_rate_hz / base.samples) ** 2})
+        for k, (group, cycles) in enumerate((g, c) for g in ("g1", "g2")
+                                            for c in (4, 6, 8, 11, 16, 23))]
+    recorder = RunRecorder(run_dir)
+    recorder.write_run_metadata({**run_meta(steps), "analysis": TF_ANALYSIS})
+    for seed, step in enumerate(steps):
+        recorder.write_step(step, *step_logs(step, seed))
+    return recorder, steps
+
+
+TF_ANALYSIS = ["sync", "frf", "transfer_function"]
+
+
+def test_group_fits_made_by_the_child_are_taken_with_the_same_results(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    # the child fits a group once it has made the group's last step, in pieces between
+    # steps; the pass takes those fits (digest of the very inputs) and draws only the figures
+    made_later: list[LaterMade] = []
+    later = _Later(lambda message: made_later.append(message) is None)
+    with pinned():
+        recorder, steps = _two_groups(tmp_path)
+        child = _Child(later)
+        made: dict[str, Any] = {}
+        pieces = {}
+        for step, path in zip(steps, recorder.step_files(), strict=True):
+            made[step.id] = child.analyse(step.id, path)
+            queued = later.pending
+            pieces[step.id] = 0
+            while later.pending:
+                later.advance()
+                pieces[step.id] += 1
+            assert queued == (step.id in {"s05-g1", "s11-g2"})  # each group's last step
+        recorder.finalize()
+        early = EarlyResults(made, made_later)
+        caplog.set_level(logging.DEBUG, "aatest.analysis")
+        plain = _analysed(tmp_path, None, TF_ANALYSIS)
+        taken = _analysed(tmp_path, early, TF_ANALYSIS)
+    assert [m.key for m in made_later] == ["v_sz:g1", "v_sz:g2"]
+    assert pieces["s05-g1"] > 20  # a candidate fit each (a few ms), not one long block
+    fits = [r.getMessage() for r in caplog.records if "group fits" in r.getMessage()]
+    assert fits == ["transfer function: 0 of 4 group fits made while the run recorded",
+                    "transfer function: 4 of 4 group fits made while the run recorded"]
+    assert taken == plain  # every value and figure
+
+
+def test_a_group_fit_of_other_inputs_is_not_taken(tmp_path: Path,
+                                                   caplog: pytest.LogCaptureFixture) -> None:
+    # a fit is taken only for the same inputs bit for bit: here step s03's FRF point is made
+    # of other samples than the recording's (the step recorded again), so g1 is fitted anew
+    made_later: list[LaterMade] = []
+    later = _Later(lambda message: made_later.append(message) is None)
+    with pinned():
+        recorder, steps = _two_groups(tmp_path)
+        child = _Child(later)
+        made: dict[str, Any] = {}
+        for step, path in zip(steps, recorder.step_files(), strict=True):
+            made[step.id] = child.analyse(step.id, path)
+            while later.pending:
+                later.advance()
+        recorder.write_step(steps[3], *step_logs(steps[3], seed=11))
+        recorder.finalize()
+        caplog.set_level(logging.DEBUG, "aatest.analysis")
+        plain = _analysed(tmp_path, None, TF_ANALYSIS)
+        early = EarlyResults(made, made_later)
+        taken = _analysed(tmp_path, early, TF_ANALYSIS)
+    assert early.offered == 11
+    fits = [r.getMessage() for r in caplog.records if "group fits" in r.getMessage()]
+    assert fits[-1] == "transfer function: 2 of 4 group fits made while the run recorded"
+    assert taken == plain
+

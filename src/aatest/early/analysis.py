@@ -12,7 +12,10 @@ not spent decoding), and the clock relation the run-time check has just fitted o
 (:meth:`_Notifying.step_checked`; not fitted again) —, and
 the child makes each step's share of the pass as the pass would (the same watches, registered
 by :func:`~aatest.engine.analysis.passes.register_watches`; each analysis plugin's optional
-``early_step(data, index)``). After the record phase the pass takes those results
+``early_step(data, index)``; and, once the steps it reads are all made, the work a plugin's
+optional ``early_ready(data, made, options)`` offers — the transfer function's fits of a test
+group —, made while no step waits and taken by the plugin's ``take_early_done``). After the
+record phase the pass takes those results
 (``take_early(data, index, result)``) for the steps whose bytes in ``recording.mcap`` are the
 ones the child decoded, or (a handed step) the ones the run process wrote the handed arrays to,
 digested by the writer thread as soon as it has renamed the file into place
@@ -57,7 +60,7 @@ from pathlib import Path
 from typing import Any
 
 from aatest.early import handover
-from aatest.early.made import DRAIN, Fitted, Made, StepSent, Warned, context_digest
+from aatest.early.made import DRAIN, Fitted, LaterMade, Made, StepSent, Warned, context_digest
 from aatest.engine.procedure.envelope import streams_record
 from aatest.engine.steps import Plan, PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
@@ -84,13 +87,17 @@ class EarlyResults:
     """What the child made by step id; :meth:`offer` hands the valid ones to the pass."""
 
     made: dict[str, Made] = field(default_factory=dict)
+    #: the work plugins offered once the steps it reads were made (``early_ready``), made
+    later: list[LaterMade] = field(default_factory=list)
     #: steps handed to the pass by the last :meth:`offer`
     offered: int = 0
 
     def offer(self, data: Dataset) -> int:
         """Hand each step of ``data`` the child made of the same bytes and for the same plan,
         sensors and analyses to its plugins' ``take_early``; return how many. Never raises:
-        a step not handed over is computed by the pass (which meets any error itself)."""
+        a step not handed over is computed by the pass (which meets any error itself).
+        Each :attr:`later` item made for the same plan, sensors and analyses goes to its
+        plugin's ``take_early_done(data, key, value)`` (the plugin checks that it fits)."""
         try:
             self.offered = self._offer(data)
         except Exception as exc:  # noqa: BLE001 - the pass computes every step and meets it
@@ -103,7 +110,7 @@ class EarlyResults:
         from aatest.recording.step_chunks import step_digests
 
         source = data.source
-        if not self.made or not isinstance(data.steps, LazySteps) \
+        if not (self.made or self.later) or not isinstance(data.steps, LazySteps) \
                 or not isinstance(source, Path) or not source.is_file():
             return 0
         context = context_digest(data)
@@ -120,6 +127,10 @@ class EarlyResults:
                     take(data, index, result)  # type: ignore[misc] # checked just above
                 _warn_again(made.warned)
                 offered += 1
+        for later in self.later:
+            take_done = getattr(load(later.plugin).cls, "take_early_done", None)
+            if later.context == context and callable(take_done):
+                take_done(data, later.key, later.value)
         return offered
 
 
@@ -201,6 +212,7 @@ class EarlyAnalysis:
         self._inbox = Connection(self._inbox_fd, readable=False)
         self._outbox = Connection(self._outbox_fd, writable=False)
         self._made: dict[str, Made] = {}
+        self._later: list[LaterMade] = []
         self._closed = False
         self._reader = threading.Thread(target=self._collect, name="aatest-early-results",
                                         daemon=True)
@@ -281,9 +293,13 @@ class EarlyAnalysis:
     def _collect(self) -> None:
         while True:
             try:
-                step_id, made, read = self._outbox.recv()
+                message = self._outbox.recv()
             except Exception:  # noqa: BLE001 - the pipe's end (a child ended mid-message too)
                 return
+            if isinstance(message, LaterMade):
+                self._later.append(message)
+                continue
+            step_id, made, read = message
             with self._lock:
                 done = self._handed.pop(step_id, None)  # unmapped by the child: free again
                 if done is not None:
@@ -308,7 +324,7 @@ class EarlyAnalysis:
         self.close()
         log.debug("analysis while recording: %d steps made, %d of them handed over",
                   len(self._made), self.handed_steps)
-        return EarlyResults(dict(self._made))
+        return EarlyResults(dict(self._made), list(self._later))
 
     def close(self) -> None:
         """End the child (at once if it still runs) and reap it; end the reader thread."""

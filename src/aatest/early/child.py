@@ -4,8 +4,10 @@ analysed as the analysis pass will analyse that step of ``recording.mcap``.
 It builds the plan-wide view the pass sees (the plan's recorded steps, the sensors and sample
 rate of the run record every step file embeds), registers the pass's watches on it
 (:func:`~aatest.engine.analysis.passes.register_watches`, with the procedure's analyses and
-options) and calls each applicable analysis plugin's ``early_step(data, index)``. A step's
-logs are read from the shared memory the run process handed them in
+options) and calls each applicable analysis plugin's ``early_step(data, index)``; it makes
+the work plugins offer once the steps it reads are made (``early_ready``: :class:`_Later`)
+while no step waits. A step's logs are read from the shared memory the run process handed
+them in
 (:mod:`aatest.early.handover`: the arrays a decode gives, bit for bit), else decoded from its
 step file (a step not handed: the child behind by more than the handover allows, a failed
 handover); its clock relation is the one the run-time check fitted when that check's inputs
@@ -16,21 +18,26 @@ back as None.
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import logging
 import os
 import signal
 import socket
 import warnings
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from aatest.early.handover import Mapped
-from aatest.early.made import DRAIN, Fitted, Made, StepSent, Warned, context_digest
+from aatest.early.made import DRAIN, Fitted, LaterMade, Made, StepSent, Warned, context_digest
 from aatest.engine.steps import PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
+
+if TYPE_CHECKING:
+    from aatest.engine.analysis.passes import Watched
 
 
 def main(argv: Sequence[str]) -> None:
@@ -59,9 +66,11 @@ def serve(inbox: Connection, outbox: Connection, segments: socket.socket | None 
     mapped from the segment on ``segments`` when handed) and send ``(step id, Made or
     None, channels read by logger or None)`` on ``outbox`` (the run process hands those of
     the next steps); keep the relations the run-time check fitted (:class:`Fitted`);
-    end on ``None`` (after the step in flight: newly arrived messages are read before each
-    step), on :data:`DRAIN` once every step sent before it is done, or when the parent is
-    gone."""
+    while no step waits, make a piece of the work the plugins offered once the steps it
+    reads were made and send each item's :class:`LaterMade` (:class:`_Later`);
+    end on ``None`` (after the step or piece in flight: newly arrived messages are read
+    before each), on :data:`DRAIN` once every step sent before it and every item offered
+    are made, or when the parent is gone."""
     from threadpoolctl import threadpool_limits
 
     from aatest.engine import registry
@@ -69,38 +78,112 @@ def serve(inbox: Connection, outbox: Connection, segments: socket.socket | None 
     queue: deque[tuple[StepSent, Mapped | None]] = deque()
     fitted: dict[str, Any] = {}
     draining = False
+    send = functools.partial(_sent, outbox)
     # BLAS on one thread, as in the pass (run_analyses): the same sums in the same order
     with registry.pinned(), threadpool_limits(limits=1, user_api="blas"):
-        child = _Child()
+        later = _Later(send)
+        child = _Child(later)
         try:
             while True:
-                if (not queue and not draining) or inbox.poll():
-                    try:
-                        message = inbox.recv()
-                    except (EOFError, OSError):
-                        return
+                if (not queue and not draining and not later.pending) or inbox.poll():
+                    message = _message(inbox)
                     if message is None:
                         return
                     draining = _take(message, queue, fitted, segments) or draining
                     continue
-                if not queue:  # drained
-                    return
-                sent, mapped = queue.popleft()
-                try:
-                    made = child.analyse(sent.step_id, Path(sent.path), mapped,
-                                         fitted.pop(sent.step_id, None))
-                finally:
-                    if mapped is not None:
-                        mapped.close()
-                read = {k: sorted(v) for k, v in mapped.read.items()} if mapped else None
-                try:
-                    outbox.send((sent.step_id, made, read))
-                except (OSError, ValueError):
+                # a step, else (none waits) a piece of later work; drained: every step,
+                # then every item offered, made
+                going = send(_next(child, queue, fitted)) if queue else \
+                    later.pending and later.advance()
+                if not going:
                     return
         finally:
             for _, mapped in queue:
                 if mapped is not None:
                     mapped.close()
+
+
+def _message(inbox: Connection) -> Any:
+    """The next message from the run process (None: the end, or it is gone)."""
+    try:
+        return inbox.recv()
+    except (EOFError, OSError):
+        return None
+
+
+def _sent(outbox: Connection, message: Any) -> bool:
+    """Send ``message`` on ``outbox``; False when the run process is gone."""
+    try:
+        outbox.send(message)
+    except (OSError, ValueError):
+        return False
+    return True
+
+
+def _next(child: _Child, queue: deque[tuple[StepSent, Mapped | None]],
+          fitted: dict[str, Any]) -> tuple[str, Made | None, dict[str, list[str]] | None]:
+    """The message for the run process of the first queued step, made."""
+    sent, mapped = queue.popleft()
+    try:
+        made = child.analyse(sent.step_id, Path(sent.path), mapped,
+                             fitted.pop(sent.step_id, None))
+    finally:
+        if mapped is not None:
+            mapped.close()
+    read = {k: sorted(v) for k, v in mapped.read.items()} if mapped else None
+    return (sent.step_id, made, read)
+
+
+class _Later:
+    """The work plugins offer once the steps it reads are made (``early_ready``: e.g. a
+    test group's model fits), made in this process piece by piece while no step waits,
+    each item sent on as a :class:`LaterMade` (an item that raised is not sent: the pass
+    makes it and meets the error).
+
+    An item is a generator that pauses between pieces of a few milliseconds (its value is
+    the generator's return value), so a step that comes waits at most one piece. Why not a
+    thread or a process: measured on the stepped sine (a group's fits ≈ 0.2 s of CPU, a
+    step every ≈ 60 ms), an item on a thread slowed the steps' analysis so (both contending
+    for the GIL at every NumPy call) that the child fell behind by 26–40 steps, and an item
+    in a forked process cost the child ≈ 1.4 s of CPU more per run (its writes copied the
+    pages the fork shared) and it fell behind too. In pieces, the item takes only the time
+    the child would have waited. Its warnings are ignored, like those of the pass's workers.
+    """
+
+    def __init__(self, send: Callable[[Any], bool]) -> None:
+        self._send = send
+        self._items: deque[tuple[str, str, Callable[[], Any], str]] = deque()
+        #: the item being made: plugin, key, context and its pieces
+        self._current: tuple[str, str, str, Iterator[Any]] | None = None
+
+    @property
+    def pending(self) -> bool:
+        """Whether an item is queued or being made."""
+        return self._current is not None or bool(self._items)
+
+    def put(self, plugin: str, key: str, work: Callable[[], Any], context: str) -> None:
+        """Queue one item: ``work()`` is a generator whose return value is the value of
+        ``plugin``'s ``key``."""
+        self._items.append((plugin, key, work, context))
+
+    def advance(self) -> bool:
+        """Make the next piece of the current (else the next) item; send its value once it is
+        made. False when the run process is gone."""
+        if self._current is None:
+            plugin, key, work, context = self._items.popleft()
+            try:
+                self._current = (plugin, key, context, iter(work()))
+            except Exception:  # noqa: BLE001 - see the class docstring
+                return True
+        plugin, key, context, pieces = self._current
+        try:
+            next(pieces)
+        except StopIteration as made:
+            self._current = None
+            return self._send(LaterMade(plugin, key, context, made.value))
+        except Exception:  # noqa: BLE001 - see the class docstring
+            self._current = None
+        return True
 
 
 def _take(message: Any, queue: deque[tuple[StepSent, Mapped | None]],
@@ -144,10 +227,16 @@ def _received(segments: socket.socket | None, sent: StepSent) -> Mapped | None:
 class _Child:
     """The plan-wide view the child analyses each step in (from the first step file)."""
 
-    def __init__(self) -> None:
+    def __init__(self, later: _Later | None = None) -> None:
+        #: the work plugins offer once the steps it reads are made (None: none is made)
+        self._later = later
         self._base: Dataset | None = None
         self._context = ""
         self._index: dict[str, int] = {}
+        #: each made step's ``early_step`` results by plugin name, by step index
+        self._made: dict[int, dict[str, Any]] = {}
+        #: the work plugins offered (``early_ready``), by (plugin, key): each is queued once
+        self._offered: set[tuple[str, str]] = set()
 
     def analyse(self, step_id: str, path: Path, mapped: Mapped | None = None,
                 relation: Any = None) -> Made | None:
@@ -193,7 +282,24 @@ class _Child:
                        and p.cls().applies_to(data)}
         warned = tuple(Warned(f"{w.category.__module__}.{w.category.__qualname__}",
                               str(w.message), w.filename, w.lineno) for w in caught)
+        self._made[index] = results
+        if self._later is not None:
+            with contextlib.suppress(Exception):  # the step is made; the pass does the rest
+                self._queue_later(base, watched, self._later)
         return Made(digest, self._context, results, warned)
+
+    def _queue_later(self, base: Dataset, watched: Watched, later: _Later) -> None:
+        """Queue the work each plugin's ``early_ready`` offers now that one more step is
+        made (asked of the plan-wide view ``base``; each item once)."""
+        for plugin in watched.plugins:
+            ready = getattr(plugin.cls, "early_ready", None)
+            if not callable(ready) or not plugin.cls().applies_to(base):
+                continue
+            for key, work in ready(base, self._made, watched.chosen).items():
+                if (plugin.name, key) not in self._offered:
+                    self._offered.add((plugin.name, key))
+                    later.put(plugin.name, key, work, self._context)
+
 
     def _first(self, single: Dataset) -> Dataset:
         """The plan's recorded steps, sensors and sample rate, as the recording will state

@@ -67,6 +67,21 @@ class Made:
     warned: tuple[Warned, ...] = ()
 
 
+@dataclass(frozen=True)
+class LaterMade:
+    """Work an analysis plugin's ``early_ready`` offered once the steps it reads were all
+    made (e.g. a test group's model fits), done by the child while it had no step to make;
+    the pass hands ``value`` to the plugin's ``take_early_done(data, key, value)``."""
+
+    #: the plugin's name
+    plugin: str
+    #: which of its work items (the key ``early_ready`` gave it)
+    key: str
+    #: :func:`context_digest` of the dataset the child made it in
+    context: str
+    value: Any
+
+
 def context_digest(data: Dataset) -> str:
     """SHA-256 of what the watches of a pass depend on besides a step's own data: the planned
     steps, the sensors, the dataset's sample rate and the requested analyses."""

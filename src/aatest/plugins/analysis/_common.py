@@ -163,6 +163,12 @@ OptionsT = TypeVar("OptionsT", bound=BaseModel)
 
 def options_of(context: AnalysisContext, model: type[OptionsT]) -> OptionsT:
     """The context's options as ``model`` (its defaults when the context carries none)."""
-    if isinstance(context.options, model):
-        return context.options
-    return model.model_validate(context.options.model_dump())
+    return as_options(context.options, model)
+
+
+def as_options(given: BaseModel | None, model: type[OptionsT]) -> OptionsT:
+    """Options ``given`` (e.g. the pass's by plugin name) as ``model``; its defaults when
+    none were given."""
+    if isinstance(given, model):
+        return given
+    return model.model_validate(given.model_dump() if given is not None else {})

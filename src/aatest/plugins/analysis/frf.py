@@ -423,7 +423,7 @@ def channel_points(steps: Sequence[SyncedStep], sensor: SensorInfo, harmonics: i
     if isinstance(steps, SyncedSteps):  # the points the sync pass made, else from the steps
         steps = steps.only(table=INPUT_ACCEL_CHANNELS, daq=(sensor.channel,))
         points = steps.where(lambda p: is_excited(p, sensor)).reduced(
-            _watch_name(sensor, harmonics), point)
+            point_watch_name(sensor, harmonics), point)
     else:
         points = [point(s) for s in select(steps, lambda p: is_excited(p, sensor))]
     points.sort(key=lambda p: (p["group"], p["frequency_hz"]))
@@ -431,7 +431,8 @@ def channel_points(steps: Sequence[SyncedStep], sensor: SensorInfo, harmonics: i
     return points
 
 
-def _watch_name(sensor: SensorInfo, harmonics: int) -> str:
+def point_watch_name(sensor: SensorInfo, harmonics: int) -> str:
+    """The name of the synced watch making ``sensor``'s per-step FRF points."""
     return f"frf.point:{sensor.channel}:{harmonics}"
 
 
@@ -449,7 +450,8 @@ def watch_points(data: Dataset, harmonics: int = HARMONICS) -> None:
         def channels(p: Any, sensor: SensorInfo = sensor) -> dict[str, tuple[str, ...]]:
             return {"table": input_accel_channels(p), "daq": (sensor.channel,)}
 
-        watch_synced(data, _watch_name(sensor, harmonics), SyncedWatch(channels, excited, point))
+        watch_synced(data, point_watch_name(sensor, harmonics),
+                     SyncedWatch(channels, excited, point))
 
 
 class FrfAnalysis:

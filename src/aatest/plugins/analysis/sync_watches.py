@@ -70,11 +70,16 @@ class Synchronised:
     results: dict[str, Any] = field(default_factory=dict)
 
 
+#: the name the synced watches' one step watch is registered under (the key of their
+#: :class:`Synchronised` in a step's kept results)
+WATCHES_NAME = "sync.synchronised"
+
+
 class _Watches:
     """The synced watches of one recording: one :class:`StepWatch` on its lazy steps that
     fits the clock relation, synchronises once and runs every watch due on the step."""
 
-    name: ClassVar[str] = "sync.synchronised"
+    name: ClassVar[str] = WATCHES_NAME
 
     def __init__(self) -> None:
         self.watches: dict[str, SyncedWatch] = {}

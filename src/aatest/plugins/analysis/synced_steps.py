@@ -18,7 +18,7 @@ from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relat
 from aatest.clocksync.streamed import is_partial, streamed_relation, synchronise_streamed
 from aatest.engine.steps import PlannedStep
 from aatest.parallel.forked import parallel_map
-from aatest.plugins.analysis.sync_watches import SYNC_CHANNELS, synchronised_of
+from aatest.plugins.analysis.sync_watches import SYNC_CHANNELS, WATCHES_NAME, synchronised_of
 from aatest.recording.dataset import Dataset, LazySteps, StepData
 
 #: a watched result not (or no longer) there
@@ -224,6 +224,17 @@ def attempt(steps: LazySteps, index: int) -> Attempt | None:
         return _relation_of(steps, index), steps.kept(index)
     except Exception:  # noqa: BLE001 - raised again by the caller's own call, in order
         return None
+
+
+def attempt_result(found: Any, name: str) -> Any:
+    """The synced watch ``name``'s result in a step's :func:`attempt` (made elsewhere: the
+    child of :mod:`aatest.early.analysis` keeps them), or None when it was not made."""
+    kept_by_name = found[1] if isinstance(found, tuple) and found[1:] else None
+    if not isinstance(kept_by_name, Mapping):
+        return None
+    kept = kept_by_name.get(WATCHES_NAME)
+    results = getattr(kept, "results", None)
+    return results.get(name) if isinstance(results, Mapping) else None
 
 
 def _batches(steps: LazySteps, indices: Sequence[int]) -> list[list[int]]:

@@ -47,7 +47,7 @@ def rated_xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[s
     its correlation made by the sync pass, :func:`watch_xcorr`)."""
     if isinstance(steps, SyncedSteps):
         steps = steps.only(table=INPUT_ACCEL_CHANNELS, daq=(sensor.channel,))
-        terms = steps.reduced(_watch_name(sensor), lambda s: _rated_term(s, sensor))
+        terms = steps.reduced(xcorr_watch_name(sensor), lambda s: _rated_term(s, sensor))
     else:
         terms = [_rated_term(s, sensor) for s in steps]
     if not terms:
@@ -56,6 +56,16 @@ def rated_xcorr(steps: Sequence[SyncedStep], sensor: SensorInfo) -> tuple[dict[s
     max_lag = int(_MAX_LAG_S * fs)
     if any(rate != fs for rate, _ in terms):  # every step's lags are those of the first
         terms = [(fs, _xcorr_term(s, sensor, max_lag)) for s in steps]
+    return summed_xcorr(terms)
+
+
+def summed_xcorr(terms: Sequence[tuple[float, np.ndarray]]) -> tuple[dict[str, float], float]:
+    """:func:`rated_xcorr` of a group's per-step terms ``(sample rate, correlation)``, every
+    step at the first one's rate (the caller checks): their mean, its peak and the rate.
+    One function for the pass and for the fits made while the run records
+    (:mod:`aatest.plugins.analysis.tf_early`), so both sum in the same order."""
+    fs = terms[0][0]
+    max_lag = int(_MAX_LAG_S * fs)
     total = np.zeros(max_lag + 1)
     for _, term in terms:
         total += term
@@ -122,7 +132,8 @@ def _rated_term(s: SyncedStep, sensor: SensorInfo) -> tuple[float, np.ndarray]:
     return s.sample_rate_hz, _xcorr_term(s, sensor, int(_MAX_LAG_S * s.sample_rate_hz))
 
 
-def _watch_name(sensor: SensorInfo) -> str:
+def xcorr_watch_name(sensor: SensorInfo) -> str:
+    """The name of the synced watch making ``sensor``'s per-step correlation terms."""
     return f"transfer_function.xcorr:{sensor.channel}"
 
 
@@ -148,4 +159,4 @@ def watch_xcorr(data: Dataset, min_points: int) -> None:
         def channels(p: PlannedStep, sensor: SensorInfo = sensor) -> dict[str, tuple[str, ...]]:
             return {"table": input_accel_channels(p), "daq": (sensor.channel,)}
 
-        watch_synced(data, _watch_name(sensor), SyncedWatch(channels, wanted, term))
+        watch_synced(data, xcorr_watch_name(sensor), SyncedWatch(channels, wanted, term))

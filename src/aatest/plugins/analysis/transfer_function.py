@@ -14,8 +14,9 @@ natural frequency and damping; the Bode plot extrapolates to 500 Hz.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from typing import Any, ClassVar, Literal
+import logging
+from collections.abc import Callable, Generator, Mapping, Sequence
+from typing import Any, ClassVar, Literal, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
@@ -29,13 +30,24 @@ from aatest.engine.steps import PlannedStep
 from aatest.parallel.forked import parallel_map
 from aatest.plugins.analysis import needs
 from aatest.plugins.analysis._common import (
+    as_options,
     group_of,
     is_excited,
     options_of,
     select,
     steps_of,
 )
+from aatest.plugins.analysis.frf import FrfOptions
 from aatest.plugins.analysis.tf_bode import bode_svg
+from aatest.plugins.analysis.tf_early import (
+    GroupInputs,
+    complete_groups,
+    fit_digest,
+    group_inputs,
+    offer_fits,
+    run_through,
+    taken_fits,
+)
 from aatest.plugins.analysis.tf_xcorr import rated_xcorr, watch_xcorr
 from aatest.plugins.analysis.tfest import (
     DiscreteTf,
@@ -46,6 +58,9 @@ from aatest.plugins.analysis.tfest import (
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfPoint
 from aatest.results.transfer_function import TransferFunctionResult
+
+log = logging.getLogger("aatest.analysis")
+T = TypeVar("T")
 
 MAX_POLES = 5
 MIN_POINTS = 6
@@ -131,6 +146,19 @@ def estimate(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],
              options: TransferFunctionOptions | None = None
              ) -> tuple[DiscreteTf, list[dict[str, Any]], int]:
     """All candidate models of one FRF; returns the chosen model, the table, its index."""
+    return run_through(estimate_in_pieces(f, h, dt, xcorr, options))
+
+
+#: a computation that pauses (yields) between its pieces and returns a ``T``
+Pieces = Generator[None, None, T]
+
+
+def estimate_in_pieces(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],
+                       options: TransferFunctionOptions | None = None
+                       ) -> Pieces[tuple[DiscreteTf, list[dict[str, Any]], int]]:
+    """:func:`estimate`, pausing after each candidate fit (a few ms each): the same
+    operations in the same order. Why: the early-analysis child makes it between the steps
+    it analyses (:mod:`~aatest.plugins.analysis.tf_early`)."""
     opts = options or TransferFunctionOptions()
     order = np.argsort(f)
     f, h = f[order], h[order]
@@ -138,8 +166,12 @@ def estimate(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],
     delays = [(0, "none")] + ([(int(xcorr["delay_samples"]), "xcorr")]
                               if xcorr["accepted"] and with_delay else [])
     split = split_points(f, opts)
-    fitted = [_candidate(f, h, n, m, d, src, dt, split) for n in range(opts.max_poles + 1)
-              for m in range(n + 1) for d, src in delays]
+    fitted = []
+    for n in range(opts.max_poles + 1):
+        for m in range(n + 1):
+            for d, src in delays:
+                fitted.append(_candidate(f, h, n, m, d, src, dt, split))
+                yield
     plain = [r for _, r in fitted if r["delay_source"] == "none" and r["n"] <= _SCAN_MAX_POLES]
     top = int(xcorr["delay_samples"]) if with_delay else -1
     # the scan passes the cross-correlation delay too: that structure is fitted already (the
@@ -147,9 +179,10 @@ def estimate(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],
     done = {(r["n"], r["m"], r["delay_samples"]): (model, r) for model, r in fitted
             if r["delay_source"] == "xcorr"}
     for r in plain:
-        fitted += [_rescanned(done.get((r["n"], r["m"], d))) or
-                   _candidate(f, h, r["n"], r["m"], d, "scan", dt, split)
-                   for d in range(1, top + 2)]
+        for d in range(1, top + 2):
+            fitted.append(_rescanned(done.get((r["n"], r["m"], d))) or
+                          _candidate(f, h, r["n"], r["m"], d, "scan", dt, split))
+            yield
     rows = [r for _, r in fitted]
     k = _choose(rows)
     return fitted[k][0], rows, k
@@ -204,7 +237,12 @@ def logger_antialias_hz(data: Dataset, context: AnalysisContext) -> float | None
     """The DAQ pre-sample filter corner to de-embed, from (in order) the option
     ``antialias_hz``, the rig model stored with a simulated dataset, the DAQ options in the run
     metadata, the simulated DAQ's default; otherwise none (nothing is de-embedded)."""
-    value = options_of(context, TransferFunctionOptions).antialias_hz
+    return antialias_of(data, options_of(context, TransferFunctionOptions))
+
+
+def antialias_of(data: Dataset, options: TransferFunctionOptions) -> float | None:
+    """:func:`logger_antialias_hz` for these options (the early fits have no context)."""
+    value = options.antialias_hz
     if value != "auto":
         return None if value == "none" or not value else float(value)
     model = data.metadata.get("model")
@@ -231,8 +269,9 @@ def group_model(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: Sen
     second-order-plus-delay model has the logger's known pre-sample filter de-embedded.
     """
     xcorr = rated_xcorr(steps, sensor)
-    values, svg = _discrete_model(points, xcorr, sensor, options)
-    return _with_physical(values, _physical_model(points, xcorr, antialias_hz)), svg
+    f, h = _group_frf(points)
+    values, svg = _discrete_model(f, h, xcorr, sensor.channel, options)
+    return _with_physical(values, _physical_model(f, h, xcorr, antialias_hz)), svg
 
 
 def _group_frf(points: list[FrfPoint]) -> tuple[np.ndarray, np.ndarray]:
@@ -241,15 +280,36 @@ def _group_frf(points: list[FrfPoint]) -> tuple[np.ndarray, np.ndarray]:
             np.array([complex(p.re, p.im) for p in points]))
 
 
-def _discrete_model(points: list[FrfPoint], xcorr: tuple[dict[str, float], float],
-                    sensor: SensorInfo, options: TransferFunctionOptions | None
+def _discrete_model(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
+                    channel: str, options: TransferFunctionOptions | None
                     ) -> tuple[dict[str, Any], str]:
-    """The chosen discrete model of a group (every value but the physical model) and its Bode
-    figure; ``xcorr`` is the group's :func:`rated_xcorr`."""
-    f, h = _group_frf(points)
+    """The chosen discrete model of a group's FRF ``f``, ``h`` (:func:`_group_frf`; every
+    value but the physical model) and its Bode figure; ``xcorr`` is the group's
+    :func:`rated_xcorr`."""
+    values, model = _discrete_fit(f, h, xcorr, options)
+    return values, _bode(f, h, model, values, channel)
+
+
+def _bode(f: np.ndarray, h: np.ndarray, model: DiscreteTf, values: Mapping[str, Any],
+          channel: str) -> str:
+    """The Bode figure of a group's chosen discrete model (:func:`_discrete_fit`)."""
+    return bode_svg(f, h, model, f"{channel} n={values['n']} m={values['m']}")
+
+
+def _discrete_fit(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
+                  options: TransferFunctionOptions | None
+                  ) -> tuple[dict[str, Any], DiscreteTf]:
+    """:func:`_discrete_model`'s values and the chosen model, without the figure."""
+    return run_through(_discrete_fit_in_pieces(f, h, xcorr, options))
+
+
+def _discrete_fit_in_pieces(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
+                            options: TransferFunctionOptions | None
+                            ) -> Pieces[tuple[dict[str, Any], DiscreteTf]]:
+    """:func:`_discrete_fit` in pieces (:func:`estimate_in_pieces`)."""
     xc, fs = xcorr
     dt = 1.0 / fs
-    model, rows, k = estimate(f, h, dt, xc, options)
+    model, rows, k = yield from estimate_in_pieces(f, h, dt, xc, options)
     best = rows[k]
     values = {
         "poles": _pairs(model.poles()), "zeros": _pairs(model.zeros()),
@@ -261,15 +321,46 @@ def _discrete_model(points: list[FrfPoint], xcorr: tuple[dict[str, float], float
         best["zeros_outside_unit_circle"], "xcorr": xc,
         "continuous": continuous_equivalent(model), "candidates": rows,
     }
-    return values, bode_svg(f, h, model, f"{sensor.channel} n={best['n']} m={best['m']}")
+    return values, model
 
 
-def _physical_model(points: list[FrfPoint], xcorr: tuple[dict[str, float], float],
+def _physical_model(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
                     antialias_hz: float | None) -> dict[str, Any]:
     """The group's second-order-plus-delay fit, the logger's pre-sample filter de-embedded."""
-    f, h = _group_frf(points)
     return second_order_delay_fit(f, h / antialias_response(f, antialias_hz),
                                   xcorr[0]["delay_s"]) | {"deembedded_antialias_hz": antialias_hz}
+
+
+#: the work items of :func:`sensor_models` by kind, the longest first (a discrete item is
+#: ≈ 0.21 s of CPU on the stepped sine, a figure ≈ 0.08 s, a physical model ≈ 0.05 s)
+_ITEM_ORDER = {"discrete": 0, "bode": 1, "physical": 2}
+#: the fits made while the run records (:func:`early_fits`): no figure, hence no matplotlib
+#: in the early-analysis child (its import alone ≈ 0.5 s of CPU there)
+EARLY_KINDS = ("estimate", "physical")
+
+
+def _fit(kind: str, f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
+         channel: str, options: TransferFunctionOptions, antialias_hz: float | None) -> Any:
+    """One fit of a group: its ``discrete`` models with their figure, their ``estimate``
+    alone (values and chosen model), or its ``physical`` model; a work item of
+    :func:`sensor_models` in its workers, or (``estimate``, ``physical``) made early."""
+    if kind == "discrete":
+        return _discrete_model(f, h, xcorr, channel, options)
+    if kind == "estimate":
+        return _discrete_fit(f, h, xcorr, options)
+    return _physical_model(f, h, xcorr, antialias_hz)
+
+
+def early_fits(inputs: GroupInputs, options: TransferFunctionOptions,
+               antialias_hz: float | None) -> Pieces[dict[str, Any]]:
+    """The :data:`EARLY_KINDS` fits of a group made while the run records, by
+    :func:`fit_digest`, in pieces (see :mod:`aatest.plugins.analysis.tf_early`): those of
+    :func:`estimate_in_pieces`, then the physical model (≈ 50 ms) in one."""
+    args = (inputs.f_hz, inputs.h, inputs.xcorr, inputs.sensor.channel, options, antialias_hz)
+    estimated = yield from _discrete_fit_in_pieces(inputs.f_hz, inputs.h, inputs.xcorr, options)
+    yield
+    physical = _physical_model(inputs.f_hz, inputs.h, inputs.xcorr, antialias_hz)
+    return {fit_digest("estimate", *args): estimated, fit_digest("physical", *args): physical}
 
 
 def _with_physical(values: dict[str, Any], physical: dict[str, Any]) -> dict[str, Any]:
@@ -318,9 +409,11 @@ def channel_models(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: 
 
 def sensor_models(points: Mapping[str, list[FrfPoint]], steps: Sequence[SyncedStep],
                   sensors: Sequence[SensorInfo], antialias_hz: float | None,
-                  options: TransferFunctionOptions
+                  options: TransferFunctionOptions, ready: Mapping[str, Any] | None = None
                   ) -> dict[str, tuple[dict[str, Any] | None, dict[str, str]]]:
-    """:func:`channel_models` of every sensor, by channel.
+    """:func:`channel_models` of every sensor, by channel; ``ready``: fits made while the run
+    recorded by :func:`~aatest.plugins.analysis.tf_early.fit_digest` (taken when the digest
+    of a fit's inputs here is one of them: the same inputs bit for bit).
 
     The groups of all sensors are fitted side by side on forked workers in one
     :func:`parallel_map` (each group's candidate scan, Bode figure and physical model depend
@@ -332,21 +425,40 @@ def sensor_models(points: Mapping[str, list[FrfPoint]], steps: Sequence[SyncedSt
     groups = [(i, g) for i, s in enumerate(sensors) for g in fitted[s.channel]]
     # each group is two items, its discrete models with their figure (≈ 5× the CPU) and its
     # physical model, the long ones first: the map's workers then end together, where five
-    # whole groups on two workers left one idle for a group's time (measured: ≈ 0.5 s)
-    items = [(kind, i, g) for kind in ("discrete", "physical") for i, g in groups]
+    # whole groups on two workers left one idle for a group's time (measured: ≈ 0.5 s); of a
+    # group fitted early only the figure is left (≈ 0.4× a discrete item)
     # both items of a group read its correlation: summed here once (the sync pass made the
     # steps' terms, and hands each out once), the workers inherit it
     xcorrs = {(i, g): rated_xcorr(select(steps, _in_group(g, sensors[i])), sensors[i])
               for i, g in groups}
+    frfs = {(i, g): _group_frf([p for p in points.get(sensors[i].channel, []) if p.group == g])
+            for i, g in groups}
+    # fits made while the run recorded (tf_early) of these very inputs are taken as they are:
+    # a group whose discrete models were made needs only its figure drawn
+    offered = ready or {}
+    early = {(kind, i, g): offered[digest] for kind in EARLY_KINDS for i, g in groups
+             if offered and (digest := fit_digest(kind, *frfs[i, g], xcorrs[i, g],
+                                                  sensors[i].channel, options, antialias_hz))
+             in offered}
+    items = [("bode" if ("estimate", i, g) in early else "discrete", i, g) for i, g in groups]
+    items += [("physical", i, g) for i, g in groups if ("physical", i, g) not in early]
+    items.sort(key=lambda item: _ITEM_ORDER[item[0]])
+    log.debug("transfer function: %d of %d group fits made while the run recorded",
+              len(early), len(EARLY_KINDS) * len(groups))
 
-    def fit(item: tuple[str, int, str]) -> Any:
+    def work(item: tuple[str, int, str]) -> Any:
         kind, i, g = item
-        mine = [p for p in points.get(sensors[i].channel, []) if p.group == g]
-        if kind == "discrete":
-            return _discrete_model(mine, xcorrs[i, g], sensors[i], options)
-        return _physical_model(mine, xcorrs[i, g], antialias_hz)
+        if kind == "bode":
+            values, model = early["estimate", i, g]
+            return _bode(*frfs[i, g], model, values, sensors[i].channel)
+        return _fit(kind, *frfs[i, g], xcorrs[i, g], sensors[i].channel, options, antialias_hz)
 
-    done = dict(zip(items, parallel_map(fit, items), strict=True))
+    done = dict(zip(items, parallel_map(work, items) if items else [], strict=True))
+    for i, g in groups:
+        if ("bode", i, g) in done:
+            done["discrete", i, g] = (early["estimate", i, g][0], done["bode", i, g])
+        if ("physical", i, g) in early:
+            done["physical", i, g] = early["physical", i, g]
     out = {}
     for i, s in enumerate(sensors):
         mine = [(_with_physical(done["discrete", i, g][0], done["physical", i, g]),
@@ -376,6 +488,34 @@ class TransferFunctionAnalysis:
                       TransferFunctionOptions.model_validate(options.model_dump()))
         watch_xcorr(data, tf_options.min_points)
 
+    @staticmethod
+    def early_ready(data: Dataset, made: Mapping[int, Mapping[str, Any]],
+                    chosen: Mapping[str, BaseModel]) -> dict[str, Callable[[], Any]]:
+        """The fits of every group whose steps the early-analysis child has all made
+        (``made``: its results by step index of ``data``; ``chosen``: the pass's options by
+        plugin), by group, each made when called (:mod:`~aatest.plugins.analysis.tf_early`)."""
+        options = as_options(chosen.get("transfer_function"), TransferFunctionOptions)
+        harmonics = as_options(chosen.get("frf"), FrfOptions).harmonics
+        antialias_hz = antialias_of(data, options)
+
+        def work(sensor: SensorInfo, group: str, indices: list[int]
+                 ) -> Callable[[], Pieces[dict[str, Any]]]:
+            def fits() -> Pieces[dict[str, Any]]:
+                inputs = group_inputs(sensor, group, indices, made, harmonics)
+                if inputs is None:
+                    return {}
+                return (yield from early_fits(inputs, options, antialias_hz))
+            return fits
+
+        return {f"{sensor.channel}:{group}": work(sensor, group, indices)
+                for sensor, group, indices in complete_groups(data, made, options.min_points)}
+
+    @staticmethod
+    def take_early_done(data: Dataset, key: str, fits: Any) -> None:
+        """Have the pass over ``data`` take the fits :meth:`early_ready`'s work ``key`` made."""
+        if isinstance(fits, dict):
+            offer_fits(data, fits)
+
     def run(self, data: Dataset, context: AnalysisContext
             ) -> AnalysisOutput[TransferFunctionResult]:
         steps = steps_of(context, "sine")
@@ -384,7 +524,8 @@ class TransferFunctionAnalysis:
         points = _frf_points(context)
         values: dict[str, Any] = {}
         figures: dict[str, str] = {}
-        models = sensor_models(points, steps, list(data.sensors), antialias_hz, options)
+        models = sensor_models(points, steps, list(data.sensors), antialias_hz, options,
+                               taken_fits(data))
         for sensor in data.sensors:
             row, figs = models[sensor.channel]
             figures |= figs
