@@ -141,6 +141,18 @@ def test_welch_satterthwaite_widens_k_for_few_degrees_of_freedom() -> None:
     assert evaluate(Measurand("q", "1", lambda ops, x: x["a"], (item,))).k == pytest.approx(k5)
 
 
+@pytest.mark.parametrize("dof", [0.7, 1.0, 2.5, 5.0, 14.2, 60.0, 1e4, 1e9])
+def test_k_is_the_t_quantile_scipy_stats_gives(dof: float) -> None:
+    # the special functions are called directly: the very values of norm.cdf and t.ppf
+    from scipy.stats import norm, t
+
+    u_i, u_c = 0.8, 1.0
+    dof_eff = u_c**4 / (u_i**4 / dof)  # Welch–Satterthwaite, as coverage_factor forms it
+    probability = 2.0 * norm.cdf(2.0) - 1.0
+    expected = float(max(2.0, t.ppf(0.5 + probability / 2.0, dof_eff)))
+    assert coverage_factor(u_c, [(u_i, dof)]) == expected
+
+
 def test_local_bin_noise_and_static_lines_are_measured() -> None:
     """Noise next to a bin (white noise σ over N: √(2/N)·σ/A), and a line's residual bound."""
     rng = np.random.default_rng(7)

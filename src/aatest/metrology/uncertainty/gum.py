@@ -139,15 +139,19 @@ def coverage_factor(combined_u: float, contributions: list[tuple[float, float]],
     Welch–Satterthwaite (JCGM 100 G.4): ν_eff = u_c⁴ / Σ u_i⁴/ν_i over the contributions
     (u_i(y), ν_i) with finite ν_i; k = t-quantile at ν_eff (G.6.4). Infinite ν_eff gives
     ``k_infinite`` itself.
+
+    The normal CDF and the t-quantile are the special functions ``scipy.stats``' ``norm.cdf``
+    and ``t.ppf`` evaluate (``ndtr``, ``stdtrit``), called directly: the same values, without
+    the distributions' argument checks (≈ 40 µs a call; a stepped sine evaluates 272 budgets).
     """
-    from scipy.stats import norm, t
+    from scipy.special import ndtr, stdtrit
 
     finite = sum(u**4 / dof for u, dof in contributions if math.isfinite(dof) and dof > 0)
     if combined_u <= 0 or finite <= 0:
         return k_infinite
     dof_eff = combined_u**4 / finite
-    probability = 2.0 * norm.cdf(k_infinite) - 1.0
-    return float(max(k_infinite, t.ppf(0.5 + probability / 2.0, dof_eff)))
+    probability = 2.0 * float(ndtr(k_infinite)) - 1.0
+    return float(max(k_infinite, float(stdtrit(dof_eff, 0.5 + probability / 2.0))))
 
 
 def evaluate(measurand: Measurand, k: float = K_COVERAGE) -> Evaluation:
