@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import inspect
 import json
 import os
 import resource
@@ -148,7 +149,7 @@ def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> Any:
         phases.time("record", lambda: run_plan(plan, rig, early.recorder, state, out,
                                                show_progress=False, events=events))
         # the analysis made during the record phase is collected (its child reaped) here
-        results = phases.time("merge", lambda: (recorder.finalize(), early.results())[1])
+        results = phases.time("merge", lambda: _finish_recording(recorder, early))
     state.finished = True
     state.save(out)
     recorder.prune_step_files()
@@ -200,18 +201,37 @@ def _analyse_and_report(prepared: Any, out: Path, phases: Phases, recorded_here:
              else sum(s.step.lab_duration_s for s in data.steps))
 
     template = prepared.plan.report_template or "calibration-certificate"
-    # the report plugin prepares its render over the whole phase, as `aatest run` does (a
-    # checkout from before session.report_prepared has none)
-    report_prepared = getattr(session, "report_prepared", lambda _: contextlib.nullcontext())
 
     def report() -> None:
-        with report_prepared(template):
+        with _report_prepared(template, out):
             results = build_results(data, analysis, lab_s, 0.0)
             results = session.decide(results, data)
             session.render_and_sign(results, out, template, None, None)
 
     phases.time("report", report)
     return float(lab_s), len(data.steps), early.offered if early is not None else 0
+
+
+def _finish_recording(recorder: Any, early: Any) -> Any:
+    """Merge and collect what the early analysis made, as `aatest run` does (a checkout from
+    before session.finish_recording merges and collects only)."""
+    finish = getattr(session, "finish_recording", None)
+    if finish is None:
+        recorder.finalize()
+        return early.results()
+    return finish(recorder, early)
+
+
+def _report_prepared(template: str, out: Path) -> contextlib.AbstractContextManager[Any]:
+    """The report plugin prepares its render (and what of the run directory it prepares) over
+    the whole phase, as `aatest run` does; a checkout from before session.report_prepared has
+    none, one from before its ``run_dir`` prepares the render only."""
+    prepared = getattr(session, "report_prepared", None)
+    if prepared is None:
+        return contextlib.nullcontext()
+    if "run_dir" in inspect.signature(prepared).parameters:
+        return prepared(template, out)
+    return prepared(template)
 
 
 def _pinned() -> contextlib.AbstractContextManager[Any]:

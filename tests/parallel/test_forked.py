@@ -137,3 +137,23 @@ def test_a_result_that_does_not_pickle_is_computed_here() -> None:
     out = parallel_map(task, [0, 1, 2])
     assert isinstance(out[1], type(threading.Lock()))
     assert [v for v, _ in (out[0], out[2])] == [0, 2]  # type: ignore[misc]
+
+
+def test_a_short_job_registered_to_be_joined_does_not_keep_the_map_in_one_process() -> None:
+    # a thread left running keeps the map in this process (above); one registered with
+    # join_before_fork is joined first, and the map forks as without it
+    release = threading.Event()
+    done: list[int] = []
+
+    def job() -> None:
+        release.wait(5.0)
+        done.append(1)
+
+    thread = threading.Thread(target=job, name="short-job")
+    thread.start()
+    forked.join_before_fork(thread)
+    threading.Timer(0.05, release.set).start()  # ends the job a moment after the map asks
+    out = parallel_map(_square_and_pid, list(range(8)))
+    assert done == [1] and not thread.is_alive()
+    if cpu_workers() >= 2:
+        assert {pid for _, pid in out} - {PARENT}  # forked: the job was joined, not in the way

@@ -16,6 +16,8 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import os
+import threading
+from concurrent.futures import Future
 from pathlib import Path, PurePosixPath
 
 from aatest.engine.errors import InputError
@@ -23,6 +25,11 @@ from aatest.storage import RemotePath, Where
 from aatest.storage.location import SEQUENTIAL_BLOCK_BYTES
 
 _CHUNK_BYTES = 1 << 20
+#: digests :func:`hash_soon` makes, by file identity (device, inode, size, mtime)
+_SOON: dict[tuple[int, int, int, int], Future[str]] = {}
+_SOON_LOCK = threading.Lock()
+#: how many of them are kept
+_SOON_KEPT = 16
 
 #: pattern (of the relative name) → why such files are not signed; stated in the manifest
 EXCLUSIONS: dict[str, str] = {
@@ -39,7 +46,59 @@ class UnsafeNameError(InputError):
 
 def file_sha256(path: Where) -> str:
     """SHA-256 hex digest of a file, read in 1 MiB chunks (recordings can be large); an
-    object on object storage is streamed in ranged reads, never downloaded whole."""
+    object on object storage is streamed in ranged reads, never downloaded whole. A local
+    file :func:`hash_soon` began hashing is not read again while it is the file that was
+    hashed (the same device, inode, size and modification time): its digest is waited for."""
+    if isinstance(path, Path) and (key := _identity(path)) is not None:
+        with _SOON_LOCK:
+            soon = _SOON.get(key)
+        if soon is not None:
+            return soon.result()
+    return _read_sha256(path)
+
+
+def hash_soon(path: Path) -> threading.Thread | None:
+    """Begin hashing the local file ``path`` on a thread (None: no such file), for
+    :func:`file_sha256`; the caller joins the thread, or lets it end by itself.
+
+    Why: a run's recording (168 MB for the stepped sine) is hashed for the certificate's
+    traceability and the signed manifest, ≈ 0.13 s of CPU; hashed as soon as it is merged,
+    on a core the analysis leaves idle, the report does not wait for it (``hashlib``
+    releases the GIL while it hashes). The digest is kept for that file's identity only: a
+    file changed since is hashed anew.
+    """
+    key = _identity(path)
+    if key is None:
+        return None
+    soon: Future[str] = Future()
+    with _SOON_LOCK:
+        _SOON[key] = soon
+        while len(_SOON) > _SOON_KEPT:  # a long-lived station: the oldest go
+            del _SOON[next(iter(_SOON))]
+
+    def run() -> None:
+        try:
+            soon.set_result(_read_sha256(path))
+        except BaseException as exc:  # noqa: BLE001 - met again by file_sha256's caller
+            soon.set_exception(exc)
+        if _identity(path) != key:  # changed while hashed: not this digest's file
+            with _SOON_LOCK:
+                _SOON.pop(key, None)
+
+    thread = threading.Thread(target=run, name="aatest-hash-soon", daemon=True)
+    thread.start()
+    return thread
+
+
+def _identity(path: Path) -> tuple[int, int, int, int] | None:
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns
+
+
+def _read_sha256(path: Where) -> str:
     digest = hashlib.sha256()
     with (path.open("rb", SEQUENTIAL_BLOCK_BYTES) if isinstance(path, RemotePath)
           else path.open("rb")) as handle:

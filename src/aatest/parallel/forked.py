@@ -48,6 +48,9 @@ class _ForkState:
 
 
 _STATE = _ForkState()
+#: short jobs' threads the next forking map joins first (:func:`join_before_fork`)
+_JOIN_BEFORE_FORK: list[threading.Thread] = []
+_JOIN_LOCK = threading.Lock()
 
 
 def cpu_workers() -> int:
@@ -67,11 +70,29 @@ def _other_threads() -> list[str]:
     return [t.name for t in threading.enumerate() if t is not threading.current_thread()]
 
 
+def join_before_fork(thread: threading.Thread) -> None:
+    """Have the next map that would fork join ``thread`` first: a short job started on a
+    thread ahead of the maps (hashing the recording), which would otherwise keep them in one
+    process (a fork beside a running thread is unsafe, see :func:`fork_workers`)."""
+    with _JOIN_LOCK:
+        _JOIN_BEFORE_FORK.append(thread)
+
+
+def _join_short_jobs() -> None:
+    with _JOIN_LOCK:
+        threads = list(_JOIN_BEFORE_FORK)
+        _JOIN_BEFORE_FORK.clear()
+    for thread in threads:
+        if thread is not threading.current_thread():
+            thread.join()
+
+
 def fork_workers(wanted: int) -> int:
     """How many forked workers to use for ``wanted``: at most :func:`cpu_workers`, and 1 when
     forking is unsafe here (another thread runs) or unavailable."""
     if wanted <= 1 or _STATE.in_worker or "fork" not in multiprocessing.get_all_start_methods():
         return 1
+    _join_short_jobs()
     others = _other_threads()
     if others:
         log.debug("not forking workers: threads %s run in this process", others)

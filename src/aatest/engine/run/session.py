@@ -50,7 +50,7 @@ from aatest.results.root import Signature
 from aatest.storage import RemotePath, Where
 
 if TYPE_CHECKING:
-    from aatest.early.analysis import EarlyResults
+    from aatest.early.analysis import EarlyResults, EarlyRun
 
 log = logging.getLogger("aatest")
 
@@ -206,7 +206,8 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
         s.step.lab_duration_s for s in data.steps
     )
     report_name = template or data.metadata.get("report_template") or "calibration-certificate"
-    with report_prepared(report_name):
+    # the report prepared from here, its recording hashed (a local run directory) meanwhile
+    with report_prepared(report_name, out_dir if isinstance(out_dir, Path) else None):
         results = build_results(data, analysis, lab, wall_duration_s or 0.0)
         for key, value in (extra_metadata or {}).items():
             setattr(results.metadata, key, value)
@@ -217,17 +218,19 @@ def analyse_and_report(  # noqa: PLR0913 - the options of `aatest analyze`/`run`
     return results
 
 
-def report_prepared(template: str) -> contextlib.AbstractContextManager[Any]:
+def report_prepared(template: str, run_dir: Path | None = None
+                    ) -> contextlib.AbstractContextManager[Any]:
     """The report plugin's optional ``preparing()`` (see :func:`_render`) around the whole
     report phase: results, uncertainty and verdicts, then the render, so what the plugin starts
-    there overlaps all of that work. A plugin that does not load prepares nothing here (the
-    render then says why it cannot run).
+    there overlaps all of that work (given the local ``run_dir`` the report goes to, what it
+    prepares of that directory too: the HTML reports hash its recording). A plugin that does
+    not load prepares nothing here (the render then says why it cannot run).
     """
     try:
         reporter = _reporter(template)
     except AatestError:
         return contextlib.nullcontext()
-    return _preparing(reporter)
+    return _preparing(reporter, run_dir)
 
 
 def _reporter(template: str) -> Any:
@@ -496,8 +499,7 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
             run_plan(plan, rig, early.recorder, state, out_dir,
                      show_progress=request.show_progress, events=events,
                      on_started=lambda started: _identify(recorder, started))
-            recorder.finalize()
-            early_results = early.results()
+            early_results = finish_recording(recorder, early)
         state.finished = True
         state.save(out_dir)
     # only now, with every step inside recording.mcap, the per-step copies can go
@@ -519,6 +521,20 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
         early=early_results,
     )
     return out_dir, results
+
+
+def finish_recording(recorder: Any, early: EarlyRun) -> EarlyResults | None:
+    """The end of the record phase: the step files merged into ``recording.mcap``, its
+    SHA-256 begun on a thread (:func:`aatest.bundle.manifest.hash_soon`: the report's
+    traceability and the signature read it; the analysis's first forking map joins the
+    thread first), and what the early analysis made, its child reaped."""
+    from aatest.bundle.manifest import hash_soon
+    from aatest.parallel.forked import join_before_fork
+
+    hashing = hash_soon(recorder.finalize())
+    if hashing is not None:
+        join_before_fork(hashing)
+    return early.results()
 
 
 def _identify(recorder: Any, started: Rig) -> None:
