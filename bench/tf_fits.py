@@ -64,10 +64,12 @@ def capture(run_dir: Path) -> Inputs:
         kept["xcorr"][sensor.channel, tuple(p.id for p in _planned(steps))] = value
         return value
 
-    def models(points: Any, steps: Any, sensors: Any, antialias_hz: Any, options: Any) -> Any:
+    def models(points: Any, steps: Any, sensors: Any, antialias_hz: Any, options: Any,
+               *ready: Any) -> Any:
+        # the fits the early-analysis child made (``ready``) are left out: every fit is timed
         kept.update(points=dict(points), planned=list(_planned(steps)), sensors=list(sensors),
                     antialias_hz=antialias_hz, options=options)
-        return real_models(points, steps, sensors, antialias_hz, options)
+        return real_models(points, steps, sensors, antialias_hz, options, *ready)
 
     tf.sensor_models, tf.rated_xcorr = models, xcorr
     try:

@@ -133,31 +133,38 @@ def _two_groups(run_dir: Path) -> tuple[RunRecorder, list[Any]]:
 TF_ANALYSIS = ["sync", "frf", "transfer_function"]
 
 
+def _made_with_later(recorder: RunRecorder, steps: list[Any]
+                     ) -> tuple[EarlyResults, dict[str, int]]:
+    """What the child makes of each step file as it arrives, and of the work offered once a
+    group's steps are all made (every piece made before the next step, as when the child has
+    time to spare); and how many pieces were made after each step."""
+    made_later: list[LaterMade] = []
+    later = _Later(lambda message: made_later.append(message) is None)
+    child = _Child(later)
+    made: dict[str, Any] = {}
+    pieces: dict[str, int] = {}
+    for step, path in zip(steps, recorder.step_files(), strict=True):
+        made[step.id] = child.analyse(step.id, path)
+        pieces[step.id] = 0
+        while later.pending:
+            assert later.advance()
+            pieces[step.id] += 1
+    return EarlyResults(made, made_later), pieces
+
+
 def test_group_fits_made_by_the_child_are_taken_with_the_same_results(
         tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     # the child fits a group once it has made the group's last step, in pieces between
     # steps; the pass takes those fits (digest of the very inputs) and draws only the figures
-    made_later: list[LaterMade] = []
-    later = _Later(lambda message: made_later.append(message) is None)
     with pinned():
         recorder, steps = _two_groups(tmp_path)
-        child = _Child(later)
-        made: dict[str, Any] = {}
-        pieces = {}
-        for step, path in zip(steps, recorder.step_files(), strict=True):
-            made[step.id] = child.analyse(step.id, path)
-            queued = later.pending
-            pieces[step.id] = 0
-            while later.pending:
-                later.advance()
-                pieces[step.id] += 1
-            assert queued == (step.id in {"s05-g1", "s11-g2"})  # each group's last step
+        early, pieces = _made_with_later(recorder, steps)
         recorder.finalize()
-        early = EarlyResults(made, made_later)
         caplog.set_level(logging.DEBUG, "aatest.analysis")
         plain = _analysed(tmp_path, None, TF_ANALYSIS)
         taken = _analysed(tmp_path, early, TF_ANALYSIS)
-    assert [m.key for m in made_later] == ["v_sz:g1", "v_sz:g2"]
+    assert [m.key for m in early.later] == ["v_sz:g1", "v_sz:g2"]
+    assert {k for k, n in pieces.items() if n} == {"s05-g1", "s11-g2"}  # each group's last
     assert pieces["s05-g1"] > 20  # a candidate fit each (a few ms), not one long block
     fits = [r.getMessage() for r in caplog.records if "group fits" in r.getMessage()]
     assert fits == ["transfer function: 0 of 4 group fits made while the run recorded",
@@ -169,21 +176,13 @@ def test_a_group_fit_of_other_inputs_is_not_taken(tmp_path: Path,
                                                    caplog: pytest.LogCaptureFixture) -> None:
     # a fit is taken only for the same inputs bit for bit: here step s03's FRF point is made
     # of other samples than the recording's (the step recorded again), so g1 is fitted anew
-    made_later: list[LaterMade] = []
-    later = _Later(lambda message: made_later.append(message) is None)
     with pinned():
         recorder, steps = _two_groups(tmp_path)
-        child = _Child(later)
-        made: dict[str, Any] = {}
-        for step, path in zip(steps, recorder.step_files(), strict=True):
-            made[step.id] = child.analyse(step.id, path)
-            while later.pending:
-                later.advance()
+        early, _ = _made_with_later(recorder, steps)
         recorder.write_step(steps[3], *step_logs(steps[3], seed=11))
         recorder.finalize()
         caplog.set_level(logging.DEBUG, "aatest.analysis")
         plain = _analysed(tmp_path, None, TF_ANALYSIS)
-        early = EarlyResults(made, made_later)
         taken = _analysed(tmp_path, early, TF_ANALYSIS)
     assert early.offered == 11
     fits = [r.getMessage() for r in caplog.records if "group fits" in r.getMessage()]

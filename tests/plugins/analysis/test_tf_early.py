@@ -10,7 +10,7 @@ import pytest
 from aatest.early.child import _Later
 from aatest.early.made import LaterMade
 from aatest.plugins.analysis.tf_early import fit_digest, run_through
-from aatest.plugins.analysis.transfer_function import (
+from aatest.plugins.analysis.tf_models import (
     TransferFunctionOptions,
     estimate,
     estimate_in_pieces,

@@ -13,6 +13,13 @@ import pytest
 from numpy.polynomial import Polynomial
 from scipy import optimize
 
+from aatest.plugins.analysis.tf_models import (
+    TransferFunctionOptions,
+    _candidate,
+    dc_gain,
+    estimate,
+    split_points,
+)
 from aatest.plugins.analysis.tfest import (
     _SK_ITERATIONS,
     _polyval,
@@ -20,13 +27,6 @@ from aatest.plugins.analysis.tfest import (
     _sk_fit,
     _to_z,
     _w_of,
-)
-from aatest.plugins.analysis.transfer_function import (
-    TransferFunctionOptions,
-    _candidate,
-    dc_gain,
-    estimate,
-    split_points,
 )
 
 FS = 2000.0

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from aatest.plugins.analysis.tf_models import continuous_equivalent, estimate
 from aatest.plugins.analysis.tfest import fit_discrete_tf, model_metrics, second_order_delay_fit
-from aatest.plugins.analysis.transfer_function import continuous_equivalent, estimate
 
 FS = 2000.0
 #: the 28 published stepped-sine points (docs/method.md §4.4)
@@ -57,10 +57,8 @@ def test_antialias_corner_sources() -> None:
     from pathlib import Path
 
     from aatest.engine.interfaces import AnalysisContext
-    from aatest.plugins.analysis.transfer_function import (
-        TransferFunctionOptions,
-        logger_antialias_hz,
-    )
+    from aatest.plugins.analysis.tf_models import TransferFunctionOptions
+    from aatest.plugins.analysis.transfer_function import logger_antialias_hz
     from aatest.recording.dataset import Dataset
 
     def ds(meta: dict) -> Dataset:  # type: ignore[type-arg]
