@@ -17,6 +17,7 @@ import pytest
 from mcap.reader import make_reader
 
 from aatest.early import analysis as early_analysis
+from aatest.early import process
 from aatest.early.analysis import EarlyAnalysis, EarlyResults
 from aatest.engine.errors import RecordingError, RigFault
 from aatest.engine.logs import SampledLog
@@ -167,12 +168,12 @@ def test_no_child_when_switched_off_or_nothing_to_send(monkeypatch: pytest.Monke
         static.plan.steps[0].id]
 
 
-@pytest.mark.parametrize(("threads", "kind"), [(1, early_analysis._Forked),
+@pytest.mark.parametrize(("threads", "kind"), [(1, process.Forked),
                                                (2, subprocess.Popen)])
 def test_forked_when_alone_a_new_interpreter_beside_a_thread(
         monkeypatch: pytest.MonkeyPatch, threads: int, kind: type) -> None:
     # a fork beside another thread could copy a lock it holds: then a new interpreter
-    monkeypatch.setattr(early_analysis.threading, "active_count", lambda: threads)
+    monkeypatch.setattr(process.threading, "active_count", lambda: threads)
     early = EarlyAnalysis()
     try:
         assert isinstance(early._process, kind)
@@ -189,7 +190,7 @@ def test_forked_child_wait_honours_its_timeout() -> None:
     if pid == 0:  # the child: sleeps past the first wait's timeout, then exits with 3
         time.sleep(0.5)
         os._exit(3)
-    forked = early_analysis._Forked(pid)
+    forked = process.Forked(pid)
     with pytest.raises(subprocess.TimeoutExpired):
         forked.wait(0.05)
     assert forked.poll() is None  # still running: the timeout did not reap or kill it

@@ -45,12 +45,10 @@ import contextlib
 import inspect
 import logging
 import os
-import signal
 import socket
 import subprocess
 import sys
 import threading
-import time
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -61,6 +59,7 @@ from typing import Any
 
 from aatest.early import handover
 from aatest.early.made import DRAIN, Fitted, LaterMade, Made, StepSent, Warned, context_digest
+from aatest.early.process import lower_priority, segment_sockets, start_child
 from aatest.engine.procedure.envelope import streams_record
 from aatest.engine.steps import Plan, PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
@@ -69,8 +68,6 @@ log = logging.getLogger("aatest.analysis")
 
 #: ``0`` turns the analysis during the record phase off (``aatest run`` then analyses after)
 EARLY_ENV = "AATEST_EARLY_ANALYSIS"
-#: the child's niceness increment: it runs on what the record phase leaves of the CPUs
-NICENESS = 10
 #: how long a drain may take (s)
 DRAIN_S = 600.0
 #: handed segments the child may hold at once (sent, its result not back yet): one it
@@ -78,8 +75,6 @@ DRAIN_S = 600.0
 #: memory grows by about one step's handed logs (the channels the child reads: 10 of a
 #: stepped-sine step's 16 arrays); a step beyond is sent without (the child decodes it)
 MAX_HANDED = 2
-#: the child's program: the module imported under its own name (its records unpickle here)
-_CHILD_MAIN = "import sys; from aatest.early.child import main; main(sys.argv[1:])"
 
 
 @dataclass
@@ -169,9 +164,10 @@ def wants_early(plan: Plan) -> bool:
 class EarlyAnalysis:
     """The child process, the pipes to it and the thread that collects what it sends.
 
-    The child runs :func:`aatest.early.child.main` (see :func:`_start_child` for
-    how it is started); the two pipes, and the socket the handed segments' descriptors go
-    over (:mod:`aatest.early.handover`), are passed to it by descriptor. The segments are
+    The child runs :func:`aatest.early.child.main` (see
+    :func:`~aatest.early.process.start_child` for how it is started); the two pipes, and
+    the socket the handed segments' descriptors go over (:mod:`aatest.early.handover`), are
+    passed to it by descriptor. The segments are
     this object's: lent to the writer thread (:meth:`lend`), handed with a step
     (:meth:`send`), free again once the child has sent that step's result, closed with the
     child (:meth:`close`).
@@ -180,11 +176,11 @@ class EarlyAnalysis:
     def __init__(self) -> None:
         to_child, self._inbox_fd = os.pipe()
         self._outbox_fd, from_child = os.pipe()
-        self._segments, child_segments = _segment_sockets()
+        self._segments, child_segments = segment_sockets()
         parent_ends = (self._inbox_fd, self._outbox_fd,
                        *((self._segments.fileno(),) if self._segments is not None else ()))
         try:
-            self._process = _start_child(to_child, from_child, parent_ends,
+            self._process = start_child(to_child, from_child, parent_ends,
                                          child_segments.fileno()
                                          if child_segments is not None else None)
         except BaseException:
@@ -208,7 +204,7 @@ class EarlyAnalysis:
         #: the channels the child read of the handed steps so far, by logger: those handed
         #: of the next (None until it has told: every channel)
         self._wanted: dict[str, set[str]] = {}
-        _lower_priority(self._process.pid)
+        lower_priority(self._process.pid)
         self._inbox = Connection(self._inbox_fd, readable=False)
         self._outbox = Connection(self._outbox_fd, writable=False)
         self._made: dict[str, Made] = {}
@@ -343,109 +339,6 @@ class EarlyAnalysis:
             for segment in (*self._free, *self._handed.values()):
                 segment.close()
             self._free, self._handed = [], {}
-
-
-class _Forked:
-    """A forked child's handle, with the part of :class:`subprocess.Popen` this module uses."""
-
-    def __init__(self, pid: int) -> None:
-        self.pid = pid
-        self._status: int | None = None
-
-    def poll(self) -> int | None:
-        """The child's exit status once it has ended (and is reaped), else None."""
-        if self._status is None:
-            pid, status = os.waitpid(self.pid, os.WNOHANG)
-            if pid:
-                self._status = os.waitstatus_to_exitcode(status)
-        return self._status
-
-    def wait(self, timeout: float | None = None) -> int:
-        """Reap the child and return its exit status, as :meth:`subprocess.Popen.wait`.
-
-        ``timeout`` (s): raise :class:`subprocess.TimeoutExpired` when the child still runs
-        after it (polled every 10 ms: ``waitpid`` itself has no timeout); None waits until
-        the child ends.
-        """
-        if timeout is None:
-            if self._status is None:
-                _, waited = os.waitpid(self.pid, 0)
-                self._status = os.waitstatus_to_exitcode(waited)
-            return self._status
-        deadline_s = time.monotonic() + timeout
-        while (status := self.poll()) is None:
-            if time.monotonic() >= deadline_s:
-                raise subprocess.TimeoutExpired(f"early-analysis child {self.pid}", timeout)
-            time.sleep(0.01)
-        return status
-
-    def kill(self) -> None:
-        """SIGKILL (a child already ended and reaped is left alone)."""
-        if self._status is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(self.pid, signal.SIGKILL)
-
-
-def _segment_sockets() -> tuple[socket.socket | None, socket.socket | None]:
-    """The run's and the child's ends of the socket handed segments' descriptors go over
-    (None, None where memory files or descriptor passing do not exist: nothing is handed).
-    The run's end never blocks: a step whose descriptor does not fit is decoded instead."""
-    if not hasattr(os, "memfd_create") or not hasattr(socket, "send_fds"):
-        return None, None
-    try:
-        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-    except OSError:
-        return None, None
-    ours.setblocking(False)
-    return ours, theirs
-
-
-def _start_child(to_child: int, from_child: int, parent_ends: tuple[int, ...],
-                 segments: int | None = None) -> subprocess.Popen[bytes] | _Forked:
-    """Start the child: forked when this process runs no other thread, else a new interpreter.
-
-    Why fork when it is safe: the child then starts with the analysis plugins this process
-    has already imported (the procedure's check loaded them), instead of importing numpy,
-    scipy and aatest again (measured ≈ 1.6 s of CPU, all of it taken from the record phase
-    it overlaps). A fork beside another thread could copy a lock that thread holds, so
-    then (and where fork does not exist) it is a fresh interpreter (``subprocess``), which
-    imports only aatest, not this process's main module.
-    """
-    fds = (to_child, from_child, *((segments,) if segments is not None else ()))
-    if hasattr(os, "fork") and threading.active_count() == 1:
-        pid = os.fork()
-        if pid == 0:  # the child: never returns
-            _forked_main(fds, parent_ends)
-        return _Forked(pid)
-    return subprocess.Popen(
-        [sys.executable, "-c", _CHILD_MAIN, *map(str, fds)],
-        pass_fds=fds, stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, close_fds=True)
-
-
-def _forked_main(fds: tuple[int, ...], parent_ends: tuple[int, ...]) -> None:
-    """The forked child's whole life: serve, then ``os._exit`` (never the parent's exit
-    handlers, nor a second flush of the parent's buffered output)."""
-    code = 1
-    try:
-        for fd in parent_ends:
-            os.close(fd)
-        from aatest.early.child import main
-
-        main([str(fd) for fd in fds])
-        code = 0
-    finally:
-        os._exit(code)
-
-
-def _lower_priority(pid: int | None) -> None:
-    """Lower the child's CPU priority by :data:`NICENESS` from its start (its imports too)."""
-    try:
-        if pid is not None:
-            os.setpriority(os.PRIO_PROCESS, pid,
-                           os.getpriority(os.PRIO_PROCESS, 0) + NICENESS)
-    except OSError:  # a platform without it: the child runs at the run's priority
-        pass
 
 
 class _Notifying:
