@@ -8,6 +8,8 @@ import hashlib
 import os
 from pathlib import Path
 
+import pytest
+
 from aatest.bundle import manifest
 from aatest.bundle.manifest import file_sha256, hash_soon
 
@@ -21,6 +23,21 @@ def test_the_digest_made_ahead_is_the_files(tmp_path: Path) -> None:
     thread.join()
     assert file_sha256(path) == hashlib.sha256(data).hexdigest()
     assert hash_soon(tmp_path / "missing.mcap") is None
+    assert hash_soon(path) is None  # hashed already: its digest serves
+
+
+def test_a_failed_hash_is_not_kept(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = _written(tmp_path / "recording.mcap", b"data")
+
+    def unreadable(_path: Path) -> str:
+        raise OSError("read error")
+
+    monkeypatch.setattr(manifest, "_read_sha256", unreadable)
+    thread = hash_soon(path)
+    assert thread is not None
+    thread.join()
+    monkeypatch.undo()
+    assert file_sha256(path) == hashlib.sha256(b"data").hexdigest()  # read again
 
 
 def test_a_file_changed_after_it_was_hashed_is_hashed_again(tmp_path: Path) -> None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import os
+import stat
 import threading
 from concurrent.futures import Future
 from pathlib import Path, PurePosixPath
@@ -58,8 +59,9 @@ def file_sha256(path: Where) -> str:
 
 
 def hash_soon(path: Path) -> threading.Thread | None:
-    """Begin hashing the local file ``path`` on a thread (None: no such file), for
-    :func:`file_sha256`; the caller joins the thread, or lets it end by itself.
+    """Begin hashing the local file ``path`` on a thread, for :func:`file_sha256`; the caller
+    joins the thread, or lets it end by itself. None: no such regular file, or this file (the
+    same identity) is hashed or being hashed already, whose digest then serves.
 
     Why: a run's recording (168 MB for the stepped sine) is hashed for the certificate's
     traceability and the signed manifest, ≈ 0.13 s of CPU; hashed as soon as it is merged,
@@ -72,16 +74,22 @@ def hash_soon(path: Path) -> threading.Thread | None:
         return None
     soon: Future[str] = Future()
     with _SOON_LOCK:
+        if key in _SOON:
+            return None
         _SOON[key] = soon
         while len(_SOON) > _SOON_KEPT:  # a long-lived station: the oldest go
             del _SOON[next(iter(_SOON))]
 
     def run() -> None:
+        failed = False
         try:
             soon.set_result(_read_sha256(path))
-        except BaseException as exc:  # noqa: BLE001 - met again by file_sha256's caller
+        except BaseException as exc:  # noqa: BLE001 - met by who waits on it
             soon.set_exception(exc)
-        if _identity(path) != key:  # changed while hashed: not this digest's file
+            failed = True
+        # not kept when it failed (a later call reads the file again and meets the error
+        # itself) or the file changed while it was hashed (not this digest's file)
+        if failed or _identity(path) != key:
             with _SOON_LOCK:
                 _SOON.pop(key, None)
 
@@ -92,10 +100,12 @@ def hash_soon(path: Path) -> threading.Thread | None:
 
 def _identity(path: Path) -> tuple[int, int, int, int] | None:
     try:
-        stat = path.stat()
+        found = path.stat()
     except OSError:
         return None
-    return stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns
+    if not stat.S_ISREG(found.st_mode):
+        return None
+    return found.st_dev, found.st_ino, found.st_size, found.st_mtime_ns
 
 
 def _read_sha256(path: Where) -> str:

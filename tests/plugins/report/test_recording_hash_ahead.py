@@ -6,8 +6,8 @@ import os
 import threading
 from pathlib import Path
 
+from aatest.bundle import manifest
 from aatest.bundle.signing import file_sha256
-from aatest.plugins.report import traceability
 from aatest.plugins.report.traceability import RECORDING_FILE, hashed_ahead, recording_hash
 
 
@@ -18,11 +18,12 @@ def _threads() -> set[str]:
 def test_digest_made_ahead_is_the_files(tmp_path: Path) -> None:
     path = tmp_path / RECORDING_FILE
     path.write_bytes(os.urandom(3 * 2**20 + 17))  # more than one read chunk
+    key = manifest._identity(path)
     with hashed_ahead(tmp_path):
-        assert traceability._AHEAD  # the digest is being made
+        assert key in manifest._SOON  # the digest is being made
         assert recording_hash(tmp_path) == file_sha256(path)
-    assert not traceability._AHEAD
-    assert "aatest-recording-hash" not in _threads()  # the thread ended with the block
+    assert manifest._SOON[key].done()  # made by the end of the block
+    assert "aatest-hash-soon" not in _threads()  # the thread ended with the block
 
 
 def test_a_file_changed_after_the_start_is_hashed_again(tmp_path: Path) -> None:
@@ -37,18 +38,20 @@ def test_a_file_changed_after_the_start_is_hashed_again(tmp_path: Path) -> None:
 def test_without_a_recording_nothing_is_hashed(tmp_path: Path) -> None:
     (tmp_path / RECORDING_FILE).mkdir()  # not a file
     with hashed_ahead(tmp_path):
-        assert not traceability._AHEAD
+        assert manifest._identity(tmp_path / RECORDING_FILE) is None  # nothing to hash
+        assert "aatest-hash-soon" not in _threads()
         assert recording_hash(tmp_path) == "no recording.mcap in the run directory"
 
 
 def test_nested_blocks_hash_once(tmp_path: Path) -> None:
     path = tmp_path / RECORDING_FILE
     path.write_bytes(b"data")
+    key = manifest._identity(path)
     with hashed_ahead(tmp_path):
-        outer = dict(traceability._AHEAD)
+        outer = manifest._SOON[key]
         with hashed_ahead(tmp_path):
-            assert outer == traceability._AHEAD
-        assert outer == traceability._AHEAD  # the inner block leaves the outer's digest
+            assert manifest._SOON[key] is outer  # the inner block started no second hash
+        assert manifest._SOON[key] is outer  # the inner block leaves the outer's digest
         assert recording_hash(tmp_path) == file_sha256(path)
 
 

@@ -10,10 +10,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import math
-import stat
-import threading
-from collections.abc import Callable, Iterator, Mapping
-from concurrent.futures import Future
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -86,79 +83,37 @@ def _table_serial(results: RunResults) -> str:
     return "—"
 
 
-#: the recording's file identity: path, device, inode, size, modification time (ns)
-_FileKey = tuple[str, int, int, int, int]
-#: recording hashes being computed ahead (:func:`hashed_ahead`), by file identity
-_AHEAD: dict[_FileKey, Future[str]] = {}
-_AHEAD_LOCK = threading.Lock()
-
-
-def _file_key(path: Path) -> _FileKey | None:
-    """What identifies the file's content for :func:`recording_hash` (None: no such file)."""
-    try:
-        st = path.stat()
-    except OSError:
-        return None
-    if not stat.S_ISREG(st.st_mode):
-        return None
-    return str(path.resolve()), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
-
-
-def _hash_into(path: Path, future: Future[str], file_sha256: Callable[[Path], str]) -> None:
-    try:
-        future.set_result(file_sha256(path))
-    except BaseException as exc:  # noqa: BLE001 - handed to the reader, who raises it
-        future.set_exception(exc)
-
-
 @contextlib.contextmanager
 def hashed_ahead(run_dir: Path) -> Iterator[None]:
-    """Hash ``run_dir``'s recording on a thread now; :func:`recording_hash` inside this block
-    takes that digest.
+    """Hash ``run_dir``'s recording on a thread now (:func:`aatest.bundle.manifest.hash_soon`,
+    unless that file is hashed or being hashed already); :func:`recording_hash` takes that
+    digest.
 
     Why: the report states the recording's SHA-256, and hashing a stepped-sine recording
     (168 MB) takes ≈ 0.12 s. ``hashlib`` releases the GIL while it hashes, so started when
     the render is prepared, the digest is made on the other core while results.json is
     encoded (pure Python JSON) and the view model built. The same digest: the same bytes
-    hashed by the same function, and it is taken only while the file's identity (inode,
-    size, modification time) is the one hashed.
-    The thread ends before the block does (a process that forks workers, which refuses to
-    fork while another thread runs, never sees it after the block).
+    hashed by the same function, and it is taken only while the file's identity (device,
+    inode, size, modification time) is the one hashed.
+    The thread it started ends before the block does (a process that forks workers, which
+    refuses to fork while another thread runs, never sees it after the block).
     """
-    from aatest.bundle.signing import file_sha256  # imported here, not on the thread
+    from aatest.bundle.manifest import hash_soon  # imported here, not on the thread
 
-    path = Path(run_dir) / RECORDING_FILE
-    key = _file_key(path)
-    future: Future[str] = Future()
-    with _AHEAD_LOCK:
-        started = key is not None and key not in _AHEAD
-        if key is not None and started:
-            _AHEAD[key] = future
-    thread = None
-    if started:
-        thread = threading.Thread(target=_hash_into, args=(path, future, file_sha256),
-                                  name="aatest-recording-hash", daemon=True)
-        thread.start()
+    thread = hash_soon(Path(run_dir) / RECORDING_FILE)
     try:
         yield
     finally:
-        if thread is not None and key is not None:
+        if thread is not None:
             thread.join()
-            with _AHEAD_LOCK:
-                _AHEAD.pop(key, None)
 
 
 def recording_hash(run_dir: Path) -> str:
     """SHA-256 of the run's recording, or a plain statement that there is none (a digest
-    made ahead by :func:`hashed_ahead` when the file is still the one it hashed)."""
+    made ahead, :func:`hashed_ahead`, when the file is still the one it hashed)."""
     path = Path(run_dir) / RECORDING_FILE
     from aatest.bundle.signing import file_sha256  # lazily: the render child needs none
 
-    key = _file_key(path)
-    with _AHEAD_LOCK:
-        ahead = _AHEAD.get(key) if key is not None else None
-    if ahead is not None:
-        return ahead.result()
     return file_sha256(path) if path.is_file() else "no recording.mcap in the run directory"
 
 
