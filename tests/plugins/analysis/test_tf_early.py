@@ -9,11 +9,12 @@ import pytest
 
 from aatest.early.child import _Later
 from aatest.early.made import LaterMade
-from aatest.plugins.analysis.tf_early import fit_digest, run_through
+from aatest.plugins.analysis.tf_early import fit_digest
 from aatest.plugins.analysis.tf_models import (
     TransferFunctionOptions,
     estimate,
     estimate_in_pieces,
+    run_through,
 )
 
 F_HZ = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0])

@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Generator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, TypeVar, cast
+from typing import Any
 from weakref import WeakKeyDictionary
 
 import numpy as np
@@ -31,8 +31,6 @@ from aatest.plugins.analysis.frf import point_watch_name
 from aatest.plugins.analysis.synced_steps import attempt_result
 from aatest.plugins.analysis.tf_xcorr import summed_xcorr, xcorr_watch_name
 from aatest.recording.dataset import Dataset, LazySteps, SensorInfo
-
-T = TypeVar("T")
 
 #: the plugin whose per-step results (:func:`~aatest.plugins.analysis.synced_steps.attempt`)
 #: hold the FRF points and correlation terms
@@ -103,16 +101,6 @@ def group_inputs(sensor: SensorInfo, group: str, indices: Sequence[int],
     f_hz = np.array([p["frequency_hz"] for p in ordered])
     h = np.array([complex(p["re"], p["im"]) for p in ordered])
     return GroupInputs(sensor, group, f_hz, h, summed_xcorr(terms))
-
-
-def run_through(pieces: Generator[Any, None, T]) -> T:
-    """The value of a computation made in pieces (a generator pausing between them), made
-    at once: the pass's way of calling what the early child makes piece by piece."""
-    while True:
-        try:
-            next(pieces)
-        except StopIteration as done:
-            return cast(T, done.value)
 
 
 def offer_fits(data: Dataset, fits: Mapping[str, Any]) -> None:

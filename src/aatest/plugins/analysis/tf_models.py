@@ -15,13 +15,12 @@ physical model and the figures.
 from __future__ import annotations
 
 from collections.abc import Generator
-from typing import Any, Literal, TypeVar
+from typing import Any, Literal, TypeVar, cast
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
 
 from aatest.engine.errors import AnalysisError
-from aatest.plugins.analysis.tf_early import run_through
 from aatest.plugins.analysis.tfest import DiscreteTf, fit_discrete_tf, model_metrics
 
 T = TypeVar("T")
@@ -115,6 +114,17 @@ def estimate(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],
 
 #: a computation that pauses (yields) between its pieces and returns a ``T``
 Pieces = Generator[None, None, T]
+
+
+def run_through(pieces: Generator[Any, None, T]) -> T:
+    """The value of a computation made in pieces (a generator pausing between them), made
+    at once: the pass's way of calling what the early child makes piece by piece
+    (:mod:`~aatest.plugins.analysis.tf_early`)."""
+    while True:
+        try:
+            next(pieces)
+        except StopIteration as done:
+            return cast(T, done.value)
 
 
 def estimate_in_pieces(f: np.ndarray, h: np.ndarray, dt: float, xcorr: dict[str, float],

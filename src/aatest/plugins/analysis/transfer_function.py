@@ -43,7 +43,6 @@ from aatest.plugins.analysis.tf_early import (
     fit_digest,
     group_inputs,
     offer_fits,
-    run_through,
     taken_fits,
 )
 from aatest.plugins.analysis.tf_models import (
@@ -52,6 +51,7 @@ from aatest.plugins.analysis.tf_models import (
     TransferFunctionOptions,
     continuous_equivalent,
     estimate_in_pieces,
+    run_through,
 )
 from aatest.plugins.analysis.tf_xcorr import rated_xcorr, watch_xcorr
 from aatest.plugins.analysis.tfest import (
