@@ -32,6 +32,22 @@ def child_json(script: str, src: Path | None, argv: list[str], label: str) -> di
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+def plain(x: Any) -> Any:
+    """``x`` as dicts, lists and floats (dataclasses by their fields), to compare across trees
+    by :func:`leaves` (arrays by element, complex numbers as their two parts)."""
+    if hasattr(x, "__dataclass_fields__"):
+        return {k: plain(getattr(x, k)) for k in x.__dataclass_fields__}
+    if isinstance(x, dict):
+        return {str(k): plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [plain(v) for v in x]
+    if hasattr(x, "tolist"):
+        return plain(x.tolist())
+    if isinstance(x, complex):
+        return [x.real, x.imag]
+    return x
+
+
 def leaves(value: Any, path: str = "") -> Iterator[tuple[str, Any]]:
     """Every leaf of a nested output (dicts, lists, tuples) with its path (``.a.b[3]``): what
     two checkouts' outputs are compared by."""

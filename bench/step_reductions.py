@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from child_run import alternate, leaves  # bench/ (the script's directory) is on sys.path
+from child_run import alternate, leaves, plain  # bench/ (the script's directory) is on sys.path
 
 from aatest.engine import registry
 from aatest.recording import read_dataset
@@ -86,24 +86,9 @@ def measure(run_dir: Path, rounds: int, dump: Path | None) -> dict[str, Any]:
             for name, seconds in spent.items():
                 cpu[name].append(seconds / len(decoded))
     if dump is not None:
-        dump.write_bytes(pickle.dumps(_plain(results)))
+        dump.write_bytes(pickle.dumps(plain(results)))
     return {"steps": len(decoded),
             "cpu_ms": {name: 1e3 * statistics.median(v) for name, v in cpu.items()}}
-
-
-def _plain(x: Any) -> Any:
-    """``x`` as dicts, lists and floats (dataclasses by their fields), to compare across trees."""
-    if hasattr(x, "__dataclass_fields__"):
-        return {k: _plain(getattr(x, k)) for k in x.__dataclass_fields__}
-    if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if hasattr(x, "tolist"):
-        return _plain(x.tolist())
-    if isinstance(x, complex):
-        return [x.real, x.imag]
-    return x
 
 
 def largest_change(a: Any, b: Any) -> tuple[float, str, int]:

@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from child_run import alternate, leaves  # bench/ (the script's directory) is on sys.path
+from child_run import alternate, leaves, plain  # bench/ (the script's directory) is on sys.path
 
 from aatest.engine import registry
 from aatest.recording import read_dataset
@@ -64,17 +64,8 @@ def measure(run_dir: Path, rounds: int, dump: Path | None, profile: bool) -> dic
     if profiler is not None:
         pstats.Stats(profiler).sort_stats("tottime").print_stats(25)
     if dump is not None:
-        dump.write_bytes(pickle.dumps([_plain(r) for r in found]))
+        dump.write_bytes(pickle.dumps(plain(found)))
     return {"steps": len(decoded), "cpu_ms": 1e3 * statistics.median(cpu)}
-
-
-def _plain(x: Any) -> Any:
-    """A relation as nested dicts/lists/floats, to compare across trees."""
-    if hasattr(x, "__dataclass_fields__"):
-        return {k: _plain(getattr(x, k)) for k in x.__dataclass_fields__}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    return x
 
 
 def compare(run_dir: Path, base_src: Path, rounds: int) -> None:
