@@ -196,20 +196,33 @@ def _analyse_and_report(prepared: Any, out: Path, phases: Phases, recorded_here:
             early.offer(data)
         return data, run_analyses(data, list(data.metadata.get("analysis", [])))
 
-    data, analysis = phases.time("analyse", analyse)
-    lab_s = (prepared.plan.lab_duration_s if recorded_here
-             else sum(s.step.lab_duration_s for s in data.steps))
-
     template = prepared.plan.report_template or "calibration-certificate"
 
     def report() -> None:
         with _report_prepared(template, out):
-            results = build_results(data, analysis, lab_s, 0.0)
-            results = session.decide(results, data)
+            decided = getattr(session, "decided_results", None)
+            if decided is not None:  # the figures taken last: drawn aside meanwhile
+                results = decided(data, analysis, lab_s, 0.0)
+            else:  # a checkout from before the figures were drawn aside (--compare)
+                results = session.decide(build_results(data, analysis, lab_s, 0.0), data)
             session.render_and_sign(results, out, template, None, None)
 
-    phases.time("report", report)
+    with _drawing_aside():
+        data, analysis = phases.time("analyse", analyse)
+        lab_s = (prepared.plan.lab_duration_s if recorded_here
+                 else sum(s.step.lab_duration_s for s in data.steps))
+        phases.time("report", report)
     return float(lab_s), len(data.steps), early.offered if early is not None else 0
+
+
+def _drawing_aside() -> contextlib.AbstractContextManager[Any]:
+    """The figures drawn aside over the analyse and report phases, as ``aatest run`` draws
+    them (:func:`aatest.presentation.figures.drawing_aside`; none in a checkout from before)."""
+    try:
+        from aatest.presentation.figures import drawing_aside
+    except ImportError:
+        return contextlib.nullcontext()
+    return drawing_aside()
 
 
 def _finish_recording(recorder: Any, early: Any) -> Any:

@@ -100,7 +100,7 @@ def fork_workers(wanted: int) -> int:
     return min(wanted, cpu_workers())
 
 
-def _mark_worker() -> None:
+def mark_worker() -> None:
     """In a child: fork no workers of its own (its task runs in this one process), and leave
     Ctrl-C to the parent (it stops the map: no traceback per worker) while SIGTERM ends the
     child at once (the parent's SIGTERM handler, inherited, would raise in the task)."""
@@ -140,7 +140,7 @@ def parallel_map(task: Callable[[T], R], items: Sequence[T], workers: int | None
         raise RuntimeError("parallel_map is not re-entrant")
     out: list[R] = []
     _STATE.task = task
-    pool = ProcessPoolExecutor(max_workers=count, initializer=_mark_worker,
+    pool = ProcessPoolExecutor(max_workers=count, initializer=mark_worker,
                                mp_context=multiprocessing.get_context("fork"))
     # the children's collections then leave the inherited objects, and so their pages, alone
     # (no copy-on-write of the parent's heap; measured: analyse 8.0–8.7 → 7.4–7.6 s wall);
@@ -185,4 +185,4 @@ def _taken(future: Future[tuple[bool, Any]], task: Callable[[T], R], item: T) ->
     return cast(R, result) if ok else task(item)
 
 
-__all__ = ["WORKERS_ENV", "cpu_workers", "fork_workers", "parallel_map"]
+__all__ = ["WORKERS_ENV", "cpu_workers", "fork_workers", "mark_worker", "parallel_map"]

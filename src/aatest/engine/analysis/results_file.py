@@ -49,12 +49,14 @@ def plain_metadata(meta: dict[str, Any]) -> dict[str, Any]:
 
 
 def build_results(
-    data: Dataset, analysis: AnalysisResults, lab_duration_s: float, wall_duration_s: float
+    data: Dataset, analysis: AnalysisResults, lab_duration_s: float, wall_duration_s: float,
+    *, figures: bool = True,
 ) -> RunResults:
     """Assemble the typed results of one analysis pass.
 
     ``lab_duration_s`` is the lab time the recorded steps took (s); ``wall_duration_s`` the
-    computer time of the run (s).
+    computer time of the run (s). ``figures`` False: without the analyses' figures, for a
+    caller that takes them later (they may still be drawn aside).
     """
     meta = dict(data.metadata)
     return RunResults(
@@ -68,7 +70,7 @@ def build_results(
         lab_duration_s=lab_duration_s,
         wall_duration_s=wall_duration_s,
         metadata=plain_metadata(meta),
-        figures=analysis.figures,
+        figures=analysis.figures if figures else {},
         logged_temperature=logged_temperature(data),
     )
 

@@ -45,7 +45,15 @@ from aatest.plugins.analysis._common import (
 )
 from aatest.plugins.analysis.step_spectra import centred_rfft, input_key, output_key
 from aatest.plugins.analysis.sync import SyncedSteps, SyncedWatch, watch_synced
-from aatest.presentation.figures import frequency_axis, new_figure, tight_layout, to_svg
+from aatest.presentation.figures import (
+    Drawing,
+    DrawnFigures,
+    drawn,
+    frequency_axis,
+    new_figure,
+    tight_layout,
+    to_svg,
+)
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfResult
 
@@ -482,10 +490,11 @@ class FrfAnalysis:
         steps = steps_of(context, "sine")
         harmonics = options_of(context, FrfOptions).harmonics
         values: dict[str, list[dict[str, Any]]] = {}
-        figures: dict[str, str] = {}
+        figures: dict[str, Drawing] = {}
         for sensor in data.sensors:
             points = channel_points(steps, sensor, harmonics)
             if points:
                 values[sensor.channel] = points
-                figures[f"bode_{sensor.channel}"] = bode_figure(points, f"FRF {sensor.channel}")
-        return AnalysisOutput(FrfResult.model_validate(values), figures)
+                figures[f"bode_{sensor.channel}"] = drawn(bode_figure, points,
+                                                          f"FRF {sensor.channel}")
+        return AnalysisOutput(FrfResult.model_validate(values), DrawnFigures(figures))

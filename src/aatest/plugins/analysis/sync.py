@@ -29,7 +29,14 @@ from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relat
 from aatest.engine.interfaces import AnalysisContext, AnalysisOutput, NoOptions
 from aatest.engine.requirements import Requirement
 from aatest.plugins.analysis import needs
-from aatest.plugins.analysis.sync_summary import Related, joint_drift, summarise, sync_figure
+from aatest.plugins.analysis.sync_summary import (
+    Related,
+    joint_drift,
+    summarise,
+    sync_figure,
+    sync_plot,
+    sync_plotted,
+)
 from aatest.plugins.analysis.sync_trend import narrowed_by_trend, watch_trends
 from aatest.plugins.analysis.sync_watches import (
     SYNC_CHANNELS,
@@ -38,6 +45,7 @@ from aatest.plugins.analysis.sync_watches import (
     watch_synced,
 )
 from aatest.plugins.analysis.synced_steps import SyncedSteps, attempt, offer, relations
+from aatest.presentation.figures import DrawnFigures, drawn
 from aatest.recording.dataset import Dataset, LazySteps, StepData
 from aatest.results.sync import SyncResult
 
@@ -118,5 +126,7 @@ class SyncAnalysis:
             related = [Related(p, synced.relations[i])
                        for i, p in zip(synced._indices, synced.planned, strict=True)]
         related = narrowed_by_trend(data, synced, related)
-        return SyncOutput(result=summarise(related), figures={"sync": sync_figure(related)},
+        # drawn aside while the other analyses and the report go on (a flat drift line)
+        figure = drawn(sync_plot, *sync_plotted(related))
+        return SyncOutput(result=summarise(related), figures=DrawnFigures({"sync": figure}),
                           steps=synced)

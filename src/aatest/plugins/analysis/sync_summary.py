@@ -69,11 +69,21 @@ def summarise(steps: Sequence[SyncedStep | Related]) -> SyncResult:
 
 def sync_figure(steps: Sequence[SyncedStep | Related]) -> str:
     """Drift and clock-relation residual of every step (one crystal: a flat drift line)."""
+    return sync_plot(*sync_plotted(steps))
+
+
+def sync_plotted(steps: Sequence[SyncedStep | Related]) -> tuple[list[float], list[float]]:
+    """What :func:`sync_plot` draws of ``steps``: each one's drift (ppm) and residual RMS (µs)."""
+    return ([s.relation.drift_ppm for s in steps], [s.relation.residual_rms_us for s in steps])
+
+
+def sync_plot(drift_ppm: list[float], residual_rms_us: list[float]) -> str:
+    """:func:`sync_figure` of the steps' drifts (ppm) and residuals (µs), one per step."""
     fig, ax = new_figure(2, height_in=2.0)
-    idx = np.arange(len(steps))
-    ax[0, 0].plot(idx, [s.relation.drift_ppm for s in steps], "o", ms=3)
+    idx = np.arange(len(drift_ppm))
+    ax[0, 0].plot(idx, drift_ppm, "o", ms=3)
     ax[0, 0].set(ylabel="drift / ppm", title="logger synchronisation")
-    ax[1, 0].plot(idx, [s.relation.residual_rms_us for s in steps], "o", ms=3)
+    ax[1, 0].plot(idx, residual_rms_us, "o", ms=3)
     ax[1, 0].set(xlabel="step", ylabel="residual RMS / µs")
     tight_layout(fig)
     return to_svg(fig)

@@ -58,6 +58,7 @@ from aatest.plugins.analysis.tfest import (
     DiscreteTf,
     second_order_delay_fit,
 )
+from aatest.presentation.figures import Drawing, DrawnFigures, drawn
 from aatest.recording.dataset import Dataset, SensorInfo
 from aatest.results.frf import FrfPoint
 from aatest.results.transfer_function import TransferFunctionResult
@@ -129,13 +130,13 @@ def _discrete_model(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float],
     value but the physical model) and its Bode figure; ``xcorr`` is the group's
     :func:`rated_xcorr`."""
     values, model = _discrete_fit(f, h, xcorr, options)
-    return values, _bode(f, h, model, values, channel)
+    return values, bode_svg(f, h, model, _bode_title(values, channel))
 
 
-def _bode(f: np.ndarray, h: np.ndarray, model: DiscreteTf, values: Mapping[str, Any],
-          channel: str) -> str:
-    """The Bode figure of a group's chosen discrete model (:func:`_discrete_fit`)."""
-    return bode_svg(f, h, model, f"{channel} n={values['n']} m={values['m']}")
+def _bode_title(values: Mapping[str, Any], channel: str) -> str:
+    """The title of the Bode figure (:func:`bode_svg`) of a group's chosen discrete model
+    (:func:`_discrete_fit`'s ``values``)."""
+    return f"{channel} n={values['n']} m={values['m']}"
 
 
 def _discrete_fit(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
@@ -173,9 +174,9 @@ def _physical_model(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float],
                                   xcorr[0]["delay_s"]) | {"deembedded_antialias_hz": antialias_hz}
 
 
-#: the work items of :func:`sensor_models` by kind, the longest first (a discrete item is
-#: ≈ 0.21 s of CPU on the stepped sine, a figure ≈ 0.08 s, a physical model ≈ 0.05 s)
-_ITEM_ORDER = {"discrete": 0, "bode": 1, "physical": 2}
+#: the work items of :func:`sensor_models` by kind, the longest first (an estimate is
+#: ≈ 0.2 s of CPU on the stepped sine, a physical model ≈ 0.05 s)
+_ITEM_ORDER = {"estimate": 0, "physical": 1}
 #: the fits made while the run records (:func:`early_fits`): no figure, hence no matplotlib
 #: in the early-analysis child (its import alone ≈ 0.5 s of CPU there)
 EARLY_KINDS = ("estimate", "physical")
@@ -183,11 +184,8 @@ EARLY_KINDS = ("estimate", "physical")
 
 def _fit(kind: str, f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
          channel: str, options: TransferFunctionOptions, antialias_hz: float | None) -> Any:
-    """One fit of a group: its ``discrete`` models with their figure, their ``estimate``
-    alone (values and chosen model), or its ``physical`` model; a work item of
-    :func:`sensor_models` in its workers, or (``estimate``, ``physical``) made early."""
-    if kind == "discrete":
-        return _discrete_model(f, h, xcorr, channel, options)
+    """One fit of a group: its discrete models' ``estimate`` (values and chosen model) or its
+    ``physical`` model; a work item of :func:`sensor_models` in its workers, or made early."""
     if kind == "estimate":
         return _discrete_fit(f, h, xcorr, options)
     return _physical_model(f, h, xcorr, antialias_hz)
@@ -229,8 +227,8 @@ def _fitted_groups(points: list[FrfPoint], options: TransferFunctionOptions) -> 
 
 
 def _channel_row(points: list[FrfPoint], sensor: SensorInfo, fitted: list[str],
-                 made: list[tuple[dict[str, Any], str]]
-                 ) -> tuple[dict[str, Any] | None, dict[str, str]]:
+                 made: list[tuple[dict[str, Any], Drawing]]
+                 ) -> tuple[dict[str, Any] | None, dict[str, Drawing]]:
     """A sensor's models (the best group's first) and figures from its fitted groups."""
     groups = {g: values for g, (values, _) in zip(fitted, made, strict=True)}
     figures = {f"tf_{sensor.channel}_{g}": svg for g, (_, svg) in zip(fitted, made, strict=True)}
@@ -243,32 +241,35 @@ def _channel_row(points: list[FrfPoint], sensor: SensorInfo, fitted: list[str],
 
 def channel_models(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: SensorInfo,
                    antialias_hz: float | None, options: TransferFunctionOptions
-                   ) -> tuple[dict[str, Any] | None, dict[str, str]]:
+                   ) -> tuple[dict[str, Any] | None, DrawnFigures]:
     """The models of every group with enough points, the best group's first; and figures."""
-    return sensor_models({sensor.channel: points}, steps, [sensor], antialias_hz,
-                         options)[sensor.channel]
+    row, figures = sensor_models({sensor.channel: points}, steps, [sensor], antialias_hz,
+                                 options)[sensor.channel]
+    return row, DrawnFigures(figures)
 
 
 def sensor_models(points: Mapping[str, list[FrfPoint]], steps: Sequence[SyncedStep],
                   sensors: Sequence[SensorInfo], antialias_hz: float | None,
                   options: TransferFunctionOptions, ready: Mapping[str, Any] | None = None
-                  ) -> dict[str, tuple[dict[str, Any] | None, dict[str, str]]]:
+                  ) -> dict[str, tuple[dict[str, Any] | None, dict[str, Drawing]]]:
     """:func:`channel_models` of every sensor, by channel; ``ready``: fits made while the run
     recorded by :func:`~aatest.plugins.analysis.tf_early.fit_digest` (taken when the digest
     of a fit's inputs here is one of them: the same inputs bit for bit).
 
     The groups of all sensors are fitted side by side on forked workers in one
-    :func:`parallel_map` (each group's candidate scan, Bode figure and physical model depend
-    only on that group): the stepped sine's five groups took ≈ 3.5 s of the analysis phase in
-    one process, and one map over both sensors' groups keeps both workers busy to the end
-    (a map per sensor left one idle on each sensor's odd group).
+    :func:`parallel_map` (each group's candidate scan and physical model depend only on that
+    group): the stepped sine's five groups took ≈ 3.5 s of the analysis phase in one
+    process, and one map over both sensors' groups keeps both workers busy to the end (a map
+    per sensor left one idle on each sensor's odd group). The figures are :func:`drawn`
+    (aside, while the report goes on, when a process draws aside): each is its SVG's
+    ``result()``.
     """
     fitted = {s.channel: _fitted_groups(points.get(s.channel, []), options) for s in sensors}
     groups = [(i, g) for i, s in enumerate(sensors) for g in fitted[s.channel]]
-    # each group is two items, its discrete models with their figure (≈ 5× the CPU) and its
-    # physical model, the long ones first: the map's workers then end together, where five
-    # whole groups on two workers left one idle for a group's time (measured: ≈ 0.5 s); of a
-    # group fitted early only the figure is left (≈ 0.4× a discrete item)
+    # each group is two items, its discrete models (≈ 4× the CPU) and its physical model,
+    # the long ones first: the map's workers then end together, where five whole groups on
+    # two workers left one idle for a group's time (measured: ≈ 0.5 s); a group's Bode
+    # figure is drawn aside (aatest.presentation.figures.drawn) once its model is chosen
     # both items of a group read its correlation: summed here once (the sync pass made the
     # steps' terms, and hands each out once), the workers inherit it
     xcorrs = {(i, g): rated_xcorr(select(steps, _in_group(g, sensors[i])), sensors[i])
@@ -276,35 +277,29 @@ def sensor_models(points: Mapping[str, list[FrfPoint]], steps: Sequence[SyncedSt
     frfs = {(i, g): _group_frf([p for p in points.get(sensors[i].channel, []) if p.group == g])
             for i, g in groups}
     # fits made while the run recorded (tf_early) of these very inputs are taken as they are:
-    # a group whose discrete models were made needs only its figure drawn
+    # a group whose fits were made needs only its figure drawn
     offered = ready or {}
     early = {(kind, i, g): offered[digest] for kind in EARLY_KINDS for i, g in groups
              if offered and (digest := fit_digest(kind, *frfs[i, g], xcorrs[i, g],
                                                   sensors[i].channel, options, antialias_hz))
              in offered}
-    items = [("bode" if ("estimate", i, g) in early else "discrete", i, g) for i, g in groups]
-    items += [("physical", i, g) for i, g in groups if ("physical", i, g) not in early]
-    items.sort(key=lambda item: _ITEM_ORDER[item[0]])
+    items = sorted(((kind, i, g) for kind in EARLY_KINDS for i, g in groups
+                    if (kind, i, g) not in early), key=lambda item: _ITEM_ORDER[item[0]])
     log.debug("transfer function: %d of %d group fits made while the run recorded",
               len(early), len(EARLY_KINDS) * len(groups))
 
     def work(item: tuple[str, int, str]) -> Any:
         kind, i, g = item
-        if kind == "bode":
-            values, model = early["estimate", i, g]
-            return _bode(*frfs[i, g], model, values, sensors[i].channel)
         return _fit(kind, *frfs[i, g], xcorrs[i, g], sensors[i].channel, options, antialias_hz)
 
-    done = dict(zip(items, parallel_map(work, items) if items else [], strict=True))
-    for i, g in groups:
-        if ("bode", i, g) in done:
-            done["discrete", i, g] = (early["estimate", i, g][0], done["bode", i, g])
-        if ("physical", i, g) in early:
-            done["physical", i, g] = early["physical", i, g]
+    done = early | dict(zip(items, parallel_map(work, items) if items else [], strict=True))
     out = {}
     for i, s in enumerate(sensors):
-        mine = [(_with_physical(done["discrete", i, g][0], done["physical", i, g]),
-                 done["discrete", i, g][1]) for g in fitted[s.channel]]
+        mine = []
+        for g in fitted[s.channel]:
+            values, model = done["estimate", i, g]
+            mine.append((_with_physical(values, done["physical", i, g]),
+                         drawn(bode_svg, *frfs[i, g], model, _bode_title(values, s.channel))))
         out[s.channel] = _channel_row(points.get(s.channel, []), s, fitted[s.channel], mine)
     return out
 
@@ -365,7 +360,7 @@ class TransferFunctionAnalysis:
         antialias_hz = logger_antialias_hz(data, context)
         points = _frf_points(context)
         values: dict[str, Any] = {}
-        figures: dict[str, str] = {}
+        figures: dict[str, Drawing] = {}
         models = sensor_models(points, steps, list(data.sensors), antialias_hz, options,
                                taken_fits(data))
         for sensor in data.sensors:
@@ -373,4 +368,5 @@ class TransferFunctionAnalysis:
             figures |= figs
             if row is not None:
                 values[sensor.channel] = row
-        return AnalysisOutput(TransferFunctionResult.model_validate(values), figures)
+        return AnalysisOutput(TransferFunctionResult.model_validate(values),
+                              DrawnFigures(figures))
