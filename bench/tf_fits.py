@@ -1,10 +1,11 @@
 """Benchmark the transfer-function analysis alone: the model fits of every sensor and group.
 
 The analysis tail of the stepped sine (:func:`aatest.plugins.analysis.transfer_function.
-sensor_models`: every group's candidate scan, Bode figure and second-order-plus-delay fit, on
-the analysis pass's forked workers) runs after the record phase, so its wall time is on the
-critical path of ``aatest run``. Its inputs — the FRF points, the groups' cross-correlations,
-the sensors and options — are captured once from a recorded run (sync and frf analysed as
+sensor_models`: every group's candidate scan and second-order-plus-delay fit, on the analysis
+pass's forked workers, and its Bode figure, drawn here in place where ``aatest run`` draws it
+aside) runs after the record phase when the fits were not made while the run recorded. Its
+inputs — the FRF points, the groups' cross-correlations, the sensors and options — are
+captured once from a recorded run (sync and frf analysed as
 ``aatest analyze`` does), then ``sensor_models`` is timed on them in fresh processes,
 alternately on another checkout's ``src`` (first on ``PYTHONPATH``) and on this one, with the
 default workers and with one (``AATEST_WORKERS=1``: the CPU of the fits alone). It prints the
@@ -101,7 +102,18 @@ def run_once(inputs: Inputs) -> tuple[float, float, Any]:
         wall, cpu = time.perf_counter(), _cpu_s()
         out = tf.sensor_models(inputs["points"], steps, inputs["sensors"],
                                inputs["antialias_hz"], inputs["options"])
-        return time.perf_counter() - wall, _cpu_s() - cpu, out
+        return time.perf_counter() - wall, _cpu_s() - cpu, _drawn(out)
+
+
+def _drawn(out: Any) -> Any:
+    """``sensor_models``' output with each figure as its SVG (a checkout whose figures are
+    :func:`aatest.presentation.figures.drawn` returns them as results to be taken; outside a
+    drawing-aside block they were drawn in place, inside the timing)."""
+    def svg(figure: Any) -> Any:
+        return figure.result() if hasattr(figure, "result") else figure
+
+    return {channel: (row, {name: svg(f) for name, f in figures.items()})
+            for channel, (row, figures) in out.items()}
 
 
 def _warm_matplotlib() -> None:
