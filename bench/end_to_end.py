@@ -9,6 +9,10 @@ each phase timed on its own:
 - ``analyse`` the recording is read and the procedure's analyses run;
 - ``report``  uncertainty, verdicts, results.json, the HTML certificate (and its signature).
 
+The analyses' figures are drawn aside over both phases, as ``aatest run`` draws them
+(:func:`aatest.presentation.figures.drawing_aside`): ``analyse`` only asks for them, and
+``report`` takes them after the verdicts, waiting for those not drawn yet.
+
 During ``record`` a child process makes the sync pass's per-step work as each step file is
 written (:mod:`aatest.early.analysis`, as ``aatest run`` does; off with
 ``AATEST_EARLY_ANALYSIS=0``); it is ended and reaped at the end of ``merge``, so its CPU
