@@ -3,12 +3,14 @@
 Why: after the record phase the stepped sine's analysis pass was its figures — matplotlib's
 import (≈ 0.3 s of CPU) and seven figures (≈ 0.55 s) drawn one after another — while the
 other core stood idle, and the report's own work (typed results, uncertainty, verdicts)
-waited behind them although it needs only their numbers. A process forked when the
-recording is merged imports matplotlib on that idle core (:func:`start`, given a ``warm``
-call), then forks a second one with it imported, and the two draw the figures as the
-analyses ask for them (:func:`submit`, one lane each, in turn); the results take them when
-they are written (:meth:`Later.result`). Measured on the stepped sine (2 cores): the analyse
-and report phases 1.59 → 1.20 s with one process aside.
+waited behind them although it needs only their numbers. Inside a :func:`running` block
+(the analysis pass and report of ``analyse_and_report``), the first call :func:`submit`-ted
+forks a process that imports matplotlib on that idle core (the block's ``warm`` call), then
+forks a second one with it imported; the two draw the figures as the analyses ask for them
+(one lane each, in turn), and the results take them when they are written
+(:meth:`Later.result`). A process ends after :data:`IDLE_S` without a call. Measured on the
+stepped sine (2 cores, bench/end_to_end.py side by side, median of 7 rounds): the analyse and
+report phases together 1.47 → 1.24 s.
 
 A call is sent as its function (pickled by name: a module-level function) and arguments,
 and its result comes back, each through a file of a private directory with a few bytes of
@@ -114,7 +116,7 @@ class _Lane:
 
     def close(self, drain: bool) -> None:
         """Read the notices (with ``drain``: all of them, the process ends after its last
-        call) and close the lane; its requests are closed before (:func:`stop`)."""
+        call) and close the lane; its requests are closed before (:func:`_ended`)."""
         while drain and self.alive and self.notice():
             pass
         self.alive = False
