@@ -8,6 +8,7 @@ outputs side by side, value by value.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import pickle
@@ -59,6 +60,33 @@ def leaves(value: Any, path: str = "") -> Iterator[tuple[str, Any]]:
             yield from leaves(item, f"{path}[{i}]")
     else:
         yield path, value
+
+
+def this_src(script: str) -> Path:
+    """The ``src`` of the checkout whose ``bench/`` holds ``script``."""
+    return Path(script).resolve().parents[1] / "src"
+
+
+def checkout_arguments(doc: str | None, target: str, rounds: int, dumps: bool = True,
+                       target_help: str | None = None) -> argparse.ArgumentParser:
+    """The options every per-run bench takes: the run (``target``, its help), ``--rounds``
+    (default ``rounds``), ``--compare BASE_SRC``, and the child's ``--json`` (and ``--dump
+    FILE``, with ``dumps``: :func:`alternate` asks for both)."""
+    parser = argparse.ArgumentParser(description=(doc or "").splitlines()[0])
+    parser.add_argument(target, type=Path, help=target_help)
+    parser.add_argument("--rounds", type=int, default=rounds)
+    parser.add_argument("--compare", type=Path, default=None, metavar="BASE_SRC")
+    if dumps:
+        parser.add_argument("--dump", type=Path, default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
+    return parser
+
+
+def against(script: str, base_src: Path, argv: list[str], label: str, processes: int
+            ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, Any]]:
+    """:func:`alternate` of the checkout ``base_src`` (``base``) and this one (``this``)."""
+    return alternate(script, {"base": base_src, "this": this_src(script)}, argv, label,
+                     processes)
 
 
 def alternate(script: str, checkouts: dict[str, Path], argv: list[str], label: str,

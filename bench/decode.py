@@ -17,7 +17,6 @@ included). Make a run with ``python bench/end_to_end.py --steps 30 --seed 7 --di
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
@@ -27,7 +26,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from child_run import child_json  # bench/ is the script's directory, hence on sys.path
+from child_run import (  # bench/ is the script's directory, hence on sys.path
+    checkout_arguments,
+    child_json,
+    this_src,
+)
 
 from aatest.engine.logs import SampledLog
 from aatest.recording import read_dataset
@@ -72,10 +75,9 @@ def measure(path: Path, rounds: int) -> dict[str, Any]:
 
 def compare(base_src: Path, path: Path, rounds: int) -> None:
     """Alternate the baseline checkout and this one; print medians, ratios and equality."""
-    this_src = Path(__file__).resolve().parents[1] / "src"
     docs: dict[str, list[dict[str, Any]]] = {"base": [], "this": []}
     for _ in range(rounds):
-        for label, src in (("base", base_src), ("this", this_src)):
+        for label, src in (("base", base_src), ("this", this_src(__file__))):
             docs[label].append(child_json(__file__, src, [str(path), "--json", "--rounds", "3"],
                                           "decode benchmark"))
     steps = docs["this"][0]["steps"]
@@ -94,12 +96,8 @@ def compare(base_src: Path, path: Path, rounds: int) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("path", type=Path, help="run directory or recording file")
-    parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--compare", type=Path, default=None, metavar="BASE_SRC")
-    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = checkout_arguments(__doc__, "path", rounds=3, dumps=False,
+                              target_help="run directory or recording file").parse_args()
     if args.compare is not None:
         compare(args.compare, args.path, args.rounds)
         return

@@ -20,7 +20,6 @@ number between the two (relative to the number itself).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import pickle
@@ -29,7 +28,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from child_run import alternate, leaves, plain  # bench/ (the script's directory) is on sys.path
+from child_run import (  # bench/ (the script's directory) is on sys.path
+    against,
+    checkout_arguments,
+    leaves,
+    plain,
+)
 
 from aatest.engine import registry
 from aatest.recording import read_dataset
@@ -113,9 +117,8 @@ def largest_change(a: Any, b: Any) -> tuple[float, str, int]:
 
 def compare(run_dir: Path, base_src: Path, rounds: int) -> None:
     """This bench on the base checkout and on this one, alternately; ratios per watch."""
-    this_src = Path(__file__).resolve().parents[1] / "src"
-    docs, outputs = alternate(__file__, {"base": base_src, "this": this_src},
-                              [str(run_dir), "--rounds", str(rounds)], "step reductions", 2)
+    docs, outputs = against(__file__, base_src, [str(run_dir), "--rounds", str(rounds)],
+                            "step reductions", 2)
     runs = {label: [d["cpu_ms"] for d in got] for label, got in docs.items()}
     doc = docs["this"][-1]
     worst, where, count = largest_change(outputs["base"], outputs["this"])
@@ -135,13 +138,7 @@ def compare(run_dir: Path, base_src: Path, rounds: int) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run_dir", type=Path)
-    parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--compare", type=Path, default=None, metavar="BASE_SRC")
-    parser.add_argument("--dump", type=Path, default=None, help=argparse.SUPPRESS)
-    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = checkout_arguments(__doc__, "run_dir", rounds=3).parse_args()
     if args.compare is not None:
         compare(args.run_dir, args.compare, args.rounds)
         return

@@ -17,7 +17,6 @@ numbers differ (they must not: the early child takes the relation as the pass wo
 
 from __future__ import annotations
 
-import argparse
 import cProfile
 import json
 import pickle
@@ -27,7 +26,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from child_run import alternate, leaves, plain  # bench/ (the script's directory) is on sys.path
+from child_run import (  # bench/ (the script's directory) is on sys.path
+    against,
+    checkout_arguments,
+    leaves,
+    plain,
+)
 
 from aatest.engine import registry
 from aatest.recording import read_dataset
@@ -70,9 +74,8 @@ def measure(run_dir: Path, rounds: int, dump: Path | None, profile: bool) -> dic
 
 def compare(run_dir: Path, base_src: Path, rounds: int) -> None:
     """This bench on the base checkout and on this one, alternately; the ratio."""
-    this_src = Path(__file__).resolve().parents[1] / "src"
-    docs, outputs = alternate(__file__, {"base": base_src, "this": this_src},
-                              [str(run_dir), "--rounds", str(rounds)], "sync check", 3)
+    docs, outputs = against(__file__, base_src, [str(run_dir), "--rounds", str(rounds)],
+                            "sync check", 3)
     runs = {label: [d["cpu_ms"] for d in got] for label, got in docs.items()}
     doc = docs["this"][-1]
     a, b = (dict(leaves(outputs[label])) for label in ("base", "this"))
@@ -86,13 +89,8 @@ def compare(run_dir: Path, base_src: Path, rounds: int) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run_dir", type=Path)
-    parser.add_argument("--rounds", type=int, default=5)
-    parser.add_argument("--compare", type=Path, default=None, metavar="BASE_SRC")
+    parser = checkout_arguments(__doc__, "run_dir", rounds=5)
     parser.add_argument("--profile", action="store_true", help="cProfile the check")
-    parser.add_argument("--dump", type=Path, default=None, help=argparse.SUPPRESS)
-    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.compare is not None:
         compare(args.run_dir, args.compare, args.rounds)
