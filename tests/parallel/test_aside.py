@@ -133,6 +133,25 @@ def test_a_block_that_raises_kills_its_processes_and_calls_are_made_in_place() -
     assert later.result()[0] == 5.0
 
 
+def test_a_killed_process_leaves_its_directory_to_the_next_block(tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch
+                                                                  ) -> None:
+    """A run killed inside its block leaves its directory; the next block removes it, and
+    keeps the directories of processes that live."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    dead = tmp_path / f"aatest-aside-{gone}-x1"
+    alive = tmp_path / f"aatest-aside-{os.getppid()}-x2"
+    for directory in (dead, alive):
+        directory.mkdir()
+        (directory / "0.call").write_bytes(b"left")
+    with aside.running():
+        assert aside.submit(_product_and_pid, 2, 2.0).result()[0] == 4.0
+    assert not dead.exists() and alive.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [alive.name]  # the block's own: gone
+
+
 def test_no_process_aside_while_another_thread_runs() -> None:
     stop = threading.Event()
     other = threading.Thread(target=stop.wait, name="other", daemon=True)

@@ -58,6 +58,8 @@ _LANES_FROM_CPUS = 2
 #: (bench/long_record.py: the sync figure is the only one drawn aside); a later call starts
 #: new ones
 IDLE_S = 0.25
+#: the names of the blocks' directories: this, the pid of the block's process, a dash
+_PREFIX = "aatest-aside-"
 
 
 class Later(Generic[T]):
@@ -324,7 +326,9 @@ def running(warm: Callable[[], Any] | None = None) -> Iterator[None]:
     if _SLOT.block is not None and _SLOT.block.parent == os.getpid():
         yield
         return
-    block = _Block(os.getpid(), warm, Path(tempfile.mkdtemp(prefix="aatest-aside-")))
+    _swept()
+    directory = Path(tempfile.mkdtemp(prefix=f"{_PREFIX}{os.getpid()}-"))
+    block = _Block(os.getpid(), warm, directory)
     _SLOT.block = block
     try:
         yield
@@ -334,6 +338,21 @@ def running(warm: Callable[[], Any] | None = None) -> Iterator[None]:
         raise
     _SLOT.block = None
     _ended(block, discard=False)
+
+
+def _swept() -> None:
+    """Remove the directories of blocks whose process is gone (killed before its block
+    ended: a few request and result files each); another user's are left alone."""
+    for directory in Path(tempfile.gettempdir()).glob(f"{_PREFIX}*-*"):
+        pid = directory.name.removeprefix(_PREFIX).split("-", 1)[0]
+        if not pid.isdigit():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(directory, ignore_errors=True)
+        except OSError:  # alive, another user's
+            continue
 
 
 def _end_at_exit() -> None:
