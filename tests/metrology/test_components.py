@@ -144,19 +144,21 @@ def test_welch_satterthwaite_widens_k_for_few_degrees_of_freedom() -> None:
 @pytest.mark.parametrize("dof", [0.7, 1.0, 2.5, 5.0, 14.2, 60.0, 1e4, 1e9])
 def test_k_is_the_t_quantile_scipy_stats_gives(dof: float) -> None:
     # the special functions are called directly: the values of norm.cdf and t.ppf. Both
-    # invert the t CDF iteratively, and another build (or its scalar/array path: 1 ulp apart
-    # at ν = 1e9 here) may end the inversion in other last bits; an error of δ in the
-    # probability moves k by κ·δ relative, κ = q/(k·pdf(k)) (9 … 62 for these ν). Allowed:
-    # 64 ε in q times κ, ≤ 9e-13 relative; a wrong quantile (the normal one, say) is off
-    # by ≥ 1e-9.
+    # sides invert the t CDF iteratively, from the same q and ν_eff, and may end the
+    # inversion in other last bits (its scalar and array paths are 1 ulp apart at ν = 1e9
+    # here); scipy's own tests hold that inversion to 1e-7 only, so no bound in ε is
+    # promised on another build. What the test must tell apart is the quantile of another
+    # ν_eff (a Welch–Satterthwaite slip) or the normal one: a relative error r in ν_eff moves
+    # k by ≈ r·(k − z), z the normal quantile. Allowed: 1 % of (k − z)/k, so ν_eff is pinned
+    # to ≈ 1 % (5e-12 at ν = 1e9, ≥ 5e-7 below 1e4), ~10⁴ × the inversion's error measured
+    # against an exact quantile (mpmath, 40 digits: ≤ 3.3e-16 for these ν).
     from scipy.stats import norm, t
 
     u_i, u_c = 0.8, 1.0
     dof_eff = u_c**4 / (u_i**4 / dof)  # Welch–Satterthwaite, as coverage_factor forms it
     q = 0.5 + (2.0 * norm.cdf(2.0) - 1.0) / 2.0
     expected = float(max(2.0, t.ppf(q, dof_eff)))
-    condition = q / (expected * t.pdf(expected, dof_eff))
-    rel = 64 * np.finfo(float).eps * condition
+    rel = 0.01 * (expected - float(norm.ppf(q))) / expected
     assert coverage_factor(u_c, [(u_i, dof)]) == pytest.approx(expected, rel=rel, abs=0)
 
 
