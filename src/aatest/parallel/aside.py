@@ -26,7 +26,6 @@ place; only where an error surfaces moves, from the call to the taking.
 from __future__ import annotations
 
 import atexit
-import gc
 import logging
 import os
 import pickle
@@ -41,6 +40,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from aatest.parallel.forked import fork_workers, mark_worker
+from aatest.parallel.gc_freeze import frozen_for_children
 
 T = TypeVar("T")
 
@@ -205,18 +205,14 @@ def _started(block: _Block) -> list[_Lane]:
     if count < _LANES_FROM_CPUS:
         return []
     pipes = [(Pipe(duplex=False), Pipe(duplex=False)) for _ in range(count)]
-    # what exists now is never scanned by the collector aside (no copy of this heap's pages)
-    outer_freeze = gc.get_freeze_count() > 0
-    gc.freeze()
-    pid = os.fork()
-    if pid == 0:  # pragma: no cover - the processes aside (their effects are tested)
-        code = 1
-        try:
-            code = _first(pipes, block.directory, block.warm)
-        finally:
-            os._exit(code)
-    if not outer_freeze:
-        gc.unfreeze()
+    with frozen_for_children():
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - the processes aside (their effects are tested)
+            code = 1
+            try:
+                code = _first(pipes, block.directory, block.warm)
+            finally:
+                os._exit(code)
     block.started.append(pid)
     log.debug("calls made aside by %d processes (the first: pid %d)", count, pid)
     lanes = []

@@ -27,3 +27,21 @@ def older_objects_frozen() -> Iterator[None]:
         yield
     finally:
         gc.unfreeze()
+
+
+@contextmanager
+def frozen_for_children() -> Iterator[None]:
+    """Freeze every object that exists now for the processes forked inside the block: their
+    collections then leave the inherited objects, and so the pages they share with this
+    process, alone (no copy-on-write of this heap). Inside an enclosing freeze (the analysis
+    pass), whose end releases them all, the garbage made since it froze is collected first
+    (a cheap collection: the rest is frozen) and this block's freeze is left to it."""
+    outer = gc.get_freeze_count() > 0
+    if outer:
+        gc.collect()
+    gc.freeze()
+    try:
+        yield
+    finally:
+        if not outer:
+            gc.unfreeze()
