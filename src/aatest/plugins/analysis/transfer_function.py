@@ -103,34 +103,10 @@ def antialias_of(data: Dataset, options: TransferFunctionOptions) -> float | Non
     return None
 
 
-def group_model(points: list[FrfPoint], steps: Sequence[SyncedStep], sensor: SensorInfo,
-                antialias_hz: float | None = None,
-                options: TransferFunctionOptions | None = None) -> tuple[dict[str, Any], str]:
-    """The chosen transfer function of one group of FRF points, and its Bode figure.
-
-    Discrete models describe sensor and logger lumped (as measured); the physical
-    second-order-plus-delay model has the logger's known pre-sample filter de-embedded.
-    """
-    xcorr = rated_xcorr(steps, sensor)
-    f, h = _group_frf(points)
-    values, svg = _discrete_model(f, h, xcorr, sensor.channel, options)
-    return _with_physical(values, _physical_model(f, h, xcorr, antialias_hz)), svg
-
-
 def _group_frf(points: list[FrfPoint]) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies (Hz) and complex responses of a group's FRF points."""
     return (np.array([p.frequency_hz for p in points]),
             np.array([complex(p.re, p.im) for p in points]))
-
-
-def _discrete_model(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
-                    channel: str, options: TransferFunctionOptions | None
-                    ) -> tuple[dict[str, Any], str]:
-    """The chosen discrete model of a group's FRF ``f``, ``h`` (:func:`_group_frf`; every
-    value but the physical model) and its Bode figure; ``xcorr`` is the group's
-    :func:`rated_xcorr`."""
-    values, model = _discrete_fit(f, h, xcorr, options)
-    return values, bode_svg(f, h, model, _bode_title(values, channel))
 
 
 def _bode_title(values: Mapping[str, Any], channel: str) -> str:
@@ -142,7 +118,8 @@ def _bode_title(values: Mapping[str, Any], channel: str) -> str:
 def _discrete_fit(f: np.ndarray, h: np.ndarray, xcorr: tuple[dict[str, float], float],
                   options: TransferFunctionOptions | None
                   ) -> tuple[dict[str, Any], DiscreteTf]:
-    """:func:`_discrete_model`'s values and the chosen model, without the figure."""
+    """A group's values (every one but the physical model's) and its chosen discrete model,
+    from its FRF ``f``, ``h`` (:func:`_group_frf`) and ``xcorr`` (its :func:`rated_xcorr`)."""
     return run_through(_discrete_fit_in_pieces(f, h, xcorr, options))
 
 
