@@ -336,6 +336,28 @@ def test_damaged_recording_is_an_error_or_unchanged(
         assert_logs_equal(ref.daq, daq)
 
 
+def test_a_step_record_with_a_damaged_name_is_an_error_not_a_lost_step(
+    tmp_path: Path, small_recording: tuple[bytes, Dataset],
+) -> None:
+    """A flipped bit in a step record's name ("step" → "rtep") made the reader pass over the
+    record, and the recording read without that step (found by the test above). The
+    summary's index names each record: a record named otherwise is damage."""
+    data, _ = small_recording
+    path = tmp_path / "recording.mcap"
+    path.write_bytes(data)
+    with path.open("rb") as stream:
+        first_step = next(ix for ix in make_reader(stream).get_summary().metadata_indexes
+                          if ix.name == "step")
+    damaged = bytearray(data)
+    name_at = first_step.offset + 1 + 8 + 4  # opcode, record length, the name's length
+    assert damaged[name_at:name_at + 4] == b"step"
+    damaged[name_at] ^= 1
+    path.write_bytes(bytes(damaged))
+    with pytest.raises(RecordingError, match=r"recording\.mcap: the metadata record at byte "
+                       rf"{first_step.offset} is named 'rtep', its index 'step' \(damaged\)"):
+        read_dataset(path)
+
+
 def test_golden_v1_recording_still_reads_bit_exact() -> None:
     """A recording written by format v1 (``aatest.block/v1``, per-step topics) keeps reading.
 

@@ -196,9 +196,13 @@ def _checked_summary(reader: Any, path: Where) -> Any:
 
 
 def _contents(reader: Any, path: Where) -> _FileContents:
-    contents = _FileContents(chunks=_StepChunks(path, _checked_summary(reader, path)))
+    summary = _checked_summary(reader, path)
+    contents = _FileContents(chunks=_StepChunks(path, summary))
     step_records = []
-    for record in reader.iter_metadata():
+    for index, record in zip(summary.metadata_indexes, reader.iter_metadata(), strict=True):
+        if record.name != index.name:  # a damaged name: its record (a step?) would be lost
+            raise RecordingError(f"{path}: the metadata record at byte {index.offset} is "
+                                 f"named {record.name!r}, its index {index.name!r} (damaged)")
         if record.name == fmt.RUN_RECORD:
             contents.run_meta = fmt.from_json_values(dict(record.metadata))
         elif record.name == fmt.STEP_RECORD:
