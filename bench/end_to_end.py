@@ -5,7 +5,7 @@ on the simulated rig through the same calls as ``aatest run`` (:mod:`aatest.engi
 each phase timed on its own:
 
 - ``record``  the runner drives the twin and writes one step file per step;
-- ``merge``   the step files become ``recording.mcap``;
+- ``merge``   the step files become ``recording.mcap`` (and are deleted);
 - ``analyse`` the recording is read and the procedure's analyses run;
 - ``report``  uncertainty, verdicts, results.json, the HTML certificate (and its signature).
 
@@ -152,12 +152,17 @@ def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> Any:
     with _early_analysis(prepared, recorder) as early:
         phases.time("record", lambda: run_plan(plan, rig, early.recorder, state, out,
                                                show_progress=False, events=events))
-        # the analysis made during the record phase is collected (its child reaped) here
-        results = phases.time("merge", lambda: _finish_recording(recorder, early))
-    state.finished = True
-    state.save(out)
-    recorder.prune_step_files()
-    return results
+
+        def merge() -> Any:
+            # the analysis made during the record phase is collected (its child reaped) here;
+            # then, as `aatest run` does, the run is marked finished and its step files go
+            results = _finish_recording(recorder, early)
+            state.finished = True
+            state.save(out)
+            recorder.prune_step_files()
+            return results
+
+        return phases.time("merge", merge)
 
 
 class _NoEarly:

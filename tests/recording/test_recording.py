@@ -23,7 +23,7 @@ from recording_data import SENSOR, run_meta, sine_step, step_logs
 
 from aatest.engine.errors import RecordingError
 from aatest.engine.logs import SampledLog
-from aatest.recording import BLOCK_SAMPLES, ENCODING, RunRecorder, read_dataset
+from aatest.recording import BLOCK_SAMPLES, ENCODING, RECORDING_NAME, RunRecorder, read_dataset
 from aatest.recording.dataset import Dataset
 
 HERE = Path(__file__).parent
@@ -182,6 +182,30 @@ def test_files_are_valid_mcap_for_seeking_and_streaming_readers(tmp_path: Path, 
         assert len(summary.schemas) == 3
         assert {ch.topic for ch in summary.channels.values()} == {
             "/table", "/daq", "/preview/table", "/preview/daq"}
+
+
+def test_prune_deletes_the_merged_step_files_finalize_scanned(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """After its merge the recorder deletes the step files it merged without scanning them
+    again; a step file written after the merge (not in the recording) stays, and a recorder
+    that did not merge scans the directory first."""
+    from aatest.recording import writer
+
+    record_run(tmp_path, n_steps=3, samples=4096)
+    recorder = RunRecorder(tmp_path)
+    recorder.finalize()
+    late = sine_step("s09", 4096)
+    recorder.write_step(late, *step_logs(late, 9))
+    scans: list[Path] = []
+    real_scan = writer.scan_step_file
+    monkeypatch.setattr(writer, "scan_step_file", lambda path: scans.append(path) or
+                        real_scan(path))
+    assert recorder.prune_step_files() == 3
+    assert scans == []
+    assert [p.name.split(".")[0][-3:] for p in recorder.steps_dir.glob("*.mcap")] == ["s09"]
+    assert [s.step.id for s in read_dataset(tmp_path / RECORDING_NAME).steps] == \
+        ["s01", "s02", "s03"]
+    assert RunRecorder(tmp_path).prune_step_files() == 0 and len(scans) == 1  # s09 scanned
 
 
 def test_finalize_keeps_plan_order_not_write_order(tmp_path: Path) -> None:

@@ -441,10 +441,13 @@ class RunRecorder:
 
         Only ids read back from the merged recording are deleted, so a failed or partial merge
         never costs a step. The run metadata file stays (it names the run for ``--resume``).
+        The step files are those :meth:`finalize` scanned, when it ran here (scanning the
+        stepped sine's 136 again took ≈ 0.1 s), else scanned now.
         """
         merged = merged_step_ids(self.run_dir / RECORDING_NAME)
         pruned = 0
-        for step_id, (path, _) in self._step_files().items():
+        files = self._files if self._files is not None else self._step_files()
+        for step_id, (path, _) in files.items():
             if step_id in merged:
                 path.unlink(missing_ok=True)
                 pruned += 1
