@@ -9,6 +9,10 @@ each phase timed on its own:
 - ``analyse`` the recording is read and the procedure's analyses run;
 - ``report``  uncertainty, verdicts, results.json, the HTML certificate (and its signature).
 
+Before ``record``, untimed like the procedure's loading, the plan's checks run as ``aatest
+run`` makes them before anything moves (:func:`aatest.engine.plan_checks.refuse_unrunnable`:
+the report's template is compiled there, and the render takes it).
+
 The analyses' figures are drawn aside over both phases, as ``aatest run`` draws them
 (:func:`aatest.presentation.figures.drawing_aside`): ``analyse`` only asks for them, and
 ``report`` takes them after the verdicts, waiting for those not drawn yet.
@@ -135,6 +139,14 @@ class Phases:
         result = action()
         self.rows.append((name, time.perf_counter() - wall, _cpu_s() - cpu, _peak_mb()))
         return result
+
+
+def _preflight(prepared: Any, out: Path) -> None:
+    """The plan's checks before anything moves, as ``aatest run`` makes them (not timed, as
+    the procedure's loading is not): its report template is compiled there."""
+    from aatest.engine.plan_checks import refuse_unrunnable
+
+    refuse_unrunnable(prepared, out)
 
 
 def _record(prepared: Any, out: Path, seed: int, phases: Phases) -> Any:
@@ -334,6 +346,7 @@ def main() -> None:
             out = args.dir or Path(tempfile.mkdtemp(prefix="aatest-bench-e2e-")) / "run"
             if out.exists():
                 shutil.rmtree(out)
+            _preflight(prepared, out)
             early = _record(prepared, out, args.seed, phases)
         lab_s, steps, taken = _analyse_and_report(prepared, out, phases,
                                                   args.analyse_only is None, early)

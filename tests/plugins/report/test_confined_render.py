@@ -101,6 +101,25 @@ def test_a_child_started_ahead_renders_with_the_same_limits_or_is_ended(tmp_path
     assert not confined._WAITING
 
 
+def test_a_child_started_ahead_for_a_template_renders_it_the_same(
+        results: dict[str, Any], run_dir: Path, tmp_path: Path) -> None:
+    """A child that compiled the shipped certificate while it waited renders the same page
+    as one started at the render; it renders a lab's template, or one that does not exist
+    ahead, as well."""
+    from aatest.plugins.report import confined
+
+    fast = CalibrationCertificate(CalibrationCertificate.Config(plots=False))
+    cold = fast.render(results, run_dir, None).read_text()
+    with confined.prestarted("calibration-certificate.html.j2"):
+        assert fast.render(results, run_dir, None).read_text() == cold
+        assert not confined._WAITING  # the child started ahead rendered it
+    with confined.prestarted("calibration-certificate.html.j2"):
+        lab = _lab(tmp_path, "<p>{{ x }}</p>")
+        assert render_confined("evil.html.j2", lab, {"x": 5}) == "<p>5</p>"
+    with confined.prestarted("no-such.html.j2"):
+        assert render_confined("evil.html.j2", lab, {"x": 6}) == "<p>6</p>"
+
+
 def test_a_block_inside_another_starts_no_second_child(tmp_path: Path) -> None:
     from aatest.plugins.report import confined
 

@@ -127,3 +127,33 @@ def test_unsafe_svg_is_withheld(name: str) -> None:
     vetted = str(vet_svg(BAD_SVG[name]))
     assert vetted.startswith('<p class="withheld">figure withheld:')
     assert "alert" not in vetted and "evil" not in vetted and "passwd" not in vetted
+
+
+def test_shipped_templates_compile_once_per_process_and_a_labs_at_each_load(
+        lab_dir: Path) -> None:
+    """The shipped sandbox keeps what it compiled (the run's preflight compiles the template
+    its render takes); a lab's directory is read anew at each load, so its edits show."""
+    from aatest.plugins.report.sandbox import load_template
+
+    first = load_template("frequency-response.html.j2")
+    assert load_template("frequency-response.html.j2") is first
+    (lab_dir / "page.html.j2").write_text("<p>one</p>")
+    assert load_template("page.html.j2", lab_dir).render() == "<p>one</p>"
+    (lab_dir / "page.html.j2").write_text("<p>two</p>")
+    assert load_template("page.html.j2", lab_dir).render() == "<p>two</p>"
+
+
+def test_compile_ahead_compiles_the_templates_a_template_references() -> None:
+    """What a render process started ahead compiles while it waits: the template, and those
+    it extends, imports and includes (compiled at the render otherwise)."""
+    from aatest.plugins.report.sandbox import _shipped_environment, compile_ahead
+
+    env = _shipped_environment()
+    env.cache.clear()  # type: ignore[union-attr]
+    compile_ahead("frequency-response.html.j2")
+    cached = {name for _, name in env.cache}  # type: ignore[union-attr]
+    assert cached == {"frequency-response.html.j2", "base.html.j2", "macros.html.j2",
+                      "sections.html.j2", "style.css"}  # the base inlines the style sheet
+    compile_ahead("no-such-template.html.j2")  # left to the render, which names it
+    with pytest.raises(TemplateError, match="no-such-template"):
+        render_template("no-such-template.html.j2", {})

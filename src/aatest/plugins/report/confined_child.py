@@ -1,7 +1,8 @@
 """The child process of a confined render (:mod:`.confined`): limit itself, render, answer.
 
-Run as ``python -m aatest.plugins.report.confined_child`` with the pickled request on stdin;
-it answers ``(kind, text)`` pickled on stdout. It lives apart from the parent's side so that
+Run as ``python -m aatest.plugins.report.confined_child [TEMPLATE…]`` with the pickled request
+on stdin (the shipped templates named are compiled while it waits for it); it answers
+``(kind, text)`` pickled on stdout. It lives apart from the parent's side so that
 the sandbox, which it renders with, can call the parent's side without an import cycle.
 """
 
@@ -11,7 +12,7 @@ import pickle
 import resource
 import sys
 
-from aatest.plugins.report.sandbox import load_template, render_in_process
+from aatest.plugins.report.sandbox import compile_ahead, load_template, render_in_process
 from aatest.plugins.report.template_errors import TemplateError, TemplateSecurityError
 
 
@@ -25,8 +26,12 @@ def _limit_child(cpu_s: int, memory_bytes: int) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (held + memory_bytes,) * 2)
 
 
-def _child() -> None:
-    """The child's work: read the request, limit itself, render, answer on stdout."""
+def _child(ahead: list[str]) -> None:
+    """The child's work: compile the shipped templates named ``ahead`` and those they
+    reference (their sandbox keeps them: a request for one finds them compiled), read the
+    request, limit itself, render, answer on stdout."""
+    for name in ahead:
+        compile_ahead(name)
     name, template_dir, context, cpu_s, memory_bytes = pickle.loads(sys.stdin.buffer.read())
     template = load_template(name, template_dir)
     where = str(template.filename or name)
@@ -44,4 +49,4 @@ def _child() -> None:
 
 
 if __name__ == "__main__":
-    _child()
+    _child(sys.argv[1:])

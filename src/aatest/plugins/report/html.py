@@ -66,11 +66,12 @@ class _HtmlReport:
     @contextlib.contextmanager
     def preparing(self, run_dir: Path | None = None) -> Iterator[None]:
         """Start the confined render's process now, while the caller still works (writing
-        results.json): its imports (≈ 0.4 s CPU) then overlap that work; it is ended on exit
+        results.json): its imports (≈ 0.4 s CPU) and its compile of this report's shipped
+        template then overlap that work; it is ended on exit
         when no render took it (:func:`.confined.prestarted`). Given the ``run_dir`` to
         render into, hash its recording meanwhile too (:func:`.traceability.hashed_ahead`)."""
         with contextlib.ExitStack() as stack:
-            stack.enter_context(confined.prestarted())
+            stack.enter_context(confined.prestarted(f"{self.template}.html.j2"))
             if run_dir is not None:
                 stack.enter_context(hashed_ahead(run_dir))
             yield

@@ -33,6 +33,7 @@ from jinja2 import (
     TemplateSyntaxError,
     Undefined,
     UndefinedError,
+    meta,
 )
 from jinja2.exceptions import SecurityError
 from jinja2.exceptions import TemplateError as JinjaTemplateError
@@ -237,15 +238,52 @@ def _translated(where: str, exc: BaseException) -> TemplateError:
     return TemplateError(f"{where}: template failed: {type(exc).__name__}: {exc}")
 
 
+@functools.lru_cache(maxsize=1)
+def _shipped_environment() -> ImmutableSandboxedEnvironment:
+    """The sandbox of the shipped templates alone, made once per process.
+
+    Why: Jinja keeps the templates an environment compiled (≈ 0.1 s of CPU for the
+    certificate) and reloads one only when its file's time changes; so the render of a run
+    takes the template its preflight compiled (``aatest run``: the plan's checks load it),
+    and a render process started ahead compiles it before its request comes
+    (:func:`.confined.prestarted`). A lab's ``template_dir`` gets a new sandbox at each load:
+    a file added there later must override the shipped one it shadows.
+    """
+    return make_environment()
+
+
 def load_template(name: str, template_dir: Path | None = None) -> Template:
     """Find and compile ``name`` (a lab's ``template_dir`` must contain it) before any work."""
-    env = make_environment(template_dir)
+    env = make_environment(template_dir) if template_dir is not None else _shipped_environment()
     if template_dir is not None and not (Path(template_dir) / name).is_file():
         raise TemplateError(f"{template_dir}: no {name} in the lab template directory")
     try:
         return env.get_template(name)
     except (SecurityError, JinjaTemplateError) as exc:
         raise _translated(f"{template_dir or BUILTIN_TEMPLATES}/{name}", exc) from exc
+
+
+def compile_ahead(name: str) -> None:
+    """Compile the shipped template ``name`` and those it extends, imports and includes, in
+    this process's sandbox of the shipped templates (:func:`_shipped_environment` keeps
+    them): what a render process does while it waits for its request
+    (:func:`.confined.prestarted`). Jinja compiles a referenced template at the render
+    otherwise (the frequency-response report's render: ≈ 70 ms, 9 ms compiled ahead). A
+    template that does not load is left to the render, which names the error."""
+    env = _shipped_environment()
+    names, seen = [name], {name}
+    while names:
+        current = names.pop()
+        try:
+            env.get_template(current)
+            source = env.loader.get_source(env, current)[0]  # type: ignore[union-attr]
+            referenced = meta.find_referenced_templates(env.parse(source))
+        except (SecurityError, JinjaTemplateError):
+            continue
+        for other in referenced:
+            if other is not None and other not in seen:
+                seen.add(other)
+                names.append(other)
 
 
 def render_loaded(template: Template, context: Mapping[str, Any]) -> str:
