@@ -13,9 +13,10 @@ Before ``record``, untimed like the procedure's loading, the plan's checks run a
 run`` makes them before anything moves (:func:`aatest.engine.plan_checks.refuse_unrunnable`:
 the report's template is compiled there, and the render takes it).
 
-The analyses' figures are drawn aside over both phases, as ``aatest run`` draws them
-(:func:`aatest.presentation.figures.drawing_aside`): ``analyse`` only asks for them, and
-``report`` takes them after the verdicts, waiting for those not drawn yet.
+The analyses' figures are drawn aside, as ``aatest run`` draws them
+(:func:`aatest.presentation.figures.drawing_aside`): their processes start in ``merge``,
+once the step files are merged, and import matplotlib meanwhile; ``analyse`` only asks for
+the figures, and ``report`` takes them after the verdicts, waiting for those not drawn yet.
 
 During ``record`` a child process makes the sync pass's per-step work as each step file is
 written (:mod:`aatest.early.analysis`, as ``aatest run`` does; off with
@@ -228,17 +229,18 @@ def _analyse_and_report(prepared: Any, out: Path, phases: Phases, recorded_here:
                 results = session.decide(build_results(data, analysis, lab_s, 0.0), data)
             session.render_and_sign(results, out, template, None, None)
 
-    with _drawing_aside():
-        data, analysis = phases.time("analyse", analyse)
-        lab_s = (prepared.plan.lab_duration_s if recorded_here
-                 else sum(s.step.lab_duration_s for s in data.steps))
-        phases.time("report", report)
+    data, analysis = phases.time("analyse", analyse)
+    lab_s = (prepared.plan.lab_duration_s if recorded_here
+             else sum(s.step.lab_duration_s for s in data.steps))
+    phases.time("report", report)
     return float(lab_s), len(data.steps), early.offered if early is not None else 0
 
 
 def _drawing_aside() -> contextlib.AbstractContextManager[Any]:
-    """The figures drawn aside over the analyse and report phases, as ``aatest run`` draws
-    them (:func:`aatest.presentation.figures.drawing_aside`; none in a checkout from before)."""
+    """The figures drawn aside over the run, as ``aatest run`` draws them
+    (:func:`aatest.presentation.figures.drawing_aside`; none in a checkout from before): their
+    processes start at the end of the record phase (``session.finish_recording``), or at the
+    first figure (``--analyse-only``, a checkout from before)."""
     try:
         from aatest.presentation.figures import drawing_aside
     except ImportError:
@@ -338,7 +340,7 @@ def main() -> None:
         prepared.plan = prepared.plan.model_copy(
             update={"steps": prepared.plan.steps[:args.steps]})
     phases = Phases()
-    with TreeMemory() as tree, _pinned():
+    with TreeMemory() as tree, _pinned(), _drawing_aside():
         early = None
         if args.analyse_only is not None:
             out = args.analyse_only

@@ -152,6 +152,59 @@ def test_a_killed_process_leaves_its_directory_to_the_next_block(tmp_path: Path,
     assert sorted(p.name for p in tmp_path.iterdir()) == [alive.name]  # the block's own: gone
 
 
+#: where :func:`_warm_marking` marks that it ran (set by the test that starts ahead)
+MARKS: list[Path] = []
+
+
+def _warm_marking() -> None:
+    WARMED.append(os.getpid())
+    (MARKS[0] / f"warmed-{os.getpid()}").touch()
+
+
+def test_processes_started_ahead_warm_before_the_first_call(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch
+                                                          ) -> None:
+    """:func:`aside.ahead` forks the block's processes before any call: they warm while this
+    process goes on, and serve the calls sent later (none is started again)."""
+    monkeypatch.setattr(aside, "IDLE_S", 10.0)  # a loaded machine's pauses do not end them
+    before = _children()
+    MARKS[:] = [tmp_path]
+    with aside.running(_warm_marking):
+        aside.ahead()
+        block = aside._SLOT.block
+        assert block is not None and len(block.started) == 1
+        assert _children() - before, "nothing forked ahead"
+        deadline = time.monotonic() + 10.0  # no call sent yet: the warm runs on its own
+        while not list(tmp_path.glob("warmed-*")) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        marks = [p.name for p in tmp_path.glob("warmed-*")]
+        assert marks == [f"warmed-{block.started[0]}"], marks
+        out = [aside.submit(_product_and_pid, x, 2.0).result() for x in range(4)]
+        aside.ahead()  # processes run: none started again
+        assert len(block.started) == 1
+    assert [value for value, _, _ in out] == [x * 2.0 for x in range(4)]
+    assert PARENT not in {pid for _, pid, _ in out} and out[0][1] == block.started[0]
+    assert all(warmed == [block.started[0]] for _, _, warmed in out) and not WARMED
+    assert _children() == before
+
+
+def test_nothing_starts_ahead_outside_a_block_or_beside_a_thread() -> None:
+    before = _children()
+    aside.ahead()
+    assert _children() == before
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait, name="other", daemon=True)
+    other.start()
+    try:
+        with aside.running():
+            aside.ahead()
+            block = aside._SLOT.block
+            assert block is not None and block.started == [] and _children() == before
+    finally:
+        stop.set()
+        other.join()
+
+
 def test_no_process_aside_while_another_thread_runs() -> None:
     stop = threading.Event()
     other = threading.Thread(target=stop.wait, name="other", daemon=True)

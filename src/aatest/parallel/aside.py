@@ -189,6 +189,21 @@ def submit(call: Callable[..., T], *args: Any) -> Later[T]:
     return Later(call, args, value=call(*args))
 
 
+def ahead() -> None:
+    """Start the open block's processes aside now, if none run (their first :func:`submit`
+    would else start them): they make the block's ``warm`` call while this process goes on.
+
+    Why: the processes are forked when the first call is sent; a caller that knows calls
+    will come, and has work of its own before them, starts them ahead so their ``warm`` call
+    overlaps that work. Outside a block, or where forking is unsafe (another thread runs),
+    nothing is started. Processes started ahead end like the others, after :data:`IDLE_S`
+    without a call once warm.
+    """
+    block = _SLOT.block
+    if block is not None and block.parent == os.getpid():
+        _lanes(block)
+
+
 def _lanes(block: _Block) -> list[_Lane]:
     """The block's live lanes; when none, those of processes started now (none when forking
     is unsafe here: then calls are made in place)."""
@@ -360,4 +375,4 @@ def _end_at_exit() -> None:
 
 atexit.register(_end_at_exit)
 
-__all__ = ["IDLE_S", "Later", "running", "submit"]
+__all__ = ["IDLE_S", "Later", "ahead", "running", "submit"]

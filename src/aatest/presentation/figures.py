@@ -52,6 +52,13 @@ def drawing_aside() -> contextlib.AbstractContextManager[None]:
     return aside.running(warm)
 
 
+def ready_to_draw() -> None:
+    """Start the open :func:`drawing_aside` block's processes now, so they import matplotlib
+    (:func:`warm`) while this process goes on: a run starts them as its record phase ends,
+    once the step files are merged (:func:`aatest.engine.run.session.finish_recording`)."""
+    aside.ahead()
+
+
 def drawn(draw: Callable[..., str], *args: Any) -> Drawing:
     """``draw(*args)``'s SVG, drawn aside while one draws (:func:`drawing_aside`), else now.
 

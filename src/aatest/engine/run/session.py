@@ -44,7 +44,7 @@ from aatest.engine.run.runner import (
 )
 from aatest.engine.simulation import KIND_KEY, kind_of, metadata_of
 from aatest.engine.steps import Plan, SensorRef
-from aatest.presentation.figures import drawing_aside
+from aatest.presentation.figures import drawing_aside, ready_to_draw
 from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
 from aatest.results.root import Signature
@@ -508,39 +508,42 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
     sha = procedure_sha256(prepared.text)
     state = open_state(out_dir, plan.procedure, sha, seed, resume)
     recorder = RunRecorder(out_dir)
-    early_results: EarlyResults | None = None
-    if not state.finished:  # a finished run that is "resumed" is only analysed again
-        rig = build_rig(prepared.rig_config, plan.sensor, seed)
-        if not resume:
-            meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
-            meta["report_template"] = plan.report_template
-            recorder.write_run_metadata(meta)  # before start: a failed start can be resumed
-        # the analysis pass's per-step work is made while the rig records (a child process)
-        with early_analysis(plan, recorder, prepared.envelope) as early:
-            run_plan(plan, rig, early.recorder, state, out_dir,
-                     show_progress=request.show_progress, events=events,
-                     on_started=lambda started: _identify(recorder, started))
-            early_results = finish_recording(recorder, early)
-        state.finished = True
-        state.save(out_dir)
-    # only now, with every step inside recording.mcap, the per-step copies can go
-    recorder.prune_step_files()
-    key = signing_key(request.key_path)
-    if plan.sign and key is None:
-        log.warning(
-            "procedure asks for a signed report but no key is configured "
-            f"(--sign-key or {SIGNING_KEY_ENV}); the report is unsigned"
+    # the figures' processes, started at the record phase's end (finish_recording), draw
+    # until the report takes the figures (analyse_and_report's block is this one)
+    with drawing_aside():
+        early_results: EarlyResults | None = None
+        if not state.finished:  # a finished run that is "resumed" is only analysed again
+            rig = build_rig(prepared.rig_config, plan.sensor, seed)
+            if not resume:
+                meta = run_metadata(plan, rig, prepared.text, seed, operator or default_operator())
+                meta["report_template"] = plan.report_template
+                recorder.write_run_metadata(meta)  # before start: a failed start can be resumed
+            # the analysis pass's per-step work is made while the rig records (a child process)
+            with early_analysis(plan, recorder, prepared.envelope) as early:
+                run_plan(plan, rig, early.recorder, state, out_dir,
+                         show_progress=request.show_progress, events=events,
+                         on_started=lambda started: _identify(recorder, started))
+                early_results = finish_recording(recorder, early)
+            state.finished = True
+            state.save(out_dir)
+        # only now, with every step inside recording.mcap, the per-step copies can go
+        recorder.prune_step_files()
+        key = signing_key(request.key_path)
+        if plan.sign and key is None:
+            log.warning(
+                "procedure asks for a signed report but no key is configured "
+                f"(--sign-key or {SIGNING_KEY_ENV}); the report is unsigned"
+            )
+        results = analyse_and_report(
+            out_dir, out_dir, plan.report_template, None, key,
+            lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s,
+            pdf=request.pdf,
+            extra_metadata={"prompt_answers": state.prompt_answers,
+                            "confirm_prompts": request.prompt_mode,
+                            **({"soak_stability": state.soak_stability} if state.soak_stability
+                               else {})},
+            early=early_results,
         )
-    results = analyse_and_report(
-        out_dir, out_dir, plan.report_template, None, key,
-        lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s,
-        pdf=request.pdf,
-        extra_metadata={"prompt_answers": state.prompt_answers,
-                        "confirm_prompts": request.prompt_mode,
-                        **({"soak_stability": state.soak_stability} if state.soak_stability
-                           else {})},
-        early=early_results,
-    )
     return out_dir, results
 
 
@@ -548,14 +551,31 @@ def finish_recording(recorder: Any, early: EarlyRun) -> EarlyResults | None:
     """The end of the record phase: the step files merged into ``recording.mcap``, its
     SHA-256 begun on a thread (:func:`aatest.bundle.manifest.hash_soon`: the report's
     traceability and the signature read it; the analysis's first forking map joins the
-    thread first), and what the early analysis made, its child reaped."""
+    thread first), and what the early analysis made, its child reaped.
+
+    Then, when the early analysis ran (the pass will only take its per-step work, and asks
+    for its first figures within a fraction of a second), the figures' processes are started
+    inside the open :func:`~aatest.presentation.figures.drawing_aside` block (that of
+    :func:`_run_locked`): no thread runs here between the early analysis's end and the
+    hashing's start, and matplotlib's import (≈ 0.4 s of CPU) then overlaps the pass
+    instead of delaying the first figure (bench/end_to_end.py). Not before the merge: the
+    early analysis's child, at a lower priority, still makes its last work there (the
+    transfer function's last fits were lost to them). Not without an early analysis (a
+    long static record, streamed): the pass takes seconds before its first figure, and the
+    processes, forked from this process as the record left it, would hold its memory
+    meanwhile (bench/long_record.py --minutes 60: 292 → 322 MB).
+    """
     from aatest.bundle.manifest import hash_soon
     from aatest.parallel.forked import join_before_fork
 
-    hashing = hash_soon(recorder.finalize())
+    recording = recorder.finalize()
+    made = early.results()
+    if made is not None:
+        ready_to_draw()
+    hashing = hash_soon(recording)
     if hashing is not None:
         join_before_fork(hashing)
-    return early.results()
+    return made
 
 
 def _identify(recorder: Any, started: Rig) -> None:
