@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -34,3 +35,19 @@ def _all_results_match_schema(tmp_path_factory: pytest.TempPathFactory) -> Itera
 # points each of its tests at a fresh one)
 os.environ.setdefault("AATEST_RECORDS", "sqlite:///" + os.path.join(
     tempfile.mkdtemp(prefix="aatest-test-records-"), "records.sqlite"))
+
+
+@pytest.fixture
+def two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two CPUs' worth of forked workers whatever the suite's setting, and only threads
+    started by the test itself counted (a server an earlier test left running is not this
+    one's); skipped where the machine gives the tests one CPU (nothing is forked there)."""
+    from aatest.parallel import forked
+
+    monkeypatch.setenv(forked.WORKERS_ENV, "2")
+    stray = set(threading.enumerate())
+    monkeypatch.setattr(forked, "_other_threads", lambda: [
+        t.name for t in threading.enumerate()
+        if t not in stray and t is not threading.current_thread()])
+    if forked.cpu_workers() < 2:
+        pytest.skip("this machine gives the tests one CPU: nothing is forked there")

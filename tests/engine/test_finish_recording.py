@@ -3,7 +3,6 @@ figures' processes start there when the early analysis ran, and not without it."
 
 from __future__ import annotations
 
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -11,8 +10,7 @@ import pytest
 
 from aatest.early.analysis import EarlyResults
 from aatest.engine.run import session
-from aatest.parallel import aside, forked
-from aatest.parallel.forked import WORKERS_ENV
+from aatest.parallel import aside
 from aatest.presentation.figures import drawing_aside
 
 
@@ -35,17 +33,7 @@ class _Early:
         return self.made
 
 
-@pytest.fixture(autouse=True)
-def _two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv(WORKERS_ENV, "2")
-    stray = set(threading.enumerate())
-    monkeypatch.setattr(forked, "_other_threads", lambda: [
-        t.name for t in threading.enumerate()
-        if t not in stray and t is not threading.current_thread()])
-    if forked.cpu_workers() < 2:
-        pytest.skip("this machine gives the tests one CPU: no process is started aside there")
-
-
+@pytest.mark.usefixtures("two_workers")
 @pytest.mark.parametrize(("made", "started"), [(EarlyResults({}, []), 1), (None, 0)],
                          ids=["early-analysis", "none"])
 def test_the_figures_processes_start_when_the_early_analysis_ran(

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from aatest.parallel import aside, forked
+from aatest.parallel import aside
 from aatest.parallel.forked import WORKERS_ENV
 from aatest.plugins.analysis.sync_summary import sync_plot
 from aatest.presentation.figures import DrawnFigures, drawing_aside, drawn
@@ -28,16 +28,8 @@ WARMED: list[int] = []
 
 
 @pytest.fixture(autouse=True)
-def _two_workers(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Two CPUs' worth of workers whatever the suite's setting, and only threads started
-    by the test itself counted (a server an earlier test left running is not this one's)."""
-    monkeypatch.setenv(WORKERS_ENV, "2")
-    stray = set(threading.enumerate())
-    monkeypatch.setattr(forked, "_other_threads", lambda: [
-        t.name for t in threading.enumerate()
-        if t not in stray and t is not threading.current_thread()])
-    if forked.cpu_workers() < 2:
-        pytest.skip("this machine gives the tests one CPU: nothing is made aside there")
+def _two_workers(two_workers: None) -> None:
+    """Two workers, the test's own threads counted (``two_workers``, tests/conftest.py)."""
 
 
 def _warm() -> None:
@@ -65,7 +57,8 @@ def _children() -> set[int]:
 
 
 def _asides() -> list[Path]:
-    return sorted(Path(tempfile.gettempdir()).glob("aatest-aside-*"))
+    """This process's blocks' directories (other test processes make theirs meanwhile)."""
+    return sorted(Path(tempfile.gettempdir()).glob(f"aatest-aside-{PARENT}-*"))
 
 
 def test_results_are_those_in_place_made_by_two_warmed_processes() -> None:
