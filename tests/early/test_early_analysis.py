@@ -68,6 +68,7 @@ def test_the_pass_takes_the_steps_analysed_while_recording(
         caplog: pytest.LogCaptureFixture) -> None:
     run, early = recorded
     assert early.offered == 3 and len(early.made) == 3
+    assert early.complete  # drained: its last word was that it had made all
     caplog.set_level(logging.DEBUG, "aatest.analysis")
     session.analyse_and_report(run, tmp_path / "again")  # `aatest analyze`: nothing taken
     assert _taken(caplog) == ["sync pass: 0 of 3 steps taken as analysed while the run recorded"]

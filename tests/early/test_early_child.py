@@ -4,6 +4,7 @@ that step of the merged recording, taken only where the recorded bytes are the s
 from __future__ import annotations
 
 import logging
+import threading
 import warnings
 from pathlib import Path
 from typing import Any
@@ -189,3 +190,36 @@ def test_a_group_fit_of_other_inputs_is_not_taken(tmp_path: Path,
     assert fits[-1] == "transfer function: 2 of 4 group fits made while the run recorded"
     assert taken == plain
 
+
+
+def test_the_child_says_once_it_has_made_all_it_received(tmp_path: Path) -> None:
+    """Idle before any step, after each step and its later work, and once only while it
+    waits: the run process then knows whether the pass has anything left to make."""
+    from multiprocessing import Pipe
+
+    from aatest.early.child import serve
+    from aatest.early.made import Idle, StepSent
+
+    with pinned():
+        recorder, steps = _record(tmp_path)
+    files = dict(zip([s.id for s in steps], recorder.step_files(), strict=True))
+    inbox, to_child = Pipe(duplex=False)
+    from_child, outbox = Pipe(duplex=False)
+    child = threading.Thread(target=serve, args=(inbox, outbox), daemon=True)
+    child.start()
+    try:
+        assert from_child.recv() == Idle(0)
+        to_child.send(StepSent(steps[0].id, str(files[steps[0].id])))
+        step_id, made, _ = from_child.recv()
+        assert step_id == steps[0].id and made is not None
+        assert from_child.recv() == Idle(1)
+        for step in steps[1:]:
+            to_child.send(StepSent(step.id, str(files[step.id])))
+        got = [from_child.recv() for _ in range(len(steps))]
+        assert [m[0] for m in got if not isinstance(m, Idle)][-2:] == [s.id for s in steps[1:]]
+        assert got[-1] == Idle(3) or from_child.recv() == Idle(3)
+        assert not from_child.poll(0.2)  # said once; it waits
+    finally:
+        to_child.close()
+        child.join(10)
+    assert not child.is_alive()

@@ -1,5 +1,6 @@
 """The end of a run's record phase (:func:`aatest.engine.run.session.finish_recording`): the
-figures' processes start there when the early analysis ran, and not without it."""
+figures' processes start there when the early analysis made all it was sent, and not when its
+child was still at work or there was none."""
 
 from __future__ import annotations
 
@@ -34,9 +35,10 @@ class _Early:
 
 
 @pytest.mark.usefixtures("two_workers")
-@pytest.mark.parametrize(("made", "started"), [(EarlyResults({}, []), 1), (None, 0)],
-                         ids=["early-analysis", "none"])
-def test_the_figures_processes_start_when_the_early_analysis_ran(
+@pytest.mark.parametrize(("made", "started"), [
+    (EarlyResults({}, [], complete=True), 1), (EarlyResults({}, []), 0), (None, 0)],
+    ids=["all-made-early", "child-still-at-work", "no-early-analysis"])
+def test_the_figures_processes_start_when_the_early_analysis_made_all(
         tmp_path: Path, made: Any, started: int) -> None:
     with drawing_aside():
         assert session.finish_recording(_Recorder(tmp_path), _Early(made)) is made

@@ -58,7 +58,16 @@ from pathlib import Path
 from typing import Any
 
 from aatest.early import handover
-from aatest.early.made import DRAIN, Fitted, LaterMade, Made, StepSent, Warned, context_digest
+from aatest.early.made import (
+    DRAIN,
+    Fitted,
+    Idle,
+    LaterMade,
+    Made,
+    StepSent,
+    Warned,
+    context_digest,
+)
 from aatest.early.process import lower_priority, segment_sockets, start_child
 from aatest.engine.procedure.envelope import streams_record
 from aatest.engine.steps import Plan, PlannedStep
@@ -86,6 +95,10 @@ class EarlyResults:
     later: list[LaterMade] = field(default_factory=list)
     #: steps handed to the pass by the last :meth:`offer`
     offered: int = 0
+    #: whether the child had made every step sent and every item of later work when the
+    #: record phase ended (its last message was :class:`~aatest.early.made.Idle`): the pass
+    #: then only takes (an item still in the making was lost with the child)
+    complete: bool = False
 
     def offer(self, data: Dataset) -> int:
         """Hand each step of ``data`` the child made of the same bytes and for the same plan,
@@ -209,6 +222,8 @@ class EarlyAnalysis:
         self._outbox = Connection(self._outbox_fd, writable=False)
         self._made: dict[str, Made] = {}
         self._later: list[LaterMade] = []
+        #: steps sent; the steps the child had received when it last said it was idle
+        self._sent, self._idle_at = 0, -1
         self._closed = False
         self._reader = threading.Thread(target=self._collect, name="aatest-early-results",
                                         daemon=True)
@@ -240,6 +255,7 @@ class EarlyAnalysis:
                     told = handed[0]
                     self._handed[step_id] = handed[1]
                     self.handed_steps += 1
+            self._sent += 1
             self._send_locked(StepSent(step_id, str(path), told))
 
     def lend(self) -> handover.Segment | None:
@@ -295,6 +311,9 @@ class EarlyAnalysis:
             if isinstance(message, LaterMade):
                 self._later.append(message)
                 continue
+            if isinstance(message, Idle):
+                self._idle_at = message.received
+                continue
             step_id, made, read = message
             with self._lock:
                 done = self._handed.pop(step_id, None)  # unmapped by the child: free again
@@ -318,9 +337,11 @@ class EarlyAnalysis:
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self._process.wait(DRAIN_S)
         self.close()
-        log.debug("analysis while recording: %d steps made, %d of them handed over",
-                  len(self._made), self.handed_steps)
-        return EarlyResults(dict(self._made), list(self._later))
+        complete = self._idle_at == self._sent
+        log.debug("analysis while recording: %d steps made, %d of them handed over; %s",
+                  len(self._made), self.handed_steps,
+                  "all made" if complete else "ended while it worked")
+        return EarlyResults(dict(self._made), list(self._later), complete=complete)
 
     def close(self) -> None:
         """End the child (at once if it still runs) and reap it; end the reader thread."""

@@ -32,7 +32,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from aatest.early.handover import Mapped
-from aatest.early.made import DRAIN, Fitted, LaterMade, Made, StepSent, Warned, context_digest
+from aatest.early.made import (
+    DRAIN,
+    Fitted,
+    Idle,
+    LaterMade,
+    Made,
+    StepSent,
+    Warned,
+    context_digest,
+)
 from aatest.engine.steps import PlannedStep
 from aatest.recording.dataset import Dataset, LazySteps
 
@@ -67,10 +76,11 @@ def serve(inbox: Connection, outbox: Connection, segments: socket.socket | None 
     None, channels read by logger or None)`` on ``outbox`` (the run process hands those of
     the next steps); keep the relations the run-time check fitted (:class:`Fitted`);
     while no step waits, make a piece of the work the plugins offered once the steps it
-    reads were made and send each item's :class:`LaterMade` (:class:`_Later`);
-    end on ``None`` (after the step or piece in flight: newly arrived messages are read
-    before each), on :data:`DRAIN` once every step sent before it and every item offered
-    are made, or when the parent is gone."""
+    reads were made and send each item's :class:`LaterMade` (:class:`_Later`); whenever
+    all is made, send :class:`Idle` once before waiting; end on ``None`` (after the step or
+    piece in flight: newly arrived messages are read before each), on :data:`DRAIN` once
+    every step sent before it and every item offered are made, or when the parent is
+    gone."""
     from threadpoolctl import threadpool_limits
 
     from aatest.engine import registry
@@ -78,6 +88,7 @@ def serve(inbox: Connection, outbox: Connection, segments: socket.socket | None 
     queue: deque[tuple[StepSent, Mapped | None]] = deque()
     fitted: dict[str, Any] = {}
     draining = False
+    received, told_idle = 0, -1  # steps received; that count when the child last said Idle
     send = functools.partial(_sent, outbox)
     # BLAS on one thread, as in the pass (run_analyses): the same sums in the same order
     with registry.pinned(), threadpool_limits(limits=1, user_api="blas"):
@@ -85,10 +96,16 @@ def serve(inbox: Connection, outbox: Connection, segments: socket.socket | None 
         child = _Child(later)
         try:
             while True:
-                if (not queue and not draining and not later.pending) or inbox.poll():
+                idle = not queue and not draining and not later.pending
+                if idle and told_idle != received:  # all made: say so once, then wait
+                    told_idle = received
+                    if not send(Idle(received)):
+                        return
+                if idle or inbox.poll():
                     message = _message(inbox)
                     if message is None:
                         return
+                    received += isinstance(message, StepSent)
                     draining = _take(message, queue, fitted, segments) or draining
                     continue
                 # a step, else (none waits) a piece of later work; drained: every step,

@@ -40,6 +40,15 @@ class Fitted:
 
 
 @dataclass(frozen=True)
+class Idle:
+    """The child has made every step it received (``received`` of them) and every item of
+    later work offered, and waits for its next message: the run process then knows the
+    pass will only take what it made (:attr:`aatest.early.analysis.EarlyResults.complete`)."""
+
+    received: int
+
+
+@dataclass(frozen=True)
 class Warned:
     """A warning a step's analysis raised in the child, raised again where the pass takes
     that step (the pass computing the step itself would have raised it there)."""

@@ -553,15 +553,18 @@ def finish_recording(recorder: Any, early: EarlyRun) -> EarlyResults | None:
     traceability and the signature read it; the analysis's first forking map joins the
     thread first), and what the early analysis made, its child reaped.
 
-    Then, when the early analysis ran (the pass will only take its per-step work, and asks
-    for its first figures within a fraction of a second), the figures' processes are started
+    Then, when the early analysis made everything it was sent (the pass will only take its
+    work, and asks for its first figures within a fraction of a second:
+    :attr:`~aatest.early.analysis.EarlyResults.complete`), the figures' processes are started
     inside the open :func:`~aatest.presentation.figures.drawing_aside` block (that of
     :func:`_run_locked`): no thread runs here between the early analysis's end and the
     hashing's start, and matplotlib's import (≈ 0.4 s of CPU) then overlaps the pass
     instead of delaying the first figure (bench/end_to_end.py). Not before the merge: the
     early analysis's child, at a lower priority, still makes its last work there (the
-    transfer function's last fits were lost to them). Not without an early analysis (a
-    long static record, streamed): the pass takes seconds before its first figure, and the
+    transfer function's last fits were lost to them). Not when the child was still at work
+    (a loaded machine): the pass then fits the last group itself on both cores, which the
+    processes' import slowed (analyse 0.20 → 0.46 s). Not without an early analysis (a long
+    static record, streamed): the pass takes seconds before its first figure, and the
     processes, forked from this process as the record left it, would hold its memory
     meanwhile (bench/long_record.py --minutes 60: 292 → 322 MB).
     """
@@ -570,7 +573,7 @@ def finish_recording(recorder: Any, early: EarlyRun) -> EarlyResults | None:
 
     recording = recorder.finalize()
     made = early.results()
-    if made is not None:
+    if made is not None and made.complete:
         ready_to_draw()
     hashing = hash_soon(recording)
     if hashing is not None:
