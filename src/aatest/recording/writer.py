@@ -407,7 +407,7 @@ class RunRecorder:
         return StreamedStep(self, step, index, path, meta)
 
     def _step_path(self, step: PlannedStep, index: int | None) -> tuple[Path, int]:
-        existing = self._files if self._files is not None else self._step_files()
+        existing = self._known_step_files()
         index = index or self._plan_index(step.id) or existing.get(step.id, (None, 0))[1] or (
             max((i for _, i in existing.values()), default=0) + 1
         )
@@ -415,7 +415,7 @@ class RunRecorder:
 
     def _completed(self, step_id: str, path: Path, index: int) -> None:
         """Note a step file just written (replacing an older file of the same step)."""
-        existing = self._files if self._files is not None else self._step_files()
+        existing = self._known_step_files()
         old = existing.pop(step_id, None)
         if old is not None and old[0] != path:
             old[0].unlink(missing_ok=True)
@@ -441,12 +441,13 @@ class RunRecorder:
 
         Only ids read back from the merged recording are deleted, so a failed or partial merge
         never costs a step. The run metadata file stays (it names the run for ``--resume``).
-        The step files are those :meth:`finalize` scanned, when it ran here (scanning the
-        stepped sine's 136 again took ≈ 0.1 s), else scanned now.
+        The step files are those this recorder knows (:meth:`_known_step_files`: after
+        :meth:`finalize`, the ones it merged; scanning the stepped sine's 136 again took
+        ≈ 0.1 s).
         """
         merged = merged_step_ids(self.run_dir / RECORDING_NAME)
         pruned = 0
-        files = self._files if self._files is not None else self._step_files()
+        files = self._known_step_files()
         for step_id, (path, _) in files.items():
             if step_id in merged:
                 path.unlink(missing_ok=True)
@@ -461,6 +462,11 @@ class RunRecorder:
                 if isinstance(entry, dict) and entry.get("id") == step_id:
                     return i
         return None
+
+    def _known_step_files(self) -> dict[str, tuple[Path, int]]:
+        """The step files as this recorder last scanned them and its writes since (the
+        directory is scanned at the first ask)."""
+        return self._files if self._files is not None else self._step_files()
 
     def _step_files(self) -> dict[str, tuple[Path, int]]:
         """Scan the step directory once (cleaning leftovers); later writes update the cache."""
