@@ -563,10 +563,10 @@ def finish_recording(recorder: Any, early: EarlyRun) -> EarlyResults | None:
     early analysis's child, at a lower priority, still makes its last work there (the
     transfer function's last fits were lost to them). Not when the child was still at work
     (a loaded machine): the pass then fits the last group itself on both cores, which the
-    processes' import slowed (analyse 0.20 → 0.46 s). Not without an early analysis (a long
-    static record, streamed): the pass takes seconds before its first figure, and the
-    processes, forked from this process as the record left it, would hold its memory
-    meanwhile (bench/long_record.py --minutes 60: 292 → 322 MB).
+    processes' import slowed (analyse 0.20 → 0.51 s, median of 7). Not without an early
+    analysis (a long static record, streamed): the pass takes seconds before its first
+    figure, and the processes, forked from this process as the record left it, would hold
+    its memory meanwhile (bench/long_record.py --minutes 60: 292 → 322 MB).
     """
     from aatest.bundle.manifest import hash_soon
     from aatest.parallel.forked import join_before_fork
