@@ -1,5 +1,6 @@
 """A limit without a measured quantity: ``incomplete``, exit 1, on the certificate and in
-results.json — never ``pass`` (issue 32, contracts §6 "Verdicts")."""
+results.json — never ``pass`` (issue 32, contracts §6 "Verdicts"). A quantity no listed
+analysis can produce is known from the procedure alone: refused before anything moves."""
 
 from __future__ import annotations
 
@@ -28,10 +29,50 @@ acceptance:
   limits: {bias_deviation_v: 0.01, noise_rms_v: 0.5}
 """
 
+#: one acceleration level: the scale factor is measured, its non-linearity is not resolved
+ONE_LEVEL = """\
+procedure: one-level-linearity
+sensor: {model: sr207, serial: "S1"}
+sampling: {rate_hz: 2000, samples: 8000, settle_s: 0.5}
+steps:
+  - sine: {axis: inner, frequency_hz: 1.0, accel_dps2: 400, snap: coherent}
+analysis: [sync, reference, scale_factor]
+acceptance: {judge: [scale_factor_deviation_pct, nonlinearity_pct_fr]}
+"""
 
-def test_a_limit_without_its_quantity_is_incomplete_and_exits_1(tmp_path: Path) -> None:
+
+def test_a_limit_no_listed_analysis_produces_is_refused_before_anything_moves(
+        tmp_path: Path) -> None:
     procedure = tmp_path / "smoke.yaml"
     procedure.write_text(PROCEDURE, encoding="utf-8")
+    checked = RUNNER.invoke(app, ["validate", str(procedure)])
+    assert checked.exit_code == 2, checked.output
+    # at the limit (line 8, column 12), naming what is listed and what would produce it
+    assert f"{procedure}:8:12: acceptance.limits.bias_deviation_v: " in checked.output
+    assert "no listed analysis produces it (listed: sync, noise); the analysis 'bias' " \
+           "does" in checked.output
+    assert "noise_rms_v" not in checked.output  # the noise analysis is listed: it is produced
+    done = RUNNER.invoke(app, ["run", str(procedure), "--out", str(tmp_path / "run"),
+                               "--no-progress", "--seed", "3"])
+    assert done.exit_code == 2, done.output
+    assert "acceptance.limits.bias_deviation_v" in done.output
+    assert not (tmp_path / "run" / "recording.mcap").exists()
+    judged = procedure.read_text(encoding="utf-8").replace(
+        "  limits:", "  judge: [noise_rms_v, bias_deviation_v]\n  limits:")
+    procedure.write_text(judged, encoding="utf-8")
+    listed = RUNNER.invoke(app, ["validate", str(procedure)])
+    assert listed.exit_code == 2, listed.output
+    assert f"{procedure}:8:24: acceptance.judge.1: acceptance.judge asks for " \
+           "bias_deviation_v" in listed.output
+    asked_less = judged.replace("[noise_rms_v, bias_deviation_v]", "[noise_rms_v]")
+    procedure.write_text(asked_less, encoding="utf-8")
+    accepted = RUNNER.invoke(app, ["validate", str(procedure)])
+    assert accepted.exit_code == 0, accepted.output
+
+
+def test_a_quantity_the_data_do_not_give_is_incomplete_and_exits_1(tmp_path: Path) -> None:
+    procedure = tmp_path / "one-level.yaml"
+    procedure.write_text(ONE_LEVEL, encoding="utf-8")
     done = RUNNER.invoke(app, ["run", str(procedure), "--out", str(tmp_path / "run"),
                                "--no-progress", "--seed", "3"])
     assert done.exit_code == 1, done.output
@@ -39,13 +80,13 @@ def test_a_limit_without_its_quantity_is_incomplete_and_exits_1(tmp_path: Path) 
     results = json.loads((tmp_path / "run" / "results.json").read_text())
     assert results["overall"] == "incomplete"
     rows = {v["quantity"]: v for v in results["verdicts"]}
-    assert rows["noise_rms_v"]["verdict"] == "pass"  # what was measured is still judged
-    bias = rows["bias_deviation_v"]
-    assert (bias["verdict"], bias["value"], bias["limit"], bias["limit_source"]) == (
-        "not judged", None, 0.01, "procedure")
-    assert "the analysis 'bias' does" in bias["reason"]
+    assert rows["scale_factor_deviation_pct"]["verdict"] == "pass"  # measured: still judged
+    linearity = rows["nonlinearity_pct_fr"]
+    assert (linearity["verdict"], linearity["value"], linearity["limit_source"]) == (
+        "not judged", None, "datasheet")
+    assert "one acceleration level: no non-linearity is resolved" in linearity["reason"]
     certificate = (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
     assert "The calibration is incomplete" in certificate
-    assert "no listed analysis produces it (listed: sync, noise)" in certificate
+    assert "one acceleration level: no non-linearity is resolved" in certificate
     again = RUNNER.invoke(app, ["analyze", str(tmp_path / "run")])
     assert again.exit_code == 1 and INCOMPLETE.search(again.output), again.output

@@ -6,7 +6,9 @@ list) when the procedure sets its limit or a listed analysis declares it produce
 Each asked quantity without a value becomes a ``not judged`` verdict with the reason (which
 analysis did not apply, failed or produced nothing, and what it needs); so does an analysis
 the procedure lists that did not apply to the data. The overall verdict is then
-``incomplete`` (contracts §6 "Verdicts").
+``incomplete`` (contracts §6 "Verdicts"). An asked quantity that no listed analysis can produce
+is known before the run (:func:`unproduced`): the preflight refuses it, so here it is met only
+when an older run is analysed again.
 """
 
 from __future__ import annotations
@@ -57,15 +59,29 @@ def asked(acceptance: Acceptance, listed: Sequence[Listed]) -> list[str]:
     return [q for q in JUDGED if q in wanted]
 
 
+def unproduced(acceptance: Acceptance, listed: Sequence[Listed]) -> list[str]:
+    """The asked quantities (:func:`asked`) that no listed analysis can produce: known from
+    the procedure alone, so ``validate`` refuses them before anything moves
+    (:func:`aatest.engine.analysis.coverage.check_coverage`)."""
+    return [q for q in asked(acceptance, listed)
+            if not any(q in measures_of(item.cls) for item in listed)]
+
+
+def no_producer(quantity: str, listed: Sequence[Listed], installed: Sequence[Listed]) -> str:
+    """Why no listed analysis gives ``quantity``, naming an installed one that would: the one
+    wording of ``validate``'s refusal and of a ``not judged`` verdict's reason."""
+    names = ", ".join(item.name for item in listed) or "none"
+    hint = next((f"; the analysis '{item.name}' does" for item in installed
+                 if quantity in measures_of(item.cls)), "")
+    return f"no listed analysis produces it (listed: {names}){hint}"
+
+
 def _reason(quantity: str, channel: str, results: RunResults, listed: Sequence[Listed],
             installed: Sequence[Listed]) -> str:
     """Why ``quantity`` has no value: the producing analysis' state and what it needs."""
     producer = next((item for item in listed if quantity in measures_of(item.cls)), None)
     if producer is None:
-        names = ", ".join(item.name for item in listed) or "none"
-        hint = next((f"; the analysis '{item.name}' does" for item in installed
-                     if quantity in measures_of(item.cls)), "")
-        return f"no listed analysis produces it (listed: {names}){hint}"
+        return no_producer(quantity, listed, installed)
     needs = needs_text(producer.cls)
     if producer.name in results.analysis_errors:
         return f"analysis '{producer.name}' failed: {results.analysis_errors[producer.name]}"

@@ -1,8 +1,12 @@
-"""Before anything moves: does the plan hold what each listed analysis needs?
+"""Before anything moves: does the plan hold what each listed analysis needs, and does some
+listed analysis produce each quantity the acceptance asks to judge?
 
 Every analysis the procedure lists is checked against its declared requirements
 (:mod:`aatest.engine.requirements`); an unmet one is a located problem at the analysis entry
-(or the step it names), all reported at once through one ``ProcedureError`` (exit 2).
+(or the step it names). A quantity the acceptance asks for (``acceptance.judge``, or a limit
+set without it) that no listed analysis can produce is a problem at that entry: the run could
+only end ``incomplete``, so it is refused before it starts. All are reported at once through
+one ``ProcedureError`` (exit 2).
 ``aatest validate`` prints which steps each analysis will use (:func:`usage_lines`).
 """
 
@@ -14,7 +18,7 @@ from aatest.engine.analysis import plugins
 from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Procedure
-from aatest.engine.requirements import Coverage, PlanView, check_plan
+from aatest.engine.requirements import Coverage, PlanView, check_plan, measures_of
 from aatest.engine.steps import Plan
 from aatest.positioned_yaml import locate
 
@@ -59,9 +63,38 @@ def check_coverage(proc: Procedure, plan: Plan, sources: dict[str, Any], chamber
         line, col = locate(proc.source_tree, path) if proc.source_tree else (1, 1)
         problems.append(Problem(filename, line, col, ".".join(map(str, path)),
                                 f"analysis '{unmet.analysis}' {unmet.message}"))
+    problems += _acceptance_problems(proc, filename)
     if problems:
         raise ProcedureError(problems)
     return coverage
+
+
+def _acceptance_problems(proc: Procedure, filename: str) -> list[Problem]:
+    """Each asked quantity no listed analysis can produce, at its ``acceptance`` entry."""
+    from aatest.metrology.verdicts_missing import no_producer, unproduced
+
+    listed = plugins.listed_analyses(proc.analysis)
+    missing = unproduced(proc.acceptance, listed)
+    if not missing:
+        return []
+    installed = plugins.installed_analyses()
+    judge = proc.acceptance.judge
+    problems = []
+    for quantity in missing:
+        if judge is not None:
+            path: tuple[Any, ...] = ("acceptance", "judge", judge.index(quantity))
+            asks, fix = f"acceptance.judge asks for {quantity}", "leave it out of acceptance.judge"
+        else:
+            path = ("acceptance", "limits", quantity)
+            asks = (f"a limit is set for {quantity} (judged, as acceptance.judge is not given)")
+            fix = "name the quantities to judge in acceptance.judge"
+        can = any(quantity in measures_of(item.cls) for item in installed)
+        line, col = locate(proc.source_tree, path) if proc.source_tree else (1, 1)
+        problems.append(Problem(
+            filename, line, col, ".".join(map(str, path)),
+            f"{asks}, but {no_producer(quantity, listed, installed)}. The run could only end "
+            f"incomplete: {'list that analysis under analysis, or ' if can else ''}{fix}"))
+    return problems
 
 
 def usage_lines(coverage: Coverage) -> list[str]:

@@ -426,8 +426,9 @@ class Acceptance(_Strict):
     limits: AcceptanceLimits = AcceptanceLimits()
     judge: tuple[JudgedQuantity, ...] | None = Field(
         None, description="the quantities judged (default: every limit the procedure sets and "
-        "every quantity its listed analyses produce); a quantity listed here and not measured "
-        "is 'not judged' and the overall verdict 'incomplete'")
+        "every quantity its listed analyses produce); one that no listed analysis produces is "
+        "refused before the run, one the data do not give is 'not judged' and the overall "
+        "verdict 'incomplete'")
 
 
 class Procedure(_Strict):
