@@ -3,7 +3,9 @@ the engine writes during the suite is validated against the committed results.sc
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import tempfile
 import threading
 from collections.abc import Iterator
@@ -32,9 +34,12 @@ def _all_results_match_schema(tmp_path_factory: pytest.TempPathFactory) -> Itera
     yield
     assert_valid_results(tmp_path_factory.getbasetemp())
 # CLI runs register calibration records: never into the user's own store (tests/records
-# points each of its tests at a fresh one)
-os.environ.setdefault("AATEST_RECORDS", "sqlite:///" + os.path.join(
-    tempfile.mkdtemp(prefix="aatest-test-records-"), "records.sqlite"))
+# points each of its tests at a fresh one). The store's directory goes with the process that
+# made it (each xdist worker makes its own), so runs of the suite leave none behind.
+if "AATEST_RECORDS" not in os.environ:
+    _RECORDS_DIR = tempfile.mkdtemp(prefix="aatest-test-records-")
+    atexit.register(shutil.rmtree, _RECORDS_DIR, ignore_errors=True)
+    os.environ["AATEST_RECORDS"] = "sqlite:///" + os.path.join(_RECORDS_DIR, "records.sqlite")
 
 
 @pytest.fixture
