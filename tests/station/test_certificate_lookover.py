@@ -12,6 +12,7 @@ client rectangles at two heights: ``9.62e-``/``06``). Screenshots of each go to
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -34,13 +35,56 @@ LAYOUTS = (("screen", 1100), ("print", 703))
 MEASURE = (Path(__file__).parent / "measure_layout.js").read_text(encoding="utf-8")
 
 
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    """Headless Debian Chromium through Playwright (skipped where neither is installed)."""
+def _chromium_or_skip() -> Any:
+    """Playwright's sync API, where it and Debian's Chromium are installed; else skip."""
     sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed")
     if not Path(CHROMIUM).exists():
         pytest.skip("no Chromium installed (apt-get install chromium); browser test skipped")
-    with sync_api.sync_playwright() as pw:
+    return sync_api
+
+
+@pytest.fixture(scope="module")
+def reports(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Path]]:
+    """Every shipped procedure's short variant run on the twin with its PDF printed as
+    ``aatest run --pdf`` prints it: through Playwright, with the identification footer.
+
+    Why before :func:`browser`: a Playwright session open in this thread makes the run's own
+    Playwright print refuse ("Sync API inside the asyncio loop"), and the PDF would come from
+    the browser's command line instead (no footer), the fallback rather than the product.
+    """
+    _chromium_or_skip()  # skipped before the runs, which need the same Chromium
+    root = tmp_path_factory.mktemp("certificates")
+    fallbacks = _Fallbacks()
+    pdf_log = logging.getLogger("aatest.report.pdf")
+    pdf_log.addHandler(fallbacks)
+    try:
+        done = {}
+        for name in PROCEDURES:
+            run_dir, _results = run(DATA / f"{name}.yaml", None, root / name, False, 7, None,
+                                    show_progress=False, confirm_prompts="auto", pdf=True)
+            done[name] = run_dir
+    finally:
+        pdf_log.removeHandler(fallbacks)
+    assert fallbacks.messages == [], "a PDF was not printed through Playwright"
+    yield done
+
+
+class _Fallbacks(logging.Handler):
+    """The PDF printer's warnings (a print that fell back to the command line)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@pytest.fixture(scope="module")
+def browser(reports: dict[str, Path]) -> Iterator[Any]:
+    """Headless Debian Chromium through Playwright (skipped where neither is installed),
+    opened once the module's runs have printed their PDFs (:func:`reports`)."""
+    with _chromium_or_skip().sync_playwright() as pw:
         chromium = pw.chromium.launch(executable_path=CHROMIUM, headless=True)
         yield chromium
         chromium.close()
@@ -78,24 +122,10 @@ def test_the_measure_finds_a_broken_number_and_an_overflowing_cell(
     assert found["overflow"] == ["cell: 1234567.891"]
 
 
-@pytest.fixture(scope="module")
-def reports(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Every shipped procedure's short variant run on the twin with its PDF printed."""
-    root = tmp_path_factory.mktemp("certificates")
-    done = {}
-    for name in PROCEDURES:
-        run_dir, _results = run(DATA / f"{name}.yaml", None, root / name, False, 7, None,
-                                show_progress=False, confirm_prompts="auto", pdf=True)
-        done[name] = run_dir
-    return done
-
-
 @pytest.mark.parametrize("name", PROCEDURES, ids=PROCEDURES)
 def test_certificate_in_chromium_keeps_numbers_whole_and_cells_inside(
-    name: str, browser: Any, reports: dict[str, Path]
+    name: str, reports: dict[str, Path], browser: Any
 ) -> None:
-    # the browser first: where it is missing the test skips before the runs print PDFs
-    # (which need the same Chromium), instead of failing in them
     run_dir = reports[name]
     assert (run_dir / "report.pdf").read_bytes()[:5] == b"%PDF-"
     for media, width in LAYOUTS:
