@@ -32,7 +32,11 @@ all workers is an upper bound, as a forked worker's RSS counts pages it shares) 
 recording's size in MB; and the peak memory of the whole process tree as the kernel's
 proportional set size (PSS, sampled by :mod:`tree_memory` from a separate process: shared
 pages counted once), the figure to hold against 800 MB. ``AATEST_WORKERS=1`` runs the
-analysis pass in this process alone.
+analysis pass in this process alone. Last, the whole run's wall and CPU time (all its processes,
+the figures' ones included, which are reaped after the report phase), how busy the CPUs were
+(CPU ÷ (wall × CPUs)), and the lab ÷ wall that the same CPU time would give with every CPU
+busy throughout: the most any better overlap of the same work can reach, so a target above
+it needs less CPU.
 
     python bench/end_to_end.py [--steps N] [--dir DIR] [--seed 0] [--analyse-only RUN_DIR]
     python bench/end_to_end.py --procedure src/aatest/procedures/static-multi-position.yaml
@@ -133,10 +137,23 @@ class Phases:
 
     def __init__(self) -> None:
         self.rows: list[tuple[str, float, float, float]] = []
+        #: wall and CPU seconds when the first phase started
+        self.started: tuple[float, float] | None = None
+        #: wall and CPU seconds of the whole run, every process reaped (:meth:`close`)
+        self.whole: tuple[float, float] | None = None
+
+    def close(self) -> None:
+        """Take the whole run's wall and CPU seconds since the first phase began (call it
+        once every process of the run is reaped: the figures' ones end with the drawing
+        block, after the report phase)."""
+        assert self.started is not None
+        self.whole = (time.perf_counter() - self.started[0], _cpu_s() - self.started[1])
 
     def time(self, name: str, action: Callable[[], T]) -> T:
         _reset_peak()
         wall, cpu = time.perf_counter(), _cpu_s()
+        if self.started is None:
+            self.started = (wall, cpu)
         result = action()
         self.rows.append((name, time.perf_counter() - wall, _cpu_s() - cpu, _peak_mb()))
         return result
@@ -359,7 +376,15 @@ def main() -> None:
         if args.dir is None and args.analyse_only is None:
             shutil.rmtree(out.parent, ignore_errors=True)
         return
-    print(f"{prepared.plan.procedure}: {steps} steps, lab time {lab_s:.0f} s,"
+    phases.close()  # the drawing block has ended: the figures' processes are reaped
+    _print_summary(prepared.plan.procedure, out, phases, lab_s, steps, taken, recording_mb,
+                   tree.peak_mb)
+
+
+def _print_summary(procedure: str, out: Path, phases: Phases, lab_s: float, steps: int,
+                   taken: int, recording_mb: float, tree_peak_mb: float | None) -> None:
+    """The phases' table and the run's ratios, memory and load, as printed."""
+    print(f"{procedure}: {steps} steps, lab time {lab_s:.0f} s,"
           f" recording {recording_mb:.1f} MB ({out})")
     print(f"analysis: {taken} of {steps} steps' sync-pass work taken from the record phase "
           "(AATEST_EARLY_ANALYSIS=0: none)")
@@ -378,11 +403,22 @@ def main() -> None:
     print(f"analysis workers: {workers} forked, each ≤ {child_mb:.0f} MB resident; "
           f"this process and its workers ≤ {bound:.0f} MB together (an upper bound: each "
           "worker's RSS counts again the pages it shares with this process)")
-    tree_mb = "n/a" if tree.peak_mb is None else f"{tree.peak_mb:.0f} MB"
+    tree_mb = "n/a" if tree_peak_mb is None else f"{tree_peak_mb:.0f} MB"
     print(f"lab ÷ wall {lab_s / wall:.0f}x (target ≥ 1000x, issue 26), "
           f"lab ÷ CPU {lab_s / cpu:.0f}x; "
           f"peak memory of the process tree (PSS) {tree_mb} (target ≤ 800 MB; RSS of this "
           f"process {peak:.0f} MB); recording {recording_mb:.1f} MB")
+    # how far packing the same work better could go: with every CPU busy throughout, the
+    # run would take CPU ÷ CPUs of wall (every process of the run: the early child, the
+    # workers, the render child and the figures' processes, reaped after the report phase)
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cpus = cpus or 1
+    assert phases.whole is not None
+    whole_wall, whole_cpu = phases.whole
+    print(f"whole run {whole_wall:.2f} s wall, {whole_cpu:.2f} s CPU of all its processes: the "
+          f"CPUs were busy {100.0 * whole_cpu / (whole_wall * cpus):.0f} % of it (CPU ÷ (wall × "
+          f"{cpus} CPUs)); with all {cpus} busy throughout, this CPU time allows at most "
+          f"{lab_s * cpus / whole_cpu:.0f}x lab ÷ wall")
     # the machine is shared: wall time says as much about the other jobs as about this one
     print("load average " + ", ".join(f"{x:.1f}" for x in os.getloadavg()) +
           f" on {os.cpu_count()} CPUs")
