@@ -357,18 +357,22 @@ def main() -> None:
         prepared.plan = prepared.plan.model_copy(
             update={"steps": prepared.plan.steps[:args.steps]})
     phases = Phases()
-    with TreeMemory() as tree, _pinned(), _drawing_aside():
-        early = None
-        if args.analyse_only is not None:
-            out = args.analyse_only
-        else:
-            out = args.dir or Path(tempfile.mkdtemp(prefix="aatest-bench-e2e-")) / "run"
-            if out.exists():
-                shutil.rmtree(out)
-            _preflight(prepared, out)
-            early = _record(prepared, out, args.seed, phases)
-        lab_s, steps, taken = _analyse_and_report(prepared, out, phases,
-                                                  args.analyse_only is None, early)
+    with TreeMemory() as tree:
+        with _pinned(), _drawing_aside():
+            early = None
+            if args.analyse_only is not None:
+                out = args.analyse_only
+            else:
+                out = args.dir or Path(tempfile.mkdtemp(prefix="aatest-bench-e2e-")) / "run"
+                if out.exists():
+                    shutil.rmtree(out)
+                _preflight(prepared, out)
+                early = _record(prepared, out, args.seed, phases)
+            lab_s, steps, taken = _analyse_and_report(prepared, out, phases,
+                                                      args.analyse_only is None, early)
+        # the drawing block has ended, its processes reaped; the memory sampler (a child too)
+        # still runs, so its CPU is not counted
+        phases.close()
     recording_mb = (out / RECORDING_NAME).stat().st_size / MB
     if args.json:
         print(json.dumps({"phases": [r[:3] for r in phases.rows], "lab_s": lab_s,
@@ -376,7 +380,6 @@ def main() -> None:
         if args.dir is None and args.analyse_only is None:
             shutil.rmtree(out.parent, ignore_errors=True)
         return
-    phases.close()  # the drawing block has ended: the figures' processes are reaped
     _print_summary(prepared.plan.procedure, out, phases, lab_s, steps, taken, recording_mb,
                    tree.peak_mb)
 
