@@ -48,8 +48,13 @@ def _problems(analysis_yaml: str) -> list[str]:
      "transfer_function)"),
     ("  - transfer_function: {delay: sometimes}\n",
      "p.yaml:6:25: analysis.0.transfer_function.delay: Input should be 'estimate' or 'none'"),
+    # the run could not tell which options to use (it used to record, then stop, unlocated);
+    # through an alias too (thd is frf), and a later entry without options is no clash
+    ("  - frf: {harmonics: 3}\n  - sync\n  - frf\n  - thd: {harmonics: 5}\n",
+     "p.yaml:9:5: analysis.3.thd: analysis 'frf' is given two different sets of options (the "
+     "other at line 6): list it once, with the options it is to run with"),
 ], ids=["unknown-option", "bad-reference", "orders-descending", "string-number", "bool-number",
-        "unknown-name", "bad-choice"])
+        "unknown-name", "bad-choice", "options-twice"])
 def test_option_problems_are_located(entry: str, expected: str) -> None:
     assert _problems(entry) == [expected]
 
@@ -58,6 +63,11 @@ def test_every_problem_is_reported_at_once() -> None:
     problems = _problems("  - scale_factor: {referenc: fit, random_splits: -1}\n  - nope\n")
     assert [p.split(": ")[1] for p in problems] == [
         "analysis.0.scale_factor.random_splits", "analysis.0.scale_factor.referenc", "analysis.1"]
+
+
+def test_the_same_options_twice_are_accepted() -> None:
+    proc = parse_procedure(HEAD + "  - frf: {harmonics: 3}\n  - thd: {harmonics: 3}\n", "p.yaml")
+    assert len(proc.analysis) == 2
 
 
 def test_an_entry_is_a_name_or_a_one_key_mapping() -> None:

@@ -131,6 +131,32 @@ def split_entry(entry: AnalysisEntry) -> tuple[str, dict[str, Any]]:
     raise InputError(f"analysis entry {entry!r}: expected a name or {{name: {{options}}}}")
 
 
+@dataclass(frozen=True)
+class OptionClash:
+    """Entry ``index`` gives analysis ``plugin`` options other than entry ``first``'s."""
+
+    index: int
+    plugin: str
+    first: int
+
+
+def option_clashes(entries: Sequence[AnalysisEntry]) -> list[OptionClash]:
+    """Every entry that gives an analysis (aliases resolved) options other than those an
+    earlier entry gave it: the run could not tell which to use. An entry without options
+    beside one with them is no clash (the options apply), nor are equal options twice."""
+    given: dict[str, tuple[int, dict[str, Any]]] = {}
+    clashes = []
+    for index, entry in enumerate(entries):
+        name, options = split_entry(entry)
+        plugin_name = aliases().get(name, name)
+        if not options:
+            continue
+        first = given.setdefault(plugin_name, (index, options))
+        if first[1] != options:
+            clashes.append(OptionClash(index, plugin_name, first[0]))
+    return clashes
+
+
 def requested_options(entries: Sequence[AnalysisEntry]) -> dict[str, BaseModel]:
     """Plugin name → validated options for every requested analysis (aliases merged).
 
@@ -139,12 +165,14 @@ def requested_options(entries: Sequence[AnalysisEntry]) -> dict[str, BaseModel]:
     InputError
         When options are invalid or one analysis is given two different sets of options.
     """
+    clashes = option_clashes(entries)
+    if clashes:
+        raise InputError(f"analysis {clashes[0].plugin!r} is given two different sets of "
+                         "options")
     raw: dict[str, dict[str, Any]] = {}
     for entry in entries:
         name, options = split_entry(entry)
         plugin_name = aliases().get(name, name)
-        if options and raw.get(plugin_name) and raw[plugin_name] != options:
-            raise InputError(f"analysis {plugin_name!r} is given two different sets of options")
         if options or plugin_name not in raw:
             raw[plugin_name] = options
     out: dict[str, BaseModel] = {}

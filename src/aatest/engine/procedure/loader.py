@@ -161,6 +161,14 @@ def _analysis_problems(proc: Procedure, tree: Any, filename: str) -> list[Proble
         except ValidationError as exc:
             fields = list(plugin.cls.Options.model_fields)
             problems += _option_problems(exc, path, fields, tree, filename)
+    for clash in plugins.option_clashes(proc.analysis):  # the run could not tell which
+        path = ("analysis", clash.index, plugins.split_entry(proc.analysis[clash.index])[0])
+        first_line, _ = locate(tree, ("analysis", clash.first))
+        line, col = locate(tree, path)
+        problems.append(Problem(
+            filename, line, col, ".".join(map(str, path)),
+            f"analysis {clash.plugin!r} is given two different sets of options (the other at "
+            f"line {first_line}): list it once, with the options it is to run with"))
     return problems
 
 
