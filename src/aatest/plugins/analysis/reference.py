@@ -96,9 +96,11 @@ def savgol_accel(position_deg: np.ndarray, fs_hz: float, window_s: float = 0.025
     """Zero-phase smoothing second derivative (Savitzky–Golay), °/s².
 
     The symmetric window has no phase lag; 25 ms with a quintic passes a 10 Hz sine with
-    0.05 % loss (a cubic would lose 4.5 %).
+    0.05 % loss (a cubic would lose 4.5 %). The window holds at least ``polyorder + 2``
+    samples (odd), the fewest a fit of that order can smooth: a log slower than 260 Hz gets a
+    window longer than ``window_s``.
     """
-    window = round(window_s * fs_hz) | 1
+    window = max(round(window_s * fs_hz), polyorder + 1) | 1
     return signal.savgol_filter(np.asarray(position_deg, dtype=np.float64), window, polyorder,
                                 deriv=2, delta=1.0 / fs_hz, mode="interp")
 
