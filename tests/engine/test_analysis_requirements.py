@@ -3,6 +3,7 @@ at the analysis entry's or the step's FILE:LINE:COLUMN (issue 32)."""
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -128,3 +129,54 @@ def test_an_analysis_without_a_declaration_is_not_checked() -> None:
     steps = (PlannedStep(id="s001", kind="static"),)
     coverage = check_plan({"vendor": Vendor}, PlanView(steps, "none", {"v_sz": "I"}))
     assert coverage.unmet == [] and "vendor" not in coverage.uses
+
+
+def _slow(rate: int, samples: int, analysis: str) -> str:
+    """A 1 Hz scale-factor sine logged at ``rate`` Hz, with the analyses ``analysis``."""
+    return HEAD.format(name="slow", model="sr207", chamber="none").replace(
+        "rate_hz: 2000, samples: 4096", f"rate_hz: {rate}, samples: {samples}") + f"""\
+steps:
+  - sine: {{axis: inner, frequency_hz: 1.0, accel_dps2: 400, snap: coherent}}
+analysis: [{analysis}]
+"""
+
+
+def test_a_log_too_slow_for_the_freeze_pulse_is_refused_before_anything_moves(
+        tmp_path: Path) -> None:
+    """At 100 Hz the run used to record, then stop with "sync edges missing — check the
+    freeze-pulse wiring" (exit 3): the wiring was fine, the rate was not. ``sync`` is held to
+    it when a listed analysis requires it, too."""
+    listed = _write(tmp_path, _slow(100, 400, "sync, scale_factor"))
+    done = RUNNER.invoke(app, ["validate", str(listed)])
+    assert done.exit_code == 2, done.output
+    line, col, message = _located(done.output, listed)
+    assert (line, col) == (6, 5)  # at the step
+    assert message.startswith("steps.0.sine: analysis 'sync' needs every recorded step logged "
+                              "at ≥ 200 Hz"), message
+    assert "is logged at 100 Hz" in message
+    required = _write(tmp_path, _slow(100, 400, "scale_factor"))
+    done = RUNNER.invoke(app, ["validate", str(required)])
+    assert done.exit_code == 2, done.output
+    assert "analysis 'sync' (which 'scale_factor' requires) needs" in done.output
+    run = RUNNER.invoke(app, ["run", str(required), "--out", str(tmp_path / "run"),
+                              "--no-progress"])
+    assert run.exit_code == 2 and not (tmp_path / "run" / "recording.mcap").exists()
+    fast = _write(tmp_path, _slow(200, 800, "sync, scale_factor"))
+    assert RUNNER.invoke(app, ["validate", str(fast)]).exit_code == 0
+
+
+def test_a_drift_record_is_not_held_to_the_freeze_pulse(tmp_path: Path) -> None:
+    """``drift`` reads the DAQ's log alone: a slow drift record runs (the twin folds the
+    floor's rocking below the log's Nyquist frequency), and no step is checked for sync."""
+    path = _write(tmp_path, HEAD.format(name="drift", model="sr207", chamber="none").replace(
+        "rate_hz: 2000, samples: 4096", "rate_hz: 50, samples: 3000") + """\
+steps:
+  - static: {inner_deg: 0, outer_deg: 0}
+analysis: [drift]
+""")
+    done = RUNNER.invoke(app, ["run", str(path), "--out", str(tmp_path / "run"),
+                               "--no-progress", "--seed", "2"])
+    assert done.exit_code == 0, done.output
+    results = json.loads((tmp_path / "run" / "results.json").read_text(encoding="utf-8"))
+    assert results["steps"][0]["sample_rate_hz"] == 50
+    assert "drift" in results["analysis"] and not results["analysis_errors"]

@@ -234,7 +234,7 @@ _DIGITAL = ("sync_pulse", "trigger")
 #: the DAQ channels the clock fit reads
 _SYNC_CHANNELS = ("sync_pulse", "trigger")
 #: the table rate must exceed the pulse rate this many times for its edges to be resolved
-_MIN_RATE_OVER_PULSE = 2.0
+MIN_RATE_OVER_PULSE = 2.0
 
 
 def log_pieces(log: SampledLog, per: int = 2**17) -> Pieces:
@@ -251,7 +251,7 @@ def log_pieces(log: SampledLog, per: int = 2**17) -> Pieces:
 def _edges_resolved(step: PlannedStep, table: SampledLog, pulse_hz: float) -> None:
     """Refuse a table log too slow to hold the freeze-pulse edges (1 Hz snapshots of a long
     record written by earlier versions) with a sentence that says so."""
-    if float(table.sample_rate_hz) < _MIN_RATE_OVER_PULSE * pulse_hz:
+    if float(table.sample_rate_hz) < MIN_RATE_OVER_PULSE * pulse_hz:
         raise AnalysisError(
             f"step {step.id}: the table log holds {table.sample_rate_hz:g} Hz snapshots, too "
             f"slow to resolve the {pulse_hz:g} Hz freeze-pulse edges: this long record "

@@ -274,6 +274,12 @@ def floor_rocking(table: TableModel, n: int, dt_s: float,
 
 @lru_cache(maxsize=8)
 def _band_filter(lo_hz: float, hi_hz: float, dt_s: float) -> tuple[np.ndarray, np.ndarray, float]:
-    b, a = signal.butter(2, [lo_hz, hi_hz], btype="bandpass", fs=1.0 / dt_s)
+    """(b, a, noise gain) of the rocking's band-pass at the log's rate. A log slower than
+    twice the band's top sees the rocking folded below its Nyquist frequency: the band is
+    then cut at 0.9 × Nyquist (its RMS is set by the gain, so kept), as the amplitude band
+    of :func:`aatest.twin.sensor.band_filter` is."""
+    top_hz = min(hi_hz, 0.45 / dt_s)
+    b, a = signal.butter(2, [min(lo_hz, 0.5 * top_hz), top_hz], btype="bandpass",
+                         fs=1.0 / dt_s)
     impulse = signal.lfilter(b, a, np.r_[1.0, np.zeros(8191)])
     return b, a, float(np.sqrt(np.sum(impulse**2)))

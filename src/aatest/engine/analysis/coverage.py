@@ -39,6 +39,27 @@ def _listed(proc: Procedure) -> dict[str, tuple[int, Any]]:
     return out
 
 
+def _pulled_in(listed: dict[str, tuple[int, Any]]) -> dict[str, tuple[int, Any]]:
+    """``sync`` when a listed analysis requires it and the procedure does not list it: the
+    pass runs it, and the requirer reads the steps it synchronises, so its requirements
+    hold as well (name → (index of the first entry that requires it, plugin class)). Other
+    requirements are used where they apply (``noise`` takes ``scale_factor``'s output on a
+    plan with sine steps and works without it), so their needs are not the requirer's."""
+    from aatest.engine.analysis import passes
+
+    if "sync" in listed:
+        return {}
+    for name, (index, _cls) in listed.items():
+        try:
+            ordered = passes.order([name])
+        except PluginError:  # named by the loader
+            continue
+        found = next((p for p in ordered if p.name == "sync"), None)
+        if found is not None:
+            return {"sync": (index, found.cls)}
+    return {}
+
+
 def check_coverage(proc: Procedure, plan: Plan, sources: dict[str, Any], chamber: str,
                    datasheet: SensorDatasheet) -> Coverage:
     """Check the listed analyses' requirements; raise the unmet ones, located.
@@ -49,20 +70,25 @@ def check_coverage(proc: Procedure, plan: Plan, sources: dict[str, Any], chamber
         One problem per unmet requirement, at the step it names or the analysis entry.
     """
     listed = _listed(proc)
+    pulled = _pulled_in(listed)
     view = PlanView(plan.steps, chamber, dict(datasheet.channels))
-    coverage = check_plan({name: cls for name, (_i, cls) in listed.items()}, view)
+    coverage = check_plan({name: cls for name, (_i, cls) in (listed | pulled).items()}, view)
+    for name in pulled:  # validate shows the steps of the analyses the procedure lists
+        coverage.uses.pop(name, None)
     filename = proc.source_file or f"<{proc.procedure}>"
     problems = []
     for unmet in coverage.unmet:
-        index = listed[unmet.analysis][0]
+        index = (listed | pulled)[unmet.analysis][0]
         entry = proc.analysis[index]
+        named = plugins.split_entry(entry)[0]
         path: tuple[Any, ...] = ("analysis", index) + (
-            () if isinstance(entry, str) else (unmet.analysis,))
+            () if isinstance(entry, str) else (named,))
         if unmet.step_id is not None and unmet.step_id in sources:
             path = tuple(sources[unmet.step_id])
         line, col = locate(proc.source_tree, path) if proc.source_tree else (1, 1)
+        by = f" (which '{named}' requires)" if unmet.analysis in pulled else ""
         problems.append(Problem(filename, line, col, ".".join(map(str, path)),
-                                f"analysis '{unmet.analysis}' {unmet.message}"))
+                                f"analysis '{unmet.analysis}'{by} {unmet.message}"))
     problems += _acceptance_problems(proc, filename)
     if problems:
         raise ProcedureError(problems)

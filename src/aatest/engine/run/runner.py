@@ -212,12 +212,30 @@ def _checked(recorder: Any, step: PlannedStep, checked: Any) -> None:
         step_checked(step, checked)
 
 
-def _syncs(plan: Plan, table: SampledLog, daq: SampledLog) -> bool:
-    """Whether the plan's analysis will synchronise this step: ``sync`` is named, or some
-    analysis is and both loggers recorded the pulse (every analysis of both logs needs it)."""
+def _synchronises(plan: Plan) -> tuple[bool, bool]:
+    """(named, required): whether ``sync`` is named in the plan's analysis, and whether a
+    named analysis requires it. Most analyses read both logs and require it; ``drift`` reads
+    the DAQ's alone, so a drift-only record is never held to the freeze pulse. When the
+    requirements cannot be resolved (an analysis not installed: the loader said so), any
+    named analysis counts as requiring it."""
+    from aatest.engine.analysis import passes
+
     names = {a if isinstance(a, str) else next(iter(a), "") for a in plan.analysis}
+    if not names:
+        return False, False
+    try:
+        ordered = passes.order(passes.requested_names(plan.analysis))
+    except AatestError:
+        return "sync" in names, True
+    return "sync" in names, any(p.name == "sync" for p in ordered)
+
+
+def _syncs(synchronised: tuple[bool, bool], table: SampledLog, daq: SampledLog) -> bool:
+    """Whether the run checks this step's synchronisation as it is recorded: ``sync`` is
+    named, or a named analysis requires it and both loggers recorded the pulse."""
+    named, required = synchronised
     pulses = "sync_pulse" in table.channels and "sync_pulse" in daq.channels
-    return "sync" in names or (bool(names) and pulses)
+    return named or (required and pulses)
 
 
 def execute_streamed_step(rig: Rig, step: PlannedStep, recorder: Any, events: RunEvents,
@@ -336,6 +354,7 @@ def run_plan(
     chamber = _ChamberTracker(stability=state.soak_stability)
     started = time.perf_counter()
     writes = BackgroundWrites(recorder)  # a step's file is written while the next records
+    synchronised = _synchronises(plan)  # what each recorded step is checked for
     try:
         with running(rig), StepProgress(plan, done, enabled=show_progress) as progress, \
                 threadpool_limits(limits=1, user_api="blas"), _closing(writes):
@@ -367,7 +386,7 @@ def run_plan(
                     events.observer.step_samples(step, table, daq)
                     events.abort.check()  # aborted while recording: the step is not kept
                     writes.submit(step, table, daq)
-                    if _syncs(plan, table, daq):
+                    if _syncs(synchronised, table, daq):
                         _checked(recorder, step, check_step_sync(step, table, daq))
                 state.save(run_dir)
                 progress.end(step)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from aatest.clocksync.streamed import MIN_RATE_OVER_PULSE
 from aatest.engine.requirements import Check, PlanView, Requirement, steps_where
 from aatest.engine.steps import PlannedStep
 from aatest.plugins.analysis.geometry import gravity_along_g, nominal_weight
@@ -123,7 +124,27 @@ CROSS_NEED = ("outer-axis sine steps at two or more inner-axis positions at leas
               f"{CROSS_MIN_SEPARATION_DEG:g}° apart (e.g. 0° and 90°), for a sensor on the inner "
               "axis")
 
-SYNC = (steps_where("a recorded step", lambda s: True),)
+#: the freeze pulse of the documented rig, Hz: the DAQ's sync pulse (docs/method.md §2)
+FREEZE_PULSE_HZ = 100.0
+PULSE_NEED = (f"every recorded step logged at ≥ {MIN_RATE_OVER_PULSE * FREEZE_PULSE_HZ:g} Hz "
+              f"(the {FREEZE_PULSE_HZ:g} Hz freeze pulse's edges resolved)")
+
+
+def _resolves_pulse(view: PlanView) -> Check:
+    """Every recorded step logged fast enough to hold both levels of the freeze pulse: at
+    half that rate a log holds no edge at all, and sync would fail after the recording as if
+    the pulse were not wired."""
+    steps = view.recorded()
+    slow = [s for s in steps if s.sample_rate_hz < MIN_RATE_OVER_PULSE * FREEZE_PULSE_HZ]
+    if not slow:
+        return Check(tuple(s.id for s in steps))
+    more = f" (and {len(slow) - 1} more)" if len(slow) > 1 else ""
+    return Check(tuple(s.id for s in steps),
+                 f"needs {PULSE_NEED}; step {slow[0].id} is logged at "
+                 f"{slow[0].sample_rate_hz:g} Hz{more}", slow[0].id)
+
+
+SYNC = (steps_where("a recorded step", lambda s: True), Requirement(PULSE_NEED, _resolves_pulse))
 BIAS = (Requirement(BIAS_NEED, _bias_pairs),)
 SCALE_FACTOR = (Requirement(SCALE_NEED, _scale_steps),)
 TEMPERATURE = (Requirement(SETPOINT_NEED, _setpoints),
