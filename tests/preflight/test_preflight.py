@@ -71,6 +71,17 @@ MISTAKES = {
                          "p.yaml:7:18: analysis.1: no analysis plugin named 'scale_factr'"),
     "bad-analysis-option": ("[sync, scale_factor]", "[sync, scale_factor: {orders: 3}]",
                             "p.yaml:7:33: analysis.1.scale_factor.orders:"),
+    # the diagnose command's report: a run recorded every step, then ended in an internal
+    # error (exit 4) handing it a run's results
+    "diagnose-report": ("template: calibration-certificate", "template: diagnosis",
+                        "p.yaml:8:10: report.template: report 'diagnosis' presents the "
+                        "document of `aatest diagnose`, not a run's results; choose one of: "
+                        "calibration-certificate, frequency-response, misalignment"),
+    # two sets of options for one analysis: the run recorded, then stopped unlocated
+    "options-twice": ("[sync, scale_factor]",
+                      "[sync, scale_factor: {orders: [1, 3]}, scale_factor: {orders: [1, 5]}]",
+                      "p.yaml:7:50: analysis.2.scale_factor: analysis 'scale_factor' is given "
+                      "two different sets of options"),
 }
 
 

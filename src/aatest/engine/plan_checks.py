@@ -72,6 +72,13 @@ def template_problems(proc: Any, template_dir: Path | None = None) -> list[Probl
         info = registry.load("report", name)
     except PluginError as exc:
         return [_problem(filename, proc.source_tree, where, str(exc))]
+    renders = getattr(info.target, "renders", "run")
+    if renders != "run":  # it would be handed a run's results it cannot read
+        runs = [ep.name for ep in registry.entry_points("report")
+                if getattr(_loaded_or_none(ep.name), "renders", "run") == "run"]
+        return [_problem(filename, proc.source_tree, where,
+                         f"report {name!r} presents the document of `aatest {renders}`, not a "
+                         f"run's results; choose one of: {', '.join(runs)}")]
     check = getattr(info.target, "check_template", None)
     if not callable(check):  # a vendor's reporter that states no check
         return []
@@ -81,6 +88,14 @@ def template_problems(proc: Any, template_dir: Path | None = None) -> list[Probl
         return [_problem(filename, proc.source_tree, where,
                          f"report {name!r}: its template does not load: {exc}")]
     return []
+
+
+def _loaded_or_none(name: str) -> Any:
+    """The report plugin ``name``'s class, or None when it does not load."""
+    try:
+        return registry.load("report", name).target
+    except PluginError:
+        return None
 
 
 def _needs_table_log(proc: Any) -> list[str]:

@@ -55,6 +55,10 @@ class _HtmlReport:
     #: the render reads only the typed record it is handed, never results.json: the engine
     #: writes that file meanwhile (:func:`aatest.engine.run.session._results_written`)
     renders_from_record: ClassVar[bool] = True
+    #: what the report presents: a run's results (``run``), or the document of another
+    #: command (``diagnose``): a procedure may choose only a ``run`` report
+    #: (:func:`aatest.engine.plan_checks.template_problems`)
+    renders: ClassVar[str] = "run"
 
     def __init__(self, config: ReportConfig | None = None) -> None:
         self.config = config if config is not None else self.Config()
@@ -144,6 +148,7 @@ class DiagnosisReport(_HtmlReport):
     template = "diagnosis"
     title = "Diagnosis"
     output_name = "diagnosis.html"
+    renders = "diagnose"
 
     def context(self, results: Mapping[str, Any], run_dir: Path  # type: ignore[override]
                 ) -> dict[str, Any]:
