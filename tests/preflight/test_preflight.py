@@ -77,6 +77,12 @@ MISTAKES = {
                         "p.yaml:8:10: report.template: report 'diagnosis' presents the "
                         "document of `aatest diagnose`, not a run's results; choose one of: "
                         "calibration-certificate, frequency-response, misalignment"),
+    # a signed report asked for and no key to sign it with: the run used to give an unsigned
+    # one after a warning
+    "signed-without-key": ("template: calibration-certificate}",
+                           "template: calibration-certificate, sign: true}",
+                           "p.yaml:8:45: report.sign: the procedure asks for a signed report "
+                           "and no signing key is configured"),
     # two sets of options for one analysis: the run recorded, then stopped unlocated
     "options-twice": ("[sync, scale_factor]",
                       "[sync, scale_factor: {orders: [1, 3]}, scale_factor: {orders: [1, 5]}]",
@@ -87,7 +93,8 @@ MISTAKES = {
 
 @pytest.mark.parametrize("mistake", sorted(MISTAKES))
 def test_each_mistake_fails_validate_located_and_run_before_motion(
-        mistake: str, tmp_path: Path, sent: Counter[str]) -> None:
+        mistake: str, tmp_path: Path, sent: Counter[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("AATEST_SIGNING_KEY", raising=False)  # the machine's own key, if any
     old, new, located = MISTAKES[mistake]
     assert old in GOOD
     path = _write(tmp_path, GOOD.replace(old, new, 1))

@@ -208,8 +208,7 @@ def preflight(procedure: Path, rig: Path | None, site: Site | None = None) -> Pr
             for name in ("plan", "analysable steps", "disk space"):
                 report.skip(name, "plugins")
     report.add("lab profile", *_guard(lambda: site_checks.lab_check(site.lab)))
-    sign = bool(proc is not None and proc.report.sign)
-    report.add("signing key", *_guard(lambda: site_checks.key_check(site.key, sign)))
+    report.add("signing key", *_guard(lambda: site_checks.key_check(site.key, proc)))
     report.add("records store", *_guard(
         lambda: site_checks.records_check(site.records, site.migrate)))
     return report

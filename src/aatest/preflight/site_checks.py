@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 from aatest.engine.errors import Problem
 
@@ -28,17 +29,20 @@ def lab_check(lab: Path | None) -> Outcome:
     return [], f"{chosen}: {profile.name}, certificate prefix {profile.certificate_prefix}"
 
 
-def key_check(key: Path | None, sign_asked: bool) -> Outcome:
-    """The signing key opens with ``AATEST_SIGNING_PASSPHRASE``; none is a warning when the
-    procedure asks for a signed report (the run then leaves it unsigned)."""
+def key_check(key: Path | None, proc: Any) -> Outcome:
+    """The signing key opens with ``AATEST_SIGNING_PASSPHRASE``; none leaves the report
+    unsigned, which fails when the procedure ``proc`` (None: it did not load) asks for a
+    signed report (:func:`aatest.engine.plan_checks.signing_problems`)."""
     from aatest.bundle.signing import key_fingerprint, load_private_key
+    from aatest.engine.plan_checks import signing_problems
     from aatest.engine.run.session import PASSPHRASE_ENV, SIGNING_KEY_ENV, signing_key
 
     path = signing_key(key)
     if path is None:
-        asked = " although the procedure asks for a signed report" if sign_asked else ""
-        return [], (f"no signing key (--sign-key or {SIGNING_KEY_ENV}): the report is "
-                    f"unsigned{asked}")
+        problems = signing_problems(proc, None) if proc is not None else []
+        if problems:
+            return problems, "the procedure asks for a signed report: no signing key"
+        return [], f"no signing key (--sign-key or {SIGNING_KEY_ENV}): the report is unsigned"
     private = load_private_key(path, os.environ.get(PASSPHRASE_ENV))
     return [], f"{path}: opens, fingerprint {key_fingerprint(private.public_key())}"
 

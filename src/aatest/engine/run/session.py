@@ -28,7 +28,7 @@ from aatest.engine.analysis.results_file import (
     results_json,
     write_results,
 )
-from aatest.engine.errors import AatestError, InputError
+from aatest.engine.errors import AatestError, InputError, ProcedureError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
@@ -442,6 +442,11 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     plan = prepared.plan
     if (key := signing_key(key_path)) is not None:  # a bad or too open key fails before any motion
         signing.load_private_key(key, os.environ.get(PASSPHRASE_ENV))
+    else:  # a signed report asked for and no key to sign it with: refused before motion
+        from aatest.engine.plan_checks import signing_problems
+
+        if unsigned := signing_problems(prepared.procedure, None):
+            raise ProcedureError(unsigned)
     if out_dir is None:
         if resume:
             raise InputError("--resume needs --out RUN_DIR (the run to continue)")
@@ -528,12 +533,7 @@ def _run_locked(request: _RunRequest) -> tuple[Path, RunResults]:
             state.save(out_dir)
         # only now, with every step inside recording.mcap, the per-step copies can go
         recorder.prune_step_files()
-        key = signing_key(request.key_path)
-        if plan.sign and key is None:
-            log.warning(
-                "procedure asks for a signed report but no key is configured "
-                f"(--sign-key or {SIGNING_KEY_ENV}); the report is unsigned"
-            )
+        key = signing_key(request.key_path)  # one asked for is there (run() checked)
         results = analyse_and_report(
             out_dir, out_dir, plan.report_template, None, key,
             lab_duration_s=plan.lab_duration_s, wall_duration_s=state.wall_duration_s,
