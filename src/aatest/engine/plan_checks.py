@@ -90,20 +90,6 @@ def template_problems(proc: Any, template_dir: Path | None = None) -> list[Probl
     return []
 
 
-def signing_problems(proc: Any, key: Path | None) -> list[Problem]:
-    """A procedure that asks for a signed report (``report.sign: true``) with no signing key
-    configured: its run could only give an unsigned report, so it is refused at
-    ``report.sign``. ``key``: the key the run would sign with (None: none configured)."""
-    if key is not None or not proc.report.sign:
-        return []
-    from aatest.engine.run.session import SIGNING_KEY_ENV
-
-    filename = proc.source_file or f"<{proc.procedure}>"
-    return [_problem(filename, proc.source_tree, ("report", "sign"),
-                     f"the procedure asks for a signed report and no signing key is configured: "
-                     f"give --sign-key or {SIGNING_KEY_ENV}, or set report.sign: false")]
-
-
 def _loaded_or_none(name: str) -> Any:
     """The report plugin ``name``'s class, or None when it does not load."""
     try:

@@ -71,14 +71,15 @@ def check_coverage(proc: Procedure, plan: Plan, sources: dict[str, Any], chamber
     """
     listed = _listed(proc)
     pulled = _pulled_in(listed)
+    checked = listed | pulled
     view = PlanView(plan.steps, chamber, dict(datasheet.channels))
-    coverage = check_plan({name: cls for name, (_i, cls) in (listed | pulled).items()}, view)
+    coverage = check_plan({name: cls for name, (_i, cls) in checked.items()}, view)
     for name in pulled:  # validate shows the steps of the analyses the procedure lists
         coverage.uses.pop(name, None)
     filename = proc.source_file or f"<{proc.procedure}>"
     problems = []
     for unmet in coverage.unmet:
-        index = (listed | pulled)[unmet.analysis][0]
+        index = checked[unmet.analysis][0]
         entry = proc.analysis[index]
         named = plugins.split_entry(entry)[0]
         path: tuple[Any, ...] = ("analysis", index) + (

@@ -28,7 +28,7 @@ from aatest.engine.analysis.results_file import (
     results_json,
     write_results,
 )
-from aatest.engine.errors import AatestError, InputError, ProcedureError
+from aatest.engine.errors import AatestError, InputError, Problem, ProcedureError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
@@ -147,6 +147,20 @@ def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any, tupl
     envelope = rig.turntable.envelope().model_copy(
         update={"streaming_daq": supports_streaming(rig.daq)})
     return envelope, rig.datasheet, tuple(rig.daq.channels())
+
+
+def signing_problems(proc: Any, key: Path | None) -> list[Problem]:
+    """A procedure that asks for a signed report (``report.sign: true``) with no signing key
+    configured: its run could only give an unsigned report, so it is refused at
+    ``report.sign``. ``key``: the key the run would sign with (None: none configured)."""
+    from aatest.positioned_yaml import locate
+
+    if key is not None or not proc.report.sign:
+        return []
+    line, col = locate(proc.source_tree, ("report", "sign")) if proc.source_tree else (1, 1)
+    return [Problem(proc.source_file or f"<{proc.procedure}>", line, col, "report.sign",
+                    "the procedure asks for a signed report and no signing key is configured: "
+                    f"give --sign-key or {SIGNING_KEY_ENV}, or set report.sign: false")]
 
 
 def default_operator() -> str:
@@ -442,11 +456,8 @@ def run(  # noqa: PLR0913 - the options of `aatest run` one to one, the later on
     plan = prepared.plan
     if (key := signing_key(key_path)) is not None:  # a bad or too open key fails before any motion
         signing.load_private_key(key, os.environ.get(PASSPHRASE_ENV))
-    else:  # a signed report asked for and no key to sign it with: refused before motion
-        from aatest.engine.plan_checks import signing_problems
-
-        if unsigned := signing_problems(prepared.procedure, None):
-            raise ProcedureError(unsigned)
+    elif unsigned := signing_problems(prepared.procedure, None):  # asked for, cannot be
+        raise ProcedureError(unsigned)  # given: refused before the rig moves
     if out_dir is None:
         if resume:
             raise InputError("--resume needs --out RUN_DIR (the run to continue)")
