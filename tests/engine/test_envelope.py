@@ -234,3 +234,34 @@ def test_axes_must_include_inner_once() -> None:
     for axes in ((), ("outer",), ("inner", "inner")):
         with pytest.raises(ValueError, match="axes must name 'inner'"):
             TableEnvelope(axes=axes)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("set_point_c, refused", [
+    (-40.0, False), (85.0, False), (-41.0, True), (90.0, True)])
+def test_a_set_point_outside_the_sensors_operating_temperatures_is_refused(
+        set_point_c: float, refused: bool) -> None:
+    """The chamber is commanded only where the sensor may go: the sr207's −40 to 85 °C
+    (docs/method.md §1.3), edges included; not skippable, as a motion point is."""
+    step = PlannedStep(id="s001-chamber", kind="chamber", temperature_c=set_point_c)
+    found = step_violations(step, ENV, SHEET)
+    assert [v.limit for v in found] == (["sensor.operating_temperature_c"] if refused else [])
+    assert all(not v.skippable and "operating temperature range -40 to 85 °C" in v.message
+               for v in found)
+
+
+def test_validate_refuses_a_temperature_campaign_beyond_the_sensor(tmp_path: Path) -> None:
+    path = tmp_path / "hot.yaml"
+    path.write_text("""\
+procedure: hot
+sensor: {model: sr207, serial: "H1"}
+rig: {turntable: sim, daq: sim, chamber: sim}
+sampling: {rate_hz: 2000, samples: 4096, settle_s: 0.5}
+steps:
+  - temperature_steps: {setpoints_c: [22, 60, 95], soak_s: 10}
+analysis: [sync, temperature]
+""", encoding="utf-8")
+    done = CliRunner().invoke(app, ["validate", str(path)])
+    assert done.exit_code == EXIT_BAD_INPUT, done.output
+    assert f"{path}:6:5: s005-chamber-95C: " in done.output  # one step: named
+    assert "chamber set-point 95 °C is above the sr207's operating temperature range" \
+           in done.output

@@ -55,6 +55,9 @@ class SensorDatasheet(SensorNominals):
     g_sensitivity_limit_dps2_per_g: float | None = None
     #: non-linearity limit, % of full range (docs/method.md §1.3: ±0.05 % FR)
     nonlinearity_limit_pct_fr: float = 0.05
+    #: (lowest, highest) temperature the sensor may be taken to, °C (docs/method.md §1.3:
+    #: −40 to 85 °C): a chamber set-point outside it is refused before anything moves
+    operating_temperature_c: tuple[float, float] = (-40.0, 85.0)
     #: channel name → sensitive axis in the table frame (I, O, P)
     channels: Mapping[str, SensorAxis] = Field(default_factory=lambda: _SINGLE_AXIS)
 

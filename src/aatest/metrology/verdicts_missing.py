@@ -14,14 +14,16 @@ when an older run is analysed again.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from aatest.engine.errors import Problem
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.requirements import judges_of, measures_of, needs_text
 from aatest.metrology.verdicts_limits import JUDGED, QUANTITY_UNITS, limits
+from aatest.positioned_yaml import locate
 from aatest.results import RunResults
 from aatest.results.base import Verdict
 
@@ -65,6 +67,34 @@ def unproduced(acceptance: Acceptance, listed: Sequence[Listed]) -> list[str]:
     (:func:`aatest.engine.analysis.coverage.check_coverage`)."""
     return [q for q in asked(acceptance, listed)
             if not any(q in measures_of(item.cls) for item in listed)]
+
+
+def acceptance_problems(proc: Any, listed: Sequence[Listed],
+                        installed: Callable[[], Sequence[Listed]], filename: str
+                        ) -> list[Problem]:
+    """Each asked quantity of procedure ``proc`` that no listed analysis can produce, located
+    at its ``acceptance`` entry: the run could only end ``incomplete``, so the plan check
+    (:func:`aatest.engine.analysis.coverage.check_coverage`) refuses it before anything
+    moves. ``installed`` gives every installed analysis (asked only when one is missing)."""
+    missing = unproduced(proc.acceptance, listed)
+    everything = installed() if missing else []
+    judge = proc.acceptance.judge
+    problems = []
+    for quantity in missing:
+        if judge is not None:
+            path: tuple[Any, ...] = ("acceptance", "judge", judge.index(quantity))
+            asks, fix = f"acceptance.judge asks for {quantity}", "leave it out of acceptance.judge"
+        else:
+            path = ("acceptance", "limits", quantity)
+            asks = f"a limit is set for {quantity} (judged, as acceptance.judge is not given)"
+            fix = "name the quantities to judge in acceptance.judge"
+        can = any(quantity in measures_of(item.cls) for item in everything)
+        line, col = locate(proc.source_tree, path) if proc.source_tree else (1, 1)
+        problems.append(Problem(
+            filename, line, col, ".".join(map(str, path)),
+            f"{asks}, but {no_producer(quantity, listed, everything)}. The run could only end "
+            f"incomplete: {'list that analysis under analysis, or ' if can else ''}{fix}"))
+    return problems
 
 
 def no_producer(quantity: str, listed: Sequence[Listed], installed: Sequence[Listed]) -> str:

@@ -18,8 +18,9 @@ from aatest.engine.analysis import plugins
 from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Procedure
-from aatest.engine.requirements import Coverage, PlanView, check_plan, measures_of
+from aatest.engine.requirements import Coverage, PlanView, check_plan
 from aatest.engine.steps import Plan
+from aatest.metrology.verdicts_missing import acceptance_problems
 from aatest.positioned_yaml import locate
 
 #: step ids ``validate`` shows per analysis before it gives the count
@@ -90,38 +91,11 @@ def check_coverage(proc: Procedure, plan: Plan, sources: dict[str, Any], chamber
         by = f" (which '{named}' requires)" if unmet.analysis in pulled else ""
         problems.append(Problem(filename, line, col, ".".join(map(str, path)),
                                 f"analysis '{unmet.analysis}'{by} {unmet.message}"))
-    problems += _acceptance_problems(proc, filename)
+    problems += acceptance_problems(proc, plugins.listed_analyses(proc.analysis),
+                                    plugins.installed_analyses, filename)
     if problems:
         raise ProcedureError(problems)
     return coverage
-
-
-def _acceptance_problems(proc: Procedure, filename: str) -> list[Problem]:
-    """Each asked quantity no listed analysis can produce, at its ``acceptance`` entry."""
-    from aatest.metrology.verdicts_missing import no_producer, unproduced
-
-    listed = plugins.listed_analyses(proc.analysis)
-    missing = unproduced(proc.acceptance, listed)
-    if not missing:
-        return []
-    installed = plugins.installed_analyses()
-    judge = proc.acceptance.judge
-    problems = []
-    for quantity in missing:
-        if judge is not None:
-            path: tuple[Any, ...] = ("acceptance", "judge", judge.index(quantity))
-            asks, fix = f"acceptance.judge asks for {quantity}", "leave it out of acceptance.judge"
-        else:
-            path = ("acceptance", "limits", quantity)
-            asks = (f"a limit is set for {quantity} (judged, as acceptance.judge is not given)")
-            fix = "name the quantities to judge in acceptance.judge"
-        can = any(quantity in measures_of(item.cls) for item in installed)
-        line, col = locate(proc.source_tree, path) if proc.source_tree else (1, 1)
-        problems.append(Problem(
-            filename, line, col, ".".join(map(str, path)),
-            f"{asks}, but {no_producer(quantity, listed, installed)}. The run could only end "
-            f"incomplete: {'list that analysis under analysis, or ' if can else ''}{fix}"))
-    return problems
 
 
 def usage_lines(coverage: Coverage) -> list[str]:

@@ -13,6 +13,8 @@ Checked per step (peak values of θ = A·sin(ωt): rate A·ω, acceleration A·�
   (``test_ceiling_fraction`` × ``range_dps2``) nor fall below the noise floor ``floor_dps2``
   (the commanded peak acceleration is taken as seen by the sensor: conservative for a unit
   whose sensors lie along every table axis);
+* chamber: a set-point within the sensor's ``operating_temperature_c`` (docs/method.md §1.3:
+  −40 to 85 °C), not skippable;
 * logger: ``sample_rate_hz`` ≤ ``max_log_rate_hz``, ``samples`` ≤ ``log_capacity_samples``,
   except a static step on a rig whose DAQ streams (``TableEnvelope.streaming_daq``): the DAQ
   then records it in chunks and the table logs its full-rate head (:func:`head_step`), so
@@ -196,9 +198,27 @@ def _absent_axes(step: PlannedStep, env: TableEnvelope) -> list[Violation]:
     return out
 
 
+def _set_point(step: PlannedStep, sheet: SensorDatasheet) -> list[Violation]:
+    """A chamber set-point outside the temperatures the sensor may be taken to."""
+    if step.temperature_c is None:
+        return []
+    low, high = sheet.operating_temperature_c
+    value = float(step.temperature_c)
+    if low <= value <= high:
+        return []
+    limit, bound = ("sensor.operating_temperature_c", high if value > high else low)
+    side = "above" if value > high else "below"
+    return [Violation(limit, bound, value,
+                      f"chamber set-point {value:g} °C is {side} the {sheet.model}'s operating "
+                      f"temperature range {low:g} to {high:g} °C", skippable=False)]
+
+
 def step_violations(step: PlannedStep, envelope: TableEnvelope,
                     datasheet: SensorDatasheet) -> list[Violation]:
-    """Every limit ``step`` exceeds (empty when it fits); chamber steps never violate."""
+    """Every limit ``step`` exceeds (empty when it fits): a chamber step only its set-point
+    against the sensor's operating temperatures."""
+    if step.kind == "chamber":
+        return _set_point(step, datasheet)
     if not step.recorded:
         return []
     out = _logger(step, envelope)
