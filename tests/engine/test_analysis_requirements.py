@@ -103,8 +103,9 @@ def test_set_points_without_a_chamber_are_refused_at_the_step(tmp_path: Path) ->
     line, _col, message = _located(done.output, path)
     assert line == 6 and message.startswith("steps.0.temperature_steps: analysis 'temperature'")
     assert "needs a chamber plugin" in message
+    # (static records only: the bias coefficient is what this plan can give)
     ok = RUNNER.invoke(app, ["validate", str(_write(tmp_path, NO_CHAMBER.replace(
-        "chamber: none", "chamber: sim")))])
+        "chamber: none", "chamber: sim") + "acceptance: {judge: [bias_temperature_v_per_c]}\n"))])
     assert ok.exit_code == 0, ok.output
     assert "3 steps (+ 3 chamber set-point changes)" in ok.output
 

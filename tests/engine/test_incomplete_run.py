@@ -8,7 +8,7 @@ import json
 import re
 from pathlib import Path
 
-from typer.testing import CliRunner
+from typer.testing import CliRunner, Result
 
 from aatest.cli import app
 
@@ -41,12 +41,17 @@ acceptance: {judge: [scale_factor_deviation_pct, nonlinearity_pct_fr]}
 """
 
 
-def test_a_limit_no_listed_analysis_produces_is_refused_before_anything_moves(
-        tmp_path: Path) -> None:
-    procedure = tmp_path / "smoke.yaml"
-    procedure.write_text(PROCEDURE, encoding="utf-8")
+def _refused(procedure: Path, text: str) -> tuple[Path, Result]:
+    """``text`` written to ``procedure`` and validated: refused (exit 2)."""
+    procedure.write_text(text, encoding="utf-8")
     checked = RUNNER.invoke(app, ["validate", str(procedure)])
     assert checked.exit_code == 2, checked.output
+    return procedure, checked
+
+
+def test_a_limit_no_listed_analysis_produces_is_refused_before_anything_moves(
+        tmp_path: Path) -> None:
+    procedure, checked = _refused(tmp_path / "smoke.yaml", PROCEDURE)
     # at the limit (line 8, column 12), naming what is listed and what would produce it
     assert f"{procedure}:8:12: acceptance.limits.bias_deviation_v: " in checked.output
     assert "no listed analysis produces it (listed: sync, noise); the analysis 'bias' " \
@@ -90,3 +95,29 @@ def test_a_quantity_the_data_do_not_give_is_incomplete_and_exits_1(tmp_path: Pat
     assert "one acceleration level: no non-linearity is resolved" in certificate
     again = RUNNER.invoke(app, ["analyze", str(tmp_path / "run")])
     assert again.exit_code == 1 and INCOMPLETE.search(again.output), again.output
+
+
+#: set-points with static records only: the scale-factor coefficient needs sine records
+STATIC_ONLY = """\
+procedure: static-only-campaign
+sensor: {model: sr207, serial: "T1"}
+rig: {turntable: sim, daq: sim, chamber: sim}
+sampling: {rate_hz: 2000, samples: 4096, settle_s: 0.5}
+steps:
+  - temperature_steps: {setpoints_c: [22, 40, -30], soak_s: 10, static: true}
+analysis: [sync, temperature]
+"""
+
+
+def test_a_coefficient_the_plan_cannot_give_is_refused_at_its_analysis(tmp_path: Path) -> None:
+    """Judged by default (no acceptance.judge), the scale coefficient of a campaign without
+    sine records used to end the run incomplete after every soak: refused at the analysis
+    entry; judging only the bias coefficient runs."""
+    procedure, checked = _refused(tmp_path / "campaign.yaml", STATIC_ONLY)
+    assert f"{procedure}:7:18: analysis.1: scale_temperature_per_c is judged" in checked.output
+    assert "produces it only from sine records of one frequency and acceleration at ≥ 3 " \
+           "chamber set-points spanning ≥ 5 °C: the plan has none" in checked.output
+    assert "bias_temperature_v_per_c" not in checked.output  # static at 3 set-points: given
+    procedure.write_text(STATIC_ONLY + "acceptance: {judge: [bias_temperature_v_per_c]}\n",
+                         encoding="utf-8")
+    assert RUNNER.invoke(app, ["validate", str(procedure)]).exit_code == 0

@@ -97,6 +97,13 @@ def judges_of(cls: object) -> tuple[str, ...]:
     return tuple(getattr(cls, "judges", ()))
 
 
+def produces_of(cls: object) -> Mapping[str, Requirement]:
+    """What the plan must hold for each quantity an analysis class judges, where it declares
+    it (``produces``: quantity → requirement; a quantity not named needs only the analysis'
+    own ``requirements``)."""
+    return dict(getattr(cls, "produces", {}))
+
+
 def measures_of(cls: object) -> tuple[str, ...]:
     """Everything it can produce: ``judges`` and ``also_measures`` (measured when the data
     allow, judged when produced or asked for)."""

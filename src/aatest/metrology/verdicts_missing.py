@@ -21,7 +21,7 @@ from typing import Any
 from aatest.engine.errors import Problem
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
-from aatest.engine.requirements import judges_of, measures_of, needs_text
+from aatest.engine.requirements import PlanView, judges_of, measures_of, needs_text, produces_of
 from aatest.metrology.verdicts_limits import JUDGED, QUANTITY_UNITS, limits
 from aatest.positioned_yaml import locate
 from aatest.results import RunResults
@@ -70,31 +70,60 @@ def unproduced(acceptance: Acceptance, listed: Sequence[Listed]) -> list[str]:
 
 
 def acceptance_problems(proc: Any, listed: Sequence[Listed],
-                        installed: Callable[[], Sequence[Listed]], filename: str
-                        ) -> list[Problem]:
-    """Each asked quantity of procedure ``proc`` that no listed analysis can produce, located
-    at its ``acceptance`` entry: the run could only end ``incomplete``, so the plan check
-    (:func:`aatest.engine.analysis.coverage.check_coverage`) refuses it before anything
-    moves. ``installed`` gives every installed analysis (asked only when one is missing)."""
+                        installed: Callable[[], Sequence[Listed]], filename: str,
+                        view: PlanView | None = None,
+                        entries: Mapping[str, int] | None = None) -> list[Problem]:
+    """Each asked quantity of procedure ``proc`` that its listed analyses cannot produce on
+    the plan ``view``: none of them produces it, or each that does declares what the plan
+    must hold for it (``produces``) and the plan does not. The run could only end
+    ``incomplete``, so the plan check (:func:`aatest.engine.analysis.coverage.check_coverage`)
+    refuses it before anything moves, at its ``acceptance`` entry (at the producing analysis'
+    entry when only the default judging asks for it). ``installed`` gives every installed
+    analysis (asked only when one is missing); ``entries`` the index of the ``analysis:``
+    entry of each listed plugin."""
     missing = unproduced(proc.acceptance, listed)
     everything = installed() if missing else []
-    judge = proc.acceptance.judge
-    problems = []
-    for quantity in missing:
-        if judge is not None:
-            path: tuple[Any, ...] = ("acceptance", "judge", judge.index(quantity))
-            asks, fix = f"acceptance.judge asks for {quantity}", "leave it out of acceptance.judge"
-        else:
-            path = ("acceptance", "limits", quantity)
-            asks = f"a limit is set for {quantity} (judged, as acceptance.judge is not given)"
-            fix = "name the quantities to judge in acceptance.judge"
-        can = any(quantity in measures_of(item.cls) for item in everything)
-        line, col = locate(proc.source_tree, path) if proc.source_tree else (1, 1)
-        problems.append(Problem(
-            filename, line, col, ".".join(map(str, path)),
-            f"{asks}, but {no_producer(quantity, listed, everything)}. The run could only end "
-            f"incomplete: {'list that analysis under analysis, or ' if can else ''}{fix}"))
+    problems = [_asked_problem(proc, filename, q, f"{no_producer(q, listed, everything)}",
+                               any(q in measures_of(item.cls) for item in everything))
+                for q in missing]
+    if view is None:
+        return problems
+    for quantity in asked(proc.acceptance, listed):
+        producers = [item for item in listed if quantity in measures_of(item.cls)]
+        unmet = [(item, need.need, found.problem) for item in producers
+                 if (need := produces_of(item.cls).get(quantity)) is not None
+                 and (found := need.check(view)).problem is not None]
+        if producers and len(unmet) == len(producers):
+            item, need_text, problem = unmet[0]
+            why = (f"analysis '{item.name}' produces it only from {need_text}: "
+                   f"{str(problem).removeprefix(f'needs {need_text}; ')}")
+            index = (entries or {}).get(item.name, 0)
+            problems.append(_asked_problem(proc, filename, quantity, why, True, index))
     return problems
+
+
+def _asked_problem(proc: Any, filename: str, quantity: str, why: str, can: bool,
+                   producer: int | None = None) -> Problem:
+    """The located problem of an asked quantity the run cannot give (``why``): at its
+    ``acceptance`` entry, else at the producing analysis' entry (index ``producer``:
+    asked by default)."""
+    judge, limits = proc.acceptance.judge, proc.acceptance.limits.model_dump(exclude_none=True)
+    if judge is not None:
+        path: tuple[Any, ...] = ("acceptance", "judge", judge.index(quantity))
+        asks, fix = f"acceptance.judge asks for {quantity}", "leave it out of acceptance.judge"
+    elif quantity in limits or producer is None:
+        path = ("acceptance", "limits", quantity)
+        asks = f"a limit is set for {quantity} (judged, as acceptance.judge is not given)"
+        fix = "name the quantities to judge in acceptance.judge"
+    else:
+        path = ("analysis", producer)
+        asks = f"{quantity} is judged (a listed analysis produces it, acceptance.judge is unset)"
+        fix = "name the quantities to judge in acceptance.judge"
+    line, col = locate(proc.source_tree, path) if proc.source_tree else (1, 1)
+    add = ("list that analysis under analysis, or " if producer is None else
+           "add what it needs to the plan, or ") if can else ""
+    return Problem(filename, line, col, ".".join(map(str, path)),
+                   f"{asks}, but {why}. The run could only end incomplete: {add}{fix}")
 
 
 def no_producer(quantity: str, listed: Sequence[Listed], installed: Sequence[Listed]) -> str:

@@ -92,7 +92,8 @@ def check_coverage(proc: Procedure, plan: Plan, sources: dict[str, Any], chamber
         problems.append(Problem(filename, line, col, ".".join(map(str, path)),
                                 f"analysis '{unmet.analysis}'{by} {unmet.message}"))
     problems += acceptance_problems(proc, plugins.listed_analyses(proc.analysis),
-                                    plugins.installed_analyses, filename)
+                                    plugins.installed_analyses, filename, view,
+                                    {name: index for name, (index, _cls) in listed.items()})
     if problems:
         raise ProcedureError(problems)
     return coverage
@@ -111,7 +112,7 @@ def usage_lines(coverage: Coverage) -> list[str]:
 def requirements_markdown() -> str:
     """The requirements table of docs/interfaces.md, from the built-in analyses' declarations
     (a test checks the document holds exactly this)."""
-    from aatest.engine.requirements import judges_of, measures_of, requirements_of
+    from aatest.engine.requirements import judges_of, measures_of, produces_of, requirements_of
 
     rows = ["| analysis | needs (checked by `validate`) | judges |", "|---|---|---|"]
     for name in sorted(plugins.installed_names()):
@@ -123,7 +124,9 @@ def requirements_markdown() -> str:
             continue
         declared = requirements_of(plugin.cls)
         needs = "; ".join(r.need for r in declared) if declared is not None else "not declared"
-        judged = ", ".join(f"`{q}`" for q in judges_of(plugin.cls)) or "—"
+        produces = produces_of(plugin.cls)
+        judged = ", ".join(f"`{q}`" + (f" (from {produces[q].need})" if q in produces else "")
+                           for q in judges_of(plugin.cls)) or "—"
         extra = [q for q in measures_of(plugin.cls) if q not in judges_of(plugin.cls)]
         judged += "".join(f"; `{q}` where measured" for q in extra)
         rows.append(f"| `{name}` | {needs} | {judged} |")

@@ -74,6 +74,42 @@ SETPOINT_NEED = (f"records at ≥ {MIN_SETPOINTS} chamber set-points spanning �
                  "(static steps for the bias coefficient, sine steps for the scale coefficient)")
 
 
+def _spanned(need: str, steps: list[PlannedStep]) -> Check:
+    """Met when ``steps`` lie at ≥ MIN_SETPOINTS set-points spanning ≥ MIN_SPAN_C."""
+    temps = sorted({float(s.temperature_c) for s in steps if s.temperature_c is not None})
+    used = tuple(s.id for s in steps)
+    if len(temps) < MIN_SETPOINTS or temps[-1] - temps[0] < MIN_SPAN_C:
+        found = f"them at {', '.join(f'{t:g} °C' for t in temps)}" if temps else "none"
+        return Check(used, f"needs {need}; the plan has {found}")
+    return Check(used)
+
+
+def _static_setpoints(view: PlanView) -> Check:
+    return _spanned(STATIC_SETPOINT_NEED, view.recorded("static"))
+
+
+def _sine_setpoints(view: PlanView) -> Check:
+    """The sine steps of the (frequency, acceleration) point planned at the most set-points:
+    the scale coefficient compares one point's gain across temperatures."""
+    sine = [s for s in view.recorded("sine") if s.temperature_c is not None]
+    points: dict[tuple[float, float | None], list[PlannedStep]] = {}
+    for s in sine:
+        points.setdefault((round(float(s.frequency_hz or 0.0), 6), s.accel_dps2), []).append(s)
+    best = max(points.values(), key=lambda p: len({s.temperature_c for s in p}), default=[])
+    return _spanned(SINE_SETPOINT_NEED, best)
+
+
+STATIC_SETPOINT_NEED = (f"static records at ≥ {MIN_SETPOINTS} chamber set-points spanning "
+                        f"≥ {MIN_SPAN_C:g} °C")
+SINE_SETPOINT_NEED = (f"sine records of one frequency and acceleration at ≥ {MIN_SETPOINTS} "
+                      f"chamber set-points spanning ≥ {MIN_SPAN_C:g} °C")
+#: what the plan must hold for each temperature coefficient (``produces``)
+TEMPERATURE_PRODUCES = {
+    "bias_temperature_v_per_c": Requirement(STATIC_SETPOINT_NEED, _static_setpoints),
+    "scale_temperature_per_c": Requirement(SINE_SETPOINT_NEED, _sine_setpoints),
+}
+
+
 def _chamber(view: PlanView) -> Check:
     first = next((s for s in view.steps if s.temperature_c is not None), None)
     if first is not None and view.chamber == "none":

@@ -11,7 +11,7 @@ K(T) = K₀(1 + c·(T − 25 °C)) against 0.05 %/°C.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -226,6 +226,8 @@ class TemperatureAnalysis:
     requirements: ClassVar[tuple[Requirement, ...]] = needs.TEMPERATURE
     #: the acceptance quantities it produces (judged when it is listed)
     judges: ClassVar[tuple[str, ...]] = ("bias_temperature_v_per_c", "scale_temperature_per_c")
+    #: what the plan must hold for each coefficient (checked when the acceptance asks for it)
+    produces: ClassVar[Mapping[str, Requirement]] = needs.TEMPERATURE_PRODUCES
     Options: ClassVar[type[NoOptions]] = NoOptions
     Result: ClassVar[type[TemperatureResult]] = TemperatureResult
 
