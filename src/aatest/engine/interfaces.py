@@ -491,7 +491,8 @@ class DeclaresNeeds(Protocol):
     expanded plan by ``aatest validate`` and before ``aatest run`` moves anything: an unmet one
     is refused at the analysis entry's (or the step's) FILE:LINE:COLUMN, exit 2.
     ``judges`` names the acceptance quantities the analysis produces: listed in a procedure,
-    each is judged (datasheet limit unless the procedure sets one) or ``not judged``.
+    each is judged (datasheet limit unless the procedure sets one) or ``not judged``. An
+    optional ``produces`` (quantity → requirement) says what the plan needs for one of them.
     docs/interfaces.md lists every built-in analysis' requirements from these declarations.
     """
 
