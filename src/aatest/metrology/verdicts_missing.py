@@ -83,7 +83,7 @@ def acceptance_problems(proc: Any, listed: Sequence[Listed],
     entry of each listed plugin."""
     missing = unproduced(proc.acceptance, listed)
     everything = installed() if missing else []
-    problems = [_asked_problem(proc, filename, q, f"{no_producer(q, listed, everything)}",
+    problems = [_asked_problem(proc, filename, q, no_producer(q, listed, everything),
                                any(q in measures_of(item.cls) for item in everything))
                 for q in missing]
     if view is None:
@@ -107,11 +107,12 @@ def _asked_problem(proc: Any, filename: str, quantity: str, why: str, can: bool,
     """The located problem of an asked quantity the run cannot give (``why``): at its
     ``acceptance`` entry, else at the producing analysis' entry (index ``producer``:
     asked by default)."""
-    judge, limits = proc.acceptance.judge, proc.acceptance.limits.model_dump(exclude_none=True)
+    judge = proc.acceptance.judge
+    limited = proc.acceptance.limits.model_dump(exclude_none=True)
     if judge is not None:
         path: tuple[Any, ...] = ("acceptance", "judge", judge.index(quantity))
         asks, fix = f"acceptance.judge asks for {quantity}", "leave it out of acceptance.judge"
-    elif quantity in limits or producer is None:
+    elif quantity in limited or producer is None:
         path = ("acceptance", "limits", quantity)
         asks = f"a limit is set for {quantity} (judged, as acceptance.judge is not given)"
         fix = "name the quantities to judge in acceptance.judge"
