@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import CHROMIUM
+from station_process import CHROMIUM
 
 from aatest.engine.run.session import run
 

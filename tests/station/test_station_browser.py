@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import Station, shot
+from station_process import Station, shot
 
 pytestmark = pytest.mark.browser
 

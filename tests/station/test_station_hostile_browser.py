@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import CHROMIUM, Station
+from station_process import CHROMIUM, Station
 
 pytestmark = pytest.mark.browser
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import Station, running_station, shot
+from station_process import Station, running_station, shot
 
 from aatest.bundle import signing
 

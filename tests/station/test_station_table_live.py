@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import Station, running_station, shot
+from station_process import Station, running_station, shot
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]  # a station and a browser: ≈ 1 min each
 
