@@ -61,13 +61,7 @@ SCALE_NEED = (f"sine steps along each sensor's axis at ≤ {MAX_CAL_FREQUENCY_HZ
 
 
 def _setpoints(view: PlanView) -> Check:
-    steps = [s for s in view.recorded() if s.temperature_c is not None]
-    temps = sorted({float(s.temperature_c) for s in steps if s.temperature_c is not None})
-    used = tuple(s.id for s in steps)
-    if len(temps) < MIN_SETPOINTS or temps[-1] - temps[0] < MIN_SPAN_C:
-        return Check(used, f"needs {SETPOINT_NEED}; the plan has "
-                     f"{', '.join(f'{t:g} °C' for t in temps) or 'none'}")
-    return Check(used)
+    return _spanned(SETPOINT_NEED, [s for s in view.recorded() if s.temperature_c is not None])
 
 
 SETPOINT_NEED = (f"records at ≥ {MIN_SETPOINTS} chamber set-points spanning ≥ {MIN_SPAN_C:g} °C "
@@ -79,8 +73,8 @@ def _spanned(need: str, steps: list[PlannedStep]) -> Check:
     temps = sorted({float(s.temperature_c) for s in steps if s.temperature_c is not None})
     used = tuple(s.id for s in steps)
     if len(temps) < MIN_SETPOINTS or temps[-1] - temps[0] < MIN_SPAN_C:
-        found = f"them at {', '.join(f'{t:g} °C' for t in temps)}" if temps else "none"
-        return Check(used, f"needs {need}; the plan has {found}")
+        return Check(used, f"needs {need}; the plan has "
+                     f"{', '.join(f'{t:g} °C' for t in temps) or 'none'}")
     return Check(used)
 
 
