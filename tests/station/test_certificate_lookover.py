@@ -13,6 +13,8 @@ client rectangles at two heights: ``9.62e-``/``06``). Screenshots of each go to
 from __future__ import annotations
 
 import logging
+import logging.handlers
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -54,7 +56,9 @@ def reports(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Path
     """
     _chromium_or_skip()  # skipped before the runs, which need the same Chromium
     root = tmp_path_factory.mktemp("certificates")
-    fallbacks = _Fallbacks()
+    # the PDF printer's warnings (a print that fell back to the command line), every one kept
+    fallbacks = logging.handlers.BufferingHandler(capacity=sys.maxsize)
+    fallbacks.setLevel(logging.WARNING)
     pdf_log = logging.getLogger("aatest.report.pdf")
     pdf_log.addHandler(fallbacks)
     try:
@@ -65,19 +69,9 @@ def reports(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Path
             done[name] = run_dir
     finally:
         pdf_log.removeHandler(fallbacks)
-    assert fallbacks.messages == [], "a PDF was not printed through Playwright"
+    assert [r.getMessage() for r in fallbacks.buffer] == [], \
+        "a PDF was not printed through Playwright"
     yield done
-
-
-class _Fallbacks(logging.Handler):
-    """The PDF printer's warnings (a print that fell back to the command line)."""
-
-    def __init__(self) -> None:
-        super().__init__(logging.WARNING)
-        self.messages: list[str] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.messages.append(record.getMessage())
 
 
 @pytest.fixture(scope="module")
