@@ -118,3 +118,17 @@ def test_export_needs_exactly_one_target(twin: dict[str, Any], tmp_path: Path) -
                                "--mf4", str(tmp_path / "b")])
     assert done.exit_code == 2
     assert "exactly one of --csv, --tdms, --mf4" in done.output
+
+
+@pytest.mark.parametrize("form", ["--tdms", "--mf4"])
+def test_an_exported_simulation_analyses_as_a_simulation(twin: dict[str, Any], tmp_path: Path,
+                                                         form: str) -> None:
+    """A twin run exported to a logger file and analysed again stays a simulation: its
+    mapping names the simulated parts and the import keeps them, so the analysis is numbered
+    and titled as a simulation, never as a calibration."""
+    out = tmp_path / form.strip("-")
+    assert _invoke("export", str(twin["run"]), form, str(out)).exit_code == 0
+    results = _analysed(out)
+    assert results["metadata"]["simulated_parts"] == ["daq:sim", "turntable:sim"]
+    assert results["metadata"]["kind"] == "simulation"
+    assert results["certificate_number"].startswith("SIM-")

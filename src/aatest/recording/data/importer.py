@@ -48,6 +48,11 @@ from aatest.recording.data import plausible
 from aatest.recording.data.csv_table import CsvColumns, read_csv
 from aatest.recording.dataset import Dataset, SensorInfo, StepData
 
+#: manifest fields an import keeps in its metadata as stated: the analyses and report asked
+#: for, and the simulated parts (an exported simulation stays a simulation in every format)
+STATED_KEYS = frozenset({"analysis", "report_template", "simulated_parts"})
+
+
 MANIFEST = "dataset.yaml"
 IMPORT_FORMAT = "aatest.import/v1"
 DEFAULT_T_REF_C = 25.0
@@ -354,7 +359,7 @@ def import_dataset(directory: str | Path) -> Dataset:
         procedure=manifest.procedure, sample_rate_hz=rate_hz, sensors=sensors,
         steps=tuple(steps), source=directory,
         metadata=_metadata(present, t_ref_c, model_file) | manifest.model_dump(
-            include={"analysis", "report_template", "simulated_parts"}, exclude_none=True)
+            include=set(STATED_KEYS), exclude_none=True)
         | rig_metadata(manifest),
     )
 

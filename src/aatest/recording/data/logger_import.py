@@ -29,6 +29,7 @@ from aatest.engine.logs import DAQ, TABLE, TABLE_CHANNELS, SampledLog
 from aatest.positioned_yaml import locate
 from aatest.recording.data import plausible
 from aatest.recording.data.importer import (
+    STATED_KEYS,
     DatasetFileError,
     _filled,
     _metadata,
@@ -147,7 +148,7 @@ def import_logger_files(mapping_path: str | Path) -> Dataset:
         names["daq"] = [n for n in names["daq"] if n != "time_s"]
     metadata = _metadata(present, t_ref_c, model_file) | {
         "source_format": f"aatest.import/{mapping.format}"}
-    metadata |= mapping.model_dump(include={"analysis", "report_template"}, exclude_none=True)
+    metadata |= mapping.model_dump(include=set(STATED_KEYS), exclude_none=True)
     metadata |= rig_metadata(mapping)  # only what the mapping states
     return Dataset(procedure=mapping.procedure, sample_rate_hz=rate_hz,
                    sensors=tuple(SensorInfo(**s.model_dump()) for s in mapping.sensors),
