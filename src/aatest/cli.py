@@ -444,7 +444,7 @@ def _exit_on_outcome(results: RunResults) -> None:
                 typer.echo(f"not judged: {q.name}, {v.channel}: {v.reason}", err=True)
             elif v.verdict != "pass":
                 typer.echo(f"{v.verdict}: {q.name}, {v.channel}: {q.show(v.value)} vs limit "
-                           f"±{q.show(v.limit)} ({v.rule} decision rule)", err=True)
+                           f"{q.limit_text(v.limit)} ({v.rule} decision rule)", err=True)
         raise typer.Exit(EXIT_FINDING)
 
 

@@ -147,6 +147,9 @@ def test_streamed_results_equal_the_eager_reference() -> None:
     # u_delay are the local noise of the ratio, no longer an average over the motor band
     got = {k: v for k, v in got.items()
            if not k.endswith((".offset_u_s", ".u_gain_db", ".u_phase_deg", ".u_delay_s"))}
+    # added after it: each sensor channel's extremes (the logger-rail verdict); this recording
+    # predates them, so they are found by decoding its sensor channels
+    got = {k: v for k, v in got.items() if ".daq_extremes." not in k}
     assert got.keys() <= want.keys()
     compared = {k: v for k, v in got.items() if v is not None or want[k] is None}
     assert mismatches(compared, want) == []

@@ -58,7 +58,10 @@ ADDITIONS: tuple[tuple[str, str], ...] = (
     (r"^verdicts\[\d+\]\.(limit_source|reason)$", "where a limit came from; why not judged"),
     (r"^analysis\.bias\.[^.]+\.(setpoints|temperature_c)$", "bias per chamber set-point"),
     (r"^logged_temperature$", "the logged temperatures, summarised for the certificate"),
+    (r"^steps\[\d+\]\.daq_extremes$", "each sensor channel's extremes (logger-rail verdict)"),
 )
+#: the verdict added since on every run with a stated logger: checked apart (see the test)
+RAILS = "samples_at_logger_rails"
 
 
 #: budget rows whose basis now says where the encoder's number comes from — the rig file, the
@@ -164,6 +167,12 @@ def test_results_json_matches_the_reference(name: str, tmp_path: Path) -> None:
     run_dir, _ = run(DATA / f"{name}.yaml", None, tmp_path / name, False, SEED, None,
                      show_progress=False, operator="reference", confirm_prompts="auto")
     after = comparable(json.loads((run_dir / "results.json").read_text()))
+    rails = [v for v in after["verdicts"] if v["quantity"] == RAILS]
+    after["verdicts"] = [v for v in after["verdicts"] if v["quantity"] != RAILS]
+    # the twin's sensors span 0.2…4.8 V, inside its logger's ±10 V: one passing rail verdict
+    # per sensor channel, with no sample at a rail
+    assert {v["channel"] for v in rails} == {s["channel"] for s in after["metadata"]["sensors"]}
+    assert all(v["value"] == 0 and v["verdict"] == "pass" for v in rails), rails
     with gzip.open(REFERENCE / f"{name}.json.gz", "rt") as f:
         before = documented_changes(json.load(f))
     found = differences(before, after)

@@ -12,7 +12,6 @@ waveform error smaller than the converter's own rounding is not the sensor's.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ from aatest.diagnose.design import predict
 from aatest.diagnose.replay import Replay
 from aatest.diagnose.spec import ChannelInfo
 from aatest.engine.rig_description import LoggerSpec
+from aatest.metrology.logger_rails import converter_of
 from aatest.numerics import TINY
 from aatest.recording.dataset import Dataset
 from aatest.twin.daq import antialias_filter
@@ -82,23 +82,11 @@ def stated_antialias(dataset: Dataset) -> tuple[bool, float | None]:
 
 
 def stated_converter(dataset: Dataset) -> tuple[LoggerSpec, str]:
-    """(converter, where it is stated) of the sensor logger the data were recorded with.
-
-    The rig description's ``instruments.logger`` recorded with the data comes first (the one
-    source the uncertainty budget's resolution row reads too); a simulated dataset's rig model
-    states the converter it quantised with (``daq.adc_bits``, ``daq.adc_range_v``); otherwise
-    the stated default logger (:class:`~aatest.engine.rig_description.LoggerSpec`, ±10 V / 16 bit).
-    """
-    rig = dataset.metadata.get("rig")
-    instruments = rig.get("instruments") if isinstance(rig, Mapping) else None
-    if isinstance(instruments, Mapping) and isinstance(instruments.get("logger"), Mapping):
-        return LoggerSpec.model_validate(instruments["logger"]), "rig description"
-    model = dataset.metadata.get("model")
-    daq = model.get("daq") if isinstance(model, Mapping) else None
-    if isinstance(daq, Mapping) and "adc_bits" in daq and "adc_range_v" in daq:
-        return (LoggerSpec(bits=daq["adc_bits"], range_v=tuple(daq["adc_range_v"])),
-                "the data's rig model")
-    return LoggerSpec(), "stated default (the data state no logger)"
+    """(converter, where it is stated) of the sensor logger the data were recorded with
+    (:func:`aatest.metrology.logger_rails.converter_of` of the data's metadata): the rig
+    description's ``instruments.logger``, else the data's rig model, else the stated default
+    logger (±10 V, 16 bit)."""
+    return converter_of(dataset.metadata)
 
 
 def residual_noise_psd(ctx: Context, at_rest: bool = False

@@ -17,7 +17,9 @@ A quantity without an evaluated U is judged with U = 0 (no guard band, nothing c
 Not measured is never passed (:mod:`.verdicts_missing`): a quantity the procedure asks for and
 did not get, and a listed analysis that did not apply, are ``not judged`` with the reason; the
 overall verdict is then ``incomplete`` (unless something failed) and the run exits 1.
-``acceptance.judge`` chooses which quantities are judged.
+``acceptance.judge`` chooses which quantities are judged. Whether the logger clipped (samples at
+the rails of its stated input range, :mod:`.logger_rails`) is judged on every run that states
+its logger, whatever ``judge`` lists: it says whether the other verdicts mean anything.
 """
 
 from __future__ import annotations
@@ -27,13 +29,18 @@ from collections.abc import Iterator, Mapping, Sequence
 
 from aatest.engine.interfaces import SensorDatasheet
 from aatest.engine.procedure.models import Acceptance
+from aatest.metrology.logger_rails import QUANTITY as RAILS
+from aatest.metrology.logger_rails import clipped_channels
 from aatest.metrology.uncertainty.statistics import finite
 from aatest.metrology.verdicts_limits import QUANTITY_UNITS
 from aatest.metrology.verdicts_missing import Listed, limit_of, missing
 from aatest.results import RunResults
 from aatest.results.base import DecisionRule, Overall, Verdict, VerdictValue
+from aatest.results.quantities import QUANTITIES
 from aatest.results.scale_factor import ScaleFactorHeadline
 
+#: unit of the logger-rail verdict's value and limit in results.json
+RAILS_UNIT = QUANTITIES[RAILS].json_unit
 #: verdicts from best to worst; the overall verdict is the worst one
 SEVERITY: tuple[VerdictValue, ...] = ("pass", "conditional-pass", "conditional-fail", "fail")
 
@@ -257,12 +264,18 @@ def judge(results: RunResults, sheets: Mapping[str, SensorDatasheet],
         out += [verdict(sensor, item, _sheet_of_sensor(sensor, sheets))
                 for sensor, item in _misalignment(results)]
     out = [v for v in out if chosen is None or v.quantity in chosen]
+    out += [Verdict(quantity=RAILS, channel=ch, value=float(n), limit=0.0, rule=acceptance.rule,
+                    verdict=decide(n, 0.0, None, acceptance.rule), unit=RAILS_UNIT,
+                    limit_source="logger")
+            for ch, n in clipped_channels(results, sheets).items()]
     return out + missing(results, out, sheets, acceptance, listed, installed)
 
 
 def overall(verdicts: Sequence[Verdict]) -> Overall:
     """The worst verdict; ``incomplete`` when something asked was not judged and nothing is
-    worse than a conditional pass; ``none`` when nothing was judged or asked."""
+    worse than a conditional pass; ``none`` when nothing was judged or asked. A passed
+    logger-rail verdict alone is no conformity with a specification: it leaves ``none``."""
+    verdicts = [v for v in verdicts if not (v.quantity == RAILS and v.verdict == "pass")]
     judged = [v.verdict for v in verdicts if v.verdict != "not judged"]
     worst: Overall = max(judged, key=SEVERITY.index) if judged else "none"
     if len(judged) < len(verdicts) and worst in ("pass", "conditional-pass", "none"):

@@ -116,7 +116,7 @@ def verdict_rows(results: RunResults) -> list[VerdictRow]:
         text = ("not measured" + (f" ({v.reason})" if v.reason else "") if v.value is None
                 else round_measurement(v.value, v.expanded_uncertainty,
                                        digits=q.digits).text(q.unit))
-        limit_text = "—" if v.limit is None else f"±{q.value_text(v.limit)} {q.unit}".rstrip()
+        limit_text = q.limit_text(v.limit)
         rows.append(VerdictRow(
             v.quantity, q.name, v.channel, v.value, v.expanded_uncertainty, v.limit, q.unit,
             v.rule, v.verdict, text, limit_text))

@@ -9,6 +9,7 @@ where the data came from and can always be re-run offline. Its per-channel senso
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Container, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,7 @@ from typing import TYPE_CHECKING, Any, overload
 from aatest.engine.datasheet import SensorAxis, SensorInfo
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.recording import extremes
 
 if TYPE_CHECKING:
     from aatest.storage.location import RemotePath
@@ -58,6 +60,11 @@ class StepData:
         """Sample count (samples, no unit) of the ``"table"`` or ``"daq"`` log."""
         return len(self.table if source == "table" else self.daq)
 
+    def daq_extremes(self) -> dict[str, extremes.Extremes]:
+        """Each sensor channel's ``[least, samples at it, largest, samples at it]``
+        (:mod:`aatest.recording.extremes`)."""
+        return extremes.of_log(self.daq)
+
 
 class LazyStepData(StepData):
     """A recorded step whose two logs are decoded from their source when first read.
@@ -68,11 +75,14 @@ class LazyStepData(StepData):
     """
 
     def __init__(self, step: PlannedStep, index: int, load: LogLoader,
-                 samples: Mapping[str, int]) -> None:
+                 samples: Mapping[str, int],
+                 extremes_of: Callable[[], dict[str, extremes.Extremes]] | None = None
+                 ) -> None:
         object.__setattr__(self, "step", step)
         object.__setattr__(self, "_index", index)
         object.__setattr__(self, "_load", load)
         object.__setattr__(self, "_samples", dict(samples))
+        object.__setattr__(self, "_extremes_of", extremes_of)
         object.__setattr__(self, "_logs", {})
 
     def _log(self, source: str) -> SampledLog:
@@ -95,6 +105,15 @@ class LazyStepData(StepData):
         """Sample count (samples, no unit) of a log, from its record: nothing is decoded."""
         known: dict[str, int] = self.__dict__["_samples"]
         return known[source] if source in known else len(self._log(source))
+
+    def daq_extremes(self) -> dict[str, extremes.Extremes]:
+        """The sensor channels' extremes: as the step record notes them, else found by a
+        decode of the sensor channels only (piece by piece where the source allows it)."""
+        extremes_of: Callable[[], dict[str, extremes.Extremes]] | None = (
+            self.__dict__["_extremes_of"])
+        if extremes_of is None:
+            return super().daq_extremes()
+        return extremes_of()
 
     def __repr__(self) -> str:
         return f"LazyStepData(step={self.step.id!r}, index={self.__dict__['_index']})"
@@ -173,10 +192,14 @@ class LazySteps(Sequence[StepData]):
     """
 
     def __init__(self, planned: Sequence[PlannedStep], load: LogLoader,
-                 samples: Sequence[Mapping[str, int]], pieces: PieceLoader | None = None
+                 samples: Sequence[Mapping[str, int]], pieces: PieceLoader | None = None,
+                 noted_extremes: Sequence[Mapping[str, extremes.Extremes] | None] | None = None
                  ) -> None:
         if len(samples) != len(planned):
             raise ValueError("one sample-count record per planned step is needed")
+        if noted_extremes is not None and len(noted_extremes) != len(planned):
+            raise ValueError("one extremes record (or None) per planned step is needed")
+        self._noted_extremes = tuple(noted_extremes or (None,) * len(planned))
         self.planned = tuple(planned)
         self._load = load
         self._pieces = pieces
@@ -197,10 +220,25 @@ class LazySteps(Sequence[StepData]):
         if isinstance(index, slice):
             return [self[i] for i in range(*index.indices(len(self)))]
         i = range(len(self))[index]  # IndexError and negative indices as for a tuple
-        return LazyStepData(self.planned[i], i, self._load, self._samples[i])
+        return LazyStepData(self.planned[i], i, self._load, self._samples[i],
+                            functools.partial(self._extremes, i))
 
     def __iter__(self) -> Iterator[StepData]:
         return (self[i] for i in range(len(self)))
+
+    def _extremes(self, index: int) -> dict[str, extremes.Extremes]:
+        """Step ``index``'s sensor-channel extremes: the record's note (written since the
+        recording noted them), else a decode of the sensor channels alone."""
+        noted = self._noted_extremes[index]
+        if noted is not None:
+            return {name: list(values) for name, values in noted.items()}
+        sensors = NamesStartingWith(extremes.SENSOR_PREFIX)
+        if self._pieces is None:
+            return extremes.of_log(self._load(index, "daq", sensors))
+        found: dict[str, extremes.Extremes] = {}
+        for piece in self._pieces(index, "daq", sensors):
+            found = extremes.merged_logs(found, extremes.of_log(piece))
+        return found
 
     def partial(self, index: int, channels: Mapping[str, Container[str]]) -> StepData:
         """Step ``index`` with only some channels decoded (and the time stamps), by source.

@@ -418,7 +418,8 @@ def _build_dataset(
         entry = ordered[index]
         return _load_pieces(entry, log_source, entry.chunks, channels)
 
-    steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered], pieces)
+    steps = LazySteps([e.step for e in ordered], load, [e.samples for e in ordered], pieces,
+                      [e.record.get("daq_extremes") for e in ordered])
     rate = run_meta.get("sample_rate_hz") or (
         ordered[0].step.sample_rate_hz if ordered else LOG_RATE_HZ
     )

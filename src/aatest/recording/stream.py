@@ -28,7 +28,7 @@ from mcap.stream_reader import StreamReader
 
 from aatest.engine.errors import StorageFault
 from aatest.engine.logs import DAQ, SampledLog
-from aatest.recording import codec, proto
+from aatest.recording import codec, extremes, proto
 from aatest.recording import format as fmt
 from aatest.recording.channels import CHUNK_BYTES, register_channels
 from aatest.recording.mcap_io import ChunkedWriter
@@ -82,6 +82,7 @@ class DaqSpool:
         self.last_log_ns: int | None = None
         self.sample_rate_hz: float | None = None
         self.quantisation: dict[str, tuple[float, float]] = {}
+        self.extremes: dict[str, extremes.Extremes] = {}
         self._pending: list[Message] = []
         self._pending_bytes = 0
         self._closed = False
@@ -134,6 +135,7 @@ class DaqSpool:
             if self._pending_bytes >= CHUNK_BYTES:
                 self._flush()
         self._preview.add(part)
+        self.extremes = extremes.merged_logs(self.extremes, extremes.of_log(part))
         self.blocks += len(times_ns)
         self.samples += len(part)
         self.first_log_ns = times_ns[0] if self.first_log_ns is None else self.first_log_ns
@@ -213,6 +215,7 @@ class DaqSpool:
             "daq_samples": self.samples,
             "daq_log_time_ns": span,
             "daq_quantisation": {k: list(v) for k, v in self.quantisation.items()},
+            "daq_extremes": self.extremes,
         }
 
     def blocks_with_digest(self, digest: str) -> Iterator[Message]:

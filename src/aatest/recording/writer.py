@@ -28,9 +28,9 @@ from mcap.records import Channel, Message, Schema
 
 import aatest
 from aatest.engine.errors import RecordingError, StorageFault
-from aatest.engine.logs import SampledLog
+from aatest.engine.logs import DAQ, SampledLog
 from aatest.engine.steps import PlannedStep
-from aatest.recording import codec, preview
+from aatest.recording import codec, extremes, preview
 from aatest.recording import format as fmt
 from aatest.recording.channels import CHUNK_BYTES, register_channels
 from aatest.recording.mcap_io import ChunkedWriter
@@ -188,6 +188,8 @@ def step_record(
             f"{source}_log_time_ns": [times_ns[0], times_ns[-1]] if times_ns else [],
             f"{source}_quantisation": {k: list(v) for k, v in log.quantisation.items()},
         }
+        if source == DAQ:
+            record["daq_extremes"] = extremes.of_log(log)
     return record
 
 

@@ -19,8 +19,9 @@ VerdictValue = Literal["pass", "fail", "conditional-pass", "conditional-fail", "
 #: the overall verdict of a run: ``none`` when nothing was judged, ``incomplete`` when something
 #: asked was not judged and nothing failed (never ``pass``: not measured is never passed)
 Overall = Literal["pass", "fail", "conditional-pass", "conditional-fail", "incomplete", "none"]
-#: where a limit came from: the procedure's ``acceptance.limits`` or the sensor's datasheet
-LimitSource = Literal["procedure", "datasheet"]
+#: where a limit came from: the procedure's ``acceptance.limits``, the sensor's datasheet, or
+#: the logger (no sample at its input range's rails, :mod:`aatest.metrology.logger_rails`)
+LimitSource = Literal["procedure", "datasheet", "logger"]
 
 
 #: the analyses' own pass/fail flags, written before verdicts moved into the engine (schema 1)
@@ -105,5 +106,6 @@ class Verdict(ResultModel):
     verdict: VerdictValue
     unit: str = Field("", description="unit of value, limit and U")
     limit_source: LimitSource | None = Field(
-        None, description="procedure: acceptance.limits; datasheet: the sensor's datasheet")
+        None, description="procedure: acceptance.limits; datasheet: the sensor's datasheet; "
+        "logger: the sensor logger's input range")
     reason: str = Field("", description="why a quantity was not judged (empty when judged)")

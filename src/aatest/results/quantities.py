@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from aatest.results._fields import finite
-from aatest.results.digits import U_DIGITS, significant
+from aatest.results.digits import COUNT, U_DIGITS, significant
 from aatest.results.rounding import measurement_text
 
 __all__ = [
@@ -52,6 +52,15 @@ class Quantity:
         U the value keeps the quantity's significant digits."""
         return measurement_text(value, u, self.unit, digits=self.digits)
 
+    def limit_text(self, limit: float | None) -> str:
+        """The acceptance limit as a person reads it: ``±1.000 %`` on a value's magnitude,
+        ``at most 0 samples`` for a count (a count has no sign)."""
+        if limit is None:
+            return "—"
+        if self.digits == COUNT:
+            return f"at most {self.show(limit)}"
+        return f"±{self.show(limit)}"
+
 
 def _q(key: str, name: str, unit: str, digits: int, json_unit: str | None = None) -> Quantity:
     return Quantity(key, name, unit, digits, unit if json_unit is None else json_unit)
@@ -79,6 +88,8 @@ QUANTITIES: dict[str, Quantity] = {q.key: q for q in (
     _q("bias_temperature_v_per_c", "Bias temperature coefficient", "V/°C", 4),
     _q("scale_temperature_per_c", "Scale-factor temperature coefficient", "1/°C", 4),
     _q("noise_rms_v", "Output noise (RMS)", "V", 3),
+    # judged on every run whose logger is stated (aatest.metrology.logger_rails)
+    _q("samples_at_logger_rails", "Samples at the logger's input-range limits", "samples", COUNT),
 )}
 
 #: a person's name of each analysis (results.json ``analysis`` key)

@@ -102,6 +102,25 @@ class StepMounting(ResultModel):
         return {k: v for k, v in dumped.items() if v is not None}
 
 
+def _extremes_rows(value: Any) -> Any:
+    """The step record's ``[least, samples, largest, samples]`` lists as field mappings."""
+    if isinstance(value, dict):
+        return {k: dict(zip(ChannelExtremes.model_fields, v, strict=True))
+                if isinstance(v, list | tuple) else v for k, v in value.items()}
+    return value
+
+
+class ChannelExtremes(ResultModel):
+    """The least and the largest value one sensor channel logged in a step, with the number of
+    samples at each (:mod:`aatest.recording.extremes`): a clipped channel holds many samples at
+    its logger's rail."""
+
+    least_v: Real = Field(description="least finite value logged, V")
+    samples_at_least: int = Field(ge=0, description="samples at exactly that value")
+    largest_v: Real = Field(description="largest finite value logged, V")
+    samples_at_largest: int = Field(ge=0, description="samples at exactly that value")
+
+
 class StepSummary(ResultModel):
     """One recorded step: the planned step (docs/interfaces.md §1 ``steps``) and its samples.
 
@@ -127,6 +146,9 @@ class StepSummary(ResultModel):
     mounting: StepMounting = Field(default_factory=StepMounting)
     table_samples: int | None = None
     daq_samples: int | None = None
+    daq_extremes: Annotated[dict[str, ChannelExtremes] | None, BeforeValidator(_extremes_rows)] = (
+        Field(None, description="each sensor channel's extremes in the step (absent in results "
+              "written before they were kept)"))
     status: str | None = None
 
     @model_serializer(mode="wrap")

@@ -25,5 +25,5 @@ def banner(results: RunResults) -> dict[str, Any]:
                      "verdict": v.verdict,
                      # as the certificate prints them: value ± U rounded per GUM 7.2.6
                      "measured": q.show(v.value, v.expanded_uncertainty),
-                     "limit_text": "±" + q.show(v.limit), "rule": v.rule})
+                     "limit_text": q.limit_text(v.limit), "rule": v.rule})
     return {"overall": results.overall, "verdicts": rows, "judged_by": "results"}

@@ -31,7 +31,7 @@ def step_summaries(data: Dataset) -> list[dict[str, Any]]:
     for sd in data.steps:
         row = sd.step.model_dump(mode="json", exclude_none=True)
         row.update(table_samples=sd.samples("table"), daq_samples=sd.samples("daq"),
-                   status="recorded")
+                   daq_extremes=sd.daq_extremes(), status="recorded")
         rows.append(row)
     return rows
 

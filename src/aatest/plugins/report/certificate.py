@@ -212,9 +212,14 @@ def reference_traceability(results: RunResults) -> tuple[list[tuple[str, str]], 
 
 
 def _conformity(results: RunResults, rule: str) -> str:
-    if not results.verdicts:
-        return "No conformity statement: no quantity was judged against a specification."
-    sources = {v.limit_source for v in results.verdicts if v.limit_source}
+    rails = (" Each sensor channel's record is also checked against the sensor logger's stated "
+             "input range: any sample at its limits means the logger clipped the output, and "
+             "that channel fails." if any(v.limit_source == "logger" for v in results.verdicts)
+             else "")
+    if all(v.limit_source == "logger" for v in results.verdicts):
+        return ("No conformity statement: no quantity was judged against a specification."
+                + rails)
+    sources = {v.limit_source for v in results.verdicts if v.limit_source} - {"logger"}
     origin = {frozenset({"procedure"}): "the procedure's acceptance limits",
               frozenset({"datasheet"}): "the sensor's datasheet limits"}.get(
         frozenset(sources), "the procedure's acceptance limits and, where it sets none, the "
@@ -222,6 +227,7 @@ def _conformity(results: RunResults, rule: str) -> str:
     text = (f"Conformity with {origin}, decided by the engine under the decision rule "
             f"'{rule}' (ILAC-G8): overall {results.overall}; each judged quantity with its "
             "limit (and where the limit came from), U and verdict is listed below.")
+    text += rails
     if results.overall == "incomplete":
         text += (" The calibration is incomplete: quantities the procedure asked for were not "
                  "measured (marked 'not judged', with the reason).")
