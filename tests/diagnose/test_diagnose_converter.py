@@ -75,3 +75,21 @@ def test_a_play_within_one_converter_step_is_not_hysteresis() -> None:
     named = [f for f in fine["findings"] if f["effect"] == "hysteresis"]
     assert named, fine["candidates"]
     assert named[0]["parameters"]["half_width_dps2"] == pytest.approx(r, rel=0.25)
+
+
+
+def test_steps_the_logger_clipped_are_left_out_of_the_diagnosis() -> None:
+    """A 0…3.6 V logger under the 400 °/s² sines (2.5 V ± 1.6 V) holds their tops at its top
+    code. Fitted, those flat tops made the clean twin's diagnosis name a cubic non-linearity
+    (c3 ≈ −0.44) the sensor does not have; the clipped steps are left out and named, and the
+    rest of the plan shows nothing to explain."""
+    rig = clean_rig(3)
+    rig = rig.model_copy(update={"daq": rig.daq.model_copy(update={"adc_range_v": (0.0, 3.6)})})
+    data = simulate_dataset(rig, diagnostic_plan(2**12), 3, procedure="diagnose-scenario")
+    top = {s.step.id: s.daq.channels["v_sz"].max() for s in data.steps}
+    at_rail = {step for step, v in top.items() if v == 3.6 - 3.6 / 2**16}  # exact in binary
+    assert at_rail == {s.step.id for s in data.steps if (s.step.accel_dps2 or 0) >= 300}
+    doc = diagnose_dataset(data)
+    assert set(doc["steps_clipped"]) == at_rail
+    assert all(at["v_sz"] > 0 for at in doc["steps_clipped"].values())
+    assert doc["findings"] == [], doc["findings"]

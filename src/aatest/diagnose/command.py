@@ -54,6 +54,11 @@ def summary(doc: dict[str, Any]) -> str:
     if doc.get("steps_skipped"):
         lines.append("steps left out (no sync edges, no trigger): "
                      + ", ".join(doc["steps_skipped"]))
+    if doc.get("steps_clipped"):
+        clipped = [f"{step} ({', '.join(f'{ch}: {n} samples' for ch, n in at.items())})"
+                   for step, at in doc["steps_clipped"].items()]
+        lines.append("steps left out (the logger clipped them: samples at the rails of its "
+                     "input range): " + ", ".join(clipped))
     for c in doc["candidates"]:
         if not c.get("accepted") and c.get("delta_bic") is not None and c["delta_bic"] < 0:
             lines.append(f"not accepted {c['effect']} ({c.get('channel', '')}): ΔBIC "

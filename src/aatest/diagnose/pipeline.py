@@ -262,6 +262,7 @@ def _diagnose_with(dataset: Dataset, replay: Replay, corner: float | None, sourc
                                  "step_v": converter.step_v, "source": converter_source}},
         "residuals": views,
         "steps_skipped": list(replay.skipped),
+        "steps_clipped": replay.clipped,
     }
     doc["verdict"] = verdict(doc)
     return doc

@@ -20,6 +20,7 @@ from aatest.clocksync.edges import joint_slope_range
 from aatest.clocksync.freeze_pulse import ClockRelation, SyncedStep, clock_relation, synchronise
 from aatest.engine.errors import AnalysisError
 from aatest.engine.steps import PlannedStep
+from aatest.metrology.logger_rails import converter_of, noted_at_rails
 from aatest.recording.dataset import Dataset, StepData
 from aatest.twin import kinematics as kin
 
@@ -309,6 +310,8 @@ class Replay:
     fp_latch: bool
     t_ref_c: float
     skipped: tuple[str, ...] = field(default=())
+    #: steps left out because the logger clipped them: step id → {channel: samples at a rail}
+    clipped: dict[str, dict[str, int]] = field(default_factory=dict)
 
     @property
     def dt_s(self) -> float:
@@ -326,14 +329,16 @@ def replay_dataset(dataset: Dataset) -> Replay:
     channels = [s.channel for s in dataset.sensors]
     steps: list[StepReplay] = []
     skipped: list[str] = []
-    for data, relation in _relations(dataset):
+    clipped = clipped_steps(dataset)
+    for data, relation in _relations(dataset, set(clipped)):
         synced = _synchronised(data, relation)
         if synced is None:
             skipped.append(data.step.id)
             continue
         steps.append(replay_step(len(steps), synced, channels))
     if not steps:
-        raise AnalysisError(f"{dataset.source}: no step could be synchronised")
+        raise AnalysisError(f"{dataset.source}: no step could be synchronised" + (
+            f" ({len(clipped)} left out: the logger clipped them)" if clipped else ""))
     fp = all("fp_latch_s" in s.table.channels for s in dataset.steps)
     present = dataset.metadata.get("fp_latch_s_present")
     if present is not None:
@@ -343,7 +348,28 @@ def replay_dataset(dataset: Dataset) -> Replay:
     if not isinstance(t_ref, (int, float)) and isinstance(model, dict):
         t_ref = model.get("t_ref_c")
     return Replay(dataset, tuple(steps), tuple(channels), fp,
-                  float(t_ref) if isinstance(t_ref, (int, float)) else 25.0, tuple(skipped))
+                  float(t_ref) if isinstance(t_ref, (int, float)) else 25.0, tuple(skipped),
+                  clipped)
+
+
+def clipped_steps(dataset: Dataset) -> dict[str, dict[str, int]]:
+    """Recorded steps whose sensor channels hold samples at the rails of the data's stated
+    logger (:mod:`aatest.metrology.logger_rails`): step id → {channel: samples}.
+
+    Why they are left out: a clipped record's flat tops are the logger's, and a sensor model
+    fitted to them names effects the sensor does not have (a 0…3.6 V logger under 2.5 ± 1.6 V
+    sines made a clean twin's diagnosis name a cubic non-linearity c3 = −0.44).
+    """
+    logger = converter_of(dataset.metadata)[0]
+    found = {}
+    for data in dataset.steps:
+        if not data.step.recorded:
+            continue
+        counts = {ch: noted_at_rails(noted, logger)
+                  for ch, noted in data.daq_extremes().items()}
+        if any(counts.values()):
+            found[data.step.id] = {ch: n for ch, n in counts.items() if n}
+    return found
 
 
 def _relation_or_none(data: StepData, slope_range: tuple[float, float] | None = None
@@ -355,8 +381,10 @@ def _relation_or_none(data: StepData, slope_range: tuple[float, float] | None = 
         return None
 
 
-def _relations(dataset: Dataset) -> list[tuple[StepData, ClockRelation | None]]:
-    """Every recorded step with its clock relation, one DAQ crystal across the steps.
+def _relations(dataset: Dataset, left_out: set[str]
+               ) -> list[tuple[StepData, ClockRelation | None]]:
+    """Every recorded step (but those ``left_out``) with its clock relation, one DAQ crystal
+    across the steps.
 
     Without latch times a step's edges bound the drift only to about one sample over its record
     (≈ 120 ppm on a 4 s record at 2 kHz); the centre of that range can sit tens of ppm off, and
@@ -366,7 +394,7 @@ def _relations(dataset: Dataset) -> list[tuple[StepData, ClockRelation | None]]:
     (:func:`~aatest.clocksync.edges.joint_slope_range`); the offsets left open stay a nuisance of
     the nominal fit (:mod:`aatest.diagnose.alignment`).
     """
-    recorded = [d for d in dataset.steps if d.step.recorded]
+    recorded = [d for d in dataset.steps if d.step.recorded and d.step.id not in left_out]
     first = [_relation_or_none(d) for d in recorded]
     found = [r for r in first if r is not None]
     joint = None if any(r.latched for r in found) else joint_slope_range(found)

@@ -23,6 +23,7 @@ from typing import Any
 
 from aatest.engine.rig_description import LoggerSpec
 from aatest.engine.simulation import metadata_of, simulated_parts
+from aatest.recording import extremes
 from aatest.results import RunResults
 from aatest.results.root import ChannelExtremes, StepSummary
 
@@ -70,6 +71,12 @@ def samples_at_rails(step: ChannelExtremes, logger: LoggerSpec) -> int:
     if step.largest_v >= high_v - rail_tolerance_v(logger, high_v):
         count += step.samples_at_largest
     return count
+
+
+def noted_at_rails(noted: extremes.Extremes, logger: LoggerSpec) -> int:
+    """:func:`samples_at_rails` of a channel's extremes as a step record notes them."""
+    return samples_at_rails(ChannelExtremes.model_validate(
+        dict(zip(ChannelExtremes.model_fields, noted, strict=True))), logger)
 
 
 def clipped_samples(steps: Iterable[StepSummary], channel: str, logger: LoggerSpec
