@@ -194,3 +194,16 @@ def test_own_plot_only_where_the_analysis_gave_none(results: RunResults, run_dir
     results.figures = {}
     html = FrequencyResponseReport().render(results, run_dir, None).read_text()
     assert "Bode v_sz" in html
+
+
+def test_diagnosis_report_names_the_steps_it_left_out(run_dir: Path) -> None:
+    """Steps the logger clipped and steps that could not be synchronised are listed with why,
+    so a reader knows the diagnosis did not see them."""
+    document = {**DIAGNOSIS, "steps_clipped": {"f1-a400": {"v_sz": 412}},
+                "steps_skipped": ["s007"]}
+    text = _visible_text(DiagnosisReport().render(document, run_dir, None).read_text())
+    assert "Left out, the logger clipped them" in text
+    assert "f1-a400 (v_sz: 412 samples)" in text
+    assert "Left out, not synchronised (no sync edges, no trigger): s007." in text
+    plain = _visible_text(DiagnosisReport().render(DIAGNOSIS, run_dir, None).read_text())
+    assert "Left out" not in plain

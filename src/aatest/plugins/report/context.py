@@ -249,4 +249,8 @@ def build_diagnosis_context(document: Mapping[str, Any], run_dir: Path) -> dict[
                            "lines": _strongest_lines(v.get("spectrum_lines") or [])}
                       for ch, v in sorted(residuals.items()) if isinstance(v, Mapping)},
         "figures": figures,
+        "steps_clipped": [(str(step), sorted((str(ch), n) for ch, n in at.items()))
+                          for step, at in (diag.get("steps_clipped") or {}).items()
+                          if isinstance(at, Mapping)],
+        "steps_skipped": [str(step) for step in diag.get("steps_skipped") or []],
     }
