@@ -1,8 +1,10 @@
 """A sensor logger that clips is found: each channel's samples at the rails of its input range.
 
-The twin quantises with the stated logger (``instruments.logger`` of the rig description), so a
-logger whose range ends below the sensor's output clips the twin's sine exactly as a real one
-would; the count is checked against the fraction of the sine's period above the rail.
+Before anything moves, a plan whose nominal sensor output reaches the stated logger's rails is
+refused (:mod:`aatest.preflight.logger_range`). A unit off nominal can still clip: the twin
+runs one whose zero-g output is 2.9 V (the sr207's nominal is 2.5 V) through a 0…4.3 V logger,
+and the samples at the rail are checked against the same unit logged, seed for seed, by a
+±10 V logger that does not clip.
 """
 
 from __future__ import annotations
@@ -25,7 +27,6 @@ from aatest.metrology.logger_rails import (
     rail_tolerance_v,
     samples_at_rails,
 )
-from aatest.plugins.sensors.sr207 import SR207
 from aatest.recording import extremes, read_dataset
 from aatest.results import RunResults
 from aatest.results.root import ChannelExtremes
@@ -46,21 +47,36 @@ analysis: [sync, reference, scale_factor]
 acceptance: {{judge: [scale_factor_deviation_pct]}}
 report: {{template: calibration-certificate, sign: false}}
 """
-RIG = """\
-turntable: {plugin: sim}
-instruments:
-  logger: {bits: 16, range_v: [0, 4]}
+#: a unit 0.4 V above its nominal zero-g output (2.9 + 1.6 V peaks) and the logger it is
+#: recorded with: the twin's model file states the converter, the rig description the same
+UNIT = """\
+sensors:
+  - {{channel: v_sz, axis: I, bias_v: 2.9}}
+daq: {{adc_bits: 16, adc_range_v: [{low}, {high}]}}
 """
+RIG = """\
+turntable: {{plugin: sim}}
+daq: {{plugin: sim, model: "{unit}"}}
+instruments:
+  logger: {{bits: 16, range_v: [{low}, {high}]}}
+"""
+#: the top rail of the clipping logger, V: above the nominal unit's 4.106 V peak, below this one's
+TOP_V = 4.3
 
 
-def _run(tmp: Path, rig: str | None) -> tuple[int, dict, Path]:
+def _files(tmp: Path, low: float, high: float) -> Path:
+    (tmp / "p.yaml").write_text(PROCEDURE, encoding="utf-8")
+    (tmp / "unit.yaml").write_text(UNIT.format(low=low, high=high), encoding="utf-8")
+    (tmp / "rig.yaml").write_text(RIG.format(low=low, high=high, unit=tmp / "unit.yaml"),
+                                  encoding="utf-8")
+    return tmp / "rig.yaml"
+
+
+def _run(tmp: Path, rig: Path | None) -> tuple[int, dict, Path]:
     (tmp / "p.yaml").write_text(PROCEDURE, encoding="utf-8")
     args = ["run", str(tmp / "p.yaml"), "--out", str(tmp / "run"), "--no-progress",
             "--seed", "5", "--records", f"sqlite:///{tmp / 'records.db'}"]
-    if rig is not None:
-        (tmp / "rig.yaml").write_text(rig, encoding="utf-8")
-        args += ["--rig", str(tmp / "rig.yaml")]
-    done = RUNNER.invoke(app, args)
+    done = RUNNER.invoke(app, args + (["--rig", str(rig)] if rig is not None else []))
     assert done.exception is None or isinstance(done.exception, SystemExit), done.output
     return done.exit_code, json.loads((tmp / "run" / "results.json").read_text()), tmp / "run"
 
@@ -125,29 +141,45 @@ def test_only_a_stated_or_simulated_logger_is_judged() -> None:
 
 
 def test_a_clipping_logger_fails_the_run_with_its_samples_at_the_rail(tmp_path: Path) -> None:
-    code, results, run_dir = _run(tmp_path, RIG)
+    (tmp_path / "clip").mkdir()
+    code, results, run_dir = _run(tmp_path / "clip", _files(tmp_path / "clip", 0.0, TOP_V))
     assert code == 1
     rails = [v for v in results["verdicts"] if v["quantity"] == "samples_at_logger_rails"]
     assert [(v["channel"], v["verdict"], v["limit_source"]) for v in rails] == [
         ("v_sz", "fail", "logger")]
-    # the recorded codes: every sample at the rail is one the recording holds at 4 V − q
+    q = TOP_V / 2**16
+    # every sample at the rail is one the recording holds at its top code, 4.3 V − q
     volts = read_dataset(run_dir).steps[0].daq.channels["v_sz"]
-    at_rail = int(np.count_nonzero(volts >= 4.0 - CLIPPING.step_v))
-    assert rails[0]["value"] == at_rail
-    # the physics: 2.5 V + k·a·sin exceeds 4 V for acos(x)/π of each period, x = (4 − b)/(k·a);
-    # bounded by the datasheet's bias (±0.01 V) and scale (±1 %) bands and the logger's
-    # stated offset (±1 mV) and gain (±0.1 %)
-    sheet = SR207().datasheet()
-    swing_v = REFERENCE_SCALE_V_PER_DPS2 * ACCEL_DPS2
-    worst = [(4.0 - REFERENCE_BIAS_V - db) / (swing_v * (1 + dk))
-             for db in (-(sheet.bias_tolerance_v + 0.001), sheet.bias_tolerance_v + 0.001)
-             for dk in (-(sheet.scale_tolerance_pct + 0.1) / 100,
-                        (sheet.scale_tolerance_pct + 0.1) / 100)]
-    fractions = [math.acos(x) / math.pi for x in worst]
-    assert min(fractions) * SAMPLES <= at_rail <= max(fractions) * SAMPLES
+    assert rails[0]["value"] == np.count_nonzero(volts >= TOP_V - q) > 0.1 * SAMPLES
+    # the physics: the same unit and seed logged by a ±10 V logger goes above the rail's
+    # rounding boundary (4.3 V − 1.5 q) in as many samples, within one sample at each of the
+    # 20 crossings of the 10 periods (the two loggers round differently near the boundary)
+    (tmp_path / "wide").mkdir()
+    code, _, wide_dir = _run(tmp_path / "wide", _files(tmp_path / "wide", -10.0, 10.0))
+    assert code == 0
+    wide = read_dataset(wide_dir).steps[0].daq.channels["v_sz"]
+    above = int(np.count_nonzero(wide >= TOP_V - 1.5 * q))
+    assert abs(rails[0]["value"] - above) <= 2 * FREQUENCY_HZ * SAMPLES / 2000.0
     certificate = (run_dir / "report.html").read_text(encoding="utf-8")
     assert "Samples at the logger&#39;s input-range limits" in certificate
     assert "the logger clipped the output" in certificate
+
+
+def test_a_plan_the_nominal_unit_would_clip_is_refused_before_anything_moves(tmp_path: Path
+                                                                            ) -> None:
+    """The nominal sr207 peaks at 2.5 + 0.004014 × 400 = 4.106 V: a 0…4 V logger refuses the
+    step at its place in the procedure, in ``validate`` and before ``run`` records anything."""
+    rig = _files(tmp_path, 0.0, 4.0)
+    checked = RUNNER.invoke(app, ["validate", str(tmp_path / "p.yaml"), "--rig", str(rig)])
+    assert checked.exit_code == 2
+    assert "p.yaml:6:5: steps.0.sine: step" in checked.output  # the sine entry
+    assert "puts out 0.894…4.11 V" in checked.output and "0…4 V" in checked.output
+    done = RUNNER.invoke(app, ["run", str(tmp_path / "p.yaml"), "--rig", str(rig), "--out",
+                               str(tmp_path / "run"), "--no-progress"])
+    assert done.exit_code == 2 and not (tmp_path / "run").exists()
+    ok = RUNNER.invoke(app, ["validate", str(tmp_path / "p.yaml"), "--rig",
+                             str(_files(tmp_path, 0.0, TOP_V))])
+    assert ok.exit_code == 0, ok.output
 
 
 def test_a_logger_with_headroom_passes_with_no_sample_at_a_rail(tmp_path: Path) -> None:

@@ -153,7 +153,8 @@ def test_validate_json_lists_every_check_with_status_and_message(tmp_path: Path)
     doc = json.loads(result.output)
     status = {c["name"]: c["status"] for c in doc["checks"]}
     assert status == {"procedure": "ok", "plugins": "ok", "report template": "failed",
-                      "plan": "ok", "analysable steps": "ok", "disk space": "ok",
+                      "plan": "ok", "analysable steps": "ok", "logger range": "ok",
+                      "disk space": "ok",
                       "lab profile": "ok", "signing key": "ok", "records store": "ok"}
     assert doc["ok"] is False and all(c["message"] for c in doc["checks"])
     (failed,) = [c for c in doc["checks"] if c["status"] == "failed"]

@@ -3,7 +3,8 @@
 ``aatest validate`` and the first phase of ``aatest run`` run the same checks, in this order:
 the procedure (schema, analysis names and options), every plugin name, the report template
 (it loads in the sandbox), the plan (envelope, each analysis' requirements), whether the listed
-analyses can use every planned step, the free disk space for the planned recording, the lab
+analyses can use every planned step, whether the sensor's nominal output stays inside the stated
+logger's input range (:mod:`.logger_range`), the free disk space for the planned recording, the lab
 profile, the signing key and its passphrase, and the records store (reachable, at the schema
 head). Every failed check is a located problem (``FILE:LINE:COLUMN``) and exit 2; ``validate
 --json`` lists each check with its status and message. A check that depends on a failed one is
@@ -30,8 +31,11 @@ from typing import Any, Literal
 from aatest.engine import plan_checks, registry
 from aatest.engine.errors import AatestError, InputError, Problem, ProblemsError
 from aatest.preflight import site_checks
+from aatest.preflight.logger_range import logger_range_problems
 
 Status = Literal["ok", "failed", "skipped"]
+#: the checks that read the plan, in order (skipped when it cannot be made)
+_PLAN_CHECKS = ("analysable steps", "logger range", "disk space")
 
 
 @dataclass(frozen=True)
@@ -179,7 +183,7 @@ def _plan(report: Preflight, path: Path, rig: Path | None, site: Site) -> None:
                     f"{plan.lab_duration_s:.1f} s")
 
     if not report.add("plan", *_guard(run)):
-        for name in ("analysable steps", "disk space"):
+        for name in _PLAN_CHECKS:
             report.skip(name, "plan")
         return
     prepared = report.prepared
@@ -187,6 +191,7 @@ def _plan(report: Preflight, path: Path, rig: Path | None, site: Site) -> None:
     report.add("analysable steps", problems,
                "every listed analysis can use the planned steps, the chamber can soak as asked"
                if not problems else "a planned step cannot be analysed or soaked as asked")
+    report.add("logger range", *_guard(lambda: logger_range_problems(prepared)))
     report.add("disk space", *plan_checks.disk_problems(prepared, site.out_dir or Path("runs")))
 
 
@@ -197,7 +202,7 @@ def preflight(procedure: Path, rig: Path | None, site: Site | None = None) -> Pr
     report = Preflight()
     proc = _procedure(report, procedure)
     if proc is None:
-        for name in ("plugins", "report template", "plan", "analysable steps", "disk space"):
+        for name in ("plugins", "report template", "plan", *_PLAN_CHECKS):
             report.skip(name, "procedure")
     else:
         plugins_ok = _rig_and_plugins(report, proc, rig)
@@ -205,7 +210,7 @@ def preflight(procedure: Path, rig: Path | None, site: Site | None = None) -> Pr
         if plugins_ok:
             _plan(report, procedure, rig, site)
         else:
-            for name in ("plan", "analysable steps", "disk space"):
+            for name in ("plan", *_PLAN_CHECKS):
                 report.skip(name, "plugins")
     report.add("lab profile", *_guard(lambda: site_checks.lab_check(site.lab)))
     report.add("signing key", *_guard(lambda: site_checks.key_check(site.key, proc)))
