@@ -131,6 +131,8 @@ def test_only_a_stated_or_simulated_logger_is_judged() -> None:
     assert converter_of({})[1] == DEFAULT_SOURCE
     assert judged({}) == {}  # a real logger, range not stated
     assert judged({"simulated_parts": ["daq:sim"]}) == {"v_sz": 40}  # the twin's ±10 V
+    own = {"plugin": "sim", "model": "unit.yaml"}  # the twin with a model file: its own logger
+    assert judged({"simulated_parts": ["daq:sim"], "rig": {"daq": own}}) == {}
     def stated(range_v: list[float]) -> dict:
         return {"rig": {"instruments": {"logger": {"range_v": range_v}}}}
 

@@ -11,9 +11,10 @@ whatever ``acceptance.judge`` lists, because it says whether the other verdicts 
 
 Which converter: the rig description's ``instruments.logger`` recorded with the data, else the
 data's rig model. Otherwise the default logger (±10 V, 16 bit) is what a simulated logger
-quantised with, so a run on the twin's logger is judged against it; for a real logger it is an
-assumption, not a statement, so such a run gets no rail verdict rather than one judged against
-a range the logger may not have.
+quantised with, so a run on the twin's logger is judged against it — unless the twin was given
+a model file of its own, whose converter the run metadata does not hold; for a real logger the
+default is an assumption, not a statement. Either run gets no rail verdict rather than one
+judged against a range the logger may not have.
 """
 
 from __future__ import annotations
@@ -52,6 +53,16 @@ def converter_of(metadata: Mapping[str, Any]) -> tuple[LoggerSpec, str]:
         return (LoggerSpec(bits=daq["adc_bits"], range_v=tuple(daq["adc_range_v"])),
                 "the data's rig model")
     return LoggerSpec(), DEFAULT_SOURCE
+
+
+def twin_logger_is_default(metadata: Mapping[str, Any]) -> bool:
+    """Whether the run's logger is the twin's own, with the default converter: a simulated
+    DAQ without a model file of its own (a model file states its own converter, which the run
+    metadata does not hold)."""
+    rig = metadata.get("rig")
+    daq = rig.get("daq") if isinstance(rig, Mapping) else None
+    own_model = isinstance(daq, Mapping) and bool(daq.get("model"))
+    return not own_model and any(p.startswith("daq:") for p in simulated_parts(metadata))
 
 
 def rail_tolerance_v(logger: LoggerSpec, rail_v: float) -> float:
@@ -93,8 +104,7 @@ def clipped_channels(results: RunResults, channels: Iterable[str]) -> dict[str, 
     docstring); empty when the run states no logger or its recording noted nothing."""
     metadata = metadata_of(results)
     logger, source = converter_of(metadata)
-    if source == DEFAULT_SOURCE and not any(
-            part.startswith("daq:") for part in simulated_parts(metadata)):
+    if source == DEFAULT_SOURCE and not twin_logger_is_default(metadata):
         return {}
     counts = {ch: clipped_samples(results.steps, ch, logger) for ch in channels}
     return {ch: n for ch, n in counts.items() if n is not None}

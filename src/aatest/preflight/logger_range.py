@@ -20,9 +20,8 @@ from typing import Any
 from aatest.engine.errors import Problem
 from aatest.engine.rig_description import LoggerSpec
 from aatest.engine.run.rig import sensor_datasheet
-from aatest.engine.simulation import simulated_parts
 from aatest.engine.steps import PlannedStep, SensorRef
-from aatest.metrology.logger_rails import rail_tolerance_v
+from aatest.metrology.logger_rails import rail_tolerance_v, twin_logger_is_default
 from aatest.positioned_yaml import locate
 
 
@@ -32,8 +31,7 @@ def checked_logger(rig_config: Any) -> LoggerSpec | None:
     if instruments is not None and "logger" in instruments.model_fields_set:
         return instruments.logger
     daq = rig_config.daq
-    twin = simulated_parts({"rig": {"daq": {"plugin": daq.plugin}}})
-    if twin and not (daq.options or {}).get("model"):
+    if twin_logger_is_default({"rig": {"daq": {"plugin": daq.plugin, **(daq.options or {})}}}):
         return LoggerSpec()
     return None
 
