@@ -86,8 +86,8 @@ def samples_at_rails(step: ChannelExtremes, logger: LoggerSpec) -> int:
 
 def noted_at_rails(noted: extremes.Extremes, logger: LoggerSpec) -> int:
     """:func:`samples_at_rails` of a channel's extremes as a step record notes them."""
-    return samples_at_rails(ChannelExtremes.model_validate(
-        dict(zip(ChannelExtremes.model_fields, noted, strict=True))), logger)
+    return samples_at_rails(ChannelExtremes.model_validate(ChannelExtremes.fields_of(noted)),
+                            logger)
 
 
 def clipped_samples(steps: Iterable[StepSummary], channel: str, logger: LoggerSpec

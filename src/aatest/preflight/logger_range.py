@@ -52,28 +52,25 @@ def logger_range_problems(prepared: Any) -> tuple[list[Problem], str]:
     low_v, high_v = logger.range_v
     floor_v, ceiling_v = (low_v + rail_tolerance_v(logger, low_v),
                           high_v - rail_tolerance_v(logger, high_v))
-    worst: dict[tuple[Any, ...], tuple[float, PlannedStep, int]] = {}
+    clipping: dict[tuple[Any, ...], list[tuple[float, PlannedStep]]] = {}
     for step in prepared.plan.steps:
         if not step.recorded:
             continue
         swing_v = abs(sheet.nominal_scale_v_per_dps2) * peak_accel_dps2(step)
         over_v = max(sheet.nominal_bias_v + swing_v - ceiling_v,
                      floor_v - (sheet.nominal_bias_v - swing_v))
-        if over_v < 0.0:
-            continue
-        path = tuple(prepared.expansion.sources.get(step.id, ("steps",)))
-        before = worst.get(path)
-        count = before[2] + 1 if before else 1
-        worst[path] = (over_v, step, count) if not before or over_v > before[0] else (
-            before[0], before[1], count)
+        if over_v >= 0.0:
+            path = tuple(prepared.expansion.sources.get(step.id, ("steps",)))
+            clipping.setdefault(path, []).append((over_v, step))
     message = (f"the sensor's nominal output stays inside the logger's {low_v:g}…{high_v:g} V "
                f"(rails less {rail_tolerance_v(logger, high_v) * 1e3:.2f} mV)")
     filename = proc.source_file or f"<{proc.procedure}>"
     problems = []
-    for path, (_over, step, count) in worst.items():
+    for path, found in clipping.items():
+        _over, worst = max(found, key=lambda item: item[0])
         line, column = locate(proc.source_tree, path) if proc.source_tree is not None else (1, 1)
         problems.append(Problem(filename, line, column, ".".join(map(str, path)),
-                                _clips(step, count, sheet, logger)))
+                                _clips(worst, len(found), sheet, logger)))
     return problems, message if not problems else "a planned step would clip at the logger"
 
 

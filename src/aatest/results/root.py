@@ -8,6 +8,7 @@ The engine assembles it after the analysis pass; the uncertainty and verdict sta
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Annotated, Any
 
 from pydantic import BeforeValidator, ConfigDict, Field, model_serializer, model_validator
@@ -105,8 +106,8 @@ class StepMounting(ResultModel):
 def _extremes_rows(value: Any) -> Any:
     """The step record's ``[least, samples, largest, samples]`` lists as field mappings."""
     if isinstance(value, dict):
-        return {k: dict(zip(ChannelExtremes.model_fields, v, strict=True))
-                if isinstance(v, list | tuple) else v for k, v in value.items()}
+        return {k: ChannelExtremes.fields_of(v) if isinstance(v, list | tuple) else v
+                for k, v in value.items()}
     return value
 
 
@@ -119,6 +120,12 @@ class ChannelExtremes(ResultModel):
     samples_at_least: int = Field(ge=0, description="samples at exactly that value")
     largest_v: Real = Field(description="largest finite value logged, V")
     samples_at_largest: int = Field(ge=0, description="samples at exactly that value")
+
+    @classmethod
+    def fields_of(cls, noted: Sequence[float]) -> dict[str, float]:
+        """The fields of ``[least, samples at it, largest, samples at it]``, as the step
+        record notes them (:data:`aatest.recording.extremes.Extremes`)."""
+        return dict(zip(cls.model_fields, noted, strict=True))
 
 
 class StepSummary(ResultModel):
