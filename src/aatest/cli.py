@@ -464,6 +464,7 @@ def analyze(
                                       help=_JSON_SUMMARY_HELP),
 ) -> None:
     """Analyse recorded or imported data and write results.json and the report."""
+    from aatest.bundle.signing_key import signing_key
     from aatest.engine.run import session
 
     started = time.monotonic()
@@ -473,7 +474,7 @@ def analyze(
     wall = session.run_wall_duration(where) if where.is_dir() else None
     with _registering(records, lab, "analyze"):
         results = session.analyse_and_report(
-            where, target, key_path=session.signing_key(sign_key), wall_duration_s=wall
+            where, target, key_path=signing_key(sign_key), wall_duration_s=wall
         )
     if json_out is not None:
         from aatest.engine.analysis.results_file import results_json
@@ -568,7 +569,7 @@ def _keygen_passphrase() -> str:
     import sys
 
     from aatest.bundle.signing import SigningError
-    from aatest.engine.run.session import PASSPHRASE_ENV
+    from aatest.bundle.signing_key import PASSPHRASE_ENV
 
     secret = os.environ.get(PASSPHRASE_ENV) or (
         typer.prompt("passphrase", hide_input=True, confirmation_prompt=True)

@@ -32,9 +32,9 @@ def lab_check(lab: Path | None) -> Outcome:
 def key_check(key: Path | None, proc: Any) -> Outcome:
     """The signing key opens with ``AATEST_SIGNING_PASSPHRASE``; none leaves the report
     unsigned, which fails when the procedure ``proc`` (None: it did not load) asks for a
-    signed report (:func:`aatest.engine.run.session.signing_problems`)."""
+    signed report (:func:`aatest.bundle.signing_key.signing_problems`)."""
     from aatest.bundle.signing import key_fingerprint, load_private_key
-    from aatest.engine.run.session import (
+    from aatest.bundle.signing_key import (
         PASSPHRASE_ENV,
         SIGNING_KEY_ENV,
         signing_key,

@@ -30,8 +30,9 @@ from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from aatest.engine.errors import AatestError, InputError
-from aatest.engine.run.session import UnitName, default_operator
+from aatest.engine.run.session import UnitName
 from aatest.fleet.station import fleet_page
+from aatest.run_operator import default_operator
 from aatest.station.catalogue import RUN_FILES, History, Procedures, sensor_models, validation
 from aatest.station.control import RunController
 from aatest.station.security import Asgi, Guard, HostRule

@@ -55,7 +55,7 @@ def load_signer(explicit: Path | None) -> Signer | None:
     import os
 
     from aatest.bundle import signing
-    from aatest.engine.run.session import PASSPHRASE_ENV, signing_key
+    from aatest.bundle.signing_key import PASSPHRASE_ENV, signing_key
 
     key_path = signing_key(explicit)
     if key_path is None:

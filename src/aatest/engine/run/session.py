@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from aatest.bundle import observers as bundle_observers
 from aatest.bundle import signing
+from aatest.bundle.signing_key import PASSPHRASE_ENV, signing_key, signing_problems
 from aatest.engine import registry
 from aatest.engine.analysis.passes import AnalysisResults, run_analyses
 from aatest.engine.analysis.results_file import (
@@ -28,7 +29,7 @@ from aatest.engine.analysis.results_file import (
     results_json,
     write_results,
 )
-from aatest.engine.errors import AatestError, InputError, Problem, ProcedureError
+from aatest.engine.errors import AatestError, InputError, ProcedureError
 from aatest.engine.interfaces import PdfRenderer
 from aatest.engine.procedure.models import Acceptance
 from aatest.engine.run.events import ConfirmPrompts, RunEvents, terminal_responder
@@ -48,6 +49,7 @@ from aatest.presentation.figures import drawing_aside, ready_to_draw
 from aatest.recording.dataset import Dataset
 from aatest.results import RunResults
 from aatest.results.root import Signature
+from aatest.run_operator import default_operator
 from aatest.storage import RemotePath, Where
 
 if TYPE_CHECKING:
@@ -58,9 +60,6 @@ log = logging.getLogger("aatest")
 #: how a run's prompts were confirmed (results metadata ``confirm_prompts``)
 PromptMode = Literal["ask", "auto", "station"]
 
-SIGNING_KEY_ENV = "AATEST_SIGNING_KEY"
-PASSPHRASE_ENV = "AATEST_SIGNING_PASSPHRASE"
-OPERATOR_ENV = "AATEST_OPERATOR"
 
 
 @dataclass(frozen=True)
@@ -147,41 +146,6 @@ def _declared_limits(rig_config: Any, sensor: SensorRef) -> tuple[Any, Any, tupl
     envelope = rig.turntable.envelope().model_copy(
         update={"streaming_daq": supports_streaming(rig.daq)})
     return envelope, rig.datasheet, tuple(rig.daq.channels())
-
-
-def signing_problems(proc: Any, key: Path | None) -> list[Problem]:
-    """A procedure that asks for a signed report (``report.sign: true``) with no signing key
-    configured: its run could only give an unsigned report, so it is refused at
-    ``report.sign``. ``key``: the key the run would sign with (None: none configured)."""
-    from aatest.positioned_yaml import locate
-
-    if key is not None or not proc.report.sign:
-        return []
-    line, col = locate(proc.source_tree, ("report", "sign")) if proc.source_tree else (1, 1)
-    return [Problem(proc.source_file or f"<{proc.procedure}>", line, col, "report.sign",
-                    "the procedure asks for a signed report and no signing key is configured: "
-                    f"give --sign-key or {SIGNING_KEY_ENV}, or set report.sign: false")]
-
-
-def default_operator() -> str:
-    """Who ran it: ``AATEST_OPERATOR``, else the login name."""
-    import getpass
-
-    try:
-        return os.environ.get(OPERATOR_ENV) or getpass.getuser()
-    except (KeyError, OSError):
-        return "unknown"
-
-
-def signing_key(explicit: Path | None) -> Path | None:
-    """The signing key: ``explicit`` (``--sign-key``), else ``AATEST_SIGNING_KEY``, else None.
-
-    None leaves the report unsigned (a warning, not an error: a bench run need not be signed).
-    """
-    if explicit is not None:
-        return explicit
-    env = os.environ.get(SIGNING_KEY_ENV)
-    return Path(env) if env else None
 
 
 @registry.pinned()  # the installed plugins are read once for the analysis
