@@ -132,6 +132,27 @@ def test_rig_file_errors_are_located(tmp_path: Path) -> None:
     assert any(m.startswith(f"{rig_file}:3:1: daq.") for m in messages)
 
 
+def test_rig_file_plugin_options_are_checked_and_located(tmp_path: Path) -> None:
+    """A plugin's bad option is refused as the rig file loads, at its own line and column,
+    in either form (flat beside ``plugin:`` or under ``options:``), with the unknown plugin
+    name at its ``plugin:`` — before, these errors named neither the file nor the line."""
+    rig_file = tmp_path / "rig.yaml"
+    rig_file.write_text("turntable: {plugin: sim, modle: twin.yaml}\n"
+                        "daq:\n  plugin: can\n  options:\n    bitrate: fast\n"
+                        "chamber:\n  plugin: expec\n")
+    with pytest.raises(ProcedureError) as info:
+        load_rig(rig_file)
+    assert info.value.exit_code == EXIT_BAD_INPUT
+    messages = [str(p) for p in info.value.problems]
+    assert messages[0] == (f"{rig_file}:1:26: turntable.modle: unknown option; "
+                           "did you mean 'model'?")
+    assert messages[1].startswith(f"{rig_file}:5:5: daq.options.bitrate: Input should be a "
+                                  "valid integer")
+    assert messages[2].startswith(f"{rig_file}:7:3: chamber.plugin: no chamber plugin named "
+                                  "'expec'")
+    assert len(messages) == 3
+
+
 def test_rig_from_procedure_uses_the_named_plugins() -> None:
     rig = rig_from_procedure(load_procedure(SHIPPED / "temperature-steps.yaml"))
     assert (rig.turntable.plugin, rig.daq.plugin, rig.chamber.plugin) == ("sim", "sim", "sim")

@@ -19,7 +19,7 @@ from aatest.engine import registry
 from aatest.engine.errors import AatestError, PluginError, Problem
 from aatest.engine.logs import TABLE_CHANNELS
 from aatest.engine.steps import PlannedStep
-from aatest.positioned_yaml import locate, parse_yaml, read_text
+from aatest.positioned_yaml import locate
 
 #: bytes of one logged value (every channel is float64 or packed narrower; float64 bounds it)
 VALUE_BYTES = 8
@@ -40,24 +40,18 @@ def _problem(filename: str, tree: Any, path: tuple[Any, ...], message: str) -> P
 
 def plugin_problems(proc: Any, rig_file: Path | None, rig_config: Any) -> list[Problem]:
     """Every plugin name that names no installed plugin: the sensor model, and the turntable,
-    DAQ and chamber of the rig file (``--rig``) or of the procedure's ``rig`` block."""
+    DAQ and chamber of the procedure's ``rig`` block (those of a rig file, ``--rig``, are
+    checked, with their options, as it loads: :func:`aatest.engine.procedure.loader.load_rig`)."""
     filename = proc.source_file or f"<{proc.procedure}>"
+    names = [(("sensor", "model"), "sensor", proc.sensor.model)]
+    if rig_file is None:
+        names += [(("rig", kind), kind, getattr(rig_config, kind).plugin) for kind in RIG_KINDS]
     problems = []
-    try:
-        registry.load("sensor", proc.sensor.model)
-    except PluginError as exc:
-        problems.append(_problem(filename, proc.source_tree, ("sensor", "model"), str(exc)))
-    rig_tree, rig_name = proc.source_tree, filename
-    if rig_file is not None:
-        rig_name = str(rig_file)
-        rig_tree, _data = parse_yaml(read_text(rig_file), rig_name)
-    for kind in RIG_KINDS:
-        name = getattr(rig_config, kind).plugin
+    for path, kind, name in names:
         try:
             registry.load(kind, name)
         except PluginError as exc:
-            path: tuple[Any, ...] = ("rig", kind) if rig_file is None else (kind, "plugin")
-            problems.append(_problem(rig_name, rig_tree, path, str(exc)))
+            problems.append(_problem(filename, proc.source_tree, path, str(exc)))
     return problems
 
 

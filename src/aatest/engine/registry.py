@@ -14,12 +14,14 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
 from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
 from aatest.engine.errors import PluginError
 from aatest.engine.interfaces import GROUPS
+from aatest.plugin_options import RIG_DIR
 
 #: methods each kind must implement (checked on the class, before anything is constructed)
 REQUIRED_METHODS: dict[str, tuple[str, ...]] = {
@@ -193,15 +195,17 @@ def discover(kind: str) -> list[PluginInfo]:
     return [load(kind, ep.name) for ep in entry_points(kind)]
 
 
-def configure(info: PluginInfo, options: dict[str, Any]) -> BaseModel | None:
-    """Validate a plugin's options against its own ``Config`` model."""
+def configure(info: PluginInfo, options: dict[str, Any], rig_dir: Path | None = None
+              ) -> BaseModel | None:
+    """Validate a plugin's options against its own ``Config`` model; ``rig_dir``, the rig
+    file's directory, is where a relative :data:`aatest.plugin_options.RigFilePath` lies."""
     model = info.config_model
     if model is None:
         if options:
             raise PluginError(f"{info.kind} plugin {info.name!r} takes no options")
         return None
     try:
-        return model.model_validate(options)
+        return model.model_validate(options, context={RIG_DIR: rig_dir})
     except ValidationError as exc:
         detail = "; ".join(
             f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"

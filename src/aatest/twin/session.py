@@ -10,6 +10,8 @@ different model files is a configuration error.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from aatest.engine.datasheet import SensorDatasheet
 from aatest.engine.errors import PluginError
 from aatest.engine.interfaces import RigContext
@@ -98,7 +100,8 @@ class TwinSession:
         return self._world
 
 
-def twin_session(context: RigContext | None, model_path: str | None = None) -> TwinSession:
+def twin_session(context: RigContext | None, model_path: str | Path | None = None
+                 ) -> TwinSession:
     """The twin session of this rig, created by the first simulated plugin that asks.
 
     Parameters
@@ -107,7 +110,8 @@ def twin_session(context: RigContext | None, model_path: str | None = None) -> T
         The rig context the engine handed the plugin; None (a plugin built on its own, e.g.
         in a test) gives a private session for the reference sensor.
     model_path
-        The rig-model YAML the asking plugin was configured with, if any.
+        The rig-model YAML the asking plugin was configured with, if any (a relative one
+        already resolved against the rig file, :data:`aatest.plugin_options.RigFilePath`).
     """
     if context is None:
         context = RigContext(sensor=SensorRef(model="reference"),
@@ -115,5 +119,5 @@ def twin_session(context: RigContext | None, model_path: str | None = None) -> T
     rig = context
     session = rig.resources.setdefault(TwinSession, lambda: TwinSession(
         rig.datasheet, rig.seed, instruments=rig.instruments))
-    session.claim(model_path)
+    session.claim(str(model_path) if model_path else None)
     return session

@@ -23,7 +23,15 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, StrictStr, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    StrictStr,
+    ValidationError,
+    model_validator,
+)
 
 from aatest.engine.errors import PluginError, Problem, ProcedureError
 from aatest.engine.procedure import models as _procedure_models
@@ -79,6 +87,13 @@ class RigConfig(BaseModel):
     references: tuple[str, ...] = Field(
         (), description="identifiers of the reference standards this rig uses, registered with "
         "`aatest references add`; an overdue one refuses a calibration before motion")
+    _rig_dir: Path | None = PrivateAttr(None)
+
+    @property
+    def rig_dir(self) -> Path | None:
+        """The rig file's directory, where its plugins' relative file options lie (None: the
+        procedure's ``rig`` block, :mod:`aatest.plugin_options`)."""
+        return self._rig_dir
 
 
 def _vocabulary() -> frozenset[str]:
@@ -204,8 +219,34 @@ def load_rig(path: str | Path) -> RigConfig:
     Kinds left out keep the simulated defaults (sim, sim, none). Options are not checked here;
     the registry validates them against the plugin's own ``Config`` model.
     """
-    rig, _tree = _guarded(str(path), read_text(Path(path)), RigConfig)
+    rig, tree = _guarded(str(path), read_text(Path(path)), RigConfig)
+    rig._rig_dir = Path(path).absolute().parent
+    problems = [p for kind in ("turntable", "daq", "chamber")
+                for p in _plugin_option_problems(rig, kind, tree, str(path))]
+    if problems:
+        raise ProcedureError(problems)
     return rig  # type: ignore[no-any-return]
+
+
+def _plugin_option_problems(rig: RigConfig, kind: str, tree: Any, filename: str
+                            ) -> list[Problem]:
+    """The ``kind`` plugin's options checked against its ``Config`` where the rig file gives
+    them, located (an unknown plugin name is located at its ``plugin:``)."""
+    from aatest.engine import registry
+
+    spec: PluginSpec = getattr(rig, kind)
+    try:
+        info = registry.load(kind, spec.plugin)
+        registry.configure(info, dict(spec.options), rig.rig_dir)
+    except PluginError as exc:
+        given = tree.get(kind)
+        where: tuple[Any, ...] = (kind, *(("options",) if isinstance(given, dict)
+                                          and "options" in given else ()))
+        if not isinstance(exc.__cause__, ValidationError):
+            return [Problem(filename, *locate(tree, (kind, "plugin")), f"{kind}.plugin", str(exc))]
+        fields = list(info.config_model.model_fields) if info.config_model else []
+        return _option_problems(exc.__cause__, where, fields, tree, filename)
+    return []
 
 
 def rig_from_procedure(proc: Procedure) -> RigConfig:

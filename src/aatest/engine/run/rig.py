@@ -13,6 +13,7 @@ import logging
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from aatest.engine import registry
@@ -81,11 +82,10 @@ def datasheets(metadata: Mapping[str, Any], sensors: Sequence[SensorInfo]
     return {info.channel: datasheet_from_info(info) for info in sensors}
 
 
-def _construct(
-    kind: str, name: str, options: dict[str, Any], context: RigContext
-) -> tuple[Any, str]:
+def _construct(kind: str, name: str, options: dict[str, Any], context: RigContext,
+               rig_dir: Path | None) -> tuple[Any, str]:
     info = registry.load(kind, name)
-    config = registry.configure(info, options)
+    config = registry.configure(info, options, rig_dir)
     try:
         plugin = info.target(config, context)
     except AatestError:
@@ -110,8 +110,7 @@ def build_rig(rig_config: Any, sensor: SensorRef, seed: int) -> Rig:
     for kind in ("turntable", "daq", "chamber"):
         spec = getattr(rig_config, kind)
         parts[kind], versions[f"{kind}:{spec.plugin}"] = _construct(
-            kind, spec.plugin, dict(spec.options), context
-        )
+            kind, spec.plugin, dict(spec.options), context, getattr(rig_config, "rig_dir", None))
         config[kind] = {"plugin": spec.plugin, **dict(spec.options)}
     instruments = getattr(rig_config, "instruments", None)
     if instruments is not None:  # the stated accuracies the uncertainty budgets read

@@ -6,6 +6,7 @@ from pydantic import BaseModel, ConfigDict
 
 from aatest.engine.errors import RigFault
 from aatest.engine.interfaces import RigContext, Stability
+from aatest.plugin_options import RigFilePath
 from aatest.twin.session import twin_session
 from aatest.twin.world import World
 
@@ -18,7 +19,7 @@ class SimChamber:
 
     class Config(BaseModel):
         model_config = ConfigDict(extra="forbid")
-        model: str | None = None
+        model: RigFilePath | None = None
 
     def __init__(self, config: Config, context: RigContext) -> None:
         self.config = config

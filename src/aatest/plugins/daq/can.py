@@ -32,7 +32,6 @@ import secrets
 import threading
 import time
 from collections.abc import Iterator, Sequence
-from pathlib import Path
 from typing import Literal
 
 import can
@@ -42,6 +41,7 @@ from aatest.engine.errors import RigFault, rig_boundary
 from aatest.engine.interfaces import RigContext
 from aatest.engine.logs import DAQ, DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.plugin_options import RigFilePath
 from aatest.plugins.daq.can_stream import ChunkAccount, loss_message
 from aatest.protocols import can_frames as cf
 from aatest.protocols.can_bus import open_bus, send
@@ -125,7 +125,7 @@ class CanDaq:
         response_timeout_s: float = Field(2.0, gt=0)
         frame_timeout_s: float = Field(5.0, gt=0, description="longest silence in a record")
         on_frame_loss: Literal["fault", "record"] = "fault"
-        dbc_file: Path | None = Field(None, description="decode sample frames with cantools")
+        dbc_file: RigFilePath | None = Field(None, description="decode sample frames with cantools")
 
     def __init__(self, config: Config | None, context: RigContext | None) -> None:
         self.config = config if config is not None else self.Config()

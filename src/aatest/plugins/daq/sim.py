@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict
 from aatest.engine.interfaces import RigContext
 from aatest.engine.logs import DAQ_AUX_CHANNELS, SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.plugin_options import RigFilePath
 from aatest.twin.defaults import SLIP_RING_RMS_V
 from aatest.twin.model import ExcessNoise
 from aatest.twin.session import twin_session
@@ -27,7 +28,7 @@ class SimDaq:
         """``slip_ring``: route the sensors through the slip ring instead of the on-table logger."""
 
         model_config = ConfigDict(extra="forbid")
-        model: str | None = None
+        model: RigFilePath | None = None
         slip_ring: bool = False
 
     def __init__(self, config: Config, context: RigContext) -> None:

@@ -19,6 +19,7 @@ from aatest.engine.interfaces import (
 )
 from aatest.engine.logs import SampledLog
 from aatest.engine.steps import PlannedStep
+from aatest.plugin_options import RigFilePath
 from aatest.twin.session import twin_session
 from aatest.twin.world import World
 
@@ -38,7 +39,7 @@ class SimTurntable:
         """
 
         model_config = ConfigDict(extra="forbid")
-        model: str | None = None
+        model: RigFilePath | None = None
         serial: str = "digital-twin"
         inner_limits: AxisLimits | None = None
         outer_limits: AxisLimits | None = None
