@@ -153,7 +153,8 @@ def test_validate_json_lists_every_check_with_status_and_message(tmp_path: Path)
     doc = json.loads(result.output)
     status = {c["name"]: c["status"] for c in doc["checks"]}
     assert status == {"procedure": "ok", "plugins": "ok", "report template": "failed",
-                      "plan": "ok", "analysable steps": "ok", "logger range": "ok",
+                      "plan": "ok", "analysable steps": "ok", "sensor channels": "ok",
+                      "logger range": "ok",
                       "disk space": "ok",
                       "lab profile": "ok", "signing key": "ok", "records store": "ok"}
     assert doc["ok"] is False and all(c["message"] for c in doc["checks"])
@@ -242,3 +243,45 @@ def test_the_long_static_step_alone_with_drift_is_analysable(tmp_path: Path) -> 
                                       *_records(tmp_path)])
     assert result.exit_code == 0, result.output
     assert "analysable steps: ok" in result.output
+
+
+def _one_sensor_twin(tmp_path: Path) -> Path:
+    """A rig whose twin is built from a model file of one sensor (``v_sz``), as a model
+    written for the single-axis sr207 is."""
+    import yaml
+
+    from aatest.plugins.sensors.sr207 import SR207
+    from aatest.twin.defaults import realistic_rig_model
+
+    model = realistic_rig_model(SR207().datasheet())
+    (tmp_path / "twin.yaml").write_text(yaml.safe_dump(model.model_dump(mode="json")))
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("turntable: {plugin: sim, model: twin.yaml}\n"
+                   "daq: {plugin: sim, model: twin.yaml}\n")
+    return rig
+
+
+def test_a_sensor_channel_the_daq_does_not_record_fails_before_motion(
+        tmp_path: Path, sent: Counter[str]) -> None:
+    """The three-axis sr207-aamu through that one-sensor twin: the run recorded every step,
+    then its bias analysis ended in an internal error (KeyError 'v_sy', exit 4)."""
+    rig = _one_sensor_twin(tmp_path)
+    path = _write(tmp_path, GOOD.replace("model: sr207,", "model: sr207-aamu,").replace(
+        "[sync, scale_factor]", "[sync]"))  # a plan the three axes can pass
+    _refused_before_motion(tmp_path, sent, [str(path), "--rig", str(rig), *_records(tmp_path)],
+                           f"{path}:2:10: sensor.model: sensor 'sr207-aamu' has the channels "
+                           "v_sz, v_sy, v_sx, but daq plugin 'sim' records v_sz, sync_pulse, "
+                           "trigger, temperature_c: v_sy, v_sx would not be recorded")
+    assert not (tmp_path / "run").exists()
+    single = CliRunner().invoke(app, ["validate", str(_write(tmp_path, GOOD)), "--rig", str(rig),
+                                      *_records(tmp_path)])
+    assert single.exit_code == 0, single.output  # the sensor the model was written for
+    assert "sensor channels: ok: sr207: v_sz, each recorded by daq plugin 'sim'" in single.output
+
+
+def test_a_bad_rig_option_fails_located_before_motion(tmp_path: Path, sent: Counter[str]) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("turntable: {plugin: sim}\ndaq:\n  plugin: sim\n  slip_rign: true\n")
+    _refused_before_motion(tmp_path, sent, [str(_write(tmp_path, GOOD)), "--rig", str(rig),
+                                            *_records(tmp_path)],
+                           f"{rig}:4:3: daq.slip_rign: unknown option; did you mean 'slip_ring'?")

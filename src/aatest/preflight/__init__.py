@@ -32,10 +32,11 @@ from aatest.engine import plan_checks, registry
 from aatest.engine.errors import AatestError, InputError, Problem, ProblemsError
 from aatest.preflight import site_checks
 from aatest.preflight.logger_range import logger_range_problems
+from aatest.preflight.sensor_channels import sensor_channel_problems
 
 Status = Literal["ok", "failed", "skipped"]
 #: the checks that read the plan, in order (skipped when it cannot be made)
-_PLAN_CHECKS = ("analysable steps", "logger range", "disk space")
+_PLAN_CHECKS = ("analysable steps", "sensor channels", "logger range", "disk space")
 
 
 @dataclass(frozen=True)
@@ -191,6 +192,7 @@ def _plan(report: Preflight, path: Path, rig: Path | None, site: Site) -> None:
     report.add("analysable steps", problems,
                "every listed analysis can use the planned steps, the chamber can soak as asked"
                if not problems else "a planned step cannot be analysed or soaked as asked")
+    report.add("sensor channels", *_guard(lambda: sensor_channel_problems(prepared)))
     report.add("logger range", *_guard(lambda: logger_range_problems(prepared)))
     report.add("disk space", *plan_checks.disk_problems(prepared, site.out_dir or Path("runs")))
 
