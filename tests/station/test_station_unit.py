@@ -9,13 +9,12 @@ page's Start does, and its published events are collected.
 from __future__ import annotations
 
 import json
-import threading
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import pytest
+from run_events import Events
 from served_rig import served_rig
 
 from aatest.engine.run.session import UnitName
@@ -36,19 +35,6 @@ report: {template: calibration-certificate, sign: false}
 """
 #: commands that move the table or record
 MOTION = {Command.START_MOTION, Command.ARM_LOG}
-
-
-@dataclass
-class Events:
-    """What the controller published, and a latch set by the run's last event."""
-
-    seen: list[dict[str, Any]] = field(default_factory=list)
-    ended: threading.Event = field(default_factory=threading.Event)
-
-    def __call__(self, event: dict[str, Any]) -> None:
-        self.seen.append(event)
-        if event["type"] == "finished" or (event["type"] == "stopped" and "exit_code" in event):
-            self.ended.set()
 
 
 @dataclass

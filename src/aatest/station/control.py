@@ -1,11 +1,13 @@
 """One run at a time, driven from the page: start, resume, answer prompts, abort.
 
 The run itself is exactly ``aatest run`` (:func:`aatest.engine.run.session.run`) in a worker
-thread, with the station's observer, responder and abort flag plugged into its events: the unit
-named on the page is passed as ``--serial``/``--model`` would be (an unnamed unit on a real rig
-is refused by the engine before anything moves), and the report is signed with the station's
-key as ``--sign-key`` would (the key is the station's configuration, never the browser's). The
-latest state is kept as a snapshot so a browser that connects mid-run sees the same page.
+thread, after the same preflight and reference-standard check (a start they refuse is answered
+with all their problems; nothing is built or moved), with the station's observer, responder
+and abort flag plugged into its events: the unit named on the page is passed as
+``--serial``/``--model`` would be (an unnamed unit on a real rig is refused by the engine
+before anything moves), and the report is signed with the station's key as ``--sign-key``
+would (the key is the station's configuration, never the browser's). The latest state is kept
+as a snapshot so a browser that connects mid-run sees the same page.
 """
 
 from __future__ import annotations
@@ -130,9 +132,9 @@ class RunController:
                 options: _Options) -> None:
         if self.busy:
             raise InputError("a run is in progress; wait for it or abort it first")
-        from aatest.engine.run.session import prepare
-
-        plan = prepare(path, self.rig_file, options.unit).plan
+        prepared = self._checked(path, run_dir, options.unit)
+        used = self._references()
+        plan = prepared.plan
         sheet, _version = sensor_datasheet(plan.sensor)
         sensors = [{"channel": s.channel, "axis": s.axis} for s in
                    sheet.sensor_infos(plan.sensor.serial)]
@@ -144,12 +146,42 @@ class RunController:
         self.emit({"type": "run_dir", "name": run_dir.name, "resume": resume,
                    "serial": plan.sensor.serial, "model": plan.sensor.model})
         self._thread = threading.Thread(
-            target=self._work, args=(path, run_dir, resume, operator, events, options),
+            target=self._work, args=(path, run_dir, resume, operator, events, options,
+                                     prepared, used),
             daemon=True)
         self._thread.start()
 
+    def _checked(self, path: Path, run_dir: Path, unit: UnitName) -> Any:
+        """The procedure prepared after the preflight of ``aatest run`` (docs/interfaces.md
+        "Preflight": plugins and their options, plan, sensor channels, logger range, disk
+        space, signing key, records store); a failed check refuses the start with every
+        problem at once, before the rig is built."""
+        from aatest.preflight import Site, preflight
+
+        checked = preflight(path, self.rig_file,
+                            Site(None, self.sign_key, self.records_url, run_dir, True, unit))
+        checked.raise_if_failed()
+        return checked.prepared
+
+    def _references(self) -> dict[str, Any]:
+        """The rig's reference standards checked as ``aatest run`` checks them (an unknown,
+        retired or overdue one refuses the start; a browser cannot override an overdue one),
+        as the results metadata the certificate prints; empty when the rig names none."""
+        from datetime import UTC, datetime
+
+        from aatest.engine.procedure.loader import load_rig
+        from aatest.records import references
+        from aatest.records.store import RecordStore
+
+        names = load_rig(self.rig_file).references if self.rig_file is not None else ()
+        if not names:
+            return {}
+        with RecordStore.open(self.records_url) as store:
+            return references.check(store, names, datetime.now(UTC).date(), None).metadata()
+
     def _work(self, path: Path, run_dir: Path, resume: bool, operator: str,
-              events: RunEvents, options: _Options) -> None:
+              events: RunEvents, options: _Options, prepared: Any,
+              used: dict[str, Any]) -> None:
         from aatest.engine.run import session
         from aatest.records.errors import RecordsUnavailable
         from aatest.records.hook import registering
@@ -160,11 +192,12 @@ class RunController:
         try:
             try:
                 # registered like `aatest run`: a certificate number, then the signed bundle
-                with registering(self.records_url, load_lab(), "run"), publishing(
+                with registering(self.records_url, load_lab(), "run") as registrar, publishing(
                         run_dir, self.archive / run_dir.name if self.archive else None):
+                    registrar.preflight = used  # the references the certificate names
                     session.run(path, self.rig_file, run_dir, resume, 0, self.sign_key,
                                 show_progress=False, operator=operator, events=events,
-                                unit=options.unit, pdf=options.pdf)
+                                unit=options.unit, pdf=options.pdf, prepared=prepared)
             except RecordsUnavailable as exc:
                 if not (run_dir / "results.json").is_file():
                     raise
