@@ -14,6 +14,8 @@ from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.recording import read_dataset
+from aatest.results import RunResults
+from aatest.results.root import UnitRef
 
 QUICK = Path(__file__).resolve().parents[1] / "data" / "procedures" / "quick-sine-3-steps.yaml"
 RUNNER = CliRunner()
@@ -132,3 +134,28 @@ def test_an_exported_simulation_analyses_as_a_simulation(twin: dict[str, Any], t
     assert results["metadata"]["simulated_parts"] == ["daq:sim", "turntable:sim"]
     assert results["metadata"]["kind"] == "simulation"
     assert results["certificate_number"].startswith("SIM-")
+
+
+@pytest.mark.parametrize("form", ["--csv", "--tdms", "--mf4"])
+def test_an_exported_run_analyses_as_the_same_unit(twin: dict[str, Any], tmp_path: Path,
+                                                  form: str) -> None:
+    """The unit a run calibrated is the unit its exported data names: the files state it per
+    channel (``sensors``), and the analysis of the import reports, numbers and registers that
+    unit. Before, the results kept no ``sensors`` and no unit: the terminal said ``Unit —``
+    and the records store filed the calibration under model 'unknown', serial 'unspecified'."""
+    out = tmp_path / form.strip("-")
+    assert _invoke("export", str(twin["run"]), form, str(out)).exit_code == 0
+    records = f"sqlite:///{tmp_path / 'records.sqlite'}"
+    done = _invoke("analyze", str(out), "--records", records)
+    assert done.exit_code == 0, done.output
+    assert "Unit             sr207 T0001" in done.output, done.output
+    results = RunResults.model_validate_json((out / "results.json").read_text())
+    assert [(s.channel, s.model, s.serial) for s in results.metadata.sensors] == [
+        ("v_sz", "sr207", "T0001")]
+    assert results.metadata.unit() == UnitRef(model="sr207", serial="T0001")
+    listed = _invoke("records", "list", "--include-simulations", "--records", records)
+    (row,) = [line for line in listed.output.splitlines() if "SIM-" in line]
+    assert row.split()[3:5] == ["sr207", "T0001"], row
+    report = (out / "report.html").read_text()  # the traceability table's sensor row
+    assert '<td class="t">v_sz</td><td class="t">I</td><td class="t">sr207</td>' \
+        '<td class="t">T0001</td>' in report

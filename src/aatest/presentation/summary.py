@@ -135,11 +135,10 @@ def summarise(results: RunResults, bundle: Where, command: str,
     ``wall_duration_s`` is the whole command's wall time (s), from start to this call;
     ``results.wall_duration_s`` stays the step loop's (the lab-to-wall ratio on record).
     """
-    unit = results.metadata.sensor
+    unit = results.metadata.unit()
     report = report_path(bundle)
     return RunSummary(
-        command=command, procedure=results.procedure,
-        model=unit.model if unit else None, serial=unit.serial if unit else None,
+        command=command, procedure=results.procedure, model=unit.model, serial=unit.serial,
         certified=certified_rows(results), verdicts=verdict_rows(results),
         overall=results.overall, certificate_number=results.certificate_number,
         results_path=str(bundle / "results.json"),

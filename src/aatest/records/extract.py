@@ -77,11 +77,10 @@ def verdict_rows(results: RunResults) -> list[dict[str, Any]]:
 
 
 def unit_of(results: RunResults) -> tuple[str, str]:
-    """``(sensor model, serial)`` of the calibrated unit, from the run metadata."""
-    unit = results.metadata.sensor
-    model = (unit.model if unit else None) or "unknown"
-    serial = unit.serial if unit else None
-    return model, serial or "unspecified"
+    """``(sensor model, serial)`` of the calibrated unit, from the run metadata
+    (:meth:`~aatest.results.root.RunMetadata.unit`)."""
+    unit = results.metadata.unit()
+    return unit.model or "unknown", unit.serial or "unspecified"
 
 
 def datasheet_limits(results: RunResults) -> dict[str, tuple[float, float]]:

@@ -22,7 +22,7 @@ from aatest.results.misalignment import MisalignmentResult
 from aatest.results.noise import DriftResult, NoiseResult
 from aatest.results.reference import ReferenceResult
 from aatest.results.scale_factor import ScaleFactorResult
-from aatest.results.sensor import SensorInfo
+from aatest.results.sensor import UNSTATED, SensorInfo
 from aatest.results.sync import SyncResult
 from aatest.results.temperature import TemperatureResult
 from aatest.results.transfer_function import TransferFunctionResult
@@ -236,6 +236,21 @@ class RunMetadata(ResultModel):
         dumped: dict[str, Any] = handler(self)
         return {k: v for k, v in dumped.items()
                 if k in self.model_fields_set or k in (self.model_extra or {})}
+
+    def unit(self) -> UnitRef:
+        """The calibrated unit: ``sensor`` as the procedure named it; else, per field, the
+        model and the serial that every channel's sensor record states alike (imported data
+        names its unit only per channel, in ``dataset.yaml`` or ``mapping.yaml``); a field
+        no record states, or that they state differently, stays None."""
+        if self.sensor is not None:
+            return self.sensor
+
+        def common(values: set[str]) -> str | None:
+            values -= {UNSTATED}
+            return values.pop() if len(values) == 1 else None
+
+        return UnitRef(model=common({s.model for s in self.sensors}),
+                       serial=common({s.serial for s in self.sensors}))
 
     def sensor_of(self, channel: str) -> SensorInfo:
         """The channel's sensor record, else the reference sensor's datasheet nominals."""

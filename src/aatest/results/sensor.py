@@ -46,13 +46,17 @@ class SensorNominals(BaseModel):
                                                  description="relative scale shift limit, 1/°C")
 
 
+#: a sensor record's model or serial when nothing states it
+UNSTATED = "unknown"
+
+
 class SensorInfo(SensorNominals):
     """One sensor channel as the engine records it and the analyses read it."""
 
     channel: str = Field(min_length=1)
     axis: SensorAxis = "I"
-    model: str = "unknown"
-    serial: str = "unknown"
+    model: str = UNSTATED
+    serial: str = UNSTATED
 
     @classmethod
     def from_metadata(cls, entry: Mapping[str, Any]) -> SensorInfo:

@@ -320,10 +320,9 @@ def results_summary(run_dir: Path) -> dict[str, Any]:
         return {"results_error": str(exc)}
     from aatest.engine.simulation import SIMULATION_TITLE, is_simulation
 
-    unit = results.metadata.sensor
+    unit = results.metadata.unit()
     return {**banner(results), "analysis_errors": dict(results.analysis_errors),
             "signed": results.signature is not None,
             # a run on any simulated part says so wherever its result is shown
             "simulation": SIMULATION_TITLE if is_simulation(results) else None,
-            "serial": unit.serial if unit is not None else None,
-            "model": unit.model if unit is not None else None}
+            "serial": unit.serial, "model": unit.model}

@@ -58,7 +58,7 @@ def build_results(
     computer time of the run (s). ``figures`` False: without the analyses' figures, for a
     caller that takes them later (they may still be drawn aside).
     """
-    meta = dict(data.metadata)
+    meta = {"sensors": [s.model_dump(mode="json") for s in data.sensors], **data.metadata}
     return RunResults(
         schema_version=SCHEMA_VERSION,
         procedure=data.procedure,

@@ -259,15 +259,9 @@ def _prompts(results: RunResults) -> tuple[list[dict[str, str]], str, bool]:
 
 
 def _item(results: RunResults) -> dict[str, Any]:
-    unit = results.metadata.sensor
-    channels = results.metadata.sensors
-    first = channels[0] if channels else None
-    return {"description": "angular accelerometer",
-            "model": (unit.model if unit else None) or (first.model if first else None)
-            or "not recorded",
-            "serial": (unit.serial if unit else None) or (first.serial if first else None)
-            or "not recorded",
-            "channels": channels}
+    unit = results.metadata.unit()
+    return {"description": "angular accelerometer", "model": unit.model or "not recorded",
+            "serial": unit.serial or "not recorded", "channels": results.metadata.sensors}
 
 
 def _method(results: RunResults, procedure_sha256: str) -> dict[str, str]:
