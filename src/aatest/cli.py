@@ -601,7 +601,8 @@ def keygen(
 @app.command()
 @guarded
 def verify(
-    report_file: str = typer.Argument(..., help="Signed report (path or URL)"),
+    report_file: str = typer.Argument(
+        ..., help="Signed report, or the bundle's directory (its signed report) (path or URL)"),
     public_key: Path | None = typer.Option(None, "--public-key",
                                            help="Trusted public key (beside the lab's keys)"),
     records: str | None = _RECORDS_OPT,
@@ -610,10 +611,14 @@ def verify(
     """Check a signed bundle, its signing key and its record: exit 0 untouched, 1 tampered,
     untrusted or wrong key."""
     from aatest.bundle import signing
+    from aatest.presentation.summary import signed_report
     from aatest.records.attest import signer_lines, trusted_keys
     from aatest.records.commands import simulation_note, verify_against_record
 
     report = _where(report_file)  # a missing local report is a finding (exit 1), a URL exit 2
+    if report.is_dir():  # the bundle's directory: the report signed in it
+        report = signed_report(report)
+        report_file = str(report)
     result = signing.verify_bundle(report, trusted_keys(lab, public_key))
     record_problems, note = verify_against_record(report, records)
     if (simulated := simulation_note(report)) is not None:

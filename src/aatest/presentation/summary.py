@@ -128,6 +128,17 @@ def report_path(bundle: Where) -> Where | None:
     return next((bundle / n for n in REPORT_FILES if (bundle / n).is_file()), None)
 
 
+def signed_report(bundle: Where) -> Where:
+    """The report of ``bundle`` to verify: the first with its detached signature beside it,
+    else the first there, else ``report.html`` (so that a bundle without any report is
+    verified as one whose report is missing: a finding, not a usage error)."""
+    from aatest.bundle.signature_format import signature_path
+
+    reports = [bundle / n for n in REPORT_FILES if (bundle / n).is_file()]
+    signed = [r for r in reports if signature_path(r).is_file()]
+    return (signed or reports or [bundle / REPORT_FILES[-1]])[0]
+
+
 def summarise(results: RunResults, bundle: Where, command: str,
               wall_duration_s: float) -> RunSummary:
     """The summary of ``results`` written to ``bundle`` by ``command``.

@@ -46,6 +46,19 @@ def test_untouched_bundle_exits_0_naming_key(signed_run: Path, key: Path) -> Non
     assert "no records store: bundle not checked against a record" in result.output
 
 
+def test_the_bundle_directory_verifies_as_its_signed_report(signed_run: Path, key: Path) -> None:
+    """Given the run directory, verify checks the report signed in it. Before, it took the
+    directory for a report: 'report missing: DIR not found' and 'results.json states no
+    certificate number' (the results beside the directory), exit 1 on an untouched bundle."""
+    result = RUNNER.invoke(app, ["verify", str(signed_run.parent), "--public-key", f"{key}.pub"])
+    assert result.exit_code == 0, result.output
+    assert f"{signed_run}: signature valid" in result.output
+    (signed_run.parent / "report.pdf").write_bytes(b"%PDF-1.7 printed after signing")
+    result = RUNNER.invoke(app, ["verify", str(signed_run.parent), "--public-key", f"{key}.pub"])
+    assert result.exit_code == 1  # still the signed report is checked: it names the new file
+    assert "report.pdf: present but not covered by the signature" in result.output
+
+
 @pytest.mark.parametrize("name", ["report.html", "results.json", "recording.mcap"])
 def test_one_byte_changed_exits_1_naming_the_file(signed_run: Path, key: Path, name: str) -> None:
     path = signed_run.parent / name
