@@ -51,9 +51,18 @@ class Context:
         return self.cache[spec]
 
     def scale_of(self, fit: Fit) -> float:
-        """K of a fit (V per °/s²); the datasheet value when the data cannot calibrate it."""
+        """K of a fit (V per °/s²); the datasheet value when the data cannot calibrate it:
+        no step moves the table, or the fitted K is below a thousandth of the datasheet's.
+
+        Why both: on a static record the acceleration column holds only rounding residue
+        once a table effect (motor vibration) is in the model, and its least-squares
+        coefficient is arbitrary — K = 2.6e135 V/(°/s²) was fitted on the static
+        multi-position twin data, which turned the g-sensitivity into 2.7e-138 (°/s²)/g
+        (truth 0.573) and wrote that K into ``--model-out``.
+        """
         nominal = self.info.nominal_scale_v_per_dps2
-        return fit.scale if abs(fit.scale) > 1e-3 * abs(nominal) else nominal
+        moving = any(step.dynamic for step in self.replay.steps)
+        return fit.scale if moving and abs(fit.scale) > 1e-3 * abs(nominal) else nominal
 
     @property
     def sigma2(self) -> float:
