@@ -111,3 +111,17 @@ def test_forced_terminal_draws_the_tables(runs: dict[str, Any]) -> None:
     plain = re.sub(r"\x1b\[[0-9;]*m", "", text)
     assert "─" in plain and "Wall time" in plain and "4.2 s (run" in plain
     assert summary.verdicts[0].name in plain and summary.overall in plain
+
+
+@pytest.mark.parametrize(("steps", "said"), [(1, "(1 step)"), (2, "(2 steps)")])
+def test_the_lab_time_counts_steps_in_words(steps: int, said: str) -> None:
+    from rich.console import Console
+
+    from aatest.presentation.summary import RunSummary
+    from aatest.presentation.terminal import facts_table
+
+    summary = RunSummary("run", "p", "sr207", "A1", [], [], "pass", None, "results.json", None,
+                         steps, 75.0, 0.2, 2.9)
+    console = Console(width=120, record=True)
+    console.print(facts_table(summary))
+    assert f"1 min 15 s {said}" in console.export_text()

@@ -71,7 +71,8 @@ def facts_table(summary: RunSummary) -> Table:
         ("Unit", unit),
         ("Report", summary.report_path or "—"),
         ("Results", summary.results_path),
-        ("Lab time", f"{duration_text(summary.lab_duration_s)} ({summary.steps} steps)"),
+        ("Lab time", f"{duration_text(summary.lab_duration_s)} ({summary.steps} "
+                     f"step{'s' * (summary.steps != 1)})"),
         ("Wall time", f"{duration_text(summary.wall_duration_s)} ({summary.command}; step "
                       f"loop {duration_text(summary.run_wall_duration_s)})"),
     ):
