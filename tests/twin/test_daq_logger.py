@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import yaml
 from twin_steps import static_step
 
-from aatest.engine.procedure.loader import RigConfig
+from aatest.engine.procedure.loader import RigConfig, load_rig
 from aatest.engine.rig_description import Instruments, LoggerSpec
 from aatest.engine.run.rig import build_rig
 from aatest.engine.steps import SensorRef
@@ -37,3 +40,19 @@ def test_a_stated_logger_is_the_twins_logger() -> None:
                     SensorRef(model="sr207"), seed=0)
     world = rig.context.resources.setdefault(TwinSession, lambda: None).world
     assert (world.model.daq.adc_bits, tuple(world.model.daq.adc_range_v)) == (12, (0.0, 5.0))
+
+
+def test_a_stated_logger_converts_the_twin_built_from_a_model_file(tmp_path: Path) -> None:
+    """The rig description states the logger for the twin of a model file too: before, the
+    model file's converter (here ±10 V, 16 bit) quantised the data while the rail verdict
+    and the budget read the stated one (0…5 V, 12 bit), so a clipping of the stated range
+    never showed in the data. A model file's converter stays when no logger is stated."""
+    model = realistic_rig_model()
+    (tmp_path / "twin.yaml").write_text(yaml.safe_dump(model.model_dump(mode="json")))
+    stated = "instruments:\n  logger: {bits: 12, range_v: [0, 5]}\n"
+    unstated = "instruments:\n  thermometer: {accuracy_c: 0.1}\n"
+    for instruments, expected in ((stated, (12, (0.0, 5.0))), (unstated, (16, (-10.0, 10.0)))):
+        (tmp_path / "rig.yaml").write_text("daq: {plugin: sim, model: twin.yaml}\n" + instruments)
+        rig = build_rig(load_rig(tmp_path / "rig.yaml"), SensorRef(model="sr207"), seed=0)
+        world = rig.context.resources.setdefault(TwinSession, lambda: None).world
+        assert (world.model.daq.adc_bits, tuple(world.model.daq.adc_range_v)) == expected

@@ -85,8 +85,11 @@ class TwinSession:
             else:
                 model = self.model if self.model is not None else realistic_rig_model(
                     self.datasheet)
-            if self.instruments is not None and not self.model_path:
-                # a stated logger is the twin's logger (the rig description is the one source)
+            if self.instruments is not None and (
+                    not self.model_path or "logger" in self.instruments.model_fields_set):
+                # a stated logger is the twin's logger (the rig description is the one source,
+                # which the rail verdict and the budget read): over a model file's converter
+                # too; the defaults only where no model file states one
                 model = model.model_copy(update={
                     "daq": model.daq.with_logger(self.instruments.logger)})
             if self.imperfections_seed is not None:
