@@ -404,6 +404,30 @@ def _sensors(run_meta: dict[str, Any], steps: LazySteps) -> tuple[SensorInfo, ..
     return tuple(SensorInfo(channel=ch) for ch in channels)
 
 
+def _check_recorded(sensors: tuple[SensorInfo, ...], entries: list[_StepEntry],
+                    source: Where) -> None:
+    """Every sensor the metadata names was logged in every step, as far as the step records
+    say: the writer notes each logged sensor channel's extremes (``daq_extremes``; older
+    recordings note none and are not checked here).
+
+    Why: a recording of a three-axis unit whose logger logged one channel (a rig since
+    refused by the preflight's "sensor channels" check) ended every analysis of the missing
+    channels in ``KeyError: 'v_sy'`` (exit 4); it is a recording that does not hold what its
+    metadata states, exit 2 naming the step and the channels.
+    """
+    for entry in entries:
+        noted = entry.record.get("daq_extremes")
+        if not isinstance(noted, dict):
+            continue
+        missing = [s.channel for s in sensors if s.channel not in noted]
+        if missing:
+            raise RecordingError(
+                f"{source}: step {entry.step.id} logged the sensor channel(s) "
+                f"{', '.join(noted) or 'none'}, not {', '.join(missing)}, which the run "
+                f"metadata names (sensors of {', '.join(s.channel for s in sensors)}): the "
+                "DAQ did not record every channel of the sensor under test")
+
+
 def _build_dataset(
     run_meta: dict[str, Any], entries: list[_StepEntry], source: Where, complete: bool
 ) -> Dataset:
@@ -430,10 +454,12 @@ def _build_dataset(
         "complete": complete,
         "recording": str(source),
     }
+    sensors = _sensors(run_meta, steps)
+    _check_recorded(sensors, ordered, source)
     return Dataset(
         procedure=procedure if isinstance(procedure, str) else "unknown",
         sample_rate_hz=float(rate),
-        sensors=_sensors(run_meta, steps),
+        sensors=sensors,
         steps=steps,
         source=source,
         metadata=metadata,
