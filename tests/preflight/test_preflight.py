@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from one_sensor_twin import one_sensor_twin
 from typer.testing import CliRunner
 
 from aatest.cli import app
@@ -245,27 +246,11 @@ def test_the_long_static_step_alone_with_drift_is_analysable(tmp_path: Path) -> 
     assert "analysable steps: ok" in result.output
 
 
-def _one_sensor_twin(tmp_path: Path) -> Path:
-    """A rig whose twin is built from a model file of one sensor (``v_sz``), as a model
-    written for the single-axis sr207 is."""
-    import yaml
-
-    from aatest.plugins.sensors.sr207 import SR207
-    from aatest.twin.defaults import realistic_rig_model
-
-    model = realistic_rig_model(SR207().datasheet())
-    (tmp_path / "twin.yaml").write_text(yaml.safe_dump(model.model_dump(mode="json")))
-    rig = tmp_path / "rig.yaml"
-    rig.write_text("turntable: {plugin: sim, model: twin.yaml}\n"
-                   "daq: {plugin: sim, model: twin.yaml}\n")
-    return rig
-
-
 def test_a_sensor_channel_the_daq_does_not_record_fails_before_motion(
         tmp_path: Path, sent: Counter[str]) -> None:
     """The three-axis sr207-aamu through that one-sensor twin: the run recorded every step,
     then its bias analysis ended in an internal error (KeyError 'v_sy', exit 4)."""
-    rig = _one_sensor_twin(tmp_path)
+    rig = one_sensor_twin(tmp_path)
     path = _write(tmp_path, GOOD.replace("model: sr207,", "model: sr207-aamu,").replace(
         "[sync, scale_factor]", "[sync]"))  # a plan the three axes can pass
     _refused_before_motion(tmp_path, sent, [str(path), "--rig", str(rig), *_records(tmp_path)],

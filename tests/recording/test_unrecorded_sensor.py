@@ -13,14 +13,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-import yaml
+from one_sensor_twin import one_sensor_twin
 from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.engine.errors import EXIT_BAD_INPUT, RecordingError
 from aatest.engine.run import session
-from aatest.plugins.sensors.sr207 import SR207
-from aatest.twin.defaults import realistic_rig_model
 
 PROCEDURE = """\
 procedure: three-axes-one-logged
@@ -37,11 +35,7 @@ SAYS = ("step s001-static-i0-o0 logged the sensor channel(s) v_sz, not v_sy, v_s
 
 
 def test_a_sensor_channel_the_steps_lack_is_a_recording_error(tmp_path: Path) -> None:
-    model = realistic_rig_model(SR207().datasheet())  # one sensor: v_sz
-    (tmp_path / "twin.yaml").write_text(yaml.safe_dump(model.model_dump(mode="json")))
-    rig = tmp_path / "rig.yaml"
-    rig.write_text("turntable: {plugin: sim, model: twin.yaml}\n"
-                   "daq: {plugin: sim, model: twin.yaml}\n")
+    rig = one_sensor_twin(tmp_path)
     (tmp_path / "p.yaml").write_text(PROCEDURE, encoding="utf-8")
     with pytest.raises(RecordingError) as raised:
         session.run(tmp_path / "p.yaml", rig, tmp_path / "run", False, 0, None, False,

@@ -14,17 +14,15 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import pytest
-import yaml
+from one_sensor_twin import one_sensor_twin
 from run_events import Events
 from typer.testing import CliRunner
 
 from aatest.cli import app
 from aatest.engine.errors import EXIT_BAD_INPUT, AatestError
 from aatest.engine.run.session import UnitName
-from aatest.plugins.sensors.sr207 import SR207
 from aatest.station.catalogue import Procedures, RunsDirHistory
 from aatest.station.control import RunController
-from aatest.twin.defaults import realistic_rig_model
 
 QUICK = Path(__file__).parent / "data" / "quick-scale-factor.yaml"
 TODAY = datetime.now(UTC).date()
@@ -49,11 +47,7 @@ def _refused(controller: RunController, events: Events, tmp_path: Path, says: st
 
 
 def test_a_plan_the_preflight_refuses_does_not_start(tmp_path: Path) -> None:
-    model = realistic_rig_model(SR207().datasheet())  # one sensor: v_sz
-    (tmp_path / "twin.yaml").write_text(yaml.safe_dump(model.model_dump(mode="json")))
-    rig = tmp_path / "rig.yaml"
-    rig.write_text("turntable: {plugin: sim, model: twin.yaml}\n"
-                   "daq: {plugin: sim, model: twin.yaml}\n")
+    rig = one_sensor_twin(tmp_path)
     three_axes = QUICK.read_text().replace("model: sr207,", "model: sr207-aamu,").replace(
         "[sync, reference, scale_factor]", "[sync]")
     controller, events = _controller(tmp_path, rig, three_axes)
