@@ -164,8 +164,8 @@ def _needed_by(users: list[str]) -> str:
 
 
 def refuse_unrunnable(prepared: Any, out_dir: Path) -> None:
-    """The plan-level preflight of a run that was not preflighted as a whole (a library or
-    station caller of ``session.run``): template, analysable steps, disk space; exit 2."""
+    """The plan-level preflight of a run not preflighted as a whole (a library caller of
+    ``session.run``; ``run`` and the station preflight): template, analysable steps, disk."""
     from aatest.engine.errors import ProcedureError
 
     problems = (template_problems(prepared.procedure) + analysable_problems(prepared)
