@@ -1,8 +1,8 @@
-"""Who runs a procedure when nobody says: the name a run records and its certificate prints.
+"""Who runs a procedure when nobody says: the name a run records and its report prints.
 
 Why one rule in one place: ``aatest run`` and the station both record an operator for every
-run (the certificate's "performed by"), and an operator given neither on the command line
-(``--operator``) nor in the station's start form must get the same name from both.
+run (the report's traceability table names it), and an operator given neither on the command
+line (``--operator``) nor in the station's start form must get the same name from both.
 """
 
 from __future__ import annotations

@@ -216,8 +216,8 @@ def load_procedure(path: str | Path) -> Procedure:
 def load_rig(path: str | Path) -> RigConfig:
     """Read a rig file: ``turntable``/``daq``/``chamber``, each ``{plugin: NAME, **options}``.
 
-    Kinds left out keep the simulated defaults (sim, sim, none). Options are not checked here;
-    the registry validates them against the plugin's own ``Config`` model.
+    Kinds left out keep the simulated defaults (sim, sim, none). Each plugin's options are
+    checked against its own ``Config`` model now, every problem located in the file.
     """
     rig, tree = _guarded(str(path), read_text(Path(path)), RigConfig)
     rig._rig_dir = Path(path).absolute().parent

@@ -61,7 +61,6 @@ log = logging.getLogger("aatest")
 PromptMode = Literal["ask", "auto", "station"]
 
 
-
 @dataclass(frozen=True)
 class UnitName:
     """The unit named at run time (``aatest run --serial SN [--model M]``, ``AATEST_SERIAL``)."""
