@@ -144,10 +144,10 @@ def test_rig_file_plugin_options_are_checked_and_located(tmp_path: Path) -> None
         load_rig(rig_file)
     assert info.value.exit_code == EXIT_BAD_INPUT
     messages = [str(p) for p in info.value.problems]
-    assert messages[0] == (f"{rig_file}:1:26: turntable.modle: unknown option; "
-                           "did you mean 'model'?")
-    assert messages[1].startswith(f"{rig_file}:5:5: daq.options.bitrate: Input should be a "
-                                  "valid integer")
+    assert messages[0] == (f"{rig_file}:1:26: turntable.modle: turntable plugin 'sim' "
+                           "(aatest): unknown option; did you mean 'model'?")
+    assert messages[1].startswith(f"{rig_file}:5:5: daq.options.bitrate: daq plugin 'can' "
+                                  "(aatest): Input should be a valid integer")
     assert messages[2].startswith(f"{rig_file}:7:3: chamber.plugin: no chamber plugin named "
                                   "'expec'")
     assert len(messages) == 3

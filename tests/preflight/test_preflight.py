@@ -269,4 +269,5 @@ def test_a_bad_rig_option_fails_located_before_motion(tmp_path: Path, sent: Coun
     rig.write_text("turntable: {plugin: sim}\ndaq:\n  plugin: sim\n  slip_rign: true\n")
     _refused_before_motion(tmp_path, sent, [str(_write(tmp_path, GOOD)), "--rig", str(rig),
                                             *_records(tmp_path)],
-                           f"{rig}:4:3: daq.slip_rign: unknown option; did you mean 'slip_ring'?")
+                           f"{rig}:4:3: daq.slip_rign: daq plugin 'sim' (aatest): unknown option; "
+                           "did you mean 'slip_ring'?")

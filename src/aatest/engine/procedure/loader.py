@@ -240,12 +240,13 @@ def _plugin_option_problems(rig: RigConfig, kind: str, tree: Any, filename: str
         registry.configure(info, dict(spec.options), rig.rig_dir)
     except PluginError as exc:
         given = tree.get(kind)
-        where: tuple[Any, ...] = (kind, *(("options",) if isinstance(given, dict)
-                                          and "options" in given else ()))
+        where = (kind, "options") if isinstance(given, dict) and "options" in given else (kind,)
         if not isinstance(exc.__cause__, ValidationError):
             return [Problem(filename, *locate(tree, (kind, "plugin")), f"{kind}.plugin", str(exc))]
         fields = list(info.config_model.model_fields) if info.config_model else []
-        return _option_problems(exc.__cause__, where, fields, tree, filename)
+        named = f"{kind} plugin {spec.plugin!r} ({info.distribution}): "
+        return [replace(p, message=named + p.message)
+                for p in _option_problems(exc.__cause__, where, fields, tree, filename)]
     return []
 
 
