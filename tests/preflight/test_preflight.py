@@ -156,7 +156,7 @@ def test_validate_json_lists_every_check_with_status_and_message(tmp_path: Path)
     assert status == {"procedure": "ok", "plugins": "ok", "report template": "failed",
                       "plan": "ok", "analysable steps": "ok", "sensor channels": "ok",
                       "logger range": "ok",
-                      "disk space": "ok",
+                      "disk space": "ok", "run directory": "ok",
                       "lab profile": "ok", "signing key": "ok", "records store": "ok"}
     assert doc["ok"] is False and all(c["message"] for c in doc["checks"])
     (failed,) = [c for c in doc["checks"] if c["status"] == "failed"]
@@ -271,3 +271,30 @@ def test_a_bad_rig_option_fails_located_before_motion(tmp_path: Path, sent: Coun
                                             *_records(tmp_path)],
                            f"{rig}:4:3: daq.slip_rign: daq plugin 'sim' (aatest): unknown option; "
                            "did you mean 'slip_ring'?")
+
+
+def test_a_run_never_writes_into_a_directory_of_other_files(tmp_path: Path,
+                                                          sent: Counter[str]) -> None:
+    """``--out`` holding an earlier ``analyze``'s bundle: the run replaced its signed report
+    and results.json, and signed the other files as its own. Refused now, files untouched;
+    an empty directory is taken."""
+    bundle = tmp_path / "bundle"
+    bundle.mkdir()
+    kept = {"report.html": b"<html>signed</html>", "report.html.sig": b"{}",
+            "results.json": b"{}"}
+    for name, data in kept.items():
+        (bundle / name).write_bytes(data)
+    path = _write(tmp_path, GOOD)
+    for command in (["validate"], ["run", "--no-progress", "--confirm-prompts", "auto"]):
+        result = CliRunner().invoke(app, [*command, str(path), "--out", str(bundle),
+                                          *_records(tmp_path)])
+        assert result.exit_code == 2, result.output
+        assert (f"{bundle} holds files that are not a run (report.html, report.html.sig, "
+                "results.json)") in result.output, result.output
+    assert sum(sent.values()) == 0, sent
+    assert {p.name: p.read_bytes() for p in bundle.iterdir()} == kept
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    checked = CliRunner().invoke(app, ["validate", str(path), "--out", str(empty),
+                                       *_records(tmp_path)])
+    assert checked.exit_code == 0 and f"run directory: ok: {empty}: empty" in checked.output

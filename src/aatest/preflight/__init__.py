@@ -3,10 +3,12 @@
 ``aatest validate`` and the first phase of ``aatest run`` run the same checks, in this order:
 the procedure (schema, analysis names and options), every plugin name, the report template
 (it loads in the sandbox), the plan (envelope, each analysis' requirements), whether the listed
-analyses can use every planned step, whether the sensor's nominal output stays inside the stated
-logger's input range (:mod:`.logger_range`), the free disk space for the planned recording, the lab
-profile, the signing key and its passphrase, and the records store (reachable, at the schema
-head). Every failed check is a located problem (``FILE:LINE:COLUMN``) and exit 2; ``validate
+analyses can use every planned step, whether the DAQ records every channel of the sensor
+(:mod:`.sensor_channels`), whether the sensor's nominal output stays inside the stated logger's
+input range (:mod:`.logger_range`), the free disk space for the planned recording, the run
+directory (new, empty or a run's own), the lab profile, the signing key and its passphrase, and
+the records store (reachable, at the schema head). Every failed check is a located problem
+(``FILE:LINE:COLUMN``, or the error naming the file or directory) and exit 2; ``validate
 --json`` lists each check with its status and message. A check that depends on a failed one is
 ``skipped`` (say which). Nothing here starts a rig plugin.
 
@@ -214,6 +216,7 @@ def preflight(procedure: Path, rig: Path | None, site: Site | None = None) -> Pr
         else:
             for name in ("plan", *_PLAN_CHECKS):
                 report.skip(name, "plugins")
+    report.add("run directory", *_guard(lambda: site_checks.run_directory_check(site.out_dir)))
     report.add("lab profile", *_guard(lambda: site_checks.lab_check(site.lab)))
     report.add("signing key", *_guard(lambda: site_checks.key_check(site.key, proc)))
     report.add("records store", *_guard(

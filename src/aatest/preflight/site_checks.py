@@ -1,5 +1,5 @@
-"""Preflight checks of what a run needs beside the procedure: the lab profile, the signing key
-(and its passphrase) and the records store.
+"""Preflight checks of what a run needs beside the procedure: the run directory, the lab
+profile, the signing key (and its passphrase) and the records store.
 
 Each returns ``(problems, message)`` or raises the error a run would meet later: the lab
 profile's own ``FILE:LINE:COLUMN`` problems from the model loader, a
@@ -90,3 +90,33 @@ def _creatable(folder: Path) -> bool:
         if candidate.exists():
             return os.access(candidate, os.W_OK)
     return False
+
+
+#: files of a run's directory listed when it is refused (the rest are counted)
+_SHOWN_FILES = 5
+
+
+def run_directory_check(out_dir: Path | None) -> Outcome:
+    """``--out`` is new, empty, or a run's own directory (its ``run_state.json``: ``run``
+    refuses it without ``--resume``). Why: a run writes its bundle into the directory and
+    signs every file in it, so a run into the directory of an earlier ``analyze`` replaced
+    that bundle's signed report and ``results.json``, and unrelated files there were signed
+    as part of the calibration. Raises InputError naming the directory and its files."""
+    from aatest.engine.errors import InputError
+    from aatest.engine.run.run_state import LOCK_FILE, STATE_FILE
+
+    if out_dir is None:
+        return [], "a new run directory is made"
+    if not out_dir.exists():
+        return [], f"{out_dir}: made by the run"
+    if not out_dir.is_dir():
+        raise InputError(f"{out_dir}: not a directory; choose a new or empty --out")
+    if (out_dir / STATE_FILE).is_file():
+        return [], f"{out_dir}: holds a run (continued with --resume)"
+    others = sorted(p.name for p in out_dir.iterdir() if p.name != LOCK_FILE)
+    if not others:
+        return [], f"{out_dir}: empty"
+    shown = ", ".join(others[:_SHOWN_FILES]) + (
+        f", … ({len(others)} entries)" if len(others) > _SHOWN_FILES else "")
+    raise InputError(f"{out_dir} holds files that are not a run ({shown}): a run writes its "
+                     "bundle there and signs every file in it; choose a new or empty --out")
