@@ -97,11 +97,11 @@ class RunController:
               pdf: bool = False) -> str:
         """Start a fresh run of a listed procedure for ``unit`` (else the procedure's sensor);
         ``pdf`` also prints the report to PDF. Returns the run's directory name."""
-        path = self.procedures.path(procedure_id)
-        from aatest.engine.run.session import prepare
+        from aatest.engine.procedure.loader import load_procedure
 
-        procedure = prepare(path, self.rig_file, unit).plan.procedure
-        run_dir = default_run_dir(procedure, self.history.runs_dir)
+        path = self.procedures.path(procedure_id)
+        # the run's name only: the preflight of _launch prepares the plan (and the rig) once
+        run_dir = default_run_dir(load_procedure(path).procedure, self.history.runs_dir)
         self._launch(path, run_dir, resume=False, operator=operator,
                      options=_Options(unit or UnitName(), pdf))
         return run_dir.name
