@@ -87,7 +87,10 @@ def test_steps_the_logger_clipped_are_left_out_of_the_diagnosis() -> None:
     rig = rig.model_copy(update={"daq": rig.daq.model_copy(update={"adc_range_v": (0.0, 3.6)})})
     data = simulate_dataset(rig, diagnostic_plan(2**12), 3, procedure="diagnose-scenario")
     top = {s.step.id: s.daq.channels["v_sz"].max() for s in data.steps}
-    at_rail = {step for step, v in top.items() if v == 3.6 - 3.6 / 2**16}  # exact in binary
+    # the top code 2^16 − 1 of the 0…3.6 V converter, q = 3.6 V / 2^16: a sample is code·q
+    # in float64, a few ulp (~1e-15 V) from 3.6 − q; half a step (27 µV) tells codes apart
+    q_v = 3.6 / 2**16
+    at_rail = {step for step, v in top.items() if abs(v - (3.6 - q_v)) < q_v / 2}
     assert at_rail == {s.step.id for s in data.steps if (s.step.accel_dps2 or 0) >= 300}
     doc = diagnose_dataset(data)
     assert set(doc["steps_clipped"]) == at_rail
